@@ -1,0 +1,1 @@
+//! accelcal host library.

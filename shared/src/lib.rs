@@ -1,0 +1,20 @@
+//! `accelcal-shared`: the no_std core of accelcal, shared by the host tool and the firmware.
+//!
+//! It holds the dividing-head kinematics, the polynomial model terms and the paper's candidate
+//! models, the test-turn formulas, the application of a linear (model 4) calibration in f64, f32 and
+//! fixed point, and the binary calibration record.
+//!
+//! Architecture invariants: this crate does no I/O, never allocates, and never panics on untrusted
+//! bytes (the record parser returns a typed error for any input).
+#![cfg_attr(not(any(test, feature = "std")), no_std)]
+#![deny(unsafe_code)]
+#![warn(missing_docs)]
+
+pub mod kinematics;
+pub mod linear;
+pub mod record;
+pub mod terms;
+pub mod testturn;
+
+pub use kinematics::{gravity, G_STANDARD};
+pub use terms::{Basis, Structure, Term, BASIS, N_BASIS};

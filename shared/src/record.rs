@@ -1,0 +1,364 @@
+//! The calibration record: the versioned binary format that carries a fitted model from the host
+//! to the node's flash.
+//!
+//! Layout of format version 1 (all integers little-endian):
+//!
+//! | offset | size | field |
+//! |---|---|---|
+//! | 0 | 4 | magic `ACAL` |
+//! | 4 | 2 | format version (1) |
+//! | 6 | 2 | total length in bytes, CRC included |
+//! | 8 | 12 | device id (the MCU's 96-bit unique id) |
+//! | 20 | 8 | creation time, seconds since the Unix epoch |
+//! | 28 | 1 | number of channels C (1..=8) |
+//! | 29 | 1 | number of terms T (1..=20) |
+//! | 30 | T | term indices into [`crate::BASIS`], strictly increasing, the first 0 (intercept) |
+//! | 30+T | 8·C·T | coefficients, f64, channel by channel, in term order |
+//! | end−4 | 4 | CRC-32 (ISO-HDLC) of every byte before it |
+//!
+//! No-panic contract: [`Record::parse`] returns `Ok` or a typed [`RecordError`] for every byte
+//! string; it checks the length before every field access. Every bit flip and every truncation of a
+//! valid record is rejected (CRC-32 detects all 1-bit errors; a truncation breaks the length
+//! field's agreement or the CRC).
+
+use crate::terms::{Structure, N_BASIS};
+
+/// Magic bytes at the start of every record.
+pub const MAGIC: [u8; 4] = *b"ACAL";
+/// The format version this crate writes.
+pub const FORMAT_VERSION: u16 = 1;
+/// Most channels one record holds.
+pub const MAX_CHANNELS: usize = 8;
+/// Bytes of the fixed header before the term list.
+pub const HEADER_LEN: usize = 30;
+/// Largest possible record, in bytes.
+pub const MAX_RECORD_LEN: usize = HEADER_LEN + N_BASIS + 8 * MAX_CHANNELS * N_BASIS + 4;
+
+mod field {
+    use core::ops::Range;
+    pub const MAGIC: Range<usize> = 0..4;
+    pub const VERSION: Range<usize> = 4..6;
+    pub const LENGTH: Range<usize> = 6..8;
+    pub const DEVICE_ID: Range<usize> = 8..20;
+    pub const CREATED: Range<usize> = 20..28;
+    pub const N_CHANNELS: usize = 28;
+    pub const N_TERMS: usize = 29;
+}
+
+const CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+
+/// CRC-32 (ISO-HDLC, the zlib/Ethernet one) of `bytes`.
+pub fn crc32(bytes: &[u8]) -> u32 {
+    CRC.checksum(bytes)
+}
+
+/// Why bytes are not a valid record.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RecordError {
+    /// Fewer bytes than the header or than the length field says.
+    Truncated,
+    /// The magic is not `ACAL` (e.g. erased flash).
+    BadMagic,
+    /// A format version this code does not read.
+    UnsupportedVersion(u16),
+    /// The length field disagrees with the channel and term counts.
+    BadLength,
+    /// Channel count is 0 or above [`MAX_CHANNELS`].
+    BadChannelCount,
+    /// Term count is 0 or above 20, or the term list is not strictly increasing from the intercept.
+    BadTerms,
+    /// The CRC does not match.
+    BadCrc,
+    /// A coefficient is NaN or infinite.
+    NonFinite,
+    /// The output buffer is too small (emit only).
+    BufferTooSmall,
+}
+
+impl core::fmt::Display for RecordError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            RecordError::Truncated => f.write_str("record is truncated"),
+            RecordError::BadMagic => f.write_str("not a calibration record (bad magic)"),
+            RecordError::UnsupportedVersion(v) => write!(f, "unsupported record format version {v}"),
+            RecordError::BadLength => f.write_str("record length field is inconsistent"),
+            RecordError::BadChannelCount => f.write_str("record channel count out of range"),
+            RecordError::BadTerms => f.write_str("record term list is invalid"),
+            RecordError::BadCrc => f.write_str("record CRC mismatch"),
+            RecordError::NonFinite => f.write_str("record holds a non-finite coefficient"),
+            RecordError::BufferTooSmall => f.write_str("buffer too small for the record"),
+        }
+    }
+}
+
+#[cfg(feature = "std")]
+impl std::error::Error for RecordError {}
+
+/// A calibration record: the model structure and per-channel coefficients for one device.
+///
+/// Equality compares what the record holds: coefficient slots beyond `n_channels` and the
+/// structure's term count are not part of it.
+#[derive(Clone, Copy, Debug)]
+pub struct Record {
+    /// The device (MCU unique id) the record was made for.
+    pub device_id: [u8; 12],
+    /// Creation time, seconds since the Unix epoch.
+    pub created_unix_s: u64,
+    /// The model's terms.
+    pub structure: Structure,
+    /// Number of channels in use (1..=8).
+    pub n_channels: u8,
+    /// Coefficients: `coefficients[c][n]` belongs to channel `c` and the `n`-th term of
+    /// `structure` in canonical order. Codes and codes per (m/s²)ⁿ.
+    pub coefficients: [[f64; N_BASIS]; MAX_CHANNELS],
+}
+
+impl PartialEq for Record {
+    fn eq(&self, o: &Record) -> bool {
+        let (n_ch, n_t) = (self.n_channels as usize, self.structure.len());
+        self.device_id == o.device_id
+            && self.created_unix_s == o.created_unix_s
+            && self.structure == o.structure
+            && self.n_channels == o.n_channels
+            && (0..n_ch.min(MAX_CHANNELS))
+                .all(|c| self.coefficients[c][..n_t] == o.coefficients[c][..n_t])
+    }
+}
+
+fn u16_at(b: &[u8], r: core::ops::Range<usize>) -> u16 {
+    let mut a = [0u8; 2];
+    a.copy_from_slice(&b[r]);
+    u16::from_le_bytes(a)
+}
+
+impl Record {
+    /// Number of bytes [`Record::emit`] writes.
+    pub fn len(&self) -> usize {
+        HEADER_LEN + self.structure.len() + 8 * self.n_channels as usize * self.structure.len() + 4
+    }
+
+    /// Never true: a record has a header.
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+
+    /// Parses and checks a record at the start of `bytes` (trailing bytes, e.g. the rest of an
+    /// erased flash page, are ignored). Never panics.
+    pub fn parse(bytes: &[u8]) -> Result<Record, RecordError> {
+        if bytes.len() < HEADER_LEN {
+            return Err(RecordError::Truncated);
+        }
+        if bytes[field::MAGIC] != MAGIC {
+            return Err(RecordError::BadMagic);
+        }
+        let version = u16_at(bytes, field::VERSION);
+        if version != FORMAT_VERSION {
+            return Err(RecordError::UnsupportedVersion(version));
+        }
+        let len = u16_at(bytes, field::LENGTH) as usize;
+        let n_ch = bytes[field::N_CHANNELS] as usize;
+        let n_t = bytes[field::N_TERMS] as usize;
+        if n_ch == 0 || n_ch > MAX_CHANNELS {
+            return Err(RecordError::BadChannelCount);
+        }
+        if n_t == 0 || n_t > N_BASIS {
+            return Err(RecordError::BadTerms);
+        }
+        if len != HEADER_LEN + n_t + 8 * n_ch * n_t + 4 {
+            return Err(RecordError::BadLength);
+        }
+        if bytes.len() < len {
+            return Err(RecordError::Truncated);
+        }
+        let body = &bytes[..len - 4];
+        let mut crc = [0u8; 4];
+        crc.copy_from_slice(&bytes[len - 4..len]);
+        if crc32(body) != u32::from_le_bytes(crc) {
+            return Err(RecordError::BadCrc);
+        }
+        let terms = &body[HEADER_LEN..HEADER_LEN + n_t];
+        if terms[0] != 0 {
+            return Err(RecordError::BadTerms);
+        }
+        let mut mask = 0u32;
+        let mut prev: Option<u8> = None;
+        for &t in terms {
+            if t as usize >= N_BASIS || prev.is_some_and(|p| t <= p) {
+                return Err(RecordError::BadTerms);
+            }
+            mask |= 1 << t;
+            prev = Some(t);
+        }
+        let mut rec = Record {
+            device_id: [0; 12],
+            created_unix_s: 0,
+            structure: Structure::from_mask(mask),
+            n_channels: n_ch as u8,
+            coefficients: [[0.0; N_BASIS]; MAX_CHANNELS],
+        };
+        rec.device_id.copy_from_slice(&body[field::DEVICE_ID]);
+        let mut t8 = [0u8; 8];
+        t8.copy_from_slice(&body[field::CREATED]);
+        rec.created_unix_s = u64::from_le_bytes(t8);
+        let coef = &body[HEADER_LEN + n_t..];
+        for (n, chunk) in coef.chunks_exact(8).enumerate() {
+            t8.copy_from_slice(chunk);
+            let v = f64::from_le_bytes(t8);
+            if !v.is_finite() {
+                return Err(RecordError::NonFinite);
+            }
+            rec.coefficients[n / n_t][n % n_t] = v;
+        }
+        Ok(rec)
+    }
+
+    /// Writes the record into `buf` and returns the number of bytes written.
+    pub fn emit(&self, buf: &mut [u8]) -> Result<usize, RecordError> {
+        let n_ch = self.n_channels as usize;
+        if n_ch == 0 || n_ch > MAX_CHANNELS {
+            return Err(RecordError::BadChannelCount);
+        }
+        let len = self.len();
+        if buf.len() < len {
+            return Err(RecordError::BufferTooSmall);
+        }
+        let n_t = self.structure.len();
+        buf[field::MAGIC].copy_from_slice(&MAGIC);
+        buf[field::VERSION].copy_from_slice(&FORMAT_VERSION.to_le_bytes());
+        buf[field::LENGTH].copy_from_slice(&(len as u16).to_le_bytes());
+        buf[field::DEVICE_ID].copy_from_slice(&self.device_id);
+        buf[field::CREATED].copy_from_slice(&self.created_unix_s.to_le_bytes());
+        buf[field::N_CHANNELS] = n_ch as u8;
+        buf[field::N_TERMS] = n_t as u8;
+        for (n, i) in self.structure.indices().enumerate() {
+            buf[HEADER_LEN + n] = i as u8;
+        }
+        let mut at = HEADER_LEN + n_t;
+        for c in 0..n_ch {
+            for n in 0..n_t {
+                let v = self.coefficients[c][n];
+                if !v.is_finite() {
+                    return Err(RecordError::NonFinite);
+                }
+                buf[at..at + 8].copy_from_slice(&v.to_le_bytes());
+                at += 8;
+            }
+        }
+        let crc = crc32(&buf[..at]);
+        buf[at..at + 4].copy_from_slice(&crc.to_le_bytes());
+        Ok(len)
+    }
+
+    /// The triad's model-4 calibration, when the record holds exactly model 4 for 3 channels.
+    pub fn model4(&self) -> Option<crate::linear::Model4> {
+        if self.structure != crate::terms::MODEL_4 || self.n_channels != 3 {
+            return None;
+        }
+        let mut m = crate::linear::Model4 { u0: [0.0; 3], k: [[0.0; 3]; 3] };
+        for c in 0..3 {
+            m.u0[c] = self.coefficients[c][0];
+            m.k[c] = [self.coefficients[c][1], self.coefficients[c][2], self.coefficients[c][3]];
+        }
+        Some(m)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::terms::MODEL_4;
+    use proptest::prelude::*;
+
+    fn sample() -> Record {
+        let mut r = Record {
+            device_id: *b"\x01\x02\x03\x04\x05\x06\x07\x08\x09\x0a\x0b\x0c",
+            created_unix_s: 1_795_000_000,
+            structure: MODEL_4,
+            n_channels: 3,
+            coefficients: [[0.0; N_BASIS]; MAX_CHANNELS],
+        };
+        r.coefficients[0][..4].copy_from_slice(&[32000.5, 1670.0, 3.0, -2.0]);
+        r.coefficients[1][..4].copy_from_slice(&[33000.25, 1.5, 1650.0, 4.0]);
+        r.coefficients[2][..4].copy_from_slice(&[31000.0, -2.5, 0.5, 1690.0]);
+        r
+    }
+
+    fn bytes(r: &Record) -> std::vec::Vec<u8> {
+        let mut buf = [0u8; MAX_RECORD_LEN];
+        let n = r.emit(&mut buf).unwrap();
+        buf[..n].to_vec()
+    }
+
+    #[test]
+    fn literal_bytes_of_a_small_record() {
+        let mut r = sample();
+        r.n_channels = 1;
+        r.structure = Structure::INTERCEPT;
+        r.coefficients[0][0] = 1.0;
+        let b = bytes(&r);
+        assert_eq!(b.len(), 30 + 1 + 8 + 4);
+        assert_eq!(&b[..8], b"ACAL\x01\x00\x2b\x00");
+        assert_eq!(&b[28..31], &[1, 1, 0]);
+        assert_eq!(&b[31..39], &1.0f64.to_le_bytes());
+        assert_eq!(Record::parse(&b).unwrap(), r);
+    }
+
+    #[test]
+    fn round_trip_and_trailing_bytes() {
+        let r = sample();
+        let mut b = bytes(&r);
+        assert_eq!(b.len(), r.len());
+        assert_eq!(Record::parse(&b).unwrap(), r);
+        b.extend_from_slice(&[0xff; 100]);
+        assert_eq!(Record::parse(&b).unwrap(), r);
+        assert_eq!(r.model4().unwrap().k[1][1], 1650.0);
+    }
+
+    #[test]
+    fn erased_flash_and_wrong_version_are_named() {
+        assert_eq!(Record::parse(&[0xff; 64]), Err(RecordError::BadMagic));
+        let mut b = bytes(&sample());
+        b[4] = 2;
+        assert_eq!(Record::parse(&b), Err(RecordError::UnsupportedVersion(2)));
+    }
+
+    #[test]
+    fn every_bit_flip_and_truncation_is_rejected() {
+        let b = bytes(&sample());
+        for i in 0..b.len() * 8 {
+            let mut c = b.clone();
+            c[i / 8] ^= 1 << (i % 8);
+            assert!(Record::parse(&c).is_err(), "flip of bit {i} accepted");
+        }
+        for n in 0..b.len() {
+            assert!(Record::parse(&b[..n]).is_err(), "truncation to {n} accepted");
+        }
+    }
+
+    #[test]
+    fn emit_refuses_non_finite_and_small_buffers() {
+        let mut r = sample();
+        assert_eq!(r.emit(&mut [0u8; 10]), Err(RecordError::BufferTooSmall));
+        r.coefficients[2][3] = f64::INFINITY;
+        assert_eq!(r.emit(&mut [0u8; MAX_RECORD_LEN]), Err(RecordError::NonFinite));
+    }
+
+    proptest! {
+        #[test]
+        fn any_bytes_parse_or_error(data in proptest::collection::vec(any::<u8>(), 0..1500)) {
+            let _ = Record::parse(&data);
+        }
+
+        #[test]
+        fn valid_header_with_random_body_never_panics(
+            body in proptest::collection::vec(any::<u8>(), 0..400), n_ch in 0u8..10, n_t in 0u8..22
+        ) {
+            let mut b = bytes(&sample());
+            b[28] = n_ch;
+            b[29] = n_t;
+            b.truncate(30);
+            b.extend_from_slice(&body);
+            let _ = Record::parse(&b);
+        }
+    }
+}
