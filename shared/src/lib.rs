@@ -13,8 +13,10 @@
 pub mod kinematics;
 pub mod linear;
 pub mod record;
+pub mod slots;
 pub mod terms;
 pub mod testturn;
+pub mod wire;
 
 pub use kinematics::{gravity, G_STANDARD};
 pub use terms::{Basis, Structure, Term, BASIS, N_BASIS};

@@ -1,0 +1,411 @@
+//! The node's link protocol: the messages that cross USART1 between host and node, defined once for
+//! both sides, and their framing.
+//!
+//! A frame is one message serialised with postcard, COBS-encoded, and terminated by a single `0x00`
+//! byte (COBS guarantees the encoded body holds no zero). Every message type is a plain serde enum;
+//! postcard encodes a variant as its index (varint) followed by its fields, integers as varints,
+//! floats as little-endian IEEE 754. The protocol version is [`PROTOCOL_VERSION`]; the node states
+//! it in every [`Status`], and new variants are only ever appended so that old bytes keep decoding.
+//!
+//! No-panic contract: [`FrameDecoder::push`] accepts any byte string. Malformed frames (bad COBS,
+//! bad postcard, unknown variant, frames longer than the decoder's buffer) come out as a typed
+//! [`FrameError`] and the decoder resynchronises at the next `0x00`.
+
+use heapless::Vec;
+use serde::{Deserialize, Serialize};
+
+/// Version of this protocol; bumped when a message changes incompatibly.
+pub const PROTOCOL_VERSION: u8 = 1;
+
+/// Most sample sets one message carries (live samples, replay requests and answers).
+pub const MAX_BLOCK: usize = 16;
+
+/// Longest encoded frame of any message in this module, the terminating zero included.
+///
+/// The largest message is a block of [`MAX_BLOCK`] f32 triads: 1 (variant) + 5 (seq varint) +
+/// 1 (block variant) + 1 (length) + 16·12 bytes = 200 bytes, plus COBS overhead (1 byte per 254)
+/// and the terminator.
+pub const MAX_FRAME: usize = 256;
+
+/// A raw 16-bit code set: channels x, y, z.
+pub type Codes = [u16; 3];
+
+/// What the host sends to the node.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum HostMsg {
+    /// Ask for a [`NodeMsg::Status`] now.
+    GetStatus,
+    /// Calibrate these raw code sets with the node's own arithmetic; the node answers
+    /// [`NodeMsg::Replayed`] with the same `seq`.
+    Replay {
+        /// Request number, echoed in the answer.
+        seq: u32,
+        /// Raw code sets, x, y, z.
+        codes: Vec<Codes, MAX_BLOCK>,
+    },
+}
+
+/// A block of sample sets in one of the node's output forms.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Block {
+    /// Calibrated acceleration `[ax, ay, az]` in m/s², computed in f32.
+    Calibrated(Vec<[f32; 3], MAX_BLOCK>),
+    /// Calibrated acceleration in fixed point, m/s²·2¹⁶ (the `fixed-point` firmware build).
+    CalibratedFixed(Vec<[i32; 3], MAX_BLOCK>),
+    /// Raw codes, NOT calibrated: the node has no valid record.
+    Uncalibrated(Vec<Codes, MAX_BLOCK>),
+}
+
+impl Block {
+    /// Number of sample sets in the block.
+    pub fn len(&self) -> usize {
+        match self {
+            Block::Calibrated(v) => v.len(),
+            Block::CalibratedFixed(v) => v.len(),
+            Block::Uncalibrated(v) => v.len(),
+        }
+    }
+
+    /// True when the block holds no sample set.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// Why the node runs without a calibration record.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum RecordFault {
+    /// Neither record slot holds a committed slot image (e.g. erased flash).
+    NoSlot,
+    /// The active slot's record does not parse; the value is the [`crate::record::RecordError`]
+    /// as named by [`record_error_code`].
+    BadRecord(u8),
+    /// The record was made for another device (MCU unique id mismatch).
+    WrongDevice,
+    /// The record is not model 4 for three channels.
+    NotModel4,
+    /// The record's sensitivity matrix cannot be inverted (or does not fit fixed point).
+    Singular,
+}
+
+/// The calibration record the node uses, or why it has none.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum RecordStatus {
+    /// A valid record is applied to every sample set.
+    InUse {
+        /// Record slot it was read from (0 or 1).
+        slot: u8,
+        /// The slot's write sequence number.
+        sequence: u32,
+        /// The record's creation time, seconds since the Unix epoch.
+        created_unix_s: u64,
+    },
+    /// No valid record: the node streams raw codes flagged uncalibrated.
+    Missing(RecordFault),
+}
+
+/// The node's health report.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Status {
+    /// [`PROTOCOL_VERSION`] of the node's firmware.
+    pub protocol: u8,
+    /// Record in use.
+    pub record: RecordStatus,
+    /// Sample sets lost because the output could not keep up (DMA ring overruns), since boot.
+    pub overruns: u32,
+    /// Sample sets acquired since boot.
+    pub sample_sets: u32,
+    /// Sampling rate per channel, Hz (0 on a board whose samples arrive over the link).
+    pub rate_hz: u32,
+    /// Host frames the node could not decode, since boot.
+    pub bad_frames: u32,
+}
+
+/// What the node sends to the host.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum NodeMsg {
+    /// Health report, sent periodically and on [`HostMsg::GetStatus`].
+    Status(Status),
+    /// Live samples, `seq` counting blocks since boot.
+    Samples {
+        /// Block number since boot (gaps mean lost blocks).
+        seq: u32,
+        /// The sample sets.
+        data: Block,
+    },
+    /// The answer to [`HostMsg::Replay`] with the same `seq`.
+    Replayed {
+        /// The request's number.
+        seq: u32,
+        /// The request's code sets, calibrated (or flagged uncalibrated).
+        data: Block,
+    },
+}
+
+/// Why a frame could not be encoded or decoded.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FrameError {
+    /// The frame is longer than the decoder's buffer (or the encode buffer is too small).
+    TooLong,
+    /// The COBS or postcard content is invalid (unknown variant, truncated field, bad varint...).
+    Malformed,
+}
+
+impl core::fmt::Display for FrameError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            FrameError::TooLong => "frame too long",
+            FrameError::Malformed => "malformed frame",
+        })
+    }
+}
+
+#[cfg(feature = "std")]
+impl std::error::Error for FrameError {}
+
+/// A stable one-byte code for a record error, for [`RecordFault::BadRecord`].
+pub fn record_error_code(e: crate::record::RecordError) -> u8 {
+    use crate::record::RecordError as E;
+    match e {
+        E::Truncated => 1,
+        E::BadMagic => 2,
+        E::UnsupportedVersion(_) => 3,
+        E::BadLength => 4,
+        E::BadChannelCount => 5,
+        E::BadTerms => 6,
+        E::BadCrc => 7,
+        E::NonFinite => 8,
+        E::BufferTooSmall => 9,
+    }
+}
+
+/// Serialises `msg` into one frame (COBS body and terminating zero) at the start of `buf` and
+/// returns the frame.
+pub fn encode<'a, T: Serialize>(msg: &T, buf: &'a mut [u8]) -> Result<&'a [u8], FrameError> {
+    match postcard::to_slice_cobs(msg, buf) {
+        Ok(frame) => Ok(frame),
+        Err(_) => Err(FrameError::TooLong),
+    }
+}
+
+/// Accumulates link bytes into frames and decodes them; `N` is the longest accepted frame.
+pub struct FrameDecoder<const N: usize> {
+    buf: [u8; N],
+    len: usize,
+    overflow: bool,
+}
+
+impl<const N: usize> Default for FrameDecoder<N> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<const N: usize> FrameDecoder<N> {
+    /// An empty decoder.
+    pub const fn new() -> Self {
+        FrameDecoder { buf: [0; N], len: 0, overflow: false }
+    }
+
+    /// Feeds bytes; calls `on_frame` once per complete frame with the decoded message or why it
+    /// failed. Empty frames (two zeros in a row) are skipped silently: a sender may emit a lone
+    /// zero to resynchronise the receiver.
+    pub fn push<T, F>(&mut self, bytes: &[u8], mut on_frame: F)
+    where
+        T: for<'de> Deserialize<'de>,
+        F: FnMut(Result<T, FrameError>),
+    {
+        for &b in bytes {
+            if b != 0 {
+                if self.len < N {
+                    self.buf[self.len] = b;
+                    self.len += 1;
+                } else {
+                    self.overflow = true;
+                }
+                continue;
+            }
+            let (len, overflow) = (self.len, self.overflow);
+            self.len = 0;
+            self.overflow = false;
+            if overflow {
+                on_frame(Err(FrameError::TooLong));
+            } else if len > 0 {
+                on_frame(
+                    postcard::from_bytes_cobs::<T>(&mut self.buf[..len])
+                        .map_err(|_| FrameError::Malformed),
+                );
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn decode_all<T: for<'de> Deserialize<'de>>(bytes: &[u8]) -> std::vec::Vec<Result<T, FrameError>> {
+        let mut d = FrameDecoder::<MAX_FRAME>::new();
+        let mut out = std::vec::Vec::new();
+        d.push(bytes, |m| out.push(m));
+        out
+    }
+
+    fn codes(v: &[Codes]) -> Vec<Codes, MAX_BLOCK> {
+        Vec::from_slice(v).unwrap()
+    }
+
+    #[test]
+    fn get_status_literal_bytes() {
+        // postcard: variant 0 → [0x00]; COBS: [0x01, 0x01]; terminator 0x00.
+        let mut buf = [0u8; MAX_FRAME];
+        assert_eq!(encode(&HostMsg::GetStatus, &mut buf).unwrap(), &[0x01, 0x01, 0x00]);
+        assert_eq!(decode_all::<HostMsg>(&[0x01, 0x01, 0x00]), vec![Ok(HostMsg::GetStatus)]);
+    }
+
+    #[test]
+    fn replay_literal_bytes() {
+        // Replay = variant 1, seq 300 = varint [0xac, 0x02], 2 sets, u16 varints:
+        // 1 → [0x01], 2 → [0x02], 0x8000 → [0x80, 0x80, 0x02], then 0, 65535 → [0xff, 0xff, 0x03], 7.
+        let raw: &[u8] = &[
+            0x01, 0xac, 0x02, 0x02, 0x01, 0x02, 0x80, 0x80, 0x02, 0x00, 0xff, 0xff, 0x03, 0x07,
+        ];
+        let msg = HostMsg::Replay { seq: 300, codes: codes(&[[1, 2, 0x8000], [0, 65535, 7]]) };
+        assert_eq!(postcard::to_slice(&msg, &mut [0u8; 64]).unwrap(), raw);
+        // COBS: the zero at offset 9 splits the body into 9 + 4 non-zero bytes.
+        let framed: &[u8] = &[
+            0x0a, 0x01, 0xac, 0x02, 0x02, 0x01, 0x02, 0x80, 0x80, 0x02, 0x05, 0xff, 0xff, 0x03,
+            0x07, 0x00,
+        ];
+        let mut buf = [0u8; MAX_FRAME];
+        assert_eq!(encode(&msg, &mut buf).unwrap(), framed);
+        assert_eq!(decode_all::<HostMsg>(framed), vec![Ok(msg)]);
+    }
+
+    #[test]
+    fn replayed_answer_literal_bytes() {
+        // Replayed = variant 2, seq 5, Calibrated = variant 0, 1 set of f32 LE: 1.0, -2.5, 0.0.
+        let msg = NodeMsg::Replayed {
+            seq: 5,
+            data: Block::Calibrated(Vec::from_slice(&[[1.0, -2.5, 0.0]]).unwrap()),
+        };
+        let raw: &[u8] = &[
+            0x02, 0x05, 0x00, 0x01, 0x00, 0x00, 0x80, 0x3f, 0x00, 0x00, 0x20, 0xc0, 0x00, 0x00,
+            0x00, 0x00,
+        ];
+        assert_eq!(postcard::to_slice(&msg, &mut [0u8; 64]).unwrap(), raw);
+        let mut buf = [0u8; MAX_FRAME];
+        let frame = encode(&msg, &mut buf).unwrap().to_vec();
+        assert_eq!(decode_all::<NodeMsg>(&frame), vec![Ok(msg)]);
+    }
+
+    #[test]
+    fn status_round_trip_and_largest_message_fits() {
+        let st = NodeMsg::Status(Status {
+            protocol: PROTOCOL_VERSION,
+            record: RecordStatus::InUse { slot: 1, sequence: u32::MAX, created_unix_s: u64::MAX },
+            overruns: u32::MAX,
+            sample_sets: u32::MAX,
+            rate_hz: 1000,
+            bad_frames: 3,
+        });
+        let big = NodeMsg::Samples {
+            seq: u32::MAX,
+            data: Block::Calibrated(Vec::from_slice(&[[f32::MAX; 3]; MAX_BLOCK]).unwrap()),
+        };
+        let mut buf = [0u8; MAX_FRAME];
+        for m in [st, big] {
+            let frame = encode(&m, &mut buf).unwrap().to_vec();
+            assert!(frame.len() <= MAX_FRAME);
+            assert_eq!(decode_all::<NodeMsg>(&frame), vec![Ok(m)]);
+        }
+    }
+
+    #[test]
+    fn garbage_is_reported_and_the_decoder_resynchronises() {
+        let mut bytes = vec![0x05, 0x09, 0x00]; // COBS says 4 more bytes, only 1 follows
+        bytes.extend_from_slice(&[0x02, 0x63, 0x00]); // variant 99: unknown
+        bytes.extend_from_slice(&[0x00, 0x00]); // empty frames: skipped
+        bytes.extend_from_slice(&[0x11; MAX_FRAME + 10]); // too long
+        bytes.push(0x00);
+        bytes.extend_from_slice(&[0x01, 0x01, 0x00]); // GetStatus
+        let got = decode_all::<HostMsg>(&bytes);
+        assert_eq!(
+            got,
+            vec![
+                Err(FrameError::Malformed),
+                Err(FrameError::Malformed),
+                Err(FrameError::TooLong),
+                Ok(HostMsg::GetStatus)
+            ]
+        );
+    }
+
+    #[test]
+    fn frames_split_across_pushes_decode() {
+        let msg = HostMsg::Replay { seq: 9, codes: codes(&[[10, 20, 30]; 16]) };
+        let mut buf = [0u8; MAX_FRAME];
+        let frame = encode(&msg, &mut buf).unwrap().to_vec();
+        let mut d = FrameDecoder::<MAX_FRAME>::new();
+        let mut out = std::vec::Vec::new();
+        for chunk in frame.chunks(3) {
+            d.push(chunk, |m: Result<HostMsg, _>| out.push(m));
+        }
+        assert_eq!(out, vec![Ok(msg)]);
+    }
+
+    #[test]
+    fn replay_with_more_than_max_block_sets_is_malformed() {
+        // Variant 1, seq 0, 17 sets of [1, 1, 1]: heapless refuses the 17th.
+        let mut raw = vec![0x01, 0x00, 17];
+        raw.extend(std::iter::repeat_n(0x01, 17 * 3));
+        let mut framed = vec![0u8; 128];
+        let n = cobs_encode(&raw, &mut framed);
+        framed.truncate(n);
+        framed.push(0);
+        assert_eq!(decode_all::<HostMsg>(&framed), vec![Err(FrameError::Malformed)]);
+    }
+
+    /// Plain COBS encoder for the tests (no zero in the input in this use).
+    fn cobs_encode(src: &[u8], dst: &mut [u8]) -> usize {
+        let mut out = 1;
+        let mut code_at = 0;
+        let mut code = 1u8;
+        for &b in src {
+            if b == 0 || code == 0xff {
+                dst[code_at] = code;
+                code_at = out;
+                out += 1;
+                code = 1;
+                if b == 0 {
+                    continue;
+                }
+            }
+            dst[out] = b;
+            out += 1;
+            code += 1;
+        }
+        dst[code_at] = code;
+        out
+    }
+
+    #[test]
+    fn random_bytes_never_panic() {
+        let mut s = 0x2545_F491_4F6C_DD1Du64;
+        let mut d = FrameDecoder::<MAX_FRAME>::new();
+        let mut frames = 0;
+        for _ in 0..20_000 {
+            let mut chunk = [0u8; 64];
+            for b in &mut chunk {
+                s ^= s << 13;
+                s ^= s >> 7;
+                s ^= s << 17;
+                // Zeros about one byte in 16, so many short frames form.
+                *b = if s & 0xf == 0 { 0 } else { (s >> 32) as u8 };
+            }
+            d.push(&chunk, |_: Result<NodeMsg, _>| frames += 1);
+            d.push(&chunk, |_: Result<HostMsg, _>| frames += 1);
+        }
+        assert!(frames > 10_000);
+    }
+}
