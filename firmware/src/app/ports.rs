@@ -1,0 +1,41 @@
+//! The small traits through which the application sees a board.
+#![allow(async_fn_in_trait)]
+
+use accelcal_shared::slots::{N_SLOTS, SLOT_SIZE};
+use accelcal_shared::wire::{Codes, MAX_BLOCK};
+
+/// The receiving half of the host link.
+pub trait LinkRx {
+    /// Waits for at least one byte and returns how many were put into `buf`.
+    async fn read(&mut self, buf: &mut [u8]) -> usize;
+}
+
+/// The sending half of the host link.
+pub trait LinkTx {
+    /// Sends all of `bytes`.
+    async fn write_all(&mut self, bytes: &[u8]);
+}
+
+/// Sample sets lost before the application could read them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, defmt::Format)]
+pub struct Overrun {
+    /// Number of sample sets lost.
+    pub lost: u32,
+}
+
+/// A source of live sample sets (the ADC on the real board).
+pub trait SampleSource {
+    /// Sampling rate per channel, Hz.
+    fn rate_hz(&self) -> u32;
+    /// Waits for the next block of sample sets and copies it into `out`; returns how many.
+    /// An `Err` reports sets lost since the last call; the source keeps running.
+    async fn read_block(&mut self, out: &mut [Codes; MAX_BLOCK]) -> Result<usize, Overrun>;
+}
+
+/// Where the calibration records live and whose they must be.
+pub trait RecordStorage {
+    /// The two record slots, memory-mapped.
+    fn slots(&self) -> [&'static [u8; SLOT_SIZE]; N_SLOTS];
+    /// The MCU's 96-bit unique id, which a record's device id must equal.
+    fn device_id(&self) -> [u8; 12];
+}
