@@ -67,8 +67,8 @@ pub struct SimulateArgs {
     /// sensitive axes cycling x, y, z).
     #[arg(long, default_value = "triad", value_parser = parse_layout)]
     pub layout: Layout,
-    /// Sample sets per position.
-    #[arg(long, default_value_t = 50)]
+    /// Sample sets per position (the dwell; its mean is what selection and fits use).
+    #[arg(long, default_value_t = 400)]
     pub samples: usize,
     /// Sample rate, Hz.
     #[arg(long, default_value_t = 100.0)]
@@ -86,13 +86,16 @@ pub struct SimulateArgs {
     #[arg(long, default_value_t = 0.01)]
     pub scale_sd: f64,
     /// Misalignment of each sensitive axis, rad (one sigma per angle).
-    #[arg(long, default_value_t = 0.005)]
+    #[arg(long, default_value_t = 0.01)]
     pub misalign_sd: f64,
     /// Add an error effect, `NAME=KEY:VALUE,...` (repeatable). Known: `nonlinearity=k2:C,TERM:C`
     /// (C in codes per (m/s^2)^n; k2 multiplies the squared sensitive-axis acceleration, TERM is any
     /// basis term such as ax*ay).
     #[arg(long = "effect", value_name = "NAME=PARAMS")]
     pub effects: Vec<String>,
+    /// An ideal ADC: no rounding to whole codes, no clipping (for checks against exact values).
+    #[arg(long)]
+    pub ideal_adc: bool,
     /// Gravity, m/s².
     #[arg(long, default_value_t = accelcal_shared::G_STANDARD)]
     pub g: f64,

@@ -1,7 +1,11 @@
 //! Combinatorial GMDH: fit every candidate structure on part A, score it by an external
 //! criterion, and pick the simplest model within a tolerance of the best.
 //!
-//! Criteria (all reported as an RMS in ADC codes over the rows of the part they score):
+//! Criteria, all reported as an RMS in ADC codes of the dwell-mean residuals over the positions of
+//! the part they score (each position weighted by its rows). The regressors depend on the
+//! position only, so the within-dwell scatter is the same for every model: it is left out, so that
+//! the one-code tolerance compares what the models can change.
+//!
 //! - regularity `Δ(B|A)`: error on B of the model fitted on A;
 //! - symmetric `d`: error on B of the A-fit together with error on A of the B-fit, over A∪B;
 //! - rss: error on A∪B of the model fitted on A∪B.
@@ -10,7 +14,7 @@
 //! of each part are formed once for the whole basis; each candidate solves its sub-system by a
 //! Cholesky factorisation that flags a pivot below [`PIVOT_TOL`] of its diagonal as rank
 //! deficiency (the model is then "not identifiable", never ranked). Residuals are evaluated on the
-//! dwell means, plus the within-dwell sum of squares, which is the same for every model.
+//! dwell means.
 
 use accelcal_shared::{Basis, Structure, N_BASIS};
 use rayon::prelude::*;
@@ -164,8 +168,6 @@ struct Part {
     moment: Vec<f64>,
     /// Rows in the part.
     rows: f64,
-    /// Within-dwell sum of squares.
-    within: f64,
 }
 
 struct Design {
@@ -215,13 +217,11 @@ impl Design {
             }
         }
         let rows = idx.iter().map(|&p| pos.weight[p]).sum();
-        let within = idx.iter().map(|&p| ch.within_ss[p]).sum();
         Part {
             idx,
             gram,
             moment,
             rows,
-            within,
         }
     }
 }
@@ -275,7 +275,7 @@ fn sse(
     sel: &[usize],
     beta: &[f64],
 ) -> f64 {
-    let mut s = part.within;
+    let mut s = 0.0;
     for &p in &part.idx {
         let zp = &d.z[p * d.m..(p + 1) * d.m];
         let pred: f64 = sel.iter().zip(beta).map(|(&c, b)| zp[c] * b).sum();

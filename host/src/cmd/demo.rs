@@ -18,7 +18,7 @@ pub fn run(a: &DemoArgs) -> anyhow::Result<()> {
     let g = accelcal_shared::G_STANDARD;
 
     steps.set_message(
-        "simulating an MS9002-class triad on the dividing head (62 positions x 50 samples)",
+        "simulating an MS9002-class triad on the dividing head (62 positions x 400 samples)",
     );
     let cfg = SimConfig {
         seed: a.seed,

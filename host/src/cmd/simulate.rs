@@ -48,6 +48,7 @@ pub fn config(a: &SimulateArgs) -> anyhow::Result<SimConfig> {
         scale_sd: a.scale_sd,
         misalign_sd: a.misalign_sd,
         effects,
+        quantize: !a.ideal_adc,
     })
 }
 

@@ -77,6 +77,8 @@ pub struct SimConfig {
     pub misalign_sd: f64,
     /// Error effects added to the ideal output.
     pub effects: Vec<Box<dyn Effect>>,
+    /// Round to whole codes and clip to the ADC range (false: an ideal, infinitely fine ADC).
+    pub quantize: bool,
 }
 
 impl Default for SimConfig {
@@ -86,14 +88,15 @@ impl Default for SimConfig {
             plan: Plan::head(),
             layout: Layout::Triad,
             g: accelcal_shared::G_STANDARD,
-            samples: 50,
+            samples: 400,
             rate_hz: 100.0,
             move_s: 2.0,
             noise: 80.0,
             bias_sd: 300.0,
             scale_sd: 0.01,
-            misalign_sd: 0.005,
+            misalign_sd: 0.01,
             effects: Vec::new(),
+            quantize: true,
         }
     }
 }
@@ -190,7 +193,7 @@ pub fn simulate(cfg: &SimConfig) -> (Campaign, Truth) {
                     u += e.output(&ctx);
                 }
                 u += noise.sample(&mut rng);
-                c.channels[ch].codes.push(u.round().clamp(0.0, ADC_MAX));
+                c.channels[ch].codes.push(if cfg.quantize { u.round().clamp(0.0, ADC_MAX) } else { u });
             }
             t += dt;
         }
