@@ -33,6 +33,14 @@ pub enum Command {
     Compare(CompareArgs),
     /// Run the whole job on built-in simulated data: simulate, select, fit, compare, plot.
     Demo(DemoArgs),
+    /// Write a calibration record into a sensor node's flash through a debug probe (the inactive
+    /// record slot; the firmware is never erased, the old record stays in force until the new
+    /// one is complete).
+    Flash(crate::node::cli::FlashArgs),
+    /// Show a sensor node's live stream (calibrated samples and status) from its serial port.
+    Monitor(crate::node::cli::MonitorArgs),
+    /// Replay a campaign through the node firmware running in QEMU and write what it computed.
+    Hil(crate::node::cli::HilArgs),
 }
 
 /// Options shared by the commands that read a campaign.

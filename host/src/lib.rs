@@ -11,6 +11,7 @@ pub mod compare;
 pub mod error;
 pub mod gmdh;
 pub mod lsq;
+pub mod node;
 pub mod output;
 pub mod plot;
 pub mod positions;

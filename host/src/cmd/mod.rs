@@ -21,6 +21,9 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Fit(a) => fit::run(&a),
         Command::Compare(a) => compare::run(&a),
         Command::Demo(a) => demo::run(&a),
+        Command::Flash(a) => crate::node::cli::run_flash(&a),
+        Command::Monitor(a) => crate::node::cli::run_monitor(&a),
+        Command::Hil(a) => crate::node::cli::run_hil(&a),
     }
 }
 

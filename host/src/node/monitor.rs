@@ -1,0 +1,75 @@
+//! `accelcal monitor`: shows a node's live stream from its serial port (the board's ST-LINK
+//! virtual COM port, USART1).
+
+use std::io::Write;
+use std::time::Duration;
+
+use accelcal_shared::wire::{Block, NodeMsg, RecordStatus, Status};
+
+use super::link::{LinkError, Receiver};
+
+/// The node's USART1 baud rate (`firmware/src/board/real.rs`).
+pub const NODE_BAUD: u32 = 921_600;
+
+/// One line of text for a status report.
+pub fn format_status(s: &Status) -> String {
+    let record = match s.record {
+        RecordStatus::InUse { slot, sequence, created_unix_s } => {
+            format!("record slot {slot} seq {sequence} created {created_unix_s}")
+        }
+        RecordStatus::Missing(f) => format!("NO RECORD ({f:?}): output is UNCALIBRATED"),
+    };
+    format!(
+        "status: protocol {}, {record}, rate {} Hz, sample sets {}, overruns {}, bad frames {}",
+        s.protocol, s.rate_hz, s.sample_sets, s.overruns, s.bad_frames
+    )
+}
+
+/// Lines of text for a block of samples: `seq ax ay az` (m/s²) or `seq RAW x y z`.
+pub fn format_block(seq: u32, data: &Block) -> Vec<String> {
+    match data {
+        Block::Calibrated(v) => v.iter().map(|a| format!("{seq} {:.5} {:.5} {:.5}", a[0], a[1], a[2])).collect(),
+        Block::CalibratedFixed(v) => v
+            .iter()
+            .map(|a| {
+                let f = |q: i32| q as f64 / 65536.0;
+                format!("{seq} {:.5} {:.5} {:.5}", f(a[0]), f(a[1]), f(a[2]))
+            })
+            .collect(),
+        Block::Uncalibrated(v) => v.iter().map(|c| format!("{seq} RAW {} {} {}", c[0], c[1], c[2])).collect(),
+    }
+}
+
+/// Reads messages from `port` at `baud` and prints them to `out`, until `count` messages (all of
+/// them when `None`) or an error.
+pub fn monitor(port: &str, baud: u32, count: Option<u64>, out: &mut impl Write) -> anyhow::Result<()> {
+    let port = serialport::new(port, baud)
+        .timeout(Duration::from_secs(3600))
+        .open()
+        .map_err(|e| crate::error::bad(format!("{port}: cannot open serial port: {e}")))?;
+    let mut rx = Receiver::new(port);
+    let mut seen = 0u64;
+    let mut last_seq: Option<u32> = None;
+    while count.is_none_or(|c| seen < c) {
+        match rx.recv() {
+            Ok(Ok(NodeMsg::Status(s))) => writeln!(out, "{}", format_status(&s))?,
+            Ok(Ok(NodeMsg::Samples { seq, data })) => {
+                if let Some(prev) = last_seq {
+                    if seq != prev.wrapping_add(1) {
+                        writeln!(out, "# gap: blocks {} to {} lost", prev.wrapping_add(1), seq.wrapping_sub(1))?;
+                    }
+                }
+                last_seq = Some(seq);
+                for line in format_block(seq, &data) {
+                    writeln!(out, "{line}")?;
+                }
+            }
+            Ok(Ok(NodeMsg::Replayed { seq, .. })) => writeln!(out, "# replay answer {seq}")?,
+            Ok(Err(e)) => writeln!(out, "# bad frame: {e}")?,
+            Err(LinkError::Closed) => break,
+            Err(e) => return Err(e.into()),
+        }
+        seen += 1;
+    }
+    Ok(())
+}
