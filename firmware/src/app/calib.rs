@@ -26,7 +26,7 @@ pub enum Calibration {
 }
 
 /// Calibrates `codes` into `out` (m/s²), pairwise, in f32. The node's hot path.
-#[unsafe(no_mangle)]
+#[cfg_attr(not(feature = "fixed-point"), unsafe(no_mangle))]
 #[inline(never)]
 pub fn calibrate_block_f32(cal: &LinearCalF32, codes: &[Codes], out: &mut [[f32; 3]]) {
     for (u, a) in codes.iter().zip(out.iter_mut()) {
@@ -35,7 +35,7 @@ pub fn calibrate_block_f32(cal: &LinearCalF32, codes: &[Codes], out: &mut [[f32;
 }
 
 /// Calibrates `codes` into `out` (m/s²·2¹⁶), pairwise, in fixed point.
-#[unsafe(no_mangle)]
+#[cfg_attr(feature = "fixed-point", unsafe(no_mangle))]
 #[inline(never)]
 pub fn calibrate_block_fixed(cal: &LinearCalFixed, codes: &[Codes], out: &mut [[i32; 3]]) {
     for (u, a) in codes.iter().zip(out.iter_mut()) {

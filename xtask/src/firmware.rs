@@ -1,0 +1,324 @@
+//! Firmware tasks: building both node builds, running the QEMU tests, and the benchmark (exact
+//! instruction count of the calibration hot path on the emulated Cortex-M4F, and the real build's
+//! flash and static RAM footprint). Every command is printed before it runs.
+
+use std::io::{Read, Write};
+use std::os::unix::net::UnixStream;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use accelcal_shared::linear::Model4;
+use accelcal_shared::record::{Record, MAX_CHANNELS, MAX_RECORD_LEN};
+use accelcal_shared::slots::SlotImage;
+use accelcal_shared::terms::{MODEL_4, N_BASIS};
+use accelcal_shared::wire::{self, Block, FrameDecoder, HostMsg, NodeMsg, RecordStatus, MAX_FRAME};
+use anyhow::{bail, ensure, Context};
+use object::{Object, ObjectSection, ObjectSymbol, SectionKind};
+
+/// Flash of the STM32L475VG (memory.x): where text, rodata and the initial values of data live.
+const FLASH: std::ops::Range<u64> = 0x0800_0000..0x0810_0000;
+/// SRAM1 (memory.x).
+const RAM: std::ops::Range<u64> = 0x2000_0000..0x2001_8000;
+/// Address of record slot 0 (memory.x).
+const SLOT0: u64 = 0x080F_F000;
+/// Footprint budgets of the issue.
+const FLASH_BUDGET: u64 = 48 * 1024;
+const RAM_BUDGET: u64 = 16 * 1024;
+/// The hot-path symbol (firmware/src/app/calib.rs).
+const HOT_PATH: &str = "calibrate_block_f32";
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn fw_dir() -> PathBuf {
+    root().join("firmware")
+}
+
+fn elf(bin: &str) -> PathBuf {
+    fw_dir().join("target/thumbv7em-none-eabihf/release").join(bin)
+}
+
+/// Prints and runs a command; fails unless it succeeds.
+fn run(cmd: &mut Command) -> anyhow::Result<()> {
+    let dir = cmd.get_current_dir().map(|d| format!("(cd {} && ", d.display())).unwrap_or_default();
+    let args: Vec<String> = cmd.get_args().map(|a| a.to_string_lossy().into_owned()).collect();
+    let envs: Vec<String> = cmd
+        .get_envs()
+        .filter_map(|(k, v)| Some(format!("{}={} ", k.to_string_lossy(), v?.to_string_lossy())))
+        .collect();
+    let close = if dir.is_empty() { "" } else { ")" };
+    println!("$ {dir}{}{} {}{close}", envs.concat(), cmd.get_program().to_string_lossy(), args.join(" "));
+    let status = cmd.status().with_context(|| format!("cannot run {:?}", cmd.get_program()))?;
+    ensure!(status.success(), "{:?} failed: {status}", cmd.get_program());
+    Ok(())
+}
+
+/// A cargo command for the firmware workspace (its own .cargo/config.toml picks the target).
+fn fw_cargo(args: &[&str]) -> Command {
+    let mut c = Command::new(std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into()));
+    c.current_dir(fw_dir()).args(args);
+    // Settings of the outer (host) cargo invocation must not leak into the thumb build.
+    for k in ["RUSTFLAGS", "CARGO_ENCODED_RUSTFLAGS", "CARGO_TARGET_DIR", "CARGO_BUILD_TARGET"] {
+        c.env_remove(k);
+    }
+    c
+}
+
+fn setup_qemu() -> anyhow::Result<()> {
+    run(Command::new("bash").arg(root().join("scripts/setup-qemu.sh")))
+}
+
+fn build_real() -> anyhow::Result<()> {
+    run(&mut fw_cargo(&["build", "--release", "--features", "board-real", "--bin", "node-real"]))
+}
+
+fn build_qemu() -> anyhow::Result<()> {
+    run(&mut fw_cargo(&["build", "--release", "--features", "board-qemu", "--bin", "node-qemu"]))
+}
+
+/// `cargo xtask test` (firmware part): installs QEMU when missing, builds the real firmware and
+/// the QEMU build, checks the fixed-point build, and runs the QEMU tests.
+pub fn test() -> anyhow::Result<()> {
+    setup_qemu()?;
+    build_real()?;
+    build_qemu()?;
+    run(&mut fw_cargo(&["check", "--release", "--features", "board-qemu,fixed-point", "--bin", "node-qemu"]))?;
+    let mut t = Command::new(std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into()));
+    t.current_dir(root())
+        .args(["test", "-p", "accelcal", "--test", "hil"])
+        .env("ACCELCAL_NODE_QEMU_ELF", elf("node-qemu"));
+    run(&mut t)
+}
+
+/// Flash (text + data) and static RAM (data + bss + uninit) of an ELF, from its sections.
+pub fn footprint(path: &Path) -> anyhow::Result<(u64, u64)> {
+    let data = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    let file = object::File::parse(&*data).with_context(|| format!("parsing {}", path.display()))?;
+    let (mut flash, mut ram) = (0u64, 0u64);
+    for s in file.sections() {
+        let (addr, size) = (s.address(), s.size());
+        if size == 0 {
+            continue;
+        }
+        match s.kind() {
+            SectionKind::UninitializedData | SectionKind::UninitializedTls if RAM.contains(&addr) => ram += size,
+            SectionKind::Data | SectionKind::Tls if RAM.contains(&addr) => {
+                ram += size;
+                flash += size; // initial values are copied from flash at boot
+            }
+            SectionKind::Text | SectionKind::ReadOnlyData | SectionKind::ReadOnlyString | SectionKind::Data
+                if FLASH.contains(&addr) =>
+            {
+                flash += size
+            }
+            _ => {}
+        }
+    }
+    Ok((flash, ram))
+}
+
+/// Address range of a function symbol (Thumb bit cleared).
+fn symbol_range(path: &Path, name: &str) -> anyhow::Result<std::ops::Range<u64>> {
+    let data = std::fs::read(path)?;
+    let file = object::File::parse(&*data)?;
+    let sym = file
+        .symbols()
+        .find(|s| s.name() == Ok(name))
+        .with_context(|| format!("{}: no symbol {name}", path.display()))?;
+    let start = sym.address() & !1;
+    ensure!(sym.size() > 0, "{name} has no size");
+    Ok(start..start + sym.size())
+}
+
+/// The record the benchmark loads: a plausible triad (codes per m/s² ≈ 1670, mid-scale offsets).
+fn bench_record() -> anyhow::Result<Vec<u8>> {
+    let m = Model4 {
+        u0: [32100.5, 33012.25, 31877.75],
+        k: [[1671.2, 8.5, -3.25], [-4.0, 1650.75, 6.5], [2.5, -7.75, 1689.0]],
+    };
+    let mut r = Record {
+        device_id: *b"QEMU-B-L475E",
+        created_unix_s: 1_800_000_000,
+        structure: MODEL_4,
+        n_channels: 3,
+        coefficients: [[0.0; N_BASIS]; MAX_CHANNELS],
+    };
+    for c in 0..3 {
+        r.coefficients[c][..4].copy_from_slice(&[m.u0[c], m.k[c][0], m.k[c][1], m.k[c][2]]);
+    }
+    let mut buf = [0u8; MAX_RECORD_LEN];
+    let n = r.emit(&mut buf).map_err(|e| anyhow::anyhow!("{e}"))?;
+    Ok(buf[..n].to_vec())
+}
+
+struct Qemu(Child);
+
+impl Drop for Qemu {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn frame(msg: &HostMsg) -> anyhow::Result<Vec<u8>> {
+    let mut buf = [0u8; MAX_FRAME];
+    let mut out = vec![0u8];
+    out.extend_from_slice(wire::encode(msg, &mut buf).map_err(|e| anyhow::anyhow!("{e}"))?);
+    Ok(out)
+}
+
+/// Boots the QEMU node with instruction tracing restricted to `range`, replays `n_calls` blocks of
+/// `per_call` code sets, and returns (instructions executed in `range`, calls entering it).
+fn count_instructions(
+    elf: &Path,
+    dir: &Path,
+    range: &std::ops::Range<u64>,
+    n_calls: usize,
+    per_call: usize,
+) -> anyhow::Result<(u64, u64)> {
+    let slot = dir.join("slot0.bin");
+    std::fs::write(&slot, SlotImage::build(&bench_record()?, 1).map_err(|e| anyhow::anyhow!("{e}"))?)?;
+    let sock = dir.join(format!("link{per_call}.sock"));
+    let log = dir.join(format!("exec{per_call}.log"));
+    let _ = std::fs::remove_file(&sock);
+    let mut cmd = Command::new("qemu-system-arm");
+    cmd.args(["-M", "b-l475e-iot01a", "-m", "1M", "-display", "none", "-monitor", "none"])
+        .args(["-semihosting-config", "enable=on,target=native"])
+        .args(["-accel", "tcg,one-insn-per-tb=on", "-d", "exec,nochain"])
+        .arg("-dfilter")
+        .arg(format!("{:#x}..{:#x}", range.start, range.end - 1))
+        .arg("-D")
+        .arg(&log)
+        .arg("-chardev")
+        .arg(format!("socket,id=link,path={},server=on,wait=on", sock.display()))
+        .args(["-serial", "chardev:link", "-device"])
+        .arg(format!("loader,file={},addr={SLOT0:#x}", slot.display()))
+        .arg("-kernel")
+        .arg(elf)
+        .stdout(Stdio::null());
+    let args: Vec<String> = cmd.get_args().map(|a| a.to_string_lossy().into_owned()).collect();
+    println!("$ qemu-system-arm {}", args.join(" "));
+    let mut qemu = Qemu(cmd.spawn().context("starting qemu-system-arm")?);
+    let t0 = Instant::now();
+    let mut s = loop {
+        if let Ok(s) = UnixStream::connect(&sock) {
+            break s;
+        }
+        if let Some(st) = qemu.0.try_wait()? {
+            bail!("qemu exited: {st}");
+        }
+        ensure!(t0.elapsed() < Duration::from_secs(10), "qemu did not open {}", sock.display());
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    s.set_read_timeout(Some(Duration::from_millis(200)))?;
+    let mut dec = FrameDecoder::<MAX_FRAME>::new();
+    let mut recv = |s: &mut UnixStream, out: &mut Vec<NodeMsg>| -> anyhow::Result<()> {
+        let mut buf = [0u8; 1024];
+        match s.read(&mut buf) {
+            Ok(0) => bail!("the node closed the link"),
+            Ok(n) => dec.push(&buf[..n], |m: Result<NodeMsg, _>| out.extend(m.ok())),
+            Err(e) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {}
+            Err(e) => return Err(e.into()),
+        }
+        Ok(())
+    };
+    // Wait until the node is up and has accepted the record.
+    let mut msgs = Vec::new();
+    loop {
+        s.write_all(&frame(&HostMsg::GetStatus)?)?;
+        recv(&mut s, &mut msgs)?;
+        if let Some(NodeMsg::Status(st)) = msgs.iter().find(|m| matches!(m, NodeMsg::Status(_))) {
+            ensure!(matches!(st.record, RecordStatus::InUse { .. }), "node refused the record: {:?}", st.record);
+            break;
+        }
+        ensure!(t0.elapsed() < Duration::from_secs(20), "the node did not report its status");
+    }
+    let mut all = Vec::new();
+    for k in 0..n_calls {
+        let codes = (0..per_call)
+            .map(|i| {
+                let v = (k * 977 + i * 131) as u16;
+                [v.wrapping_mul(7), v.wrapping_mul(11), v.wrapping_mul(13)]
+            })
+            .collect::<Vec<_>>();
+        let codes = heapless::Vec::from_slice(&codes).map_err(|_| anyhow::anyhow!("block too large"))?;
+        all.extend_from_slice(&frame(&HostMsg::Replay { seq: k as u32, codes })?);
+    }
+    s.write_all(&all)?;
+    let mut answered = 0;
+    let t1 = Instant::now();
+    while answered < n_calls {
+        msgs.clear();
+        recv(&mut s, &mut msgs)?;
+        for m in &msgs {
+            if let NodeMsg::Replayed { data, .. } = m {
+                ensure!(matches!(data, Block::Calibrated(v) if v.len() == per_call), "unexpected answer {m:?}");
+                answered += 1;
+            }
+        }
+        ensure!(t1.elapsed() < Duration::from_secs(60), "the node answered {answered} of {n_calls} requests");
+    }
+    drop(qemu); // the log is complete once QEMU has exited
+    let text = std::fs::read_to_string(&log).with_context(|| format!("reading {}", log.display()))?;
+    let (mut insns, mut calls, mut retried) = (0u64, 0u64, 0u64);
+    let mut prev = None;
+    for line in text.lines().filter(|l| l.starts_with("Trace ")) {
+        // "Trace 0: 0x7f.. [00000000/08001554/00000000/ff200000] calibrate_block_f32"
+        let pc = line
+            .split('[')
+            .nth(1)
+            .and_then(|f| f.split('/').nth(1))
+            .and_then(|h| u64::from_str_radix(h, 16).ok())
+            .with_context(|| format!("unexpected trace line: {line}"))?;
+        // QEMU logs a translation block when it enters it; when an interrupt is pending it leaves
+        // the block before its (single) instruction runs and logs it again after the handler. The
+        // hot path has no branch-to-self, so a repeated PC is such a retry, not an execution.
+        if prev == Some(pc) {
+            retried += 1;
+            continue;
+        }
+        prev = Some(pc);
+        if range.contains(&pc) {
+            insns += 1;
+            calls += (pc == range.start) as u64;
+        }
+    }
+    println!("  ({retried} trace entries were interrupt retries, not counted)");
+    ensure!(calls == n_calls as u64, "traced {calls} calls of {HOT_PATH}, expected {n_calls}");
+    Ok((insns, calls))
+}
+
+/// `cargo xtask bench`: exact instructions per calibrated triad sample set on QEMU's Cortex-M4F,
+/// and the real release build's flash and static RAM.
+pub fn bench() -> anyhow::Result<()> {
+    setup_qemu()?;
+    build_real()?;
+    build_qemu()?;
+    let (flash, ram) = footprint(&elf("node-real"))?;
+    let qemu_elf = elf("node-qemu");
+    let range = symbol_range(&qemu_elf, HOT_PATH)?;
+    let dir = std::env::temp_dir().join(format!("accelcal-bench-{}", std::process::id()));
+    std::fs::create_dir_all(&dir)?;
+    const CALLS: usize = 64;
+    let block = wire::MAX_BLOCK;
+    let (i16, _) = count_instructions(&qemu_elf, &dir, &range, CALLS, block)?;
+    let (i1, _) = count_instructions(&qemu_elf, &dir, &range, CALLS, 1)?;
+    let _ = std::fs::remove_dir_all(&dir);
+    let per_set_block = i16 as f64 / (CALLS * block) as f64;
+    let per_set_marginal = (i16 - i1) as f64 / (CALLS * (block - 1)) as f64;
+    let per_call_single = i1 as f64 / CALLS as f64;
+    println!();
+    println!("hot path `{HOT_PATH}` ({:#x}..{:#x}), f32, executed instructions on QEMU's Cortex-M4F:", range.start, range.end);
+    println!("  {CALLS} calls x {block} sets: {i16} instructions = {per_set_block:.2} per sample set (budget 40)");
+    println!("  {CALLS} calls x 1 set:   {i1} instructions = {per_call_single:.2} per single-set call");
+    println!("  marginal cost of one more set in a block: {per_set_marginal:.2} instructions");
+    println!("real release build (node-real): flash text+data {flash} B ({:.1} KiB, budget 48 KiB), static RAM {ram} B ({:.1} KiB, budget 16 KiB)", flash as f64 / 1024.0, ram as f64 / 1024.0);
+    ensure!(flash <= FLASH_BUDGET, "flash {flash} B exceeds the 48 KiB budget");
+    ensure!(ram <= RAM_BUDGET, "static RAM {ram} B exceeds the 16 KiB budget");
+    if per_set_block > 40.0 {
+        println!("warning: {per_set_block:.2} instructions per sample set exceeds the 40 aim");
+    }
+    Ok(())
+}
