@@ -24,7 +24,13 @@ fn run(cfg: &SimConfig) -> (Campaign, Truth, Positions) {
 
 fn select(cfg: &SimConfig, basis: Basis) -> Vec<gmdh::Selection> {
     let (c, _, p) = run(cfg);
-    let settings = Settings { basis, criterion: Criterion::Regularity, split: Split::Alternate, tolerance: 1.0 };
+    let settings = Settings {
+        basis,
+        criterion: Criterion::Regularity,
+        split: Split::Alternate,
+        tolerance: 1.0,
+        max_terms: 20,
+    };
     p.channel_stats(&c).iter().map(|s| gmdh::select(&p, s, &settings, &|_| {}).unwrap()).collect()
 }
 
@@ -60,19 +66,30 @@ fn test_turns_recover_noise_free_coefficients_exactly() {
 #[test]
 fn test_turns_absorb_k2_into_the_bias_and_lsq_does_not() {
     let k2 = 3.0;
-    let cfg = SimConfig { effects: vec![effects::parse(&format!("nonlinearity=k2:{k2}")).unwrap()], ..exact(9) };
+    let cfg =
+        SimConfig { effects: vec![effects::parse(&format!("nonlinearity=k2:{k2}")).unwrap()], ..exact(9) };
     let (c, truth, p) = run(&cfg);
     let g2 = cfg.g * cfg.g;
     let pairs = testturn::Pairs::find(&p).unwrap();
     for (s, t) in p.channel_stats(&c).iter().zip(&truth.channels) {
         let tt = testturn::fit(&p, s, &pairs);
         // u0 + K2·g², scale untouched.
-        assert!((tt.coefficients[0] - (t.bias + k2 * g2)).abs() < 1e-8, "{} vs {}", tt.coefficients[0], t.bias + k2 * g2);
+        assert!(
+            (tt.coefficients[0] - (t.bias + k2 * g2)).abs() < 1e-8,
+            "{} vs {}",
+            tt.coefficients[0],
+            t.bias + k2 * g2
+        );
         assert!((tt.coefficients[1 + t.axis] - t.k[t.axis]).abs() < 1e-9);
         // LSQ of model 4 puts the mean of K2·a_own² over the plan into the bias instead.
         let f = lsq::fit(&p, s, MODEL_4, None).unwrap();
         let mean_sq = p.accel.iter().map(|a| a[t.axis] * a[t.axis]).sum::<f64>() / p.len() as f64;
-        assert!((f.coefficients[0] - t.bias - k2 * mean_sq).abs() < 0.05 * k2 * g2, "{} {}", f.coefficients[0] - t.bias, k2 * mean_sq);
+        assert!(
+            (f.coefficients[0] - t.bias - k2 * mean_sq).abs() < 0.05 * k2 * g2,
+            "{} {}",
+            f.coefficients[0] - t.bias,
+            k2 * mean_sq
+        );
         assert!((f.coefficients[0] - tt.coefficients[0]).abs() > 0.2 * k2 * g2);
         // And the full quadratic model recovers K2 itself.
         let quad = lsq::parse_terms(&format!("ax,ay,az,{}", ["ax^2", "ay^2", "az^2"][t.axis])).unwrap();
@@ -89,7 +106,12 @@ fn cross_terms_are_visible(cfg: &SimConfig) {
     for t in &truth.channels {
         for j in (0..3).filter(|&j| j != t.axis) {
             let rms = t.k[j].abs() * cfg.g / 3f64.sqrt();
-            assert!(rms > noise_of_mean, "seed {} channel {}: cross term {j} is {rms:.1} codes RMS", cfg.seed, t.name);
+            assert!(
+                rms > noise_of_mean,
+                "seed {} channel {}: cross term {j} is {rms:.1} codes RMS",
+                cfg.seed,
+                t.name
+            );
         }
     }
 }
@@ -108,7 +130,11 @@ fn selection_picks_model_4_on_linear_data() {
 
 #[test]
 fn selection_finds_a_true_cross_term() {
-    let cfg = || SimConfig { seed: 11, effects: vec![effects::parse("nonlinearity=ax*ay:4").unwrap()], ..SimConfig::default() };
+    let cfg = || SimConfig {
+        seed: 11,
+        effects: vec![effects::parse("nonlinearity=ax*ay:4").unwrap()],
+        ..SimConfig::default()
+    };
     let want = lsq::parse_terms("ax,ay,az,ax*ay").unwrap();
     for s in select(&cfg(), Basis::Quadratic) {
         assert_eq!(s.selected().structure, want, "channel {}", s.channel);
@@ -134,7 +160,8 @@ fn model_11_is_flagged_unidentifiable_on_the_sphere() {
     // The rss and symmetric criteria flag it too.
     let (c, _, p) = run(&SimConfig::default());
     for criterion in [Criterion::Rss, Criterion::Symmetric] {
-        let settings = Settings { basis: Basis::Paper, criterion, split: Split::Halves, tolerance: 1.0 };
+        let settings =
+            Settings { basis: Basis::Paper, criterion, split: Split::Halves, tolerance: 1.0, max_terms: 20 };
         let s = gmdh::select(&p, &p.channel_stats(&c)[2], &settings, &|_| {}).unwrap();
         assert_eq!(s.candidates[10].criterion, None);
         assert_eq!(s.selected().structure, MODEL_4);
@@ -146,7 +173,15 @@ fn tolerance_zero_picks_the_minimum_and_criteria_are_ordered() {
     let cfg = SimConfig { seed: 3, ..SimConfig::default() };
     let (c, _, p) = run(&cfg);
     let st = &p.channel_stats(&c)[0];
-    let by = |criterion, tolerance| gmdh::select(&p, st, &Settings { basis: Basis::Paper, criterion, split: Split::Alternate, tolerance }, &|_| {}).unwrap();
+    let by = |criterion, tolerance| {
+        gmdh::select(
+            &p,
+            st,
+            &Settings { basis: Basis::Paper, criterion, split: Split::Alternate, tolerance, max_terms: 20 },
+            &|_| {},
+        )
+        .unwrap()
+    };
     let s0 = by(Criterion::Regularity, 0.0);
     assert_eq!(s0.selected().criterion, Some(s0.best));
     // RSS can only fall as terms are added to a nested model.
@@ -159,7 +194,11 @@ fn tolerance_zero_picks_the_minimum_and_criteria_are_ordered() {
 #[test]
 fn record_carries_the_fit_to_the_node_arithmetic() {
     let (c, truth, p) = run(&SimConfig { plan: Plan::head(), ..exact(5) });
-    let fits: Vec<(String, lsq::LsqFit)> = p.channel_stats(&c).iter().map(|s| (s.name.clone(), lsq::fit(&p, s, MODEL_4, None).unwrap())).collect();
+    let fits: Vec<(String, lsq::LsqFit)> = p
+        .channel_stats(&c)
+        .iter()
+        .map(|s| (s.name.clone(), lsq::fit(&p, s, MODEL_4, None).unwrap()))
+        .collect();
     let rec = accelcal::cmd::fit::record(&fits, [7; 12], 1_800_000_000).unwrap();
     let mut buf = [0u8; MAX_RECORD_LEN];
     let n = rec.emit(&mut buf).unwrap();
@@ -170,7 +209,8 @@ fn record_carries_the_fit_to_the_node_arithmetic() {
     let bound = cal.f32_error_bound();
     for (alpha, beta) in [(0.0, 0.0), (30.0, 60.0), (200.0, -45.0)] {
         let a = accelcal_shared::gravity(alpha, beta, truth.g);
-        let u: Vec<f64> = truth.channels.iter().map(|t| t.bias + (0..3).map(|j| t.k[j] * a[j]).sum::<f64>()).collect();
+        let u: Vec<f64> =
+            truth.channels.iter().map(|t| t.bias + (0..3).map(|j| t.k[j] * a[j]).sum::<f64>()).collect();
         let got = cal.apply([u[0], u[1], u[2]]);
         let q = f32cal.apply([u[0].round() as u16, u[1].round() as u16, u[2].round() as u16]);
         let r = cal.apply([u[0].round(), u[1].round(), u[2].round()]);
@@ -179,4 +219,87 @@ fn record_carries_the_fit_to_the_node_arithmetic() {
             assert!((q[i] as f64 - r[i]).abs() <= bound[i]);
         }
     }
+}
+
+/// The benchmark data in miniature: one sample at each of `n` random orientations,
+/// `u = 30000 + 3000·ax + 15·ay − 10·az + 2·ax·ay + noise(80)`.
+fn random_orientation_data(n: usize, seed: u64) -> (Positions, accelcal::positions::ChannelStats) {
+    use rand::{Rng, SeedableRng};
+    use rand_distr::Distribution;
+    let plan = Plan::random(n, seed);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let noise = rand_distr::Normal::new(0.0, 80.0).unwrap();
+    let mut c = Campaign::default();
+    let mut codes = Vec::new();
+    for (i, &(a, b)) in plan.positions.iter().enumerate() {
+        let acc = accelcal_shared::gravity(a, b, 9.81);
+        c.t_s.push(i as f64);
+        c.alpha_deg.push(a);
+        c.beta_deg.push(b);
+        let u = 30000.0 + 3000.0 * acc[0] + 15.0 * acc[1] - 10.0 * acc[2] + 2.0 * acc[0] * acc[1];
+        codes.push(u + noise.sample(&mut rng) + 0.0 * rng.random::<f64>());
+    }
+    c.channels.push(accelcal::campaign::Channel { name: "u".into(), codes });
+    let p = Positions::new(&c, 9.81);
+    let st = p.channel_stats(&c).remove(0);
+    (p, st)
+}
+
+#[test]
+fn engine_matches_the_qr_reference_on_every_identifiable_candidate() {
+    let (p, st) = random_orientation_data(300, 21);
+    for criterion in [Criterion::Regularity, Criterion::Symmetric, Criterion::Rss] {
+        for (basis, step) in [(Basis::Quadratic, 1), (Basis::Cubic, 97)] {
+            let settings =
+                Settings { basis, criterion, split: Split::Tail(1.0 / 3.0), tolerance: 1.0, max_terms: 20 };
+            let prep = gmdh::Prepared::new(&p, &st, &settings).unwrap();
+            let cands = prep.score(basis, 20, &|_| {});
+            assert_eq!(cands.len(), basis.candidate_count());
+            let (mut checked, mut deficient, mut worst) = (0, 0, 0.0f64);
+            for c in cands.iter().step_by(step) {
+                let r = gmdh::reference::criterion(&p, &st, c.structure, &settings);
+                assert_eq!(
+                    c.criterion.is_some(),
+                    r.is_some(),
+                    "{criterion:?} {}: identifiability",
+                    c.structure
+                );
+                if let (Some(e), Some(r)) = (c.criterion, r) {
+                    let rel = (e - r).abs() / r;
+                    worst = worst.max(rel);
+                    assert!(rel < 1e-8, "{criterion:?} {}: {e} vs {r} ({rel:e})", c.structure);
+                    checked += 1;
+                } else {
+                    deficient += 1;
+                }
+            }
+            // The sphere makes exact dependencies: both kinds must be present for the test to mean much.
+            assert!(checked > 100 && deficient > 10, "{checked} {deficient}");
+            eprintln!(
+                "{criterion:?} {basis:?}: {checked} identifiable within {worst:.1e}, {deficient} deficient"
+            );
+        }
+    }
+}
+
+#[test]
+fn exhaustive_and_multilayer_find_the_true_structure_and_max_terms_caps() {
+    let (p, st) = random_orientation_data(2000, 5);
+    let truth = lsq::parse_terms("ax,ay,az,ax*ay").unwrap();
+    let settings = Settings {
+        basis: Basis::Cubic,
+        criterion: Criterion::Regularity,
+        split: Split::Tail(1.0 / 3.0),
+        tolerance: 1.0,
+        max_terms: 20,
+    };
+    let s = gmdh::select(&p, &st, &settings, &|_| {}).unwrap();
+    assert_eq!(s.selected().structure, truth);
+    let m = gmdh::multi::select(&p, &st, &settings, 16, &|_| {}).unwrap();
+    assert_eq!(m.selected().structure, truth);
+    assert!(m.candidates.len() < 5000, "{}", m.candidates.len());
+    let capped = gmdh::select(&p, &st, &Settings { max_terms: 3, ..settings }, &|_| {}).unwrap();
+    // 1 + 19 + C(19,2) candidates of at most 3 terms.
+    assert_eq!(capped.candidates.len(), 1 + 19 + 171);
+    assert!(capped.candidates.iter().all(|c| c.structure.len() <= 3));
 }

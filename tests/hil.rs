@@ -35,7 +35,10 @@ fn node_elf() -> PathBuf {
         .args(["-M", "help"])
         .output()
         .is_ok_and(|o| String::from_utf8_lossy(&o.stdout).contains("b-l475e-iot01a"));
-    assert!(qemu_ok, "qemu-system-arm with the b-l475e-iot01a machine is missing: run `bash scripts/setup-qemu.sh`");
+    assert!(
+        qemu_ok,
+        "qemu-system-arm with the b-l475e-iot01a machine is missing: run `bash scripts/setup-qemu.sh`"
+    );
     elf
 }
 
@@ -89,9 +92,8 @@ fn node_in_qemu_matches_host_calibration_and_truth() {
     let dir = tempfile::tempdir().unwrap();
     let (camp_path, rec_path) = campaign_and_record(dir.path(), QEMU_ID_HEX);
     let out_path = dir.path().join("node.csv");
-    let stdout = ok(&[
-        "hil", "--qemu", s(&elf), "--record", s(&rec_path), s(&camp_path), "--out", s(&out_path),
-    ]);
+    let stdout =
+        ok(&["hil", "--qemu", s(&elf), "--record", s(&rec_path), s(&camp_path), "--out", s(&out_path)]);
     assert!(stdout.contains("record slot 0 seq 1 created 1800000000"), "{stdout}");
     assert!(stdout.contains("bad frames 0"), "{stdout}");
 
@@ -111,7 +113,13 @@ fn node_in_qemu_matches_host_calibration_and_truth() {
         let want = cal.apply([x[row], y[row], z[row]]);
         for i in 0..3 {
             let e = (a[i] - want[i]).abs();
-            assert!(e <= bound[i], "row {row} axis {i}: node {} host {} (|e| {e} > {})", a[i], want[i], bound[i]);
+            assert!(
+                e <= bound[i],
+                "row {row} axis {i}: node {} host {} (|e| {e} > {})",
+                a[i],
+                want[i],
+                bound[i]
+            );
             worst = worst.max(e / bound[i]);
         }
     }
@@ -170,7 +178,14 @@ fn hil_names_a_missing_channel_and_exits_2() {
     ok(&["simulate", "--out", s(&camp), "--layout", "block:3", "--samples", "2"]);
     let (_, rec) = campaign_and_record(dir.path(), QEMU_ID_HEX);
     let out = accelcal(&[
-        "hil", "--qemu", s(&elf), "--record", s(&rec), s(&camp), "--out", s(&dir.path().join("o.csv")),
+        "hil",
+        "--qemu",
+        s(&elf),
+        "--record",
+        s(&rec),
+        s(&camp),
+        "--out",
+        s(&dir.path().join("o.csv")),
     ]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{stderr}");

@@ -232,8 +232,7 @@ impl<const N: usize> FrameDecoder<N> {
                 on_frame(Err(FrameError::TooLong));
             } else if len > 0 {
                 on_frame(
-                    postcard::from_bytes_cobs::<T>(&mut self.buf[..len])
-                        .map_err(|_| FrameError::Malformed),
+                    postcard::from_bytes_cobs::<T>(&mut self.buf[..len]).map_err(|_| FrameError::Malformed),
                 );
             }
         }
@@ -267,16 +266,13 @@ mod tests {
     fn replay_literal_bytes() {
         // Replay = variant 1, seq 300 = varint [0xac, 0x02], 2 sets, u16 varints:
         // 1 → [0x01], 2 → [0x02], 0x8000 → [0x80, 0x80, 0x02], then 0, 65535 → [0xff, 0xff, 0x03], 7.
-        let raw: &[u8] = &[
-            0x01, 0xac, 0x02, 0x02, 0x01, 0x02, 0x80, 0x80, 0x02, 0x00, 0xff, 0xff, 0x03, 0x07,
-        ];
+        let raw: &[u8] =
+            &[0x01, 0xac, 0x02, 0x02, 0x01, 0x02, 0x80, 0x80, 0x02, 0x00, 0xff, 0xff, 0x03, 0x07];
         let msg = HostMsg::Replay { seq: 300, codes: codes(&[[1, 2, 0x8000], [0, 65535, 7]]) };
         assert_eq!(postcard::to_slice(&msg, &mut [0u8; 64]).unwrap(), raw);
         // COBS: the zero at offset 9 splits the body into 9 + 4 non-zero bytes.
-        let framed: &[u8] = &[
-            0x0a, 0x01, 0xac, 0x02, 0x02, 0x01, 0x02, 0x80, 0x80, 0x02, 0x05, 0xff, 0xff, 0x03,
-            0x07, 0x00,
-        ];
+        let framed: &[u8] =
+            &[0x0a, 0x01, 0xac, 0x02, 0x02, 0x01, 0x02, 0x80, 0x80, 0x02, 0x05, 0xff, 0xff, 0x03, 0x07, 0x00];
         let mut buf = [0u8; MAX_FRAME];
         assert_eq!(encode(&msg, &mut buf).unwrap(), framed);
         assert_eq!(decode_all::<HostMsg>(framed), vec![Ok(msg)]);
@@ -289,10 +285,8 @@ mod tests {
             seq: 5,
             data: Block::Calibrated(Vec::from_slice(&[[1.0, -2.5, 0.0]]).unwrap()),
         };
-        let raw: &[u8] = &[
-            0x02, 0x05, 0x00, 0x01, 0x00, 0x00, 0x80, 0x3f, 0x00, 0x00, 0x20, 0xc0, 0x00, 0x00,
-            0x00, 0x00,
-        ];
+        let raw: &[u8] =
+            &[0x02, 0x05, 0x00, 0x01, 0x00, 0x00, 0x80, 0x3f, 0x00, 0x00, 0x20, 0xc0, 0x00, 0x00, 0x00, 0x00];
         assert_eq!(postcard::to_slice(&msg, &mut [0u8; 64]).unwrap(), raw);
         let mut buf = [0u8; MAX_FRAME];
         let frame = encode(&msg, &mut buf).unwrap().to_vec();

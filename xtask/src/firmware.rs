@@ -71,11 +71,11 @@ fn setup_qemu() -> anyhow::Result<()> {
 }
 
 fn build_real() -> anyhow::Result<()> {
-    run(&mut fw_cargo(&["build", "--release", "--features", "board-real", "--bin", "node-real"]))
+    run(&mut fw_cargo(&["build", "--release", "--locked", "--features", "board-real", "--bin", "node-real"]))
 }
 
 fn build_qemu() -> anyhow::Result<()> {
-    run(&mut fw_cargo(&["build", "--release", "--features", "board-qemu", "--bin", "node-qemu"]))
+    run(&mut fw_cargo(&["build", "--release", "--locked", "--features", "board-qemu", "--bin", "node-qemu"]))
 }
 
 /// `cargo xtask test` (firmware part): installs QEMU when missing, builds the real firmware and
@@ -84,7 +84,14 @@ pub fn test() -> anyhow::Result<()> {
     setup_qemu()?;
     build_real()?;
     build_qemu()?;
-    run(&mut fw_cargo(&["check", "--release", "--features", "board-qemu,fixed-point", "--bin", "node-qemu"]))?;
+    run(&mut fw_cargo(&[
+        "check",
+        "--release",
+        "--features",
+        "board-qemu,fixed-point",
+        "--bin",
+        "node-qemu",
+    ]))?;
     let mut t = Command::new(std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into()));
     t.current_dir(root())
         .args(["test", "-p", "accelcal", "--test", "hil"])
@@ -103,12 +110,17 @@ pub fn footprint(path: &Path) -> anyhow::Result<(u64, u64)> {
             continue;
         }
         match s.kind() {
-            SectionKind::UninitializedData | SectionKind::UninitializedTls if RAM.contains(&addr) => ram += size,
+            SectionKind::UninitializedData | SectionKind::UninitializedTls if RAM.contains(&addr) => {
+                ram += size
+            }
             SectionKind::Data | SectionKind::Tls if RAM.contains(&addr) => {
                 ram += size;
                 flash += size; // initial values are copied from flash at boot
             }
-            SectionKind::Text | SectionKind::ReadOnlyData | SectionKind::ReadOnlyString | SectionKind::Data
+            SectionKind::Text
+            | SectionKind::ReadOnlyData
+            | SectionKind::ReadOnlyString
+            | SectionKind::Data
                 if FLASH.contains(&addr) =>
             {
                 flash += size
@@ -230,7 +242,11 @@ fn count_instructions(
         s.write_all(&frame(&HostMsg::GetStatus)?)?;
         recv(&mut s, &mut msgs)?;
         if let Some(NodeMsg::Status(st)) = msgs.iter().find(|m| matches!(m, NodeMsg::Status(_))) {
-            ensure!(matches!(st.record, RecordStatus::InUse { .. }), "node refused the record: {:?}", st.record);
+            ensure!(
+                matches!(st.record, RecordStatus::InUse { .. }),
+                "node refused the record: {:?}",
+                st.record
+            );
             break;
         }
         ensure!(t0.elapsed() < Duration::from_secs(20), "the node did not report its status");
@@ -254,7 +270,10 @@ fn count_instructions(
         recv(&mut s, &mut msgs)?;
         for m in &msgs {
             if let NodeMsg::Replayed { data, .. } = m {
-                ensure!(matches!(data, Block::Calibrated(v) if v.len() == per_call), "unexpected answer {m:?}");
+                ensure!(
+                    matches!(data, Block::Calibrated(v) if v.len() == per_call),
+                    "unexpected answer {m:?}"
+                );
                 answered += 1;
             }
         }
@@ -310,8 +329,13 @@ pub fn bench() -> anyhow::Result<()> {
     let per_set_marginal = (i16 - i1) as f64 / (CALLS * (block - 1)) as f64;
     let per_call_single = i1 as f64 / CALLS as f64;
     println!();
-    println!("hot path `{HOT_PATH}` ({:#x}..{:#x}), f32, executed instructions on QEMU's Cortex-M4F:", range.start, range.end);
-    println!("  {CALLS} calls x {block} sets: {i16} instructions = {per_set_block:.2} per sample set (budget 40)");
+    println!(
+        "hot path `{HOT_PATH}` ({:#x}..{:#x}), f32, executed instructions on QEMU's Cortex-M4F:",
+        range.start, range.end
+    );
+    println!(
+        "  {CALLS} calls x {block} sets: {i16} instructions = {per_set_block:.2} per sample set (budget 40)"
+    );
     println!("  {CALLS} calls x 1 set:   {i1} instructions = {per_call_single:.2} per single-set call");
     println!("  marginal cost of one more set in a block: {per_set_marginal:.2} instructions");
     println!("real release build (node-real): flash text+data {flash} B ({:.1} KiB, budget 48 KiB), static RAM {ram} B ({:.1} KiB, budget 16 KiB)", flash as f64 / 1024.0, ram as f64 / 1024.0);

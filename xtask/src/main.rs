@@ -1,22 +1,107 @@
-//! Developer tasks for accelcal (`cargo xtask <task>`). Every task prints the commands it runs.
+//! `cargo xtask`: the one entry point for developer tasks. Each subcommand prints every command
+//! it runs before running it.
 //!
-//! Tasks: `test-firmware` (build both node firmwares, run the QEMU tests), `bench` (hot-path
-//! instruction count on the emulated Cortex-M4F, firmware footprint).
+//! - `test`: host and shared tests, the no_std build of `shared` for the MCU target, the
+//!   firmware builds and the QEMU tests.
+//! - `lint`: rustfmt and clippy (warnings are errors).
+//! - `bench`: the benchmarks the README quotes.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use anyhow::{bail, Context};
 
 mod firmware;
 
-fn main() {
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("xtask sits in the workspace").to_path_buf()
+}
+
+/// Runs a command in `dir`, echoing it first; fails on a non-zero exit.
+pub fn run(dir: &Path, program: &str, args: &[&str]) -> anyhow::Result<()> {
+    let shown = dir.strip_prefix(root()).ok().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    eprintln!("$ (cd {}) {program} {}", shown.display(), args.join(" "));
+    let status = Command::new(program)
+        .args(args)
+        .current_dir(dir)
+        .status()
+        .with_context(|| format!("starting {program}"))?;
+    if !status.success() {
+        bail!("`{program} {}` failed with {status}", args.join(" "));
+    }
+    Ok(())
+}
+
+fn test() -> anyhow::Result<()> {
+    let r = root();
+    // First: QEMU, both firmware builds and the QEMU tests (the workspace tests below include
+    // tests/hil.rs, which needs the QEMU build).
+    firmware::test()?;
+    run(&r, "cargo", &["test", "--workspace", "--locked"])?;
+    run(
+        &r,
+        "cargo",
+        &[
+            "build",
+            "-p",
+            "accelcal-shared",
+            "--target",
+            "thumbv7em-none-eabihf",
+            "--no-default-features",
+            "--locked",
+        ],
+    )?;
+    Ok(())
+}
+
+fn lint() -> anyhow::Result<()> {
+    let r = root();
+    run(&r, "cargo", &["fmt", "--all", "--check"])?;
+    run(&r, "cargo", &["clippy", "--workspace", "--all-targets", "--locked", "--", "-D", "warnings"])?;
+    Ok(())
+}
+
+fn bench() -> anyhow::Result<()> {
+    let r = root();
+    run(&r, "cargo", &["build", "--release", "-p", "accelcal", "--locked"])?;
+    let bin = r.join("target/release/accelcal");
+    let dir = std::env::temp_dir().join("accelcal-bench");
+    std::fs::create_dir_all(&dir)?;
+    let campaign = dir.join("campaign.csv");
+    let bin_s = bin.to_str().expect("utf-8 path");
+    let c = campaign.to_str().expect("utf-8 path");
+    run(&r, bin_s, &["simulate", "--out", c, "--seed", "1"])?;
+    for basis in ["paper", "quadratic", "cubic"] {
+        let t = std::time::Instant::now();
+        run(
+            &r,
+            bin_s,
+            &[
+                "select",
+                c,
+                "--basis",
+                basis,
+                "--json",
+                dir.join(format!("select-{basis}.json")).to_str().expect("utf-8"),
+            ],
+        )?;
+        println!(
+            "bench: select --basis {basis} on 3 channels x 62 positions: {:.3} s",
+            t.elapsed().as_secs_f64()
+        );
+    }
+    firmware::bench()
+}
+
+fn main() -> anyhow::Result<()> {
     let task = std::env::args().nth(1).unwrap_or_default();
-    let result = match task.as_str() {
-        "test-firmware" => firmware::test(),
-        "bench" => firmware::bench(),
+    match task.as_str() {
+        "test" => test(),
+        "lint" => lint(),
+        "bench" => bench(),
         _ => {
-            eprintln!("usage: cargo xtask <test-firmware|bench>");
-            std::process::exit(2);
+            eprintln!("usage: cargo xtask <test|lint|bench>\n  test   every test: host, shared (desktop and no_std target), firmware builds, QEMU\n  lint   rustfmt --check and clippy -D warnings\n  bench  the benchmarks quoted in the README");
+            std::process::exit(2)
         }
-    };
-    if let Err(e) = result {
-        eprintln!("xtask {task}: {e:#}");
-        std::process::exit(1);
     }
 }

@@ -101,8 +101,8 @@ fn try_load(storage: &impl RecordStorage) -> Result<(Calibration, RecordStatus),
         SlotError::Record(r) => RecordFault::BadRecord(record_error_code(r)),
         _ => RecordFault::NoSlot,
     })?;
-    let record = Record::parse(active.image.record)
-        .map_err(|r| RecordFault::BadRecord(record_error_code(r)))?;
+    let record =
+        Record::parse(active.image.record).map_err(|r| RecordFault::BadRecord(record_error_code(r)))?;
     if record.device_id != storage.device_id() {
         return Err(RecordFault::WrongDevice);
     }

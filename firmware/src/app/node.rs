@@ -4,8 +4,8 @@
 use core::sync::atomic::{AtomicU32, Ordering};
 
 use accelcal_shared::wire::{
-    self, Codes, FrameDecoder, FrameError, HostMsg, NodeMsg, RecordStatus, Status, MAX_BLOCK,
-    MAX_FRAME, PROTOCOL_VERSION,
+    self, Codes, FrameDecoder, FrameError, HostMsg, NodeMsg, RecordStatus, Status, MAX_BLOCK, MAX_FRAME,
+    PROTOCOL_VERSION,
 };
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::channel::Channel;
@@ -28,11 +28,8 @@ pub struct Stats {
 }
 
 /// The node's counters since boot.
-pub static STATS: Stats = Stats {
-    overruns: AtomicU32::new(0),
-    sample_sets: AtomicU32::new(0),
-    bad_frames: AtomicU32::new(0),
-};
+pub static STATS: Stats =
+    Stats { overruns: AtomicU32::new(0), sample_sets: AtomicU32::new(0), bad_frames: AtomicU32::new(0) };
 
 /// Interval of the unsolicited status reports.
 pub const STATUS_PERIOD: Duration = Duration::from_secs(1);

@@ -8,11 +8,11 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
 use crate::campaign::Campaign;
-use crate::cli::SelectArgs;
+use crate::cli::{Algorithm, SelectArgs};
 use crate::error::bad;
 use crate::gmdh::{self, Selection, Settings};
 use crate::output::{finite, write_json};
-use crate::positions::Positions;
+use crate::positions::{ChannelStats, Positions};
 
 /// JSON of one candidate.
 #[derive(Serialize)]
@@ -55,12 +55,37 @@ fn names(s: Structure) -> Vec<String> {
     s.terms().map(|t| t.to_string()).collect()
 }
 
-/// Runs GMDH on the chosen channels of a campaign, with a progress bar for large bases.
+/// Runs exhaustive GMDH on the chosen channels of a campaign, with a progress bar for large bases.
 pub fn compute(
     c: &Campaign,
     g: f64,
     channels: &[String],
     settings: &Settings,
+) -> anyhow::Result<Vec<Selection>> {
+    run_channels(c, g, channels, settings.basis.candidate_count() as u64, |pos, s, progress| {
+        gmdh::select(pos, s, settings, progress)
+    })
+}
+
+/// Runs multilayer GMDH (`width` models per layer) on the chosen channels.
+pub fn compute_multi(
+    c: &Campaign,
+    g: f64,
+    channels: &[String],
+    settings: &Settings,
+    width: usize,
+) -> anyhow::Result<Vec<Selection>> {
+    run_channels(c, g, channels, 0, |pos, s, progress| gmdh::multi::select(pos, s, settings, width, progress))
+}
+
+/// Applies `one` to each chosen channel; `per_channel` candidates drive the progress bar (0: a
+/// spinner counting models).
+fn run_channels(
+    c: &Campaign,
+    g: f64,
+    channels: &[String],
+    per_channel: u64,
+    one: impl Fn(&Positions, &ChannelStats, &(dyn Fn(u64) + Sync)) -> Result<Selection, gmdh::GmdhError>,
 ) -> anyhow::Result<Vec<Selection>> {
     let pos = Positions::new(c, g);
     let stats = pos.channel_stats(c);
@@ -68,21 +93,16 @@ pub fn compute(
         if c.channel(name).is_none() {
             return Err(bad(format!(
                 "no channel `{name}` in the campaign (it has: {})",
-                c.channels
-                    .iter()
-                    .map(|c| c.name.as_str())
-                    .collect::<Vec<_>>()
-                    .join(",")
+                c.channels.iter().map(|c| c.name.as_str()).collect::<Vec<_>>().join(",")
             )));
         }
     }
-    let chosen: Vec<_> = stats
-        .iter()
-        .filter(|s| channels.is_empty() || channels.contains(&s.name))
-        .collect();
-    let total = (settings.basis.candidate_count() * chosen.len()) as u64;
+    let chosen: Vec<_> = stats.iter().filter(|s| channels.is_empty() || channels.contains(&s.name)).collect();
+    let total = per_channel * chosen.len() as u64;
     let pb = if total > 50_000 {
         ProgressBar::new(total)
+    } else if per_channel == 0 && std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+        ProgressBar::new_spinner()
     } else {
         ProgressBar::hidden()
     };
@@ -96,7 +116,7 @@ pub fn compute(
     let mut out = Vec::new();
     for s in chosen {
         pb.set_message(s.name.clone());
-        out.push(gmdh::select(&pos, s, settings, &|n| pb.inc(n))?);
+        out.push(one(&pos, s, &|n| pb.inc(n))?);
     }
     pb.finish_and_clear();
     Ok(out)
@@ -105,11 +125,9 @@ pub fn compute(
 /// Label of a candidate in tables: the paper's model number for the paper basis.
 fn label(basis: Basis, s: Structure) -> String {
     match basis {
-        Basis::Paper => PAPER_MODELS
-            .iter()
-            .position(|&m| m == s)
-            .map(|i| format!("{}", i + 1))
-            .unwrap_or_default(),
+        Basis::Paper => {
+            PAPER_MODELS.iter().position(|&m| m == s).map(|i| format!("{}", i + 1)).unwrap_or_default()
+        }
         _ => String::new(),
     }
 }
@@ -118,9 +136,9 @@ fn label(basis: Basis, s: Structure) -> String {
 pub fn print_tables(sel: &[Selection], settings: &Settings) {
     for s in sel {
         println!(
-            "channel {}: {:?} criterion, RMS ADC codes (best {:.2}, tolerance {} code{})",
+            "channel {}: {} criterion, RMS ADC codes of dwell means (best {:.2}, tolerance {} code{})",
             s.channel,
-            settings.criterion,
+            format!("{:?}", settings.criterion).to_lowercase(),
             s.best,
             settings.tolerance,
             if settings.tolerance == 1.0 { "" } else { "s" }
@@ -131,8 +149,7 @@ pub fn print_tables(sel: &[Selection], settings: &Settings) {
         if many {
             rows.sort_by(|&a, &b| {
                 let (x, y) = (s.candidates[a].criterion, s.candidates[b].criterion);
-                x.unwrap_or(f64::INFINITY)
-                    .total_cmp(&y.unwrap_or(f64::INFINITY))
+                x.unwrap_or(f64::INFINITY).total_cmp(&y.unwrap_or(f64::INFINITY))
             });
             rows.truncate(15);
             if !rows.contains(&s.selected) {
@@ -153,11 +170,7 @@ pub fn print_tables(sel: &[Selection], settings: &Settings) {
             );
         }
         if many {
-            let unid = s
-                .candidates
-                .iter()
-                .filter(|c| c.criterion.is_none())
-                .count();
+            let unid = s.candidates.iter().filter(|c| c.criterion.is_none()).count();
             println!(
                 "  (15 best of {} candidates shown; {unid} not identifiable on this plan)",
                 s.candidates.len()
@@ -168,12 +181,7 @@ pub fn print_tables(sel: &[Selection], settings: &Settings) {
 }
 
 /// Builds the JSON document.
-pub fn to_json(
-    sel: &[Selection],
-    settings: &Settings,
-    split: &str,
-    top: Option<usize>,
-) -> SelectJson {
+pub fn to_json(sel: &[Selection], settings: &Settings, split: &str, top: Option<usize>) -> SelectJson {
     let channels = sel
         .iter()
         .map(|s| {
@@ -198,11 +206,7 @@ pub fn to_json(
                 },
                 best_criterion: s.best,
                 candidates_total: n,
-                unidentifiable: s
-                    .candidates
-                    .iter()
-                    .filter(|c| c.criterion.is_none())
-                    .count(),
+                unidentifiable: s.candidates.iter().filter(|c| c.criterion.is_none()).count(),
                 candidates: idx
                     .into_iter()
                     .map(|i| {
@@ -227,32 +231,23 @@ pub fn to_json(
 }
 
 /// Writes one criterion-against-complexity plot per channel into `dir`.
-pub fn plots(
-    dir: &Path,
-    sel: &[Selection],
-    settings: &Settings,
-) -> anyhow::Result<Vec<std::path::PathBuf>> {
+pub fn plots(dir: &Path, sel: &[Selection], settings: &Settings) -> anyhow::Result<Vec<std::path::PathBuf>> {
     std::fs::create_dir_all(dir).map_err(|e| anyhow::anyhow!("creating {}: {e}", dir.display()))?;
     let mut written = Vec::new();
     for s in sel {
-        let pts: Vec<(usize, f64)> = s
-            .candidates
-            .iter()
-            .filter_map(|c| c.criterion.map(|v| (c.structure.len(), v)))
-            .collect();
+        let pts: Vec<(usize, f64)> =
+            s.candidates.iter().filter_map(|c| c.criterion.map(|v| (c.structure.len(), v))).collect();
         let path = dir.join(format!("criterion-{}.svg", s.channel));
         let sc = s.selected();
         crate::plot::criterion_vs_complexity(
             &path,
             &format!(
-                "channel {}: {:?} criterion against complexity",
-                s.channel, settings.criterion
+                "channel {}: {} criterion against complexity",
+                s.channel,
+                format!("{:?}", settings.criterion).to_lowercase()
             ),
             &pts,
-            (
-                sc.structure.len(),
-                sc.criterion.expect("selected is identifiable"),
-            ),
+            (sc.structure.len(), sc.criterion.expect("selected is identifiable")),
             s.best + settings.tolerance,
         )?;
         written.push(path);
@@ -264,19 +259,27 @@ pub fn plots(
 pub fn run(a: &SelectArgs) -> anyhow::Result<()> {
     super::check_g(a.common.g)?;
     if !(a.tolerance.is_finite() && a.tolerance >= 0.0) {
-        return Err(bad(format!(
-            "--tolerance must be a number of codes >= 0, got {}",
-            a.tolerance
-        )));
+        return Err(bad(format!("--tolerance must be a number of codes >= 0, got {}", a.tolerance)));
     }
     let c = super::read_campaign(&a.campaign)?;
+    if a.max_terms == 0 || a.width == 0 || a.threads == Some(0) {
+        return Err(bad("--max-terms, --width and --threads must be at least 1"));
+    }
     let settings = Settings {
         basis: a.basis.into(),
         criterion: a.criterion,
         split: a.split,
         tolerance: a.tolerance,
+        max_terms: a.max_terms.min(accelcal_shared::N_BASIS),
     };
-    let sel = compute(&c, a.common.g, &a.channels, &settings)?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(a.threads.unwrap_or(0))
+        .build()
+        .map_err(|e| anyhow::anyhow!("starting worker threads: {e}"))?;
+    let sel = pool.install(|| match a.algorithm {
+        Algorithm::Combi => compute(&c, a.common.g, &a.channels, &settings),
+        Algorithm::Multi => compute_multi(&c, a.common.g, &a.channels, &settings, a.width),
+    })?;
     print_tables(&sel, &settings);
     if let Some(j) = &a.common.json {
         write_json(j, &to_json(&sel, &settings, &a.split.to_string(), a.top))?;

@@ -94,7 +94,10 @@ pub fn run_hil(a: &HilArgs) -> anyhow::Result<()> {
         return Err(bad(format!("{}: {e}", a.record.display())));
     }
     if !a.elf.is_file() {
-        return Err(bad(format!("{}: no such firmware ELF (build it with `cargo xtask test` or see firmware/README.md)", a.elf.display())));
+        return Err(bad(format!(
+            "{}: no such firmware ELF (build it with `cargo xtask test` or see firmware/README.md)",
+            a.elf.display()
+        )));
     }
     let campaign = crate::cmd::read_campaign(&a.campaign)?;
     let codes = super::hil::campaign_codes(&campaign, &a.campaign)?;

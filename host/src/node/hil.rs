@@ -118,8 +118,7 @@ impl QemuNode {
             .stdin(Stdio::null())
             .stdout(std::fs::File::create(dir.path().join("defmt.bin"))?)
             .stderr(std::fs::File::create(&stderr_path)?);
-        let mut child =
-            cmd.spawn().map_err(|source| HilError::Spawn { qemu: opts.qemu.clone(), source })?;
+        let mut child = cmd.spawn().map_err(|source| HilError::Spawn { qemu: opts.qemu.clone(), source })?;
         let t0 = Instant::now();
         let stream = loop {
             if let Ok(s) = UnixStream::connect(&sock) {
@@ -165,7 +164,11 @@ fn is_timeout(e: &LinkError) -> bool {
 
 /// Waits for a status report, asking for one every 200 ms (bytes sent before the node enables
 /// its receiver are lost, so the first request may go unheard).
-fn wait_status(node: &mut QemuNode, rx: &mut Receiver<UnixStream>, timeout: Duration) -> Result<Status, HilError> {
+fn wait_status(
+    node: &mut QemuNode,
+    rx: &mut Receiver<UnixStream>,
+    timeout: Duration,
+) -> Result<Status, HilError> {
     let t0 = Instant::now();
     let mut tx = node.stream.try_clone()?;
     link::send(&mut tx, &HostMsg::GetStatus)?;
@@ -185,7 +188,8 @@ fn wait_status(node: &mut QemuNode, rx: &mut Receiver<UnixStream>, timeout: Dura
 /// Boots the QEMU node with `record` (the bytes of a record file) in slot 0, replays `codes`
 /// through it in blocks of [`MAX_BLOCK`], and returns the node's answers in order.
 pub fn replay(opts: &HilOptions, record: &[u8], codes: &[Codes]) -> Result<HilRun, HilError> {
-    let rec = Record::parse(record).map_err(|e| HilError::Record(accelcal_shared::slots::SlotError::Record(e)))?;
+    let rec =
+        Record::parse(record).map_err(|e| HilError::Record(accelcal_shared::slots::SlotError::Record(e)))?;
     let page = SlotImage::build(&record[..rec.len()], 1).map_err(HilError::Record)?;
     let mut node = QemuNode::start(opts, &page)?;
     let mut rx = Receiver::new(node.stream.try_clone()?);
@@ -233,9 +237,9 @@ pub fn replay(opts: &HilOptions, record: &[u8], codes: &[Codes]) -> Result<HilRu
                 let expected = (codes.len() - accel.len()).min(MAX_BLOCK);
                 match data {
                     Block::Calibrated(v) if v.len() == expected => accel.extend_from_slice(&v),
-                    Block::CalibratedFixed(v) if v.len() == expected => accel.extend(
-                        v.iter().map(|a| a.map(|q| (q as f64 / 65536.0) as f32)),
-                    ),
+                    Block::CalibratedFixed(v) if v.len() == expected => {
+                        accel.extend(v.iter().map(|a| a.map(|q| (q as f64 / 65536.0) as f32)))
+                    }
                     Block::Uncalibrated(_) => {
                         return Err(HilError::Protocol("the node answered uncalibrated codes".into()))
                     }

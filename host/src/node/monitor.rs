@@ -28,7 +28,9 @@ pub fn format_status(s: &Status) -> String {
 /// Lines of text for a block of samples: `seq ax ay az` (m/s²) or `seq RAW x y z`.
 pub fn format_block(seq: u32, data: &Block) -> Vec<String> {
     match data {
-        Block::Calibrated(v) => v.iter().map(|a| format!("{seq} {:.5} {:.5} {:.5}", a[0], a[1], a[2])).collect(),
+        Block::Calibrated(v) => {
+            v.iter().map(|a| format!("{seq} {:.5} {:.5} {:.5}", a[0], a[1], a[2])).collect()
+        }
         Block::CalibratedFixed(v) => v
             .iter()
             .map(|a| {
@@ -56,7 +58,12 @@ pub fn monitor(port: &str, baud: u32, count: Option<u64>, out: &mut impl Write) 
             Ok(Ok(NodeMsg::Samples { seq, data })) => {
                 if let Some(prev) = last_seq {
                     if seq != prev.wrapping_add(1) {
-                        writeln!(out, "# gap: blocks {} to {} lost", prev.wrapping_add(1), seq.wrapping_sub(1))?;
+                        writeln!(
+                            out,
+                            "# gap: blocks {} to {} lost",
+                            prev.wrapping_add(1),
+                            seq.wrapping_sub(1)
+                        )?;
                     }
                 }
                 last_seq = Some(seq);
