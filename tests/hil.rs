@@ -13,8 +13,11 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use accelcal::campaign::Campaign;
+use accelcal::node::hil::{HilOptions, QemuNode};
 use accelcal_shared::kinematics::gravity;
 use accelcal_shared::record::Record;
+use accelcal_shared::slots::{SlotImage, SLOT_SIZE};
+use accelcal_shared::wire::{Block, HostMsg, NodeMsg, RecordFault, RecordStatus};
 use accelcal_shared::G_STANDARD;
 
 /// Hex of the QEMU node's device id, "QEMU-B-L475E".
@@ -106,11 +109,16 @@ fn node_in_qemu_matches_host_calibration_and_truth() {
     let ch = |n: &str| &camp.channels.iter().find(|c| c.name == n).unwrap().codes;
     let (x, y, z) = (ch("x"), ch("y"), ch("z"));
 
-    // 1. The node's arithmetic: within the stated f32 bound of the host's f64, every sample set.
+    // 1. The node's arithmetic: within the stated f32 bound of the host's f64, every sample set,
+    // and bit for bit what the shared crate's f32 path computes on the host (IEEE single, same
+    // operations; the M4F's VMLA rounds like a multiply then an add).
+    let f32cal = cal.to_f32();
     let mut worst = 0.0f64;
     for (row, (t, a)) in got.iter().enumerate() {
         assert_eq!(*t, camp.t_s[row]);
         let want = cal.apply([x[row], y[row], z[row]]);
+        let host_f32 = f32cal.apply([x[row] as u16, y[row] as u16, z[row] as u16]);
+        assert_eq!(a.map(|v| v as f32), host_f32, "row {row}: node and host f32 differ");
         for i in 0..3 {
             let e = (a[i] - want[i]).abs();
             assert!(
@@ -190,4 +198,50 @@ fn hil_names_a_missing_channel_and_exits_2() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains("block.csv: no channel `x`"), "{stderr}");
+}
+
+fn replay_msg(seq: u32, codes: &[[u16; 3]]) -> HostMsg {
+    HostMsg::Replay { seq, codes: heapless::Vec::from_slice(codes).unwrap() }
+}
+
+/// Without a valid record the node says so and returns raw codes flagged uncalibrated, unchanged.
+#[test]
+fn node_without_record_answers_uncalibrated() {
+    let mut node = QemuNode::start(&HilOptions::new(node_elf()), None).unwrap();
+    let status = node.status().unwrap();
+    assert_eq!(status.record, RecordStatus::Missing(RecordFault::NoSlot));
+    assert_eq!(status.protocol, 1);
+    let codes = [[1, 2, 3], [65535, 0, 32768]];
+    let answer = node.request(&replay_msg(5, &codes)).unwrap();
+    let want =
+        NodeMsg::Replayed { seq: 5, data: Block::Uncalibrated(heapless::Vec::from_slice(&codes).unwrap()) };
+    assert_eq!(answer, want);
+}
+
+/// A slot that is intact but holds a record whose own CRC fails is refused with that reason; a
+/// malformed host frame is counted, and the node keeps serving.
+#[test]
+fn node_refuses_a_corrupt_record_and_survives_garbage() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, rec_path) = campaign_and_record(dir.path(), QEMU_ID_HEX);
+    let mut rec = std::fs::read(&rec_path).unwrap();
+    let page = SlotImage::build(&rec, 1).unwrap();
+    // Flip a coefficient bit and rebuild only the slot's CRC: the slot is intact, the record not.
+    rec[40] ^= 0x01;
+    let mut bad = page;
+    bad[16..16 + rec.len()].copy_from_slice(&rec);
+    let mut hdr_and_rec = bad[4..12].to_vec();
+    hdr_and_rec.extend_from_slice(&rec);
+    bad[12..16].copy_from_slice(&accelcal_shared::record::crc32(&hdr_and_rec).to_le_bytes());
+    assert_eq!(bad.len(), SLOT_SIZE);
+
+    let mut node = QemuNode::start(&HilOptions::new(node_elf()), Some(&bad)).unwrap();
+    let status = node.status().unwrap();
+    // 7 = RecordError::BadCrc (wire::record_error_code).
+    assert_eq!(status.record, RecordStatus::Missing(RecordFault::BadRecord(7)));
+    // A frame with an unknown message variant, then a good request.
+    node.send_raw(&[0x00, 0x02, 0x63, 0x00]).unwrap();
+    let answer = node.request(&replay_msg(1, &[[10, 20, 30]])).unwrap();
+    assert!(matches!(answer, NodeMsg::Replayed { seq: 1, data: Block::Uncalibrated(_) }), "{answer:?}");
+    assert_eq!(node.status().unwrap().bad_frames, 1);
 }

@@ -90,19 +90,23 @@ fn hex(b: &[u8]) -> String {
     b.iter().map(|x| format!("{x:02x}")).collect()
 }
 
-/// A QEMU process running the node; killed when dropped.
-struct QemuNode {
+/// A QEMU process running the node's QEMU build, with its link connected; killed when dropped.
+pub struct QemuNode {
     child: Child,
     stderr_path: PathBuf,
     _dir: tempfile::TempDir,
     stream: UnixStream,
+    rx: Receiver<UnixStream>,
+    timeout: Duration,
 }
 
 impl QemuNode {
-    fn start(opts: &HilOptions, slot0: &[u8]) -> Result<QemuNode, HilError> {
+    /// Boots the node with `slot0` (a slot page image, see [`SlotImage::build`]) loaded into
+    /// record slot 0, or with both slots blank (QEMU's flash reads as zeros), and connects to its
+    /// link.
+    pub fn start(opts: &HilOptions, slot0: Option<&[u8]>) -> Result<QemuNode, HilError> {
         let dir = tempfile::Builder::new().prefix("accelcal-hil").tempdir()?;
         let slot_path = dir.path().join("slot0.bin");
-        std::fs::write(&slot_path, slot0)?;
         let sock = dir.path().join("link.sock");
         let stderr_path = dir.path().join("qemu.stderr");
         let mut cmd = Command::new(&opts.qemu);
@@ -110,10 +114,16 @@ impl QemuNode {
             .args(["-semihosting-config", "enable=on,target=native"])
             .arg("-chardev")
             .arg(format!("socket,id=link,path={},server=on,wait=on", sock.display()))
-            .args(["-serial", "chardev:link"])
-            .arg("-device")
-            .arg(format!("loader,file={},addr={:#x}", slot_path.display(), RECORD_SLOTS[0]))
-            .arg("-kernel")
+            .args(["-serial", "chardev:link"]);
+        if let Some(page) = slot0 {
+            std::fs::write(&slot_path, page)?;
+            cmd.arg("-device").arg(format!(
+                "loader,file={},addr={:#x}",
+                slot_path.display(),
+                RECORD_SLOTS[0]
+            ));
+        }
+        cmd.arg("-kernel")
             .arg(&opts.elf)
             .stdin(Stdio::null())
             .stdout(std::fs::File::create(dir.path().join("defmt.bin"))?)
@@ -135,7 +145,58 @@ impl QemuNode {
             std::thread::sleep(Duration::from_millis(20));
         };
         stream.set_read_timeout(Some(Duration::from_millis(200)))?;
-        Ok(QemuNode { child, stderr_path, _dir: dir, stream })
+        let rx = Receiver::new(stream.try_clone()?);
+        Ok(QemuNode { child, stderr_path, _dir: dir, stream, rx, timeout: opts.timeout })
+    }
+
+    /// The node's status, asked for every 200 ms until it answers (bytes sent before the node
+    /// enables its receiver are lost, so the first request may go unheard).
+    pub fn status(&mut self) -> Result<Status, HilError> {
+        let t0 = Instant::now();
+        let mut tx = self.stream.try_clone()?;
+        link::send(&mut tx, &HostMsg::GetStatus)?;
+        loop {
+            match self.rx.recv() {
+                Ok(Ok(NodeMsg::Status(s))) => return Ok(s),
+                Ok(_) => {}
+                Err(e) if is_timeout(&e) => link::send(&mut tx, &HostMsg::GetStatus)?,
+                Err(e) => return Err(self.explain(e)),
+            }
+            if t0.elapsed() > self.timeout {
+                return Err(HilError::Timeout(self.timeout));
+            }
+        }
+    }
+
+    /// Sends raw bytes on the link (for tests of the node's frame handling).
+    pub fn send_raw(&mut self, bytes: &[u8]) -> Result<(), HilError> {
+        self.stream.write_all(bytes)?;
+        Ok(())
+    }
+
+    /// Sends `msg` and returns the node's next message that is not a periodic status report.
+    pub fn request(&mut self, msg: &HostMsg) -> Result<NodeMsg, HilError> {
+        let mut tx = self.stream.try_clone()?;
+        link::send(&mut tx, msg)?;
+        self.next_answer()
+    }
+
+    /// The next message that is not a status report.
+    fn next_answer(&mut self) -> Result<NodeMsg, HilError> {
+        let mut last = Instant::now();
+        loop {
+            match self.rx.recv() {
+                Ok(Ok(NodeMsg::Status(_))) => last = Instant::now(),
+                Ok(Ok(m)) => return Ok(m),
+                Ok(Err(e)) => return Err(HilError::Protocol(format!("bad frame from the node: {e}"))),
+                Err(e) if is_timeout(&e) => {
+                    if last.elapsed() > self.timeout {
+                        return Err(HilError::Timeout(self.timeout));
+                    }
+                }
+                Err(e) => return Err(self.explain(e)),
+            }
+        }
     }
 
     /// Turns a link error into the more telling "QEMU exited" when QEMU is gone.
@@ -162,38 +223,14 @@ fn is_timeout(e: &LinkError) -> bool {
     matches!(e, LinkError::Io(io) if matches!(io.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut))
 }
 
-/// Waits for a status report, asking for one every 200 ms (bytes sent before the node enables
-/// its receiver are lost, so the first request may go unheard).
-fn wait_status(
-    node: &mut QemuNode,
-    rx: &mut Receiver<UnixStream>,
-    timeout: Duration,
-) -> Result<Status, HilError> {
-    let t0 = Instant::now();
-    let mut tx = node.stream.try_clone()?;
-    link::send(&mut tx, &HostMsg::GetStatus)?;
-    loop {
-        match rx.recv() {
-            Ok(Ok(NodeMsg::Status(s))) => return Ok(s),
-            Ok(_) => {}
-            Err(e) if is_timeout(&e) => link::send(&mut tx, &HostMsg::GetStatus)?,
-            Err(e) => return Err(node.explain(e)),
-        }
-        if t0.elapsed() > timeout {
-            return Err(HilError::Timeout(timeout));
-        }
-    }
-}
-
 /// Boots the QEMU node with `record` (the bytes of a record file) in slot 0, replays `codes`
 /// through it in blocks of [`MAX_BLOCK`], and returns the node's answers in order.
 pub fn replay(opts: &HilOptions, record: &[u8], codes: &[Codes]) -> Result<HilRun, HilError> {
     let rec =
         Record::parse(record).map_err(|e| HilError::Record(accelcal_shared::slots::SlotError::Record(e)))?;
     let page = SlotImage::build(&record[..rec.len()], 1).map_err(HilError::Record)?;
-    let mut node = QemuNode::start(opts, &page)?;
-    let mut rx = Receiver::new(node.stream.try_clone()?);
-    let status = wait_status(&mut node, &mut rx, opts.timeout)?;
+    let mut node = QemuNode::start(opts, Some(&page))?;
+    let status = node.status()?;
     if let RecordStatus::Missing(fault) = status.record {
         return Err(HilError::Rejected(fault));
     }
@@ -202,7 +239,6 @@ pub fn replay(opts: &HilOptions, record: &[u8], codes: &[Codes]) -> Result<HilRu
     // takes them at its own pace while this thread collects the answers.
     let mut tx = node.stream.try_clone()?;
     let blocks: Vec<Vec<Codes>> = codes.chunks(MAX_BLOCK).map(|c| c.to_vec()).collect();
-    let n_blocks = blocks.len();
     let writer = std::thread::spawn(move || -> Result<(), LinkError> {
         let mut out = Vec::new();
         for (seq, block) in blocks.into_iter().enumerate() {
@@ -215,52 +251,37 @@ pub fn replay(opts: &HilOptions, record: &[u8], codes: &[Codes]) -> Result<HilRu
     });
 
     let mut accel = Vec::with_capacity(codes.len());
-    let mut last = Instant::now();
     while accel.len() < codes.len() {
-        let msg = match rx.recv() {
-            Ok(m) => m,
-            Err(e) if is_timeout(&e) => {
-                if last.elapsed() > opts.timeout {
-                    return Err(HilError::Timeout(opts.timeout));
-                }
-                continue;
-            }
-            Err(e) => return Err(node.explain(e)),
+        let NodeMsg::Replayed { seq, data } = node.next_answer()? else {
+            continue;
         };
-        last = Instant::now();
-        match msg {
-            Ok(NodeMsg::Replayed { seq, data }) => {
-                let want = accel.len() / MAX_BLOCK;
-                if seq as usize != want {
-                    return Err(HilError::Protocol(format!("answer {seq} where {want} was due")));
-                }
-                let expected = (codes.len() - accel.len()).min(MAX_BLOCK);
-                match data {
-                    Block::Calibrated(v) if v.len() == expected => accel.extend_from_slice(&v),
-                    Block::CalibratedFixed(v) if v.len() == expected => {
-                        accel.extend(v.iter().map(|a| a.map(|q| (q as f64 / 65536.0) as f32)))
-                    }
-                    Block::Uncalibrated(_) => {
-                        return Err(HilError::Protocol("the node answered uncalibrated codes".into()))
-                    }
-                    other => {
-                        return Err(HilError::Protocol(format!(
-                            "answer {seq} has {} sets, {expected} were sent",
-                            other.len()
-                        )))
-                    }
-                }
+        let want = accel.len() / MAX_BLOCK;
+        if seq as usize != want {
+            return Err(HilError::Protocol(format!("answer {seq} where {want} was due")));
+        }
+        let expected = (codes.len() - accel.len()).min(MAX_BLOCK);
+        match data {
+            Block::Calibrated(v) if v.len() == expected => accel.extend_from_slice(&v),
+            // Fixed point: m/s²·2¹⁶ as i32; exact in f32 for |a| < 256 m/s².
+            Block::CalibratedFixed(v) if v.len() == expected => {
+                accel.extend(v.iter().map(|a| a.map(|q| (q as f64 / 65536.0) as f32)))
             }
-            Ok(_) => {}
-            Err(e) => return Err(HilError::Protocol(format!("bad frame from the node: {e}"))),
+            Block::Uncalibrated(_) => {
+                return Err(HilError::Protocol("the node answered uncalibrated codes".into()))
+            }
+            other => {
+                return Err(HilError::Protocol(format!(
+                    "answer {seq} has {} sets, {expected} were sent",
+                    other.len()
+                )))
+            }
         }
     }
     match writer.join() {
         Ok(r) => r?,
         Err(_) => return Err(HilError::Protocol("writer thread panicked".into())),
     }
-    let status = wait_status(&mut node, &mut rx, opts.timeout)?;
-    debug_assert!(n_blocks * MAX_BLOCK >= codes.len());
+    let status = node.status()?;
     Ok(HilRun { accel, status })
 }
 
