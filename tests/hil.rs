@@ -45,6 +45,22 @@ fn node_elf() -> PathBuf {
     elf
 }
 
+/// The fixed-point QEMU build (`cargo xtask test` builds it into firmware/target/fixed-point).
+fn node_fixed_elf() -> PathBuf {
+    let elf = std::env::var_os("ACCELCAL_NODE_QEMU_FIXED_ELF").map(PathBuf::from).unwrap_or_else(|| {
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../firmware/target/fixed-point/thumbv7em-none-eabihf/release/node-qemu")
+    });
+    assert!(
+        elf.is_file(),
+        "{} is missing: build it with `cargo xtask test` (or `cd firmware && cargo build --release \
+         --features board-qemu,fixed-point --bin node-qemu --target-dir target/fixed-point`)",
+        elf.display()
+    );
+    node_elf(); // checks QEMU too
+    elf
+}
+
 fn accelcal(args: &[&str]) -> Output {
     let out = Command::new(env!("CARGO_BIN_EXE_accelcal")).args(args).output().expect("run accelcal");
     out
@@ -244,4 +260,31 @@ fn node_refuses_a_corrupt_record_and_survives_garbage() {
     let answer = node.request(&replay_msg(1, &[[10, 20, 30]])).unwrap();
     assert!(matches!(answer, NodeMsg::Replayed { seq: 1, data: Block::Uncalibrated(_) }), "{answer:?}");
     assert_eq!(node.status().unwrap().bad_frames, 1);
+}
+
+/// The fixed-point build computes exactly what the shared crate's fixed-point path computes on
+/// the host, and stays within its stated bound of the f64 calibration.
+#[test]
+fn fixed_point_node_matches_host_fixed_arithmetic() {
+    let elf = node_fixed_elf();
+    let dir = tempfile::tempdir().unwrap();
+    let (camp_path, rec_path) = campaign_and_record(dir.path(), QEMU_ID_HEX);
+    let camp = Campaign::read(&camp_path).unwrap();
+    let codes = accelcal::node::hil::campaign_codes(&camp, &camp_path).unwrap();
+    let codes = &codes[..600];
+    let record = std::fs::read(&rec_path).unwrap();
+    let run = accelcal::node::hil::replay(&HilOptions::new(elf), &record, codes).unwrap();
+    let cal = Record::parse(&record).unwrap().model4().unwrap().invert().unwrap();
+    let fixed = cal.to_fixed().unwrap();
+    let bound = fixed.error_bound(&cal);
+    assert_eq!(run.accel.len(), codes.len());
+    for (row, (a, u)) in run.accel.iter().zip(codes).enumerate() {
+        // The node sends m/s²·2¹⁶ as i32; `replay` converts exactly (|a| < 256 m/s²).
+        let q = a.map(|v| (v as f64 * 65536.0) as i32);
+        assert_eq!(q, fixed.apply(*u), "row {row}");
+        let want = cal.apply(u.map(f64::from));
+        for i in 0..3 {
+            assert!((a[i] as f64 - want[i]).abs() <= bound[i], "row {row} axis {i}");
+        }
+    }
 }

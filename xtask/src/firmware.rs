@@ -27,6 +27,8 @@ const FLASH_BUDGET: u64 = 48 * 1024;
 const RAM_BUDGET: u64 = 16 * 1024;
 /// The hot-path symbol (firmware/src/app/calib.rs).
 const HOT_PATH: &str = "calibrate_block_f32";
+/// The fixed-point build's hot path.
+const HOT_PATH_FIXED: &str = "calibrate_block_fixed";
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
@@ -78,24 +80,39 @@ fn build_qemu() -> anyhow::Result<()> {
     run(&mut fw_cargo(&["build", "--release", "--locked", "--features", "board-qemu", "--bin", "node-qemu"]))
 }
 
-/// `cargo xtask test` (firmware part): installs QEMU when missing, builds the real firmware and
-/// the QEMU build, checks the fixed-point build, and runs the QEMU tests.
-pub fn test() -> anyhow::Result<()> {
-    setup_qemu()?;
-    build_real()?;
-    build_qemu()?;
+/// Target directory of the fixed-point QEMU build (same binary name, other features).
+const FIXED_TARGET_DIR: &str = "target/fixed-point";
+
+fn fixed_elf() -> PathBuf {
+    fw_dir().join(FIXED_TARGET_DIR).join("thumbv7em-none-eabihf/release/node-qemu")
+}
+
+fn build_qemu_fixed() -> anyhow::Result<()> {
     run(&mut fw_cargo(&[
-        "check",
+        "build",
         "--release",
+        "--locked",
         "--features",
         "board-qemu,fixed-point",
         "--bin",
         "node-qemu",
-    ]))?;
+        "--target-dir",
+        FIXED_TARGET_DIR,
+    ]))
+}
+
+/// `cargo xtask test` (firmware part): installs QEMU when missing, builds the real firmware and
+/// the QEMU builds (f32 and fixed point), and runs the QEMU tests.
+pub fn test() -> anyhow::Result<()> {
+    setup_qemu()?;
+    build_real()?;
+    build_qemu()?;
+    build_qemu_fixed()?;
     let mut t = Command::new(std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into()));
     t.current_dir(root())
         .args(["test", "-p", "accelcal", "--test", "hil"])
-        .env("ACCELCAL_NODE_QEMU_ELF", elf("node-qemu"));
+        .env("ACCELCAL_NODE_QEMU_ELF", elf("node-qemu"))
+        .env("ACCELCAL_NODE_QEMU_FIXED_ELF", fixed_elf());
     run(&mut t)
 }
 
@@ -270,10 +287,9 @@ fn count_instructions(
         recv(&mut s, &mut msgs)?;
         for m in &msgs {
             if let NodeMsg::Replayed { data, .. } = m {
-                ensure!(
-                    matches!(data, Block::Calibrated(v) if v.len() == per_call),
-                    "unexpected answer {m:?}"
-                );
+                let ok = matches!(data, Block::Calibrated(v) if v.len() == per_call)
+                    || matches!(data, Block::CalibratedFixed(v) if v.len() == per_call);
+                ensure!(ok, "unexpected answer {m:?}");
                 answered += 1;
             }
         }
@@ -305,7 +321,7 @@ fn count_instructions(
         }
     }
     println!("  ({retried} trace entries were interrupt retries, not counted)");
-    ensure!(calls == n_calls as u64, "traced {calls} calls of {HOT_PATH}, expected {n_calls}");
+    ensure!(calls == n_calls as u64, "traced {calls} calls of the hot path, expected {n_calls}");
     Ok((insns, calls))
 }
 
@@ -324,6 +340,9 @@ pub fn bench() -> anyhow::Result<()> {
     let block = wire::MAX_BLOCK;
     let (i16, _) = count_instructions(&qemu_elf, &dir, &range, CALLS, block)?;
     let (i1, _) = count_instructions(&qemu_elf, &dir, &range, CALLS, 1)?;
+    build_qemu_fixed()?;
+    let fixed_range = symbol_range(&fixed_elf(), HOT_PATH_FIXED)?;
+    let (q16, _) = count_instructions(&fixed_elf(), &dir, &fixed_range, CALLS, block)?;
     let _ = std::fs::remove_dir_all(&dir);
     let per_set_block = i16 as f64 / (CALLS * block) as f64;
     let per_set_marginal = (i16 - i1) as f64 / (CALLS * (block - 1)) as f64;
@@ -338,6 +357,10 @@ pub fn bench() -> anyhow::Result<()> {
     );
     println!("  {CALLS} calls x 1 set:   {i1} instructions = {per_call_single:.2} per single-set call");
     println!("  marginal cost of one more set in a block: {per_set_marginal:.2} instructions");
+    println!(
+        "fixed-point build (`{HOT_PATH_FIXED}`): {CALLS} calls x {block} sets: {q16} instructions = {:.2} per sample set",
+        q16 as f64 / (CALLS * block) as f64
+    );
     println!("real release build (node-real): flash text+data {flash} B ({:.1} KiB, budget 48 KiB), static RAM {ram} B ({:.1} KiB, budget 16 KiB)", flash as f64 / 1024.0, ram as f64 / 1024.0);
     ensure!(flash <= FLASH_BUDGET, "flash {flash} B exceeds the 48 KiB budget");
     ensure!(ram <= RAM_BUDGET, "static RAM {ram} B exceeds the 16 KiB budget");
