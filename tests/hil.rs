@@ -288,3 +288,61 @@ fn fixed_point_node_matches_host_fixed_arithmetic() {
         }
     }
 }
+
+/// `accelcal monitor` reads the node's stream through a serial port: QEMU exposes USART1 as a
+/// pseudo-terminal, the node reports its status every second.
+#[test]
+fn monitor_shows_the_status_stream_of_a_node_on_a_serial_port() {
+    use std::io::{BufRead, BufReader};
+    use std::process::Stdio;
+    let elf = node_elf();
+    let mut qemu = Command::new("qemu-system-arm")
+        .args(["-M", "b-l475e-iot01a", "-display", "none", "-monitor", "none", "-serial", "pty"])
+        .args(["-semihosting-config", "enable=on,target=native", "-kernel"])
+        .arg(&elf)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    struct Kill(std::process::Child);
+    impl Drop for Kill {
+        fn drop(&mut self) {
+            let _ = self.0.kill();
+            let _ = self.0.wait();
+        }
+    }
+    // QEMU names the pseudo-terminal on stdout ("char device redirected to /dev/pts/3 (label
+    // serial0)"); the node's defmt bytes follow and are drained.
+    let stdout = qemu.stdout.take().unwrap();
+    let _qemu = Kill(qemu);
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let mut r = BufReader::new(stdout);
+        let mut line = String::new();
+        let _ = r.read_line(&mut line);
+        let _ = tx.send(line);
+        let _ = std::io::copy(&mut r, &mut std::io::sink());
+    });
+    let line = rx.recv_timeout(std::time::Duration::from_secs(10)).expect("qemu names its pty");
+    let pty = line.split_whitespace().find(|w| w.starts_with("/dev/")).unwrap_or_else(|| panic!("{line}"));
+    let mon = Command::new(env!("CARGO_BIN_EXE_accelcal"))
+        .args(["monitor", "--port", pty, "--count", "2"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut mon = Kill(mon);
+    let t0 = std::time::Instant::now();
+    while mon.0.try_wait().unwrap().is_none() {
+        assert!(t0.elapsed() < std::time::Duration::from_secs(30), "monitor did not finish");
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let mut out = String::new();
+    std::io::Read::read_to_string(mon.0.stdout.as_mut().unwrap(), &mut out).unwrap();
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(lines.len(), 2, "{out}");
+    for l in lines {
+        assert!(l.starts_with("status: protocol 1, NO RECORD (NoSlot): output is UNCALIBRATED"), "{l}");
+    }
+}
