@@ -1,1 +1,3 @@
 //! accelcal host library.
+
+pub mod gravity;
