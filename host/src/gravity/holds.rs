@@ -38,7 +38,13 @@ pub struct DetectorConfig {
 
 impl Default for DetectorConfig {
     fn default() -> Self {
-        Self { window_s: 1.0, min_hold_s: 2.0, threshold: None, floor_quantile: 0.25, threshold_factor: 4.0 }
+        Self {
+            window_s: 1.0,
+            min_hold_s: 2.0,
+            threshold: None,
+            floor_quantile: 0.25,
+            threshold_factor: 4.0,
+        }
     }
 }
 
@@ -90,7 +96,9 @@ impl std::fmt::Display for Rejection {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Rejection::TooShort { duration_s } => write!(f, "too short ({duration_s:.2} s)"),
-            Rejection::NotStatic { variance } => write!(f, "not static (run variance {variance:.1} codes²)"),
+            Rejection::NotStatic { variance } => {
+                write!(f, "not static (run variance {variance:.1} codes²)")
+            }
         }
     }
 }
@@ -144,7 +152,9 @@ pub struct Detection {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum HoldError {
     /// The recording is shorter than two windows.
-    #[error("recording has {samples} samples, fewer than two detector windows ({window} samples each)")]
+    #[error(
+        "recording has {samples} samples, fewer than two detector windows ({window} samples each)"
+    )]
     TooShort {
         /// Number of samples.
         samples: usize,
@@ -189,11 +199,33 @@ pub fn detect(t: &[f64], codes: &[[f64; 3]], cfg: &DetectorConfig) -> Result<Det
         };
         let (t_start, t_end) = (t[start], t[end - 1]);
         match reason {
-            Some(reason) => rejected.push(RejectedRun { start, end, t_start, t_end, reason }),
-            None => holds.push(Hold { start, end, t_start, t_end, mean, std: var.map(f64::sqrt) }),
+            Some(reason) => rejected.push(RejectedRun {
+                start,
+                end,
+                t_start,
+                t_end,
+                reason,
+            }),
+            None => holds.push(Hold {
+                start,
+                end,
+                t_start,
+                t_end,
+                mean,
+                std: var.map(f64::sqrt),
+            }),
         }
     }
-    Ok(Detection { window, dt, floor, threshold, source, trace, holds, rejected })
+    Ok(Detection {
+        window,
+        dt,
+        floor,
+        threshold,
+        source,
+        trace,
+        holds,
+        rejected,
+    })
 }
 
 fn check_config(cfg: &DetectorConfig) -> Result<(), HoldError> {
@@ -333,7 +365,11 @@ mod tests {
                 }
             }
             for _ in 0..len {
-                codes.push([level + noise.sample(&mut rng), level + noise.sample(&mut rng), level + noise.sample(&mut rng)]);
+                codes.push([
+                    level + noise.sample(&mut rng),
+                    level + noise.sample(&mut rng),
+                    level + noise.sample(&mut rng),
+                ]);
             }
         }
         let t = (0..codes.len()).map(|i| i as f64 * 0.01).collect();
@@ -375,25 +411,51 @@ mod tests {
     #[test]
     fn user_threshold_and_bad_settings() {
         let (t, codes) = synthetic(&[(30000.0, 800), (31000.0, 800)], 150, 3);
-        let cfg = DetectorConfig { threshold: Some(1e12), ..Default::default() };
+        let cfg = DetectorConfig {
+            threshold: Some(1e12),
+            ..Default::default()
+        };
         let d = detect(&t, &codes, &cfg).unwrap();
         assert_eq!(d.source, ThresholdSource::User);
-        assert_eq!(d.holds.len() + d.rejected.len(), 1, "a huge threshold merges everything");
-        let cfg = DetectorConfig { window_s: -1.0, ..Default::default() };
-        assert!(matches!(detect(&t, &codes, &cfg), Err(HoldError::BadConfig(_))));
-        assert!(matches!(detect(&t[..50], &codes[..50], &DetectorConfig::default()), Err(HoldError::TooShort { .. })));
-        assert!(matches!(detect(&[0.0, 0.0, 0.0], &codes[..3], &DetectorConfig::default()), Err(HoldError::BadSampling)));
+        assert_eq!(
+            d.holds.len() + d.rejected.len(),
+            1,
+            "a huge threshold merges everything"
+        );
+        let cfg = DetectorConfig {
+            window_s: -1.0,
+            ..Default::default()
+        };
+        assert!(matches!(
+            detect(&t, &codes, &cfg),
+            Err(HoldError::BadConfig(_))
+        ));
+        assert!(matches!(
+            detect(&t[..50], &codes[..50], &DetectorConfig::default()),
+            Err(HoldError::TooShort { .. })
+        ));
+        assert!(matches!(
+            detect(&[0.0, 0.0, 0.0], &codes[..3], &DetectorConfig::default()),
+            Err(HoldError::BadSampling)
+        ));
     }
 
     #[test]
     fn trace_matches_direct_variance() {
-        let codes: Vec<[f64; 3]> = (0..20).map(|i| [(i * i) as f64, 40000.0 + i as f64, 7.0]).collect();
+        let codes: Vec<[f64; 3]> = (0..20)
+            .map(|i| [(i * i) as f64, 40000.0 + i as f64, 7.0])
+            .collect();
         let tr = variance_trace(&codes, 5);
         assert!(tr[0].is_infinite() && tr[1].is_infinite() && tr[19].is_infinite());
         let xs: Vec<f64> = (8..13).map(|i| (i * i) as f64).collect();
         let m = xs.iter().sum::<f64>() / 5.0;
         let v0 = xs.iter().map(|x| (x - m).powi(2)).sum::<f64>() / 4.0;
         let v1 = 2.5; // variance of 5 consecutive integers
-        assert!((tr[10] - (v0 + v1)).abs() < 1e-6, "{} vs {}", tr[10], v0 + v1);
+        assert!(
+            (tr[10] - (v0 + v1)).abs() < 1e-6,
+            "{} vs {}",
+            tr[10],
+            v0 + v1
+        );
     }
 }
