@@ -171,11 +171,11 @@ fn parse(argv: &[&str]) -> GravityFitArgs {
 #[test]
 fn command_line_defaults_and_options() {
     let a = parse(&["rec.txt"]);
-    assert_eq!(a.format, InputFormat::ImuTk);
+    assert_eq!(a.options.format, InputFormat::ImuTk);
     assert_eq!(a.g, 9.81);
-    assert_eq!(a.min_hold_s, 2.0);
-    assert_eq!(a.threshold, None);
-    assert_eq!(a.structure, StructureArg::ImuTk);
+    assert_eq!(a.options.min_hold_s, 2.0);
+    assert_eq!(a.options.threshold, None);
+    assert_eq!(a.options.structure, StructureArg::ImuTk);
     let a = parse(&[
         "rec.txt",
         "--format",
@@ -188,7 +188,7 @@ fn command_line_defaults_and_options() {
         "3",
     ]);
     assert_eq!(
-        (a.g, a.threshold, a.min_hold_s),
+        (a.g, a.options.threshold, a.options.min_hold_s),
         (9.81744, Some(200.0), 3.0)
     );
     assert!(Wrapper::try_parse_from(["accelcal", "rec.txt", "--format", "csv"]).is_err());
@@ -209,7 +209,7 @@ fn cli_writes_json_in_the_issue_shape_and_plots() {
     let plots = dir.path().join("plots");
     let mut args = parse(&[data.to_str().unwrap(), "--g", "9.81744"]);
     args.json = Some(json.clone());
-    args.plot = Some(plots.clone());
+    args.options.plot = Some(plots.clone());
     cli::run(&args).unwrap();
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
@@ -297,4 +297,44 @@ fn real_xsens_recording_calibrates_to_a_millimetre_per_second_squared() {
             cal.fit.model.bias
         );
     }
+}
+
+#[test]
+fn accelcal_fit_method_gravity_norm_runs_on_the_real_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let json = dir.path().join("real.json");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_accelcal"))
+        .args([
+            "fit",
+            real_file().to_str().unwrap(),
+            "--method",
+            "gravity-norm",
+            "--g",
+            "9.81744",
+        ])
+        .arg("--json")
+        .arg(&json)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.contains("holds: 38 kept, 1 rejected"), "{stdout}");
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    for key in ["channels", "misalignment", "holds", "residual_rms"] {
+        assert!(v.get(key).is_some(), "missing {key}");
+    }
+    // A malformed recording is bad input: exit code 2, message with file, line and column.
+    let bad = dir.path().join("bad.txt");
+    std::fs::write(&bad, "0 1 2 3\n0.01 1 2\n").unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_accelcal"))
+        .args(["fit", bad.to_str().unwrap(), "--method", "gravity-norm"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("bad.txt:2:1: expected 4 fields"));
 }

@@ -80,7 +80,9 @@ impl core::fmt::Display for RecordError {
         match self {
             RecordError::Truncated => f.write_str("record is truncated"),
             RecordError::BadMagic => f.write_str("not a calibration record (bad magic)"),
-            RecordError::UnsupportedVersion(v) => write!(f, "unsupported record format version {v}"),
+            RecordError::UnsupportedVersion(v) => {
+                write!(f, "unsupported record format version {v}")
+            }
             RecordError::BadLength => f.write_str("record length field is inconsistent"),
             RecordError::BadChannelCount => f.write_str("record channel count out of range"),
             RecordError::BadTerms => f.write_str("record term list is invalid"),
@@ -254,10 +256,17 @@ impl Record {
         if self.structure != crate::terms::MODEL_4 || self.n_channels != 3 {
             return None;
         }
-        let mut m = crate::linear::Model4 { u0: [0.0; 3], k: [[0.0; 3]; 3] };
+        let mut m = crate::linear::Model4 {
+            u0: [0.0; 3],
+            k: [[0.0; 3]; 3],
+        };
         for c in 0..3 {
             m.u0[c] = self.coefficients[c][0];
-            m.k[c] = [self.coefficients[c][1], self.coefficients[c][2], self.coefficients[c][3]];
+            m.k[c] = [
+                self.coefficients[c][1],
+                self.coefficients[c][2],
+                self.coefficients[c][3],
+            ];
         }
         Some(m)
     }
@@ -331,7 +340,10 @@ mod tests {
             assert!(Record::parse(&c).is_err(), "flip of bit {i} accepted");
         }
         for n in 0..b.len() {
-            assert!(Record::parse(&b[..n]).is_err(), "truncation to {n} accepted");
+            assert!(
+                Record::parse(&b[..n]).is_err(),
+                "truncation to {n} accepted"
+            );
         }
     }
 
@@ -340,7 +352,10 @@ mod tests {
         let mut r = sample();
         assert_eq!(r.emit(&mut [0u8; 10]), Err(RecordError::BufferTooSmall));
         r.coefficients[2][3] = f64::INFINITY;
-        assert_eq!(r.emit(&mut [0u8; MAX_RECORD_LEN]), Err(RecordError::NonFinite));
+        assert_eq!(
+            r.emit(&mut [0u8; MAX_RECORD_LEN]),
+            Err(RecordError::NonFinite)
+        );
     }
 
     proptest! {

@@ -89,7 +89,10 @@ impl Term {
                 }
                 None => (factor, 1),
             };
-            let i = VAR.iter().position(|&n| n == var).ok_or(TermError::UnknownVariable)?;
+            let i = VAR
+                .iter()
+                .position(|&n| n == var)
+                .ok_or(TermError::UnknownVariable)?;
             if p == 0 || p > 3 {
                 return Err(TermError::BadPower);
             }

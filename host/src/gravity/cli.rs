@@ -12,6 +12,7 @@ use serde::Serialize;
 use super::fit::{Structure, TriadModel};
 use super::holds::{DetectorConfig, ThresholdSource};
 use super::{imutk, plot, Calibration, StructureChoice};
+use crate::error::bad;
 
 /// Input file formats accepted by the gravity-norm fit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -38,76 +39,88 @@ pub enum StructureArg {
     Auto,
 }
 
-/// Arguments of `accelcal fit --method gravity-norm`.
+/// Options of the gravity-norm fit other than the input, `--g` and `--json`; flattened into
+/// `accelcal fit` (they apply to `--method gravity-norm` only).
 #[derive(Debug, Clone, clap::Args)]
-pub struct GravityFitArgs {
-    /// Raw recording (imu_tk text `t x y z`, plain or gzip).
-    #[arg(value_name = "INPUT")]
-    pub input: PathBuf,
-    /// Format of INPUT.
+#[command(next_help_heading = "Gravity-norm options (--method gravity-norm)")]
+pub struct GravityOptions {
+    /// Format of the raw recording.
     #[arg(long, value_enum, default_value = "imu-tk")]
     pub format: InputFormat,
-    /// Local magnitude of gravity, in m/s².
-    #[arg(long, default_value_t = 9.81)]
-    pub g: f64,
-    /// Write the calibration as JSON to this file.
-    #[arg(long, value_name = "FILE")]
-    pub json: Option<PathBuf>,
     /// Write SVG plots (residual per hold, detector trace) into this directory.
     #[arg(long, value_name = "DIR")]
     pub plot: Option<PathBuf>,
     /// Shortest accepted static hold, in seconds.
     #[arg(long, default_value_t = 2.0)]
     pub min_hold_s: f64,
-    /// Detector threshold in codes² (sum of the three axis variances); default: 4 × lower quartile of
-    /// the detector trace.
+    /// Detector threshold in codes² (sum of the three axis variances) [default: 4 x the lower
+    /// quartile of the detector trace].
     #[arg(long)]
     pub threshold: Option<f64>,
     /// Length of the detector's sliding window, in seconds.
     #[arg(long, default_value_t = 1.0)]
     pub window_s: f64,
-    /// Model structure to fit.
+    /// Model structure to fit (`auto`: selected on withheld holds).
     #[arg(long, value_enum, default_value = "imu-tk")]
     pub structure: StructureArg,
 }
 
+/// Arguments of `accelcal fit INPUT --method gravity-norm`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct GravityFitArgs {
+    /// Raw recording (imu_tk text `t x y z`, plain or gzip).
+    #[arg(value_name = "INPUT")]
+    pub input: PathBuf,
+    /// Local magnitude of gravity, in m/s².
+    #[arg(long, default_value_t = 9.81)]
+    pub g: f64,
+    /// Write the calibration as JSON to this file.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+    /// The other options.
+    #[command(flatten)]
+    pub options: GravityOptions,
+}
+
 impl GravityFitArgs {
-    /// Checks the numeric arguments before any I/O.
+    /// Checks the numeric arguments before any I/O; errors are bad input (exit code 2).
     pub fn validate(&self) -> anyhow::Result<()> {
-        anyhow::ensure!(
-            self.g.is_finite() && self.g > 0.0,
-            "--g must be a positive number, got {}",
-            self.g
-        );
-        anyhow::ensure!(
-            self.min_hold_s.is_finite() && self.min_hold_s >= 0.0,
-            "--min-hold-s must be non-negative, got {}",
-            self.min_hold_s
-        );
-        anyhow::ensure!(
-            self.window_s.is_finite() && self.window_s > 0.0,
-            "--window-s must be positive"
-        );
-        if let Some(th) = self.threshold {
-            anyhow::ensure!(
-                th.is_finite() && th > 0.0,
-                "--threshold must be positive, got {th}"
-            );
+        let o = &self.options;
+        if !(self.g.is_finite() && self.g > 0.0) {
+            return Err(bad(format!(
+                "--g must be a positive number of m/s², got {}",
+                self.g
+            )));
+        }
+        if !(o.min_hold_s.is_finite() && o.min_hold_s >= 0.0) {
+            return Err(bad(format!(
+                "--min-hold-s must be non-negative, got {}",
+                o.min_hold_s
+            )));
+        }
+        if !(o.window_s.is_finite() && o.window_s > 0.0) {
+            return Err(bad(format!(
+                "--window-s must be positive, got {}",
+                o.window_s
+            )));
+        }
+        if let Some(th) = o.threshold.filter(|th| !(th.is_finite() && *th > 0.0)) {
+            return Err(bad(format!("--threshold must be positive, got {th}")));
         }
         Ok(())
     }
 
     fn detector(&self) -> DetectorConfig {
         DetectorConfig {
-            window_s: self.window_s,
-            min_hold_s: self.min_hold_s,
-            threshold: self.threshold,
+            window_s: self.options.window_s,
+            min_hold_s: self.options.min_hold_s,
+            threshold: self.options.threshold,
             ..DetectorConfig::default()
         }
     }
 
     fn structure_choice(&self) -> StructureChoice {
-        match self.structure {
+        match self.options.structure {
             StructureArg::BiasScale => StructureChoice::Fixed(Structure::BiasScale),
             StructureArg::ImuTk => StructureChoice::Fixed(Structure::ImuTk),
             StructureArg::Quadratic => StructureChoice::Fixed(Structure::ImuTkQuadratic),
@@ -308,7 +321,7 @@ pub fn json_report(cal: &Calibration) -> JsonReport {
 /// Reads the input, detects the holds and fits, without printing anything.
 pub fn calibrate_file(args: &GravityFitArgs) -> anyhow::Result<(imutk::Recording, Calibration)> {
     args.validate()?;
-    let rec = match args.format {
+    let rec = match args.options.format {
         InputFormat::ImuTk => imutk::read_path(&args.input)?,
     };
     let cal = super::calibrate(
@@ -332,7 +345,7 @@ pub fn run(args: &GravityFitArgs) -> anyhow::Result<()> {
             .with_context(|| format!("{}: cannot write JSON", path.display()))?;
         println!("wrote {}", path.display());
     }
-    if let Some(dir) = &args.plot {
+    if let Some(dir) = &args.options.plot {
         write_plots(dir, &rec.t, &cal)?;
     }
     Ok(())

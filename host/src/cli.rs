@@ -1,0 +1,236 @@
+//! The command line: clap definitions of every subcommand and its options.
+
+use std::path::PathBuf;
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+
+use crate::gmdh::{Criterion, Split};
+use crate::sim::Layout;
+
+/// Production calibration of analog MEMS accelerometer blocks (MS9002.D class) on a dividing
+/// head: GMDH model-structure selection, least-squares and test-turn fits, and their comparison.
+///
+/// Every command prints human tables to stdout and, with --json FILE, machine output. Exit code
+/// 0 on success, 2 on bad input (the message names file, line and column), 1 otherwise.
+#[derive(Debug, Parser)]
+#[command(name = "accelcal", version, propagate_version = true)]
+pub struct Cli {
+    /// The command to run.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Simulate a calibration campaign on the dividing head (campaign CSV + truth JSON).
+    Simulate(SimulateArgs),
+    /// Select each channel's model structure by combinatorial GMDH.
+    Select(SelectArgs),
+    /// Fit model coefficients by least squares or test turns; optionally write a calibration record.
+    Fit(FitArgs),
+    /// Compare LSQ and test turns by the error of the calibrated acceleration (the paper's Table 2).
+    Compare(CompareArgs),
+    /// Run the whole job on built-in simulated data: simulate, select, fit, compare, plot.
+    Demo(DemoArgs),
+}
+
+/// Options shared by the commands that read a campaign.
+#[derive(Debug, Args, Clone)]
+pub struct CommonArgs {
+    /// Gravity at the rig, m/s².
+    #[arg(long, default_value_t = accelcal_shared::G_STANDARD)]
+    pub g: f64,
+    /// Write machine-readable results to this JSON file.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+}
+
+/// `accelcal simulate`.
+#[derive(Debug, Args)]
+pub struct SimulateArgs {
+    /// Campaign CSV to write.
+    #[arg(long, short, value_name = "FILE")]
+    pub out: PathBuf,
+    /// Truth JSON to write (the parameters the campaign was made from) [default: OUT with .truth.json].
+    #[arg(long, value_name = "FILE")]
+    pub truth: Option<PathBuf>,
+    /// Seed of every random draw: the same seed gives the same files.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Position plan: `head` (62 positions: beta -60..60 step 30 x alpha every 30 deg, plus beta
+    /// +-90), `six` (the six test-turn positions), `random:N` (N orientations uniform on the
+    /// sphere), or a plan file (CSV with columns alpha_deg,beta_deg).
+    #[arg(long, default_value = "head", value_name = "PLAN")]
+    pub plan: String,
+    /// Channel layout: `triad` (channels x, y, z) or `block:N` (N single-axis sensors a1..aN with
+    /// sensitive axes cycling x, y, z).
+    #[arg(long, default_value = "triad", value_parser = parse_layout)]
+    pub layout: Layout,
+    /// Sample sets per position (the dwell; its mean is what selection and fits use).
+    #[arg(long, default_value_t = 400)]
+    pub samples: usize,
+    /// Sample rate, Hz.
+    #[arg(long, default_value_t = 100.0)]
+    pub rate_hz: f64,
+    /// Time between positions (head moving), s.
+    #[arg(long, default_value_t = 2.0)]
+    pub move_s: f64,
+    /// White noise per sample, ADC codes (one sigma).
+    #[arg(long, default_value_t = 80.0)]
+    pub noise: f64,
+    /// Spread of the zero offsets around mid-scale, codes (one sigma).
+    #[arg(long, default_value_t = 300.0)]
+    pub bias_sd: f64,
+    /// Relative spread of the scale factors around 16384 codes/g (one sigma).
+    #[arg(long, default_value_t = 0.01)]
+    pub scale_sd: f64,
+    /// Misalignment of each sensitive axis, rad (one sigma per angle).
+    #[arg(long, default_value_t = 0.01)]
+    pub misalign_sd: f64,
+    /// Add an error effect, `NAME=KEY:VALUE,...` (repeatable). Known: `nonlinearity=k2:C,TERM:C`
+    /// (C in codes per (m/s^2)^n; k2 multiplies the squared sensitive-axis acceleration, TERM is any
+    /// basis term such as ax*ay).
+    #[arg(long = "effect", value_name = "NAME=PARAMS")]
+    pub effects: Vec<String>,
+    /// An ideal ADC: no rounding to whole codes, no clipping (for checks against exact values).
+    #[arg(long)]
+    pub ideal_adc: bool,
+    /// Gravity, m/s².
+    #[arg(long, default_value_t = accelcal_shared::G_STANDARD)]
+    pub g: f64,
+    /// Write a summary (rows, positions, channels) as JSON.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+}
+
+fn parse_layout(s: &str) -> Result<Layout, String> {
+    s.parse()
+}
+
+/// Term sets GMDH enumerates.
+#[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
+pub enum BasisArg {
+    /// The paper's 11 candidate models (Table 1).
+    Paper,
+    /// Subsets of 1, ax, ay, az (8 models).
+    Linear,
+    /// Subsets of the terms up to degree 2 (512 models).
+    Quadratic,
+    /// Subsets of the terms up to degree 3 (524,288 models).
+    Cubic,
+}
+
+impl From<BasisArg> for accelcal_shared::Basis {
+    fn from(b: BasisArg) -> Self {
+        match b {
+            BasisArg::Paper => accelcal_shared::Basis::Paper,
+            BasisArg::Linear => accelcal_shared::Basis::Linear,
+            BasisArg::Quadratic => accelcal_shared::Basis::Quadratic,
+            BasisArg::Cubic => accelcal_shared::Basis::Cubic,
+        }
+    }
+}
+
+/// `accelcal select`.
+#[derive(Debug, Args)]
+pub struct SelectArgs {
+    /// Campaign CSV.
+    pub campaign: PathBuf,
+    /// Candidate models.
+    #[arg(long, value_enum, default_value_t = BasisArg::Paper)]
+    pub basis: BasisArg,
+    /// External criterion, reported as an RMS in ADC codes.
+    #[arg(long, value_enum, default_value_t = Criterion::Regularity)]
+    pub criterion: Criterion,
+    /// Division of the positions into A (fitting) and B (checking): `alternate`, `halves`, or
+    /// `tail:FRACTION` (the last FRACTION of the positions in B).
+    #[arg(long, default_value = "alternate", value_parser = parse_split)]
+    pub split: Split,
+    /// The simplest model whose criterion is within this many codes of the best is selected
+    /// (the paper's rule: one ADC code); 0 selects the minimum.
+    #[arg(long, default_value_t = 1.0)]
+    pub tolerance: f64,
+    /// Only these channels (comma-separated names) [default: all].
+    #[arg(long, value_delimiter = ',')]
+    pub channels: Vec<String>,
+    /// In JSON, list only the N best candidates per channel (0 = all; default: all up to 4096
+    /// candidates, else 1000).
+    #[arg(long, value_name = "N")]
+    pub top: Option<usize>,
+    /// Write the criterion-against-complexity plot (SVG) into this directory.
+    #[arg(long, value_name = "DIR")]
+    pub plot: Option<PathBuf>,
+    #[command(flatten)]
+    pub common: CommonArgs,
+}
+
+fn parse_split(s: &str) -> Result<Split, String> {
+    s.parse()
+}
+
+/// Fitting methods.
+#[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
+pub enum Method {
+    /// Batch least squares over every position (any model).
+    Lsq,
+    /// Test turns: each axis along +g and -g (model 4 only).
+    TestTurns,
+    /// Gravity norm: a raw recording of hand-placed static holds, imu_tk model fitted on |a| = g.
+    GravityNorm,
+}
+
+/// `accelcal fit`.
+#[derive(Debug, Args)]
+pub struct FitArgs {
+    /// Campaign CSV (with --method gravity-norm: a raw recording, see --format).
+    pub campaign: PathBuf,
+    /// Fitting method.
+    #[arg(long, value_enum, default_value_t = Method::Lsq)]
+    pub method: Method,
+    /// Model terms, comma-separated (the intercept is always included) [default: ax,ay,az, the
+    /// paper's model 4].
+    #[arg(long, value_name = "LIST", default_value = "ax,ay,az")]
+    pub terms: String,
+    /// Write the calibration record for the firmware to this file.
+    #[arg(long, value_name = "FILE")]
+    pub record: Option<PathBuf>,
+    /// Device id for the record: the MCU's 96-bit unique id as 24 hex digits.
+    #[arg(long, default_value = "000000000000000000000000", value_name = "HEX")]
+    pub device_id: String,
+    /// Creation time written into the record, seconds since the Unix epoch [default: now].
+    #[arg(long, value_name = "UNIX_S")]
+    pub created: Option<u64>,
+    #[command(flatten)]
+    pub common: CommonArgs,
+    /// Options of --method gravity-norm.
+    #[command(flatten)]
+    pub gravity: crate::gravity::cli::GravityOptions,
+}
+
+/// `accelcal compare`.
+#[derive(Debug, Args)]
+pub struct CompareArgs {
+    /// Campaign CSV to calibrate from (and to validate on, when no --validate is given: then every
+    /// other position outside the test-turn positions is held out of both fits).
+    pub campaign: PathBuf,
+    /// Validate on this second campaign instead (both methods fit on all of CAMPAIGN).
+    #[arg(long, value_name = "CAMPAIGN2")]
+    pub validate: Option<PathBuf>,
+    /// Write the error-per-position plots (SVG, like the paper's Figures 3 and 4) into this directory.
+    #[arg(long, value_name = "DIR")]
+    pub plot: Option<PathBuf>,
+    #[command(flatten)]
+    pub common: CommonArgs,
+}
+
+/// `accelcal demo`.
+#[derive(Debug, Args)]
+pub struct DemoArgs {
+    /// Directory for the campaign, JSON results, the calibration record and the plots.
+    #[arg(long, default_value = "accelcal-demo", value_name = "DIR")]
+    pub out: PathBuf,
+    /// Seed of the simulated block.
+    #[arg(long, default_value_t = 2014)]
+    pub seed: u64,
+}

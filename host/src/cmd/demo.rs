@@ -1,0 +1,110 @@
+//! `accelcal demo`: the main job on built-in simulated data.
+
+use accelcal_shared::terms::MODEL_4;
+use anyhow::Context;
+use indicatif::{ProgressBar, ProgressStyle};
+
+use crate::cli::{DemoArgs, Method};
+use crate::gmdh::{Criterion, Settings, Split};
+use crate::output::{write_atomic_with, write_json};
+use crate::sim::{self, SimConfig};
+
+/// Runs `accelcal demo`.
+pub fn run(a: &DemoArgs) -> anyhow::Result<()> {
+    let out = &a.out;
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let steps = ProgressBar::new(5);
+    steps.set_style(ProgressStyle::with_template("[{pos}/{len}] {msg}").expect("valid template"));
+    let g = accelcal_shared::G_STANDARD;
+
+    steps.set_message(
+        "simulating an MS9002-class triad on the dividing head (62 positions x 400 samples)",
+    );
+    let cfg = SimConfig {
+        seed: a.seed,
+        ..SimConfig::default()
+    };
+    let (campaign, truth) = sim::simulate(&cfg);
+    let campaign_path = out.join("campaign.csv");
+    write_atomic_with(&campaign_path, |w| campaign.write(w).context("writing CSV"))?;
+    write_json(&out.join("truth.json"), &truth)?;
+    steps.inc(1);
+
+    steps.set_message("GMDH over the paper's 11 models (regularity criterion, alternate split)");
+    let settings = Settings {
+        basis: accelcal_shared::Basis::Paper,
+        criterion: Criterion::Regularity,
+        split: Split::Alternate,
+        tolerance: 1.0,
+    };
+    let sel = super::select::compute(&campaign, g, &[], &settings)?;
+    write_json(
+        &out.join("select.json"),
+        &super::select::to_json(&sel, &settings, &Split::Alternate.to_string(), None),
+    )?;
+    let crit_plots = super::select::plots(out, &sel, &settings)?;
+    steps.inc(1);
+
+    steps.set_message("fitting model 4 by LSQ and by test turns; writing the calibration record");
+    let lsq = super::fit::fit_all(&campaign, g, Method::Lsq, MODEL_4)?;
+    let tt = super::fit::fit_all(&campaign, g, Method::TestTurns, MODEL_4)?;
+    write_json(
+        &out.join("fit-lsq.json"),
+        &super::fit::to_json(Method::Lsq, &lsq),
+    )?;
+    write_json(
+        &out.join("fit-test-turns.json"),
+        &super::fit::to_json(Method::TestTurns, &tt),
+    )?;
+    let rec = super::fit::record(&lsq, [0; 12], 0)?;
+    super::fit::write_record(&out.join("calibration.rec"), &rec)?;
+    steps.inc(1);
+
+    steps.set_message("comparing the methods on held-out positions");
+    let cmp = super::compare::compute(&campaign, None, g)?;
+    write_json(&out.join("compare.json"), &cmp)?;
+    let err_plots = super::compare::plots(out, &cmp)?;
+    steps.inc(1);
+    steps.finish_and_clear();
+
+    println!(
+        "accelcal demo: simulated triad (seed {}), {} rows at {} positions -> {}\n",
+        a.seed,
+        campaign.len(),
+        cfg.plan.positions.len(),
+        campaign_path.display()
+    );
+    println!("Table 1. Model structure selection (combinatorial GMDH)\n");
+    super::select::print_tables(&sel, &settings);
+    println!("Model 4 coefficients by LSQ against the simulator's truth");
+    println!(
+        "  {:<8} {:>12} {:>12} {:>10} {:>10} {:>10} {:>10}",
+        "channel", "u0 fit", "u0 true", "k_own fit", "k_own true", "cross fit", "cross true"
+    );
+    for ((name, f), t) in lsq.iter().zip(&truth.channels) {
+        let own = t.axis;
+        let cross = |k: &[f64]| {
+            (0..3)
+                .filter(|&j| j != own)
+                .map(|j| k[j].abs())
+                .fold(0.0, f64::max)
+        };
+        println!(
+            "  {:<8} {:>12.2} {:>12.2} {:>10.3} {:>10.3} {:>10.3} {:>10.3}",
+            name,
+            f.coefficients[0],
+            t.bias,
+            f.coefficients[1 + own],
+            t.k[own],
+            cross(&f.coefficients[1..4]),
+            cross(&t.k)
+        );
+    }
+    println!("\nTable 2. Errors of the calibrated acceleration, LSQ against test turns\n");
+    super::compare::print_table(&cmp);
+    println!("\nwrote in {}: campaign.csv truth.json select.json fit-lsq.json fit-test-turns.json compare.json calibration.rec ({} bytes)", out.display(), rec.len());
+    for p in crit_plots.iter().chain(&err_plots) {
+        println!("plot: {}", p.display());
+    }
+    Ok(())
+}

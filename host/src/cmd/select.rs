@@ -1,0 +1,290 @@
+//! `accelcal select`: combinatorial GMDH per channel.
+
+use std::path::Path;
+
+use accelcal_shared::terms::PAPER_MODELS;
+use accelcal_shared::{Basis, Structure};
+use indicatif::{ProgressBar, ProgressStyle};
+use serde::Serialize;
+
+use crate::campaign::Campaign;
+use crate::cli::SelectArgs;
+use crate::error::bad;
+use crate::gmdh::{self, Selection, Settings};
+use crate::output::{finite, write_json};
+use crate::positions::Positions;
+
+/// JSON of one candidate.
+#[derive(Serialize)]
+pub struct CandidateJson {
+    terms: Vec<String>,
+    criterion: Option<f64>,
+    identifiable: bool,
+}
+
+/// JSON of the selected model.
+#[derive(Serialize)]
+pub struct SelectedJson {
+    terms: Vec<String>,
+    coefficients: Vec<f64>,
+    criterion: f64,
+}
+
+/// JSON of one channel.
+#[derive(Serialize)]
+pub struct ChannelJson {
+    channel: String,
+    selected: SelectedJson,
+    best_criterion: f64,
+    candidates_total: usize,
+    unidentifiable: usize,
+    candidates: Vec<CandidateJson>,
+}
+
+/// The whole JSON document.
+#[derive(Serialize)]
+pub struct SelectJson {
+    basis: String,
+    criterion: gmdh::Criterion,
+    split: String,
+    tolerance: f64,
+    channels: Vec<ChannelJson>,
+}
+
+fn names(s: Structure) -> Vec<String> {
+    s.terms().map(|t| t.to_string()).collect()
+}
+
+/// Runs GMDH on the chosen channels of a campaign, with a progress bar for large bases.
+pub fn compute(
+    c: &Campaign,
+    g: f64,
+    channels: &[String],
+    settings: &Settings,
+) -> anyhow::Result<Vec<Selection>> {
+    let pos = Positions::new(c, g);
+    let stats = pos.channel_stats(c);
+    for name in channels {
+        if c.channel(name).is_none() {
+            return Err(bad(format!(
+                "no channel `{name}` in the campaign (it has: {})",
+                c.channels
+                    .iter()
+                    .map(|c| c.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(",")
+            )));
+        }
+    }
+    let chosen: Vec<_> = stats
+        .iter()
+        .filter(|s| channels.is_empty() || channels.contains(&s.name))
+        .collect();
+    let total = (settings.basis.candidate_count() * chosen.len()) as u64;
+    let pb = if total > 50_000 {
+        ProgressBar::new(total)
+    } else {
+        ProgressBar::hidden()
+    };
+    pb.set_style(
+        ProgressStyle::with_template(
+            "{msg:8} [{bar:30}] {human_pos}/{human_len} models, {per_sec}, eta {eta}",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    let mut out = Vec::new();
+    for s in chosen {
+        pb.set_message(s.name.clone());
+        out.push(gmdh::select(&pos, s, settings, &|n| pb.inc(n))?);
+    }
+    pb.finish_and_clear();
+    Ok(out)
+}
+
+/// Label of a candidate in tables: the paper's model number for the paper basis.
+fn label(basis: Basis, s: Structure) -> String {
+    match basis {
+        Basis::Paper => PAPER_MODELS
+            .iter()
+            .position(|&m| m == s)
+            .map(|i| format!("{}", i + 1))
+            .unwrap_or_default(),
+        _ => String::new(),
+    }
+}
+
+/// Prints Table 1 for each channel: every candidate for small bases, else the 15 best.
+pub fn print_tables(sel: &[Selection], settings: &Settings) {
+    for s in sel {
+        println!(
+            "channel {}: {:?} criterion, RMS ADC codes (best {:.2}, tolerance {} code{})",
+            s.channel,
+            settings.criterion,
+            s.best,
+            settings.tolerance,
+            if settings.tolerance == 1.0 { "" } else { "s" }
+        );
+        println!("  {:>3}  {:<44} {:>12}  ", "#", "model terms", "criterion");
+        let mut rows: Vec<usize> = (0..s.candidates.len()).collect();
+        let many = rows.len() > 32;
+        if many {
+            rows.sort_by(|&a, &b| {
+                let (x, y) = (s.candidates[a].criterion, s.candidates[b].criterion);
+                x.unwrap_or(f64::INFINITY)
+                    .total_cmp(&y.unwrap_or(f64::INFINITY))
+            });
+            rows.truncate(15);
+            if !rows.contains(&s.selected) {
+                rows.push(s.selected);
+            }
+        }
+        for i in rows {
+            let c = &s.candidates[i];
+            let crit = match c.criterion {
+                Some(v) => format!("{v:12.2}"),
+                None => format!("{:>12}", "unidentif."),
+            };
+            let mark = if i == s.selected { "  <- selected" } else { "" };
+            println!(
+                "  {:>3}  {:<44} {crit}{mark}",
+                label(settings.basis, c.structure),
+                c.structure.to_string()
+            );
+        }
+        if many {
+            let unid = s
+                .candidates
+                .iter()
+                .filter(|c| c.criterion.is_none())
+                .count();
+            println!(
+                "  (15 best of {} candidates shown; {unid} not identifiable on this plan)",
+                s.candidates.len()
+            );
+        }
+        println!();
+    }
+}
+
+/// Builds the JSON document.
+pub fn to_json(
+    sel: &[Selection],
+    settings: &Settings,
+    split: &str,
+    top: Option<usize>,
+) -> SelectJson {
+    let channels = sel
+        .iter()
+        .map(|s| {
+            let n = s.candidates.len();
+            let top = top.unwrap_or(if n > 4096 { 1000 } else { 0 });
+            let mut idx: Vec<usize> = (0..n).collect();
+            if top > 0 && top < n {
+                idx.sort_by(|&a, &b| {
+                    s.candidates[a]
+                        .criterion
+                        .unwrap_or(f64::INFINITY)
+                        .total_cmp(&s.candidates[b].criterion.unwrap_or(f64::INFINITY))
+                });
+                idx.truncate(top);
+            }
+            ChannelJson {
+                channel: s.channel.clone(),
+                selected: SelectedJson {
+                    terms: names(s.selected().structure),
+                    coefficients: s.fit.coefficients.clone(),
+                    criterion: s.selected().criterion.expect("selected is identifiable"),
+                },
+                best_criterion: s.best,
+                candidates_total: n,
+                unidentifiable: s
+                    .candidates
+                    .iter()
+                    .filter(|c| c.criterion.is_none())
+                    .count(),
+                candidates: idx
+                    .into_iter()
+                    .map(|i| {
+                        let c = &s.candidates[i];
+                        CandidateJson {
+                            terms: names(c.structure),
+                            criterion: c.criterion.and_then(finite),
+                            identifiable: c.criterion.is_some(),
+                        }
+                    })
+                    .collect(),
+            }
+        })
+        .collect();
+    SelectJson {
+        basis: format!("{:?}", settings.basis).to_lowercase(),
+        criterion: settings.criterion,
+        split: split.to_string(),
+        tolerance: settings.tolerance,
+        channels,
+    }
+}
+
+/// Writes one criterion-against-complexity plot per channel into `dir`.
+pub fn plots(
+    dir: &Path,
+    sel: &[Selection],
+    settings: &Settings,
+) -> anyhow::Result<Vec<std::path::PathBuf>> {
+    std::fs::create_dir_all(dir).map_err(|e| anyhow::anyhow!("creating {}: {e}", dir.display()))?;
+    let mut written = Vec::new();
+    for s in sel {
+        let pts: Vec<(usize, f64)> = s
+            .candidates
+            .iter()
+            .filter_map(|c| c.criterion.map(|v| (c.structure.len(), v)))
+            .collect();
+        let path = dir.join(format!("criterion-{}.svg", s.channel));
+        let sc = s.selected();
+        crate::plot::criterion_vs_complexity(
+            &path,
+            &format!(
+                "channel {}: {:?} criterion against complexity",
+                s.channel, settings.criterion
+            ),
+            &pts,
+            (
+                sc.structure.len(),
+                sc.criterion.expect("selected is identifiable"),
+            ),
+            s.best + settings.tolerance,
+        )?;
+        written.push(path);
+    }
+    Ok(written)
+}
+
+/// Runs `accelcal select`.
+pub fn run(a: &SelectArgs) -> anyhow::Result<()> {
+    super::check_g(a.common.g)?;
+    if !(a.tolerance.is_finite() && a.tolerance >= 0.0) {
+        return Err(bad(format!(
+            "--tolerance must be a number of codes >= 0, got {}",
+            a.tolerance
+        )));
+    }
+    let c = super::read_campaign(&a.campaign)?;
+    let settings = Settings {
+        basis: a.basis.into(),
+        criterion: a.criterion,
+        split: a.split,
+        tolerance: a.tolerance,
+    };
+    let sel = compute(&c, a.common.g, &a.channels, &settings)?;
+    print_tables(&sel, &settings);
+    if let Some(j) = &a.common.json {
+        write_json(j, &to_json(&sel, &settings, &a.split.to_string(), a.top))?;
+    }
+    if let Some(dir) = &a.plot {
+        for p in plots(dir, &sel, &settings)? {
+            println!("plot: {}", p.display());
+        }
+    }
+    Ok(())
+}

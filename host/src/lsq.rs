@@ -1,0 +1,154 @@
+//! Weighted least squares on dwell means, with standard errors and the problem's condition.
+
+use accelcal_shared::Structure;
+use nalgebra::{DMatrix, DVector};
+
+use crate::positions::{ChannelStats, Positions};
+
+/// Relative singular-value threshold below which a model counts as not identifiable: the
+/// design matrix (columns scaled to unit RMS) must have `σ_min / σ_max > RANK_TOL`.
+pub const RANK_TOL: f64 = 1e-9;
+
+/// Why a least-squares fit was refused.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum LsqError {
+    /// Fewer positions than terms.
+    #[error("{terms} terms need at least {terms} positions, the plan has {positions}")]
+    TooFewPositions {
+        /// Terms in the model.
+        terms: usize,
+        /// Positions available.
+        positions: usize,
+    },
+    /// The design matrix is rank deficient on this plan.
+    #[error("model not identifiable on this plan: {} cannot be separated", .terms.join(", "))]
+    Unidentifiable {
+        /// Terms involved in the rank deficiency.
+        terms: Vec<String>,
+    },
+}
+
+/// A fitted model of one channel.
+#[derive(Clone, Debug)]
+pub struct LsqFit {
+    /// The model's terms.
+    pub structure: Structure,
+    /// Coefficients in term order: codes, codes per (m/s²)ⁿ.
+    pub coefficients: Vec<f64>,
+    /// One-sigma standard errors of the coefficients (NaN when there are no residual degrees of
+    /// freedom).
+    pub std_errors: Vec<f64>,
+    /// Condition number of the design matrix with its columns scaled to unit RMS.
+    pub condition: f64,
+    /// RMS residual over the rows used, codes.
+    pub rms: f64,
+    /// Residual degrees of freedom (rows − terms).
+    pub dof: f64,
+}
+
+impl LsqFit {
+    /// Model output (codes) at acceleration `a`.
+    pub fn eval(&self, a: [f64; 3]) -> f64 {
+        self.structure
+            .terms()
+            .zip(&self.coefficients)
+            .map(|(t, c)| c * t.eval(a))
+            .sum()
+    }
+}
+
+/// Fits `structure` to one channel on the positions `subset` (all when `None`), weighting each
+/// dwell mean by its row count.
+pub fn fit(
+    pos: &Positions,
+    ch: &ChannelStats,
+    structure: Structure,
+    subset: Option<&[usize]>,
+) -> Result<LsqFit, LsqError> {
+    let all: Vec<usize>;
+    let idx = match subset {
+        Some(s) => s,
+        None => {
+            all = (0..pos.len()).collect();
+            &all
+        }
+    };
+    let terms: Vec<_> = structure.terms().collect();
+    let (n, k) = (idx.len(), terms.len());
+    if n < k {
+        return Err(LsqError::TooFewPositions {
+            terms: k,
+            positions: n,
+        });
+    }
+    // Rows scaled by sqrt(weight); columns scaled to unit RMS for the conditioning.
+    let mut x = DMatrix::from_fn(n, k, |r, c| {
+        pos.weight[idx[r]].sqrt() * terms[c].eval(pos.accel[idx[r]])
+    });
+    let y = DVector::from_fn(n, |r, _| pos.weight[idx[r]].sqrt() * ch.mean[idx[r]]);
+    let wsum: f64 = idx.iter().map(|&i| pos.weight[i]).sum();
+    let mut scale = vec![1.0; k];
+    for c in 0..k {
+        let rms = (x.column(c).norm_squared() / wsum).sqrt();
+        scale[c] = if rms > 0.0 { rms } else { 1.0 };
+        x.column_mut(c).scale_mut(1.0 / scale[c]);
+    }
+    let svd = x.clone().svd(true, true);
+    let smax = svd.singular_values.max();
+    let smin = svd.singular_values.min();
+    if !(smin > RANK_TOL * smax) {
+        let v_t = svd.v_t.as_ref().expect("V requested");
+        let mut involved = vec![false; k];
+        for (s, row) in svd.singular_values.iter().zip(v_t.row_iter()) {
+            if !(*s > RANK_TOL * smax) {
+                for c in 0..k {
+                    involved[c] |= row[c].abs() > 0.05;
+                }
+            }
+        }
+        let terms = terms
+            .iter()
+            .zip(involved)
+            .filter(|(_, i)| *i)
+            .map(|(t, _)| t.to_string())
+            .collect();
+        return Err(LsqError::Unidentifiable { terms });
+    }
+    let beta_s = svd.solve(&y, 0.0).expect("U and V requested");
+    let resid = &y - &x * &beta_s;
+    let within: f64 = idx.iter().map(|&i| ch.within_ss[i]).sum();
+    let sse = resid.norm_squared() + within;
+    let dof = wsum - k as f64;
+    let sigma2 = if dof > 0.0 { sse / dof } else { f64::NAN };
+    // Cov(β_s) = σ² V Σ⁻² Vᵀ.
+    let v_t = svd.v_t.as_ref().expect("V requested");
+    let mut std_errors = vec![0.0; k];
+    for c in 0..k {
+        let var: f64 = (0..k)
+            .map(|s| (v_t[(s, c)] / svd.singular_values[s]).powi(2))
+            .sum();
+        std_errors[c] = (sigma2 * var).sqrt() / scale[c];
+    }
+    let coefficients = (0..k).map(|c| beta_s[c] / scale[c]).collect();
+    Ok(LsqFit {
+        structure,
+        coefficients,
+        std_errors,
+        condition: smax / smin,
+        rms: (sse / wsum).sqrt(),
+        dof,
+    })
+}
+
+/// Parses a comma-separated term list (`ax,ay,az`); the intercept is always added.
+pub fn parse_terms(list: &str) -> Result<Structure, String> {
+    let mut mask = 1u32;
+    for name in list.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+        let t = accelcal_shared::Term::parse(name).map_err(|e| format!("term `{name}`: {e}"))?;
+        let i = t
+            .index()
+            .ok_or_else(|| format!("term `{name}` is not in the cubic basis"))?;
+        mask |= 1 << i;
+    }
+    Ok(Structure::from_mask(mask))
+}

@@ -1,0 +1,111 @@
+//! Position plans for the dividing head: built-in ones and plan files.
+
+use std::path::Path;
+
+use rand::{Rng, SeedableRng};
+
+/// An ordered list of head positions `(alpha_deg, beta_deg)`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Plan {
+    /// The positions, in the order the head visits them.
+    pub positions: Vec<(f64, f64)>,
+}
+
+impl Plan {
+    /// The default dividing-head plan: β ∈ {−60, −30, 0, 30, 60} × α every 30°, then β = ±90°
+    /// (62 positions). It contains the six test-turn positions (each axis along ±g).
+    pub fn head() -> Plan {
+        let mut positions = Vec::new();
+        for b in [-60.0, -30.0, 0.0, 30.0, 60.0] {
+            for a in (0..12).map(|i| i as f64 * 30.0) {
+                positions.push((a, b));
+            }
+        }
+        positions.push((0.0, 90.0));
+        positions.push((0.0, -90.0));
+        Plan { positions }
+    }
+
+    /// The six test-turn positions: −z, +z, −x, +x, −y, +y along g.
+    pub fn six() -> Plan {
+        Plan {
+            positions: vec![
+                (0.0, 0.0),
+                (180.0, 0.0),
+                (90.0, 0.0),
+                (270.0, 0.0),
+                (0.0, 90.0),
+                (0.0, -90.0),
+            ],
+        }
+    }
+
+    /// `n` orientations drawn uniformly on the sphere (angles rounded to 0.01°), seeded.
+    pub fn random(n: usize, seed: u64) -> Plan {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x706c_616e);
+        let positions = (0..n)
+            .map(|_| {
+                let a: f64 = rng.random_range(0.0..360.0);
+                let b = (2.0 * rng.random::<f64>() - 1.0).asin().to_degrees();
+                ((a * 100.0).round() / 100.0, (b * 100.0).round() / 100.0)
+            })
+            .collect();
+        Plan { positions }
+    }
+
+    /// Parses a plan spec: `head`, `six`, `random:N`, or the path of a plan file (CSV with the
+    /// columns `alpha_deg,beta_deg`, `#` comments allowed).
+    pub fn from_spec(spec: &str, seed: u64) -> Result<Plan, String> {
+        match spec {
+            "head" => Ok(Plan::head()),
+            "six" => Ok(Plan::six()),
+            _ => {
+                if let Some(n) = spec.strip_prefix("random:") {
+                    return match n.parse::<usize>() {
+                        Ok(n) if n > 0 => Ok(Plan::random(n, seed)),
+                        _ => Err(format!(
+                            "`{spec}`: expected random:N with N a positive integer"
+                        )),
+                    };
+                }
+                Plan::read(Path::new(spec))
+            }
+        }
+    }
+
+    /// Reads a plan file.
+    pub fn read(path: &Path) -> Result<Plan, String> {
+        let d = path.display();
+        let mut rdr = csv::ReaderBuilder::new()
+            .comment(Some(b'#'))
+            .trim(csv::Trim::All)
+            .from_path(path)
+            .map_err(|e| format!("{d}: {e} (a plan is head, six, random:N or a plan file)"))?;
+        let header = rdr.headers().map_err(|e| format!("{d}: {e}"))?.clone();
+        let col = |n: &str| {
+            header
+                .iter()
+                .position(|h| h == n)
+                .ok_or_else(|| format!("{d}: missing column `{n}`"))
+        };
+        let (ai, bi) = (col("alpha_deg")?, col("beta_deg")?);
+        let mut positions = Vec::new();
+        for rec in rdr.records() {
+            let rec = rec.map_err(|e| format!("{d}: {e}"))?;
+            let line = rec.position().map(|p| p.line()).unwrap_or(0);
+            let num = |i: usize| -> Result<f64, String> {
+                rec.get(i)
+                    .and_then(|s| s.parse::<f64>().ok())
+                    .filter(|v| v.is_finite())
+                    .ok_or_else(|| {
+                        format!("{d}:{line}:{}: expected a finite angle in degrees", i + 1)
+                    })
+            };
+            positions.push((num(ai)?, num(bi)?));
+        }
+        if positions.is_empty() {
+            return Err(format!("{d}: the plan has no positions"));
+        }
+        Ok(Plan { positions })
+    }
+}

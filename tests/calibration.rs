@@ -1,0 +1,182 @@
+//! Calibration core on simulated data: exact recovery by LSQ and test turns, K2 absorbed by test
+//! turns, GMDH structure selection, identifiability, and the record carrying a fit to the node's
+//! arithmetic.
+
+use accelcal::campaign::Campaign;
+use accelcal::gmdh::{self, Criterion, Settings, Split};
+use accelcal::lsq::{self, LsqError};
+use accelcal::positions::Positions;
+use accelcal::sim::{self, effects, Layout, Plan, SimConfig, Truth};
+use accelcal::testturn;
+use accelcal_shared::record::{Record, MAX_RECORD_LEN};
+use accelcal_shared::terms::{MODEL_4, PAPER_MODELS};
+use accelcal_shared::{Basis, Structure};
+
+fn exact(seed: u64) -> SimConfig {
+    SimConfig { seed, noise: 0.0, quantize: false, samples: 2, ..SimConfig::default() }
+}
+
+fn run(cfg: &SimConfig) -> (Campaign, Truth, Positions) {
+    let (c, t) = sim::simulate(cfg);
+    let p = Positions::new(&c, cfg.g);
+    (c, t, p)
+}
+
+fn select(cfg: &SimConfig, basis: Basis) -> Vec<gmdh::Selection> {
+    let (c, _, p) = run(cfg);
+    let settings = Settings { basis, criterion: Criterion::Regularity, split: Split::Alternate, tolerance: 1.0 };
+    p.channel_stats(&c).iter().map(|s| gmdh::select(&p, s, &settings, &|_| {}).unwrap()).collect()
+}
+
+#[test]
+fn lsq_recovers_noise_free_coefficients_exactly() {
+    for layout in [Layout::Triad, Layout::Block(5)] {
+        let (c, truth, p) = run(&SimConfig { layout, ..exact(7) });
+        for (s, t) in p.channel_stats(&c).iter().zip(&truth.channels) {
+            let f = lsq::fit(&p, s, MODEL_4, None).unwrap();
+            let want = [t.bias, t.k[0], t.k[1], t.k[2]];
+            for (got, want) in f.coefficients.iter().zip(want) {
+                assert!((got - want).abs() <= 1e-8 * want.abs().max(1.0), "{}: {got} vs {want}", s.name);
+            }
+            assert!(f.rms < 1e-8 && f.condition < 10.0, "rms {} cond {}", f.rms, f.condition);
+        }
+    }
+}
+
+#[test]
+fn test_turns_recover_noise_free_coefficients_exactly() {
+    let (c, truth, p) = run(&exact(8));
+    let pairs = testturn::Pairs::find(&p).unwrap();
+    assert_eq!(pairs.used().len(), 6);
+    for (s, t) in p.channel_stats(&c).iter().zip(&truth.channels) {
+        let f = testturn::fit(&p, s, &pairs);
+        let want = [t.bias, t.k[0], t.k[1], t.k[2]];
+        for (got, want) in f.coefficients.iter().zip(want) {
+            assert!((got - want).abs() <= 1e-9 * want.abs().max(1.0), "{}: {got} vs {want}", s.name);
+        }
+    }
+}
+
+#[test]
+fn test_turns_absorb_k2_into_the_bias_and_lsq_does_not() {
+    let k2 = 3.0;
+    let cfg = SimConfig { effects: vec![effects::parse(&format!("nonlinearity=k2:{k2}")).unwrap()], ..exact(9) };
+    let (c, truth, p) = run(&cfg);
+    let g2 = cfg.g * cfg.g;
+    let pairs = testturn::Pairs::find(&p).unwrap();
+    for (s, t) in p.channel_stats(&c).iter().zip(&truth.channels) {
+        let tt = testturn::fit(&p, s, &pairs);
+        // u0 + K2·g², scale untouched.
+        assert!((tt.coefficients[0] - (t.bias + k2 * g2)).abs() < 1e-8, "{} vs {}", tt.coefficients[0], t.bias + k2 * g2);
+        assert!((tt.coefficients[1 + t.axis] - t.k[t.axis]).abs() < 1e-9);
+        // LSQ of model 4 puts the mean of K2·a_own² over the plan into the bias instead.
+        let f = lsq::fit(&p, s, MODEL_4, None).unwrap();
+        let mean_sq = p.accel.iter().map(|a| a[t.axis] * a[t.axis]).sum::<f64>() / p.len() as f64;
+        assert!((f.coefficients[0] - t.bias - k2 * mean_sq).abs() < 0.05 * k2 * g2, "{} {}", f.coefficients[0] - t.bias, k2 * mean_sq);
+        assert!((f.coefficients[0] - tt.coefficients[0]).abs() > 0.2 * k2 * g2);
+        // And the full quadratic model recovers K2 itself.
+        let quad = lsq::parse_terms(&format!("ax,ay,az,{}", ["ax^2", "ay^2", "az^2"][t.axis])).unwrap();
+        let fq = lsq::fit(&p, s, quad, None).unwrap();
+        assert!((fq.coefficients[4] - k2).abs() < 1e-8, "{}", fq.coefficients[4]);
+    }
+}
+
+/// The premise of "model 4 on linear data": every cross-axis sensitivity of the simulated block
+/// moves the dwell means by well over the noise of a mean.
+fn cross_terms_are_visible(cfg: &SimConfig) {
+    let (_, truth) = sim::simulate(cfg);
+    let noise_of_mean = cfg.noise / (cfg.samples as f64).sqrt();
+    for t in &truth.channels {
+        for j in (0..3).filter(|&j| j != t.axis) {
+            let rms = t.k[j].abs() * cfg.g / 3f64.sqrt();
+            assert!(rms > noise_of_mean, "seed {} channel {}: cross term {j} is {rms:.1} codes RMS", cfg.seed, t.name);
+        }
+    }
+}
+
+#[test]
+fn selection_picks_model_4_on_linear_data() {
+    for seed in 1..=4 {
+        cross_terms_are_visible(&SimConfig { seed, ..SimConfig::default() });
+        for basis in [Basis::Paper, Basis::Linear, Basis::Quadratic] {
+            for s in select(&SimConfig { seed, ..SimConfig::default() }, basis) {
+                assert_eq!(s.selected().structure, MODEL_4, "seed {seed} {basis:?} channel {}", s.channel);
+            }
+        }
+    }
+}
+
+#[test]
+fn selection_finds_a_true_cross_term() {
+    let cfg = || SimConfig { seed: 11, effects: vec![effects::parse("nonlinearity=ax*ay:4").unwrap()], ..SimConfig::default() };
+    let want = lsq::parse_terms("ax,ay,az,ax*ay").unwrap();
+    for s in select(&cfg(), Basis::Quadratic) {
+        assert_eq!(s.selected().structure, want, "channel {}", s.channel);
+        assert!((s.fit.coefficients[4] - 4.0).abs() < 0.2, "{}", s.fit.coefficients[4]);
+    }
+    // Over the paper's set, model 7 (model 4 + ax·ay).
+    for s in select(&cfg(), Basis::Paper) {
+        assert_eq!(s.selected().structure, PAPER_MODELS[6], "channel {}", s.channel);
+    }
+}
+
+#[test]
+fn model_11_is_flagged_unidentifiable_on_the_sphere() {
+    for s in select(&SimConfig::default(), Basis::Paper) {
+        assert_eq!(s.candidates[10].criterion, None);
+        assert!(s.candidates[..10].iter().all(|c| c.criterion.is_some()));
+    }
+    let (c, _, p) = run(&SimConfig::default());
+    match lsq::fit(&p, &p.channel_stats(&c)[0], PAPER_MODELS[10], None) {
+        Err(LsqError::Unidentifiable { terms }) => assert_eq!(terms, ["1", "ax^2", "ay^2", "az^2"]),
+        other => panic!("expected unidentifiable, got {other:?}"),
+    }
+    // The rss and symmetric criteria flag it too.
+    let (c, _, p) = run(&SimConfig::default());
+    for criterion in [Criterion::Rss, Criterion::Symmetric] {
+        let settings = Settings { basis: Basis::Paper, criterion, split: Split::Halves, tolerance: 1.0 };
+        let s = gmdh::select(&p, &p.channel_stats(&c)[2], &settings, &|_| {}).unwrap();
+        assert_eq!(s.candidates[10].criterion, None);
+        assert_eq!(s.selected().structure, MODEL_4);
+    }
+}
+
+#[test]
+fn tolerance_zero_picks_the_minimum_and_criteria_are_ordered() {
+    let cfg = SimConfig { seed: 3, ..SimConfig::default() };
+    let (c, _, p) = run(&cfg);
+    let st = &p.channel_stats(&c)[0];
+    let by = |criterion, tolerance| gmdh::select(&p, st, &Settings { basis: Basis::Paper, criterion, split: Split::Alternate, tolerance }, &|_| {}).unwrap();
+    let s0 = by(Criterion::Regularity, 0.0);
+    assert_eq!(s0.selected().criterion, Some(s0.best));
+    // RSS can only fall as terms are added to a nested model.
+    let rss = by(Criterion::Rss, 1.0);
+    let crit = |s: Structure| rss.candidates.iter().find(|c| c.structure == s).unwrap().criterion.unwrap();
+    assert!(crit(PAPER_MODELS[4]) <= crit(MODEL_4) + 1e-9);
+    assert!(crit(MODEL_4) <= crit(PAPER_MODELS[2]) + 1e-9);
+}
+
+#[test]
+fn record_carries_the_fit_to_the_node_arithmetic() {
+    let (c, truth, p) = run(&SimConfig { plan: Plan::head(), ..exact(5) });
+    let fits: Vec<(String, lsq::LsqFit)> = p.channel_stats(&c).iter().map(|s| (s.name.clone(), lsq::fit(&p, s, MODEL_4, None).unwrap())).collect();
+    let rec = accelcal::cmd::fit::record(&fits, [7; 12], 1_800_000_000).unwrap();
+    let mut buf = [0u8; MAX_RECORD_LEN];
+    let n = rec.emit(&mut buf).unwrap();
+    let back = Record::parse(&buf[..n]).unwrap();
+    assert_eq!(back, rec);
+    let cal = back.model4().unwrap().invert().unwrap();
+    let f32cal = cal.to_f32();
+    let bound = cal.f32_error_bound();
+    for (alpha, beta) in [(0.0, 0.0), (30.0, 60.0), (200.0, -45.0)] {
+        let a = accelcal_shared::gravity(alpha, beta, truth.g);
+        let u: Vec<f64> = truth.channels.iter().map(|t| t.bias + (0..3).map(|j| t.k[j] * a[j]).sum::<f64>()).collect();
+        let got = cal.apply([u[0], u[1], u[2]]);
+        let q = f32cal.apply([u[0].round() as u16, u[1].round() as u16, u[2].round() as u16]);
+        let r = cal.apply([u[0].round(), u[1].round(), u[2].round()]);
+        for i in 0..3 {
+            assert!((got[i] - a[i]).abs() < 1e-9);
+            assert!((q[i] as f64 - r[i]).abs() <= bound[i]);
+        }
+    }
+}
