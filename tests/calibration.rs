@@ -24,7 +24,8 @@ fn run(cfg: &SimConfig) -> (Campaign, Truth, Positions) {
 
 fn select(cfg: &SimConfig, basis: Basis) -> Vec<gmdh::Selection> {
     let (c, _, p) = run(cfg);
-    let settings = Settings { basis, criterion: Criterion::Regularity, split: Split::Alternate, tolerance: 1.0 };
+    let settings =
+        Settings { basis, criterion: Criterion::Regularity, split: Split::Alternate, tolerance: 1.0 };
     p.channel_stats(&c).iter().map(|s| gmdh::select(&p, s, &settings, &|_| {}).unwrap()).collect()
 }
 
@@ -60,19 +61,30 @@ fn test_turns_recover_noise_free_coefficients_exactly() {
 #[test]
 fn test_turns_absorb_k2_into_the_bias_and_lsq_does_not() {
     let k2 = 3.0;
-    let cfg = SimConfig { effects: vec![effects::parse(&format!("nonlinearity=k2:{k2}")).unwrap()], ..exact(9) };
+    let cfg =
+        SimConfig { effects: vec![effects::parse(&format!("nonlinearity=k2:{k2}")).unwrap()], ..exact(9) };
     let (c, truth, p) = run(&cfg);
     let g2 = cfg.g * cfg.g;
     let pairs = testturn::Pairs::find(&p).unwrap();
     for (s, t) in p.channel_stats(&c).iter().zip(&truth.channels) {
         let tt = testturn::fit(&p, s, &pairs);
         // u0 + K2·g², scale untouched.
-        assert!((tt.coefficients[0] - (t.bias + k2 * g2)).abs() < 1e-8, "{} vs {}", tt.coefficients[0], t.bias + k2 * g2);
+        assert!(
+            (tt.coefficients[0] - (t.bias + k2 * g2)).abs() < 1e-8,
+            "{} vs {}",
+            tt.coefficients[0],
+            t.bias + k2 * g2
+        );
         assert!((tt.coefficients[1 + t.axis] - t.k[t.axis]).abs() < 1e-9);
         // LSQ of model 4 puts the mean of K2·a_own² over the plan into the bias instead.
         let f = lsq::fit(&p, s, MODEL_4, None).unwrap();
         let mean_sq = p.accel.iter().map(|a| a[t.axis] * a[t.axis]).sum::<f64>() / p.len() as f64;
-        assert!((f.coefficients[0] - t.bias - k2 * mean_sq).abs() < 0.05 * k2 * g2, "{} {}", f.coefficients[0] - t.bias, k2 * mean_sq);
+        assert!(
+            (f.coefficients[0] - t.bias - k2 * mean_sq).abs() < 0.05 * k2 * g2,
+            "{} {}",
+            f.coefficients[0] - t.bias,
+            k2 * mean_sq
+        );
         assert!((f.coefficients[0] - tt.coefficients[0]).abs() > 0.2 * k2 * g2);
         // And the full quadratic model recovers K2 itself.
         let quad = lsq::parse_terms(&format!("ax,ay,az,{}", ["ax^2", "ay^2", "az^2"][t.axis])).unwrap();
@@ -89,7 +101,12 @@ fn cross_terms_are_visible(cfg: &SimConfig) {
     for t in &truth.channels {
         for j in (0..3).filter(|&j| j != t.axis) {
             let rms = t.k[j].abs() * cfg.g / 3f64.sqrt();
-            assert!(rms > noise_of_mean, "seed {} channel {}: cross term {j} is {rms:.1} codes RMS", cfg.seed, t.name);
+            assert!(
+                rms > noise_of_mean,
+                "seed {} channel {}: cross term {j} is {rms:.1} codes RMS",
+                cfg.seed,
+                t.name
+            );
         }
     }
 }
@@ -108,7 +125,11 @@ fn selection_picks_model_4_on_linear_data() {
 
 #[test]
 fn selection_finds_a_true_cross_term() {
-    let cfg = || SimConfig { seed: 11, effects: vec![effects::parse("nonlinearity=ax*ay:4").unwrap()], ..SimConfig::default() };
+    let cfg = || SimConfig {
+        seed: 11,
+        effects: vec![effects::parse("nonlinearity=ax*ay:4").unwrap()],
+        ..SimConfig::default()
+    };
     let want = lsq::parse_terms("ax,ay,az,ax*ay").unwrap();
     for s in select(&cfg(), Basis::Quadratic) {
         assert_eq!(s.selected().structure, want, "channel {}", s.channel);
@@ -146,7 +167,15 @@ fn tolerance_zero_picks_the_minimum_and_criteria_are_ordered() {
     let cfg = SimConfig { seed: 3, ..SimConfig::default() };
     let (c, _, p) = run(&cfg);
     let st = &p.channel_stats(&c)[0];
-    let by = |criterion, tolerance| gmdh::select(&p, st, &Settings { basis: Basis::Paper, criterion, split: Split::Alternate, tolerance }, &|_| {}).unwrap();
+    let by = |criterion, tolerance| {
+        gmdh::select(
+            &p,
+            st,
+            &Settings { basis: Basis::Paper, criterion, split: Split::Alternate, tolerance },
+            &|_| {},
+        )
+        .unwrap()
+    };
     let s0 = by(Criterion::Regularity, 0.0);
     assert_eq!(s0.selected().criterion, Some(s0.best));
     // RSS can only fall as terms are added to a nested model.
@@ -159,7 +188,11 @@ fn tolerance_zero_picks_the_minimum_and_criteria_are_ordered() {
 #[test]
 fn record_carries_the_fit_to_the_node_arithmetic() {
     let (c, truth, p) = run(&SimConfig { plan: Plan::head(), ..exact(5) });
-    let fits: Vec<(String, lsq::LsqFit)> = p.channel_stats(&c).iter().map(|s| (s.name.clone(), lsq::fit(&p, s, MODEL_4, None).unwrap())).collect();
+    let fits: Vec<(String, lsq::LsqFit)> = p
+        .channel_stats(&c)
+        .iter()
+        .map(|s| (s.name.clone(), lsq::fit(&p, s, MODEL_4, None).unwrap()))
+        .collect();
     let rec = accelcal::cmd::fit::record(&fits, [7; 12], 1_800_000_000).unwrap();
     let mut buf = [0u8; MAX_RECORD_LEN];
     let n = rec.emit(&mut buf).unwrap();
@@ -170,7 +203,8 @@ fn record_carries_the_fit_to_the_node_arithmetic() {
     let bound = cal.f32_error_bound();
     for (alpha, beta) in [(0.0, 0.0), (30.0, 60.0), (200.0, -45.0)] {
         let a = accelcal_shared::gravity(alpha, beta, truth.g);
-        let u: Vec<f64> = truth.channels.iter().map(|t| t.bias + (0..3).map(|j| t.k[j] * a[j]).sum::<f64>()).collect();
+        let u: Vec<f64> =
+            truth.channels.iter().map(|t| t.bias + (0..3).map(|j| t.k[j] * a[j]).sum::<f64>()).collect();
         let got = cal.apply([u[0], u[1], u[2]]);
         let q = f32cal.apply([u[0].round() as u16, u[1].round() as u16, u[2].round() as u16]);
         let r = cal.apply([u[0].round(), u[1].round(), u[2].round()]);

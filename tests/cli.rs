@@ -1,1 +1,262 @@
+//! CLI tests on the `accelcal` binary: every command end to end on simulated files, the JSON
+//! shapes the issues specify, and bad input turned into exit code 2 with one line naming the file.
 
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use accelcal_shared::record::Record;
+use serde_json::Value;
+
+fn accelcal(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_accelcal")).args(args).output().expect("the binary runs")
+}
+
+fn ok(args: &[&str]) -> String {
+    let out = accelcal(args);
+    assert!(out.status.success(), "accelcal {args:?} failed:\n{}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8(out.stdout).unwrap()
+}
+
+/// Runs a command that must fail with exit code 2 and a single-line error; returns that line.
+fn bad(args: &[&str]) -> String {
+    let out = accelcal(args);
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(out.status.code(), Some(2), "accelcal {args:?}: {err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "one line expected: {err}");
+    err.trim_end().to_string()
+}
+
+fn json(p: &Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+}
+
+struct Dir(tempfile::TempDir);
+
+impl Dir {
+    fn new() -> Dir {
+        Dir(tempfile::tempdir().unwrap())
+    }
+    fn p(&self, name: &str) -> PathBuf {
+        self.0.path().join(name)
+    }
+    fn s(&self, name: &str) -> String {
+        self.p(name).to_str().unwrap().to_string()
+    }
+}
+
+fn simulate(d: &Dir, name: &str, extra: &[&str]) -> String {
+    let mut args = vec!["simulate", "--out"];
+    let out = d.s(name);
+    args.push(&out);
+    args.extend_from_slice(extra);
+    ok(&args);
+    out
+}
+
+#[test]
+fn every_command_has_help() {
+    for cmd in ["simulate", "select", "fit", "compare", "demo"] {
+        let h = ok(&[cmd, "--help"]);
+        assert!(h.contains("Usage: accelcal"), "{cmd}: {h}");
+    }
+    let top = ok(&["--help"]);
+    for cmd in ["simulate", "select", "fit", "compare", "demo"] {
+        assert!(top.contains(cmd));
+    }
+    assert!(ok(&["select", "--help"]).contains("tail:FRACTION"));
+}
+
+#[test]
+fn simulate_is_seeded_and_writes_truth() {
+    let d = Dir::new();
+    let a = simulate(&d, "a.csv", &["--seed", "5", "--samples", "3", "--json", &d.s("sum.json")]);
+    let b = simulate(&d, "b.csv", &["--seed", "5", "--samples", "3"]);
+    assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
+    let truth = json(&d.p("a.truth.json"));
+    assert_eq!(truth["channels"].as_array().unwrap().len(), 3);
+    assert_eq!(json(&d.p("sum.json"))["positions"], 62);
+    let head = std::fs::read_to_string(&a).unwrap();
+    assert!(head.starts_with("t_s,alpha_deg,beta_deg,x,y,z\n"));
+    let block = simulate(&d, "blk.csv", &["--layout", "block:5", "--plan", "six", "--samples", "2"]);
+    assert!(std::fs::read_to_string(block).unwrap().starts_with("t_s,alpha_deg,beta_deg,a1,a2,a3,a4,a5\n"));
+}
+
+#[test]
+fn select_reports_table_1_and_json() {
+    let d = Dir::new();
+    let c = simulate(&d, "c.csv", &["--seed", "3"]);
+    let out = ok(&["select", &c, "--json", &d.s("sel.json"), "--plot", &d.s("plots")]);
+    assert!(out.contains("<- selected") && out.contains("unidentif."), "{out}");
+    let j = json(&d.p("sel.json"));
+    let chans = j["channels"].as_array().unwrap();
+    assert_eq!(chans.len(), 3);
+    for ch in chans {
+        assert_eq!(ch["selected"]["terms"], serde_json::json!(["1", "ax", "ay", "az"]));
+        assert_eq!(ch["selected"]["coefficients"].as_array().unwrap().len(), 4);
+        assert!(ch["selected"]["criterion"].as_f64().unwrap() > 0.0);
+        let cands = ch["candidates"].as_array().unwrap();
+        assert_eq!(cands.len(), 11);
+        assert_eq!(cands[10]["identifiable"], false);
+        assert!(cands[10]["criterion"].is_null());
+        assert_eq!(cands[3]["identifiable"], true);
+    }
+    assert!(std::fs::read_to_string(d.p("plots/criterion-x.svg")).unwrap().contains("<svg"));
+    // The other criteria and splits run; a bad split is bad input.
+    ok(&[
+        "select",
+        &c,
+        "--criterion",
+        "symmetric",
+        "--split",
+        "halves",
+        "--basis",
+        "quadratic",
+        "--channels",
+        "y",
+    ]);
+    ok(&["select", &c, "--criterion", "rss", "--split", "tail:0.25", "--tolerance", "0"]);
+    let e = bad(&["select", &c, "--channels", "w"]);
+    assert!(e.contains("no channel `w`"), "{e}");
+}
+
+#[test]
+fn fit_lsq_and_test_turns_write_json_and_record() {
+    let d = Dir::new();
+    let c = simulate(&d, "c.csv", &["--seed", "4", "--noise", "0", "--ideal-adc", "--samples", "2"]);
+    let truth = json(&d.p("c.truth.json"));
+    ok(&[
+        "fit",
+        &c,
+        "--json",
+        &d.s("lsq.json"),
+        "--record",
+        &d.s("cal.rec"),
+        "--device-id",
+        "0102030405060708090a0b0c",
+        "--created",
+        "1800000000",
+    ]);
+    let j = json(&d.p("lsq.json"));
+    let rec = Record::parse(&std::fs::read(d.p("cal.rec")).unwrap()).unwrap();
+    assert_eq!(rec.device_id, [1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12]);
+    assert_eq!(rec.created_unix_s, 1_800_000_000);
+    for (i, ch) in j["channels"].as_array().unwrap().iter().enumerate() {
+        assert_eq!(ch["terms"], serde_json::json!(["1", "ax", "ay", "az"]));
+        let coef: Vec<f64> =
+            ch["coefficients"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+        assert_eq!(ch["std_errors"].as_array().unwrap().len(), 4);
+        assert_eq!(&rec.coefficients[i][..4], &coef[..]);
+        let t = &truth["channels"][i];
+        assert!((coef[0] - t["bias"].as_f64().unwrap()).abs() < 1e-6);
+        assert!((coef[2] - t["k"][1].as_f64().unwrap()).abs() < 1e-8);
+    }
+    ok(&["fit", &c, "--method", "test-turns", "--json", &d.s("tt.json")]);
+    let j = json(&d.p("tt.json"));
+    let coef = j["channels"][2]["coefficients"].as_array().unwrap();
+    assert!((coef[3].as_f64().unwrap() - truth["channels"][2]["k"][2].as_f64().unwrap()).abs() < 1e-8);
+    // Other structures by LSQ; test turns refuse them.
+    let out = ok(&["fit", &c, "--terms", "ax,ay,az,ax*ay"]);
+    assert!(out.contains("ax*ay"));
+    let e = bad(&["fit", &c, "--method", "test-turns", "--terms", "ax,ay,az,ax^2"]);
+    assert!(e.contains("test turns determine model 4"), "{e}");
+    let e = bad(&["fit", &c, "--terms", "ax,ay,az,ax^2,ay^2,az^2"]);
+    assert!(e.contains("not identifiable") && e.contains("ax^2, ay^2, az^2"), "{e}");
+    let e = bad(&["fit", &c, "--terms", "ax,bx"]);
+    assert!(e.contains("unknown variable"), "{e}");
+    let e = bad(&["fit", &c, "--device-id", "12"]);
+    assert!(e.contains("24 hex digits"), "{e}");
+}
+
+#[test]
+fn compare_gives_table_2_with_and_without_validation_campaign() {
+    let d = Dir::new();
+    let c = simulate(&d, "c.csv", &["--seed", "6"]);
+    let v = simulate(&d, "v.csv", &["--seed", "6", "--plan", "random:30"]);
+    let out = ok(&["compare", &c, "--json", &d.s("cmp.json"), "--plot", &d.s("plots")]);
+    assert!(out.contains("mean LSQ"), "{out}");
+    let j = json(&d.p("cmp.json"));
+    assert_eq!(j["validation_positions"], 28);
+    for ch in j["channels"].as_array().unwrap() {
+        for m in ["lsq", "test_turns"] {
+            let s = ch[m]["std_error"].as_f64().unwrap();
+            // Noise 80 codes per sample at ~1670 codes per m/s² is ~0.048 m/s².
+            assert!((0.035..0.065).contains(&s), "{m}: {s}");
+            assert!(ch[m]["mean_error"].as_f64().unwrap().abs() < 0.01);
+        }
+    }
+    assert!(d.p("plots/errors-lsq.svg").exists() && d.p("plots/errors-test-turns.svg").exists());
+    ok(&["compare", &c, "--validate", &v, "--json", &d.s("cmp2.json")]);
+    assert_eq!(json(&d.p("cmp2.json"))["validation_positions"], 30);
+    // No test-turn positions in a random plan.
+    let e = bad(&["compare", &v]);
+    assert!(e.contains("test turns need"), "{e}");
+}
+
+#[test]
+fn demo_writes_everything() {
+    let d = Dir::new();
+    let out = ok(&["demo", "--out", &d.s("demo")]);
+    assert!(out.contains("Table 1") && out.contains("Table 2"));
+    for f in [
+        "campaign.csv",
+        "truth.json",
+        "select.json",
+        "fit-lsq.json",
+        "fit-test-turns.json",
+        "compare.json",
+        "calibration.rec",
+        "criterion-x.svg",
+        "errors-lsq.svg",
+        "errors-test-turns.svg",
+    ] {
+        assert!(d.p("demo").join(f).exists(), "{f} missing");
+    }
+    let rec = Record::parse(&std::fs::read(d.p("demo/calibration.rec")).unwrap()).unwrap();
+    assert!(rec.model4().is_some());
+    let sel = json(&d.p("demo/select.json"));
+    for ch in sel["channels"].as_array().unwrap() {
+        assert_eq!(ch["selected"]["terms"], serde_json::json!(["1", "ax", "ay", "az"]));
+    }
+}
+
+#[test]
+fn bad_campaigns_exit_2_name_the_place_and_leave_no_output() {
+    let d = Dir::new();
+    let cases: &[(&str, &str)] = &[
+        (
+            "t_s,alpha_deg,beta_deg,x\n0,0,0,1\n1,0,zero,2\n",
+            ":3:3: expected a number in `beta_deg`, found `zero`",
+        ),
+        ("", "empty file"),
+        ("t_s,alpha_deg,beta_deg,x\n", "header only"),
+        ("t_s,alpha_deg,x\n0,0,1\n", "missing required column `beta_deg`"),
+        ("t_s,alpha_deg,beta_deg,x,x\n0,0,0,1,1\n", ":1:5: duplicate column `x`"),
+        ("t_s,alpha_deg,beta_deg,x\n0,0,0,1,5\n", ":2:5: expected 4 fields, found 5"),
+        ("t_s,alpha_deg,beta_deg,x\n1,0,0,1\n0.5,0,0,1\n", ":3:1: t_s must not decrease"),
+        ("t_s,alpha_deg,beta_deg,x\n0,inf,0,1\n", ":2:2: `alpha_deg` must be finite"),
+        ("\u{0}\u{1}\u{2}\u{ff}binary", ""),
+    ];
+    for (i, (text, want)) in cases.iter().enumerate() {
+        let f = d.p(&format!("bad{i}.csv"));
+        std::fs::write(&f, text).unwrap();
+        let j = d.p(&format!("out{i}.json"));
+        for cmd in ["select", "fit", "compare"] {
+            let e = bad(&[cmd, f.to_str().unwrap(), "--json", j.to_str().unwrap()]);
+            assert!(e.contains(f.to_str().unwrap()) && e.contains(want), "case {i} {cmd}: {e}");
+            assert!(!j.exists(), "case {i}: partial output left behind");
+        }
+    }
+    let e = bad(&["fit", d.s("missing.csv").as_str()]);
+    assert!(e.contains("missing.csv") && e.contains("No such file"), "{e}");
+    // Bad options are bad input too (clap adds a hint line after the error line).
+    let out = accelcal(&["select", "x.csv", "--split", "tail:2"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr)
+        .lines()
+        .next()
+        .unwrap()
+        .contains("tail fraction must be a number in (0, 1)"));
+    let e = bad(&["simulate", "--out", &d.s("x.csv"), "--effect", "wobble=a:1"]);
+    assert!(e.contains("unknown effect"), "{e}");
+    assert!(!d.p("x.csv").exists());
+}

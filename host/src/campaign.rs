@@ -134,12 +134,7 @@ impl Campaign {
             let (a, b) = (self.alpha_deg[i], self.beta_deg[i]);
             match out.last_mut() {
                 Some(d) if d.alpha_deg == a && d.beta_deg == b => d.end = i + 1,
-                _ => out.push(Dwell {
-                    start: i,
-                    end: i + 1,
-                    alpha_deg: a,
-                    beta_deg: b,
-                }),
+                _ => out.push(Dwell { start: i, end: i + 1, alpha_deg: a, beta_deg: b }),
             }
         }
         out
@@ -147,10 +142,8 @@ impl Campaign {
 
     /// Reads and checks a campaign file.
     pub fn read(path: &Path) -> Result<Campaign, CampaignError> {
-        let file = std::fs::File::open(path).map_err(|source| CampaignError::Io {
-            path: path.to_owned(),
-            source,
-        })?;
+        let file = std::fs::File::open(path)
+            .map_err(|source| CampaignError::Io { path: path.to_owned(), source })?;
         Campaign::from_reader(std::io::BufReader::new(file), path)
     }
 
@@ -165,22 +158,20 @@ impl Campaign {
         let csv_err = |e: csv::Error| {
             let line = e.position().map(|p| p.line()).unwrap_or(0);
             let msg = match e.kind() {
-                csv::ErrorKind::Utf8 { .. } => {
-                    "not UTF-8 text (is this a binary file?)".to_string()
-                }
+                csv::ErrorKind::Utf8 { .. } => "not UTF-8 text (is this a binary file?)".to_string(),
                 csv::ErrorKind::Io(io) => io.to_string(),
                 _ => e.to_string(),
             };
-            CampaignError::Csv {
-                path: p(),
-                line,
-                msg,
-            }
+            CampaignError::Csv { path: p(), line, msg }
         };
         let header = rdr.headers().map_err(csv_err)?.clone();
-        let header_line = rdr.position().line().max(1);
+        let header_line = header.position().map(|p| p.line()).unwrap_or(1);
         if header.is_empty() || header.iter().all(|h| h.is_empty()) {
-            return Err(CampaignError::File { path: p(), msg: "empty file: expected a header row with t_s,alpha_deg,beta_deg and channel columns".into() });
+            return Err(CampaignError::File {
+                path: p(),
+                msg: "empty file: expected a header row with t_s,alpha_deg,beta_deg and channel columns"
+                    .into(),
+            });
         }
         let mut seen = std::collections::HashSet::new();
         for (i, h) in header.iter().enumerate() {
@@ -213,9 +204,8 @@ impl Campaign {
         };
         let (ti, ai, bi) = (need("t_s")?, need("alpha_deg")?, need("beta_deg")?);
         let temp_i = find("temp_c");
-        let chan_cols: Vec<usize> = (0..header.len())
-            .filter(|&i| i != ti && i != ai && i != bi && Some(i) != temp_i)
-            .collect();
+        let chan_cols: Vec<usize> =
+            (0..header.len()).filter(|&i| i != ti && i != ai && i != bi && Some(i) != temp_i).collect();
         if chan_cols.is_empty() {
             return Err(CampaignError::File { path: p(), msg: "no ADC channel column (every column besides t_s, alpha_deg, beta_deg, temp_c is a channel)".into() });
         }
@@ -223,10 +213,7 @@ impl Campaign {
             temp_c: temp_i.map(|_| Vec::new()),
             channels: chan_cols
                 .iter()
-                .map(|&i| Channel {
-                    name: header[i].to_string(),
-                    codes: Vec::new(),
-                })
+                .map(|&i| Channel { name: header[i].to_string(), codes: Vec::new() })
                 .collect(),
             ..Campaign::default()
         };
@@ -293,10 +280,7 @@ impl Campaign {
             }
         }
         if c.is_empty() {
-            return Err(CampaignError::File {
-                path: p(),
-                msg: "header only: no data rows".into(),
-            });
+            return Err(CampaignError::File { path: p(), msg: "header only: no data rows".into() });
         }
         Ok(c)
     }
@@ -339,7 +323,10 @@ mod tests {
 
     #[test]
     fn reads_comments_dwells_and_channels() {
-        let c = parse("# rig A\nt_s,alpha_deg,beta_deg,x,y\n0,0,0,100,200\n0.01,0,0,101,201\n# moved\n1,90,0,300,400\n").unwrap();
+        let c = parse(
+            "# rig A\nt_s,alpha_deg,beta_deg,x,y\n0,0,0,100,200\n0.01,0,0,101,201\n# moved\n1,90,0,300,400\n",
+        )
+        .unwrap();
         assert_eq!(c.len(), 3);
         assert_eq!(c.channels[1].name, "y");
         assert_eq!(c.channels[1].codes, vec![200.0, 201.0, 400.0]);
@@ -350,47 +337,28 @@ mod tests {
 
     #[test]
     fn errors_name_line_and_column() {
-        let e = parse("t_s,alpha_deg,beta_deg,x\n0,0,0,1\n1,0,zero,2\n")
-            .unwrap_err()
-            .to_string();
-        assert_eq!(
-            e,
-            "c.csv:3:3: expected a number in `beta_deg`, found `zero`"
-        );
-        let e = parse("t_s,alpha_deg,beta_deg,x\n1,0,0,1\n0,0,0,2\n")
-            .unwrap_err()
-            .to_string();
+        let e = parse("t_s,alpha_deg,beta_deg,x\n0,0,0,1\n1,0,zero,2\n").unwrap_err().to_string();
+        assert_eq!(e, "c.csv:3:3: expected a number in `beta_deg`, found `zero`");
+        let e = parse("t_s,alpha_deg,beta_deg,x\n1,0,0,1\n0,0,0,2\n").unwrap_err().to_string();
         assert!(e.starts_with("c.csv:3:1: t_s must not decrease"), "{e}");
         let e = parse("t_s,alpha_deg,x\n1,0,1\n").unwrap_err().to_string();
-        assert!(
-            e.starts_with("c.csv: missing required column `beta_deg`"),
-            "{e}"
-        );
-        let e = parse("t_s,alpha_deg,beta_deg,x,x\n")
-            .unwrap_err()
-            .to_string();
+        assert!(e.starts_with("c.csv: missing required column `beta_deg`"), "{e}");
+        let e = parse("t_s,alpha_deg,beta_deg,x,x\n").unwrap_err().to_string();
         assert_eq!(e, "c.csv:1:5: duplicate column `x`");
-        let e = parse("t_s,alpha_deg,beta_deg,x\n0,0,0\n")
-            .unwrap_err()
-            .to_string();
+        let e = parse("t_s,alpha_deg,beta_deg,x\n0,0,0\n").unwrap_err().to_string();
         assert_eq!(e, "c.csv:2:4: expected 4 fields, found 3");
-        let e = parse("t_s,alpha_deg,beta_deg,x\n0,0,NaN,1\n")
-            .unwrap_err()
-            .to_string();
+        let e = parse("t_s,alpha_deg,beta_deg,x\n0,0,NaN,1\n").unwrap_err().to_string();
         assert_eq!(e, "c.csv:2:3: `beta_deg` must be finite, found `NaN`");
         let e = parse("t_s,alpha_deg,beta_deg,x\n").unwrap_err().to_string();
         assert_eq!(e, "c.csv: header only: no data rows");
         assert!(parse("").unwrap_err().to_string().contains("empty file"));
-        let e = parse("t_s,alpha_deg,beta_deg,x\n0,0,0,70000\n")
-            .unwrap_err()
-            .to_string();
+        let e = parse("t_s,alpha_deg,beta_deg,x\n0,0,0,70000\n").unwrap_err().to_string();
         assert!(e.starts_with("c.csv:2:4: code 70000"), "{e}");
     }
 
     #[test]
     fn write_then_read_is_identity() {
-        let c = parse("t_s,alpha_deg,beta_deg,temp_c,x\n0,0,0,25.5,100\n0.5,30,-60,25.5,101\n")
-            .unwrap();
+        let c = parse("t_s,alpha_deg,beta_deg,temp_c,x\n0,0,0,25.5,100\n0.5,30,-60,25.5,101\n").unwrap();
         let mut buf = Vec::new();
         c.write(&mut buf).unwrap();
         assert_eq!(parse(std::str::from_utf8(&buf).unwrap()).unwrap(), c);

@@ -35,19 +35,12 @@ pub enum Inversion {
 /// Own axis of a fitted model-4 row: the largest |k|.
 pub fn own_axis(fit: &LsqFit) -> usize {
     let k = &fit.coefficients[1..4];
-    (0..3)
-        .max_by(|&a, &b| k[a].abs().total_cmp(&k[b].abs()))
-        .expect("three axes")
+    (0..3).max_by(|&a, &b| k[a].abs().total_cmp(&k[b].abs())).expect("three axes")
 }
 
 /// Per-row calibrated acceleration along each channel's own axis, and the rig's value, for the
 /// validation `dwells` (row ranges) of `c`. Returns per channel `(errors)`.
-pub fn errors(
-    c: &Campaign,
-    g: f64,
-    fits: &[LsqFit],
-    rows: &[(usize, usize)],
-) -> (Inversion, Vec<Vec<f64>>) {
+pub fn errors(c: &Campaign, g: f64, fits: &[LsqFit], rows: &[(usize, usize)]) -> (Inversion, Vec<Vec<f64>>) {
     let axes: Vec<usize> = fits.iter().map(own_axis).collect();
     let triad = fits.len() == 3 && {
         let mut s = axes.clone();
@@ -55,10 +48,7 @@ pub fn errors(
         s == [0, 1, 2]
     };
     let inv = if triad {
-        let mut m = Model4 {
-            u0: [0.0; 3],
-            k: [[0.0; 3]; 3],
-        };
+        let mut m = Model4 { u0: [0.0; 3], k: [[0.0; 3]; 3] };
         // Row of K for axis j comes from the channel whose own axis is j.
         for (ci, f) in fits.iter().enumerate() {
             m.u0[axes[ci]] = f.coefficients[0];
@@ -92,14 +82,7 @@ pub fn errors(
             }
         }
     }
-    (
-        if inv.is_some() {
-            Inversion::Triad
-        } else {
-            Inversion::PerChannel
-        },
-        out,
-    )
+    (if inv.is_some() { Inversion::Triad } else { Inversion::PerChannel }, out)
 }
 
 /// Mean and sample standard deviation.
@@ -107,8 +90,5 @@ pub fn stats(e: &[f64]) -> ErrorStats {
     let n = e.len() as f64;
     let mean = e.iter().sum::<f64>() / n;
     let var = e.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / (n - 1.0).max(1.0);
-    ErrorStats {
-        mean_error: mean,
-        std_error: var.sqrt(),
-    }
+    ErrorStats { mean_error: mean, std_error: var.sqrt() }
 }

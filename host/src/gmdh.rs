@@ -57,12 +57,8 @@ impl std::str::FromStr for Split {
             "halves" => Ok(Split::Halves),
             _ => match s.strip_prefix("tail:").map(str::parse::<f64>) {
                 Some(Ok(f)) if f > 0.0 && f < 1.0 => Ok(Split::Tail(f)),
-                Some(_) => Err(format!(
-                    "`{s}`: the tail fraction must be a number in (0, 1)"
-                )),
-                None => Err(format!(
-                    "`{s}`: expected alternate, halves or tail:FRACTION"
-                )),
+                Some(_) => Err(format!("`{s}`: the tail fraction must be a number in (0, 1)")),
+                None => Err(format!("`{s}`: expected alternate, halves or tail:FRACTION")),
             },
         }
     }
@@ -217,12 +213,7 @@ impl Design {
             }
         }
         let rows = idx.iter().map(|&p| pos.weight[p]).sum();
-        Part {
-            idx,
-            gram,
-            moment,
-            rows,
-        }
+        Part { idx, gram, moment, rows }
     }
 }
 
@@ -267,14 +258,7 @@ fn solve(part: &Part, m: usize, sel: &[usize], beta: &mut [f64]) -> bool {
 }
 
 /// Weighted sum of squared residuals of `beta` (on columns `sel`) over the dwell means of `part`.
-fn sse(
-    d: &Design,
-    pos: &Positions,
-    ch: &ChannelStats,
-    part: &Part,
-    sel: &[usize],
-    beta: &[f64],
-) -> f64 {
+fn sse(d: &Design, pos: &Positions, ch: &ChannelStats, part: &Part, sel: &[usize], beta: &[f64]) -> f64 {
     let mut s = 0.0;
     for &p in &part.idx {
         let zp = &d.z[p * d.m..(p + 1) * d.m];
@@ -309,12 +293,7 @@ pub fn select(
     let ab = d.part(pos, ch, all);
     let count = settings.basis.candidate_count();
     // Column positions (in the design) of a structure's terms.
-    let col_of = |bi: usize| {
-        d.cols
-            .iter()
-            .position(|&c| c == bi)
-            .expect("candidate within the basis")
-    };
+    let col_of = |bi: usize| d.cols.iter().position(|&c| c == bi).expect("candidate within the basis");
     let score = |s: Structure| -> Option<f64> {
         let mut sel = [0usize; N_BASIS];
         let k = s.len();
@@ -356,10 +335,7 @@ pub fn select(
         .with_min_len(CHUNK)
         .map(|i| {
             let structure = settings.basis.candidate(i);
-            let c = Candidate {
-                structure,
-                criterion: score(structure),
-            };
+            let c = Candidate { structure, criterion: score(structure) };
             if (i + 1) % CHUNK == 0 {
                 progress(CHUNK as u64);
             }
@@ -367,10 +343,7 @@ pub fn select(
         })
         .collect();
     progress((count % CHUNK) as u64);
-    let best = candidates
-        .iter()
-        .filter_map(|c| c.criterion)
-        .fold(f64::INFINITY, f64::min);
+    let best = candidates.iter().filter_map(|c| c.criterion).fold(f64::INFINITY, f64::min);
     if !best.is_finite() {
         return Err(GmdhError::NothingIdentifiable);
     }
@@ -378,21 +351,13 @@ pub fn select(
         .iter()
         .enumerate()
         .filter_map(|(i, c)| {
-            c.criterion
-                .filter(|&v| v <= best + settings.tolerance)
-                .map(|v| (i, c.structure.len(), v))
+            c.criterion.filter(|&v| v <= best + settings.tolerance).map(|v| (i, c.structure.len(), v))
         })
         .min_by(|x, y| x.1.cmp(&y.1).then(x.2.total_cmp(&y.2)))
         .map(|x| x.0)
         .expect("the best candidate qualifies");
     let fit = lsq::fit(pos, ch, candidates[selected].structure, None)?;
-    Ok(Selection {
-        channel: ch.name.clone(),
-        candidates,
-        selected,
-        best,
-        fit,
-    })
+    Ok(Selection { channel: ch.name.clone(), candidates, selected, best, fit })
 }
 
 #[cfg(test)]
@@ -403,10 +368,7 @@ mod tests {
     fn splits_cover_every_position_once() {
         assert_eq!(Split::Alternate.parts(5), (vec![0, 2, 4], vec![1, 3]));
         assert_eq!(Split::Halves.parts(5), (vec![0, 1, 2], vec![3, 4]));
-        assert_eq!(
-            Split::Tail(0.25).parts(8),
-            (vec![0, 1, 2, 3, 4, 5], vec![6, 7])
-        );
+        assert_eq!(Split::Tail(0.25).parts(8), (vec![0, 1, 2, 3, 4, 5], vec![6, 7]));
         assert_eq!("tail:0.5".parse::<Split>(), Ok(Split::Tail(0.5)));
         assert!("tail:1.5".parse::<Split>().is_err());
         assert!("every".parse::<Split>().is_err());

@@ -49,11 +49,7 @@ pub struct LsqFit {
 impl LsqFit {
     /// Model output (codes) at acceleration `a`.
     pub fn eval(&self, a: [f64; 3]) -> f64 {
-        self.structure
-            .terms()
-            .zip(&self.coefficients)
-            .map(|(t, c)| c * t.eval(a))
-            .sum()
+        self.structure.terms().zip(&self.coefficients).map(|(t, c)| c * t.eval(a)).sum()
     }
 }
 
@@ -76,15 +72,10 @@ pub fn fit(
     let terms: Vec<_> = structure.terms().collect();
     let (n, k) = (idx.len(), terms.len());
     if n < k {
-        return Err(LsqError::TooFewPositions {
-            terms: k,
-            positions: n,
-        });
+        return Err(LsqError::TooFewPositions { terms: k, positions: n });
     }
     // Rows scaled by sqrt(weight); columns scaled to unit RMS for the conditioning.
-    let mut x = DMatrix::from_fn(n, k, |r, c| {
-        pos.weight[idx[r]].sqrt() * terms[c].eval(pos.accel[idx[r]])
-    });
+    let mut x = DMatrix::from_fn(n, k, |r, c| pos.weight[idx[r]].sqrt() * terms[c].eval(pos.accel[idx[r]]));
     let y = DVector::from_fn(n, |r, _| pos.weight[idx[r]].sqrt() * ch.mean[idx[r]]);
     let wsum: f64 = idx.iter().map(|&i| pos.weight[i]).sum();
     let mut scale = vec![1.0; k];
@@ -106,12 +97,7 @@ pub fn fit(
                 }
             }
         }
-        let terms = terms
-            .iter()
-            .zip(involved)
-            .filter(|(_, i)| *i)
-            .map(|(t, _)| t.to_string())
-            .collect();
+        let terms = terms.iter().zip(involved).filter(|(_, i)| *i).map(|(t, _)| t.to_string()).collect();
         return Err(LsqError::Unidentifiable { terms });
     }
     let beta_s = svd.solve(&y, 0.0).expect("U and V requested");
@@ -124,20 +110,11 @@ pub fn fit(
     let v_t = svd.v_t.as_ref().expect("V requested");
     let mut std_errors = vec![0.0; k];
     for c in 0..k {
-        let var: f64 = (0..k)
-            .map(|s| (v_t[(s, c)] / svd.singular_values[s]).powi(2))
-            .sum();
+        let var: f64 = (0..k).map(|s| (v_t[(s, c)] / svd.singular_values[s]).powi(2)).sum();
         std_errors[c] = (sigma2 * var).sqrt() / scale[c];
     }
     let coefficients = (0..k).map(|c| beta_s[c] / scale[c]).collect();
-    Ok(LsqFit {
-        structure,
-        coefficients,
-        std_errors,
-        condition: smax / smin,
-        rms: (sse / wsum).sqrt(),
-        dof,
-    })
+    Ok(LsqFit { structure, coefficients, std_errors, condition: smax / smin, rms: (sse / wsum).sqrt(), dof })
 }
 
 /// Parses a comma-separated term list (`ax,ay,az`); the intercept is always added.
@@ -145,9 +122,7 @@ pub fn parse_terms(list: &str) -> Result<Structure, String> {
     let mut mask = 1u32;
     for name in list.split(',').map(str::trim).filter(|s| !s.is_empty()) {
         let t = accelcal_shared::Term::parse(name).map_err(|e| format!("term `{name}`: {e}"))?;
-        let i = t
-            .index()
-            .ok_or_else(|| format!("term `{name}` is not in the cubic basis"))?;
+        let i = t.index().ok_or_else(|| format!("term `{name}` is not in the cubic basis"))?;
         mask |= 1 << i;
     }
     Ok(Structure::from_mask(mask))

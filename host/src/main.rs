@@ -7,10 +7,6 @@ fn main() {
     let cli = accelcal::cli::Cli::parse();
     if let Err(e) = accelcal::cmd::run(cli) {
         eprintln!("error: {e:#}");
-        std::process::exit(if accelcal::error::is_bad_input(&e) {
-            2
-        } else {
-            1
-        });
+        std::process::exit(if accelcal::error::is_bad_input(&e) { 2 } else { 1 });
     }
 }

@@ -20,9 +20,7 @@ const COLORS: [RGBColor; 8] = [
 fn span(vals: impl Iterator<Item = f64>) -> (f64, f64) {
     let (lo, hi) = vals
         .filter(|v| v.is_finite())
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-            (a.min(v), b.max(v))
-        });
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
     if !lo.is_finite() {
         return (-1.0, 1.0);
     }
@@ -31,11 +29,7 @@ fn span(vals: impl Iterator<Item = f64>) -> (f64, f64) {
 }
 
 /// One series per channel: the mean error (m/s²) at each validation position.
-pub fn error_per_position(
-    path: &Path,
-    title: &str,
-    series: &[(String, Vec<f64>)],
-) -> anyhow::Result<()> {
+pub fn error_per_position(path: &Path, title: &str, series: &[(String, Vec<f64>)]) -> anyhow::Result<()> {
     let n = series.iter().map(|s| s.1.len()).max().unwrap_or(0).max(1);
     let (lo, hi) = span(series.iter().flat_map(|s| s.1.iter().copied()));
     let root = SVGBackend::new(path, (900, 500)).into_drawing_area();
@@ -50,29 +44,21 @@ pub fn error_per_position(
     chart
         .configure_mesh()
         .x_desc("validation position")
+        .x_label_formatter(&|x| format!("{x:.0}"))
         .y_desc("error of calibrated acceleration, m/s²")
         .draw()
         .map_err(|e| anyhow!("{e}"))?;
     chart
-        .draw_series(LineSeries::new(
-            [(0.5, 0.0), (n as f64 + 0.5, 0.0)],
-            BLACK.mix(0.4),
-        ))
+        .draw_series(LineSeries::new([(0.5, 0.0), (n as f64 + 0.5, 0.0)], BLACK.mix(0.4)))
         .map_err(|e| anyhow!("{e}"))?;
     for (i, (name, ys)) in series.iter().enumerate() {
         let color = COLORS[i % COLORS.len()];
-        let pts: Vec<(f64, f64)> = ys
-            .iter()
-            .enumerate()
-            .map(|(k, &y)| (k as f64 + 1.0, y))
-            .collect();
+        let pts: Vec<(f64, f64)> = ys.iter().enumerate().map(|(k, &y)| (k as f64 + 1.0, y)).collect();
         chart
             .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
             .map_err(|e| anyhow!("{e}"))?
             .label(name.as_str())
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
-            });
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2)));
         chart
             .draw_series(pts.into_iter().map(|p| Circle::new(p, 3, color.filled())))
             .map_err(|e| anyhow!("{e}"))?;
@@ -83,8 +69,7 @@ pub fn error_per_position(
         .background_style(WHITE.mix(0.8))
         .draw()
         .map_err(|e| anyhow!("{e}"))?;
-    root.present()
-        .with_context(|| format!("writing {}", path.display()))?;
+    root.present().with_context(|| format!("writing {}", path.display()))?;
     Ok(())
 }
 
@@ -97,22 +82,13 @@ pub fn criterion_vs_complexity(
     selected: (usize, f64),
     limit: f64,
 ) -> anyhow::Result<()> {
-    let kmax = points
-        .iter()
-        .map(|p| p.0)
-        .max()
-        .unwrap_or(1)
-        .max(selected.0);
+    let kmax = points.iter().map(|p| p.0).max().unwrap_or(1).max(selected.0);
     let (lo, hi) = points
         .iter()
         .map(|p| p.1)
         .filter(|v| *v > 0.0)
         .fold((f64::INFINITY, 0.0f64), |(a, b), v| (a.min(v), b.max(v)));
-    let (lo, hi) = if lo.is_finite() {
-        (lo * 0.9, hi * 1.1)
-    } else {
-        (0.1, 10.0)
-    };
+    let (lo, hi) = if lo.is_finite() { (lo * 0.9, hi * 1.1) } else { (0.1, 10.0) };
     let root = SVGBackend::new(path, (800, 500)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
     let mut chart = ChartBuilder::on(&root)
@@ -125,23 +101,17 @@ pub fn criterion_vs_complexity(
     chart
         .configure_mesh()
         .x_desc("terms in the model (intercept included)")
+        .x_label_formatter(&|x| format!("{x:.0}"))
         .y_desc("criterion, RMS ADC codes")
         .draw()
         .map_err(|e| anyhow!("{e}"))?;
     chart
-        .draw_series(
-            points
-                .iter()
-                .map(|&(k, v)| Circle::new((k as f64, v), 3, COLORS[0].mix(0.6).filled())),
-        )
+        .draw_series(points.iter().map(|&(k, v)| Circle::new((k as f64, v), 3, COLORS[0].mix(0.6).filled())))
         .map_err(|e| anyhow!("{e}"))?
         .label("candidate")
         .legend(|(x, y)| Circle::new((x + 8, y), 3, COLORS[0].filled()));
     chart
-        .draw_series(LineSeries::new(
-            [(0.5, limit), (kmax as f64 + 0.5, limit)],
-            COLORS[3].stroke_width(1),
-        ))
+        .draw_series(LineSeries::new([(0.5, limit), (kmax as f64 + 0.5, limit)], COLORS[3].stroke_width(1)))
         .map_err(|e| anyhow!("{e}"))?
         .label("best + tolerance")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], COLORS[3]));
@@ -160,7 +130,6 @@ pub fn criterion_vs_complexity(
         .background_style(WHITE.mix(0.8))
         .draw()
         .map_err(|e| anyhow!("{e}"))?;
-    root.present()
-        .with_context(|| format!("writing {}", path.display()))?;
+    root.present().with_context(|| format!("writing {}", path.display()))?;
     Ok(())
 }

@@ -38,12 +38,7 @@ impl Positions {
         let dwells = c.dwells();
         let accel = dwells.iter().map(|d| d.accel(g)).collect();
         let weight = dwells.iter().map(|d| d.len() as f64).collect();
-        Positions {
-            dwells,
-            accel,
-            weight,
-            g,
-        }
+        Positions { dwells, accel, weight, g }
     }
 
     /// Number of positions.
@@ -69,11 +64,7 @@ impl Positions {
                     mean.push(m);
                     within.push(xs.iter().map(|x| (x - m) * (x - m)).sum());
                 }
-                ChannelStats {
-                    name: ch.name.clone(),
-                    mean,
-                    within_ss: within,
-                }
+                ChannelStats { name: ch.name.clone(), mean, within_ss: within }
             })
             .collect()
     }

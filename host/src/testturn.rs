@@ -25,12 +25,8 @@ pub struct Pairs {
 impl Pairs {
     /// Finds the pairs in the plan.
     pub fn find(pos: &Positions) -> Result<Pairs, TestTurnError> {
-        let pairs = [0, 1, 2].map(|j| {
-            Some((
-                pos.find_axis_position(j, 1.0)?,
-                pos.find_axis_position(j, -1.0)?,
-            ))
-        });
+        let pairs =
+            [0, 1, 2].map(|j| Some((pos.find_axis_position(j, 1.0)?, pos.find_axis_position(j, -1.0)?)));
         if pairs.iter().all(Option::is_none) {
             return Err(TestTurnError::NoPairs);
         }
@@ -39,11 +35,7 @@ impl Pairs {
 
     /// Every position index the test turns use.
     pub fn used(&self) -> Vec<usize> {
-        self.pairs
-            .iter()
-            .flatten()
-            .flat_map(|&(p, m)| [p, m])
-            .collect()
+        self.pairs.iter().flatten().flat_map(|&(p, m)| [p, m]).collect()
     }
 }
 
@@ -60,10 +52,7 @@ pub fn fit(pos: &Positions, ch: &ChannelStats, pairs: &Pairs) -> LsqFit {
             f64::NAN
         }
     };
-    let mut six = SixPositions {
-        plus: [0.0; 3],
-        minus: [0.0; 3],
-    };
+    let mut six = SixPositions { plus: [0.0; 3], minus: [0.0; 3] };
     let mut se = [f64::NAN; 4];
     for j in 0..3 {
         if let Some((p, m)) = pairs.pairs[j] {

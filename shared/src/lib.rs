@@ -9,6 +9,8 @@
 #![cfg_attr(not(any(test, feature = "std")), no_std)]
 #![deny(unsafe_code)]
 #![warn(missing_docs)]
+// `!(x > t)` is deliberate: a NaN must fail every range check. Index loops mirror the math.
+#![allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
 
 pub mod kinematics;
 pub mod linear;

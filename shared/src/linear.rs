@@ -57,9 +57,7 @@ impl Model4 {
         let inv = k.try_inverse().ok_or(LinearError::Singular)?;
         // Reciprocal condition number in the 1-norm.
         let norm1 = |m: &Matrix3<f64>| {
-            (0..3)
-                .map(|j| (0..3).map(|i| libm::fabs(m[(i, j)])).sum::<f64>())
-                .fold(0.0, f64::max)
+            (0..3).map(|j| (0..3).map(|i| libm::fabs(m[(i, j)])).sum::<f64>()).fold(0.0, f64::max)
         };
         let rcond = 1.0 / (norm1(&k) * norm1(&inv));
         if !(rcond > 1e-9) || !inv.iter().all(|v| v.is_finite()) {
@@ -88,10 +86,7 @@ impl LinearCal {
 
     /// The same calibration rounded to f32.
     pub fn to_f32(&self) -> LinearCalF32 {
-        let mut out = LinearCalF32 {
-            u0: [0.0; 3],
-            m: [[0.0; 3]; 3],
-        };
+        let mut out = LinearCalF32 { u0: [0.0; 3], m: [[0.0; 3]; 3] };
         for i in 0..3 {
             out.u0[i] = self.u0[i] as f32;
             for j in 0..3 {
@@ -140,11 +135,7 @@ impl LinearCalF32 {
     /// Calibrated acceleration (m/s²) from raw 16-bit codes.
     #[inline]
     pub fn apply(&self, u: [u16; 3]) -> [f32; 3] {
-        let d = [
-            u[0] as f32 - self.u0[0],
-            u[1] as f32 - self.u0[1],
-            u[2] as f32 - self.u0[2],
-        ];
+        let d = [u[0] as f32 - self.u0[0], u[1] as f32 - self.u0[1], u[2] as f32 - self.u0[2]];
         [
             self.m[0][0] * d[0] + self.m[0][1] * d[1] + self.m[0][2] * d[2],
             self.m[1][0] * d[0] + self.m[1][1] * d[1] + self.m[1][2] * d[2],
@@ -191,11 +182,7 @@ impl LinearCalFixed {
             return Err(LinearError::FixedPointRange);
         }
         let shift = shift as u32;
-        let mut out = LinearCalFixed {
-            u0_q: [0; 3],
-            m_q: [[0; 3]; 3],
-            shift,
-        };
+        let mut out = LinearCalFixed { u0_q: [0; 3], m_q: [[0; 3]; 3], shift };
         for i in 0..3 {
             let u0 = libm::round(cal.u0[i] * (1u32 << FIXED_U0_FRAC) as f64);
             if !(u0.abs() < 2147483647.0) {
@@ -226,9 +213,8 @@ impl LinearCalFixed {
         let half = 1i64 << (down - 1);
         let mut a = [0i32; 3];
         for (i, ai) in a.iter_mut().enumerate() {
-            let acc = self.m_q[i][0] as i64 * d[0]
-                + self.m_q[i][1] as i64 * d[1]
-                + self.m_q[i][2] as i64 * d[2];
+            let acc =
+                self.m_q[i][0] as i64 * d[0] + self.m_q[i][1] as i64 * d[1] + self.m_q[i][2] as i64 * d[2];
             *ai = ((acc + half) >> down).clamp(i32::MIN as i64, i32::MAX as i64) as i32;
         }
         a
@@ -261,11 +247,7 @@ mod tests {
     fn sample_model() -> Model4 {
         Model4 {
             u0: [32100.5, 33012.25, 31877.75],
-            k: [
-                [1671.2, 8.5, -3.25],
-                [-4.0, 1650.75, 6.5],
-                [2.5, -7.75, 1689.0],
-            ],
+            k: [[1671.2, 8.5, -3.25], [-4.0, 1650.75, 6.5], [2.5, -7.75, 1689.0]],
         }
     }
 
@@ -316,12 +298,7 @@ mod tests {
         let bf = cal.f32_error_bound();
         let bq = q.error_bound(&cal);
         let (mut worst_f, mut worst_q) = (0.0f64, 0.0f64);
-        let extremes = [
-            [0, 0, 0],
-            [65535, 65535, 65535],
-            [0, 65535, 0],
-            [65535, 0, 65535],
-        ];
+        let extremes = [[0, 0, 0], [65535, 65535, 65535], [0, 65535, 0], [65535, 0, 65535]];
         for u in codes(200_000).chain(extremes) {
             let r = cal.apply([u[0] as f64, u[1] as f64, u[2] as f64]);
             let af = f.apply(u);
@@ -338,9 +315,6 @@ mod tests {
         // The bounds are not vacuous: both paths come within a factor 20 of them.
         assert!(worst_f > 0.05 && worst_q > 0.05, "{worst_f} {worst_q}");
         // And in absolute terms both are far below one code's worth of acceleration (~6e-4 m/s²).
-        assert!(
-            bf.iter().all(|&b| b < 1e-4) && bq.iter().all(|&b| b < 1e-4),
-            "{bf:?} {bq:?}"
-        );
+        assert!(bf.iter().all(|&b| b < 1e-4) && bq.iter().all(|&b| b < 1e-4), "{bf:?} {bq:?}");
     }
 }

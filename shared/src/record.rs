@@ -122,8 +122,7 @@ impl PartialEq for Record {
             && self.created_unix_s == o.created_unix_s
             && self.structure == o.structure
             && self.n_channels == o.n_channels
-            && (0..n_ch.min(MAX_CHANNELS))
-                .all(|c| self.coefficients[c][..n_t] == o.coefficients[c][..n_t])
+            && (0..n_ch.min(MAX_CHANNELS)).all(|c| self.coefficients[c][..n_t] == o.coefficients[c][..n_t])
     }
 }
 
@@ -256,17 +255,10 @@ impl Record {
         if self.structure != crate::terms::MODEL_4 || self.n_channels != 3 {
             return None;
         }
-        let mut m = crate::linear::Model4 {
-            u0: [0.0; 3],
-            k: [[0.0; 3]; 3],
-        };
+        let mut m = crate::linear::Model4 { u0: [0.0; 3], k: [[0.0; 3]; 3] };
         for c in 0..3 {
             m.u0[c] = self.coefficients[c][0];
-            m.k[c] = [
-                self.coefficients[c][1],
-                self.coefficients[c][2],
-                self.coefficients[c][3],
-            ];
+            m.k[c] = [self.coefficients[c][1], self.coefficients[c][2], self.coefficients[c][3]];
         }
         Some(m)
     }
@@ -340,10 +332,7 @@ mod tests {
             assert!(Record::parse(&c).is_err(), "flip of bit {i} accepted");
         }
         for n in 0..b.len() {
-            assert!(
-                Record::parse(&b[..n]).is_err(),
-                "truncation to {n} accepted"
-            );
+            assert!(Record::parse(&b[..n]).is_err(), "truncation to {n} accepted");
         }
     }
 
@@ -352,10 +341,7 @@ mod tests {
         let mut r = sample();
         assert_eq!(r.emit(&mut [0u8; 10]), Err(RecordError::BufferTooSmall));
         r.coefficients[2][3] = f64::INFINITY;
-        assert_eq!(
-            r.emit(&mut [0u8; MAX_RECORD_LEN]),
-            Err(RecordError::NonFinite)
-        );
+        assert_eq!(r.emit(&mut [0u8; MAX_RECORD_LEN]), Err(RecordError::NonFinite));
     }
 
     proptest! {

@@ -89,10 +89,7 @@ impl Term {
                 }
                 None => (factor, 1),
             };
-            let i = VAR
-                .iter()
-                .position(|&n| n == var)
-                .ok_or(TermError::UnknownVariable)?;
+            let i = VAR.iter().position(|&n| n == var).ok_or(TermError::UnknownVariable)?;
             if p == 0 || p > 3 {
                 return Err(TermError::BadPower);
             }
@@ -314,9 +311,8 @@ mod tests {
         assert_eq!(
             names,
             [
-                "1", "ax", "ay", "az", "ax^2", "ay^2", "az^2", "ax*ay", "ax*az", "ay*az", "ax^3",
-                "ax^2*ay", "ax^2*az", "ax*ay^2", "ax*ay*az", "ax*az^2", "ay^3", "ay^2*az",
-                "ay*az^2", "az^3"
+                "1", "ax", "ay", "az", "ax^2", "ay^2", "az^2", "ax*ay", "ax*az", "ay*az", "ax^3", "ax^2*ay",
+                "ax^2*az", "ax*ay^2", "ax*ay*az", "ax*az^2", "ay^3", "ay^2*az", "ay*az^2", "az^3"
             ]
         );
         for (i, n) in names.iter().enumerate() {

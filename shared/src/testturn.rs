@@ -50,11 +50,7 @@ pub fn six_position(p: &SixPositions, g: f64) -> ChannelRow {
             own = j;
         }
     }
-    ChannelRow {
-        u0: (p.plus[own] + p.minus[own]) / 2.0,
-        k,
-        own_axis: own,
-    }
+    ChannelRow { u0: (p.plus[own] + p.minus[own]) / 2.0, k, own_axis: own }
 }
 
 /// Six-position calibration of a triad: bias vector and the full 3×3 sensitivity matrix (row i is
@@ -94,15 +90,8 @@ mod tests {
     fn six_positions_give_the_full_matrix() {
         let g = 9.81;
         let bias = [30000.0, 31000.0, 29000.0];
-        let k = [
-            [1600.0, 12.0, -7.0],
-            [5.0, 1700.0, 3.0],
-            [-9.0, 4.0, 1650.0],
-        ];
-        let mut p = [SixPositions {
-            plus: [0.0; 3],
-            minus: [0.0; 3],
-        }; 3];
+        let k = [[1600.0, 12.0, -7.0], [5.0, 1700.0, 3.0], [-9.0, 4.0, 1650.0]];
+        let mut p = [SixPositions { plus: [0.0; 3], minus: [0.0; 3] }; 3];
         for i in 0..3 {
             for j in 0..3 {
                 p[i].plus[j] = bias[i] + k[i][j] * g;

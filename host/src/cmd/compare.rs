@@ -44,12 +44,11 @@ pub fn compute(c: &Campaign, validate: Option<&Campaign>, g: f64) -> anyhow::Res
             let names: Vec<_> = c.channels.iter().map(|c| &c.name).collect();
             let vnames: Vec<_> = v.channels.iter().map(|c| &c.name).collect();
             if names != vnames {
-                return Err(bad(format!("the validation campaign's channels {vnames:?} differ from the campaign's {names:?}")));
+                return Err(bad(format!(
+                    "the validation campaign's channels {vnames:?} differ from the campaign's {names:?}"
+                )));
             }
-            (
-                (0..pos.len()).collect(),
-                v.dwells().iter().map(|d| (d.start, d.end)).collect(),
-            )
+            ((0..pos.len()).collect(), v.dwells().iter().map(|d| (d.start, d.end)).collect())
         }
         None => {
             let others: Vec<usize> = (0..pos.len()).filter(|i| !used.contains(i)).collect();
@@ -58,25 +57,16 @@ pub fn compute(c: &Campaign, validate: Option<&Campaign>, g: f64) -> anyhow::Res
                 return Err(bad("the plan has no positions besides the test-turn ones to validate on; give --validate CAMPAIGN2"));
             }
             let fit_idx = (0..pos.len()).filter(|i| !held.contains(i)).collect();
-            (
-                fit_idx,
-                held.iter()
-                    .map(|&i| (pos.dwells[i].start, pos.dwells[i].end))
-                    .collect(),
-            )
+            (fit_idx, held.iter().map(|&i| (pos.dwells[i].start, pos.dwells[i].end)).collect())
         }
     };
     let lsq_fits: Vec<LsqFit> = stats
         .iter()
         .map(|s| {
-            lsq::fit(&pos, s, MODEL_4, Some(&fit_idx))
-                .map_err(|e| bad(format!("channel `{}`: {e}", s.name)))
+            lsq::fit(&pos, s, MODEL_4, Some(&fit_idx)).map_err(|e| bad(format!("channel `{}`: {e}", s.name)))
         })
         .collect::<anyhow::Result<_>>()?;
-    let tt_fits: Vec<LsqFit> = stats
-        .iter()
-        .map(|s| testturn::fit(&pos, s, &pairs))
-        .collect();
+    let tt_fits: Vec<LsqFit> = stats.iter().map(|s| testturn::fit(&pos, s, &pairs)).collect();
     let vc = validate.unwrap_or(c);
     let (inv, e_lsq) = compare::errors(vc, g, &lsq_fits, &val_rows);
     let (_, e_tt) = compare::errors(vc, g, &tt_fits, &val_rows);
@@ -125,10 +115,7 @@ pub fn print_table(r: &CompareJson) {
             Inversion::PerChannel => "per-channel",
         }
     );
-    println!(
-        "  {:<8} {:>11} {:>11} {:>11} {:>11}",
-        "channel", "mean LSQ", "mean TT", "std LSQ", "std TT"
-    );
+    println!("  {:<8} {:>11} {:>11} {:>11} {:>11}", "channel", "mean LSQ", "mean TT", "std LSQ", "std TT");
     for ch in &r.channels {
         println!(
             "  {:<8} {:>11.5} {:>11.5} {:>11.5} {:>11.5}",
@@ -146,19 +133,10 @@ pub fn plots(dir: &std::path::Path, r: &CompareJson) -> anyhow::Result<Vec<std::
     std::fs::create_dir_all(dir).map_err(|e| anyhow::anyhow!("creating {}: {e}", dir.display()))?;
     let mut out = Vec::new();
     for (m, (file, title)) in [
-        (
-            Method::Lsq,
-            (
-                "errors-lsq.svg",
-                "LSQ: mean acceleration error per validation position",
-            ),
-        ),
+        (Method::Lsq, ("errors-lsq.svg", "LSQ: mean acceleration error per validation position")),
         (
             Method::TestTurns,
-            (
-                "errors-test-turns.svg",
-                "Test turns: mean acceleration error per validation position",
-            ),
+            ("errors-test-turns.svg", "Test turns: mean acceleration error per validation position"),
         ),
     ] {
         let path = dir.join(file);
@@ -172,11 +150,7 @@ pub fn plots(dir: &std::path::Path, r: &CompareJson) -> anyhow::Result<Vec<std::
 pub fn run(a: &CompareArgs) -> anyhow::Result<()> {
     super::check_g(a.common.g)?;
     let c = super::read_campaign(&a.campaign)?;
-    let v = a
-        .validate
-        .as_deref()
-        .map(super::read_campaign)
-        .transpose()?;
+    let v = a.validate.as_deref().map(super::read_campaign).transpose()?;
     let r = compute(&c, v.as_ref(), a.common.g)?;
     print_table(&r);
     if let Some(j) = &a.common.json {

@@ -17,13 +17,8 @@ pub fn run(a: &DemoArgs) -> anyhow::Result<()> {
     steps.set_style(ProgressStyle::with_template("[{pos}/{len}] {msg}").expect("valid template"));
     let g = accelcal_shared::G_STANDARD;
 
-    steps.set_message(
-        "simulating an MS9002-class triad on the dividing head (62 positions x 400 samples)",
-    );
-    let cfg = SimConfig {
-        seed: a.seed,
-        ..SimConfig::default()
-    };
+    steps.set_message("simulating an MS9002-class triad on the dividing head (62 positions x 400 samples)");
+    let cfg = SimConfig { seed: a.seed, ..SimConfig::default() };
     let (campaign, truth) = sim::simulate(&cfg);
     let campaign_path = out.join("campaign.csv");
     write_atomic_with(&campaign_path, |w| campaign.write(w).context("writing CSV"))?;
@@ -48,14 +43,8 @@ pub fn run(a: &DemoArgs) -> anyhow::Result<()> {
     steps.set_message("fitting model 4 by LSQ and by test turns; writing the calibration record");
     let lsq = super::fit::fit_all(&campaign, g, Method::Lsq, MODEL_4)?;
     let tt = super::fit::fit_all(&campaign, g, Method::TestTurns, MODEL_4)?;
-    write_json(
-        &out.join("fit-lsq.json"),
-        &super::fit::to_json(Method::Lsq, &lsq),
-    )?;
-    write_json(
-        &out.join("fit-test-turns.json"),
-        &super::fit::to_json(Method::TestTurns, &tt),
-    )?;
+    write_json(&out.join("fit-lsq.json"), &super::fit::to_json(Method::Lsq, &lsq))?;
+    write_json(&out.join("fit-test-turns.json"), &super::fit::to_json(Method::TestTurns, &tt))?;
     let rec = super::fit::record(&lsq, [0; 12], 0)?;
     super::fit::write_record(&out.join("calibration.rec"), &rec)?;
     steps.inc(1);
@@ -83,12 +72,7 @@ pub fn run(a: &DemoArgs) -> anyhow::Result<()> {
     );
     for ((name, f), t) in lsq.iter().zip(&truth.channels) {
         let own = t.axis;
-        let cross = |k: &[f64]| {
-            (0..3)
-                .filter(|&j| j != own)
-                .map(|j| k[j].abs())
-                .fold(0.0, f64::max)
-        };
+        let cross = |k: &[f64]| (0..3).filter(|&j| j != own).map(|j| k[j].abs()).fold(0.0, f64::max);
         println!(
             "  {:<8} {:>12.2} {:>12.2} {:>10.3} {:>10.3} {:>10.3} {:>10.3}",
             name,

@@ -61,20 +61,13 @@ pub fn fit_all(
                 )));
             }
             let pairs = testturn::Pairs::find(&pos)?;
-            Ok(stats
-                .iter()
-                .map(|s| (s.name.clone(), testturn::fit(&pos, s, &pairs)))
-                .collect())
+            Ok(stats.iter().map(|s| (s.name.clone(), testturn::fit(&pos, s, &pairs))).collect())
         }
     }
 }
 
 /// Builds the record of a set of fits (all with the same structure).
-pub fn record(
-    fits: &[(String, LsqFit)],
-    device_id: [u8; 12],
-    created_unix_s: u64,
-) -> anyhow::Result<Record> {
+pub fn record(fits: &[(String, LsqFit)], device_id: [u8; 12], created_unix_s: u64) -> anyhow::Result<Record> {
     if fits.is_empty() || fits.len() > MAX_CHANNELS {
         return Err(bad(format!(
             "a calibration record holds 1 to {MAX_CHANNELS} channels, the campaign has {}",
@@ -98,9 +91,7 @@ pub fn record(
 /// Writes a record file.
 pub fn write_record(path: &Path, rec: &Record) -> anyhow::Result<()> {
     let mut buf = [0u8; MAX_RECORD_LEN];
-    let n = rec
-        .emit(&mut buf)
-        .map_err(|e| anyhow::anyhow!("encoding the record: {e}"))?;
+    let n = rec.emit(&mut buf).map_err(|e| anyhow::anyhow!("encoding the record: {e}"))?;
     write_atomic(path, &buf[..n])
 }
 
@@ -145,21 +136,15 @@ pub fn to_json(method: Method, fits: &[(String, LsqFit)]) -> FitJson {
 pub fn print_table(method: Method, fits: &[(String, LsqFit)]) {
     for (name, f) in fits {
         match method {
-            Method::Lsq => println!(
-                "channel {name}: LSQ, condition {:.3}, residual RMS {:.2} codes",
-                f.condition, f.rms
-            ),
+            Method::Lsq => {
+                println!("channel {name}: LSQ, condition {:.3}, residual RMS {:.2} codes", f.condition, f.rms)
+            }
             Method::TestTurns => println!("channel {name}: test turns"),
             Method::GravityNorm => println!("channel {name}: gravity norm"),
         }
         println!("  {:<10} {:>16} {:>14}", "term", "coefficient", "std error");
         for ((t, c), s) in f.structure.terms().zip(&f.coefficients).zip(&f.std_errors) {
-            println!(
-                "  {:<10} {:>16} {:>14}",
-                t.to_string(),
-                super::sig(*c, 8),
-                super::sig(*s, 3)
-            );
+            println!("  {:<10} {:>16} {:>14}", t.to_string(), super::sig(*c, 8), super::sig(*s, 3));
         }
     }
 }

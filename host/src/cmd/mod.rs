@@ -32,9 +32,7 @@ pub fn read_campaign(path: &Path) -> anyhow::Result<Campaign> {
 /// Checks that g is usable.
 pub fn check_g(g: f64) -> anyhow::Result<()> {
     if !(g.is_finite() && g > 0.0) {
-        return Err(crate::error::bad(format!(
-            "--g must be a positive number of m/s², got {g}"
-        )));
+        return Err(crate::error::bad(format!("--g must be a positive number of m/s², got {g}")));
     }
     Ok(())
 }

@@ -68,24 +68,13 @@ pub fn compute(
         if c.channel(name).is_none() {
             return Err(bad(format!(
                 "no channel `{name}` in the campaign (it has: {})",
-                c.channels
-                    .iter()
-                    .map(|c| c.name.as_str())
-                    .collect::<Vec<_>>()
-                    .join(",")
+                c.channels.iter().map(|c| c.name.as_str()).collect::<Vec<_>>().join(",")
             )));
         }
     }
-    let chosen: Vec<_> = stats
-        .iter()
-        .filter(|s| channels.is_empty() || channels.contains(&s.name))
-        .collect();
+    let chosen: Vec<_> = stats.iter().filter(|s| channels.is_empty() || channels.contains(&s.name)).collect();
     let total = (settings.basis.candidate_count() * chosen.len()) as u64;
-    let pb = if total > 50_000 {
-        ProgressBar::new(total)
-    } else {
-        ProgressBar::hidden()
-    };
+    let pb = if total > 50_000 { ProgressBar::new(total) } else { ProgressBar::hidden() };
     pb.set_style(
         ProgressStyle::with_template(
             "{msg:8} [{bar:30}] {human_pos}/{human_len} models, {per_sec}, eta {eta}",
@@ -105,11 +94,9 @@ pub fn compute(
 /// Label of a candidate in tables: the paper's model number for the paper basis.
 fn label(basis: Basis, s: Structure) -> String {
     match basis {
-        Basis::Paper => PAPER_MODELS
-            .iter()
-            .position(|&m| m == s)
-            .map(|i| format!("{}", i + 1))
-            .unwrap_or_default(),
+        Basis::Paper => {
+            PAPER_MODELS.iter().position(|&m| m == s).map(|i| format!("{}", i + 1)).unwrap_or_default()
+        }
         _ => String::new(),
     }
 }
@@ -118,9 +105,9 @@ fn label(basis: Basis, s: Structure) -> String {
 pub fn print_tables(sel: &[Selection], settings: &Settings) {
     for s in sel {
         println!(
-            "channel {}: {:?} criterion, RMS ADC codes (best {:.2}, tolerance {} code{})",
+            "channel {}: {} criterion, RMS ADC codes of dwell means (best {:.2}, tolerance {} code{})",
             s.channel,
-            settings.criterion,
+            format!("{:?}", settings.criterion).to_lowercase(),
             s.best,
             settings.tolerance,
             if settings.tolerance == 1.0 { "" } else { "s" }
@@ -131,8 +118,7 @@ pub fn print_tables(sel: &[Selection], settings: &Settings) {
         if many {
             rows.sort_by(|&a, &b| {
                 let (x, y) = (s.candidates[a].criterion, s.candidates[b].criterion);
-                x.unwrap_or(f64::INFINITY)
-                    .total_cmp(&y.unwrap_or(f64::INFINITY))
+                x.unwrap_or(f64::INFINITY).total_cmp(&y.unwrap_or(f64::INFINITY))
             });
             rows.truncate(15);
             if !rows.contains(&s.selected) {
@@ -153,11 +139,7 @@ pub fn print_tables(sel: &[Selection], settings: &Settings) {
             );
         }
         if many {
-            let unid = s
-                .candidates
-                .iter()
-                .filter(|c| c.criterion.is_none())
-                .count();
+            let unid = s.candidates.iter().filter(|c| c.criterion.is_none()).count();
             println!(
                 "  (15 best of {} candidates shown; {unid} not identifiable on this plan)",
                 s.candidates.len()
@@ -168,12 +150,7 @@ pub fn print_tables(sel: &[Selection], settings: &Settings) {
 }
 
 /// Builds the JSON document.
-pub fn to_json(
-    sel: &[Selection],
-    settings: &Settings,
-    split: &str,
-    top: Option<usize>,
-) -> SelectJson {
+pub fn to_json(sel: &[Selection], settings: &Settings, split: &str, top: Option<usize>) -> SelectJson {
     let channels = sel
         .iter()
         .map(|s| {
@@ -198,11 +175,7 @@ pub fn to_json(
                 },
                 best_criterion: s.best,
                 candidates_total: n,
-                unidentifiable: s
-                    .candidates
-                    .iter()
-                    .filter(|c| c.criterion.is_none())
-                    .count(),
+                unidentifiable: s.candidates.iter().filter(|c| c.criterion.is_none()).count(),
                 candidates: idx
                     .into_iter()
                     .map(|i| {
@@ -227,32 +200,23 @@ pub fn to_json(
 }
 
 /// Writes one criterion-against-complexity plot per channel into `dir`.
-pub fn plots(
-    dir: &Path,
-    sel: &[Selection],
-    settings: &Settings,
-) -> anyhow::Result<Vec<std::path::PathBuf>> {
+pub fn plots(dir: &Path, sel: &[Selection], settings: &Settings) -> anyhow::Result<Vec<std::path::PathBuf>> {
     std::fs::create_dir_all(dir).map_err(|e| anyhow::anyhow!("creating {}: {e}", dir.display()))?;
     let mut written = Vec::new();
     for s in sel {
-        let pts: Vec<(usize, f64)> = s
-            .candidates
-            .iter()
-            .filter_map(|c| c.criterion.map(|v| (c.structure.len(), v)))
-            .collect();
+        let pts: Vec<(usize, f64)> =
+            s.candidates.iter().filter_map(|c| c.criterion.map(|v| (c.structure.len(), v))).collect();
         let path = dir.join(format!("criterion-{}.svg", s.channel));
         let sc = s.selected();
         crate::plot::criterion_vs_complexity(
             &path,
             &format!(
-                "channel {}: {:?} criterion against complexity",
-                s.channel, settings.criterion
+                "channel {}: {} criterion against complexity",
+                s.channel,
+                format!("{:?}", settings.criterion).to_lowercase()
             ),
             &pts,
-            (
-                sc.structure.len(),
-                sc.criterion.expect("selected is identifiable"),
-            ),
+            (sc.structure.len(), sc.criterion.expect("selected is identifiable")),
             s.best + settings.tolerance,
         )?;
         written.push(path);
@@ -264,18 +228,11 @@ pub fn plots(
 pub fn run(a: &SelectArgs) -> anyhow::Result<()> {
     super::check_g(a.common.g)?;
     if !(a.tolerance.is_finite() && a.tolerance >= 0.0) {
-        return Err(bad(format!(
-            "--tolerance must be a number of codes >= 0, got {}",
-            a.tolerance
-        )));
+        return Err(bad(format!("--tolerance must be a number of codes >= 0, got {}", a.tolerance)));
     }
     let c = super::read_campaign(&a.campaign)?;
-    let settings = Settings {
-        basis: a.basis.into(),
-        criterion: a.criterion,
-        split: a.split,
-        tolerance: a.tolerance,
-    };
+    let settings =
+        Settings { basis: a.basis.into(), criterion: a.criterion, split: a.split, tolerance: a.tolerance };
     let sel = compute(&c, a.common.g, &a.channels, &settings)?;
     print_tables(&sel, &settings);
     if let Some(j) = &a.common.json {

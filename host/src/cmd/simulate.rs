@@ -31,9 +31,7 @@ pub fn config(a: &SimulateArgs) -> anyhow::Result<SimConfig> {
         || !(a.rate_hz.is_finite() && a.rate_hz > 0.0)
         || !(a.move_s.is_finite() && a.move_s >= 0.0)
     {
-        return Err(bad(
-            "--samples must be >= 1, --rate-hz > 0 and --move-s >= 0",
-        ));
+        return Err(bad("--samples must be >= 1, --rate-hz > 0 and --move-s >= 0"));
     }
     Ok(SimConfig {
         seed: a.seed,
@@ -57,10 +55,7 @@ pub fn run(a: &SimulateArgs) -> anyhow::Result<()> {
     let cfg = config(a)?;
     let (campaign, truth) = sim::simulate(&cfg);
     write_atomic_with(&a.out, |w| campaign.write(w).context("writing CSV"))?;
-    let truth_path = a
-        .truth
-        .clone()
-        .unwrap_or_else(|| a.out.with_extension("truth.json"));
+    let truth_path = a.truth.clone().unwrap_or_else(|| a.out.with_extension("truth.json"));
     write_json(&truth_path, &truth)?;
     println!(
         "wrote {} ({} rows, {} positions) and {}",
@@ -69,15 +64,9 @@ pub fn run(a: &SimulateArgs) -> anyhow::Result<()> {
         cfg.plan.positions.len(),
         truth_path.display()
     );
-    println!(
-        "{:<8} {:>10} {:>10} {:>10} {:>10}",
-        "channel", "bias", "k_x", "k_y", "k_z"
-    );
+    println!("{:<8} {:>10} {:>10} {:>10} {:>10}", "channel", "bias", "k_x", "k_y", "k_z");
     for c in &truth.channels {
-        println!(
-            "{:<8} {:>10.1} {:>10.3} {:>10.3} {:>10.3}",
-            c.name, c.bias, c.k[0], c.k[1], c.k[2]
-        );
+        println!("{:<8} {:>10.1} {:>10.3} {:>10.3} {:>10.3}", c.name, c.bias, c.k[0], c.k[1], c.k[2]);
     }
     if let Some(j) = &a.json {
         write_json(

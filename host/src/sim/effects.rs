@@ -50,21 +50,13 @@ impl Effect for Nonlinearity {
         "nonlinearity"
     }
     fn describe(&self) -> serde_json::Value {
-        let terms: serde_json::Map<_, _> = self
-            .terms
-            .iter()
-            .map(|(t, c)| (t.to_string(), json!(c)))
-            .collect();
+        let terms: serde_json::Map<_, _> =
+            self.terms.iter().map(|(t, c)| (t.to_string(), json!(c))).collect();
         json!({"name": self.name(), "k2": self.k2, "terms": terms})
     }
     fn output(&self, ctx: &SampleCtx) -> f64 {
         let own = ctx.accel[ctx.axis];
-        self.k2 * own * own
-            + self
-                .terms
-                .iter()
-                .map(|(t, c)| c * t.eval(ctx.accel))
-                .sum::<f64>()
+        self.k2 * own * own + self.terms.iter().map(|(t, c)| c * t.eval(ctx.accel)).sum::<f64>()
     }
 }
 
@@ -73,9 +65,8 @@ pub fn parse(spec: &str) -> Result<Box<dyn Effect>, String> {
     let (name, params) = spec.split_once('=').unwrap_or((spec, ""));
     let mut kv = Vec::new();
     for p in params.split(',').map(str::trim).filter(|p| !p.is_empty()) {
-        let (k, v) = p
-            .split_once(':')
-            .ok_or_else(|| format!("effect `{name}`: parameter `{p}` is not KEY:VALUE"))?;
+        let (k, v) =
+            p.split_once(':').ok_or_else(|| format!("effect `{name}`: parameter `{p}` is not KEY:VALUE"))?;
         let v: f64 = v
             .trim()
             .parse()
@@ -86,16 +77,12 @@ pub fn parse(spec: &str) -> Result<Box<dyn Effect>, String> {
     }
     match name {
         "nonlinearity" => {
-            let mut e = Nonlinearity {
-                k2: 0.0,
-                terms: Vec::new(),
-            };
+            let mut e = Nonlinearity { k2: 0.0, terms: Vec::new() };
             for (k, v) in kv {
                 if k == "k2" {
                     e.k2 = v;
                 } else {
-                    let t = Term::parse(&k)
-                        .map_err(|err| format!("effect `nonlinearity`: `{k}`: {err}"))?;
+                    let t = Term::parse(&k).map_err(|err| format!("effect `nonlinearity`: `{k}`: {err}"))?;
                     e.terms.push((t, v));
                 }
             }
@@ -112,17 +99,10 @@ mod tests {
     #[test]
     fn nonlinearity_parses_and_evaluates() {
         let e = parse("nonlinearity=k2:2,ax*ay:0.5").unwrap();
-        let ctx = SampleCtx {
-            t_s: 0.0,
-            position: 0,
-            sample: 0,
-            accel: [1.0, 2.0, 3.0],
-            channel: 0,
-            axis: 2,
-        };
+        let ctx = SampleCtx { t_s: 0.0, position: 0, sample: 0, accel: [1.0, 2.0, 3.0], channel: 0, axis: 2 };
         assert_eq!(e.output(&ctx), 2.0 * 9.0 + 0.5 * 2.0);
         assert_eq!(e.describe()["terms"]["ax*ay"], 0.5);
         assert!(parse("nonlinearity=k2").is_err());
-        assert!(parse("wobble=a:1").unwrap_err().contains("unknown effect"));
+        assert!(parse("wobble=a:1").err().unwrap().contains("unknown effect"));
     }
 }

@@ -34,9 +34,7 @@ impl std::str::FromStr for Layout {
         }
         match s.strip_prefix("block:").map(str::parse::<usize>) {
             Some(Ok(n)) if (1..=8).contains(&n) => Ok(Layout::Block(n)),
-            _ => Err(format!(
-                "`{s}`: expected `triad` or `block:N` with N in 1..=8"
-            )),
+            _ => Err(format!("`{s}`: expected `triad` or `block:N` with N in 1..=8")),
         }
     }
 }
@@ -152,22 +150,11 @@ pub fn simulate(cfg: &SimConfig) -> (Campaign, Truth) {
                 }
             }
             let norm = dir.iter().map(|d| d * d).sum::<f64>().sqrt();
-            ChannelTruth {
-                name,
-                axis,
-                bias,
-                k: dir.map(|d| scale * d / norm),
-            }
+            ChannelTruth { name, axis, bias, k: dir.map(|d| scale * d / norm) }
         })
         .collect();
     let mut c = Campaign {
-        channels: chans
-            .iter()
-            .map(|t| Channel {
-                name: t.name.clone(),
-                codes: Vec::new(),
-            })
-            .collect(),
+        channels: chans.iter().map(|t| Channel { name: t.name.clone(), codes: Vec::new() }).collect(),
         ..Campaign::default()
     };
     let noise = normal(cfg.noise);
@@ -180,14 +167,7 @@ pub fn simulate(cfg: &SimConfig) -> (Campaign, Truth) {
             c.alpha_deg.push(alpha);
             c.beta_deg.push(beta);
             for (ch, truth) in chans.iter().enumerate() {
-                let ctx = SampleCtx {
-                    t_s: t,
-                    position: p,
-                    sample: s,
-                    accel,
-                    channel: ch,
-                    axis: truth.axis,
-                };
+                let ctx = SampleCtx { t_s: t, position: p, sample: s, accel, channel: ch, axis: truth.axis };
                 let mut u = truth.bias + (0..3).map(|j| truth.k[j] * accel[j]).sum::<f64>();
                 for e in &cfg.effects {
                     u += e.output(&ctx);
@@ -215,26 +195,19 @@ mod tests {
 
     #[test]
     fn same_seed_same_campaign_and_clipping_holds() {
-        let cfg = SimConfig {
-            samples: 3,
-            ..SimConfig::default()
-        };
+        let cfg = SimConfig { samples: 3, ..SimConfig::default() };
         let (a, ta) = simulate(&cfg);
         let (b, _) = simulate(&cfg);
         assert_eq!(a, b);
         assert_eq!(a.len(), 62 * 3);
         assert_eq!(a.dwells().len(), 62);
-        assert!(a.channels.iter().all(|c| c
-            .codes
+        assert!(a
+            .channels
             .iter()
-            .all(|&v| (0.0..=ADC_MAX).contains(&v) && v.fract() == 0.0)));
+            .all(|c| c.codes.iter().all(|&v| (0.0..=ADC_MAX).contains(&v) && v.fract() == 0.0)));
         let k = ta.channels[0].k;
         assert!((k[0] - 1670.0).abs() < 100.0 && k[1].abs() < 50.0, "{k:?}");
-        let (c, _) = simulate(&SimConfig {
-            seed: 2,
-            samples: 3,
-            ..SimConfig::default()
-        });
+        let (c, _) = simulate(&SimConfig { seed: 2, samples: 3, ..SimConfig::default() });
         assert_ne!(a, c);
     }
 }

@@ -29,14 +29,7 @@ impl Plan {
     /// The six test-turn positions: −z, +z, −x, +x, −y, +y along g.
     pub fn six() -> Plan {
         Plan {
-            positions: vec![
-                (0.0, 0.0),
-                (180.0, 0.0),
-                (90.0, 0.0),
-                (270.0, 0.0),
-                (0.0, 90.0),
-                (0.0, -90.0),
-            ],
+            positions: vec![(0.0, 0.0), (180.0, 0.0), (90.0, 0.0), (270.0, 0.0), (0.0, 90.0), (0.0, -90.0)],
         }
     }
 
@@ -63,9 +56,7 @@ impl Plan {
                 if let Some(n) = spec.strip_prefix("random:") {
                     return match n.parse::<usize>() {
                         Ok(n) if n > 0 => Ok(Plan::random(n, seed)),
-                        _ => Err(format!(
-                            "`{spec}`: expected random:N with N a positive integer"
-                        )),
+                        _ => Err(format!("`{spec}`: expected random:N with N a positive integer")),
                     };
                 }
                 Plan::read(Path::new(spec))
@@ -82,12 +73,8 @@ impl Plan {
             .from_path(path)
             .map_err(|e| format!("{d}: {e} (a plan is head, six, random:N or a plan file)"))?;
         let header = rdr.headers().map_err(|e| format!("{d}: {e}"))?.clone();
-        let col = |n: &str| {
-            header
-                .iter()
-                .position(|h| h == n)
-                .ok_or_else(|| format!("{d}: missing column `{n}`"))
-        };
+        let col =
+            |n: &str| header.iter().position(|h| h == n).ok_or_else(|| format!("{d}: missing column `{n}`"));
         let (ai, bi) = (col("alpha_deg")?, col("beta_deg")?);
         let mut positions = Vec::new();
         for rec in rdr.records() {
@@ -97,9 +84,7 @@ impl Plan {
                 rec.get(i)
                     .and_then(|s| s.parse::<f64>().ok())
                     .filter(|v| v.is_finite())
-                    .ok_or_else(|| {
-                        format!("{d}:{line}:{}: expected a finite angle in degrees", i + 1)
-                    })
+                    .ok_or_else(|| format!("{d}:{line}:{}: expected a finite angle in degrees", i + 1))
             };
             positions.push((num(ai)?, num(bi)?));
         }
