@@ -19,10 +19,7 @@ const ANGLE_TOL: f64 = 5e-4;
 #[test]
 fn recovers_the_truth_of_simulated_sessions() {
     for seed in 1..=4 {
-        let cfg = SimConfig {
-            seed,
-            ..SimConfig::default()
-        };
+        let cfg = SimConfig { seed, ..SimConfig::default() };
         let s = simulate(&cfg);
         let rec = &s.recording;
         let cal = calibrate(
@@ -35,12 +32,7 @@ fn recovers_the_truth_of_simulated_sessions() {
         .unwrap();
         let det = &cal.detection;
         // Every true static interval is found once, and every detected hold lies inside a true one.
-        assert_eq!(
-            det.holds.len(),
-            s.holds.len(),
-            "seed {seed}: rejected {:?}",
-            det.rejected
-        );
+        assert_eq!(det.holds.len(), s.holds.len(), "seed {seed}: rejected {:?}", det.rejected);
         for (h, &(ts, te)) in det.holds.iter().zip(&s.holds) {
             assert!(
                 h.start >= ts && h.end <= te,
@@ -55,67 +47,28 @@ fn recovers_the_truth_of_simulated_sessions() {
             let ds = m.scale[i] / t.scale[i] - 1.0;
             let da = m.alpha[i] - t.alpha[i];
             assert!(db.abs() < BIAS_TOL, "seed {seed} bias[{i}] error {db}");
-            assert!(
-                ds.abs() < SCALE_REL_TOL,
-                "seed {seed} scale[{i}] rel. error {ds}"
-            );
+            assert!(ds.abs() < SCALE_REL_TOL, "seed {seed} scale[{i}] rel. error {ds}");
             assert!(da.abs() < ANGLE_TOL, "seed {seed} alpha[{i}] error {da}");
             // The stated uncertainties cover the actual errors.
-            assert!(
-                db.abs() < 4.0 * se.bias[i],
-                "seed {seed} bias[{i}] error {db} vs σ {}",
-                se.bias[i]
-            );
-            assert!(
-                (m.scale[i] - t.scale[i]).abs() < 4.0 * se.scale[i],
-                "seed {seed} scale[{i}]"
-            );
-            assert!(
-                da.abs() < 4.0 * se.alpha[i],
-                "seed {seed} alpha[{i}] error {da} vs σ {}",
-                se.alpha[i]
-            );
+            assert!(db.abs() < 4.0 * se.bias[i], "seed {seed} bias[{i}] error {db} vs σ {}", se.bias[i]);
+            assert!((m.scale[i] - t.scale[i]).abs() < 4.0 * se.scale[i], "seed {seed} scale[{i}]");
+            assert!(da.abs() < 4.0 * se.alpha[i], "seed {seed} alpha[{i}] error {da} vs σ {}", se.alpha[i]);
         }
         // Hold means carry ~3.3/sqrt(600) codes of noise, i.e. a few 1e-4 m/s².
         assert!(cal.fit.rms < 1e-3, "seed {seed}: rms {}", cal.fit.rms);
-        assert_eq!(
-            cal.selected,
-            Some(Structure::ImuTk),
-            "seed {seed}: {:?}",
-            cal.scores
-        );
+        assert_eq!(cal.selected, Some(Structure::ImuTk), "seed {seed}: {:?}", cal.scores);
     }
 }
 
 #[test]
 fn a_shorter_minimum_hold_and_noisier_sensor_still_calibrate() {
-    let cfg = SimConfig {
-        seed: 7,
-        holds: 16,
-        hold_s: (2.5, 4.0),
-        noise_codes: 10.0,
-        ..SimConfig::default()
-    };
+    let cfg = SimConfig { seed: 7, holds: 16, hold_s: (2.5, 4.0), noise_codes: 10.0, ..SimConfig::default() };
     let s = simulate(&cfg);
     let rec = &s.recording;
-    let det_cfg = DetectorConfig {
-        min_hold_s: 1.0,
-        ..DetectorConfig::default()
-    };
-    let cal = calibrate(
-        &rec.t,
-        &rec.codes,
-        cfg.g,
-        &det_cfg,
-        StructureChoice::Fixed(Structure::ImuTk),
-    )
-    .unwrap();
-    assert_eq!(
-        cal.detection.holds.len(),
-        17,
-        "{:?}",
-        cal.detection.rejected
-    );
+    let det_cfg = DetectorConfig { min_hold_s: 1.0, ..DetectorConfig::default() };
+    let cal =
+        calibrate(&rec.t, &rec.codes, cfg.g, &det_cfg, StructureChoice::Fixed(Structure::ImuTk)).unwrap();
+    assert_eq!(cal.detection.holds.len(), 17, "{:?}", cal.detection.rejected);
     for i in 0..3 {
         assert!((cal.fit.model.bias[i] - cfg.truth.bias[i]).abs() < 5.0);
         assert!((cal.fit.model.scale[i] / cfg.truth.scale[i] - 1.0).abs() < 1e-3);
@@ -125,34 +78,16 @@ fn a_shorter_minimum_hold_and_noisier_sensor_still_calibrate() {
 
 #[test]
 fn gmdh_selects_the_quadratic_term_when_the_sensor_has_one() {
-    let mut cfg = SimConfig {
-        seed: 3,
-        ..SimConfig::default()
-    };
+    let mut cfg = SimConfig { seed: 3, ..SimConfig::default() };
     cfg.truth.quad = [2e-3, -1.5e-3, 1e-3];
     let s = simulate(&cfg);
     let rec = &s.recording;
-    let cal = calibrate(
-        &rec.t,
-        &rec.codes,
-        cfg.g,
-        &DetectorConfig::default(),
-        StructureChoice::Auto,
-    )
-    .unwrap();
-    assert_eq!(
-        cal.selected,
-        Some(Structure::ImuTkQuadratic),
-        "{:?}",
-        cal.scores
-    );
+    let cal =
+        calibrate(&rec.t, &rec.codes, cfg.g, &DetectorConfig::default(), StructureChoice::Auto).unwrap();
+    assert_eq!(cal.selected, Some(Structure::ImuTkQuadratic), "{:?}", cal.scores);
     assert_eq!(cal.fit.structure, Structure::ImuTkQuadratic);
     for i in 0..3 {
-        assert!(
-            (cal.fit.model.quad[i] - cfg.truth.quad[i]).abs() < 1e-4,
-            "{:?}",
-            cal.fit.model.quad
-        );
+        assert!((cal.fit.model.quad[i] - cfg.truth.quad[i]).abs() < 1e-4, "{:?}", cal.fit.model.quad);
     }
 }
 
@@ -163,9 +98,7 @@ struct Wrapper {
 }
 
 fn parse(argv: &[&str]) -> GravityFitArgs {
-    Wrapper::try_parse_from(std::iter::once("accelcal").chain(argv.iter().copied()))
-        .unwrap()
-        .args
+    Wrapper::try_parse_from(std::iter::once("accelcal").chain(argv.iter().copied())).unwrap().args
 }
 
 #[test]
@@ -187,10 +120,7 @@ fn command_line_defaults_and_options() {
         "--min-hold-s",
         "3",
     ]);
-    assert_eq!(
-        (a.g, a.options.threshold, a.options.min_hold_s),
-        (9.81744, Some(200.0), 3.0)
-    );
+    assert_eq!((a.g, a.options.threshold, a.options.min_hold_s), (9.81744, Some(200.0), 3.0));
     assert!(Wrapper::try_parse_from(["accelcal", "rec.txt", "--format", "csv"]).is_err());
     assert!(parse(&["rec.txt", "--g=-1"]).validate().is_err());
 }
@@ -198,11 +128,7 @@ fn command_line_defaults_and_options() {
 #[test]
 fn cli_writes_json_in_the_issue_shape_and_plots() {
     let dir = tempfile::tempdir().unwrap();
-    let cfg = SimConfig {
-        seed: 11,
-        holds: 20,
-        ..SimConfig::default()
-    };
+    let cfg = SimConfig { seed: 11, holds: 20, ..SimConfig::default() };
     let (data, truth) = simulate(&cfg).write(dir.path(), "session").unwrap();
     assert!(truth.exists());
     let json = dir.path().join("cal.json");
@@ -211,8 +137,7 @@ fn cli_writes_json_in_the_issue_shape_and_plots() {
     args.json = Some(json.clone());
     args.options.plot = Some(plots.clone());
     cli::run(&args).unwrap();
-    let v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     let ch = v["channels"].as_array().unwrap();
     assert_eq!(ch.len(), 3);
     for (i, name) in ["x", "y", "z"].iter().enumerate() {
@@ -226,10 +151,7 @@ fn cli_writes_json_in_the_issue_shape_and_plots() {
     assert_eq!(t.len(), 3);
     assert!(t.iter().all(|row| row.as_array().unwrap().len() == 3));
     assert_eq!(t[0][0], 1.0);
-    assert!(
-        (t[1][2].as_f64().unwrap() + cfg.truth.alpha[2]).abs() < 1e-3,
-        "T[1][2] = -alpha_zx"
-    );
+    assert!((t[1][2].as_f64().unwrap() + cfg.truth.alpha[2]).abs() < 1e-3, "T[1][2] = -alpha_zx");
     assert_eq!(v["holds"], 21);
     assert!(v["residual_rms"].as_f64().unwrap() < 1e-3);
     for file in ["gravity-residuals.svg", "gravity-detector.svg"] {
@@ -245,19 +167,13 @@ fn cli_reports_bad_input_with_file_and_line() {
     std::fs::write(&bad, "0 1 2 3\n0.01 1 2 oops\n").unwrap();
     let err = cli::run(&parse(&[bad.to_str().unwrap()])).unwrap_err();
     let msg = format!("{err:#}");
-    assert!(
-        msg.contains("bad.txt:2:10: expected a number, found `oops`"),
-        "{msg}"
-    );
+    assert!(msg.contains("bad.txt:2:10: expected a number, found `oops`"), "{msg}");
 }
 
 fn real_file() -> PathBuf {
-    std::env::var_os("ACCELCAL_REAL_ACC")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| {
-            PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-                .join("../../shared/data/real/imu_tk_xsens_acc.txt.gz")
-        })
+    std::env::var_os("ACCELCAL_REAL_ACC").map(PathBuf::from).unwrap_or_else(|| {
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/real/imu_tk_xsens_acc.txt.gz")
+    })
 }
 
 #[test]
@@ -279,23 +195,11 @@ fn real_xsens_recording_calibrates_to_a_millimetre_per_second_squared() {
     assert!(cal.fit.rms < 0.002, "rms {}", cal.fit.rms);
     assert!(cal.fit.residuals.iter().all(|r| r.abs() < 0.005));
     // Without misalignment the fit is 30 times worse: the angles are real.
-    let bs = cal
-        .scores
-        .iter()
-        .find(|s| s.structure == Structure::BiasScale)
-        .unwrap();
+    let bs = cal.scores.iter().find(|s| s.structure == Structure::BiasScale).unwrap();
     assert!(bs.fit_rms > 10.0 * cal.fit.rms, "{:?}", cal.scores);
     for i in 0..3 {
-        assert!(
-            (cal.fit.model.scale[i] - 413.0).abs() < 5.0,
-            "{:?}",
-            cal.fit.model.scale
-        );
-        assert!(
-            (cal.fit.model.bias[i] - 33000.0).abs() < 1000.0,
-            "{:?}",
-            cal.fit.model.bias
-        );
+        assert!((cal.fit.model.scale[i] - 413.0).abs() < 5.0, "{:?}", cal.fit.model.scale);
+        assert!((cal.fit.model.bias[i] - 33000.0).abs() < 1000.0, "{:?}", cal.fit.model.bias);
     }
 }
 
@@ -304,27 +208,15 @@ fn accelcal_fit_method_gravity_norm_runs_on_the_real_file() {
     let dir = tempfile::tempdir().unwrap();
     let json = dir.path().join("real.json");
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_accelcal"))
-        .args([
-            "fit",
-            real_file().to_str().unwrap(),
-            "--method",
-            "gravity-norm",
-            "--g",
-            "9.81744",
-        ])
+        .args(["fit", real_file().to_str().unwrap(), "--method", "gravity-norm", "--g", "9.81744"])
         .arg("--json")
         .arg(&json)
         .output()
         .unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{stdout}\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
     assert!(stdout.contains("holds: 38 kept, 1 rejected"), "{stdout}");
-    let v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     for key in ["channels", "misalignment", "holds", "residual_rms"] {
         assert!(v.get(key).is_some(), "missing {key}");
     }

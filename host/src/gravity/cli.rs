@@ -13,6 +13,7 @@ use super::fit::{Structure, TriadModel};
 use super::holds::{DetectorConfig, ThresholdSource};
 use super::{imutk, plot, Calibration, StructureChoice};
 use crate::error::bad;
+use crate::output::{write_atomic, write_json};
 
 /// Input file formats accepted by the gravity-norm fit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -87,22 +88,13 @@ impl GravityFitArgs {
     pub fn validate(&self) -> anyhow::Result<()> {
         let o = &self.options;
         if !(self.g.is_finite() && self.g > 0.0) {
-            return Err(bad(format!(
-                "--g must be a positive number of m/s², got {}",
-                self.g
-            )));
+            return Err(bad(format!("--g must be a positive number of m/s², got {}", self.g)));
         }
         if !(o.min_hold_s.is_finite() && o.min_hold_s >= 0.0) {
-            return Err(bad(format!(
-                "--min-hold-s must be non-negative, got {}",
-                o.min_hold_s
-            )));
+            return Err(bad(format!("--min-hold-s must be non-negative, got {}", o.min_hold_s)));
         }
         if !(o.window_s.is_finite() && o.window_s > 0.0) {
-            return Err(bad(format!(
-                "--window-s must be positive, got {}",
-                o.window_s
-            )));
+            return Err(bad(format!("--window-s must be positive, got {}", o.window_s)));
         }
         if let Some(th) = o.threshold.filter(|th| !(th.is_finite() && *th > 0.0)) {
             return Err(bad(format!("--threshold must be positive, got {th}")));
@@ -246,11 +238,7 @@ fn channels(m: &TriadModel) -> Vec<JsonChannel> {
     CHANNELS
         .iter()
         .enumerate()
-        .map(|(i, c)| JsonChannel {
-            channel: c.to_string(),
-            bias: m.bias[i],
-            scale: m.scale[i],
-        })
+        .map(|(i, c)| JsonChannel { channel: c.to_string(), bias: m.bias[i], scale: m.scale[i] })
         .collect()
 }
 
@@ -285,11 +273,7 @@ pub fn json_report(cal: &Calibration) -> JsonReport {
             rejected: d
                 .rejected
                 .iter()
-                .map(|r| JsonRejected {
-                    t_start: r.t_start,
-                    t_end: r.t_end,
-                    reason: r.reason.to_string(),
-                })
+                .map(|r| JsonRejected { t_start: r.t_start, t_end: r.t_end, reason: r.reason.to_string() })
                 .collect(),
         },
         per_hold: d
@@ -324,14 +308,8 @@ pub fn calibrate_file(args: &GravityFitArgs) -> anyhow::Result<(imutk::Recording
     let rec = match args.options.format {
         InputFormat::ImuTk => imutk::read_path(&args.input)?,
     };
-    let cal = super::calibrate(
-        &rec.t,
-        &rec.codes,
-        args.g,
-        &args.detector(),
-        args.structure_choice(),
-    )
-    .with_context(|| format!("{}: gravity-norm calibration failed", args.input.display()))?;
+    let cal = super::calibrate(&rec.t, &rec.codes, args.g, &args.detector(), args.structure_choice())
+        .with_context(|| format!("{}: gravity-norm calibration failed", args.input.display()))?;
     Ok((rec, cal))
 }
 
@@ -340,9 +318,7 @@ pub fn run(args: &GravityFitArgs) -> anyhow::Result<()> {
     let (rec, cal) = calibrate_file(args)?;
     print!("{}", human_report(&args.input, rec.len(), &cal));
     if let Some(path) = &args.json {
-        let text = serde_json::to_string_pretty(&json_report(&cal))?;
-        std::fs::write(path, text + "\n")
-            .with_context(|| format!("{}: cannot write JSON", path.display()))?;
+        write_json(path, &json_report(&cal))?;
         println!("wrote {}", path.display());
     }
     if let Some(dir) = &args.options.plot {
@@ -353,12 +329,10 @@ pub fn run(args: &GravityFitArgs) -> anyhow::Result<()> {
 
 /// Writes `gravity-residuals.svg` and `gravity-detector.svg` into `dir` (created if missing).
 pub fn write_plots(dir: &Path, t: &[f64], cal: &Calibration) -> anyhow::Result<()> {
-    std::fs::create_dir_all(dir)
-        .with_context(|| format!("{}: cannot create plot directory", dir.display()))?;
     let res = dir.join("gravity-residuals.svg");
-    plot::residuals_svg(&res, cal)?;
+    write_atomic(&res, plot::residuals_svg(cal)?.as_bytes())?;
     let det = dir.join("gravity-detector.svg");
-    plot::detector_svg(&det, t, &cal.detection)?;
+    write_atomic(&det, plot::detector_svg(t, &cal.detection)?.as_bytes())?;
     println!("wrote {}\nwrote {}", res.display(), det.display());
     Ok(())
 }
@@ -386,18 +360,9 @@ pub fn human_report(input: &Path, samples: usize, cal: &Calibration) -> String {
         "detector: {}-sample window, noise floor {:.2} codes², threshold {:.2} codes² ({src})",
         d.window, d.floor, d.threshold
     );
-    let _ = writeln!(
-        o,
-        "holds: {} kept, {} rejected",
-        d.holds.len(),
-        d.rejected.len()
-    );
+    let _ = writeln!(o, "holds: {} kept, {} rejected", d.holds.len(), d.rejected.len());
     for r in &d.rejected {
-        let _ = writeln!(
-            o,
-            "  rejected {:8.2}–{:8.2} s: {}",
-            r.t_start, r.t_end, r.reason
-        );
+        let _ = writeln!(o, "  rejected {:8.2}–{:8.2} s: {}", r.t_start, r.t_end, r.reason);
     }
     let _ = writeln!(
         o,
@@ -407,10 +372,7 @@ pub fn human_report(input: &Path, samples: usize, cal: &Calibration) -> String {
         f.g,
         f.termination
     );
-    let _ = writeln!(
-        o,
-        "  axis        bias [codes]          scale [codes/(m/s²)]"
-    );
+    let _ = writeln!(o, "  axis        bias [codes]          scale [codes/(m/s²)]");
     for (i, c) in CHANNELS.iter().enumerate() {
         let _ = writeln!(
             o,
@@ -423,11 +385,7 @@ pub fn human_report(input: &Path, samples: usize, cal: &Calibration) -> String {
     }
     if f.structure == Structure::ImuTkQuadratic {
         for (i, c) in CHANNELS.iter().enumerate() {
-            let _ = writeln!(
-                o,
-                "  quad_{c}    {:+.3e} ± {:.3e} 1/(m/s²)",
-                m.quad[i], s.quad[i]
-            );
+            let _ = writeln!(o, "  quad_{c}    {:+.3e} ± {:.3e} 1/(m/s²)", m.quad[i], s.quad[i]);
         }
     }
     let t = m.misalignment();
@@ -444,26 +402,12 @@ pub fn human_report(input: &Path, samples: usize, cal: &Calibration) -> String {
     );
     let _ = writeln!(o, "  hold   t_start    t_end  samples   residual [m/s²]");
     for (k, (h, r)) in d.holds.iter().zip(&f.residuals).enumerate() {
-        let _ = writeln!(
-            o,
-            "  {k:4} {:9.2} {:8.2} {:8} {:+14.6}",
-            h.t_start,
-            h.t_end,
-            h.len(),
-            r
-        );
+        let _ = writeln!(o, "  {k:4} {:9.2} {:8.2} {:8} {:+14.6}", h.t_start, h.t_end, h.len(), r);
     }
-    let _ = writeln!(
-        o,
-        "structure selection (fit on all holds / on alternate holds, tested on the others):"
-    );
+    let _ = writeln!(o, "structure selection (fit on all holds / on alternate holds, tested on the others):");
     for sc in &cal.scores {
         let cv = sc.cv_rms.map_or("n/a".to_string(), |v| format!("{v:.6}"));
-        let mark = if Some(sc.structure) == cal.selected {
-            "  <- selected"
-        } else {
-            ""
-        };
+        let mark = if Some(sc.structure) == cal.selected { "  <- selected" } else { "" };
         let _ = writeln!(
             o,
             "  {:34} {:2} params  fit RMS {:.6}  withheld RMS {cv}{mark}",

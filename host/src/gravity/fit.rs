@@ -48,11 +48,7 @@ pub enum Structure {
 
 impl Structure {
     /// All structures, simplest first.
-    pub const ALL: [Structure; 3] = [
-        Structure::BiasScale,
-        Structure::ImuTk,
-        Structure::ImuTkQuadratic,
-    ];
+    pub const ALL: [Structure; 3] = [Structure::BiasScale, Structure::ImuTk, Structure::ImuTkQuadratic];
 
     /// Indices of the free parameters in the full parameter vector (see [`PARAM_NAMES`]).
     pub fn active(self) -> &'static [usize] {
@@ -80,8 +76,8 @@ impl Structure {
 
 /// Names of the entries of the full 12-parameter vector, in order.
 pub const PARAM_NAMES: [&str; 12] = [
-    "alpha_yz", "alpha_zy", "alpha_zx", "scale_x", "scale_y", "scale_z", "bias_x", "bias_y",
-    "bias_z", "quad_x", "quad_y", "quad_z",
+    "alpha_yz", "alpha_zy", "alpha_zx", "scale_x", "scale_y", "scale_z", "bias_x", "bias_y", "bias_z",
+    "quad_x", "quad_y", "quad_z",
 ];
 
 /// Parameters of the triad model (see the module documentation for the equations).
@@ -266,12 +262,7 @@ pub fn initial_guess(means: &[[f64; 3]], g: f64) -> Result<TriadModel, FitError>
         bias[i] = 0.5 * (hi + lo);
         scale[i] = (hi - lo) / (2.0 * g);
     }
-    let coarse = TriadModel {
-        bias,
-        scale,
-        alpha: [0.0; 3],
-        quad: [0.0; 3],
-    };
+    let coarse = TriadModel { bias, scale, alpha: [0.0; 3], quad: [0.0; 3] };
     Ok(ellipsoid_refine(&coarse, means, g).unwrap_or(coarse))
 }
 
@@ -281,10 +272,8 @@ fn ellipsoid_refine(coarse: &TriadModel, means: &[[f64; 3]], g: f64) -> Option<T
     if means.len() < 7 {
         return None;
     }
-    let z: Vec<[f64; 3]> = means
-        .iter()
-        .map(|u| std::array::from_fn(|i| (u[i] - coarse.bias[i]) / coarse.scale[i]))
-        .collect();
+    let z: Vec<[f64; 3]> =
+        means.iter().map(|u| std::array::from_fn(|i| (u[i] - coarse.bias[i]) / coarse.scale[i])).collect();
     let a = DMatrix::from_fn(z.len(), 7, |k, j| match j {
         0..=2 => z[k][j] * z[k][j],
         3..=5 => z[k][j - 3],
@@ -308,11 +297,7 @@ fn ellipsoid_refine(coarse: &TriadModel, means: &[[f64; 3]], g: f64) -> Option<T
         // ((z − c)/σ)² with 1/σ² = p g² / k, z in units of the coarse scale.
         m.scale[i] = coarse.scale[i] * (k / (p[i] * g * g)).sqrt();
     }
-    m.bias
-        .iter()
-        .chain(&m.scale)
-        .all(|x| x.is_finite())
-        .then_some(m)
+    m.bias.iter().chain(&m.scale).all(|x| x.is_finite()).then_some(m)
 }
 
 /// Fits `structure` to the hold means `means` (codes) under gravity magnitude `g` (m/s²).
@@ -326,10 +311,7 @@ pub fn fit(means: &[[f64; 3]], g: f64, structure: Structure) -> Result<GravityFi
     let active = structure.active();
     let n = active.len();
     if means.len() <= n {
-        return Err(FitError::TooFewHolds {
-            holds: means.len(),
-            params: n,
-        });
+        return Err(FitError::TooFewHolds { holds: means.len(), params: n });
     }
     let start = initial_guess(means, g)?;
     let theta0 = start.to_vec();
@@ -410,9 +392,7 @@ fn covariance(jac: &DMatrix<f64>, sigma2: f64) -> Option<DMatrix<f64>> {
         return None;
     }
     let inv = jtj.cholesky()?.inverse();
-    Some(DMatrix::from_fn(n, n, |i, j| {
-        sigma2 * inv[(i, j)] / (norms[i] * norms[j])
-    }))
+    Some(DMatrix::from_fn(n, n, |i, j| sigma2 * inv[(i, j)] / (norms[i] * norms[j])))
 }
 
 /// Score of one structure in the GMDH-style selection.
@@ -447,11 +427,7 @@ pub fn score_structures(means: &[[f64; 3]], g: f64) -> Vec<StructureScore> {
                     .sum();
                 Some((ss / means.len() as f64).sqrt())
             })();
-            Some(StructureScore {
-                structure: s,
-                fit_rms: full.rms,
-                cv_rms: cv,
-            })
+            Some(StructureScore { structure: s, fit_rms: full.rms, cv_rms: cv })
         })
         .collect()
 }
@@ -463,14 +439,9 @@ pub const PARSIMONY: f64 = 0.05;
 /// the smallest, so that an extra term must earn its place by a clear reduction of the external
 /// criterion, not by a tie; `None` if no structure could be scored.
 pub fn select(scores: &[StructureScore]) -> Option<Structure> {
-    let best = scores
-        .iter()
-        .filter_map(|s| s.cv_rms)
-        .min_by(f64::total_cmp)?;
+    let best = scores.iter().filter_map(|s| s.cv_rms).min_by(f64::total_cmp)?;
     Structure::ALL.into_iter().find(|st| {
-        scores.iter().any(|s| {
-            s.structure == *st && s.cv_rms.is_some_and(|cv| cv <= best * (1.0 + PARSIMONY))
-        })
+        scores.iter().any(|s| s.structure == *st && s.cv_rms.is_some_and(|cv| cv <= best * (1.0 + PARSIMONY)))
     })
 }
 
@@ -496,8 +467,7 @@ mod tests {
                 let z = 1.0 - 2.0 * (k as f64 + 0.5) / n as f64;
                 let r = (1.0 - z * z).sqrt();
                 let phi = k as f64 * 2.399_963_229_728_653;
-                m.raw_from_specific_force([G * r * phi.cos(), G * r * phi.sin(), G * z])
-                    .unwrap()
+                m.raw_from_specific_force([G * r * phi.cos(), G * r * phi.sin(), G * z]).unwrap()
             })
             .collect()
     }
@@ -526,8 +496,7 @@ mod tests {
             let (mut pp, mut pm) = (p, p);
             pp[k] += h;
             pm[k] -= h;
-            let fd = (residual_and_gradient(&pp, u, G).0 - residual_and_gradient(&pm, u, G).0)
-                / (2.0 * h);
+            let fd = (residual_and_gradient(&pp, u, G).0 - residual_and_gradient(&pm, u, G).0) / (2.0 * h);
             assert!(
                 (fd - grad[k]).abs() <= 1e-6 * grad[k].abs().max(1e-6),
                 "{}: {fd} vs {}",
@@ -551,11 +520,7 @@ mod tests {
 
     #[test]
     fn selection_prefers_the_simpler_structure_on_a_tie() {
-        let sc = |structure, cv| StructureScore {
-            structure,
-            fit_rms: 0.0,
-            cv_rms: Some(cv),
-        };
+        let sc = |structure, cv| StructureScore { structure, fit_rms: 0.0, cv_rms: Some(cv) };
         let scores = [
             sc(Structure::BiasScale, 0.07),
             sc(Structure::ImuTk, 0.00058),
@@ -576,20 +541,11 @@ mod tests {
         let means = exact_means(&truth(), 9);
         assert_eq!(
             fit(&means, G, Structure::ImuTk).unwrap_err(),
-            FitError::TooFewHolds {
-                holds: 9,
-                params: 9
-            }
+            FitError::TooFewHolds { holds: 9, params: 9 }
         );
         let flat = vec![[1.0, 2.0, 3.0]; 12];
-        assert_eq!(
-            fit(&flat, G, Structure::ImuTk).unwrap_err(),
-            FitError::NoSpread { axis: 'x' }
-        );
-        assert_eq!(
-            fit(&means, -1.0, Structure::BiasScale).unwrap_err(),
-            FitError::BadGravity(-1.0)
-        );
+        assert_eq!(fit(&flat, G, Structure::ImuTk).unwrap_err(), FitError::NoSpread { axis: 'x' });
+        assert_eq!(fit(&means, -1.0, Structure::BiasScale).unwrap_err(), FitError::BadGravity(-1.0));
     }
 
     #[test]
@@ -597,24 +553,10 @@ mod tests {
         let mut t = truth();
         t.quad = [3e-3, -2e-3, 2.5e-3];
         let scores = score_structures(&exact_means(&t, 30), G);
-        assert_eq!(
-            select(&scores),
-            Some(Structure::ImuTkQuadratic),
-            "{scores:?}"
-        );
+        assert_eq!(select(&scores), Some(Structure::ImuTkQuadratic), "{scores:?}");
         // Without a quadratic term, misalignment must still beat the bias+scale structure.
         let scores = score_structures(&exact_means(&truth(), 30), G);
-        let cv = |s| {
-            scores
-                .iter()
-                .find(|x| x.structure == s)
-                .unwrap()
-                .cv_rms
-                .unwrap()
-        };
-        assert!(
-            cv(Structure::ImuTk) < 0.1 * cv(Structure::BiasScale),
-            "{scores:?}"
-        );
+        let cv = |s| scores.iter().find(|x| x.structure == s).unwrap().cv_rms.unwrap();
+        assert!(cv(Structure::ImuTk) < 0.1 * cv(Structure::BiasScale), "{scores:?}");
     }
 }

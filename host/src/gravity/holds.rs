@@ -38,13 +38,7 @@ pub struct DetectorConfig {
 
 impl Default for DetectorConfig {
     fn default() -> Self {
-        Self {
-            window_s: 1.0,
-            min_hold_s: 2.0,
-            threshold: None,
-            floor_quantile: 0.25,
-            threshold_factor: 4.0,
-        }
+        Self { window_s: 1.0, min_hold_s: 2.0, threshold: None, floor_quantile: 0.25, threshold_factor: 4.0 }
     }
 }
 
@@ -152,9 +146,7 @@ pub struct Detection {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum HoldError {
     /// The recording is shorter than two windows.
-    #[error(
-        "recording has {samples} samples, fewer than two detector windows ({window} samples each)"
-    )]
+    #[error("recording has {samples} samples, fewer than two detector windows ({window} samples each)")]
     TooShort {
         /// Number of samples.
         samples: usize,
@@ -199,33 +191,11 @@ pub fn detect(t: &[f64], codes: &[[f64; 3]], cfg: &DetectorConfig) -> Result<Det
         };
         let (t_start, t_end) = (t[start], t[end - 1]);
         match reason {
-            Some(reason) => rejected.push(RejectedRun {
-                start,
-                end,
-                t_start,
-                t_end,
-                reason,
-            }),
-            None => holds.push(Hold {
-                start,
-                end,
-                t_start,
-                t_end,
-                mean,
-                std: var.map(f64::sqrt),
-            }),
+            Some(reason) => rejected.push(RejectedRun { start, end, t_start, t_end, reason }),
+            None => holds.push(Hold { start, end, t_start, t_end, mean, std: var.map(f64::sqrt) }),
         }
     }
-    Ok(Detection {
-        window,
-        dt,
-        floor,
-        threshold,
-        source,
-        trace,
-        holds,
-        rejected,
-    })
+    Ok(Detection { window, dt, floor, threshold, source, trace, holds, rejected })
 }
 
 fn check_config(cfg: &DetectorConfig) -> Result<(), HoldError> {
@@ -411,25 +381,12 @@ mod tests {
     #[test]
     fn user_threshold_and_bad_settings() {
         let (t, codes) = synthetic(&[(30000.0, 800), (31000.0, 800)], 150, 3);
-        let cfg = DetectorConfig {
-            threshold: Some(1e12),
-            ..Default::default()
-        };
+        let cfg = DetectorConfig { threshold: Some(1e12), ..Default::default() };
         let d = detect(&t, &codes, &cfg).unwrap();
         assert_eq!(d.source, ThresholdSource::User);
-        assert_eq!(
-            d.holds.len() + d.rejected.len(),
-            1,
-            "a huge threshold merges everything"
-        );
-        let cfg = DetectorConfig {
-            window_s: -1.0,
-            ..Default::default()
-        };
-        assert!(matches!(
-            detect(&t, &codes, &cfg),
-            Err(HoldError::BadConfig(_))
-        ));
+        assert_eq!(d.holds.len() + d.rejected.len(), 1, "a huge threshold merges everything");
+        let cfg = DetectorConfig { window_s: -1.0, ..Default::default() };
+        assert!(matches!(detect(&t, &codes, &cfg), Err(HoldError::BadConfig(_))));
         assert!(matches!(
             detect(&t[..50], &codes[..50], &DetectorConfig::default()),
             Err(HoldError::TooShort { .. })
@@ -442,20 +399,13 @@ mod tests {
 
     #[test]
     fn trace_matches_direct_variance() {
-        let codes: Vec<[f64; 3]> = (0..20)
-            .map(|i| [(i * i) as f64, 40000.0 + i as f64, 7.0])
-            .collect();
+        let codes: Vec<[f64; 3]> = (0..20).map(|i| [(i * i) as f64, 40000.0 + i as f64, 7.0]).collect();
         let tr = variance_trace(&codes, 5);
         assert!(tr[0].is_infinite() && tr[1].is_infinite() && tr[19].is_infinite());
         let xs: Vec<f64> = (8..13).map(|i| (i * i) as f64).collect();
         let m = xs.iter().sum::<f64>() / 5.0;
         let v0 = xs.iter().map(|x| (x - m).powi(2)).sum::<f64>() / 4.0;
         let v1 = 2.5; // variance of 5 consecutive integers
-        assert!(
-            (tr[10] - (v0 + v1)).abs() < 1e-6,
-            "{} vs {}",
-            tr[10],
-            v0 + v1
-        );
+        assert!((tr[10] - (v0 + v1)).abs() < 1e-6, "{} vs {}", tr[10], v0 + v1);
     }
 }

@@ -109,10 +109,7 @@ pub enum ImuTkError {
 /// Reads an imu_tk file from `path`; gzip input is recognised by its magic bytes, whatever the name.
 pub fn read_path(path: &Path) -> Result<Recording, ImuTkError> {
     let file = path.display().to_string();
-    let io_err = |source| ImuTkError::Io {
-        file: file.clone(),
-        source,
-    };
+    let io_err = |source| ImuTkError::Io { file: file.clone(), source };
     let mut f = File::open(path).map_err(io_err)?;
     let mut magic = [0u8; 2];
     let mut got = 0;
@@ -141,24 +138,15 @@ pub fn parse<R: BufRead>(mut reader: R, file: &str) -> Result<Recording, ImuTkEr
         buf.clear();
         let n = reader
             .read_until(b'\n', &mut buf)
-            .map_err(|source| ImuTkError::Io {
-                file: file.to_string(),
-                source,
-            })?;
+            .map_err(|source| ImuTkError::Io { file: file.to_string(), source })?;
         if n == 0 {
             break;
         }
         line_no += 1;
-        let text = std::str::from_utf8(&buf).map_err(|_| ImuTkError::NotUtf8 {
-            file: file.to_string(),
-            line: line_no,
-        })?;
-        let row_err = |column, problem| ImuTkError::Row {
-            file: file.to_string(),
-            line: line_no,
-            column,
-            problem,
-        };
+        let text = std::str::from_utf8(&buf)
+            .map_err(|_| ImuTkError::NotUtf8 { file: file.to_string(), line: line_no })?;
+        let row_err =
+            |column, problem| ImuTkError::Row { file: file.to_string(), line: line_no, column, problem };
         let trimmed = text.trim();
         if trimmed.is_empty() || trimmed.starts_with('#') || trimmed.starts_with('%') {
             continue;
@@ -177,22 +165,14 @@ pub fn parse<R: BufRead>(mut reader: R, file: &str) -> Result<Recording, ImuTkEr
         if let Some(&prev) = rec.t.last() {
             if values[0] <= prev {
                 let column = fields(text).next().map_or(1, |(c, _)| c);
-                return Err(row_err(
-                    column,
-                    RowProblem::TimeNotIncreasing {
-                        prev,
-                        now: values[0],
-                    },
-                ));
+                return Err(row_err(column, RowProblem::TimeNotIncreasing { prev, now: values[0] }));
             }
         }
         rec.t.push(values[0]);
         rec.codes.push([values[1], values[2], values[3]]);
     }
     if rec.is_empty() {
-        return Err(ImuTkError::Empty {
-            file: file.to_string(),
-        });
+        return Err(ImuTkError::Empty { file: file.to_string() });
     }
     Ok(rec)
 }
@@ -218,9 +198,7 @@ fn fields(line: &str) -> impl Iterator<Item = (usize, &str)> {
 }
 
 fn parse_field(field: &str) -> Result<f64, RowProblem> {
-    let v: f64 = field
-        .parse()
-        .map_err(|_| RowProblem::NotANumber(field.to_string()))?;
+    let v: f64 = field.parse().map_err(|_| RowProblem::NotANumber(field.to_string()))?;
     if v.is_finite() {
         Ok(v)
     } else {
@@ -255,19 +233,13 @@ mod tests {
     #[test]
     fn reports_line_and_column_of_a_bad_field() {
         let err = parse_str("0 1 2 3\n1   4 x5 6\n").unwrap_err();
-        assert_eq!(
-            err.to_string(),
-            "mem.txt:2:7: expected a number, found `x5`"
-        );
+        assert_eq!(err.to_string(), "mem.txt:2:7: expected a number, found `x5`");
     }
 
     #[test]
     fn reports_field_count_non_finite_and_time_order() {
         let err = parse_str("0 1 2\n").unwrap_err();
-        assert_eq!(
-            err.to_string(),
-            "mem.txt:1:1: expected 4 fields (t x y z), found 3"
-        );
+        assert_eq!(err.to_string(), "mem.txt:1:1: expected 4 fields (t x y z), found 3");
         let err = parse_str("0 1 2 3 4\n").unwrap_err();
         assert!(err.to_string().ends_with("found 5"), "{err}");
         let err = parse_str("0 1 NaN 3\n").unwrap_err();
@@ -275,21 +247,13 @@ mod tests {
         let err = parse_str("0 1 2 3\n0 1 2 3\n").unwrap_err();
         assert!(matches!(
             err,
-            ImuTkError::Row {
-                line: 2,
-                column: 1,
-                problem: RowProblem::TimeNotIncreasing { .. },
-                ..
-            }
+            ImuTkError::Row { line: 2, column: 1, problem: RowProblem::TimeNotIncreasing { .. }, .. }
         ));
     }
 
     #[test]
     fn rejects_empty_and_non_utf8_input() {
-        assert!(matches!(
-            parse_str("# nothing\n"),
-            Err(ImuTkError::Empty { .. })
-        ));
+        assert!(matches!(parse_str("# nothing\n"), Err(ImuTkError::Empty { .. })));
         let err = parse(&b"0 1 2 3\n\xff\xfe\n"[..], "bin").unwrap_err();
         assert!(matches!(err, ImuTkError::NotUtf8 { line: 2, .. }));
     }
@@ -305,15 +269,11 @@ mod tests {
         write(&rec, File::create(&plain).unwrap()).unwrap();
         assert_eq!(read_path(&plain).unwrap(), rec);
         let gz = dir.path().join("a.data");
-        let enc =
-            flate2::write::GzEncoder::new(File::create(&gz).unwrap(), flate2::Compression::fast());
+        let enc = flate2::write::GzEncoder::new(File::create(&gz).unwrap(), flate2::Compression::fast());
         write(&rec, enc).unwrap();
         assert_eq!(read_path(&gz).unwrap(), rec);
         let missing = dir.path().join("missing.txt");
-        assert!(read_path(&missing)
-            .unwrap_err()
-            .to_string()
-            .contains("missing.txt: cannot read"));
+        assert!(read_path(&missing).unwrap_err().to_string().contains("missing.txt: cannot read"));
     }
 
     #[test]

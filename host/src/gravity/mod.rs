@@ -71,14 +71,7 @@ pub fn calibrate(
         StructureChoice::Fixed(s) => s,
         StructureChoice::Auto => selected.unwrap_or(Structure::ImuTk),
     };
-    let fit = fit::fit(&means, g, chosen).map_err(|source| GravityError::Fit {
-        holds: means.len(),
-        source,
-    })?;
-    Ok(Calibration {
-        detection,
-        fit,
-        scores,
-        selected,
-    })
+    let fit =
+        fit::fit(&means, g, chosen).map_err(|source| GravityError::Fit { holds: means.len(), source })?;
+    Ok(Calibration { detection, fit, scores, selected })
 }

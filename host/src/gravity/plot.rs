@@ -1,44 +1,38 @@
 //! SVG plots of a gravity-norm calibration: residual per hold, and the variance detector trace.
-
-use std::path::Path;
+//!
+//! The plots are rendered into strings; the caller writes them (atomically, see `crate::output`).
 
 use plotters::prelude::*;
 
 use super::holds::Detection;
 use super::Calibration;
 
-/// A plot could not be drawn or written.
+/// A plot could not be drawn.
 #[derive(Debug, thiserror::Error)]
-#[error("{file}: cannot draw plot: {message}")]
+#[error("cannot draw the {plot} plot: {message}")]
 pub struct PlotError {
-    /// Output file.
-    pub file: String,
+    /// Which plot.
+    pub plot: &'static str,
     /// What went wrong.
     pub message: String,
 }
 
-fn err(path: &Path) -> impl Fn(String) -> PlotError + '_ {
-    move |message| PlotError {
-        file: path.display().to_string(),
-        message,
-    }
+fn err(plot: &'static str) -> impl Fn(String) -> PlotError {
+    move |message| PlotError { plot, message }
 }
 
 /// Draws `|a| − g` per hold (m/s²) against the hold index, with ±RMS lines.
-pub fn residuals_svg(path: &Path, cal: &Calibration) -> Result<(), PlotError> {
-    let e = err(path);
+pub fn residuals_svg(cal: &Calibration) -> Result<String, PlotError> {
+    let e = err("residual");
+    let mut svg = String::new();
     let res = &cal.fit.residuals;
     let rms = cal.fit.rms;
     let ymax = res.iter().fold(rms, |m, r| m.max(r.abs())) * 1.25;
     let n = res.len().max(1) as f64;
-    let root = SVGBackend::new(path, (900, 480)).into_drawing_area();
+    let root = SVGBackend::with_string(&mut svg, (900, 480)).into_drawing_area();
     root.fill(&WHITE).map_err(|x| e(x.to_string()))?;
-    let caption = format!(
-        "|a| - g per hold, {} ({} holds, RMS {:.2e} m/s²)",
-        cal.fit.structure.name(),
-        res.len(),
-        rms
-    );
+    let caption =
+        format!("|a| - g per hold, {} ({} holds, RMS {:.2e} m/s²)", cal.fit.structure.name(), res.len(), rms);
     let mut chart = ChartBuilder::on(&root)
         .caption(caption, ("sans-serif", 18))
         .margin(12)
@@ -53,28 +47,26 @@ pub fn residuals_svg(path: &Path, cal: &Calibration) -> Result<(), PlotError> {
         .y_label_formatter(&|y| format!("{y:.4}"))
         .draw()
         .map_err(|x| e(x.to_string()))?;
-    for (level, style) in [
-        (0.0, BLACK.stroke_width(1)),
-        (rms, RED.stroke_width(1)),
-        (-rms, RED.stroke_width(1)),
-    ] {
+    for (level, style) in
+        [(0.0, BLACK.stroke_width(1)), (rms, RED.stroke_width(1)), (-rms, RED.stroke_width(1))]
+    {
         chart
             .draw_series(LineSeries::new([(-0.5, level), (n - 0.5, level)], style))
             .map_err(|x| e(x.to_string()))?;
     }
     chart
-        .draw_series(
-            res.iter()
-                .enumerate()
-                .map(|(k, &r)| Circle::new((k as f64, r), 4, BLUE.filled())),
-        )
+        .draw_series(res.iter().enumerate().map(|(k, &r)| Circle::new((k as f64, r), 4, BLUE.filled())))
         .map_err(|x| e(x.to_string()))?;
-    root.present().map_err(|x| e(x.to_string()))
+    root.present().map_err(|x| e(x.to_string()))?;
+    drop(chart);
+    drop(root);
+    Ok(svg)
 }
 
 /// Draws the detector statistic (codes², log scale) against time, the threshold, and the kept holds.
-pub fn detector_svg(path: &Path, t: &[f64], det: &Detection) -> Result<(), PlotError> {
-    let e = err(path);
+pub fn detector_svg(t: &[f64], det: &Detection) -> Result<String, PlotError> {
+    let e = err("detector");
+    let mut svg = String::new();
     // Decimate to at most ~4000 points by taking the maximum of each block (keeps the movements).
     let block = (det.trace.len() / 4000).max(1);
     let pts: Vec<(f64, f64)> = det
@@ -82,21 +74,14 @@ pub fn detector_svg(path: &Path, t: &[f64], det: &Detection) -> Result<(), PlotE
         .chunks(block)
         .zip(t.chunks(block))
         .filter_map(|(v, tt)| {
-            let m = v
-                .iter()
-                .copied()
-                .filter(|x| x.is_finite())
-                .fold(f64::NAN, f64::max);
+            let m = v.iter().copied().filter(|x| x.is_finite()).fold(f64::NAN, f64::max);
             m.is_finite().then(|| (tt[0], m.max(1e-3)))
         })
         .collect();
-    let (t0, t1) = (
-        t.first().copied().unwrap_or(0.0),
-        t.last().copied().unwrap_or(1.0),
-    );
+    let (t0, t1) = (t.first().copied().unwrap_or(0.0), t.last().copied().unwrap_or(1.0));
     let ylo = pts.iter().map(|p| p.1).fold(det.threshold, f64::min) * 0.5;
     let yhi = pts.iter().map(|p| p.1).fold(det.threshold, f64::max) * 2.0;
-    let root = SVGBackend::new(path, (1100, 480)).into_drawing_area();
+    let root = SVGBackend::with_string(&mut svg, (1100, 480)).into_drawing_area();
     root.fill(&WHITE).map_err(|x| e(x.to_string()))?;
     let caption = format!(
         "variance detector ({}-sample window): threshold {:.1} codes², {} holds kept, {} rejected",
@@ -121,9 +106,9 @@ pub fn detector_svg(path: &Path, t: &[f64], det: &Detection) -> Result<(), PlotE
         .map_err(|x| e(x.to_string()))?;
     chart
         .draw_series(
-            det.holds.iter().map(|h| {
-                Rectangle::new([(h.t_start, ylo), (h.t_end, yhi)], GREEN.mix(0.15).filled())
-            }),
+            det.holds
+                .iter()
+                .map(|h| Rectangle::new([(h.t_start, ylo), (h.t_end, yhi)], GREEN.mix(0.15).filled())),
         )
         .map_err(|x| e(x.to_string()))?
         .label("kept hold")
@@ -134,10 +119,7 @@ pub fn detector_svg(path: &Path, t: &[f64], det: &Detection) -> Result<(), PlotE
         .label("detector statistic")
         .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLUE));
     chart
-        .draw_series(LineSeries::new(
-            [(t0, det.threshold), (t1, det.threshold)],
-            RED.stroke_width(2),
-        ))
+        .draw_series(LineSeries::new([(t0, det.threshold), (t1, det.threshold)], RED.stroke_width(2)))
         .map_err(|x| e(x.to_string()))?
         .label("threshold")
         .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], RED));
@@ -148,5 +130,8 @@ pub fn detector_svg(path: &Path, t: &[f64], det: &Detection) -> Result<(), PlotE
         .position(SeriesLabelPosition::UpperRight)
         .draw()
         .map_err(|x| e(x.to_string()))?;
-    root.present().map_err(|x| e(x.to_string()))
+    root.present().map_err(|x| e(x.to_string()))?;
+    drop(chart);
+    drop(root);
+    Ok(svg)
 }

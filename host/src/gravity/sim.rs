@@ -94,18 +94,14 @@ pub struct SimTruth {
 /// Simulates a session.
 pub fn simulate(cfg: &SimConfig) -> SimSession {
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
-    let noise = Normal::new(0.0, cfg.noise_codes.max(0.0))
-        .unwrap_or_else(|_| Normal::new(0.0, 0.0).unwrap());
+    let noise = Normal::new(0.0, cfg.noise_codes.max(0.0)).unwrap_or_else(|_| Normal::new(0.0, 0.0).unwrap());
     let dt = 1.0 / cfg.rate_hz;
     let mut rec = Recording::default();
     let mut holds = Vec::new();
     let mut directions = Vec::new();
 
     let emit = |rec: &mut Recording, f: [f64; 3], rng: &mut ChaCha8Rng| {
-        let clean = cfg
-            .truth
-            .raw_from_specific_force(f)
-            .unwrap_or(cfg.truth.bias);
+        let clean = cfg.truth.raw_from_specific_force(f).unwrap_or(cfg.truth.bias);
         let u = clean.map(|c| (c + noise.sample(rng)).round().clamp(0.0, 65535.0));
         rec.t.push(rec.t.len() as f64 * dt);
         rec.codes.push(u);
@@ -128,11 +124,7 @@ pub fn simulate(cfg: &SimConfig) -> SimSession {
             let tau = (k as f64 + 0.5) / n_move as f64;
             let d = slerp(dir, next, tau * tau * (3.0 - 2.0 * tau));
             let lin = cfg.hand_m_s2 * (2.0 * std::f64::consts::PI * tau).sin();
-            emit(
-                &mut rec,
-                std::array::from_fn(|i| cfg.g * d[i] + lin * hand[i]),
-                &mut rng,
-            );
+            emit(&mut rec, std::array::from_fn(|i| cfg.g * d[i] + lin * hand[i]), &mut rng);
         }
         dir = next;
         start = rec.len();
@@ -142,12 +134,7 @@ pub fn simulate(cfg: &SimConfig) -> SimSession {
         holds.push((start, rec.len()));
         directions.push(dir);
     }
-    SimSession {
-        config: cfg.clone(),
-        recording: rec,
-        holds,
-        directions,
-    }
+    SimSession { config: cfg.clone(), recording: rec, holds, directions }
 }
 
 impl SimSession {
@@ -155,19 +142,13 @@ impl SimSession {
     pub fn write(&self, dir: &Path, stem: &str) -> io::Result<(PathBuf, PathBuf)> {
         let data = dir.join(format!("{stem}.txt"));
         let truth = dir.join(format!("{stem}.truth.json"));
-        imutk::write(
-            &self.recording,
-            io::BufWriter::new(std::fs::File::create(&data)?),
-        )?;
+        imutk::write(&self.recording, io::BufWriter::new(std::fs::File::create(&data)?))?;
         let t = SimTruth {
             config: self.config.clone(),
             holds: self.holds.clone(),
             directions: self.directions.clone(),
         };
-        std::fs::write(
-            &truth,
-            serde_json::to_string_pretty(&t).map_err(io::Error::other)?,
-        )?;
+        std::fs::write(&truth, serde_json::to_string_pretty(&t).map_err(io::Error::other)?)?;
         Ok((data, truth))
     }
 }
@@ -190,10 +171,7 @@ fn slerp(a: [f64; 3], b: [f64; 3], s: f64) -> [f64; 3] {
     let v: [f64; 3] = if omega.sin().abs() < 1e-3 {
         std::array::from_fn(|i| a[i] * (1.0 - s) + b[i] * s)
     } else {
-        let (wa, wb) = (
-            ((1.0 - s) * omega).sin() / omega.sin(),
-            (s * omega).sin() / omega.sin(),
-        );
+        let (wa, wb) = (((1.0 - s) * omega).sin() / omega.sin(), (s * omega).sin() / omega.sin());
         std::array::from_fn(|i| wa * a[i] + wb * b[i])
     };
     let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
@@ -210,10 +188,7 @@ mod tests {
 
     #[test]
     fn simulation_is_deterministic_and_static_intervals_match_gravity() {
-        let cfg = SimConfig {
-            holds: 5,
-            ..Default::default()
-        };
+        let cfg = SimConfig { holds: 5, ..Default::default() };
         let a = simulate(&cfg);
         let b = simulate(&cfg);
         assert_eq!(a.recording, b.recording);
@@ -221,9 +196,8 @@ mod tests {
         // Within each static interval the noise-free model output has norm g: check the mean.
         for &(s, e) in &a.holds {
             let n = (e - s) as f64;
-            let mean: [f64; 3] = std::array::from_fn(|i| {
-                a.recording.codes[s..e].iter().map(|c| c[i]).sum::<f64>() / n
-            });
+            let mean: [f64; 3] =
+                std::array::from_fn(|i| a.recording.codes[s..e].iter().map(|c| c[i]).sum::<f64>() / n);
             let f = cfg.truth.apply(mean);
             let norm = (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt();
             assert!((norm - cfg.g).abs() < 0.01, "norm {norm}");
@@ -241,8 +215,7 @@ mod tests {
             rest_s: 0.1,
             ..Default::default()
         });
-        let mean: [f64; 3] =
-            std::array::from_fn(|i| s.directions.iter().map(|d| d[i]).sum::<f64>() / 401.0);
+        let mean: [f64; 3] = std::array::from_fn(|i| s.directions.iter().map(|d| d[i]).sum::<f64>() / 401.0);
         for m in mean {
             assert!(m.abs() < 0.1, "{mean:?}");
         }

@@ -59,11 +59,7 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for Problem<'_> {
 
 /// Minimises `½‖r(x)‖²` from `x0`, for `m` residuals.
 pub(crate) fn minimize(x0: &[f64], m: usize, eval: &Evaluate<'_>) -> Solution {
-    let problem = Problem {
-        x: DVector::from_column_slice(x0),
-        m,
-        eval,
-    };
+    let problem = Problem { x: DVector::from_column_slice(x0), m, eval };
     let (problem, report) = LevenbergMarquardt::new()
         .with_ftol(1e-14)
         .with_xtol(1e-14)
@@ -99,11 +95,7 @@ mod tests {
         };
         let sol = minimize(&[1.0, 0.1], ts.len(), &eval);
         assert!(sol.converged, "{}", sol.termination);
-        assert!(
-            (sol.x[0] - 3.0).abs() < 1e-9 && (sol.x[1] - 0.7).abs() < 1e-9,
-            "{:?}",
-            sol.x
-        );
+        assert!((sol.x[0] - 3.0).abs() < 1e-9 && (sol.x[1] - 0.7).abs() < 1e-9, "{:?}", sol.x);
     }
 
     #[test]
