@@ -230,3 +230,20 @@ fn accelcal_fit_method_gravity_norm_runs_on_the_real_file() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("bad.txt:2:1: expected 4 fields"));
 }
+
+#[test]
+fn real_recording_result_does_not_hinge_on_the_threshold() {
+    let base = cli::calibrate_file(&parse(&[real_file().to_str().unwrap(), "--g", "9.81744"])).unwrap().1;
+    // From 2x to 30x the noise floor (about 30 codes²) the holds change but the calibration does not.
+    for th in ["60", "1000"] {
+        let args = parse(&[real_file().to_str().unwrap(), "--g", "9.81744", "--threshold", th]);
+        let cal = cli::calibrate_file(&args).unwrap().1;
+        assert!(cal.fit.rms < 0.002, "threshold {th}: rms {}", cal.fit.rms);
+        for i in 0..3 {
+            let ds = cal.fit.model.scale[i] - base.fit.model.scale[i];
+            let db = cal.fit.model.bias[i] - base.fit.model.bias[i];
+            assert!(ds.abs() < 2.0 * base.fit.std_err.scale[i], "threshold {th}: scale[{i}] moved {ds}");
+            assert!(db.abs() < 2.0 * base.fit.std_err.bias[i], "threshold {th}: bias[{i}] moved {db}");
+        }
+    }
+}

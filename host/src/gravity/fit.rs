@@ -266,38 +266,40 @@ pub fn initial_guess(means: &[[f64; 3]], g: f64) -> Result<TriadModel, FitError>
     Ok(ellipsoid_refine(&coarse, means, g).unwrap_or(coarse))
 }
 
-/// Fits `Σ p_i z_i² + Σ c_i z_i + r = 1` (z in m/s² under the coarse model) and converts it to bias
-/// and scale; `None` if the system is ill-posed or the quadric is not an ellipsoid.
+/// Fits the axis-aligned quadric `Σ p_i z_i² + Σ c_i z_i = 1` (z in m/s² under the coarse model, so
+/// the origin lies inside the ellipsoid and the constant term can be normalised to −1) and converts
+/// it to bias and scale. Returns `None` if the system is ill-posed, the quadric is not an ellipsoid,
+/// or the result fits the holds worse than the coarse guess.
 fn ellipsoid_refine(coarse: &TriadModel, means: &[[f64; 3]], g: f64) -> Option<TriadModel> {
     if means.len() < 7 {
         return None;
     }
     let z: Vec<[f64; 3]> =
         means.iter().map(|u| std::array::from_fn(|i| (u[i] - coarse.bias[i]) / coarse.scale[i])).collect();
-    let a = DMatrix::from_fn(z.len(), 7, |k, j| match j {
-        0..=2 => z[k][j] * z[k][j],
-        3..=5 => z[k][j - 3],
-        _ => 1.0,
-    });
+    let a = DMatrix::from_fn(z.len(), 6, |k, j| if j < 3 { z[k][j] * z[k][j] } else { z[k][j - 3] });
     let rhs = DVector::from_element(z.len(), 1.0);
-    let sol = a.clone().svd(true, true).solve(&rhs, 1e-12).ok()?;
+    let svd = a.svd(true, true);
+    let sv = &svd.singular_values;
+    if !(sv.min() > 1e-9 * sv.max()) {
+        return None;
+    }
+    let sol = svd.solve(&rhs, 0.0).ok()?;
     let p = [sol[0], sol[1], sol[2]];
     if p.iter().any(|&x| !(x > 0.0)) {
         return None;
     }
-    let c = [sol[3], sol[4], sol[5]];
-    let center: [f64; 3] = std::array::from_fn(|i| -c[i] / (2.0 * p[i]));
-    let k = 1.0 - sol[6] + (0..3).map(|i| p[i] * center[i] * center[i]).sum::<f64>();
-    if !(k > 0.0) {
-        return None;
-    }
+    let center: [f64; 3] = std::array::from_fn(|i| -sol[3 + i] / (2.0 * p[i]));
+    // Σ p (z − c)² = 1 + Σ p c² =: k
+    let k = 1.0 + (0..3).map(|i| p[i] * center[i] * center[i]).sum::<f64>();
     let mut m = *coarse;
     for i in 0..3 {
         m.bias[i] = coarse.bias[i] + coarse.scale[i] * center[i];
         // ((z − c)/σ)² with 1/σ² = p g² / k, z in units of the coarse scale.
         m.scale[i] = coarse.scale[i] * (k / (p[i] * g * g)).sqrt();
     }
-    m.bias.iter().chain(&m.scale).all(|x| x.is_finite()).then_some(m)
+    let ss = |model: &TriadModel| residuals(model, means, g).iter().map(|r| r * r).sum::<f64>();
+    let finite = m.bias.iter().chain(&m.scale).all(|x| x.is_finite());
+    (finite && ss(&m) < ss(coarse)).then_some(m)
 }
 
 /// Fits `structure` to the hold means `means` (codes) under gravity magnitude `g` (m/s²).
@@ -534,6 +536,18 @@ mod tests {
         ];
         assert_eq!(select(&scores), Some(Structure::ImuTkQuadratic));
         assert_eq!(select(&[]), None);
+    }
+
+    #[test]
+    fn ellipsoid_refinement_lands_near_the_truth() {
+        // Axis-aligned truth: the quadric fit is exact, so the refined guess is the truth.
+        let t = TriadModel { alpha: [0.0; 3], ..truth() };
+        let means = exact_means(&t, 20);
+        let m = initial_guess(&means, G).unwrap();
+        for i in 0..3 {
+            assert!((m.bias[i] - t.bias[i]).abs() < 1e-6, "{m:?}");
+            assert!((m.scale[i] / t.scale[i] - 1.0).abs() < 1e-9, "{m:?}");
+        }
     }
 
     #[test]

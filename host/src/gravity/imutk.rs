@@ -70,7 +70,7 @@ pub enum RowProblem {
 #[derive(Debug, thiserror::Error)]
 pub enum ImuTkError {
     /// The file cannot be opened or read (including a corrupt gzip stream).
-    #[error("{file}: cannot read: {source}")]
+    #[error("{file}: cannot read")]
     Io {
         /// File name as given.
         file: String,

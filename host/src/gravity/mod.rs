@@ -20,10 +20,10 @@ use holds::{Detection, DetectorConfig, HoldError};
 #[derive(Debug, thiserror::Error)]
 pub enum GravityError {
     /// The hold detector failed.
-    #[error("hold detection: {0}")]
+    #[error("hold detection failed")]
     Holds(#[from] HoldError),
     /// The fit failed.
-    #[error("gravity-norm fit on {holds} holds: {source}")]
+    #[error("gravity-norm fit on {holds} holds failed")]
     Fit {
         /// Number of holds given to the fit.
         holds: usize,
