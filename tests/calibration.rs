@@ -24,8 +24,13 @@ fn run(cfg: &SimConfig) -> (Campaign, Truth, Positions) {
 
 fn select(cfg: &SimConfig, basis: Basis) -> Vec<gmdh::Selection> {
     let (c, _, p) = run(cfg);
-    let settings =
-        Settings { basis, criterion: Criterion::Regularity, split: Split::Alternate, tolerance: 1.0 };
+    let settings = Settings {
+        basis,
+        criterion: Criterion::Regularity,
+        split: Split::Alternate,
+        tolerance: 1.0,
+        max_terms: 20,
+    };
     p.channel_stats(&c).iter().map(|s| gmdh::select(&p, s, &settings, &|_| {}).unwrap()).collect()
 }
 
@@ -155,7 +160,8 @@ fn model_11_is_flagged_unidentifiable_on_the_sphere() {
     // The rss and symmetric criteria flag it too.
     let (c, _, p) = run(&SimConfig::default());
     for criterion in [Criterion::Rss, Criterion::Symmetric] {
-        let settings = Settings { basis: Basis::Paper, criterion, split: Split::Halves, tolerance: 1.0 };
+        let settings =
+            Settings { basis: Basis::Paper, criterion, split: Split::Halves, tolerance: 1.0, max_terms: 20 };
         let s = gmdh::select(&p, &p.channel_stats(&c)[2], &settings, &|_| {}).unwrap();
         assert_eq!(s.candidates[10].criterion, None);
         assert_eq!(s.selected().structure, MODEL_4);
@@ -171,7 +177,7 @@ fn tolerance_zero_picks_the_minimum_and_criteria_are_ordered() {
         gmdh::select(
             &p,
             st,
-            &Settings { basis: Basis::Paper, criterion, split: Split::Alternate, tolerance },
+            &Settings { basis: Basis::Paper, criterion, split: Split::Alternate, tolerance, max_terms: 20 },
             &|_| {},
         )
         .unwrap()
@@ -213,4 +219,87 @@ fn record_carries_the_fit_to_the_node_arithmetic() {
             assert!((q[i] as f64 - r[i]).abs() <= bound[i]);
         }
     }
+}
+
+/// The benchmark data in miniature: one sample at each of `n` random orientations,
+/// `u = 30000 + 3000·ax + 15·ay − 10·az + 2·ax·ay + noise(80)`.
+fn random_orientation_data(n: usize, seed: u64) -> (Positions, accelcal::positions::ChannelStats) {
+    use rand::{Rng, SeedableRng};
+    use rand_distr::Distribution;
+    let plan = Plan::random(n, seed);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let noise = rand_distr::Normal::new(0.0, 80.0).unwrap();
+    let mut c = Campaign::default();
+    let mut codes = Vec::new();
+    for (i, &(a, b)) in plan.positions.iter().enumerate() {
+        let acc = accelcal_shared::gravity(a, b, 9.81);
+        c.t_s.push(i as f64);
+        c.alpha_deg.push(a);
+        c.beta_deg.push(b);
+        let u = 30000.0 + 3000.0 * acc[0] + 15.0 * acc[1] - 10.0 * acc[2] + 2.0 * acc[0] * acc[1];
+        codes.push(u + noise.sample(&mut rng) + 0.0 * rng.random::<f64>());
+    }
+    c.channels.push(accelcal::campaign::Channel { name: "u".into(), codes });
+    let p = Positions::new(&c, 9.81);
+    let st = p.channel_stats(&c).remove(0);
+    (p, st)
+}
+
+#[test]
+fn engine_matches_the_qr_reference_on_every_identifiable_candidate() {
+    let (p, st) = random_orientation_data(300, 21);
+    for criterion in [Criterion::Regularity, Criterion::Symmetric, Criterion::Rss] {
+        for (basis, step) in [(Basis::Quadratic, 1), (Basis::Cubic, 97)] {
+            let settings =
+                Settings { basis, criterion, split: Split::Tail(1.0 / 3.0), tolerance: 1.0, max_terms: 20 };
+            let prep = gmdh::Prepared::new(&p, &st, &settings).unwrap();
+            let cands = prep.score(basis, 20, &|_| {});
+            assert_eq!(cands.len(), basis.candidate_count());
+            let (mut checked, mut deficient, mut worst) = (0, 0, 0.0f64);
+            for c in cands.iter().step_by(step) {
+                let r = gmdh::reference::criterion(&p, &st, c.structure, &settings);
+                assert_eq!(
+                    c.criterion.is_some(),
+                    r.is_some(),
+                    "{criterion:?} {}: identifiability",
+                    c.structure
+                );
+                if let (Some(e), Some(r)) = (c.criterion, r) {
+                    let rel = (e - r).abs() / r;
+                    worst = worst.max(rel);
+                    assert!(rel < 1e-8, "{criterion:?} {}: {e} vs {r} ({rel:e})", c.structure);
+                    checked += 1;
+                } else {
+                    deficient += 1;
+                }
+            }
+            // The sphere makes exact dependencies: both kinds must be present for the test to mean much.
+            assert!(checked > 100 && deficient > 10, "{checked} {deficient}");
+            eprintln!(
+                "{criterion:?} {basis:?}: {checked} identifiable within {worst:.1e}, {deficient} deficient"
+            );
+        }
+    }
+}
+
+#[test]
+fn exhaustive_and_multilayer_find_the_true_structure_and_max_terms_caps() {
+    let (p, st) = random_orientation_data(2000, 5);
+    let truth = lsq::parse_terms("ax,ay,az,ax*ay").unwrap();
+    let settings = Settings {
+        basis: Basis::Cubic,
+        criterion: Criterion::Regularity,
+        split: Split::Tail(1.0 / 3.0),
+        tolerance: 1.0,
+        max_terms: 20,
+    };
+    let s = gmdh::select(&p, &st, &settings, &|_| {}).unwrap();
+    assert_eq!(s.selected().structure, truth);
+    let m = gmdh::multi::select(&p, &st, &settings, 16, &|_| {}).unwrap();
+    assert_eq!(m.selected().structure, truth);
+    assert!(m.candidates.len() < 5000, "{}", m.candidates.len());
+    let capped = gmdh::select(&p, &st, &Settings { max_terms: 3, ..settings }, &|_| {}).unwrap();
+    // 1 + 19 + C(19,2) candidates of at most 3 terms.
+    assert_eq!(capped.candidates.len(), 1 + 19 + 171);
+    assert!(capped.candidates.iter().all(|c| c.structure.len() <= 3));
 }

@@ -154,6 +154,21 @@ pub struct SelectArgs {
     /// Only these channels (comma-separated names) [default: all].
     #[arg(long, value_delimiter = ',')]
     pub channels: Vec<String>,
+    /// Search: `combi` scores every candidate (exhaustive combinatorial GMDH); `multi` is the
+    /// multilayer (iterative) GMDH for bases too large for that: layer by layer, each of the
+    /// --width best models of the previous layer grows by one term, until the best criterion
+    /// stops improving.
+    #[arg(long, value_enum, default_value_t = Algorithm::Combi)]
+    pub algorithm: Algorithm,
+    /// Models kept per layer by `--algorithm multi`.
+    #[arg(long, default_value_t = 32)]
+    pub width: usize,
+    /// Largest number of terms in a candidate, intercept included.
+    #[arg(long, value_name = "K", default_value_t = accelcal_shared::N_BASIS)]
+    pub max_terms: usize,
+    /// Worker threads [default: one per core].
+    #[arg(long, value_name = "N")]
+    pub threads: Option<usize>,
     /// In JSON, list only the N best candidates per channel (0 = all; default: all up to 4096
     /// candidates, else 1000).
     #[arg(long, value_name = "N")]
@@ -167,6 +182,15 @@ pub struct SelectArgs {
 
 fn parse_split(s: &str) -> Result<Split, String> {
     s.parse()
+}
+
+/// GMDH search algorithms.
+#[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
+pub enum Algorithm {
+    /// Exhaustive combinatorial search.
+    Combi,
+    /// Multilayer (iterative) search.
+    Multi,
 }
 
 /// Fitting methods.

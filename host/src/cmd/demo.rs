@@ -31,6 +31,7 @@ pub fn run(a: &DemoArgs) -> anyhow::Result<()> {
         criterion: Criterion::Regularity,
         split: Split::Alternate,
         tolerance: 1.0,
+        max_terms: accelcal_shared::N_BASIS,
     };
     let sel = super::select::compute(&campaign, g, &[], &settings)?;
     write_json(

@@ -8,11 +8,11 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
 use crate::campaign::Campaign;
-use crate::cli::SelectArgs;
+use crate::cli::{Algorithm, SelectArgs};
 use crate::error::bad;
 use crate::gmdh::{self, Selection, Settings};
 use crate::output::{finite, write_json};
-use crate::positions::Positions;
+use crate::positions::{ChannelStats, Positions};
 
 /// JSON of one candidate.
 #[derive(Serialize)]
@@ -55,12 +55,37 @@ fn names(s: Structure) -> Vec<String> {
     s.terms().map(|t| t.to_string()).collect()
 }
 
-/// Runs GMDH on the chosen channels of a campaign, with a progress bar for large bases.
+/// Runs exhaustive GMDH on the chosen channels of a campaign, with a progress bar for large bases.
 pub fn compute(
     c: &Campaign,
     g: f64,
     channels: &[String],
     settings: &Settings,
+) -> anyhow::Result<Vec<Selection>> {
+    run_channels(c, g, channels, settings.basis.candidate_count() as u64, |pos, s, progress| {
+        gmdh::select(pos, s, settings, progress)
+    })
+}
+
+/// Runs multilayer GMDH (`width` models per layer) on the chosen channels.
+pub fn compute_multi(
+    c: &Campaign,
+    g: f64,
+    channels: &[String],
+    settings: &Settings,
+    width: usize,
+) -> anyhow::Result<Vec<Selection>> {
+    run_channels(c, g, channels, 0, |pos, s, progress| gmdh::multi::select(pos, s, settings, width, progress))
+}
+
+/// Applies `one` to each chosen channel; `per_channel` candidates drive the progress bar (0: a
+/// spinner counting models).
+fn run_channels(
+    c: &Campaign,
+    g: f64,
+    channels: &[String],
+    per_channel: u64,
+    one: impl Fn(&Positions, &ChannelStats, &(dyn Fn(u64) + Sync)) -> Result<Selection, gmdh::GmdhError>,
 ) -> anyhow::Result<Vec<Selection>> {
     let pos = Positions::new(c, g);
     let stats = pos.channel_stats(c);
@@ -73,8 +98,14 @@ pub fn compute(
         }
     }
     let chosen: Vec<_> = stats.iter().filter(|s| channels.is_empty() || channels.contains(&s.name)).collect();
-    let total = (settings.basis.candidate_count() * chosen.len()) as u64;
-    let pb = if total > 50_000 { ProgressBar::new(total) } else { ProgressBar::hidden() };
+    let total = per_channel * chosen.len() as u64;
+    let pb = if total > 50_000 {
+        ProgressBar::new(total)
+    } else if per_channel == 0 && std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+        ProgressBar::new_spinner()
+    } else {
+        ProgressBar::hidden()
+    };
     pb.set_style(
         ProgressStyle::with_template(
             "{msg:8} [{bar:30}] {human_pos}/{human_len} models, {per_sec}, eta {eta}",
@@ -85,7 +116,7 @@ pub fn compute(
     let mut out = Vec::new();
     for s in chosen {
         pb.set_message(s.name.clone());
-        out.push(gmdh::select(&pos, s, settings, &|n| pb.inc(n))?);
+        out.push(one(&pos, s, &|n| pb.inc(n))?);
     }
     pb.finish_and_clear();
     Ok(out)
@@ -231,9 +262,24 @@ pub fn run(a: &SelectArgs) -> anyhow::Result<()> {
         return Err(bad(format!("--tolerance must be a number of codes >= 0, got {}", a.tolerance)));
     }
     let c = super::read_campaign(&a.campaign)?;
-    let settings =
-        Settings { basis: a.basis.into(), criterion: a.criterion, split: a.split, tolerance: a.tolerance };
-    let sel = compute(&c, a.common.g, &a.channels, &settings)?;
+    if a.max_terms == 0 || a.width == 0 || a.threads == Some(0) {
+        return Err(bad("--max-terms, --width and --threads must be at least 1"));
+    }
+    let settings = Settings {
+        basis: a.basis.into(),
+        criterion: a.criterion,
+        split: a.split,
+        tolerance: a.tolerance,
+        max_terms: a.max_terms.min(accelcal_shared::N_BASIS),
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(a.threads.unwrap_or(0))
+        .build()
+        .map_err(|e| anyhow::anyhow!("starting worker threads: {e}"))?;
+    let sel = pool.install(|| match a.algorithm {
+        Algorithm::Combi => compute(&c, a.common.g, &a.channels, &settings),
+        Algorithm::Multi => compute_multi(&c, a.common.g, &a.channels, &settings, a.width),
+    })?;
     print_tables(&sel, &settings);
     if let Some(j) = &a.common.json {
         write_json(j, &to_json(&sel, &settings, &a.split.to_string(), a.top))?;

@@ -1,0 +1,301 @@
+//! Combinatorial GMDH: fit every candidate structure on part A, score it by an external
+//! criterion, and pick the simplest model within a tolerance of the best.
+//!
+//! Criteria, all reported as an RMS in ADC codes of the dwell-mean residuals over the positions of
+//! the part they score (each position weighted by its rows). The regressors depend on the
+//! position only, so the within-dwell scatter is the same for every model: it is left out, so that
+//! the one-code tolerance compares what the models can change.
+//!
+//! - regularity `Δ(B|A)`: error on B of the model fitted on A;
+//! - symmetric `d`: error on B of the A-fit together with error on A of the B-fit, over A∪B;
+//! - rss: error on A∪B of the model fitted on A∪B.
+//!
+//! [`engine`] scores candidates from sufficient statistics (cost independent of the number of
+//! samples); a rank-deficient candidate is reported as not identifiable, never ranked.
+//! [`reference`] computes the same criteria the slow way (QR on the rows) for the tests.
+
+pub mod engine;
+pub mod multi;
+pub mod reference;
+
+use accelcal_shared::terms::PAPER_MODELS;
+use accelcal_shared::{Basis, Structure};
+
+use crate::lsq::{self, LsqFit};
+use crate::positions::{ChannelStats, Positions};
+
+pub use engine::PIVOT_TOL;
+
+/// The external criterion.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Criterion {
+    /// Error on B of the model fitted on A (the paper's choice).
+    Regularity,
+    /// Error on B of the A-fit plus error on A of the B-fit.
+    Symmetric,
+    /// Residual on A∪B of the model fitted on A∪B.
+    Rss,
+}
+
+/// How the positions are divided into the fitting part A and the checking part B.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Split {
+    /// Even positions in A, odd ones in B.
+    Alternate,
+    /// First half in A, second half in B.
+    Halves,
+    /// The last `FRACTION` of the positions in B.
+    Tail(f64),
+}
+
+impl std::str::FromStr for Split {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Split, String> {
+        match s {
+            "alternate" => Ok(Split::Alternate),
+            "halves" => Ok(Split::Halves),
+            _ => match s.strip_prefix("tail:").map(str::parse::<f64>) {
+                Some(Ok(f)) if f > 0.0 && f < 1.0 => Ok(Split::Tail(f)),
+                Some(_) => Err(format!("`{s}`: the tail fraction must be a number in (0, 1)")),
+                None => Err(format!("`{s}`: expected alternate, halves or tail:FRACTION")),
+            },
+        }
+    }
+}
+
+impl std::fmt::Display for Split {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Split::Alternate => f.write_str("alternate"),
+            Split::Halves => f.write_str("halves"),
+            Split::Tail(x) => write!(f, "tail:{x}"),
+        }
+    }
+}
+
+impl Split {
+    /// Position indices of parts A and B for `n` positions.
+    pub fn parts(self, n: usize) -> (Vec<usize>, Vec<usize>) {
+        let (mut a, mut b) = (Vec::new(), Vec::new());
+        for i in 0..n {
+            let in_b = match self {
+                Split::Alternate => i % 2 == 1,
+                Split::Halves => i >= n.div_ceil(2),
+                Split::Tail(f) => {
+                    i >= n - ((n as f64 * f).round() as usize).clamp(1, n.saturating_sub(1).max(1))
+                }
+            };
+            if in_b {
+                b.push(i)
+            } else {
+                a.push(i)
+            }
+        }
+        (a, b)
+    }
+}
+
+/// Why selection could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum GmdhError {
+    /// One part of the split is empty.
+    #[error("the split leaves part {0} without positions ({1} positions in all)")]
+    EmptyPart(char, usize),
+    /// No candidate is identifiable on this plan and split.
+    #[error("no candidate model is identifiable on this plan and split")]
+    NothingIdentifiable,
+    /// The refit of the selected model failed.
+    #[error(transparent)]
+    Refit(#[from] lsq::LsqError),
+}
+
+/// One candidate's score.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Candidate {
+    /// Its terms.
+    pub structure: Structure,
+    /// Criterion (RMS codes); `None` when the model is not identifiable where it is fitted.
+    pub criterion: Option<f64>,
+}
+
+/// The outcome of selection for one channel.
+#[derive(Clone, Debug)]
+pub struct Selection {
+    /// Channel name.
+    pub channel: String,
+    /// Every candidate, in enumeration order.
+    pub candidates: Vec<Candidate>,
+    /// Index into `candidates` of the selected model.
+    pub selected: usize,
+    /// Smallest criterion among identifiable candidates.
+    pub best: f64,
+    /// The selected structure refitted on A∪B (the paper refines coefficients by RSS).
+    pub fit: LsqFit,
+}
+
+impl Selection {
+    /// The selected candidate.
+    pub fn selected(&self) -> &Candidate {
+        &self.candidates[self.selected]
+    }
+}
+
+/// Settings of a selection run.
+#[derive(Clone, Copy, Debug)]
+pub struct Settings {
+    /// Candidate set.
+    pub basis: Basis,
+    /// External criterion.
+    pub criterion: Criterion,
+    /// A/B split.
+    pub split: Split,
+    /// Tolerance in codes: the simplest model within this of the best wins.
+    pub tolerance: f64,
+    /// Largest number of terms (intercept included) a candidate may have.
+    pub max_terms: usize,
+}
+
+/// The scaled, centred problem of one channel: regressors over the basis columns scaled to unit
+/// weighted RMS, the dwell means centred on their weighted mean (the intercept is in every model,
+/// so centring changes no residual), and the statistics of A, B and A∪B.
+pub struct Prepared {
+    /// Basis indices of the columns (column 0 is the intercept).
+    pub cols: Vec<usize>,
+    /// Statistics for the engine.
+    pub problem: engine::Problem,
+}
+
+impl Prepared {
+    /// Prepares one channel for `settings` on positions `pos`.
+    pub fn new(pos: &Positions, ch: &ChannelStats, settings: &Settings) -> Result<Prepared, GmdhError> {
+        let n = pos.len();
+        let (ia, ib) = settings.split.parts(n);
+        if ia.is_empty() {
+            return Err(GmdhError::EmptyPart('A', n));
+        }
+        if ib.is_empty() {
+            return Err(GmdhError::EmptyPart('B', n));
+        }
+        let cols: Vec<usize> = settings.basis.full().indices().collect();
+        let m = cols.len();
+        let wsum: f64 = pos.weight.iter().sum();
+        let mut z = vec![0.0; n * m];
+        for (c, &bi) in cols.iter().enumerate() {
+            let t = accelcal_shared::BASIS[bi];
+            let mut ss = 0.0;
+            for p in 0..n {
+                let v = t.eval(pos.accel[p]);
+                z[p * m + c] = v;
+                ss += pos.weight[p] * v * v;
+            }
+            let s = (ss / wsum).sqrt();
+            let s = if s > 0.0 { s } else { 1.0 };
+            for p in 0..n {
+                z[p * m + c] /= s;
+            }
+        }
+        let ymean = (0..n).map(|p| pos.weight[p] * ch.mean[p]).sum::<f64>() / wsum;
+        let y: Vec<f64> = ch.mean.iter().map(|v| v - ymean).collect();
+        let all: Vec<usize> = (0..n).collect();
+        let kind = match settings.criterion {
+            Criterion::Regularity => engine::Kind::Regularity,
+            Criterion::Symmetric => engine::Kind::Symmetric,
+            Criterion::Rss => engine::Kind::Rss,
+        };
+        let problem = engine::Problem {
+            m,
+            a: engine::Stats::new(&z, m, &y, &pos.weight, &ia),
+            b: engine::Stats::new(&z, m, &y, &pos.weight, &ib),
+            ab: engine::Stats::new(&z, m, &y, &pos.weight, &all),
+            kind,
+        };
+        Ok(Prepared { cols, problem })
+    }
+
+    /// Scores every candidate of the basis with at most `max_terms` terms, in enumeration order.
+    pub fn score(&self, basis: Basis, max_terms: usize, progress: &(dyn Fn(u64) + Sync)) -> Vec<Candidate> {
+        let to_opt = |v: f64| if v.is_nan() { None } else { Some(v) };
+        match basis {
+            Basis::Paper => {
+                let models: Vec<Structure> =
+                    PAPER_MODELS.iter().copied().filter(|s| s.len() <= max_terms).collect();
+                let lists: Vec<Vec<usize>> = models
+                    .iter()
+                    .map(|s| {
+                        s.indices()
+                            .map(|bi| self.cols.iter().position(|&c| c == bi).expect("in basis"))
+                            .collect()
+                    })
+                    .collect();
+                let v = engine::listed(&self.problem, &lists);
+                progress(models.len() as u64);
+                models
+                    .into_iter()
+                    .zip(v)
+                    .map(|(structure, v)| Candidate { structure, criterion: to_opt(v) })
+                    .collect()
+            }
+            _ => engine::exhaustive(&self.problem, max_terms, progress)
+                .into_iter()
+                .enumerate()
+                .filter(|(_, v)| *v != engine::EXCLUDED)
+                .map(|(n, v)| Candidate { structure: basis.candidate(n), criterion: to_opt(v) })
+                .collect(),
+        }
+    }
+}
+
+/// Picks the simplest candidate within `tolerance` of the best; ties in size go to the smaller
+/// criterion, then to the lower canonical mask (subsets spanning the same space tie exactly).
+/// Returns the index and the best criterion.
+pub fn choose(candidates: &[Candidate], tolerance: f64) -> Option<(usize, f64)> {
+    let best = candidates.iter().filter_map(|c| c.criterion).fold(f64::INFINITY, f64::min);
+    if !best.is_finite() {
+        return None;
+    }
+    let rel = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.abs().max(b.abs());
+    let i = candidates
+        .iter()
+        .enumerate()
+        .filter_map(|(i, c)| c.criterion.filter(|&v| v <= best + tolerance).map(|v| (i, c.structure, v)))
+        .min_by(|x, y| {
+            x.1.len().cmp(&y.1.len()).then(if rel(x.2, y.2) {
+                x.1.mask().cmp(&y.1.mask())
+            } else {
+                x.2.total_cmp(&y.2)
+            })
+        })
+        .map(|x| x.0)?;
+    Some((i, best))
+}
+
+/// Scores every candidate of `settings.basis` on one channel and selects the model.
+/// `progress` is called with the number of candidates finished since its last call.
+pub fn select(
+    pos: &Positions,
+    ch: &ChannelStats,
+    settings: &Settings,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<Selection, GmdhError> {
+    let prepared = Prepared::new(pos, ch, settings)?;
+    let candidates = prepared.score(settings.basis, settings.max_terms, progress);
+    let (selected, best) = choose(&candidates, settings.tolerance).ok_or(GmdhError::NothingIdentifiable)?;
+    let fit = lsq::fit(pos, ch, candidates[selected].structure, None)?;
+    Ok(Selection { channel: ch.name.clone(), candidates, selected, best, fit })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn splits_cover_every_position_once() {
+        assert_eq!(Split::Alternate.parts(5), (vec![0, 2, 4], vec![1, 3]));
+        assert_eq!(Split::Halves.parts(5), (vec![0, 1, 2], vec![3, 4]));
+        assert_eq!(Split::Tail(0.25).parts(8), (vec![0, 1, 2, 3, 4, 5], vec![6, 7]));
+        assert_eq!("tail:0.5".parse::<Split>(), Ok(Split::Tail(0.5)));
+        assert!("tail:1.5".parse::<Split>().is_err());
+        assert!("every".parse::<Split>().is_err());
+    }
+}
