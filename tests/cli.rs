@@ -73,6 +73,12 @@ fn simulate_is_seeded_and_writes_truth() {
     let b = simulate(&d, "b.csv", &["--seed", "5", "--samples", "3"]);
     assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
     let truth = json(&d.p("a.truth.json"));
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        let mode = std::fs::metadata(&a).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode, 0o644, "outputs are ordinary files");
+    }
     assert_eq!(truth["channels"].as_array().unwrap().len(), 3);
     assert_eq!(json(&d.p("sum.json"))["positions"], 62);
     let head = std::fs::read_to_string(&a).unwrap();

@@ -208,12 +208,14 @@ pub enum Method {
     Lsq,
     /// Test turns: each axis along +g and -g (model 4 only).
     TestTurns,
+    /// Gravity norm: a raw recording of hand-placed static holds, imu_tk model fitted on |a| = g.
+    GravityNorm,
 }
 
 /// `accelcal fit`.
 #[derive(Debug, Args)]
 pub struct FitArgs {
-    /// Campaign CSV.
+    /// Campaign CSV (with --method gravity-norm: a raw recording, see --format).
     pub campaign: PathBuf,
     /// Fitting method.
     #[arg(long, value_enum, default_value_t = Method::Lsq)]
@@ -233,6 +235,9 @@ pub struct FitArgs {
     pub created: Option<u64>,
     #[command(flatten)]
     pub common: CommonArgs,
+    /// Options of --method gravity-norm.
+    #[command(flatten)]
+    pub gravity: crate::gravity::cli::GravityOptions,
 }
 
 /// `accelcal compare`.

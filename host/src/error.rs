@@ -19,5 +19,7 @@ pub fn is_bad_input(e: &anyhow::Error) -> bool {
             || c.is::<crate::lsq::LsqError>()
             || c.is::<crate::gmdh::GmdhError>()
             || c.is::<crate::testturn::TestTurnError>()
+            || c.is::<crate::gravity::imutk::ImuTkError>()
+            || c.is::<crate::gravity::GravityError>()
     })
 }

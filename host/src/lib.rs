@@ -12,6 +12,7 @@ pub mod cmd;
 pub mod compare;
 pub mod error;
 pub mod gmdh;
+pub mod gravity;
 pub mod lsq;
 pub mod node;
 pub mod output;

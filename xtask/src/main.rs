@@ -4,7 +4,7 @@
 //! - `test`: host and shared tests, the no_std build of `shared` for the MCU target, the
 //!   firmware builds and the QEMU tests.
 //! - `lint`: rustfmt and clippy (warnings are errors).
-//! - `bench`: the benchmarks the README quotes.
+//! - `bench`: the benchmarks the README quotes (GMDH against the PyPI `gmdh` package).
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -12,6 +12,7 @@ use std::process::Command;
 use anyhow::{bail, Context};
 
 mod firmware;
+mod gmdh;
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("xtask sits in the workspace").to_path_buf()
@@ -62,34 +63,7 @@ fn lint() -> anyhow::Result<()> {
 }
 
 fn bench() -> anyhow::Result<()> {
-    let r = root();
-    run(&r, "cargo", &["build", "--release", "-p", "accelcal", "--locked"])?;
-    let bin = r.join("target/release/accelcal");
-    let dir = std::env::temp_dir().join("accelcal-bench");
-    std::fs::create_dir_all(&dir)?;
-    let campaign = dir.join("campaign.csv");
-    let bin_s = bin.to_str().expect("utf-8 path");
-    let c = campaign.to_str().expect("utf-8 path");
-    run(&r, bin_s, &["simulate", "--out", c, "--seed", "1"])?;
-    for basis in ["paper", "quadratic", "cubic"] {
-        let t = std::time::Instant::now();
-        run(
-            &r,
-            bin_s,
-            &[
-                "select",
-                c,
-                "--basis",
-                basis,
-                "--json",
-                dir.join(format!("select-{basis}.json")).to_str().expect("utf-8"),
-            ],
-        )?;
-        println!(
-            "bench: select --basis {basis} on 3 channels x 62 positions: {:.3} s",
-            t.elapsed().as_secs_f64()
-        );
-    }
+    gmdh::bench(&root())?;
     firmware::bench()
 }
 

@@ -51,6 +51,9 @@ pub fn fit_all(
                 Ok((s.name.clone(), f))
             })
             .collect(),
+        Method::GravityNorm => Err(bad(
+            "gravity-norm fits a raw recording, not a campaign (accelcal fit INPUT --method gravity-norm)",
+        )),
         Method::TestTurns => {
             if structure != MODEL_4 {
                 return Err(bad(format!(
@@ -113,6 +116,7 @@ pub fn to_json(method: Method, fits: &[(String, LsqFit)]) -> FitJson {
         method: match method {
             Method::Lsq => "lsq",
             Method::TestTurns => "test-turns",
+            Method::GravityNorm => "gravity-norm",
         },
         channels: fits
             .iter()
@@ -136,6 +140,7 @@ pub fn print_table(method: Method, fits: &[(String, LsqFit)]) {
                 println!("channel {name}: LSQ, condition {:.3}, residual RMS {:.2} codes", f.condition, f.rms)
             }
             Method::TestTurns => println!("channel {name}: test turns"),
+            Method::GravityNorm => println!("channel {name}: gravity norm"),
         }
         println!("  {:<10} {:>16} {:>14}", "term", "coefficient", "std error");
         for ((t, c), s) in f.structure.terms().zip(&f.coefficients).zip(&f.std_errors) {
@@ -146,6 +151,14 @@ pub fn print_table(method: Method, fits: &[(String, LsqFit)]) {
 
 /// Runs `accelcal fit`.
 pub fn run(a: &FitArgs) -> anyhow::Result<()> {
+    if a.method == Method::GravityNorm {
+        return crate::gravity::cli::run(&crate::gravity::cli::GravityFitArgs {
+            input: a.campaign.clone(),
+            g: a.common.g,
+            json: a.common.json.clone(),
+            options: a.gravity.clone(),
+        });
+    }
     super::check_g(a.common.g)?;
     let structure = lsq::parse_terms(&a.terms).map_err(|e| bad(format!("--terms: {e}")))?;
     let device_id = parse_device_id(&a.device_id)?;

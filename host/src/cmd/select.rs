@@ -37,6 +37,8 @@ pub struct ChannelJson {
     selected: SelectedJson,
     best_criterion: f64,
     candidates_total: usize,
+    search_seconds: f64,
+    models_per_second: f64,
     unidentifiable: usize,
     candidates: Vec<CandidateJson>,
 }
@@ -122,6 +124,18 @@ fn run_channels(
     Ok(out)
 }
 
+/// Keeps the `n` candidates with the smallest criterion (unidentifiable ones last), sorted; a
+/// partial selection, so a cubic sweep's half a million candidates are not sorted whole.
+fn best_first(idx: &mut Vec<usize>, n: usize, crit: impl Fn(usize) -> Option<f64>) {
+    let key = |i: usize| crit(i).unwrap_or(f64::INFINITY);
+    let cmp = |a: &usize, b: &usize| key(*a).total_cmp(&key(*b)).then(a.cmp(b));
+    if n < idx.len() {
+        idx.select_nth_unstable_by(n, cmp);
+        idx.truncate(n);
+    }
+    idx.sort_by(cmp);
+}
+
 /// Label of a candidate in tables: the paper's model number for the paper basis.
 fn label(basis: Basis, s: Structure) -> String {
     match basis {
@@ -147,11 +161,7 @@ pub fn print_tables(sel: &[Selection], settings: &Settings) {
         let mut rows: Vec<usize> = (0..s.candidates.len()).collect();
         let many = rows.len() > 32;
         if many {
-            rows.sort_by(|&a, &b| {
-                let (x, y) = (s.candidates[a].criterion, s.candidates[b].criterion);
-                x.unwrap_or(f64::INFINITY).total_cmp(&y.unwrap_or(f64::INFINITY))
-            });
-            rows.truncate(15);
+            best_first(&mut rows, 15, |i| s.candidates[i].criterion);
             if !rows.contains(&s.selected) {
                 rows.push(s.selected);
             }
@@ -189,13 +199,7 @@ pub fn to_json(sel: &[Selection], settings: &Settings, split: &str, top: Option<
             let top = top.unwrap_or(if n > 4096 { 1000 } else { 0 });
             let mut idx: Vec<usize> = (0..n).collect();
             if top > 0 && top < n {
-                idx.sort_by(|&a, &b| {
-                    s.candidates[a]
-                        .criterion
-                        .unwrap_or(f64::INFINITY)
-                        .total_cmp(&s.candidates[b].criterion.unwrap_or(f64::INFINITY))
-                });
-                idx.truncate(top);
+                best_first(&mut idx, top, |i| s.candidates[i].criterion);
             }
             ChannelJson {
                 channel: s.channel.clone(),
@@ -206,6 +210,8 @@ pub fn to_json(sel: &[Selection], settings: &Settings, split: &str, top: Option<
                 },
                 best_criterion: s.best,
                 candidates_total: n,
+                search_seconds: s.search_seconds,
+                models_per_second: n as f64 / s.search_seconds.max(1e-9),
                 unidentifiable: s.candidates.iter().filter(|c| c.criterion.is_none()).count(),
                 candidates: idx
                     .into_iter()

@@ -93,73 +93,107 @@ struct Factor {
     z: [f64; N_BASIS],
 }
 
+/// Dot product of two short vectors (the length of `a`), with four independent accumulators so the
+/// compiler can pipeline (and vectorise) the sum.
+#[inline(always)]
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len();
+    let b = &b[..n];
+    let split = n & !3;
+    let mut acc = [0.0; 4];
+    for (x, y) in a[..split].chunks_exact(4).zip(b[..split].chunks_exact(4)) {
+        for i in 0..4 {
+            acc[i] += x[i] * y[i];
+        }
+    }
+    let mut s = (acc[0] + acc[1]) + (acc[2] + acc[3]);
+    for (x, y) in a[split..].iter().zip(&b[split..]) {
+        s += x * y;
+    }
+    s
+}
+
 impl Factor {
     fn new() -> Factor {
         Factor { l: [0.0; N_BASIS * N_BASIS], z: [0.0; N_BASIS] }
     }
 
-    /// Adds column `j` as row `k` after columns `sel[..k]`. False when the pivot is too small.
+    /// Adds a column as row `k`, given its Gram entries against the first `k` columns (`g_row`),
+    /// its own diagonal `g_jj` and moment `b_j`. False when the pivot is too small.
     #[inline]
-    fn extend(&mut self, st: &Stats, m: usize, sel: &[usize], k: usize, j: usize) -> bool {
-        let g = &st.gram[j * m..(j + 1) * m];
-        let row = k * N_BASIS;
-        let mut ss = 0.0;
-        let mut zs = 0.0;
+    fn extend(&mut self, g_row: &[f64], g_jj: f64, b_j: f64, k: usize) -> bool {
+        let (done, rest) = self.l.split_at_mut(k * N_BASIS);
+        let row = &mut rest[..N_BASIS];
         for q in 0..k {
-            let rq = q * N_BASIS;
-            let mut s = g[sel[q]];
-            for r in 0..q {
-                s -= self.l[row + r] * self.l[rq + r];
-            }
-            let v = s / self.l[rq + q];
-            self.l[row + q] = v;
-            ss += v * v;
-            zs += v * self.z[q];
+            let rq = &done[q * N_BASIS..q * N_BASIS + q + 1];
+            row[q] = (g_row[q] - dot(&row[..q], &rq[..q])) / rq[q];
         }
-        let d = g[j] - ss;
-        if !(d > PIVOT_TOL * g[j]) {
+        let d = g_jj - dot(&row[..k], &row[..k]);
+        if !(d > PIVOT_TOL * g_jj) {
             return false;
         }
         let lkk = d.sqrt();
-        self.l[row + k] = lkk;
-        self.z[k] = (st.moment[j] - zs) / lkk;
+        row[k] = lkk;
+        self.z[k] = (b_j - dot(&row[..k], &self.z[..k])) / lkk;
         true
     }
 
-    /// Coefficients of the first `k` columns: `β = L⁻ᵀ z`.
+    /// Coefficients of the first `k` columns: `β = L⁻ᵀ z`, column-oriented so that each step is a
+    /// contiguous update with one row of L.
     #[inline]
     fn beta(&self, k: usize, beta: &mut [f64; N_BASIS]) {
-        for i in (0..k).rev() {
-            let mut s = self.z[i];
-            for q in i + 1..k {
-                s -= self.l[q * N_BASIS + i] * beta[q];
+        beta[..k].copy_from_slice(&self.z[..k]);
+        for q in (0..k).rev() {
+            let row = &self.l[q * N_BASIS..q * N_BASIS + q + 1];
+            let bq = beta[q] / row[q];
+            beta[q] = bq;
+            for (b, l) in beta[..q].iter_mut().zip(&row[..q]) {
+                *b -= bq * l;
             }
-            beta[i] = s / self.l[i * N_BASIS + i];
         }
     }
 
     /// Residual sum of squares on the part this factor was built from.
     #[inline]
     fn own_sse(&self, st: &Stats, k: usize) -> f64 {
-        st.yy - self.z[..k].iter().map(|v| v * v).sum::<f64>()
+        st.yy - dot(&self.z[..k], &self.z[..k])
     }
 }
 
-/// Residual sum of squares on part `st` of coefficients `beta` on columns `sel`.
-#[inline]
-fn sse(st: &Stats, m: usize, sel: &[usize], beta: &[f64]) -> f64 {
-    let mut quad = 0.0;
-    let mut lin = 0.0;
-    for (i, &ci) in sel.iter().enumerate() {
-        let g = &st.gram[ci * m..(ci + 1) * m];
-        let mut s = 0.0;
-        for (q, &cq) in sel[..i].iter().enumerate() {
-            s += g[cq] * beta[q];
-        }
-        quad += beta[i] * (2.0 * s + g[ci] * beta[i]);
-        lin += beta[i] * st.moment[ci];
+/// The Gram rows of one part gathered for the current columns: row `k` holds the entries against
+/// columns `0..=k` in selection order, contiguous, so the inner loops need no index gathers.
+struct Compact {
+    g: [f64; N_BASIS * N_BASIS],
+    b: [f64; N_BASIS],
+}
+
+impl Compact {
+    fn new() -> Compact {
+        Compact { g: [0.0; N_BASIS * N_BASIS], b: [0.0; N_BASIS] }
     }
-    st.yy - 2.0 * lin + quad
+
+    /// Gathers column `j` as row `k` after columns `sel[..k]`.
+    #[inline]
+    fn push(&mut self, st: &Stats, m: usize, sel: &[usize], k: usize, j: usize) {
+        let g = &st.gram[j * m..(j + 1) * m];
+        let row = &mut self.g[k * N_BASIS..(k + 1) * N_BASIS];
+        for (r, &c) in row.iter_mut().zip(&sel[..k]) {
+            *r = g[c];
+        }
+        row[k] = g[j];
+        self.b[k] = st.moment[j];
+    }
+
+    /// Residual sum of squares of `beta` (first `k` columns) on this part.
+    #[inline]
+    fn sse(&self, yy: f64, beta: &[f64], k: usize) -> f64 {
+        let mut quad = 0.0;
+        for i in 0..k {
+            let row = &self.g[i * N_BASIS..i * N_BASIS + i + 1];
+            quad += beta[i] * (2.0 * dot(&row[..i], &beta[..i]) + row[i] * beta[i]);
+        }
+        yy - 2.0 * dot(&beta[..k], &self.b[..k]) + quad
+    }
 }
 
 /// Per-task working state.
@@ -167,6 +201,9 @@ struct Walker<'p> {
     p: &'p Problem,
     fa: Factor,
     fb: Factor,
+    /// Gathered Gram rows of the part that fits (A, or A∪B for rss) and of B.
+    ca: Compact,
+    cb: Compact,
     sel: [usize; N_BASIS],
     beta: [f64; N_BASIS],
     max_terms: usize,
@@ -174,42 +211,55 @@ struct Walker<'p> {
 
 impl Walker<'_> {
     fn new(p: &Problem, max_terms: usize) -> Walker<'_> {
-        Walker { p, fa: Factor::new(), fb: Factor::new(), sel: [0; N_BASIS], beta: [0.0; N_BASIS], max_terms }
+        Walker {
+            p,
+            fa: Factor::new(),
+            fb: Factor::new(),
+            ca: Compact::new(),
+            cb: Compact::new(),
+            sel: [0; N_BASIS],
+            beta: [0.0; N_BASIS],
+            max_terms,
+        }
     }
 
     /// Adds column `j` at depth `k` to the factor(s) the criterion needs.
     #[inline]
     fn extend(&mut self, k: usize, j: usize) -> bool {
         let p = self.p;
-        let ok = match p.kind {
-            Kind::Regularity => self.fa.extend(&p.a, p.m, &self.sel, k, j),
-            Kind::Rss => self.fa.extend(&p.ab, p.m, &self.sel, k, j),
-            Kind::Symmetric => {
-                self.fa.extend(&p.a, p.m, &self.sel, k, j) && self.fb.extend(&p.b, p.m, &self.sel, k, j)
-            }
-        };
-        if ok {
-            self.sel[k] = j;
+        let fit = if p.kind == Kind::Rss { &p.ab } else { &p.a };
+        self.ca.push(fit, p.m, &self.sel, k, j);
+        let row = k * N_BASIS;
+        if !self.fa.extend(&self.ca.g[row..row + k], self.ca.g[row + k], self.ca.b[k], k) {
+            return false;
         }
-        ok
+        if p.kind != Kind::Rss {
+            self.cb.push(&p.b, p.m, &self.sel, k, j);
+            if p.kind == Kind::Symmetric
+                && !self.fb.extend(&self.cb.g[row..row + k], self.cb.g[row + k], self.cb.b[k], k)
+            {
+                return false;
+            }
+        }
+        self.sel[k] = j;
+        true
     }
 
     /// The criterion of the first `k` columns (factors already extended).
     #[inline]
     fn score(&mut self, k: usize) -> f64 {
         let p = self.p;
-        let sel = &self.sel[..k];
         match p.kind {
             Kind::Regularity => {
                 self.fa.beta(k, &mut self.beta);
-                (sse(&p.b, p.m, sel, &self.beta[..k]).max(0.0) / p.b.rows).sqrt()
+                (self.cb.sse(p.b.yy, &self.beta, k).max(0.0) / p.b.rows).sqrt()
             }
             Kind::Rss => (self.fa.own_sse(&p.ab, k).max(0.0) / p.ab.rows).sqrt(),
             Kind::Symmetric => {
                 self.fa.beta(k, &mut self.beta);
-                let eb = sse(&p.b, p.m, sel, &self.beta[..k]);
+                let eb = self.cb.sse(p.b.yy, &self.beta, k);
                 self.fb.beta(k, &mut self.beta);
-                let ea = sse(&p.a, p.m, sel, &self.beta[..k]);
+                let ea = self.ca.sse(p.a.yy, &self.beta, k);
                 ((ea + eb).max(0.0) / (p.a.rows + p.b.rows)).sqrt()
             }
         }
@@ -259,20 +309,14 @@ pub fn exhaustive(p: &Problem, max_terms: usize, progress: &(dyn Fn(u64) + Sync)
     let block = 1usize << low;
     let mut out = vec![EXCLUDED; total];
     out.par_chunks_mut(block).enumerate().for_each(|(t, chunk)| {
-        let mut w = Walker::new(p, max_terms);
         let base = t << low;
         // The task's fixed columns: the intercept and the high columns chosen by t.
         let size = 1 + (base >> low).count_ones() as usize;
+        let fixed =
+            std::iter::once(0).chain((low..nb).filter(|bit| base & (1 << bit) != 0).map(|bit| bit + 1));
         if size <= max_terms {
-            let mut ok = w.extend(0, 0);
-            let mut k = 1;
-            for bit in low..nb {
-                if ok && base & (1 << bit) != 0 {
-                    ok = w.extend(k, bit + 1);
-                    k += 1;
-                }
-            }
-            if ok {
+            let mut w = Walker::new(p, max_terms);
+            if fixed.enumerate().all(|(k, c)| w.extend(k, c)) {
                 w.walk(size, base, 1, low + 1, chunk, base);
             } else {
                 mark_subtree(chunk, base, base, 1, low + 1, size, max_terms);

@@ -132,6 +132,8 @@ pub struct Selection {
     pub best: f64,
     /// The selected structure refitted on A∪B (the paper refines coefficients by RSS).
     pub fit: LsqFit,
+    /// Wall time of the search (statistics and scoring, not the refit), s.
+    pub search_seconds: f64,
 }
 
 impl Selection {
@@ -278,11 +280,13 @@ pub fn select(
     settings: &Settings,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Selection, GmdhError> {
+    let t0 = std::time::Instant::now();
     let prepared = Prepared::new(pos, ch, settings)?;
     let candidates = prepared.score(settings.basis, settings.max_terms, progress);
+    let search_seconds = t0.elapsed().as_secs_f64();
     let (selected, best) = choose(&candidates, settings.tolerance).ok_or(GmdhError::NothingIdentifiable)?;
     let fit = lsq::fit(pos, ch, candidates[selected].structure, None)?;
-    Ok(Selection { channel: ch.name.clone(), candidates, selected, best, fit })
+    Ok(Selection { channel: ch.name.clone(), candidates, selected, best, fit, search_seconds })
 }
 
 #[cfg(test)]

@@ -22,6 +22,7 @@ pub fn select(
     width: usize,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Selection, GmdhError> {
+    let t0 = std::time::Instant::now();
     let prep = Prepared::new(pos, ch, settings)?;
     let col = |bi: usize| prep.cols.iter().position(|&c| c == bi).expect("term in the basis");
     let score = |models: &[Structure]| -> Vec<Candidate> {
@@ -70,7 +71,8 @@ pub fn select(
         }
         best = layer_best;
     }
+    let search_seconds = t0.elapsed().as_secs_f64();
     let (selected, best) = choose(&candidates, settings.tolerance).ok_or(GmdhError::NothingIdentifiable)?;
     let fit = lsq::fit(pos, ch, candidates[selected].structure, None)?;
-    Ok(Selection { channel: ch.name.clone(), candidates, selected, best, fit })
+    Ok(Selection { channel: ch.name.clone(), candidates, selected, best, fit, search_seconds })
 }

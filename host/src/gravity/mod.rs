@@ -1,0 +1,77 @@
+//! Gravity-norm calibration of an accelerometer triad from hand-placed static holds (no dividing head).
+//!
+//! The pipeline is: read a raw recording ([`imutk`]), find the static holds ([`holds`]), fit the
+//! 9-parameter imu_tk model on `|a| = g` ([`fit`]), and report ([`cli`], [`plot`]). [`sim`] simulates
+//! a hand-placed session with a known truth so that the whole chain is tested where the answer is known.
+//! See `README-gravity.md` next to this file for the method and the results on a real recording.
+
+pub mod cli;
+pub mod fit;
+pub mod holds;
+pub mod imutk;
+pub mod plot;
+pub mod sim;
+mod solver;
+
+use fit::{FitError, GravityFit, Structure, StructureScore};
+use holds::{Detection, DetectorConfig, HoldError};
+
+/// Errors of the gravity-norm calibration pipeline.
+#[derive(Debug, thiserror::Error)]
+pub enum GravityError {
+    /// The hold detector failed.
+    #[error("hold detection failed")]
+    Holds(#[from] HoldError),
+    /// The fit failed.
+    #[error("gravity-norm fit on {holds} holds failed")]
+    Fit {
+        /// Number of holds given to the fit.
+        holds: usize,
+        /// Underlying error.
+        #[source]
+        source: FitError,
+    },
+}
+
+/// Which model structure to fit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StructureChoice {
+    /// A fixed structure.
+    Fixed(Structure),
+    /// The structure selected on withheld holds (GMDH external criterion, see [`fit::select`]).
+    Auto,
+}
+
+/// Everything the pipeline found on a recording.
+#[derive(Debug, Clone)]
+pub struct Calibration {
+    /// Hold detection (trace, threshold, accepted and rejected holds).
+    pub detection: Detection,
+    /// The fit of the chosen structure on all accepted holds.
+    pub fit: GravityFit,
+    /// Scores of all structures on the same holds (fit and withheld-hold RMS).
+    pub scores: Vec<StructureScore>,
+    /// Structure selected on withheld holds (see [`fit::select`]), if any could be scored.
+    pub selected: Option<Structure>,
+}
+
+/// Detects the holds of a recording and fits the gravity-norm model on their means.
+pub fn calibrate(
+    t: &[f64],
+    codes: &[[f64; 3]],
+    g: f64,
+    detector: &DetectorConfig,
+    structure: StructureChoice,
+) -> Result<Calibration, GravityError> {
+    let detection = holds::detect(t, codes, detector)?;
+    let means: Vec<[f64; 3]> = detection.holds.iter().map(|h| h.mean).collect();
+    let scores = fit::score_structures(&means, g);
+    let selected = fit::select(&scores);
+    let chosen = match structure {
+        StructureChoice::Fixed(s) => s,
+        StructureChoice::Auto => selected.unwrap_or(Structure::ImuTk),
+    };
+    let fit =
+        fit::fit(&means, g, chosen).map_err(|source| GravityError::Fit { holds: means.len(), source })?;
+    Ok(Calibration { detection, fit, scores, selected })
+}

@@ -1,0 +1,249 @@
+//! Integration tests of the gravity-norm calibration: simulated hand-placed sessions with a known truth,
+//! the command-line front end, and the real imu_tk Xsens recording.
+
+use std::path::PathBuf;
+
+use accelcal::gravity::cli::{self, GravityFitArgs, InputFormat, StructureArg};
+use accelcal::gravity::fit::Structure;
+use accelcal::gravity::holds::DetectorConfig;
+use accelcal::gravity::sim::{simulate, SimConfig};
+use accelcal::gravity::{calibrate, StructureChoice};
+use clap::Parser;
+
+/// Tolerances of parameter recovery on a simulated session like the real file (noise 3.3 codes,
+/// 414 codes per m/s², 38 holds of 4–11 s): bias in codes, scale relative, angles in radians.
+const BIAS_TOL: f64 = 1.0;
+const SCALE_REL_TOL: f64 = 2e-4;
+const ANGLE_TOL: f64 = 5e-4;
+
+#[test]
+fn recovers_the_truth_of_simulated_sessions() {
+    for seed in 1..=4 {
+        let cfg = SimConfig { seed, ..SimConfig::default() };
+        let s = simulate(&cfg);
+        let rec = &s.recording;
+        let cal = calibrate(
+            &rec.t,
+            &rec.codes,
+            cfg.g,
+            &DetectorConfig::default(),
+            StructureChoice::Fixed(Structure::ImuTk),
+        )
+        .unwrap();
+        let det = &cal.detection;
+        // Every true static interval is found once, and every detected hold lies inside a true one.
+        assert_eq!(det.holds.len(), s.holds.len(), "seed {seed}: rejected {:?}", det.rejected);
+        for (h, &(ts, te)) in det.holds.iter().zip(&s.holds) {
+            assert!(
+                h.start >= ts && h.end <= te,
+                "seed {seed}: hold {}..{} outside {ts}..{te}",
+                h.start,
+                h.end
+            );
+        }
+        let (m, se, t) = (&cal.fit.model, &cal.fit.std_err, &cfg.truth);
+        for i in 0..3 {
+            let db = m.bias[i] - t.bias[i];
+            let ds = m.scale[i] / t.scale[i] - 1.0;
+            let da = m.alpha[i] - t.alpha[i];
+            assert!(db.abs() < BIAS_TOL, "seed {seed} bias[{i}] error {db}");
+            assert!(ds.abs() < SCALE_REL_TOL, "seed {seed} scale[{i}] rel. error {ds}");
+            assert!(da.abs() < ANGLE_TOL, "seed {seed} alpha[{i}] error {da}");
+            // The stated uncertainties cover the actual errors.
+            assert!(db.abs() < 4.0 * se.bias[i], "seed {seed} bias[{i}] error {db} vs σ {}", se.bias[i]);
+            assert!((m.scale[i] - t.scale[i]).abs() < 4.0 * se.scale[i], "seed {seed} scale[{i}]");
+            assert!(da.abs() < 4.0 * se.alpha[i], "seed {seed} alpha[{i}] error {da} vs σ {}", se.alpha[i]);
+        }
+        // Hold means carry ~3.3/sqrt(600) codes of noise, i.e. a few 1e-4 m/s².
+        assert!(cal.fit.rms < 1e-3, "seed {seed}: rms {}", cal.fit.rms);
+        assert_eq!(cal.selected, Some(Structure::ImuTk), "seed {seed}: {:?}", cal.scores);
+    }
+}
+
+#[test]
+fn a_shorter_minimum_hold_and_noisier_sensor_still_calibrate() {
+    let cfg = SimConfig { seed: 7, holds: 16, hold_s: (2.5, 4.0), noise_codes: 10.0, ..SimConfig::default() };
+    let s = simulate(&cfg);
+    let rec = &s.recording;
+    let det_cfg = DetectorConfig { min_hold_s: 1.0, ..DetectorConfig::default() };
+    let cal =
+        calibrate(&rec.t, &rec.codes, cfg.g, &det_cfg, StructureChoice::Fixed(Structure::ImuTk)).unwrap();
+    assert_eq!(cal.detection.holds.len(), 17, "{:?}", cal.detection.rejected);
+    for i in 0..3 {
+        assert!((cal.fit.model.bias[i] - cfg.truth.bias[i]).abs() < 5.0);
+        assert!((cal.fit.model.scale[i] / cfg.truth.scale[i] - 1.0).abs() < 1e-3);
+        assert!((cal.fit.model.alpha[i] - cfg.truth.alpha[i]).abs() < 2e-3);
+    }
+}
+
+#[test]
+fn gmdh_selects_the_quadratic_term_when_the_sensor_has_one() {
+    let mut cfg = SimConfig { seed: 3, ..SimConfig::default() };
+    cfg.truth.quad = [2e-3, -1.5e-3, 1e-3];
+    let s = simulate(&cfg);
+    let rec = &s.recording;
+    let cal =
+        calibrate(&rec.t, &rec.codes, cfg.g, &DetectorConfig::default(), StructureChoice::Auto).unwrap();
+    assert_eq!(cal.selected, Some(Structure::ImuTkQuadratic), "{:?}", cal.scores);
+    assert_eq!(cal.fit.structure, Structure::ImuTkQuadratic);
+    for i in 0..3 {
+        assert!((cal.fit.model.quad[i] - cfg.truth.quad[i]).abs() < 1e-4, "{:?}", cal.fit.model.quad);
+    }
+}
+
+#[derive(Parser)]
+struct Wrapper {
+    #[command(flatten)]
+    args: GravityFitArgs,
+}
+
+fn parse(argv: &[&str]) -> GravityFitArgs {
+    Wrapper::try_parse_from(std::iter::once("accelcal").chain(argv.iter().copied())).unwrap().args
+}
+
+#[test]
+fn command_line_defaults_and_options() {
+    let a = parse(&["rec.txt"]);
+    assert_eq!(a.options.format, InputFormat::ImuTk);
+    assert_eq!(a.g, 9.81);
+    assert_eq!(a.options.min_hold_s, 2.0);
+    assert_eq!(a.options.threshold, None);
+    assert_eq!(a.options.structure, StructureArg::ImuTk);
+    let a = parse(&[
+        "rec.txt",
+        "--format",
+        "imu-tk",
+        "--g",
+        "9.81744",
+        "--threshold",
+        "200",
+        "--min-hold-s",
+        "3",
+    ]);
+    assert_eq!((a.g, a.options.threshold, a.options.min_hold_s), (9.81744, Some(200.0), 3.0));
+    assert!(Wrapper::try_parse_from(["accelcal", "rec.txt", "--format", "csv"]).is_err());
+    assert!(parse(&["rec.txt", "--g=-1"]).validate().is_err());
+}
+
+#[test]
+fn cli_writes_json_in_the_issue_shape_and_plots() {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = SimConfig { seed: 11, holds: 20, ..SimConfig::default() };
+    let (data, truth) = simulate(&cfg).write(dir.path(), "session").unwrap();
+    assert!(truth.exists());
+    let json = dir.path().join("cal.json");
+    let plots = dir.path().join("plots");
+    let mut args = parse(&[data.to_str().unwrap(), "--g", "9.81744"]);
+    args.json = Some(json.clone());
+    args.options.plot = Some(plots.clone());
+    cli::run(&args).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let ch = v["channels"].as_array().unwrap();
+    assert_eq!(ch.len(), 3);
+    for (i, name) in ["x", "y", "z"].iter().enumerate() {
+        assert_eq!(ch[i]["channel"], *name);
+        let keys: Vec<&String> = ch[i].as_object().unwrap().keys().collect();
+        assert_eq!(keys, ["bias", "channel", "scale"]);
+        assert!((ch[i]["bias"].as_f64().unwrap() - cfg.truth.bias[i]).abs() < 2.0);
+        assert!((ch[i]["scale"].as_f64().unwrap() / cfg.truth.scale[i] - 1.0).abs() < 1e-3);
+    }
+    let t = v["misalignment"].as_array().unwrap();
+    assert_eq!(t.len(), 3);
+    assert!(t.iter().all(|row| row.as_array().unwrap().len() == 3));
+    assert_eq!(t[0][0], 1.0);
+    assert!((t[1][2].as_f64().unwrap() + cfg.truth.alpha[2]).abs() < 1e-3, "T[1][2] = -alpha_zx");
+    assert_eq!(v["holds"], 21);
+    assert!(v["residual_rms"].as_f64().unwrap() < 1e-3);
+    for file in ["gravity-residuals.svg", "gravity-detector.svg"] {
+        let svg = std::fs::read_to_string(plots.join(file)).unwrap();
+        assert!(svg.starts_with("<svg") && svg.contains("</svg>"), "{file}");
+    }
+}
+
+#[test]
+fn cli_reports_bad_input_with_file_and_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.txt");
+    std::fs::write(&bad, "0 1 2 3\n0.01 1 2 oops\n").unwrap();
+    let err = cli::run(&parse(&[bad.to_str().unwrap()])).unwrap_err();
+    let msg = format!("{err:#}");
+    assert!(msg.contains("bad.txt:2:10: expected a number, found `oops`"), "{msg}");
+}
+
+fn real_file() -> PathBuf {
+    std::env::var_os("ACCELCAL_REAL_ACC").map(PathBuf::from).unwrap_or_else(|| {
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/real/imu_tk_xsens_acc.txt.gz")
+    })
+}
+
+#[test]
+fn real_xsens_recording_calibrates_to_a_millimetre_per_second_squared() {
+    let args = parse(&[real_file().to_str().unwrap(), "--g", "9.81744"]);
+    let (rec, cal) = cli::calibrate_file(&args).unwrap();
+    assert_eq!(rec.len(), 51175);
+    // About 38 hand-placed holds plus the initial rest.
+    let n = cal.detection.holds.len();
+    assert!((34..=42).contains(&n), "{n} holds");
+    let first = &cal.detection.holds[0];
+    assert!(
+        first.t_start < 1.0 && first.t_end > 45.0,
+        "initial rest {:.1}..{:.1}",
+        first.t_start,
+        first.t_end
+    );
+    // Measured: 0.00098 m/s² (see README-gravity.md); the issue asks for well below 0.05.
+    assert!(cal.fit.rms < 0.002, "rms {}", cal.fit.rms);
+    assert!(cal.fit.residuals.iter().all(|r| r.abs() < 0.005));
+    // Without misalignment the fit is 30 times worse: the angles are real.
+    let bs = cal.scores.iter().find(|s| s.structure == Structure::BiasScale).unwrap();
+    assert!(bs.fit_rms > 10.0 * cal.fit.rms, "{:?}", cal.scores);
+    for i in 0..3 {
+        assert!((cal.fit.model.scale[i] - 413.0).abs() < 5.0, "{:?}", cal.fit.model.scale);
+        assert!((cal.fit.model.bias[i] - 33000.0).abs() < 1000.0, "{:?}", cal.fit.model.bias);
+    }
+}
+
+#[test]
+fn accelcal_fit_method_gravity_norm_runs_on_the_real_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let json = dir.path().join("real.json");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_accelcal"))
+        .args(["fit", real_file().to_str().unwrap(), "--method", "gravity-norm", "--g", "9.81744"])
+        .arg("--json")
+        .arg(&json)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
+    assert!(stdout.contains("holds: 38 kept, 1 rejected"), "{stdout}");
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    for key in ["channels", "misalignment", "holds", "residual_rms"] {
+        assert!(v.get(key).is_some(), "missing {key}");
+    }
+    // A malformed recording is bad input: exit code 2, message with file, line and column.
+    let bad = dir.path().join("bad.txt");
+    std::fs::write(&bad, "0 1 2 3\n0.01 1 2\n").unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_accelcal"))
+        .args(["fit", bad.to_str().unwrap(), "--method", "gravity-norm"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("bad.txt:2:1: expected 4 fields"));
+}
+
+#[test]
+fn real_recording_result_does_not_hinge_on_the_threshold() {
+    let base = cli::calibrate_file(&parse(&[real_file().to_str().unwrap(), "--g", "9.81744"])).unwrap().1;
+    // From 2x to 30x the noise floor (about 30 codes²) the holds change but the calibration does not.
+    for th in ["60", "1000"] {
+        let args = parse(&[real_file().to_str().unwrap(), "--g", "9.81744", "--threshold", th]);
+        let cal = cli::calibrate_file(&args).unwrap().1;
+        assert!(cal.fit.rms < 0.002, "threshold {th}: rms {}", cal.fit.rms);
+        for i in 0..3 {
+            let ds = cal.fit.model.scale[i] - base.fit.model.scale[i];
+            let db = cal.fit.model.bias[i] - base.fit.model.bias[i];
+            assert!(ds.abs() < 2.0 * base.fit.std_err.scale[i], "threshold {th}: scale[{i}] moved {ds}");
+            assert!(db.abs() < 2.0 * base.fit.std_err.bias[i], "threshold {th}: bias[{i}] moved {db}");
+        }
+    }
+}
