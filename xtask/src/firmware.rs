@@ -253,10 +253,9 @@ fn count_instructions(
         }
         Ok(())
     };
-    // Wait until the node is up and has accepted the record.
+    // Wait for the status the node sends at boot, and check it accepted the record.
     let mut msgs = Vec::new();
     loop {
-        s.write_all(&frame(&HostMsg::GetStatus)?)?;
         recv(&mut s, &mut msgs)?;
         if let Some(NodeMsg::Status(st)) = msgs.iter().find(|m| matches!(m, NodeMsg::Status(_))) {
             ensure!(

@@ -102,11 +102,13 @@ pub async fn transmit(mut tx: impl LinkTx) -> ! {
     }
 }
 
-/// Sends a status report every [`STATUS_PERIOD`], forever.
+/// Announces the node with a status report at boot (the link is up by then, so a host that
+/// waits for it never talks to a receiver that is not yet listening), then reports every
+/// [`STATUS_PERIOD`], forever.
 pub async fn report_status(node: Node) -> ! {
     loop {
-        Timer::after(STATUS_PERIOD).await;
         OUTBOX.send(NodeMsg::Status(node.status())).await;
+        Timer::after(STATUS_PERIOD).await;
     }
 }
 

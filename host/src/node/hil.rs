@@ -146,11 +146,30 @@ impl QemuNode {
         };
         stream.set_read_timeout(Some(Duration::from_millis(200)))?;
         let rx = Receiver::new(stream.try_clone()?);
-        Ok(QemuNode { child, stderr_path, _dir: dir, stream, rx, timeout: opts.timeout })
+        let mut node = QemuNode { child, stderr_path, _dir: dir, stream, rx, timeout: opts.timeout };
+        node.wait_boot_status()?;
+        Ok(node)
     }
 
-    /// The node's status, asked for every 200 ms until it answers (bytes sent before the node
-    /// enables its receiver are lost, so the first request may go unheard).
+    /// Waits for the status report the node sends at boot, once its link is up (QEMU starts the
+    /// guest only once this process has connected, so the report cannot be missed). Nothing is
+    /// sent before it: bytes sent before the node enables its receiver would be lost in part.
+    fn wait_boot_status(&mut self) -> Result<Status, HilError> {
+        let t0 = Instant::now();
+        loop {
+            match self.rx.recv() {
+                Ok(Ok(NodeMsg::Status(s))) => return Ok(s),
+                Ok(_) => {}
+                Err(e) if is_timeout(&e) => {}
+                Err(e) => return Err(self.explain(e)),
+            }
+            if t0.elapsed() > self.timeout {
+                return Err(HilError::Timeout(self.timeout));
+            }
+        }
+    }
+
+    /// Asks the node for its status and returns the next status report.
     pub fn status(&mut self) -> Result<Status, HilError> {
         let t0 = Instant::now();
         let mut tx = self.stream.try_clone()?;
@@ -159,7 +178,7 @@ impl QemuNode {
             match self.rx.recv() {
                 Ok(Ok(NodeMsg::Status(s))) => return Ok(s),
                 Ok(_) => {}
-                Err(e) if is_timeout(&e) => link::send(&mut tx, &HostMsg::GetStatus)?,
+                Err(e) if is_timeout(&e) => {}
                 Err(e) => return Err(self.explain(e)),
             }
             if t0.elapsed() > self.timeout {
