@@ -13,7 +13,7 @@ use crate::app::ports::{LinkRx, LinkTx};
 /// USART1 base address (RM0351 §2.2.2, memory map, APB2).
 const USART1: usize = 0x4001_3800;
 /// USART_CR1 (RM0351 §40.8.1): UE bit 0, RE bit 2, TE bit 3, RXNEIE bit 5.
-const CR1: usize = USART1 + 0x00;
+const CR1: usize = USART1;
 const CR1_UE: u32 = 1 << 0;
 const CR1_RE: u32 = 1 << 2;
 const CR1_TE: u32 = 1 << 3;
