@@ -9,6 +9,7 @@
 pub mod campaign;
 pub mod cli;
 pub mod cmd;
+pub mod diagnose;
 pub mod compare;
 pub mod error;
 pub mod gmdh;

@@ -1,7 +1,9 @@
 //! One module per subcommand; [`run`] dispatches.
 
+pub mod bench_diagnose;
 pub mod compare;
 pub mod demo;
+pub mod diagnose;
 pub mod fit;
 pub mod select;
 pub mod simulate;
@@ -21,6 +23,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Fit(a) => fit::run(&a),
         Command::Compare(a) => compare::run(&a),
         Command::Demo(a) => demo::run(&a),
+        Command::Diagnose(a) => diagnose::run(&a),
+        Command::BenchDiagnose(a) => bench_diagnose::run(&a),
     }
 }
 
