@@ -9,8 +9,8 @@
 pub mod campaign;
 pub mod cli;
 pub mod cmd;
-pub mod diagnose;
 pub mod compare;
+pub mod diagnose;
 pub mod error;
 pub mod gmdh;
 pub mod lsq;

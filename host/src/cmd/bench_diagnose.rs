@@ -56,7 +56,10 @@ pub fn print_summary(s: &Summary, seed: u64) {
         let sh = s.shrink_vs_oracle.get(t).map_or("-".to_string(), |v| format!("{:.3}", v));
         println!(" {:>8.1}% {:>9}", 100.0 * acc, sh);
     }
-    println!("columns: {}", reported.iter().map(|r| format!("{}={r}", abbrev(r))).collect::<Vec<_>>().join(", "));
+    println!(
+        "columns: {}",
+        reported.iter().map(|r| format!("{}={r}", abbrev(r))).collect::<Vec<_>>().join(", ")
+    );
     println!(
         "accuracy on campaigns with an effect: {:.1}%; clean campaigns with a false report: {}/{}; held-out shrink vs oracle: {:.3}",
         100.0 * s.accuracy_effects,

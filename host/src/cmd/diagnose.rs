@@ -46,31 +46,69 @@ pub fn to_json(r: &Report) -> serde_json::Value {
 /// Prints the human tables.
 pub fn print_report(r: &Report) {
     let g = &r.gap;
-    println!("baseline {}: chi2 {} on {} dof, z = {} (simulated twin: z = {}) -> {}",
-        r.baseline, sig(g.chi2, 6), g.dof, sig(g.z, 3), sig(g.z_sim, 3),
-        if g.consistent_with_noise { "consistent with the noise" } else { "NOT consistent with the noise" });
+    println!(
+        "baseline {}: chi2 {} on {} dof, z = {} (simulated twin: z = {}) -> {}",
+        r.baseline,
+        sig(g.chi2, 6),
+        g.dof,
+        sig(g.z, 3),
+        sig(g.z_sim, 3),
+        if g.consistent_with_noise { "consistent with the noise" } else { "NOT consistent with the noise" }
+    );
     println!();
     println!("where the gap lies (z-scores; |z| > 4 is beyond the noise)");
-    println!("{:<8} {:>7} {:>9} {:>9} {:>9} {:>9} {:>8} {:>8} {:>9}", "channel", "sigma", "rms_pos", "rms_sim", "z_pos", "z_dwell", "z_time", "z_temp", "z_approach");
+    println!(
+        "{:<8} {:>7} {:>9} {:>9} {:>9} {:>9} {:>8} {:>8} {:>9}",
+        "channel", "sigma", "rms_pos", "rms_sim", "z_pos", "z_dwell", "z_time", "z_temp", "z_approach"
+    );
     for c in &g.channels {
         println!(
             "{:<8} {:>7} {:>9} {:>9} {:>9} {:>9} {:>8} {:>8} {:>9}",
-            c.name, sig(c.sigma, 3), sig(c.rms_position, 3), sig(c.rms_position_sim, 3), sig(c.z_position, 3),
-            sig(c.z_in_dwell, 3), sig(c.z_time, 3), c.z_temp.map_or("-".into(), |z| sig(z, 3)), sig(c.z_approach, 3)
+            c.name,
+            sig(c.sigma, 3),
+            sig(c.rms_position, 3),
+            sig(c.rms_position_sim, 3),
+            sig(c.z_position, 3),
+            sig(c.z_in_dwell, 3),
+            sig(c.z_time, 3),
+            c.z_temp.map_or("-".into(), |z| sig(z, 3)),
+            sig(c.z_approach, 3)
         );
     }
     println!();
     println!("largest position residuals (dwell residual / per-position noise)");
     for p in &g.worst_positions {
         let zs: Vec<String> = p.z.iter().map(|z| format!("{z:>7.1}")).collect();
-        println!("  #{:<3} alpha {:>7.2} beta {:>7.2}: {}", p.position, p.alpha_deg, p.beta_deg, zs.join(" "));
+        println!(
+            "  #{:<3} alpha {:>7.2} beta {:>7.2}: {}",
+            p.position,
+            p.alpha_deg,
+            p.beta_deg,
+            zs.join(" ")
+        );
     }
     println!();
     for (i, round) in r.attribution.rounds.iter().enumerate() {
-        println!("round {} (held-out chi2 {} over {} bins, rms {} codes)", i + 1, sig(round.before.chi2, 6), round.before.bins, sig(round.before.rms, 4));
-        println!("  {:<18} {:>12} {:>10} {:>10} {:>10}", "effect", "chi2 drop", "threshold", "explained", "rms after");
+        println!(
+            "round {} (held-out chi2 {} over {} bins, rms {} codes)",
+            i + 1,
+            sig(round.before.chi2, 6),
+            round.before.bins,
+            sig(round.before.rms, 4)
+        );
+        println!(
+            "  {:<18} {:>12} {:>10} {:>10} {:>10}",
+            "effect", "chi2 drop", "threshold", "explained", "rms after"
+        );
         for t in &round.trials {
-            println!("  {:<18} {:>12} {:>10} {:>10} {:>10}", t.name, sig(t.chi2_drop, 5), sig(t.threshold, 3), format!("{:.0}%", 100.0 * t.explained), sig(t.score.rms, 4));
+            println!(
+                "  {:<18} {:>12} {:>10} {:>10} {:>10}",
+                t.name,
+                sig(t.chi2_drop, 5),
+                sig(t.threshold, 3),
+                format!("{:.0}%", 100.0 * t.explained),
+                sig(t.score.rms, 4)
+            );
         }
         println!("  -> {}", round.kept.unwrap_or("nothing significant"));
     }
@@ -79,7 +117,13 @@ pub fn print_report(r: &Report) {
         println!("effects found: none");
     }
     for e in &r.effects {
-        println!("effect {} on {}: held-out rms {} -> {} codes", e.name, e.channels.join(","), sig(e.heldout_rms_before, 4), sig(e.heldout_rms_after, 4));
+        println!(
+            "effect {} on {}: held-out rms {} -> {} codes",
+            e.name,
+            e.channels.join(","),
+            sig(e.heldout_rms_before, 4),
+            sig(e.heldout_rms_after, 4)
+        );
         for (who, ps) in &e.parameters {
             let list: Vec<String> = ps
                 .iter()
@@ -91,5 +135,9 @@ pub fn print_report(r: &Report) {
             println!("  {who:<6} {}", list.join(", "));
         }
     }
-    println!("unexplained rms: {} codes (final z = {})", sig(r.unexplained_rms, 3), sig(r.attribution.final_z, 3));
+    println!(
+        "unexplained rms: {} codes (final z = {})",
+        sig(r.unexplained_rms, 3),
+        sig(r.attribution.final_z, 3)
+    );
 }

@@ -12,12 +12,15 @@
 //! **Criterion.** Positions are split alternately into A and B; a model fitted on A is scored on
 //! B and one fitted on B on A. The score is the held-out χ² = Σ n·r²/σ² over withheld bins.
 //! **Greedy selection.** Starting from the baseline, every remaining candidate is added in turn;
-//! the one with the largest held-out χ² drop `D` is kept when (1) `D > 25 + 5·√(2p)`, p the
-//! parameters it adds (under the null hypothesis, that the effect is absent, an added column
-//! raises the held-out χ² on average and `D` has a spread of about `2√(2p)`, so this is more than
-//! five spreads), and (2) `D` is at least [`MIN_EXPLAINED`] (30%) of the remaining excess χ² (held-out χ² minus its
-//! noise expectation, the number of withheld bins): an effect that removes only a slice of a
-//! residual it does not describe is not named, the residual stays unexplained.
+//! the one with the largest held-out χ² drop `D` is kept when (1) `D > max(25 + 5·√(2p),
+//! 0.05·χ²_before)`, p the parameters it adds (under the null hypothesis, that the effect is
+//! absent, an added column raises the held-out χ² on average and `D` has a spread of about
+//! `2√(2p)`, so the first term is more than five spreads; the second asks for a practically
+//! relevant drop, as collinear columns widen the null spread), and (2) `D` is at least
+//! [`MIN_EXPLAINED`] (50%) of the remaining excess χ² (held-out χ² minus its noise expectation,
+//! the number of withheld bins): an effect that removes only a slice of a residual it does not
+//! describe is not named, the residual stays unexplained. `angle_error` replaces (2) by a shape
+//! rule, [`MIN_ANGLE_SHAPE`].
 
 use std::collections::BTreeMap;
 
@@ -290,14 +293,22 @@ fn dwell_resid(d: &Data, resid: &[f64], p: usize) -> (Vec<f64>, Vec<usize>, f64)
     let nb = d.bins.len();
     let rows: Vec<usize> = (0..nb).filter(|&r| d.bins[r].pos == p).collect();
     let n: f64 = rows.iter().map(|&r| d.bins[r].n).sum();
-    let r = (0..d.nch()).map(|c| rows.iter().map(|&i| d.bins[i].n * resid[c * nb + i]).sum::<f64>() / n).collect();
+    let r = (0..d.nch())
+        .map(|c| rows.iter().map(|&i| d.bins[i].n * resid[c * nb + i]).sum::<f64>() / n)
+        .collect();
     (r, rows, n)
 }
 
 /// Solves for (δα, δβ) from the channels other than `skip`, with a Gaussian prior of variance
 /// `prior` (mrad²; infinite: none). Returns the estimate, the sum of the noise variances of the
 /// observable directions, and their number.
-fn solve_angles(gr: &[[f64; 2]], r: &[f64], var: &[f64], skip: Option<usize>, prior: f64) -> ([f64; 2], f64, usize) {
+fn solve_angles(
+    gr: &[[f64; 2]],
+    r: &[f64],
+    var: &[f64],
+    skip: Option<usize>,
+    prior: f64,
+) -> ([f64; 2], f64, usize) {
     let mut a = nalgebra::Matrix2::<f64>::zeros();
     let mut b = nalgebra::Vector2::<f64>::zeros();
     for o in (0..gr.len()).filter(|&o| Some(o) != skip) {
@@ -380,6 +391,9 @@ pub struct Score {
     pub bins: usize,
     /// Parameters of the model (per fold).
     pub params: usize,
+    /// With `angle_error`: the held-out χ² after removing the angle errors estimated from all
+    /// channels (not left out) plus two per position (their degrees of freedom); else `chi2`.
+    pub chi2_shape: f64,
 }
 
 fn nparams(d: &Data, base: Structure, set: &[Cand]) -> usize {
@@ -390,7 +404,7 @@ fn nparams(d: &Data, base: Structure, set: &[Cand]) -> usize {
 /// then the other way round.
 pub fn heldout(d: &Data, base: Structure, set: &[Cand]) -> Score {
     let nb = d.bins.len();
-    let (mut chi2, mut ss, mut count) = (0.0, 0.0, 0usize);
+    let (mut chi2, mut ss, mut count, mut shape) = (0.0, 0.0, 0usize, 0.0);
     for parity in [0, 1] {
         let stacked = |keep: &dyn Fn(usize) -> bool| -> Vec<usize> {
             (0..nb * d.nch()).filter(|&r| keep(d.bins[r % nb].pos)).collect()
@@ -398,13 +412,23 @@ pub fn heldout(d: &Data, base: Structure, set: &[Cand]) -> Score {
         let fit_rows = stacked(&|p| p % 2 == parity);
         let test_rows = stacked(&|p| p % 2 != parity);
         let Some(f) = fit(d, base, set, &fit_rows) else {
-            return Score { chi2: f64::INFINITY, rms: f64::INFINITY, bins: 0, params: 0 };
+            return Score {
+                chi2: f64::INFINITY,
+                rms: f64::INFINITY,
+                bins: 0,
+                params: 0,
+                chi2_shape: f64::INFINITY,
+            };
         };
         let mut r = residuals(&f);
         if set.contains(&Cand::AngleError) {
             let fit_pos: Vec<usize> = (0..d.npos()).filter(|p| p % 2 == parity).collect();
             let test_pos: Vec<usize> = (0..d.npos()).filter(|p| p % 2 != parity).collect();
             let prior = angle_variance(d, &r, &fit_pos);
+            let mut all = r.clone();
+            angle_correct(d, &mut all, &test_pos, false, prior);
+            shape += test_rows.iter().map(|&i| f.design.w[i] * all[i] * all[i]).sum::<f64>();
+            shape += 2.0 * test_pos.len() as f64;
             angle_correct(d, &mut r, &test_pos, true, prior);
         }
         for &i in &test_rows {
@@ -413,7 +437,14 @@ pub fn heldout(d: &Data, base: Structure, set: &[Cand]) -> Score {
             count += 1;
         }
     }
-    Score { chi2, rms: (ss / count.max(1) as f64).sqrt(), bins: count, params: nparams(d, base, set) }
+    let chi2_shape = if set.contains(&Cand::AngleError) { shape } else { chi2 };
+    Score {
+        chi2,
+        rms: (ss / count.max(1) as f64).sqrt(),
+        bins: count,
+        params: nparams(d, base, set),
+        chi2_shape,
+    }
 }
 
 /// One candidate's trial in one round of the greedy selection.
@@ -425,10 +456,13 @@ pub struct Trial {
     pub score: Score,
     /// Drop of the held-out χ² it brings.
     pub chi2_drop: f64,
-    /// Threshold of the drop (25 + 5·√(2p)).
+    /// Threshold of the drop: the larger of 25 + 5·√(2p) and 5% of the held-out χ² before.
     pub threshold: f64,
     /// Fraction of the remaining excess χ² it removes.
     pub explained: f64,
+    /// The fraction its shape rule uses: `explained`, except for `angle_error` (see
+    /// [`significant`]).
+    pub shape_explained: f64,
 }
 
 /// One round of the greedy selection.
@@ -442,14 +476,21 @@ pub struct Round {
     pub kept: Option<&'static str>,
 }
 
-/// The least fraction of the remaining excess χ² an effect must remove to be named. Below one
-/// half because `angle_error` is checked by predicting each channel from the others, and on a
-/// triad some angle errors show on one channel only (at α = 0 a change of α moves only ax).
-pub const MIN_EXPLAINED: f64 = 0.3;
+/// The least fraction of the remaining excess χ² an effect must remove on withheld positions to
+/// be named.
+pub const MIN_EXPLAINED: f64 = 0.5;
+
+/// The least fraction of the excess χ² that the per-position angle subspace must hold for
+/// `angle_error` to be named. Its held-out prediction (each channel from the others) is limited
+/// by geometry (on a triad at α = 0 a change of α moves ax only), so its shape is checked by
+/// estimating the angles from all channels: two parameters per position in a space of three
+/// channels hold about 2/3 of a residual without angle structure, all of one with it.
+pub const MIN_ANGLE_SHAPE: f64 = 0.8;
 
 /// Whether a trial passes both rules of the selection.
 pub fn significant(t: &Trial) -> bool {
-    t.chi2_drop > t.threshold && t.explained >= MIN_EXPLAINED
+    let min = if t.name == Cand::AngleError.name() { MIN_ANGLE_SHAPE } else { MIN_EXPLAINED };
+    t.chi2_drop > t.threshold && t.shape_explained >= min
 }
 
 /// Greedy selection of effects by held-out χ² drop. Returns the kept effects in order and the
@@ -473,12 +514,18 @@ pub fn select(d: &Data, base: Structure) -> (Vec<Cand>, Vec<Round>) {
                 let score = heldout(d, base, &s);
                 let drop = before.chi2 - score.chi2;
                 let p = score.params.saturating_sub(before.params).max(1) as f64;
+                let shape_explained = if c == Cand::AngleError {
+                    (before.chi2 - score.chi2_shape) / excess
+                } else {
+                    drop / excess
+                };
                 let t = Trial {
                     name: c.name(),
                     score,
                     chi2_drop: drop,
-                    threshold: 25.0 + 5.0 * (2.0 * p).sqrt(),
+                    threshold: (25.0 + 5.0 * (2.0 * p).sqrt()).max(0.05 * before.chi2),
                     explained: drop / excess,
+                    shape_explained,
                 };
                 (c, t)
             })
@@ -536,10 +583,12 @@ pub fn full_fit(d: &Data, base: Structure, set: &[Cand]) -> Option<FullFit> {
         let Some(c) = col.cand else { continue };
         let who = col.ch.map_or("all".to_string(), |ch| d.channels[ch].clone());
         let sd = (f.cov[(i, i)] * inflate).sqrt();
-        params.entry(c).or_default().entry(who).or_default().insert(
-            col.param.to_string(),
-            Estimate { value: f.beta[i], sd: sd.is_finite().then_some(sd) },
-        );
+        params
+            .entry(c)
+            .or_default()
+            .entry(who)
+            .or_default()
+            .insert(col.param.to_string(), Estimate { value: f.beta[i], sd: sd.is_finite().then_some(sd) });
     }
     if set.contains(&Cand::Settling) {
         for ch in &d.channels {

@@ -240,9 +240,16 @@ const COLORS: [RGBColor; 6] = [
     RGBColor(140, 86, 75),
 ];
 
-fn lines(path: &Path, title: &str, xdesc: &str, ydesc: &str, series: &[(String, Vec<(f64, f64)>)]) -> anyhow::Result<()> {
+fn lines(
+    path: &Path,
+    title: &str,
+    xdesc: &str,
+    ydesc: &str,
+    series: &[(String, Vec<(f64, f64)>)],
+) -> anyhow::Result<()> {
     let pts = series.iter().flat_map(|s| s.1.iter());
-    let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+    let (mut x0, mut x1, mut y0, mut y1) =
+        (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
     for &(x, y) in pts.filter(|p| p.0.is_finite() && p.1.is_finite()) {
         (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
     }
@@ -268,7 +275,12 @@ fn lines(path: &Path, title: &str, xdesc: &str, ydesc: &str, series: &[(String, 
             .label(name.as_str())
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2)));
     }
-    chart.configure_series_labels().border_style(BLACK).background_style(WHITE.mix(0.8)).draw().map_err(|e| anyhow!("{e}"))?;
+    chart
+        .configure_series_labels()
+        .border_style(BLACK)
+        .background_style(WHITE.mix(0.8))
+        .draw()
+        .map_err(|e| anyhow!("{e}"))?;
     root.present().map_err(|e| anyhow!("{e}"))?;
     Ok(())
 }
@@ -280,16 +292,25 @@ pub fn plot(dir: &Path, d: &Data, gap: &Gap) -> anyhow::Result<Vec<std::path::Pa
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let pos: Vec<(String, Vec<(f64, f64)>)> = (0..d.nch())
         .map(|c| {
-            let pts = (0..d.npos()).map(|p| (p as f64, gap.position_residual[c][p] / d.sigma_pos(c, p))).collect();
+            let pts =
+                (0..d.npos()).map(|p| (p as f64, gap.position_residual[c][p] / d.sigma_pos(c, p))).collect();
             (d.channels[c].clone(), pts)
         })
         .collect();
     let a = dir.join("gap-positions.svg");
-    lines(&a, "baseline residual per position (real - simulated)", "position", "dwell residual / per-position noise", &pos)?;
+    lines(
+        &a,
+        "baseline residual per position (real - simulated)",
+        "position",
+        "dwell residual / per-position noise",
+        &pos,
+    )?;
     let prof: Vec<(String, Vec<(f64, f64)>)> = gap
         .channels
         .iter()
-        .map(|g| (g.name.clone(), g.in_dwell_profile.iter().enumerate().map(|(i, v)| (i as f64, *v)).collect()))
+        .map(|g| {
+            (g.name.clone(), g.in_dwell_profile.iter().enumerate().map(|(i, v)| (i as f64, *v)).collect())
+        })
         .collect();
     let b = dir.join("gap-in-dwell.svg");
     lines(&b, "residual inside the dwell, signed by the step", "bin within dwell", "codes", &prof)?;

@@ -144,8 +144,9 @@ impl Data {
         for ch in 0..nch {
             let k = d.linear_k(ch);
             let own = (0..3).max_by(|&i, &j| k[i].abs().total_cmp(&k[j].abs())).unwrap_or(0);
-            let step =
-                (0..d.npos()).map(|p| if p == 0 { 0.0 } else { d.accel[p][own] - d.accel[p - 1][own] }).collect();
+            let step = (0..d.npos())
+                .map(|p| if p == 0 { 0.0 } else { d.accel[p][own] - d.accel[p - 1][own] })
+                .collect();
             d.k.push(k);
             d.own.push(own);
             d.step.push(step);
@@ -193,7 +194,10 @@ impl Data {
 
     /// Mean of `exp(−t_in_dwell/τ)` over the samples of each bin.
     pub fn settle(&self, tau: f64) -> Vec<f64> {
-        self.offsets.iter().map(|o| o.iter().map(|t| (-t / tau).exp()).sum::<f64>() / o.len() as f64).collect()
+        self.offsets
+            .iter()
+            .map(|o| o.iter().map(|t| (-t / tau).exp()).sum::<f64>() / o.len() as f64)
+            .collect()
     }
 
     /// Dwell-mean of per-bin values (weighted by samples) for every position.
@@ -339,7 +343,8 @@ pub fn attribute(d: &Data, base: Structure) -> Attribution {
             let nb = d.bins.len();
             let ss: f64 = f.resid.iter().map(|r| r * r).sum();
             let noise: f64 = (0..f.resid.len()).map(|i| 1.0 / d.weight(i / nb, i % nb)).sum();
-            let u = if z >= gap::NOISE_Z { ((ss - noise).max(0.0) / f.resid.len() as f64).sqrt() } else { 0.0 };
+            let u =
+                if z >= gap::NOISE_Z { ((ss - noise).max(0.0) / f.resid.len() as f64).sqrt() } else { 0.0 };
             (u, z)
         }
         None => (f64::NAN, f64::NAN),

@@ -23,8 +23,15 @@ use rand_distr::{Distribution, Normal};
 use serde_json::json;
 
 /// Names of every effect, in the order the diagnosis lists them.
-pub const EFFECT_NAMES: [&str; 7] =
-    ["bias_drift", "temperature", "nonlinearity", "head_misalignment", "hysteresis", "settling", "angle_error"];
+pub const EFFECT_NAMES: [&str; 7] = [
+    "bias_drift",
+    "temperature",
+    "nonlinearity",
+    "head_misalignment",
+    "hysteresis",
+    "settling",
+    "angle_error",
+];
 
 /// What an effect may depend on for one sample of one channel.
 #[derive(Clone, Copy, Debug)]
@@ -379,7 +386,11 @@ pub fn parse(spec: &str) -> Result<Box<dyn Effect>, String> {
             t_ref: take(&mut kv, "t_ref", 25.0),
         }),
         "head_misalignment" => Box::new(HeadMisalignment {
-            r_mrad: [take(&mut kv, "rx_mrad", 0.0), take(&mut kv, "ry_mrad", 0.0), take(&mut kv, "rz_mrad", 0.0)],
+            r_mrad: [
+                take(&mut kv, "rx_mrad", 0.0),
+                take(&mut kv, "ry_mrad", 0.0),
+                take(&mut kv, "rz_mrad", 0.0),
+            ],
         }),
         "hysteresis" => Box::new(Hysteresis { h: take(&mut kv, "h", 0.0) }),
         "settling" => {

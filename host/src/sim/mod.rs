@@ -97,7 +97,8 @@ pub struct TempProfile {
 impl TempProfile {
     /// Temperature at time `t` of a campaign lasting `duration` s.
     pub fn at(&self, t: f64, duration: f64) -> f64 {
-        self.base_c + self.amp_c * (std::f64::consts::TAU * self.cycles * t / duration.max(1e-9) + self.phase).sin()
+        self.base_c
+            + self.amp_c * (std::f64::consts::TAU * self.cycles * t / duration.max(1e-9) + self.phase).sin()
     }
 }
 
@@ -105,7 +106,8 @@ impl std::str::FromStr for TempProfile {
     type Err = String;
     /// Parses `BASE:AMP:CYCLES` (°C, °C, cycles over the campaign; the phase is 0).
     fn from_str(s: &str) -> Result<TempProfile, String> {
-        let v: Vec<f64> = s.split(':').filter_map(|x| x.trim().parse().ok()).filter(|x: &f64| x.is_finite()).collect();
+        let v: Vec<f64> =
+            s.split(':').filter_map(|x| x.trim().parse().ok()).filter(|x: &f64| x.is_finite()).collect();
         match v[..] {
             [base_c, amp_c, cycles] if s.split(':').count() == 3 => {
                 Ok(TempProfile { base_c, amp_c, cycles, phase: 0.0 })
@@ -214,8 +216,7 @@ pub fn simulate(cfg: &SimConfig) -> (Campaign, Truth) {
         for e in &cfg.effects {
             e.kinematics(&mut kin);
         }
-        let accel =
-            if kin.changed { kin.accel(cfg.g) } else { accelcal_shared::gravity(alpha, beta, cfg.g) };
+        let accel = if kin.changed { kin.accel(cfg.g) } else { accelcal_shared::gravity(alpha, beta, cfg.g) };
         for s in 0..cfg.samples {
             c.t_s.push((t * 1e6).round() / 1e6);
             c.alpha_deg.push(alpha);
