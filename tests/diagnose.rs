@@ -107,7 +107,7 @@ fn the_gap_is_localised_where_the_effect_acts() {
 
 #[test]
 fn small_blind_benchmark_meets_the_aim() {
-    let s = bench::run(48, 0xb11d, &|| {});
+    let s = bench::run(48, 0xb11d, bench::MAGNITUDE, &|| {});
     assert_eq!(s.clean, 6);
     assert_eq!(s.clean_false_positives, 0, "{:#?}", s.confusion);
     assert!(s.accuracy_effects >= 0.95, "{:.3}: {:#?}", s.accuracy_effects, s.confusion);

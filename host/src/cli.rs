@@ -271,6 +271,10 @@ pub struct BenchDiagnoseArgs {
     /// Master seed (each campaign's seed, effect and magnitude are drawn from it).
     #[arg(long, default_value_t = 2026)]
     pub seed: u64,
+    /// Range of the effects' magnitudes, `LO:HI`, in units of the per-position noise (RMS of the
+    /// effect's contribution to the dwell means over σ/√samples).
+    #[arg(long, default_value = "5:15", value_name = "LO:HI")]
+    pub magnitude: String,
     /// Write the results (confusion table, per-campaign rows) as JSON.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,

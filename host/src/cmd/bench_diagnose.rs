@@ -19,22 +19,29 @@ pub fn run(a: &BenchDiagnoseArgs) -> anyhow::Result<()> {
         ProgressStyle::with_template("{bar:40} {pos}/{len} campaigns, {elapsed} elapsed, eta {eta}")
             .expect("valid template"),
     );
-    let s = bench::run(a.campaigns, a.seed, &|| pb.inc(1));
+    let range = parse_range(&a.magnitude)?;
+    let s = bench::run(a.campaigns, a.seed, range, &|| pb.inc(1));
     pb.finish_and_clear();
-    print_summary(&s, a.seed);
+    print_summary(&s, a.seed, range);
     if let Some(j) = &a.json {
         write_json(j, &s)?;
     }
     Ok(())
 }
 
+fn parse_range(s: &str) -> anyhow::Result<(f64, f64)> {
+    let v: Vec<Option<f64>> = s.split(':').map(|x| x.trim().parse::<f64>().ok()).collect();
+    match v[..] {
+        [Some(lo), Some(hi)] if lo.is_finite() && hi.is_finite() && lo > 0.0 && hi >= lo => Ok((lo, hi)),
+        _ => Err(bad(format!("--magnitude `{s}`: expected LO:HI with 0 < LO <= HI"))),
+    }
+}
+
 /// Prints the confusion table and the scores.
-pub fn print_summary(s: &Summary, seed: u64) {
+pub fn print_summary(s: &Summary, seed: u64, range: (f64, f64)) {
     println!(
         "blind benchmark: {} campaigns, master seed {seed}, magnitudes {}..{} x per-position noise",
-        s.campaigns,
-        bench::MAGNITUDE.0,
-        bench::MAGNITUDE.1
+        s.campaigns, range.0, range.1
     );
     let mut reported: Vec<String> = s.confusion.values().flat_map(|m| m.keys().cloned()).collect();
     reported.sort();

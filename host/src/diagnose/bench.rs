@@ -18,7 +18,7 @@ use super::attribution::{heldout, select, Cand};
 use super::Data;
 use crate::sim::{self, effects, SimConfig, TempProfile};
 
-/// Magnitudes drawn, in units of the per-position noise.
+/// Default range of the magnitudes drawn, in units of the per-position noise.
 pub const MAGNITUDE: (f64, f64) = (5.0, 15.0);
 
 /// One benchmark campaign as generated (what the diagnosis is not told).
@@ -144,8 +144,9 @@ fn base_config(seed: u64) -> SimConfig {
 }
 
 /// Generates campaign `index` of the benchmark with master seed `master`: clean for index ≡ 0
-/// (mod 8), else the effect `Cand::ALL[index % 8 − 1]`.
-pub fn generate(master: u64, index: usize) -> (Case, SimConfig) {
+/// (mod 8), else the effect `Cand::ALL[index % 8 − 1]` with a magnitude drawn uniformly in
+/// `range` (per-position noise units).
+pub fn generate(master: u64, index: usize, range: (f64, f64)) -> (Case, SimConfig) {
     let mut rng = ChaCha8Rng::seed_from_u64(master ^ (index as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15));
     let seed: u64 = rng.random();
     let temp = TempProfile {
@@ -159,7 +160,7 @@ pub fn generate(master: u64, index: usize) -> (Case, SimConfig) {
         0 => None,
         k => Some(Cand::ALL[k - 1]),
     };
-    let magnitude = rng.random_range(MAGNITUDE.0..MAGNITUDE.1);
+    let magnitude = if range.1 > range.0 { rng.random_range(range.0..range.1) } else { range.0 };
     let mut case = Case { index, seed, truth: truth.map(Cand::name), spec: None, magnitude: 0.0 };
     if let Some(c) = truth {
         let mut dir = rng.clone();
@@ -176,8 +177,8 @@ pub fn generate(master: u64, index: usize) -> (Case, SimConfig) {
 }
 
 /// Runs one campaign: simulate, diagnose blind, score against the oracle.
-pub fn run_case(master: u64, index: usize) -> Outcome {
-    let (case, cfg) = generate(master, index);
+pub fn run_case(master: u64, index: usize, range: (f64, f64)) -> Outcome {
+    let (case, cfg) = generate(master, index, range);
     let (c, _) = sim::simulate(&cfg);
     let d = Data::new(&c, cfg.g).expect("simulated campaigns have noise and positions");
     let (set, rounds) = select(&d, MODEL_4);
@@ -190,12 +191,12 @@ pub fn run_case(master: u64, index: usize) -> Outcome {
     Outcome { correct: reported == truth, case, reported, rms_before, rms_after, rms_oracle }
 }
 
-/// Runs `n` campaigns (in parallel); `tick` is called after each.
-pub fn run(n: usize, master: u64, tick: &(dyn Fn() + Sync)) -> Summary {
+/// Runs `n` campaigns (in parallel) with magnitudes in `range`; `tick` is called after each.
+pub fn run(n: usize, master: u64, range: (f64, f64), tick: &(dyn Fn() + Sync)) -> Summary {
     let outcomes: Vec<Outcome> = (0..n)
         .into_par_iter()
         .map(|i| {
-            let o = run_case(master, i);
+            let o = run_case(master, i, range);
             tick();
             o
         })
