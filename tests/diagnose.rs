@@ -67,6 +67,24 @@ fn each_effect_is_found_with_its_parameters() {
 }
 
 #[test]
+fn two_effects_that_a_third_mimics_are_found_by_the_pair_search() {
+    // Drift plus hysteresis: settling mimics their sum better than either alone, so the first
+    // greedy round keeps nothing and the pair search names both.
+    let mut cfg = config(8, None);
+    cfg.temp = Some(TempProfile { base_c: 25.0, amp_c: 5.0, cycles: 1.5, phase: 0.0 });
+    cfg.effects =
+        vec![effects::parse("bias_drift=rate:0.2").unwrap(), effects::parse("hysteresis=h:20").unwrap()];
+    let (c, _) = sim::simulate(&cfg);
+    let r = diagnose::diagnose(&c, accelcal_shared::G_STANDARD, MODEL_4).unwrap();
+    let mut names: Vec<&str> = r.effects.iter().map(|e| e.name.as_str()).collect();
+    names.sort();
+    assert_eq!(names, ["bias_drift", "hysteresis"], "{:#?}", r.attribution.rounds);
+    assert_eq!(r.unexplained_rms, 0.0);
+    let h = &r.effects.iter().find(|e| e.name == "hysteresis").unwrap().parameters["z"]["h"];
+    assert!((h.value - 20.0).abs() < 4.0 * h.sd.unwrap(), "{h:?}");
+}
+
+#[test]
 fn clean_campaigns_report_nothing() {
     for seed in [1, 2, 3, 4] {
         let r = run(seed, None);

@@ -113,6 +113,21 @@ pub fn print_report(r: &Report) {
         println!("  -> {}", round.kept.unwrap_or("nothing significant"));
     }
     println!();
+    let a = &r.attribution;
+    if !a.not_named.is_empty() {
+        println!(
+            "kept by the rounds but not named: {} (together they remove {:.0}% of the excess, less than {:.0}%)",
+            a.not_named.join(", "),
+            100.0 * a.joint_explained,
+            100.0 * diagnose::attribution::MIN_EXPLAINED
+        );
+    }
+    if a.from_pairs {
+        println!(
+            "the greedy path stalled below {:.0}% of the excess; the pair search named the effects below",
+            100.0 * diagnose::attribution::MIN_EXPLAINED
+        );
+    }
     if r.effects.is_empty() {
         println!("effects found: none");
     }

@@ -12,15 +12,19 @@
 //! **Criterion.** Positions are split alternately into A and B; a model fitted on A is scored on
 //! B and one fitted on B on A. The score is the held-out χ² = Σ n·r²/σ² over withheld bins.
 //! **Greedy selection.** Starting from the baseline, every remaining candidate is added in turn;
-//! the one with the largest held-out χ² drop `D` is kept when (1) `D > max(25 + 5·√(2p),
-//! 0.05·χ²_before)`, p the parameters it adds (under the null hypothesis, that the effect is
-//! absent, an added column raises the held-out χ² on average and `D` has a spread of about
-//! `2√(2p)`, so the first term is more than five spreads; the second asks for a practically
-//! relevant drop, as collinear columns widen the null spread), and (2) `D` is at least
-//! [`MIN_EXPLAINED`] (50%) of the remaining excess χ² (held-out χ² minus its noise expectation,
-//! the number of withheld bins): an effect that removes only a slice of a residual it does not
-//! describe is not named, the residual stays unexplained. `angle_error` replaces (2) by a shape
-//! rule, [`MIN_ANGLE_SHAPE`].
+//! the one with the largest held-out χ² drop `D` among those passing both rules is kept:
+//! (1) `D > max(25 + 5·√(2p), 0.05·χ²_before)`, p the parameters it adds (under the null
+//! hypothesis, that the effect is absent, an added column raises the held-out χ² on average and
+//! `D` has a spread of about `2√(2p)`, so the first term is more than five spreads; the second
+//! asks for a practically relevant drop, as collinear columns widen the null spread); (2) `D` is
+//! at least [`MIN_EXPLAINED`] (50%) of the remaining excess held-out χ² (held-out χ² minus its
+//! noise expectation, the number of withheld bins), for `angle_error` the shape rule
+//! [`MIN_ANGLE_SHAPE`] instead. Rounds go on until no candidate passes. An effect that removes
+//! only a slice of a residual it does not describe is not named: the residual stays unexplained.
+//! **Pairs.** When the first round keeps nothing, every pair of deterministic candidates is
+//! scored (greedy's blind spot: two effects present whose sum a third one mimics better than
+//! either alone); a pair is named when each member's marginal drop passes rule (1) and together
+//! they remove at least half the excess.
 
 use std::collections::BTreeMap;
 
@@ -477,7 +481,7 @@ pub struct Round {
 }
 
 /// The least fraction of the remaining excess χ² an effect must remove on withheld positions to
-/// be named.
+/// be kept in a round, and that the kept effects together must remove to be named.
 pub const MIN_EXPLAINED: f64 = 0.5;
 
 /// The least fraction of the excess χ² that the per-position angle subspace must hold for
@@ -487,15 +491,35 @@ pub const MIN_EXPLAINED: f64 = 0.5;
 /// channels hold about 2/3 of a residual without angle structure, all of one with it.
 pub const MIN_ANGLE_SHAPE: f64 = 0.8;
 
-/// Whether a trial passes both rules of the selection.
+/// Whether a trial may be kept in its round: a drop above the threshold that removes at least
+/// [`MIN_EXPLAINED`] of the remaining excess (for `angle_error`: the shape rule).
 pub fn significant(t: &Trial) -> bool {
     let min = if t.name == Cand::AngleError.name() { MIN_ANGLE_SHAPE } else { MIN_EXPLAINED };
     t.chi2_drop > t.threshold && t.shape_explained >= min
 }
 
-/// Greedy selection of effects by held-out χ² drop. Returns the kept effects in order and the
-/// rounds.
-pub fn select(d: &Data, base: Structure) -> (Vec<Cand>, Vec<Round>) {
+/// The outcome of the greedy selection.
+#[derive(Clone, Debug, Serialize)]
+pub struct Selection {
+    /// The effects named, in the order kept (empty when they explain too little together).
+    pub set: Vec<Cand>,
+    /// Every round.
+    pub rounds: Vec<Round>,
+    /// Fraction of the baseline's held-out excess χ² the kept effects remove together.
+    pub joint_explained: f64,
+    /// Effects kept but not named because together they explain less than [`MIN_EXPLAINED`] of
+    /// the excess (the residual is reported as unexplained instead).
+    pub not_named: Vec<&'static str>,
+    /// For each named effect: the held-out score before and after adding it.
+    pub steps: Vec<(Score, Score)>,
+    /// Whether the set came from the pair search (the greedy path stalled).
+    pub from_pairs: bool,
+}
+
+/// Greedy selection of effects by held-out χ² drop: each round keeps the candidate with the
+/// largest drop among those that pass [`significant`]; the kept effects are named when together
+/// they remove at least [`MIN_EXPLAINED`] of the baseline's held-out excess χ².
+pub fn select(d: &Data, base: Structure) -> Selection {
     let mut set: Vec<Cand> = Vec::new();
     let mut rounds = Vec::new();
     let mut before = heldout(d, base, &set);
@@ -531,7 +555,7 @@ pub fn select(d: &Data, base: Structure) -> (Vec<Cand>, Vec<Round>) {
             })
             .collect();
         trials.sort_by(|a, b| b.1.chi2_drop.total_cmp(&a.1.chi2_drop));
-        let best = trials.first().filter(|(_, t)| significant(t)).map(|(c, t)| (*c, t.score));
+        let best = trials.iter().find(|(_, t)| significant(t)).map(|(c, t)| (*c, t.score));
         rounds.push(Round {
             before,
             trials: trials.iter().map(|(_, t)| t.clone()).collect(),
@@ -545,7 +569,67 @@ pub fn select(d: &Data, base: Structure) -> (Vec<Cand>, Vec<Round>) {
             None => break,
         }
     }
-    (set, rounds)
+    let first = rounds.first().map_or(before, |r| r.before);
+    let excess = (first.chi2 - first.bins as f64).max(1e-9);
+    let mut steps: Vec<(Score, Score)> = Vec::new();
+    for (i, r) in rounds.iter().enumerate().take(set.len()) {
+        let after = rounds.get(i + 1).map_or(before, |n| n.before);
+        steps.push((r.before, after));
+    }
+    let mut joint_explained = if set.is_empty() { 0.0 } else { (first.chi2 - before.chi2_shape) / excess };
+    let mut from_pairs = false;
+    if set.is_empty() && !rounds.is_empty() {
+        if let Some((pair, pair_steps, joint)) = best_pair(d, base, &rounds[0]) {
+            (set, steps, joint_explained, from_pairs) = (pair, pair_steps, joint, true);
+        }
+    }
+    let mut not_named = Vec::new();
+    if joint_explained < MIN_EXPLAINED {
+        not_named = set.iter().map(|c| c.name()).collect();
+        set.clear();
+        steps.clear();
+    }
+    Selection { set, rounds, joint_explained, not_named, steps, from_pairs }
+}
+
+/// A pair found by [`best_pair`]: the effects, their steps, and the fraction of the excess removed.
+type PairPick = (Vec<Cand>, Vec<(Score, Score)>, f64);
+
+/// The pair search, for when the first greedy round keeps nothing (its blind spot: two
+/// effects present whose sum a third one mimics better than either alone): every pair of the
+/// deterministic candidates is scored; a pair qualifies when each member's marginal drop (the
+/// pair against the other member alone) passes the round-1 threshold; the qualifying pair with
+/// the lowest held-out χ² is returned, ordered by single-effect drop, with its steps and the
+/// fraction of the excess it removes.
+fn best_pair(d: &Data, base: Structure, r1: &Round) -> Option<PairPick> {
+    let single = |c: Cand| r1.trials.iter().find(|t| t.name == c.name());
+    let cands: Vec<Cand> = Cand::ALL
+        .into_iter()
+        .filter(|&c| c != Cand::AngleError && c.available(d) && single(c).is_some())
+        .collect();
+    let excess = (r1.before.chi2 - r1.before.bins as f64).max(1e-9);
+    let mut best: Option<PairPick> = None;
+    for (i, &a) in cands.iter().enumerate() {
+        for &b in &cands[i + 1..] {
+            let (ta, tb) = (single(a)?, single(b)?);
+            let score = heldout(d, base, &[a, b]);
+            let ok = |alone: &Trial, other: &Trial| {
+                let p = score.params.saturating_sub(other.score.params).max(1) as f64;
+                let thr = (25.0 + 5.0 * (2.0 * p).sqrt()).max(0.05 * other.score.chi2);
+                other.score.chi2 - score.chi2 > thr && alone.chi2_drop > 0.0
+            };
+            if !(ok(ta, tb) && ok(tb, ta)) {
+                continue;
+            }
+            if best.as_ref().is_some_and(|(_, s, _)| s[1].1.chi2 <= score.chi2) {
+                continue;
+            }
+            let (first, second, t1) = if ta.chi2_drop >= tb.chi2_drop { (a, b, ta) } else { (b, a, tb) };
+            let steps = vec![(r1.before, t1.score), (t1.score, score)];
+            best = Some((vec![first, second], steps, (r1.before.chi2 - score.chi2) / excess));
+        }
+    }
+    best
 }
 
 /// A parameter estimate with its one-sigma uncertainty (None when not available).

@@ -181,10 +181,11 @@ pub fn run_case(master: u64, index: usize, range: (f64, f64)) -> Outcome {
     let (case, cfg) = generate(master, index, range);
     let (c, _) = sim::simulate(&cfg);
     let d = Data::new(&c, cfg.g).expect("simulated campaigns have noise and positions");
-    let (set, rounds) = select(&d, MODEL_4);
+    let sel = select(&d, MODEL_4);
+    let set = sel.set;
     let reported: Vec<&'static str> = set.iter().map(|c| c.name()).collect();
     let truth: Vec<&'static str> = case.truth.into_iter().collect();
-    let rms_before = rounds.first().map_or(f64::NAN, |r| r.before.rms);
+    let rms_before = sel.rounds.first().map_or(f64::NAN, |r| r.before.rms);
     let rms_after = heldout(&d, MODEL_4, &set).rms;
     let oracle: Vec<Cand> = case.truth.and_then(Cand::from_name).into_iter().collect();
     let rms_oracle = heldout(&d, MODEL_4, &oracle).rms;

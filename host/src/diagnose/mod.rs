@@ -24,7 +24,7 @@ use crate::campaign::Campaign;
 pub const BINS: usize = 8;
 
 /// Range of settling time constants searched, s.
-pub const TAU_RANGE: (f64, f64) = (0.03, 5.0);
+pub const TAU_RANGE: (f64, f64) = (0.03, 2.0);
 
 /// Why a campaign cannot be diagnosed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -290,6 +290,12 @@ pub struct Attribution {
     pub final_z: f64,
     /// Every round of the greedy selection.
     pub rounds: Vec<attribution::Round>,
+    /// Fraction of the baseline's held-out excess χ² the kept effects remove together.
+    pub joint_explained: f64,
+    /// Effects the rounds kept but that were not named (they explain too little together).
+    pub not_named: Vec<&'static str>,
+    /// Whether the effects came from the pair search (the greedy path stalled).
+    pub from_pairs: bool,
 }
 
 /// The whole diagnosis: the gap and its attribution.
@@ -309,12 +315,12 @@ pub struct Report {
 
 /// Selects and fits the effects on prepared data.
 pub fn attribute(d: &Data, base: Structure) -> Attribution {
-    let (set, rounds) = attribution::select(d, base);
+    let sel = attribution::select(d, base);
+    let set = sel.set.clone();
     let ff = attribution::full_fit(d, base, &set);
     let mut effects = Vec::new();
     for (i, &c) in set.iter().enumerate() {
-        let round = &rounds[i];
-        let trial = round.trials.iter().find(|t| t.name == c.name()).expect("kept effects were tried");
+        let (before, after) = sel.steps[i];
         let parameters: BTreeMap<String, BTreeMap<String, attribution::Estimate>> = ff
             .as_ref()
             .and_then(|f| f.params.get(&c))
@@ -332,9 +338,9 @@ pub fn attribute(d: &Data, base: Structure) -> Attribution {
             name: c.name().to_string(),
             channels,
             parameters,
-            heldout_rms_before: round.before.rms,
-            heldout_rms_after: trial.score.rms,
-            heldout_chi2_drop: trial.chi2_drop,
+            heldout_rms_before: before.rms,
+            heldout_rms_after: after.rms,
+            heldout_chi2_drop: before.chi2 - after.chi2,
         });
     }
     let (unexplained_rms, final_z) = match &ff {
@@ -349,7 +355,15 @@ pub fn attribute(d: &Data, base: Structure) -> Attribution {
         }
         None => (f64::NAN, f64::NAN),
     };
-    Attribution { effects, unexplained_rms, final_z, rounds }
+    Attribution {
+        effects,
+        unexplained_rms,
+        final_z,
+        rounds: sel.rounds,
+        joint_explained: sel.joint_explained,
+        not_named: sel.not_named,
+        from_pairs: sel.from_pairs,
+    }
 }
 
 /// Diagnoses a campaign against the baseline `base`.
