@@ -21,10 +21,12 @@
 //! noise expectation, the number of withheld bins), for `angle_error` the shape rule
 //! [`MIN_ANGLE_SHAPE`] instead. Rounds go on until no candidate passes. An effect that removes
 //! only a slice of a residual it does not describe is not named: the residual stays unexplained.
-//! **Pairs.** When the first round keeps nothing, every pair of deterministic candidates is
-//! scored (greedy's blind spot: two effects present whose sum a third one mimics better than
-//! either alone); a pair is named when each member's marginal drop passes rule (1) and together
-//! they remove at least half the excess.
+//! **Pairs.** When the greedy path stalls (the first round keeps nothing, or it keeps one effect
+//! and the full-data residual is still beyond the noise), every pair of candidates is scored
+//! (greedy's blind spot: two effects present whose sum a third one mimics better than either
+//! alone, or a second effect hidden behind angle errors); the best pair is named when each
+//! member's marginal drop passes rule (1), together they remove at least half the excess, and it
+//! beats the greedy set on the held-out χ².
 
 use std::collections::BTreeMap;
 
@@ -32,6 +34,7 @@ use accelcal_shared::{Structure, Term};
 use nalgebra::DMatrix;
 use serde::Serialize;
 
+use super::gap::NOISE_Z;
 use super::{wls, Data, TAU_RANGE};
 
 /// The candidate effects, named as in the simulator.
@@ -241,19 +244,23 @@ struct Fitted {
     tau: f64,
 }
 
-fn fit_at(d: &Data, base: Structure, set: &[Cand], tau: f64, rows: &[usize]) -> Option<Fitted> {
-    let design = design(d, base, set, tau);
+fn fit_at(d: &Data, base: Structure, set: &[Cand], tau: f64, rows: &[usize], adj: &[f64]) -> Option<Fitted> {
+    let mut design = design(d, base, set, tau);
+    for (y, a) in design.y.iter_mut().zip(adj) {
+        *y -= a;
+    }
     let f = wls(&design.x, &design.y, &design.w, rows)?;
     Some(Fitted { design, beta: f.beta, cov: f.cov, wsse: f.wsse, tau })
 }
 
 /// Fits the deterministic part of `set` on the stacked `rows`; with `settling`, the time constant
 /// minimising the fitted χ² (golden-section search on log τ).
-fn fit(d: &Data, base: Structure, set: &[Cand], rows: &[usize]) -> Option<Fitted> {
+/// `adj` (stacked, may be empty) is subtracted from the data first.
+fn fit(d: &Data, base: Structure, set: &[Cand], rows: &[usize], adj: &[f64]) -> Option<Fitted> {
     if !set.contains(&Cand::Settling) {
-        return fit_at(d, base, set, 1.0, rows);
+        return fit_at(d, base, set, 1.0, rows, adj);
     }
-    let f = |lt: f64| fit_at(d, base, set, lt.exp(), rows).map_or(f64::INFINITY, |f| f.wsse);
+    let f = |lt: f64| fit_at(d, base, set, lt.exp(), rows, adj).map_or(f64::INFINITY, |f| f.wsse);
     let (mut lo, mut hi) = (TAU_RANGE.0.ln(), TAU_RANGE.1.ln());
     // A coarse scan first (the criterion need not be unimodal), then golden sections.
     let grid: Vec<f64> = (0..12).map(|i| lo + (hi - lo) * i as f64 / 11.0).collect();
@@ -276,7 +283,35 @@ fn fit(d: &Data, base: Structure, set: &[Cand], rows: &[usize]) -> Option<Fitted
             fb = f(b);
         }
     }
-    fit_at(d, base, set, ((lo + hi) / 2.0).exp(), rows)
+    fit_at(d, base, set, ((lo + hi) / 2.0).exp(), rows, adj)
+}
+
+/// Fits the deterministic part of `set` on `rows` (the bins of `positions`). With `angle_error`
+/// in the set, backfitting: the angle errors of `positions` are estimated from all channels and
+/// taken out of the data, and the deterministic part refitted (three passes), so that angle
+/// errors do not bias the other parameters. Returns the fit (its residuals have the fitted angle
+/// errors removed on `rows`) and the angle-error variance (mrad², 0 without `angle_error`).
+fn fit_backfit(
+    d: &Data,
+    base: Structure,
+    set: &[Cand],
+    rows: &[usize],
+    positions: &[usize],
+) -> Option<(Fitted, f64)> {
+    if !set.contains(&Cand::AngleError) {
+        return Some((fit(d, base, set, rows, &[])?, 0.0));
+    }
+    let mut adj = vec![0.0; d.bins.len() * d.nch()];
+    let mut prior = 0.0;
+    for _ in 0..3 {
+        let f = fit(d, base, set, rows, &adj)?;
+        let full: Vec<f64> = residuals(&f).iter().zip(&adj).map(|(r, a)| r + a).collect();
+        prior = angle_variance(d, &full, positions);
+        let mut left = full.clone();
+        angle_correct(d, &mut left, positions, false, prior);
+        adj = full.iter().zip(&left).map(|(f, l)| f - l).collect();
+    }
+    Some((fit(d, base, set, rows, &adj)?, prior))
 }
 
 fn residuals(f: &Fitted) -> Vec<f64> {
@@ -415,7 +450,8 @@ pub fn heldout(d: &Data, base: Structure, set: &[Cand]) -> Score {
         };
         let fit_rows = stacked(&|p| p % 2 == parity);
         let test_rows = stacked(&|p| p % 2 != parity);
-        let Some(f) = fit(d, base, set, &fit_rows) else {
+        let fit_pos: Vec<usize> = (0..d.npos()).filter(|p| p % 2 == parity).collect();
+        let Some((f, prior)) = fit_backfit(d, base, set, &fit_rows, &fit_pos) else {
             return Score {
                 chi2: f64::INFINITY,
                 rms: f64::INFINITY,
@@ -426,9 +462,7 @@ pub fn heldout(d: &Data, base: Structure, set: &[Cand]) -> Score {
         };
         let mut r = residuals(&f);
         if set.contains(&Cand::AngleError) {
-            let fit_pos: Vec<usize> = (0..d.npos()).filter(|p| p % 2 == parity).collect();
             let test_pos: Vec<usize> = (0..d.npos()).filter(|p| p % 2 != parity).collect();
-            let prior = angle_variance(d, &r, &fit_pos);
             let mut all = r.clone();
             angle_correct(d, &mut all, &test_pos, false, prior);
             shape += test_rows.iter().map(|&i| f.design.w[i] * all[i] * all[i]).sum::<f64>();
@@ -578,9 +612,12 @@ pub fn select(d: &Data, base: Structure) -> Selection {
     }
     let mut joint_explained = if set.is_empty() { 0.0 } else { (first.chi2 - before.chi2_shape) / excess };
     let mut from_pairs = false;
-    if set.is_empty() && !rounds.is_empty() {
+    let stalled = set.is_empty() || set.len() == 1 && residual_z(d, base, &set) >= NOISE_Z;
+    if stalled && !rounds.is_empty() {
         if let Some((pair, pair_steps, joint)) = best_pair(d, base, &rounds[0]) {
-            (set, steps, joint_explained, from_pairs) = (pair, pair_steps, joint, true);
+            if set.is_empty() || pair_steps[1].1.chi2 < before.chi2 {
+                (set, steps, joint_explained, from_pairs) = (pair, pair_steps, joint, true);
+            }
         }
     }
     let mut not_named = Vec::new();
@@ -595,9 +632,16 @@ pub fn select(d: &Data, base: Structure) -> Selection {
 /// A pair found by [`best_pair`]: the effects, their steps, and the fraction of the excess removed.
 type PairPick = (Vec<Cand>, Vec<(Score, Score)>, f64);
 
-/// The pair search, for when the first greedy round keeps nothing (its blind spot: two
-/// effects present whose sum a third one mimics better than either alone): every pair of the
-/// deterministic candidates is scored; a pair qualifies when each member's marginal drop (the
+/// z of the χ² of the full-data fit of the baseline and `set`.
+fn residual_z(d: &Data, base: Structure, set: &[Cand]) -> f64 {
+    full_fit(d, base, set).map_or(f64::INFINITY, |f| (f.chi2 - f.dof) / (2.0 * f.dof.max(1.0)).sqrt())
+}
+
+/// The pair search, for when the greedy path stalls: the first round keeps nothing (two effects
+/// present whose sum a third one mimics better than either alone), or it keeps one effect and a
+/// residual beyond the noise remains (with angle errors present, the leave-one-channel-out
+/// residual hides a second effect from rule (2)). Every pair of deterministic candidates (not
+/// `angle_error`: paired, it named a drift `settling` on spot checks) is scored; a pair qualifies when each member's marginal drop (the
 /// pair against the other member alone) passes the round-1 threshold; the qualifying pair with
 /// the lowest held-out χ² is returned, ordered by single-effect drop, with its steps and the
 /// fraction of the excess it removes.
@@ -626,7 +670,7 @@ fn best_pair(d: &Data, base: Structure, r1: &Round) -> Option<PairPick> {
             }
             let (first, second, t1) = if ta.chi2_drop >= tb.chi2_drop { (a, b, ta) } else { (b, a, tb) };
             let steps = vec![(r1.before, t1.score), (t1.score, score)];
-            best = Some((vec![first, second], steps, (r1.before.chi2 - score.chi2) / excess));
+            best = Some((vec![first, second], steps, (r1.before.chi2 - score.chi2_shape) / excess));
         }
     }
     best
@@ -657,8 +701,9 @@ pub struct FullFit {
 pub fn full_fit(d: &Data, base: Structure, set: &[Cand]) -> Option<FullFit> {
     let nb = d.bins.len();
     let all: Vec<usize> = (0..nb * d.nch()).collect();
-    let f = fit(d, base, set, &all)?;
-    let mut resid = residuals(&f);
+    let pos: Vec<usize> = (0..d.npos()).collect();
+    let (f, prior) = fit_backfit(d, base, set, &all, &pos)?;
+    let resid = residuals(&f);
     let mut dof = all.len() as f64 - f.beta.len() as f64;
     let mut params: BTreeMap<Cand, BTreeMap<String, BTreeMap<String, Estimate>>> = BTreeMap::new();
     let chi2_det: f64 = all.iter().map(|&i| f.design.w[i] * resid[i] * resid[i]).sum();
@@ -685,9 +730,6 @@ pub fn full_fit(d: &Data, base: Structure, set: &[Cand]) -> Option<FullFit> {
         }
     }
     if set.contains(&Cand::AngleError) {
-        let pos: Vec<usize> = (0..d.npos()).collect();
-        let prior = angle_variance(d, &resid, &pos);
-        angle_correct(d, &mut resid, &pos, false, prior);
         let n = pos.len() as f64;
         let sd = prior.sqrt();
         let mut m = BTreeMap::new();
