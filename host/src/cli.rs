@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
 use crate::gmdh::{Criterion, Split};
-use crate::sim::Layout;
+use crate::sim::{Layout, TempProfile};
 
 /// Production calibration of analog MEMS accelerometer blocks (MS9002.D class) on a dividing
 /// head: GMDH model-structure selection, least-squares and test-turn fits, and their comparison.
@@ -41,6 +41,11 @@ pub enum Command {
     Monitor(crate::node::cli::MonitorArgs),
     /// Replay a campaign through the node firmware running in QEMU and write what it computed.
     Hil(crate::node::cli::HilArgs),
+    /// Diagnose the gap between a campaign and its linear-sensor simulation, and attribute it to
+    /// effects checked on withheld data.
+    Diagnose(DiagnoseArgs),
+    /// Blind benchmark of `diagnose` on simulated campaigns with withheld effects.
+    BenchDiagnose(BenchDiagnoseArgs),
 }
 
 /// Options shared by the commands that read a campaign.
@@ -98,9 +103,16 @@ pub struct SimulateArgs {
     pub misalign_sd: f64,
     /// Add an error effect, `NAME=KEY:VALUE,...` (repeatable). Known: `nonlinearity=k2:C,TERM:C`
     /// (C in codes per (m/s^2)^n; k2 multiplies the squared sensitive-axis acceleration, TERM is any
-    /// basis term such as ax*ay).
+    /// basis term such as ax*ay), `bias_drift=rate:CODES_PER_S`,
+    /// `temperature=bias:CODES_PER_C,scale:PPM_PER_C,t_ref:C` (needs --temp-profile),
+    /// `head_misalignment=rx_mrad:R,ry_mrad:R,rz_mrad:R`, `hysteresis=h:CODES`,
+    /// `settling=gain:CODES_PER_MS2,tau:S`, `angle_error=sd_mrad:SD`.
     #[arg(long = "effect", value_name = "NAME=PARAMS")]
     pub effects: Vec<String>,
+    /// Temperature profile `BASE:AMP:CYCLES` (°C, °C, sine cycles over the campaign); writes a
+    /// temp_c column.
+    #[arg(long, value_name = "BASE:AMP:CYCLES", value_parser = parse_temp)]
+    pub temp_profile: Option<TempProfile>,
     /// An ideal ADC: no rounding to whole codes, no clipping (for checks against exact values).
     #[arg(long)]
     pub ideal_adc: bool,
@@ -113,6 +125,10 @@ pub struct SimulateArgs {
 }
 
 fn parse_layout(s: &str) -> Result<Layout, String> {
+    s.parse()
+}
+
+fn parse_temp(s: &str) -> Result<TempProfile, String> {
     s.parse()
 }
 
@@ -265,4 +281,38 @@ pub struct DemoArgs {
     /// Seed of the simulated block.
     #[arg(long, default_value_t = 2014)]
     pub seed: u64,
+}
+
+/// `accelcal diagnose`.
+#[derive(Debug, Args)]
+pub struct DiagnoseArgs {
+    /// Campaign CSV.
+    pub campaign: PathBuf,
+    /// Baseline model terms, comma-separated (the intercept is always included) [default:
+    /// ax,ay,az, model 4].
+    #[arg(long, value_name = "TERMS", default_value = "ax,ay,az")]
+    pub baseline: String,
+    /// Write the gap-map plots (SVG) into this directory.
+    #[arg(long, value_name = "DIR")]
+    pub plot: Option<PathBuf>,
+    #[command(flatten)]
+    pub common: CommonArgs,
+}
+
+/// `accelcal bench-diagnose`.
+#[derive(Debug, Args)]
+pub struct BenchDiagnoseArgs {
+    /// Number of simulated campaigns.
+    #[arg(long, default_value_t = 240)]
+    pub campaigns: usize,
+    /// Master seed (each campaign's seed, effect and magnitude are drawn from it).
+    #[arg(long, default_value_t = 2026)]
+    pub seed: u64,
+    /// Range of the effects' magnitudes, `LO:HI`, in units of the per-position noise (RMS of the
+    /// effect's contribution to the dwell means over σ/√samples).
+    #[arg(long, default_value = "5:15", value_name = "LO:HI")]
+    pub magnitude: String,
+    /// Write the results (confusion table, per-campaign rows) as JSON.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
 }

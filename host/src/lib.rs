@@ -10,6 +10,7 @@ pub mod campaign;
 pub mod cli;
 pub mod cmd;
 pub mod compare;
+pub mod diagnose;
 pub mod error;
 pub mod gmdh;
 pub mod gravity;

@@ -1,7 +1,9 @@
 //! One module per subcommand; [`run`] dispatches.
 
+pub mod bench_diagnose;
 pub mod compare;
 pub mod demo;
+pub mod diagnose;
 pub mod fit;
 pub mod select;
 pub mod simulate;
@@ -24,6 +26,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Flash(a) => crate::node::cli::run_flash(&a),
         Command::Monitor(a) => crate::node::cli::run_monitor(&a),
         Command::Hil(a) => crate::node::cli::run_hil(&a),
+        Command::Diagnose(a) => diagnose::run(&a),
+        Command::BenchDiagnose(a) => bench_diagnose::run(&a),
     }
 }
 

@@ -17,6 +17,11 @@ pub fn config(a: &SimulateArgs) -> anyhow::Result<SimConfig> {
         .iter()
         .map(|s| sim::effects::parse(s).map_err(|e| bad(format!("--effect {e}"))))
         .collect::<anyhow::Result<Vec<_>>>()?;
+    if a.temp_profile.is_none() {
+        if let Some(e) = effects.iter().find(|e| e.needs_temperature()) {
+            return Err(bad(format!("--effect {} needs --temp-profile BASE:AMP:CYCLES", e.name())));
+        }
+    }
     for (name, v) in [
         ("--noise", a.noise),
         ("--bias-sd", a.bias_sd),
@@ -47,6 +52,7 @@ pub fn config(a: &SimulateArgs) -> anyhow::Result<SimConfig> {
         misalign_sd: a.misalign_sd,
         effects,
         quantize: !a.ideal_adc,
+        temp: a.temp_profile,
     })
 }
 

@@ -1,11 +1,37 @@
 //! Error effects of the simulator: parametric additions to a channel's ideal output.
 //!
 //! An effect is named, carries its parameters, and adds codes to one sample given the sample's
-//! context. `accelcal simulate --effect NAME=PARAMS` builds them through [`parse`]. The diagnosis
-//! issue extends this library; the calibration core ships `nonlinearity`.
+//! context; effects of the head (`head_misalignment`, `angle_error`) instead change the
+//! acceleration the sensors see through [`Effect::kinematics`] (the commanded angles written to
+//! the campaign stay as they were). `accelcal simulate --effect NAME=PARAMS` builds them through
+//! [`parse`]. Names and keys (all numbers; defaults in brackets):
+//!
+//! | name | keys |
+//! |---|---|
+//! | `bias_drift` | `rate` codes/s [0] |
+//! | `temperature` | `bias` codes/°C [0], `scale` ppm/°C of the linear signal [0], `t_ref` °C [25] |
+//! | `nonlinearity` | `k2` codes/(m/s²)² on the sensitive axis [0], any basis term such as `ax*ay` |
+//! | `head_misalignment` | `rx_mrad`, `ry_mrad`, `rz_mrad`: rotation between the α and β stages [0] |
+//! | `hysteresis` | `h` codes, times the sign of the change of the sensitive-axis input [0] |
+//! | `settling` | `gain` codes per m/s² of sensitive-axis step [0], `tau` s [0.5] |
+//! | `angle_error` | `sd_mrad` one-sigma setting error of α and of β, per position [0] |
 
 use accelcal_shared::Term;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
 use serde_json::json;
+
+/// Names of every effect, in the order the diagnosis lists them.
+pub const EFFECT_NAMES: [&str; 7] = [
+    "bias_drift",
+    "temperature",
+    "nonlinearity",
+    "head_misalignment",
+    "hysteresis",
+    "settling",
+    "angle_error",
+];
 
 /// What an effect may depend on for one sample of one channel.
 #[derive(Clone, Copy, Debug)]
@@ -16,12 +42,95 @@ pub struct SampleCtx {
     pub position: usize,
     /// Index of the sample within the dwell.
     pub sample: usize,
-    /// Apparent acceleration imposed by the head, m/s².
+    /// Apparent acceleration the block sees, m/s² (after the head's kinematic effects).
     pub accel: [f64; 3],
     /// Channel index.
     pub channel: usize,
     /// The channel's nominal sensitive axis.
     pub axis: usize,
+    /// Time since the dwell began, s.
+    pub t_in_dwell_s: f64,
+    /// Temperature, °C (NaN when the simulation has no temperature profile).
+    pub temp_c: f64,
+    /// Acceleration the block saw at the previous position (None at the first).
+    pub prev_accel: Option<[f64; 3]>,
+    /// The channel's ideal linear signal `k·a` (output minus zero offset), codes.
+    pub signal: f64,
+}
+
+impl SampleCtx {
+    /// A context with only the acceleration and the channel set (tests and simple callers).
+    pub fn basic(accel: [f64; 3], channel: usize, axis: usize) -> SampleCtx {
+        SampleCtx {
+            t_s: 0.0,
+            position: 0,
+            sample: 0,
+            accel,
+            channel,
+            axis,
+            t_in_dwell_s: 0.0,
+            temp_c: f64::NAN,
+            prev_accel: None,
+            signal: 0.0,
+        }
+    }
+
+    /// Change of the sensitive-axis input since the previous position (0 at the first).
+    pub fn step(&self) -> f64 {
+        self.prev_accel.map(|p| self.accel[self.axis] - p[self.axis]).unwrap_or(0.0)
+    }
+}
+
+/// The head's state for one position, which kinematic effects may change: the angles the head
+/// really reached and a rotation `r` between its α and β stages. The block sees
+/// `a = −g·Ry(α)·r·Rx(−β)·e_z`.
+#[derive(Clone, Copy, Debug)]
+pub struct Kinematics {
+    /// Index of the position in the plan.
+    pub position: usize,
+    /// Seed of the simulation (for per-position random draws).
+    pub seed: u64,
+    /// α actually reached, rad.
+    pub alpha_rad: f64,
+    /// β actually reached, rad.
+    pub beta_rad: f64,
+    /// Rotation between the stages.
+    pub r: [[f64; 3]; 3],
+    /// Whether an effect changed anything (else the exact kinematics of `shared` apply).
+    pub changed: bool,
+}
+
+impl Kinematics {
+    /// The acceleration the block sees, m/s².
+    pub fn accel(&self, g: f64) -> [f64; 3] {
+        let (sb, cb) = self.beta_rad.sin_cos();
+        let v = [0.0, sb, cb]; // Rx(−β)·e_z
+        let w = mat_vec(&self.r, v);
+        let (sa, ca) = self.alpha_rad.sin_cos();
+        [-g * (ca * w[0] + sa * w[2]), -g * w[1], -g * (-sa * w[0] + ca * w[2])]
+    }
+}
+
+fn mat_vec(m: &[[f64; 3]; 3], v: [f64; 3]) -> [f64; 3] {
+    [0, 1, 2].map(|i| (0..3).map(|j| m[i][j] * v[j]).sum())
+}
+
+/// The rotation by the vector `w` (rad), Rodrigues' formula.
+pub fn rotation(w: [f64; 3]) -> [[f64; 3]; 3] {
+    let th = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
+    let mut r = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    if th == 0.0 {
+        return r;
+    }
+    let k = w.map(|x| x / th);
+    let (s, c) = th.sin_cos();
+    let kx = [[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]];
+    for i in 0..3 {
+        for j in 0..3 {
+            r[i][j] = c * r[i][j] + s * kx[i][j] + (1.0 - c) * k[i] * k[j];
+        }
+    }
+    r
 }
 
 /// A parametric error effect.
@@ -32,6 +141,12 @@ pub trait Effect: Send + Sync {
     fn describe(&self) -> serde_json::Value;
     /// Codes added to the ideal output of one sample.
     fn output(&self, ctx: &SampleCtx) -> f64;
+    /// Changes the head's kinematics for one position (default: none).
+    fn kinematics(&self, _k: &mut Kinematics) {}
+    /// Whether the effect needs a temperature profile.
+    fn needs_temperature(&self) -> bool {
+        false
+    }
 }
 
 /// Second-order (or third-order) terms of the input acceleration: `k2` times the square of the
@@ -60,6 +175,182 @@ impl Effect for Nonlinearity {
     }
 }
 
+/// A linear drift of every channel's output with time: `rate·t` codes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BiasDrift {
+    /// Codes per second.
+    pub rate: f64,
+}
+
+impl Effect for BiasDrift {
+    fn name(&self) -> &'static str {
+        "bias_drift"
+    }
+    fn describe(&self) -> serde_json::Value {
+        json!({"name": self.name(), "rate": self.rate})
+    }
+    fn output(&self, ctx: &SampleCtx) -> f64 {
+        self.rate * ctx.t_s
+    }
+}
+
+/// Temperature dependence: `(bias + scale·1e-6·signal)·(T − t_ref)` codes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Temperature {
+    /// Zero-offset coefficient, codes per °C.
+    pub bias: f64,
+    /// Scale-factor coefficient, ppm per °C.
+    pub scale: f64,
+    /// Reference temperature, °C.
+    pub t_ref: f64,
+}
+
+impl Effect for Temperature {
+    fn name(&self) -> &'static str {
+        "temperature"
+    }
+    fn describe(&self) -> serde_json::Value {
+        json!({"name": self.name(), "bias": self.bias, "scale": self.scale, "t_ref": self.t_ref})
+    }
+    fn output(&self, ctx: &SampleCtx) -> f64 {
+        if !ctx.temp_c.is_finite() {
+            return 0.0;
+        }
+        (self.bias + self.scale * 1e-6 * ctx.signal) * (ctx.temp_c - self.t_ref)
+    }
+    fn needs_temperature(&self) -> bool {
+        true
+    }
+}
+
+/// A constant rotation between the α and β stages (vector in mrad). A rotation about y commutes
+/// with the α stage and only turns the whole block, which model 4 absorbs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct HeadMisalignment {
+    /// Rotation vector, mrad.
+    pub r_mrad: [f64; 3],
+}
+
+impl Effect for HeadMisalignment {
+    fn name(&self) -> &'static str {
+        "head_misalignment"
+    }
+    fn describe(&self) -> serde_json::Value {
+        let [x, y, z] = self.r_mrad;
+        json!({"name": self.name(), "rx_mrad": x, "ry_mrad": y, "rz_mrad": z})
+    }
+    fn output(&self, _: &SampleCtx) -> f64 {
+        0.0
+    }
+    fn kinematics(&self, k: &mut Kinematics) {
+        let r = rotation(self.r_mrad.map(|v| v * 1e-3));
+        let mut out = [[0.0; 3]; 3];
+        for i in 0..3 {
+            for j in 0..3 {
+                out[i][j] = (0..3).map(|m| k.r[i][m] * r[m][j]).sum();
+            }
+        }
+        k.r = out;
+        k.changed = true;
+    }
+}
+
+/// Output depends on the direction of approach: `h·sign(Δa)` with Δa the change of the
+/// sensitive-axis input since the previous position.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Hysteresis {
+    /// Codes.
+    pub h: f64,
+}
+
+impl Effect for Hysteresis {
+    fn name(&self) -> &'static str {
+        "hysteresis"
+    }
+    fn describe(&self) -> serde_json::Value {
+        json!({"name": self.name(), "h": self.h})
+    }
+    fn output(&self, ctx: &SampleCtx) -> f64 {
+        let d = ctx.step();
+        if d.abs() < 1e-6 {
+            0.0
+        } else {
+            self.h * d.signum()
+        }
+    }
+}
+
+/// A transient after each rotation: `gain·Δa·exp(−t_in_dwell/tau)`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Settling {
+    /// Codes per m/s² of sensitive-axis step.
+    pub gain: f64,
+    /// Time constant, s.
+    pub tau: f64,
+}
+
+impl Effect for Settling {
+    fn name(&self) -> &'static str {
+        "settling"
+    }
+    fn describe(&self) -> serde_json::Value {
+        json!({"name": self.name(), "gain": self.gain, "tau": self.tau})
+    }
+    fn output(&self, ctx: &SampleCtx) -> f64 {
+        self.gain * ctx.step() * (-ctx.t_in_dwell_s / self.tau).exp()
+    }
+}
+
+/// Random setting errors of α and β, independent per position, common to all channels.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AngleError {
+    /// One sigma, mrad.
+    pub sd_mrad: f64,
+}
+
+impl AngleError {
+    /// The errors (δα, δβ) in rad drawn for a position.
+    pub fn draw(&self, seed: u64, position: usize) -> (f64, f64) {
+        let s = seed ^ 0x616e_676c_655f_6572 ^ (position as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        let mut rng = ChaCha8Rng::seed_from_u64(s);
+        let n = Normal::new(0.0, self.sd_mrad.abs() * 1e-3).expect("finite sd");
+        (n.sample(&mut rng), n.sample(&mut rng))
+    }
+}
+
+impl Effect for AngleError {
+    fn name(&self) -> &'static str {
+        "angle_error"
+    }
+    fn describe(&self) -> serde_json::Value {
+        json!({"name": self.name(), "sd_mrad": self.sd_mrad})
+    }
+    fn output(&self, _: &SampleCtx) -> f64 {
+        0.0
+    }
+    fn kinematics(&self, k: &mut Kinematics) {
+        let (da, db) = self.draw(k.seed, k.position);
+        k.alpha_rad += da;
+        k.beta_rad += db;
+        k.changed = true;
+    }
+}
+
+/// Takes `key` from the list (default when absent).
+fn take(kv: &mut Vec<(String, f64)>, key: &str, default: f64) -> f64 {
+    match kv.iter().position(|(k, _)| k == key) {
+        Some(i) => kv.remove(i).1,
+        None => default,
+    }
+}
+
+fn no_more(name: &str, kv: &[(String, f64)], known: &str) -> Result<(), String> {
+    match kv.first() {
+        Some((k, _)) => Err(format!("effect `{name}`: unknown parameter `{k}` (known: {known})")),
+        None => Ok(()),
+    }
+}
+
 /// Parses `NAME=KEY:VALUE,KEY:VALUE...`.
 pub fn parse(spec: &str) -> Result<Box<dyn Effect>, String> {
     let (name, params) = spec.split_once('=').unwrap_or((spec, ""));
@@ -75,10 +366,10 @@ pub fn parse(spec: &str) -> Result<Box<dyn Effect>, String> {
             .ok_or_else(|| format!("effect `{name}`: `{p}` needs a finite number"))?;
         kv.push((k.trim().to_string(), v));
     }
-    match name {
+    let e: Box<dyn Effect> = match name {
         "nonlinearity" => {
             let mut e = Nonlinearity { k2: 0.0, terms: Vec::new() };
-            for (k, v) in kv {
+            for (k, v) in kv.drain(..) {
                 if k == "k2" {
                     e.k2 = v;
                 } else {
@@ -86,10 +377,43 @@ pub fn parse(spec: &str) -> Result<Box<dyn Effect>, String> {
                     e.terms.push((t, v));
                 }
             }
-            Ok(Box::new(e))
+            Box::new(e)
         }
-        _ => Err(format!("unknown effect `{name}` (known: nonlinearity)")),
-    }
+        "bias_drift" => Box::new(BiasDrift { rate: take(&mut kv, "rate", 0.0) }),
+        "temperature" => Box::new(Temperature {
+            bias: take(&mut kv, "bias", 0.0),
+            scale: take(&mut kv, "scale", 0.0),
+            t_ref: take(&mut kv, "t_ref", 25.0),
+        }),
+        "head_misalignment" => Box::new(HeadMisalignment {
+            r_mrad: [
+                take(&mut kv, "rx_mrad", 0.0),
+                take(&mut kv, "ry_mrad", 0.0),
+                take(&mut kv, "rz_mrad", 0.0),
+            ],
+        }),
+        "hysteresis" => Box::new(Hysteresis { h: take(&mut kv, "h", 0.0) }),
+        "settling" => {
+            let e = Settling { gain: take(&mut kv, "gain", 0.0), tau: take(&mut kv, "tau", 0.5) };
+            if !(e.tau > 0.0) {
+                return Err("effect `settling`: tau must be > 0 s".into());
+            }
+            Box::new(e)
+        }
+        "angle_error" => Box::new(AngleError { sd_mrad: take(&mut kv, "sd_mrad", 0.0) }),
+        _ => return Err(format!("unknown effect `{name}` (known: {})", EFFECT_NAMES.join(", "))),
+    };
+    let known = match name {
+        "bias_drift" => "rate",
+        "temperature" => "bias, scale, t_ref",
+        "head_misalignment" => "rx_mrad, ry_mrad, rz_mrad",
+        "hysteresis" => "h",
+        "settling" => "gain, tau",
+        "angle_error" => "sd_mrad",
+        _ => "",
+    };
+    no_more(name, &kv, known)?;
+    Ok(e)
 }
 
 #[cfg(test)]
@@ -99,10 +423,64 @@ mod tests {
     #[test]
     fn nonlinearity_parses_and_evaluates() {
         let e = parse("nonlinearity=k2:2,ax*ay:0.5").unwrap();
-        let ctx = SampleCtx { t_s: 0.0, position: 0, sample: 0, accel: [1.0, 2.0, 3.0], channel: 0, axis: 2 };
+        let ctx = SampleCtx::basic([1.0, 2.0, 3.0], 0, 2);
         assert_eq!(e.output(&ctx), 2.0 * 9.0 + 0.5 * 2.0);
         assert_eq!(e.describe()["terms"]["ax*ay"], 0.5);
         assert!(parse("nonlinearity=k2").is_err());
         assert!(parse("wobble=a:1").err().unwrap().contains("unknown effect"));
+    }
+
+    #[test]
+    fn every_name_parses_and_unknown_keys_are_refused() {
+        for n in EFFECT_NAMES {
+            assert_eq!(parse(n).unwrap().name(), n);
+        }
+        assert!(parse("hysteresis=k:1").err().unwrap().contains("unknown parameter `k`"));
+        assert!(parse("settling=gain:1,tau:0").is_err());
+    }
+
+    #[test]
+    fn output_effects_follow_their_formulas() {
+        let mut ctx = SampleCtx::basic([0.0, 0.0, 9.81], 2, 2);
+        ctx.prev_accel = Some([0.0, 0.0, -9.81]);
+        ctx.t_s = 10.0;
+        ctx.t_in_dwell_s = 0.5;
+        ctx.temp_c = 30.0;
+        ctx.signal = 16384.0;
+        assert_eq!(parse("bias_drift=rate:0.5").unwrap().output(&ctx), 5.0);
+        assert_eq!(parse("hysteresis=h:3").unwrap().output(&ctx), 3.0);
+        let s = parse("settling=gain:2,tau:0.5").unwrap().output(&ctx);
+        assert!((s - 2.0 * 19.62 * (-1.0f64).exp()).abs() < 1e-9);
+        let t = parse("temperature=bias:2,scale:100,t_ref:25").unwrap().output(&ctx);
+        assert!((t - (2.0 + 100e-6 * 16384.0) * 5.0).abs() < 1e-9);
+        ctx.temp_c = f64::NAN;
+        assert_eq!(parse("temperature=bias:2").unwrap().output(&ctx), 0.0);
+    }
+
+    #[test]
+    fn kinematics_match_the_paper_and_y_rotation_turns_the_block() {
+        let g = 9.81;
+        for (a, b) in [(30.0f64, -60.0f64), (210.0, 30.0), (0.0, 90.0)] {
+            let k = Kinematics {
+                position: 0,
+                seed: 1,
+                alpha_rad: a.to_radians(),
+                beta_rad: b.to_radians(),
+                r: rotation([0.0; 3]),
+                changed: false,
+            };
+            let exact = accelcal_shared::gravity(a, b, g);
+            let got = k.accel(g);
+            assert!((0..3).all(|i| (got[i] - exact[i]).abs() < 1e-12), "{got:?} {exact:?}");
+            // A rotation about y between the stages = the same rotation of the whole block.
+            let mut k2 = k;
+            parse("head_misalignment=ry_mrad:10").unwrap().kinematics(&mut k2);
+            let whole = mat_vec(&rotation([0.0, 0.01, 0.0]), exact);
+            let got = k2.accel(g);
+            assert!((0..3).all(|i| (got[i] - whole[i]).abs() < 1e-12));
+        }
+        let e = AngleError { sd_mrad: 1.0 };
+        assert_eq!(e.draw(5, 3), e.draw(5, 3));
+        assert_ne!(e.draw(5, 3), e.draw(5, 4));
     }
 }

@@ -11,7 +11,7 @@ use rand_distr::{Distribution, Normal};
 use serde::Serialize;
 
 use crate::campaign::{Campaign, Channel, ADC_MAX};
-pub use effects::{Effect, SampleCtx};
+pub use effects::{Effect, Kinematics, SampleCtx};
 pub use plan::Plan;
 
 /// Nominal MS9002-class sensitivity: ±2 g over the 16-bit range, i.e. 16384 codes per g.
@@ -77,6 +77,44 @@ pub struct SimConfig {
     pub effects: Vec<Box<dyn Effect>>,
     /// Round to whole codes and clip to the ADC range (false: an ideal, infinitely fine ADC).
     pub quantize: bool,
+    /// Temperature of the block over the campaign; when set, the campaign has a `temp_c` column.
+    pub temp: Option<TempProfile>,
+}
+
+/// A temperature profile: `base + amp·sin(2π·cycles·t/T + phase)` over a campaign of duration T.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TempProfile {
+    /// Mean temperature, °C.
+    pub base_c: f64,
+    /// Amplitude, °C.
+    pub amp_c: f64,
+    /// Cycles over the campaign.
+    pub cycles: f64,
+    /// Phase, rad.
+    pub phase: f64,
+}
+
+impl TempProfile {
+    /// Temperature at time `t` of a campaign lasting `duration` s.
+    pub fn at(&self, t: f64, duration: f64) -> f64 {
+        self.base_c
+            + self.amp_c * (std::f64::consts::TAU * self.cycles * t / duration.max(1e-9) + self.phase).sin()
+    }
+}
+
+impl std::str::FromStr for TempProfile {
+    type Err = String;
+    /// Parses `BASE:AMP:CYCLES` (°C, °C, cycles over the campaign; the phase is 0).
+    fn from_str(s: &str) -> Result<TempProfile, String> {
+        let v: Vec<f64> =
+            s.split(':').filter_map(|x| x.trim().parse().ok()).filter(|x: &f64| x.is_finite()).collect();
+        match v[..] {
+            [base_c, amp_c, cycles] if s.split(':').count() == 3 => {
+                Ok(TempProfile { base_c, amp_c, cycles, phase: 0.0 })
+            }
+            _ => Err(format!("`{s}`: expected BASE:AMP:CYCLES, three finite numbers (e.g. 25:5:1.5)")),
+        }
+    }
 }
 
 impl Default for SimConfig {
@@ -95,6 +133,7 @@ impl Default for SimConfig {
             misalign_sd: 0.01,
             effects: Vec::new(),
             quantize: true,
+            temp: None,
         }
     }
 }
@@ -159,16 +198,48 @@ pub fn simulate(cfg: &SimConfig) -> (Campaign, Truth) {
     };
     let noise = normal(cfg.noise);
     let dt = 1.0 / cfg.rate_hz;
+    let duration = cfg.plan.positions.len() as f64 * (cfg.samples as f64 * dt + cfg.move_s);
+    if cfg.temp.is_some() {
+        c.temp_c = Some(Vec::new());
+    }
     let mut t = 0.0f64;
+    let mut prev_accel: Option<[f64; 3]> = None;
     for (p, &(alpha, beta)) in cfg.plan.positions.iter().enumerate() {
-        let accel = accelcal_shared::gravity(alpha, beta, cfg.g);
+        let mut kin = Kinematics {
+            position: p,
+            seed: cfg.seed,
+            alpha_rad: alpha.to_radians(),
+            beta_rad: beta.to_radians(),
+            r: effects::rotation([0.0; 3]),
+            changed: false,
+        };
+        for e in &cfg.effects {
+            e.kinematics(&mut kin);
+        }
+        let accel = if kin.changed { kin.accel(cfg.g) } else { accelcal_shared::gravity(alpha, beta, cfg.g) };
         for s in 0..cfg.samples {
             c.t_s.push((t * 1e6).round() / 1e6);
             c.alpha_deg.push(alpha);
             c.beta_deg.push(beta);
+            let temp_c = cfg.temp.map(|tp| tp.at(t, duration)).unwrap_or(f64::NAN);
+            if let Some(v) = c.temp_c.as_mut() {
+                v.push((temp_c * 1000.0).round() / 1000.0);
+            }
             for (ch, truth) in chans.iter().enumerate() {
-                let ctx = SampleCtx { t_s: t, position: p, sample: s, accel, channel: ch, axis: truth.axis };
-                let mut u = truth.bias + (0..3).map(|j| truth.k[j] * accel[j]).sum::<f64>();
+                let signal = (0..3).map(|j| truth.k[j] * accel[j]).sum::<f64>();
+                let ctx = SampleCtx {
+                    t_s: t,
+                    position: p,
+                    sample: s,
+                    accel,
+                    channel: ch,
+                    axis: truth.axis,
+                    t_in_dwell_s: s as f64 * dt,
+                    temp_c,
+                    prev_accel,
+                    signal,
+                };
+                let mut u = truth.bias + signal;
                 for e in &cfg.effects {
                     u += e.output(&ctx);
                 }
@@ -177,6 +248,7 @@ pub fn simulate(cfg: &SimConfig) -> (Campaign, Truth) {
             }
             t += dt;
         }
+        prev_accel = Some(accel);
         t += cfg.move_s;
     }
     let truth = Truth {

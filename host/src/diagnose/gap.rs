@@ -1,0 +1,318 @@
+//! The gap: the baseline's residual localised per channel, per position, over time, inside the
+//! dwells, against temperature and against the direction of approach, with the test of whether
+//! it is consistent with white noise, and a simulated twin of the campaign for comparison.
+//!
+//! **Noise test.** With σ estimated from the within-bin scatter, the bin residuals of a correct
+//! baseline give χ² = Σ n·r²/σ² with `dof = bins·channels − parameters`; the residual counts as
+//! consistent with the noise when `z = (χ² − dof)/√(2·dof) < 4`.
+
+use std::path::Path;
+
+use accelcal_shared::Structure;
+use anyhow::{anyhow, Context};
+use plotters::prelude::*;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+use serde::Serialize;
+
+use super::attribution::full_fit;
+use super::Data;
+use crate::campaign::Campaign;
+
+/// The z-score of the χ² below which a residual is consistent with the noise.
+pub const NOISE_Z: f64 = 4.0;
+
+/// Where one channel's residual lies.
+#[derive(Clone, Debug, Serialize)]
+pub struct ChannelGap {
+    /// Channel name.
+    pub name: String,
+    /// White noise per sample, codes.
+    pub sigma: f64,
+    /// RMS of the dwell-mean residuals, codes.
+    pub rms_position: f64,
+    /// The same on the simulated twin (baseline + white noise), codes.
+    pub rms_position_sim: f64,
+    /// z of the position-level χ² (residual per position/orientation).
+    pub z_position: f64,
+    /// z of the within-dwell χ² (residual over the time inside each dwell).
+    pub z_in_dwell: f64,
+    /// Slope of the dwell residual against time, codes/s, and its z.
+    pub time_slope: f64,
+    /// z of the time slope.
+    pub z_time: f64,
+    /// Slope against temperature, codes/°C (None without `temp_c`).
+    pub temp_slope: Option<f64>,
+    /// z of the temperature slope.
+    pub z_temp: Option<f64>,
+    /// Mean residual approached from below minus from above (sign of the input change), codes.
+    pub approach_diff: f64,
+    /// z of the approach difference.
+    pub z_approach: f64,
+    /// Mean of (bin − dwell) residual times the sign of the step, per bin index, codes.
+    pub in_dwell_profile: Vec<f64>,
+}
+
+/// One position with a large residual.
+#[derive(Clone, Debug, Serialize)]
+pub struct PositionGap {
+    /// Position index (0-based, file order).
+    pub position: usize,
+    /// Commanded α, degrees.
+    pub alpha_deg: f64,
+    /// Commanded β, degrees.
+    pub beta_deg: f64,
+    /// Dwell residual of each channel, in units of its per-position noise.
+    pub z: Vec<f64>,
+}
+
+/// The localised gap.
+#[derive(Clone, Debug, Serialize)]
+pub struct Gap {
+    /// Whether the baseline's residual is consistent with white noise.
+    pub consistent_with_noise: bool,
+    /// χ² of the bin residuals.
+    pub chi2: f64,
+    /// Its degrees of freedom.
+    pub dof: f64,
+    /// Its z-score.
+    pub z: f64,
+    /// z of the same χ² on the simulated twin.
+    pub z_sim: f64,
+    /// Per channel.
+    pub channels: Vec<ChannelGap>,
+    /// The five positions with the largest residual.
+    pub worst_positions: Vec<PositionGap>,
+    /// Dwell residual of every position and channel (codes): `position_residual[ch][pos]`.
+    pub position_residual: Vec<Vec<f64>>,
+}
+
+/// Weighted slope of `y` on `x` and its z (σ from the weights).
+fn slope(x: &[f64], y: &[f64], var: &[f64]) -> (f64, f64) {
+    let w: Vec<f64> = var.iter().map(|v| 1.0 / v).collect();
+    let sw: f64 = w.iter().sum();
+    let xm = x.iter().zip(&w).map(|(x, w)| x * w).sum::<f64>() / sw;
+    let ym = y.iter().zip(&w).map(|(y, w)| y * w).sum::<f64>() / sw;
+    let sxx: f64 = x.iter().zip(&w).map(|(x, w)| w * (x - xm) * (x - xm)).sum();
+    if !(sxx > 0.0) {
+        return (0.0, 0.0);
+    }
+    let sxy: f64 = x.iter().zip(y).zip(&w).map(|((x, y), w)| w * (x - xm) * (y - ym)).sum();
+    let b = sxy / sxx;
+    (b, b * sxx.sqrt())
+}
+
+fn zscore(chi2: f64, dof: f64) -> f64 {
+    (chi2 - dof) / (2.0 * dof.max(1.0)).sqrt()
+}
+
+/// Localises the residual of `base` on the data; `campaign` is used to simulate the twin.
+pub fn localise(d: &Data, base: Structure, campaign: &Campaign) -> Option<Gap> {
+    let ff = full_fit(d, base, &[])?;
+    let nb = d.bins.len();
+    let npos = d.npos();
+    let nterms = base.terms().count() as f64;
+    let n_pos: Vec<f64> = d.dwell_means(&vec![1.0; nb]).iter().map(|_| 0.0).collect();
+    let mut n_pos = n_pos;
+    for b in &d.bins {
+        n_pos[b.pos] += b.n;
+    }
+    let temp_pos = d.temp.as_ref().map(|t| d.dwell_means(t));
+    let twin = twin_rms(d, base, campaign, &ff.resid);
+    let mut channels = Vec::new();
+    let mut position_residual = Vec::new();
+    for ch in 0..d.nch() {
+        let r = &ff.resid[ch * nb..(ch + 1) * nb];
+        let rp = d.dwell_means(r);
+        let var: Vec<f64> = n_pos.iter().map(|n| d.sigma[ch] * d.sigma[ch] / n).collect();
+        let chi_pos: f64 = rp.iter().zip(&var).map(|(r, v)| r * r / v).sum();
+        let chi_in: f64 = (0..nb).map(|i| d.weight(ch, i) * (r[i] - rp[d.bins[i].pos]).powi(2)).sum();
+        let (time_slope, z_time) = slope(&d.t_pos, &rp, &var);
+        let (temp_slope, z_temp) = match &temp_pos {
+            Some(t) => {
+                let (s, z) = slope(t, &rp, &var);
+                (Some(s), Some(z))
+            }
+            None => (None, None),
+        };
+        let (mut up, mut dn) = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0));
+        for p in 0..npos {
+            let s = d.step[ch][p];
+            let acc = if s > 1e-6 {
+                &mut up
+            } else if s < -1e-6 {
+                &mut dn
+            } else {
+                continue;
+            };
+            acc.0 += rp[p];
+            acc.1 += 1.0;
+            acc.2 += var[p];
+        }
+        let mean = |a: (f64, f64, f64)| if a.1 > 0.0 { a.0 / a.1 } else { 0.0 };
+        let approach_diff = mean(up) - mean(dn);
+        let sd = (up.2 / (up.1 * up.1).max(1.0) + dn.2 / (dn.1 * dn.1).max(1.0)).sqrt();
+        let nbins = d.bins.iter().map(|b| b.bin + 1).max().unwrap_or(1);
+        let mut prof = vec![(0.0, 0.0); nbins];
+        for (i, b) in d.bins.iter().enumerate() {
+            let s = d.step[ch][b.pos];
+            if s.abs() > 1e-6 {
+                prof[b.bin].0 += (r[i] - rp[b.pos]) * s.signum();
+                prof[b.bin].1 += 1.0;
+            }
+        }
+        channels.push(ChannelGap {
+            name: d.channels[ch].clone(),
+            sigma: d.sigma[ch],
+            rms_position: (rp.iter().map(|r| r * r).sum::<f64>() / npos as f64).sqrt(),
+            rms_position_sim: twin.as_ref().map_or(f64::NAN, |t| t.0[ch]),
+            z_position: zscore(chi_pos, npos as f64 - nterms),
+            z_in_dwell: zscore(chi_in, (nb - npos) as f64),
+            time_slope,
+            z_time,
+            temp_slope,
+            z_temp,
+            approach_diff,
+            z_approach: if sd > 0.0 { approach_diff / sd } else { 0.0 },
+            in_dwell_profile: prof.iter().map(|(s, n)| if *n > 0.0 { s / n } else { 0.0 }).collect(),
+        });
+        position_residual.push(rp);
+    }
+    let mut worst: Vec<PositionGap> = (0..npos)
+        .map(|p| PositionGap {
+            position: p,
+            alpha_deg: d.angles[p].0,
+            beta_deg: d.angles[p].1,
+            z: (0..d.nch()).map(|c| position_residual[c][p] / d.sigma_pos(c, p)).collect(),
+        })
+        .collect();
+    let norm = |g: &PositionGap| g.z.iter().map(|z| z * z).sum::<f64>();
+    worst.sort_by(|a, b| norm(b).total_cmp(&norm(a)));
+    worst.truncate(5);
+    let z = zscore(ff.chi2, ff.dof);
+    Some(Gap {
+        consistent_with_noise: z < NOISE_Z,
+        chi2: ff.chi2,
+        dof: ff.dof,
+        z,
+        z_sim: twin.map_or(f64::NAN, |t| t.1),
+        channels,
+        worst_positions: worst,
+        position_residual,
+    })
+}
+
+/// Simulates the campaign from the fitted baseline (its prediction per dwell plus white noise of
+/// the estimated σ, rounded to codes) and returns the twin's per-channel position RMS and χ² z.
+fn twin_rms(d: &Data, base: Structure, c: &Campaign, resid: &[f64]) -> Option<(Vec<f64>, f64)> {
+    let nb = d.bins.len();
+    let mut rng = ChaCha8Rng::seed_from_u64(0x7477_696e);
+    let mut twin = c.clone();
+    let dwells = c.dwells();
+    for ch in 0..d.nch() {
+        let pred: Vec<f64> =
+            d.dwell_means(&(0..nb).map(|i| d.mean[ch][i] - resid[ch * nb + i]).collect::<Vec<_>>());
+        let noise = Normal::new(0.0, d.sigma[ch]).ok()?;
+        for (p, w) in dwells.iter().enumerate() {
+            for v in &mut twin.channels[ch].codes[w.start..w.end] {
+                *v = (pred[p] + noise.sample(&mut rng)).round();
+            }
+        }
+    }
+    let td = Data::new(&twin, d.g).ok()?;
+    let ff = full_fit(&td, base, &[])?;
+    let rms = (0..td.nch())
+        .map(|ch| {
+            let rp = td.dwell_means(&ff.resid[ch * nb..(ch + 1) * nb]);
+            (rp.iter().map(|r| r * r).sum::<f64>() / rp.len() as f64).sqrt()
+        })
+        .collect();
+    Some((rms, zscore(ff.chi2, ff.dof)))
+}
+
+const COLORS: [RGBColor; 6] = [
+    RGBColor(31, 119, 180),
+    RGBColor(255, 127, 14),
+    RGBColor(44, 160, 44),
+    RGBColor(214, 39, 40),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+];
+
+fn lines(
+    path: &Path,
+    title: &str,
+    xdesc: &str,
+    ydesc: &str,
+    series: &[(String, Vec<(f64, f64)>)],
+) -> anyhow::Result<()> {
+    let pts = series.iter().flat_map(|s| s.1.iter());
+    let (mut x0, mut x1, mut y0, mut y1) =
+        (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+    for &(x, y) in pts.filter(|p| p.0.is_finite() && p.1.is_finite()) {
+        (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
+    }
+    if !x0.is_finite() {
+        (x0, x1, y0, y1) = (0.0, 1.0, -1.0, 1.0);
+    }
+    let pad = ((y1 - y0) * 0.08).max(1e-6);
+    let root = SVGBackend::new(path, (900, 500)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 20))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(70)
+        .build_cartesian_2d(x0 - 0.5..x1 + 0.5, y0 - pad..y1 + pad)
+        .map_err(|e| anyhow!("{e}"))?;
+    chart.configure_mesh().x_desc(xdesc).y_desc(ydesc).draw().map_err(|e| anyhow!("{e}"))?;
+    for (i, (name, pts)) in series.iter().enumerate() {
+        let color = COLORS[i % COLORS.len()];
+        chart
+            .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
+            .map_err(|e| anyhow!("{e}"))?
+            .label(name.as_str())
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2)));
+    }
+    chart
+        .configure_series_labels()
+        .border_style(BLACK)
+        .background_style(WHITE.mix(0.8))
+        .draw()
+        .map_err(|e| anyhow!("{e}"))?;
+    root.present().map_err(|e| anyhow!("{e}"))?;
+    Ok(())
+}
+
+/// Writes the gap map into `dir`: `gap-positions.svg` (dwell residual per position in units of
+/// the per-position noise) and `gap-in-dwell.svg` (the in-dwell profile per channel). Returns
+/// the files written.
+pub fn plot(dir: &Path, d: &Data, gap: &Gap) -> anyhow::Result<Vec<std::path::PathBuf>> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let pos: Vec<(String, Vec<(f64, f64)>)> = (0..d.nch())
+        .map(|c| {
+            let pts =
+                (0..d.npos()).map(|p| (p as f64, gap.position_residual[c][p] / d.sigma_pos(c, p))).collect();
+            (d.channels[c].clone(), pts)
+        })
+        .collect();
+    let a = dir.join("gap-positions.svg");
+    lines(
+        &a,
+        "baseline residual per position (real - simulated)",
+        "position",
+        "dwell residual / per-position noise",
+        &pos,
+    )?;
+    let prof: Vec<(String, Vec<(f64, f64)>)> = gap
+        .channels
+        .iter()
+        .map(|g| {
+            (g.name.clone(), g.in_dwell_profile.iter().enumerate().map(|(i, v)| (i as f64, *v)).collect())
+        })
+        .collect();
+    let b = dir.join("gap-in-dwell.svg");
+    lines(&b, "residual inside the dwell, signed by the step", "bin within dwell", "codes", &prof)?;
+    Ok(vec![a, b])
+}

@@ -1,0 +1,382 @@
+//! Sim-to-real gap diagnosis: where a campaign departs from its linear-sensor simulation, and
+//! which unmodelled effect explains the departure, checked on withheld data.
+//!
+//! The data are reduced to *bins*: each dwell is cut into up to [`BINS`] consecutive runs of
+//! samples, and every bin keeps its mean code per channel, its mean time, temperature and the
+//! within-bin scatter (which estimates the white noise, that no model can change). Every model
+//! here (the baseline and the effects) is linear in its parameters on the bins, so fitting is a
+//! weighted least squares with weights `n/σ²`. [`gap`] localises the residual of the baseline,
+//! [`attribution`] fits each effect on one half of the positions and scores it on the other, and
+//! [`bench`] runs the blind benchmark.
+
+pub mod attribution;
+pub mod bench;
+pub mod gap;
+
+use std::collections::BTreeMap;
+
+use accelcal_shared::Structure;
+use nalgebra::{DMatrix, DVector};
+
+use crate::campaign::Campaign;
+
+/// Bins per dwell (fewer when a dwell has fewer samples).
+pub const BINS: usize = 8;
+
+/// Range of settling time constants searched, s.
+pub const TAU_RANGE: (f64, f64) = (0.03, 2.0);
+
+/// Why a campaign cannot be diagnosed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum DiagnoseError {
+    /// Too few positions for fitting on one half and checking on the other.
+    #[error("{positions} positions: the diagnosis needs at least {need} (twice the baseline's terms)")]
+    TooFewPositions {
+        /// Positions in the campaign.
+        positions: usize,
+        /// Positions needed.
+        need: usize,
+    },
+    /// No dwell has two samples, so the noise cannot be estimated.
+    #[error("every dwell has a single sample: the white noise cannot be estimated")]
+    NoNoiseEstimate,
+    /// The baseline cannot be fitted.
+    #[error("the baseline cannot be fitted on this campaign")]
+    Unfittable,
+}
+
+/// One bin: a run of consecutive samples inside one dwell.
+#[derive(Clone, Debug)]
+pub struct Bin {
+    /// Position (dwell) index.
+    pub pos: usize,
+    /// Bin index within the dwell.
+    pub bin: usize,
+    /// Samples in the bin.
+    pub n: f64,
+    /// Mean time, s.
+    pub t: f64,
+    /// Mean time since the dwell began, s.
+    pub t_in_dwell: f64,
+}
+
+/// A campaign reduced to bins, with what every model needs.
+#[derive(Clone, Debug)]
+pub struct Data {
+    /// Channel names.
+    pub channels: Vec<String>,
+    /// Gravity, m/s².
+    pub g: f64,
+    /// Commanded angles of each position, degrees.
+    pub angles: Vec<(f64, f64)>,
+    /// Imposed acceleration of each position, m/s².
+    pub accel: Vec<[f64; 3]>,
+    /// Mean time of each position, s.
+    pub t_pos: Vec<f64>,
+    /// The bins.
+    pub bins: Vec<Bin>,
+    /// Mean code of each bin, per channel: `mean[channel][bin]`.
+    pub mean: Vec<Vec<f64>>,
+    /// White noise per sample of each channel (pooled within-bin), codes.
+    pub sigma: Vec<f64>,
+    /// Mean temperature of each bin, °C, when the campaign has `temp_c`.
+    pub temp: Option<Vec<f64>>,
+    /// Time since the dwell began of every sample of each bin, s.
+    pub offsets: Vec<Vec<f64>>,
+    /// Model-4 sensitivities of each channel to ax, ay, az (codes per m/s²), fitted on all data.
+    pub k: Vec<[f64; 3]>,
+    /// Each channel's sensitive axis (largest |k|).
+    pub own: Vec<usize>,
+    /// Change of each channel's sensitive-axis input since the previous position: `step[ch][pos]`.
+    pub step: Vec<Vec<f64>>,
+}
+
+impl Data {
+    /// Reduces a campaign to bins.
+    pub fn new(c: &Campaign, g: f64) -> Result<Data, DiagnoseError> {
+        let dwells = c.dwells();
+        let nch = c.channels.len();
+        let mut d = Data {
+            channels: c.channels.iter().map(|ch| ch.name.clone()).collect(),
+            g,
+            angles: dwells.iter().map(|w| (w.alpha_deg, w.beta_deg)).collect(),
+            accel: dwells.iter().map(|w| w.accel(g)).collect(),
+            t_pos: Vec::new(),
+            bins: Vec::new(),
+            mean: vec![Vec::new(); nch],
+            sigma: vec![0.0; nch],
+            temp: c.temp_c.as_ref().map(|_| Vec::new()),
+            offsets: Vec::new(),
+            k: Vec::new(),
+            own: Vec::new(),
+            step: Vec::new(),
+        };
+        let mut within = vec![0.0; nch];
+        let mut dof = 0.0;
+        for (p, w) in dwells.iter().enumerate() {
+            let n = w.len();
+            let t0 = c.t_s[w.start];
+            d.t_pos.push(c.t_s[w.start..w.end].iter().sum::<f64>() / n as f64);
+            let nb = BINS.min(n);
+            for b in 0..nb {
+                let (lo, hi) = (w.start + b * n / nb, w.start + (b + 1) * n / nb);
+                let m = (hi - lo) as f64;
+                let t = c.t_s[lo..hi].iter().sum::<f64>() / m;
+                d.bins.push(Bin { pos: p, bin: b, n: m, t, t_in_dwell: t - t0 });
+                if let (Some(tc), Some(out)) = (&c.temp_c, d.temp.as_mut()) {
+                    out.push(tc[lo..hi].iter().sum::<f64>() / m);
+                }
+                d.offsets.push(c.t_s[lo..hi].iter().map(|t| t - t0).collect());
+                for (ch, chan) in c.channels.iter().enumerate() {
+                    let xs = &chan.codes[lo..hi];
+                    let mean = xs.iter().sum::<f64>() / m;
+                    d.mean[ch].push(mean);
+                    within[ch] += xs.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>();
+                }
+                dof += m - 1.0;
+            }
+        }
+        if !(dof > 0.0) {
+            return Err(DiagnoseError::NoNoiseEstimate);
+        }
+        // A floor at the quantisation noise of one code keeps noise-free data usable.
+        d.sigma = within.iter().map(|s| (s / dof).sqrt().max(1.0 / 12f64.sqrt())).collect();
+        for ch in 0..nch {
+            let k = d.linear_k(ch);
+            let own = (0..3).max_by(|&i, &j| k[i].abs().total_cmp(&k[j].abs())).unwrap_or(0);
+            let step = (0..d.npos())
+                .map(|p| if p == 0 { 0.0 } else { d.accel[p][own] - d.accel[p - 1][own] })
+                .collect();
+            d.k.push(k);
+            d.own.push(own);
+            d.step.push(step);
+        }
+        Ok(d)
+    }
+
+    /// Number of positions.
+    pub fn npos(&self) -> usize {
+        self.accel.len()
+    }
+
+    /// Number of channels.
+    pub fn nch(&self) -> usize {
+        self.channels.len()
+    }
+
+    /// Weight `n/σ²` of bin `row` of channel `ch`.
+    pub fn weight(&self, ch: usize, row: usize) -> f64 {
+        self.bins[row].n / (self.sigma[ch] * self.sigma[ch])
+    }
+
+    /// Per-position noise of a channel: σ over the square root of the dwell's samples, codes.
+    pub fn sigma_pos(&self, ch: usize, p: usize) -> f64 {
+        let n: f64 = self.bins.iter().filter(|b| b.pos == p).map(|b| b.n).sum();
+        self.sigma[ch] / n.sqrt()
+    }
+
+    /// Model-4 sensitivities of one channel from an unweighted fit of the bins.
+    fn linear_k(&self, ch: usize) -> [f64; 3] {
+        let x = DMatrix::from_fn(self.bins.len(), 4, |r, c| {
+            if c == 0 {
+                1.0
+            } else {
+                self.accel[self.bins[r].pos][c - 1]
+            }
+        });
+        let w = vec![1.0; self.bins.len()];
+        let rows: Vec<usize> = (0..self.bins.len()).collect();
+        match wls(&x, &self.mean[ch], &w, &rows) {
+            Some(f) => [f.beta[1], f.beta[2], f.beta[3]],
+            None => [0.0; 3],
+        }
+    }
+
+    /// Mean of `exp(−t_in_dwell/τ)` over the samples of each bin.
+    pub fn settle(&self, tau: f64) -> Vec<f64> {
+        self.offsets
+            .iter()
+            .map(|o| o.iter().map(|t| (-t / tau).exp()).sum::<f64>() / o.len() as f64)
+            .collect()
+    }
+
+    /// Dwell-mean of per-bin values (weighted by samples) for every position.
+    pub fn dwell_means(&self, v: &[f64]) -> Vec<f64> {
+        let mut s = vec![0.0; self.npos()];
+        let mut n = vec![0.0; self.npos()];
+        for (b, x) in self.bins.iter().zip(v) {
+            s[b.pos] += b.n * x;
+            n[b.pos] += b.n;
+        }
+        s.iter().zip(&n).map(|(s, n)| s / n).collect()
+    }
+
+    /// Checks that the baseline can be fitted on half the positions.
+    pub fn check(&self, baseline: Structure) -> Result<(), DiagnoseError> {
+        let need = 2 * baseline.terms().count() + 2;
+        if self.npos() < need {
+            return Err(DiagnoseError::TooFewPositions { positions: self.npos(), need });
+        }
+        Ok(())
+    }
+}
+
+/// A weighted least-squares solution.
+#[derive(Clone, Debug)]
+pub struct Wls {
+    /// Coefficients.
+    pub beta: Vec<f64>,
+    /// Covariance of the coefficients for unit-variance weighted residuals.
+    pub cov: DMatrix<f64>,
+    /// Weighted residual sum of squares on the rows used.
+    pub wsse: f64,
+}
+
+/// Solves `min Σ w·(y − X·β)²` over `rows` through the normal equations with the columns scaled
+/// to unit diagonal and a pseudo-inverse (directions with eigenvalue below 1e-12 of the largest
+/// are dropped, so a confounded column gets a zero coefficient rather than a wild one).
+pub fn wls(x: &DMatrix<f64>, y: &[f64], w: &[f64], rows: &[usize]) -> Option<Wls> {
+    let k = x.ncols();
+    let xs = DMatrix::from_fn(rows.len(), k, |r, c| w[rows[r]].sqrt() * x[(rows[r], c)]);
+    let ys = DVector::from_fn(rows.len(), |r, _| w[rows[r]].sqrt() * y[rows[r]]);
+    let gram = xs.transpose() * &xs;
+    let d: Vec<f64> = (0..k).map(|i| gram[(i, i)].sqrt()).map(|v| if v > 0.0 { v } else { 1.0 }).collect();
+    let gs = DMatrix::from_fn(k, k, |i, j| gram[(i, j)] / (d[i] * d[j]));
+    let eig = gs.symmetric_eigen();
+    let lmax = eig.eigenvalues.iter().cloned().fold(0.0, f64::max);
+    if !(lmax > 0.0) {
+        return None;
+    }
+    let mut inv = DMatrix::zeros(k, k);
+    for (i, &l) in eig.eigenvalues.iter().enumerate() {
+        if l > 1e-12 * lmax {
+            let v = eig.eigenvectors.column(i);
+            inv += (v * v.transpose()) / l;
+        }
+    }
+    let cov = DMatrix::from_fn(k, k, |i, j| inv[(i, j)] / (d[i] * d[j]));
+    let beta_v = &cov * (xs.transpose() * &ys);
+    let resid = &ys - &xs * &beta_v;
+    Some(Wls { beta: beta_v.iter().copied().collect(), cov, wsse: resid.norm_squared() })
+}
+
+/// An effect the diagnosis found.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct FoundEffect {
+    /// Effect name (as in `simulate --effect`).
+    pub name: String,
+    /// Channels it shows on (a parameter at least 5 standard errors from zero; every channel for
+    /// the effects of the head).
+    pub channels: Vec<String>,
+    /// Parameters per channel (`all` for those shared by the channels), fitted on all the data.
+    pub parameters: BTreeMap<String, BTreeMap<String, attribution::Estimate>>,
+    /// RMS of the withheld bin residuals before adding the effect, codes.
+    pub heldout_rms_before: f64,
+    /// The same after adding it, codes.
+    pub heldout_rms_after: f64,
+    /// Drop of the held-out χ² it brought.
+    pub heldout_chi2_drop: f64,
+}
+
+/// The attribution's result.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Attribution {
+    /// The effects kept, in the order of selection.
+    pub effects: Vec<FoundEffect>,
+    /// RMS of the residual left beyond the noise once the effects are in (0 when the rest is
+    /// consistent with the noise), codes.
+    pub unexplained_rms: f64,
+    /// z of the final χ² (below 4: consistent with the noise).
+    pub final_z: f64,
+    /// Every round of the greedy selection.
+    pub rounds: Vec<attribution::Round>,
+    /// Fraction of the baseline's held-out excess χ² the kept effects remove together.
+    pub joint_explained: f64,
+    /// Effects the rounds kept but that were not named (they explain too little together).
+    pub not_named: Vec<&'static str>,
+    /// Whether the effects came from the pair search (the greedy path stalled).
+    pub from_pairs: bool,
+}
+
+/// The whole diagnosis: the gap and its attribution.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Report {
+    /// Effects found (the interface).
+    pub effects: Vec<FoundEffect>,
+    /// Residual no effect explains, codes.
+    pub unexplained_rms: f64,
+    /// Baseline terms.
+    pub baseline: String,
+    /// The localised gap of the baseline.
+    pub gap: gap::Gap,
+    /// Details of the attribution.
+    pub attribution: Attribution,
+}
+
+/// Selects and fits the effects on prepared data.
+pub fn attribute(d: &Data, base: Structure) -> Attribution {
+    let sel = attribution::select(d, base);
+    let set = sel.set.clone();
+    let ff = attribution::full_fit(d, base, &set);
+    let mut effects = Vec::new();
+    for (i, &c) in set.iter().enumerate() {
+        let (before, after) = sel.steps[i];
+        let parameters: BTreeMap<String, BTreeMap<String, attribution::Estimate>> = ff
+            .as_ref()
+            .and_then(|f| f.params.get(&c))
+            .map(|m| m.iter().map(|(k, v)| (k.clone(), v.clone())).collect())
+            .unwrap_or_default();
+        let strong = |m: &BTreeMap<String, attribution::Estimate>| {
+            m.values().any(|e| e.sd.is_some_and(|sd| sd > 0.0 && (e.value / sd).abs() >= 5.0))
+        };
+        let mut channels: Vec<String> =
+            d.channels.iter().filter(|ch| parameters.get(*ch).is_some_and(strong)).cloned().collect();
+        if channels.is_empty() {
+            channels = d.channels.clone();
+        }
+        effects.push(FoundEffect {
+            name: c.name().to_string(),
+            channels,
+            parameters,
+            heldout_rms_before: before.rms,
+            heldout_rms_after: after.rms,
+            heldout_chi2_drop: before.chi2 - after.chi2,
+        });
+    }
+    let (unexplained_rms, final_z) = match &ff {
+        Some(f) => {
+            let z = (f.chi2 - f.dof) / (2.0 * f.dof.max(1.0)).sqrt();
+            let nb = d.bins.len();
+            let ss: f64 = f.resid.iter().map(|r| r * r).sum();
+            let noise: f64 = (0..f.resid.len()).map(|i| 1.0 / d.weight(i / nb, i % nb)).sum();
+            let u =
+                if z >= gap::NOISE_Z { ((ss - noise).max(0.0) / f.resid.len() as f64).sqrt() } else { 0.0 };
+            (u, z)
+        }
+        None => (f64::NAN, f64::NAN),
+    };
+    Attribution {
+        effects,
+        unexplained_rms,
+        final_z,
+        rounds: sel.rounds,
+        joint_explained: sel.joint_explained,
+        not_named: sel.not_named,
+        from_pairs: sel.from_pairs,
+    }
+}
+
+/// Diagnoses a campaign against the baseline `base`.
+pub fn diagnose(c: &Campaign, g: f64, base: Structure) -> Result<Report, DiagnoseError> {
+    let d = Data::new(c, g)?;
+    d.check(base)?;
+    let gap = gap::localise(&d, base, c).ok_or(DiagnoseError::Unfittable)?;
+    let attribution = attribute(&d, base);
+    Ok(Report {
+        effects: attribution.effects.clone(),
+        unexplained_rms: attribution.unexplained_rms,
+        baseline: base.to_string(),
+        gap,
+        attribution,
+    })
+}

@@ -1,0 +1,182 @@
+//! Tests of the sim-to-real gap diagnosis: every effect of the library found on a seeded campaign
+//! that has it (magnitude ≥ 5σ of the per-position noise), nothing on clean campaigns, a foreign
+//! residual left unexplained, the CLI's JSON keys and exit codes, and a small blind benchmark
+//! held to the accuracy aim.
+
+use std::process::{Command, Output};
+
+use accelcal::diagnose::{self, bench};
+use accelcal::sim::{self, effects, SimConfig, TempProfile};
+use accelcal_shared::terms::MODEL_4;
+use serde_json::Value;
+
+fn config(seed: u64, spec: Option<&str>) -> SimConfig {
+    SimConfig {
+        seed,
+        temp: Some(TempProfile { base_c: 25.0, amp_c: 5.0, cycles: 1.5, phase: 0.3 }),
+        effects: spec.map(|s| effects::parse(s).unwrap()).into_iter().collect(),
+        ..SimConfig::default()
+    }
+}
+
+fn run(seed: u64, spec: Option<&str>) -> diagnose::Report {
+    let (c, _) = sim::simulate(&config(seed, spec));
+    diagnose::diagnose(&c, accelcal_shared::G_STANDARD, MODEL_4).unwrap()
+}
+
+/// The estimate of `param` for `who` (a channel or `all`) in the one effect found.
+fn param(r: &diagnose::Report, who: &str, param: &str) -> (f64, f64) {
+    let e = &r.effects[0].parameters[who][param];
+    (e.value, e.sd.unwrap_or(f64::NAN))
+}
+
+#[test]
+fn each_effect_is_found_with_its_parameters() {
+    // Magnitudes between about 5 and 8 per-position noise sigmas (sigma/sqrt(400) = 4 codes).
+    let cases: [(&str, &str); 7] = [
+        ("bias_drift", "bias_drift=rate:0.2"),
+        ("temperature", "temperature=bias:5"),
+        ("nonlinearity", "nonlinearity=k2:0.3"),
+        ("head_misalignment", "head_misalignment=rx_mrad:2"),
+        ("hysteresis", "hysteresis=h:20"),
+        ("settling", "settling=gain:30,tau:0.5"),
+        ("angle_error", "angle_error=sd_mrad:2"),
+    ];
+    for (i, (name, spec)) in cases.iter().enumerate() {
+        let r = run(100 + i as u64, Some(spec));
+        let names: Vec<&str> = r.effects.iter().map(|e| e.name.as_str()).collect();
+        assert_eq!(names, [*name], "{spec}: {:#?}", r.attribution.rounds);
+        let e = &r.effects[0];
+        assert!(e.heldout_rms_after < 0.9 * e.heldout_rms_before, "{spec}: {e:?}");
+        assert!(!e.channels.is_empty());
+        assert!(!r.gap.consistent_with_noise, "{spec}");
+        assert_eq!(r.unexplained_rms, 0.0, "{spec}: the effect explains the whole gap");
+    }
+    let near = |(v, sd): (f64, f64), want: f64, rel: f64| {
+        assert!((v - want).abs() <= rel * want.abs() + 4.0 * sd, "{v} ± {sd} vs {want}")
+    };
+    near(param(&run(100, Some(cases[0].1)), "y", "rate"), 0.2, 0.05);
+    near(param(&run(101, Some(cases[1].1)), "z", "bias"), 5.0, 0.05);
+    near(param(&run(102, Some(cases[2].1)), "x", "k2"), 0.3, 0.05);
+    near(param(&run(103, Some(cases[3].1)), "all", "rx_mrad"), 2.0, 0.05);
+    near(param(&run(104, Some(cases[4].1)), "x", "h"), 20.0, 0.05);
+    let s = run(105, Some(cases[5].1));
+    near(param(&s, "z", "gain"), 30.0, 0.1);
+    near((param(&s, "z", "tau_s").0, 0.0), 0.5, 0.1);
+    near(param(&run(106, Some(cases[6].1)), "all", "sd_mrad"), 2.0, 0.1);
+}
+
+#[test]
+fn two_effects_that_a_third_mimics_are_found_by_the_pair_search() {
+    // Drift plus hysteresis: settling mimics their sum better than either alone, so the first
+    // greedy round keeps nothing and the pair search names both.
+    let mut cfg = config(8, None);
+    cfg.temp = Some(TempProfile { base_c: 25.0, amp_c: 5.0, cycles: 1.5, phase: 0.0 });
+    cfg.effects =
+        vec![effects::parse("bias_drift=rate:0.2").unwrap(), effects::parse("hysteresis=h:20").unwrap()];
+    let (c, _) = sim::simulate(&cfg);
+    let r = diagnose::diagnose(&c, accelcal_shared::G_STANDARD, MODEL_4).unwrap();
+    let mut names: Vec<&str> = r.effects.iter().map(|e| e.name.as_str()).collect();
+    names.sort();
+    assert_eq!(names, ["bias_drift", "hysteresis"], "{:#?}", r.attribution.rounds);
+    assert_eq!(r.unexplained_rms, 0.0);
+    let h = &r.effects.iter().find(|e| e.name == "hysteresis").unwrap().parameters["z"]["h"];
+    assert!((h.value - 20.0).abs() < 4.0 * h.sd.unwrap(), "{h:?}");
+}
+
+#[test]
+fn clean_campaigns_report_nothing() {
+    for seed in [1, 2, 3, 4] {
+        let r = run(seed, None);
+        assert!(r.effects.is_empty(), "seed {seed}: {:?}", r.effects);
+        assert!(r.gap.consistent_with_noise, "seed {seed}: z = {}", r.gap.z);
+        assert_eq!(r.unexplained_rms, 0.0);
+    }
+}
+
+#[test]
+fn a_residual_no_effect_explains_stays_unexplained() {
+    // Random offsets of ±30 codes per position on channel x only: no effect of the library has
+    // this shape (angle errors would move the other channels too).
+    let (mut c, _) = sim::simulate(&config(21, None));
+    for (k, w) in c.dwells().iter().enumerate() {
+        let off = if (k * 7919) % 5 < 2 { 30.0 } else { -30.0 };
+        for v in &mut c.channels[0].codes[w.start..w.end] {
+            *v += off;
+        }
+    }
+    let r = diagnose::diagnose(&c, accelcal_shared::G_STANDARD, MODEL_4).unwrap();
+    assert!(r.effects.is_empty(), "{:?}", r.effects);
+    assert!(r.unexplained_rms > 15.0, "{}", r.unexplained_rms);
+    assert!(!r.gap.consistent_with_noise);
+}
+
+#[test]
+fn the_gap_is_localised_where_the_effect_acts() {
+    let r = run(31, Some("hysteresis=h:20"));
+    assert!(r.gap.channels.iter().all(|c| c.z_approach.abs() > 5.0), "{:?}", r.gap.channels);
+    let r = run(32, Some("settling=gain:30,tau:0.5"));
+    assert!(r.gap.channels.iter().all(|c| c.z_in_dwell > 5.0 && c.in_dwell_profile[0] > 0.0));
+    let r = run(33, Some("bias_drift=rate:0.2"));
+    assert!(r.gap.channels.iter().all(|c| c.z_time.abs() > 5.0));
+    let r = run(34, None);
+    assert!(r.gap.channels.iter().all(|c| c.z_position.abs() < 4.0 && c.z_in_dwell.abs() < 4.0));
+}
+
+#[test]
+fn small_blind_benchmark_meets_the_aim() {
+    let s = bench::run(48, 0xb11d, bench::MAGNITUDE, &|| {});
+    assert_eq!(s.clean, 6);
+    assert_eq!(s.clean_false_positives, 0, "{:#?}", s.confusion);
+    assert!(s.accuracy_effects >= 0.95, "{:.3}: {:#?}", s.accuracy_effects, s.confusion);
+    assert!(s.shrink_vs_oracle_all > 0.95, "{}", s.shrink_vs_oracle_all);
+    assert!(s.outcomes.iter().all(|o| o.case.truth.is_none() || o.case.magnitude >= 4.5));
+}
+
+fn accelcal(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_accelcal")).args(args).output().expect("the binary runs")
+}
+
+#[test]
+fn cli_writes_the_issue_json_plots_and_refuses_bad_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_str().unwrap().to_string();
+    let out = accelcal(&[
+        "simulate",
+        "--out",
+        &p("c.csv"),
+        "--seed",
+        "5",
+        "--temp-profile",
+        "25:5:1.5",
+        "--effect",
+        "hysteresis=h:20",
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = accelcal(&["diagnose", &p("c.csv"), "--json", &p("d.json"), "--plot", &p("plots")]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    assert!(stdout.contains("effect hysteresis"), "{stdout}");
+    let v: Value = serde_json::from_str(&std::fs::read_to_string(p("d.json")).unwrap()).unwrap();
+    assert!(v["unexplained_rms"].is_number());
+    let e = &v["effects"][0];
+    assert_eq!(e["name"], "hysteresis");
+    for key in ["channels", "parameters", "heldout_rms_before", "heldout_rms_after"] {
+        assert!(!e[key].is_null(), "{key} missing: {e}");
+    }
+    assert!(e["parameters"]["x"]["h"]["value"].as_f64().unwrap() > 15.0);
+    assert!(std::fs::read_to_string(p("plots/gap-positions.svg")).unwrap().contains("<svg"));
+    assert!(std::path::Path::new(&p("plots/gap-in-dwell.svg")).exists());
+
+    let exit2 = |args: &[&str], want: &str| {
+        let out = accelcal(args);
+        let err = String::from_utf8_lossy(&out.stderr).to_string();
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(want), "{args:?}: {err}");
+    };
+    exit2(&["diagnose", &p("missing.csv")], "missing.csv");
+    exit2(&["diagnose", &p("c.csv"), "--baseline", "aq"], "--baseline");
+    exit2(&["simulate", "--out", &p("t.csv"), "--effect", "temperature=bias:1"], "--temp-profile");
+    exit2(&["simulate", "--out", &p("t.csv"), "--effect", "settling=gain:1,k:2"], "unknown parameter");
+    exit2(&["bench-diagnose", "--campaigns", "0"], "--campaigns");
+}
