@@ -13,7 +13,7 @@ use super::fit::{Structure, TriadModel};
 use super::holds::{DetectorConfig, ThresholdSource};
 use super::{imutk, plot, Calibration, StructureChoice};
 use crate::error::bad;
-use crate::output::{write_atomic, write_json};
+use crate::output::{write_atomic, write_atomic_with, write_json};
 
 /// Input file formats accepted by the gravity-norm fit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -64,6 +64,11 @@ pub struct GravityOptions {
     /// Model structure to fit (`auto`: selected on withheld holds).
     #[arg(long, value_enum, default_value = "imu-tk")]
     pub structure: StructureArg,
+    /// Also write the holds as a campaign CSV (the samples of every accepted hold, with the head
+    /// angles alpha_deg, beta_deg of the hold's calibrated gravity direction), so that `accelcal
+    /// diagnose` can examine a recording made without a dividing head.
+    #[arg(long, value_name = "FILE")]
+    pub campaign_out: Option<PathBuf>,
 }
 
 /// Arguments of `accelcal fit INPUT --method gravity-norm`.
@@ -324,7 +329,38 @@ pub fn run(args: &GravityFitArgs) -> anyhow::Result<()> {
     if let Some(dir) = &args.options.plot {
         write_plots(dir, &rec.t, &cal)?;
     }
+    if let Some(path) = &args.options.campaign_out {
+        let c = holds_campaign(&rec, &cal);
+        write_atomic_with(path, |w| c.write(w).context("writing CSV"))?;
+        println!("wrote {} ({} holds as position dwells)", path.display(), cal.detection.holds.len());
+    }
     Ok(())
+}
+
+/// The accepted holds of a recording as a campaign: every sample of each hold, channels `x, y, z`,
+/// and as head angles those of the hold's calibrated gravity direction `a` under the dividing-head
+/// kinematics (`β = asin(−a_y/|a|)`, `α = atan2(−a_x, −a_z)`).
+pub fn holds_campaign(rec: &imutk::Recording, cal: &Calibration) -> crate::campaign::Campaign {
+    use crate::campaign::{Campaign, Channel};
+    let mut c = Campaign {
+        channels: ["x", "y", "z"].map(|n| Channel { name: n.into(), codes: Vec::new() }).to_vec(),
+        ..Campaign::default()
+    };
+    for h in &cal.detection.holds {
+        let a = cal.fit.model.apply(h.mean);
+        let norm = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+        let beta = (-a[1] / norm).clamp(-1.0, 1.0).asin().to_degrees();
+        let alpha = (-a[0]).atan2(-a[2]).to_degrees();
+        for i in h.start..h.end {
+            c.t_s.push(rec.t[i]);
+            c.alpha_deg.push(alpha);
+            c.beta_deg.push(beta);
+            for (ch, &v) in c.channels.iter_mut().zip(&rec.codes[i]) {
+                ch.codes.push(v);
+            }
+        }
+    }
+    c
 }
 
 /// Writes `gravity-residuals.svg` and `gravity-detector.svg` into `dir` (created if missing).
