@@ -30,8 +30,25 @@ fn span(vals: impl Iterator<Item = f64>) -> (f64, f64) {
 
 /// One series per channel: the mean error (m/s²) at each validation position.
 pub fn error_per_position(path: &Path, title: &str, series: &[(String, Vec<f64>)]) -> anyhow::Result<()> {
-    let n = series.iter().map(|s| s.1.len()).max().unwrap_or(0).max(1);
-    let (lo, hi) = span(series.iter().flat_map(|s| s.1.iter().copied()));
+    let xy: Vec<(String, Vec<(f64, f64)>)> = series
+        .iter()
+        .map(|(name, ys)| (name.clone(), ys.iter().enumerate().map(|(k, &y)| (k as f64 + 1.0, y)).collect()))
+        .collect();
+    lines(path, title, "validation position", "error of calibrated acceleration, m/s²", &xy)
+}
+
+/// Line plot of named series of `(x, y)` points, with point markers, a zero line, integer x labels
+/// and a legend: the residual and error plots of every command.
+pub fn lines(
+    path: &Path,
+    title: &str,
+    xdesc: &str,
+    ydesc: &str,
+    series: &[(String, Vec<(f64, f64)>)],
+) -> anyhow::Result<()> {
+    let (x0, x1) = span(series.iter().flat_map(|s| s.1.iter().map(|p| p.0)));
+    let (y0, y1) = span(series.iter().flat_map(|s| s.1.iter().map(|p| p.1)));
+    let (x0, x1) = (x0.floor() - 0.5, x1.ceil() + 0.5);
     let root = SVGBackend::new(path, (900, 500)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
     let mut chart = ChartBuilder::on(&root)
@@ -39,32 +56,30 @@ pub fn error_per_position(path: &Path, title: &str, series: &[(String, Vec<f64>)
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(70)
-        .build_cartesian_2d(0.5f64..n as f64 + 0.5, lo..hi)
+        .build_cartesian_2d(x0..x1, y0..y1)
         .map_err(|e| anyhow!("{e}"))?;
     chart
         .configure_mesh()
-        .x_desc("validation position")
+        .x_desc(xdesc)
         .x_label_formatter(&|x| format!("{x:.0}"))
-        .y_desc("error of calibrated acceleration, m/s²")
+        .y_desc(ydesc)
         .draw()
         .map_err(|e| anyhow!("{e}"))?;
-    chart
-        .draw_series(LineSeries::new([(0.5, 0.0), (n as f64 + 0.5, 0.0)], BLACK.mix(0.4)))
-        .map_err(|e| anyhow!("{e}"))?;
-    for (i, (name, ys)) in series.iter().enumerate() {
+    chart.draw_series(LineSeries::new([(x0, 0.0), (x1, 0.0)], BLACK.mix(0.4))).map_err(|e| anyhow!("{e}"))?;
+    for (i, (name, pts)) in series.iter().enumerate() {
         let color = COLORS[i % COLORS.len()];
-        let pts: Vec<(f64, f64)> = ys.iter().enumerate().map(|(k, &y)| (k as f64 + 1.0, y)).collect();
         chart
             .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
             .map_err(|e| anyhow!("{e}"))?
             .label(name.as_str())
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2)));
         chart
-            .draw_series(pts.into_iter().map(|p| Circle::new(p, 3, color.filled())))
+            .draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled())))
             .map_err(|e| anyhow!("{e}"))?;
     }
     chart
         .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
         .border_style(BLACK)
         .background_style(WHITE.mix(0.8))
         .draw()

@@ -9,8 +9,7 @@
 use std::path::Path;
 
 use accelcal_shared::Structure;
-use anyhow::{anyhow, Context};
-use plotters::prelude::*;
+use anyhow::Context;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
@@ -231,60 +230,6 @@ fn twin_rms(d: &Data, base: Structure, c: &Campaign, resid: &[f64]) -> Option<(V
     Some((rms, zscore(ff.chi2, ff.dof)))
 }
 
-const COLORS: [RGBColor; 6] = [
-    RGBColor(31, 119, 180),
-    RGBColor(255, 127, 14),
-    RGBColor(44, 160, 44),
-    RGBColor(214, 39, 40),
-    RGBColor(148, 103, 189),
-    RGBColor(140, 86, 75),
-];
-
-fn lines(
-    path: &Path,
-    title: &str,
-    xdesc: &str,
-    ydesc: &str,
-    series: &[(String, Vec<(f64, f64)>)],
-) -> anyhow::Result<()> {
-    let pts = series.iter().flat_map(|s| s.1.iter());
-    let (mut x0, mut x1, mut y0, mut y1) =
-        (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
-    for &(x, y) in pts.filter(|p| p.0.is_finite() && p.1.is_finite()) {
-        (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
-    }
-    if !x0.is_finite() {
-        (x0, x1, y0, y1) = (0.0, 1.0, -1.0, 1.0);
-    }
-    let pad = ((y1 - y0) * 0.08).max(1e-6);
-    let root = SVGBackend::new(path, (900, 500)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 20))
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(70)
-        .build_cartesian_2d(x0 - 0.5..x1 + 0.5, y0 - pad..y1 + pad)
-        .map_err(|e| anyhow!("{e}"))?;
-    chart.configure_mesh().x_desc(xdesc).y_desc(ydesc).draw().map_err(|e| anyhow!("{e}"))?;
-    for (i, (name, pts)) in series.iter().enumerate() {
-        let color = COLORS[i % COLORS.len()];
-        chart
-            .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
-            .map_err(|e| anyhow!("{e}"))?
-            .label(name.as_str())
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2)));
-    }
-    chart
-        .configure_series_labels()
-        .border_style(BLACK)
-        .background_style(WHITE.mix(0.8))
-        .draw()
-        .map_err(|e| anyhow!("{e}"))?;
-    root.present().map_err(|e| anyhow!("{e}"))?;
-    Ok(())
-}
-
 /// Writes the gap map into `dir`: `gap-positions.svg` (dwell residual per position in units of
 /// the per-position noise) and `gap-in-dwell.svg` (the in-dwell profile per channel). Returns
 /// the files written.
@@ -298,7 +243,7 @@ pub fn plot(dir: &Path, d: &Data, gap: &Gap) -> anyhow::Result<Vec<std::path::Pa
         })
         .collect();
     let a = dir.join("gap-positions.svg");
-    lines(
+    crate::plot::lines(
         &a,
         "baseline residual per position (real - simulated)",
         "position",
@@ -313,6 +258,12 @@ pub fn plot(dir: &Path, d: &Data, gap: &Gap) -> anyhow::Result<Vec<std::path::Pa
         })
         .collect();
     let b = dir.join("gap-in-dwell.svg");
-    lines(&b, "residual inside the dwell, signed by the step", "bin within dwell", "codes", &prof)?;
+    crate::plot::lines(
+        &b,
+        "residual inside the dwell, signed by the step",
+        "bin within dwell",
+        "codes",
+        &prof,
+    )?;
     Ok(vec![a, b])
 }
