@@ -155,25 +155,19 @@ impl QemuNode {
     /// guest only once this process has connected, so the report cannot be missed). Nothing is
     /// sent before it: bytes sent before the node enables its receiver would be lost in part.
     fn wait_boot_status(&mut self) -> Result<Status, HilError> {
-        let t0 = Instant::now();
-        loop {
-            match self.rx.recv() {
-                Ok(Ok(NodeMsg::Status(s))) => return Ok(s),
-                Ok(_) => {}
-                Err(e) if is_timeout(&e) => {}
-                Err(e) => return Err(self.explain(e)),
-            }
-            if t0.elapsed() > self.timeout {
-                return Err(HilError::Timeout(self.timeout));
-            }
-        }
+        self.next_status()
     }
 
     /// Asks the node for its status and returns the next status report.
     pub fn status(&mut self) -> Result<Status, HilError> {
-        let t0 = Instant::now();
         let mut tx = self.stream.try_clone()?;
         link::send(&mut tx, &HostMsg::GetStatus)?;
+        self.next_status()
+    }
+
+    /// The next status report the node sends (other messages are passed over), within the timeout.
+    fn next_status(&mut self) -> Result<Status, HilError> {
+        let t0 = Instant::now();
         loop {
             match self.rx.recv() {
                 Ok(Ok(NodeMsg::Status(s))) => return Ok(s),
