@@ -286,3 +286,20 @@ fn real_recording_becomes_a_campaign_that_diagnose_reads() {
     // The real data are not the simulation: a gap no library effect explains is reported as such.
     assert!(j["unexplained_rms"].as_f64().unwrap() > 0.1, "{j}");
 }
+
+#[test]
+fn a_closed_pipe_ends_the_output_quietly() {
+    let d = Dir::new();
+    let c = simulate(&d, "c.csv", &["--samples", "2"]);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_accelcal"))
+        .args(["select", &c, "--basis", "quadratic"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Close the reading end before the tables are printed (like `| head` that has had enough).
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+}
