@@ -5,6 +5,7 @@
 //!   firmware builds and the QEMU tests.
 //! - `lint`: rustfmt and clippy (warnings are errors).
 //! - `bench`: the benchmarks the README quotes (GMDH against the PyPI `gmdh` package).
+//! - `fuzz`: the mutation fuzzer of the record parser and the frame decoder, for a bounded time.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -39,6 +40,8 @@ fn test() -> anyhow::Result<()> {
     // tests/hil.rs, which needs the QEMU build).
     firmware::test()?;
     run(&r, "cargo", &["test", "--workspace", "--locked"])?;
+    // A short fuzzing run (test profile: overflow checks on, artifacts shared with the tests).
+    run(&r, "cargo", &fuzz_args("test", TEST_FUZZ_SECONDS, "all"))?;
     run(
         &r,
         "cargo",
@@ -53,6 +56,49 @@ fn test() -> anyhow::Result<()> {
         ],
     )?;
     Ok(())
+}
+
+/// Seconds of fuzzing in `cargo xtask test` (shared between the two targets).
+const TEST_FUZZ_SECONDS: &str = "10";
+
+/// `cargo run` of the fuzzer (`fuzz/`) under `profile`, for `seconds` on `target`.
+fn fuzz_args<'a>(profile: &'a str, seconds: &'a str, target: &'a str) -> Vec<&'a str> {
+    vec![
+        "run",
+        "--locked",
+        "--profile",
+        profile,
+        "-p",
+        "accelcal-fuzz",
+        "--",
+        "--seconds",
+        seconds,
+        "--target",
+        target,
+    ]
+}
+
+/// `cargo xtask fuzz [--seconds N] [--target record|frame|all] [--seed S]`: the fuzzer in the
+/// `fuzz` profile (optimised, overflow checks and debug assertions on).
+fn fuzz(args: &[String]) -> anyhow::Result<()> {
+    let mut seconds = "60".to_string();
+    let mut target = "all".to_string();
+    let mut seed = None;
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        let v = it.next().with_context(|| format!("{a} needs a value"))?;
+        match a.as_str() {
+            "--seconds" => seconds = v.clone(),
+            "--target" => target = v.clone(),
+            "--seed" => seed = Some(v.clone()),
+            _ => bail!("unknown argument `{a}` (cargo xtask fuzz [--seconds N] [--target record|frame|all] [--seed S])"),
+        }
+    }
+    let mut cmd = fuzz_args("fuzz", &seconds, &target);
+    if let Some(s) = &seed {
+        cmd.extend(["--seed", s]);
+    }
+    run(&root(), "cargo", &cmd)
 }
 
 fn lint() -> anyhow::Result<()> {
@@ -73,8 +119,9 @@ fn main() -> anyhow::Result<()> {
         "test" => test(),
         "lint" => lint(),
         "bench" => bench(),
+        "fuzz" => fuzz(&std::env::args().skip(2).collect::<Vec<_>>()),
         _ => {
-            eprintln!("usage: cargo xtask <test|lint|bench>\n  test   every test: host, shared (desktop and no_std target), firmware builds, QEMU\n  lint   rustfmt --check and clippy -D warnings\n  bench  the benchmarks quoted in the README");
+            eprintln!("usage: cargo xtask <test|lint|bench|fuzz>\n  test   every test: host, shared (desktop and no_std target), firmware builds, QEMU\n  lint   rustfmt --check and clippy -D warnings\n  bench  the benchmarks quoted in the README\n  fuzz   [--seconds N] [--target record|frame|all] [--seed S]: the parsers' mutation fuzzer");
             std::process::exit(2)
         }
     }

@@ -29,12 +29,31 @@ pub struct HilOptions {
     pub elf: PathBuf,
     /// How long the node may stay silent before the run fails.
     pub timeout: Duration,
+    /// Keeps QEMU's main loop busy so that the link is read at full speed (see
+    /// [`SPIN_CHARDEV`]); costs one host core while QEMU runs.
+    pub spin_main_loop: bool,
 }
 
+/// A second serial port (USART2, which the node never enables) reading `/dev/zero`.
+///
+/// QEMU's stm32l4x5 USART model takes one byte at a time (`can_receive` is 1 only while RXNE is
+/// clear) and does not call `qemu_chr_fe_accept_input()` when the guest reads RDR, so the link's
+/// socket is polled again only at the main loop's next iteration, which otherwise waits for a
+/// timer (the node's 1 kHz SysTick) or another event: about 7 kB/s, 820 sample sets/s. A chardev
+/// that is always readable makes the main loop iterate without pause; the model drops what it
+/// reads, because USART2's receiver is off.
+pub const SPIN_CHARDEV: [&str; 4] =
+    ["-chardev", "file,id=spin,path=/dev/null,input-path=/dev/zero", "-serial", "chardev:spin"];
+
 impl HilOptions {
-    /// Defaults: `qemu-system-arm` from `PATH`, 20 s timeout.
+    /// Defaults: `qemu-system-arm` from `PATH`, 20 s timeout, QEMU's main loop not kept busy.
     pub fn new(elf: impl Into<PathBuf>) -> Self {
-        HilOptions { qemu: "qemu-system-arm".into(), elf: elf.into(), timeout: Duration::from_secs(20) }
+        HilOptions {
+            qemu: "qemu-system-arm".into(),
+            elf: elf.into(),
+            timeout: Duration::from_secs(20),
+            spin_main_loop: false,
+        }
     }
 }
 
@@ -115,6 +134,9 @@ impl QemuNode {
             .arg("-chardev")
             .arg(format!("socket,id=link,path={},server=on,wait=on", sock.display()))
             .args(["-serial", "chardev:link"]);
+        if opts.spin_main_loop {
+            cmd.args(SPIN_CHARDEV);
+        }
         if let Some(page) = slot0 {
             std::fs::write(&slot_path, page)?;
             cmd.arg("-device").arg(format!(

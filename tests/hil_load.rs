@@ -1,0 +1,99 @@
+//! Load test of the node in QEMU: 100,000 sample sets replayed through the link as fast as the
+//! node takes them; every answer must arrive, in order, with the right number of sets and the same
+//! f32 values as the host's f32 path, and the node's final status must show no overrun and no bad
+//! frame. Prints the replay rate (sample sets per second of wall time).
+//!
+//! It is its own test binary so that it runs alone (the HIL tests in `hil.rs` would share the two
+//! cores with it). Needs `qemu-system-arm` and the QEMU build, like `hil.rs` (`cargo xtask test`).
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use accelcal::node::hil::{replay, HilOptions};
+use accelcal_shared::linear::Model4;
+use accelcal_shared::record::{Record, MAX_CHANNELS, MAX_RECORD_LEN};
+use accelcal_shared::terms::{MODEL_4, N_BASIS};
+use accelcal_shared::wire::MAX_BLOCK;
+
+/// The issue's number of sample sets; `ACCELCAL_LOAD_SETS` overrides it.
+const SETS: usize = 100_000;
+
+fn sets() -> usize {
+    std::env::var("ACCELCAL_LOAD_SETS").map_or(SETS, |v| v.parse().expect("ACCELCAL_LOAD_SETS: a number"))
+}
+
+fn node_elf() -> PathBuf {
+    let elf = std::env::var_os("ACCELCAL_NODE_QEMU_ELF").map(PathBuf::from).unwrap_or_else(|| {
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../firmware/target/thumbv7em-none-eabihf/release/node-qemu")
+    });
+    assert!(
+        elf.is_file(),
+        "{} is missing: build it with `cargo xtask test` (or `cd firmware && cargo build --release \
+         --features board-qemu --bin node-qemu`); QEMU comes from `bash scripts/setup-qemu.sh`",
+        elf.display()
+    );
+    elf
+}
+
+/// A model-4 record for the QEMU board's device id.
+fn record(m: &Model4) -> Vec<u8> {
+    let mut r = Record {
+        device_id: *b"QEMU-B-L475E",
+        created_unix_s: 1_800_000_000,
+        structure: MODEL_4,
+        n_channels: 3,
+        coefficients: [[0.0; N_BASIS]; MAX_CHANNELS],
+    };
+    for c in 0..3 {
+        r.coefficients[c][..4].copy_from_slice(&[m.u0[c], m.k[c][0], m.k[c][1], m.k[c][2]]);
+    }
+    let mut buf = [0u8; MAX_RECORD_LEN];
+    let n = r.emit(&mut buf).unwrap();
+    buf[..n].to_vec()
+}
+
+/// Deterministic code sets over the whole 16-bit range (xorshift), so no two blocks are alike.
+fn codes(n: usize) -> Vec<[u16; 3]> {
+    let mut s = 0x9E37_79B9_7F4A_7C15u64;
+    (0..n)
+        .map(|_| {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            [s as u16, (s >> 16) as u16, (s >> 32) as u16]
+        })
+        .collect()
+}
+
+#[test]
+fn node_replays_100000_sets_in_order_without_overruns() {
+    let m = Model4 {
+        u0: [32100.5, 33012.25, 31877.75],
+        k: [[1671.2, 8.5, -3.25], [-4.0, 1650.75, 6.5], [2.5, -7.75, 1689.0]],
+    };
+    let host = m.invert().unwrap().to_f32();
+    let n = sets();
+    let codes = codes(n);
+    let t0 = Instant::now();
+    // `replay` fails unless every answer comes back in order (`seq`) with as many sets as were sent.
+    let opts = HilOptions {
+        spin_main_loop: std::env::var_os("ACCELCAL_LOAD_NO_SPIN").is_none(),
+        ..HilOptions::new(node_elf())
+    };
+    let run = replay(&opts, &record(&m), &codes).unwrap();
+    let secs = t0.elapsed().as_secs_f64();
+    assert_eq!(run.accel.len(), n);
+    for (i, (a, u)) in run.accel.iter().zip(&codes).enumerate() {
+        assert_eq!(*a, host.apply(*u), "set {i}: node and host f32 differ (lost or reordered set?)");
+    }
+    assert_eq!(run.status.overruns, 0, "{:?}", run.status);
+    assert_eq!(run.status.bad_frames, 0, "{:?}", run.status);
+    println!(
+        "replayed {n} sample sets ({} requests of {MAX_BLOCK}) through the QEMU node in {secs:.1} s \
+         (boot included) = {:.0} sets/s; final status {:?}",
+        n.div_ceil(MAX_BLOCK),
+        n as f64 / secs,
+        run.status
+    );
+}
