@@ -234,7 +234,11 @@ impl Campaign {
                     path: p(),
                     line,
                     column: i + 1,
-                    msg: format!("expected a number in `{}`, found `{s}`", &header[i]),
+                    msg: if s.is_empty() {
+                        format!("expected a number in `{}`, found an empty field", &header[i])
+                    } else {
+                        format!("expected a number in `{}`, found `{s}`", &header[i])
+                    },
                 })?;
                 if !v.is_finite() {
                     return Err(CampaignError::Field {
