@@ -144,3 +144,116 @@ fn every_bad_record_is_refused_before_any_device_is_needed() {
         }
     }
 }
+
+/// Writes a campaign from `(alpha, beta, samples)` dwells with codes near mid-scale.
+fn campaign(path: &Path, dwells: &[(f64, f64, usize)]) {
+    let mut s = String::from("t_s,alpha_deg,beta_deg,x,y,z\n");
+    let mut t = 0.0;
+    for (i, &(a, b, n)) in dwells.iter().enumerate() {
+        for k in 0..n {
+            let code = 30000 + 100 * i + k;
+            s += &format!("{t},{a},{b},{code},{},{}\n", code + 1, code + 2);
+            t += 0.1;
+        }
+    }
+    std::fs::write(path, s).unwrap();
+}
+
+#[test]
+fn too_few_positions_are_refused_naming_the_file() {
+    let (d, out) = out_dir();
+    let c = d.path().join("three.csv");
+    campaign(&c, &[(0.0, 0.0, 3), (90.0, 0.0, 3), (180.0, 0.0, 3)]);
+    let c = c.to_str().unwrap();
+    let j = out.join("j.json");
+    let j = j.to_str().unwrap();
+    let e = bad(&["fit", c, "--json", j]);
+    assert!(
+        e.contains(&format!(
+            "{c}: channel `x`: 4 terms (1,ax,ay,az) need at least 4 positions, the plan has 3"
+        )),
+        "{e}"
+    );
+    // select ranks what the plan identifies and marks the rest.
+    let sel = accelcal(&["select", c, "--channels", "x"]);
+    assert!(sel.status.success());
+    assert!(String::from_utf8_lossy(&sel.stdout)
+        .contains("1,ax,ay,az                                     unidentif."));
+    for cmd in ["compare", "diagnose"] {
+        let e = bad(&[cmd, c, "--json", j]);
+        assert!(e.contains(c), "{cmd}: {e}");
+    }
+    assert_no_output(&out, "too few positions");
+}
+
+#[test]
+fn saturated_samples_are_excluded_with_one_warning_per_channel() {
+    let d = tempfile::tempdir().unwrap();
+    let c = d.path().join("sat.csv");
+    let plan = [
+        (0.0, 0.0),
+        (180.0, 0.0),
+        (90.0, 0.0),
+        (-90.0, 0.0),
+        (0.0, 90.0),
+        (0.0, -90.0),
+        (45.0, 30.0),
+        (-45.0, -30.0),
+    ];
+    campaign(&c, &plan.map(|(a, b)| (a, b, 4)));
+    let mut lines: Vec<String> = std::fs::read_to_string(&c).unwrap().lines().map(String::from).collect();
+    // Channel x saturates on lines 3 and 9, channel z reads 70000 on line 12.
+    for (line, col, v) in [(3, 3, "65535"), (9, 3, "0"), (12, 5, "70000")] {
+        let mut f: Vec<&str> = lines[line - 1].split(',').collect();
+        f[col] = v;
+        lines[line - 1] = f.join(",");
+    }
+    std::fs::write(&c, lines.join("\n") + "\n").unwrap();
+    let c = c.to_str().unwrap();
+    for cmd in ["fit", "select", "compare"] {
+        let out = accelcal(&[cmd, c]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{cmd}: {err}");
+        let warnings: Vec<&str> = err.lines().filter(|l| l.starts_with("warning: ")).collect();
+        assert_eq!(warnings.len(), 2, "{cmd}: {err}");
+        assert!(
+            warnings[0].contains(&format!("{c}:3:4: excluded 2 of 32 samples where channel `x`")),
+            "{err}"
+        );
+        assert!(
+            warnings[1].contains(&format!("{c}:12:6: excluded 1 of 32 samples where channel `z`")),
+            "{err}"
+        );
+    }
+}
+
+#[test]
+fn single_sample_dwells_are_accepted_with_a_warning() {
+    let d = tempfile::tempdir().unwrap();
+    let c = d.path().join("one.csv");
+    let plan = [
+        (0.0, 0.0),
+        (180.0, 0.0),
+        (90.0, 0.0),
+        (-90.0, 0.0),
+        (0.0, 90.0),
+        (0.0, -90.0),
+        (45.0, 30.0),
+        (-45.0, -30.0),
+    ];
+    campaign(&c, &plan.map(|(a, b)| (a, b, if a == 90.0 { 1 } else { 3 })));
+    let c = c.to_str().unwrap();
+    for method in ["lsq", "test-turns"] {
+        let out = accelcal(&["fit", c, "--method", method]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{err}");
+        assert_eq!(err.trim_end(), format!("warning: {c}:8: 1 dwell(s) with a single sample (first at this line): their scatter is unknown"));
+        assert!(!String::from_utf8_lossy(&out.stdout).contains("NaN"));
+    }
+    // Every dwell a single sample: fits still run; the diagnosis, which needs the noise, refuses.
+    campaign(Path::new(c), &plan.map(|(a, b)| (a, b, 1)));
+    assert!(accelcal(&["fit", c]).status.success());
+    let e = accelcal(&["diagnose", c]);
+    assert_eq!(e.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&e.stderr).contains("single sample"));
+}

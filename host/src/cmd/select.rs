@@ -4,6 +4,7 @@ use std::path::Path;
 
 use accelcal_shared::terms::PAPER_MODELS;
 use accelcal_shared::{Basis, Structure};
+use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
@@ -282,10 +283,12 @@ pub fn run(a: &SelectArgs) -> anyhow::Result<()> {
         .num_threads(a.threads.unwrap_or(0))
         .build()
         .map_err(|e| anyhow::anyhow!("starting worker threads: {e}"))?;
-    let sel = pool.install(|| match a.algorithm {
-        Algorithm::Combi => compute(&c, a.common.g, &a.channels, &settings),
-        Algorithm::Multi => compute_multi(&c, a.common.g, &a.channels, &settings, a.width),
-    })?;
+    let sel = pool
+        .install(|| match a.algorithm {
+            Algorithm::Combi => compute(&c, a.common.g, &a.channels, &settings),
+            Algorithm::Multi => compute_multi(&c, a.common.g, &a.channels, &settings, a.width),
+        })
+        .with_context(|| a.campaign.display().to_string())?;
     print_tables(&sel, &settings);
     if let Some(j) = &a.common.json {
         write_json(j, &to_json(&sel, &settings, &a.split.to_string(), a.top))?;
