@@ -4,6 +4,12 @@
 //! `beta_deg` (commanded head angles); optional `temp_c`; every other column is one ADC channel of
 //! raw codes. One row per sample set; consecutive rows with the same angles form one position
 //! dwell. Lines starting with `#` are comments.
+//!
+//! Every check lives in one row parser, `RowReader`, which keeps only the current row; the
+//! in-memory reader ([`Campaign::read`]) and the streaming one ([`Campaign::reduce`]) both use it.
+//! A row with a code at 0 or 65535 (saturated) or outside the ADC range is skipped and counted in
+//! a warning per channel; a dwell that loses every row is refused; single-sample dwells are
+//! counted in a warning.
 
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
@@ -255,7 +261,7 @@ impl Tally {
 
 /// The one campaign parser: reads a CSV row by row with every check, keeping nothing but the
 /// current row, so the in-memory reader ([`Campaign::read`]) and the streaming one
-/// ([`Campaign::reduce`](crate::reduce)) refuse the same files with the same messages.
+/// ([`Campaign::reduce`]) refuse the same files with the same messages.
 ///
 /// Rows with a channel code saturated or outside the ADC range are skipped (and counted per
 /// channel for a warning); a dwell that loses every row is refused.
