@@ -78,6 +78,9 @@ fn every_bad_campaign_is_refused_by_every_command() {
     let (d, out) = out_dir();
     let elf = good_record(d.path()); // any existing file passes the ELF check before the campaign is read
     let rec = good_record(d.path());
+    let good = d.path().join("good.csv");
+    campaign(&good, &[(0.0, 0.0, 3), (180.0, 0.0, 3), (90.0, 0.0, 3), (-90.0, 0.0, 3)]);
+    let good = good.to_str().unwrap();
     let [j, plots, cal, o] =
         ["out.json", "plots", "cal.rec", "o.csv"].map(|n| out.join(n).to_str().unwrap().to_string());
     let (j, plots, cal, o) = (j.as_str(), plots.as_str(), cal.as_str(), o.as_str());
@@ -85,10 +88,11 @@ fn every_bad_campaign_is_refused_by_every_command() {
     let mut n = 0;
     for (file, want) in expected().iter().filter(|(f, _)| f.extension().is_some_and(|e| e == "csv")) {
         let f = file.to_str().unwrap();
-        let runs: [Vec<&str>; 5] = [
+        let runs: [Vec<&str>; 6] = [
             vec!["select", f, "--json", j, "--plot", plots],
             vec!["fit", f, "--json", j, "--record", cal],
             vec!["compare", f, "--json", j, "--plot", plots],
+            vec!["compare", good, "--validate", f, "--json", j],
             vec!["diagnose", f, "--json", j, "--plot", plots],
             vec!["hil", "--qemu", elf, "--record", rec, f, "--out", o],
         ];
@@ -100,7 +104,7 @@ fn every_bad_campaign_is_refused_by_every_command() {
             n += 1;
         }
     }
-    assert!(n >= 5 * 15, "the corpus has shrunk: {n} runs");
+    assert!(n >= 6 * 15, "the corpus has shrunk: {n} runs");
 }
 
 #[test]
