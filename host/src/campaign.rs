@@ -4,6 +4,12 @@
 //! `beta_deg` (commanded head angles); optional `temp_c`; every other column is one ADC channel of
 //! raw codes. One row per sample set; consecutive rows with the same angles form one position
 //! dwell. Lines starting with `#` are comments.
+//!
+//! Every check lives in one row parser, `RowReader`, which keeps only the current row; the
+//! in-memory reader ([`Campaign::read`]) and the streaming one ([`Campaign::reduce`]) both use it.
+//! A row with a code at 0 or 65535 (saturated) or outside the ADC range is skipped and counted in
+//! a warning per channel; a dwell that loses every row is refused; single-sample dwells are
+//! counted in a warning.
 
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
@@ -79,6 +85,9 @@ pub struct Campaign {
     pub temp_c: Option<Vec<f64>>,
     /// The ADC channels.
     pub channels: Vec<Channel>,
+    /// What the reader excluded or could not check (saturated codes, single-sample dwells), one
+    /// line each; the commands print them on stderr.
+    pub warnings: Vec<String>,
 }
 
 /// One position dwell: a run of consecutive rows with the same commanded angles.
@@ -149,139 +158,29 @@ impl Campaign {
 
     /// Reads and checks a campaign from any reader; `path` names it in errors.
     pub fn from_reader<R: Read>(reader: R, path: &Path) -> Result<Campaign, CampaignError> {
-        let p = || path.to_owned();
-        let mut rdr = csv::ReaderBuilder::new()
-            .comment(Some(b'#'))
-            .trim(csv::Trim::All)
-            .flexible(true)
-            .from_reader(reader);
-        let csv_err = |e: csv::Error| {
-            let line = e.position().map(|p| p.line()).unwrap_or(0);
-            let msg = match e.kind() {
-                csv::ErrorKind::Utf8 { .. } => "not UTF-8 text (is this a binary file?)".to_string(),
-                csv::ErrorKind::Io(io) => io.to_string(),
-                _ => e.to_string(),
-            };
-            CampaignError::Csv { path: p(), line, msg }
-        };
-        let header = rdr.headers().map_err(csv_err)?.clone();
-        let header_line = header.position().map(|p| p.line()).unwrap_or(1);
-        if header.is_empty() || header.iter().all(|h| h.is_empty()) {
-            return Err(CampaignError::File {
-                path: p(),
-                msg: "empty file: expected a header row with t_s,alpha_deg,beta_deg and channel columns"
-                    .into(),
-            });
-        }
-        let mut seen = std::collections::HashSet::new();
-        for (i, h) in header.iter().enumerate() {
-            if h.is_empty() {
-                return Err(CampaignError::Field {
-                    path: p(),
-                    line: header_line,
-                    column: i + 1,
-                    msg: "empty column name".into(),
-                });
-            }
-            if !seen.insert(h) {
-                return Err(CampaignError::Field {
-                    path: p(),
-                    line: header_line,
-                    column: i + 1,
-                    msg: format!("duplicate column `{h}`"),
-                });
-            }
-        }
-        let find = |name: &str| header.iter().position(|h| h == name);
-        let need = |name: &str| {
-            find(name).ok_or_else(|| CampaignError::File {
-                path: p(),
-                msg: format!(
-                    "missing required column `{name}` (header has: {})",
-                    header.iter().collect::<Vec<_>>().join(",")
-                ),
-            })
-        };
-        let (ti, ai, bi) = (need("t_s")?, need("alpha_deg")?, need("beta_deg")?);
-        let temp_i = find("temp_c");
-        let chan_cols: Vec<usize> =
-            (0..header.len()).filter(|&i| i != ti && i != ai && i != bi && Some(i) != temp_i).collect();
-        if chan_cols.is_empty() {
-            return Err(CampaignError::File { path: p(), msg: "no ADC channel column (every column besides t_s, alpha_deg, beta_deg, temp_c is a channel)".into() });
-        }
+        let mut rows = RowReader::new(reader, path)?;
         let mut c = Campaign {
-            temp_c: temp_i.map(|_| Vec::new()),
-            channels: chan_cols
-                .iter()
-                .map(|&i| Channel { name: header[i].to_string(), codes: Vec::new() })
+            temp_c: rows.has_temp().then(Vec::new),
+            channels: rows
+                .channel_names()
+                .into_iter()
+                .map(|name| Channel { name, codes: Vec::new() })
                 .collect(),
             ..Campaign::default()
         };
-        let mut rec = csv::StringRecord::new();
-        while rdr.read_record(&mut rec).map_err(csv_err)? {
-            let line = rec.position().map(|p| p.line()).unwrap_or(0);
-            if rec.len() != header.len() {
-                return Err(CampaignError::Field {
-                    path: p(),
-                    line,
-                    column: rec.len().min(header.len()) + 1,
-                    msg: format!("expected {} fields, found {}", header.len(), rec.len()),
-                });
+        let mut row = Row::default();
+        while rows.next_row(&mut row)? {
+            c.t_s.push(row.t);
+            c.alpha_deg.push(row.alpha);
+            c.beta_deg.push(row.beta);
+            if let (Some(v), Some(t)) = (c.temp_c.as_mut(), row.temp) {
+                v.push(t);
             }
-            let num = |i: usize| -> Result<f64, CampaignError> {
-                let s = &rec[i];
-                let v: f64 = s.parse().map_err(|_| CampaignError::Field {
-                    path: p(),
-                    line,
-                    column: i + 1,
-                    msg: format!("expected a number in `{}`, found `{s}`", &header[i]),
-                })?;
-                if !v.is_finite() {
-                    return Err(CampaignError::Field {
-                        path: p(),
-                        line,
-                        column: i + 1,
-                        msg: format!("`{}` must be finite, found `{s}`", &header[i]),
-                    });
-                }
-                Ok(v)
-            };
-            let t = num(ti)?;
-            if let Some(&prev) = c.t_s.last() {
-                if t < prev {
-                    return Err(CampaignError::Field {
-                        path: p(),
-                        line,
-                        column: ti + 1,
-                        msg: format!("t_s must not decrease ({t} after {prev})"),
-                    });
-                }
-            }
-            c.t_s.push(t);
-            c.alpha_deg.push(num(ai)?);
-            c.beta_deg.push(num(bi)?);
-            if let (Some(i), Some(v)) = (temp_i, c.temp_c.as_mut()) {
-                v.push(num(i)?);
-            }
-            for (k, &i) in chan_cols.iter().enumerate() {
-                let v = num(i)?;
-                if !(0.0..=ADC_MAX).contains(&v) {
-                    return Err(CampaignError::Field {
-                        path: p(),
-                        line,
-                        column: i + 1,
-                        msg: format!(
-                            "code {v} of channel `{}` is outside the 16-bit ADC range 0..=65535",
-                            &header[i]
-                        ),
-                    });
-                }
-                c.channels[k].codes.push(v);
+            for (ch, &v) in c.channels.iter_mut().zip(&row.codes) {
+                ch.codes.push(v);
             }
         }
-        if c.is_empty() {
-            return Err(CampaignError::File { path: p(), msg: "header only: no data rows".into() });
-        }
+        c.warnings = rows.finish()?;
         Ok(c)
     }
 
@@ -311,6 +210,283 @@ impl Campaign {
         wr.flush()?;
         Ok(())
     }
+}
+
+/// Whether a raw code is usable: inside the ADC range and not at a rail (0 and 65535 are what a
+/// saturated input reads).
+pub fn code_usable(v: f64) -> bool {
+    v > 0.0 && v < ADC_MAX
+}
+
+/// One checked row whose codes are all usable.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Row {
+    /// Time, s.
+    pub t: f64,
+    /// Commanded α, degrees.
+    pub alpha: f64,
+    /// Commanded β, degrees.
+    pub beta: f64,
+    /// Temperature, °C, when the file has `temp_c`.
+    pub temp: Option<f64>,
+    /// One code per channel.
+    pub codes: Vec<f64>,
+}
+
+/// The dwell being read: its angles, where it began, and how many of its rows were kept.
+struct DwellTrack {
+    alpha: f64,
+    beta: f64,
+    first_line: u64,
+    kept: u64,
+    /// The first channel that cost this dwell a row.
+    lost_to: Option<usize>,
+}
+
+/// A run of excluded samples or single-sample dwells: how many, and the first line.
+#[derive(Clone, Copy, Default)]
+struct Tally {
+    count: u64,
+    first_line: u64,
+}
+
+impl Tally {
+    fn add(&mut self, line: u64) {
+        if self.count == 0 {
+            self.first_line = line;
+        }
+        self.count += 1;
+    }
+}
+
+/// The one campaign parser: reads a CSV row by row with every check, keeping nothing but the
+/// current row, so the in-memory reader ([`Campaign::read`]) and the streaming one
+/// ([`Campaign::reduce`]) refuse the same files with the same messages.
+///
+/// Rows with a channel code saturated or outside the ADC range are skipped (and counted per
+/// channel for a warning); a dwell that loses every row is refused.
+pub(crate) struct RowReader<R: Read> {
+    rdr: csv::Reader<R>,
+    path: PathBuf,
+    header: csv::StringRecord,
+    cols: [usize; 3],
+    temp: Option<usize>,
+    chans: Vec<usize>,
+    rec: csv::StringRecord,
+    prev_t: Option<f64>,
+    rows: u64,
+    excluded: Vec<Tally>,
+    dwell: Option<DwellTrack>,
+    single: Tally,
+}
+
+impl<R: Read> RowReader<R> {
+    /// Reads and checks the header.
+    pub fn new(reader: R, path: &Path) -> Result<RowReader<R>, CampaignError> {
+        let p = || path.to_owned();
+        let mut rdr = csv::ReaderBuilder::new()
+            .comment(Some(b'#'))
+            .trim(csv::Trim::All)
+            .flexible(true)
+            .from_reader(reader);
+        let header = rdr.headers().map_err(|e| csv_error(e, path))?.clone();
+        let header_line = header.position().map(|p| p.line()).unwrap_or(1);
+        if header.is_empty() || header.iter().all(|h| h.is_empty()) {
+            return Err(CampaignError::File {
+                path: p(),
+                msg: "empty file: expected a header row with t_s,alpha_deg,beta_deg and channel columns"
+                    .into(),
+            });
+        }
+        let mut seen = std::collections::HashSet::new();
+        for (i, h) in header.iter().enumerate() {
+            let msg = if h.is_empty() {
+                "empty column name".to_string()
+            } else if !seen.insert(h) {
+                format!("duplicate column `{h}`")
+            } else {
+                continue;
+            };
+            return Err(CampaignError::Field { path: p(), line: header_line, column: i + 1, msg });
+        }
+        let find = |name: &str| header.iter().position(|h| h == name);
+        let need = |name: &str| {
+            find(name).ok_or_else(|| CampaignError::File {
+                path: p(),
+                msg: format!(
+                    "missing required column `{name}` (header has: {})",
+                    header.iter().collect::<Vec<_>>().join(",")
+                ),
+            })
+        };
+        let cols = [need("t_s")?, need("alpha_deg")?, need("beta_deg")?];
+        let temp = find("temp_c");
+        let chans: Vec<usize> =
+            (0..header.len()).filter(|&i| !cols.contains(&i) && Some(i) != temp).collect();
+        if chans.is_empty() {
+            return Err(CampaignError::File { path: p(), msg: "no ADC channel column (every column besides t_s, alpha_deg, beta_deg, temp_c is a channel)".into() });
+        }
+        Ok(RowReader {
+            rdr,
+            path: p(),
+            excluded: vec![Tally::default(); chans.len()],
+            header,
+            cols,
+            temp,
+            chans,
+            rec: csv::StringRecord::new(),
+            prev_t: None,
+            rows: 0,
+            dwell: None,
+            single: Tally::default(),
+        })
+    }
+
+    /// The channel names, in column order.
+    pub fn channel_names(&self) -> Vec<String> {
+        self.chans.iter().map(|&i| self.header[i].to_string()).collect()
+    }
+
+    /// Whether the file has a `temp_c` column.
+    pub fn has_temp(&self) -> bool {
+        self.temp.is_some()
+    }
+
+    fn field_error(&self, line: u64, column: usize, msg: String) -> CampaignError {
+        CampaignError::Field { path: self.path.clone(), line, column, msg }
+    }
+
+    fn num(&self, line: u64, i: usize) -> Result<f64, CampaignError> {
+        let (s, name) = (&self.rec[i], &self.header[i]);
+        let Ok(v) = s.parse::<f64>() else {
+            let msg = if s.is_empty() {
+                format!("expected a number in `{name}`, found an empty field")
+            } else {
+                format!("expected a number in `{name}`, found `{s}`")
+            };
+            return Err(self.field_error(line, i + 1, msg));
+        };
+        if !v.is_finite() {
+            return Err(self.field_error(line, i + 1, format!("`{name}` must be finite, found `{s}`")));
+        }
+        Ok(v)
+    }
+
+    /// Reads the next row whose codes are all usable into `row`; `false` at the end of the file.
+    pub fn next_row(&mut self, row: &mut Row) -> Result<bool, CampaignError> {
+        loop {
+            if !self.rdr.read_record(&mut self.rec).map_err(|e| csv_error(e, &self.path))? {
+                return Ok(false);
+            }
+            let line = self.rec.position().map(|p| p.line()).unwrap_or(0);
+            if self.rec.len() != self.header.len() {
+                let msg = format!("expected {} fields, found {}", self.header.len(), self.rec.len());
+                return Err(self.field_error(line, self.rec.len().min(self.header.len()) + 1, msg));
+            }
+            self.rows += 1;
+            let [ti, ai, bi] = self.cols;
+            let t = self.num(line, ti)?;
+            if let Some(prev) = self.prev_t.filter(|&prev| t < prev) {
+                return Err(self.field_error(
+                    line,
+                    ti + 1,
+                    format!("t_s must not decrease ({t} after {prev})"),
+                ));
+            }
+            self.prev_t = Some(t);
+            row.t = t;
+            row.alpha = self.num(line, ai)?;
+            row.beta = self.num(line, bi)?;
+            row.temp = self.temp.map(|i| self.num(line, i)).transpose()?;
+            if !self.dwell.as_ref().is_some_and(|d| d.alpha == row.alpha && d.beta == row.beta) {
+                self.close_dwell()?;
+                self.dwell = Some(DwellTrack {
+                    alpha: row.alpha,
+                    beta: row.beta,
+                    first_line: line,
+                    kept: 0,
+                    lost_to: None,
+                });
+            }
+            row.codes.clear();
+            let mut usable = true;
+            for k in 0..self.chans.len() {
+                let v = self.num(line, self.chans[k])?;
+                if !code_usable(v) {
+                    usable = false;
+                    self.excluded[k].add(line);
+                    let d = self.dwell.as_mut().expect("a dwell is open");
+                    d.lost_to = d.lost_to.or(Some(k));
+                }
+                row.codes.push(v);
+            }
+            if usable {
+                self.dwell.as_mut().expect("a dwell is open").kept += 1;
+                return Ok(true);
+            }
+        }
+    }
+
+    /// Ends the current dwell: refused when it lost every row, counted when it kept one.
+    fn close_dwell(&mut self) -> Result<(), CampaignError> {
+        let Some(d) = self.dwell.take() else { return Ok(()) };
+        match (d.kept, d.lost_to) {
+            (0, Some(k)) => {
+                let name = &self.header[self.chans[k]];
+                Err(self.field_error(
+                    d.first_line,
+                    self.chans[k] + 1,
+                    format!(
+                        "every sample of the dwell at alpha_deg {}, beta_deg {} has channel `{name}` saturated (0 or 65535) or outside the ADC range: nothing left to average",
+                        d.alpha, d.beta
+                    ),
+                ))
+            }
+            (1, _) => {
+                self.single.add(d.first_line);
+                Ok(())
+            }
+            _ => Ok(()),
+        }
+    }
+
+    /// Checks the end of the file and returns the warnings (one line each, without a prefix).
+    pub fn finish(mut self) -> Result<Vec<String>, CampaignError> {
+        self.close_dwell()?;
+        if self.rows == 0 {
+            return Err(CampaignError::File { path: self.path, msg: "header only: no data rows".into() });
+        }
+        let path = self.path.display();
+        let mut out = Vec::new();
+        for (k, x) in self.excluded.iter().enumerate().filter(|(_, x)| x.count > 0) {
+            out.push(format!(
+                "{path}:{}:{}: excluded {} of {} samples where channel `{}` is saturated (0 or 65535) or outside the ADC range (first at this line)",
+                x.first_line,
+                self.chans[k] + 1,
+                x.count,
+                self.rows,
+                &self.header[self.chans[k]]
+            ));
+        }
+        if self.single.count > 0 {
+            out.push(format!(
+                "{path}:{}: {} dwell(s) with a single sample (first at this line): their scatter is unknown",
+                self.single.first_line, self.single.count
+            ));
+        }
+        Ok(out)
+    }
+}
+
+/// Turns an error of the CSV layer into a [`CampaignError`] naming the file and the line.
+fn csv_error(e: csv::Error, path: &Path) -> CampaignError {
+    let line = e.position().map(|p| p.line()).unwrap_or(0);
+    let msg = match e.kind() {
+        csv::ErrorKind::Utf8 { .. } => "not UTF-8 text (is this a binary file?)".to_string(),
+        csv::ErrorKind::Io(io) => io.to_string(),
+        _ => e.to_string(),
+    };
+    CampaignError::Csv { path: path.to_owned(), line, msg }
 }
 
 #[cfg(test)]
@@ -353,7 +529,7 @@ mod tests {
         assert_eq!(e, "c.csv: header only: no data rows");
         assert!(parse("").unwrap_err().to_string().contains("empty file"));
         let e = parse("t_s,alpha_deg,beta_deg,x\n0,0,0,70000\n").unwrap_err().to_string();
-        assert!(e.starts_with("c.csv:2:4: code 70000"), "{e}");
+        assert!(e.starts_with("c.csv:2:4: every sample of the dwell"), "{e}");
     }
 
     #[test]

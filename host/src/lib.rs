@@ -19,5 +19,6 @@ pub mod node;
 pub mod output;
 pub mod plot;
 pub mod positions;
+pub mod reduce;
 pub mod sim;
 pub mod testturn;

@@ -13,8 +13,10 @@ pub const RANK_TOL: f64 = 1e-9;
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum LsqError {
     /// Fewer positions than terms.
-    #[error("{terms} terms need at least {terms} positions, the plan has {positions}")]
+    #[error("{terms} terms ({model}) need at least {terms} positions, the plan has {positions}: at most {positions} of them can be identified")]
     TooFewPositions {
+        /// The model's terms, comma-separated.
+        model: String,
         /// Terms in the model.
         terms: usize,
         /// Positions available.
@@ -72,7 +74,8 @@ pub fn fit(
     let terms: Vec<_> = structure.terms().collect();
     let (n, k) = (idx.len(), terms.len());
     if n < k {
-        return Err(LsqError::TooFewPositions { terms: k, positions: n });
+        let model = terms.iter().map(|t| t.to_string()).collect::<Vec<_>>().join(",");
+        return Err(LsqError::TooFewPositions { model, terms: k, positions: n });
     }
     // Rows scaled by sqrt(weight); columns scaled to unit RMS for the conditioning.
     let mut x = DMatrix::from_fn(n, k, |r, c| pos.weight[idx[r]].sqrt() * terms[c].eval(pos.accel[idx[r]]));

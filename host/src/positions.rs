@@ -32,10 +32,72 @@ pub struct ChannelStats {
     pub within_ss: Vec<f64>,
 }
 
+/// Running statistics of one channel in one dwell: count, mean and sum of squared deviations,
+/// accumulated sample by sample (shifted by the first sample, so whole-number codes give exact
+/// sums). The in-memory and the streaming readers both use it, so they agree to the last bit.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct DwellAcc {
+    n: usize,
+    shift: f64,
+    s1: f64,
+    s2: f64,
+}
+
+impl DwellAcc {
+    /// Adds one sample.
+    pub fn push(&mut self, x: f64) {
+        if self.n == 0 {
+            self.shift = x;
+        }
+        let d = x - self.shift;
+        self.s1 += d;
+        self.s2 += d * d;
+        self.n += 1;
+    }
+
+    /// Samples added.
+    pub fn len(&self) -> usize {
+        self.n
+    }
+
+    /// Whether no sample was added.
+    pub fn is_empty(&self) -> bool {
+        self.n == 0
+    }
+
+    /// Mean of the samples (NaN when there are none).
+    pub fn mean(&self) -> f64 {
+        self.shift + self.s1 / self.n as f64
+    }
+
+    /// Sum of squared deviations from the mean (zero for a single sample).
+    pub fn within_ss(&self) -> f64 {
+        if self.n < 2 {
+            return 0.0;
+        }
+        (self.s2 - self.s1 * self.s1 / self.n as f64).max(0.0)
+    }
+}
+
+impl ChannelStats {
+    /// The statistics of one channel from its per-dwell accumulators.
+    pub fn from_accs(name: &str, accs: &[DwellAcc]) -> ChannelStats {
+        ChannelStats {
+            name: name.to_string(),
+            mean: accs.iter().map(DwellAcc::mean).collect(),
+            within_ss: accs.iter().map(DwellAcc::within_ss).collect(),
+        }
+    }
+}
+
 impl Positions {
     /// Positions of a campaign for gravity `g`.
     pub fn new(c: &Campaign, g: f64) -> Positions {
-        let dwells = c.dwells();
+        Positions::from_dwells(c.dwells(), g)
+    }
+
+    /// Positions of a list of dwells for gravity `g`.
+    pub fn from_dwells(dwells: Vec<Dwell>, g: f64) -> Positions {
         let accel = dwells.iter().map(|d| d.accel(g)).collect();
         let weight = dwells.iter().map(|d| d.len() as f64).collect();
         Positions { dwells, accel, weight, g }
@@ -56,15 +118,16 @@ impl Positions {
         c.channels
             .iter()
             .map(|ch| {
-                let mut mean = Vec::with_capacity(self.len());
-                let mut within = Vec::with_capacity(self.len());
-                for d in &self.dwells {
-                    let xs = &ch.codes[d.start..d.end];
-                    let m = xs.iter().sum::<f64>() / xs.len() as f64;
-                    mean.push(m);
-                    within.push(xs.iter().map(|x| (x - m) * (x - m)).sum());
-                }
-                ChannelStats { name: ch.name.clone(), mean, within_ss: within }
+                let accs: Vec<DwellAcc> = self
+                    .dwells
+                    .iter()
+                    .map(|d| {
+                        let mut acc = DwellAcc::default();
+                        ch.codes[d.start..d.end].iter().for_each(|&x| acc.push(x));
+                        acc
+                    })
+                    .collect();
+                ChannelStats::from_accs(&ch.name, &accs)
             })
             .collect()
     }

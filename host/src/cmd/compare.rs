@@ -1,5 +1,6 @@
 //! `accelcal compare`: the paper's Table 2.
 
+use anyhow::Context;
 use serde::Serialize;
 
 use crate::campaign::Campaign;
@@ -151,7 +152,7 @@ pub fn run(a: &CompareArgs) -> anyhow::Result<()> {
     super::check_g(a.common.g)?;
     let c = super::read_campaign(&a.campaign)?;
     let v = a.validate.as_deref().map(super::read_campaign).transpose()?;
-    let r = compute(&c, v.as_ref(), a.common.g)?;
+    let r = compute(&c, v.as_ref(), a.common.g).with_context(|| a.campaign.display().to_string())?;
     print_table(&r);
     if let Some(j) = &a.common.json {
         write_json(j, &r)?;

@@ -5,6 +5,7 @@ use std::path::Path;
 use accelcal_shared::record::{Record, MAX_CHANNELS, MAX_RECORD_LEN};
 use accelcal_shared::terms::MODEL_4;
 use accelcal_shared::N_BASIS;
+use anyhow::Context;
 use serde::Serialize;
 
 use crate::campaign::Campaign;
@@ -12,7 +13,7 @@ use crate::cli::{FitArgs, Method};
 use crate::error::bad;
 use crate::lsq::{self, LsqFit};
 use crate::output::{finite, write_atomic, write_json};
-use crate::positions::Positions;
+use crate::positions::{ChannelStats, Positions};
 use crate::testturn;
 
 /// JSON of one channel's fit.
@@ -41,12 +42,21 @@ pub fn fit_all(
     structure: accelcal_shared::Structure,
 ) -> anyhow::Result<Vec<(String, LsqFit)>> {
     let pos = Positions::new(c, g);
-    let stats = pos.channel_stats(c);
+    fit_positions(&pos, &pos.channel_stats(c), method, structure)
+}
+
+/// Fits every channel from its dwell statistics (all that LSQ and test turns need).
+pub fn fit_positions(
+    pos: &Positions,
+    stats: &[ChannelStats],
+    method: Method,
+    structure: accelcal_shared::Structure,
+) -> anyhow::Result<Vec<(String, LsqFit)>> {
     match method {
         Method::Lsq => stats
             .iter()
             .map(|s| {
-                let f = lsq::fit(&pos, s, structure, None)
+                let f = lsq::fit(pos, s, structure, None)
                     .map_err(|e| bad(format!("channel `{}`: {e}", s.name)))?;
                 Ok((s.name.clone(), f))
             })
@@ -60,8 +70,8 @@ pub fn fit_all(
                     "test turns determine model 4 (1,ax,ay,az) only, not `{structure}`"
                 )));
             }
-            let pairs = testturn::Pairs::find(&pos)?;
-            Ok(stats.iter().map(|s| (s.name.clone(), testturn::fit(&pos, s, &pairs))).collect())
+            let pairs = testturn::Pairs::find(pos)?;
+            Ok(stats.iter().map(|s| (s.name.clone(), testturn::fit(pos, s, &pairs))).collect())
         }
     }
 }
@@ -162,8 +172,10 @@ pub fn run(a: &FitArgs) -> anyhow::Result<()> {
     super::check_g(a.common.g)?;
     let structure = lsq::parse_terms(&a.terms).map_err(|e| bad(format!("--terms: {e}")))?;
     let device_id = parse_device_id(&a.device_id)?;
-    let c = super::read_campaign(&a.campaign)?;
-    let fits = fit_all(&c, a.common.g, a.method, structure)?;
+    // Streamed: the fits need the dwell statistics only, so memory does not grow with the rows.
+    let r = super::reduce_campaign(&a.campaign)?;
+    let fits = fit_positions(&r.positions(a.common.g), &r.channel_stats(), a.method, structure)
+        .with_context(|| a.campaign.display().to_string())?;
     print_table(a.method, &fits);
     if let Some(j) = &a.common.json {
         write_json(j, &to_json(a.method, &fits))?;
@@ -186,4 +198,26 @@ pub fn run(a: &FitArgs) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::{simulate, SimConfig};
+
+    #[test]
+    fn streaming_fit_writes_the_same_json_as_the_in_memory_fit() {
+        let (c, _) = simulate(&SimConfig { samples: 7, ..SimConfig::default() });
+        let mut csv = Vec::new();
+        c.write(&mut csv).unwrap();
+        let p = Path::new("c.csv");
+        let mem = Campaign::from_reader(&csv[..], p).unwrap();
+        let red = Campaign::reduce_reader(&csv[..], p).unwrap();
+        for method in [Method::Lsq, Method::TestTurns] {
+            let a = fit_all(&mem, 9.81, method, MODEL_4).unwrap();
+            let b = fit_positions(&red.positions(9.81), &red.channel_stats(), method, MODEL_4).unwrap();
+            let json = |f: &[(String, LsqFit)]| serde_json::to_string(&to_json(method, f)).unwrap();
+            assert_eq!(json(&a), json(&b));
+        }
+    }
 }

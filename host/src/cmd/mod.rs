@@ -14,6 +14,7 @@ use anyhow::Context;
 
 use crate::campaign::Campaign;
 use crate::cli::{Cli, Command};
+use crate::reduce::Reduced;
 
 /// Runs a parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
@@ -31,9 +32,26 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     }
 }
 
-/// Reads a campaign; its errors are bad input (exit code 2).
+/// Reads a campaign and prints its warnings on stderr; its errors are bad input (exit code 2).
 pub fn read_campaign(path: &Path) -> anyhow::Result<Campaign> {
-    Campaign::read(path).context("reading the campaign")
+    let c = Campaign::read(path).context("reading the campaign")?;
+    warn(&c.warnings);
+    Ok(c)
+}
+
+/// Reduces a campaign to its dwells in one streaming pass (bounded memory) and prints its
+/// warnings on stderr; its errors are bad input (exit code 2).
+pub fn reduce_campaign(path: &Path) -> anyhow::Result<Reduced> {
+    let r = Campaign::reduce(path).context("reading the campaign")?;
+    warn(&r.warnings);
+    Ok(r)
+}
+
+/// Prints the reader's warnings, one line each.
+fn warn(warnings: &[String]) {
+    for w in warnings {
+        eprintln!("warning: {w}");
+    }
 }
 
 /// Checks that g is usable.

@@ -4,6 +4,7 @@ use std::path::Path;
 
 use accelcal_shared::terms::PAPER_MODELS;
 use accelcal_shared::{Basis, Structure};
+use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
@@ -64,38 +65,49 @@ pub fn compute(
     channels: &[String],
     settings: &Settings,
 ) -> anyhow::Result<Vec<Selection>> {
-    run_channels(c, g, channels, settings.basis.candidate_count() as u64, |pos, s, progress| {
+    let pos = Positions::new(c, g);
+    compute_on(&pos, &pos.channel_stats(c), channels, settings)
+}
+
+/// [`compute`] from the dwell statistics (all that GMDH needs, so a streamed campaign will do).
+pub fn compute_on(
+    pos: &Positions,
+    stats: &[ChannelStats],
+    channels: &[String],
+    settings: &Settings,
+) -> anyhow::Result<Vec<Selection>> {
+    run_channels(pos, stats, channels, settings.basis.candidate_count() as u64, |pos, s, progress| {
         gmdh::select(pos, s, settings, progress)
     })
 }
 
 /// Runs multilayer GMDH (`width` models per layer) on the chosen channels.
-pub fn compute_multi(
-    c: &Campaign,
-    g: f64,
+pub fn compute_multi_on(
+    pos: &Positions,
+    stats: &[ChannelStats],
     channels: &[String],
     settings: &Settings,
     width: usize,
 ) -> anyhow::Result<Vec<Selection>> {
-    run_channels(c, g, channels, 0, |pos, s, progress| gmdh::multi::select(pos, s, settings, width, progress))
+    run_channels(pos, stats, channels, 0, |pos, s, progress| {
+        gmdh::multi::select(pos, s, settings, width, progress)
+    })
 }
 
 /// Applies `one` to each chosen channel; `per_channel` candidates drive the progress bar (0: a
 /// spinner counting models).
 fn run_channels(
-    c: &Campaign,
-    g: f64,
+    pos: &Positions,
+    stats: &[ChannelStats],
     channels: &[String],
     per_channel: u64,
     one: impl Fn(&Positions, &ChannelStats, &(dyn Fn(u64) + Sync)) -> Result<Selection, gmdh::GmdhError>,
 ) -> anyhow::Result<Vec<Selection>> {
-    let pos = Positions::new(c, g);
-    let stats = pos.channel_stats(c);
     for name in channels {
-        if c.channel(name).is_none() {
+        if !stats.iter().any(|s| &s.name == name) {
             return Err(bad(format!(
                 "no channel `{name}` in the campaign (it has: {})",
-                c.channels.iter().map(|c| c.name.as_str()).collect::<Vec<_>>().join(",")
+                stats.iter().map(|s| s.name.as_str()).collect::<Vec<_>>().join(",")
             )));
         }
     }
@@ -118,7 +130,7 @@ fn run_channels(
     let mut out = Vec::new();
     for s in chosen {
         pb.set_message(s.name.clone());
-        out.push(one(&pos, s, &|n| pb.inc(n))?);
+        out.push(one(pos, s, &|n| pb.inc(n))?);
     }
     pb.finish_and_clear();
     Ok(out)
@@ -267,7 +279,9 @@ pub fn run(a: &SelectArgs) -> anyhow::Result<()> {
     if !(a.tolerance.is_finite() && a.tolerance >= 0.0) {
         return Err(bad(format!("--tolerance must be a number of codes >= 0, got {}", a.tolerance)));
     }
-    let c = super::read_campaign(&a.campaign)?;
+    // Streamed: GMDH needs the dwell statistics only.
+    let r = super::reduce_campaign(&a.campaign)?;
+    let (pos, stats) = (r.positions(a.common.g), r.channel_stats());
     if a.max_terms == 0 || a.width == 0 || a.threads == Some(0) {
         return Err(bad("--max-terms, --width and --threads must be at least 1"));
     }
@@ -282,10 +296,12 @@ pub fn run(a: &SelectArgs) -> anyhow::Result<()> {
         .num_threads(a.threads.unwrap_or(0))
         .build()
         .map_err(|e| anyhow::anyhow!("starting worker threads: {e}"))?;
-    let sel = pool.install(|| match a.algorithm {
-        Algorithm::Combi => compute(&c, a.common.g, &a.channels, &settings),
-        Algorithm::Multi => compute_multi(&c, a.common.g, &a.channels, &settings, a.width),
-    })?;
+    let sel = pool
+        .install(|| match a.algorithm {
+            Algorithm::Combi => compute_on(&pos, &stats, &a.channels, &settings),
+            Algorithm::Multi => compute_multi_on(&pos, &stats, &a.channels, &settings, a.width),
+        })
+        .with_context(|| a.campaign.display().to_string())?;
     print_tables(&sel, &settings);
     if let Some(j) = &a.common.json {
         write_json(j, &to_json(&sel, &settings, &a.split.to_string(), a.top))?;

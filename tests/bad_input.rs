@@ -1,0 +1,263 @@
+//! The bad-input corpus (`tests/data/bad/`, expectations in its `expected.txt`): every command
+//! that reads a campaign or a record exits with code 2, prints one line naming the file and the
+//! place, and leaves no output file behind.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use accelcal_shared::record::{Record, MAX_CHANNELS, MAX_RECORD_LEN};
+use accelcal_shared::terms::MODEL_4;
+use accelcal_shared::N_BASIS;
+
+fn corpus() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data/bad")
+}
+
+/// The corpus table: (file, what must follow its name on the error line).
+fn expected() -> Vec<(PathBuf, String)> {
+    let text = std::fs::read_to_string(corpus().join("expected.txt")).unwrap();
+    text.lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+        .map(|l| {
+            let (file, want) = l.split_once('\t').unwrap_or_else(|| panic!("no tab in `{l}`"));
+            (corpus().join(file), want.to_string())
+        })
+        .collect()
+}
+
+fn accelcal(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_accelcal")).args(args).output().expect("the binary runs")
+}
+
+/// Runs a command that must fail with exit code 2 and a single-line error; returns that line.
+fn bad(args: &[&str]) -> String {
+    let out = accelcal(args);
+    let err = String::from_utf8_lossy(&out.stderr).to_string();
+    assert_eq!(out.status.code(), Some(2), "accelcal {args:?}: {err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "one line expected from {args:?}: {err}");
+    assert!(!err.contains("panicked"), "{err}");
+    err.trim_end().to_string()
+}
+
+/// A directory for outputs that must stay empty.
+fn out_dir() -> (tempfile::TempDir, PathBuf) {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("out");
+    (d, out)
+}
+
+fn assert_no_output(out: &Path, what: &str) {
+    let left: Vec<_> =
+        std::fs::read_dir(out).map(|r| r.flatten().map(|e| e.path()).collect()).unwrap_or_default();
+    assert!(left.is_empty(), "{what}: output left behind: {left:?}");
+}
+
+/// A valid model-4 record for the commands that need one besides the campaign.
+fn good_record(dir: &Path) -> PathBuf {
+    let mut coefficients = [[0.0; N_BASIS]; MAX_CHANNELS];
+    for (c, row) in coefficients.iter_mut().take(3).enumerate() {
+        row[0] = 32768.0;
+        row[1 + c] = 1650.0;
+    }
+    let rec = Record {
+        device_id: *b"QEMU-B-L475E",
+        created_unix_s: 1_800_000_000,
+        structure: MODEL_4,
+        n_channels: 3,
+        coefficients,
+    };
+    let mut buf = [0u8; MAX_RECORD_LEN];
+    let n = rec.emit(&mut buf).unwrap();
+    let p = dir.join("good.rec");
+    std::fs::write(&p, &buf[..n]).unwrap();
+    p
+}
+
+#[test]
+fn every_bad_campaign_is_refused_by_every_command() {
+    let (d, out) = out_dir();
+    let elf = good_record(d.path()); // any existing file passes the ELF check before the campaign is read
+    let rec = good_record(d.path());
+    let good = d.path().join("good.csv");
+    campaign(&good, &[(0.0, 0.0, 3), (180.0, 0.0, 3), (90.0, 0.0, 3), (-90.0, 0.0, 3)]);
+    let good = good.to_str().unwrap();
+    let [j, plots, cal, o] =
+        ["out.json", "plots", "cal.rec", "o.csv"].map(|n| out.join(n).to_str().unwrap().to_string());
+    let (j, plots, cal, o) = (j.as_str(), plots.as_str(), cal.as_str(), o.as_str());
+    let (rec, elf) = (rec.to_str().unwrap(), elf.to_str().unwrap());
+    let mut n = 0;
+    for (file, want) in expected().iter().filter(|(f, _)| f.extension().is_some_and(|e| e == "csv")) {
+        let f = file.to_str().unwrap();
+        let runs: [Vec<&str>; 6] = [
+            vec!["select", f, "--json", j, "--plot", plots],
+            vec!["fit", f, "--json", j, "--record", cal],
+            vec!["compare", f, "--json", j, "--plot", plots],
+            vec!["compare", good, "--validate", f, "--json", j],
+            vec!["diagnose", f, "--json", j, "--plot", plots],
+            vec!["hil", "--qemu", elf, "--record", rec, f, "--out", o],
+        ];
+        for args in &runs {
+            let e = bad(args);
+            let place = format!("{f}{want}");
+            assert!(e.contains(&place), "{args:?}: expected `{place}` in: {e}");
+            assert_no_output(&out, &format!("{args:?}"));
+            n += 1;
+        }
+    }
+    assert!(n >= 6 * 15, "the corpus has shrunk: {n} runs");
+}
+
+#[test]
+fn every_bad_record_is_refused_before_any_device_is_needed() {
+    let (d, out) = out_dir();
+    let camp = corpus().join("short-row.csv"); // never read: the record comes first
+    let mut cases: Vec<(PathBuf, String)> =
+        expected().into_iter().filter(|(f, _)| f.extension().is_some_and(|e| e == "rec")).collect();
+    // A record damaged after it was written: its CRC no longer matches.
+    let good = std::fs::read(good_record(d.path())).unwrap();
+    let mut flipped = good.clone();
+    let last = flipped.len() - 1;
+    flipped[last] ^= 0x55;
+    let p = d.path().join("bad-crc.rec");
+    std::fs::write(&p, &flipped).unwrap();
+    cases.push((p, ": record CRC mismatch".into()));
+    let p = d.path().join("truncated.rec");
+    std::fs::write(&p, &good[..good.len() / 2]).unwrap();
+    cases.push((p, ": record".into()));
+    cases.push((d.path().join("missing.rec"), ": cannot read the record".into()));
+    assert!(cases.len() >= 5);
+    for (file, want) in &cases {
+        let f = file.to_str().unwrap();
+        let o = out.join("o.csv");
+        for args in [
+            vec![
+                "hil",
+                "--qemu",
+                "no-such.elf",
+                "--record",
+                f,
+                camp.to_str().unwrap(),
+                "--out",
+                o.to_str().unwrap(),
+            ],
+            vec!["flash", f, "--probe", "ffff:ffff"],
+        ] {
+            let e = bad(&args);
+            assert!(e.contains(&format!("{f}{want}")), "{args:?}: expected `{f}{want}` in: {e}");
+            assert_no_output(&out, &format!("{args:?}"));
+        }
+    }
+}
+
+/// Writes a campaign from `(alpha, beta, samples)` dwells with codes near mid-scale.
+fn campaign(path: &Path, dwells: &[(f64, f64, usize)]) {
+    let mut s = String::from("t_s,alpha_deg,beta_deg,x,y,z\n");
+    let mut t = 0.0;
+    for (i, &(a, b, n)) in dwells.iter().enumerate() {
+        for k in 0..n {
+            let code = 30000 + 100 * i + k;
+            s += &format!("{t},{a},{b},{code},{},{}\n", code + 1, code + 2);
+            t += 0.1;
+        }
+    }
+    std::fs::write(path, s).unwrap();
+}
+
+#[test]
+fn too_few_positions_are_refused_naming_the_file() {
+    let (d, out) = out_dir();
+    let c = d.path().join("three.csv");
+    campaign(&c, &[(0.0, 0.0, 3), (90.0, 0.0, 3), (180.0, 0.0, 3)]);
+    let c = c.to_str().unwrap();
+    let j = out.join("j.json");
+    let j = j.to_str().unwrap();
+    let e = bad(&["fit", c, "--json", j]);
+    assert!(
+        e.contains(&format!(
+            "{c}: channel `x`: 4 terms (1,ax,ay,az) need at least 4 positions, the plan has 3"
+        )),
+        "{e}"
+    );
+    // select ranks what the plan identifies and marks the rest.
+    let sel = accelcal(&["select", c, "--channels", "x"]);
+    assert!(sel.status.success());
+    assert!(String::from_utf8_lossy(&sel.stdout)
+        .contains("1,ax,ay,az                                     unidentif."));
+    for cmd in ["compare", "diagnose"] {
+        let e = bad(&[cmd, c, "--json", j]);
+        assert!(e.contains(c), "{cmd}: {e}");
+    }
+    assert_no_output(&out, "too few positions");
+}
+
+#[test]
+fn saturated_samples_are_excluded_with_one_warning_per_channel() {
+    let d = tempfile::tempdir().unwrap();
+    let c = d.path().join("sat.csv");
+    let plan = [
+        (0.0, 0.0),
+        (180.0, 0.0),
+        (90.0, 0.0),
+        (-90.0, 0.0),
+        (0.0, 90.0),
+        (0.0, -90.0),
+        (45.0, 30.0),
+        (-45.0, -30.0),
+    ];
+    campaign(&c, &plan.map(|(a, b)| (a, b, 4)));
+    let mut lines: Vec<String> = std::fs::read_to_string(&c).unwrap().lines().map(String::from).collect();
+    // Channel x saturates on lines 3 and 9, channel z reads 70000 on line 12.
+    for (line, col, v) in [(3, 3, "65535"), (9, 3, "0"), (12, 5, "70000")] {
+        let mut f: Vec<&str> = lines[line - 1].split(',').collect();
+        f[col] = v;
+        lines[line - 1] = f.join(",");
+    }
+    std::fs::write(&c, lines.join("\n") + "\n").unwrap();
+    let c = c.to_str().unwrap();
+    for cmd in ["fit", "select", "compare"] {
+        let out = accelcal(&[cmd, c]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{cmd}: {err}");
+        let warnings: Vec<&str> = err.lines().filter(|l| l.starts_with("warning: ")).collect();
+        assert_eq!(warnings.len(), 2, "{cmd}: {err}");
+        assert!(
+            warnings[0].contains(&format!("{c}:3:4: excluded 2 of 32 samples where channel `x`")),
+            "{err}"
+        );
+        assert!(
+            warnings[1].contains(&format!("{c}:12:6: excluded 1 of 32 samples where channel `z`")),
+            "{err}"
+        );
+    }
+}
+
+#[test]
+fn single_sample_dwells_are_accepted_with_a_warning() {
+    let d = tempfile::tempdir().unwrap();
+    let c = d.path().join("one.csv");
+    let plan = [
+        (0.0, 0.0),
+        (180.0, 0.0),
+        (90.0, 0.0),
+        (-90.0, 0.0),
+        (0.0, 90.0),
+        (0.0, -90.0),
+        (45.0, 30.0),
+        (-45.0, -30.0),
+    ];
+    campaign(&c, &plan.map(|(a, b)| (a, b, if a == 90.0 { 1 } else { 3 })));
+    let c = c.to_str().unwrap();
+    for method in ["lsq", "test-turns"] {
+        let out = accelcal(&["fit", c, "--method", method]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{err}");
+        assert_eq!(err.trim_end(), format!("warning: {c}:8: 1 dwell(s) with a single sample (first at this line): their scatter is unknown"));
+        assert!(!String::from_utf8_lossy(&out.stdout).contains("NaN"));
+    }
+    // Every dwell a single sample: fits still run; the diagnosis, which needs the noise, refuses.
+    campaign(Path::new(c), &plan.map(|(a, b)| (a, b, 1)));
+    assert!(accelcal(&["fit", c]).status.success());
+    let e = accelcal(&["diagnose", c]);
+    assert_eq!(e.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&e.stderr).contains("single sample"));
+}
