@@ -11,8 +11,7 @@ use std::time::Instant;
 
 use accelcal::node::hil::{replay, HilOptions};
 use accelcal_shared::linear::Model4;
-use accelcal_shared::record::{Record, MAX_CHANNELS, MAX_RECORD_LEN};
-use accelcal_shared::terms::{MODEL_4, N_BASIS};
+use accelcal_shared::record::{Record, MAX_RECORD_LEN};
 use accelcal_shared::wire::MAX_BLOCK;
 
 /// The number of sample sets; `ACCELCAL_LOAD_SETS` overrides it.
@@ -38,16 +37,7 @@ fn node_elf() -> PathBuf {
 
 /// A model-4 record for the QEMU board's device id.
 fn record(m: &Model4) -> Vec<u8> {
-    let mut r = Record {
-        device_id: *b"QEMU-B-L475E",
-        created_unix_s: 1_800_000_000,
-        structure: MODEL_4,
-        n_channels: 3,
-        coefficients: [[0.0; N_BASIS]; MAX_CHANNELS],
-    };
-    for c in 0..3 {
-        r.coefficients[c][..4].copy_from_slice(&[m.u0[c], m.k[c][0], m.k[c][1], m.k[c][2]]);
-    }
+    let r = Record::from_model4(*b"QEMU-B-L475E", 1_800_000_000, m);
     let mut buf = [0u8; MAX_RECORD_LEN];
     let n = r.emit(&mut buf).unwrap();
     buf[..n].to_vec()

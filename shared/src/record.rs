@@ -250,6 +250,21 @@ impl Record {
         Ok(len)
     }
 
+    /// A record holding a triad's model-4 calibration (the inverse of [`Record::model4`]).
+    pub fn from_model4(device_id: [u8; 12], created_unix_s: u64, m: &crate::linear::Model4) -> Record {
+        let mut r = Record {
+            device_id,
+            created_unix_s,
+            structure: crate::terms::MODEL_4,
+            n_channels: 3,
+            coefficients: [[0.0; N_BASIS]; MAX_CHANNELS],
+        };
+        for c in 0..3 {
+            r.coefficients[c][..4].copy_from_slice(&[m.u0[c], m.k[c][0], m.k[c][1], m.k[c][2]]);
+        }
+        r
+    }
+
     /// The triad's model-4 calibration, when the record holds exactly model 4 for 3 channels.
     pub fn model4(&self) -> Option<crate::linear::Model4> {
         if self.structure != crate::terms::MODEL_4 || self.n_channels != 3 {
@@ -313,6 +328,8 @@ mod tests {
         b.extend_from_slice(&[0xff; 100]);
         assert_eq!(Record::parse(&b).unwrap(), r);
         assert_eq!(r.model4().unwrap().k[1][1], 1650.0);
+        let m = r.model4().unwrap();
+        assert_eq!(Record::from_model4(r.device_id, r.created_unix_s, &m), r);
     }
 
     #[test]

@@ -9,9 +9,8 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use accelcal_shared::linear::Model4;
-use accelcal_shared::record::{Record, MAX_CHANNELS, MAX_RECORD_LEN};
+use accelcal_shared::record::{Record, MAX_RECORD_LEN};
 use accelcal_shared::slots::SlotImage;
-use accelcal_shared::terms::{MODEL_4, N_BASIS};
 use accelcal_shared::wire::{self, Block, FrameDecoder, HostMsg, NodeMsg, RecordStatus, MAX_FRAME};
 use anyhow::{bail, ensure, Context};
 use object::{Object, ObjectSection, ObjectSymbol, SectionKind};
@@ -167,16 +166,7 @@ fn bench_record() -> anyhow::Result<Vec<u8>> {
         u0: [32100.5, 33012.25, 31877.75],
         k: [[1671.2, 8.5, -3.25], [-4.0, 1650.75, 6.5], [2.5, -7.75, 1689.0]],
     };
-    let mut r = Record {
-        device_id: *b"QEMU-B-L475E",
-        created_unix_s: 1_800_000_000,
-        structure: MODEL_4,
-        n_channels: 3,
-        coefficients: [[0.0; N_BASIS]; MAX_CHANNELS],
-    };
-    for c in 0..3 {
-        r.coefficients[c][..4].copy_from_slice(&[m.u0[c], m.k[c][0], m.k[c][1], m.k[c][2]]);
-    }
+    let r = Record::from_model4(*b"QEMU-B-L475E", 1_800_000_000, &m);
     let mut buf = [0u8; MAX_RECORD_LEN];
     let n = r.emit(&mut buf).map_err(|e| anyhow::anyhow!("{e}"))?;
     Ok(buf[..n].to_vec())
