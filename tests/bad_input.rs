@@ -190,21 +190,23 @@ fn too_few_positions_are_refused_naming_the_file() {
     assert_no_output(&out, "too few positions");
 }
 
+/// The six test-turn positions and two oblique ones.
+const EIGHT_POSITIONS: [(f64, f64); 8] = [
+    (0.0, 0.0),
+    (180.0, 0.0),
+    (90.0, 0.0),
+    (-90.0, 0.0),
+    (0.0, 90.0),
+    (0.0, -90.0),
+    (45.0, 30.0),
+    (-45.0, -30.0),
+];
+
 #[test]
 fn saturated_samples_are_excluded_with_one_warning_per_channel() {
     let d = tempfile::tempdir().unwrap();
     let c = d.path().join("sat.csv");
-    let plan = [
-        (0.0, 0.0),
-        (180.0, 0.0),
-        (90.0, 0.0),
-        (-90.0, 0.0),
-        (0.0, 90.0),
-        (0.0, -90.0),
-        (45.0, 30.0),
-        (-45.0, -30.0),
-    ];
-    campaign(&c, &plan.map(|(a, b)| (a, b, 4)));
+    campaign(&c, &EIGHT_POSITIONS.map(|(a, b)| (a, b, 4)));
     let mut lines: Vec<String> = std::fs::read_to_string(&c).unwrap().lines().map(String::from).collect();
     // Channel x saturates on lines 3 and 9, channel z reads 70000 on line 12.
     for (line, col, v) in [(3, 3, "65535"), (9, 3, "0"), (12, 5, "70000")] {
@@ -235,17 +237,7 @@ fn saturated_samples_are_excluded_with_one_warning_per_channel() {
 fn single_sample_dwells_are_accepted_with_a_warning() {
     let d = tempfile::tempdir().unwrap();
     let c = d.path().join("one.csv");
-    let plan = [
-        (0.0, 0.0),
-        (180.0, 0.0),
-        (90.0, 0.0),
-        (-90.0, 0.0),
-        (0.0, 90.0),
-        (0.0, -90.0),
-        (45.0, 30.0),
-        (-45.0, -30.0),
-    ];
-    campaign(&c, &plan.map(|(a, b)| (a, b, if a == 90.0 { 1 } else { 3 })));
+    campaign(&c, &EIGHT_POSITIONS.map(|(a, b)| (a, b, if a == 90.0 { 1 } else { 3 })));
     let c = c.to_str().unwrap();
     for method in ["lsq", "test-turns"] {
         let out = accelcal(&["fit", c, "--method", method]);
@@ -255,7 +247,7 @@ fn single_sample_dwells_are_accepted_with_a_warning() {
         assert!(!String::from_utf8_lossy(&out.stdout).contains("NaN"));
     }
     // Every dwell a single sample: fits still run; the diagnosis, which needs the noise, refuses.
-    campaign(Path::new(c), &plan.map(|(a, b)| (a, b, 1)));
+    campaign(Path::new(c), &EIGHT_POSITIONS.map(|(a, b)| (a, b, 1)));
     assert!(accelcal(&["fit", c]).status.success());
     let e = accelcal(&["diagnose", c]);
     assert_eq!(e.status.code(), Some(2));
