@@ -9,56 +9,33 @@
 //! both. The ELF is taken from `ACCELCAL_NODE_QEMU_ELF`, else from the firmware's release target
 //! directory. A missing prerequisite fails the test with the command that provides it.
 
+mod support;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use accelcal::campaign::Campaign;
 use accelcal::node::hil::{HilOptions, QemuNode};
+use accelcal::node::monitor::format_status;
 use accelcal_shared::kinematics::gravity;
-use accelcal_shared::record::Record;
+use accelcal_shared::record::{crc32, Record, RecordError};
 use accelcal_shared::slots::{SlotImage, SLOT_SIZE};
-use accelcal_shared::wire::{Block, HostMsg, NodeMsg, RecordFault, RecordStatus};
+use accelcal_shared::terms::{Structure, MODEL_4};
+use accelcal_shared::wire::{record_error_code, Block, HostMsg, NodeMsg, RecordFault, RecordStatus};
 use accelcal_shared::G_STANDARD;
+use support::{node_elf, record_bytes};
 
 /// Hex of the QEMU node's device id, "QEMU-B-L475E".
 const QEMU_ID_HEX: &str = "51454d552d422d4c34373545";
 
-fn node_elf() -> PathBuf {
-    let elf = std::env::var_os("ACCELCAL_NODE_QEMU_ELF").map(PathBuf::from).unwrap_or_else(|| {
-        Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../firmware/target/thumbv7em-none-eabihf/release/node-qemu")
-    });
-    assert!(
-        elf.is_file(),
-        "{} is missing: build it with `cargo xtask test` (or `cd firmware && cargo build --release \
-         --features board-qemu --bin node-qemu`)",
-        elf.display()
-    );
-    let qemu_ok = Command::new("qemu-system-arm")
-        .args(["-M", "help"])
-        .output()
-        .is_ok_and(|o| String::from_utf8_lossy(&o.stdout).contains("b-l475e-iot01a"));
-    assert!(
-        qemu_ok,
-        "qemu-system-arm with the b-l475e-iot01a machine is missing: run `bash scripts/setup-qemu.sh`"
-    );
-    elf
-}
-
 /// The fixed-point QEMU build (`cargo xtask test` builds it into firmware/target/fixed-point).
 fn node_fixed_elf() -> PathBuf {
-    let elf = std::env::var_os("ACCELCAL_NODE_QEMU_FIXED_ELF").map(PathBuf::from).unwrap_or_else(|| {
-        Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../firmware/target/fixed-point/thumbv7em-none-eabihf/release/node-qemu")
-    });
-    assert!(
-        elf.is_file(),
-        "{} is missing: build it with `cargo xtask test` (or `cd firmware && cargo build --release \
-         --features board-qemu,fixed-point --bin node-qemu --target-dir target/fixed-point`)",
-        elf.display()
-    );
     node_elf(); // checks QEMU too
-    elf
+    support::firmware_elf(
+        "ACCELCAL_NODE_QEMU_FIXED_ELF",
+        "target/fixed-point/thumbv7em-none-eabihf/release/node-qemu",
+        "cargo build --release --features board-qemu,fixed-point --bin node-qemu --target-dir target/fixed-point",
+    )
 }
 
 fn accelcal(args: &[&str]) -> Output {
@@ -244,12 +221,7 @@ fn node_refuses_a_corrupt_record_and_survives_garbage() {
     let page = SlotImage::build(&rec, 1).unwrap();
     // Flip a coefficient bit and rebuild only the slot's CRC: the slot is intact, the record not.
     rec[40] ^= 0x01;
-    let mut bad = page;
-    bad[16..16 + rec.len()].copy_from_slice(&rec);
-    let mut hdr_and_rec = bad[4..12].to_vec();
-    hdr_and_rec.extend_from_slice(&rec);
-    bad[12..16].copy_from_slice(&accelcal_shared::record::crc32(&hdr_and_rec).to_le_bytes());
-    assert_eq!(bad.len(), SLOT_SIZE);
+    let bad = with_record(&page, &rec);
 
     let mut node = QemuNode::start(&HilOptions::new(node_elf()), Some(&bad)).unwrap();
     let status = node.status().unwrap();
@@ -262,6 +234,125 @@ fn node_refuses_a_corrupt_record_and_survives_garbage() {
     let answer = node.request(&replay_msg(1, &[[10, 20, 30]])).unwrap();
     assert!(matches!(answer, NodeMsg::Replayed { seq: 1, data: Block::Uncalibrated(_) }), "{answer:?}");
     assert_eq!(node.status().unwrap().bad_frames, before + 1);
+}
+
+/// `page` (a slot image of a record of the same length) holding `record` instead, with the slot's
+/// CRC recomputed: an intact slot whatever the record holds (`SlotImage::build` refuses records
+/// that do not parse).
+fn with_record(page: &[u8; SLOT_SIZE], record: &[u8]) -> [u8; SLOT_SIZE] {
+    let mut out = *page;
+    assert_eq!(u16::from_le_bytes([page[8], page[9]]) as usize, record.len());
+    out[16..16 + record.len()].copy_from_slice(record);
+    let mut covered = out[4..12].to_vec();
+    covered.extend_from_slice(record);
+    out[12..16].copy_from_slice(&crc32(&covered).to_le_bytes());
+    out
+}
+
+/// Boots the node with `page` in slot 0, checks the status it reports and that it returns raw
+/// codes flagged uncalibrated, unchanged; returns the status as `accelcal monitor` shows it.
+fn node_runs_uncalibrated(page: &[u8; SLOT_SIZE], want: RecordFault) -> String {
+    let mut node = QemuNode::start(&HilOptions::new(node_elf()), Some(page)).unwrap();
+    let status = node.status().unwrap();
+    assert_eq!(status.record, RecordStatus::Missing(want));
+    let codes = [[100, 200, 300], [65535, 0, 32768]];
+    let answer = node.request(&replay_msg(3, &codes)).unwrap();
+    let raw = Block::Uncalibrated(heapless::Vec::from_slice(&codes).unwrap());
+    assert_eq!(answer, NodeMsg::Replayed { seq: 3, data: raw });
+    format_status(&status)
+}
+
+/// A model-4 record for the QEMU node, with a plausible calibration.
+fn qemu_model4_record() -> Record {
+    let m = accelcal_shared::linear::Model4 {
+        u0: [32100.5, 33012.25, 31877.75],
+        k: [[1671.2, 8.5, -3.25], [-4.0, 1650.75, 6.5], [2.5, -7.75, 1689.0]],
+    };
+    Record::from_model4(*b"QEMU-B-L475E", 1_800_000_000, &m)
+}
+
+/// A record of format version 2 that is otherwise intact (its own CRC and the slot's recomputed,
+/// so that only the version differs) is refused by the node, which says which check failed and
+/// streams uncalibrated; `accelcal hil` refuses the file before booting the node, naming both
+/// versions.
+#[test]
+fn node_refuses_a_record_of_another_format_version() {
+    let v1 = record_bytes(&qemu_model4_record());
+    let mut v2 = v1.clone();
+    v2[4..6].copy_from_slice(&2u16.to_le_bytes());
+    let n = v2.len();
+    let crc = crc32(&v2[..n - 4]);
+    v2[n - 4..].copy_from_slice(&crc.to_le_bytes());
+    assert_eq!(Record::parse(&v2), Err(RecordError::UnsupportedVersion(2)));
+    let good_page = SlotImage::build(&v1, 1).unwrap();
+    let page = with_record(&good_page, &v2);
+    // Only the version, the record's CRC and the slot's CRC differ from the version-1 slot.
+    let differ: Vec<usize> = (0..SLOT_SIZE).filter(|&i| page[i] != good_page[i]).collect();
+    let allowed = |i: usize| i == 16 + 4 || (12..16).contains(&i) || (16 + n - 4..16 + n).contains(&i);
+    assert!(differ.contains(&(16 + 4)) && differ.iter().all(|&i| allowed(i)), "{differ:?}");
+
+    let code = record_error_code(RecordError::UnsupportedVersion(2));
+    let shown = node_runs_uncalibrated(&page, RecordFault::BadRecord(code));
+    assert!(
+        shown.contains(
+            "NO RECORD (BadRecord(UnsupportedVersion): the record in force is invalid: its format \
+             version is not 1, the only one the node reads): output is UNCALIBRATED"
+        ),
+        "{shown}"
+    );
+
+    let dir = tempfile::tempdir().unwrap();
+    let (camp, _) = campaign_and_record(dir.path(), QEMU_ID_HEX);
+    let rec = dir.path().join("v2.rec");
+    std::fs::write(&rec, &v2).unwrap();
+    let out_path = dir.path().join("node.csv");
+    let out =
+        accelcal(&["hil", "--qemu", s(&node_elf()), "--record", s(&rec), s(&camp), "--out", s(&out_path)]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert_eq!(
+        stderr,
+        format!("error: {}: unsupported record format version 2 (this build reads version 1)\n", s(&rec))
+    );
+    assert!(!out_path.exists());
+}
+
+/// A valid record of another model (model 4 plus the quadratic term ax²) is refused: the node
+/// reports `NotModel4` and streams uncalibrated, and `accelcal hil` names the reason.
+#[test]
+fn node_refuses_a_record_of_another_model() {
+    let mut quad = qemu_model4_record();
+    let ax2 = 4; // index of ax^2 in terms::BASIS
+    quad.structure = Structure::from_mask(MODEL_4.mask() | 1 << ax2);
+    for c in 0..3 {
+        quad.coefficients[c][4] = 0.5; // ax^2 comes after 1, ax, ay, az
+    }
+    assert_eq!(quad.structure.to_string(), "1,ax,ay,az,ax^2");
+    let bytes = record_bytes(&quad);
+    assert!(Record::parse(&bytes).unwrap().model4().is_none());
+    let shown = node_runs_uncalibrated(&SlotImage::build(&bytes, 1).unwrap(), RecordFault::NotModel4);
+    assert!(shown.contains("NO RECORD (NotModel4: the node applies model 4"), "{shown}");
+
+    // The same through the CLI, with a record `accelcal fit` wrote for that structure.
+    let dir = tempfile::tempdir().unwrap();
+    let camp = dir.path().join("campaign.csv");
+    let rec = dir.path().join("quad.rec");
+    ok(&["simulate", "--out", s(&camp), "--seed", "11", "--samples", "10"]);
+    ok(&["fit", s(&camp), "--terms", "ax,ay,az,ax^2", "--record", s(&rec), "--device-id", QEMU_ID_HEX]);
+    let out_path = dir.path().join("node.csv");
+    let out =
+        accelcal(&["hil", "--qemu", s(&node_elf()), "--record", s(&rec), s(&camp), "--out", s(&out_path)]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(
+        stderr.contains(
+            "the node did not accept the record: NotModel4: the node applies model 4 (terms 1,ax,ay,az) \
+             for three channels only, the record holds another model (fit it with `--terms ax,ay,az`, the default)"
+        ),
+        "{stderr}"
+    );
+    assert!(!out_path.exists());
 }
 
 /// The fixed-point build computes exactly what the shared crate's fixed-point path computes on
@@ -345,6 +436,6 @@ fn monitor_shows_the_status_stream_of_a_node_on_a_serial_port() {
     let lines: Vec<&str> = out.lines().collect();
     assert_eq!(lines.len(), 2, "{out}");
     for l in lines {
-        assert!(l.starts_with("status: protocol 1, NO RECORD (NoSlot): output is UNCALIBRATED"), "{l}");
+        assert!(l.starts_with("status: protocol 1, NO RECORD (NoSlot: no record slot holds"), "{l}");
     }
 }

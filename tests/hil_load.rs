@@ -6,13 +6,15 @@
 //! It is its own test binary so that it runs alone (the HIL tests in `hil.rs` would share the two
 //! cores with it). Needs `qemu-system-arm` and the QEMU build, like `hil.rs` (`cargo xtask test`).
 
-use std::path::{Path, PathBuf};
+mod support;
+
 use std::time::Instant;
 
 use accelcal::node::hil::{replay, HilOptions};
 use accelcal_shared::linear::Model4;
-use accelcal_shared::record::{Record, MAX_RECORD_LEN};
+use accelcal_shared::record::Record;
 use accelcal_shared::wire::MAX_BLOCK;
+use support::{node_elf, record_bytes};
 
 /// The issue's number of sample sets; `ACCELCAL_LOAD_SETS` overrides it.
 const SETS: usize = 100_000;
@@ -21,26 +23,9 @@ fn sets() -> usize {
     std::env::var("ACCELCAL_LOAD_SETS").map_or(SETS, |v| v.parse().expect("ACCELCAL_LOAD_SETS: a number"))
 }
 
-fn node_elf() -> PathBuf {
-    let elf = std::env::var_os("ACCELCAL_NODE_QEMU_ELF").map(PathBuf::from).unwrap_or_else(|| {
-        Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../firmware/target/thumbv7em-none-eabihf/release/node-qemu")
-    });
-    assert!(
-        elf.is_file(),
-        "{} is missing: build it with `cargo xtask test` (or `cd firmware && cargo build --release \
-         --features board-qemu --bin node-qemu`); QEMU comes from `bash scripts/setup-qemu.sh`",
-        elf.display()
-    );
-    elf
-}
-
 /// A model-4 record for the QEMU board's device id.
 fn record(m: &Model4) -> Vec<u8> {
-    let r = Record::from_model4(*b"QEMU-B-L475E", 1_800_000_000, m);
-    let mut buf = [0u8; MAX_RECORD_LEN];
-    let n = r.emit(&mut buf).unwrap();
-    buf[..n].to_vec()
+    record_bytes(&Record::from_model4(*b"QEMU-B-L475E", 1_800_000_000, m))
 }
 
 /// Deterministic code sets over the whole 16-bit range (xorshift), so no two blocks are alike.

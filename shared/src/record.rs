@@ -81,7 +81,7 @@ impl core::fmt::Display for RecordError {
             RecordError::Truncated => f.write_str("record is truncated"),
             RecordError::BadMagic => f.write_str("not a calibration record (bad magic)"),
             RecordError::UnsupportedVersion(v) => {
-                write!(f, "unsupported record format version {v}")
+                write!(f, "unsupported record format version {v} (this build reads version {FORMAT_VERSION})")
             }
             RecordError::BadLength => f.write_str("record length field is inconsistent"),
             RecordError::BadChannelCount => f.write_str("record channel count out of range"),

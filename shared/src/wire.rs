@@ -163,6 +163,71 @@ impl core::fmt::Display for FrameError {
 #[cfg(feature = "std")]
 impl std::error::Error for FrameError {}
 
+impl core::fmt::Display for RecordFault {
+    /// The variant's name (so that logs and scripts can match it), then what it means.
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match *self {
+            RecordFault::NoSlot => {
+                f.write_str("NoSlot: no record slot holds a complete record (erased flash or an unfinished write)")
+            }
+            RecordFault::BadRecord(code) => {
+                let i = (code as usize).wrapping_sub(1);
+                match (RECORD_ERROR_NAMES.get(i), RECORD_ERROR_WORDS.get(i)) {
+                    (Some(name), Some(words)) => {
+                        write!(f, "BadRecord({name}): the record in force is invalid: {words}")
+                    }
+                    _ => write!(f, "BadRecord({code}): the record in force is invalid (reason code unknown to this host)"),
+                }
+            }
+            RecordFault::WrongDevice => {
+                f.write_str("WrongDevice: the record was made for another device (MCU unique id mismatch)")
+            }
+            RecordFault::NotModel4 => f.write_str(
+                "NotModel4: the node applies model 4 (terms 1,ax,ay,az) for three channels only, the record holds another model",
+            ),
+            RecordFault::Singular => f.write_str(
+                "Singular: the record's sensitivity matrix cannot be inverted (or does not fit the fixed-point build)",
+            ),
+        }
+    }
+}
+
+/// Names of the [`crate::record::RecordError`] variants by their [`record_error_code`] (code 1
+/// first), as [`RecordFault::BadRecord`] is displayed.
+pub const RECORD_ERROR_NAMES: [&str; 9] = [
+    "Truncated",
+    "BadMagic",
+    "UnsupportedVersion",
+    "BadLength",
+    "BadChannelCount",
+    "BadTerms",
+    "BadCrc",
+    "NonFinite",
+    "BufferTooSmall",
+];
+
+/// What each record error means, in the order of [`RECORD_ERROR_NAMES`]. (The code does not
+/// carry the error's value: an unsupported version is named, not its number.)
+const RECORD_ERROR_WORDS: [&str; 9] = [
+    "it is truncated",
+    "it is not a calibration record (bad magic)",
+    "its format version is not 1, the only one the node reads",
+    "its length field is inconsistent",
+    "its channel count is out of range",
+    "its term list is invalid",
+    "its CRC does not match",
+    "it holds a non-finite coefficient",
+    "buffer too small",
+];
+
+const _: () = assert!(crate::record::FORMAT_VERSION == 1, "update RECORD_ERROR_WORDS");
+
+/// The variant name of a record error code (see [`record_error_code`]), or `None` for a code this
+/// build does not know.
+pub fn record_error_name(code: u8) -> Option<&'static str> {
+    RECORD_ERROR_NAMES.get((code as usize).wrapping_sub(1)).copied()
+}
+
 /// A stable one-byte code for a record error, for [`RecordFault::BadRecord`].
 pub fn record_error_code(e: crate::record::RecordError) -> u8 {
     use crate::record::RecordError as E;
@@ -381,6 +446,42 @@ mod tests {
         }
         dst[code_at] = code;
         out
+    }
+
+    #[test]
+    fn record_faults_are_named_in_words() {
+        use crate::record::RecordError as E;
+        let errors = [
+            E::Truncated,
+            E::BadMagic,
+            E::UnsupportedVersion(2),
+            E::BadLength,
+            E::BadChannelCount,
+            E::BadTerms,
+            E::BadCrc,
+            E::NonFinite,
+            E::BufferTooSmall,
+        ];
+        // Every code's name is its error's variant name.
+        for e in errors {
+            let debug = std::format!("{e:?}");
+            let name = record_error_name(record_error_code(e)).unwrap();
+            assert_eq!(debug.split('(').next().unwrap(), name);
+        }
+        assert_eq!(record_error_name(0), None);
+        assert_eq!(record_error_name(10), None);
+        let shown = |f: RecordFault| std::format!("{f}");
+        assert_eq!(
+            shown(RecordFault::BadRecord(record_error_code(E::UnsupportedVersion(2)))),
+            "BadRecord(UnsupportedVersion): the record in force is invalid: its format version is not \
+             1, the only one the node reads"
+        );
+        assert_eq!(
+            shown(RecordFault::BadRecord(200)),
+            "BadRecord(200): the record in force is invalid (reason code unknown to this host)"
+        );
+        assert!(shown(RecordFault::NotModel4).starts_with("NotModel4: the node applies model 4"));
+        assert!(shown(RecordFault::WrongDevice).starts_with("WrongDevice: "));
     }
 
     #[test]

@@ -7,8 +7,8 @@
 //! the instructions QEMU executes inside them.
 
 use accelcal_shared::linear::{LinearCalF32, LinearCalFixed};
-use accelcal_shared::record::Record;
-use accelcal_shared::slots::{self, SlotError};
+use accelcal_shared::record::{Record, RecordError};
+use accelcal_shared::slots::{self, SlotError, SlotImage};
 use accelcal_shared::wire::{record_error_code, Block, Codes, RecordFault, RecordStatus};
 use heapless::Vec;
 
@@ -88,21 +88,35 @@ pub fn load(storage: &impl RecordStorage) -> (Calibration, RecordStatus) {
         Err(fault) => {
             defmt::warn!(
                 "no valid calibration record ({}): streaming raw codes flagged UNCALIBRATED",
-                defmt::Debug2Format(&fault)
+                defmt::Display2Format(&fault)
             );
             (Calibration::Uncalibrated, RecordStatus::Missing(fault))
         }
     }
 }
 
+/// The fault for a record that does not parse; logs the error with its value (the status carries
+/// only its code: e.g. the unsupported version's number is in the log only).
+fn bad_record(e: RecordError) -> RecordFault {
+    defmt::warn!("record slot holds an invalid record: {}", defmt::Display2Format(&e));
+    RecordFault::BadRecord(record_error_code(e))
+}
+
 fn try_load(storage: &impl RecordStorage) -> Result<(Calibration, RecordStatus), RecordFault> {
     let [a, b] = storage.slots();
-    let active = slots::select([&a[..], &b[..]]).map_err(|e| match e {
-        SlotError::Record(r) => RecordFault::BadRecord(record_error_code(r)),
+    let slots = [&a[..], &b[..]];
+    let active = slots::select(slots).map_err(|e| match e {
+        SlotError::Record(r) => bad_record(r),
         _ => RecordFault::NoSlot,
     })?;
-    let record =
-        Record::parse(active.image.record).map_err(|r| RecordFault::BadRecord(record_error_code(r)))?;
+    // A committed slot passed over (e.g. a newer record of another format version) is logged.
+    let other = (active.slot ^ 1) as usize;
+    if let Err(e) = SlotImage::parse(slots[other]) {
+        if e != SlotError::NotCommitted {
+            defmt::warn!("record slot {=usize} skipped: {}", other, defmt::Display2Format(&e));
+        }
+    }
+    let record = Record::parse(active.image.record).map_err(bad_record)?;
     if record.device_id != storage.device_id() {
         return Err(RecordFault::WrongDevice);
     }

@@ -95,7 +95,7 @@ pub enum HilError {
     #[error(transparent)]
     Link(#[from] LinkError),
     /// The node runs without the record.
-    #[error("the node did not accept the record: {0:?} (a record for the QEMU node needs device id {id})", id = hex(&super::QEMU_DEVICE_ID))]
+    #[error("the node did not accept the record: {0}{hint}", hint = rejection_hint(*.0))]
     Rejected(accelcal_shared::wire::RecordFault),
     /// The node answered something it should not have.
     #[error("unexpected answer from the node: {0}")]
@@ -107,6 +107,18 @@ pub enum HilError {
 
 fn hex(b: &[u8]) -> String {
     b.iter().map(|x| format!("{x:02x}")).collect()
+}
+
+/// What to do about a record the QEMU node refused, where there is something to say.
+fn rejection_hint(fault: accelcal_shared::wire::RecordFault) -> String {
+    use accelcal_shared::wire::RecordFault;
+    match fault {
+        RecordFault::WrongDevice => {
+            format!(" (a record for the QEMU node needs device id {})", hex(&super::QEMU_DEVICE_ID))
+        }
+        RecordFault::NotModel4 => " (fit it with `--terms ax,ay,az`, the default)".into(),
+        _ => String::new(),
+    }
 }
 
 /// A QEMU process running the node's QEMU build, with its link connected; killed when dropped.

@@ -17,7 +17,7 @@ pub fn format_status(s: &Status) -> String {
         RecordStatus::InUse { slot, sequence, created_unix_s } => {
             format!("record slot {slot} seq {sequence} created {created_unix_s}")
         }
-        RecordStatus::Missing(f) => format!("NO RECORD ({f:?}): output is UNCALIBRATED"),
+        RecordStatus::Missing(f) => format!("NO RECORD ({f}): output is UNCALIBRATED"),
     };
     format!(
         "status: protocol {}, {record}, rate {} Hz, sample sets {}, overruns {}, bad frames {}",
