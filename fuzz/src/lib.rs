@@ -1,5 +1,6 @@
-//! `accelcal-fuzz`: a coverage-free mutation fuzzer for the two parsers of untrusted bytes in
-//! `accelcal-shared`, the calibration record parser and the link's frame decoder. It runs on the
+//! `accelcal-fuzz`: a coverage-free mutation fuzzer for the parsers of untrusted bytes in
+//! `accelcal-shared`: the calibration record parser, the record slots (slot image parser, the
+//! choice of the slot in force, the write plan) and the link's frame decoder. It runs on the
 //! pinned stable toolchain (cargo-fuzz and bolero's libFuzzer engine need nightly).
 //!
 //! Each execution takes a valid seed (records or frames built with the crate's own encoders),
@@ -12,6 +13,7 @@ pub mod frame;
 pub mod mutate;
 pub mod record;
 pub mod rng;
+pub mod slots;
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::time::{Duration, Instant};
@@ -20,7 +22,7 @@ use rng::Rng;
 
 /// A parser under test: its seeds, its structure-aware fix-ups and its properties.
 pub trait Target {
-    /// Short name (`record`, `frame`).
+    /// Short name (`record`, `slots`, `frame`).
     fn name(&self) -> &'static str;
     /// Valid inputs the mutations start from.
     fn seeds(&self) -> Vec<Vec<u8>>;

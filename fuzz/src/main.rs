@@ -1,7 +1,8 @@
-//! `accelcal-fuzz`: runs the mutation fuzzer on the record parser and the frame decoder for a
-//! bounded time and prints executions per second; on a failure, saves the input and exits 1.
+//! `accelcal-fuzz`: runs the mutation fuzzer on the record parser, the record slots and the frame
+//! decoder for a bounded time and prints executions per second; on a failure, saves the input and
+//! exits 1.
 //!
-//! `accelcal-fuzz [--seconds N] [--target record|frame|all] [--seed S] [--out DIR]`
+//! `accelcal-fuzz [--seconds N] [--target record|slots|frame|all] [--seed S] [--out DIR]`
 //! (the seconds are shared between the targets; a failing input is written to DIR, default
 //! `target/fuzz-failures`).
 
@@ -9,7 +10,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 
-use accelcal_fuzz::{frame::FrameTarget, record::RecordTarget, run, Target};
+use accelcal_fuzz::{frame::FrameTarget, record::RecordTarget, run, slots::SlotsTarget, Target};
 
 struct Settings {
     seconds: f64,
@@ -38,12 +39,14 @@ fn parse_args() -> Result<Settings, String> {
     }
     match which.as_str() {
         "record" => s.targets.push(Box::new(RecordTarget::default())),
+        "slots" => s.targets.push(Box::new(SlotsTarget::default())),
         "frame" => s.targets.push(Box::new(FrameTarget::default())),
         "all" => {
             s.targets.push(Box::new(RecordTarget::default()));
+            s.targets.push(Box::new(SlotsTarget::default()));
             s.targets.push(Box::new(FrameTarget::default()));
         }
-        t => return Err(format!("unknown target `{t}` (record, frame or all)")),
+        t => return Err(format!("unknown target `{t}` (record, slots, frame or all)")),
     }
     Ok(s)
 }
@@ -52,7 +55,7 @@ fn main() -> ExitCode {
     let mut s = match parse_args() {
         Ok(s) => s,
         Err(e) => {
-            eprintln!("error: {e}\nusage: accelcal-fuzz [--seconds N] [--target record|frame|all] [--seed S] [--out DIR]");
+            eprintln!("error: {e}\nusage: accelcal-fuzz [--seconds N] [--target record|slots|frame|all] [--seed S] [--out DIR]");
             return ExitCode::from(2);
         }
     };

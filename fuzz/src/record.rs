@@ -8,6 +8,7 @@
 
 use accelcal_shared::record::{crc32, Record, RecordError, MAX_CHANNELS, MAX_RECORD_LEN};
 use accelcal_shared::terms::{Structure, MODEL_4, N_BASIS};
+use accelcal_shared::wire::RECORD_ERROR_NAMES;
 
 use crate::rng::Rng;
 use crate::Target;
@@ -19,7 +20,8 @@ pub struct RecordTarget {
     rejected: [u64; 9],
 }
 
-fn record(n_channels: u8, structure: Structure, coef: impl Fn(usize, usize) -> f64) -> Vec<u8> {
+/// The bytes of a record for the QEMU node's device id with `coef(channel, term)` coefficients.
+pub(crate) fn record(n_channels: u8, structure: Structure, coef: impl Fn(usize, usize) -> f64) -> Vec<u8> {
     let mut r = Record {
         device_id: *b"QEMU-B-L475E",
         created_unix_s: 1_800_000_000,
@@ -41,17 +43,26 @@ fn error_index(e: RecordError) -> usize {
     accelcal_shared::wire::record_error_code(e) as usize - 1
 }
 
-const ERROR_NAMES: [&str; 9] = [
-    "Truncated",
-    "BadMagic",
-    "UnsupportedVersion",
-    "BadLength",
-    "BadChannelCount",
-    "BadTerms",
-    "BadCrc",
-    "NonFinite",
-    "BufferTooSmall",
-];
+/// The model-4 seed record.
+pub(crate) fn model4_record() -> Vec<u8> {
+    record(3, MODEL_4, |c, n| if n == c + 1 { 1670.0 } else { 32000.0 / (n + 1) as f64 })
+}
+
+/// The record fix-ups, in place: makes the length field agree with the channel and term counts
+/// (1 in 4) and recomputes the CRC where the length field puts it (1 in 2).
+pub(crate) fn fix_up_record(rng: &mut Rng, data: &mut [u8]) {
+    if data.len() >= 30 && rng.one_in(4) {
+        let len = 30 + data[29] as usize + 8 * data[28] as usize * data[29] as usize + 4;
+        data[6..8].copy_from_slice(&(len as u16).to_le_bytes());
+    }
+    if data.len() >= 8 && rng.one_in(2) {
+        let len = u16::from_le_bytes([data[6], data[7]]) as usize;
+        if (4..=data.len()).contains(&len) {
+            let crc = crc32(&data[..len - 4]);
+            data[len - 4..len].copy_from_slice(&crc.to_le_bytes());
+        }
+    }
+}
 
 impl Target for RecordTarget {
     fn name(&self) -> &'static str {
@@ -59,7 +70,7 @@ impl Target for RecordTarget {
     }
 
     fn seeds(&self) -> Vec<Vec<u8>> {
-        let model4 = record(3, MODEL_4, |c, n| if n == c + 1 { 1670.0 } else { 32000.0 / (n + 1) as f64 });
+        let model4 = model4_record();
         let mut erased_tail = model4.clone();
         erased_tail.extend_from_slice(&[0xff; 64]);
         vec![
@@ -74,17 +85,7 @@ impl Target for RecordTarget {
     }
 
     fn fix_up(&self, rng: &mut Rng, data: &mut Vec<u8>) {
-        if data.len() >= 30 && rng.one_in(4) {
-            let len = 30 + data[29] as usize + 8 * data[28] as usize * data[29] as usize + 4;
-            data[6..8].copy_from_slice(&(len as u16).to_le_bytes());
-        }
-        if data.len() >= 8 && rng.one_in(2) {
-            let len = u16::from_le_bytes([data[6], data[7]]) as usize;
-            if (4..=data.len()).contains(&len) {
-                let crc = crc32(&data[..len - 4]);
-                data[len - 4..len].copy_from_slice(&crc.to_le_bytes());
-            }
-        }
+        fix_up_record(rng, data);
     }
 
     fn check(&mut self, input: &[u8], _rng: &mut Rng) -> Result<(), String> {
@@ -106,7 +107,7 @@ impl Target for RecordTarget {
 
     fn summary(&self) -> String {
         let mut s = format!("accepted (round trip checked) {}", self.accepted);
-        for (name, n) in ERROR_NAMES.iter().zip(self.rejected) {
+        for (name, n) in RECORD_ERROR_NAMES.iter().zip(self.rejected) {
             if n > 0 {
                 s += &format!(", {name} {n}");
             }

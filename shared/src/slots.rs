@@ -48,7 +48,7 @@ pub enum SlotError {
     NotCommitted,
     /// The slot's CRC does not match (torn write or corruption).
     BadCrc,
-    /// The record length field is larger than any record.
+    /// The record length field is larger than any record, or is not its record's length.
     BadLength,
     /// The record does not parse (see [`RecordError`]).
     Record(RecordError),
@@ -60,7 +60,9 @@ impl core::fmt::Display for SlotError {
             SlotError::Truncated => f.write_str("record slot is truncated"),
             SlotError::NotCommitted => f.write_str("record slot is empty or its write did not finish"),
             SlotError::BadCrc => f.write_str("record slot CRC mismatch"),
-            SlotError::BadLength => f.write_str("record slot length field is out of range"),
+            SlotError::BadLength => {
+                f.write_str("record slot length field is out of range or disagrees with its record")
+            }
             SlotError::Record(e) => write!(f, "record slot holds an invalid record: {e}"),
         }
     }
@@ -80,7 +82,8 @@ pub struct SlotImage<'a> {
 
 impl<'a> SlotImage<'a> {
     /// Checks a slot's bytes (its whole page, or at least header and record). The record itself is
-    /// also parsed, so a valid slot always holds a parseable record.
+    /// also parsed, so a valid slot always holds a parseable record, exactly the length field's
+    /// bytes long.
     pub fn parse(slot: &'a [u8]) -> Result<SlotImage<'a>, SlotError> {
         if slot.len() < SLOT_HEADER_LEN {
             return Err(SlotError::Truncated);
@@ -100,7 +103,9 @@ impl<'a> SlotImage<'a> {
         if slot_crc(&slot[4..12], record) != want {
             return Err(SlotError::BadCrc);
         }
-        Record::parse(record).map_err(SlotError::Record)?;
+        if Record::parse(record).map_err(SlotError::Record)?.len() != len {
+            return Err(SlotError::BadLength);
+        }
         let sequence = u32::from_le_bytes([slot[4], slot[5], slot[6], slot[7]]);
         Ok(SlotImage { sequence, record })
     }
@@ -462,6 +467,15 @@ mod tests {
         let mut long = page;
         long[8..10].copy_from_slice(&0xffffu16.to_le_bytes());
         assert_eq!(SlotImage::parse(&long), Err(SlotError::BadLength));
+        // A length field covering the record and erased bytes after it, with the slot CRC made to
+        // match: the record parses (it ignores trailing bytes), the slot is still refused (found by
+        // the fuzzer, fuzz/src/slots.rs).
+        let mut padded = page;
+        padded[8..10].copy_from_slice(&(r.len() as u16 + 8).to_le_bytes());
+        let crc = crc32_of(&padded[4..12], &padded[16..16 + r.len() + 8]);
+        padded[12..16].copy_from_slice(&crc.to_le_bytes());
+        assert!(Record::parse(&padded[16..16 + r.len() + 8]).is_ok());
+        assert_eq!(SlotImage::parse(&padded), Err(SlotError::BadLength));
         assert_eq!(select([&[0xff; SLOT_SIZE], &bad]), Err(SlotError::BadCrc));
         assert_eq!(select([&[0; SLOT_SIZE], &[0xff; SLOT_SIZE]]), Err(SlotError::NotCommitted));
         assert_eq!(SlotImage::build(&r[..20], 1), Err(SlotError::Record(RecordError::Truncated)));

@@ -5,7 +5,8 @@
 //!   firmware builds and the QEMU tests.
 //! - `lint`: rustfmt and clippy (warnings are errors).
 //! - `bench`: the benchmarks the README quotes (GMDH against the PyPI `gmdh` package).
-//! - `fuzz`: the mutation fuzzer of the record parser and the frame decoder, for a bounded time.
+//! - `fuzz`: the mutation fuzzer of the record parser, the record slots and the frame decoder, for
+//!   a bounded time.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -58,7 +59,7 @@ fn test() -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Seconds of fuzzing in `cargo xtask test` (shared between the two targets).
+/// Seconds of fuzzing in `cargo xtask test` (shared between the three targets).
 const TEST_FUZZ_SECONDS: &str = "10";
 
 /// `cargo run` of the fuzzer (`fuzz/`) under `profile`, for `seconds` on `target`.
@@ -78,7 +79,7 @@ fn fuzz_args<'a>(profile: &'a str, seconds: &'a str, target: &'a str) -> Vec<&'a
     ]
 }
 
-/// `cargo xtask fuzz [--seconds N] [--target record|frame|all] [--seed S]`: the fuzzer in the
+/// `cargo xtask fuzz [--seconds N] [--target record|slots|frame|all] [--seed S]`: the fuzzer in the
 /// `fuzz` profile (optimised, overflow checks and debug assertions on).
 fn fuzz(args: &[String]) -> anyhow::Result<()> {
     let mut seconds = "60".to_string();
@@ -91,7 +92,7 @@ fn fuzz(args: &[String]) -> anyhow::Result<()> {
             "--seconds" => seconds = v.clone(),
             "--target" => target = v.clone(),
             "--seed" => seed = Some(v.clone()),
-            _ => bail!("unknown argument `{a}` (cargo xtask fuzz [--seconds N] [--target record|frame|all] [--seed S])"),
+            _ => bail!("unknown argument `{a}` (cargo xtask fuzz [--seconds N] [--target record|slots|frame|all] [--seed S])"),
         }
     }
     let mut cmd = fuzz_args("fuzz", &seconds, &target);
@@ -121,7 +122,7 @@ fn main() -> anyhow::Result<()> {
         "bench" => bench(),
         "fuzz" => fuzz(&std::env::args().skip(2).collect::<Vec<_>>()),
         _ => {
-            eprintln!("usage: cargo xtask <test|lint|bench|fuzz>\n  test   every test: host, shared (desktop and no_std target), firmware builds, QEMU\n  lint   rustfmt --check and clippy -D warnings\n  bench  the benchmarks quoted in the README\n  fuzz   [--seconds N] [--target record|frame|all] [--seed S]: the parsers' mutation fuzzer");
+            eprintln!("usage: cargo xtask <test|lint|bench|fuzz>\n  test   every test: host, shared (desktop and no_std target), firmware builds, QEMU\n  lint   rustfmt --check and clippy -D warnings\n  bench  the benchmarks quoted in the README\n  fuzz   [--seconds N] [--target record|slots|frame|all] [--seed S]: the parsers' mutation fuzzer");
             std::process::exit(2)
         }
     }
