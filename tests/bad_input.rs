@@ -1,6 +1,7 @@
 //! The bad-input corpus (`tests/data/bad/`, expectations in its `expected.txt`): every command
 //! that reads a campaign or a record exits with code 2, prints one line naming the file and the
-//! place, and leaves no output file behind.
+//! place, and leaves no output file behind. Also what the readers exclude with a warning, and that
+//! a refusal after such warnings is still one line.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -202,19 +203,24 @@ const EIGHT_POSITIONS: [(f64, f64); 8] = [
     (-45.0, -30.0),
 ];
 
+/// Sets fields of a campaign file: (line, 0-based field, value).
+fn set_fields(path: &Path, fields: &[(usize, usize, &str)]) {
+    let mut lines: Vec<String> = std::fs::read_to_string(path).unwrap().lines().map(String::from).collect();
+    for &(line, col, v) in fields {
+        let mut f: Vec<&str> = lines[line - 1].split(',').collect();
+        f[col] = v;
+        lines[line - 1] = f.join(",");
+    }
+    std::fs::write(path, lines.join("\n") + "\n").unwrap();
+}
+
 #[test]
 fn saturated_samples_are_excluded_with_one_warning_per_channel() {
     let d = tempfile::tempdir().unwrap();
     let c = d.path().join("sat.csv");
     campaign(&c, &EIGHT_POSITIONS.map(|(a, b)| (a, b, 4)));
-    let mut lines: Vec<String> = std::fs::read_to_string(&c).unwrap().lines().map(String::from).collect();
     // Channel x saturates on lines 3 and 9, channel z reads 70000 on line 12.
-    for (line, col, v) in [(3, 3, "65535"), (9, 3, "0"), (12, 5, "70000")] {
-        let mut f: Vec<&str> = lines[line - 1].split(',').collect();
-        f[col] = v;
-        lines[line - 1] = f.join(",");
-    }
-    std::fs::write(&c, lines.join("\n") + "\n").unwrap();
+    set_fields(&c, &[(3, 3, "65535"), (9, 3, "0"), (12, 5, "70000")]);
     let c = c.to_str().unwrap();
     for cmd in ["fit", "select", "compare"] {
         let out = accelcal(&[cmd, c]);
@@ -249,7 +255,49 @@ fn single_sample_dwells_are_accepted_with_a_warning() {
     // Every dwell a single sample: fits still run; the diagnosis, which needs the noise, refuses.
     campaign(Path::new(c), &EIGHT_POSITIONS.map(|(a, b)| (a, b, 1)));
     assert!(accelcal(&["fit", c]).status.success());
-    let e = accelcal(&["diagnose", c]);
-    assert_eq!(e.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&e.stderr).contains("single sample"));
+    let e = bad(&["diagnose", c]);
+    assert!(e.contains(&format!("error: {c}: every dwell has a single sample")), "{e}");
+    assert!(e.contains(&format!("(note: {c}:2: 8 dwell(s) with a single sample")), "{e}");
+}
+
+/// Samples excluded with a warning, then the campaign refused because of what is left: the user
+/// gets one line, the error, which names the exclusion; when the command succeeds on the same file
+/// the warnings print on their own lines.
+#[test]
+fn a_refusal_after_excluded_samples_is_one_line_naming_the_exclusion() {
+    let d = tempfile::tempdir().unwrap();
+    // Two samples per dwell, channel x saturated in the first of each: one sample left per dwell.
+    let c = d.path().join("half.csv");
+    campaign(&c, &EIGHT_POSITIONS.map(|(a, b)| (a, b, 2)));
+    let saturated: Vec<(usize, usize, &str)> = (0..8).map(|k| (2 + 2 * k, 3, "65535")).collect();
+    set_fields(&c, &saturated);
+    let c = c.to_str().unwrap();
+    let excluded = format!("{c}:2:4: excluded 8 of 16 samples where channel `x` is saturated");
+    let single = format!("{c}:2: 8 dwell(s) with a single sample");
+    let e = bad(&["diagnose", c]);
+    assert!(e.starts_with(&format!("error: {c}: every dwell has a single sample")), "{e}");
+    assert!(e.contains(&format!("(note: {excluded}")) && e.contains(&single), "{e}");
+    let out = accelcal(&["fit", c]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let lines: Vec<&str> = err.lines().collect();
+    assert_eq!(lines.len(), 2, "{err}");
+    assert!(lines[0].starts_with(&format!("warning: {excluded}")), "{err}");
+    assert!(lines[1].starts_with(&format!("warning: {single}")), "{err}");
+
+    // Too few positions for the model, in a campaign that also had a sample excluded.
+    let c = d.path().join("three.csv");
+    campaign(&c, &[(0.0, 0.0, 3), (90.0, 0.0, 3), (180.0, 0.0, 3)]);
+    set_fields(&c, &[(5, 5, "0")]);
+    let c = c.to_str().unwrap();
+    let e = bad(&["fit", c]);
+    assert!(e.contains("need at least 4 positions, the plan has 3"), "{e}");
+    let note = format!(
+        "(note: {c}:5:6: excluded 1 of 9 samples where channel `z` is saturated (0 or 65535) or \
+         outside the ADC range (first at this line))"
+    );
+    for cmd in ["fit", "compare", "diagnose"] {
+        let e = bad(&[cmd, c]);
+        assert!(e.ends_with(&note), "{cmd}: {e}");
+    }
 }

@@ -1,14 +1,20 @@
 //! The `accelcal` binary: parse the command line, run the command, map errors to exit codes
-//! (2 for bad input, 1 for anything else).
+//! (2 for bad input, 1 for anything else). A failure prints one line; the campaign readers'
+//! warnings are printed after a success, or folded into that line.
 
 use clap::Parser;
 
 fn main() {
     reset_sigpipe();
     let cli = accelcal::cli::Cli::parse();
-    if let Err(e) = accelcal::cmd::run(cli) {
-        eprintln!("error: {e:#}");
-        std::process::exit(if accelcal::error::is_bad_input(&e) { 2 } else { 1 });
+    let mut warnings = accelcal::cmd::Warnings::default();
+    match accelcal::cmd::run(cli, &mut warnings) {
+        Ok(()) => warnings.print(),
+        Err(e) => {
+            // One line: the error, with the campaign's warnings folded in.
+            eprintln!("error: {}", warnings.error_line(&e));
+            std::process::exit(if accelcal::error::is_bad_input(&e) { 2 } else { 1 });
+        }
     }
 }
 

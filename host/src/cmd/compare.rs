@@ -148,10 +148,10 @@ pub fn plots(dir: &std::path::Path, r: &CompareJson) -> anyhow::Result<Vec<std::
 }
 
 /// Runs `accelcal compare`.
-pub fn run(a: &CompareArgs) -> anyhow::Result<()> {
+pub fn run(a: &CompareArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
     super::check_g(a.common.g)?;
-    let c = super::read_campaign(&a.campaign)?;
-    let v = a.validate.as_deref().map(super::read_campaign).transpose()?;
+    let c = super::read_campaign(&a.campaign, warnings)?;
+    let v = a.validate.as_deref().map(|p| super::read_campaign(p, warnings)).transpose()?;
     let r = compute(&c, v.as_ref(), a.common.g).with_context(|| a.campaign.display().to_string())?;
     print_table(&r);
     if let Some(j) = &a.common.json {

@@ -11,10 +11,10 @@ use crate::output::write_json;
 use super::sig;
 
 /// Runs `accelcal diagnose`.
-pub fn run(a: &DiagnoseArgs) -> anyhow::Result<()> {
+pub fn run(a: &DiagnoseArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
     super::check_g(a.common.g)?;
     let base = crate::lsq::parse_terms(&a.baseline).map_err(|e| bad(format!("--baseline {e}")))?;
-    let c = super::read_campaign(&a.campaign)?;
+    let c = super::read_campaign(&a.campaign, warnings)?;
     let report = diagnose::diagnose(&c, a.common.g, base)
         .map_err(|e| bad(format!("{}: {e}", a.campaign.display())))?;
     print_report(&report);

@@ -160,7 +160,7 @@ pub fn print_table(method: Method, fits: &[(String, LsqFit)]) {
 }
 
 /// Runs `accelcal fit`.
-pub fn run(a: &FitArgs) -> anyhow::Result<()> {
+pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
     if a.method == Method::GravityNorm {
         return crate::gravity::cli::run(&crate::gravity::cli::GravityFitArgs {
             input: a.campaign.clone(),
@@ -173,7 +173,7 @@ pub fn run(a: &FitArgs) -> anyhow::Result<()> {
     let structure = lsq::parse_terms(&a.terms).map_err(|e| bad(format!("--terms: {e}")))?;
     let device_id = parse_device_id(&a.device_id)?;
     // Streamed: the fits need the dwell statistics only, so memory does not grow with the rows.
-    let r = super::reduce_campaign(&a.campaign)?;
+    let r = super::reduce_campaign(&a.campaign, warnings)?;
     let fits = fit_positions(&r.positions(a.common.g), &r.channel_stats(), a.method, structure)
         .with_context(|| a.campaign.display().to_string())?;
     print_table(a.method, &fits);

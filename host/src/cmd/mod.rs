@@ -16,42 +16,66 @@ use crate::campaign::Campaign;
 use crate::cli::{Cli, Command};
 use crate::reduce::Reduced;
 
-/// Runs a parsed command line.
-pub fn run(cli: Cli) -> anyhow::Result<()> {
+/// Runs a parsed command line; the campaign readers' warnings go to `warnings`.
+pub fn run(cli: Cli, warnings: &mut Warnings) -> anyhow::Result<()> {
     match cli.command {
         Command::Simulate(a) => simulate::run(&a),
-        Command::Select(a) => select::run(&a),
-        Command::Fit(a) => fit::run(&a),
-        Command::Compare(a) => compare::run(&a),
+        Command::Select(a) => select::run(&a, warnings),
+        Command::Fit(a) => fit::run(&a, warnings),
+        Command::Compare(a) => compare::run(&a, warnings),
         Command::Demo(a) => demo::run(&a),
         Command::Flash(a) => crate::node::cli::run_flash(&a),
         Command::Monitor(a) => crate::node::cli::run_monitor(&a),
-        Command::Hil(a) => crate::node::cli::run_hil(&a),
-        Command::Diagnose(a) => diagnose::run(&a),
+        Command::Hil(a) => crate::node::cli::run_hil(&a, warnings),
+        Command::Diagnose(a) => diagnose::run(&a, warnings),
         Command::BenchDiagnose(a) => bench_diagnose::run(&a),
     }
 }
 
-/// Reads a campaign and prints its warnings on stderr; its errors are bad input (exit code 2).
-pub fn read_campaign(path: &Path) -> anyhow::Result<Campaign> {
+/// The campaign readers' warnings (excluded samples, single-sample dwells), held until the
+/// command ends: after a success each is printed on its own `warning:` line; a failure prints one
+/// line, the error followed by the warnings (which may explain it: e.g. too few positions left
+/// once saturated samples are excluded).
+#[derive(Debug, Default)]
+pub struct Warnings(Vec<String>);
+
+impl Warnings {
+    /// Adds a reader's warnings, one line each.
+    pub fn extend(&mut self, lines: &[String]) {
+        self.0.extend_from_slice(lines);
+    }
+
+    /// Prints the warnings on stderr, one `warning:` line each (after a success).
+    pub fn print(&self) {
+        for w in &self.0 {
+            eprintln!("warning: {w}");
+        }
+    }
+
+    /// The one line (without the `error: ` prefix) that reports the failure `e`.
+    pub fn error_line(&self, e: &anyhow::Error) -> String {
+        let line = format!("{e:#}");
+        if self.0.is_empty() {
+            line
+        } else {
+            format!("{line} (note: {})", self.0.join("; "))
+        }
+    }
+}
+
+/// Reads a campaign; its warnings go to `warnings`, its errors are bad input (exit code 2).
+pub fn read_campaign(path: &Path, warnings: &mut Warnings) -> anyhow::Result<Campaign> {
     let c = Campaign::read(path).context("reading the campaign")?;
-    warn(&c.warnings);
+    warnings.extend(&c.warnings);
     Ok(c)
 }
 
-/// Reduces a campaign to its dwells in one streaming pass (bounded memory) and prints its
-/// warnings on stderr; its errors are bad input (exit code 2).
-pub fn reduce_campaign(path: &Path) -> anyhow::Result<Reduced> {
+/// Reduces a campaign to its dwells in one streaming pass (bounded memory); its warnings go to
+/// `warnings`, its errors are bad input (exit code 2).
+pub fn reduce_campaign(path: &Path, warnings: &mut Warnings) -> anyhow::Result<Reduced> {
     let r = Campaign::reduce(path).context("reading the campaign")?;
-    warn(&r.warnings);
+    warnings.extend(&r.warnings);
     Ok(r)
-}
-
-/// Prints the reader's warnings, one line each.
-fn warn(warnings: &[String]) {
-    for w in warnings {
-        eprintln!("warning: {w}");
-    }
 }
 
 /// Checks that g is usable.

@@ -88,7 +88,7 @@ pub fn run_monitor(a: &MonitorArgs) -> anyhow::Result<()> {
 }
 
 /// Runs `accelcal hil`.
-pub fn run_hil(a: &HilArgs) -> anyhow::Result<()> {
+pub fn run_hil(a: &HilArgs, warnings: &mut crate::cmd::Warnings) -> anyhow::Result<()> {
     let record = read_file(&a.record, "record")?;
     if let Err(e) = accelcal_shared::record::Record::parse(&record) {
         return Err(bad(format!("{}: {e}", a.record.display())));
@@ -99,7 +99,7 @@ pub fn run_hil(a: &HilArgs) -> anyhow::Result<()> {
             a.elf.display()
         )));
     }
-    let campaign = crate::cmd::read_campaign(&a.campaign)?;
+    let campaign = crate::cmd::read_campaign(&a.campaign, warnings)?;
     let codes = super::hil::campaign_codes(&campaign, &a.campaign)?;
     let mut opts = super::hil::HilOptions::new(&a.elf);
     opts.qemu = a.qemu_bin.clone();
