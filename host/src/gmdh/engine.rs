@@ -350,7 +350,14 @@ impl<const NM: usize> Walker<'_, NM> {
         }
         for j in from..to {
             let child = n | 1 << (j - 1);
-            if self.step::<K, false>(k, j, j + 1, self.y) {
+            if j + 1 == to || k + 1 == self.max_terms {
+                // A leaf needs only its own `(y, y)` entry, and no recursion.
+                out[child - base] = if self.step::<K, false>(k, j, self.y, self.y) {
+                    K::score(self.setup, &self.nodes[k + 1], self.y)
+                } else {
+                    f64::NAN
+                };
+            } else if self.step::<K, false>(k, j, j + 1, self.y) {
                 self.walk::<K>(k + 1, child, j + 1, to, out, base);
             } else {
                 // The child and every superset of it in this subtree are rank deficient.
