@@ -302,4 +302,11 @@ fn exhaustive_and_multilayer_find_the_true_structure_and_max_terms_caps() {
     // 1 + 19 + C(19,2) candidates of at most 3 terms.
     assert_eq!(capped.candidates.len(), 1 + 19 + 171);
     assert!(capped.candidates.iter().all(|c| c.structure.len() <= 3));
+    // A cap changes which candidates are scored, not their scores (the capped leaves take a
+    // shorter path through the engine).
+    let full: std::collections::HashMap<_, _> =
+        s.candidates.iter().map(|c| (c.structure, c.criterion)).collect();
+    for c in &capped.candidates {
+        assert_eq!(c.criterion, full[&c.structure], "{}", c.structure);
+    }
 }

@@ -137,15 +137,17 @@ fn run_channels(
 }
 
 /// Keeps the `n` candidates with the smallest criterion (unidentifiable ones last), sorted; a
-/// partial selection, so a cubic sweep's half a million candidates are not sorted whole.
+/// partial selection over (criterion, index) pairs, so a cubic sweep's half a million candidates
+/// are not sorted whole.
 fn best_first(idx: &mut Vec<usize>, n: usize, crit: impl Fn(usize) -> Option<f64>) {
-    let key = |i: usize| crit(i).unwrap_or(f64::INFINITY);
-    let cmp = |a: &usize, b: &usize| key(*a).total_cmp(&key(*b)).then(a.cmp(b));
-    if n < idx.len() {
-        idx.select_nth_unstable_by(n, cmp);
-        idx.truncate(n);
+    let mut keyed: Vec<(f64, usize)> = idx.iter().map(|&i| (crit(i).unwrap_or(f64::INFINITY), i)).collect();
+    let cmp = |a: &(f64, usize), b: &(f64, usize)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
+    if n < keyed.len() {
+        keyed.select_nth_unstable_by(n, cmp);
+        keyed.truncate(n);
     }
-    idx.sort_by(cmp);
+    keyed.sort_unstable_by(cmp);
+    *idx = keyed.into_iter().map(|(_, i)| i).collect();
 }
 
 /// Label of a candidate in tables: the paper's model number for the paper basis.

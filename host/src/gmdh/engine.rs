@@ -1,16 +1,37 @@
 //! The exhaustive GMDH engine: every subset of a basis scored from sufficient statistics.
 //!
 //! Cost per candidate does not depend on the number of samples. The weighted Gram matrix,
-//! moment vector and `yᵀy` of each part are formed once over the scaled regressors. Candidates
-//! are visited depth first, each child adding one column with an index above its parent's; the
-//! child's Cholesky factor is the parent's with one more row, computed in O(k²), as is the
-//! forward-substituted moment vector. A pivot at or below [`PIVOT_TOL`] of its diagonal marks the
-//! column as (numerically) dependent on the ones before it: that candidate and its whole subtree
-//! are rank deficient and are recorded as such without being visited.
+//! moment vector and `yᵀy` of each part are formed once over the scaled regressors.
+//!
+//! Candidates are visited depth first, each child adding one column with an index above its
+//! parent's. A node does not keep a factor of its own columns: it keeps, for the columns that its
+//! descendants may still add and for the response `y`, the Gram matrices of their *residuals*
+//! after projecting out the node's columns (one sweep, or Gauss–Jordan pivot, per added column):
+//!
+//! - `D(u, v) = ⟨e_u, e_v⟩` on the fitting part: the Schur complement of the node's columns in
+//!   the fitting part's Gram matrix (its `(y, y)` entry is the fit's residual sum of squares, and
+//!   its diagonal is the Cholesky pivot the column would get);
+//! - `E(u, v) = ⟨e_u, e_v⟩` on the scoring part, with the same residuals `e` (projections fitted
+//!   on the fitting part): its `(y, y)` entry is the criterion's sum of squares.
+//!
+//! Adding column `s` with `c_u = D(s, u) / D(s, s)` (so that `e_u' = e_u − c_u e_s`):
+//!
+//! ```text
+//! D'(u, v) = D(u, v) − c_u D(s, v)
+//! E'(u, v) = E(u, v) − c_u E(s, v) − c_v (E(s, u) − c_u E(s, s))
+//! ```
+//!
+//! A child needs these only over the columns above `s` (its own possible children) and `y`, so a
+//! node whose last column leaves `r` columns above it costs O(r²), and `r` is small for most
+//! nodes (half of all subsets contain the last column; `E[r²] ≈ 3` over the cubic basis) — the
+//! cost per candidate is nearly constant instead of growing as k². A pivot `D(s, s)` at or below
+//! [`PIVOT_TOL`] of the column's own diagonal marks it as (numerically) dependent on the node's
+//! columns: that candidate and its whole subtree are rank deficient and are recorded as such
+//! without being visited. This is the same test, on the same number, as a Cholesky pivot.
 //!
 //! Work is split into tasks that each fix which of the highest-index terms are present; the
 //! candidates of one task form a contiguous block of the result vector, so tasks write without
-//! locks. Nothing is allocated per candidate.
+//! locks. A task allocates its per-depth state once; nothing is allocated per candidate.
 
 use accelcal_shared::N_BASIS;
 
@@ -87,195 +108,257 @@ pub struct Problem {
     pub kind: Kind,
 }
 
-/// A Cholesky factor over a growing list of columns, with the forward-substituted moments.
-struct Factor {
-    l: [f64; N_BASIS * N_BASIS],
-    z: [f64; N_BASIS],
+/// Stride of the state matrices: room for every basis column and the response.
+const S: usize = N_BASIS + 1;
+
+/// A symmetric matrix over state indices (columns and the response), row-major with stride `S`.
+/// Which triangle is valid depends on how it was made: [`sweep`] with `FULL` keeps both, the
+/// depth-first steps keep the upper one.
+type Mat = [f64; S * S];
+
+/// The state of one node: a residual Gram matrix `D` and a cross matrix `E` per fitting part
+/// (see the module documentation). Regularity uses `[D_A, E_B]`, symmetric
+/// `[D_A, E_B, D_B, E_A]`, rss `[D_AB]`.
+#[derive(Clone)]
+struct Node<const NM: usize> {
+    m: [Mat; NM],
 }
 
-/// Dot product of two short vectors (the length of `a`), with four independent accumulators so the
-/// compiler can pipeline (and vectorise) the sum.
+/// One pivot step on a `D`/`E` pair (or on `D` alone when `pe`/`ce` are `None`), over the state
+/// indices `lo..=hi`: the upper triangle (`FULL == false`, which needs `s < lo` and the parent's
+/// upper triangle over `s..=hi`) or the whole square (`FULL == true`, which needs the parent's
+/// whole square). False, and nothing written, when the pivot `D(s, s)` is at or below
+/// `PIVOT_TOL · diag`.
 #[inline(always)]
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    let n = a.len();
-    let b = &b[..n];
-    let split = n & !3;
-    let mut acc = [0.0; 4];
-    for (x, y) in a[..split].chunks_exact(4).zip(b[..split].chunks_exact(4)) {
-        for i in 0..4 {
-            acc[i] += x[i] * y[i];
+fn sweep<const FULL: bool>(
+    pd: &Mat,
+    cd: &mut Mat,
+    cross: Option<(&Mat, &mut Mat)>,
+    s: usize,
+    diag: f64,
+    lo: usize,
+    hi: usize,
+) -> bool {
+    let ds = &pd[s * S..s * S + S];
+    let pivot = ds[s];
+    if !(pivot > PIVOT_TOL * diag) {
+        return false;
+    }
+    let inv = 1.0 / pivot;
+    let width = hi + 1 - lo;
+    let mut c = [0.0; S];
+    for (c, d) in c[lo..lo + width].iter_mut().zip(&ds[lo..lo + width]) {
+        *c = d * inv;
+    }
+    match cross {
+        None => {
+            for u in lo..=hi {
+                let first = if FULL { lo } else { u };
+                let len = hi + 1 - first;
+                let (row, cu) = (u * S + first, c[u]);
+                let (o, p, q) = (&mut cd[row..row + len], &pd[row..row + len], &ds[first..first + len]);
+                for i in 0..len {
+                    o[i] = p[i] - cu * q[i];
+                }
+            }
         }
-    }
-    let mut s = (acc[0] + acc[1]) + (acc[2] + acc[3]);
-    for (x, y) in a[split..].iter().zip(&b[split..]) {
-        s += x * y;
-    }
-    s
-}
-
-impl Factor {
-    fn new() -> Factor {
-        Factor { l: [0.0; N_BASIS * N_BASIS], z: [0.0; N_BASIS] }
-    }
-
-    /// Adds a column as row `k`, given its Gram entries against the first `k` columns (`g_row`),
-    /// its own diagonal `g_jj` and moment `b_j`. False when the pivot is too small.
-    #[inline]
-    fn extend(&mut self, g_row: &[f64], g_jj: f64, b_j: f64, k: usize) -> bool {
-        let (done, rest) = self.l.split_at_mut(k * N_BASIS);
-        let row = &mut rest[..N_BASIS];
-        for q in 0..k {
-            let rq = &done[q * N_BASIS..q * N_BASIS + q + 1];
-            row[q] = (g_row[q] - dot(&row[..q], &rq[..q])) / rq[q];
-        }
-        let d = g_jj - dot(&row[..k], &row[..k]);
-        if !(d > PIVOT_TOL * g_jj) {
-            return false;
-        }
-        let lkk = d.sqrt();
-        row[k] = lkk;
-        self.z[k] = (b_j - dot(&row[..k], &self.z[..k])) / lkk;
-        true
-    }
-
-    /// Coefficients of the first `k` columns: `β = L⁻ᵀ z`, column-oriented so that each step is a
-    /// contiguous update with one row of L.
-    #[inline]
-    fn beta(&self, k: usize, beta: &mut [f64; N_BASIS]) {
-        beta[..k].copy_from_slice(&self.z[..k]);
-        for q in (0..k).rev() {
-            let row = &self.l[q * N_BASIS..q * N_BASIS + q + 1];
-            let bq = beta[q] / row[q];
-            beta[q] = bq;
-            for (b, l) in beta[..q].iter_mut().zip(&row[..q]) {
-                *b -= bq * l;
+        Some((pe, ce)) => {
+            let es = &pe[s * S..s * S + S];
+            for u in lo..=hi {
+                let first = if FULL { lo } else { u };
+                let len = hi + 1 - first;
+                let (row, cu) = (u * S + first, c[u]);
+                let au = es[u] - cu * es[s];
+                let (od, pd, qd) = (&mut cd[row..row + len], &pd[row..row + len], &ds[first..first + len]);
+                let (oe, pe, qe) = (&mut ce[row..row + len], &pe[row..row + len], &es[first..first + len]);
+                let cv = &c[first..first + len];
+                for i in 0..len {
+                    od[i] = pd[i] - cu * qd[i];
+                    oe[i] = pe[i] - cu * qe[i] - au * cv[i];
+                }
             }
         }
     }
+    true
+}
 
-    /// Residual sum of squares on the part this factor was built from.
-    #[inline]
-    fn own_sse(&self, st: &Stats, k: usize) -> f64 {
-        st.yy - dot(&self.z[..k], &self.z[..k])
+/// What a criterion keeps per node and how it scores one.
+trait Kernel<const NM: usize> {
+    /// Adds the column at state index `s` to `par`, writing the child over `lo..=hi`.
+    fn extend<const FULL: bool>(
+        p: &Setup,
+        par: &Node<NM>,
+        ch: &mut Node<NM>,
+        s: usize,
+        lo: usize,
+        hi: usize,
+    ) -> bool;
+    /// The criterion of a node; `y` is the response's state index.
+    fn score(p: &Setup, n: &Node<NM>, y: usize) -> f64;
+}
+
+/// The fixed data of a run in state indices: the columns' own diagonals (for the pivot test) and
+/// the parts' row counts.
+struct Setup {
+    diag: [[f64; S]; 2],
+    rows: [f64; 3],
+}
+
+struct Regularity;
+struct Symmetric;
+struct Rss;
+
+impl Kernel<2> for Regularity {
+    #[inline(always)]
+    fn extend<const FULL: bool>(
+        p: &Setup,
+        par: &Node<2>,
+        ch: &mut Node<2>,
+        s: usize,
+        lo: usize,
+        hi: usize,
+    ) -> bool {
+        let [cd, ce] = &mut ch.m;
+        sweep::<FULL>(&par.m[0], cd, Some((&par.m[1], ce)), s, p.diag[0][s], lo, hi)
+    }
+    #[inline(always)]
+    fn score(p: &Setup, n: &Node<2>, y: usize) -> f64 {
+        (n.m[1][y * S + y].max(0.0) / p.rows[1]).sqrt()
     }
 }
 
-/// The Gram rows of one part gathered for the current columns: row `k` holds the entries against
-/// columns `0..=k` in selection order, contiguous, so the inner loops need no index gathers.
-struct Compact {
-    g: [f64; N_BASIS * N_BASIS],
-    b: [f64; N_BASIS],
+impl Kernel<4> for Symmetric {
+    #[inline(always)]
+    fn extend<const FULL: bool>(
+        p: &Setup,
+        par: &Node<4>,
+        ch: &mut Node<4>,
+        s: usize,
+        lo: usize,
+        hi: usize,
+    ) -> bool {
+        let [cda, ceb, cdb, cea] = &mut ch.m;
+        sweep::<FULL>(&par.m[0], cda, Some((&par.m[1], ceb)), s, p.diag[0][s], lo, hi)
+            && sweep::<FULL>(&par.m[2], cdb, Some((&par.m[3], cea)), s, p.diag[1][s], lo, hi)
+    }
+    #[inline(always)]
+    fn score(p: &Setup, n: &Node<4>, y: usize) -> f64 {
+        ((n.m[1][y * S + y] + n.m[3][y * S + y]).max(0.0) / (p.rows[0] + p.rows[1])).sqrt()
+    }
 }
 
-impl Compact {
-    fn new() -> Compact {
-        Compact { g: [0.0; N_BASIS * N_BASIS], b: [0.0; N_BASIS] }
+impl Kernel<1> for Rss {
+    #[inline(always)]
+    fn extend<const FULL: bool>(
+        p: &Setup,
+        par: &Node<1>,
+        ch: &mut Node<1>,
+        s: usize,
+        lo: usize,
+        hi: usize,
+    ) -> bool {
+        sweep::<FULL>(&par.m[0], &mut ch.m[0], None, s, p.diag[0][s], lo, hi)
     }
+    #[inline(always)]
+    fn score(p: &Setup, n: &Node<1>, y: usize) -> f64 {
+        (n.m[0][y * S + y].max(0.0) / p.rows[2]).sqrt()
+    }
+}
 
-    /// Gathers column `j` as row `k` after columns `sel[..k]`.
-    #[inline]
-    fn push(&mut self, st: &Stats, m: usize, sel: &[usize], k: usize, j: usize) {
-        let g = &st.gram[j * m..(j + 1) * m];
-        let row = &mut self.g[k * N_BASIS..(k + 1) * N_BASIS];
-        for (r, &c) in row.iter_mut().zip(&sel[..k]) {
-            *r = g[c];
+/// The map from state indices to columns: columns `0..=low` keep their index, the response comes
+/// next (so that the depth-first steps over columns `1..=low` work on one contiguous range that
+/// ends with it), then the columns above `low`.
+struct Layout {
+    /// Column of each state index, `None` for the response.
+    col: [Option<usize>; S],
+    /// State index of the response.
+    y: usize,
+    /// Number of state indices (`m + 1`).
+    n: usize,
+}
+
+impl Layout {
+    fn new(m: usize, low: usize) -> Layout {
+        let mut col = [None; S];
+        for (i, c) in col.iter_mut().enumerate().take(m + 1) {
+            *c = match i {
+                i if i <= low => Some(i),
+                i if i == low + 1 => None,
+                i => Some(i - 1),
+            };
         }
-        row[k] = g[j];
-        self.b[k] = st.moment[j];
+        Layout { col, y: low + 1, n: m + 1 }
     }
 
-    /// Residual sum of squares of `beta` (first `k` columns) on this part.
-    #[inline]
-    fn sse(&self, yy: f64, beta: &[f64], k: usize) -> f64 {
-        let mut quad = 0.0;
-        for i in 0..k {
-            let row = &self.g[i * N_BASIS..i * N_BASIS + i + 1];
-            quad += beta[i] * (2.0 * dot(&row[..i], &beta[..i]) + row[i] * beta[i]);
+    /// State index of column `c`.
+    fn index(&self, c: usize) -> usize {
+        if c < self.y {
+            c
+        } else {
+            c + 1
         }
-        yy - 2.0 * dot(&beta[..k], &self.b[..k]) + quad
     }
 }
 
-/// Per-task working state.
-struct Walker<'p> {
-    p: &'p Problem,
-    fa: Factor,
-    fb: Factor,
-    /// Gathered Gram rows of the part that fits (A, or A∪B for rss) and of B.
-    ca: Compact,
-    cb: Compact,
-    sel: [usize; N_BASIS],
-    beta: [f64; N_BASIS],
+/// The root state of `part` (0 = A, 1 = B, 2 = A∪B) in `layout`: the part's Gram matrix bordered by
+/// its moments and `yᵀy`, both triangles.
+fn root_mat(st: &Stats, m: usize, layout: &Layout) -> Mat {
+    let mut out = [0.0; S * S];
+    for u in 0..layout.n {
+        for v in 0..layout.n {
+            out[u * S + v] = match (layout.col[u], layout.col[v]) {
+                (Some(a), Some(b)) => st.gram[a * m + b],
+                (Some(a), None) | (None, Some(a)) => st.moment[a],
+                (None, None) => st.yy,
+            };
+        }
+    }
+    out
+}
+
+/// Per-task working state: one node per depth (number of columns).
+struct Walker<'p, const NM: usize> {
+    setup: &'p Setup,
+    nodes: Vec<Node<NM>>,
+    y: usize,
     max_terms: usize,
 }
 
-impl Walker<'_> {
-    fn new(p: &Problem, max_terms: usize) -> Walker<'_> {
-        Walker {
-            p,
-            fa: Factor::new(),
-            fb: Factor::new(),
-            ca: Compact::new(),
-            cb: Compact::new(),
-            sel: [0; N_BASIS],
-            beta: [0.0; N_BASIS],
-            max_terms,
-        }
+impl<const NM: usize> Walker<'_, NM> {
+    /// Adds column state index `s` to the node at depth `k` as the node at depth `k + 1`, written
+    /// over the state indices `lo..=hi`.
+    #[inline(always)]
+    fn step<K: Kernel<NM>, const FULL: bool>(&mut self, k: usize, s: usize, lo: usize, hi: usize) -> bool {
+        let (done, rest) = self.nodes.split_at_mut(k + 1);
+        K::extend::<FULL>(self.setup, &done[k], &mut rest[0], s, lo, hi)
     }
 
-    /// Adds column `j` at depth `k` to the factor(s) the criterion needs.
-    #[inline]
-    fn extend(&mut self, k: usize, j: usize) -> bool {
-        let p = self.p;
-        let fit = if p.kind == Kind::Rss { &p.ab } else { &p.a };
-        self.ca.push(fit, p.m, &self.sel, k, j);
-        let row = k * N_BASIS;
-        if !self.fa.extend(&self.ca.g[row..row + k], self.ca.g[row + k], self.ca.b[k], k) {
-            return false;
-        }
-        if p.kind != Kind::Rss {
-            self.cb.push(&p.b, p.m, &self.sel, k, j);
-            if p.kind == Kind::Symmetric
-                && !self.fb.extend(&self.cb.g[row..row + k], self.cb.g[row + k], self.cb.b[k], k)
-            {
-                return false;
-            }
-        }
-        self.sel[k] = j;
-        true
-    }
-
-    /// The criterion of the first `k` columns (factors already extended).
-    #[inline]
-    fn score(&mut self, k: usize) -> f64 {
-        let p = self.p;
-        match p.kind {
-            Kind::Regularity => {
-                self.fa.beta(k, &mut self.beta);
-                (self.cb.sse(p.b.yy, &self.beta, k).max(0.0) / p.b.rows).sqrt()
-            }
-            Kind::Rss => (self.fa.own_sse(&p.ab, k).max(0.0) / p.ab.rows).sqrt(),
-            Kind::Symmetric => {
-                self.fa.beta(k, &mut self.beta);
-                let eb = self.cb.sse(p.b.yy, &self.beta, k);
-                self.fb.beta(k, &mut self.beta);
-                let ea = self.ca.sse(p.a.yy, &self.beta, k);
-                ((ea + eb).max(0.0) / (p.a.rows + p.b.rows)).sqrt()
-            }
-        }
-    }
-
-    /// Scores the node with `k` columns whose result index is `n`, then its children: columns
-    /// `from..to` (column c ↔ bit c−1 of the index).
-    fn walk(&mut self, k: usize, n: usize, from: usize, to: usize, out: &mut [f64], base: usize) {
-        out[n - base] = self.score(k);
+    /// Scores the node at depth `k` whose result index is `n`, then its children: columns
+    /// `from..to` (column c ↔ bit c−1 of the index; here state index = column).
+    fn walk<K: Kernel<NM>>(
+        &mut self,
+        k: usize,
+        n: usize,
+        from: usize,
+        to: usize,
+        out: &mut [f64],
+        base: usize,
+    ) {
+        out[n - base] = K::score(self.setup, &self.nodes[k], self.y);
         if k == self.max_terms {
             return;
         }
         for j in from..to {
             let child = n | 1 << (j - 1);
-            if self.extend(k, j) {
-                self.walk(k + 1, child, j + 1, to, out, base);
+            if j + 1 == to || k + 1 == self.max_terms {
+                // A leaf needs only its own `(y, y)` entry, and no recursion.
+                out[child - base] = if self.step::<K, false>(k, j, self.y, self.y) {
+                    K::score(self.setup, &self.nodes[k + 1], self.y)
+                } else {
+                    f64::NAN
+                };
+            } else if self.step::<K, false>(k, j, j + 1, self.y) {
+                self.walk::<K>(k + 1, child, j + 1, to, out, base);
             } else {
                 // The child and every superset of it in this subtree are rank deficient.
                 mark_subtree(out, base, child, j + 1, to, k + 1, self.max_terms);
@@ -285,15 +368,46 @@ impl Walker<'_> {
 }
 
 /// Marks node `n` (with `k` columns) and its descendants over columns `from..to` as deficient,
-/// except those beyond `max_terms`, which stay excluded.
+/// except those beyond `max_terms`, which stay excluded. The descendants add any subset of the
+/// bits `from−1..to−1` to `n`, which has none of them set.
 fn mark_subtree(out: &mut [f64], base: usize, n: usize, from: usize, to: usize, k: usize, max_terms: usize) {
     if k > max_terms {
         return;
     }
-    out[n - base] = f64::NAN;
-    for j in from..to {
-        mark_subtree(out, base, n | 1 << (j - 1), j + 1, to, k + 1, max_terms);
+    let room = (max_terms - k) as u32;
+    let shift = from - 1;
+    for x in 0..1usize << (to - from) {
+        if x.count_ones() <= room {
+            out[(n | x << shift) - base] = f64::NAN;
+        }
     }
+}
+
+/// The setup and root node of a problem in `layout`.
+fn prepare<const NM: usize>(p: &Problem, layout: &Layout) -> (Setup, Node<NM>) {
+    let (fit, fit_b): (&Stats, &Stats) = match p.kind {
+        Kind::Rss => (&p.ab, &p.ab),
+        _ => (&p.a, &p.b),
+    };
+    let mut diag = [[0.0; S]; 2];
+    for (i, c) in layout.col.iter().enumerate().take(layout.n) {
+        if let Some(c) = c {
+            diag[0][i] = fit.gram[c * p.m + c];
+            diag[1][i] = fit_b.gram[c * p.m + c];
+        }
+    }
+    let mats: Vec<Mat> = match p.kind {
+        Kind::Regularity => vec![root_mat(&p.a, p.m, layout), root_mat(&p.b, p.m, layout)],
+        Kind::Symmetric => vec![
+            root_mat(&p.a, p.m, layout),
+            root_mat(&p.b, p.m, layout),
+            root_mat(&p.b, p.m, layout),
+            root_mat(&p.a, p.m, layout),
+        ],
+        Kind::Rss => vec![root_mat(&p.ab, p.m, layout)],
+    };
+    let m: [Mat; NM] = mats.try_into().unwrap_or_else(|_| unreachable!("kind and NM agree"));
+    (Setup { diag, rows: [p.a.rows, p.b.rows, p.ab.rows] }, Node { m })
 }
 
 /// Scores every subset of columns `1..m` (each with column 0, the intercept) with at most
@@ -301,23 +415,39 @@ fn mark_subtree(out: &mut [f64], base: usize, n: usize, from: usize, to: usize, 
 /// `c`: the criterion, NaN when rank deficient, [`EXCLUDED`] when beyond `max_terms`.
 /// `progress` receives counts of finished candidates.
 pub fn exhaustive(p: &Problem, max_terms: usize, progress: &(dyn Fn(u64) + Sync)) -> Vec<f64> {
+    match p.kind {
+        Kind::Regularity => exhaustive_with::<2, Regularity>(p, max_terms, progress),
+        Kind::Symmetric => exhaustive_with::<4, Symmetric>(p, max_terms, progress),
+        Kind::Rss => exhaustive_with::<1, Rss>(p, max_terms, progress),
+    }
+}
+
+fn exhaustive_with<const NM: usize, K: Kernel<NM>>(
+    p: &Problem,
+    max_terms: usize,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Vec<f64> {
     use rayon::prelude::*;
     let nb = p.m - 1;
     let total = 1usize << nb;
     let q = nb.min(6);
     let low = nb - q;
     let block = 1usize << low;
+    let layout = Layout::new(p.m, low);
+    let (setup, root) = prepare::<NM>(p, &layout);
     let mut out = vec![EXCLUDED; total];
-    out.par_chunks_mut(block).enumerate().for_each(|(t, chunk)| {
+    let walker = || Walker { setup: &setup, nodes: vec![root.clone(); p.m + 1], y: layout.y, max_terms };
+    out.par_chunks_mut(block).enumerate().for_each_init(walker, |w, (t, chunk)| {
         let base = t << low;
         // The task's fixed columns: the intercept and the high columns chosen by t.
         let size = 1 + (base >> low).count_ones() as usize;
-        let fixed =
-            std::iter::once(0).chain((low..nb).filter(|bit| base & (1 << bit) != 0).map(|bit| bit + 1));
         if size <= max_terms {
-            let mut w = Walker::new(p, max_terms);
-            if fixed.enumerate().all(|(k, c)| w.extend(k, c)) {
-                w.walk(size, base, 1, low + 1, chunk, base);
+            w.nodes[0] = root.clone();
+            let fixed =
+                std::iter::once(0).chain((low..nb).filter(|bit| base & (1 << bit) != 0).map(|bit| bit + 1));
+            // The prefix keeps every state index, both triangles (its columns come in any order).
+            if fixed.enumerate().all(|(k, c)| w.step::<K, true>(k, layout.index(c), 0, layout.n - 1)) {
+                w.walk::<K>(size, base, 1, low + 1, chunk, base);
             } else {
                 mark_subtree(chunk, base, base, 1, low + 1, size, max_terms);
             }
@@ -329,16 +459,28 @@ pub fn exhaustive(p: &Problem, max_terms: usize, progress: &(dyn Fn(u64) + Sync)
 
 /// Scores a given list of subsets (column lists, each starting with column 0).
 pub fn listed(p: &Problem, subsets: &[Vec<usize>]) -> Vec<f64> {
+    match p.kind {
+        Kind::Regularity => listed_with::<2, Regularity>(p, subsets),
+        Kind::Symmetric => listed_with::<4, Symmetric>(p, subsets),
+        Kind::Rss => listed_with::<1, Rss>(p, subsets),
+    }
+}
+
+fn listed_with<const NM: usize, K: Kernel<NM>>(p: &Problem, subsets: &[Vec<usize>]) -> Vec<f64> {
+    let layout = Layout::new(p.m, p.m - 1);
+    let (setup, root) = prepare::<NM>(p, &layout);
+    let mut w = Walker { setup: &setup, nodes: vec![root.clone(); 2], y: layout.y, max_terms: N_BASIS };
     subsets
         .iter()
         .map(|cols| {
-            let mut w = Walker::new(p, N_BASIS);
-            for (k, &c) in cols.iter().enumerate() {
-                if !w.extend(k, c) {
+            w.nodes[0] = root.clone();
+            for &c in cols {
+                if !w.step::<K, true>(0, layout.index(c), 0, layout.n - 1) {
                     return f64::NAN;
                 }
+                w.nodes.swap(0, 1);
             }
-            w.score(cols.len())
+            K::score(&setup, &w.nodes[0], layout.y)
         })
         .collect()
 }

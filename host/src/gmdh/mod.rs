@@ -20,6 +20,7 @@ pub mod reference;
 
 use accelcal_shared::terms::PAPER_MODELS;
 use accelcal_shared::{Basis, Structure};
+use rayon::prelude::*;
 
 use crate::lsq::{self, LsqFit};
 use crate::positions::{ChannelStats, Positions};
@@ -239,7 +240,7 @@ impl Prepared {
                     .collect()
             }
             _ => engine::exhaustive(&self.problem, max_terms, progress)
-                .into_iter()
+                .into_par_iter()
                 .enumerate()
                 .filter(|(_, v)| *v != engine::EXCLUDED)
                 .map(|(n, v)| Candidate { structure: basis.candidate(n), criterion: to_opt(v) })
