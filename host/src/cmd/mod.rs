@@ -48,7 +48,7 @@ pub fn reduce_campaign(path: &Path) -> anyhow::Result<Reduced> {
 }
 
 /// Prints the reader's warnings, one line each.
-fn warn(warnings: &[String]) {
+pub fn warn(warnings: &[String]) {
     for w in warnings {
         eprintln!("warning: {w}");
     }
