@@ -42,14 +42,15 @@ impl Campaign {
     /// Reads a campaign file in one pass, in bounded memory, with the checks and messages of
     /// [`Campaign::read`].
     pub fn reduce(path: &Path) -> Result<Reduced, CampaignError> {
-        let file = std::fs::File::open(path)
-            .map_err(|source| CampaignError::Io { path: path.to_owned(), source })?;
-        Campaign::reduce_reader(std::io::BufReader::new(file), path)
+        Campaign::reduce_rows(DwellRows::open(path)?)
     }
 
     /// [`Campaign::reduce`] on any reader; `path` names it in errors.
     pub fn reduce_reader<R: Read>(reader: R, path: &Path) -> Result<Reduced, CampaignError> {
-        let mut rows = RowReader::new(reader, path)?;
+        Campaign::reduce_rows(DwellRows::new(reader, path)?)
+    }
+
+    fn reduce_rows<R: Read>(mut rows: DwellRows<R>) -> Result<Reduced, CampaignError> {
         let channels = rows.channel_names();
         let mut r = Reduced {
             accs: vec![Vec::new(); channels.len()],
@@ -59,18 +60,15 @@ impl Campaign {
             t_range: (f64::NAN, f64::NAN),
             warnings: Vec::new(),
         };
-        let mut row = Row::default();
-        while rows.next_row(&mut row)? {
+        while let Some((k, row)) = rows.next_row()? {
             let i = r.rows;
-            match r.dwells.last_mut() {
-                Some(d) if d.alpha_deg == row.alpha && d.beta_deg == row.beta => d.end = i + 1,
-                _ => {
-                    r.dwells.push(Dwell { start: i, end: i + 1, alpha_deg: row.alpha, beta_deg: row.beta });
-                    r.accs.iter_mut().for_each(|a| a.push(DwellAcc::default()));
-                }
+            if k == r.dwells.len() {
+                r.dwells.push(Dwell { start: i, end: i, alpha_deg: row.alpha, beta_deg: row.beta });
+                r.accs.iter_mut().for_each(|a| a.push(DwellAcc::default()));
             }
+            r.dwells[k].end = i + 1;
             for (a, &v) in r.accs.iter_mut().zip(&row.codes) {
-                a.last_mut().expect("a dwell is open").push(v);
+                a[k].push(v);
             }
             if i == 0 {
                 r.t_range.0 = row.t;
@@ -80,6 +78,80 @@ impl Campaign {
         }
         r.warnings = rows.finish()?;
         Ok(r)
+    }
+
+    /// Calls `f(dwell, row)` for every row in file order, `dwell` numbering the dwells as
+    /// [`Campaign::dwells`] does: what [`DwellRows`] gives for the file this campaign was read
+    /// from, so that one code serves the in-memory and the streaming paths.
+    pub(crate) fn for_each_row(&self, mut f: impl FnMut(usize, &Row)) {
+        let mut row = Row { temp: None, codes: vec![0.0; self.channels.len()], ..Row::default() };
+        for (k, d) in self.dwells().iter().enumerate() {
+            for i in d.start..d.end {
+                row.t = self.t_s[i];
+                row.alpha = self.alpha_deg[i];
+                row.beta = self.beta_deg[i];
+                row.temp = self.temp_c.as_ref().map(|t| t[i]);
+                for (v, ch) in row.codes.iter_mut().zip(&self.channels) {
+                    *v = ch.codes[i];
+                }
+                f(k, &row);
+            }
+        }
+    }
+}
+
+/// The rows of a campaign file, read one at a time with every check of [`RowReader`], each with
+/// the index of its dwell (consecutive kept rows with the same angles, as [`Campaign::dwells`]
+/// counts them). Keeps only the current row.
+pub(crate) struct DwellRows<R: Read> {
+    rows: RowReader<R>,
+    row: Row,
+    dwell: Option<usize>,
+}
+
+impl DwellRows<std::io::BufReader<std::fs::File>> {
+    /// Opens a campaign file and checks its header.
+    pub fn open(path: &Path) -> Result<Self, CampaignError> {
+        let file = std::fs::File::open(path)
+            .map_err(|source| CampaignError::Io { path: path.to_owned(), source })?;
+        DwellRows::new(std::io::BufReader::new(file), path)
+    }
+}
+
+impl<R: Read> DwellRows<R> {
+    /// Reads and checks the header; `path` names the reader in errors.
+    pub fn new(reader: R, path: &Path) -> Result<Self, CampaignError> {
+        Ok(DwellRows { rows: RowReader::new(reader, path)?, row: Row::default(), dwell: None })
+    }
+
+    /// The channel names, in column order.
+    pub fn channel_names(&self) -> Vec<String> {
+        self.rows.channel_names()
+    }
+
+    /// Whether the file has a `temp_c` column.
+    pub fn has_temp(&self) -> bool {
+        self.rows.has_temp()
+    }
+
+    /// The next kept row and the index of its dwell; `None` at the end of the file.
+    pub fn next_row(&mut self) -> Result<Option<(usize, &Row)>, CampaignError> {
+        let (alpha, beta) = (self.row.alpha, self.row.beta);
+        if !self.rows.next_row(&mut self.row)? {
+            return Ok(None);
+        }
+        let k = match self.dwell {
+            Some(k) if self.row.alpha == alpha && self.row.beta == beta => k,
+            Some(k) => k + 1,
+            None => 0,
+        };
+        self.dwell = Some(k);
+        Ok(Some((k, &self.row)))
+    }
+
+    /// Checks the end of the file and returns the warnings (see [`RowReader::finish`]).
+    pub fn finish(self) -> Result<Vec<String>, CampaignError> {
+        self.rows.finish()
     }
 }
 

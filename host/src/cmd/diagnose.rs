@@ -1,10 +1,11 @@
 //! `accelcal diagnose`: the gap between a campaign and its linear-sensor simulation, and the
 //! effects that explain it, checked on withheld positions.
 
+use anyhow::Context;
 use serde_json::json;
 
 use crate::cli::DiagnoseArgs;
-use crate::diagnose::{self, Data, Report};
+use crate::diagnose::{self, Binned, Data, Report};
 use crate::error::bad;
 use crate::output::write_json;
 
@@ -14,12 +15,15 @@ use super::sig;
 pub fn run(a: &DiagnoseArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
     super::check_g(a.common.g)?;
     let base = crate::lsq::parse_terms(&a.baseline).map_err(|e| bad(format!("--baseline {e}")))?;
-    let c = super::read_campaign(&a.campaign, warnings)?;
-    let report = diagnose::diagnose(&c, a.common.g, base)
-        .map_err(|e| bad(format!("{}: {e}", a.campaign.display())))?;
+    // Streamed in two passes: the diagnosis needs the bins only, so memory does not grow with
+    // the rows.
+    let binned = Binned::read(&a.campaign).context("reading the campaign")?;
+    warnings.extend(&binned.warnings);
+    let d = Data::from_binned(&binned, a.common.g)
+        .and_then(|d| diagnose::diagnose_data(&d, base).map(|r| (d, r)));
+    let (d, report) = d.map_err(|e| bad(format!("{}: {e}", a.campaign.display())))?;
     print_report(&report);
     if let Some(dir) = &a.plot {
-        let d = Data::new(&c, a.common.g).map_err(|e| bad(e.to_string()))?;
         for f in diagnose::gap::plot(dir, &d, &report.gap)? {
             println!("wrote {}", f.display());
         }
@@ -155,4 +159,36 @@ pub fn print_report(r: &Report) {
         sig(r.unexplained_rms, 3),
         sig(r.attribution.final_z, 3)
     );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::campaign::Campaign;
+    use crate::sim::{effects, simulate, SimConfig, TempProfile};
+    use accelcal_shared::terms::MODEL_4;
+
+    #[test]
+    fn streaming_diagnosis_matches_the_in_memory_diagnosis() {
+        let (mut c, _) = simulate(&SimConfig {
+            samples: 37,
+            seed: 11,
+            temp: Some(TempProfile { base_c: 25.0, amp_c: 5.0, cycles: 1.5, phase: 0.3 }),
+            effects: vec![effects::parse("settling=gain:30,tau:0.2").unwrap()],
+            ..SimConfig::default()
+        });
+        for i in [0, 5, 400, 401, 1000] {
+            c.channels[i % 3].codes[i] = 0.0; // skipped by both readers
+        }
+        let f = tempfile::NamedTempFile::new().unwrap();
+        c.write(std::fs::File::create(f.path()).unwrap()).unwrap();
+        let mem = Campaign::read(f.path()).unwrap();
+        let streamed = Binned::read(f.path()).unwrap();
+        assert_eq!(Binned::from_campaign(&mem), streamed);
+        assert_eq!(streamed.warnings.len(), 3, "{:?}", streamed.warnings);
+        let a = diagnose::diagnose(&mem, 9.81, MODEL_4).unwrap();
+        let b = diagnose::diagnose_data(&Data::from_binned(&streamed, 9.81).unwrap(), MODEL_4).unwrap();
+        assert_eq!(to_json(&a), to_json(&b));
+        assert_eq!(a.effects.iter().map(|e| e.name.as_str()).collect::<Vec<_>>(), ["settling"]);
+    }
 }

@@ -17,7 +17,7 @@ use serde::Serialize;
 
 use super::attribution::full_fit;
 use super::Data;
-use crate::campaign::Campaign;
+use crate::positions::DwellAcc;
 
 /// The z-score of the χ² below which a residual is consistent with the noise.
 pub const NOISE_Z: f64 = 4.0;
@@ -106,8 +106,8 @@ fn zscore(chi2: f64, dof: f64) -> f64 {
     (chi2 - dof) / (2.0 * dof.max(1.0)).sqrt()
 }
 
-/// Localises the residual of `base` on the data; `campaign` is used to simulate the twin.
-pub fn localise(d: &Data, base: Structure, campaign: &Campaign) -> Option<Gap> {
+/// Localises the residual of `base` on the data.
+pub fn localise(d: &Data, base: Structure) -> Option<Gap> {
     let ff = full_fit(d, base, &[])?;
     let nb = d.bins.len();
     let npos = d.npos();
@@ -118,7 +118,7 @@ pub fn localise(d: &Data, base: Structure, campaign: &Campaign) -> Option<Gap> {
         n_pos[b.pos] += b.n;
     }
     let temp_pos = d.temp.as_ref().map(|t| d.dwell_means(t));
-    let twin = twin_rms(d, base, campaign, &ff.resid);
+    let twin = twin_rms(d, base, &ff.resid);
     let mut channels = Vec::new();
     let mut position_residual = Vec::new();
     for ch in 0..d.nch() {
@@ -203,23 +203,28 @@ pub fn localise(d: &Data, base: Structure, campaign: &Campaign) -> Option<Gap> {
 }
 
 /// Simulates the campaign from the fitted baseline (its prediction per dwell plus white noise of
-/// the estimated σ, rounded to codes) and returns the twin's per-channel position RMS and χ² z.
-fn twin_rms(d: &Data, base: Structure, c: &Campaign, resid: &[f64]) -> Option<(Vec<f64>, f64)> {
+/// the estimated σ, rounded to codes, for every sample of every bin) and returns the twin's
+/// per-channel position RMS and χ² z. The samples are drawn in file order and folded into their
+/// bin at once, so the twin needs no rows.
+fn twin_rms(d: &Data, base: Structure, resid: &[f64]) -> Option<(Vec<f64>, f64)> {
     let nb = d.bins.len();
     let mut rng = ChaCha8Rng::seed_from_u64(0x7477_696e);
-    let mut twin = c.clone();
-    let dwells = c.dwells();
+    let mut mean = vec![Vec::with_capacity(nb); d.nch()];
+    let mut within = vec![0.0; d.nch()];
     for ch in 0..d.nch() {
         let pred: Vec<f64> =
             d.dwell_means(&(0..nb).map(|i| d.mean[ch][i] - resid[ch * nb + i]).collect::<Vec<_>>());
         let noise = Normal::new(0.0, d.sigma[ch]).ok()?;
-        for (p, w) in dwells.iter().enumerate() {
-            for v in &mut twin.channels[ch].codes[w.start..w.end] {
-                *v = (pred[p] + noise.sample(&mut rng)).round();
+        for b in &d.bins {
+            let mut acc = DwellAcc::default();
+            for _ in 0..b.n as usize {
+                acc.push((pred[b.pos] + noise.sample(&mut rng)).round());
             }
+            mean[ch].push(acc.mean());
+            within[ch] += acc.within_ss();
         }
     }
-    let td = Data::new(&twin, d.g).ok()?;
+    let td = d.with_codes(mean, within).ok()?;
     let ff = full_fit(&td, base, &[])?;
     let rms = (0..td.nch())
         .map(|ch| {

@@ -1,9 +1,10 @@
 //! Sim-to-real gap diagnosis: where a campaign departs from its linear-sensor simulation, and
 //! which unmodelled effect explains the departure, checked on withheld data.
 //!
-//! The data are reduced to *bins*: each dwell is cut into up to [`BINS`] consecutive runs of
-//! samples, and every bin keeps its mean code per channel, its mean time, temperature and the
-//! within-bin scatter (which estimates the white noise, that no model can change). Every model
+//! The data are reduced to *bins* ([`bins`], built row by row, so a campaign file streams): each
+//! dwell is cut into up to [`BINS`] consecutive runs of samples, and every bin keeps its mean code
+//! per channel, its mean time, temperature and the within-bin scatter (which estimates the white
+//! noise, that no model can change). Every model
 //! here (the baseline and the effects) is linear in its parameters on the bins, so fitting is a
 //! weighted least squares with weights `n/σ²`. [`gap`] localises the residual of the baseline,
 //! [`attribution`] fits each effect on one half of the positions and scores it on the other, and
@@ -11,6 +12,7 @@
 
 pub mod attribution;
 pub mod bench;
+pub mod bins;
 pub mod gap;
 
 use std::collections::BTreeMap;
@@ -19,9 +21,7 @@ use accelcal_shared::Structure;
 use nalgebra::{DMatrix, DVector};
 
 use crate::campaign::Campaign;
-
-/// Bins per dwell (fewer when a dwell has fewer samples).
-pub const BINS: usize = 8;
+pub use bins::{Bin, Binned, BINS};
 
 /// Range of settling time constants searched, s.
 pub const TAU_RANGE: (f64, f64) = (0.03, 2.0);
@@ -45,21 +45,6 @@ pub enum DiagnoseError {
     Unfittable,
 }
 
-/// One bin: a run of consecutive samples inside one dwell.
-#[derive(Clone, Debug)]
-pub struct Bin {
-    /// Position (dwell) index.
-    pub pos: usize,
-    /// Bin index within the dwell.
-    pub bin: usize,
-    /// Samples in the bin.
-    pub n: f64,
-    /// Mean time, s.
-    pub t: f64,
-    /// Mean time since the dwell began, s.
-    pub t_in_dwell: f64,
-}
-
 /// A campaign reduced to bins, with what every model needs.
 #[derive(Clone, Debug)]
 pub struct Data {
@@ -81,8 +66,6 @@ pub struct Data {
     pub sigma: Vec<f64>,
     /// Mean temperature of each bin, °C, when the campaign has `temp_c`.
     pub temp: Option<Vec<f64>>,
-    /// Time since the dwell began of every sample of each bin, s.
-    pub offsets: Vec<Vec<f64>>,
     /// Model-4 sensitivities of each channel to ax, ay, az (codes per m/s²), fitted on all data.
     pub k: Vec<[f64; 3]>,
     /// Each channel's sensitive axis (largest |k|).
@@ -92,55 +75,33 @@ pub struct Data {
 }
 
 impl Data {
-    /// Reduces a campaign to bins.
+    /// Reduces an in-memory campaign to bins.
     pub fn new(c: &Campaign, g: f64) -> Result<Data, DiagnoseError> {
-        let dwells = c.dwells();
-        let nch = c.channels.len();
+        Data::from_binned(&Binned::from_campaign(c), g)
+    }
+
+    /// The data of a campaign already reduced to bins ([`Binned::read`] streams a file).
+    pub fn from_binned(b: &Binned, g: f64) -> Result<Data, DiagnoseError> {
+        let nch = b.channels.len();
+        let dof: f64 = b.bins.iter().map(|bin| bin.n - 1.0).sum();
+        if !(dof > 0.0) {
+            return Err(DiagnoseError::NoNoiseEstimate);
+        }
         let mut d = Data {
-            channels: c.channels.iter().map(|ch| ch.name.clone()).collect(),
+            channels: b.channels.clone(),
             g,
-            angles: dwells.iter().map(|w| (w.alpha_deg, w.beta_deg)).collect(),
-            accel: dwells.iter().map(|w| w.accel(g)).collect(),
-            t_pos: Vec::new(),
-            bins: Vec::new(),
-            mean: vec![Vec::new(); nch],
-            sigma: vec![0.0; nch],
-            temp: c.temp_c.as_ref().map(|_| Vec::new()),
-            offsets: Vec::new(),
+            angles: b.angles.clone(),
+            accel: b.angles.iter().map(|&(a, be)| accelcal_shared::gravity(a, be, g)).collect(),
+            t_pos: b.t_pos.clone(),
+            bins: b.bins.clone(),
+            mean: b.mean.clone(),
+            // A floor at the quantisation noise of one code keeps noise-free data usable.
+            sigma: b.within.iter().map(|s| (s / dof).sqrt().max(1.0 / 12f64.sqrt())).collect(),
+            temp: b.temp.clone(),
             k: Vec::new(),
             own: Vec::new(),
             step: Vec::new(),
         };
-        let mut within = vec![0.0; nch];
-        let mut dof = 0.0;
-        for (p, w) in dwells.iter().enumerate() {
-            let n = w.len();
-            let t0 = c.t_s[w.start];
-            d.t_pos.push(c.t_s[w.start..w.end].iter().sum::<f64>() / n as f64);
-            let nb = BINS.min(n);
-            for b in 0..nb {
-                let (lo, hi) = (w.start + b * n / nb, w.start + (b + 1) * n / nb);
-                let m = (hi - lo) as f64;
-                let t = c.t_s[lo..hi].iter().sum::<f64>() / m;
-                d.bins.push(Bin { pos: p, bin: b, n: m, t, t_in_dwell: t - t0 });
-                if let (Some(tc), Some(out)) = (&c.temp_c, d.temp.as_mut()) {
-                    out.push(tc[lo..hi].iter().sum::<f64>() / m);
-                }
-                d.offsets.push(c.t_s[lo..hi].iter().map(|t| t - t0).collect());
-                for (ch, chan) in c.channels.iter().enumerate() {
-                    let xs = &chan.codes[lo..hi];
-                    let mean = xs.iter().sum::<f64>() / m;
-                    d.mean[ch].push(mean);
-                    within[ch] += xs.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>();
-                }
-                dof += m - 1.0;
-            }
-        }
-        if !(dof > 0.0) {
-            return Err(DiagnoseError::NoNoiseEstimate);
-        }
-        // A floor at the quantisation noise of one code keeps noise-free data usable.
-        d.sigma = within.iter().map(|s| (s / dof).sqrt().max(1.0 / 12f64.sqrt())).collect();
         for ch in 0..nch {
             let k = d.linear_k(ch);
             let own = (0..3).max_by(|&i, &j| k[i].abs().total_cmp(&k[j].abs())).unwrap_or(0);
@@ -152,6 +113,22 @@ impl Data {
             d.step.push(step);
         }
         Ok(d)
+    }
+
+    /// The same bins with other codes: per-bin means `mean[channel][bin]` and pooled within-bin
+    /// sums of squares `within[channel]` (the simulated twin).
+    pub fn with_codes(&self, mean: Vec<Vec<f64>>, within: Vec<f64>) -> Result<Data, DiagnoseError> {
+        let b = Binned {
+            channels: self.channels.clone(),
+            angles: self.angles.clone(),
+            t_pos: self.t_pos.clone(),
+            bins: self.bins.clone(),
+            mean,
+            within,
+            temp: self.temp.clone(),
+            warnings: Vec::new(),
+        };
+        Data::from_binned(&b, self.g)
     }
 
     /// Number of positions.
@@ -192,12 +169,9 @@ impl Data {
         }
     }
 
-    /// Mean of `exp(−t_in_dwell/τ)` over the samples of each bin.
+    /// Mean of `exp(−t_in_dwell/τ)` over the samples of each bin (see [`Bin::settle`]).
     pub fn settle(&self, tau: f64) -> Vec<f64> {
-        self.offsets
-            .iter()
-            .map(|o| o.iter().map(|t| (-t / tau).exp()).sum::<f64>() / o.len() as f64)
-            .collect()
+        self.bins.iter().map(|b| b.settle(tau)).collect()
     }
 
     /// Dwell-mean of per-bin values (weighted by samples) for every position.
@@ -366,12 +340,16 @@ pub fn attribute(d: &Data, base: Structure) -> Attribution {
     }
 }
 
-/// Diagnoses a campaign against the baseline `base`.
+/// Diagnoses an in-memory campaign against the baseline `base`.
 pub fn diagnose(c: &Campaign, g: f64, base: Structure) -> Result<Report, DiagnoseError> {
-    let d = Data::new(c, g)?;
+    diagnose_data(&Data::new(c, g)?, base)
+}
+
+/// Diagnoses a campaign reduced to bins against the baseline `base`.
+pub fn diagnose_data(d: &Data, base: Structure) -> Result<Report, DiagnoseError> {
     d.check(base)?;
-    let gap = gap::localise(&d, base, c).ok_or(DiagnoseError::Unfittable)?;
-    let attribution = attribute(&d, base);
+    let gap = gap::localise(d, base).ok_or(DiagnoseError::Unfittable)?;
+    let attribution = attribute(d, base);
     Ok(Report {
         effects: attribution.effects.clone(),
         unexplained_rms: attribution.unexplained_rms,
