@@ -239,12 +239,21 @@ impl Prepared {
                     .map(|(structure, v)| Candidate { structure, criterion: to_opt(v) })
                     .collect()
             }
-            _ => engine::exhaustive(&self.problem, max_terms, progress)
-                .into_par_iter()
-                .enumerate()
-                .filter(|(_, v)| *v != engine::EXCLUDED)
-                .map(|(n, v)| Candidate { structure: basis.candidate(n), criterion: to_opt(v) })
-                .collect(),
+            _ => {
+                let v = engine::exhaustive(&self.problem, max_terms, progress);
+                // An indexed parallel map collects straight into the result; the (rare) capped
+                // run drops its excluded candidates afterwards.
+                let mut out: Vec<Candidate> = v
+                    .par_iter()
+                    .enumerate()
+                    .map(|(n, &x)| Candidate { structure: basis.candidate(n), criterion: to_opt(x) })
+                    .collect();
+                if v.contains(&engine::EXCLUDED) {
+                    let mut scored = v.iter().map(|&x| x != engine::EXCLUDED);
+                    out.retain(|_| scored.next() == Some(true));
+                }
+                out
+            }
         }
     }
 }
