@@ -104,13 +104,16 @@ pub fn print_report(r: &Report) {
             "  {:<18} {:>12} {:>10} {:>10} {:>10}",
             "effect", "chi2 drop", "threshold", "explained", "rms after"
         );
+        // The share of the excess χ² (over one per bin) a trial removes; with no excess (the
+        // baseline already fits to the noise) there is nothing to share.
+        let has_excess = round.before.chi2 > round.before.bins as f64;
         for t in &round.trials {
             println!(
                 "  {:<18} {:>12} {:>10} {:>10} {:>10}",
                 t.name,
                 sig(t.chi2_drop, 5),
                 sig(t.threshold, 3),
-                format!("{:.0}%", 100.0 * t.explained),
+                if has_excess { format!("{:.0}%", 100.0 * t.explained) } else { "-".into() },
                 sig(t.score.rms, 4)
             );
         }
