@@ -157,6 +157,17 @@ fn cli_writes_the_issue_json_plots_and_refuses_bad_input() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let stdout = String::from_utf8(out.stdout).unwrap();
     assert!(stdout.contains("effect hysteresis"), "{stdout}");
+    // Shares of the excess chi2 are sane numbers, or `-` when a round has no excess to share (as
+    // on a clean campaign).
+    assert!(accelcal(&["simulate", "--out", &p("clean.csv")]).status.success());
+    let clean = String::from_utf8(accelcal(&["diagnose", &p("clean.csv")]).stdout).unwrap();
+    assert!(clean.contains("nothing significant"), "{clean}");
+    for text in [&stdout, &clean] {
+        for pct in text.split_whitespace().filter_map(|w| w.strip_suffix('%')) {
+            let v: f64 = pct.parse().unwrap();
+            assert!(v.abs() <= 1000.0, "{pct}% in\n{text}");
+        }
+    }
     let v: Value = serde_json::from_str(&std::fs::read_to_string(p("d.json")).unwrap()).unwrap();
     assert!(v["unexplained_rms"].is_number());
     let e = &v["effects"][0];
