@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use accelcal::campaign::Campaign;
-use accelcal::node::hil::{HilOptions, QemuNode};
+use accelcal::node::hil::{replay_blocks, CampaignCodes, HilOptions, QemuNode};
 use accelcal::node::monitor::format_status;
 use accelcal_shared::kinematics::gravity;
 use accelcal_shared::record::{crc32, Record, RecordError};
@@ -193,6 +193,108 @@ fn hil_names_a_missing_channel_and_exits_2() {
     assert!(stderr.contains("block.csv: no channel `x`"), "{stderr}");
 }
 
+/// Appends `row` to the campaign file `path`; returns its line number.
+fn append_row(path: &Path, row: &str) -> usize {
+    let mut text = std::fs::read_to_string(path).unwrap();
+    text += row;
+    text += "\n";
+    std::fs::write(path, &text).unwrap();
+    text.lines().count()
+}
+
+/// The last row of a campaign file, its fields.
+fn last_row(path: &Path) -> Vec<String> {
+    let text = std::fs::read_to_string(path).unwrap();
+    text.lines().last().unwrap().split(',').map(String::from).collect()
+}
+
+/// `accelcal hil` streams: a campaign whose last row is bad is refused as bad input (exit 2, one
+/// line naming the place, the output file never appears), although the rows before it went
+/// through the node; so is a code the node cannot take deep in the file.
+#[test]
+fn hil_refuses_a_bad_row_at_the_end_of_a_campaign_and_leaves_no_output() {
+    let elf = node_elf();
+    let dir = tempfile::tempdir().unwrap();
+    let camp = dir.path().join("campaign.csv");
+    let rec = dir.path().join("node.rec");
+    ok(&["simulate", "--out", s(&camp), "--seed", "11", "--samples", "10"]);
+    ok(&["fit", s(&camp), "--record", s(&rec), "--device-id", QEMU_ID_HEX, "--created", "1800000000"]);
+    let out_dir = dir.path().join("out");
+    let out_path = out_dir.join("node.csv");
+    let hil = || accelcal(&["hil", "--qemu", s(&elf), "--record", s(&rec), s(&camp), "--out", s(&out_path)]);
+    let good = hil();
+    assert!(good.status.success(), "{}", String::from_utf8_lossy(&good.stderr));
+    std::fs::remove_file(&out_path).unwrap();
+
+    let head = std::fs::read_to_string(&camp).unwrap();
+    let x = head.lines().next().unwrap().split(',').position(|h| h == "x").unwrap();
+    for (value, want) in [
+        ("oops", "{camp}:{line}:{col}: expected a number in `x`, found `oops`"),
+        ("30000.5", "{camp}: row {kept} channel x: code 30000.5 is not a whole number in 0..=65535"),
+    ] {
+        std::fs::write(&camp, &head).unwrap();
+        let kept = summary_sets(&good.stdout) + 1;
+        let mut row = last_row(&camp);
+        row[x] = value.into();
+        let line = append_row(&camp, &row.join(","));
+        let want = want
+            .replace("{camp}", s(&camp))
+            .replace("{line}", &line.to_string())
+            .replace("{col}", &(x + 1).to_string())
+            .replace("{kept}", &kept.to_string());
+        let out = hil();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{stderr}");
+        assert_eq!(stderr.lines().count(), 1, "{stderr}");
+        assert!(stderr.contains(&want), "expected `{want}` in: {stderr}");
+        let left: Vec<_> = std::fs::read_dir(&out_dir).unwrap().flatten().map(|e| e.path()).collect();
+        assert!(left.is_empty(), "output left behind: {left:?}");
+    }
+}
+
+/// The number of sample sets in `accelcal hil`'s summary line.
+fn summary_sets(stdout: &[u8]) -> usize {
+    let text = String::from_utf8_lossy(stdout);
+    let n = text.strip_prefix("hil: ").and_then(|t| t.split(' ').next()).unwrap_or_else(|| panic!("{text}"));
+    n.parse().unwrap()
+}
+
+/// The replay streams: the node's answers to the first blocks are handed out before a bad row at
+/// the end of the file is read, the replay then stops with that row's error, and each answer is
+/// the host's f32 calibration of its rows.
+#[test]
+fn replay_hands_out_answers_before_the_end_of_the_campaign_is_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let (camp, rec_path) = campaign_and_record(dir.path(), QEMU_ID_HEX);
+    let record = std::fs::read(&rec_path).unwrap();
+    let cal = Record::parse(&record).unwrap().model4().unwrap().invert().unwrap().to_f32();
+    let all = Campaign::read(&camp).unwrap();
+    let mut row = last_row(&camp);
+    row[1] = "zero".into();
+    let line = append_row(&camp, &row.join(","));
+    let codes = CampaignCodes::open(&camp).unwrap();
+    let mut answered = 0;
+    let e = replay_blocks(&HilOptions::new(node_elf()), &record, codes, |t_s, accel| {
+        for (k, (t, a)) in t_s.iter().zip(accel).enumerate() {
+            let i = answered + k;
+            assert_eq!(*t, all.t_s[i]);
+            let ch = |n: &str| all.channels[all.channel(n).unwrap()].codes[i] as u16;
+            assert_eq!(*a, cal.apply([ch("x"), ch("y"), ch("z")]), "row {i}");
+        }
+        answered += accel.len();
+        Ok(())
+    })
+    .unwrap_err();
+    assert_eq!(
+        format!("{e:#}"),
+        format!(
+            "reading the campaign: {}:{line}:2: expected a number in `alpha_deg`, found `zero`",
+            s(&camp)
+        )
+    );
+    assert!(answered > 0 && answered < all.len(), "{answered} of {} rows answered", all.len());
+}
+
 fn replay_msg(seq: u32, codes: &[[u16; 3]]) -> HostMsg {
     HostMsg::Replay { seq, codes: heapless::Vec::from_slice(codes).unwrap() }
 }
@@ -362,9 +464,9 @@ fn fixed_point_node_matches_host_fixed_arithmetic() {
     let elf = node_fixed_elf();
     let dir = tempfile::tempdir().unwrap();
     let (camp_path, rec_path) = campaign_and_record(dir.path(), QEMU_ID_HEX);
-    let camp = Campaign::read(&camp_path).unwrap();
-    let codes = accelcal::node::hil::campaign_codes(&camp, &camp_path).unwrap();
-    let codes = &codes[..600];
+    let codes: Vec<[u16; 3]> =
+        CampaignCodes::open(&camp_path).unwrap().flat_map(|b| b.unwrap().0).take(600).collect();
+    let codes = &codes[..];
     let record = std::fs::read(&rec_path).unwrap();
     let run = accelcal::node::hil::replay(&HilOptions::new(elf), &record, codes).unwrap();
     let cal = Record::parse(&record).unwrap().model4().unwrap().invert().unwrap();

@@ -2,7 +2,7 @@
 //! renamed), JSON is pretty-printed, and non-finite numbers become `null`.
 
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 
@@ -16,25 +16,49 @@ pub fn write_atomic_with(
     path: &Path,
     f: impl FnOnce(&mut dyn Write) -> anyhow::Result<()>,
 ) -> anyhow::Result<()> {
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let mut tmp = tempfile::NamedTempFile::new_in(dir)
-        .with_context(|| format!("creating a file in {}", dir.display()))?;
-    // A temporary file is private (0600); the result is an ordinary output file.
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        tmp.as_file()
-            .set_permissions(std::fs::Permissions::from_mode(0o644))
-            .with_context(|| format!("writing {}", path.display()))?;
+    let mut file = AtomicFile::create(path)?;
+    f(file.writer()).with_context(|| format!("writing {}", path.display()))?;
+    file.commit()
+}
+
+/// A file that appears at its path whole or not at all: the bytes go to a temporary file in the
+/// same directory, renamed into place by [`AtomicFile::commit`]; dropped without a commit (an
+/// error on the way), the temporary file is removed and the path left as it was.
+pub struct AtomicFile {
+    path: PathBuf,
+    w: std::io::BufWriter<tempfile::NamedTempFile>,
+}
+
+impl AtomicFile {
+    /// Creates the temporary file next to `path` (and `path`'s directory, if it is missing).
+    pub fn create(path: &Path) -> anyhow::Result<AtomicFile> {
+        let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        let tmp = tempfile::NamedTempFile::new_in(dir)
+            .with_context(|| format!("creating a file in {}", dir.display()))?;
+        // A temporary file is private (0600); the result is an ordinary output file.
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            tmp.as_file()
+                .set_permissions(std::fs::Permissions::from_mode(0o644))
+                .with_context(|| format!("writing {}", path.display()))?;
+        }
+        Ok(AtomicFile { path: path.to_owned(), w: std::io::BufWriter::new(tmp) })
     }
-    {
-        let mut w = std::io::BufWriter::new(tmp.as_file_mut());
-        f(&mut w).with_context(|| format!("writing {}", path.display()))?;
-        w.flush().with_context(|| format!("writing {}", path.display()))?;
+
+    /// Where to write the contents (buffered).
+    pub fn writer(&mut self) -> &mut impl Write {
+        &mut self.w
     }
-    tmp.persist(path).with_context(|| format!("writing {}", path.display()))?;
-    Ok(())
+
+    /// Flushes the contents and renames the file into place.
+    pub fn commit(self) -> anyhow::Result<()> {
+        let context = || format!("writing {}", self.path.display());
+        let tmp = self.w.into_inner().map_err(|e| e.into_error()).with_context(context)?;
+        tmp.persist(&self.path).with_context(context)?;
+        Ok(())
+    }
 }
 
 /// Writes a value as pretty JSON.

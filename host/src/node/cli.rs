@@ -1,6 +1,7 @@
 //! The node subcommands' arguments and entry points: `accelcal flash`, `accelcal monitor`,
 //! `accelcal hil`.
 
+use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::Context;
@@ -99,19 +100,27 @@ pub fn run_hil(a: &HilArgs, warnings: &mut crate::cmd::Warnings) -> anyhow::Resu
             a.elf.display()
         )));
     }
-    let campaign = crate::cmd::read_campaign(&a.campaign, warnings)?;
-    let codes = super::hil::campaign_codes(&campaign, &a.campaign)?;
+    // The header and the first block are checked before the node starts.
+    let mut codes = super::hil::CampaignCodes::open(&a.campaign)?;
     let mut opts = super::hil::HilOptions::new(&a.elf);
     opts.qemu = a.qemu_bin.clone();
     opts.timeout = std::time::Duration::from_secs(a.timeout_s);
-    let run = super::hil::replay(&opts, &record, &codes).context("running the node in QEMU")?;
-    super::hil::write_csv(&a.out, &campaign.t_s, &run.accel)
-        .with_context(|| format!("writing {}", a.out.display()))?;
+    let mut out = crate::output::AtomicFile::create(&a.out)?;
+    let writing = || format!("writing {}", a.out.display());
+    writeln!(out.writer(), "{}", super::hil::CSV_HEADER).with_context(writing)?;
+    let mut sets = 0;
+    let status = super::hil::replay_blocks(&opts, &record, codes.by_ref(), |t_s, accel| {
+        sets += accel.len();
+        super::hil::write_rows(out.writer(), &t_s, accel).with_context(writing)
+    })
+    .map_err(|e| if e.is::<super::hil::HilError>() { e.context("running the node in QEMU") } else { e })?;
+    warnings.extend(codes.warnings());
+    out.commit()?;
     println!(
         "hil: {} sample sets replayed through {}; {}; wrote {}",
-        run.accel.len(),
+        sets,
         a.elf.display(),
-        super::monitor::format_status(&run.status),
+        super::monitor::format_status(&status),
         a.out.display()
     );
     Ok(())

@@ -7,7 +7,7 @@
 //! size, which is 0 on this board unless `-m` is given), and semihosting on for the node's defmt
 //! output (kept in a file next to the socket, for diagnosis).
 
-use std::io::Write;
+use std::io::{Read, Write};
 use std::os::unix::net::UnixStream;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -17,8 +17,13 @@ use accelcal_shared::record::Record;
 use accelcal_shared::slots::SlotImage;
 use accelcal_shared::wire::{Block, Codes, HostMsg, NodeMsg, RecordStatus, Status, MAX_BLOCK};
 
+use anyhow::Context;
+
 use super::link::{self, LinkError, Receiver};
 use super::RECORD_SLOTS;
+use crate::campaign::Row;
+use crate::error::bad;
+use crate::reduce::DwellRows;
 
 /// How to run the node in QEMU.
 #[derive(Clone, Debug)]
@@ -270,47 +275,87 @@ fn is_timeout(e: &LinkError) -> bool {
     matches!(e, LinkError::Io(io) if matches!(io.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut))
 }
 
+/// Code sets to replay: one request's worth.
+pub type CodeBlock = heapless::Vec<Codes, MAX_BLOCK>;
+
+/// How many requests may wait for their answer: enough that the node's input (the socket, read by
+/// QEMU one byte at a time) never runs dry, few enough (about 150 bytes each) that they fit the
+/// socket's buffer, so sending never waits for the node and one thread does both.
+const IN_FLIGHT: usize = 64;
+
 /// Boots the QEMU node with `record` (the bytes of a record file) in slot 0, replays `codes`
 /// through it in blocks of [`MAX_BLOCK`], and returns the node's answers in order.
 pub fn replay(opts: &HilOptions, record: &[u8], codes: &[Codes]) -> Result<HilRun, HilError> {
+    let mut accel = Vec::with_capacity(codes.len());
+    let blocks = codes
+        .chunks(MAX_BLOCK)
+        .map(|c| Ok::<_, HilError>((CodeBlock::from_slice(c).expect("chunks of MAX_BLOCK"), ())));
+    let status = replay_blocks(opts, record, blocks, |(), a| {
+        accel.extend_from_slice(a);
+        Ok(())
+    })?;
+    Ok(HilRun { accel, status })
+}
+
+/// Boots the QEMU node with `record` (the bytes of a record file) in slot 0 and replays the blocks
+/// `blocks` yields, each with a tag of the caller's, as they come: at most `IN_FLIGHT` (64) requests
+/// wait for their answer, so memory does not grow with the blocks. Each answer, checked (in order,
+/// as many sets as were sent, calibrated), goes to `answered` with its block's tag. Returns the
+/// node's status after the last answer; the first error of `blocks`, of `answered` or of the node
+/// ends the replay, and the node is shut down.
+pub fn replay_blocks<T, E: From<HilError>>(
+    opts: &HilOptions,
+    record: &[u8],
+    blocks: impl IntoIterator<Item = Result<(CodeBlock, T), E>>,
+    mut answered: impl FnMut(T, &[[f32; 3]]) -> Result<(), E>,
+) -> Result<Status, E> {
     let rec =
         Record::parse(record).map_err(|e| HilError::Record(accelcal_shared::slots::SlotError::Record(e)))?;
     let page = SlotImage::build(&record[..rec.len()], 1).map_err(HilError::Record)?;
     let mut node = QemuNode::start(opts, Some(&page))?;
     let status = node.status()?;
     if let RecordStatus::Missing(fault) = status.record {
-        return Err(HilError::Rejected(fault));
+        return Err(HilError::Rejected(fault).into());
     }
 
-    // A writer thread sends every request; QEMU's chardev applies back-pressure, so the node
-    // takes them at its own pace while this thread collects the answers.
-    let mut tx = node.stream.try_clone()?;
-    let blocks: Vec<Vec<Codes>> = codes.chunks(MAX_BLOCK).map(|c| c.to_vec()).collect();
-    let writer = std::thread::spawn(move || -> Result<(), LinkError> {
-        let mut out = Vec::new();
-        for (seq, block) in blocks.into_iter().enumerate() {
-            let codes = heapless::Vec::from_slice(&block).expect("chunks of MAX_BLOCK");
-            out.extend_from_slice(&link::frame(&HostMsg::Replay { seq: seq as u32, codes })?);
+    let mut blocks = blocks.into_iter().fuse();
+    // (seq, sets sent, tag) of the requests waiting for their answer, oldest first.
+    let mut waiting = std::collections::VecDeque::with_capacity(IN_FLIGHT);
+    let mut seq = 0u32;
+    let mut accel = Vec::with_capacity(MAX_BLOCK);
+    loop {
+        while waiting.len() < IN_FLIGHT {
+            let Some(block) = blocks.next() else { break };
+            let (codes, tag) = block?;
+            let sent = codes.len();
+            node.send_raw(&link::frame(&HostMsg::Replay { seq, codes }).map_err(HilError::from)?)?;
+            waiting.push_back((seq, sent, tag));
+            seq = seq.wrapping_add(1);
         }
-        tx.write_all(&out)?;
-        tx.flush()?;
-        Ok(())
-    });
+        let Some((want, sent, tag)) = waiting.pop_front() else { break };
+        node.next_block(want, sent, &mut accel)?;
+        answered(tag, &accel)?;
+    }
+    Ok(node.status()?)
+}
 
-    let mut accel = Vec::with_capacity(codes.len());
-    while accel.len() < codes.len() {
-        let NodeMsg::Replayed { seq, data } = node.next_answer()? else {
-            continue;
+impl QemuNode {
+    /// Waits for the answer to request `want`, which carried `sent` code sets, and puts the
+    /// node's calibrated acceleration into `accel`.
+    fn next_block(&mut self, want: u32, sent: usize, accel: &mut Vec<[f32; 3]>) -> Result<(), HilError> {
+        let (seq, data) = loop {
+            if let NodeMsg::Replayed { seq, data } = self.next_answer()? {
+                break (seq, data);
+            }
         };
-        let want = accel.len() / MAX_BLOCK;
-        if seq as usize != want {
+        if seq != want {
             return Err(HilError::Protocol(format!("answer {seq} where {want} was due")));
         }
-        let expected = (codes.len() - accel.len()).min(MAX_BLOCK);
+        accel.clear();
         match data {
-            Block::Calibrated(v) if v.len() == expected => accel.extend_from_slice(&v),
+            Block::Calibrated(v) if v.len() == sent => accel.extend_from_slice(&v),
             // Fixed point: m/s²·2¹⁶ as i32; exact in f32 for |a| < 256 m/s².
-            Block::CalibratedFixed(v) if v.len() == expected => {
+            Block::CalibratedFixed(v) if v.len() == sent => {
                 accel.extend(v.iter().map(|a| a.map(|q| (q as f64 / 65536.0) as f32)))
             }
             Block::Uncalibrated(_) => {
@@ -318,58 +363,233 @@ pub fn replay(opts: &HilOptions, record: &[u8], codes: &[Codes]) -> Result<HilRu
             }
             other => {
                 return Err(HilError::Protocol(format!(
-                    "answer {seq} has {} sets, {expected} were sent",
+                    "answer {seq} has {} sets, {sent} were sent",
                     other.len()
                 )))
             }
         }
+        Ok(())
     }
-    match writer.join() {
-        Ok(r) => r?,
-        Err(_) => return Err(HilError::Protocol("writer thread panicked".into())),
-    }
-    let status = node.status()?;
-    Ok(HilRun { accel, status })
 }
 
-/// The raw code sets of a campaign's channels `x`, `y`, `z`, as the node's ADC would deliver
-/// them: every code must be a whole number in 0..=65535.
-pub fn campaign_codes(c: &crate::campaign::Campaign, path: &Path) -> anyhow::Result<Vec<Codes>> {
-    let ch = |name: &str| {
-        c.channels.iter().find(|ch| ch.name == name).ok_or_else(|| {
-            crate::error::bad(format!(
-                "{}: no channel `{name}` (the node replays a triad with channels x, y, z)",
-                path.display()
-            ))
-        })
-    };
-    let (x, y, z) = (ch("x")?, ch("y")?, ch("z")?);
-    let mut out = Vec::with_capacity(c.t_s.len());
-    for row in 0..c.t_s.len() {
+/// The times of a block's rows, s.
+pub type TimeBlock = heapless::Vec<f64, MAX_BLOCK>;
+
+/// A campaign's channels `x`, `y`, `z` as the code sets the node's ADC would deliver (every code a
+/// whole number in 0..=65535), with the rows' times, a block of [`MAX_BLOCK`] rows at a time: read
+/// with every check of the campaign reader (`DwellRows`), keeping one block, so that a campaign
+/// of any length is replayed in bounded memory.
+///
+/// [`CampaignCodes::new`] reads the header and the first block, then checks the channels: a file
+/// that is bad in its first rows is refused with the message every command gives it, and a file
+/// whose trouble shows there is refused before any node is started.
+pub struct CampaignCodes<R: Read> {
+    /// `None` once the end of the file is checked.
+    rows: Option<DwellRows<R>>,
+    path: PathBuf,
+    /// The current row.
+    row: Row,
+    /// Rows read so far.
+    n: usize,
+    /// Columns of x, y, z among the channels.
+    xyz: [usize; 3],
+    /// The first block, read before the channels were checked.
+    first: Option<(CodeBlock, TimeBlock)>,
+    warnings: Vec<String>,
+}
+
+impl CampaignCodes<std::io::BufReader<std::fs::File>> {
+    /// Opens a campaign file (see [`CampaignCodes::new`]).
+    pub fn open(path: &Path) -> anyhow::Result<Self> {
+        CampaignCodes::from_rows(DwellRows::open(path).context(READING)?, path)
+    }
+}
+
+/// The context of the campaign reader's errors.
+const READING: &str = "reading the campaign";
+
+impl<R: Read> CampaignCodes<R> {
+    /// Reads the header and the first block, and checks the channels; `path` names the reader in
+    /// errors.
+    pub fn new(reader: R, path: &Path) -> anyhow::Result<Self> {
+        CampaignCodes::from_rows(DwellRows::new(reader, path).context(READING)?, path)
+    }
+
+    fn from_rows(rows: DwellRows<R>, path: &Path) -> anyhow::Result<Self> {
+        let names = rows.channel_names();
+        let mut c = CampaignCodes {
+            rows: Some(rows),
+            path: path.to_owned(),
+            row: Row::default(),
+            n: 0,
+            xyz: [0; 3],
+            first: None,
+            warnings: Vec::new(),
+        };
+        let mut first = Vec::with_capacity(MAX_BLOCK);
+        while first.len() < MAX_BLOCK && c.advance()? {
+            first.push(c.row.clone());
+        }
+        for (k, name) in ["x", "y", "z"].into_iter().enumerate() {
+            c.xyz[k] = names.iter().position(|n| n == name).ok_or_else(|| {
+                bad(format!(
+                    "{}: no channel `{name}` (the node replays a triad with channels x, y, z)",
+                    path.display()
+                ))
+            })?;
+        }
+        let mut block = (CodeBlock::new(), TimeBlock::new());
+        for row in first {
+            c.row = row;
+            c.push_row(&mut block)?;
+        }
+        c.first = Some(block);
+        Ok(c)
+    }
+
+    /// Reads the next row into `self.row`; `false` at the end of the file, which is then checked.
+    fn advance(&mut self) -> anyhow::Result<bool> {
+        let Some(rows) = self.rows.as_mut() else { return Ok(false) };
+        match rows.next_row().context(READING)? {
+            Some((_, row)) => {
+                self.row.clone_from(row);
+                Ok(true)
+            }
+            None => {
+                self.warnings = self.rows.take().expect("not at the end").finish().context(READING)?;
+                Ok(false)
+            }
+        }
+    }
+
+    /// Adds the current row to `block`, checking its codes.
+    fn push_row(&mut self, (codes, t_s): &mut (CodeBlock, TimeBlock)) -> anyhow::Result<()> {
+        self.n += 1;
         let mut set = [0u16; 3];
-        for (k, chan) in [x, y, z].into_iter().enumerate() {
-            let v = chan.codes[row];
+        for (k, (&col, name)) in self.xyz.iter().zip(["x", "y", "z"]).enumerate() {
+            let v = self.row.codes[col];
             if !(0.0..=65535.0).contains(&v) || v.fract() != 0.0 {
-                return Err(crate::error::bad(format!(
-                    "{}: row {} channel {}: code {v} is not a whole number in 0..=65535 (simulate without --ideal-adc)",
-                    path.display(),
-                    row + 1,
-                    chan.name
+                return Err(bad(format!(
+                    "{}: row {} channel {name}: code {v} is not a whole number in 0..=65535 (simulate without --ideal-adc)",
+                    self.path.display(),
+                    self.n,
                 )));
             }
             set[k] = v as u16;
         }
-        out.push(set);
+        // Both have room: blocks are filled to MAX_BLOCK and no further.
+        let _ = codes.push(set);
+        let _ = t_s.push(self.row.t);
+        Ok(())
     }
-    Ok(out)
+
+    /// The next block of code sets and their times; `None` after the last.
+    fn next_block(&mut self) -> anyhow::Result<Option<(CodeBlock, TimeBlock)>> {
+        if let Some(first) = self.first.take() {
+            return Ok((!first.0.is_empty()).then_some(first));
+        }
+        let mut block = (CodeBlock::new(), TimeBlock::new());
+        while !block.0.is_full() && self.advance()? {
+            self.push_row(&mut block)?;
+        }
+        Ok((!block.0.is_empty()).then_some(block))
+    }
+
+    /// The campaign reader's warnings (excluded samples, single-sample dwells), once the last
+    /// block has been read.
+    pub fn warnings(&self) -> &[String] {
+        &self.warnings
+    }
 }
 
-/// Writes the node's answers as CSV `t_s,ax,ay,az` (m/s²; f32 values printed exactly).
-pub fn write_csv(path: &Path, t_s: &[f64], accel: &[[f32; 3]]) -> std::io::Result<()> {
-    let mut w = std::io::BufWriter::new(std::fs::File::create(path)?);
-    writeln!(w, "t_s,ax,ay,az")?;
+impl<R: Read> Iterator for CampaignCodes<R> {
+    type Item = anyhow::Result<(CodeBlock, TimeBlock)>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        self.next_block().transpose()
+    }
+}
+
+/// The header of the CSV that `accelcal hil` writes.
+pub const CSV_HEADER: &str = "t_s,ax,ay,az";
+
+/// Writes the node's answers for rows at times `t_s` as CSV rows `t_s,ax,ay,az` (m/s²; f32
+/// values printed exactly) under [`CSV_HEADER`].
+pub fn write_rows(w: &mut impl Write, t_s: &[f64], accel: &[[f32; 3]]) -> std::io::Result<()> {
     for (t, a) in t_s.iter().zip(accel) {
         writeln!(w, "{t},{},{},{}", a[0], a[1], a[2])?;
     }
-    w.flush()
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::campaign::Campaign;
+
+    fn blocks(text: &str) -> anyhow::Result<Vec<(CodeBlock, TimeBlock)>> {
+        CampaignCodes::new(text.as_bytes(), Path::new("c.csv"))?.collect()
+    }
+
+    /// A triad campaign of `n` rows over two dwells, with a saturated row.
+    fn triad(n: usize) -> String {
+        let mut s = String::from("t_s,alpha_deg,beta_deg,temp_c,x,z,y\n");
+        for i in 0..n {
+            let x = if i == 7 { 65535 } else { 30000 + i };
+            s += &format!("{},{},0,25,{x},{},{}\n", i as f64 * 0.1, 90 * (i / 20), 31000 + 2 * i, 32000 + i);
+        }
+        s
+    }
+
+    #[test]
+    fn blocks_hold_the_rows_the_campaign_reader_keeps() {
+        let text = triad(45);
+        let c = Campaign::from_reader(text.as_bytes(), Path::new("c.csv")).unwrap();
+        let mut codes = CampaignCodes::new(text.as_bytes(), Path::new("c.csv")).unwrap();
+        let got: Vec<_> = codes.by_ref().collect::<anyhow::Result<_>>().unwrap();
+        assert_eq!(got.iter().map(|(c, _)| c.len()).collect::<Vec<_>>(), vec![16, 16, 12]);
+        let t: Vec<f64> = got.iter().flat_map(|(_, t)| t.clone()).collect();
+        let sets: Vec<Codes> = got.iter().flat_map(|(c, _)| c.clone()).collect();
+        assert_eq!(t, c.t_s);
+        let ch = |n: &str| &c.channels[c.channel(n).unwrap()].codes;
+        for (i, set) in sets.iter().enumerate() {
+            assert_eq!(set.map(f64::from), [ch("x")[i], ch("y")[i], ch("z")[i]], "row {i}");
+        }
+        assert_eq!(codes.warnings(), c.warnings);
+        assert_eq!(codes.warnings().len(), 1);
+    }
+
+    #[test]
+    fn rows_are_checked_as_they_are_read() {
+        // In the first block: the file is refused when opened, before the channels are checked.
+        let e = CampaignCodes::new(
+            "t_s,alpha_deg,beta_deg,x\n0,0,0,1\n1,0,zero,2\n".as_bytes(),
+            Path::new("c.csv"),
+        );
+        assert_eq!(
+            format!("{:#}", e.err().unwrap()),
+            "reading the campaign: c.csv:3:3: expected a number in `beta_deg`, found `zero`"
+        );
+        let e = CampaignCodes::new("t_s,alpha_deg,beta_deg,x,y\n0,0,0,1,2\n".as_bytes(), Path::new("c.csv"));
+        assert!(format!("{}", e.err().unwrap()).starts_with("c.csv: no channel `z`"));
+        // After the first block: the blocks before it come first.
+        let mut bad = triad(40);
+        bad += "4,90,0,25,30000,31000,oops\n";
+        let mut codes = CampaignCodes::new(bad.as_bytes(), Path::new("c.csv")).unwrap();
+        assert!(codes.next().unwrap().is_ok());
+        assert!(codes.next().unwrap().is_ok());
+        let e = codes.next().unwrap().unwrap_err();
+        assert_eq!(
+            format!("{e:#}"),
+            "reading the campaign: c.csv:42:7: expected a number in `y`, found `oops`"
+        );
+        let mut frac = triad(40);
+        frac += "4,90,0,25,30000.5,31000,32000\n";
+        let e = blocks(&frac).unwrap_err();
+        assert!(crate::error::is_bad_input(&e));
+        assert_eq!(
+            e.to_string(),
+            "c.csv: row 40 channel x: code 30000.5 is not a whole number in 0..=65535 (simulate without --ideal-adc)"
+        );
+    }
 }
