@@ -155,6 +155,95 @@ impl<R: Read> DwellRows<R> {
     }
 }
 
+/// A second pass over a campaign file: its rows with their dwells, each checked to continue the
+/// dwells (angles and row counts) and channels of the first pass, so that a file changed between
+/// the passes is refused instead of mixed. Errors read `changed while it was read: …`.
+pub(crate) struct Reread<'d, R: Read> {
+    rows: DwellRows<R>,
+    dwells: &'d [Dwell],
+    path: std::path::PathBuf,
+    /// The dwell being read and how many of its rows came so far.
+    at: (usize, usize),
+}
+
+fn changed(path: &Path, msg: String) -> CampaignError {
+    CampaignError::File { path: path.to_owned(), msg: format!("changed while it was read: {msg}") }
+}
+
+impl<'d> Reread<'d, std::io::BufReader<std::fs::File>> {
+    /// Opens a campaign file for its second pass, given what the first found.
+    pub fn open(path: &Path, channels: &[String], dwells: &'d [Dwell]) -> Result<Self, CampaignError> {
+        Reread::new(DwellRows::open(path)?, channels, dwells, path)
+    }
+}
+
+impl<'d, R: Read> Reread<'d, R> {
+    /// The second pass over `rows`; `path` names it in errors.
+    pub fn new(
+        rows: DwellRows<R>,
+        channels: &[String],
+        dwells: &'d [Dwell],
+        path: &Path,
+    ) -> Result<Self, CampaignError> {
+        let r = Reread { rows, dwells, path: path.to_owned(), at: (0, 0) };
+        if r.rows.channel_names() != channels {
+            return Err(changed(path, "other channels than before".into()));
+        }
+        Ok(r)
+    }
+
+    /// Whether the file has a `temp_c` column.
+    pub fn has_temp(&self) -> bool {
+        self.rows.has_temp()
+    }
+
+    /// The channel names, in column order (those of the first pass).
+    pub fn channel_names(&self) -> Vec<String> {
+        self.rows.channel_names()
+    }
+
+    /// The dwells of the first pass.
+    pub fn dwells(&self) -> &'d [Dwell] {
+        self.dwells
+    }
+
+    /// The next kept row and the index of its dwell; `None` at the end of the file.
+    pub fn next_row(&mut self) -> Result<Option<(usize, &Row)>, CampaignError> {
+        let (dwells, (pos, seen)) = (self.dwells, self.at);
+        let len = |i: usize| dwells.get(i).map_or(0, Dwell::len);
+        let Some((k, row)) = self.rows.next_row()? else { return Ok(None) };
+        let msg = if k == pos && seen < len(pos) || k == pos + 1 && seen == len(pos) && k < dwells.len() {
+            if (row.alpha, row.beta) == (dwells[k].alpha_deg, dwells[k].beta_deg) {
+                self.at = (k, if k == pos { seen + 1 } else { 1 });
+                return Ok(Some((k, row)));
+            }
+            format!("dwell {} has other angles than before", k + 1)
+        } else if k == pos {
+            format!("dwell {} has more rows than before", k + 1)
+        } else if seen < len(pos) {
+            format!("dwell {} has fewer rows than before", pos + 1)
+        } else {
+            format!("more than the {} dwells read before", dwells.len())
+        };
+        Err(changed(&self.path, msg))
+    }
+
+    /// Checks that every dwell was read whole and returns the reader's warnings.
+    pub fn finish(self) -> Result<Vec<String>, CampaignError> {
+        let (pos, seen) = self.at;
+        let whole = match self.dwells.last() {
+            None => seen == 0,
+            Some(last) => pos + 1 == self.dwells.len() && seen == last.len(),
+        };
+        if !whole {
+            let read = if seen == 0 { 0 } else { pos + 1 };
+            let msg = format!("{read} dwells where {} were read before", self.dwells.len());
+            return Err(changed(&self.path, msg));
+        }
+        self.rows.finish()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -200,5 +289,36 @@ mod tests {
             e.starts_with("c.csv:3:4: every sample of the dwell at alpha_deg 90, beta_deg 0 has channel `x`"),
             "{e}"
         );
+    }
+
+    /// A second pass refuses, with what changed, every way a file can differ from its first pass.
+    #[test]
+    fn a_reread_refuses_a_file_changed_between_the_passes() {
+        let head = "t_s,alpha_deg,beta_deg,x\n";
+        let text = format!("{head}0,0,0,100\n0.1,0,0,101\n1,90,0,300\n");
+        let p = Path::new("c.csv");
+        let first = Campaign::reduce_reader(text.as_bytes(), p).unwrap();
+        let reread = |t: &str| -> Result<usize, CampaignError> {
+            let rows = DwellRows::new(t.as_bytes(), p)?;
+            let mut r = Reread::new(rows, &first.channels, &first.dwells, p)?;
+            let mut n = 0;
+            while r.next_row()?.is_some() {
+                n += 1;
+            }
+            r.finish()?;
+            Ok(n)
+        };
+        assert_eq!(reread(&text).unwrap(), 3);
+        for (changed, what) in [
+            ("t_s,alpha_deg,beta_deg,y\n0,0,0,100\n", "other channels than before"),
+            (&format!("{head}0,0,0,100\n0.1,0,0,101\n0.2,0,0,102\n1,90,0,300\n"), "dwell 1 has more rows"),
+            (&format!("{head}0,0,0,100\n1,90,0,300\n"), "dwell 1 has fewer rows"),
+            (&format!("{head}0,0,0,100\n0.1,0,0,101\n1,45,0,300\n"), "dwell 2 has other angles"),
+            (&format!("{text}2,0,0,5\n"), "more than the 2 dwells read before"),
+            (&format!("{head}0,0,0,100\n0.1,0,0,101\n"), "1 dwells where 2 were read before"),
+        ] {
+            let e = reread(changed).unwrap_err().to_string();
+            assert!(e.starts_with("c.csv: changed while it was read: ") && e.contains(what), "{e}");
+        }
     }
 }

@@ -6,11 +6,11 @@
 //! goes through the same [`Binner`] ([`Binned::from_campaign`]), so both agree to the bit.
 
 use std::io::Read;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use crate::campaign::{Campaign, CampaignError, Dwell, Row};
 use crate::positions::DwellAcc;
-use crate::reduce::DwellRows;
+use crate::reduce::Reread;
 
 /// Bins per dwell (fewer when a dwell has fewer samples).
 pub const BINS: usize = 8;
@@ -74,8 +74,8 @@ impl Binned {
     pub fn from_campaign(c: &Campaign) -> Binned {
         let names = c.channels.iter().map(|ch| ch.name.clone()).collect();
         let mut b = Binner::new(names, &c.dwells(), c.temp_c.is_some());
-        c.for_each_row(|k, row| b.push(k, row).expect("a campaign's rows fill its own dwells"));
-        let mut out = b.finish().expect("a campaign's rows fill its own dwells");
+        c.for_each_row(|k, row| b.push(k, row));
+        let mut out = b.out;
         out.warnings = c.warnings.clone();
         out
     }
@@ -84,30 +84,24 @@ impl Binned {
     /// length), in memory bounded by the number of dwells, with the checks and messages of
     /// [`Campaign::read`].
     pub fn read(path: &Path) -> Result<Binned, CampaignError> {
-        let dwells = Campaign::reduce(path)?.dwells;
-        Binned::fill(DwellRows::open(path)?, &dwells, path)
+        let first = Campaign::reduce(path)?;
+        Binned::fill(Reread::open(path, &first.channels, &first.dwells)?)
     }
 
-    /// The second pass of [`Binned::read`] on any reader, given the dwells of the first.
-    fn fill<R: Read>(mut rows: DwellRows<R>, dwells: &[Dwell], path: &Path) -> Result<Binned, CampaignError> {
-        let mut b = Binner::new(rows.channel_names(), dwells, rows.has_temp());
+    /// The second pass of [`Binned::read`].
+    fn fill<R: Read>(mut rows: Reread<'_, R>) -> Result<Binned, CampaignError> {
+        let mut b = Binner::new(rows.channel_names(), rows.dwells(), rows.has_temp());
         while let Some((k, row)) = rows.next_row()? {
-            b.push(k, row).map_err(|msg| changed(path, msg))?;
+            b.push(k, row);
         }
         let warnings = rows.finish()?;
-        let mut out = b.finish().map_err(|msg| changed(path, msg))?;
-        out.warnings = warnings;
-        Ok(out)
+        Ok(Binned { warnings, ..b.out })
     }
 
     /// Number of positions.
     pub fn npos(&self) -> usize {
         self.angles.len()
     }
-}
-
-fn changed(path: &Path, msg: String) -> CampaignError {
-    CampaignError::File { path: PathBuf::from(path), msg: format!("changed while it was read: {msg}") }
 }
 
 /// One bin being filled.
@@ -158,14 +152,9 @@ impl Binner {
         }
     }
 
-    /// Adds the next row, of dwell `k`; an error when it does not continue the dwells given.
-    pub fn push(&mut self, k: usize, row: &Row) -> Result<(), String> {
-        if k != self.pos || self.pos >= self.lens.len() {
-            return Err(format!("a row of dwell {} where dwell {} was expected", k + 1, self.pos + 1));
-        }
-        if (row.alpha, row.beta) != self.out.angles[k] || row.codes.len() != self.cur.codes.len() {
-            return Err(format!("dwell {} has other angles or channels than before", k + 1));
-        }
+    /// Adds the next row, of dwell `k`. The rows must continue the dwells given, as the rows of
+    /// a campaign's own dwells and a [`Reread`] of its file do.
+    pub fn push(&mut self, k: usize, row: &Row) {
         if self.seen == 0 {
             self.t0 = row.t;
         }
@@ -193,7 +182,6 @@ impl Binner {
             self.t_dwell = DwellAcc::default();
             (self.pos, self.seen, self.bin) = (self.pos + 1, 0, 0);
         }
-        Ok(())
     }
 
     fn close_bin(&mut self) {
@@ -217,19 +205,12 @@ impl Binner {
         }
         (c.t, c.temp) = (DwellAcc::default(), DwellAcc::default());
     }
-
-    /// The bins; an error when rows are missing.
-    pub fn finish(self) -> Result<Binned, String> {
-        if self.pos != self.lens.len() {
-            return Err(format!("{} dwells where {} were read before", self.pos, self.lens.len()));
-        }
-        Ok(self.out)
-    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::reduce::DwellRows;
 
     #[test]
     fn the_settling_mean_of_a_bin_is_the_mean_over_its_evenly_spaced_samples() {
@@ -253,14 +234,18 @@ mod tests {
     fn rows_that_do_not_continue_the_first_pass_are_refused() {
         let text = "t_s,alpha_deg,beta_deg,x\n0,0,0,100\n0.1,0,0,101\n1,90,0,300\n";
         let p = Path::new("c.csv");
-        let dwells = Campaign::reduce_reader(text.as_bytes(), p).unwrap().dwells;
-        let ok = Binned::fill(DwellRows::new(text.as_bytes(), p).unwrap(), &dwells, p).unwrap();
+        let first = Campaign::reduce_reader(text.as_bytes(), p).unwrap();
+        let fill = |t: &str| {
+            let rows = DwellRows::new(t.as_bytes(), p).unwrap();
+            Binned::fill(Reread::new(rows, &first.channels, &first.dwells, p).unwrap())
+        };
+        let ok = fill(text).unwrap();
         assert_eq!(ok.bins.len(), 3);
         let more = format!("{text}1.1,90,0,301\n2,0,0,5\n");
-        let e = Binned::fill(DwellRows::new(more.as_bytes(), p).unwrap(), &dwells, p).unwrap_err();
+        let e = fill(&more).unwrap_err();
         assert!(e.to_string().starts_with("c.csv: changed while it was read"), "{e}");
         let fewer = "t_s,alpha_deg,beta_deg,x\n0,0,0,100\n0.1,0,0,101\n";
-        let e = Binned::fill(DwellRows::new(fewer.as_bytes(), p).unwrap(), &dwells, p).unwrap_err();
+        let e = fill(fewer).unwrap_err();
         assert!(e.to_string().contains("1 dwells where 2 were read before"), "{e}");
     }
 }
