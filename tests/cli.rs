@@ -269,7 +269,7 @@ fn bad_campaigns_exit_2_name_the_place_and_leave_no_output() {
 
 #[test]
 fn real_recording_becomes_a_campaign_that_diagnose_reads() {
-    let real = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data/real/imu_tk_xsens_acc.txt.gz");
+    let real = concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/data/real/imu_tk_xsens_acc.txt.gz");
     let d = Dir::new();
     let camp = d.s("real.csv");
     let out = ok(&["fit", real, "--method", "gravity-norm", "--g", "9.81744", "--campaign-out", &camp]);

@@ -172,7 +172,7 @@ fn cli_reports_bad_input_with_file_and_line() {
 
 fn real_file() -> PathBuf {
     std::env::var_os("ACCELCAL_REAL_ACC").map(PathBuf::from).unwrap_or_else(|| {
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/real/imu_tk_xsens_acc.txt.gz")
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../tests/data/real/imu_tk_xsens_acc.txt.gz")
     })
 }
 

@@ -67,6 +67,29 @@ fn fw_cargo(args: &[&str]) -> Command {
     c
 }
 
+/// The MCU target of the firmware and of `shared`'s no_std build.
+pub const THUMB: &str = "thumbv7em-none-eabihf";
+
+/// Installs the thumb target into the pinned toolchain when it is missing (idempotent).
+/// rustup applies `rust-toolchain.toml`'s `targets` only to a toolchain it installs itself, so a
+/// machine that already had the pinned toolchain lacks the target until this runs.
+pub fn ensure_thumb_target() -> anyhow::Result<()> {
+    let listed = Command::new("rustup").args(["target", "list", "--installed"]).current_dir(root()).output();
+    match listed {
+        Ok(out) if out.status.success() => {
+            if String::from_utf8_lossy(&out.stdout).lines().any(|l| l.trim() == THUMB) {
+                println!("setup: target {THUMB} is installed");
+                return Ok(());
+            }
+            run(Command::new("rustup").args(["target", "add", THUMB]).current_dir(root()))
+        }
+        _ => bail!(
+            "the {THUMB} target is needed and rustup is not available to install it; \
+             install it with your toolchain manager (rustup: `rustup target add {THUMB}`)"
+        ),
+    }
+}
+
 fn setup_qemu() -> anyhow::Result<()> {
     run(Command::new("bash").arg(root().join("scripts/setup-qemu.sh")))
 }
@@ -103,6 +126,7 @@ fn build_qemu_fixed() -> anyhow::Result<()> {
 /// `cargo xtask test` (firmware part): installs QEMU when missing, builds the real firmware and
 /// the QEMU builds (f32 and fixed point), and runs the QEMU tests.
 pub fn test() -> anyhow::Result<()> {
+    ensure_thumb_target()?;
     setup_qemu()?;
     build_real()?;
     build_qemu()?;
@@ -113,6 +137,27 @@ pub fn test() -> anyhow::Result<()> {
         .env("ACCELCAL_NODE_QEMU_ELF", elf("node-qemu"))
         .env("ACCELCAL_NODE_QEMU_FIXED_ELF", fixed_elf());
     run(&mut t)
+}
+
+/// `cargo xtask lint` (firmware part): rustfmt and clippy (warnings are errors) on the firmware
+/// workspace, for each board and for the fixed-point variant.
+pub fn lint() -> anyhow::Result<()> {
+    ensure_thumb_target()?;
+    run(&mut fw_cargo(&["fmt", "--all", "--check"]))?;
+    for features in ["board-real", "board-qemu", "board-qemu,fixed-point"] {
+        run(&mut fw_cargo(&[
+            "clippy",
+            "--release",
+            "--locked",
+            "--features",
+            features,
+            "--bins",
+            "--",
+            "-D",
+            "warnings",
+        ]))?;
+    }
+    Ok(())
 }
 
 /// Flash (text + data) and static RAM (data + bss + uninit) of an ELF, from its sections.
@@ -317,6 +362,7 @@ fn count_instructions(
 /// `cargo xtask bench`: exact instructions per calibrated triad sample set on QEMU's Cortex-M4F,
 /// and the real release build's flash and static RAM.
 pub fn bench() -> anyhow::Result<()> {
+    ensure_thumb_target()?;
     setup_qemu()?;
     build_real()?;
     build_qemu()?;

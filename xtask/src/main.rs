@@ -106,7 +106,7 @@ fn lint() -> anyhow::Result<()> {
     let r = root();
     run(&r, "cargo", &["fmt", "--all", "--check"])?;
     run(&r, "cargo", &["clippy", "--workspace", "--all-targets", "--locked", "--", "-D", "warnings"])?;
-    Ok(())
+    firmware::lint()
 }
 
 fn bench() -> anyhow::Result<()> {
