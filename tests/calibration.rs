@@ -2,12 +2,12 @@
 //! turns, GMDH structure selection, identifiability, and the record carrying a fit to the node's
 //! arithmetic.
 
-use accelcal::campaign::Campaign;
-use accelcal::gmdh::{self, Criterion, Settings, Split};
-use accelcal::lsq::{self, LsqError};
-use accelcal::positions::Positions;
-use accelcal::sim::{self, effects, Layout, Plan, SimConfig, Truth};
-use accelcal::testturn;
+use accelcal_core::campaign::Campaign;
+use accelcal_core::gmdh::{self, Criterion, Settings, Split};
+use accelcal_core::lsq::{self, LsqError};
+use accelcal_core::positions::Positions;
+use accelcal_core::sim::{self, effects, Layout, Plan, SimConfig, Truth};
+use accelcal_core::testturn;
 use accelcal_shared::record::{Record, MAX_RECORD_LEN};
 use accelcal_shared::terms::{MODEL_4, PAPER_MODELS};
 use accelcal_shared::{Basis, Structure};
@@ -199,7 +199,7 @@ fn record_carries_the_fit_to_the_node_arithmetic() {
         .iter()
         .map(|s| (s.name.clone(), lsq::fit(&p, s, MODEL_4, None).unwrap()))
         .collect();
-    let rec = accelcal::cmd::fit::record(&fits, [7; 12], 1_800_000_000).unwrap();
+    let rec = accelcal_core::calibrate::record(&fits, [7; 12], 1_800_000_000).unwrap();
     let mut buf = [0u8; MAX_RECORD_LEN];
     let n = rec.emit(&mut buf).unwrap();
     let back = Record::parse(&buf[..n]).unwrap();
@@ -223,7 +223,7 @@ fn record_carries_the_fit_to_the_node_arithmetic() {
 
 /// The benchmark data in miniature: one sample at each of `n` random orientations,
 /// `u = 30000 + 3000·ax + 15·ay − 10·az + 2·ax·ay + noise(80)`.
-fn random_orientation_data(n: usize, seed: u64) -> (Positions, accelcal::positions::ChannelStats) {
+fn random_orientation_data(n: usize, seed: u64) -> (Positions, accelcal_core::positions::ChannelStats) {
     use rand::{Rng, SeedableRng};
     use rand_distr::Distribution;
     let plan = Plan::random(n, seed);
@@ -239,7 +239,7 @@ fn random_orientation_data(n: usize, seed: u64) -> (Positions, accelcal::positio
         let u = 30000.0 + 3000.0 * acc[0] + 15.0 * acc[1] - 10.0 * acc[2] + 2.0 * acc[0] * acc[1];
         codes.push(u + noise.sample(&mut rng) + 0.0 * rng.random::<f64>());
     }
-    c.channels.push(accelcal::campaign::Channel { name: "u".into(), codes });
+    c.channels.push(accelcal_core::campaign::Channel { name: "u".into(), codes });
     let p = Positions::new(&c, 9.81);
     let st = p.channel_stats(&c).remove(0);
     (p, st)

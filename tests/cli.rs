@@ -274,7 +274,7 @@ fn real_recording_becomes_a_campaign_that_diagnose_reads() {
     let camp = d.s("real.csv");
     let out = ok(&["fit", real, "--method", "gravity-norm", "--g", "9.81744", "--campaign-out", &camp]);
     assert!(out.contains("38 holds as position dwells"), "{out}");
-    let c = accelcal::campaign::Campaign::read(Path::new(&camp)).unwrap();
+    let c = accelcal_core::campaign::Campaign::read(Path::new(&camp)).unwrap();
     assert_eq!(c.dwells().len(), 38);
     // Every hold's angles reproduce its calibrated direction: |a| = g and a points where the
     // hold mean says (checked through the kinematics on the first and the last hold).

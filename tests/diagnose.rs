@@ -5,8 +5,8 @@
 
 use std::process::{Command, Output};
 
-use accelcal::diagnose::{self, bench};
-use accelcal::sim::{self, effects, SimConfig, TempProfile};
+use accelcal_core::diagnose::{self, bench};
+use accelcal_core::sim::{self, effects, SimConfig, TempProfile};
 use accelcal_shared::terms::MODEL_4;
 use serde_json::Value;
 
@@ -186,7 +186,8 @@ fn cli_writes_the_issue_json_plots_and_refuses_bad_input() {
         assert!(err.contains(want), "{args:?}: {err}");
     };
     exit2(&["diagnose", &p("missing.csv")], "missing.csv");
-    exit2(&["diagnose", &p("c.csv"), "--baseline", "aq"], "--baseline");
+    exit2(&["diagnose", &p("c.csv"), "--terms", "aq"], "--terms");
+    exit2(&["diagnose", &p("c.csv"), "--baseline", "aq"], "--terms");
     exit2(&["simulate", "--out", &p("t.csv"), "--effect", "temperature=bias:1"], "--temp-profile");
     exit2(&["simulate", "--out", &p("t.csv"), "--effect", "settling=gain:1,k:2"], "unknown parameter");
     exit2(&["bench-diagnose", "--campaigns", "0"], "--campaigns");

@@ -1,14 +1,12 @@
 //! Integration tests of the gravity-norm calibration: simulated hand-placed sessions with a known truth,
 //! the command-line front end, and the real imu_tk Xsens recording.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-use accelcal::gravity::cli::{self, GravityFitArgs, InputFormat, StructureArg};
-use accelcal::gravity::fit::Structure;
-use accelcal::gravity::holds::DetectorConfig;
-use accelcal::gravity::sim::{simulate, SimConfig};
-use accelcal::gravity::{calibrate, StructureChoice};
-use clap::Parser;
+use accelcal_core::gravity::fit::Structure;
+use accelcal_core::gravity::holds::DetectorConfig;
+use accelcal_core::gravity::sim::{simulate, SimConfig};
+use accelcal_core::gravity::{calibrate, calibrate_path, StructureChoice};
 
 /// Tolerances of parameter recovery on a simulated session like the real file (noise 3.3 codes,
 /// 414 codes per m/s², 38 holds of 4–11 s): bias in codes, scale relative, angles in radians.
@@ -91,38 +89,24 @@ fn gmdh_selects_the_quadratic_term_when_the_sensor_has_one() {
     }
 }
 
-#[derive(Parser)]
-struct Wrapper {
-    #[command(flatten)]
-    args: GravityFitArgs,
+/// Runs the binary; returns (exit code, stdout, stderr).
+fn accelcal(args: &[&str]) -> (Option<i32>, String, String) {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_accelcal")).args(args).output().unwrap();
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
 }
 
-fn parse(argv: &[&str]) -> GravityFitArgs {
-    Wrapper::try_parse_from(std::iter::once("accelcal").chain(argv.iter().copied())).unwrap().args
-}
-
-#[test]
-fn command_line_defaults_and_options() {
-    let a = parse(&["rec.txt"]);
-    assert_eq!(a.options.format, InputFormat::ImuTk);
-    assert_eq!(a.g, 9.81);
-    assert_eq!(a.options.min_hold_s, 2.0);
-    assert_eq!(a.options.threshold, None);
-    assert_eq!(a.options.structure, StructureArg::ImuTk);
-    let a = parse(&[
-        "rec.txt",
-        "--format",
-        "imu-tk",
-        "--g",
-        "9.81744",
-        "--threshold",
-        "200",
-        "--min-hold-s",
-        "3",
-    ]);
-    assert_eq!((a.g, a.options.threshold, a.options.min_hold_s), (9.81744, Some(200.0), 3.0));
-    assert!(Wrapper::try_parse_from(["accelcal", "rec.txt", "--format", "csv"]).is_err());
-    assert!(parse(&["rec.txt", "--g=-1"]).validate().is_err());
+/// The core's gravity-norm pipeline on a file, with the binary's defaults (imu_tk structure).
+fn calibrate_file(
+    path: &Path,
+    g: f64,
+    threshold: Option<f64>,
+) -> (accelcal_core::gravity::imutk::Recording, accelcal_core::gravity::Calibration) {
+    let det = DetectorConfig { threshold, ..DetectorConfig::default() };
+    calibrate_path(path, g, &det, StructureChoice::Fixed(Structure::ImuTk)).unwrap()
 }
 
 #[test]
@@ -133,10 +117,19 @@ fn cli_writes_json_in_the_issue_shape_and_plots() {
     assert!(truth.exists());
     let json = dir.path().join("cal.json");
     let plots = dir.path().join("plots");
-    let mut args = parse(&[data.to_str().unwrap(), "--g", "9.81744"]);
-    args.json = Some(json.clone());
-    args.options.plot = Some(plots.clone());
-    cli::run(&args).unwrap();
+    let (code, _, err) = accelcal(&[
+        "fit",
+        data.to_str().unwrap(),
+        "--method",
+        "gravity-norm",
+        "--g",
+        "9.81744",
+        "--json",
+        json.to_str().unwrap(),
+        "--plot",
+        plots.to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(0), "{err}");
     let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     let ch = v["channels"].as_array().unwrap();
     assert_eq!(ch.len(), 3);
@@ -165,9 +158,10 @@ fn cli_reports_bad_input_with_file_and_line() {
     let dir = tempfile::tempdir().unwrap();
     let bad = dir.path().join("bad.txt");
     std::fs::write(&bad, "0 1 2 3\n0.01 1 2 oops\n").unwrap();
-    let err = cli::run(&parse(&[bad.to_str().unwrap()])).unwrap_err();
-    let msg = format!("{err:#}");
+    let (code, _, msg) = accelcal(&["fit", bad.to_str().unwrap(), "--method", "gravity-norm"]);
+    assert_eq!(code, Some(2), "{msg}");
     assert!(msg.contains("bad.txt:2:10: expected a number, found `oops`"), "{msg}");
+    assert_eq!(msg.lines().count(), 1, "{msg}");
 }
 
 fn real_file() -> PathBuf {
@@ -178,8 +172,7 @@ fn real_file() -> PathBuf {
 
 #[test]
 fn real_xsens_recording_calibrates_to_a_millimetre_per_second_squared() {
-    let args = parse(&[real_file().to_str().unwrap(), "--g", "9.81744"]);
-    let (rec, cal) = cli::calibrate_file(&args).unwrap();
+    let (rec, cal) = calibrate_file(&real_file(), 9.81744, None);
     assert_eq!(rec.len(), 51175);
     // About 38 hand-placed holds plus the initial rest.
     let n = cal.detection.holds.len();
@@ -233,11 +226,10 @@ fn accelcal_fit_method_gravity_norm_runs_on_the_real_file() {
 
 #[test]
 fn real_recording_result_does_not_hinge_on_the_threshold() {
-    let base = cli::calibrate_file(&parse(&[real_file().to_str().unwrap(), "--g", "9.81744"])).unwrap().1;
+    let base = calibrate_file(&real_file(), 9.81744, None).1;
     // From 2x to 30x the noise floor (about 30 codes²) the holds change but the calibration does not.
     for th in ["60", "1000"] {
-        let args = parse(&[real_file().to_str().unwrap(), "--g", "9.81744", "--threshold", th]);
-        let cal = cli::calibrate_file(&args).unwrap().1;
+        let cal = calibrate_file(&real_file(), 9.81744, Some(th.parse().unwrap())).1;
         assert!(cal.fit.rms < 0.002, "threshold {th}: rms {}", cal.fit.rms);
         for i in 0..3 {
             let ds = cal.fit.model.scale[i] - base.fit.model.scale[i];

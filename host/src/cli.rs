@@ -4,8 +4,8 @@ use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
-use crate::gmdh::{Criterion, Split};
-use crate::sim::{Layout, TempProfile};
+use accelcal_core::gmdh::{Criterion, Split};
+use accelcal_core::sim::{Layout, TempProfile};
 
 /// Production calibration of analog MEMS accelerometer blocks (MS9002.D class) on a dividing
 /// head: GMDH model-structure selection, least-squares and test-turn fits, and their comparison.
@@ -36,11 +36,11 @@ pub enum Command {
     /// Write a calibration record into a sensor node's flash through a debug probe (the inactive
     /// record slot; the firmware is never erased, the old record stays in force until the new
     /// one is complete).
-    Flash(crate::node::cli::FlashArgs),
+    Flash(FlashArgs),
     /// Show a sensor node's live stream (calibrated samples and status) from its serial port.
-    Monitor(crate::node::cli::MonitorArgs),
+    Monitor(MonitorArgs),
     /// Replay a campaign through the node firmware running in QEMU and write what it computed.
-    Hil(crate::node::cli::HilArgs),
+    Hil(HilArgs),
     /// Diagnose the gap between a campaign and its linear-sensor simulation, and attribute it to
     /// effects checked on withheld data.
     Diagnose(DiagnoseArgs),
@@ -165,8 +165,8 @@ pub struct SelectArgs {
     #[arg(long, value_enum, default_value_t = BasisArg::Paper)]
     pub basis: BasisArg,
     /// External criterion, reported as an RMS in ADC codes.
-    #[arg(long, value_enum, default_value_t = Criterion::Regularity)]
-    pub criterion: Criterion,
+    #[arg(long, value_enum, default_value_t = CriterionArg::Regularity)]
+    pub criterion: CriterionArg,
     /// Division of the positions into A (fitting) and B (checking): `alternate`, `halves`, or
     /// `tail:FRACTION` (the last FRACTION of the positions in B).
     #[arg(long, default_value = "alternate", value_parser = parse_split)]
@@ -208,6 +208,27 @@ fn parse_split(s: &str) -> Result<Split, String> {
     s.parse()
 }
 
+/// External criteria of GMDH.
+#[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
+pub enum CriterionArg {
+    /// Error on B of the model fitted on A (the paper's choice).
+    Regularity,
+    /// Error on B of the A-fit plus error on A of the B-fit.
+    Symmetric,
+    /// Residual on A∪B of the model fitted on A∪B.
+    Rss,
+}
+
+impl From<CriterionArg> for Criterion {
+    fn from(c: CriterionArg) -> Self {
+        match c {
+            CriterionArg::Regularity => Criterion::Regularity,
+            CriterionArg::Symmetric => Criterion::Symmetric,
+            CriterionArg::Rss => Criterion::Rss,
+        }
+    }
+}
+
 /// GMDH search algorithms.
 #[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
 pub enum Algorithm {
@@ -219,7 +240,7 @@ pub enum Algorithm {
 
 /// Fitting methods.
 #[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
-pub enum Method {
+pub enum MethodArg {
     /// Batch least squares over every position (any model).
     Lsq,
     /// Test turns: each axis along +g and -g (model 4 only).
@@ -234,10 +255,10 @@ pub struct FitArgs {
     /// Campaign CSV (with --method gravity-norm: a raw recording, see --format).
     pub campaign: PathBuf,
     /// Fitting method.
-    #[arg(long, value_enum, default_value_t = Method::Lsq)]
-    pub method: Method,
-    /// Model terms, comma-separated (the intercept is always included) [default: ax,ay,az, the
-    /// paper's model 4].
+    #[arg(long, value_enum, default_value_t = MethodArg::Lsq)]
+    pub method: MethodArg,
+    /// Model terms, comma-separated (the intercept is always included); the default is the
+    /// paper's model 4.
     #[arg(long, value_name = "LIST", default_value = "ax,ay,az")]
     pub terms: String,
     /// Write the calibration record for the firmware to this file.
@@ -253,7 +274,7 @@ pub struct FitArgs {
     pub common: CommonArgs,
     /// Options of --method gravity-norm.
     #[command(flatten)]
-    pub gravity: crate::gravity::cli::GravityOptions,
+    pub gravity: GravityOptions,
 }
 
 /// `accelcal compare`.
@@ -276,7 +297,7 @@ pub struct CompareArgs {
 #[derive(Debug, Args)]
 pub struct DemoArgs {
     /// Directory for the campaign, JSON results, the calibration record and the plots.
-    #[arg(long, default_value = "accelcal-demo", value_name = "DIR")]
+    #[arg(long, short, default_value = "accelcal-demo", value_name = "DIR")]
     pub out: PathBuf,
     /// Seed of the simulated block.
     #[arg(long, default_value_t = 2014)]
@@ -288,10 +309,10 @@ pub struct DemoArgs {
 pub struct DiagnoseArgs {
     /// Campaign CSV.
     pub campaign: PathBuf,
-    /// Baseline model terms, comma-separated (the intercept is always included) [default:
-    /// ax,ay,az, model 4].
-    #[arg(long, value_name = "TERMS", default_value = "ax,ay,az")]
-    pub baseline: String,
+    /// Baseline model terms, comma-separated (the intercept is always included); the default is
+    /// model 4. (`--baseline` is the former name.)
+    #[arg(long = "terms", alias = "baseline", value_name = "LIST", default_value = "ax,ay,az")]
+    pub terms: String,
     /// Write the gap-map plots (SVG) into this directory.
     #[arg(long, value_name = "DIR")]
     pub plot: Option<PathBuf>,
@@ -315,4 +336,112 @@ pub struct BenchDiagnoseArgs {
     /// Write the results (confusion table, per-campaign rows) as JSON.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
+}
+
+/// `accelcal flash`: write a calibration record into a node through a debug probe.
+#[derive(Debug, Args)]
+pub struct FlashArgs {
+    /// The calibration record file (from `accelcal fit --record`).
+    #[arg(value_name = "RECORD")]
+    pub record: PathBuf,
+    /// probe-rs target name of the node's MCU.
+    #[arg(long, default_value = "STM32L475VGTx")]
+    pub chip: String,
+    /// Debug probe to use, as VID:PID or VID:PID:SERIAL [default: the first one found].
+    #[arg(long, value_name = "SELECTOR")]
+    pub probe: Option<String>,
+}
+
+/// `accelcal monitor`: show a node's live stream.
+#[derive(Debug, Args)]
+pub struct MonitorArgs {
+    /// Serial port of the node (the board's ST-LINK virtual COM port, e.g. /dev/ttyACM0).
+    #[arg(long, value_name = "DEV")]
+    pub port: String,
+    /// Baud rate of the node's USART1.
+    #[arg(long, default_value_t = accelcal_core::node::monitor::NODE_BAUD)]
+    pub baud: u32,
+    /// Stop after this many messages [default: run until interrupted].
+    #[arg(long, value_name = "N")]
+    pub count: Option<u64>,
+}
+
+/// `accelcal hil`: replay a campaign through the node's QEMU build.
+#[derive(Debug, Args)]
+pub struct HilArgs {
+    /// The node's QEMU build (firmware/target/thumbv7em-none-eabihf/release/node-qemu).
+    #[arg(long = "qemu", value_name = "ELF")]
+    pub elf: PathBuf,
+    /// Calibration record loaded into the node's flash (its device id must be the QEMU node's,
+    /// 51454d552d422d4c34373545 = "QEMU-B-L475E").
+    #[arg(long, value_name = "RECORD")]
+    pub record: PathBuf,
+    /// Campaign CSV whose channels x, y, z are replayed, row by row.
+    #[arg(value_name = "CAMPAIGN")]
+    pub campaign: PathBuf,
+    /// CSV to write: `t_s,ax,ay,az`, the node's calibrated acceleration in m/s².
+    #[arg(long, short, value_name = "FILE")]
+    pub out: PathBuf,
+    /// The QEMU executable (QEMU >= 9 with the b-l475e-iot01a machine).
+    #[arg(long, default_value = "qemu-system-arm", value_name = "PATH")]
+    pub qemu_bin: PathBuf,
+    /// Seconds the node may stay silent before the run fails.
+    #[arg(long, default_value_t = 20)]
+    pub timeout_s: u64,
+}
+
+/// Input file formats accepted by the gravity-norm fit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum InputFormat {
+    /// imu_tk text: whitespace-separated `t x y z` rows, raw codes, optionally gzip-compressed.
+    #[value(name = "imu-tk")]
+    ImuTk,
+}
+
+/// Model structure requested on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum StructureArg {
+    /// Bias and scale only (6 parameters).
+    #[value(name = "bias-scale")]
+    BiasScale,
+    /// imu_tk: bias, scale, 3 misalignment angles (9 parameters).
+    #[value(name = "imu-tk")]
+    ImuTk,
+    /// imu_tk plus a per-axis quadratic term (12 parameters).
+    #[value(name = "quadratic")]
+    Quadratic,
+    /// The structure with the smallest residual on withheld holds (GMDH selection).
+    #[value(name = "auto")]
+    Auto,
+}
+
+/// Options of the gravity-norm fit other than the input, `--g` and `--json`; flattened into
+/// `accelcal fit` (they apply to `--method gravity-norm` only).
+#[derive(Debug, Clone, clap::Args)]
+#[command(next_help_heading = "Gravity-norm options (--method gravity-norm)")]
+pub struct GravityOptions {
+    /// Format of the raw recording.
+    #[arg(long, value_enum, default_value = "imu-tk")]
+    pub format: InputFormat,
+    /// Write SVG plots (residual per hold, detector trace) into this directory.
+    #[arg(long, value_name = "DIR")]
+    pub plot: Option<PathBuf>,
+    /// Shortest accepted static hold, in seconds.
+    #[arg(long, default_value_t = 2.0)]
+    pub min_hold_s: f64,
+    /// Detector threshold in codes² (sum of the three axis variances) [default: 4 x the lower
+    /// quartile of the detector trace].
+    #[arg(long)]
+    pub threshold: Option<f64>,
+    /// Length of the detector's sliding window, in seconds.
+    #[arg(long, default_value_t = 1.0)]
+    pub window_s: f64,
+    /// Model structure to fit (`auto`: selected on withheld holds).
+    #[arg(long, value_enum, default_value = "imu-tk")]
+    pub structure: StructureArg,
+    /// Also write the holds as a campaign CSV (the samples of every accepted hold, with the head
+    /// angles alpha_deg, beta_deg of the hold's calibrated gravity direction), so that `accelcal
+    /// diagnose` can examine a recording made without a dividing head.
+    #[arg(long, value_name = "FILE")]
+    pub campaign_out: Option<PathBuf>,
 }

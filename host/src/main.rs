@@ -2,18 +2,30 @@
 //! (2 for bad input, 1 for anything else). A failure prints one line; the campaign readers'
 //! warnings are printed after a success, or folded into that line.
 
-use clap::Parser;
+mod cli;
+mod cmd;
+mod report;
+mod settings;
+
+use clap::{CommandFactory, FromArgMatches};
 
 fn main() {
     reset_sigpipe();
-    let cli = accelcal::cli::Cli::parse();
-    let mut warnings = accelcal::cmd::Warnings::default();
-    match accelcal::cmd::run(cli, &mut warnings) {
-        Ok(()) => warnings.print(),
+    let matches = cli::Cli::command().get_matches();
+    let cli = cli::Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
+    // The whole command line is checked before any file is opened.
+    let given = settings::Given::of(&matches).expect("clap requires a subcommand");
+    if let Err(e) = settings::check(&cli.command, &given) {
+        eprintln!("error: {e:#}");
+        std::process::exit(2);
+    }
+    let mut warnings = cmd::Warnings::default();
+    match cmd::run(cli, &mut warnings) {
+        Ok(()) => cmd::print_warnings(&warnings),
         Err(e) => {
             // One line: the error, with the campaign's warnings folded in.
-            eprintln!("error: {}", warnings.error_line(&e));
-            std::process::exit(if accelcal::error::is_bad_input(&e) { 2 } else { 1 });
+            eprintln!("error: {}", cmd::error_line(&warnings, &e));
+            std::process::exit(if accelcal_core::error::is_bad_input(&e) { 2 } else { 1 });
         }
     }
 }

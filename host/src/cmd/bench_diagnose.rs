@@ -4,10 +4,10 @@
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::cli::BenchDiagnoseArgs;
-use crate::diagnose::bench::{self, Summary};
-use crate::error::bad;
-use crate::output::write_json;
-use crate::sim::effects::EFFECT_NAMES;
+use accelcal_core::diagnose::bench::{self, Summary};
+use accelcal_core::error::bad;
+use accelcal_core::output::write_json;
+use accelcal_core::sim::effects::EFFECT_NAMES;
 
 /// Runs `accelcal bench-diagnose`.
 pub fn run(a: &BenchDiagnoseArgs) -> anyhow::Result<()> {

@@ -4,10 +4,12 @@ use accelcal_shared::terms::MODEL_4;
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::cli::{DemoArgs, Method};
-use crate::gmdh::{Criterion, Settings, Split};
-use crate::output::{write_atomic_with, write_json};
-use crate::sim::{self, SimConfig};
+use accelcal_core::calibrate::{fit_all, record, write_record, Method};
+
+use crate::cli::DemoArgs;
+use accelcal_core::gmdh::{Criterion, Settings, Split};
+use accelcal_core::output::{write_atomic_with, write_json};
+use accelcal_core::sim::{self, SimConfig};
 
 /// Runs `accelcal demo`.
 pub fn run(a: &DemoArgs) -> anyhow::Result<()> {
@@ -42,16 +44,16 @@ pub fn run(a: &DemoArgs) -> anyhow::Result<()> {
     steps.inc(1);
 
     steps.set_message("fitting model 4 by LSQ and by test turns; writing the calibration record");
-    let lsq = super::fit::fit_all(&campaign, g, Method::Lsq, MODEL_4)?;
-    let tt = super::fit::fit_all(&campaign, g, Method::TestTurns, MODEL_4)?;
+    let lsq = fit_all(&campaign, g, Method::Lsq, MODEL_4)?;
+    let tt = fit_all(&campaign, g, Method::TestTurns, MODEL_4)?;
     write_json(&out.join("fit-lsq.json"), &super::fit::to_json(Method::Lsq, &lsq))?;
     write_json(&out.join("fit-test-turns.json"), &super::fit::to_json(Method::TestTurns, &tt))?;
-    let rec = super::fit::record(&lsq, [0; 12], 0)?;
-    super::fit::write_record(&out.join("calibration.rec"), &rec)?;
+    let rec = record(&lsq, [0; 12], 0)?;
+    write_record(&out.join("calibration.rec"), &rec)?;
     steps.inc(1);
 
     steps.set_message("comparing the methods on held-out positions");
-    let cmp = super::compare::compute(&campaign, None, g)?;
+    let cmp = accelcal_core::compare::compute(&campaign, None, g)?;
     write_json(&out.join("compare.json"), &cmp)?;
     let err_plots = super::compare::plots(out, &cmp)?;
     steps.inc(1);

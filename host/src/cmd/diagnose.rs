@@ -5,16 +5,16 @@ use anyhow::Context;
 use serde_json::json;
 
 use crate::cli::DiagnoseArgs;
-use crate::diagnose::{self, Binned, Data, Report};
-use crate::error::bad;
-use crate::output::write_json;
+use accelcal_core::diagnose::{self, Binned, Data, Report};
+use accelcal_core::error::bad;
+use accelcal_core::output::write_json;
 
-use super::sig;
+use crate::report::sig;
 
 /// Runs `accelcal diagnose`.
 pub fn run(a: &DiagnoseArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
     super::check_g(a.common.g)?;
-    let base = crate::lsq::parse_terms(&a.baseline).map_err(|e| bad(format!("--baseline {e}")))?;
+    let base = accelcal_core::lsq::parse_terms(&a.terms).map_err(|e| bad(format!("--terms {e}")))?;
     // Streamed in two passes: the diagnosis needs the bins only, so memory does not grow with
     // the rows.
     let binned = Binned::read(&a.campaign).context("reading the campaign")?;
@@ -24,7 +24,7 @@ pub fn run(a: &DiagnoseArgs, warnings: &mut super::Warnings) -> anyhow::Result<(
     let (d, report) = d.map_err(|e| bad(format!("{}: {e}", a.campaign.display())))?;
     print_report(&report);
     if let Some(dir) = &a.plot {
-        for f in diagnose::gap::plot(dir, &d, &report.gap)? {
+        for f in crate::report::diagnose_plot::gap_map(dir, &d, &report.gap)? {
             println!("wrote {}", f.display());
         }
     }
@@ -167,8 +167,8 @@ pub fn print_report(r: &Report) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::campaign::Campaign;
-    use crate::sim::{effects, simulate, SimConfig, TempProfile};
+    use accelcal_core::campaign::Campaign;
+    use accelcal_core::sim::{effects, simulate, SimConfig, TempProfile};
     use accelcal_shared::terms::MODEL_4;
 
     #[test]

@@ -8,12 +8,12 @@ use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
-use crate::campaign::Campaign;
 use crate::cli::{Algorithm, SelectArgs};
-use crate::error::bad;
-use crate::gmdh::{self, Selection, Settings};
-use crate::output::{finite, write_json};
-use crate::positions::{ChannelStats, Positions};
+use accelcal_core::campaign::Campaign;
+use accelcal_core::error::bad;
+use accelcal_core::gmdh::{self, Selection, Settings};
+use accelcal_core::output::{finite, write_json};
+use accelcal_core::positions::{ChannelStats, Positions};
 
 /// JSON of one candidate.
 #[derive(Serialize)]
@@ -275,7 +275,7 @@ pub fn plots(dir: &Path, sel: &[Selection], settings: &Settings) -> anyhow::Resu
             s.candidates.iter().filter_map(|c| c.criterion.map(|v| (c.structure.len(), v))).collect();
         let path = dir.join(format!("criterion-{}.svg", s.channel));
         let sc = s.selected();
-        crate::plot::criterion_vs_complexity(
+        crate::report::plot::criterion_vs_complexity(
             &path,
             &format!(
                 "channel {}: {} criterion against complexity",
@@ -305,7 +305,7 @@ pub fn run(a: &SelectArgs, warnings: &mut super::Warnings) -> anyhow::Result<()>
     }
     let settings = Settings {
         basis: a.basis.into(),
-        criterion: a.criterion,
+        criterion: a.criterion.into(),
         split: a.split,
         tolerance: a.tolerance,
         max_terms: a.max_terms.min(accelcal_shared::N_BASIS),

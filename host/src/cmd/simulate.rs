@@ -4,9 +4,9 @@ use anyhow::Context;
 use serde_json::json;
 
 use crate::cli::SimulateArgs;
-use crate::error::bad;
-use crate::output::{write_atomic_with, write_json};
-use crate::sim::{self, Plan, SimConfig};
+use accelcal_core::error::bad;
+use accelcal_core::output::{write_atomic_with, write_json};
+use accelcal_core::sim::{self, Plan, SimConfig};
 
 /// Builds the simulator settings from the command line.
 pub fn config(a: &SimulateArgs) -> anyhow::Result<SimConfig> {

@@ -6,6 +6,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 
+use crate::error::environment;
+
 /// Writes `bytes` to `path` atomically: a temporary file in the same directory, then a rename.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
     write_atomic_with(path, |w| w.write_all(bytes).map_err(Into::into))
@@ -33,16 +35,16 @@ impl AtomicFile {
     /// Creates the temporary file next to `path` (and `path`'s directory, if it is missing).
     pub fn create(path: &Path) -> anyhow::Result<AtomicFile> {
         let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        std::fs::create_dir_all(dir).map_err(|e| environment(format!("creating {}", dir.display()), e))?;
         let tmp = tempfile::NamedTempFile::new_in(dir)
-            .with_context(|| format!("creating a file in {}", dir.display()))?;
+            .map_err(|e| environment(format!("creating a file in {}", dir.display()), e))?;
         // A temporary file is private (0600); the result is an ordinary output file.
         #[cfg(unix)]
         {
             use std::os::unix::fs::PermissionsExt;
             tmp.as_file()
                 .set_permissions(std::fs::Permissions::from_mode(0o644))
-                .with_context(|| format!("writing {}", path.display()))?;
+                .map_err(|e| environment(format!("writing {}", path.display()), e))?;
         }
         Ok(AtomicFile { path: path.to_owned(), w: std::io::BufWriter::new(tmp) })
     }
@@ -55,8 +57,8 @@ impl AtomicFile {
     /// Flushes the contents and renames the file into place.
     pub fn commit(self) -> anyhow::Result<()> {
         let context = || format!("writing {}", self.path.display());
-        let tmp = self.w.into_inner().map_err(|e| e.into_error()).with_context(context)?;
-        tmp.persist(&self.path).with_context(context)?;
+        let tmp = self.w.into_inner().map_err(|e| environment(context(), e.into_error()))?;
+        tmp.persist(&self.path).map_err(|e| environment(context(), e))?;
         Ok(())
     }
 }

@@ -1,128 +1,51 @@
-//! Command-line front end of the gravity-norm fit: arguments, human report, JSON and plots.
-//!
-//! The binary wires [`GravityFitArgs`] as `accelcal fit INPUT --method gravity-norm ...` and calls
-//! [`run`]. The JSON written by `--json` has the required keys `channels`, `misalignment`, `holds` and
+//! `accelcal fit INPUT --method gravity-norm`: human report, JSON and plots of the gravity-norm
+//! calibration (the computation is `accelcal_core::gravity`). The JSON written by `--json` has the required keys `channels`, `misalignment`, `holds` and
 //! `residual_rms` exactly as in the issue, plus extra keys documented on [`JsonReport`].
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
+use accelcal_core::error::bad;
+use accelcal_core::gravity::{
+    self, fit::Structure, fit::TriadModel, holds::DetectorConfig, holds::ThresholdSource,
+};
+use accelcal_core::gravity::{imutk, Calibration, StructureChoice};
+use accelcal_core::output::{write_atomic, write_atomic_with, write_json};
 use anyhow::Context;
 use serde::Serialize;
 
-use super::fit::{Structure, TriadModel};
-use super::holds::{DetectorConfig, ThresholdSource};
-use super::{imutk, plot, Calibration, StructureChoice};
-use crate::error::bad;
-use crate::output::{write_atomic, write_atomic_with, write_json};
+use crate::cli::{FitArgs, GravityOptions, InputFormat, StructureArg};
+use crate::report::gravity_plot as plot;
 
-/// Input file formats accepted by the gravity-norm fit.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum InputFormat {
-    /// imu_tk text: whitespace-separated `t x y z` rows, raw codes, optionally gzip-compressed.
-    #[value(name = "imu-tk")]
-    ImuTk,
-}
-
-/// Model structure requested on the command line.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum StructureArg {
-    /// Bias and scale only (6 parameters).
-    #[value(name = "bias-scale")]
-    BiasScale,
-    /// imu_tk: bias, scale, 3 misalignment angles (9 parameters).
-    #[value(name = "imu-tk")]
-    ImuTk,
-    /// imu_tk plus a per-axis quadratic term (12 parameters).
-    #[value(name = "quadratic")]
-    Quadratic,
-    /// The structure with the smallest residual on withheld holds (GMDH selection).
-    #[value(name = "auto")]
-    Auto,
-}
-
-/// Options of the gravity-norm fit other than the input, `--g` and `--json`; flattened into
-/// `accelcal fit` (they apply to `--method gravity-norm` only).
-#[derive(Debug, Clone, clap::Args)]
-#[command(next_help_heading = "Gravity-norm options (--method gravity-norm)")]
-pub struct GravityOptions {
-    /// Format of the raw recording.
-    #[arg(long, value_enum, default_value = "imu-tk")]
-    pub format: InputFormat,
-    /// Write SVG plots (residual per hold, detector trace) into this directory.
-    #[arg(long, value_name = "DIR")]
-    pub plot: Option<PathBuf>,
-    /// Shortest accepted static hold, in seconds.
-    #[arg(long, default_value_t = 2.0)]
-    pub min_hold_s: f64,
-    /// Detector threshold in codes² (sum of the three axis variances) [default: 4 x the lower
-    /// quartile of the detector trace].
-    #[arg(long)]
-    pub threshold: Option<f64>,
-    /// Length of the detector's sliding window, in seconds.
-    #[arg(long, default_value_t = 1.0)]
-    pub window_s: f64,
-    /// Model structure to fit (`auto`: selected on withheld holds).
-    #[arg(long, value_enum, default_value = "imu-tk")]
-    pub structure: StructureArg,
-    /// Also write the holds as a campaign CSV (the samples of every accepted hold, with the head
-    /// angles alpha_deg, beta_deg of the hold's calibrated gravity direction), so that `accelcal
-    /// diagnose` can examine a recording made without a dividing head.
-    #[arg(long, value_name = "FILE")]
-    pub campaign_out: Option<PathBuf>,
-}
-
-/// Arguments of `accelcal fit INPUT --method gravity-norm`.
-#[derive(Debug, Clone, clap::Args)]
-pub struct GravityFitArgs {
-    /// Raw recording (imu_tk text `t x y z`, plain or gzip).
-    #[arg(value_name = "INPUT")]
-    pub input: PathBuf,
-    /// Local magnitude of gravity, in m/s².
-    #[arg(long, default_value_t = 9.81)]
-    pub g: f64,
-    /// Write the calibration as JSON to this file.
-    #[arg(long, value_name = "FILE")]
-    pub json: Option<PathBuf>,
-    /// The other options.
-    #[command(flatten)]
-    pub options: GravityOptions,
-}
-
-impl GravityFitArgs {
-    /// Checks the numeric arguments before any I/O; errors are bad input (exit code 2).
-    pub fn validate(&self) -> anyhow::Result<()> {
-        let o = &self.options;
-        if !(self.g.is_finite() && self.g > 0.0) {
-            return Err(bad(format!("--g must be a positive number of m/s², got {}", self.g)));
-        }
-        if !(o.min_hold_s.is_finite() && o.min_hold_s >= 0.0) {
-            return Err(bad(format!("--min-hold-s must be non-negative, got {}", o.min_hold_s)));
-        }
-        if !(o.window_s.is_finite() && o.window_s > 0.0) {
-            return Err(bad(format!("--window-s must be positive, got {}", o.window_s)));
-        }
-        if let Some(th) = o.threshold.filter(|th| !(th.is_finite() && *th > 0.0)) {
-            return Err(bad(format!("--threshold must be positive, got {th}")));
-        }
-        Ok(())
+/// Checks the gravity-norm options before any I/O; errors are bad input (exit code 2).
+pub fn validate(a: &FitArgs) -> anyhow::Result<()> {
+    let o = &a.gravity;
+    if !(o.min_hold_s.is_finite() && o.min_hold_s >= 0.0) {
+        return Err(bad(format!("--min-hold-s must be non-negative, got {}", o.min_hold_s)));
     }
-
-    fn detector(&self) -> DetectorConfig {
-        DetectorConfig {
-            window_s: self.options.window_s,
-            min_hold_s: self.options.min_hold_s,
-            threshold: self.options.threshold,
-            ..DetectorConfig::default()
-        }
+    if !(o.window_s.is_finite() && o.window_s > 0.0) {
+        return Err(bad(format!("--window-s must be positive, got {}", o.window_s)));
     }
+    if let Some(th) = o.threshold.filter(|th| !(th.is_finite() && *th > 0.0)) {
+        return Err(bad(format!("--threshold must be positive, got {th}")));
+    }
+    Ok(())
+}
 
-    fn structure_choice(&self) -> StructureChoice {
-        match self.options.structure {
-            StructureArg::BiasScale => StructureChoice::Fixed(Structure::BiasScale),
-            StructureArg::ImuTk => StructureChoice::Fixed(Structure::ImuTk),
-            StructureArg::Quadratic => StructureChoice::Fixed(Structure::ImuTkQuadratic),
-            StructureArg::Auto => StructureChoice::Auto,
-        }
+fn detector(o: &GravityOptions) -> DetectorConfig {
+    DetectorConfig {
+        window_s: o.window_s,
+        min_hold_s: o.min_hold_s,
+        threshold: o.threshold,
+        ..DetectorConfig::default()
+    }
+}
+
+fn structure_choice(o: &GravityOptions) -> StructureChoice {
+    match o.structure {
+        StructureArg::BiasScale => StructureChoice::Fixed(Structure::BiasScale),
+        StructureArg::ImuTk => StructureChoice::Fixed(Structure::ImuTk),
+        StructureArg::Quadratic => StructureChoice::Fixed(Structure::ImuTkQuadratic),
+        StructureArg::Auto => StructureChoice::Auto,
     }
 }
 
@@ -308,59 +231,31 @@ pub fn json_report(cal: &Calibration) -> JsonReport {
 }
 
 /// Reads the input, detects the holds and fits, without printing anything.
-pub fn calibrate_file(args: &GravityFitArgs) -> anyhow::Result<(imutk::Recording, Calibration)> {
-    args.validate()?;
-    let rec = match args.options.format {
-        InputFormat::ImuTk => imutk::read_path(&args.input)?,
-    };
-    let cal = super::calibrate(&rec.t, &rec.codes, args.g, &args.detector(), args.structure_choice())
-        .with_context(|| format!("{}: gravity-norm calibration failed", args.input.display()))?;
-    Ok((rec, cal))
+pub fn calibrate_file(a: &FitArgs) -> anyhow::Result<(imutk::Recording, Calibration)> {
+    super::check_g(a.common.g)?;
+    validate(a)?;
+    let InputFormat::ImuTk = a.gravity.format;
+    gravity::calibrate_path(&a.campaign, a.common.g, &detector(&a.gravity), structure_choice(&a.gravity))
 }
 
-/// Runs the gravity-norm fit: prints the report, writes the JSON and the plots if asked.
-pub fn run(args: &GravityFitArgs) -> anyhow::Result<()> {
-    let (rec, cal) = calibrate_file(args)?;
-    print!("{}", human_report(&args.input, rec.len(), &cal));
-    if let Some(path) = &args.json {
+/// Runs `accelcal fit --method gravity-norm`: prints the report, writes the JSON, the plots and
+/// the holds as a campaign if asked.
+pub fn run(a: &FitArgs) -> anyhow::Result<()> {
+    let (rec, cal) = calibrate_file(a)?;
+    print!("{}", human_report(&a.campaign, rec.len(), &cal));
+    if let Some(path) = &a.common.json {
         write_json(path, &json_report(&cal))?;
         println!("wrote {}", path.display());
     }
-    if let Some(dir) = &args.options.plot {
+    if let Some(dir) = &a.gravity.plot {
         write_plots(dir, &rec.t, &cal)?;
     }
-    if let Some(path) = &args.options.campaign_out {
-        let c = holds_campaign(&rec, &cal);
+    if let Some(path) = &a.gravity.campaign_out {
+        let c = gravity::holds_campaign(&rec, &cal);
         write_atomic_with(path, |w| c.write(w).context("writing CSV"))?;
         println!("wrote {} ({} holds as position dwells)", path.display(), cal.detection.holds.len());
     }
     Ok(())
-}
-
-/// The accepted holds of a recording as a campaign: every sample of each hold, channels `x, y, z`,
-/// and as head angles those of the hold's calibrated gravity direction `a` under the dividing-head
-/// kinematics (`β = asin(−a_y/|a|)`, `α = atan2(−a_x, −a_z)`).
-pub fn holds_campaign(rec: &imutk::Recording, cal: &Calibration) -> crate::campaign::Campaign {
-    use crate::campaign::{Campaign, Channel};
-    let mut c = Campaign {
-        channels: ["x", "y", "z"].map(|n| Channel { name: n.into(), codes: Vec::new() }).to_vec(),
-        ..Campaign::default()
-    };
-    for h in &cal.detection.holds {
-        let a = cal.fit.model.apply(h.mean);
-        let norm = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
-        let beta = (-a[1] / norm).clamp(-1.0, 1.0).asin().to_degrees();
-        let alpha = (-a[0]).atan2(-a[2]).to_degrees();
-        for i in h.start..h.end {
-            c.t_s.push(rec.t[i]);
-            c.alpha_deg.push(alpha);
-            c.beta_deg.push(beta);
-            for (ch, &v) in c.channels.iter_mut().zip(&rec.codes[i]) {
-                ch.codes.push(v);
-            }
-        }
-    }
-    c
 }
 
 /// Writes `gravity-residuals.svg` and `gravity-detector.svg` into `dir` (created if missing).

@@ -1,20 +1,20 @@
 //! Gravity-norm calibration of an accelerometer triad from hand-placed static holds (no dividing head).
 //!
 //! The pipeline is: read a raw recording ([`imutk`]), find the static holds ([`holds`]), fit the
-//! 9-parameter imu_tk model on `|a| = g` ([`fit`]), and report ([`cli`], [`plot`]). [`sim`] simulates
+//! 9-parameter imu_tk model on `|a| = g` ([`fit`]); the `accelcal` binary reports. [`sim`] simulates
 //! a hand-placed session with a known truth so that the whole chain is tested where the answer is known.
 //! See `README-gravity.md` next to this file for the method and the results on a real recording.
 
-pub mod cli;
 pub mod fit;
 pub mod holds;
 pub mod imutk;
-pub mod plot;
 pub mod sim;
 mod solver;
 
 use fit::{FitError, GravityFit, Structure, StructureScore};
 use holds::{Detection, DetectorConfig, HoldError};
+
+use crate::campaign::{Campaign, Channel};
 
 /// Errors of the gravity-norm calibration pipeline.
 #[derive(Debug, thiserror::Error)]
@@ -74,4 +74,43 @@ pub fn calibrate(
     let fit =
         fit::fit(&means, g, chosen).map_err(|source| GravityError::Fit { holds: means.len(), source })?;
     Ok(Calibration { detection, fit, scores, selected })
+}
+
+/// Reads a recording (imu_tk text, plain or gzip), detects its holds and fits.
+pub fn calibrate_path(
+    input: &std::path::Path,
+    g: f64,
+    detector: &DetectorConfig,
+    structure: StructureChoice,
+) -> anyhow::Result<(imutk::Recording, Calibration)> {
+    use anyhow::Context;
+    let rec = imutk::read_path(input)?;
+    let cal = calibrate(&rec.t, &rec.codes, g, detector, structure)
+        .with_context(|| format!("{}: gravity-norm calibration failed", input.display()))?;
+    Ok((rec, cal))
+}
+
+/// The accepted holds of a recording as a campaign: every sample of each hold, channels `x, y, z`,
+/// and as head angles those of the hold's calibrated gravity direction `a` under the dividing-head
+/// kinematics (`β = asin(−a_y/|a|)`, `α = atan2(−a_x, −a_z)`).
+pub fn holds_campaign(rec: &imutk::Recording, cal: &Calibration) -> Campaign {
+    let mut c = Campaign {
+        channels: ["x", "y", "z"].map(|n| Channel { name: n.into(), codes: Vec::new() }).to_vec(),
+        ..Campaign::default()
+    };
+    for h in &cal.detection.holds {
+        let a = cal.fit.model.apply(h.mean);
+        let norm = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+        let beta = (-a[1] / norm).clamp(-1.0, 1.0).asin().to_degrees();
+        let alpha = (-a[0]).atan2(-a[2]).to_degrees();
+        for i in h.start..h.end {
+            c.t_s.push(rec.t[i]);
+            c.alpha_deg.push(alpha);
+            c.beta_deg.push(beta);
+            for (ch, &v) in c.channels.iter_mut().zip(&rec.codes[i]) {
+                ch.codes.push(v);
+            }
+        }
+    }
+    c
 }

@@ -4,8 +4,8 @@
 
 use plotters::prelude::*;
 
-use super::holds::Detection;
-use super::Calibration;
+use accelcal_core::gravity::holds::Detection;
+use accelcal_core::gravity::Calibration;
 
 /// A plot could not be drawn.
 #[derive(Debug, thiserror::Error)]

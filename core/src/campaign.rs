@@ -212,6 +212,32 @@ impl Campaign {
     }
 }
 
+/// The campaign readers' warnings (excluded samples, single-sample dwells), collected while a
+/// command runs so that its front end can report them once it ends (after a success, or folded
+/// into the line of a failure, which they may explain).
+#[derive(Debug, Default, Clone, PartialEq)]
+pub struct Warnings(Vec<String>);
+
+impl Warnings {
+    /// Adds a reader's warnings, one line each.
+    pub fn extend(&mut self, lines: &[String]) {
+        self.0.extend_from_slice(lines);
+    }
+
+    /// The warnings, one line each, in the order they came.
+    pub fn lines(&self) -> &[String] {
+        &self.0
+    }
+}
+
+/// Reads a campaign into memory; its warnings go to `warnings`, its errors are bad input.
+pub fn read_campaign(path: &Path, warnings: &mut Warnings) -> anyhow::Result<Campaign> {
+    use anyhow::Context;
+    let c = Campaign::read(path).context("reading the campaign")?;
+    warnings.extend(&c.warnings);
+    Ok(c)
+}
+
 /// Whether a raw code is usable: inside the ADC range and not at a rail (0 and 65535 are what a
 /// saturated input reads).
 pub fn code_usable(v: f64) -> bool {

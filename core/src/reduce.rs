@@ -9,6 +9,15 @@ use std::path::Path;
 use crate::campaign::{Campaign, CampaignError, Dwell, Row, RowReader};
 use crate::positions::{ChannelStats, DwellAcc, Positions};
 
+/// Reduces a campaign file to its dwells in one streaming pass (bounded memory); its warnings go
+/// to `warnings`, its errors are bad input.
+pub fn reduce_campaign(path: &Path, warnings: &mut crate::campaign::Warnings) -> anyhow::Result<Reduced> {
+    use anyhow::Context;
+    let r = Campaign::reduce(path).context("reading the campaign")?;
+    warnings.extend(&r.warnings);
+    Ok(r)
+}
+
 /// A campaign reduced to its dwells.
 #[derive(Clone, Debug)]
 pub struct Reduced {

@@ -23,6 +23,13 @@ use nalgebra::{DMatrix, DVector};
 use crate::campaign::Campaign;
 pub use bins::{Bin, Binned, BINS};
 
+/// The z-score of the χ² below which a residual is consistent with the noise.
+pub const NOISE_Z: f64 = 4.0;
+
+pub fn zscore(chi2: f64, dof: f64) -> f64 {
+    (chi2 - dof) / (2.0 * dof.max(1.0)).sqrt()
+}
+
 /// Range of settling time constants searched, s.
 pub const TAU_RANGE: (f64, f64) = (0.03, 2.0);
 
@@ -319,12 +326,11 @@ pub fn attribute(d: &Data, base: Structure) -> Attribution {
     }
     let (unexplained_rms, final_z) = match &ff {
         Some(f) => {
-            let z = (f.chi2 - f.dof) / (2.0 * f.dof.max(1.0)).sqrt();
+            let z = zscore(f.chi2, f.dof);
             let nb = d.bins.len();
             let ss: f64 = f.resid.iter().map(|r| r * r).sum();
             let noise: f64 = (0..f.resid.len()).map(|i| 1.0 / d.weight(i / nb, i % nb)).sum();
-            let u =
-                if z >= gap::NOISE_Z { ((ss - noise).max(0.0) / f.resid.len() as f64).sqrt() } else { 0.0 };
+            let u = if z >= NOISE_Z { ((ss - noise).max(0.0) / f.resid.len() as f64).sqrt() } else { 0.0 };
             (u, z)
         }
         None => (f64::NAN, f64::NAN),

@@ -28,7 +28,7 @@ use crate::positions::{ChannelStats, Positions};
 pub use engine::PIVOT_TOL;
 
 /// The external criterion.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Criterion {
     /// Error on B of the model fitted on A (the paper's choice).

@@ -6,21 +6,15 @@
 //! baseline give χ² = Σ n·r²/σ² with `dof = bins·channels − parameters`; the residual counts as
 //! consistent with the noise when `z = (χ² − dof)/√(2·dof) < 4`.
 
-use std::path::Path;
-
 use accelcal_shared::Structure;
-use anyhow::Context;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use serde::Serialize;
 
 use super::attribution::full_fit;
-use super::Data;
+use super::{zscore, Data, NOISE_Z};
 use crate::positions::DwellAcc;
-
-/// The z-score of the χ² below which a residual is consistent with the noise.
-pub const NOISE_Z: f64 = 4.0;
 
 /// Where one channel's residual lies.
 #[derive(Clone, Debug, Serialize)]
@@ -100,10 +94,6 @@ fn slope(x: &[f64], y: &[f64], var: &[f64]) -> (f64, f64) {
     let sxy: f64 = x.iter().zip(y).zip(&w).map(|((x, y), w)| w * (x - xm) * (y - ym)).sum();
     let b = sxy / sxx;
     (b, b * sxx.sqrt())
-}
-
-fn zscore(chi2: f64, dof: f64) -> f64 {
-    (chi2 - dof) / (2.0 * dof.max(1.0)).sqrt()
 }
 
 /// Localises the residual of `base` on the data.
@@ -233,42 +223,4 @@ fn twin_rms(d: &Data, base: Structure, resid: &[f64]) -> Option<(Vec<f64>, f64)>
         })
         .collect();
     Some((rms, zscore(ff.chi2, ff.dof)))
-}
-
-/// Writes the gap map into `dir`: `gap-positions.svg` (dwell residual per position in units of
-/// the per-position noise) and `gap-in-dwell.svg` (the in-dwell profile per channel). Returns
-/// the files written.
-pub fn plot(dir: &Path, d: &Data, gap: &Gap) -> anyhow::Result<Vec<std::path::PathBuf>> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let pos: Vec<(String, Vec<(f64, f64)>)> = (0..d.nch())
-        .map(|c| {
-            let pts =
-                (0..d.npos()).map(|p| (p as f64, gap.position_residual[c][p] / d.sigma_pos(c, p))).collect();
-            (d.channels[c].clone(), pts)
-        })
-        .collect();
-    let a = dir.join("gap-positions.svg");
-    crate::plot::lines(
-        &a,
-        "baseline residual per position (real - simulated)",
-        "position",
-        "dwell residual / per-position noise",
-        &pos,
-    )?;
-    let prof: Vec<(String, Vec<(f64, f64)>)> = gap
-        .channels
-        .iter()
-        .map(|g| {
-            (g.name.clone(), g.in_dwell_profile.iter().enumerate().map(|(i, v)| (i as f64, *v)).collect())
-        })
-        .collect();
-    let b = dir.join("gap-in-dwell.svg");
-    crate::plot::lines(
-        &b,
-        "residual inside the dwell, signed by the step",
-        "bin within dwell",
-        "codes",
-        &prof,
-    )?;
-    Ok(vec![a, b])
 }

@@ -1,9 +1,8 @@
 //! Talking to the sensor node (the firmware in `firmware/`): replaying a campaign through the QEMU
 //! build ([`hil`]), writing a calibration record into a real node's flash through a debug probe
 //! ([`flash`]), and showing a node's live stream ([`monitor`]). [`link`] frames the protocol of
-//! `accelcal_shared::wire` over any byte stream; [`cli`] holds the three subcommands' arguments.
+//! `accelcal_shared::wire` over any byte stream.
 
-pub mod cli;
 pub mod flash;
 pub mod hil;
 pub mod link;

@@ -34,8 +34,7 @@ use accelcal_shared::{Structure, Term};
 use nalgebra::DMatrix;
 use serde::Serialize;
 
-use super::gap::NOISE_Z;
-use super::{wls, Data, TAU_RANGE};
+use super::{wls, zscore, Data, NOISE_Z, TAU_RANGE};
 
 /// The candidate effects, named as in the simulator.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
@@ -634,7 +633,7 @@ type PairPick = (Vec<Cand>, Vec<(Score, Score)>, f64);
 
 /// z of the χ² of the full-data fit of the baseline and `set`.
 fn residual_z(d: &Data, base: Structure, set: &[Cand]) -> f64 {
-    full_fit(d, base, set).map_or(f64::INFINITY, |f| (f.chi2 - f.dof) / (2.0 * f.dof.max(1.0)).sqrt())
+    full_fit(d, base, set).map_or(f64::INFINITY, |f| zscore(f.chi2, f.dof))
 }
 
 /// The pair search, for when the greedy path stalls: the first round keeps nothing (two effects

@@ -1,0 +1,147 @@
+//! Fitting the coefficients of a campaign's channels (LSQ or test turns) and building the
+//! calibration record the node applies.
+
+use std::path::Path;
+
+use accelcal_shared::record::{Record, MAX_CHANNELS, MAX_RECORD_LEN};
+use accelcal_shared::terms::MODEL_4;
+use accelcal_shared::{Structure, N_BASIS};
+
+use crate::campaign::Campaign;
+use crate::error::bad;
+use crate::lsq::{self, LsqFit};
+use crate::output::write_atomic;
+use crate::positions::{ChannelStats, Positions};
+use crate::testturn;
+
+/// How the coefficients of a campaign are fitted.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Method {
+    /// Batch least squares over every position (any model).
+    Lsq,
+    /// Test turns: each axis along +g and −g (model 4 only).
+    TestTurns,
+}
+
+impl Method {
+    /// The name used on the command line and in JSON.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Lsq => "lsq",
+            Method::TestTurns => "test-turns",
+        }
+    }
+}
+
+/// Fits every channel of an in-memory campaign.
+pub fn fit_all(
+    c: &Campaign,
+    g: f64,
+    method: Method,
+    structure: Structure,
+) -> anyhow::Result<Vec<(String, LsqFit)>> {
+    let pos = Positions::new(c, g);
+    fit_positions(&pos, &pos.channel_stats(c), method, structure)
+}
+
+/// Fits every channel from its dwell statistics (all that LSQ and test turns need).
+pub fn fit_positions(
+    pos: &Positions,
+    stats: &[ChannelStats],
+    method: Method,
+    structure: Structure,
+) -> anyhow::Result<Vec<(String, LsqFit)>> {
+    match method {
+        Method::Lsq => stats
+            .iter()
+            .map(|s| {
+                let f = lsq::fit(pos, s, structure, None)
+                    .map_err(|e| bad(format!("channel `{}`: {e}", s.name)))?;
+                Ok((s.name.clone(), f))
+            })
+            .collect(),
+        Method::TestTurns => {
+            if structure != MODEL_4 {
+                return Err(bad(format!(
+                    "test turns determine model 4 (1,ax,ay,az) only, not `{structure}`"
+                )));
+            }
+            let pairs = testturn::Pairs::find(pos)?;
+            Ok(stats.iter().map(|s| (s.name.clone(), testturn::fit(pos, s, &pairs))).collect())
+        }
+    }
+}
+
+/// Builds the record of a set of fits (all with the same structure).
+pub fn record(fits: &[(String, LsqFit)], device_id: [u8; 12], created_unix_s: u64) -> anyhow::Result<Record> {
+    if fits.is_empty() || fits.len() > MAX_CHANNELS {
+        return Err(bad(format!(
+            "a calibration record holds 1 to {MAX_CHANNELS} channels, the campaign has {}",
+            fits.len()
+        )));
+    }
+    let structure = fits[0].1.structure;
+    let mut rec = Record {
+        device_id,
+        created_unix_s,
+        structure,
+        n_channels: fits.len() as u8,
+        coefficients: [[0.0; N_BASIS]; MAX_CHANNELS],
+    };
+    for (c, (_, f)) in fits.iter().enumerate() {
+        rec.coefficients[c][..f.coefficients.len()].copy_from_slice(&f.coefficients);
+    }
+    Ok(rec)
+}
+
+/// Writes a record file (atomically).
+pub fn write_record(path: &Path, rec: &Record) -> anyhow::Result<()> {
+    let mut buf = [0u8; MAX_RECORD_LEN];
+    let n = rec.emit(&mut buf).map_err(|e| anyhow::anyhow!("encoding the record: {e}"))?;
+    write_atomic(path, &buf[..n])
+}
+
+/// Parses 24 hex digits into a 96-bit device id (as `accelcal fit --device-id` takes it).
+pub fn parse_device_id(s: &str) -> anyhow::Result<[u8; 12]> {
+    let s = s.trim();
+    if s.len() != 24 || !s.bytes().all(|b| b.is_ascii_hexdigit()) {
+        return Err(bad(format!(
+            "--device-id must be 24 hex digits (the MCU's 96-bit unique id), got `{s}`"
+        )));
+    }
+    let mut id = [0u8; 12];
+    for (i, b) in id.iter_mut().enumerate() {
+        *b = u8::from_str_radix(&s[2 * i..2 * i + 2], 16).expect("checked hex");
+    }
+    Ok(id)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::{simulate, SimConfig};
+
+    #[test]
+    fn streaming_and_in_memory_reads_give_the_same_fits() {
+        let (c, _) = simulate(&SimConfig { samples: 7, ..SimConfig::default() });
+        let mut csv = Vec::new();
+        c.write(&mut csv).unwrap();
+        let p = Path::new("c.csv");
+        let mem = Campaign::from_reader(&csv[..], p).unwrap();
+        let red = Campaign::reduce_reader(&csv[..], p).unwrap();
+        for method in [Method::Lsq, Method::TestTurns] {
+            let a = fit_all(&mem, 9.81, method, MODEL_4).unwrap();
+            let b = fit_positions(&red.positions(9.81), &red.channel_stats(), method, MODEL_4).unwrap();
+            assert_eq!(a.len(), b.len());
+            for ((na, fa), (nb, fb)) in a.iter().zip(&b) {
+                assert_eq!(na, nb);
+                assert_eq!(fa.coefficients, fb.coefficients, "{method:?} {na}");
+                assert_eq!(fa.std_errors.len(), fb.std_errors.len());
+                for (x, y) in fa.std_errors.iter().zip(&fb.std_errors) {
+                    assert!(x == y || (x.is_nan() && y.is_nan()), "{method:?} {na}: {x} vs {y}");
+                }
+                assert!(fa.rms == fb.rms || (fa.rms.is_nan() && fb.rms.is_nan()));
+            }
+        }
+    }
+}

@@ -1,0 +1,27 @@
+//! `accelcal-core`: the calibration core of accelcal, free of any user interface.
+//!
+//! Campaign files and recordings ([`campaign`], [`reduce`], [`gravity::imutk`]), the rig
+//! simulator ([`sim`]), combinatorial GMDH structure selection ([`gmdh`]), least-squares and
+//! test-turn fits and the calibration record ([`lsq`], [`testturn`], [`calibrate`]), the
+//! comparison of the two methods ([`compare`]), gravity-norm calibration ([`gravity`]), the
+//! sim-to-real diagnosis ([`diagnose`]) and the host side of the sensor node ([`node`]).
+//!
+//! Nothing here parses a command line, prints, draws or shows progress: the `accelcal` binary
+//! does that. Errors say themselves whether they are the user's input to fix ([`error`]).
+
+// `!(x > t)` is deliberate: a NaN must fail every range check. Index loops mirror the math.
+#![allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
+pub mod calibrate;
+pub mod campaign;
+pub mod compare;
+pub mod diagnose;
+pub mod error;
+pub mod gmdh;
+pub mod gravity;
+pub mod lsq;
+pub mod node;
+pub mod output;
+pub mod positions;
+pub mod reduce;
+pub mod sim;
+pub mod testturn;

@@ -1,0 +1,75 @@
+//! The node subcommands: `accelcal flash`, `accelcal monitor`, `accelcal hil`.
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use accelcal_core::error::bad;
+use accelcal_core::node::{flash, hil, monitor};
+use anyhow::Context;
+
+use crate::cli::{FlashArgs, HilArgs, MonitorArgs};
+
+fn read_file(path: &PathBuf, what: &str) -> anyhow::Result<Vec<u8>> {
+    std::fs::read(path).map_err(|e| bad(format!("{}: cannot read the {what}: {e}", path.display())))
+}
+
+/// Runs `accelcal flash`.
+pub fn run_flash(a: &FlashArgs) -> anyhow::Result<()> {
+    let record = read_file(&a.record, "record")?;
+    if let Err(e) = accelcal_shared::record::Record::parse(&record) {
+        return Err(bad(format!("{}: {e}", a.record.display())));
+    }
+    let r = flash::flash_record(&record, &a.chip, a.probe.as_deref())
+        .with_context(|| format!("writing {} to the node", a.record.display()))?;
+    println!(
+        "flash: wrote {} to record slot {} at {:#010x}, sequence {}; the node now uses it",
+        a.record.display(),
+        r.slot,
+        r.address,
+        r.sequence
+    );
+    Ok(())
+}
+
+/// Runs `accelcal monitor`.
+pub fn run_monitor(a: &MonitorArgs) -> anyhow::Result<()> {
+    monitor::monitor(&a.port, a.baud, a.count, &mut std::io::stdout().lock())
+}
+
+/// Runs `accelcal hil`.
+pub fn run_hil(a: &HilArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
+    let record = read_file(&a.record, "record")?;
+    if let Err(e) = accelcal_shared::record::Record::parse(&record) {
+        return Err(bad(format!("{}: {e}", a.record.display())));
+    }
+    if !a.elf.is_file() {
+        return Err(bad(format!(
+            "{}: no such firmware ELF (build it with `cargo xtask test` or see firmware/README.md)",
+            a.elf.display()
+        )));
+    }
+    // The header and the first block are checked before the node starts.
+    let mut codes = hil::CampaignCodes::open(&a.campaign)?;
+    let mut opts = hil::HilOptions::new(&a.elf);
+    opts.qemu = a.qemu_bin.clone();
+    opts.timeout = std::time::Duration::from_secs(a.timeout_s);
+    let mut out = accelcal_core::output::AtomicFile::create(&a.out)?;
+    let writing = || format!("writing {}", a.out.display());
+    writeln!(out.writer(), "{}", hil::CSV_HEADER).with_context(writing)?;
+    let mut sets = 0;
+    let status = hil::replay_blocks(&opts, &record, codes.by_ref(), |t_s, accel| {
+        sets += accel.len();
+        hil::write_rows(out.writer(), &t_s, accel).with_context(writing)
+    })
+    .map_err(|e| if e.is::<hil::HilError>() { e.context("running the node in QEMU") } else { e })?;
+    warnings.extend(codes.warnings());
+    out.commit()?;
+    println!(
+        "hil: {} sample sets replayed through {}; {}; wrote {}",
+        sets,
+        a.elf.display(),
+        monitor::format_status(&status),
+        a.out.display()
+    );
+    Ok(())
+}

@@ -1,0 +1,175 @@
+//! Settings: the parsed command line checked as a whole before any file is opened.
+//!
+//! clap checks each option alone (its type, its range of values). What it cannot see is checked
+//! here, from the flags and from which options the user really gave (clap's value source, so that
+//! a default never counts as given):
+//! - an option that does not apply to the chosen mode is refused, naming the option and the mode
+//!   it belongs to (`fit --method gravity-norm --record x.rec` would otherwise write nothing and
+//!   say nothing);
+//! - an output path equal to an input path, or to another output, is refused (`fit c.csv --record
+//!   c.csv` would overwrite the campaign).
+//!
+//! Every error here is bad input (exit code 2) and names the option.
+
+use std::path::{Path, PathBuf};
+
+use accelcal_core::error::bad;
+use clap::parser::ValueSource;
+use clap::ArgMatches;
+
+use crate::cli::{Algorithm, Command, FitArgs, MethodArg};
+
+/// The options the user gave explicitly on the command line for one subcommand.
+pub struct Given<'a>(&'a ArgMatches);
+
+impl<'a> Given<'a> {
+    /// The given options of the subcommand in `matches` (the top-level matches).
+    pub fn of(matches: &'a ArgMatches) -> Option<Given<'a>> {
+        matches.subcommand().map(|(_, sub)| Given(sub))
+    }
+
+    /// Whether the option with clap id `id` (the field name) was given on the command line.
+    fn has(&self, id: &str) -> bool {
+        matches!(self.0.try_get_raw(id), Ok(Some(_))) && self.0.value_source(id) == Some(ValueSource::CommandLine)
+    }
+
+    /// Refuses each of `ids` that was given: it does not apply to `mode`.
+    fn refuse(&self, ids: &[&str], mode: &str, hint: &str) -> anyhow::Result<()> {
+        for id in ids {
+            if self.has(id) {
+                return Err(bad(format!("{} does not apply to {mode}{hint}", flag(id))));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The long flag of a clap id (`device_id` -> `--device-id`).
+fn flag(id: &str) -> String {
+    format!("--{}", id.replace('_', "-"))
+}
+
+/// Checks a parsed command line before anything is read or written.
+pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
+    match command {
+        Command::Fit(a) => check_fit(a, given),
+        Command::Select(a) => {
+            if a.algorithm != Algorithm::Multi {
+                given.refuse(&["width"], "select --algorithm combi", " (it sets the beam of --algorithm multi)")?;
+            }
+            if a.common.json.is_none() {
+                given.refuse(&["top"], "select without --json", " (it limits the candidates listed in the JSON)")?;
+            }
+            distinct(&[("CAMPAIGN", &a.campaign)], &[("--json", a.common.json.as_deref()), ("--plot", a.plot.as_deref())])
+        }
+        Command::Compare(a) => {
+            let mut inputs = vec![("CAMPAIGN", a.campaign.as_path())];
+            if let Some(v) = &a.validate {
+                inputs.push(("--validate", v));
+            }
+            distinct(&inputs, &[("--json", a.common.json.as_deref()), ("--plot", a.plot.as_deref())])
+        }
+        Command::Diagnose(a) => {
+            distinct(&[("CAMPAIGN", &a.campaign)], &[("--json", a.common.json.as_deref()), ("--plot", a.plot.as_deref())])
+        }
+        Command::Simulate(a) => distinct(
+            &[],
+            &[("--out", Some(&a.out)), ("--truth", a.truth.as_deref()), ("--json", a.json.as_deref())],
+        ),
+        Command::Hil(a) => distinct(
+            &[("CAMPAIGN", &a.campaign), ("--record", &a.record), ("--qemu", &a.elf)],
+            &[("--out", Some(&a.out))],
+        ),
+        Command::BenchDiagnose(_) | Command::Demo(_) | Command::Flash(_) | Command::Monitor(_) => Ok(()),
+    }
+}
+
+/// The options of `fit` that belong to one method only.
+const GRAVITY_ONLY: [&str; 7] = ["format", "plot", "min_hold_s", "threshold", "window_s", "structure", "campaign_out"];
+const CAMPAIGN_ONLY: [&str; 4] = ["terms", "record", "device_id", "created"];
+
+fn check_fit(a: &FitArgs, given: &Given) -> anyhow::Result<()> {
+    match a.method {
+        MethodArg::GravityNorm => given.refuse(
+            &CAMPAIGN_ONLY,
+            "fit --method gravity-norm",
+            " (it applies to --method lsq and test-turns, which fit a campaign)",
+        )?,
+        MethodArg::Lsq | MethodArg::TestTurns => {
+            let mode = format!("fit --method {}", if a.method == MethodArg::Lsq { "lsq" } else { "test-turns" });
+            given.refuse(&GRAVITY_ONLY, &mode, " (it applies to --method gravity-norm)")?;
+            if a.record.is_none() {
+                given.refuse(&["device_id", "created"], "fit without --record", " (it is written into the record)")?;
+            }
+        }
+    }
+    distinct(
+        &[("CAMPAIGN", &a.campaign)],
+        &[
+            ("--json", a.common.json.as_deref()),
+            ("--record", a.record.as_deref()),
+            ("--campaign-out", a.gravity.campaign_out.as_deref()),
+            ("--plot", a.gravity.plot.as_deref()),
+        ],
+    )
+}
+
+/// Refuses an output that is an input, or two outputs that are the same path.
+fn distinct(inputs: &[(&str, &Path)], outputs: &[(&str, Option<&Path>)]) -> anyhow::Result<()> {
+    let outs: Vec<(&str, PathBuf)> = outputs.iter().filter_map(|(n, p)| p.map(|p| (*n, resolve(p)))).collect();
+    for (on, op) in &outs {
+        for (inn, ip) in inputs {
+            if *op == resolve(ip) {
+                return Err(bad(format!(
+                    "{on} {} is the input {inn}: refusing to overwrite it",
+                    ip.display()
+                )));
+            }
+        }
+    }
+    for (i, (an, ap)) in outs.iter().enumerate() {
+        if let Some((bn, _)) = outs[i + 1..].iter().find(|(_, bp)| bp == ap) {
+            return Err(bad(format!("{an} and {bn} name the same path {}", ap.display())));
+        }
+    }
+    Ok(())
+}
+
+/// A path made absolute and resolved as far as it exists (symbolic links, `..`), so that two
+/// spellings of one file compare equal; no file is opened.
+fn resolve(p: &Path) -> PathBuf {
+    if let Ok(c) = p.canonicalize() {
+        return c;
+    }
+    let abs = std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+    match (abs.parent().and_then(|d| d.canonicalize().ok()), abs.file_name()) {
+        (Some(dir), Some(name)) => dir.join(name),
+        _ => abs,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn two_spellings_of_one_file_are_the_same_output() {
+        let d = tempfile::tempdir().unwrap();
+        let c = d.path().join("c.csv");
+        std::fs::write(&c, "x").unwrap();
+        let other = d.path().join("sub/../c.csv");
+        std::fs::create_dir(d.path().join("sub")).unwrap();
+        let e = distinct(&[("CAMPAIGN", &c)], &[("--json", Some(&other))]).unwrap_err();
+        assert!(e.to_string().contains("--json") && e.to_string().contains("refusing to overwrite"), "{e}");
+        let new = d.path().join("new.json");
+        assert!(distinct(&[("CAMPAIGN", &c)], &[("--json", Some(&new)), ("--record", Some(&d.path().join("r.rec")))]).is_ok());
+        let e = distinct(&[], &[("--json", Some(&new)), ("--record", Some(&new))]).unwrap_err();
+        assert!(e.to_string().contains("--json and --record name the same path"), "{e}");
+    }
+
+    #[test]
+    fn flags_are_spelled_as_on_the_command_line() {
+        assert_eq!(flag("device_id"), "--device-id");
+        assert_eq!(flag("plot"), "--plot");
+    }
+}
