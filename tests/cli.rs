@@ -169,8 +169,11 @@ fn fit_lsq_and_test_turns_write_json_and_record() {
     assert!(e.contains("not identifiable") && e.contains("ax^2, ay^2, az^2"), "{e}");
     let e = bad(&["fit", &c, "--terms", "ax,bx"]);
     assert!(e.contains("unknown variable"), "{e}");
-    let e = bad(&["fit", &c, "--device-id", "12"]);
+    let e = bad(&["fit", &c, "--device-id", "12", "--record", &d.s("r.rec")]);
     assert!(e.contains("24 hex digits"), "{e}");
+    assert!(!d.p("r.rec").exists());
+    let e = bad(&["fit", &c, "--device-id", "000000000000000000000001"]);
+    assert!(e.contains("--device-id does not apply to fit without --record"), "{e}");
 }
 
 #[test]

@@ -21,12 +21,18 @@ pub fn bad(msg: impl Into<String>) -> anyhow::Error {
 
 /// A failure of the environment (the file system, a process, a device), not of the input.
 #[derive(Debug, thiserror::Error)]
-#[error("{0}")]
-pub struct Environment(pub String);
+#[error("{what}")]
+pub struct Environment {
+    /// What was being done.
+    pub what: String,
+    /// What failed.
+    #[source]
+    pub source: Box<dyn std::error::Error + Send + Sync>,
+}
 
-/// Marks `e` as a failure of the environment, with `what` was being done.
+/// Marks `e` as a failure of the environment, with what was being done.
 pub fn environment(what: impl Into<String>, e: impl Into<anyhow::Error>) -> anyhow::Error {
-    e.into().context(Environment(what.into()))
+    anyhow::Error::new(Environment { what: what.into(), source: e.into().into() })
 }
 
 /// Whether an error is the user's input to fix: nothing in its chain comes from the environment.
@@ -55,6 +61,8 @@ mod tests {
         let e = environment("writing out.json", io).context("fit");
         assert!(!is_bad_input(&e));
         assert_eq!(format!("{e:#}"), "fit: writing out.json: disk full");
-        assert!(!is_bad_input(&anyhow::Error::new(crate::node::hil::HilError::Timeout(3))));
+        assert!(!is_bad_input(&anyhow::Error::new(crate::node::hil::HilError::Timeout(
+            std::time::Duration::from_secs(3)
+        ))));
     }
 }

@@ -15,6 +15,7 @@ pub mod calibrate;
 pub mod campaign;
 pub mod compare;
 pub mod diagnose;
+pub mod effects;
 pub mod error;
 pub mod gmdh;
 pub mod gravity;

@@ -27,6 +27,8 @@ pub enum Command {
     Simulate(SimulateArgs),
     /// Select each channel's model structure by combinatorial GMDH.
     Select(SelectArgs),
+    /// Print a position plan: the head angles and what each axis should read there (m/s², g).
+    Plan(PlanArgs),
     /// Fit model coefficients by least squares or test turns; optionally write a calibration record.
     Fit(FitArgs),
     /// Compare LSQ and test turns by the error of the calibrated acceleration (the paper's Table 2).
@@ -55,6 +57,24 @@ pub struct CommonArgs {
     #[arg(long, default_value_t = accelcal_shared::G_STANDARD)]
     pub g: f64,
     /// Write machine-readable results to this JSON file.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+}
+
+/// `accelcal plan`.
+#[derive(Debug, Args)]
+pub struct PlanArgs {
+    /// Position plan: `head` (62 positions), `six` (the six test-turn positions), `random:N`, or a
+    /// plan file (CSV with columns alpha_deg,beta_deg), as in `simulate --plan`.
+    #[arg(long, default_value = "head", value_name = "PLAN")]
+    pub plan: String,
+    /// Seed of `random:N`.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Gravity at the rig, m/s².
+    #[arg(long, default_value_t = accelcal_shared::G_STANDARD)]
+    pub g: f64,
+    /// Write the positions and their accelerations (m/s²) as JSON.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
 }
@@ -101,13 +121,9 @@ pub struct SimulateArgs {
     /// Misalignment of each sensitive axis, rad (one sigma per angle).
     #[arg(long, default_value_t = 0.01)]
     pub misalign_sd: f64,
-    /// Add an error effect, `NAME=KEY:VALUE,...` (repeatable). Known: `nonlinearity=k2:C,TERM:C`
-    /// (C in codes per (m/s^2)^n; k2 multiplies the squared sensitive-axis acceleration, TERM is any
-    /// basis term such as ax*ay), `bias_drift=rate:CODES_PER_S`,
-    /// `temperature=bias:CODES_PER_C,scale:PPM_PER_C,t_ref:C` (needs --temp-profile),
-    /// `head_misalignment=rx_mrad:R,ry_mrad:R,rz_mrad:R`, `hysteresis=h:CODES`,
-    /// `settling=gain:CODES_PER_MS2,tau:S`, `angle_error=sd_mrad:SD`.
-    #[arg(long = "effect", value_name = "NAME=PARAMS")]
+    /// Add an error effect, `NAME=KEY:VALUE,...` (repeatable; see --help for the effects, their
+    /// keys and units).
+    #[arg(long = "effect", value_name = "NAME=PARAMS", long_help = accelcal_core::effects::help_text())]
     pub effects: Vec<String>,
     /// Temperature profile `BASE:AMP:CYCLES` (°C, °C, sine cycles over the campaign); writes a
     /// temp_c column.
@@ -364,6 +380,10 @@ pub struct MonitorArgs {
     /// Stop after this many messages [default: run until interrupted].
     #[arg(long, value_name = "N")]
     pub count: Option<u64>,
+    /// Seconds without any frame after which the command fails (the node sends its status every
+    /// second).
+    #[arg(long, default_value_t = 5.0, value_name = "S")]
+    pub timeout_s: f64,
 }
 
 /// `accelcal hil`: replay a campaign through the node's QEMU build.

@@ -30,7 +30,8 @@ impl<'a> Given<'a> {
 
     /// Whether the option with clap id `id` (the field name) was given on the command line.
     fn has(&self, id: &str) -> bool {
-        matches!(self.0.try_get_raw(id), Ok(Some(_))) && self.0.value_source(id) == Some(ValueSource::CommandLine)
+        matches!(self.0.try_get_raw(id), Ok(Some(_)))
+            && self.0.value_source(id) == Some(ValueSource::CommandLine)
     }
 
     /// Refuses each of `ids` that was given: it does not apply to `mode`.
@@ -55,12 +56,23 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
         Command::Fit(a) => check_fit(a, given),
         Command::Select(a) => {
             if a.algorithm != Algorithm::Multi {
-                given.refuse(&["width"], "select --algorithm combi", " (it sets the beam of --algorithm multi)")?;
+                given.refuse(
+                    &["width"],
+                    "select --algorithm combi",
+                    " (it sets the beam of --algorithm multi)",
+                )?;
             }
             if a.common.json.is_none() {
-                given.refuse(&["top"], "select without --json", " (it limits the candidates listed in the JSON)")?;
+                given.refuse(
+                    &["top"],
+                    "select without --json",
+                    " (it limits the candidates listed in the JSON)",
+                )?;
             }
-            distinct(&[("CAMPAIGN", &a.campaign)], &[("--json", a.common.json.as_deref()), ("--plot", a.plot.as_deref())])
+            distinct(
+                &[("CAMPAIGN", &a.campaign)],
+                &[("--json", a.common.json.as_deref()), ("--plot", a.plot.as_deref())],
+            )
         }
         Command::Compare(a) => {
             let mut inputs = vec![("CAMPAIGN", a.campaign.as_path())];
@@ -69,9 +81,10 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
             }
             distinct(&inputs, &[("--json", a.common.json.as_deref()), ("--plot", a.plot.as_deref())])
         }
-        Command::Diagnose(a) => {
-            distinct(&[("CAMPAIGN", &a.campaign)], &[("--json", a.common.json.as_deref()), ("--plot", a.plot.as_deref())])
-        }
+        Command::Diagnose(a) => distinct(
+            &[("CAMPAIGN", &a.campaign)],
+            &[("--json", a.common.json.as_deref()), ("--plot", a.plot.as_deref())],
+        ),
         Command::Simulate(a) => distinct(
             &[],
             &[("--out", Some(&a.out)), ("--truth", a.truth.as_deref()), ("--json", a.json.as_deref())],
@@ -80,12 +93,17 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
             &[("CAMPAIGN", &a.campaign), ("--record", &a.record), ("--qemu", &a.elf)],
             &[("--out", Some(&a.out))],
         ),
-        Command::BenchDiagnose(_) | Command::Demo(_) | Command::Flash(_) | Command::Monitor(_) => Ok(()),
+        Command::BenchDiagnose(_)
+        | Command::Demo(_)
+        | Command::Flash(_)
+        | Command::Monitor(_)
+        | Command::Plan(_) => Ok(()),
     }
 }
 
 /// The options of `fit` that belong to one method only.
-const GRAVITY_ONLY: [&str; 7] = ["format", "plot", "min_hold_s", "threshold", "window_s", "structure", "campaign_out"];
+const GRAVITY_ONLY: [&str; 7] =
+    ["format", "plot", "min_hold_s", "threshold", "window_s", "structure", "campaign_out"];
 const CAMPAIGN_ONLY: [&str; 4] = ["terms", "record", "device_id", "created"];
 
 fn check_fit(a: &FitArgs, given: &Given) -> anyhow::Result<()> {
@@ -96,10 +114,15 @@ fn check_fit(a: &FitArgs, given: &Given) -> anyhow::Result<()> {
             " (it applies to --method lsq and test-turns, which fit a campaign)",
         )?,
         MethodArg::Lsq | MethodArg::TestTurns => {
-            let mode = format!("fit --method {}", if a.method == MethodArg::Lsq { "lsq" } else { "test-turns" });
+            let mode =
+                format!("fit --method {}", if a.method == MethodArg::Lsq { "lsq" } else { "test-turns" });
             given.refuse(&GRAVITY_ONLY, &mode, " (it applies to --method gravity-norm)")?;
             if a.record.is_none() {
-                given.refuse(&["device_id", "created"], "fit without --record", " (it is written into the record)")?;
+                given.refuse(
+                    &["device_id", "created"],
+                    "fit without --record",
+                    " (it is written into the record)",
+                )?;
             }
         }
     }
@@ -116,7 +139,8 @@ fn check_fit(a: &FitArgs, given: &Given) -> anyhow::Result<()> {
 
 /// Refuses an output that is an input, or two outputs that are the same path.
 fn distinct(inputs: &[(&str, &Path)], outputs: &[(&str, Option<&Path>)]) -> anyhow::Result<()> {
-    let outs: Vec<(&str, PathBuf)> = outputs.iter().filter_map(|(n, p)| p.map(|p| (*n, resolve(p)))).collect();
+    let outs: Vec<(&str, PathBuf)> =
+        outputs.iter().filter_map(|(n, p)| p.map(|p| (*n, resolve(p)))).collect();
     for (on, op) in &outs {
         for (inn, ip) in inputs {
             if *op == resolve(ip) {
@@ -162,7 +186,11 @@ mod tests {
         let e = distinct(&[("CAMPAIGN", &c)], &[("--json", Some(&other))]).unwrap_err();
         assert!(e.to_string().contains("--json") && e.to_string().contains("refusing to overwrite"), "{e}");
         let new = d.path().join("new.json");
-        assert!(distinct(&[("CAMPAIGN", &c)], &[("--json", Some(&new)), ("--record", Some(&d.path().join("r.rec")))]).is_ok());
+        assert!(distinct(
+            &[("CAMPAIGN", &c)],
+            &[("--json", Some(&new)), ("--record", Some(&d.path().join("r.rec")))]
+        )
+        .is_ok());
         let e = distinct(&[], &[("--json", Some(&new)), ("--record", Some(&new))]).unwrap_err();
         assert!(e.to_string().contains("--json and --record name the same path"), "{e}");
     }

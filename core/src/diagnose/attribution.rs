@@ -36,48 +36,10 @@ use serde::Serialize;
 
 use super::{wls, zscore, Data, NOISE_Z, TAU_RANGE};
 
-/// The candidate effects, named as in the simulator.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Cand {
-    /// Output drifting linearly with time.
-    BiasDrift,
-    /// Bias and scale depending on `temp_c`.
-    Temperature,
-    /// Second-order terms of the input acceleration.
-    Nonlinearity,
-    /// Constant rotation between the head's stages.
-    HeadMisalignment,
-    /// Output depending on the direction of approach.
-    Hysteresis,
-    /// Transient after each rotation.
-    Settling,
-    /// Random per-position angle errors.
-    AngleError,
-}
+/// The candidates are the effects of the registry.
+pub use crate::effects::EffectKind as Cand;
 
 impl Cand {
-    /// Every candidate.
-    pub const ALL: [Cand; 7] = [
-        Cand::BiasDrift,
-        Cand::Temperature,
-        Cand::Nonlinearity,
-        Cand::HeadMisalignment,
-        Cand::Hysteresis,
-        Cand::Settling,
-        Cand::AngleError,
-    ];
-
-    /// The interface name (as in `simulate --effect`).
-    pub fn name(self) -> &'static str {
-        crate::sim::effects::EFFECT_NAMES[self as usize]
-    }
-
-    /// The candidate with this name.
-    pub fn from_name(name: &str) -> Option<Cand> {
-        Cand::ALL.into_iter().find(|c| c.name() == name)
-    }
-
     /// Whether the data allow this candidate (temperature needs `temp_c`, angle errors three
     /// channels).
     pub fn available(self, d: &Data) -> bool {

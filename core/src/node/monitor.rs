@@ -2,6 +2,8 @@
 //! virtual COM port, USART1).
 
 use std::io::Write;
+
+use anyhow::Context;
 use std::time::Duration;
 
 use accelcal_shared::wire::{Block, NodeMsg, RecordStatus, Status};
@@ -43,12 +45,31 @@ pub fn format_block(seq: u32, data: &Block) -> Vec<String> {
 }
 
 /// Reads messages from `port` at `baud` and prints them to `out`, until `count` messages (all of
-/// them when `None`) or an error.
-pub fn monitor(port: &str, baud: u32, count: Option<u64>, out: &mut impl Write) -> anyhow::Result<()> {
-    let port = serialport::new(port, baud)
-        .timeout(Duration::from_secs(3600))
+/// them when `None`) or an error. A port that stays silent for `silence` fails with what to check
+/// (the node reports its status every second, so a running node is never silent that long).
+pub fn monitor(
+    port_name: &str,
+    baud: u32,
+    count: Option<u64>,
+    silence: Duration,
+    out: &mut impl Write,
+) -> anyhow::Result<()> {
+    let port = serialport::new(port_name, baud)
+        .timeout(silence)
         .open()
-        .map_err(|e| crate::error::bad(format!("{port}: cannot open serial port: {e}")))?;
+        .map_err(|e| crate::error::bad(format!("{port_name}: cannot open serial port: {e}")))?;
+    monitor_stream(port, port_name, baud, count, silence, out)
+}
+
+/// [`monitor`] on an open byte stream whose reads time out after `silence`.
+pub fn monitor_stream(
+    port: impl std::io::Read,
+    port_name: &str,
+    baud: u32,
+    count: Option<u64>,
+    silence: Duration,
+    out: &mut impl Write,
+) -> anyhow::Result<()> {
     let mut rx = Receiver::new(port);
     let mut seen = 0u64;
     let mut last_seq: Option<u32> = None;
@@ -74,9 +95,43 @@ pub fn monitor(port: &str, baud: u32, count: Option<u64>, out: &mut impl Write) 
             Ok(Ok(NodeMsg::Replayed { seq, .. })) => writeln!(out, "# replay answer {seq}")?,
             Ok(Err(e)) => writeln!(out, "# bad frame: {e}")?,
             Err(LinkError::Closed) => break,
+            Err(LinkError::Io(e)) if e.kind() == std::io::ErrorKind::TimedOut => {
+                return Err(LinkError::Io(e)).with_context(|| {
+                    format!(
+                        "{port_name}: no frame from the node in {} s (is the board powered and running the accelcal \
+                         firmware, is this its ST-LINK virtual COM port, is the baud rate {baud} the node's?)",
+                        silence.as_secs_f64()
+                    )
+                });
+            }
             Err(e) => return Err(e.into()),
         }
         seen += 1;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod silence_tests {
+    use super::*;
+
+    /// A stream that has nothing to say: every read times out.
+    struct Silent;
+    impl std::io::Read for Silent {
+        fn read(&mut self, _: &mut [u8]) -> std::io::Result<usize> {
+            Err(std::io::Error::new(std::io::ErrorKind::TimedOut, "timed out"))
+        }
+    }
+
+    #[test]
+    fn a_silent_port_fails_with_what_to_check() {
+        let mut out = Vec::new();
+        let e = monitor_stream(Silent, "/dev/ttyACM0", 921_600, None, Duration::from_secs(5), &mut out)
+            .unwrap_err();
+        let msg = format!("{e:#}");
+        assert!(msg.starts_with("/dev/ttyACM0: no frame from the node in 5 s"), "{msg}");
+        assert!(msg.contains("baud rate 921600"), "{msg}");
+        assert!(!crate::error::is_bad_input(&e), "a silent device is the environment's failure");
+        assert!(out.is_empty());
+    }
 }

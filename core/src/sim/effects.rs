@@ -4,34 +4,15 @@
 //! context; effects of the head (`head_misalignment`, `angle_error`) instead change the
 //! acceleration the sensors see through [`Effect::kinematics`] (the commanded angles written to
 //! the campaign stay as they were). `accelcal simulate --effect NAME=PARAMS` builds them through
-//! [`parse`]. Names and keys (all numbers; defaults in brackets):
-//!
-//! | name | keys |
-//! |---|---|
-//! | `bias_drift` | `rate` codes/s [0] |
-//! | `temperature` | `bias` codes/°C [0], `scale` ppm/°C of the linear signal [0], `t_ref` °C [25] |
-//! | `nonlinearity` | `k2` codes/(m/s²)² on the sensitive axis [0], any basis term such as `ax*ay` |
-//! | `head_misalignment` | `rx_mrad`, `ry_mrad`, `rz_mrad`: rotation between the α and β stages [0] |
-//! | `hysteresis` | `h` codes, times the sign of the change of the sensitive-axis input [0] |
-//! | `settling` | `gain` codes per m/s² of sensitive-axis step [0], `tau` s [0.5] |
-//! | `angle_error` | `sd_mrad` one-sigma setting error of α and of β, per position [0] |
+//! [`parse`]. Names, keys, units and defaults are those of the registry, [`crate::effects`].
 
 use accelcal_shared::Term;
+
+use crate::effects::EffectKind;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use serde_json::json;
-
-/// Names of every effect, in the order the diagnosis lists them.
-pub const EFFECT_NAMES: [&str; 7] = [
-    "bias_drift",
-    "temperature",
-    "nonlinearity",
-    "head_misalignment",
-    "hysteresis",
-    "settling",
-    "angle_error",
-];
 
 /// What an effect may depend on for one sample of one channel.
 #[derive(Clone, Copy, Debug)]
@@ -162,7 +143,7 @@ pub struct Nonlinearity {
 
 impl Effect for Nonlinearity {
     fn name(&self) -> &'static str {
-        "nonlinearity"
+        EffectKind::Nonlinearity.name()
     }
     fn describe(&self) -> serde_json::Value {
         let terms: serde_json::Map<_, _> =
@@ -184,7 +165,7 @@ pub struct BiasDrift {
 
 impl Effect for BiasDrift {
     fn name(&self) -> &'static str {
-        "bias_drift"
+        EffectKind::BiasDrift.name()
     }
     fn describe(&self) -> serde_json::Value {
         json!({"name": self.name(), "rate": self.rate})
@@ -207,7 +188,7 @@ pub struct Temperature {
 
 impl Effect for Temperature {
     fn name(&self) -> &'static str {
-        "temperature"
+        EffectKind::Temperature.name()
     }
     fn describe(&self) -> serde_json::Value {
         json!({"name": self.name(), "bias": self.bias, "scale": self.scale, "t_ref": self.t_ref})
@@ -233,7 +214,7 @@ pub struct HeadMisalignment {
 
 impl Effect for HeadMisalignment {
     fn name(&self) -> &'static str {
-        "head_misalignment"
+        EffectKind::HeadMisalignment.name()
     }
     fn describe(&self) -> serde_json::Value {
         let [x, y, z] = self.r_mrad;
@@ -265,7 +246,7 @@ pub struct Hysteresis {
 
 impl Effect for Hysteresis {
     fn name(&self) -> &'static str {
-        "hysteresis"
+        EffectKind::Hysteresis.name()
     }
     fn describe(&self) -> serde_json::Value {
         json!({"name": self.name(), "h": self.h})
@@ -291,7 +272,7 @@ pub struct Settling {
 
 impl Effect for Settling {
     fn name(&self) -> &'static str {
-        "settling"
+        EffectKind::Settling.name()
     }
     fn describe(&self) -> serde_json::Value {
         json!({"name": self.name(), "gain": self.gain, "tau": self.tau})
@@ -320,7 +301,7 @@ impl AngleError {
 
 impl Effect for AngleError {
     fn name(&self) -> &'static str {
-        "angle_error"
+        EffectKind::AngleError.name()
     }
     fn describe(&self) -> serde_json::Value {
         json!({"name": self.name(), "sd_mrad": self.sd_mrad})
@@ -337,16 +318,20 @@ impl Effect for AngleError {
 }
 
 /// Takes `key` from the list (default when absent).
-fn take(kv: &mut Vec<(String, f64)>, key: &str, default: f64) -> f64 {
+/// The value of `key` given in `kv` (removed from it), or the registry's default.
+fn take(kv: &mut Vec<(String, f64)>, kind: EffectKind, key: &str) -> f64 {
     match kv.iter().position(|(k, _)| k == key) {
         Some(i) => kv.remove(i).1,
-        None => default,
+        None => kind.spec().params.iter().find(|p| p.key == key).map_or(0.0, |p| p.default),
     }
 }
 
-fn no_more(name: &str, kv: &[(String, f64)], known: &str) -> Result<(), String> {
+fn no_more(kind: EffectKind, kv: &[(String, f64)]) -> Result<(), String> {
     match kv.first() {
-        Some((k, _)) => Err(format!("effect `{name}`: unknown parameter `{k}` (known: {known})")),
+        Some((k, _)) => {
+            let known: Vec<&str> = kind.spec().params.iter().map(|p| p.key).collect();
+            Err(format!("effect `{}`: unknown parameter `{k}` (known: {})", kind.name(), known.join(", ")))
+        }
         None => Ok(()),
     }
 }
@@ -366,8 +351,11 @@ pub fn parse(spec: &str) -> Result<Box<dyn Effect>, String> {
             .ok_or_else(|| format!("effect `{name}`: `{p}` needs a finite number"))?;
         kv.push((k.trim().to_string(), v));
     }
-    let e: Box<dyn Effect> = match name {
-        "nonlinearity" => {
+    let kind = EffectKind::from_name(name).ok_or_else(|| {
+        format!("unknown effect `{name}` (known: {})", crate::effects::names().collect::<Vec<_>>().join(", "))
+    })?;
+    let e: Box<dyn Effect> = match kind {
+        EffectKind::Nonlinearity => {
             let mut e = Nonlinearity { k2: 0.0, terms: Vec::new() };
             for (k, v) in kv.drain(..) {
                 if k == "k2" {
@@ -379,40 +367,30 @@ pub fn parse(spec: &str) -> Result<Box<dyn Effect>, String> {
             }
             Box::new(e)
         }
-        "bias_drift" => Box::new(BiasDrift { rate: take(&mut kv, "rate", 0.0) }),
-        "temperature" => Box::new(Temperature {
-            bias: take(&mut kv, "bias", 0.0),
-            scale: take(&mut kv, "scale", 0.0),
-            t_ref: take(&mut kv, "t_ref", 25.0),
+        EffectKind::BiasDrift => Box::new(BiasDrift { rate: take(&mut kv, kind, "rate") }),
+        EffectKind::Temperature => Box::new(Temperature {
+            bias: take(&mut kv, kind, "bias"),
+            scale: take(&mut kv, kind, "scale"),
+            t_ref: take(&mut kv, kind, "t_ref"),
         }),
-        "head_misalignment" => Box::new(HeadMisalignment {
+        EffectKind::HeadMisalignment => Box::new(HeadMisalignment {
             r_mrad: [
-                take(&mut kv, "rx_mrad", 0.0),
-                take(&mut kv, "ry_mrad", 0.0),
-                take(&mut kv, "rz_mrad", 0.0),
+                take(&mut kv, kind, "rx_mrad"),
+                take(&mut kv, kind, "ry_mrad"),
+                take(&mut kv, kind, "rz_mrad"),
             ],
         }),
-        "hysteresis" => Box::new(Hysteresis { h: take(&mut kv, "h", 0.0) }),
-        "settling" => {
-            let e = Settling { gain: take(&mut kv, "gain", 0.0), tau: take(&mut kv, "tau", 0.5) };
+        EffectKind::Hysteresis => Box::new(Hysteresis { h: take(&mut kv, kind, "h") }),
+        EffectKind::Settling => {
+            let e = Settling { gain: take(&mut kv, kind, "gain"), tau: take(&mut kv, kind, "tau") };
             if !(e.tau > 0.0) {
                 return Err("effect `settling`: tau must be > 0 s".into());
             }
             Box::new(e)
         }
-        "angle_error" => Box::new(AngleError { sd_mrad: take(&mut kv, "sd_mrad", 0.0) }),
-        _ => return Err(format!("unknown effect `{name}` (known: {})", EFFECT_NAMES.join(", "))),
+        EffectKind::AngleError => Box::new(AngleError { sd_mrad: take(&mut kv, kind, "sd_mrad") }),
     };
-    let known = match name {
-        "bias_drift" => "rate",
-        "temperature" => "bias, scale, t_ref",
-        "head_misalignment" => "rx_mrad, ry_mrad, rz_mrad",
-        "hysteresis" => "h",
-        "settling" => "gain, tau",
-        "angle_error" => "sd_mrad",
-        _ => "",
-    };
-    no_more(name, &kv, known)?;
+    no_more(kind, &kv)?;
     Ok(e)
 }
 
@@ -432,7 +410,7 @@ mod tests {
 
     #[test]
     fn every_name_parses_and_unknown_keys_are_refused() {
-        for n in EFFECT_NAMES {
+        for n in crate::effects::names() {
             assert_eq!(parse(n).unwrap().name(), n);
         }
         assert!(parse("hysteresis=k:1").err().unwrap().contains("unknown parameter `k`"));

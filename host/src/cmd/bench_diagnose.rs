@@ -7,7 +7,6 @@ use crate::cli::BenchDiagnoseArgs;
 use accelcal_core::diagnose::bench::{self, Summary};
 use accelcal_core::error::bad;
 use accelcal_core::output::write_json;
-use accelcal_core::sim::effects::EFFECT_NAMES;
 
 /// Runs `accelcal bench-diagnose`.
 pub fn run(a: &BenchDiagnoseArgs) -> anyhow::Result<()> {
@@ -47,7 +46,7 @@ pub fn print_summary(s: &Summary, seed: u64, range: (f64, f64)) {
     reported.sort();
     reported.dedup();
     let mut rows: Vec<&str> = vec!["none"];
-    rows.extend(EFFECT_NAMES);
+    rows.extend(accelcal_core::effects::names());
     print!("{:<18}", "true \\ reported");
     for r in &reported {
         print!(" {:>8}", abbrev(r));
@@ -77,18 +76,5 @@ pub fn print_summary(s: &Summary, seed: u64, range: (f64, f64)) {
 }
 
 fn abbrev(name: &str) -> String {
-    name.split('+')
-        .map(|n| match n {
-            "none" => "none",
-            "bias_drift" => "drift",
-            "temperature" => "temp",
-            "nonlinearity" => "nonlin",
-            "head_misalignment" => "headmis",
-            "hysteresis" => "hyst",
-            "settling" => "settle",
-            "angle_error" => "angle",
-            other => other,
-        })
-        .collect::<Vec<_>>()
-        .join("+")
+    name.split('+').map(accelcal_core::effects::short_name).collect::<Vec<_>>().join("+")
 }

@@ -146,12 +146,17 @@ pub fn print_report(r: &Report) {
             sig(e.heldout_rms_before, 4),
             sig(e.heldout_rms_after, 4)
         );
+        let kind = accelcal_core::effects::EffectKind::from_name(&e.name);
         for (who, ps) in &e.parameters {
             let list: Vec<String> = ps
                 .iter()
-                .map(|(k, v)| match v.sd {
-                    Some(sd) => format!("{k} = {} ± {}", sig(v.value, 4), sig(sd, 2)),
-                    None => format!("{k} = {}", sig(v.value, 4)),
+                .map(|(k, v)| {
+                    let unit = kind.and_then(|c| accelcal_core::effects::unit_of(c, k)).unwrap_or("");
+                    let unit = if unit.is_empty() { String::new() } else { format!(" {unit}") };
+                    match v.sd {
+                        Some(sd) => format!("{k} = {} ± {}{unit}", sig(v.value, 4), sig(sd, 2)),
+                        None => format!("{k} = {}{unit}", sig(v.value, 4)),
+                    }
                 })
                 .collect();
             println!("  {who:<6} {}", list.join(", "));

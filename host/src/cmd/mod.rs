@@ -7,6 +7,7 @@ pub mod diagnose;
 pub mod fit;
 pub mod gravity;
 pub mod node;
+pub mod plan;
 pub mod select;
 pub mod simulate;
 
@@ -17,6 +18,7 @@ pub fn run(cli: Cli, warnings: &mut Warnings) -> anyhow::Result<()> {
     match cli.command {
         Command::Simulate(a) => simulate::run(&a),
         Command::Select(a) => select::run(&a, warnings),
+        Command::Plan(a) => plan::run(&a),
         Command::Fit(a) => fit::run(&a, warnings),
         Command::Compare(a) => compare::run(&a, warnings),
         Command::Demo(a) => demo::run(&a),

@@ -33,7 +33,11 @@ pub fn run_flash(a: &FlashArgs) -> anyhow::Result<()> {
 
 /// Runs `accelcal monitor`.
 pub fn run_monitor(a: &MonitorArgs) -> anyhow::Result<()> {
-    monitor::monitor(&a.port, a.baud, a.count, &mut std::io::stdout().lock())
+    if !(a.timeout_s.is_finite() && a.timeout_s > 0.0) {
+        return Err(bad(format!("--timeout-s must be a positive number of seconds, got {}", a.timeout_s)));
+    }
+    let silence = std::time::Duration::from_secs_f64(a.timeout_s);
+    monitor::monitor(&a.port, a.baud, a.count, silence, &mut std::io::stdout().lock())
 }
 
 /// Runs `accelcal hil`.
