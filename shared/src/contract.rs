@@ -1,0 +1,64 @@
+//! The node contract: the numbers that the firmware, the host (`accelcal flash`, `hil`, `monitor`),
+//! xtask and the repository's `memory.x` must agree on, defined once.
+//!
+//! `memory.x` is a linker script and cannot import these; a host test
+//! (`tests/contract.rs` of the host crate) parses it and checks it against this module.
+
+/// Start of the STM32L475VG's flash (RM0351 §3.3.1, Table 9).
+pub const FLASH_BASE: u32 = 0x0800_0000;
+/// Size of the whole flash: 1 MiB in two banks of 512 KiB.
+pub const FLASH_SIZE: u32 = 1024 * 1024;
+/// Size of one flash bank (RM0351 §3.3.1: bank 2 starts at 0x0808_0000 when BFB2 = 0).
+pub const FLASH_BANK_SIZE: u32 = 512 * 1024;
+/// Flash page (erase unit) size, 2 KiB (RM0351 §3.3.1).
+pub const FLASH_PAGE_SIZE: u32 = 2048;
+/// Start of SRAM1.
+pub const RAM_BASE: u32 = 0x2000_0000;
+/// Size of SRAM1 (SRAM2 at 0x1000_0000 is unused), 96 KiB.
+pub const RAM_SIZE: u32 = 96 * 1024;
+
+/// Number of record slots.
+pub const N_SLOTS: usize = 2;
+/// Size of one record slot: one flash page.
+pub const SLOT_SIZE: usize = FLASH_PAGE_SIZE as usize;
+/// Flash address of record slot 0: page 510, the second-to-last page of bank 2.
+pub const SLOT0_ADDR: u32 = FLASH_BASE + FLASH_SIZE - (N_SLOTS * SLOT_SIZE) as u32;
+/// Flash addresses of the two record slots (the last two pages of flash).
+pub const SLOT_ADDRS: [u32; N_SLOTS] = [SLOT0_ADDR, SLOT0_ADDR + SLOT_SIZE as u32];
+/// End of the application's flash region (`FLASH` in `memory.x`): the record slots follow it.
+pub const APP_FLASH_END: u32 = SLOT0_ADDR;
+
+/// Address of the MCU's 96-bit unique device id (RM0351 §50.1, "Unique device ID register").
+pub const UID_ADDR: u32 = 0x1FFF_7590;
+/// Device id the QEMU board reports: QEMU 10 does not map the unique-id area, so records meant
+/// for the emulated node carry this id.
+pub const QEMU_DEVICE_ID: [u8; 12] = *b"QEMU-B-L475E";
+
+/// USART1 baud rate of the real board (ST-LINK virtual COM port).
+pub const BAUD_REAL: u32 = 921_600;
+/// USART1 baud rate of the QEMU board (QEMU ignores it; the emulated BRR is set from it).
+pub const BAUD_QEMU: u32 = 115_200;
+
+/// Scale of the fixed-point output (`Block::CalibratedFixed`): m/s² · 2¹⁶.
+pub const FIXED_SCALE: f64 = 65536.0;
+/// Fraction bits of the fixed-point output.
+pub const FIXED_FRAC_BITS: u32 = 16;
+
+const _: () = assert!(FIXED_SCALE == (1u64 << FIXED_FRAC_BITS) as f64);
+const _: () = assert!(SLOT_ADDRS[1] + SLOT_SIZE as u32 == FLASH_BASE + FLASH_SIZE);
+const _: () = assert!(SLOT0_ADDR % FLASH_PAGE_SIZE == 0);
+// Both slots lie in bank 2, which the ECC decision ([`crate::flash_ecc`]) relies on.
+const _: () = assert!(SLOT0_ADDR >= FLASH_BASE + FLASH_BANK_SIZE);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_contract_literals() {
+        assert_eq!(SLOT_ADDRS, [0x080F_F000, 0x080F_F800]);
+        assert_eq!(APP_FLASH_END - FLASH_BASE, 1020 * 1024);
+        assert_eq!(RAM_BASE + RAM_SIZE, 0x2001_8000);
+        assert_eq!(crate::record::MAX_RECORD_LEN < SLOT_SIZE, true);
+    }
+}
