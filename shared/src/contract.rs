@@ -1,8 +1,8 @@
 //! The node contract: the numbers that the firmware, the host (`accelcal flash`, `hil`, `monitor`),
 //! xtask and the repository's `memory.x` must agree on, defined once.
 //!
-//! `memory.x` is a linker script and cannot import these; a host test
-//! (`tests/contract.rs` of the host crate) parses it and checks it against this module.
+//! `memory.x` (repository root) is a linker script and cannot import these; this module's tests
+//! parse it (embedded at compile time) and check its regions against the contract.
 
 /// Start of the STM32L475VG's flash (RM0351 §3.3.1, Table 9).
 pub const FLASH_BASE: u32 = 0x0800_0000;
@@ -59,6 +59,65 @@ mod tests {
         assert_eq!(SLOT_ADDRS, [0x080F_F000, 0x080F_F800]);
         assert_eq!(APP_FLASH_END - FLASH_BASE, 1020 * 1024);
         assert_eq!(RAM_BASE + RAM_SIZE, 0x2001_8000);
-        assert_eq!(crate::record::MAX_RECORD_LEN < SLOT_SIZE, true);
+        assert_eq!(FIXED_SCALE, 65536.0);
+        assert_eq!(&QEMU_DEVICE_ID, b"QEMU-B-L475E");
+    }
+
+    /// The repository's linker script.
+    const MEMORY_X: &str = include_str!("../../memory.x");
+
+    /// A number of a linker script: decimal or `0x` hex, with an optional `K` or `M` suffix.
+    fn number(s: &str) -> u32 {
+        let s = s.trim();
+        let (digits, scale) = match s.strip_suffix('K').or_else(|| s.strip_suffix('k')) {
+            Some(d) => (d, 1024),
+            None => match s.strip_suffix('M') {
+                Some(d) => (d, 1024 * 1024),
+                None => (s, 1),
+            },
+        };
+        let v = match digits.strip_prefix("0x").or_else(|| digits.strip_prefix("0X")) {
+            Some(h) => u32::from_str_radix(h, 16),
+            None => digits.parse(),
+        };
+        v.unwrap_or_else(|e| panic!("memory.x: bad number `{s}`: {e}")) * scale
+    }
+
+    /// The regions of the script's MEMORY block: (name, origin, length).
+    fn regions(script: &str) -> std::vec::Vec<(std::string::String, u32, u32)> {
+        let start = script.find("MEMORY").expect("memory.x has a MEMORY block");
+        let body = &script[start..];
+        let body = &body[body.find('{').unwrap() + 1..body.find('}').unwrap()];
+        body.lines()
+            .filter(|l| l.contains("ORIGIN"))
+            .map(|l| {
+                let (name, rest) = l.split_once(':').expect("NAME : ORIGIN = …, LENGTH = …");
+                let origin = rest.split("ORIGIN").nth(1).unwrap().split(',').next().unwrap();
+                let length = rest.split("LENGTH").nth(1).unwrap();
+                let value = |f: &str| number(f.trim_start().trim_start_matches('=').trim());
+                (name.trim().into(), value(origin), value(length))
+            })
+            .collect()
+    }
+
+    #[test]
+    fn memory_x_agrees_with_the_contract() {
+        let r = regions(MEMORY_X);
+        let get = |n: &str| {
+            let (_, o, l) = r.iter().find(|(name, _, _)| name == n).unwrap_or_else(|| panic!("no {n}"));
+            (*o, *l)
+        };
+        assert_eq!(get("FLASH"), (FLASH_BASE, APP_FLASH_END - FLASH_BASE));
+        assert_eq!(get("RECORDS"), (SLOT_ADDRS[0], (N_SLOTS * SLOT_SIZE) as u32));
+        assert_eq!(get("RAM"), (RAM_BASE, RAM_SIZE));
+        assert_eq!(r.len(), 3, "{r:?}");
+    }
+
+    #[test]
+    fn the_memory_x_parser_reads_what_it_is_given() {
+        let r = regions(
+            "MEMORY\n{\n  A : ORIGIN = 0x08000000, LENGTH = 1020K\n  B : ORIGIN = 4096, LENGTH = 1M\n}\n",
+        );
+        assert_eq!(r, [("A".into(), 0x0800_0000, 1020 * 1024), ("B".into(), 4096, 1024 * 1024)]);
     }
 }
