@@ -46,7 +46,7 @@ pub const FIXED_FRAC_BITS: u32 = 16;
 
 const _: () = assert!(FIXED_SCALE == (1u64 << FIXED_FRAC_BITS) as f64);
 const _: () = assert!(SLOT_ADDRS[1] + SLOT_SIZE as u32 == FLASH_BASE + FLASH_SIZE);
-const _: () = assert!(SLOT0_ADDR % FLASH_PAGE_SIZE == 0);
+const _: () = assert!(SLOT0_ADDR.is_multiple_of(FLASH_PAGE_SIZE));
 // Both slots lie in bank 2, which the ECC decision ([`crate::flash_ecc`]) relies on.
 const _: () = assert!(SLOT0_ADDR >= FLASH_BASE + FLASH_BANK_SIZE);
 
