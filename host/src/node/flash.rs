@@ -159,7 +159,9 @@ fn readings(slots: &[[u8; SLOT_SIZE]; N_SLOTS], readable: [bool; N_SLOTS]) -> [O
 
 /// Reads both slots through the probe; returns which ones were readable. A slot is unreadable
 /// when the probe's read fails or when reading it raised a double ECC error in it (FLASH_ECCR, the
-/// same decision as the node's NMI handler, [`nmi_action`]); that error is then cleared.
+/// same decision as the node's NMI handler, [`nmi_action`]); that error is then cleared. (If the
+/// node's firmware is running, its NMI handler may clear ECCD first; the torn slot's bytes then
+/// fail its commit or CRC check, so it is not in force and is planned as the target all the same.)
 fn read_slots(
     session: &mut Session,
     slots: &mut [[u8; SLOT_SIZE]; N_SLOTS],
