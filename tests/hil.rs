@@ -17,15 +17,16 @@ use std::process::{Command, Output};
 use accelcal_core::campaign::Campaign;
 use accelcal_core::node::hil::{replay_blocks, CampaignCodes, HilOptions, QemuNode};
 use accelcal_core::node::monitor::format_status;
+use accelcal_shared::contract::QEMU_DEVICE_ID;
 use accelcal_shared::kinematics::gravity;
 use accelcal_shared::record::{crc32, Record, RecordError};
-use accelcal_shared::slots::{SlotImage, SLOT_SIZE};
+use accelcal_shared::slots::{SlotImage, COMMIT_OFFSET, SLOT_MAGIC_V2, SLOT_SIZE};
 use accelcal_shared::terms::{Structure, MODEL_4};
 use accelcal_shared::wire::{record_error_code, Block, HostMsg, NodeMsg, RecordFault, RecordStatus};
 use accelcal_shared::G_STANDARD;
 use support::{node_elf, record_bytes};
 
-/// Hex of the QEMU node's device id, "QEMU-B-L475E".
+/// Hex of the QEMU node's device id, "QEMU-B-L475E" (`accelcal_shared::contract::QEMU_DEVICE_ID`).
 const QEMU_ID_HEX: &str = "51454d552d422d4c34373545";
 
 /// The fixed-point QEMU build (`cargo xtask test` builds it into firmware/target/fixed-point).
@@ -339,15 +340,19 @@ fn node_refuses_a_corrupt_record_and_survives_garbage() {
 }
 
 /// `page` (a slot image of a record of the same length) holding `record` instead, with the slot's
-/// CRC recomputed: an intact slot whatever the record holds (`SlotImage::build` refuses records
-/// that do not parse).
+/// CRC (and, in a version-2 slot, its copy in the commit double word) recomputed: an intact slot
+/// whatever the record holds (`SlotImage::build` refuses records that do not parse).
 fn with_record(page: &[u8; SLOT_SIZE], record: &[u8]) -> [u8; SLOT_SIZE] {
     let mut out = *page;
     assert_eq!(u16::from_le_bytes([page[8], page[9]]) as usize, record.len());
     out[16..16 + record.len()].copy_from_slice(record);
     let mut covered = out[4..12].to_vec();
     covered.extend_from_slice(record);
-    out[12..16].copy_from_slice(&crc32(&covered).to_le_bytes());
+    let crc = crc32(&covered).to_le_bytes();
+    out[12..16].copy_from_slice(&crc);
+    if out[0..4] == SLOT_MAGIC_V2 {
+        out[COMMIT_OFFSET + 4..].copy_from_slice(&crc);
+    }
     out
 }
 
@@ -370,7 +375,38 @@ fn qemu_model4_record() -> Record {
         u0: [32100.5, 33012.25, 31877.75],
         k: [[1671.2, 8.5, -3.25], [-4.0, 1650.75, 6.5], [2.5, -7.75, 1689.0]],
     };
-    Record::from_model4(*b"QEMU-B-L475E", 1_800_000_000, &m)
+    Record::from_model4(QEMU_DEVICE_ID, 1_800_000_000, &m)
+}
+
+/// The node boots from a slot page of either format: version 2 (what `accelcal flash` and
+/// `accelcal hil` write: commit double word at the page's end) and version 1 (written before
+/// version 2, still read). Each time the status names the slot and sequence in force and the
+/// node's answers are the shared crate's f32 calibration of the codes. An uncommitted version-2
+/// page (all but its last double word programmed: a write cut before its commit) is no record.
+/// (An unreadable double word, a flash ECC error, cannot be emulated: QEMU's flash has no ECC.)
+#[test]
+fn node_runs_a_version_2_slot_and_still_reads_a_version_1_slot() {
+    let rec = qemu_model4_record();
+    let bytes = record_bytes(&rec);
+    let cal = rec.model4().unwrap().invert().unwrap().to_f32();
+    let codes = [[32100, 33012, 31877], [40000, 30000, 20000], [0, 65535, 1]];
+    let v2 = SlotImage::build(&bytes, 17).unwrap();
+    let v1 = SlotImage::build_v1(&bytes, 16).unwrap();
+    assert_eq!(&v2[..4], b"ASL2");
+    assert_eq!(&v1[..4], b"ASL1");
+    for (page, sequence) in [(v2, 17), (v1, 16)] {
+        let mut node = QemuNode::start(&HilOptions::new(node_elf()), Some(&page)).unwrap();
+        let status = node.status().unwrap();
+        assert_eq!(status.record, RecordStatus::InUse { slot: 0, sequence, created_unix_s: 1_800_000_000 });
+        let want: Vec<[f32; 3]> = codes.iter().map(|u| cal.apply(*u)).collect();
+        let answer = node.request(&replay_msg(9, &codes)).unwrap();
+        let want =
+            NodeMsg::Replayed { seq: 9, data: Block::Calibrated(heapless::Vec::from_slice(&want).unwrap()) };
+        assert_eq!(answer, want, "slot format of sequence {sequence}");
+    }
+    let mut uncommitted = v2;
+    uncommitted[COMMIT_OFFSET..].fill(0xff);
+    node_runs_uncalibrated(&uncommitted, RecordFault::NoSlot);
 }
 
 /// A record of format version 2 that is otherwise intact (its own CRC and the slot's recomputed,
@@ -390,7 +426,9 @@ fn node_refuses_a_record_of_another_format_version() {
     let page = with_record(&good_page, &v2);
     // Only the version, the record's CRC and the slot's CRC differ from the version-1 slot.
     let differ: Vec<usize> = (0..SLOT_SIZE).filter(|&i| page[i] != good_page[i]).collect();
-    let allowed = |i: usize| i == 16 + 4 || (12..16).contains(&i) || (16 + n - 4..16 + n).contains(&i);
+    let allowed = |i: usize| {
+        i == 16 + 4 || (12..16).contains(&i) || (16 + n - 4..16 + n).contains(&i) || i >= COMMIT_OFFSET + 4
+    };
     assert!(differ.contains(&(16 + 4)) && differ.iter().all(|&i| allowed(i)), "{differ:?}");
 
     let code = record_error_code(RecordError::UnsupportedVersion(2));
@@ -475,7 +513,7 @@ fn fixed_point_node_matches_host_fixed_arithmetic() {
     assert_eq!(run.accel.len(), codes.len());
     for (row, (a, u)) in run.accel.iter().zip(codes).enumerate() {
         // The node sends m/s²·2¹⁶ as i32; `replay` converts exactly (|a| < 256 m/s²).
-        let q = a.map(|v| (v as f64 * 65536.0) as i32);
+        let q = a.map(|v| (v as f64 * accelcal_shared::contract::FIXED_SCALE) as i32);
         assert_eq!(q, fixed.apply(*u), "row {row}");
         let want = cal.apply(u.map(f64::from));
         for i in 0..3 {

@@ -25,7 +25,7 @@ fn sets() -> usize {
 
 /// A model-4 record for the QEMU board's device id.
 fn record(m: &Model4) -> Vec<u8> {
-    record_bytes(&Record::from_model4(*b"QEMU-B-L475E", 1_800_000_000, m))
+    record_bytes(&Record::from_model4(accelcal_shared::contract::QEMU_DEVICE_ID, 1_800_000_000, m))
 }
 
 /// Deterministic code sets over the whole 16-bit range (xorshift), so no two blocks are alike.

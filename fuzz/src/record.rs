@@ -23,7 +23,7 @@ pub struct RecordTarget {
 /// The bytes of a record for the QEMU node's device id with `coef(channel, term)` coefficients.
 pub(crate) fn record(n_channels: u8, structure: Structure, coef: impl Fn(usize, usize) -> f64) -> Vec<u8> {
     let mut r = Record {
-        device_id: *b"QEMU-B-L475E",
+        device_id: accelcal_shared::contract::QEMU_DEVICE_ID,
         created_unix_s: 1_800_000_000,
         structure,
         n_channels,

@@ -2,7 +2,9 @@
 //!
 //! It holds the dividing-head kinematics, the polynomial model terms and the paper's candidate
 //! models, the test-turn formulas, the application of a linear (model 4) calibration in f64, f32 and
-//! fixed point, and the binary calibration record.
+//! fixed point, the binary calibration record, the node's link protocol and record slots, its boot
+//! decision ([`boot`]), its flash-ECC NMI decision ([`flash_ecc`]) and the node contract
+//! ([`contract`]: addresses, ids, baud rates, fixed-point scale).
 //!
 //! Architecture invariants: this crate does no I/O, never allocates, and never panics on untrusted
 //! bytes (the record parser returns a typed error for any input).
@@ -12,6 +14,9 @@
 // `!(x > t)` is deliberate: a NaN must fail every range check. Index loops mirror the math.
 #![allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
 
+pub mod boot;
+pub mod contract;
+pub mod flash_ecc;
 pub mod kinematics;
 pub mod linear;
 pub mod record;

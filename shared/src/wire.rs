@@ -75,7 +75,8 @@ impl Block {
 /// Why the node runs without a calibration record.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum RecordFault {
-    /// Neither record slot holds a committed slot image (e.g. erased flash).
+    /// Neither record slot holds a committed slot image (e.g. erased flash, a write cut before its
+    /// commit, or a slot left unreadable by a flash ECC error).
     NoSlot,
     /// The active slot's record does not parse; the value is the [`crate::record::RecordError`]
     /// as named by [`record_error_code`].

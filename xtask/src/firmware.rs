@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
+use accelcal_shared::contract;
 use accelcal_shared::linear::Model4;
 use accelcal_shared::record::{Record, MAX_RECORD_LEN};
 use accelcal_shared::slots::SlotImage;
@@ -15,12 +16,14 @@ use accelcal_shared::wire::{self, Block, FrameDecoder, HostMsg, NodeMsg, RecordS
 use anyhow::{bail, ensure, Context};
 use object::{Object, ObjectSection, ObjectSymbol, SectionKind};
 
-/// Flash of the STM32L475VG (memory.x): where text, rodata and the initial values of data live.
-const FLASH: std::ops::Range<u64> = 0x0800_0000..0x0810_0000;
-/// SRAM1 (memory.x).
-const RAM: std::ops::Range<u64> = 0x2000_0000..0x2001_8000;
-/// Address of record slot 0 (memory.x).
-const SLOT0: u64 = 0x080F_F000;
+/// Flash of the STM32L475VG (the node contract, checked against memory.x): where text, rodata and
+/// the initial values of data live.
+const FLASH: std::ops::Range<u64> =
+    contract::FLASH_BASE as u64..(contract::FLASH_BASE + contract::FLASH_SIZE) as u64;
+/// SRAM1 (the node contract).
+const RAM: std::ops::Range<u64> = contract::RAM_BASE as u64..(contract::RAM_BASE + contract::RAM_SIZE) as u64;
+/// Address of record slot 0 (the node contract).
+const SLOT0: u64 = contract::SLOT_ADDRS[0] as u64;
 /// Footprint budgets of the issue.
 const FLASH_BUDGET: u64 = 48 * 1024;
 const RAM_BUDGET: u64 = 16 * 1024;
@@ -211,7 +214,7 @@ fn bench_record() -> anyhow::Result<Vec<u8>> {
         u0: [32100.5, 33012.25, 31877.75],
         k: [[1671.2, 8.5, -3.25], [-4.0, 1650.75, 6.5], [2.5, -7.75, 1689.0]],
     };
-    let r = Record::from_model4(*b"QEMU-B-L475E", 1_800_000_000, &m);
+    let r = Record::from_model4(contract::QEMU_DEVICE_ID, 1_800_000_000, &m);
     let mut buf = [0u8; MAX_RECORD_LEN];
     let n = r.emit(&mut buf).map_err(|e| anyhow::anyhow!("{e}"))?;
     Ok(buf[..n].to_vec())

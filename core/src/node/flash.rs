@@ -1,27 +1,33 @@
 //! Writing a calibration record into a real node through a debug probe (probe-rs as a library).
 //!
 //! The write never leaves the node without a valid record and never touches the firmware:
-//! 1. attach, read both record slots and the MCU's unique id;
+//! 1. attach, read both record slots and the MCU's unique id; a slot the probe cannot read (the
+//!    read fails, or it raised a double ECC error in that slot, `FLASH_ECCR`) is unreadable;
 //! 2. refuse a record made for another device;
-//! 3. plan the write with [`WritePlan`]: the slot *not* in force, sequence number one higher;
+//! 3. plan the write with [`WritePlan::from_readings`]: the slot *not* in force (an unreadable slot
+//!    is never in force, so it is the target), sequence number one higher, a version-2 page;
 //! 4. program exactly that slot's 2 KiB page (one flash sector; `keep_unwritten_bytes` keeps
-//!    everything else, `verify` reads it back);
-//! 5. read both slots again and check that the new record is the one in force; reset the core so
-//!    the firmware loads it.
+//!    everything else, `verify` reads it back); the STM32L4 flash algorithm erases the page and
+//!    programs it in ascending double words, so the commit double word at its end lands last;
+//! 5. read both slots again and check that the new record is the one in force.
 //!
-//! A power cut or a disconnect during step 4 leaves the target slot failing its CRC (or erased),
-//! so the old record stays in force: the slot image only becomes valid once complete.
-//! Not tested against hardware in this repository (no probe in CI); the slot logic it relies on is
-//! tested with a power-cut simulation in `accelcal_shared::slots`.
+//! Once attached, the core is reset on every path, success or error, so the firmware runs again
+//! (and loads the new record) and is never left halted.
+//!
+//! A power cut or a disconnect during step 4 leaves the target slot without its commit, failing
+//! its CRC, or unreadable, so the old record stays in force: the slot image only becomes valid
+//! once complete. Not tested against hardware in this repository (no probe in CI); the slot logic
+//! it relies on is tested with a power-cut simulation in the probe's programming order in
+//! `accelcal_shared::slots`.
 
+use accelcal_shared::contract::{N_SLOTS, SLOT_ADDRS, UID_ADDR};
+use accelcal_shared::flash_ecc::{nmi_action, NmiAction, FLASH_ECCR_ADDR};
 use accelcal_shared::record::Record;
-use accelcal_shared::slots::{select, WritePlan, SLOT_SIZE};
+use accelcal_shared::slots::{select_readings, WritePlan, SLOT_SIZE};
 use probe_rs::flashing::DownloadOptions;
 use probe_rs::probe::list::Lister;
 use probe_rs::probe::DebugProbeSelector;
-use probe_rs::{MemoryInterface, Permissions};
-
-use super::{RECORD_SLOTS, UID_ADDR};
+use probe_rs::{MemoryInterface, Permissions, Session};
 
 /// Why a record could not be written.
 #[derive(Debug, thiserror::Error)]
@@ -49,6 +55,14 @@ pub enum FlashError {
     /// probe-rs failed.
     #[error("probe: {0}")]
     Probe(String),
+    /// The write failed and the reset after it failed too: the core may be left halted.
+    #[error("{error}; resetting the core afterwards failed too ({reset}): power-cycle the node")]
+    NotReset {
+        /// The write's error.
+        error: Box<FlashError>,
+        /// The reset's error.
+        reset: String,
+    },
 }
 
 fn probe_err(e: impl std::fmt::Display) -> FlashError {
@@ -72,7 +86,7 @@ pub struct FlashReport {
 
 /// Writes `record` (the bytes of a record file) into the inactive slot of the node attached
 /// through the probe `selector` (VID:PID[:serial]; the first probe found when `None`), for target
-/// `chip` (e.g. `STM32L475VGTx`).
+/// `chip` (e.g. `STM32L475VGTx`). Once attached, the core is reset whatever happens.
 pub fn flash_record(record: &[u8], chip: &str, selector: Option<&str>) -> Result<FlashReport, FlashError> {
     let rec = Record::parse(record).map_err(FlashError::Record)?;
     let record = &record[..rec.len()];
@@ -90,38 +104,118 @@ pub fn flash_record(record: &[u8], chip: &str, selector: Option<&str>) -> Result
         }
     };
     let mut session = probe.attach(chip, Permissions::default()).map_err(probe_err)?;
+    let result = write_attached(&mut session, &rec, record);
+    let reset = session.core(0).and_then(|mut core| core.reset()).map_err(|e| e.to_string());
+    finish(result, reset)
+}
 
-    let mut slots = [[0u8; SLOT_SIZE]; 2];
-    let mut uid = [0u8; 12];
-    {
-        let mut core = session.core(0).map_err(probe_err)?;
-        for (buf, addr) in slots.iter_mut().zip(RECORD_SLOTS) {
-            core.read_8(addr, buf).map_err(probe_err)?;
-        }
-        core.read_8(UID_ADDR, &mut uid).map_err(probe_err)?;
+/// The outcome of a write followed by the core reset: the write's error first, a failed reset
+/// named with it.
+fn finish(
+    result: Result<FlashReport, FlashError>,
+    reset: Result<(), String>,
+) -> Result<FlashReport, FlashError> {
+    match (result, reset) {
+        (Ok(report), Ok(())) => Ok(report),
+        (Ok(_), Err(reset)) => Err(FlashError::Probe(format!("resetting the core after the write: {reset}"))),
+        (Err(error), Ok(())) => Err(error),
+        (Err(error), Err(reset)) => Err(FlashError::NotReset { error: Box::new(error), reset }),
     }
+}
+
+/// Steps 1–5 of the module docs on an attached session (the caller resets the core).
+fn write_attached(session: &mut Session, rec: &Record, record: &[u8]) -> Result<FlashReport, FlashError> {
+    let mut slots = [[0u8; SLOT_SIZE]; N_SLOTS];
+    let mut uid = [0u8; 12];
+    let readable = read_slots(session, &mut slots)?;
+    session.core(0).map_err(probe_err)?.read_8(UID_ADDR.into(), &mut uid).map_err(probe_err)?;
     if rec.device_id != uid {
         return Err(FlashError::WrongDevice { record: hex(&rec.device_id), mcu: hex(&uid) });
     }
-    let plan = WritePlan::new([&slots[0], &slots[1]], record).map_err(FlashError::Plan)?;
-    let address = RECORD_SLOTS[plan.slot as usize];
+    let plan = WritePlan::from_readings(readings(&slots, readable), record).map_err(FlashError::Plan)?;
+    let address = SLOT_ADDRS[plan.slot as usize].into();
 
     let mut loader = session.target().flash_loader();
-    // The whole page: exactly one 2 KiB sector, erased bytes included.
+    // The whole page: exactly one 2 KiB sector, erased bytes included, programmed in ascending
+    // double words, so the commit double word at the page's end is programmed last.
     loader.add_data(address, &plan.page).map_err(probe_err)?;
     let mut options = DownloadOptions::default();
     options.keep_unwritten_bytes = true;
     options.verify = true;
-    loader.commit(&mut session, options).map_err(probe_err)?;
+    loader.commit(session, options).map_err(probe_err)?;
 
-    let mut core = session.core(0).map_err(probe_err)?;
-    for (buf, addr) in slots.iter_mut().zip(RECORD_SLOTS) {
-        core.read_8(addr, buf).map_err(probe_err)?;
-    }
-    match select([&slots[0], &slots[1]]) {
+    let readable = read_slots(session, &mut slots)?;
+    match select_readings(readings(&slots, readable)) {
         Ok(a) if a.slot == plan.slot && a.image.sequence == plan.sequence => {}
         _ => return Err(FlashError::Verify(plan.slot)),
     }
-    core.reset().map_err(probe_err)?;
     Ok(FlashReport { slot: plan.slot, sequence: plan.sequence, address })
+}
+
+/// The slot readings: a slot's bytes when it was readable.
+fn readings(slots: &[[u8; SLOT_SIZE]; N_SLOTS], readable: [bool; N_SLOTS]) -> [Option<&[u8]>; N_SLOTS] {
+    [0, 1].map(|i| readable[i].then_some(&slots[i][..]))
+}
+
+/// Reads both slots through the probe; returns which ones were readable. A slot is unreadable
+/// when the probe's read fails or when reading it raised a double ECC error in it (FLASH_ECCR, the
+/// same decision as the node's NMI handler, [`nmi_action`]); that error is then cleared. (If the
+/// node's firmware is running, its NMI handler may clear ECCD first; the torn slot's bytes then
+/// fail its commit or CRC check, so it is not in force and is planned as the target all the same.)
+fn read_slots(
+    session: &mut Session,
+    slots: &mut [[u8; SLOT_SIZE]; N_SLOTS],
+) -> Result<[bool; N_SLOTS], FlashError> {
+    let mut core = session.core(0).map_err(probe_err)?;
+    let mut readable = [true; N_SLOTS];
+    for (i, buf) in slots.iter_mut().enumerate() {
+        if core.read_8(SLOT_ADDRS[i].into(), buf).is_err() {
+            readable[i] = false;
+        }
+        let eccr = core.read_word_32(FLASH_ECCR_ADDR.into()).map_err(probe_err)?;
+        if let NmiAction::SlotUnreadable { slot, clear } = nmi_action(eccr) {
+            readable[slot as usize] = false;
+            core.write_word_32(FLASH_ECCR_ADDR.into(), clear).map_err(probe_err)?;
+        }
+    }
+    Ok(readable)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn report() -> FlashReport {
+        FlashReport { slot: 1, sequence: 2, address: 0x080F_F800 }
+    }
+
+    #[test]
+    fn the_reset_follows_every_outcome_and_its_failure_is_named() {
+        assert_eq!(finish(Ok(report()), Ok(())).unwrap(), report());
+        let e = finish(Ok(report()), Err("link lost".into())).unwrap_err();
+        assert_eq!(e.to_string(), "probe: resetting the core after the write: link lost");
+        let e = finish(Err(FlashError::Verify(1)), Ok(())).unwrap_err();
+        assert!(matches!(e, FlashError::Verify(1)), "{e}");
+        let e = finish(Err(FlashError::Verify(1)), Err("link lost".into())).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "after writing slot 1, the record in force is not the new one; resetting the core \
+             afterwards failed too (link lost): power-cycle the node"
+        );
+    }
+
+    #[test]
+    fn an_unreadable_slot_is_planned_as_the_target() {
+        use accelcal_shared::linear::Model4;
+        use accelcal_shared::slots::SlotImage;
+        let m = Model4 { u0: [32000.0; 3], k: [[1600.0, 0.0, 0.0], [0.0, 1600.0, 0.0], [0.0, 0.0, 1600.0]] };
+        let mut buf = [0u8; accelcal_shared::record::MAX_RECORD_LEN];
+        let n = Record::from_model4(*b"QEMU-B-L475E", 1, &m).emit(&mut buf).unwrap();
+        let page = SlotImage::build(&buf[..n], 5).unwrap();
+        let slots = [page, [0u8; SLOT_SIZE]];
+        let plan = WritePlan::from_readings(readings(&slots, [true, false]), &buf[..n]).unwrap();
+        assert_eq!((plan.slot, plan.sequence), (1, 6));
+        let plan = WritePlan::from_readings(readings(&slots, [false, true]), &buf[..n]).unwrap();
+        assert_eq!((plan.slot, plan.sequence), (0, 1));
+    }
 }

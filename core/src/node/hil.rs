@@ -355,9 +355,9 @@ impl QemuNode {
         match data {
             Block::Calibrated(v) if v.len() == sent => accel.extend_from_slice(&v),
             // Fixed point: m/s²·2¹⁶ as i32; exact in f32 for |a| < 256 m/s².
-            Block::CalibratedFixed(v) if v.len() == sent => {
-                accel.extend(v.iter().map(|a| a.map(|q| (q as f64 / 65536.0) as f32)))
-            }
+            Block::CalibratedFixed(v) if v.len() == sent => accel.extend(
+                v.iter().map(|a| a.map(|q| (q as f64 / accelcal_shared::contract::FIXED_SCALE) as f32)),
+            ),
             Block::Uncalibrated(_) => {
                 return Err(HilError::Protocol("the node answered uncalibrated codes".into()))
             }

@@ -8,13 +8,15 @@ pub mod hil;
 pub mod link;
 pub mod monitor;
 
-/// Flash addresses of the two record slots (the repository's `memory.x`: the last two 2 KiB pages
-/// of the STM32L475VG's 1 MiB flash).
-pub const RECORD_SLOTS: [u64; 2] = [0x080F_F000, 0x080F_F800];
+/// Flash addresses of the two record slots (`accelcal_shared::contract`, checked against the
+/// repository's `memory.x`: the last two 2 KiB pages of the STM32L475VG's 1 MiB flash).
+pub const RECORD_SLOTS: [u64; 2] = [contract::SLOT_ADDRS[0] as u64, contract::SLOT_ADDRS[1] as u64];
 
 /// Device id of the QEMU node (QEMU does not model the MCU's unique-id area). A record replayed
-/// through `accelcal hil` must carry it; see `firmware/src/board/qemu/mod.rs`.
-pub const QEMU_DEVICE_ID: [u8; 12] = *b"QEMU-B-L475E";
+/// through `accelcal hil` must carry it.
+pub use accelcal_shared::contract::QEMU_DEVICE_ID;
 
-/// Address of the STM32L4's 96-bit unique device id (RM0351 §50.1).
-pub const UID_ADDR: u64 = 0x1FFF_7590;
+/// Address of the STM32L4's 96-bit unique device id (`accelcal_shared::contract::UID_ADDR`).
+pub const UID_ADDR: u64 = contract::UID_ADDR as u64;
+
+use accelcal_shared::contract;

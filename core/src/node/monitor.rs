@@ -11,7 +11,7 @@ use accelcal_shared::wire::{Block, NodeMsg, RecordStatus, Status};
 use super::link::{LinkError, Receiver};
 
 /// The node's USART1 baud rate (`firmware/src/board/real.rs`).
-pub const NODE_BAUD: u32 = 921_600;
+pub const NODE_BAUD: u32 = accelcal_shared::contract::BAUD_REAL;
 
 /// One line of text for a status report.
 pub fn format_status(s: &Status) -> String {
@@ -36,7 +36,7 @@ pub fn format_block(seq: u32, data: &Block) -> Vec<String> {
         Block::CalibratedFixed(v) => v
             .iter()
             .map(|a| {
-                let f = |q: i32| q as f64 / 65536.0;
+                let f = |q: i32| q as f64 / accelcal_shared::contract::FIXED_SCALE;
                 format!("{seq} {:.5} {:.5} {:.5}", f(a[0]), f(a[1]), f(a[2]))
             })
             .collect(),

@@ -6,10 +6,10 @@
 //! exported unmangled and never inlined so that the benchmark can find them in the ELF and count
 //! the instructions QEMU executes inside them.
 
+use accelcal_shared::boot::{self, Arithmetic, NodeCal};
 use accelcal_shared::linear::{LinearCalF32, LinearCalFixed};
-use accelcal_shared::record::{Record, RecordError};
-use accelcal_shared::slots::{self, SlotError, SlotImage};
-use accelcal_shared::wire::{record_error_code, Block, Codes, RecordFault, RecordStatus};
+use accelcal_shared::slots::{SlotRead, N_SLOTS, SLOT_SIZE};
+use accelcal_shared::wire::{Block, Codes, RecordStatus};
 use heapless::Vec;
 
 use super::ports::RecordStorage;
@@ -70,67 +70,47 @@ impl Calibration {
     }
 }
 
-/// Reads the record slots and returns the calibration to apply and what to report about it.
-/// Every way a record can be unusable ends in [`Calibration::Uncalibrated`] with the reason.
+/// Reads the record slots and returns the calibration to apply and what to report about it: the
+/// decision is [`boot::decide`] (shared, tested on the host). Every way a record can be unusable
+/// ends in [`Calibration::Uncalibrated`] with the reason.
 pub fn load(storage: &impl RecordStorage) -> (Calibration, RecordStatus) {
-    match try_load(storage) {
-        Ok((cal, status)) => {
-            if let RecordStatus::InUse { slot, sequence, created_unix_s } = status {
-                defmt::info!(
-                    "record in use: slot {=u8}, sequence {=u32}, created {=u64}",
-                    slot,
-                    sequence,
-                    created_unix_s
-                );
-            }
-            (cal, status)
+    let mut bufs = [[0u8; SLOT_SIZE]; N_SLOTS];
+    let [a, b] = &mut bufs;
+    let reads = [storage.read_slot(0, a), storage.read_slot(1, b)];
+    for (slot, r) in reads.iter().enumerate() {
+        if *r == SlotRead::Unreadable {
+            defmt::warn!("record slot {=usize} is unreadable (flash ECC error): treated as invalid", slot);
         }
-        Err(fault) => {
+    }
+    let readings = [
+        (reads[0] == SlotRead::Complete).then_some(&a[..]),
+        (reads[1] == SlotRead::Complete).then_some(&b[..]),
+    ];
+    let arith = if cfg!(feature = "fixed-point") { Arithmetic::Fixed } else { Arithmetic::F32 };
+    match boot::decide(readings, &storage.device_id(), arith) {
+        Ok(boot) => {
+            if let Some(e) = boot.skipped {
+                defmt::warn!("record slot {=u8} skipped: {}", boot.slot ^ 1, defmt::Display2Format(&e));
+            }
+            defmt::info!(
+                "record in use: slot {=u8} (format v{=u8}), sequence {=u32}, created {=u64}",
+                boot.slot,
+                boot.slot_version,
+                boot.sequence,
+                boot.record.created_unix_s
+            );
+            let cal = match boot.cal {
+                NodeCal::F32(c) => Calibration::F32(c),
+                NodeCal::Fixed(c) => Calibration::Fixed(c),
+            };
+            (cal, boot.status())
+        }
+        Err(e) => {
             defmt::warn!(
                 "no valid calibration record ({}): streaming raw codes flagged UNCALIBRATED",
-                defmt::Display2Format(&fault)
+                defmt::Display2Format(&e)
             );
-            (Calibration::Uncalibrated, RecordStatus::Missing(fault))
+            (Calibration::Uncalibrated, RecordStatus::Missing(e.fault()))
         }
     }
-}
-
-/// The fault for a record that does not parse; logs the error with its value (the status carries
-/// only its code: e.g. the unsupported version's number is in the log only).
-fn bad_record(e: RecordError) -> RecordFault {
-    defmt::warn!("record slot holds an invalid record: {}", defmt::Display2Format(&e));
-    RecordFault::BadRecord(record_error_code(e))
-}
-
-fn try_load(storage: &impl RecordStorage) -> Result<(Calibration, RecordStatus), RecordFault> {
-    let [a, b] = storage.slots();
-    let slots = [&a[..], &b[..]];
-    let active = slots::select(slots).map_err(|e| match e {
-        SlotError::Record(r) => bad_record(r),
-        _ => RecordFault::NoSlot,
-    })?;
-    // A committed slot passed over (e.g. a newer record of another format version) is logged.
-    let other = (active.slot ^ 1) as usize;
-    if let Err(e) = SlotImage::parse(slots[other]) {
-        if e != SlotError::NotCommitted {
-            defmt::warn!("record slot {=usize} skipped: {}", other, defmt::Display2Format(&e));
-        }
-    }
-    let record = Record::parse(active.image.record).map_err(bad_record)?;
-    if record.device_id != storage.device_id() {
-        return Err(RecordFault::WrongDevice);
-    }
-    let model = record.model4().ok_or(RecordFault::NotModel4)?;
-    let inverse = model.invert().map_err(|_| RecordFault::Singular)?;
-    let cal = if cfg!(feature = "fixed-point") {
-        Calibration::Fixed(inverse.to_fixed().map_err(|_| RecordFault::Singular)?)
-    } else {
-        Calibration::F32(inverse.to_f32())
-    };
-    let status = RecordStatus::InUse {
-        slot: active.slot,
-        sequence: active.image.sequence,
-        created_unix_s: record.created_unix_s,
-    };
-    Ok((cal, status))
 }

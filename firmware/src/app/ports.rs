@@ -1,7 +1,7 @@
 //! The small traits through which the application sees a board.
 #![allow(async_fn_in_trait)]
 
-use accelcal_shared::slots::{N_SLOTS, SLOT_SIZE};
+use accelcal_shared::slots::{SlotRead, SLOT_SIZE};
 use accelcal_shared::wire::{Codes, MAX_BLOCK};
 
 /// The receiving half of the host link.
@@ -34,8 +34,9 @@ pub trait SampleSource {
 
 /// Where the calibration records live and whose they must be.
 pub trait RecordStorage {
-    /// The two record slots, memory-mapped.
-    fn slots(&self) -> [&'static [u8; SLOT_SIZE]; N_SLOTS];
+    /// Reads record slot `slot` (0 or 1) into `out`. A slot that cannot be read (a double word
+    /// failed its flash ECC check) is [`SlotRead::Unreadable`] and `out` means nothing.
+    fn read_slot(&self, slot: u8, out: &mut [u8; SLOT_SIZE]) -> SlotRead;
     /// The MCU's 96-bit unique id, which a record's device id must equal.
     fn device_id(&self) -> [u8; 12];
 }

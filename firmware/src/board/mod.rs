@@ -11,7 +11,8 @@ compile_error!("choose one board: features `board-real` and `board-qemu` exclude
 #[cfg(not(any(feature = "board-real", feature = "board-qemu")))]
 compile_error!("choose a board: enable feature `board-real` or `board-qemu`");
 
-use accelcal_shared::slots::{N_SLOTS, SLOT_SIZE};
+use accelcal_shared::contract::SLOT_ADDRS;
+use accelcal_shared::slots::{SlotRead, PROGRAM_UNIT, SLOT_SIZE};
 
 #[cfg(feature = "board-qemu")]
 mod qemu;
@@ -23,19 +24,34 @@ mod real;
 #[cfg(feature = "board-real")]
 pub use real::*;
 
-unsafe extern "C" {
-    // Defined in the repository's memory.x: two 2 KiB pages at the end of flash, outside the
-    // FLASH region the linker fills.
-    static __record_slot0: [u8; SLOT_SIZE];
-    static __record_slot1: [u8; SLOT_SIZE];
+/// Reads record slot `slot` (at [`SLOT_ADDRS`], reserved in `memory.x`) into `out` with volatile
+/// 32-bit loads, one double word at a time. `faulted()` says whether a flash ECC error was reported
+/// for this slot since the read began (the real board's NMI handler sets it); it is asked after
+/// every double word and once more at the end, after a barrier, so that an NMI taken a few
+/// instructions late is still seen. The bytes of a faulted read are discarded: the slot is
+/// [`SlotRead::Unreadable`].
+fn read_slot_with(slot: u8, out: &mut [u8; SLOT_SIZE], faulted: impl Fn() -> bool) -> SlotRead {
+    let Some(&base) = SLOT_ADDRS.get(slot as usize) else {
+        return SlotRead::Unreadable;
+    };
+    for (i, dw) in out.chunks_exact_mut(PROGRAM_UNIT).enumerate() {
+        let addr = (base as usize + i * PROGRAM_UNIT) as *const u32;
+        // SAFETY: the slot pages are mapped, readable flash for the program's lifetime (memory.x
+        // keeps the linker out of them and the firmware never writes flash); `addr` is 4-aligned
+        // and inside the page. An ECC error on the load is an NMI, not a bus fault.
+        let (lo, hi) = unsafe { (core::ptr::read_volatile(addr), core::ptr::read_volatile(addr.add(1))) };
+        cortex_m::asm::dsb();
+        cortex_m::asm::isb();
+        if faulted() {
+            return SlotRead::Unreadable;
+        }
+        dw[..4].copy_from_slice(&lo.to_le_bytes());
+        dw[4..].copy_from_slice(&hi.to_le_bytes());
+    }
+    cortex_m::asm::dsb();
+    cortex_m::asm::isb();
+    if faulted() {
+        return SlotRead::Unreadable;
+    }
+    SlotRead::Complete
 }
-
-/// The two record slots as memory-mapped flash (reserved in `memory.x`).
-pub fn record_slots() -> [&'static [u8; SLOT_SIZE]; N_SLOTS] {
-    // SAFETY: memory.x places both symbols on flash pages that nothing in the firmware writes;
-    // they are plain readable memory for the program's lifetime.
-    unsafe { [&*core::ptr::addr_of!(__record_slot0), &*core::ptr::addr_of!(__record_slot1)] }
-}
-
-/// Address of the MCU's 96-bit unique device id (RM0351 §50.1, "Unique device ID register").
-pub const UID_ADDR: usize = 0x1FFF_7590;

@@ -14,7 +14,11 @@
 //! in circular mode into a ring buffer of two blocks; the sampler task reads one half while the
 //! DMA fills the other. A lap of the ring is an overrun: counted and reported in every status.
 
-use accelcal_shared::slots::{N_SLOTS, SLOT_SIZE};
+use core::sync::atomic::{AtomicU8, Ordering};
+
+use accelcal_shared::contract::BAUD_REAL;
+use accelcal_shared::flash_ecc::{self, NmiAction};
+use accelcal_shared::slots::{SlotRead, SLOT_SIZE};
 use accelcal_shared::wire::{Codes, MAX_BLOCK};
 use defmt_rtt as _;
 use embassy_stm32::adc::{Adc, AdcChannel, AdcConfig, RingBufferedAdc, SampleTime, CONTINUOUS};
@@ -31,8 +35,9 @@ use crate::app::ports::{LinkRx, LinkTx, Overrun, RecordStorage, SampleSource};
 
 /// Sampling rate per channel, Hz (the TIM6 update rate).
 pub const SAMPLE_RATE_HZ: u32 = 1000;
-/// USART1 baud rate: 1 kHz of calibrated triads in blocks of 16 is about 12.5 kB/s of frames.
-pub const BAUD: u32 = 921_600;
+/// USART1 baud rate ([`BAUD_REAL`]): 1 kHz of calibrated triads in blocks of 16 is about
+/// 12.5 kB/s of frames.
+pub const BAUD: u32 = BAUD_REAL;
 /// Channels per sample set.
 const N_CH: usize = 3;
 /// EXTSEL value for TIM6_TRGO (RM0351 §18.4.18, Table 96: EXT13).
@@ -51,8 +56,10 @@ bind_interrupts!(struct Irqs {
 pub struct Storage;
 
 impl RecordStorage for Storage {
-    fn slots(&self) -> [&'static [u8; SLOT_SIZE]; N_SLOTS] {
-        super::record_slots()
+    fn read_slot(&self, slot: u8, out: &mut [u8; SLOT_SIZE]) -> SlotRead {
+        let bit = 1u8.checked_shl(slot as u32).unwrap_or(0);
+        SLOT_ECC_FAULTS.fetch_and(!bit, Ordering::SeqCst);
+        super::read_slot_with(slot, out, || SLOT_ECC_FAULTS.load(Ordering::SeqCst) & bit != 0)
     }
     fn device_id(&self) -> [u8; 12] {
         embassy_stm32::uid::uid()
@@ -193,5 +200,29 @@ pub fn init() -> Board {
         tx: LinkTxImpl(tx),
         storage: Storage,
         source: SourceImpl { adc, _timer: timer },
+    }
+}
+
+/// Record slots in which a double ECC error was reported (bit n: slot n), set by the NMI handler.
+static SLOT_ECC_FAULTS: AtomicU8 = AtomicU8::new(0);
+
+/// The NMI: a double ECC error in a record slot (a write or erase cut by a power loss) is cleared
+/// and marks the slot unreadable, so that reading it yields "slot invalid" instead of hanging the
+/// boot (cortex-m-rt's default NMI handler loops forever); any other NMI resets the MCU. The
+/// decision is `accelcal_shared::flash_ecc::nmi_action`; FLASH_ECCR is RM0351 §3.7.8 (ECCD is
+/// write-1-to-clear). The load that raised the error completes with meaningless data, which
+/// `board::read_slot_with` discards.
+///
+/// SAFETY (cortex-m-rt's requirement for an NMI handler): it touches no data protected by a
+/// critical section, only FLASH_ECCR, an atomic, and the reset request.
+#[cortex_m_rt::exception]
+unsafe fn NonMaskableInt() {
+    let eccr = embassy_stm32::pac::FLASH.eccr();
+    match flash_ecc::nmi_action(eccr.read().0) {
+        NmiAction::SlotUnreadable { slot, clear } => {
+            eccr.write_value(embassy_stm32::pac::flash::regs::Eccr(clear));
+            SLOT_ECC_FAULTS.fetch_or(1 << slot, Ordering::SeqCst);
+        }
+        NmiAction::Reset => cortex_m::peripheral::SCB::sys_reset(),
     }
 }

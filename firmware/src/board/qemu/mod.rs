@@ -6,7 +6,7 @@
 mod time;
 mod usart;
 
-use accelcal_shared::slots::{N_SLOTS, SLOT_SIZE};
+use accelcal_shared::slots::{SlotRead, SLOT_SIZE};
 use cortex_m_rt::exception;
 use defmt_semihosting as _;
 
@@ -17,16 +17,18 @@ pub use usart::{LinkRxImpl, LinkTxImpl};
 /// Live sampling rate: none, samples arrive over the link.
 pub const SAMPLE_RATE_HZ: u32 = 0;
 
-/// The device id the QEMU board reports. QEMU 10 does not map the unique-id area
-/// ([`super::UID_ADDR`]: reading it faults), so records meant for the emulated node carry this id.
-pub const QEMU_DEVICE_ID: [u8; 12] = *b"QEMU-B-L475E";
+/// The device id the QEMU board reports ([`accelcal_shared::contract::QEMU_DEVICE_ID`]). QEMU 10
+/// does not map the unique-id area (`contract::UID_ADDR`: reading it faults), so records meant for
+/// the emulated node carry this id.
+pub const QEMU_DEVICE_ID: [u8; 12] = accelcal_shared::contract::QEMU_DEVICE_ID;
 
 /// Record slots in flash, and the emulated node's device id.
 pub struct Storage;
 
 impl RecordStorage for Storage {
-    fn slots(&self) -> [&'static [u8; SLOT_SIZE]; N_SLOTS] {
-        super::record_slots()
+    /// QEMU's flash has no ECC: every slot reads completely.
+    fn read_slot(&self, slot: u8, out: &mut [u8; SLOT_SIZE]) -> SlotRead {
+        super::read_slot_with(slot, out, || false)
     }
     fn device_id(&self) -> [u8; 12] {
         QEMU_DEVICE_ID

@@ -37,7 +37,7 @@ const RCC_APB2ENR_USART1EN: u32 = 1 << 14;
 pub(super) const USART1_IRQN: i16 = 37;
 /// Kernel clock after reset: MSI at 4 MHz (RM0351 §6.2.3); QEMU ignores the baud rate anyway.
 const F_CK_HZ: u32 = 4_000_000;
-const BAUD: u32 = 115_200;
+const BAUD: u32 = accelcal_shared::contract::BAUD_QEMU;
 
 static RX_PIPE: Pipe<CriticalSectionRawMutex, 256> = Pipe::new();
 

@@ -1,0 +1,219 @@
+//! The node's boot decision as a pure function: from the two slot readings and the MCU's device
+//! id, which record is in force and the calibration to apply, or why there is none.
+//!
+//! The firmware reads the slots (turning a flash ECC error into an unreadable slot), calls
+//! [`decide`] and applies the result; everything it decides is tested here on the host.
+
+use crate::linear::{LinearCalF32, LinearCalFixed};
+use crate::record::{Record, RecordError};
+use crate::slots::{self, SlotError, SlotReading, N_SLOTS};
+use crate::wire::{record_error_code, RecordFault, RecordStatus};
+
+/// The arithmetic the node calibrates in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Arithmetic {
+    /// f32 (FPU parts).
+    F32,
+    /// Fixed point, output m/s²·2¹⁶ (FPU-less parts).
+    Fixed,
+}
+
+/// The calibration to apply, in the node's arithmetic.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum NodeCal {
+    /// Model 4 in f32.
+    F32(LinearCalF32),
+    /// Model 4 in fixed point.
+    Fixed(LinearCalFixed),
+}
+
+/// A record in force.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Boot {
+    /// Slot it was read from (0 or 1).
+    pub slot: u8,
+    /// Format version of that slot (1 or 2).
+    pub slot_version: u8,
+    /// The slot's write sequence number.
+    pub sequence: u32,
+    /// The record.
+    pub record: Record,
+    /// The calibration to apply.
+    pub cal: NodeCal,
+    /// The other slot, when it holds something that is not valid and not simply empty (worth a
+    /// log line: e.g. a newer record of another format version, or an unreadable page).
+    pub skipped: Option<SlotError>,
+}
+
+impl Boot {
+    /// What the node reports about its record.
+    pub fn status(&self) -> RecordStatus {
+        RecordStatus::InUse {
+            slot: self.slot,
+            sequence: self.sequence,
+            created_unix_s: self.record.created_unix_s,
+        }
+    }
+}
+
+/// Why no record is in force.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BootError {
+    /// Neither slot holds a valid slot image; the more informative of the two slots' errors
+    /// (see [`slots::select_readings`]) that is not about the record itself.
+    NoSlot(SlotError),
+    /// The slot in force (or, with none valid, a committed slot) holds a record that does not
+    /// parse.
+    BadRecord(RecordError),
+    /// The record was made for another device.
+    WrongDevice,
+    /// The record is not model 4 for three channels.
+    NotModel4,
+    /// The record's sensitivity matrix cannot be inverted (or does not fit fixed point).
+    Singular,
+}
+
+impl BootError {
+    /// The reason as the node reports it over the link.
+    pub fn fault(&self) -> RecordFault {
+        match *self {
+            BootError::NoSlot(_) => RecordFault::NoSlot,
+            BootError::BadRecord(e) => RecordFault::BadRecord(record_error_code(e)),
+            BootError::WrongDevice => RecordFault::WrongDevice,
+            BootError::NotModel4 => RecordFault::NotModel4,
+            BootError::Singular => RecordFault::Singular,
+        }
+    }
+}
+
+impl core::fmt::Display for BootError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            BootError::NoSlot(e) => write!(f, "no valid record slot ({e})"),
+            BootError::BadRecord(e) => write!(f, "record slot holds an invalid record: {e}"),
+            BootError::WrongDevice => f.write_str("the record was made for another device"),
+            BootError::NotModel4 => f.write_str("the record is not model 4 for three channels"),
+            BootError::Singular => f.write_str("the record's sensitivity matrix cannot be inverted"),
+        }
+    }
+}
+
+/// Decides which record is in force. `readings` are the two slots as read (`None`: unreadable),
+/// `device_id` the MCU's unique id, `arith` the node's arithmetic. Accepts any bytes.
+pub fn decide(
+    readings: [SlotReading<'_>; N_SLOTS],
+    device_id: &[u8; 12],
+    arith: Arithmetic,
+) -> Result<Boot, BootError> {
+    let active = slots::select_readings(readings).map_err(|e| match e {
+        SlotError::Record(r) => BootError::BadRecord(r),
+        e => BootError::NoSlot(e),
+    })?;
+    let other = (active.slot ^ 1) as usize;
+    let skipped = match slots::parse_reading(readings[other]) {
+        Err(e) if e != SlotError::NotCommitted => Some(e),
+        _ => None,
+    };
+    let record = Record::parse(active.image.record).map_err(BootError::BadRecord)?;
+    if record.device_id != *device_id {
+        return Err(BootError::WrongDevice);
+    }
+    let inverse = record.model4().ok_or(BootError::NotModel4)?.invert().map_err(|_| BootError::Singular)?;
+    let cal = match arith {
+        Arithmetic::F32 => NodeCal::F32(inverse.to_f32()),
+        Arithmetic::Fixed => NodeCal::Fixed(inverse.to_fixed().map_err(|_| BootError::Singular)?),
+    };
+    Ok(Boot {
+        slot: active.slot,
+        slot_version: active.image.version,
+        sequence: active.image.sequence,
+        record,
+        cal,
+        skipped,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::linear::Model4;
+    use crate::record::MAX_RECORD_LEN;
+    use crate::slots::{SlotImage, SLOT_SIZE};
+    use crate::terms::Structure;
+
+    const ID: [u8; 12] = *b"QEMU-B-L475E";
+
+    fn model() -> Model4 {
+        Model4 {
+            u0: [32100.5, 33012.25, 31877.75],
+            k: [[1671.2, 8.5, -3.25], [-4.0, 1650.75, 6.5], [2.5, -7.75, 1689.0]],
+        }
+    }
+
+    fn bytes(r: &Record) -> std::vec::Vec<u8> {
+        let mut buf = [0u8; MAX_RECORD_LEN];
+        let n = r.emit(&mut buf).unwrap();
+        buf[..n].to_vec()
+    }
+
+    fn record(id: [u8; 12], created: u64) -> std::vec::Vec<u8> {
+        bytes(&Record::from_model4(id, created, &model()))
+    }
+
+    #[test]
+    fn the_newer_valid_slot_is_in_force_with_its_calibration() {
+        let a = SlotImage::build(&record(ID, 1), 4).unwrap();
+        let b = SlotImage::build_v1(&record(ID, 2), 5).unwrap();
+        let boot = decide([Some(&a), Some(&b)], &ID, Arithmetic::F32).unwrap();
+        assert_eq!((boot.slot, boot.slot_version, boot.sequence), (1, 1, 5));
+        assert_eq!(boot.status(), RecordStatus::InUse { slot: 1, sequence: 5, created_unix_s: 2 });
+        let inv = model().invert().unwrap();
+        assert_eq!(boot.cal, NodeCal::F32(inv.to_f32()));
+        assert_eq!(boot.skipped, None);
+        let boot = decide([Some(&a), None], &ID, Arithmetic::Fixed).unwrap();
+        assert_eq!((boot.slot, boot.slot_version, boot.sequence), (0, 2, 4));
+        assert_eq!(boot.cal, NodeCal::Fixed(inv.to_fixed().unwrap()));
+        assert_eq!(boot.skipped, Some(SlotError::Unreadable));
+    }
+
+    #[test]
+    fn each_reason_for_no_record() {
+        let erased = [0xffu8; SLOT_SIZE];
+        let no = |r: [SlotReading<'_>; 2]| decide(r, &ID, Arithmetic::F32).unwrap_err();
+        assert_eq!(no([Some(&erased), Some(&erased)]), BootError::NoSlot(SlotError::NotCommitted));
+        assert_eq!(no([None, Some(&erased)]), BootError::NoSlot(SlotError::Unreadable));
+        assert_eq!(no([None, None]).fault(), RecordFault::NoSlot);
+        let other = SlotImage::build(&record(*b"another-chip", 1), 1).unwrap();
+        assert_eq!(no([Some(&other), None]), BootError::WrongDevice);
+        let mut quad = Record::from_model4(ID, 1, &model());
+        quad.structure = Structure::from_indices(&[0, 1, 2, 3, 4]);
+        let quad = SlotImage::build(&bytes(&quad), 1).unwrap();
+        assert_eq!(no([Some(&erased), Some(&quad)]), BootError::NotModel4);
+        let mut sing = model();
+        sing.k[2] = sing.k[1];
+        let sing = SlotImage::build(&bytes(&Record::from_model4(ID, 1, &sing)), 1).unwrap();
+        assert_eq!(no([Some(&sing), Some(&erased)]), BootError::Singular);
+        assert_eq!(no([Some(&sing), Some(&erased)]).fault(), RecordFault::Singular);
+        // A committed slot whose record does not parse (a bit flipped, both CRCs of the slot made
+        // to match) is reported by the record's error.
+        let good = record(ID, 1);
+        let mut bad = good.clone();
+        bad[4] = 9; // format version 9
+        let n = bad.len();
+        let crc = crate::record::crc32(&bad[..n - 4]);
+        bad[n - 4..].copy_from_slice(&crc.to_le_bytes());
+        let mut page = SlotImage::build_v1(&good, 1).unwrap();
+        page[16..16 + n].copy_from_slice(&bad);
+        let mut covered = page[4..12].to_vec();
+        covered.extend_from_slice(&bad);
+        page[12..16].copy_from_slice(&crate::record::crc32(&covered).to_le_bytes());
+        let e = no([Some(&page), Some(&erased)]);
+        assert_eq!(e, BootError::BadRecord(RecordError::UnsupportedVersion(9)));
+        assert_eq!(e.fault(), RecordFault::BadRecord(3));
+        // Next to a valid slot it is skipped, and named.
+        let ok = SlotImage::build(&good, 0).unwrap();
+        let boot = decide([Some(&page), Some(&ok)], &ID, Arithmetic::F32).unwrap();
+        assert_eq!(boot.slot, 1);
+        assert_eq!(boot.skipped, Some(SlotError::Record(RecordError::UnsupportedVersion(9))));
+    }
+}

@@ -1,0 +1,123 @@
+//! The node contract: the numbers that the firmware, the host (`accelcal flash`, `hil`, `monitor`),
+//! xtask and the repository's `memory.x` must agree on, defined once.
+//!
+//! `memory.x` (repository root) is a linker script and cannot import these; this module's tests
+//! parse it (embedded at compile time) and check its regions against the contract.
+
+/// Start of the STM32L475VG's flash (RM0351 §3.3.1, Table 9).
+pub const FLASH_BASE: u32 = 0x0800_0000;
+/// Size of the whole flash: 1 MiB in two banks of 512 KiB.
+pub const FLASH_SIZE: u32 = 1024 * 1024;
+/// Size of one flash bank (RM0351 §3.3.1: bank 2 starts at 0x0808_0000 when BFB2 = 0).
+pub const FLASH_BANK_SIZE: u32 = 512 * 1024;
+/// Flash page (erase unit) size, 2 KiB (RM0351 §3.3.1).
+pub const FLASH_PAGE_SIZE: u32 = 2048;
+/// Start of SRAM1.
+pub const RAM_BASE: u32 = 0x2000_0000;
+/// Size of SRAM1 (SRAM2 at 0x1000_0000 is unused), 96 KiB.
+pub const RAM_SIZE: u32 = 96 * 1024;
+
+/// Number of record slots.
+pub const N_SLOTS: usize = 2;
+/// Size of one record slot: one flash page.
+pub const SLOT_SIZE: usize = FLASH_PAGE_SIZE as usize;
+/// Flash address of record slot 0: page 510, the second-to-last page of bank 2.
+pub const SLOT0_ADDR: u32 = FLASH_BASE + FLASH_SIZE - (N_SLOTS * SLOT_SIZE) as u32;
+/// Flash addresses of the two record slots (the last two pages of flash).
+pub const SLOT_ADDRS: [u32; N_SLOTS] = [SLOT0_ADDR, SLOT0_ADDR + SLOT_SIZE as u32];
+/// End of the application's flash region (`FLASH` in `memory.x`): the record slots follow it.
+pub const APP_FLASH_END: u32 = SLOT0_ADDR;
+
+/// Address of the MCU's 96-bit unique device id (RM0351 §50.1, "Unique device ID register").
+pub const UID_ADDR: u32 = 0x1FFF_7590;
+/// Device id the QEMU board reports: QEMU 10 does not map the unique-id area, so records meant
+/// for the emulated node carry this id.
+pub const QEMU_DEVICE_ID: [u8; 12] = *b"QEMU-B-L475E";
+
+/// USART1 baud rate of the real board (ST-LINK virtual COM port).
+pub const BAUD_REAL: u32 = 921_600;
+/// USART1 baud rate of the QEMU board (QEMU ignores it; the emulated BRR is set from it).
+pub const BAUD_QEMU: u32 = 115_200;
+
+/// Scale of the fixed-point output (`Block::CalibratedFixed`): m/s² · 2¹⁶.
+pub const FIXED_SCALE: f64 = 65536.0;
+/// Fraction bits of the fixed-point output.
+pub const FIXED_FRAC_BITS: u32 = 16;
+
+const _: () = assert!(FIXED_SCALE == (1u64 << FIXED_FRAC_BITS) as f64);
+const _: () = assert!(SLOT_ADDRS[1] + SLOT_SIZE as u32 == FLASH_BASE + FLASH_SIZE);
+const _: () = assert!(SLOT0_ADDR.is_multiple_of(FLASH_PAGE_SIZE));
+// Both slots lie in bank 2, which the ECC decision ([`crate::flash_ecc`]) relies on.
+const _: () = assert!(SLOT0_ADDR >= FLASH_BASE + FLASH_BANK_SIZE);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_contract_literals() {
+        assert_eq!(SLOT_ADDRS, [0x080F_F000, 0x080F_F800]);
+        assert_eq!(APP_FLASH_END - FLASH_BASE, 1020 * 1024);
+        assert_eq!(RAM_BASE + RAM_SIZE, 0x2001_8000);
+        assert_eq!(FIXED_SCALE, 65536.0);
+        assert_eq!(&QEMU_DEVICE_ID, b"QEMU-B-L475E");
+    }
+
+    /// The repository's linker script.
+    const MEMORY_X: &str = include_str!("../../memory.x");
+
+    /// A number of a linker script: decimal or `0x` hex, with an optional `K` or `M` suffix.
+    fn number(s: &str) -> u32 {
+        let s = s.trim();
+        let (digits, scale) = match s.strip_suffix('K').or_else(|| s.strip_suffix('k')) {
+            Some(d) => (d, 1024),
+            None => match s.strip_suffix('M') {
+                Some(d) => (d, 1024 * 1024),
+                None => (s, 1),
+            },
+        };
+        let v = match digits.strip_prefix("0x").or_else(|| digits.strip_prefix("0X")) {
+            Some(h) => u32::from_str_radix(h, 16),
+            None => digits.parse(),
+        };
+        v.unwrap_or_else(|e| panic!("memory.x: bad number `{s}`: {e}")) * scale
+    }
+
+    /// The regions of the script's MEMORY block: (name, origin, length).
+    fn regions(script: &str) -> std::vec::Vec<(std::string::String, u32, u32)> {
+        let start = script.find("MEMORY").expect("memory.x has a MEMORY block");
+        let body = &script[start..];
+        let body = &body[body.find('{').unwrap() + 1..body.find('}').unwrap()];
+        body.lines()
+            .filter(|l| l.contains("ORIGIN"))
+            .map(|l| {
+                let (name, rest) = l.split_once(':').expect("NAME : ORIGIN = …, LENGTH = …");
+                let origin = rest.split("ORIGIN").nth(1).unwrap().split(',').next().unwrap();
+                let length = rest.split("LENGTH").nth(1).unwrap();
+                let value = |f: &str| number(f.trim_start().trim_start_matches('=').trim());
+                (name.trim().into(), value(origin), value(length))
+            })
+            .collect()
+    }
+
+    #[test]
+    fn memory_x_agrees_with_the_contract() {
+        let r = regions(MEMORY_X);
+        let get = |n: &str| {
+            let (_, o, l) = r.iter().find(|(name, _, _)| name == n).unwrap_or_else(|| panic!("no {n}"));
+            (*o, *l)
+        };
+        assert_eq!(get("FLASH"), (FLASH_BASE, APP_FLASH_END - FLASH_BASE));
+        assert_eq!(get("RECORDS"), (SLOT_ADDRS[0], (N_SLOTS * SLOT_SIZE) as u32));
+        assert_eq!(get("RAM"), (RAM_BASE, RAM_SIZE));
+        assert_eq!(r.len(), 3, "{r:?}");
+    }
+
+    #[test]
+    fn the_memory_x_parser_reads_what_it_is_given() {
+        let r = regions(
+            "MEMORY\n{\n  A : ORIGIN = 0x08000000, LENGTH = 1020K\n  B : ORIGIN = 4096, LENGTH = 1M\n}\n",
+        );
+        assert_eq!(r, [("A".into(), 0x0800_0000, 1020 * 1024), ("B".into(), 4096, 1024 * 1024)]);
+    }
+}
