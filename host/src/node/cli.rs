@@ -35,6 +35,9 @@ pub struct MonitorArgs {
     /// Stop after this many messages [default: run until interrupted].
     #[arg(long, value_name = "N")]
     pub count: Option<u64>,
+    /// First set the node's sampling rate per channel, Hz (100..=4000).
+    #[arg(long, value_name = "HZ")]
+    pub rate: Option<u32>,
 }
 
 /// `accelcal hil`: replay a campaign through the node's QEMU build.
@@ -85,7 +88,7 @@ pub fn run_flash(a: &FlashArgs) -> anyhow::Result<()> {
 
 /// Runs `accelcal monitor`.
 pub fn run_monitor(a: &MonitorArgs) -> anyhow::Result<()> {
-    super::monitor::monitor(&a.port, a.baud, a.count, &mut std::io::stdout().lock())
+    super::monitor::monitor(&a.port, a.baud, a.count, a.rate, &mut std::io::stdout().lock())
 }
 
 /// Runs `accelcal hil`.
