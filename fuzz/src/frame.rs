@@ -103,10 +103,12 @@ impl FrameTarget {
                 Ok(_) | Err(FrameError::Malformed) if len > MAX_FRAME => {
                     return Err(format!("frame {k} of {len} bytes (limit {MAX_FRAME}) was not refused"))
                 }
-                Ok(frame) if self.host_pass && frame.len() + 1 > MAX_REQUEST_FRAME => return Err(format!(
+                Ok(frame) if self.host_pass && frame.len() + 1 > MAX_REQUEST_FRAME => {
+                    return Err(format!(
                     "frame {k}: a host request of {} bytes (leading zero included) exceeds MAX_REQUEST_FRAME",
                     frame.len() + 1
-                )),
+                ))
+                }
                 Ok(frame) => {
                     let again = decode_events::<T>(&mut FrameDecoder::new(), &[frame])?;
                     if again.as_slice() != [Ok(frame.clone())] {
