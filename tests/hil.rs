@@ -22,7 +22,10 @@ use accelcal_shared::kinematics::gravity;
 use accelcal_shared::record::{crc32, Record, RecordError};
 use accelcal_shared::slots::{SlotImage, COMMIT_OFFSET, SLOT_MAGIC_V2, SLOT_SIZE};
 use accelcal_shared::terms::{Structure, MODEL_4};
-use accelcal_shared::wire::{record_error_code, Block, HostMsg, NodeMsg, RecordFault, RecordStatus};
+use accelcal_shared::wire::{
+    record_error_code, Block, HostMsg, NodeMsg, RecordFault, RecordStatus, Refusal, ResetCause,
+    DEFAULT_RATE_HZ, PROTOCOL_VERSION, RATE_MAX_HZ, RATE_MIN_HZ,
+};
 use accelcal_shared::G_STANDARD;
 use support::{node_elf, record_bytes};
 
@@ -306,12 +309,52 @@ fn node_without_record_answers_uncalibrated() {
     let mut node = QemuNode::start(&HilOptions::new(node_elf()), None).unwrap();
     let status = node.status().unwrap();
     assert_eq!(status.record, RecordStatus::Missing(RecordFault::NoSlot));
-    assert_eq!(status.protocol, 1);
+    assert_eq!(status.protocol, PROTOCOL_VERSION);
     let codes = [[1, 2, 3], [65535, 0, 32768]];
     let answer = node.request(&replay_msg(5, &codes)).unwrap();
     let want =
         NodeMsg::Replayed { seq: 5, data: Block::Uncalibrated(heapless::Vec::from_slice(&codes).unwrap()) };
     assert_eq!(answer, want);
+}
+
+/// The status carries the cause of the last reset: QEMU's RCC model reads RCC_CSR = 0x0C00_0600
+/// after its reset (BORRSTF | PINRSTF, the chip's power-on value), which the node decodes as a
+/// power-on; no ADC trigger mismatch is flagged (QEMU has no ADC to read back).
+#[test]
+fn node_reports_the_cause_of_its_last_reset() {
+    let mut node = QemuNode::start(&HilOptions::new(node_elf()), None).unwrap();
+    let status = node.status().unwrap();
+    assert_eq!(status.reset_cause, ResetCause::PowerOn);
+    assert!(!status.trigger_mismatch);
+    assert!(
+        format_status(&status).contains(", last reset PowerOn: power-on or brown-out reset"),
+        "{status:?}"
+    );
+}
+
+/// `SetRate` within the stated range is answered with the new status and stays in force; a rate
+/// outside it is refused with the range, and the rate in force does not change.
+#[test]
+fn node_sets_its_sampling_rate_within_the_stated_range() {
+    let mut node = QemuNode::start(&HilOptions::new(node_elf()), None).unwrap();
+    assert_eq!(node.status().unwrap().rate_hz, DEFAULT_RATE_HZ);
+    for hz in [250, RATE_MIN_HZ, RATE_MAX_HZ, 1234] {
+        match node.request(&HostMsg::SetRate { hz }).unwrap() {
+            NodeMsg::RateSet(s) => assert_eq!(s.rate_hz, hz),
+            other => panic!("SetRate {hz}: {other:?}"),
+        }
+        assert_eq!(node.status().unwrap().rate_hz, hz);
+    }
+    for hz in [0, RATE_MIN_HZ - 1, RATE_MAX_HZ + 1, u32::MAX] {
+        let answer = node.request(&HostMsg::SetRate { hz }).unwrap();
+        let want = Refusal::RateOutOfRange { requested_hz: hz, min_hz: 100, max_hz: 4000 };
+        assert_eq!(answer, NodeMsg::Refused(want));
+        assert_eq!(node.status().unwrap().rate_hz, 1234, "a refused rate changed the rate");
+    }
+    // Still serving, nothing counted as a bad frame.
+    let answer = node.request(&replay_msg(9, &[[1, 2, 3]])).unwrap();
+    assert!(matches!(answer, NodeMsg::Replayed { seq: 9, .. }), "{answer:?}");
+    assert_eq!(node.status().unwrap().bad_frames, 0);
 }
 
 /// A slot that is intact but holds a record whose own CRC fails is refused with that reason; a
@@ -576,6 +619,25 @@ fn monitor_shows_the_status_stream_of_a_node_on_a_serial_port() {
     let lines: Vec<&str> = out.lines().collect();
     assert_eq!(lines.len(), 2, "{out}");
     for l in lines {
-        assert!(l.starts_with("status: protocol 1, NO RECORD (NoSlot: no record slot holds"), "{l}");
+        assert!(l.starts_with("status: protocol 2, NO RECORD (NoSlot: no record slot holds"), "{l}");
+        assert!(l.contains(", rate 1000 Hz, ") && l.contains(", last reset PowerOn: "), "{l}");
     }
+
+    // `--rate` sets the node's rate first: the node answers with its new status.
+    let out = Command::new(env!("CARGO_BIN_EXE_accelcal"))
+        .args(["monitor", "--port", pty, "--count", "3", "--rate", "250"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let set: Vec<&str> = text.lines().filter(|l| l.starts_with("rate set: status: protocol 2, ")).collect();
+    assert_eq!(set.len(), 1, "{text}");
+    assert!(set[0].contains(", rate 250 Hz, "), "{text}");
+    // A rate outside the range is refused before the port is opened, with the range.
+    let out = accelcal(&["monitor", "--port", pty, "--rate", "50"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert_eq!(
+        String::from_utf8_lossy(&out.stderr),
+        "error: --rate: RateOutOfRange: sampling rate 50 Hz refused, the node accepts 100..=4000 Hz\n"
+    );
 }

@@ -5,10 +5,20 @@
 //! real core and QEMU's until an interrupt. The pender sets a flag; the loop checks it with
 //! interrupts masked before sleeping, so a wake-up between the poll and the WFI is never lost
 //! (WFI returns on a pending interrupt even while PRIMASK masks it, ARMv7-M ARM §B1.5.19).
+//!
+//! The loop is the node's main loop: it feeds the independent watchdog once per iteration. An
+//! iteration is one poll of the ready tasks (microseconds: a block calibrated, a frame encoded, no
+//! task busy-waits) and one sleep until the next interrupt. The longest legitimate sleep is the
+//! status task's [`STATUS_PERIOD`](crate::app::node::STATUS_PERIOD) of 1 s (on the real board the
+//! ADC's DMA interrupts come at least every 160 ms as well), so the watchdog's timeout (4 s on the
+//! real board, `board::WATCHDOG_TIMEOUT_US`) is reached only when a task never yields, interrupts
+//! starve thread mode, or every task waits for something that never comes.
 
 use core::sync::atomic::{AtomicBool, Ordering};
 
 use embassy_executor::{raw, Spawner};
+
+use crate::app::ports::Watchdog;
 
 static PENDING: AtomicBool = AtomicBool::new(true);
 
@@ -28,10 +38,12 @@ impl Executor {
         Executor { inner: raw::Executor::new(core::ptr::null_mut()) }
     }
 
-    /// Spawns the initial tasks with `init` and runs them forever.
-    pub fn run(&'static mut self, init: impl FnOnce(Spawner)) -> ! {
+    /// Spawns the initial tasks with `init` and runs them forever, feeding `watchdog` once per
+    /// iteration.
+    pub fn run(&'static mut self, init: impl FnOnce(Spawner), mut watchdog: impl Watchdog) -> ! {
         init(self.inner.spawner());
         loop {
+            watchdog.feed();
             PENDING.store(false, Ordering::Release);
             // SAFETY: called from thread mode only, never from the pender.
             unsafe { self.inner.poll() };

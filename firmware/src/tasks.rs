@@ -4,11 +4,11 @@
 use embassy_executor::Spawner;
 
 use crate::app::node::{self, Node};
-use crate::board::{Board, LinkRxImpl, LinkTxImpl};
+use crate::board::{Board, LinkRxImpl, LinkTxImpl, SampleClockImpl};
 
 #[embassy_executor::task]
-async fn link_rx(rx: LinkRxImpl, node: Node) {
-    node::serve_link(rx, node).await
+async fn link_rx(rx: LinkRxImpl, clock: SampleClockImpl, node: Node) {
+    node::serve_link(rx, clock, node).await
 }
 
 #[embassy_executor::task]
@@ -31,7 +31,7 @@ async fn sampler(source: crate::board::SourceImpl, node: Node) {
 /// init).
 pub fn spawn_all(spawner: Spawner, board: Board, node: Node) {
     spawner.spawn(link_tx(board.tx).expect("link_tx spawned once"));
-    spawner.spawn(link_rx(board.rx, node).expect("link_rx spawned once"));
+    spawner.spawn(link_rx(board.rx, board.clock, node).expect("link_rx spawned once"));
     spawner.spawn(status(node).expect("status spawned once"));
     #[cfg(feature = "board-real")]
     spawner.spawn(sampler(board.source, node).expect("sampler spawned once"));

@@ -7,15 +7,16 @@
 //! - a run longer than the decoder's limit ([`MAX_FRAME`]) is `TooLong`, never a message, and a
 //!   run within the limit is never `TooLong`;
 //! - every decoded message encodes again into at most [`MAX_FRAME`] bytes, and that frame decodes
-//!   to a message with the same encoding;
+//!   to a message with the same encoding; a decoded `HostMsg` re-encodes within
+//!   [`MAX_REQUEST_FRAME`] (with a leading zero), the bound the node's receive ring is sized by;
 //! - feeding the same bytes in random pieces gives the same results as feeding them at once;
 //! - resynchronisation: after the input, a `0x00` and a valid frame decode to that frame's message.
 
 use core::fmt::Debug;
 
 use accelcal_shared::wire::{
-    self, Block, FrameDecoder, FrameError, HostMsg, NodeMsg, RecordFault, RecordStatus, Status, MAX_BLOCK,
-    MAX_FRAME,
+    self, Block, FrameDecoder, FrameError, HostMsg, NodeMsg, RecordFault, RecordStatus, Refusal, ResetCause,
+    Status, MAX_BLOCK, MAX_FRAME, MAX_REQUEST_FRAME,
 };
 use serde::de::DeserializeOwned;
 use serde::Serialize;
@@ -29,6 +30,8 @@ pub struct FrameTarget {
     ok: u64,
     malformed: u64,
     too_long: u64,
+    /// The input is being decoded as `HostMsg` (requests must fit `MAX_REQUEST_FRAME`).
+    host_pass: bool,
 }
 
 /// One decoder result, the message replaced by its canonical frame.
@@ -100,6 +103,12 @@ impl FrameTarget {
                 Ok(_) | Err(FrameError::Malformed) if len > MAX_FRAME => {
                     return Err(format!("frame {k} of {len} bytes (limit {MAX_FRAME}) was not refused"))
                 }
+                Ok(frame) if self.host_pass && frame.len() + 1 > MAX_REQUEST_FRAME => {
+                    return Err(format!(
+                    "frame {k}: a host request of {} bytes (leading zero included) exceeds MAX_REQUEST_FRAME",
+                    frame.len() + 1
+                ))
+                }
                 Ok(frame) => {
                     let again = decode_events::<T>(&mut FrameDecoder::new(), &[frame])?;
                     if again.as_slice() != [Ok(frame.clone())] {
@@ -150,6 +159,8 @@ impl Target for FrameTarget {
             sample_sets: u32::MAX,
             rate_hz: 1000,
             bad_frames: 128,
+            reset_cause: ResetCause::IndependentWatchdog,
+            trigger_mismatch: true,
         };
         let f32s = (0..MAX_BLOCK).map(|i| [i as f32 * 0.5, -9.81, f32::MAX]).collect();
         let fixed = (0..MAX_BLOCK as i32).map(|i| [i << 16, -i, i32::MIN]).collect();
@@ -165,6 +176,14 @@ impl Target for FrameTarget {
             encode(&NodeMsg::Samples { seq: u32::MAX, data: Block::Calibrated(f32s) }),
             encode(&NodeMsg::Replayed { seq: 1, data: Block::CalibratedFixed(fixed) }),
             encode(&NodeMsg::Replayed { seq: 2, data: Block::Uncalibrated(codes) }),
+            encode(&HostMsg::SetRate { hz: 4000 }),
+            encode(&HostMsg::SetRate { hz: u32::MAX }),
+            encode(&NodeMsg::RateSet(Status { rate_hz: 250, reset_cause: ResetCause::Pin, ..status })),
+            encode(&NodeMsg::Refused(Refusal::RateOutOfRange {
+                requested_hz: 50,
+                min_hz: 100,
+                max_hz: 4000,
+            })),
         ];
         let frames: Vec<Vec<u8>> =
             frames.into_iter().map(|f| f.expect("seed messages fit a frame")).collect();
@@ -182,7 +201,10 @@ impl Target for FrameTarget {
     fn fix_up(&self, _rng: &mut Rng, _data: &mut Vec<u8>) {}
 
     fn check(&mut self, input: &[u8], rng: &mut Rng) -> Result<(), String> {
-        self.check_as::<HostMsg>(input, rng, &host_sentinel())?;
+        self.host_pass = true;
+        let host = self.check_as::<HostMsg>(input, rng, &host_sentinel());
+        self.host_pass = false;
+        host?;
         self.check_as::<NodeMsg>(input, rng, &node_sentinel())
     }
 

@@ -380,6 +380,9 @@ pub struct MonitorArgs {
     /// Stop after this many messages [default: run until interrupted].
     #[arg(long, value_name = "N")]
     pub count: Option<u64>,
+    /// First set the node's sampling rate per channel, Hz (100..=4000).
+    #[arg(long, value_name = "HZ")]
+    pub rate: Option<u32>,
     /// Seconds without any frame after which the command fails (the node sends its status every
     /// second).
     #[arg(long, default_value_t = 5.0, value_name = "S")]

@@ -15,7 +15,10 @@ use heapless::Vec;
 use serde::{Deserialize, Serialize};
 
 /// Version of this protocol; bumped when a message changes incompatibly.
-pub const PROTOCOL_VERSION: u8 = 1;
+///
+/// Version 2: [`Status`] gained `reset_cause` and `trigger_mismatch`; [`HostMsg::SetRate`],
+/// [`NodeMsg::RateSet`] and [`NodeMsg::Refused`] were added.
+pub const PROTOCOL_VERSION: u8 = 2;
 
 /// Most sample sets one message carries (live samples, replay requests and answers).
 pub const MAX_BLOCK: usize = 16;
@@ -30,6 +33,51 @@ pub const MAX_FRAME: usize = 256;
 /// A raw 16-bit code set: channels x, y, z.
 pub type Codes = [u16; 3];
 
+/// Lowest live sampling rate per channel the node accepts ([`HostMsg::SetRate`]), Hz.
+///
+/// Not an ADC limit (the node's ADC erratum workaround holds at any rate, see
+/// `firmware/README.md`): at 100 Hz a block of [`MAX_BLOCK`] sets leaves the node every 160 ms, so a
+/// monitor still sees several blocks between two status reports; slower rates belong to another
+/// kind of logger.
+pub const RATE_MIN_HZ: u32 = 100;
+/// Highest live sampling rate per channel the node accepts, Hz.
+///
+/// Two limits, both with margin: one ADC scan (a discarded conversion and three channels, each
+/// oversampled 16×, 247.5-cycle sampling at 80 MHz) takes 159 µs, so the ADC alone would allow
+/// 6.3 kHz; and a block of 16 calibrated sets is a frame of at most 202 bytes, so 4 kHz is
+/// 50.5 kB/s, 55 % of USART1 at 921600 baud (92.16 kB/s), leaving the rest for status reports
+/// and replay answers.
+pub const RATE_MAX_HZ: u32 = 4000;
+/// The live sampling rate the node starts with, Hz.
+pub const DEFAULT_RATE_HZ: u32 = 1000;
+
+/// Size of the node's link receive ring, bytes (the real board's USART1 DMA ring).
+///
+/// The link task stops reading the ring while it waits for room in its outbox (4 messages of at
+/// most 202 bytes, about 2.2 ms each at 921600 baud). With live sampling at [`RATE_MAX_HZ`]
+/// taking a slot every 4 ms, the wait is at most 3 transmissions, 6.6 ms, in which a host sending
+/// without pause delivers 608 bytes; 2048 bytes hold 22 ms of line time, 3.4× that. A host that
+/// keeps to [`MAX_REQUESTS_IN_FLIGHT`] cannot overrun it however long the wait.
+pub const LINK_RX_RING: usize = 2048;
+
+/// Longest frame of any [`HostMsg`], with the single `0x00` a sender may put in front of it to
+/// resynchronise the receiver: a [`HostMsg::Replay`] of [`MAX_BLOCK`] sets is 1 (variant) +
+/// 5 (seq) + 1 (length) + 16·3·3 (u16 varints) = 151 bytes, + 1 COBS + 1 terminator + 1 leading
+/// zero (tested).
+pub const MAX_REQUEST_FRAME: usize = 154;
+
+/// Requests ([`HostMsg`]) the host may send before the node has answered them (flow control).
+///
+/// The bytes of a request leave the node's receive ring before its answer is produced, so the
+/// ring never holds more than the unanswered requests: 13 × 154 = 2002 bytes ≤
+/// [`LINK_RX_RING`]. Every request is answered: `GetStatus` by a status, `Replay` by `Replayed`,
+/// `SetRate` by `RateSet` or `Refused`; frames that do not decode are not answered, so a host
+/// that sends one counts it as answered.
+pub const MAX_REQUESTS_IN_FLIGHT: usize = LINK_RX_RING / MAX_REQUEST_FRAME;
+
+const _: () = assert!(MAX_REQUESTS_IN_FLIGHT * MAX_REQUEST_FRAME <= LINK_RX_RING);
+const _: () = assert!(MAX_REQUESTS_IN_FLIGHT >= 8, "enough requests in flight to keep the node busy");
+
 /// What the host sends to the node.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum HostMsg {
@@ -43,6 +91,22 @@ pub enum HostMsg {
         /// Raw code sets, x, y, z.
         codes: Vec<Codes, MAX_BLOCK>,
     },
+    /// Set the live sampling rate per channel to `hz`; the node answers [`NodeMsg::RateSet`] with
+    /// its new status, or [`NodeMsg::Refused`] when `hz` is outside
+    /// [`RATE_MIN_HZ`]`..=`[`RATE_MAX_HZ`].
+    SetRate {
+        /// The requested rate, Hz.
+        hz: u32,
+    },
+}
+
+/// Whether the node accepts `hz` as its sampling rate ([`HostMsg::SetRate`]).
+pub fn check_rate(hz: u32) -> Result<(), Refusal> {
+    if (RATE_MIN_HZ..=RATE_MAX_HZ).contains(&hz) {
+        Ok(())
+    } else {
+        Err(Refusal::RateOutOfRange { requested_hz: hz, min_hz: RATE_MIN_HZ, max_hz: RATE_MAX_HZ })
+    }
 }
 
 /// A block of sample sets in one of the node's output forms.
@@ -120,6 +184,99 @@ pub struct Status {
     pub rate_hz: u32,
     /// Host frames the node could not decode, since boot.
     pub bad_frames: u32,
+    /// Why the node last reset (RCC_CSR at boot).
+    pub reset_cause: ResetCause,
+    /// The read-back of the ADC trigger configuration (at boot and after each rate change) did not
+    /// match what the node programmed; the defmt log names the fields. Always false on a board
+    /// without an ADC (QEMU).
+    pub trigger_mismatch: bool,
+}
+
+/// Why the node last reset, from the reset flags of RCC_CSR (RM0351 §6.4.29, bits 24..=31).
+///
+/// Several flags can be set at once: every reset drives the NRST pin low, so PINRSTF accompanies
+/// the others, and a power-on sets BORRSTF and PINRSTF. The cause is the most specific flag, in
+/// the order of the variants below (Pin last); the node clears the flags (RMVF) after reading
+/// them, so each boot sees only its own reset's flags.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ResetCause {
+    /// No reset flag set (flags cleared and no reset recorded since, or not readable).
+    Unknown,
+    /// Illegal Stop/Standby/Shutdown entry with the nRST_STOP/STDBY/SHDW option clear (LPWRRSTF).
+    LowPower,
+    /// The window watchdog (WWDGRSTF).
+    WindowWatchdog,
+    /// The independent watchdog (IWDGRSTF): the node's main loop stopped feeding it.
+    IndependentWatchdog,
+    /// A software reset (SFTRSTF): the node's panic handler, or a debugger.
+    Software,
+    /// A firewall violation (FWRSTF).
+    Firewall,
+    /// An option byte load (OBLRSTF).
+    OptionByte,
+    /// Power-on or brown-out (BORRSTF).
+    PowerOn,
+    /// The NRST pin alone (PINRSTF): the reset button or the debug probe.
+    Pin,
+}
+
+impl ResetCause {
+    /// The cause recorded in an RCC_CSR value (only bits 24..=31 are looked at).
+    pub fn from_rcc_csr(csr: u32) -> ResetCause {
+        const FLAGS: [(u32, ResetCause); 8] = [
+            (31, ResetCause::LowPower),
+            (30, ResetCause::WindowWatchdog),
+            (29, ResetCause::IndependentWatchdog),
+            (28, ResetCause::Software),
+            (24, ResetCause::Firewall),
+            (25, ResetCause::OptionByte),
+            (27, ResetCause::PowerOn),
+            (26, ResetCause::Pin),
+        ];
+        FLAGS.iter().find(|(bit, _)| csr & (1 << bit) != 0).map_or(ResetCause::Unknown, |&(_, c)| c)
+    }
+}
+
+impl core::fmt::Display for ResetCause {
+    /// The variant's name, then what it means.
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            ResetCause::Unknown => "Unknown: no reset flag was set",
+            ResetCause::LowPower => "LowPower: illegal low-power mode entry",
+            ResetCause::WindowWatchdog => "WindowWatchdog: window watchdog reset",
+            ResetCause::IndependentWatchdog => "IndependentWatchdog: the watchdog was not fed in time",
+            ResetCause::Software => "Software: software reset (panic or debugger)",
+            ResetCause::Firewall => "Firewall: firewall reset",
+            ResetCause::OptionByte => "OptionByte: option byte load reset",
+            ResetCause::PowerOn => "PowerOn: power-on or brown-out reset",
+            ResetCause::Pin => "Pin: reset pin (button or debug probe)",
+        })
+    }
+}
+
+/// Why the node refused a host request.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Refusal {
+    /// [`HostMsg::SetRate`] outside the accepted range; the rate is unchanged.
+    RateOutOfRange {
+        /// The rate asked for, Hz.
+        requested_hz: u32,
+        /// Lowest accepted rate, Hz ([`RATE_MIN_HZ`] of the node's build).
+        min_hz: u32,
+        /// Highest accepted rate, Hz ([`RATE_MAX_HZ`] of the node's build).
+        max_hz: u32,
+    },
+}
+
+impl core::fmt::Display for Refusal {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match *self {
+            Refusal::RateOutOfRange { requested_hz, min_hz, max_hz } => write!(
+                f,
+                "RateOutOfRange: sampling rate {requested_hz} Hz refused, the node accepts {min_hz}..={max_hz} Hz"
+            ),
+        }
+    }
 }
 
 /// What the node sends to the host.
@@ -141,6 +298,10 @@ pub enum NodeMsg {
         /// The request's code sets, calibrated (or flagged uncalibrated).
         data: Block,
     },
+    /// The answer to an accepted [`HostMsg::SetRate`]: the status with the new rate.
+    RateSet(Status),
+    /// The answer to a request the node refused, and why.
+    Refused(Refusal),
 }
 
 /// Why a frame could not be encoded or decoded.
@@ -368,6 +529,8 @@ mod tests {
             sample_sets: u32::MAX,
             rate_hz: 1000,
             bad_frames: 3,
+            reset_cause: ResetCause::IndependentWatchdog,
+            trigger_mismatch: true,
         });
         let big = NodeMsg::Samples {
             seq: u32::MAX,
@@ -379,6 +542,93 @@ mod tests {
             assert!(frame.len() <= MAX_FRAME);
             assert_eq!(decode_all::<NodeMsg>(&frame), vec![Ok(m)]);
         }
+    }
+
+    #[test]
+    fn set_rate_and_its_answers_literal_bytes() {
+        // SetRate = variant 2, hz 4000 = varint [0xa0, 0x1f].
+        let mut buf = [0u8; MAX_FRAME];
+        assert_eq!(
+            postcard::to_slice(&HostMsg::SetRate { hz: 4000 }, &mut [0u8; 8]).unwrap(),
+            &[0x02, 0xa0, 0x1f]
+        );
+        let framed: &[u8] = &[0x04, 0x02, 0xa0, 0x1f, 0x00];
+        assert_eq!(encode(&HostMsg::SetRate { hz: 4000 }, &mut buf).unwrap(), framed);
+        // Refused = variant 4, RateOutOfRange = variant 0, 50, 100, 4000.
+        let refused =
+            NodeMsg::Refused(Refusal::RateOutOfRange { requested_hz: 50, min_hz: 100, max_hz: 4000 });
+        assert_eq!(postcard::to_slice(&refused, &mut [0u8; 16]).unwrap(), &[0x04, 0x00, 50, 100, 0xa0, 0x1f]);
+        // RateSet = variant 3 followed by the status; the status ends with the reset cause
+        // (PowerOn = variant 7) and the mismatch flag.
+        let status = Status {
+            protocol: PROTOCOL_VERSION,
+            record: RecordStatus::Missing(RecordFault::NoSlot),
+            overruns: 0,
+            sample_sets: 0,
+            rate_hz: 250,
+            bad_frames: 0,
+            reset_cause: ResetCause::PowerOn,
+            trigger_mismatch: false,
+        };
+        let raw: &[u8] = &[0x03, 2, 0x01, 0x00, 0, 0, 0xfa, 0x01, 0, 0x07, 0x00];
+        assert_eq!(postcard::to_slice(&NodeMsg::RateSet(status), &mut [0u8; 32]).unwrap(), raw);
+        let frame = encode(&NodeMsg::RateSet(status), &mut buf).unwrap().to_vec();
+        assert_eq!(decode_all::<NodeMsg>(&frame), vec![Ok(NodeMsg::RateSet(status))]);
+    }
+
+    #[test]
+    fn rates_are_checked_against_the_stated_range() {
+        assert_eq!(check_rate(RATE_MIN_HZ), Ok(()));
+        assert_eq!(check_rate(RATE_MAX_HZ), Ok(()));
+        assert_eq!(check_rate(DEFAULT_RATE_HZ), Ok(()));
+        for hz in [0, RATE_MIN_HZ - 1, RATE_MAX_HZ + 1, u32::MAX] {
+            let e = check_rate(hz).unwrap_err();
+            assert_eq!(e, Refusal::RateOutOfRange { requested_hz: hz, min_hz: 100, max_hz: 4000 });
+        }
+        assert_eq!(
+            std::format!("{}", check_rate(5000).unwrap_err()),
+            "RateOutOfRange: sampling rate 5000 Hz refused, the node accepts 100..=4000 Hz"
+        );
+    }
+
+    #[test]
+    fn every_request_fits_max_request_frame_and_the_ring_holds_the_requests_in_flight() {
+        let mut buf = [0u8; MAX_FRAME];
+        let largest = HostMsg::Replay { seq: u32::MAX, codes: codes(&[[65535; 3]; MAX_BLOCK]) };
+        for m in [largest, HostMsg::GetStatus, HostMsg::SetRate { hz: u32::MAX }] {
+            // +1: the leading zero a sender may add.
+            let n = encode(&m, &mut buf).unwrap().len() + 1;
+            assert!(n <= MAX_REQUEST_FRAME, "{m:?}: {n} bytes");
+        }
+        let n = encode(&HostMsg::Replay { seq: u32::MAX, codes: codes(&[[65535; 3]; MAX_BLOCK]) }, &mut buf)
+            .unwrap()
+            .len();
+        assert_eq!(n + 1, MAX_REQUEST_FRAME, "the bound is tight");
+        assert_eq!(MAX_REQUESTS_IN_FLIGHT, 13);
+    }
+
+    #[test]
+    fn reset_cause_from_rcc_csr() {
+        // RCC_CSR reset value after a power-on (RM0351 §6.4.29): BORRSTF | PINRSTF | MSISRANGE 6.
+        assert_eq!(ResetCause::from_rcc_csr(0x0C00_0600), ResetCause::PowerOn);
+        let bit = |b: u32| 1u32 << b;
+        let pin = bit(26);
+        assert_eq!(ResetCause::from_rcc_csr(pin), ResetCause::Pin);
+        assert_eq!(ResetCause::from_rcc_csr(bit(28) | pin), ResetCause::Software);
+        assert_eq!(ResetCause::from_rcc_csr(bit(29) | pin), ResetCause::IndependentWatchdog);
+        assert_eq!(ResetCause::from_rcc_csr(bit(30) | pin), ResetCause::WindowWatchdog);
+        assert_eq!(ResetCause::from_rcc_csr(bit(31) | pin), ResetCause::LowPower);
+        assert_eq!(ResetCause::from_rcc_csr(bit(24) | pin), ResetCause::Firewall);
+        assert_eq!(ResetCause::from_rcc_csr(bit(25) | pin), ResetCause::OptionByte);
+        // Bits below 24 (oscillator settings, RMVF) are not reset flags.
+        assert_eq!(ResetCause::from_rcc_csr(0x00FF_FFFF), ResetCause::Unknown);
+        assert_eq!(ResetCause::from_rcc_csr(0), ResetCause::Unknown);
+        // A watchdog reset while the power-on flags were never cleared is still the watchdog's.
+        assert_eq!(ResetCause::from_rcc_csr(0x0C00_0600 | bit(29)), ResetCause::IndependentWatchdog);
+        assert_eq!(
+            std::format!("{}", ResetCause::IndependentWatchdog),
+            "IndependentWatchdog: the watchdog was not fed in time"
+        );
     }
 
     #[test]

@@ -109,8 +109,13 @@ fn lint() -> anyhow::Result<()> {
     firmware::lint()
 }
 
-fn bench() -> anyhow::Result<()> {
-    gmdh::bench(&root())?;
+/// `bench` runs both benchmarks; `bench firmware` only the firmware's (no Python, no PyPI).
+fn bench(only: Option<&str>) -> anyhow::Result<()> {
+    match only {
+        None => gmdh::bench(&root())?,
+        Some("firmware") => {}
+        Some(other) => anyhow::bail!("bench: unknown part `{other}` (the one part: firmware)"),
+    }
     firmware::bench()
 }
 
@@ -119,10 +124,10 @@ fn main() -> anyhow::Result<()> {
     match task.as_str() {
         "test" => test(),
         "lint" => lint(),
-        "bench" => bench(),
+        "bench" => bench(std::env::args().nth(2).as_deref()),
         "fuzz" => fuzz(&std::env::args().skip(2).collect::<Vec<_>>()),
         _ => {
-            eprintln!("usage: cargo xtask <test|lint|bench|fuzz>\n  test   every test: host, shared (desktop and no_std target), firmware builds, QEMU\n  lint   rustfmt --check and clippy -D warnings\n  bench  the benchmarks quoted in the README\n  fuzz   [--seconds N] [--target record|slots|frame|all] [--seed S]: the parsers' mutation fuzzer");
+            eprintln!("usage: cargo xtask <test|lint|bench|fuzz>\n  test   every test: host, shared (desktop and no_std target), firmware builds, QEMU\n  lint   rustfmt --check and clippy -D warnings\n  bench  [firmware]: the benchmarks quoted in the README (`firmware`: only the firmware's)\n  fuzz   [--seconds N] [--target record|slots|frame|all] [--seed S]: the parsers' mutation fuzzer");
             std::process::exit(2)
         }
     }

@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 
 use accelcal_shared::record::Record;
 use accelcal_shared::slots::SlotImage;
-use accelcal_shared::wire::{Block, Codes, HostMsg, NodeMsg, RecordStatus, Status, MAX_BLOCK};
+use accelcal_shared::wire::{self, Block, Codes, HostMsg, NodeMsg, RecordStatus, Status, MAX_BLOCK};
 
 use anyhow::Context;
 
@@ -278,10 +278,12 @@ fn is_timeout(e: &LinkError) -> bool {
 /// Code sets to replay: one request's worth.
 pub type CodeBlock = heapless::Vec<Codes, MAX_BLOCK>;
 
-/// How many requests may wait for their answer: enough that the node's input (the socket, read by
-/// QEMU one byte at a time) never runs dry, few enough (about 150 bytes each) that they fit the
-/// socket's buffer, so sending never waits for the node and one thread does both.
-const IN_FLIGHT: usize = 64;
+/// How many requests may wait for their answer: the protocol's bound
+/// ([`wire::MAX_REQUESTS_IN_FLIGHT`], 13), which the real node's receive ring is sized for. In
+/// QEMU it keeps the node's input (the socket, read one byte at a time) from running dry, and the
+/// requests (at most 154 bytes each) fit the socket's buffer, so sending never waits for the node
+/// and one thread does both.
+const IN_FLIGHT: usize = wire::MAX_REQUESTS_IN_FLIGHT;
 
 /// Boots the QEMU node with `record` (the bytes of a record file) in slot 0, replays `codes`
 /// through it in blocks of [`MAX_BLOCK`], and returns the node's answers in order.
@@ -298,7 +300,7 @@ pub fn replay(opts: &HilOptions, record: &[u8], codes: &[Codes]) -> Result<HilRu
 }
 
 /// Boots the QEMU node with `record` (the bytes of a record file) in slot 0 and replays the blocks
-/// `blocks` yields, each with a tag of the caller's, as they come: at most `IN_FLIGHT` (64) requests
+/// `blocks` yields, each with a tag of the caller's, as they come: at most `IN_FLIGHT` (13) requests
 /// wait for their answer, so memory does not grow with the blocks. Each answer, checked (in order,
 /// as many sets as were sent, calibrated), goes to `answered` with its block's tag. Returns the
 /// node's status after the last answer; the first error of `blocks`, of `answered` or of the node

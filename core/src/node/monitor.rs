@@ -6,9 +6,9 @@ use std::io::Write;
 use anyhow::Context;
 use std::time::Duration;
 
-use accelcal_shared::wire::{Block, NodeMsg, RecordStatus, Status};
+use accelcal_shared::wire::{self, Block, HostMsg, NodeMsg, RecordStatus, Status};
 
-use super::link::{LinkError, Receiver};
+use super::link::{self, LinkError, Receiver};
 
 /// The node's USART1 baud rate (`firmware/src/board/real.rs`).
 pub const NODE_BAUD: u32 = accelcal_shared::contract::BAUD_REAL;
@@ -21,9 +21,10 @@ pub fn format_status(s: &Status) -> String {
         }
         RecordStatus::Missing(f) => format!("NO RECORD ({f}): output is UNCALIBRATED"),
     };
+    let trigger = if s.trigger_mismatch { ", ADC TRIGGER MISMATCH (see the node's log)" } else { "" };
     format!(
-        "status: protocol {}, {record}, rate {} Hz, sample sets {}, overruns {}, bad frames {}",
-        s.protocol, s.rate_hz, s.sample_sets, s.overruns, s.bad_frames
+        "status: protocol {}, {record}, rate {} Hz, sample sets {}, overruns {}, bad frames {}, last reset {}{trigger}",
+        s.protocol, s.rate_hz, s.sample_sets, s.overruns, s.bad_frames, s.reset_cause
     )
 }
 
@@ -45,19 +46,29 @@ pub fn format_block(seq: u32, data: &Block) -> Vec<String> {
 }
 
 /// Reads messages from `port` at `baud` and prints them to `out`, until `count` messages (all of
-/// them when `None`) or an error. A port that stays silent for `silence` fails with what to check
-/// (the node reports its status every second, so a running node is never silent that long).
+/// them when `None`) or an error. With `rate`, first asks the node to sample at `rate` Hz (checked
+/// here against the protocol's range first); a refusal ends the command with the node's reason.
+/// A port that stays silent for `silence` fails with what to check (the node reports its status
+/// every second, so a running node is never silent that long).
 pub fn monitor(
     port_name: &str,
     baud: u32,
     count: Option<u64>,
+    rate: Option<u32>,
     silence: Duration,
     out: &mut impl Write,
 ) -> anyhow::Result<()> {
+    if let Some(hz) = rate {
+        wire::check_rate(hz).map_err(|r| crate::error::bad(format!("--rate: {r}")))?;
+    }
     let port = serialport::new(port_name, baud)
         .timeout(silence)
         .open()
         .map_err(|e| crate::error::bad(format!("{port_name}: cannot open serial port: {e}")))?;
+    if let Some(hz) = rate {
+        let mut tx = port.try_clone()?;
+        link::send(&mut tx, &HostMsg::SetRate { hz })?;
+    }
     monitor_stream(port, port_name, baud, count, silence, out)
 }
 
@@ -93,6 +104,8 @@ pub fn monitor_stream(
                 }
             }
             Ok(Ok(NodeMsg::Replayed { seq, .. })) => writeln!(out, "# replay answer {seq}")?,
+            Ok(Ok(NodeMsg::RateSet(s))) => writeln!(out, "rate set: {}", format_status(&s))?,
+            Ok(Ok(NodeMsg::Refused(r))) => anyhow::bail!("the node refused the request: {r}"),
             Ok(Err(e)) => writeln!(out, "# bad frame: {e}")?,
             Err(LinkError::Closed) => break,
             Err(LinkError::Io(e)) if e.kind() == std::io::ErrorKind::TimedOut => {

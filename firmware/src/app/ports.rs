@@ -25,11 +25,29 @@ pub struct Overrun {
 
 /// A source of live sample sets (the ADC on the real board).
 pub trait SampleSource {
-    /// Sampling rate per channel, Hz.
-    fn rate_hz(&self) -> u32;
     /// Waits for the next block of sample sets and copies it into `out`; returns how many.
     /// An `Err` reports sets lost since the last call; the source keeps running.
     async fn read_block(&mut self, out: &mut [Codes; MAX_BLOCK]) -> Result<usize, Overrun>;
+}
+
+/// What paces the live samples (the real board's TIM6 triggering the ADC): its rate can change
+/// at run time, and its configuration can be read back from the registers.
+pub trait SampleClock {
+    /// Sampling rate per channel now in force, Hz.
+    fn rate_hz(&self) -> u32;
+    /// Sets the sampling rate per channel (the caller has checked it with
+    /// [`accelcal_shared::wire::check_rate`]), then reads the trigger configuration back; returns
+    /// what [`SampleClock::trigger_ok`] returns.
+    fn set_rate(&mut self, hz: u32) -> bool;
+    /// Reads the trigger configuration back from the registers and compares it with what the
+    /// board programmed; `false` on a mismatch (the board logs the fields that differ).
+    fn trigger_ok(&self) -> bool;
+}
+
+/// The independent watchdog: it resets the MCU unless fed in time.
+pub trait Watchdog {
+    /// Reloads the watchdog's counter.
+    fn feed(&mut self);
 }
 
 /// Where the calibration records live and whose they must be.

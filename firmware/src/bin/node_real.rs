@@ -1,4 +1,5 @@
-//! The node firmware for the B-L475E-IOT01A board: initialise, load the record, spawn.
+//! The node firmware for the B-L475E-IOT01A board: initialise (the watchdog
+//! starts there), load the record, spawn; the executor's loop feeds the watchdog.
 #![no_std]
 #![no_main]
 
@@ -6,9 +7,9 @@ use accelcal_node::{app, board, executor::Executor, tasks};
 
 #[cortex_m_rt::entry]
 fn main() -> ! {
-    let board = board::init();
+    let (board, watchdog) = board::init();
     let (cal, record) = app::calib::load(&board.storage);
-    let node = app::node::Node { cal, record, rate_hz: board::SAMPLE_RATE_HZ };
+    let node = app::node::Node::new(cal, record, board.reset_cause, &board.clock);
     let executor = cortex_m::singleton!(: Executor = Executor::new()).expect("main runs once");
-    executor.run(|spawner| tasks::spawn_all(spawner, board, node))
+    executor.run(|spawner| tasks::spawn_all(spawner, board, node), watchdog)
 }

@@ -6,40 +6,66 @@
 //! - host link: USART1, PB6 = TX, PB7 = RX (AF7), wired to the ST-LINK virtual COM port.
 //!
 //! Sampling (RM0351 chapter 18, ADC): TIM6's update event (TRGO, RM0351 §30.4.2 TIMx_CR2
-//! MMS = 010) triggers one regular scan of the three channels (CFGR EXTEN = 01 rising edge,
-//! EXTSEL = 1101 TIM6_TRGO, RM0351 §18.4.18 Table 96). Each channel is converted 16 times and
-//! summed by the hardware oversampler (CFGR2 ROVSE = 1, OVSR = 011 16x, OVSS = 0000 no shift,
-//! TROVS = 0 one trigger for the whole burst, RM0351 §18.4.30): 12-bit conversions summed 16x give
-//! 16-bit codes 0..=65520. DMA1 channel 1 (ADC1 request, RM0351 §11.6.7 Table 41) moves the codes
-//! in circular mode into a ring buffer of two blocks; the sampler task reads one half while the
-//! DMA fills the other. A lap of the ring is an overrun: counted and reported in every status.
+//! MMS = 010) triggers one regular scan (CFGR EXTEN = 01 rising edge, EXTSEL = 1101 TIM6_TRGO,
+//! RM0351 §18.4.18 Table 96) of four conversions: VREFINT (ADC1_IN0), whose result is discarded,
+//! then x, y, z. The discarded first conversion is the workaround of the STM32L4 erratum "wrong ADC
+//! result if conversion done late after calibration or previous conversion" (errata sheet ES0250,
+//! ADC section; embassy-stm32 0.6.0 `src/adc/v3.rs` `convert` handles it too: a
+//! conversion more than 1 ms after the previous one may be wrong; convert twice, keep the
+//! second), so every rate in `wire::RATE_MIN_HZ..=RATE_MAX_HZ` is safe, and so is the first scan
+//! after boot or a rate change. Each channel is converted 16 times and summed by the hardware
+//! oversampler (CFGR2 ROVSE = 1, OVSR = 011 16x, OVSS = 0000 no shift, TROVS = 0 one trigger for
+//! the whole burst, RM0351 §18.4.30): 12-bit conversions summed 16x give 16-bit codes 0..=65520.
+//! Sampling time 247.5 ADC cycles on x, y, z (firmware/README.md says why), 2.5 on the discarded
+//! conversion. DMA1 channel 1 (ADC1 request, RM0351 §11.6.7 Table 41) moves the codes in circular
+//! mode into a ring buffer of two blocks; the sampler task reads one half while the DMA fills the
+//! other. A lap of the ring is an overrun: counted and reported in every status. TIM6's rate is
+//! set at run time ([`SampleClockImpl`]), and the trigger configuration is read back from the
+//! registers at boot and after every change.
+//!
+//! Watchdog: the IWDG with a 4 s timeout, fed by the executor's loop, frozen while a
+//! debugger halts the core (DBGMCU_APB1FZR1 DBG_IWDG_STOP) so that `accelcal
+//! flash`, which halts the core, is never interrupted by it. A panic or a hard fault logs over
+//! defmt and resets the MCU (`SCB::sys_reset`, reported as `ResetCause::Software` at the next
+//! boot); with the `debug-panic` feature, panic-probe halts instead, for a debugger.
 
 use core::sync::atomic::{AtomicU8, Ordering};
 
 use accelcal_shared::contract::BAUD_REAL;
 use accelcal_shared::flash_ecc::{self, NmiAction};
 use accelcal_shared::slots::{SlotRead, SLOT_SIZE};
-use accelcal_shared::wire::{Codes, MAX_BLOCK};
+use accelcal_shared::wire::{Codes, ResetCause, DEFAULT_RATE_HZ, LINK_RX_RING, MAX_BLOCK};
 use defmt_rtt as _;
 use embassy_stm32::adc::{Adc, AdcChannel, AdcConfig, RingBufferedAdc, SampleTime, CONTINUOUS};
-use embassy_stm32::pac::adc::vals::{OversamplingRatio, OversamplingShift, Rovsm, Trovs};
+use embassy_stm32::pac::adc::vals::{Dmacfg, OversamplingRatio, OversamplingShift, Rovsm, Trovs};
 use embassy_stm32::pac::timer::vals::Mms;
-use embassy_stm32::peripherals::{ADC1, TIM6};
+use embassy_stm32::peripherals::{ADC1, IWDG, TIM6};
 use embassy_stm32::time::Hertz;
 use embassy_stm32::timer::low_level::{RoundTo, Timer};
 use embassy_stm32::usart::{self, RingBufferedUartRx, Uart, UartTx};
-use embassy_stm32::{bind_interrupts, dma, mode::Async, peripherals, rcc, Config};
+use embassy_stm32::wdg::IndependentWatchdog;
+use embassy_stm32::{bind_interrupts, dma, mode::Async, pac, peripherals, rcc, Config};
+#[cfg(feature = "debug-panic")]
 use panic_probe as _;
 
-use crate::app::ports::{LinkRx, LinkTx, Overrun, RecordStorage, SampleSource};
+use crate::app::ports::{LinkRx, LinkTx, Overrun, RecordStorage, SampleClock, SampleSource, Watchdog};
 
-/// Sampling rate per channel, Hz (the TIM6 update rate).
-pub const SAMPLE_RATE_HZ: u32 = 1000;
-/// USART1 baud rate ([`BAUD_REAL`]): 1 kHz of calibrated triads in blocks of 16 is about
-/// 12.5 kB/s of frames.
+/// USART1 baud rate ([`BAUD_REAL`]): 4 kHz of calibrated triads in blocks of 16 is 50.5 kB/s of
+/// frames, 55 % of it.
 pub const BAUD: u32 = BAUD_REAL;
-/// Channels per sample set.
-const N_CH: usize = 3;
+/// Independent watchdog timeout, µs: 4× the longest legitimate iteration of the main loop (the
+/// 1 s status period, see `executor.rs`). embassy-stm32 assumes LSI = 32 kHz and picks prescaler
+/// 32, reload 3999; the STM32L475's LSI (29.5..=34 kHz in its datasheet) makes it 3.76..=4.34 s.
+pub const WATCHDOG_TIMEOUT_US: u32 = 4_000_000;
+/// Conversions per scan: the discarded one, then x, y, z.
+const N_SCAN: usize = 4;
+/// ADC1 channel of each rank of the scan: VREFINT (IN0, discarded), PC5 (IN14, x), PC4 (IN13, y),
+/// PC3 (IN4, z).
+const SCAN_CHANNELS: [u8; N_SCAN] = [0, 14, 13, 4];
+/// Sampling time of x, y, z: 247.5 ADC cycles = 3.09 µs at 80 MHz (firmware/README.md, "ADC").
+const SAMPLE_TIME: SampleTime = SampleTime::CYCLES247_5;
+/// Sampling time of the discarded first conversion (its value is never used).
+const DUMMY_SAMPLE_TIME: SampleTime = SampleTime::CYCLES2_5;
 /// EXTSEL value for TIM6_TRGO (RM0351 §18.4.18, Table 96: EXT13).
 const EXTSEL_TIM6_TRGO: u8 = 13;
 /// EXTEN value for a rising-edge hardware trigger (RM0351 §18.7.4, ADC_CFGR EXTEN = 01).
@@ -97,20 +123,16 @@ impl LinkTx for LinkTxImpl {
 /// The ADC1 triad: timer-triggered, oversampled, DMA ring buffer.
 pub struct SourceImpl {
     adc: RingBufferedAdc<'static, ADC1>,
-    _timer: Timer<'static, TIM6>,
 }
 
 impl SampleSource for SourceImpl {
-    fn rate_hz(&self) -> u32 {
-        SAMPLE_RATE_HZ
-    }
-
     async fn read_block(&mut self, out: &mut [Codes; MAX_BLOCK]) -> Result<usize, Overrun> {
-        let mut raw = [0u16; MAX_BLOCK * N_CH];
+        let mut raw = [0u16; MAX_BLOCK * N_SCAN];
         match self.adc.read(&mut raw).await {
             Ok(_) => {
-                for (set, c) in out.iter_mut().zip(raw.chunks_exact(N_CH)) {
-                    *set = [c[0], c[1], c[2]];
+                // Rank 1 of each scan is the erratum's discarded conversion.
+                for (set, c) in out.iter_mut().zip(raw.chunks_exact(N_SCAN)) {
+                    *set = [c[1], c[2], c[3]];
                 }
                 Ok(MAX_BLOCK)
             }
@@ -123,6 +145,122 @@ impl SampleSource for SourceImpl {
     }
 }
 
+/// TIM6, the ADC's trigger: sets the sampling rate and reads the trigger configuration back.
+pub struct SampleClockImpl {
+    timer: Timer<'static, TIM6>,
+    rate_hz: u32,
+}
+
+impl SampleClock for SampleClockImpl {
+    fn rate_hz(&self) -> u32 {
+        self.rate_hz
+    }
+
+    fn set_rate(&mut self, hz: u32) -> bool {
+        self.timer.stop();
+        self.timer.set_frequency(Hertz(hz), RoundTo::Slower);
+        self.timer.reset();
+        // TIM6_PSC is preloaded (RM0351 §30.3.1): an update event loads it now. With MMS = update
+        // this event is also a TRGO, so one scan starts at the change, off the new grid.
+        self.timer.generate_update_event();
+        self.timer.start();
+        self.rate_hz = hz;
+        self.trigger_ok()
+    }
+
+    fn trigger_ok(&self) -> bool {
+        read_back_trigger(&self.timer, self.rate_hz)
+    }
+}
+
+/// Compares a register field with what was programmed; logs a mismatch.
+fn field_ok(name: &str, got: u32, want: u32) -> bool {
+    if got != want {
+        defmt::error!("ADC trigger read-back: {} = {=u32}, programmed {=u32}", name, got, want);
+    }
+    got == want
+}
+
+/// Reads back what paces and shapes the scans (register fields of stm32-metapac 21's
+/// `peripherals/adc_v3.rs` and `peripherals/timer_v1.rs`, RM0351 §18.7 and §30.4): ADC1 CFGR
+/// (EXTEN rising, EXTSEL TIM6_TRGO, CONT = 0, DMAEN, DMACFG circular), CR ADSTART, CFGR2 (16×
+/// oversampling, no shift, TROVS = 0, ROVSE), SQR1 (4 ranks, channels 0, 14, 13, 4), SMPR1/2
+/// (sampling times), TIM6 CR2 MMS = update, CR1 CEN, and the rate that PSC and ARR give (within
+/// 0.1 % of `rate_hz`). Logs each field that differs; `true` when none does.
+fn read_back_trigger(timer: &Timer<'static, TIM6>, rate_hz: u32) -> bool {
+    let adc = pac::ADC1;
+    let cfgr = adc.cfgr().read();
+    let cfgr2 = adc.cfgr2().read();
+    let sqr1 = adc.sqr1().read();
+    let mut ok = field_ok("CFGR.EXTEN", cfgr.exten().into(), EXTEN_RISING.into());
+    ok &= field_ok("CFGR.EXTSEL", cfgr.extsel().into(), EXTSEL_TIM6_TRGO.into());
+    ok &= field_ok("CFGR.CONT", cfgr.cont().into(), 0);
+    ok &= field_ok("CFGR.DMAEN", cfgr.dmaen().into(), 1);
+    ok &= field_ok("CFGR.DMACFG", cfgr.dmacfg().to_bits().into(), Dmacfg::CIRCULAR.to_bits().into());
+    ok &= field_ok("CR.ADSTART", adc.cr().read().adstart().into(), 1);
+    ok &= field_ok("CFGR2.ROVSE", cfgr2.rovse().into(), 1);
+    ok &= field_ok("CFGR2.OVSR", cfgr2.ovsr().to_bits().into(), OversamplingRatio::RATIO16.to_bits().into());
+    ok &= field_ok("CFGR2.OVSS", cfgr2.ovss().to_bits().into(), OversamplingShift::SHIFT0.to_bits().into());
+    ok &= field_ok("CFGR2.TROVS", cfgr2.trovs().to_bits().into(), Trovs::AUTOMATIC.to_bits().into());
+    ok &= field_ok("SQR1.L", sqr1.l().into(), (N_SCAN - 1) as u32);
+    for (rank, &ch) in SCAN_CHANNELS.iter().enumerate() {
+        ok &= field_ok("SQR1.SQx", sqr1.sq(rank).into(), ch.into());
+        let want = if rank == 0 { DUMMY_SAMPLE_TIME } else { SAMPLE_TIME };
+        let got = adc.smpr(ch as usize / 10).read().smp(ch as usize % 10);
+        ok &= field_ok("SMPRx.SMPy", got.to_bits().into(), want.to_bits().into());
+    }
+    let tim = timer.regs_basic();
+    ok &= field_ok("TIM6_CR2.MMS", tim.cr2().read().mms().to_bits().into(), Mms::UPDATE.to_bits().into());
+    ok &= field_ok("TIM6_CR1.CEN", tim.cr1().read().cen().into(), 1);
+    let period = (tim.psc().read() as u64 + 1) * (tim.arr().read().arr() as u64 + 1);
+    let achieved_mhz = timer.get_clock_frequency().0 as u64 * 1000 / period;
+    let want_mhz = rate_hz as u64 * 1000;
+    if achieved_mhz.abs_diff(want_mhz) * 1000 > want_mhz {
+        defmt::error!(
+            "ADC trigger read-back: TIM6 runs at {=u64} mHz, {=u32} Hz wanted",
+            achieved_mhz,
+            rate_hz
+        );
+        ok = false;
+    }
+    ok
+}
+
+/// The independent watchdog.
+pub struct WatchdogImpl(IndependentWatchdog<'static, IWDG>);
+
+impl Watchdog for WatchdogImpl {
+    fn feed(&mut self) {
+        self.0.pet();
+    }
+}
+
+/// Reads the reset flags of RCC_CSR (RM0351 §6.4.29; stm32-metapac 21 `peripherals/rcc_l4.rs`,
+/// `Csr`) and clears them (RMVF), so that the next boot sees only its own reset's flags.
+fn take_reset_cause() -> ResetCause {
+    let csr = pac::RCC.csr().read();
+    pac::RCC.csr().modify(|w| w.set_rmvf(true));
+    defmt::info!("RCC_CSR at boot: {=u32:#010x}", csr.0);
+    ResetCause::from_rcc_csr(csr.0)
+}
+
+/// Field build: a panic is logged and resets the MCU.
+#[cfg(not(feature = "debug-panic"))]
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    cortex_m::interrupt::disable();
+    defmt::error!("panic: {}", defmt::Display2Format(info));
+    cortex_m::peripheral::SCB::sys_reset()
+}
+
+/// Field build: a hard fault is logged and resets the MCU (cortex-m-rt's default handler loops).
+#[cfg(not(feature = "debug-panic"))]
+#[cortex_m_rt::exception]
+unsafe fn HardFault(ef: &cortex_m_rt::ExceptionFrame) -> ! {
+    defmt::error!("hard fault at pc {=u32:#010x}", ef.pc());
+    cortex_m::peripheral::SCB::sys_reset()
+}
+
 /// The board's parts, ready for the application.
 pub struct Board {
     /// Host link, receiving half.
@@ -133,6 +271,10 @@ pub struct Board {
     pub storage: Storage,
     /// Live sample sets.
     pub source: SourceImpl,
+    /// The sampling rate.
+    pub clock: SampleClockImpl,
+    /// Why the MCU last reset.
+    pub reset_cause: ResetCause,
 }
 
 fn clocks() -> Config {
@@ -153,8 +295,9 @@ fn clocks() -> Config {
     config
 }
 
-/// Brings up clocks, USART1, TIM6 and ADC1 with DMA.
-pub fn init() -> Board {
+/// Brings up clocks, USART1, TIM6 and ADC1 with DMA, and starts the watchdog.
+pub fn init() -> (Board, WatchdogImpl) {
+    let reset_cause = take_reset_cause();
     let p = embassy_stm32::init(clocks());
 
     let mut uart_cfg = usart::Config::default();
@@ -162,7 +305,9 @@ pub fn init() -> Board {
     let uart = Uart::new(p.USART1, p.PB7, p.PB6, p.DMA1_CH4, p.DMA1_CH5, Irqs, uart_cfg)
         .expect("USART1 configuration is valid");
     let (tx, rx) = uart.split();
-    let rx_buf = cortex_m::singleton!(: [u8; 256] = [0; 256]).expect("init runs once");
+    // Sized by the protocol (wire::LINK_RX_RING): it holds every request the host may keep
+    // unanswered (wire::MAX_REQUESTS_IN_FLIGHT).
+    let rx_buf = cortex_m::singleton!(: [u8; LINK_RX_RING] = [0; LINK_RX_RING]).expect("init runs once");
     let rx = rx.into_ring_buffered(rx_buf);
 
     let adc_cfg = AdcConfig {
@@ -172,12 +317,15 @@ pub fn init() -> Board {
         ..Default::default()
     };
     let adc = Adc::new_with_config(p.ADC1, adc_cfg);
-    let dma_buf = cortex_m::singleton!(: [u16; 2 * MAX_BLOCK * N_CH] = [0; 2 * MAX_BLOCK * N_CH])
+    let vrefint = adc.enable_vrefint();
+    let dma_buf = cortex_m::singleton!(: [u16; 2 * MAX_BLOCK * N_SCAN] = [0; 2 * MAX_BLOCK * N_SCAN])
         .expect("init runs once");
+    // Ranks as SCAN_CHANNELS says: the discarded conversion first.
     let sequence = [
-        (p.PC5.degrade_adc(), SampleTime::CYCLES47_5),
-        (p.PC4.degrade_adc(), SampleTime::CYCLES47_5),
-        (p.PC3.degrade_adc(), SampleTime::CYCLES47_5),
+        (AdcChannel::<ADC1>::degrade_adc(vrefint), DUMMY_SAMPLE_TIME),
+        (p.PC5.degrade_adc(), SAMPLE_TIME),
+        (p.PC4.degrade_adc(), SAMPLE_TIME),
+        (p.PC3.degrade_adc(), SAMPLE_TIME),
     ];
     let mut adc = adc.into_ring_buffered(p.DMA1_CH1, dma_buf, Irqs, sequence.into_iter(), CONTINUOUS);
     // embassy-stm32 sets up continuous conversions on this ADC version; switch to one scan per
@@ -189,18 +337,27 @@ pub fn init() -> Board {
     });
 
     let timer = Timer::new(p.TIM6);
-    timer.set_frequency(Hertz(SAMPLE_RATE_HZ), RoundTo::Slower);
     // TRGO on every update event (TIM6_CR2 MMS = 010, RM0351 §30.4.2).
     timer.regs_basic().cr2().modify(|w| w.set_mms(Mms::UPDATE));
     adc.start();
-    timer.start();
+    let mut clock = SampleClockImpl { timer, rate_hz: DEFAULT_RATE_HZ };
+    // Starts TIM6 (the app reads the trigger configuration back when it builds the node).
+    clock.set_rate(DEFAULT_RATE_HZ);
 
-    Board {
+    // A debugger halting the core (as `accelcal flash` does) freezes the watchdog.
+    pac::DBGMCU.apb1fzr1().modify(|w| w.set_iwdg(true));
+    let mut watchdog = IndependentWatchdog::new(p.IWDG, WATCHDOG_TIMEOUT_US);
+    watchdog.unleash();
+
+    let board = Board {
         rx: LinkRxImpl(rx),
         tx: LinkTxImpl(tx),
         storage: Storage,
-        source: SourceImpl { adc, _timer: timer },
-    }
+        source: SourceImpl { adc },
+        clock,
+        reset_cause,
+    };
+    (board, WatchdogImpl(watchdog))
 }
 
 /// Record slots in which a double ECC error was reported (bit n: slot n), set by the NMI handler.

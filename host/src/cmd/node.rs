@@ -37,7 +37,7 @@ pub fn run_monitor(a: &MonitorArgs) -> anyhow::Result<()> {
         return Err(bad(format!("--timeout-s must be a positive number of seconds, got {}", a.timeout_s)));
     }
     let silence = std::time::Duration::from_secs_f64(a.timeout_s);
-    monitor::monitor(&a.port, a.baud, a.count, silence, &mut std::io::stdout().lock())
+    monitor::monitor(&a.port, a.baud, a.count, a.rate, silence, &mut std::io::stdout().lock())
 }
 
 /// Runs `accelcal hil`.

@@ -2,20 +2,66 @@
 //! `shared/docs/qemu-b-l475e.md`). USART1 is the host link (`-serial`), time comes from SysTick,
 //! defmt goes out over semihosting, and sample sets arrive over the link as replay requests (the
 //! ADC, DMA and timers are stubs in QEMU, so there is no live sample source).
+//!
+//! QEMU 10.0.2 models RCC: RCC_CSR reads 0x0C00_0600 after QEMU's reset (BORRSTF | PINRSTF |
+//! MSISRANGE 6, the chip's power-on value), so the node reads and reports it like the real board
+//! ([`ResetCause::PowerOn`]) and clears it (RMVF). The IWDG is an unimplemented-device stub (reads
+//! 0, ignores writes, `info mtree`: "IWDG", priority −1000): there is no watchdog to feed. TIM6
+//! and the ADC are stubs too, so the sampling rate is only recorded: [`SampleClockImpl`] accepts
+//! every rate the app passes and has no trigger configuration to read back.
 
 mod time;
 mod usart;
 
+use core::ptr::{read_volatile, write_volatile};
+
 use accelcal_shared::slots::{SlotRead, SLOT_SIZE};
+use accelcal_shared::wire::{ResetCause, DEFAULT_RATE_HZ};
 use cortex_m_rt::exception;
 use defmt_semihosting as _;
 
-use crate::app::ports::RecordStorage;
+use crate::app::ports::{RecordStorage, SampleClock, Watchdog};
 
 pub use usart::{LinkRxImpl, LinkTxImpl};
 
-/// Live sampling rate: none, samples arrive over the link.
-pub const SAMPLE_RATE_HZ: u32 = 0;
+/// RCC_CSR (RM0351 §6.4.29): reset flags in bits 24..=31, RMVF (write 1 to clear them) bit 23.
+const RCC_CSR: usize = 0x4002_1000 + 0x94;
+const RCC_CSR_RMVF: u32 = 1 << 23;
+
+/// Reads the reset flags and clears them (RMVF), so that the next boot sees only its own.
+fn take_reset_cause() -> ResetCause {
+    // SAFETY: RCC_CSR is a 32-bit RCC register, modelled by QEMU; nothing else touches it.
+    let csr = unsafe { read_volatile(RCC_CSR as *const u32) };
+    // SAFETY: as above; setting RMVF only clears the reset flags.
+    unsafe { write_volatile(RCC_CSR as *mut u32, csr | RCC_CSR_RMVF) };
+    defmt::info!("RCC_CSR at boot: {=u32:#010x}", csr);
+    ResetCause::from_rcc_csr(csr)
+}
+
+/// The sampling rate, recorded only: QEMU's TIM6 and ADC are stubs.
+pub struct SampleClockImpl {
+    rate_hz: u32,
+}
+
+impl SampleClock for SampleClockImpl {
+    fn rate_hz(&self) -> u32 {
+        self.rate_hz
+    }
+    fn set_rate(&mut self, hz: u32) -> bool {
+        self.rate_hz = hz;
+        true
+    }
+    fn trigger_ok(&self) -> bool {
+        true
+    }
+}
+
+/// No watchdog: QEMU's IWDG is a stub.
+pub struct WatchdogImpl;
+
+impl Watchdog for WatchdogImpl {
+    fn feed(&mut self) {}
+}
 
 /// The device id the QEMU board reports ([`accelcal_shared::contract::QEMU_DEVICE_ID`]). QEMU 10
 /// does not map the unique-id area (`contract::UID_ADDR`: reading it faults), so records meant for
@@ -43,14 +89,20 @@ pub struct Board {
     pub tx: LinkTxImpl,
     /// Record slots and device id.
     pub storage: Storage,
+    /// The (recorded) sampling rate.
+    pub clock: SampleClockImpl,
+    /// Why the emulated MCU last reset, as QEMU's RCC model says.
+    pub reset_cause: ResetCause,
 }
 
-/// Brings up the emulated chip: SysTick time base, USART1.
-pub fn init() -> Board {
+/// Brings up the emulated chip: reset cause, SysTick time base, USART1.
+pub fn init() -> (Board, WatchdogImpl) {
+    let reset_cause = take_reset_cause();
     let mut core = cortex_m::Peripherals::take().expect("init runs once");
     time::init(&mut core.SYST);
     let (rx, tx) = usart::init();
-    Board { rx, tx, storage: Storage }
+    let clock = SampleClockImpl { rate_hz: DEFAULT_RATE_HZ };
+    (Board { rx, tx, storage: Storage, clock, reset_cause }, WatchdogImpl)
 }
 
 /// Device interrupts: cortex-m-rt routes every one to `DefaultHandler`; dispatch on the number.
