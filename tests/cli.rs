@@ -1,5 +1,8 @@
 //! CLI tests on the `accelcal` binary: every command end to end on simulated files, the JSON
-//! shapes the issues specify, and bad input turned into exit code 2 with one line naming the file.
+//! shapes the issues specify, bad input turned into exit code 2 with one line naming the file,
+//! options that do not apply to their mode refused before any I/O, every command's help, and
+//! snapshots of what users read (the demo's tables and a diagnosis report, checked against the
+//! README, whose examples they are; `insta` snapshots under `tests/snapshots/`).
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -302,4 +305,121 @@ fn a_closed_pipe_ends_the_output_quietly() {
     let out = child.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!err.contains("panicked"), "{err}");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Snapshots of what users read, and the README examples that show them.
+
+/// The README, read from the repository.
+fn readme() -> String {
+    std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../README.md")).unwrap()
+}
+
+/// The lines of the first fenced block of the README after the line `after` (a heading or a line
+/// inside a block), up to its closing fence, each ending in a newline.
+fn readme_block(after: &str) -> String {
+    let text = readme();
+    let mut lines = text.lines().skip_while(|l| *l != after);
+    assert!(lines.next().is_some(), "README has no line `{after}`");
+    let inside_a_block = !after.starts_with('#');
+    if !inside_a_block {
+        lines.find(|l| l.starts_with("```")).expect("a fenced block after the heading");
+    }
+    let block: String = lines.take_while(|l| !l.starts_with("```")).map(|l| format!("{l}\n")).collect();
+    assert!(!block.is_empty(), "empty README block after `{after}`");
+    block
+}
+
+/// A README session: the `$ accelcal ...` lines of the block that holds `last` (the last command,
+/// whose output the block shows after it), run in order in a fresh directory; returns (the
+/// README's output of the last command, the binary's).
+fn readme_session(last: &str) -> (String, String) {
+    let text = readme();
+    let lines: Vec<&str> = text.lines().collect();
+    let at = lines.iter().position(|l| *l == last).unwrap_or_else(|| panic!("README has no `{last}`"));
+    let start = lines[..at].iter().rposition(|l| l.starts_with("```")).unwrap() + 1;
+    let d = Dir::new();
+    let mut stdout = String::new();
+    for cmd in &lines[start..=at] {
+        let args: Vec<&str> =
+            cmd.strip_prefix("$ accelcal ").expect("a command line").split_whitespace().collect();
+        let out = Command::new(env!("CARGO_BIN_EXE_accelcal"))
+            .args(&args)
+            .current_dir(d.0.path())
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{cmd}: {}", String::from_utf8_lossy(&out.stderr));
+        stdout = String::from_utf8(out.stdout).unwrap();
+    }
+    (readme_block(last), stdout)
+}
+
+/// `accelcal demo --out DIR` with DIR a temporary directory, its stdout with DIR written as the
+/// README writes it (`accelcal-demo`, the default).
+fn demo_stdout() -> String {
+    let d = Dir::new();
+    let out = ok(&["demo", "--out", &d.s("accelcal-demo")]);
+    let dir = d.0.path().to_str().unwrap();
+    assert!(out.contains(dir), "the output names the directory: {out}");
+    out.replace(&format!("{dir}/"), "")
+}
+
+#[test]
+fn demo_tables_are_the_readme_s() {
+    let out = demo_stdout();
+    // Table 1 for the three channels, the coefficient table, Table 2.
+    for want in [
+        "channel x: regularity",
+        "channel y: regularity",
+        "channel z: regularity",
+        "Model 4 coefficients",
+        "Table 2.",
+    ] {
+        assert_eq!(out.matches(want).count(), 1, "{want}: {out}");
+    }
+    insta::assert_snapshot!("demo_stdout", out);
+    // The README shows the same run, digit for digit ("What the demo prints").
+    assert_eq!(readme_block("## What the demo prints"), out, "README's demo output is stale");
+}
+
+/// A report with a known effect (the README's diagnosis example: seed 42, settling).
+const DIAGNOSE_EXAMPLE: &str = "$ accelcal diagnose c.csv --json d.json";
+
+#[test]
+fn diagnosis_report_is_the_readme_s() {
+    let (readme, out) = readme_session(DIAGNOSE_EXAMPLE);
+    assert!(out.contains("\n  -> settling\n"), "{out}");
+    assert!(out.contains("effect settling on x,y,z"), "{out}");
+    insta::assert_snapshot!("diagnose_settling_stdout", out);
+    assert_eq!(readme, out, "README's diagnosis example is stale");
+}
+
+/// Numbers rounded to 9 significant digits: the snapshot then holds every digit a reader could
+/// care about without depending on the last bit of the platform's libm.
+fn rounded(v: &Value) -> Value {
+    match v {
+        Value::Number(n) if n.is_f64() => {
+            let x = n.as_f64().unwrap();
+            serde_json::json!(format!("{x:.8e}").parse::<f64>().unwrap())
+        }
+        Value::Array(a) => Value::Array(a.iter().map(rounded).collect()),
+        Value::Object(o) => Value::Object(o.iter().map(|(k, v)| (k.clone(), rounded(v))).collect()),
+        _ => v.clone(),
+    }
+}
+
+#[test]
+fn diagnosis_json_is_pinned_and_deterministic() {
+    let d = Dir::new();
+    let c = simulate(&d, "c.csv", &["--seed", "42", "--effect", "settling=gain:30,tau:0.4"]);
+    ok(&["diagnose", &c, "--json", &d.s("a.json")]);
+    ok(&["diagnose", &c, "--json", &d.s("b.json")]);
+    let (a, b) = (std::fs::read(d.p("a.json")).unwrap(), std::fs::read(d.p("b.json")).unwrap());
+    assert_eq!(a, b, "the diagnosis of one campaign is the same twice, to the bit");
+    // No field depends on the run (paths, times): nothing to redact.
+    let text = String::from_utf8(a).unwrap();
+    assert!(!text.contains(d.0.path().to_str().unwrap()), "the JSON names the temporary directory");
+    let j = json(&d.p("a.json"));
+    assert_eq!(j["effects"][0]["name"], "settling");
+    insta::assert_snapshot!("diagnose_settling_json", serde_json::to_string_pretty(&rounded(&j)).unwrap());
 }
