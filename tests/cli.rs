@@ -597,3 +597,113 @@ fn diagnosis_json_is_pinned_and_deterministic() {
     assert_eq!(j["effects"][0]["name"], "settling");
     insta::assert_snapshot!("diagnose_settling_json", serde_json::to_string_pretty(&rounded(&j)).unwrap());
 }
+
+// ---------------------------------------------------------------------------------------------
+// Settings checked before any I/O.
+
+/// Every file under `dir` with its bytes.
+fn files(dir: &Path) -> std::collections::BTreeMap<PathBuf, Vec<u8>> {
+    let mut out = std::collections::BTreeMap::new();
+    let mut todo = vec![dir.to_path_buf()];
+    while let Some(d) = todo.pop() {
+        for e in std::fs::read_dir(&d).unwrap().flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                out.insert(p.clone(), Vec::new());
+                todo.push(p);
+            } else {
+                out.insert(p.clone(), std::fs::read(&p).unwrap());
+            }
+        }
+    }
+    out
+}
+
+/// Command lines (`C` a campaign, `V` a second one, `R` a raw recording, other names outputs in
+/// the same directory) that the settings refuse, and what the one error line must say.
+const REFUSED: &[(&str, &str)] = &[
+    ("fit R --method gravity-norm --record x.rec", "--record does not apply to fit --method gravity-norm"),
+    (
+        "fit R --method gravity-norm --device-id 00112233445566778899aabb",
+        "--device-id does not apply to fit --method gravity-norm",
+    ),
+    ("fit R --method gravity-norm --terms ax,ay", "--terms does not apply to fit --method gravity-norm"),
+    (
+        "fit R --method gravity-norm --created 1800000000",
+        "--created does not apply to fit --method gravity-norm",
+    ),
+    ("fit R --method gravity-norm --campaign-out R", "--campaign-out R is the input CAMPAIGN"),
+    ("fit C --plot d", "--plot does not apply to fit --method lsq"),
+    ("fit C --campaign-out x.csv", "--campaign-out does not apply to fit --method lsq"),
+    ("fit C --threshold 5", "--threshold does not apply to fit --method lsq"),
+    ("fit C --method test-turns --window-s 2", "--window-s does not apply to fit --method test-turns"),
+    ("fit C --method test-turns --structure auto", "--structure does not apply to fit --method test-turns"),
+    ("fit C --device-id 00112233445566778899aabb", "--device-id does not apply to fit without --record"),
+    ("fit C --created 1800000000", "--created does not apply to fit without --record"),
+    ("fit C --record C", "--record C is the input CAMPAIGN: refusing to overwrite it"),
+    ("fit C --json C", "--json C is the input CAMPAIGN: refusing to overwrite it"),
+    ("fit C --json o.json --record o.json", "--json and --record name the same path"),
+    ("compare C --json C", "--json C is the input CAMPAIGN: refusing to overwrite it"),
+    ("compare C --validate V --json V", "--json V is the input --validate"),
+    ("compare C --plot C", "--plot C is the input CAMPAIGN"),
+    ("select C --width 4", "--width does not apply to select --algorithm combi"),
+    ("select C --top 3", "--top does not apply to select without --json"),
+    ("select C --json C", "--json C is the input CAMPAIGN"),
+    ("diagnose C --json C", "--json C is the input CAMPAIGN"),
+    ("simulate --out a.csv --truth a.csv", "--out and --truth name the same path"),
+    ("simulate --out a.csv --json a.csv", "--out and --json name the same path"),
+    ("hil --qemu R --record V --out C C", "--out C is the input CAMPAIGN"),
+];
+
+/// Command lines in which every option applies: they run, and write what they are asked to.
+const ACCEPTED: &[(&str, &[&str])] = &[
+    ("fit C --record r.rec --device-id 00112233445566778899aabb --created 1800000000", &["r.rec"]),
+    ("fit C --method test-turns --json t.json", &["t.json"]),
+    (
+        "fit R --method gravity-norm --threshold 1000 --window-s 1 --min-hold-s 2 --structure imu-tk \
+         --format imu-tk --plot p --campaign-out rc.csv --json g.json",
+        &["p/gravity-residuals.svg", "rc.csv", "g.json"],
+    ),
+    ("select C --algorithm multi --width 4 --basis quadratic", &[]),
+    ("select C --json s.json --top 3", &["s.json"]),
+    ("compare C --validate V --json c.json", &["c.json"]),
+    ("diagnose C --json dj.json", &["dj.json"]),
+    ("simulate --out a.csv --truth b.json --json a.json --samples 2", &["a.csv", "b.json", "a.json"]),
+];
+
+/// The arguments of a table line, run in `d`: `C`, `V`, `R` and output names become paths there.
+fn table_args(d: &Dir, line: &str) -> Vec<String> {
+    let is_path =
+        |w: &str| ["C", "V", "R", "d", "p"].contains(&w) || w.contains('.') && w.parse::<f64>().is_err();
+    line.split_whitespace().map(|w| if is_path(w) { d.s(w) } else { w.to_string() }).collect()
+}
+
+#[test]
+fn options_that_do_not_apply_and_outputs_that_are_inputs_are_refused_before_any_io() {
+    let d = Dir::new();
+    simulate(&d, "C", &["--seed", "3", "--samples", "16"]);
+    simulate(&d, "V", &["--seed", "4", "--samples", "16", "--plan", "random:20"]);
+    std::fs::copy(
+        concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/data/real/imu_tk_xsens_acc.txt.gz"),
+        d.p("R"),
+    )
+    .unwrap();
+    for (line, want) in REFUSED {
+        let args = table_args(&d, line);
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let before = files(d.0.path());
+        let e = bad(&args);
+        let want = want.replace(" C ", &format!(" {} ", d.s("C"))).replace(" V ", &format!(" {} ", d.s("V")));
+        let want = want.replace(" R ", &format!(" {} ", d.s("R")));
+        assert!(e.contains(&want), "`{line}`: expected `{want}` in: {e}");
+        assert!(files(d.0.path()) == before, "`{line}`: a file was written or changed");
+    }
+    for (line, outputs) in ACCEPTED {
+        let args = table_args(&d, line);
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        ok(&args);
+        for o in *outputs {
+            assert!(d.p(o).is_file(), "`{line}` did not write {o}");
+        }
+    }
+}
