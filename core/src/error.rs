@@ -31,12 +31,14 @@ pub fn environment(what: impl Into<String>, e: impl Into<anyhow::Error>) -> anyh
 
 /// Whether an error is the user's input to fix: nothing in its chain comes from the environment.
 pub fn is_bad_input(e: &anyhow::Error) -> bool {
-    !e.chain().any(|c| {
-        c.is::<Environment>()
-            || c.is::<crate::node::hil::HilError>()
-            || c.is::<crate::node::flash::FlashError>()
-            || c.is::<crate::node::link::LinkError>()
-    })
+    // `Environment` is attached as a context: the chain shows it as anyhow's wrapper type, which
+    // `is` does not see through, while `downcast_ref` searches every context layer.
+    e.downcast_ref::<Environment>().is_none()
+        && !e.chain().any(|c| {
+            c.is::<crate::node::hil::HilError>()
+                || c.is::<crate::node::flash::FlashError>()
+                || c.is::<crate::node::link::LinkError>()
+        })
 }
 
 #[cfg(test)]
@@ -55,6 +57,8 @@ mod tests {
         let e = environment("writing out.json", io).context("fit");
         assert!(!is_bad_input(&e));
         assert_eq!(format!("{e:#}"), "fit: writing out.json: disk full");
-        assert!(!is_bad_input(&anyhow::Error::new(crate::node::hil::HilError::Timeout(3))));
+        assert!(!is_bad_input(&anyhow::Error::new(crate::node::hil::HilError::Timeout(
+            std::time::Duration::from_secs(3)
+        ))));
     }
 }
