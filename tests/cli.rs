@@ -306,8 +306,10 @@ fn fit_lsq_and_test_turns_write_json_and_record() {
     assert!(e.contains("not identifiable") && e.contains("ax^2, ay^2, az^2"), "{e}");
     let e = bad(&["fit", &c, "--terms", "ax,bx"]);
     assert!(e.contains("unknown variable"), "{e}");
-    let e = bad(&["fit", &c, "--device-id", "12"]);
+    // A malformed device id is refused before the record is written (--device-id needs --record).
+    let e = bad(&["fit", &c, "--device-id", "12", "--record", &d.s("bad.rec")]);
     assert!(e.contains("24 hex digits"), "{e}");
+    assert!(!d.p("bad.rec").exists());
 }
 
 #[test]
