@@ -709,3 +709,61 @@ fn options_that_do_not_apply_and_outputs_that_are_inputs_are_refused_before_any_
         }
     }
 }
+
+/// README examples whose inputs the README does not make: files edited by hand, described in the
+/// text around them.
+const README_HAND_MADE: &[&str] = &["three-sat.csv", "half.csv"];
+
+/// Copies the directory `from` into `to`.
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap().flatten() {
+        if e.path().is_dir() {
+            copy_dir(&e.path(), &to.join(e.file_name()));
+        } else {
+            std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
+        }
+    }
+}
+
+#[test]
+fn every_readme_example_prints_what_the_readme_shows() {
+    // Run from a directory that holds the repository's test data at the README's paths.
+    let d = Dir::new();
+    copy_dir(Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/data")), &d.p("tests/data"));
+    let text = readme();
+    let lines: Vec<&str> = text.lines().collect();
+    let mut checked = 0;
+    for (i, line) in lines.iter().enumerate() {
+        let Some(cmd) = line.strip_prefix("$ accelcal ") else { continue };
+        if README_HAND_MADE.iter().any(|f| cmd.contains(f)) {
+            continue;
+        }
+        let args: Vec<&str> = cmd.split_whitespace().collect();
+        let out = Command::new(env!("CARGO_BIN_EXE_accelcal"))
+            .args(&args)
+            .current_dir(d.0.path())
+            .output()
+            .unwrap();
+        let got = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+        // What the README shows: the lines up to the next command or the end of the block; a
+        // line `...` elides the middle of the output.
+        let shown: Vec<&str> = lines[i + 1..]
+            .iter()
+            .take_while(|l| !l.starts_with("$ ") && !l.starts_with("```"))
+            .copied()
+            .collect();
+        let got: Vec<&str> = got.lines().collect();
+        match shown.iter().position(|l| l.trim() == "...") {
+            None if shown.is_empty() => assert!(out.status.success(), "{line}: {got:?}"),
+            None => assert_eq!(shown, got, "README line {}: {line}", i + 1),
+            Some(k) => {
+                let tail = &shown[k + 1..];
+                assert_eq!(shown[..k], got[..k.min(got.len())], "README line {}: {line}", i + 1);
+                assert_eq!(tail, &got[got.len() - tail.len()..], "README line {}: {line}", i + 1);
+            }
+        }
+        checked += 1;
+    }
+    assert!(checked >= 12, "{checked} README examples checked");
+}
