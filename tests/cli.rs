@@ -1,5 +1,8 @@
 //! CLI tests on the `accelcal` binary: every command end to end on simulated files, the JSON
-//! shapes the issues specify, and bad input turned into exit code 2 with one line naming the file.
+//! shapes the issues specify, bad input turned into exit code 2 with one line naming the file,
+//! options that do not apply to their mode refused before any I/O, every command's help, and
+//! snapshots of what users read (the demo's tables and a diagnosis report, checked against the
+//! README, whose examples they are; `insta` snapshots under `tests/snapshots/`).
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -53,16 +56,150 @@ fn simulate(d: &Dir, name: &str, extra: &[&str]) -> String {
     out
 }
 
-#[test]
-fn every_command_has_help() {
-    for cmd in ["simulate", "select", "fit", "compare", "demo"] {
-        let h = ok(&[cmd, "--help"]);
-        assert!(h.contains("Usage: accelcal"), "{cmd}: {h}");
-    }
+/// The subcommands, from the command tree the binary prints (`help` excluded).
+fn commands() -> Vec<String> {
     let top = ok(&["--help"]);
-    for cmd in ["simulate", "select", "fit", "compare", "demo"] {
-        assert!(top.contains(cmd));
+    let list: Vec<String> = top
+        .lines()
+        .skip_while(|l| *l != "Commands:")
+        .skip(1)
+        .take_while(|l| !l.trim().is_empty())
+        .map(|l| l.split_whitespace().next().unwrap().to_string())
+        .filter(|c| c != "help")
+        .collect();
+    assert!(list.len() >= 10, "the command tree has shrunk: {list:?}\n{top}");
+    list
+}
+
+/// One entry of a help text: its first line (flags and value name, or `<ARG>`) and the whole
+/// text of the entry (description, possible values, default).
+struct Entry {
+    head: String,
+    text: String,
+}
+
+impl Entry {
+    /// The long flag (`--min-hold-s`), or the positional `<CAMPAIGN>`.
+    fn name(&self) -> &str {
+        self.head.split([' ', ',', '=']).find(|w| w.starts_with("--") || w.starts_with('<')).unwrap()
     }
+    /// The value clap prints as `[default: X]`, if any.
+    fn default(&self) -> Option<&str> {
+        let at = self.text.rfind("[default: ")?;
+        Some(self.text[at + 10..].split(']').next().unwrap())
+    }
+}
+
+/// The entries of the Arguments and Options sections (any heading) of a help text.
+fn entries(help: &str) -> Vec<Entry> {
+    let mut out: Vec<Entry> = Vec::new();
+    let mut in_section = false;
+    for line in help.lines() {
+        let t = line.trim_start();
+        if !line.starts_with(' ') && !line.is_empty() {
+            // A heading: `Arguments:`, `Options:`, `Gravity-norm options (...):`; or `Usage:`.
+            in_section = line.ends_with(':') && !line.starts_with("Usage");
+            continue;
+        }
+        if !in_section || t.is_empty() {
+            continue;
+        }
+        let indent = line.len() - t.len();
+        let starts = indent <= 6
+            && (t.starts_with("--") || t.starts_with('<') || t.starts_with('-') && !t.starts_with("- "));
+        if starts {
+            let head = t.split("  ").next().unwrap().to_string();
+            out.push(Entry { head, text: t.to_string() });
+        } else if let Some(e) = out.last_mut() {
+            e.text.push(' ');
+            e.text.push_str(t);
+        }
+    }
+    out
+}
+
+/// Options that take a physical quantity and the unit their help must state.
+const UNITS: &[(&str, &str)] = &[
+    ("--g", "m/s²"),
+    ("--rate-hz", "Hz"),
+    ("--move-s", ", s"),
+    ("--noise", "ADC codes"),
+    ("--bias-sd", "codes"),
+    ("--misalign-sd", "rad"),
+    ("--temp-profile", "°C"),
+    ("--tolerance", "codes"),
+    ("--min-hold-s", "seconds"),
+    ("--window-s", "seconds"),
+    ("--threshold", "codes²"),
+    ("--created", "seconds since the Unix epoch"),
+    ("--timeout-s", "Seconds"),
+    ("--baud", "Baud rate"),
+    ("--magnitude", "in units of the per-position noise"),
+];
+
+/// Numeric options without a physical unit (counts, seeds, ratios).
+const DIMENSIONLESS: &[&str] = &[
+    "--seed",
+    "--samples",
+    "--scale-sd", // relative
+    "--width",
+    "--max-terms",
+    "--threads",
+    "--top",
+    "--count",
+    "--campaigns",
+];
+
+#[test]
+fn every_command_has_help_naming_its_options_units_and_defaults_once() {
+    let mut seen = std::collections::BTreeSet::new();
+    for cmd in commands() {
+        let long = ok(&[&cmd, "--help"]);
+        let short = ok(&[&cmd, "-h"]);
+        let usage =
+            long.lines().find(|l| l.starts_with("Usage: ")).unwrap_or_else(|| panic!("{cmd}: {long}"));
+        assert!(usage.starts_with(&format!("Usage: accelcal {cmd} ")), "{cmd}: {usage}");
+        let (le, se) = (entries(&long), entries(&short));
+        let names: Vec<&str> = le.iter().map(Entry::name).collect();
+        // Both helps list the same options, help and version among them, each with its text.
+        assert_eq!(names, se.iter().map(Entry::name).collect::<Vec<_>>(), "{cmd}: -h and --help differ");
+        assert!(names.contains(&"--help") && names.contains(&"--version"), "{cmd}: {names:?}");
+        assert!(names.len() > 2, "{cmd} lists no options of its own: {names:?}");
+        // Whatever the usage line requires (positionals, required options) is documented.
+        for w in usage.split_whitespace().skip(3) {
+            let w = w.trim_matches(|c| c == '[' || c == ']');
+            if w.starts_with("--") || w.starts_with('<') {
+                let documented = names.contains(&w) || le.iter().any(|e| e.head.contains(w));
+                assert!(documented, "{cmd}: `{w}` of the usage line is not documented");
+            }
+        }
+        for e in le.iter().chain(&se) {
+            let name = e.name();
+            let desc = e.text[e.head.len()..].trim();
+            assert!(!desc.is_empty(), "{cmd} {name}: no description");
+            // Each default printed once: clap's `[default: X]`, or the text's own, not both.
+            let defaults = e.text.to_lowercase().matches("default").count();
+            assert!(defaults <= 1, "{cmd} {name} states its default {defaults} times: {}", e.text);
+            // A physical quantity states its unit.
+            if let Some((_, unit)) = UNITS.iter().find(|(n, _)| *n == name) {
+                assert!(e.text.contains(unit), "{cmd} {name}: no unit `{unit}` in: {}", e.text);
+                seen.insert(name.to_string());
+            } else {
+                let numeric = e.default().is_some_and(|d| d.parse::<f64>().is_ok())
+                    && !e.head.ends_with("<HEX>")
+                    || ["<N>", "<K>", "_S>", "_HZ>"].iter().any(|v| e.head.ends_with(v));
+                assert!(
+                    !numeric || DIMENSIONLESS.contains(&name),
+                    "{cmd} {name} takes a number: add it to UNITS (with the unit its help states) \
+                     or to DIMENSIONLESS: {}",
+                    e.text
+                );
+            }
+        }
+    }
+    // The unit table names options that exist.
+    let missing: Vec<_> = UNITS.iter().filter(|(n, _)| !seen.contains(*n)).collect();
+    assert!(missing.is_empty(), "no command has {missing:?}");
     assert!(ok(&["select", "--help"]).contains("tail:FRACTION"));
 }
 
@@ -231,19 +368,20 @@ fn demo_writes_everything() {
 #[test]
 fn bad_campaigns_exit_2_name_the_place_and_leave_no_output() {
     let d = Dir::new();
-    let cases: &[(&str, &str)] = &[
+    // The bytes of each file, and what must follow its name on the error line.
+    let cases: &[(&[u8], &str)] = &[
         (
-            "t_s,alpha_deg,beta_deg,x\n0,0,0,1\n1,0,zero,2\n",
+            b"t_s,alpha_deg,beta_deg,x\n0,0,0,1\n1,0,zero,2\n",
             ":3:3: expected a number in `beta_deg`, found `zero`",
         ),
-        ("", "empty file"),
-        ("t_s,alpha_deg,beta_deg,x\n", "header only"),
-        ("t_s,alpha_deg,x\n0,0,1\n", "missing required column `beta_deg`"),
-        ("t_s,alpha_deg,beta_deg,x,x\n0,0,0,1,1\n", ":1:5: duplicate column `x`"),
-        ("t_s,alpha_deg,beta_deg,x\n0,0,0,1,5\n", ":2:5: expected 4 fields, found 5"),
-        ("t_s,alpha_deg,beta_deg,x\n1,0,0,1\n0.5,0,0,1\n", ":3:1: t_s must not decrease"),
-        ("t_s,alpha_deg,beta_deg,x\n0,inf,0,1\n", ":2:2: `alpha_deg` must be finite"),
-        ("\u{0}\u{1}\u{2}\u{ff}binary", ""),
+        (b"", ": empty file: expected a header row"),
+        (b"t_s,alpha_deg,beta_deg,x\n", ": header only: no data rows"),
+        (b"t_s,alpha_deg,x\n0,0,1\n", ": missing required column `beta_deg`"),
+        (b"t_s,alpha_deg,beta_deg,x,x\n0,0,0,1,1\n", ":1:5: duplicate column `x`"),
+        (b"t_s,alpha_deg,beta_deg,x\n0,0,0,1,5\n", ":2:5: expected 4 fields, found 5"),
+        (b"t_s,alpha_deg,beta_deg,x\n1,0,0,1\n0.5,0,0,1\n", ":3:1: t_s must not decrease"),
+        (b"t_s,alpha_deg,beta_deg,x\n0,inf,0,1\n", ":2:2: `alpha_deg` must be finite"),
+        (b"\x00\x01\x02\xffbinary", ":1: not UTF-8 text (is this a binary file?)"),
     ];
     for (i, (text, want)) in cases.iter().enumerate() {
         let f = d.p(&format!("bad{i}.csv"));
@@ -251,7 +389,7 @@ fn bad_campaigns_exit_2_name_the_place_and_leave_no_output() {
         let j = d.p(&format!("out{i}.json"));
         for cmd in ["select", "fit", "compare"] {
             let e = bad(&[cmd, f.to_str().unwrap(), "--json", j.to_str().unwrap()]);
-            assert!(e.contains(f.to_str().unwrap()) && e.contains(want), "case {i} {cmd}: {e}");
+            assert!(!want.is_empty() && e.contains(&format!("{}{want}", f.display())), "case {i} {cmd}: {e}");
             assert!(!j.exists(), "case {i}: partial output left behind");
         }
     }
@@ -275,14 +413,53 @@ fn real_recording_becomes_a_campaign_that_diagnose_reads() {
     let real = concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/data/real/imu_tk_xsens_acc.txt.gz");
     let d = Dir::new();
     let camp = d.s("real.csv");
-    let out = ok(&["fit", real, "--method", "gravity-norm", "--g", "9.81744", "--campaign-out", &camp]);
+    let g = 9.81744;
+    let fit = d.s("fit.json");
+    let out = ok(&[
+        "fit",
+        real,
+        "--method",
+        "gravity-norm",
+        "--g",
+        "9.81744",
+        "--campaign-out",
+        &camp,
+        "--json",
+        &fit,
+    ]);
     assert!(out.contains("38 holds as position dwells"), "{out}");
     let c = accelcal_core::campaign::Campaign::read(Path::new(&camp)).unwrap();
-    assert_eq!(c.dwells().len(), 38);
-    // Every hold's angles reproduce its calibrated direction: |a| = g and a points where the
-    // hold mean says (checked through the kinematics on the first and the last hold).
-    let a = accelcal_shared::gravity(c.alpha_deg[0], c.beta_deg[0], 9.81744);
-    assert!(a[2] > 9.7, "the initial rest has z along +g: {a:?}");
+    let dwells = c.dwells();
+    assert_eq!(dwells.len(), 38);
+    // The calibration the fit wrote: a = T·((u − b)/s) (imu_tk model, no quadratic term).
+    let j = json(Path::new(&fit));
+    assert_eq!(j["structure"], "imu_tk (bias+scale+misalignment)");
+    let num = |v: &Value| v.as_f64().unwrap();
+    let ch = |i: usize, k: &str| num(&j["channels"][i][k]);
+    let t: Vec<Vec<f64>> = j["misalignment"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r.as_array().unwrap().iter().map(num).collect())
+        .collect();
+    // Every hold's angles reproduce its calibrated direction: on the first and the last hold,
+    // |a| = g within 0.005 m/s² (2 codes; the fit's residual RMS is 0.001) and a points where the
+    // hold's head angles say through the kinematics (to rounding: the angles are written in full).
+    for (k, w) in [(0, &dwells[0]), (37, &dwells[37])] {
+        let n = (w.end - w.start) as f64;
+        let mean: Vec<f64> =
+            (0..3).map(|i| c.channels[i].codes[w.start..w.end].iter().sum::<f64>() / n).collect();
+        let v: Vec<f64> = (0..3).map(|i| (mean[i] - ch(i, "bias")) / ch(i, "scale")).collect();
+        let a: Vec<f64> = (0..3).map(|r| (0..3).map(|i| t[r][i] * v[i]).sum()).collect();
+        let norm = a.iter().map(|x| x * x).sum::<f64>().sqrt();
+        assert!((norm - g).abs() < 0.005, "hold {k}: |a| = {norm} m/s², g = {g}");
+        let want = accelcal_shared::gravity(w.alpha_deg, w.beta_deg, g);
+        let cos = (0..3).map(|i| a[i] * want[i]).sum::<f64>() / (norm * g);
+        assert!(cos > 1.0 - 1e-12, "hold {k}: a = {a:?} but the angles say {want:?}");
+        if k == 0 {
+            assert!(want[2] > 9.7, "the initial rest has z along +g: {want:?}");
+        }
+    }
     ok(&["diagnose", &camp, "--g", "9.81744", "--json", &d.s("diag.json")]);
     let j = json(&d.p("diag.json"));
     assert!(j["effects"].is_array());
@@ -305,4 +482,289 @@ fn a_closed_pipe_ends_the_output_quietly() {
     let out = child.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!err.contains("panicked"), "{err}");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Snapshots of what users read, and the README examples that show them.
+
+/// The README, read from the repository.
+fn readme() -> String {
+    std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../README.md")).unwrap()
+}
+
+/// The lines of the first fenced block of the README after the line `after` (a heading or a line
+/// inside a block), up to its closing fence, each ending in a newline.
+fn readme_block(after: &str) -> String {
+    let text = readme();
+    let mut lines = text.lines().skip_while(|l| *l != after);
+    assert!(lines.next().is_some(), "README has no line `{after}`");
+    let inside_a_block = !after.starts_with('#');
+    if !inside_a_block {
+        lines.find(|l| l.starts_with("```")).expect("a fenced block after the heading");
+    }
+    let block: String = lines.take_while(|l| !l.starts_with("```")).map(|l| format!("{l}\n")).collect();
+    assert!(!block.is_empty(), "empty README block after `{after}`");
+    block
+}
+
+/// A README session: the `$ accelcal ...` lines of the block that holds `last` (the last command,
+/// whose output the block shows after it), run in order in a fresh directory; returns (the
+/// README's output of the last command, the binary's).
+fn readme_session(last: &str) -> (String, String) {
+    let text = readme();
+    let lines: Vec<&str> = text.lines().collect();
+    let at = lines.iter().position(|l| *l == last).unwrap_or_else(|| panic!("README has no `{last}`"));
+    let start = lines[..at].iter().rposition(|l| l.starts_with("```")).unwrap() + 1;
+    let d = Dir::new();
+    let mut stdout = String::new();
+    for cmd in &lines[start..=at] {
+        let args: Vec<&str> =
+            cmd.strip_prefix("$ accelcal ").expect("a command line").split_whitespace().collect();
+        let out = Command::new(env!("CARGO_BIN_EXE_accelcal"))
+            .args(&args)
+            .current_dir(d.0.path())
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{cmd}: {}", String::from_utf8_lossy(&out.stderr));
+        stdout = String::from_utf8(out.stdout).unwrap();
+    }
+    (readme_block(last), stdout)
+}
+
+/// `accelcal demo --out DIR` with DIR a temporary directory, its stdout with DIR written as the
+/// README writes it (`accelcal-demo`, the default).
+fn demo_stdout() -> String {
+    let d = Dir::new();
+    let out = ok(&["demo", "--out", &d.s("accelcal-demo")]);
+    let dir = d.0.path().to_str().unwrap();
+    assert!(out.contains(dir), "the output names the directory: {out}");
+    out.replace(&format!("{dir}/"), "")
+}
+
+#[test]
+fn demo_tables_are_the_readme_s() {
+    let out = demo_stdout();
+    // Table 1 for the three channels, the coefficient table, Table 2.
+    for want in [
+        "channel x: regularity",
+        "channel y: regularity",
+        "channel z: regularity",
+        "Model 4 coefficients",
+        "Table 2.",
+    ] {
+        assert_eq!(out.matches(want).count(), 1, "{want}: {out}");
+    }
+    insta::assert_snapshot!("demo_stdout", out);
+    // The README shows the same run, digit for digit ("What the demo prints").
+    assert_eq!(readme_block("## What the demo prints"), out, "README's demo output is stale");
+}
+
+/// A report with a known effect (the README's diagnosis example: seed 42, settling).
+const DIAGNOSE_EXAMPLE: &str = "$ accelcal diagnose c.csv --json d.json";
+
+#[test]
+fn diagnosis_report_is_the_readme_s() {
+    let (readme, out) = readme_session(DIAGNOSE_EXAMPLE);
+    assert!(out.contains("\n  -> settling\n"), "{out}");
+    assert!(out.contains("effect settling on x,y,z"), "{out}");
+    insta::assert_snapshot!("diagnose_settling_stdout", out);
+    assert_eq!(readme, out, "README's diagnosis example is stale");
+}
+
+/// Numbers rounded to 9 significant digits: the snapshot then holds every digit a reader could
+/// care about without depending on the last bit of the platform's libm.
+fn rounded(v: &Value) -> Value {
+    match v {
+        Value::Number(n) if n.is_f64() => {
+            let x = n.as_f64().unwrap();
+            serde_json::json!(format!("{x:.8e}").parse::<f64>().unwrap())
+        }
+        Value::Array(a) => Value::Array(a.iter().map(rounded).collect()),
+        Value::Object(o) => Value::Object(o.iter().map(|(k, v)| (k.clone(), rounded(v))).collect()),
+        _ => v.clone(),
+    }
+}
+
+#[test]
+fn diagnosis_json_is_pinned_and_deterministic() {
+    let d = Dir::new();
+    let c = simulate(&d, "c.csv", &["--seed", "42", "--effect", "settling=gain:30,tau:0.4"]);
+    ok(&["diagnose", &c, "--json", &d.s("a.json")]);
+    ok(&["diagnose", &c, "--json", &d.s("b.json")]);
+    let (a, b) = (std::fs::read(d.p("a.json")).unwrap(), std::fs::read(d.p("b.json")).unwrap());
+    assert_eq!(a, b, "the diagnosis of one campaign is the same twice, to the bit");
+    // No field depends on the run (paths, times): nothing to redact.
+    let text = String::from_utf8(a).unwrap();
+    assert!(!text.contains(d.0.path().to_str().unwrap()), "the JSON names the temporary directory");
+    let j = json(&d.p("a.json"));
+    assert_eq!(j["effects"][0]["name"], "settling");
+    insta::assert_snapshot!("diagnose_settling_json", serde_json::to_string_pretty(&rounded(&j)).unwrap());
+}
+
+// ---------------------------------------------------------------------------------------------
+// Settings checked before any I/O.
+
+/// Every file under `dir` with its bytes.
+fn files(dir: &Path) -> std::collections::BTreeMap<PathBuf, Vec<u8>> {
+    let mut out = std::collections::BTreeMap::new();
+    let mut todo = vec![dir.to_path_buf()];
+    while let Some(d) = todo.pop() {
+        for e in std::fs::read_dir(&d).unwrap().flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                out.insert(p.clone(), Vec::new());
+                todo.push(p);
+            } else {
+                out.insert(p.clone(), std::fs::read(&p).unwrap());
+            }
+        }
+    }
+    out
+}
+
+/// Command lines (`C` a campaign, `V` a second one, `R` a raw recording, other names outputs in
+/// the same directory) that the settings refuse, and what the one error line must say.
+const REFUSED: &[(&str, &str)] = &[
+    ("fit R --method gravity-norm --record x.rec", "--record does not apply to fit --method gravity-norm"),
+    (
+        "fit R --method gravity-norm --device-id 00112233445566778899aabb",
+        "--device-id does not apply to fit --method gravity-norm",
+    ),
+    ("fit R --method gravity-norm --terms ax,ay", "--terms does not apply to fit --method gravity-norm"),
+    (
+        "fit R --method gravity-norm --created 1800000000",
+        "--created does not apply to fit --method gravity-norm",
+    ),
+    ("fit R --method gravity-norm --campaign-out R", "--campaign-out R is the input CAMPAIGN"),
+    ("fit C --plot d", "--plot does not apply to fit --method lsq"),
+    ("fit C --campaign-out x.csv", "--campaign-out does not apply to fit --method lsq"),
+    ("fit C --threshold 5", "--threshold does not apply to fit --method lsq"),
+    ("fit C --method test-turns --window-s 2", "--window-s does not apply to fit --method test-turns"),
+    ("fit C --method test-turns --structure auto", "--structure does not apply to fit --method test-turns"),
+    ("fit C --device-id 00112233445566778899aabb", "--device-id does not apply to fit without --record"),
+    ("fit C --created 1800000000", "--created does not apply to fit without --record"),
+    ("fit C --record C", "--record C is the input CAMPAIGN: refusing to overwrite it"),
+    ("fit C --json C", "--json C is the input CAMPAIGN: refusing to overwrite it"),
+    ("fit C --json o.json --record o.json", "--json and --record name the same path"),
+    ("compare C --json C", "--json C is the input CAMPAIGN: refusing to overwrite it"),
+    ("compare C --validate V --json V", "--json V is the input --validate"),
+    ("compare C --plot C", "--plot C is the input CAMPAIGN"),
+    ("select C --width 4", "--width does not apply to select --algorithm combi"),
+    ("select C --top 3", "--top does not apply to select without --json"),
+    ("select C --json C", "--json C is the input CAMPAIGN"),
+    ("diagnose C --json C", "--json C is the input CAMPAIGN"),
+    ("simulate --out a.csv --truth a.csv", "--out and --truth name the same path"),
+    ("simulate --out a.csv --json a.csv", "--out and --json name the same path"),
+    ("hil --qemu R --record V --out C C", "--out C is the input CAMPAIGN"),
+];
+
+/// Command lines in which every option applies: they run, and write what they are asked to.
+const ACCEPTED: &[(&str, &[&str])] = &[
+    ("fit C --record r.rec --device-id 00112233445566778899aabb --created 1800000000", &["r.rec"]),
+    ("fit C --method test-turns --json t.json", &["t.json"]),
+    (
+        "fit R --method gravity-norm --threshold 1000 --window-s 1 --min-hold-s 2 --structure imu-tk \
+         --format imu-tk --plot p --campaign-out rc.csv --json g.json",
+        &["p/gravity-residuals.svg", "rc.csv", "g.json"],
+    ),
+    ("select C --algorithm multi --width 4 --basis quadratic", &[]),
+    ("select C --json s.json --top 3", &["s.json"]),
+    ("compare C --validate V --json c.json", &["c.json"]),
+    ("diagnose C --json dj.json", &["dj.json"]),
+    ("simulate --out a.csv --truth b.json --json a.json --samples 2", &["a.csv", "b.json", "a.json"]),
+];
+
+/// The arguments of a table line, run in `d`: `C`, `V`, `R` and output names become paths there.
+fn table_args(d: &Dir, line: &str) -> Vec<String> {
+    let is_path =
+        |w: &str| ["C", "V", "R", "d", "p"].contains(&w) || w.contains('.') && w.parse::<f64>().is_err();
+    line.split_whitespace().map(|w| if is_path(w) { d.s(w) } else { w.to_string() }).collect()
+}
+
+#[test]
+fn options_that_do_not_apply_and_outputs_that_are_inputs_are_refused_before_any_io() {
+    let d = Dir::new();
+    simulate(&d, "C", &["--seed", "3", "--samples", "16"]);
+    simulate(&d, "V", &["--seed", "4", "--samples", "16", "--plan", "random:20"]);
+    std::fs::copy(
+        concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/data/real/imu_tk_xsens_acc.txt.gz"),
+        d.p("R"),
+    )
+    .unwrap();
+    for (line, want) in REFUSED {
+        let args = table_args(&d, line);
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let before = files(d.0.path());
+        let e = bad(&args);
+        let want = want.replace(" C ", &format!(" {} ", d.s("C"))).replace(" V ", &format!(" {} ", d.s("V")));
+        let want = want.replace(" R ", &format!(" {} ", d.s("R")));
+        assert!(e.contains(&want), "`{line}`: expected `{want}` in: {e}");
+        assert!(files(d.0.path()) == before, "`{line}`: a file was written or changed");
+    }
+    for (line, outputs) in ACCEPTED {
+        let args = table_args(&d, line);
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        ok(&args);
+        for o in *outputs {
+            assert!(d.p(o).is_file(), "`{line}` did not write {o}");
+        }
+    }
+}
+
+/// README examples whose inputs the README does not make: files edited by hand, described in the
+/// text around them.
+const README_HAND_MADE: &[&str] = &["three-sat.csv", "half.csv"];
+
+/// Copies the directory `from` into `to`.
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap().flatten() {
+        if e.path().is_dir() {
+            copy_dir(&e.path(), &to.join(e.file_name()));
+        } else {
+            std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
+        }
+    }
+}
+
+#[test]
+fn every_readme_example_prints_what_the_readme_shows() {
+    // Run from a directory that holds the repository's test data at the README's paths.
+    let d = Dir::new();
+    copy_dir(Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/data")), &d.p("tests/data"));
+    let text = readme();
+    let lines: Vec<&str> = text.lines().collect();
+    let mut checked = 0;
+    for (i, line) in lines.iter().enumerate() {
+        let Some(cmd) = line.strip_prefix("$ accelcal ") else { continue };
+        if README_HAND_MADE.iter().any(|f| cmd.contains(f)) {
+            continue;
+        }
+        let args: Vec<&str> = cmd.split_whitespace().collect();
+        let out = Command::new(env!("CARGO_BIN_EXE_accelcal"))
+            .args(&args)
+            .current_dir(d.0.path())
+            .output()
+            .unwrap();
+        let got = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+        // What the README shows: the lines up to the next command or the end of the block; a
+        // line `...` elides the middle of the output.
+        let shown: Vec<&str> = lines[i + 1..]
+            .iter()
+            .take_while(|l| !l.starts_with("$ ") && !l.starts_with("```"))
+            .copied()
+            .collect();
+        let got: Vec<&str> = got.lines().collect();
+        match shown.iter().position(|l| l.trim() == "...") {
+            None if shown.is_empty() => assert!(out.status.success(), "{line}: {got:?}"),
+            None => assert_eq!(shown, got, "README line {}: {line}", i + 1),
+            Some(k) => {
+                let tail = &shown[k + 1..];
+                assert_eq!(shown[..k], got[..k.min(got.len())], "README line {}: {line}", i + 1);
+                assert_eq!(tail, &got[got.len() - tail.len()..], "README line {}: {line}", i + 1);
+            }
+        }
+        checked += 1;
+    }
+    assert!(checked >= 12, "{checked} README examples checked");
 }

@@ -137,6 +137,51 @@ fn accelcal(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_accelcal")).args(args).output().expect("the binary runs")
 }
 
+/// Checks every "explained" share of a diagnosis report against the numbers on its row and its
+/// round: the share is 100 × chi2 drop / (held-out chi2 − bins), so it lies below 100 × chi2 /
+/// (chi2 − bins) (an effect cannot remove more than the whole chi2) and is negative when the
+/// effect, fitted on the other positions, makes the withheld ones worse (with no lower bound:
+/// −136 % for angle_error on the hysteresis campaign below); a kept effect removes at least half
+/// the excess. Every `%` of the report is one of these shares. Returns how many were printed.
+fn check_shares(report: &str) -> usize {
+    let num = |w: &str| w.parse::<f64>().unwrap_or_else(|_| panic!("`{w}` in\n{report}"));
+    let (mut chi2, mut bins, mut shares) = (f64::NAN, f64::NAN, 0);
+    let mut rows: Vec<(String, f64, Option<f64>)> = Vec::new();
+    let mut in_round = false;
+    for line in report.lines() {
+        let w: Vec<&str> = line.split_whitespace().collect();
+        if line.starts_with("round ") {
+            // round N (held-out chi2 X over B bins, rms R codes)
+            (chi2, bins) = (num(w[4]), num(w[6]));
+            rows.clear();
+            in_round = true;
+        } else if in_round && w.len() == 5 {
+            // effect, chi2 drop, threshold, explained, rms after
+            let share = (w[3] != "-").then(|| num(w[3].strip_suffix('%').expect("a share in %")));
+            assert_eq!(share.is_some(), chi2 > bins, "a share only where there is an excess: {line}");
+            if let Some(pct) = share {
+                let excess = chi2 - bins;
+                let drop = num(w[1]);
+                // Printed to 5 (drop) and 6 (chi2) digits, the share to a whole percent.
+                let want = 100.0 * drop / excess;
+                let tol = 0.5 + want.abs() * 1e-4 + 100.0 * drop.abs() * chi2 * 1e-5 / (excess * excess);
+                assert!((pct - want).abs() <= tol, "{line}: {pct}% vs {want:.2}% of the excess");
+                assert!(pct <= 100.0 * chi2 / excess + 0.5, "{line}: more than the whole chi2");
+                shares += 1;
+            }
+            rows.push((w[0].to_string(), num(w[1]), share));
+        } else if let Some(kept) = line.strip_prefix("  -> ") {
+            in_round = false;
+            if let Some((_, _, Some(pct))) = rows.iter().find(|r| r.0 == kept) {
+                assert!(*pct >= 50.0 || kept == "angle_error", "{kept} kept with {pct}% of the excess");
+            }
+        }
+    }
+    let percents = report.split_whitespace().filter(|w| w.ends_with('%')).count();
+    assert_eq!(percents, shares, "a `%` outside the trial rows:\n{report}");
+    shares
+}
+
 #[test]
 fn cli_writes_the_issue_json_plots_and_refuses_bad_input() {
     let dir = tempfile::tempdir().unwrap();
@@ -157,17 +202,13 @@ fn cli_writes_the_issue_json_plots_and_refuses_bad_input() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let stdout = String::from_utf8(out.stdout).unwrap();
     assert!(stdout.contains("effect hysteresis"), "{stdout}");
-    // Shares of the excess chi2 are sane numbers, or `-` when a round has no excess to share (as
-    // on a clean campaign).
+    // Each trial's share is what it says: its chi2 drop over the round's excess chi2, at most
+    // the whole chi2; `-` when a round has no excess to share (as on a clean campaign).
     assert!(accelcal(&["simulate", "--out", &p("clean.csv")]).status.success());
     let clean = String::from_utf8(accelcal(&["diagnose", &p("clean.csv")]).stdout).unwrap();
     assert!(clean.contains("nothing significant"), "{clean}");
-    for text in [&stdout, &clean] {
-        for pct in text.split_whitespace().filter_map(|w| w.strip_suffix('%')) {
-            let v: f64 = pct.parse().unwrap();
-            assert!(v.abs() <= 1000.0, "{pct}% in\n{text}");
-        }
-    }
+    assert!(check_shares(&stdout) >= 6, "{stdout}");
+    check_shares(&clean);
     let v: Value = serde_json::from_str(&std::fs::read_to_string(p("d.json")).unwrap()).unwrap();
     assert!(v["unexplained_rms"].is_number());
     let e = &v["effects"][0];

@@ -213,6 +213,23 @@ fn accelcal_fit_method_gravity_norm_runs_on_the_real_file() {
     for key in ["channels", "misalignment", "holds", "residual_rms"] {
         assert!(v.get(key).is_some(), "missing {key}");
     }
+    // The core's defaults that the other tests of the real file use are the binary's.
+    let (_, cal) = calibrate_file(&real_file(), 9.81744, None);
+    for i in 0..3 {
+        let (b, s) =
+            (v["channels"][i]["bias"].as_f64().unwrap(), v["channels"][i]["scale"].as_f64().unwrap());
+        assert!(
+            (b - cal.fit.model.bias[i]).abs() < 1e-9 * b.abs(),
+            "bias[{i}]: {b} vs {}",
+            cal.fit.model.bias[i]
+        );
+        assert!(
+            (s - cal.fit.model.scale[i]).abs() < 1e-9 * s,
+            "scale[{i}]: {s} vs {}",
+            cal.fit.model.scale[i]
+        );
+    }
+    assert_eq!(v["holds"], cal.detection.holds.len());
     // A malformed recording is bad input: exit code 2, message with file, line and column.
     let bad = dir.path().join("bad.txt");
     std::fs::write(&bad, "0 1 2 3\n0.01 1 2\n").unwrap();

@@ -273,8 +273,8 @@ pub struct FitArgs {
     /// Fitting method.
     #[arg(long, value_enum, default_value_t = MethodArg::Lsq)]
     pub method: MethodArg,
-    /// Model terms, comma-separated (the intercept is always included); the default is the
-    /// paper's model 4.
+    /// Model terms, comma-separated (the intercept is always included; `ax,ay,az` is the paper's
+    /// model 4).
     #[arg(long, value_name = "LIST", default_value = "ax,ay,az")]
     pub terms: String,
     /// Write the calibration record for the firmware to this file.
@@ -325,8 +325,8 @@ pub struct DemoArgs {
 pub struct DiagnoseArgs {
     /// Campaign CSV.
     pub campaign: PathBuf,
-    /// Baseline model terms, comma-separated (the intercept is always included); the default is
-    /// model 4. (`--baseline` is the former name.)
+    /// Baseline model terms, comma-separated (the intercept is always included; `ax,ay,az` is
+    /// model 4); `--baseline` is the former name.
     #[arg(long = "terms", alias = "baseline", value_name = "LIST", default_value = "ax,ay,az")]
     pub terms: String,
     /// Write the gap-map plots (SVG) into this directory.
