@@ -55,6 +55,8 @@ mod tests {
         let e = environment("writing out.json", io).context("fit");
         assert!(!is_bad_input(&e));
         assert_eq!(format!("{e:#}"), "fit: writing out.json: disk full");
-        assert!(!is_bad_input(&anyhow::Error::new(crate::node::hil::HilError::Timeout(3))));
+        assert!(!is_bad_input(&anyhow::Error::new(crate::node::hil::HilError::Timeout(
+            std::time::Duration::from_secs(3)
+        ))));
     }
 }
