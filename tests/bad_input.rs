@@ -294,7 +294,7 @@ fn a_refusal_after_excluded_samples_is_one_line_naming_the_exclusion() {
     assert!(e.contains("need at least 4 positions, the plan has 3"), "{e}");
     let note = format!(
         "(note: {c}:5:6: excluded 1 of 9 samples where channel `z` is saturated (0 or 65535) or \
-         outside the ADC range (first at this line))"
+         outside the unsigned16 range (first at this line))"
     );
     for cmd in ["fit", "compare", "diagnose"] {
         let e = bad(&[cmd, c]);

@@ -18,6 +18,7 @@ pub mod diagnose;
 pub mod error;
 pub mod gmdh;
 pub mod gravity;
+pub mod input;
 pub mod lsq;
 pub mod node;
 pub mod output;
