@@ -579,6 +579,28 @@ mod tests {
     }
 
     #[test]
+    fn gzip_campaigns_give_the_same_blocks_and_signed_ones_are_refused() {
+        use std::io::Write as _;
+        let dir = tempfile::tempdir().unwrap();
+        let (plain, gz) = (dir.path().join("c.csv"), dir.path().join("c.csv.gz"));
+        let text = triad(45);
+        std::fs::write(&plain, &text).unwrap();
+        let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+        enc.write_all(text.as_bytes()).unwrap();
+        std::fs::write(&gz, enc.finish().unwrap()).unwrap();
+        let read = |p: &Path| -> Vec<(CodeBlock, TimeBlock)> {
+            CampaignCodes::open(p).unwrap().collect::<anyhow::Result<_>>().unwrap()
+        };
+        assert_eq!(read(&gz), read(&plain));
+        let e = CampaignCodes::open_with(&plain, Some(CodeRange::Signed16)).err().unwrap();
+        assert!(crate::error::is_bad_input(&e));
+        assert!(e.to_string().contains("signed16 codes cannot be replayed"), "{e}");
+        std::fs::write(&plain, format!("# codes: signed16\n{text}")).unwrap();
+        let e = CampaignCodes::open(&plain).err().unwrap();
+        assert!(e.to_string().contains("signed16 codes cannot be replayed"), "{e}");
+    }
+
+    #[test]
     fn rows_are_checked_as_they_are_read() {
         // In the first block: the file is refused when opened, before the channels are checked.
         let e = CampaignCodes::new(
