@@ -212,6 +212,9 @@ fn a_codes_flag_that_contradicts_the_comment_line_is_refused_naming_both() {
         let e = bad(&args);
         assert!(e.contains(&want), "{args:?}: {e}");
     }
+    // A validation campaign in the other range is refused: the fits do not apply to its codes.
+    let e = bad(&["compare", f, "--validate", s(&p.unsigned)]);
+    assert!(e.contains("the validation campaign's codes are unsigned16, the campaign's signed16"), "{e}");
     // The unsigned file has no comment line: --codes signed16 is its range, and its codes near
     // 65535 are outside it.
     let e = bad(&["fit", s(&p.unsigned), "--codes", "signed16"]);

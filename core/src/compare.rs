@@ -242,6 +242,17 @@ impl Plan {
         }
         Ok(())
     }
+
+    /// Checks that the validation campaign's codes have the campaign's range: the fits of one
+    /// range are meaningless on codes of the other.
+    fn check_codes(codes: CodeRange, vcodes: CodeRange) -> anyhow::Result<()> {
+        if codes != vcodes {
+            return Err(bad(format!(
+                "the validation campaign's codes are {vcodes}, the campaign's {codes} (state the range with a `# codes:` line or --codes)"
+            )));
+        }
+        Ok(())
+    }
 }
 
 /// The errors of both methods on the validation rows, folded in one row at a time.
@@ -306,6 +317,7 @@ pub fn compute(c: &Campaign, validate: Option<&Campaign>, g: f64) -> anyhow::Res
     let plan = Plan::new(&pos, &pos.channel_stats(c), validate.is_some())?;
     if let Some(v) = validate {
         Plan::check_channels(&names, &v.channels.iter().map(|ch| ch.name.clone()).collect::<Vec<_>>())?;
+        Plan::check_codes(c.codes, v.codes)?;
     }
     let mut val = Validation::new(plan, names.len(), g);
     validate.unwrap_or(c).for_each_row(|k, row| val.push(k, row));
@@ -330,6 +342,7 @@ pub fn compute_files(
     let first_pass = vr.as_ref().unwrap_or(&r);
     let ctx = || campaign.display().to_string();
     Plan::check_channels(&r.channels, &first_pass.channels).with_context(ctx)?;
+    Plan::check_codes(r.codes, first_pass.codes).with_context(ctx)?;
     let plan = Plan::new(&r.positions(g), &r.channel_stats(), validate.is_some()).with_context(ctx)?;
     let vpath = validate.unwrap_or(campaign);
     let mut rows = Reread::open(vpath, declared, first_pass).context("reading the campaign")?;
