@@ -219,6 +219,9 @@ fn a_codes_flag_that_contradicts_the_comment_line_is_refused_naming_both() {
     // 65535 are outside it.
     let e = bad(&["fit", s(&p.unsigned), "--codes", "signed16"]);
     assert!(e.contains("outside the signed16 range"), "{e}");
+    // gravity-norm reads a recording, not a campaign.
+    let e = bad(&["fit", s(&p.signed), "--method", "gravity-norm", "--codes", "signed16"]);
+    assert!(e.contains("--codes does not apply to fit --method gravity-norm"), "{e}");
     // clap refuses an unknown range (with its usage note, on more than one line).
     let run = accelcal(&["fit", s(&p.signed), "--codes", "signed8"]);
     let e = String::from_utf8_lossy(&run.stderr);
