@@ -294,10 +294,43 @@ fn a_refusal_after_excluded_samples_is_one_line_naming_the_exclusion() {
     assert!(e.contains("need at least 4 positions, the plan has 3"), "{e}");
     let note = format!(
         "(note: {c}:5:6: excluded 1 of 9 samples where channel `z` is saturated (0 or 65535) or \
-         outside the ADC range (first at this line))"
+         outside the unsigned16 range (first at this line))"
     );
     for cmd in ["fit", "compare", "diagnose"] {
         let e = bad(&[cmd, c]);
         assert!(e.ends_with(&note), "{cmd}: {e}");
     }
+}
+
+/// `hil` replays codes to a node that samples a 16-bit unsigned ADC: a signed16 campaign, by its
+/// comment line or by `--codes`, is refused before any node is started, and so is a `--codes`
+/// that contradicts the file.
+#[test]
+fn hil_refuses_signed_codes_before_any_node_is_started() {
+    let (d, out) = out_dir();
+    let rec = good_record(d.path());
+    let c = d.path().join("signed.csv");
+    campaign(&c, &EIGHT_POSITIONS.map(|(a, b)| (a, b, 2)));
+    let plain = std::fs::read_to_string(&c).unwrap();
+    let commented = d.path().join("commented.csv");
+    std::fs::write(&commented, format!("# codes: signed16\n{plain}")).unwrap();
+    let (c, commented, rec) = (c.to_str().unwrap(), commented.to_str().unwrap(), rec.to_str().unwrap());
+    let o = out.join("o.csv");
+    let o = o.to_str().unwrap();
+    // Any existing file passes the ELF check: nothing may get as far as starting QEMU.
+    let hil = |campaign: &str, codes: &[&'static str]| {
+        let mut args = vec!["hil", "--qemu", rec, "--record", rec, campaign, "--out", o];
+        args.extend_from_slice(codes);
+        bad(&args)
+    };
+    let refused = "signed16 codes cannot be replayed: the node samples a 16-bit unsigned ADC";
+    for (campaign, codes) in
+        [(commented, &[][..]), (c, &["--codes", "signed16"][..]), (commented, &["--codes", "signed16"])]
+    {
+        let e = hil(campaign, codes);
+        assert!(e.contains(&format!("{campaign}: {refused}")), "{codes:?}: {e}");
+    }
+    let e = hil(commented, &["--codes", "unsigned16"]);
+    assert!(e.contains(&format!("{commented}:1: `# codes: signed16` contradicts --codes unsigned16")), "{e}");
+    assert_no_output(&out, "hil with signed codes");
 }

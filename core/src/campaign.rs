@@ -5,31 +5,41 @@
 //! raw codes. One row per sample set; consecutive rows with the same angles form one position
 //! dwell. Lines starting with `#` are comments.
 //!
+//! The codes have a stated range ([`CodeRange`]): `unsigned16` (0..=65535, a 16-bit ADC; the default)
+//! or `signed16` (−32768..=32767, the two's-complement counts of a digital MEMS). A comment line
+//! `# codes: signed16` (or `unsigned16`) before the header row states it in the file; a range the
+//! command line gives must agree with it. A file that starts with the gzip magic bytes is
+//! decompressed as it is read ([`crate::input::Input`]); its errors name lines of the text.
+//!
 //! Every check lives in one row parser, `RowReader`, which keeps only the current row; the
 //! in-memory reader ([`Campaign::read`]) and the streaming one ([`Campaign::reduce`]) both use it.
-//! A row with a code at 0 or 65535 (saturated) or outside the ADC range is skipped and counted in
+//! A row with a code at a rail of its range (saturated) or outside it is skipped and counted in
 //! a warning per channel; a dwell that loses every row is refused; single-sample dwells are
 //! counted in a warning.
 
-use std::io::{Read, Write};
+use std::io::{BufReader, Chain, Cursor, Read, Write};
 use std::path::{Path, PathBuf};
 
 use accelcal_shared::kinematics;
 
-/// The largest raw code of the 16-bit ADC.
-pub const ADC_MAX: f64 = 65535.0;
+use crate::input::Input;
+
+mod codes;
+use codes::header_comments;
+pub use codes::{CodeRange, CODES_COMMENT};
 
 /// Why a campaign file was refused. Every variant names the file and, where there is one, the
 /// line and the column (1-based, counting fields).
 #[derive(Debug, thiserror::Error)]
 pub enum CampaignError {
-    /// The file could not be opened or read.
-    #[error("{path}: {source}")]
+    /// The file could not be opened or read (a corrupt gzip stream included).
+    #[error("{path}: {cause}")]
     Io {
         /// The file.
         path: PathBuf,
-        /// The cause.
-        source: std::io::Error,
+        /// The cause, in the message (not a `source`, so that a chain of causes does not print it
+        /// twice).
+        cause: std::io::Error,
     },
     /// The CSV layer refused the file (bad UTF-8, unbalanced quotes...).
     #[error("{path}:{line}: {msg}")]
@@ -50,6 +60,16 @@ pub enum CampaignError {
         line: u64,
         /// Column (field number, 1-based).
         column: usize,
+        /// What was expected.
+        msg: String,
+    },
+    /// A problem with one line as a whole (a header comment).
+    #[error("{path}:{line}: {msg}")]
+    Line {
+        /// The file.
+        path: PathBuf,
+        /// The line.
+        line: u64,
         /// What was expected.
         msg: String,
     },
@@ -88,6 +108,8 @@ pub struct Campaign {
     /// What the reader excluded or could not check (saturated codes, single-sample dwells), one
     /// line each; the commands print them on stderr.
     pub warnings: Vec<String>,
+    /// The range of the codes (written as a `# codes:` comment line when it is not the default).
+    pub codes: CodeRange,
 }
 
 /// One position dwell: a run of consecutive rows with the same commanded angles.
@@ -149,17 +171,32 @@ impl Campaign {
         out
     }
 
-    /// Reads and checks a campaign file.
+    /// Reads and checks a campaign file (plain or gzip), in the code range its `# codes:` line
+    /// states (default `unsigned16`).
     pub fn read(path: &Path) -> Result<Campaign, CampaignError> {
-        let file = std::fs::File::open(path)
-            .map_err(|source| CampaignError::Io { path: path.to_owned(), source })?;
-        Campaign::from_reader(std::io::BufReader::new(file), path)
+        Campaign::read_with(path, None)
+    }
+
+    /// [`Campaign::read`] with the code range the user declared, which the file's `# codes:` line
+    /// must not contradict.
+    pub fn read_with(path: &Path, declared: Option<CodeRange>) -> Result<Campaign, CampaignError> {
+        Campaign::from_reader_with(open(path)?, path, declared)
     }
 
     /// Reads and checks a campaign from any reader; `path` names it in errors.
     pub fn from_reader<R: Read>(reader: R, path: &Path) -> Result<Campaign, CampaignError> {
-        let mut rows = RowReader::new(reader, path)?;
+        Campaign::from_reader_with(reader, path, None)
+    }
+
+    /// [`Campaign::from_reader`] with the code range the user declared.
+    pub fn from_reader_with<R: Read>(
+        reader: R,
+        path: &Path,
+        declared: Option<CodeRange>,
+    ) -> Result<Campaign, CampaignError> {
+        let mut rows = RowReader::new(reader, path, declared)?;
         let mut c = Campaign {
+            codes: rows.codes(),
             temp_c: rows.has_temp().then(Vec::new),
             channels: rows
                 .channel_names()
@@ -184,8 +221,12 @@ impl Campaign {
         Ok(c)
     }
 
-    /// Writes the campaign as CSV (header, then one row per sample set).
-    pub fn write<W: Write>(&self, w: W) -> Result<(), csv::Error> {
+    /// Writes the campaign as CSV (a `# codes:` line unless the codes are `unsigned16`, the
+    /// header, then one row per sample set).
+    pub fn write<W: Write>(&self, mut w: W) -> Result<(), csv::Error> {
+        if self.codes != CodeRange::default() {
+            writeln!(w, "# {CODES_COMMENT} {}", self.codes)?;
+        }
         let mut wr = csv::Writer::from_writer(w);
         let mut head = vec!["t_s".to_string(), "alpha_deg".into(), "beta_deg".into()];
         if self.temp_c.is_some() {
@@ -230,18 +271,22 @@ impl Warnings {
     }
 }
 
-/// Reads a campaign into memory; its warnings go to `warnings`, its errors are bad input.
-pub fn read_campaign(path: &Path, warnings: &mut Warnings) -> anyhow::Result<Campaign> {
+/// Reads a campaign into memory, in the code range `declared` (the file's `# codes:` line
+/// otherwise); its warnings go to `warnings`, its errors are bad input.
+pub fn read_campaign(
+    path: &Path,
+    declared: Option<CodeRange>,
+    warnings: &mut Warnings,
+) -> anyhow::Result<Campaign> {
     use anyhow::Context;
-    let c = Campaign::read(path).context("reading the campaign")?;
+    let c = Campaign::read_with(path, declared).context("reading the campaign")?;
     warnings.extend(&c.warnings);
     Ok(c)
 }
 
-/// Whether a raw code is usable: inside the ADC range and not at a rail (0 and 65535 are what a
-/// saturated input reads).
-pub fn code_usable(v: f64) -> bool {
-    v > 0.0 && v < ADC_MAX
+/// Opens a campaign file, decompressing it when it is gzip.
+pub(crate) fn open(path: &Path) -> Result<Input, CampaignError> {
+    Input::open(path).map_err(|cause| CampaignError::Io { path: path.to_owned(), cause })
 }
 
 /// One checked row whose codes are all usable.
@@ -289,11 +334,12 @@ impl Tally {
 /// current row, so the in-memory reader ([`Campaign::read`]) and the streaming one
 /// ([`Campaign::reduce`]) refuse the same files with the same messages.
 ///
-/// Rows with a channel code saturated or outside the ADC range are skipped (and counted per
+/// Rows with a channel code saturated or outside the code range are skipped (and counted per
 /// channel for a warning); a dwell that loses every row is refused.
 pub(crate) struct RowReader<R: Read> {
-    rdr: csv::Reader<R>,
+    rdr: csv::Reader<Chain<Cursor<Vec<u8>>, BufReader<R>>>,
     path: PathBuf,
+    codes: CodeRange,
     header: csv::StringRecord,
     cols: [usize; 3],
     temp: Option<usize>,
@@ -307,14 +353,28 @@ pub(crate) struct RowReader<R: Read> {
 }
 
 impl<R: Read> RowReader<R> {
-    /// Reads and checks the header.
-    pub fn new(reader: R, path: &Path) -> Result<RowReader<R>, CampaignError> {
+    /// Reads the comment lines before the header (a `# codes:` line states the code range, which
+    /// must agree with `declared`, the user's) and checks the header.
+    pub fn new(reader: R, path: &Path, declared: Option<CodeRange>) -> Result<RowReader<R>, CampaignError> {
         let p = || path.to_owned();
+        let mut reader = BufReader::new(reader);
+        let (prefix, stated) = header_comments(&mut reader, path)?;
+        let codes = match (stated, declared) {
+            (Some((line, file)), Some(user)) if file != user => {
+                return Err(CampaignError::Line {
+                    path: p(),
+                    line,
+                    msg: format!("`# {CODES_COMMENT} {file}` contradicts --codes {user}"),
+                })
+            }
+            (Some((_, file)), _) => file,
+            (None, user) => user.unwrap_or_default(),
+        };
         let mut rdr = csv::ReaderBuilder::new()
             .comment(Some(b'#'))
             .trim(csv::Trim::All)
             .flexible(true)
-            .from_reader(reader);
+            .from_reader(Cursor::new(prefix).chain(reader));
         let header = rdr.headers().map_err(|e| csv_error(e, path))?.clone();
         let header_line = header.position().map(|p| p.line()).unwrap_or(1);
         if header.is_empty() || header.iter().all(|h| h.is_empty()) {
@@ -355,6 +415,7 @@ impl<R: Read> RowReader<R> {
         Ok(RowReader {
             rdr,
             path: p(),
+            codes,
             excluded: vec![Tally::default(); chans.len()],
             header,
             cols,
@@ -376,6 +437,11 @@ impl<R: Read> RowReader<R> {
     /// Whether the file has a `temp_c` column.
     pub fn has_temp(&self) -> bool {
         self.temp.is_some()
+    }
+
+    /// The range of the codes.
+    pub fn codes(&self) -> CodeRange {
+        self.codes
     }
 
     fn field_error(&self, line: u64, column: usize, msg: String) -> CampaignError {
@@ -438,7 +504,7 @@ impl<R: Read> RowReader<R> {
             let mut usable = true;
             for k in 0..self.chans.len() {
                 let v = self.num(line, self.chans[k])?;
-                if !code_usable(v) {
+                if !self.codes.usable(v) {
                     usable = false;
                     self.excluded[k].add(line);
                     let d = self.dwell.as_mut().expect("a dwell is open");
@@ -463,8 +529,10 @@ impl<R: Read> RowReader<R> {
                     d.first_line,
                     self.chans[k] + 1,
                     format!(
-                        "every sample of the dwell at alpha_deg {}, beta_deg {} has channel `{name}` saturated (0 or 65535) or outside the ADC range: nothing left to average",
-                        d.alpha, d.beta
+                        "every sample of the dwell at alpha_deg {}, beta_deg {} has channel `{name}` {}: nothing left to average",
+                        d.alpha,
+                        d.beta,
+                        self.codes.unusable()
                     ),
                 ))
             }
@@ -486,12 +554,13 @@ impl<R: Read> RowReader<R> {
         let mut out = Vec::new();
         for (k, x) in self.excluded.iter().enumerate().filter(|(_, x)| x.count > 0) {
             out.push(format!(
-                "{path}:{}:{}: excluded {} of {} samples where channel `{}` is saturated (0 or 65535) or outside the ADC range (first at this line)",
+                "{path}:{}:{}: excluded {} of {} samples where channel `{}` is {} (first at this line)",
                 x.first_line,
                 self.chans[k] + 1,
                 x.count,
                 self.rows,
-                &self.header[self.chans[k]]
+                &self.header[self.chans[k]],
+                self.codes.unusable()
             ));
         }
         if self.single.count > 0 {
@@ -504,12 +573,16 @@ impl<R: Read> RowReader<R> {
     }
 }
 
-/// Turns an error of the CSV layer into a [`CampaignError`] naming the file and the line.
+/// Turns an error of the CSV layer into a [`CampaignError`] naming the file and the line (a read
+/// error, such as a corrupt gzip stream, has no line: it names the file).
 fn csv_error(e: csv::Error, path: &Path) -> CampaignError {
     let line = e.position().map(|p| p.line()).unwrap_or(0);
     let msg = match e.kind() {
         csv::ErrorKind::Utf8 { .. } => "not UTF-8 text (is this a binary file?)".to_string(),
-        csv::ErrorKind::Io(io) => io.to_string(),
+        csv::ErrorKind::Io(_) => match e.into_kind() {
+            csv::ErrorKind::Io(cause) => return CampaignError::Io { path: path.to_owned(), cause },
+            _ => "read error".to_string(),
+        },
         _ => e.to_string(),
     };
     CampaignError::Csv { path: path.to_owned(), line, msg }
@@ -558,11 +631,89 @@ mod tests {
         assert!(e.starts_with("c.csv:2:4: every sample of the dwell"), "{e}");
     }
 
+    fn parse_as(s: &str, declared: Option<CodeRange>) -> Result<Campaign, CampaignError> {
+        Campaign::from_reader_with(s.as_bytes(), Path::new("c.csv"), declared)
+    }
+
+    #[test]
+    fn the_code_range_comes_from_the_comment_line_or_the_user() {
+        let body = "t_s,alpha_deg,beta_deg,x\n0,0,0,-100\n0.1,0,0,-32768\n0.2,0,0,-90\n1,90,0,32767\n1.1,90,0,5\n1.2,90,0,6\n";
+        // Unsigned (the default): negative codes are outside the range, every row of dwell 1 goes.
+        let e = parse(body).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "c.csv:2:4: every sample of the dwell at alpha_deg 0, beta_deg 0 has channel `x` saturated (0 or 65535) or outside the unsigned16 range: nothing left to average"
+        );
+        let warned = "c.csv:3:4: excluded 2 of 6 samples where channel `x` is saturated (-32768 or 32767) or outside the signed16 range (first at this line)";
+        for (text, declared) in [
+            (format!("# codes: signed16\n{body}"), None),
+            (format!("# rig A\n\n#codes:   signed16  \n{body}"), Some(CodeRange::Signed16)),
+            (body.to_string(), Some(CodeRange::Signed16)),
+        ] {
+            let c = parse_as(&text, declared).unwrap();
+            assert_eq!(c.codes, CodeRange::Signed16);
+            assert_eq!(c.channels[0].codes, vec![-100.0, -90.0, 5.0, 6.0]);
+            let shift = text.lines().count() as u64 - body.lines().count() as u64;
+            assert_eq!(c.warnings, vec![warned.replace("c.csv:3:", &format!("c.csv:{}:", 3 + shift))]);
+        }
+        let c = parse_as(&format!("# codes: unsigned16\n{body}").replace('-', ""), None).unwrap();
+        assert_eq!(c.codes, CodeRange::Unsigned16);
+        let e = parse_as(&format!("# rig A\n# codes: signed16\n{body}"), Some(CodeRange::Unsigned16));
+        assert_eq!(e.unwrap_err().to_string(), "c.csv:2: `# codes: signed16` contradicts --codes unsigned16");
+        let e = parse(&format!("# codes: signed8\n{body}")).unwrap_err().to_string();
+        assert_eq!(e, "c.csv:1: `# codes:`: unknown code range `signed8` (expected unsigned16 or signed16)");
+        let e = parse(&format!("# codes: signed16\n# codes: signed16\n{body}")).unwrap_err().to_string();
+        assert_eq!(e, "c.csv:2: a second `# codes:` line (the first is line 1)");
+        // After the header row, such a line is a comment like any other.
+        let c = parse("t_s,alpha_deg,beta_deg,x\n# codes: signed16\n0,0,0,100\n").unwrap();
+        assert_eq!(c.codes, CodeRange::Unsigned16);
+        // Line numbers after header comments count from the start of the file.
+        let e = parse("# a\n# codes: signed16\n\nt_s,alpha_deg,beta_deg,x\n0,0,zero,1\n").unwrap_err();
+        assert_eq!(e.to_string(), "c.csv:5:3: expected a number in `beta_deg`, found `zero`");
+        assert_eq!("signed16".parse::<CodeRange>(), Ok(CodeRange::Signed16));
+        assert_eq!(CodeRange::ALL.map(|c| c.to_string().parse::<CodeRange>()), CodeRange::ALL.map(Ok));
+    }
+
+    #[test]
+    fn gzip_campaigns_are_read_and_their_errors_name_lines_of_the_text() {
+        use std::io::Write as _;
+        let dir = tempfile::tempdir().unwrap();
+        let gz = |name: &str, text: &str| {
+            let p = dir.path().join(name);
+            let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+            enc.write_all(text.as_bytes()).unwrap();
+            std::fs::write(&p, enc.finish().unwrap()).unwrap();
+            p
+        };
+        let text = "# codes: signed16\nt_s,alpha_deg,beta_deg,x\n0,0,0,-100\n0.1,0,0,-99\n1,90,0,300\n1.1,90,0,301\n";
+        assert_eq!(Campaign::read(&gz("c.csv", text)).unwrap(), parse(text).unwrap());
+        let p = gz("bad.csv", "t_s,alpha_deg,beta_deg,x\n0,0,0,1\n1,0,zero,2\n");
+        let e = Campaign::read(&p).unwrap_err().to_string();
+        assert_eq!(e, format!("{}:3:3: expected a number in `beta_deg`, found `zero`", p.display()));
+        let rows: String = (0..2000).map(|i| format!("{i},0,0,{}\n", 30000 + i % 7)).collect();
+        let full = std::fs::read(gz("t.csv", &format!("t_s,alpha_deg,beta_deg,x\n{rows}"))).unwrap();
+        let p = dir.path().join("t.csv");
+        std::fs::write(&p, &full[..full.len() / 2]).unwrap();
+        let e = Campaign::read(&p).unwrap_err().to_string();
+        assert!(e.starts_with(&format!("{}: truncated gzip stream", p.display())), "{e}");
+    }
+
     #[test]
     fn write_then_read_is_identity() {
         let c = parse("t_s,alpha_deg,beta_deg,temp_c,x\n0,0,0,25.5,100\n0.5,30,-60,25.5,101\n").unwrap();
         let mut buf = Vec::new();
         c.write(&mut buf).unwrap();
         assert_eq!(parse(std::str::from_utf8(&buf).unwrap()).unwrap(), c);
+        let signed = Campaign { codes: CodeRange::Signed16, ..c };
+        buf.clear();
+        signed.write(&mut buf).unwrap();
+        assert!(buf.starts_with(b"# codes: signed16\nt_s,"));
+        // The same rows, one line further down (the warnings name lines).
+        let back = parse(std::str::from_utf8(&buf).unwrap()).unwrap();
+        assert_eq!(
+            back.warnings,
+            vec!["c.csv:3: 2 dwell(s) with a single sample (first at this line): their scatter is unknown"]
+        );
+        assert_eq!(Campaign { warnings: signed.warnings.clone(), ..back }, signed);
     }
 }

@@ -15,7 +15,7 @@ use accelcal_shared::terms::MODEL_4;
 use anyhow::Context;
 use serde::Serialize;
 
-use crate::campaign::{Campaign, Row, Warnings};
+use crate::campaign::{Campaign, CodeRange, Row, Warnings};
 use crate::error::bad;
 use crate::lsq::{self, LsqFit};
 use crate::positions::{ChannelStats, DwellAcc, Positions};
@@ -242,6 +242,17 @@ impl Plan {
         }
         Ok(())
     }
+
+    /// Checks that the validation campaign's codes have the campaign's range: the fits of one
+    /// range are meaningless on codes of the other.
+    fn check_codes(codes: CodeRange, vcodes: CodeRange) -> anyhow::Result<()> {
+        if codes != vcodes {
+            return Err(bad(format!(
+                "the validation campaign's codes are {vcodes}, the campaign's {codes} (state the range with a `# codes:` line or --codes)"
+            )));
+        }
+        Ok(())
+    }
 }
 
 /// The errors of both methods on the validation rows, folded in one row at a time.
@@ -306,6 +317,7 @@ pub fn compute(c: &Campaign, validate: Option<&Campaign>, g: f64) -> anyhow::Res
     let plan = Plan::new(&pos, &pos.channel_stats(c), validate.is_some())?;
     if let Some(v) = validate {
         Plan::check_channels(&names, &v.channels.iter().map(|ch| ch.name.clone()).collect::<Vec<_>>())?;
+        Plan::check_codes(c.codes, v.codes)?;
     }
     let mut val = Validation::new(plan, names.len(), g);
     validate.unwrap_or(c).for_each_row(|k, row| val.push(k, row));
@@ -316,22 +328,24 @@ pub fn compute(c: &Campaign, validate: Option<&Campaign>, g: f64) -> anyhow::Res
 /// of one pass over `campaign`, the errors from a second pass over the validation rows (of
 /// `validate`, or of `campaign` again). A `validate` file is checked in a pass of its own first,
 /// so that, as with the in-memory reader, every file is refused before anything is fitted.
-/// The readers' warnings go to `warnings`.
+/// Both files are read in the code range `declared` (each file's `# codes:` line otherwise). The
+/// readers' warnings go to `warnings`.
 pub fn compute_files(
     campaign: &Path,
     validate: Option<&Path>,
+    declared: Option<CodeRange>,
     g: f64,
     warnings: &mut Warnings,
 ) -> anyhow::Result<Comparison> {
-    let r = crate::reduce::reduce_campaign(campaign, warnings)?;
-    let vr = validate.map(|v| crate::reduce::reduce_campaign(v, warnings)).transpose()?;
+    let r = crate::reduce::reduce_campaign(campaign, declared, warnings)?;
+    let vr = validate.map(|v| crate::reduce::reduce_campaign(v, declared, warnings)).transpose()?;
     let first_pass = vr.as_ref().unwrap_or(&r);
     let ctx = || campaign.display().to_string();
     Plan::check_channels(&r.channels, &first_pass.channels).with_context(ctx)?;
+    Plan::check_codes(r.codes, first_pass.codes).with_context(ctx)?;
     let plan = Plan::new(&r.positions(g), &r.channel_stats(), validate.is_some()).with_context(ctx)?;
     let vpath = validate.unwrap_or(campaign);
-    let mut rows =
-        Reread::open(vpath, &first_pass.channels, &first_pass.dwells).context("reading the campaign")?;
+    let mut rows = Reread::open(vpath, declared, first_pass).context("reading the campaign")?;
     let mut val = Validation::new(plan, r.channels.len(), g);
     while let Some((k, row)) = rows.next_row().context("reading the campaign")? {
         val.push(k, row);
@@ -363,8 +377,10 @@ mod tests {
         let json = |r: &Comparison| serde_json::to_value(r).unwrap();
         let cases = [(compute(&c, None, 9.81), None), (compute(&c, Some(&v), 9.81), Some(vf.path()))];
         for (mem, validate) in cases {
-            let (mem, streamed) =
-                (mem.unwrap(), compute_files(f.path(), validate, 9.81, &mut Default::default()).unwrap());
+            let (mem, streamed) = (
+                mem.unwrap(),
+                compute_files(f.path(), validate, None, 9.81, &mut Default::default()).unwrap(),
+            );
             assert_eq!(json(&mem), json(&streamed));
             assert_eq!(mem.per_position, streamed.per_position);
             assert!(mem.validation_rows > 0);

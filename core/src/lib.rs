@@ -19,6 +19,7 @@ pub mod effects;
 pub mod error;
 pub mod gmdh;
 pub mod gravity;
+pub mod input;
 pub mod lsq;
 pub mod node;
 pub mod output;

@@ -6,14 +6,20 @@
 use std::io::Read;
 use std::path::Path;
 
-use crate::campaign::{Campaign, CampaignError, Dwell, Row, RowReader};
+use crate::campaign::{Campaign, CampaignError, CodeRange, Dwell, Row, RowReader};
+use crate::input::Input;
 use crate::positions::{ChannelStats, DwellAcc, Positions};
 
-/// Reduces a campaign file to its dwells in one streaming pass (bounded memory); its warnings go
-/// to `warnings`, its errors are bad input.
-pub fn reduce_campaign(path: &Path, warnings: &mut crate::campaign::Warnings) -> anyhow::Result<Reduced> {
+/// Reduces a campaign file (plain or gzip) to its dwells in one streaming pass (bounded memory),
+/// in the code range `declared` (the file's `# codes:` line otherwise); its warnings go to
+/// `warnings`, its errors are bad input.
+pub fn reduce_campaign(
+    path: &Path,
+    declared: Option<CodeRange>,
+    warnings: &mut crate::campaign::Warnings,
+) -> anyhow::Result<Reduced> {
     use anyhow::Context;
-    let r = Campaign::reduce(path).context("reading the campaign")?;
+    let r = Campaign::reduce_with(path, declared).context("reading the campaign")?;
     warnings.extend(&r.warnings);
     Ok(r)
 }
@@ -33,6 +39,8 @@ pub struct Reduced {
     pub t_range: (f64, f64),
     /// Warnings of the reader (excluded samples, single-sample dwells), one line each.
     pub warnings: Vec<String>,
+    /// The range of the codes.
+    pub codes: CodeRange,
 }
 
 impl Reduced {
@@ -51,12 +59,18 @@ impl Campaign {
     /// Reads a campaign file in one pass, in bounded memory, with the checks and messages of
     /// [`Campaign::read`].
     pub fn reduce(path: &Path) -> Result<Reduced, CampaignError> {
-        Campaign::reduce_rows(DwellRows::open(path)?)
+        Campaign::reduce_with(path, None)
+    }
+
+    /// [`Campaign::reduce`] with the code range the user declared, which the file's `# codes:`
+    /// line must not contradict.
+    pub fn reduce_with(path: &Path, declared: Option<CodeRange>) -> Result<Reduced, CampaignError> {
+        Campaign::reduce_rows(DwellRows::open(path, declared)?)
     }
 
     /// [`Campaign::reduce`] on any reader; `path` names it in errors.
     pub fn reduce_reader<R: Read>(reader: R, path: &Path) -> Result<Reduced, CampaignError> {
-        Campaign::reduce_rows(DwellRows::new(reader, path)?)
+        Campaign::reduce_rows(DwellRows::new(reader, path, None)?)
     }
 
     fn reduce_rows<R: Read>(mut rows: DwellRows<R>) -> Result<Reduced, CampaignError> {
@@ -68,6 +82,7 @@ impl Campaign {
             rows: 0,
             t_range: (f64::NAN, f64::NAN),
             warnings: Vec::new(),
+            codes: rows.codes(),
         };
         while let Some((k, row)) = rows.next_row()? {
             let i = r.rows;
@@ -118,19 +133,23 @@ pub(crate) struct DwellRows<R: Read> {
     dwell: Option<usize>,
 }
 
-impl DwellRows<std::io::BufReader<std::fs::File>> {
-    /// Opens a campaign file and checks its header.
-    pub fn open(path: &Path) -> Result<Self, CampaignError> {
-        let file = std::fs::File::open(path)
-            .map_err(|source| CampaignError::Io { path: path.to_owned(), source })?;
-        DwellRows::new(std::io::BufReader::new(file), path)
+impl DwellRows<Input> {
+    /// Opens a campaign file (plain or gzip) and checks its header; `declared` is the user's code
+    /// range (see [`RowReader::new`]).
+    pub fn open(path: &Path, declared: Option<CodeRange>) -> Result<Self, CampaignError> {
+        DwellRows::new(crate::campaign::open(path)?, path, declared)
     }
 }
 
 impl<R: Read> DwellRows<R> {
     /// Reads and checks the header; `path` names the reader in errors.
-    pub fn new(reader: R, path: &Path) -> Result<Self, CampaignError> {
-        Ok(DwellRows { rows: RowReader::new(reader, path)?, row: Row::default(), dwell: None })
+    pub fn new(reader: R, path: &Path, declared: Option<CodeRange>) -> Result<Self, CampaignError> {
+        Ok(DwellRows { rows: RowReader::new(reader, path, declared)?, row: Row::default(), dwell: None })
+    }
+
+    /// The range of the codes.
+    pub fn codes(&self) -> CodeRange {
+        self.rows.codes()
     }
 
     /// The channel names, in column order.
@@ -165,8 +184,9 @@ impl<R: Read> DwellRows<R> {
 }
 
 /// A second pass over a campaign file: its rows with their dwells, each checked to continue the
-/// dwells (angles and row counts) and channels of the first pass, so that a file changed between
-/// the passes is refused instead of mixed. Errors read `changed while it was read: …`.
+/// dwells (angles and row counts), channels and code range of the first pass, so that a file
+/// changed between the passes is refused instead of mixed. Errors read `changed while it was
+/// read: …`.
 pub(crate) struct Reread<'d, R: Read> {
     rows: DwellRows<R>,
     dwells: &'d [Dwell],
@@ -179,24 +199,23 @@ fn changed(path: &Path, msg: String) -> CampaignError {
     CampaignError::File { path: path.to_owned(), msg: format!("changed while it was read: {msg}") }
 }
 
-impl<'d> Reread<'d, std::io::BufReader<std::fs::File>> {
-    /// Opens a campaign file for its second pass, given what the first found.
-    pub fn open(path: &Path, channels: &[String], dwells: &'d [Dwell]) -> Result<Self, CampaignError> {
-        Reread::new(DwellRows::open(path)?, channels, dwells, path)
+impl<'d> Reread<'d, Input> {
+    /// Opens a campaign file for its second pass, given the user's code range (as for the first
+    /// pass) and what the first pass found.
+    pub fn open(path: &Path, declared: Option<CodeRange>, first: &'d Reduced) -> Result<Self, CampaignError> {
+        Reread::new(DwellRows::open(path, declared)?, first, path)
     }
 }
 
 impl<'d, R: Read> Reread<'d, R> {
-    /// The second pass over `rows`; `path` names it in errors.
-    pub fn new(
-        rows: DwellRows<R>,
-        channels: &[String],
-        dwells: &'d [Dwell],
-        path: &Path,
-    ) -> Result<Self, CampaignError> {
-        let r = Reread { rows, dwells, path: path.to_owned(), at: (0, 0) };
-        if r.rows.channel_names() != channels {
+    /// The second pass over `rows`, given what the first pass found; `path` names it in errors.
+    pub fn new(rows: DwellRows<R>, first: &'d Reduced, path: &Path) -> Result<Self, CampaignError> {
+        let r = Reread { rows, dwells: &first.dwells, path: path.to_owned(), at: (0, 0) };
+        if r.rows.channel_names() != first.channels {
             return Err(changed(path, "other channels than before".into()));
+        }
+        if r.rows.codes() != first.codes {
+            return Err(changed(path, format!("codes {} where they were {}", r.rows.codes(), first.codes)));
         }
         Ok(r)
     }
@@ -288,7 +307,7 @@ mod tests {
         assert_eq!(
             r.warnings,
             vec![
-                "c.csv:3:6: excluded 2 of 7 samples where channel `y` is saturated (0 or 65535) or outside the ADC range (first at this line)",
+                "c.csv:3:6: excluded 2 of 7 samples where channel `y` is saturated (0 or 65535) or outside the unsigned16 range (first at this line)",
                 "c.csv:5: 1 dwell(s) with a single sample (first at this line): their scatter is unknown",
             ]
         );
@@ -308,8 +327,8 @@ mod tests {
         let p = Path::new("c.csv");
         let first = Campaign::reduce_reader(text.as_bytes(), p).unwrap();
         let reread = |t: &str| -> Result<usize, CampaignError> {
-            let rows = DwellRows::new(t.as_bytes(), p)?;
-            let mut r = Reread::new(rows, &first.channels, &first.dwells, p)?;
+            let rows = DwellRows::new(t.as_bytes(), p, None)?;
+            let mut r = Reread::new(rows, &first, p)?;
             let mut n = 0;
             while r.next_row()?.is_some() {
                 n += 1;
@@ -320,6 +339,7 @@ mod tests {
         assert_eq!(reread(&text).unwrap(), 3);
         for (changed, what) in [
             ("t_s,alpha_deg,beta_deg,y\n0,0,0,100\n", "other channels than before"),
+            (&format!("# codes: signed16\n{text}"), "codes signed16 where they were unsigned16"),
             (&format!("{head}0,0,0,100\n0.1,0,0,101\n0.2,0,0,102\n1,90,0,300\n"), "dwell 1 has more rows"),
             (&format!("{head}0,0,0,100\n1,90,0,300\n"), "dwell 1 has fewer rows"),
             (&format!("{head}0,0,0,100\n0.1,0,0,101\n1,45,0,300\n"), "dwell 2 has other angles"),

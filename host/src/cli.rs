@@ -4,6 +4,7 @@ use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
+use accelcal_core::campaign::CodeRange;
 use accelcal_core::gmdh::{Criterion, Split};
 use accelcal_core::sim::{Layout, TempProfile};
 
@@ -59,6 +60,24 @@ pub struct CommonArgs {
     /// Write machine-readable results to this JSON file.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
+    /// Range of the campaign's raw codes (help: `CODES_HELP`, `CODES_LONG_HELP`).
+    #[arg(long, value_name = "RANGE", value_parser = parse_codes, help = CODES_HELP, long_help = CODES_LONG_HELP)]
+    pub codes: Option<CodeRange>,
+}
+
+/// The short help of `--codes`.
+const CODES_HELP: &str = "Range of the raw codes: unsigned16 or signed16 [default: the campaign's `# codes:` line, else unsigned16]";
+
+/// The long help of `--codes` (`--help`).
+const CODES_LONG_HELP: &str = "Range of the campaign's raw codes: `unsigned16` (0..=65535, a 16-bit \
+ADC; 0 and 65535 are saturation) or `signed16` (-32768..=32767, the two's-complement counts of a \
+digital MEMS; -32768 and 32767 are saturation). Rows with a code at a rail or outside the range are \
+excluded with a warning. A campaign states its range with a comment line `# codes: signed16` (or \
+`unsigned16`) before its header row; a --codes that contradicts it is an error. Without either, \
+unsigned16.";
+
+fn parse_codes(s: &str) -> Result<CodeRange, String> {
+    s.parse()
 }
 
 /// `accelcal plan`.
@@ -132,6 +151,11 @@ pub struct SimulateArgs {
     /// An ideal ADC: no rounding to whole codes, no clipping (for checks against exact values).
     #[arg(long)]
     pub ideal_adc: bool,
+    /// Range of the codes written: `unsigned16` (the simulated 16-bit ADC) or `signed16` (the same
+    /// codes less 32768, as the two's-complement counts of a digital MEMS, under a `# codes:
+    /// signed16` line; the truth's biases are shifted alike).
+    #[arg(long, value_name = "RANGE", value_parser = parse_codes, default_value = "unsigned16")]
+    pub codes: CodeRange,
     /// Gravity, m/s².
     #[arg(long, default_value_t = accelcal_shared::G_STANDARD)]
     pub g: f64,
@@ -411,6 +435,10 @@ pub struct HilArgs {
     /// Seconds the node may stay silent before the run fails.
     #[arg(long, default_value_t = 20)]
     pub timeout_s: u64,
+    /// Range of the campaign's raw codes [default: its `# codes:` line, else unsigned16]. Only
+    /// unsigned16 can be replayed: the node samples a 16-bit unsigned ADC.
+    #[arg(long, value_name = "RANGE", value_parser = parse_codes)]
+    pub codes: Option<CodeRange>,
 }
 
 /// Input file formats accepted by the gravity-norm fit.

@@ -8,7 +8,7 @@
 use std::io::Read;
 use std::path::Path;
 
-use crate::campaign::{Campaign, CampaignError, Dwell, Row};
+use crate::campaign::{Campaign, CampaignError, CodeRange, Dwell, Row};
 use crate::positions::DwellAcc;
 use crate::reduce::Reread;
 
@@ -84,8 +84,14 @@ impl Binned {
     /// length), in memory bounded by the number of dwells, with the checks and messages of
     /// [`Campaign::read`].
     pub fn read(path: &Path) -> Result<Binned, CampaignError> {
-        let first = Campaign::reduce(path)?;
-        Binned::fill(Reread::open(path, &first.channels, &first.dwells)?)
+        Binned::read_with(path, None)
+    }
+
+    /// [`Binned::read`] with the code range the user declared, which the file's `# codes:` line
+    /// must not contradict.
+    pub fn read_with(path: &Path, declared: Option<CodeRange>) -> Result<Binned, CampaignError> {
+        let first = Campaign::reduce_with(path, declared)?;
+        Binned::fill(Reread::open(path, declared, &first)?)
     }
 
     /// The second pass of [`Binned::read`].
@@ -236,8 +242,8 @@ mod tests {
         let p = Path::new("c.csv");
         let first = Campaign::reduce_reader(text.as_bytes(), p).unwrap();
         let fill = |t: &str| {
-            let rows = DwellRows::new(t.as_bytes(), p).unwrap();
-            Binned::fill(Reread::new(rows, &first.channels, &first.dwells, p).unwrap())
+            let rows = DwellRows::new(t.as_bytes(), p, None).unwrap();
+            Binned::fill(Reread::new(rows, &first, p).unwrap())
         };
         let ok = fill(text).unwrap();
         assert_eq!(ok.bins.len(), 3);

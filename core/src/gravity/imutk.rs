@@ -5,11 +5,8 @@
 //! are skipped. The reader never panics on bad input; every error names the file, the 1-based line and
 //! the 1-based column (in characters) where the problem starts.
 
-use std::fs::File;
-use std::io::{self, BufRead, BufReader, Read, Write};
+use std::io::{self, BufRead, Write};
 use std::path::Path;
-
-use flate2::read::MultiGzDecoder;
 
 /// A recording of a 3-axis sensor: time stamps and raw outputs, one row per sample.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -106,27 +103,12 @@ pub enum ImuTkError {
     },
 }
 
-/// Reads an imu_tk file from `path`; gzip input is recognised by its magic bytes, whatever the name.
+/// Reads an imu_tk file from `path`; gzip input is recognised by its magic bytes, whatever the name
+/// ([`crate::input::Input`]).
 pub fn read_path(path: &Path) -> Result<Recording, ImuTkError> {
     let file = path.display().to_string();
     let io_err = |source| ImuTkError::Io { file: file.clone(), source };
-    let mut f = File::open(path).map_err(io_err)?;
-    let mut magic = [0u8; 2];
-    let mut got = 0;
-    while got < 2 {
-        let n = f.read(&mut magic[got..]).map_err(io_err)?;
-        if n == 0 {
-            break;
-        }
-        got += n;
-    }
-    let head = io::Cursor::new(magic[..got].to_vec());
-    let chained = head.chain(f);
-    if got == 2 && magic == [0x1f, 0x8b] {
-        parse(BufReader::new(MultiGzDecoder::new(chained)), &file)
-    } else {
-        parse(BufReader::new(chained), &file)
-    }
+    parse(crate::input::Input::open(path).map_err(io_err)?, &file)
 }
 
 /// Parses imu_tk text from a reader; `file` is used only in error messages.
@@ -217,6 +199,7 @@ pub fn write<W: Write>(rec: &Recording, mut out: W) -> io::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::fs::File;
 
     fn parse_str(s: &str) -> Result<Recording, ImuTkError> {
         parse(s.as_bytes(), "mem.txt")

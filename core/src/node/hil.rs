@@ -21,8 +21,9 @@ use anyhow::Context;
 
 use super::link::{self, LinkError, Receiver};
 use super::RECORD_SLOTS;
-use crate::campaign::Row;
+use crate::campaign::{CodeRange, Row};
 use crate::error::bad;
+use crate::input::Input;
 use crate::reduce::DwellRows;
 
 /// How to run the node in QEMU.
@@ -382,9 +383,13 @@ pub type TimeBlock = heapless::Vec<f64, MAX_BLOCK>;
 /// with every check of the campaign reader (`DwellRows`), keeping one block, so that a campaign
 /// of any length is replayed in bounded memory.
 ///
-/// [`CampaignCodes::new`] reads the header and the first block, then checks the channels: a file
-/// that is bad in its first rows is refused with the message every command gives it, and a file
-/// whose trouble shows there is refused before any node is started.
+/// [`CampaignCodes::new`] reads the header and the first block, then checks the channels and the
+/// code range: a file that is bad in its first rows is refused with the message every command
+/// gives it, and a file whose trouble shows there is refused before any node is started.
+///
+/// Only `unsigned16` campaigns can be replayed: the node samples a 16-bit unsigned ADC and its
+/// link carries such codes. A `signed16` campaign (a digital MEMS) is refused: shifting its
+/// codes by 32768 would feed the node codes its record was not fitted on.
 pub struct CampaignCodes<R: Read> {
     /// `None` once the end of the file is checked.
     rows: Option<DwellRows<R>>,
@@ -400,10 +405,16 @@ pub struct CampaignCodes<R: Read> {
     warnings: Vec<String>,
 }
 
-impl CampaignCodes<std::io::BufReader<std::fs::File>> {
-    /// Opens a campaign file (see [`CampaignCodes::new`]).
+impl CampaignCodes<Input> {
+    /// Opens a campaign file, plain or gzip (see [`CampaignCodes::new`]).
     pub fn open(path: &Path) -> anyhow::Result<Self> {
-        CampaignCodes::from_rows(DwellRows::open(path).context(READING)?, path)
+        CampaignCodes::open_with(path, None)
+    }
+
+    /// [`CampaignCodes::open`] with the code range the user declared, which the file's
+    /// `# codes:` line must not contradict.
+    pub fn open_with(path: &Path, declared: Option<CodeRange>) -> anyhow::Result<Self> {
+        CampaignCodes::from_rows(DwellRows::open(path, declared).context(READING)?, path)
     }
 }
 
@@ -414,11 +425,12 @@ impl<R: Read> CampaignCodes<R> {
     /// Reads the header and the first block, and checks the channels; `path` names the reader in
     /// errors.
     pub fn new(reader: R, path: &Path) -> anyhow::Result<Self> {
-        CampaignCodes::from_rows(DwellRows::new(reader, path).context(READING)?, path)
+        CampaignCodes::from_rows(DwellRows::new(reader, path, None).context(READING)?, path)
     }
 
     fn from_rows(rows: DwellRows<R>, path: &Path) -> anyhow::Result<Self> {
         let names = rows.channel_names();
+        let codes = rows.codes();
         let mut c = CampaignCodes {
             rows: Some(rows),
             path: path.to_owned(),
@@ -439,6 +451,12 @@ impl<R: Read> CampaignCodes<R> {
                     path.display()
                 ))
             })?;
+        }
+        if codes != CodeRange::Unsigned16 {
+            return Err(bad(format!(
+                "{}: {codes} codes cannot be replayed: the node samples a 16-bit unsigned ADC and its link carries unsigned16 codes",
+                path.display()
+            )));
         }
         let mut block = (CodeBlock::new(), TimeBlock::new());
         for row in first {
@@ -470,7 +488,8 @@ impl<R: Read> CampaignCodes<R> {
         let mut set = [0u16; 3];
         for (k, (&col, name)) in self.xyz.iter().zip(["x", "y", "z"]).enumerate() {
             let v = self.row.codes[col];
-            if !(0.0..=65535.0).contains(&v) || v.fract() != 0.0 {
+            let (lo, hi) = CodeRange::Unsigned16.rails();
+            if !(lo..=hi).contains(&v) || v.fract() != 0.0 {
                 return Err(bad(format!(
                     "{}: row {} channel {name}: code {v} is not a whole number in 0..=65535 (simulate without --ideal-adc)",
                     self.path.display(),
@@ -559,6 +578,28 @@ mod tests {
         }
         assert_eq!(codes.warnings(), c.warnings);
         assert_eq!(codes.warnings().len(), 1);
+    }
+
+    #[test]
+    fn gzip_campaigns_give_the_same_blocks_and_signed_ones_are_refused() {
+        use std::io::Write as _;
+        let dir = tempfile::tempdir().unwrap();
+        let (plain, gz) = (dir.path().join("c.csv"), dir.path().join("c.csv.gz"));
+        let text = triad(45);
+        std::fs::write(&plain, &text).unwrap();
+        let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+        enc.write_all(text.as_bytes()).unwrap();
+        std::fs::write(&gz, enc.finish().unwrap()).unwrap();
+        let read = |p: &Path| -> Vec<(CodeBlock, TimeBlock)> {
+            CampaignCodes::open(p).unwrap().collect::<anyhow::Result<_>>().unwrap()
+        };
+        assert_eq!(read(&gz), read(&plain));
+        let e = CampaignCodes::open_with(&plain, Some(CodeRange::Signed16)).err().unwrap();
+        assert!(crate::error::is_bad_input(&e));
+        assert!(e.to_string().contains("signed16 codes cannot be replayed"), "{e}");
+        std::fs::write(&plain, format!("# codes: signed16\n{text}")).unwrap();
+        let e = CampaignCodes::open(&plain).err().unwrap();
+        assert!(e.to_string().contains("signed16 codes cannot be replayed"), "{e}");
     }
 
     #[test]

@@ -10,7 +10,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use serde::Serialize;
 
-use crate::campaign::{Campaign, Channel, ADC_MAX};
+use crate::campaign::{Campaign, Channel, CodeRange};
 pub use effects::{Effect, Kinematics, SampleCtx};
 pub use plan::Plan;
 
@@ -197,6 +197,8 @@ pub fn simulate(cfg: &SimConfig) -> (Campaign, Truth) {
         ..Campaign::default()
     };
     let noise = normal(cfg.noise);
+    // The simulated ADC: unsigned 16-bit codes, clipped at its rails.
+    let (lo, hi) = CodeRange::Unsigned16.rails();
     let dt = 1.0 / cfg.rate_hz;
     let duration = cfg.plan.positions.len() as f64 * (cfg.samples as f64 * dt + cfg.move_s);
     if cfg.temp.is_some() {
@@ -244,7 +246,7 @@ pub fn simulate(cfg: &SimConfig) -> (Campaign, Truth) {
                     u += e.output(&ctx);
                 }
                 u += noise.sample(&mut rng);
-                c.channels[ch].codes.push(if cfg.quantize { u.round().clamp(0.0, ADC_MAX) } else { u });
+                c.channels[ch].codes.push(if cfg.quantize { u.round().clamp(lo, hi) } else { u });
             }
             t += dt;
         }
@@ -276,7 +278,7 @@ mod tests {
         assert!(a
             .channels
             .iter()
-            .all(|c| c.codes.iter().all(|&v| (0.0..=ADC_MAX).contains(&v) && v.fract() == 0.0)));
+            .all(|c| c.codes.iter().all(|&v| (0.0..=65535.0).contains(&v) && v.fract() == 0.0)));
         let k = ta.channels[0].k;
         assert!((k[0] - 1670.0).abs() < 100.0 && k[1].abs() < 50.0, "{k:?}");
         let (c, _) = simulate(&SimConfig { seed: 2, samples: 3, ..SimConfig::default() });

@@ -17,7 +17,7 @@ pub fn run(a: &DiagnoseArgs, warnings: &mut super::Warnings) -> anyhow::Result<(
     let base = accelcal_core::lsq::parse_terms(&a.terms).map_err(|e| bad(format!("--terms {e}")))?;
     // Streamed in two passes: the diagnosis needs the bins only, so memory does not grow with
     // the rows.
-    let binned = Binned::read(&a.campaign).context("reading the campaign")?;
+    let binned = Binned::read_with(&a.campaign, a.common.codes).context("reading the campaign")?;
     warnings.extend(&binned.warnings);
     let d = Data::from_binned(&binned, a.common.g)
         .and_then(|d| diagnose::diagnose_data(&d, base).map(|r| (d, r)));

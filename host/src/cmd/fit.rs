@@ -71,13 +71,20 @@ pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
     let method = match a.method {
         MethodArg::Lsq => Method::Lsq,
         MethodArg::TestTurns => Method::TestTurns,
-        MethodArg::GravityNorm => return super::gravity::run(a),
+        MethodArg::GravityNorm => {
+            if a.common.codes.is_some() {
+                return Err(bad(
+                    "--codes does not apply to fit --method gravity-norm (it applies to --method lsq and test-turns, which fit a campaign)",
+                ));
+            }
+            return super::gravity::run(a);
+        }
     };
     super::check_g(a.common.g)?;
     let structure = lsq::parse_terms(&a.terms).map_err(|e| bad(format!("--terms: {e}")))?;
     let device_id = parse_device_id(&a.device_id)?;
     // Streamed: the fits need the dwell statistics only, so memory does not grow with the rows.
-    let r = super::reduce_campaign(&a.campaign, warnings)?;
+    let r = super::reduce_campaign(&a.campaign, a.common.codes, warnings)?;
     let fits = fit_positions(&r.positions(a.common.g), &r.channel_stats(), method, structure)
         .with_context(|| a.campaign.display().to_string())?;
     print_table(method, &fits);

@@ -53,7 +53,7 @@ pub fn run_hil(a: &HilArgs, warnings: &mut super::Warnings) -> anyhow::Result<()
         )));
     }
     // The header and the first block are checked before the node starts.
-    let mut codes = hil::CampaignCodes::open(&a.campaign)?;
+    let mut codes = hil::CampaignCodes::open_with(&a.campaign, a.codes)?;
     let mut opts = hil::HilOptions::new(&a.elf);
     opts.qemu = a.qemu_bin.clone();
     opts.timeout = std::time::Duration::from_secs(a.timeout_s);

@@ -298,7 +298,7 @@ pub fn run(a: &SelectArgs, warnings: &mut super::Warnings) -> anyhow::Result<()>
         return Err(bad(format!("--tolerance must be a number of codes >= 0, got {}", a.tolerance)));
     }
     // Streamed: GMDH needs the dwell statistics only.
-    let r = super::reduce_campaign(&a.campaign, warnings)?;
+    let r = super::reduce_campaign(&a.campaign, a.common.codes, warnings)?;
     let (pos, stats) = (r.positions(a.common.g), r.channel_stats());
     if a.max_terms == 0 || a.width == 0 || a.threads == Some(0) {
         return Err(bad("--max-terms, --width and --threads must be at least 1"));

@@ -4,6 +4,7 @@ use anyhow::Context;
 use serde_json::json;
 
 use crate::cli::SimulateArgs;
+use accelcal_core::campaign::CodeRange;
 use accelcal_core::error::bad;
 use accelcal_core::output::{write_atomic_with, write_json};
 use accelcal_core::sim::{self, Plan, SimConfig};
@@ -59,7 +60,19 @@ pub fn config(a: &SimulateArgs) -> anyhow::Result<SimConfig> {
 /// Runs `accelcal simulate`.
 pub fn run(a: &SimulateArgs) -> anyhow::Result<()> {
     let cfg = config(a)?;
-    let (campaign, truth) = sim::simulate(&cfg);
+    let (mut campaign, mut truth) = sim::simulate(&cfg);
+    if a.codes == CodeRange::Signed16 {
+        // The simulated ADC is unsigned16; its codes less mid-scale are the signed counts of a
+        // digital MEMS, its rails 0 and 65535 their rails -32768 and 32767.
+        let mid = CodeRange::Unsigned16.rails().0 - CodeRange::Signed16.rails().0;
+        for v in campaign.channels.iter_mut().flat_map(|c| c.codes.iter_mut()) {
+            *v -= mid;
+        }
+        for t in &mut truth.channels {
+            t.bias -= mid;
+        }
+        campaign.codes = CodeRange::Signed16;
+    }
     write_atomic_with(&a.out, |w| campaign.write(w).context("writing CSV"))?;
     let truth_path = a.truth.clone().unwrap_or_else(|| a.out.with_extension("truth.json"));
     write_json(&truth_path, &truth)?;
