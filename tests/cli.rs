@@ -740,9 +740,14 @@ fn every_readme_example_prints_what_the_readme_shows() {
         if README_HAND_MADE.iter().any(|f| cmd.contains(f)) {
             continue;
         }
-        let args: Vec<&str> = cmd.split_whitespace().collect();
-        let out = Command::new(env!("CARGO_BIN_EXE_accelcal"))
-            .args(&args)
+        // Through the shell, as a reader would type it (some examples pipe into `head`), with
+        // this build's `accelcal` first on the PATH.
+        let bin_dir = Path::new(env!("CARGO_BIN_EXE_accelcal")).parent().unwrap();
+        let path = format!("{}:{}", bin_dir.display(), std::env::var("PATH").unwrap_or_default());
+        let out = Command::new("bash")
+            .arg("-c")
+            .arg(format!("accelcal {cmd}"))
+            .env("PATH", path)
             .current_dir(d.0.path())
             .output()
             .unwrap();
