@@ -3,9 +3,9 @@
 
 use std::path::{Path, PathBuf};
 
-use accelcal_core::gravity::fit::Structure;
+use accelcal_core::gravity::fit::GravityStructure;
 use accelcal_core::gravity::holds::DetectorConfig;
-use accelcal_core::gravity::sim::{simulate, SimConfig};
+use accelcal_core::gravity::sim::{simulate, SessionConfig};
 use accelcal_core::gravity::{calibrate, calibrate_path, StructureChoice};
 
 /// Tolerances of parameter recovery on a simulated session like the real file (noise 3.3 codes,
@@ -17,7 +17,7 @@ const ANGLE_TOL: f64 = 5e-4;
 #[test]
 fn recovers_the_truth_of_simulated_sessions() {
     for seed in 1..=4 {
-        let cfg = SimConfig { seed, ..SimConfig::default() };
+        let cfg = SessionConfig { seed, ..SessionConfig::default() };
         let s = simulate(&cfg);
         let rec = &s.recording;
         let cal = calibrate(
@@ -25,7 +25,7 @@ fn recovers_the_truth_of_simulated_sessions() {
             &rec.codes,
             cfg.g,
             &DetectorConfig::default(),
-            StructureChoice::Fixed(Structure::ImuTk),
+            StructureChoice::Fixed(GravityStructure::ImuTk),
         )
         .unwrap();
         let det = &cal.detection;
@@ -54,18 +54,24 @@ fn recovers_the_truth_of_simulated_sessions() {
         }
         // Hold means carry ~3.3/sqrt(600) codes of noise, i.e. a few 1e-4 m/s².
         assert!(cal.fit.rms < 1e-3, "seed {seed}: rms {}", cal.fit.rms);
-        assert_eq!(cal.selected, Some(Structure::ImuTk), "seed {seed}: {:?}", cal.scores);
+        assert_eq!(cal.selected, Some(GravityStructure::ImuTk), "seed {seed}: {:?}", cal.scores);
     }
 }
 
 #[test]
 fn a_shorter_minimum_hold_and_noisier_sensor_still_calibrate() {
-    let cfg = SimConfig { seed: 7, holds: 16, hold_s: (2.5, 4.0), noise_codes: 10.0, ..SimConfig::default() };
+    let cfg = SessionConfig {
+        seed: 7,
+        holds: 16,
+        hold_s: (2.5, 4.0),
+        noise_codes: 10.0,
+        ..SessionConfig::default()
+    };
     let s = simulate(&cfg);
     let rec = &s.recording;
     let det_cfg = DetectorConfig { min_hold_s: 1.0, ..DetectorConfig::default() };
-    let cal =
-        calibrate(&rec.t, &rec.codes, cfg.g, &det_cfg, StructureChoice::Fixed(Structure::ImuTk)).unwrap();
+    let cal = calibrate(&rec.t, &rec.codes, cfg.g, &det_cfg, StructureChoice::Fixed(GravityStructure::ImuTk))
+        .unwrap();
     assert_eq!(cal.detection.holds.len(), 17, "{:?}", cal.detection.rejected);
     for i in 0..3 {
         assert!((cal.fit.model.bias[i] - cfg.truth.bias[i]).abs() < 5.0);
@@ -76,14 +82,14 @@ fn a_shorter_minimum_hold_and_noisier_sensor_still_calibrate() {
 
 #[test]
 fn gmdh_selects_the_quadratic_term_when_the_sensor_has_one() {
-    let mut cfg = SimConfig { seed: 3, ..SimConfig::default() };
+    let mut cfg = SessionConfig { seed: 3, ..SessionConfig::default() };
     cfg.truth.quad = [2e-3, -1.5e-3, 1e-3];
     let s = simulate(&cfg);
     let rec = &s.recording;
     let cal =
         calibrate(&rec.t, &rec.codes, cfg.g, &DetectorConfig::default(), StructureChoice::Auto).unwrap();
-    assert_eq!(cal.selected, Some(Structure::ImuTkQuadratic), "{:?}", cal.scores);
-    assert_eq!(cal.fit.structure, Structure::ImuTkQuadratic);
+    assert_eq!(cal.selected, Some(GravityStructure::ImuTkQuadratic), "{:?}", cal.scores);
+    assert_eq!(cal.fit.structure, GravityStructure::ImuTkQuadratic);
     for i in 0..3 {
         assert!((cal.fit.model.quad[i] - cfg.truth.quad[i]).abs() < 1e-4, "{:?}", cal.fit.model.quad);
     }
@@ -106,13 +112,13 @@ fn calibrate_file(
     threshold: Option<f64>,
 ) -> (accelcal_core::gravity::imutk::Recording, accelcal_core::gravity::Calibration) {
     let det = DetectorConfig { threshold, ..DetectorConfig::default() };
-    calibrate_path(path, g, &det, StructureChoice::Fixed(Structure::ImuTk)).unwrap()
+    calibrate_path(path, g, &det, StructureChoice::Fixed(GravityStructure::ImuTk)).unwrap()
 }
 
 #[test]
 fn cli_writes_json_in_the_issue_shape_and_plots() {
     let dir = tempfile::tempdir().unwrap();
-    let cfg = SimConfig { seed: 11, holds: 20, ..SimConfig::default() };
+    let cfg = SessionConfig { seed: 11, holds: 20, ..SessionConfig::default() };
     let (data, truth) = simulate(&cfg).write(dir.path(), "session").unwrap();
     assert!(truth.exists());
     let json = dir.path().join("cal.json");
@@ -188,7 +194,7 @@ fn real_xsens_recording_calibrates_to_a_millimetre_per_second_squared() {
     assert!(cal.fit.rms < 0.002, "rms {}", cal.fit.rms);
     assert!(cal.fit.residuals.iter().all(|r| r.abs() < 0.005));
     // Without misalignment the fit is 30 times worse: the angles are real.
-    let bs = cal.scores.iter().find(|s| s.structure == Structure::BiasScale).unwrap();
+    let bs = cal.scores.iter().find(|s| s.structure == GravityStructure::BiasScale).unwrap();
     assert!(bs.fit_rms > 10.0 * cal.fit.rms, "{:?}", cal.scores);
     for i in 0..3 {
         assert!((cal.fit.model.scale[i] - 413.0).abs() < 5.0, "{:?}", cal.fit.model.scale);

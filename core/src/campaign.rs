@@ -302,6 +302,8 @@ pub(crate) struct Row {
     pub temp: Option<f64>,
     /// One code per channel.
     pub codes: Vec<f64>,
+    /// Line of the row in the file (1-based; 0 for rows that never came from a file).
+    pub line: u64,
 }
 
 /// The dwell being read: its angles, where it began, and how many of its rows were kept.
@@ -434,6 +436,11 @@ impl<R: Read> RowReader<R> {
         self.chans.iter().map(|&i| self.header[i].to_string()).collect()
     }
 
+    /// The file column (1-based, counting fields) of each channel.
+    pub fn channel_columns(&self) -> Vec<usize> {
+        self.chans.iter().map(|&i| i + 1).collect()
+    }
+
     /// Whether the file has a `temp_c` column.
     pub fn has_temp(&self) -> bool {
         self.temp.is_some()
@@ -486,6 +493,7 @@ impl<R: Read> RowReader<R> {
                 ));
             }
             self.prev_t = Some(t);
+            row.line = line;
             row.t = t;
             row.alpha = self.num(line, ai)?;
             row.beta = self.num(line, bi)?;

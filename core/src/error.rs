@@ -1,12 +1,5 @@
-//! Which errors are the user's input to fix (exit code 2) and which come from the environment
-//! (exit code 1).
-//!
-//! The rule is stated by the errors themselves, not by a list of input errors: an error is bad
-//! input unless something in its chain says it comes from the environment: the file system while
-//! writing an output ([`Environment`], attached where outputs are written), QEMU, the node's link
-//! or a debug probe (the node module's own error types). A new error type of the core is
-//! therefore bad input by default, which is what nearly every error of a calibration tool is (a
-//! campaign, a recording, a record, an option); a panic is a bug.
+//! The two error kinds the exit code rule ([`crate::exit`]) knows by name: [`BadInput`], input
+//! the user must fix, and [`Environment`], a failure of the file system, a process or a device.
 
 /// Bad input: a file or an argument the command cannot use. The message names the file (and the
 /// line and column where there is one).
@@ -33,36 +26,4 @@ pub struct Environment {
 /// Marks `e` as a failure of the environment, with what was being done.
 pub fn environment(what: impl Into<String>, e: impl Into<anyhow::Error>) -> anyhow::Error {
     anyhow::Error::new(Environment { what: what.into(), source: e.into().into() })
-}
-
-/// Whether an error is the user's input to fix: nothing in its chain comes from the environment.
-pub fn is_bad_input(e: &anyhow::Error) -> bool {
-    !e.chain().any(|c| {
-        c.is::<Environment>()
-            || c.is::<crate::node::hil::HilError>()
-            || c.is::<crate::node::flash::FlashError>()
-            || c.is::<crate::node::link::LinkError>()
-    })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn errors_are_bad_input_unless_the_environment_failed() {
-        assert!(is_bad_input(&bad("x.csv:3:1: expected a number")));
-        // An error type nobody listed is bad input by default.
-        #[derive(Debug, thiserror::Error)]
-        #[error("new kind of input error")]
-        struct NewInputError;
-        assert!(is_bad_input(&anyhow::Error::new(NewInputError).context("reading")));
-        let io = std::io::Error::new(std::io::ErrorKind::StorageFull, "disk full");
-        let e = environment("writing out.json", io).context("fit");
-        assert!(!is_bad_input(&e));
-        assert_eq!(format!("{e:#}"), "fit: writing out.json: disk full");
-        assert!(!is_bad_input(&anyhow::Error::new(crate::node::hil::HilError::Timeout(
-            std::time::Duration::from_secs(3)
-        ))));
-    }
 }

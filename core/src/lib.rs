@@ -7,7 +7,7 @@
 //! sim-to-real diagnosis ([`diagnose`]) and the host side of the sensor node ([`node`]).
 //!
 //! Nothing here parses a command line, prints, draws or shows progress: the `accelcal` binary
-//! does that. Errors say themselves whether they are the user's input to fix ([`error`]).
+//! does that. Errors say themselves whether they are the user's input to fix ([`exit`]).
 
 // `!(x > t)` is deliberate: a NaN must fail every range check. Index loops mirror the math.
 #![allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
@@ -17,6 +17,7 @@ pub mod compare;
 pub mod diagnose;
 pub mod effects;
 pub mod error;
+pub mod exit;
 pub mod gmdh;
 pub mod gravity;
 pub mod input;

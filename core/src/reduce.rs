@@ -157,6 +157,11 @@ impl<R: Read> DwellRows<R> {
         self.rows.channel_names()
     }
 
+    /// The file column (1-based) of each channel.
+    pub fn channel_columns(&self) -> Vec<usize> {
+        self.rows.channel_columns()
+    }
+
     /// Whether the file has a `temp_c` column.
     pub fn has_temp(&self) -> bool {
         self.rows.has_temp()

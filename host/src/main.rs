@@ -25,7 +25,7 @@ fn main() {
         Err(e) => {
             // One line: the error, with the campaign's warnings folded in.
             eprintln!("error: {}", cmd::error_line(&warnings, &e));
-            std::process::exit(if accelcal_core::error::is_bad_input(&e) { 2 } else { 1 });
+            std::process::exit(accelcal_core::exit::code(&e));
         }
     }
 }

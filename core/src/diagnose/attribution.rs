@@ -495,7 +495,7 @@ pub fn significant(t: &Trial) -> bool {
 
 /// The outcome of the greedy selection.
 #[derive(Clone, Debug, Serialize)]
-pub struct Selection {
+pub struct EffectSelection {
     /// The effects named, in the order kept (empty when they explain too little together).
     pub set: Vec<Cand>,
     /// Every round.
@@ -514,7 +514,7 @@ pub struct Selection {
 /// Greedy selection of effects by held-out χ² drop: each round keeps the candidate with the
 /// largest drop among those that pass [`significant`]; the kept effects are named when together
 /// they remove at least [`MIN_EXPLAINED`] of the baseline's held-out excess χ².
-pub fn select(d: &Data, base: Structure) -> Selection {
+pub fn select(d: &Data, base: Structure) -> EffectSelection {
     let mut set: Vec<Cand> = Vec::new();
     let mut rounds = Vec::new();
     let mut before = heldout(d, base, &set);
@@ -587,7 +587,7 @@ pub fn select(d: &Data, base: Structure) -> Selection {
         set.clear();
         steps.clear();
     }
-    Selection { set, rounds, joint_explained, not_named, steps, from_pairs }
+    EffectSelection { set, rounds, joint_explained, not_named, steps, from_pairs }
 }
 
 /// A pair found by [`best_pair`]: the effects, their steps, and the fraction of the excess removed.

@@ -6,7 +6,7 @@
 //!
 //! ```text
 //! v_i = (u_i − b_i) / s_i            per-axis, m/s²          (b: bias in codes, s: scale in codes per m/s²)
-//! w_i = v_i + q_i · v_i²             per-axis nonlinearity   (q in 1/(m/s²); zero unless Structure::ImuTkQuadratic)
+//! w_i = v_i + q_i · v_i²             per-axis nonlinearity   (q in 1/(m/s²); zero unless GravityStructure::ImuTkQuadratic)
 //! a   = T · w                        T = | 1  −α_yz   α_zy |
 //!                                        | 0    1    −α_zx |
 //!                                        | 0    0      1   |
@@ -37,7 +37,7 @@ use super::solver;
 
 /// Candidate model structures, from the simplest to the richest.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum Structure {
+pub enum GravityStructure {
     /// Bias and scale only (6 parameters, `T = I`).
     BiasScale,
     /// The imu_tk model: bias, scale and three misalignment angles (9 parameters).
@@ -46,16 +46,17 @@ pub enum Structure {
     ImuTkQuadratic,
 }
 
-impl Structure {
+impl GravityStructure {
     /// All structures, simplest first.
-    pub const ALL: [Structure; 3] = [Structure::BiasScale, Structure::ImuTk, Structure::ImuTkQuadratic];
+    pub const ALL: [GravityStructure; 3] =
+        [GravityStructure::BiasScale, GravityStructure::ImuTk, GravityStructure::ImuTkQuadratic];
 
     /// Indices of the free parameters in the full parameter vector (see [`PARAM_NAMES`]).
     pub fn active(self) -> &'static [usize] {
         match self {
-            Structure::BiasScale => &[3, 4, 5, 6, 7, 8],
-            Structure::ImuTk => &[0, 1, 2, 3, 4, 5, 6, 7, 8],
-            Structure::ImuTkQuadratic => &[0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11],
+            GravityStructure::BiasScale => &[3, 4, 5, 6, 7, 8],
+            GravityStructure::ImuTk => &[0, 1, 2, 3, 4, 5, 6, 7, 8],
+            GravityStructure::ImuTkQuadratic => &[0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11],
         }
     }
 
@@ -67,9 +68,9 @@ impl Structure {
     /// Short name used in tables and JSON.
     pub fn name(self) -> &'static str {
         match self {
-            Structure::BiasScale => "bias+scale",
-            Structure::ImuTk => "imu_tk (bias+scale+misalignment)",
-            Structure::ImuTkQuadratic => "imu_tk + per-axis quadratic",
+            GravityStructure::BiasScale => "bias+scale",
+            GravityStructure::ImuTk => "imu_tk (bias+scale+misalignment)",
+            GravityStructure::ImuTkQuadratic => "imu_tk + per-axis quadratic",
         }
     }
 }
@@ -194,15 +195,15 @@ pub enum FitError {
 /// Result of a gravity-norm fit.
 #[derive(Debug, Clone)]
 pub struct GravityFit {
-    /// Structure fitted.
-    pub structure: Structure,
+    /// GravityStructure fitted.
+    pub structure: GravityStructure,
     /// Gravity magnitude used, in m/s².
     pub g: f64,
     /// Fitted parameters (inactive ones are zero, or identity for `T`).
     pub model: TriadModel,
     /// Standard errors of the parameters, same layout (zero for inactive ones).
     pub std_err: TriadModel,
-    /// Covariance of the active parameters in natural units, in the order of [`Structure::active`].
+    /// Covariance of the active parameters in natural units, in the order of [`GravityStructure::active`].
     pub covariance: DMatrix<f64>,
     /// Residual `|a| − g` per hold, in m/s².
     pub residuals: Vec<f64>,
@@ -303,7 +304,7 @@ fn ellipsoid_refine(coarse: &TriadModel, means: &[[f64; 3]], g: f64) -> Option<T
 }
 
 /// Fits `structure` to the hold means `means` (codes) under gravity magnitude `g` (m/s²).
-pub fn fit(means: &[[f64; 3]], g: f64, structure: Structure) -> Result<GravityFit, FitError> {
+pub fn fit(means: &[[f64; 3]], g: f64, structure: GravityStructure) -> Result<GravityFit, FitError> {
     if !(g.is_finite() && g > 0.0) {
         return Err(FitError::BadGravity(g));
     }
@@ -401,7 +402,7 @@ fn covariance(jac: &DMatrix<f64>, sigma2: f64) -> Option<DMatrix<f64>> {
 #[derive(Debug, Clone, PartialEq)]
 pub struct StructureScore {
     /// The structure.
-    pub structure: Structure,
+    pub structure: GravityStructure,
     /// RMS of `|a| − g` when fitted on all holds, in m/s².
     pub fit_rms: f64,
     /// RMS of `|a| − g` on withheld holds (fit on even holds, test on odd, and the reverse), in m/s²;
@@ -415,7 +416,7 @@ pub struct StructureScore {
 pub fn score_structures(means: &[[f64; 3]], g: f64) -> Vec<StructureScore> {
     let even: Vec<[f64; 3]> = means.iter().step_by(2).copied().collect();
     let odd: Vec<[f64; 3]> = means.iter().skip(1).step_by(2).copied().collect();
-    Structure::ALL
+    GravityStructure::ALL
         .iter()
         .filter_map(|&s| {
             let full = fit(means, g, s).ok()?;
@@ -440,9 +441,9 @@ pub const PARSIMONY: f64 = 0.05;
 /// The selected structure: the simplest one whose withheld-hold RMS is within [`PARSIMONY`] (5 %) of
 /// the smallest, so that an extra term must earn its place by a clear reduction of the external
 /// criterion, not by a tie; `None` if no structure could be scored.
-pub fn select(scores: &[StructureScore]) -> Option<Structure> {
+pub fn select(scores: &[StructureScore]) -> Option<GravityStructure> {
     let best = scores.iter().filter_map(|s| s.cv_rms).min_by(f64::total_cmp)?;
-    Structure::ALL.into_iter().find(|st| {
+    GravityStructure::ALL.into_iter().find(|st| {
         scores.iter().any(|s| s.structure == *st && s.cv_rms.is_some_and(|cv| cv <= best * (1.0 + PARSIMONY)))
     })
 }
@@ -511,7 +512,7 @@ mod tests {
     #[test]
     fn recovers_exact_parameters_from_noise_free_holds() {
         let t = truth();
-        let fit = fit(&exact_means(&t, 24), G, Structure::ImuTk).unwrap();
+        let fit = fit(&exact_means(&t, 24), G, GravityStructure::ImuTk).unwrap();
         for i in 0..3 {
             assert!((fit.model.bias[i] - t.bias[i]).abs() < 1e-6);
             assert!((fit.model.scale[i] / t.scale[i] - 1.0).abs() < 1e-10);
@@ -524,17 +525,17 @@ mod tests {
     fn selection_prefers_the_simpler_structure_on_a_tie() {
         let sc = |structure, cv| StructureScore { structure, fit_rms: 0.0, cv_rms: Some(cv) };
         let scores = [
-            sc(Structure::BiasScale, 0.07),
-            sc(Structure::ImuTk, 0.00058),
-            sc(Structure::ImuTkQuadratic, 0.00057),
+            sc(GravityStructure::BiasScale, 0.07),
+            sc(GravityStructure::ImuTk, 0.00058),
+            sc(GravityStructure::ImuTkQuadratic, 0.00057),
         ];
-        assert_eq!(select(&scores), Some(Structure::ImuTk));
+        assert_eq!(select(&scores), Some(GravityStructure::ImuTk));
         let scores = [
-            sc(Structure::BiasScale, 0.07),
-            sc(Structure::ImuTk, 0.0006),
-            sc(Structure::ImuTkQuadratic, 0.0005),
+            sc(GravityStructure::BiasScale, 0.07),
+            sc(GravityStructure::ImuTk, 0.0006),
+            sc(GravityStructure::ImuTkQuadratic, 0.0005),
         ];
-        assert_eq!(select(&scores), Some(Structure::ImuTkQuadratic));
+        assert_eq!(select(&scores), Some(GravityStructure::ImuTkQuadratic));
         assert_eq!(select(&[]), None);
     }
 
@@ -554,12 +555,12 @@ mod tests {
     fn too_few_holds_and_no_spread_are_errors() {
         let means = exact_means(&truth(), 9);
         assert_eq!(
-            fit(&means, G, Structure::ImuTk).unwrap_err(),
+            fit(&means, G, GravityStructure::ImuTk).unwrap_err(),
             FitError::TooFewHolds { holds: 9, params: 9 }
         );
         let flat = vec![[1.0, 2.0, 3.0]; 12];
-        assert_eq!(fit(&flat, G, Structure::ImuTk).unwrap_err(), FitError::NoSpread { axis: 'x' });
-        assert_eq!(fit(&means, -1.0, Structure::BiasScale).unwrap_err(), FitError::BadGravity(-1.0));
+        assert_eq!(fit(&flat, G, GravityStructure::ImuTk).unwrap_err(), FitError::NoSpread { axis: 'x' });
+        assert_eq!(fit(&means, -1.0, GravityStructure::BiasScale).unwrap_err(), FitError::BadGravity(-1.0));
     }
 
     #[test]
@@ -567,10 +568,10 @@ mod tests {
         let mut t = truth();
         t.quad = [3e-3, -2e-3, 2.5e-3];
         let scores = score_structures(&exact_means(&t, 30), G);
-        assert_eq!(select(&scores), Some(Structure::ImuTkQuadratic), "{scores:?}");
+        assert_eq!(select(&scores), Some(GravityStructure::ImuTkQuadratic), "{scores:?}");
         // Without a quadratic term, misalignment must still beat the bias+scale structure.
         let scores = score_structures(&exact_means(&truth(), 30), G);
         let cv = |s| scores.iter().find(|x| x.structure == s).unwrap().cv_rms.unwrap();
-        assert!(cv(Structure::ImuTk) < 0.1 * cv(Structure::BiasScale), "{scores:?}");
+        assert!(cv(GravityStructure::ImuTk) < 0.1 * cv(GravityStructure::BiasScale), "{scores:?}");
     }
 }

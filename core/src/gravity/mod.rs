@@ -11,7 +11,7 @@ pub mod imutk;
 pub mod sim;
 mod solver;
 
-use fit::{FitError, GravityFit, Structure, StructureScore};
+use fit::{FitError, GravityFit, GravityStructure, StructureScore};
 use holds::{Detection, DetectorConfig, HoldError};
 
 use crate::campaign::{Campaign, Channel};
@@ -37,7 +37,7 @@ pub enum GravityError {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum StructureChoice {
     /// A fixed structure.
-    Fixed(Structure),
+    Fixed(GravityStructure),
     /// The structure selected on withheld holds (GMDH external criterion, see [`fit::select`]).
     Auto,
 }
@@ -51,8 +51,8 @@ pub struct Calibration {
     pub fit: GravityFit,
     /// Scores of all structures on the same holds (fit and withheld-hold RMS).
     pub scores: Vec<StructureScore>,
-    /// Structure selected on withheld holds (see [`fit::select`]), if any could be scored.
-    pub selected: Option<Structure>,
+    /// GravityStructure selected on withheld holds (see [`fit::select`]), if any could be scored.
+    pub selected: Option<GravityStructure>,
 }
 
 /// Detects the holds of a recording and fits the gravity-norm model on their means.
@@ -69,7 +69,7 @@ pub fn calibrate(
     let selected = fit::select(&scores);
     let chosen = match structure {
         StructureChoice::Fixed(s) => s,
-        StructureChoice::Auto => selected.unwrap_or(Structure::ImuTk),
+        StructureChoice::Auto => selected.unwrap_or(GravityStructure::ImuTk),
     };
     let fit =
         fit::fit(&means, g, chosen).map_err(|source| GravityError::Fit { holds: means.len(), source })?;

@@ -20,7 +20,7 @@ use super::imutk::{self, Recording};
 
 /// Settings of a simulated session.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct SimConfig {
+pub struct SessionConfig {
     /// Seed of the random generator (ChaCha8).
     pub seed: u64,
     /// True model of the sensor.
@@ -43,7 +43,7 @@ pub struct SimConfig {
     pub noise_codes: f64,
 }
 
-impl Default for SimConfig {
+impl Default for SessionConfig {
     /// A session like the real Xsens recording: 16-bit codes centred near 33000, about 414 codes per
     /// m/s², misalignments of a few mrad, 3.3 codes of noise, 50 s of rest and 38 holds of 4–11 s.
     fn default() -> Self {
@@ -71,7 +71,7 @@ impl Default for SimConfig {
 #[derive(Debug, Clone)]
 pub struct SimSession {
     /// Settings used.
-    pub config: SimConfig,
+    pub config: SessionConfig,
     /// The raw recording.
     pub recording: Recording,
     /// True static intervals `[start, end)` in samples, the initial rest first.
@@ -84,7 +84,7 @@ pub struct SimSession {
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct SimTruth {
     /// Settings used, including the true model.
-    pub config: SimConfig,
+    pub config: SessionConfig,
     /// True static intervals `[start, end)` in samples.
     pub holds: Vec<(usize, usize)>,
     /// True gravity direction of each static interval.
@@ -92,7 +92,7 @@ pub struct SimTruth {
 }
 
 /// Simulates a session.
-pub fn simulate(cfg: &SimConfig) -> SimSession {
+pub fn simulate(cfg: &SessionConfig) -> SimSession {
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
     let noise = Normal::new(0.0, cfg.noise_codes.max(0.0)).unwrap_or_else(|_| Normal::new(0.0, 0.0).unwrap());
     let dt = 1.0 / cfg.rate_hz;
@@ -188,7 +188,7 @@ mod tests {
 
     #[test]
     fn simulation_is_deterministic_and_static_intervals_match_gravity() {
-        let cfg = SimConfig { holds: 5, ..Default::default() };
+        let cfg = SessionConfig { holds: 5, ..Default::default() };
         let a = simulate(&cfg);
         let b = simulate(&cfg);
         assert_eq!(a.recording, b.recording);
@@ -202,13 +202,13 @@ mod tests {
             let norm = (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt();
             assert!((norm - cfg.g).abs() < 0.01, "norm {norm}");
         }
-        let other = simulate(&SimConfig { seed: 2, ..cfg });
+        let other = simulate(&SessionConfig { seed: 2, ..cfg });
         assert_ne!(other.recording, a.recording);
     }
 
     #[test]
     fn directions_are_spread_over_the_sphere() {
-        let s = simulate(&SimConfig {
+        let s = simulate(&SessionConfig {
             holds: 400,
             hold_s: (0.1, 0.1),
             move_s: (0.1, 0.1),

@@ -92,14 +92,16 @@ pub fn flash_record(record: &[u8], chip: &str, selector: Option<&str>) -> Result
     let record = &record[..rec.len()];
 
     let lister = Lister::new();
+    let probes = lister.list_all();
     let probe = match selector {
         Some(s) => {
             let sel: DebugProbeSelector = s.parse().map_err(probe_err)?;
-            lister.open(sel).map_err(|e| FlashError::NoProbe(format!(" matching {s}: {e}")))?
+            lister
+                .open(sel)
+                .map_err(|e| FlashError::NoProbe(format!(" matching {s}: {e}; {}", seen(&probes))))?
         }
         None => {
-            let probes = lister.list_all();
-            let first = probes.first().ok_or_else(|| FlashError::NoProbe(String::new()))?;
+            let first = probes.first().ok_or_else(|| FlashError::NoProbe(format!(": {}", seen(&probes))))?;
             first.open().map_err(probe_err)?
         }
     };
@@ -107,6 +109,24 @@ pub fn flash_record(record: &[u8], chip: &str, selector: Option<&str>) -> Result
     let result = write_attached(&mut session, &rec, record);
     let reset = session.core(0).and_then(|mut core| core.reset()).map_err(|e| e.to_string());
     finish(result, reset)
+}
+
+/// What probe-rs sees, and what to check when it is not the probe wanted.
+fn seen(probes: &[probe_rs::probe::DebugProbeInfo]) -> String {
+    if probes.is_empty() {
+        return "probe-rs sees none. Check that the board's ST-LINK USB port (CN7, \"USB STLINK\") is \
+                connected, that this user may open the USB device (on Linux, probe-rs's udev rules), and \
+                that no other program (OpenOCD, STM32CubeProgrammer, a debugger) holds it"
+            .into();
+    }
+    let list: Vec<String> = probes
+        .iter()
+        .map(|p| {
+            let serial = p.serial_number.as_deref().map(|s| format!(":{s}")).unwrap_or_default();
+            format!("{} ({:04x}:{:04x}{serial})", p.identifier, p.vendor_id, p.product_id)
+        })
+        .collect();
+    format!("probe-rs sees {} (select one with --probe VID:PID[:SERIAL])", list.join(", "))
 }
 
 /// The outcome of a write followed by the core reset: the write's error first, a failed reset
@@ -184,6 +204,14 @@ fn read_slots(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn no_probe_says_what_to_check() {
+        let e = FlashError::NoProbe(format!(": {}", seen(&[])));
+        let msg = e.to_string();
+        assert!(msg.starts_with("no debug probe found: probe-rs sees none."), "{msg}");
+        assert!(msg.contains("USB STLINK") && msg.contains("udev"), "{msg}");
+    }
 
     fn report() -> FlashReport {
         FlashReport { slot: 1, sequence: 2, address: 0x080F_F800 }

@@ -396,10 +396,10 @@ pub struct CampaignCodes<R: Read> {
     path: PathBuf,
     /// The current row.
     row: Row,
-    /// Rows read so far.
-    n: usize,
-    /// Columns of x, y, z among the channels.
+    /// Indices of x, y, z among the channels.
     xyz: [usize; 3],
+    /// File columns (1-based) of x, y, z, for error messages.
+    xyz_columns: [usize; 3],
     /// The first block, read before the channels were checked.
     first: Option<(CodeBlock, TimeBlock)>,
     warnings: Vec<String>,
@@ -430,13 +430,14 @@ impl<R: Read> CampaignCodes<R> {
 
     fn from_rows(rows: DwellRows<R>, path: &Path) -> anyhow::Result<Self> {
         let names = rows.channel_names();
+        let columns = rows.channel_columns();
         let codes = rows.codes();
         let mut c = CampaignCodes {
             rows: Some(rows),
             path: path.to_owned(),
             row: Row::default(),
-            n: 0,
             xyz: [0; 3],
+            xyz_columns: [0; 3],
             first: None,
             warnings: Vec::new(),
         };
@@ -451,6 +452,7 @@ impl<R: Read> CampaignCodes<R> {
                     path.display()
                 ))
             })?;
+            c.xyz_columns[k] = columns[c.xyz[k]];
         }
         if codes != CodeRange::Unsigned16 {
             return Err(bad(format!(
@@ -484,16 +486,16 @@ impl<R: Read> CampaignCodes<R> {
 
     /// Adds the current row to `block`, checking its codes.
     fn push_row(&mut self, (codes, t_s): &mut (CodeBlock, TimeBlock)) -> anyhow::Result<()> {
-        self.n += 1;
         let mut set = [0u16; 3];
         for (k, (&col, name)) in self.xyz.iter().zip(["x", "y", "z"]).enumerate() {
             let v = self.row.codes[col];
             let (lo, hi) = CodeRange::Unsigned16.rails();
             if !(lo..=hi).contains(&v) || v.fract() != 0.0 {
                 return Err(bad(format!(
-                    "{}: row {} channel {name}: code {v} is not a whole number in 0..=65535 (simulate without --ideal-adc)",
+                    "{}:{}:{}: channel {name}: code {v} is not a whole number in 0..=65535 (simulate without --ideal-adc)",
                     self.path.display(),
-                    self.n,
+                    self.row.line,
+                    self.xyz_columns[k],
                 )));
             }
             set[k] = v as u16;
@@ -595,7 +597,7 @@ mod tests {
         };
         assert_eq!(read(&gz), read(&plain));
         let e = CampaignCodes::open_with(&plain, Some(CodeRange::Signed16)).err().unwrap();
-        assert!(crate::error::is_bad_input(&e));
+        assert!(e.is::<crate::error::BadInput>(), "{e:?}");
         assert!(e.to_string().contains("signed16 codes cannot be replayed"), "{e}");
         std::fs::write(&plain, format!("# codes: signed16\n{text}")).unwrap();
         let e = CampaignCodes::open(&plain).err().unwrap();
@@ -629,10 +631,10 @@ mod tests {
         let mut frac = triad(40);
         frac += "4,90,0,25,30000.5,31000,32000\n";
         let e = blocks(&frac).unwrap_err();
-        assert!(crate::error::is_bad_input(&e));
+        assert!(e.is::<crate::error::BadInput>(), "{e:?}");
         assert_eq!(
             e.to_string(),
-            "c.csv: row 40 channel x: code 30000.5 is not a whole number in 0..=65535 (simulate without --ideal-adc)"
+            "c.csv:42:5: channel x: code 30000.5 is not a whole number in 0..=65535 (simulate without --ideal-adc)"
         );
     }
 }

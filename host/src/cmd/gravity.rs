@@ -6,7 +6,7 @@ use std::path::Path;
 
 use accelcal_core::error::bad;
 use accelcal_core::gravity::{
-    self, fit::Structure, fit::TriadModel, holds::DetectorConfig, holds::ThresholdSource,
+    self, fit::GravityStructure, fit::TriadModel, holds::DetectorConfig, holds::ThresholdSource,
 };
 use accelcal_core::gravity::{imutk, Calibration, StructureChoice};
 use accelcal_core::output::{write_atomic, write_atomic_with, write_json};
@@ -42,9 +42,9 @@ fn detector(o: &GravityOptions) -> DetectorConfig {
 
 fn structure_choice(o: &GravityOptions) -> StructureChoice {
     match o.structure {
-        StructureArg::BiasScale => StructureChoice::Fixed(Structure::BiasScale),
-        StructureArg::ImuTk => StructureChoice::Fixed(Structure::ImuTk),
-        StructureArg::Quadratic => StructureChoice::Fixed(Structure::ImuTkQuadratic),
+        StructureArg::BiasScale => StructureChoice::Fixed(GravityStructure::BiasScale),
+        StructureArg::ImuTk => StructureChoice::Fixed(GravityStructure::ImuTk),
+        StructureArg::Quadratic => StructureChoice::Fixed(GravityStructure::ImuTkQuadratic),
         StructureArg::Auto => StructureChoice::Auto,
     }
 }
@@ -115,7 +115,7 @@ pub struct JsonDetector {
 /// A structure score in the JSON report.
 #[derive(Debug, Clone, Serialize)]
 pub struct JsonScore {
-    /// Structure name.
+    /// GravityStructure name.
     pub structure: String,
     /// Number of parameters.
     pub params: usize,
@@ -138,7 +138,7 @@ pub struct JsonReport {
     pub residual_rms: f64,
     /// Method name (`gravity-norm`).
     pub method: String,
-    /// Structure fitted.
+    /// GravityStructure fitted.
     pub structure: String,
     /// Gravity magnitude used, in m/s².
     pub g: f64,
@@ -156,7 +156,7 @@ pub struct JsonReport {
     pub per_hold: Vec<JsonHold>,
     /// GMDH-style scores of all structures.
     pub structures: Vec<JsonScore>,
-    /// Structure selected on withheld holds (see `fit::select`).
+    /// GravityStructure selected on withheld holds (see `fit::select`).
     pub selected_structure: Option<String>,
 }
 
@@ -314,7 +314,7 @@ pub fn human_report(input: &Path, samples: usize, cal: &Calibration) -> String {
     for (k, name) in ["alpha_yz", "alpha_zy", "alpha_zx"].iter().enumerate() {
         let _ = writeln!(o, "  {name}  {:+.6} ± {:.6} rad", m.alpha[k], s.alpha[k]);
     }
-    if f.structure == Structure::ImuTkQuadratic {
+    if f.structure == GravityStructure::ImuTkQuadratic {
         for (i, c) in CHANNELS.iter().enumerate() {
             let _ = writeln!(o, "  quad_{c}    {:+.3e} ± {:.3e} 1/(m/s²)", m.quad[i], s.quad[i]);
         }
