@@ -3,12 +3,14 @@
 //! place, and leaves no output file behind. Also what the readers exclude with a warning, and that
 //! a refusal after such warnings is still one line.
 
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
 use accelcal_shared::record::{Record, MAX_CHANNELS, MAX_RECORD_LEN};
 use accelcal_shared::terms::MODEL_4;
 use accelcal_shared::N_BASIS;
+use common::{accelcal, bad};
 
 fn corpus() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data/bad")
@@ -24,20 +26,6 @@ fn expected() -> Vec<(PathBuf, String)> {
             (corpus().join(file), want.to_string())
         })
         .collect()
-}
-
-fn accelcal(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_accelcal")).args(args).output().expect("the binary runs")
-}
-
-/// Runs a command that must fail with exit code 2 and a single-line error; returns that line.
-fn bad(args: &[&str]) -> String {
-    let out = accelcal(args);
-    let err = String::from_utf8_lossy(&out.stderr).to_string();
-    assert_eq!(out.status.code(), Some(2), "accelcal {args:?}: {err}");
-    assert_eq!(err.trim_end().lines().count(), 1, "one line expected from {args:?}: {err}");
-    assert!(!err.contains("panicked"), "{err}");
-    err.trim_end().to_string()
 }
 
 /// A directory for outputs that must stay empty.

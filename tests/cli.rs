@@ -4,30 +4,14 @@
 //! snapshots of what users read (the demo's tables and a diagnosis report, checked against the
 //! README, whose examples they are; `insta` snapshots under `tests/snapshots/`).
 
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
 use accelcal_shared::record::Record;
+use common::{accelcal, bad, ok};
 use serde_json::Value;
-
-fn accelcal(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_accelcal")).args(args).output().expect("the binary runs")
-}
-
-fn ok(args: &[&str]) -> String {
-    let out = accelcal(args);
-    assert!(out.status.success(), "accelcal {args:?} failed:\n{}", String::from_utf8_lossy(&out.stderr));
-    String::from_utf8(out.stdout).unwrap()
-}
-
-/// Runs a command that must fail with exit code 2 and a single-line error; returns that line.
-fn bad(args: &[&str]) -> String {
-    let out = accelcal(args);
-    let err = String::from_utf8(out.stderr).unwrap();
-    assert_eq!(out.status.code(), Some(2), "accelcal {args:?}: {err}");
-    assert_eq!(err.trim_end().lines().count(), 1, "one line expected: {err}");
-    err.trim_end().to_string()
-}
 
 fn json(p: &Path) -> Value {
     serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()

@@ -4,32 +4,17 @@
 //! but for the bias, shifted by exactly that; a gzipped campaign must give the same JSON as the
 //! plain one.
 
+mod common;
+
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
+use common::{accelcal, bad};
 use serde_json::Value;
 
-fn accelcal(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_accelcal")).args(args).output().expect("the binary runs")
-}
-
-/// Runs a command that must succeed; returns its stderr.
+/// Runs a command that must succeed; returns its stderr (the readers' warnings).
 fn ok(args: &[&str]) -> String {
-    let out = accelcal(args);
-    let err = String::from_utf8_lossy(&out.stderr).to_string();
-    assert!(out.status.success(), "accelcal {args:?}: {err}");
-    err
-}
-
-/// Runs a command that must fail with exit code 2 and a single-line error; returns that line.
-fn bad(args: &[&str]) -> String {
-    let out = accelcal(args);
-    let err = String::from_utf8_lossy(&out.stderr).to_string();
-    assert_eq!(out.status.code(), Some(2), "accelcal {args:?}: {err}");
-    assert_eq!(err.trim_end().lines().count(), 1, "one line expected from {args:?}: {err}");
-    assert!(!err.contains("panicked"), "{err}");
-    err.trim_end().to_string()
+    String::from_utf8_lossy(&common::succeed(args).stderr).into_owned()
 }
 
 fn s(p: &Path) -> &str {

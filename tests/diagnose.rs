@@ -3,11 +3,12 @@
 //! residual left unexplained, the CLI's JSON keys and exit codes, and a small blind benchmark
 //! held to the accuracy aim.
 
-use std::process::{Command, Output};
+mod common;
 
 use accelcal_core::diagnose::{self, bench};
 use accelcal_core::sim::{self, effects, SimConfig, TempProfile};
 use accelcal_shared::terms::MODEL_4;
+use common::accelcal;
 use serde_json::Value;
 
 fn config(seed: u64, spec: Option<&str>) -> SimConfig {
@@ -131,10 +132,6 @@ fn small_blind_benchmark_meets_the_aim() {
     assert!(s.accuracy_effects >= 0.95, "{:.3}: {:#?}", s.accuracy_effects, s.confusion);
     assert!(s.shrink_vs_oracle_all > 0.95, "{}", s.shrink_vs_oracle_all);
     assert!(s.outcomes.iter().all(|o| o.case.truth.is_none() || o.case.magnitude >= 4.5));
-}
-
-fn accelcal(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_accelcal")).args(args).output().expect("the binary runs")
 }
 
 /// Checks every "explained" share of a diagnosis report against the numbers on its row and its

@@ -9,10 +9,11 @@
 //! both. The ELF is taken from `ACCELCAL_NODE_QEMU_ELF`, else from the firmware's release target
 //! directory. A missing prerequisite fails the test with the command that provides it.
 
+mod common;
 mod support;
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
 use accelcal_core::campaign::Campaign;
 use accelcal_core::node::hil::{replay_blocks, CampaignCodes, HilOptions, QemuNode};
@@ -27,6 +28,7 @@ use accelcal_shared::wire::{
     DEFAULT_RATE_HZ, PROTOCOL_VERSION, RATE_MAX_HZ, RATE_MIN_HZ,
 };
 use accelcal_shared::G_STANDARD;
+use common::{accelcal, ok};
 use support::{node_elf, record_bytes};
 
 /// Hex of the QEMU node's device id, "QEMU-B-L475E" (`accelcal_shared::contract::QEMU_DEVICE_ID`).
@@ -40,22 +42,6 @@ fn node_fixed_elf() -> PathBuf {
         "target/fixed-point/thumbv7em-none-eabihf/release/node-qemu",
         "cargo build --release --features board-qemu,fixed-point --bin node-qemu --target-dir target/fixed-point",
     )
-}
-
-fn accelcal(args: &[&str]) -> Output {
-    let out = Command::new(env!("CARGO_BIN_EXE_accelcal")).args(args).output().expect("run accelcal");
-    out
-}
-
-fn ok(args: &[&str]) -> String {
-    let out = accelcal(args);
-    assert!(
-        out.status.success(),
-        "accelcal {args:?} failed: {}\n{}",
-        String::from_utf8_lossy(&out.stderr),
-        String::from_utf8_lossy(&out.stdout)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
 fn s(p: &Path) -> &str {
