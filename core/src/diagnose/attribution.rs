@@ -701,3 +701,28 @@ pub fn full_fit(d: &Data, base: Structure, set: &[Cand]) -> Option<FullFit> {
     let chi2 = all.iter().map(|&i| f.design.w[i] * resid[i] * resid[i]).sum();
     Some(FullFit { params, resid, chi2, dof })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::effects::unit_of;
+
+    /// Every parameter the diagnosis reports is a parameter of the registry (same key, so the same
+    /// unit as the simulator's): the diagnosis columns and the registry cannot drift apart.
+    #[test]
+    fn every_reported_parameter_is_in_the_registry() {
+        for c in Cand::ALL {
+            for &(_, key) in per_channel(c) {
+                assert!(unit_of(c, key).is_some(), "{}: `{key}` has no unit in the registry", c.name());
+            }
+        }
+        for (c, key) in [
+            (Cand::HeadMisalignment, "rx_mrad"),
+            (Cand::HeadMisalignment, "rz_mrad"),
+            (Cand::Settling, "tau_s"),
+            (Cand::AngleError, "sd_mrad"),
+        ] {
+            assert!(unit_of(c, key).is_some(), "{}: `{key}`", c.name());
+        }
+    }
+}
