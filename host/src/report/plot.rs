@@ -19,6 +19,23 @@ const COLORS: [RGBColor; 8] = [
     RGBColor(127, 127, 127),
 ];
 
+/// Renders an SVG of `size` pixels on a white background with `draw`, in memory, then writes it
+/// to `path` atomically (a failure leaves no partial file).
+fn svg_file(
+    path: &Path,
+    size: (u32, u32),
+    draw: impl FnOnce(&DrawingArea<SVGBackend, plotters::coord::Shift>) -> anyhow::Result<()>,
+) -> anyhow::Result<()> {
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, size).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
+        draw(&root)?;
+        root.present().map_err(|e| anyhow!("{e}"))?;
+    }
+    write_atomic(path, svg.as_bytes())
+}
+
 fn span(vals: impl Iterator<Item = f64>) -> (f64, f64) {
     let (lo, hi) = vals
         .filter(|v| v.is_finite())
@@ -51,11 +68,8 @@ pub fn lines(
     let (x0, x1) = span(series.iter().flat_map(|s| s.1.iter().map(|p| p.0)));
     let (y0, y1) = span(series.iter().flat_map(|s| s.1.iter().map(|p| p.1)));
     let (x0, x1) = (x0.floor() - 0.5, x1.ceil() + 0.5);
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, (900, 500)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
-        let mut chart = ChartBuilder::on(&root)
+    svg_file(path, (900, 500), |root| {
+        let mut chart = ChartBuilder::on(root)
             .caption(title, ("sans-serif", 22))
             .margin(12)
             .x_label_area_size(40)
@@ -90,9 +104,8 @@ pub fn lines(
             .background_style(WHITE.mix(0.8))
             .draw()
             .map_err(|e| anyhow!("{e}"))?;
-        root.present().map_err(|e| anyhow!("{e}"))?;
-    }
-    write_atomic(path, svg.as_bytes())
+        Ok(())
+    })
 }
 
 /// Criterion (RMS codes, log scale) of every identifiable candidate against its number of terms,
@@ -112,11 +125,8 @@ pub fn criterion_vs_complexity(
         .filter(|v| *v > 0.0)
         .fold((f64::INFINITY, 0.0f64), |(a, b), v| (a.min(v), b.max(v)));
     let (lo, hi) = if lo.is_finite() { (lo * 0.9, hi * 1.1) } else { (0.1, 10.0) };
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, (800, 500)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
-        let mut chart = ChartBuilder::on(&root)
+    svg_file(path, (800, 500), |root| {
+        let mut chart = ChartBuilder::on(root)
             .caption(title, ("sans-serif", 22))
             .margin(12)
             .x_label_area_size(40)
@@ -160,9 +170,8 @@ pub fn criterion_vs_complexity(
             .background_style(WHITE.mix(0.8))
             .draw()
             .map_err(|e| anyhow!("{e}"))?;
-        root.present().map_err(|e| anyhow!("{e}"))?;
-    }
-    write_atomic(path, svg.as_bytes())
+        Ok(())
+    })
 }
 
 /// Candidates drawn per model size in the criterion plot: the best ones, which are all the
