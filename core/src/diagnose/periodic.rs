@@ -14,9 +14,10 @@
 //! largest over the grid was picked, the false-alarm probability is `1 − (1 − p)^M`, with `M` the
 //! number of independent frequencies taken as `max(N, (f_max − f_min)·T)` (with uneven times the
 //! peaks are more independent than the width `1/T` suggests; `M = N` brought 300 white series of
-//! the unit test from 10 to 3 of 300 below a false alarm of 1%). The test is against the rest of the residual, not against the
-//! white noise alone: a residual that is large but not periodic (a position effect) gives no
-//! significant period. A period is *significant* when its false-alarm probability is below
+//! the unit test from 10 to 3 of 300 below a false alarm of 1%). The test is against the rest
+//! of the residual, not against the white noise alone, so a large residual that is not periodic
+//! does not make every period significant; but a position effect on a plan that repeats its
+//! orientations at a steady rate is periodic in time, and is found as such. A period is *significant* when its false-alarm probability is below
 //! [`FALSE_ALARM`].
 //!
 //! **Common mode.** For each pair of channels, the Pearson correlation `r` of their dwell
