@@ -112,6 +112,60 @@ fn a_residual_no_effect_explains_stays_unexplained() {
     assert!(!r.gap.consistent_with_noise);
 }
 
+/// A clean campaign (seed 41) with `add(channel, t_s, position)` codes added to every sample.
+fn disturbed(add: impl Fn(usize, f64, usize) -> f64) -> diagnose::Report {
+    let (mut c, _) = sim::simulate(&config(41, None));
+    for (k, w) in c.dwells().iter().enumerate() {
+        for (ch, channel) in c.channels.iter_mut().enumerate() {
+            for i in w.start..w.end {
+                channel.codes[i] += add(ch, c.t_s[i], k).round();
+            }
+        }
+    }
+    diagnose::diagnose(&c, accelcal_shared::G_STANDARD, MODEL_4).unwrap()
+}
+
+#[test]
+fn a_disturbance_periodic_in_time_is_found_with_its_period() {
+    // 12 codes (3 per-position noise sigmas) with a period of 60 s on channel y only.
+    let r = disturbed(
+        |ch, t, _| if ch == 1 { 12.0 * (2.0 * std::f64::consts::PI * t / 60.0).sin() } else { 0.0 },
+    );
+    let p = r.gap.channels[1].period.as_ref().unwrap();
+    assert!(p.significant && p.false_alarm < 1e-6, "{p:?}");
+    assert!((p.period_s - 60.0).abs() < 0.05 * 60.0, "{p:?}");
+    assert!((p.amplitude_codes - 12.0).abs() < 3.0, "{p:?}");
+    for ch in [0, 2] {
+        let q = r.gap.channels[ch].period.as_ref().unwrap();
+        assert!(!q.significant, "channel {ch}: {q:?}");
+    }
+    // One channel's disturbance is not common to all.
+    assert!(!r.gap.common_mode.as_ref().unwrap().common, "{:?}", r.gap.common_mode);
+    // Clean campaigns have no significant period.
+    for seed in [1, 2, 3, 4] {
+        let r = run(seed, None);
+        for c in &r.gap.channels {
+            assert!(!c.period.as_ref().unwrap().significant, "seed {seed} {}: {:?}", c.name, c.period);
+        }
+    }
+}
+
+#[test]
+fn a_disturbance_common_to_all_channels_is_reported_as_common() {
+    // ±12 codes per position (3 per-position noise sigmas), the same on every channel: a
+    // disturbance of the rig (supply, reference) rather than of one sensor.
+    let offset = |k: usize| if (k * 7919) % 5 < 2 { 12.0 } else { -12.0 };
+    let r = disturbed(|_, _, k| offset(k));
+    let cm = r.gap.common_mode.as_ref().unwrap();
+    assert!(cm.common, "{cm:?}");
+    assert!(cm.pairs.iter().all(|p| p.r > 0.5), "{cm:?}");
+    let r = disturbed(|ch, _, k| if ch == 0 { offset(k) } else { 0.0 });
+    let cm = r.gap.common_mode.as_ref().unwrap();
+    assert!(!cm.common, "{cm:?}");
+    assert!(!r.gap.consistent_with_noise, "the disturbance is beyond the noise");
+    assert!(!run(1, None).gap.common_mode.unwrap().common);
+}
+
 #[test]
 fn the_gap_is_localised_where_the_effect_acts() {
     let r = run(31, Some("hysteresis=h:20"));
@@ -139,13 +193,19 @@ fn small_blind_benchmark_meets_the_aim() {
 /// (chi2 − bins) (an effect cannot remove more than the whole chi2) and is negative when the
 /// effect, fitted on the other positions, makes the withheld ones worse (with no lower bound:
 /// −136 % for angle_error on the hysteresis campaign below); a kept effect removes at least half
-/// the excess. Every `%` of the report is one of these shares. Returns how many were printed.
+/// the excess; a negative share, and only it, is followed by a note on why. Every `%` of the
+/// report is one of these shares. Returns how many were printed.
 fn check_shares(report: &str) -> usize {
     let num = |w: &str| w.parse::<f64>().unwrap_or_else(|_| panic!("`{w}` in\n{report}"));
     let (mut chi2, mut bins, mut shares) = (f64::NAN, f64::NAN, 0);
     let mut rows: Vec<(String, f64, Option<f64>)> = Vec::new();
     let mut in_round = false;
     for line in report.lines() {
+        // A negative share carries a note on why, after the row.
+        let (line, note) = match line.split_once("  (negative: ") {
+            Some((row, _)) => (row, true),
+            None => (line, false),
+        };
         let w: Vec<&str> = line.split_whitespace().collect();
         if line.starts_with("round ") {
             // round N (held-out chi2 X over B bins, rms R codes)
@@ -164,6 +224,7 @@ fn check_shares(report: &str) -> usize {
                 let tol = 0.5 + want.abs() * 1e-4 + 100.0 * drop.abs() * chi2 * 1e-5 / (excess * excess);
                 assert!((pct - want).abs() <= tol, "{line}: {pct}% vs {want:.2}% of the excess");
                 assert!(pct <= 100.0 * chi2 / excess + 0.5, "{line}: more than the whole chi2");
+                assert_eq!(note, drop < 0.0, "{line}: a negative share, and only it, says why");
                 shares += 1;
             }
             rows.push((w[0].to_string(), num(w[1]), share));
@@ -216,6 +277,17 @@ fn cli_writes_the_issue_json_plots_and_refuses_bad_input() {
     assert!(e["parameters"]["x"]["h"]["value"].as_f64().unwrap() > 15.0);
     assert!(std::fs::read_to_string(p("plots/gap-positions.svg")).unwrap().contains("<svg"));
     assert!(std::path::Path::new(&p("plots/gap-in-dwell.svg")).exists());
+    // The campaign has temp_c: the residual against temperature, labelled in °C and codes.
+    let temp = std::fs::read_to_string(p("plots/gap-temperature.svg")).unwrap();
+    assert!(temp.contains("<svg") && temp.contains("°C") && temp.contains("codes"));
+    assert!(stdout.contains("gap-temperature.svg"), "{stdout}");
+    assert!(v["gap"]["channels"][0]["period"]["period_s"].is_number(), "{}", v["gap"]);
+    assert!(v["gap"]["common_mode"]["common"].is_boolean(), "{}", v["gap"]);
+    // Without temp_c, no temperature plot.
+    let out = accelcal(&["diagnose", &p("clean.csv"), "--plot", &p("clean-plots")]);
+    assert!(out.status.success());
+    assert!(std::path::Path::new(&p("clean-plots/gap-positions.svg")).exists());
+    assert!(!std::path::Path::new(&p("clean-plots/gap-temperature.svg")).exists());
 
     let exit2 = |args: &[&str], want: &str| {
         let out = accelcal(args);

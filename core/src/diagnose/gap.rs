@@ -1,5 +1,6 @@
 //! The gap: the baseline's residual localised per channel, per position, over time, inside the
-//! dwells, against temperature and against the direction of approach, with the test of whether
+//! dwells, against temperature and against the direction of approach, periodic in time and common
+//! to the channels ([`super::periodic`]), with the test of whether
 //! it is consistent with white noise, and a simulated twin of the campaign for comparison.
 //!
 //! **Noise test.** With σ estimated from the within-bin scatter, the bin residuals of a correct
@@ -13,6 +14,7 @@ use rand_distr::{Distribution, Normal};
 use serde::Serialize;
 
 use super::attribution::full_fit;
+use super::periodic::{common_mode, strongest_period, CommonMode, Period};
 use super::{zscore, Data, NOISE_Z};
 use crate::positions::DwellAcc;
 
@@ -45,6 +47,8 @@ pub struct ChannelGap {
     pub z_approach: f64,
     /// Mean of (bin − dwell) residual times the sign of the step, per bin index, codes.
     pub in_dwell_profile: Vec<f64>,
+    /// The strongest period of the dwell residuals over time (None with fewer than 6 positions).
+    pub period: Option<Period>,
 }
 
 /// One position with a large residual.
@@ -79,6 +83,8 @@ pub struct Gap {
     pub worst_positions: Vec<PositionGap>,
     /// Dwell residual of every position and channel (codes): `position_residual[ch][pos]`.
     pub position_residual: Vec<Vec<f64>>,
+    /// Whether the dwell residual is common to all channels (None with a single channel).
+    pub common_mode: Option<CommonMode>,
 }
 
 /// Weighted slope of `y` on `x` and its z (σ from the weights).
@@ -165,6 +171,7 @@ pub fn localise(d: &Data, base: Structure) -> Option<Gap> {
             approach_diff,
             z_approach: if sd > 0.0 { approach_diff / sd } else { 0.0 },
             in_dwell_profile: prof.iter().map(|(s, n)| if *n > 0.0 { s / n } else { 0.0 }).collect(),
+            period: strongest_period(&d.t_pos, &rp, &var),
         });
         position_residual.push(rp);
     }
@@ -188,6 +195,7 @@ pub fn localise(d: &Data, base: Structure) -> Option<Gap> {
         z_sim: twin.map_or(f64::NAN, |t| t.1),
         channels,
         worst_positions: worst,
+        common_mode: common_mode(&d.channels, &position_residual),
         position_residual,
     })
 }

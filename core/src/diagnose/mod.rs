@@ -14,6 +14,7 @@ pub mod attribution;
 pub mod bench;
 pub mod bins;
 pub mod gap;
+pub mod periodic;
 
 use std::collections::BTreeMap;
 

@@ -47,6 +47,75 @@ pub fn to_json(r: &Report) -> serde_json::Value {
     })
 }
 
+/// Appended to a trial row whose share of the excess is negative.
+pub const NEGATIVE_SHARE: &str =
+    "  (negative: fitted on the other positions, the effect made the held-out fit worse)";
+
+/// The verdict of the headline: the noise test, and never "consistent with the noise" while an
+/// effect is named (the attribution may name one below the noise threshold when it passes its
+/// own held-out test).
+fn headline(r: &Report) -> String {
+    let names: Vec<&str> = r.effects.iter().map(|e| e.name.as_str()).collect();
+    match (r.gap.consistent_with_noise, names.is_empty()) {
+        (true, true) => "consistent with the noise".into(),
+        (true, false) => format!(
+            "below the noise threshold (z < {}), but the held-out test names {}",
+            diagnose::NOISE_Z,
+            names.join(", ")
+        ),
+        (false, _) => "NOT consistent with the noise".into(),
+    }
+}
+
+/// The strongest period over time of each channel's dwell residuals.
+fn print_periods(r: &Report) {
+    let Some((lo, hi)) = r.gap.channels.iter().find_map(|c| c.period.as_ref().map(|p| p.searched_s)) else {
+        return;
+    };
+    println!();
+    println!(
+        "periodicity over time (sine fitted to the dwell residuals, periods {} to {} s; false alarm: F test against the rest of the residual, over the whole search; below {} is significant)",
+        sig(lo, 3),
+        sig(hi, 3),
+        diagnose::periodic::FALSE_ALARM
+    );
+    println!("{:<8} {:>10} {:>15} {:>12}", "channel", "period_s", "amplitude_codes", "false_alarm");
+    for c in &r.gap.channels {
+        match &c.period {
+            Some(p) => println!(
+                "{:<8} {:>10} {:>15} {:>12}  {}",
+                c.name,
+                sig(p.period_s, 3),
+                sig(p.amplitude_codes, 3),
+                format!("{:.2e}", p.false_alarm),
+                if p.significant { "significant" } else { "not significant" }
+            ),
+            None => println!("{:<8} {:>10} {:>15} {:>12}", c.name, "-", "-", "-"),
+        }
+    }
+}
+
+/// Whether the dwell residual is common to all channels.
+fn print_common_mode(r: &Report) {
+    let Some(cm) = &r.gap.common_mode else { return };
+    println!();
+    println!("common mode (correlation r of the dwell residuals of two channels over the positions, z = atanh(r)*sqrt(positions - 3))");
+    let pairs: Vec<String> = cm
+        .pairs
+        .iter()
+        .map(|p| format!("{}-{}: r = {} (z = {})", p.channels.0, p.channels.1, sig(p.r, 3), sig(p.z, 3)))
+        .collect();
+    println!("  {}", pairs.join("; "));
+    println!(
+        "  -> {}",
+        if cm.common {
+            "common to all channels (every pair beyond |z| = 4, one sign)"
+        } else {
+            "not common to all channels"
+        }
+    );
+}
+
 /// Prints the human tables.
 pub fn print_report(r: &Report) {
     let g = &r.gap;
@@ -57,10 +126,10 @@ pub fn print_report(r: &Report) {
         g.dof,
         sig(g.z, 3),
         sig(g.z_sim, 3),
-        if g.consistent_with_noise { "consistent with the noise" } else { "NOT consistent with the noise" }
+        headline(r)
     );
     println!();
-    println!("where the gap lies (z-scores; |z| > 4 is beyond the noise)");
+    println!("where the gap lies (sigma per sample, rms_pos and rms_sim in codes; z-scores: |z| > 4 is beyond the noise)");
     println!(
         "{:<8} {:>7} {:>9} {:>9} {:>9} {:>9} {:>8} {:>8} {:>9}",
         "channel", "sigma", "rms_pos", "rms_sim", "z_pos", "z_dwell", "z_time", "z_temp", "z_approach"
@@ -79,6 +148,8 @@ pub fn print_report(r: &Report) {
             sig(c.z_approach, 3)
         );
     }
+    print_periods(r);
+    print_common_mode(r);
     println!();
     println!("largest position residuals (dwell residual / per-position noise)");
     for p in &g.worst_positions {
@@ -108,13 +179,16 @@ pub fn print_report(r: &Report) {
         // baseline already fits to the noise) there is nothing to share.
         let has_excess = round.before.chi2 > round.before.bins as f64;
         for t in &round.trials {
+            // A negative share says why it is negative, on its row.
+            let worse = has_excess && t.explained < 0.0;
             println!(
-                "  {:<18} {:>12} {:>10} {:>10} {:>10}",
+                "  {:<18} {:>12} {:>10} {:>10} {:>10}{}",
                 t.name,
                 sig(t.chi2_drop, 5),
                 sig(t.threshold, 3),
                 if has_excess { format!("{:.0}%", 100.0 * t.explained) } else { "-".into() },
-                sig(t.score.rms, 4)
+                sig(t.score.rms, 4),
+                if worse { NEGATIVE_SHARE } else { "" }
             );
         }
         println!("  -> {}", round.kept.unwrap_or("nothing significant"));
@@ -175,6 +249,24 @@ mod tests {
     use accelcal_core::campaign::Campaign;
     use accelcal_core::sim::{effects, simulate, SimConfig, TempProfile};
     use accelcal_shared::terms::MODEL_4;
+
+    #[test]
+    fn the_headline_never_says_consistent_with_the_noise_while_an_effect_is_named() {
+        let (c, _) = simulate(&SimConfig { seed: 3, ..SimConfig::default() });
+        let mut r = diagnose::diagnose(&c, 9.81, MODEL_4).unwrap();
+        assert!(r.gap.consistent_with_noise && r.effects.is_empty());
+        assert_eq!(headline(&r), "consistent with the noise");
+        // The attribution may name an effect below the noise threshold (it passes its own
+        // held-out test); the headline then says so.
+        let (s, _) = simulate(&SimConfig {
+            seed: 3,
+            effects: vec![effects::parse("hysteresis=h:20").unwrap()],
+            ..SimConfig::default()
+        });
+        r.effects = diagnose::diagnose(&s, 9.81, MODEL_4).unwrap().effects;
+        let h = headline(&r);
+        assert!(!h.contains("consistent with the noise") && h.ends_with("names hysteresis"), "{h}");
+    }
 
     #[test]
     fn streaming_diagnosis_matches_the_in_memory_diagnosis() {

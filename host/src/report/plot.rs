@@ -65,9 +65,34 @@ pub fn lines(
     ydesc: &str,
     series: &[(String, Vec<(f64, f64)>)],
 ) -> anyhow::Result<()> {
+    xy(path, title, xdesc, ydesc, series, true)
+}
+
+/// Scatter plot of named series of `(x, y)` points (markers only, continuous x labels), with a
+/// zero line and a legend: a residual against a measured quantity such as the temperature.
+pub fn scatter(
+    path: &Path,
+    title: &str,
+    xdesc: &str,
+    ydesc: &str,
+    series: &[(String, Vec<(f64, f64)>)],
+) -> anyhow::Result<()> {
+    xy(path, title, xdesc, ydesc, series, false)
+}
+
+/// [`lines`] (`joined`: points joined in order, integer x labels) or [`scatter`].
+fn xy(
+    path: &Path,
+    title: &str,
+    xdesc: &str,
+    ydesc: &str,
+    series: &[(String, Vec<(f64, f64)>)],
+    joined: bool,
+) -> anyhow::Result<()> {
     let (x0, x1) = span(series.iter().flat_map(|s| s.1.iter().map(|p| p.0)));
     let (y0, y1) = span(series.iter().flat_map(|s| s.1.iter().map(|p| p.1)));
-    let (x0, x1) = (x0.floor() - 0.5, x1.ceil() + 0.5);
+    let (x0, x1) = if joined { (x0.floor() - 0.5, x1.ceil() + 0.5) } else { (x0, x1) };
+    let xfmt = |x: &f64| if joined { format!("{x:.0}") } else { format!("{x:.2}") };
     svg_file(path, (900, 500), |root| {
         let mut chart = ChartBuilder::on(root)
             .caption(title, ("sans-serif", 22))
@@ -79,7 +104,7 @@ pub fn lines(
         chart
             .configure_mesh()
             .x_desc(xdesc)
-            .x_label_formatter(&|x| format!("{x:.0}"))
+            .x_label_formatter(&xfmt)
             .y_desc(ydesc)
             .draw()
             .map_err(|e| anyhow!("{e}"))?;
@@ -88,14 +113,18 @@ pub fn lines(
             .map_err(|e| anyhow!("{e}"))?;
         for (i, (name, pts)) in series.iter().enumerate() {
             let color = COLORS[i % COLORS.len()];
-            chart
-                .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
-                .map_err(|e| anyhow!("{e}"))?
-                .label(name.as_str())
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2)));
-            chart
+            let markers = chart
                 .draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled())))
                 .map_err(|e| anyhow!("{e}"))?;
+            if joined {
+                chart
+                    .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
+                    .map_err(|e| anyhow!("{e}"))?
+                    .label(name.as_str())
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2)));
+            } else {
+                markers.label(name.as_str()).legend(move |(x, y)| Circle::new((x + 8, y), 3, color.filled()));
+            }
         }
         chart
             .configure_series_labels()
