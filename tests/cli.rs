@@ -297,6 +297,42 @@ fn fit_lsq_and_test_turns_write_json_and_record() {
     assert!(e.contains("--device-id does not apply to fit without --record"), "{e}");
 }
 
+/// A record that a node would refuse is refused by `fit --record` and by `flash` with the node's
+/// reason, exit code 2, one line, and nothing is written.
+#[test]
+fn records_a_node_would_refuse_are_not_written_nor_flashed() {
+    let d = Dir::new();
+    let c = simulate(&d, "c.csv", &["--seed", "4", "--samples", "2"]);
+    let (rec, j) = (d.s("r.rec"), d.s("r.json"));
+    let id = "51454d552d422d4c34373545";
+    let e = bad(&["fit", &c, "--terms", "ax,ay,az,ax*ay", "--record", &rec, "--device-id", id, "--json", &j]);
+    assert_eq!(e.lines().count(), 1, "{e}");
+    assert!(
+        e.contains(&format!("{rec}: a node would refuse this record: NotModel4: the node applies model 4")),
+        "{e}"
+    );
+    let zero = "000000000000000000000000";
+    let e = bad(&["fit", &c, "--record", &rec, "--device-id", zero, "--json", &j]);
+    assert!(e.contains(&format!("{rec}: a node would refuse this record: WrongDevice: ")), "{e}");
+    assert!(e.contains("all zeros"), "{e}");
+    let e = bad(&["fit", &c, "--record", &rec]);
+    assert!(e.contains("fit --record needs --device-id HEX"), "{e}");
+    assert!(!d.p("r.rec").exists() && !d.p("r.json").exists());
+    // flash refuses a record no node accepts before it looks for a probe.
+    ok(&["fit", &c, "--record", &d.s("good.rec"), "--device-id", id]);
+    let mut r = Record::parse(&std::fs::read(d.p("good.rec")).unwrap()).unwrap();
+    r.device_id = [0; 12];
+    let mut buf = [0u8; accelcal_shared::record::MAX_RECORD_LEN];
+    let n = r.emit(&mut buf).unwrap();
+    std::fs::write(d.p("zero.rec"), &buf[..n]).unwrap();
+    let e = bad(&["flash", &d.s("zero.rec"), "--probe", "ffff:ffff"]);
+    assert_eq!(e.lines().count(), 1, "{e}");
+    assert!(
+        e.contains(&format!("{}: a node would refuse this record: WrongDevice: ", d.s("zero.rec"))),
+        "{e}"
+    );
+}
+
 #[test]
 fn compare_gives_table_2_with_and_without_validation_campaign() {
     let d = Dir::new();
@@ -614,11 +650,11 @@ const REFUSED: &[(&str, &str)] = &[
         "fit R --method gravity-norm --device-id 00112233445566778899aabb",
         "--device-id does not apply to fit --method gravity-norm",
     ),
-    ("fit R --method gravity-norm --terms ax,ay", "--terms does not apply to fit --method gravity-norm"),
     (
         "fit R --method gravity-norm --created 1800000000",
         "--created does not apply to fit --method gravity-norm",
     ),
+    ("fit R --method gravity-norm --terms ax,ay", "--terms does not apply to fit --method gravity-norm"),
     ("fit R --method gravity-norm --campaign-out R", "--campaign-out R is the input CAMPAIGN"),
     ("fit C --plot d", "--plot does not apply to fit --method lsq"),
     ("fit C --campaign-out x.csv", "--campaign-out does not apply to fit --method lsq"),
@@ -627,9 +663,16 @@ const REFUSED: &[(&str, &str)] = &[
     ("fit C --method test-turns --structure auto", "--structure does not apply to fit --method test-turns"),
     ("fit C --device-id 00112233445566778899aabb", "--device-id does not apply to fit without --record"),
     ("fit C --created 1800000000", "--created does not apply to fit without --record"),
-    ("fit C --record C", "--record C is the input CAMPAIGN: refusing to overwrite it"),
+    ("fit C --record r.rec", "fit --record needs --device-id HEX"),
+    (
+        "fit C --record C --device-id 00112233445566778899aabb",
+        "--record C is the input CAMPAIGN: refusing to overwrite it",
+    ),
     ("fit C --json C", "--json C is the input CAMPAIGN: refusing to overwrite it"),
-    ("fit C --json o.json --record o.json", "--json and --record name the same path"),
+    (
+        "fit C --json o.json --record o.json --device-id 00112233445566778899aabb",
+        "--json and --record name the same path",
+    ),
     ("compare C --json C", "--json C is the input CAMPAIGN: refusing to overwrite it"),
     ("compare C --validate V --json V", "--json V is the input --validate"),
     ("compare C --plot C", "--plot C is the input CAMPAIGN"),

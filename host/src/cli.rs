@@ -304,9 +304,10 @@ pub struct FitArgs {
     /// Write the calibration record for the firmware to this file.
     #[arg(long, value_name = "FILE")]
     pub record: Option<PathBuf>,
-    /// Device id for the record: the MCU's 96-bit unique id as 24 hex digits.
-    #[arg(long, default_value = "000000000000000000000000", value_name = "HEX")]
-    pub device_id: String,
+    /// Device id for the record: the MCU's 96-bit unique id as 24 hex digits [required with
+    /// --record: a node accepts only a record made for it].
+    #[arg(long, value_name = "HEX")]
+    pub device_id: Option<String>,
     /// Creation time written into the record, seconds since the Unix epoch [default: now].
     #[arg(long, value_name = "UNIX_S")]
     pub created: Option<u64>,

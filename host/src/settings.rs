@@ -123,6 +123,10 @@ fn check_fit(a: &FitArgs, given: &Given) -> anyhow::Result<()> {
                     "fit without --record",
                     " (it is written into the record)",
                 )?;
+            } else if a.device_id.is_none() {
+                return Err(bad(
+                    "fit --record needs --device-id HEX, the MCU's 96-bit unique id: a node accepts only a record made for it",
+                ));
             }
         }
     }
