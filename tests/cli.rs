@@ -42,16 +42,29 @@ fn simulate(d: &Dir, name: &str, extra: &[&str]) -> String {
 
 /// The subcommands, from the command tree the binary prints (`help` excluded).
 fn commands() -> Vec<String> {
+    /// The subcommands listed under `Commands:` in a help text.
+    fn listed(help: &str) -> Vec<String> {
+        help.lines()
+            .skip_while(|l| *l != "Commands:")
+            .skip(1)
+            .take_while(|l| !l.trim().is_empty())
+            .map(|l| l.split_whitespace().next().unwrap().to_string())
+            .filter(|c| c != "help")
+            .collect()
+    }
     let top = ok(&["--help"]);
-    let list: Vec<String> = top
-        .lines()
-        .skip_while(|l| *l != "Commands:")
-        .skip(1)
-        .take_while(|l| !l.trim().is_empty())
-        .map(|l| l.split_whitespace().next().unwrap().to_string())
-        .filter(|c| c != "help")
-        .collect();
+    let mut list = Vec::new();
+    // A command with subcommands (`record`) stands for its subcommands (`record show`).
+    for cmd in listed(&top) {
+        let subs = listed(&ok(&[&cmd, "--help"]));
+        if subs.is_empty() {
+            list.push(cmd);
+        } else {
+            list.extend(subs.iter().map(|s| format!("{cmd} {s}")));
+        }
+    }
     assert!(list.len() >= 10, "the command tree has shrunk: {list:?}\n{top}");
+    assert!(list.iter().any(|c| c == "record show"), "{list:?}");
     list
 }
 
@@ -138,8 +151,9 @@ const DIMENSIONLESS: &[&str] = &[
 fn every_command_has_help_naming_its_options_units_and_defaults_once() {
     let mut seen = std::collections::BTreeSet::new();
     for cmd in commands() {
-        let long = ok(&[&cmd, "--help"]);
-        let short = ok(&[&cmd, "-h"]);
+        let words: Vec<&str> = cmd.split(' ').collect();
+        let long = ok(&[&words[..], &["--help"]].concat());
+        let short = ok(&[&words[..], &["-h"]].concat());
         let usage =
             long.lines().find(|l| l.starts_with("Usage: ")).unwrap_or_else(|| panic!("{cmd}: {long}"));
         assert!(usage.starts_with(&format!("Usage: accelcal {cmd} ")), "{cmd}: {usage}");
@@ -297,6 +311,53 @@ fn fit_lsq_and_test_turns_write_json_and_record() {
     assert!(e.contains("--device-id does not apply to fit without --record"), "{e}");
 }
 
+/// `record show` prints every field of a record as `fit` wrote it, and the node's verdict; bad
+/// bytes are bad input naming the file.
+#[test]
+fn record_show_prints_what_fit_wrote() {
+    let d = Dir::new();
+    let c = simulate(&d, "c.csv", &["--seed", "4", "--samples", "2"]);
+    let id = "0102030405060708090a0b0c";
+    ok(&["fit", &c, "--record", &d.s("r.rec"), "--device-id", id, "--created", "1800000000"]);
+    let bytes = std::fs::read(d.p("r.rec")).unwrap();
+    let rec = Record::parse(&bytes).unwrap();
+    let out = ok(&["record", "show", &d.s("r.rec"), "--json", &d.s("r.json")]);
+    let crc = u32::from_le_bytes(bytes[bytes.len() - 4..].try_into().unwrap());
+    assert!(
+        out.starts_with(&format!(
+            "record {}: 134 bytes, format version 1, CRC-32 {crc:#010x}\n",
+            d.s("r.rec")
+        )),
+        "{out}"
+    );
+    assert!(out.contains(&format!("device id: {id}\n")), "{out}");
+    assert!(out.contains("created: 1800000000 (2027-01-15T08:00:00Z)\n"), "{out}");
+    assert!(out.contains("terms: 1,ax,ay,az\n"), "{out}");
+    assert!(out.contains("node: accepts it"), "{out}");
+    let j = json(&d.p("r.json"));
+    assert_eq!(j["device_id"], id);
+    assert_eq!(j["node_accepts"], true);
+    assert_eq!(j["refusal"], Value::Null);
+    for c in 0..3 {
+        let row: Vec<f64> =
+            j["coefficients"][c].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+        // (serde_json's reader may be one ulp off; the printed text is exact.)
+        assert!(
+            row.iter().zip(&rec.coefficients[c]).all(|(a, b)| (a - b).abs() <= 1e-15 * b.abs()),
+            "channel {c}"
+        );
+        let line = out.lines().find(|l| l.starts_with(&format!("channel {c}: "))).unwrap();
+        let printed: Vec<f64> =
+            line.split(": ").nth(1).unwrap().split(' ').map(|v| v.parse().unwrap()).collect();
+        assert_eq!(printed, rec.coefficients[c][..4], "channel {c}: printed in full precision");
+    }
+    std::fs::write(d.p("bad.rec"), &bytes[..40]).unwrap();
+    let e = bad(&["record", "show", &d.s("bad.rec")]);
+    assert_eq!(e.trim_end(), format!("error: {}: record is truncated", d.s("bad.rec")));
+    let e = bad(&["record", "show", &d.s("r.rec"), "--json", &d.s("r.rec")]);
+    assert!(e.contains("is the input FILE: refusing to overwrite it"), "{e}");
+}
+
 /// A record that a node would refuse is refused by `fit --record` and by `flash` with the node's
 /// reason, exit code 2, one line, and nothing is written.
 #[test]
@@ -325,6 +386,13 @@ fn records_a_node_would_refuse_are_not_written_nor_flashed() {
     let mut buf = [0u8; accelcal_shared::record::MAX_RECORD_LEN];
     let n = r.emit(&mut buf).unwrap();
     std::fs::write(d.p("zero.rec"), &buf[..n]).unwrap();
+    // record show says the same, and exits 0: it only reports.
+    let out = ok(&["record", "show", &d.s("zero.rec"), "--json", &d.s("zero.json")]);
+    assert!(out.contains("device id: 000000000000000000000000\n"), "{out}");
+    assert!(out.contains("node: a node would refuse this record: WrongDevice: "), "{out}");
+    let j = json(&d.p("zero.json"));
+    assert_eq!(j["node_accepts"], false);
+    assert!(j["refusal"].as_str().unwrap().contains("all zeros"), "{j}");
     let e = bad(&["flash", &d.s("zero.rec"), "--probe", "ffff:ffff"]);
     assert_eq!(e.lines().count(), 1, "{e}");
     assert!(

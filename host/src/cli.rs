@@ -40,6 +40,9 @@ pub enum Command {
     /// record slot; the firmware is never erased, the old record stays in force until the new
     /// one is complete).
     Flash(FlashArgs),
+    /// Inspect calibration record files.
+    #[command(subcommand)]
+    Record(RecordCommand),
     /// Show a sensor node's live stream (calibrated samples and status) from its serial port.
     Monitor(MonitorArgs),
     /// Replay a campaign through the node firmware running in QEMU and write what it computed.
@@ -391,6 +394,25 @@ pub struct FlashArgs {
     /// Debug probe to use, as VID:PID or VID:PID:SERIAL [default: the first one found].
     #[arg(long, value_name = "SELECTOR")]
     pub probe: Option<String>,
+}
+
+/// `accelcal record`: the calibration record files.
+#[derive(Debug, Subcommand)]
+pub enum RecordCommand {
+    /// Print a calibration record (device id, terms, coefficients, created, CRC, length) and
+    /// whether a node would accept it, with the node's reason when not.
+    Show(RecordShowArgs),
+}
+
+/// `accelcal record show`.
+#[derive(Debug, Args)]
+pub struct RecordShowArgs {
+    /// The calibration record file (from `accelcal fit --record`).
+    #[arg(value_name = "FILE")]
+    pub file: PathBuf,
+    /// Write the same as machine-readable JSON to this file.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
 }
 
 /// `accelcal monitor`: show a node's live stream.

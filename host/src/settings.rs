@@ -17,7 +17,7 @@ use accelcal_core::error::bad;
 use clap::parser::ValueSource;
 use clap::ArgMatches;
 
-use crate::cli::{Algorithm, Command, FitArgs, MethodArg};
+use crate::cli::{Algorithm, Command, FitArgs, MethodArg, RecordCommand};
 
 /// The options the user gave explicitly on the command line for one subcommand.
 pub struct Given<'a>(&'a ArgMatches);
@@ -93,6 +93,9 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
             &[("CAMPAIGN", &a.campaign), ("--record", &a.record), ("--qemu", &a.elf)],
             &[("--out", Some(&a.out))],
         ),
+        Command::Record(RecordCommand::Show(a)) => {
+            distinct(&[("FILE", &a.file)], &[("--json", a.json.as_deref())])
+        }
         Command::BenchDiagnose(_)
         | Command::Demo(_)
         | Command::Flash(_)
