@@ -713,15 +713,12 @@ fn files(dir: &Path) -> std::collections::BTreeMap<PathBuf, Vec<u8>> {
 /// Command lines (`C` a campaign, `V` a second one, `R` a raw recording, other names outputs in
 /// the same directory) that the settings refuse, and what the one error line must say.
 const REFUSED: &[(&str, &str)] = &[
-    ("fit R --method gravity-norm --record x.rec", "--record does not apply to fit --method gravity-norm"),
+    ("fit R --method gravity-norm --record x.rec", "fit --record needs --device-id HEX"),
     (
         "fit R --method gravity-norm --device-id 00112233445566778899aabb",
-        "--device-id does not apply to fit --method gravity-norm",
+        "--device-id does not apply to fit without --record",
     ),
-    (
-        "fit R --method gravity-norm --created 1800000000",
-        "--created does not apply to fit --method gravity-norm",
-    ),
+    ("fit R --method gravity-norm --created 1800000000", "--created does not apply to fit without --record"),
     ("fit R --method gravity-norm --terms ax,ay", "--terms does not apply to fit --method gravity-norm"),
     ("fit R --method gravity-norm --campaign-out R", "--campaign-out R is the input CAMPAIGN"),
     ("fit C --plot d", "--plot does not apply to fit --method lsq"),

@@ -4,8 +4,8 @@
 //! here, from the flags and from which options the user really gave (clap's value source, so that
 //! a default never counts as given):
 //! - an option that does not apply to the chosen mode is refused, naming the option and the mode
-//!   it belongs to (`fit --method gravity-norm --record x.rec` would otherwise write nothing and
-//!   say nothing);
+//!   it belongs to (`fit --method gravity-norm --terms ax,ay` would otherwise fit what it
+//!   always fits and say nothing);
 //! - an output path equal to an input path, or to another output, is refused (`fit c.csv --record
 //!   c.csv` would overwrite the campaign).
 //!
@@ -107,31 +107,30 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
 /// The options of `fit` that belong to one method only.
 const GRAVITY_ONLY: [&str; 7] =
     ["format", "plot", "min_hold_s", "threshold", "window_s", "structure", "campaign_out"];
-const CAMPAIGN_ONLY: [&str; 4] = ["terms", "record", "device_id", "created"];
 
 fn check_fit(a: &FitArgs, given: &Given) -> anyhow::Result<()> {
     match a.method {
         MethodArg::GravityNorm => given.refuse(
-            &CAMPAIGN_ONLY,
+            &["terms"],
             "fit --method gravity-norm",
-            " (it applies to --method lsq and test-turns, which fit a campaign)",
+            " (it applies to --method lsq and test-turns, which fit a campaign; gravity-norm picks --structure)",
         )?,
         MethodArg::Lsq | MethodArg::TestTurns => {
             let mode =
                 format!("fit --method {}", if a.method == MethodArg::Lsq { "lsq" } else { "test-turns" });
             given.refuse(&GRAVITY_ONLY, &mode, " (it applies to --method gravity-norm)")?;
-            if a.record.is_none() {
-                given.refuse(
-                    &["device_id", "created"],
-                    "fit without --record",
-                    " (it is written into the record)",
-                )?;
-            } else if a.device_id.is_none() {
-                return Err(bad(
-                    "fit --record needs --device-id HEX, the MCU's 96-bit unique id: a node accepts only a record made for it",
-                ));
-            }
         }
+    }
+    if a.record.is_none() {
+        given.refuse(
+            &["device_id", "created"],
+            "fit without --record",
+            " (it is written into the record)",
+        )?;
+    } else if a.device_id.is_none() {
+        return Err(bad(
+            "fit --record needs --device-id HEX, the MCU's 96-bit unique id: a node accepts only a record made for it",
+        ));
     }
     distinct(
         &[("CAMPAIGN", &a.campaign)],
