@@ -132,6 +132,8 @@ const UNITS: &[(&str, &str)] = &[
     ("--timeout-s", "Seconds"),
     ("--baud", "Baud rate"),
     ("--magnitude", "in units of the per-position noise"),
+    ("--latitude", "degrees"),
+    ("--height", ", m "),
 ];
 
 /// Numeric options without a physical unit (counts, seeds, ratios).
@@ -309,6 +311,30 @@ fn fit_lsq_and_test_turns_write_json_and_record() {
     assert!(!d.p("r.rec").exists());
     let e = bad(&["fit", &c, "--device-id", "000000000000000000000001"]);
     assert!(e.contains("--device-id does not apply to fit without --record"), "{e}");
+}
+
+/// `--latitude`/`--height` set g to the normal gravity there, as every command with `--g` uses it.
+#[test]
+fn latitude_and_height_give_local_gravity() {
+    let g = |args: &[&str]| -> f64 {
+        let out = ok(&[&["plan", "--plan", "six"], args].concat());
+        let at = out.find("g = ").unwrap() + 4;
+        out[at..].split(' ').next().unwrap().parse().unwrap()
+    };
+    assert_eq!(g(&[]), 9.81);
+    assert_eq!(g(&["--latitude", "45"]), accelcal_shared::normal_gravity(45.0, 0.0));
+    assert!((g(&["--latitude", "45"]) - 9.80620).abs() < 5e-6);
+    assert!(
+        (g(&["--latitude", "45"]) - g(&["--latitude", "45", "--height", "1000"]) - 3.086e-3).abs() < 1e-12
+    );
+    assert_eq!(g(&["--latitude", "-45"]), g(&["--latitude", "45"]));
+    // The campaign commands use it too: a fit with the local g differs from one with 9.81.
+    let d = Dir::new();
+    let c = simulate(&d, "c.csv", &["--seed", "4", "--samples", "2", "--latitude", "0"]);
+    let a = ok(&["fit", &c, "--latitude", "0"]);
+    let b = ok(&["fit", &c, "--g", &accelcal_shared::normal_gravity(0.0, 0.0).to_string()]);
+    assert_eq!(a, b);
+    assert_ne!(a, ok(&["fit", &c]));
 }
 
 /// `record show` prints every field of a record as `fit` wrote it, and the node's verdict; bad
@@ -748,6 +774,10 @@ const REFUSED: &[(&str, &str)] = &[
     ("simulate --out a.csv --truth a.csv", "--out and --truth name the same path"),
     ("simulate --out a.csv --json a.csv", "--out and --json name the same path"),
     ("hil --qemu R --record V --out C C", "--out C is the input CAMPAIGN"),
+    ("fit C --g 9.8 --latitude 45", "--g and --latitude both give gravity: give one of them"),
+    ("select C --height 300", "--height needs --latitude"),
+    ("plan --latitude 91", "--latitude must be in -90..=90 degrees, got 91"),
+    ("simulate --out a.csv --latitude 45 --height inf", "--height must be within ±100000 m"),
 ];
 
 /// Command lines in which every option applies: they run, and write what they are asked to.

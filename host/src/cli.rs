@@ -54,12 +54,28 @@ pub enum Command {
     BenchDiagnose(BenchDiagnoseArgs),
 }
 
+/// Local gravity from the site instead of `--g`: WGS84 normal gravity with the free-air
+/// correction (`accelcal_shared::normal_gravity`).
+#[derive(Debug, Args, Clone, Default)]
+pub struct LocalGravity {
+    /// Geodetic latitude of the rig, degrees (-90..=90): g becomes WGS84 normal gravity there
+    /// (Somigliana) with the free-air correction for --height, instead of --g.
+    #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
+    pub latitude: Option<f64>,
+    /// Height of the rig above the WGS84 ellipsoid, m (with --latitude; 0 when not given).
+    #[arg(long, value_name = "M", allow_negative_numbers = true)]
+    pub height: Option<f64>,
+}
+
 /// Options shared by the commands that read a campaign.
 #[derive(Debug, Args, Clone)]
 pub struct CommonArgs {
     /// Gravity at the rig, m/s².
     #[arg(long, default_value_t = accelcal_shared::G_STANDARD)]
     pub g: f64,
+    /// Local gravity instead of --g.
+    #[command(flatten)]
+    pub local: LocalGravity,
     /// Write machine-readable results to this JSON file.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
@@ -96,6 +112,9 @@ pub struct PlanArgs {
     /// Gravity at the rig, m/s².
     #[arg(long, default_value_t = accelcal_shared::G_STANDARD)]
     pub g: f64,
+    /// Local gravity instead of --g.
+    #[command(flatten)]
+    pub local: LocalGravity,
     /// Write the positions and their accelerations (m/s²) as JSON.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
@@ -162,6 +181,9 @@ pub struct SimulateArgs {
     /// Gravity, m/s².
     #[arg(long, default_value_t = accelcal_shared::G_STANDARD)]
     pub g: f64,
+    /// Local gravity instead of --g.
+    #[command(flatten)]
+    pub local: LocalGravity,
     /// Write a summary (rows, positions, channels) as JSON.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,

@@ -17,7 +17,7 @@ use accelcal_core::error::bad;
 use clap::parser::ValueSource;
 use clap::ArgMatches;
 
-use crate::cli::{Algorithm, Command, FitArgs, MethodArg, RecordCommand};
+use crate::cli::{Algorithm, Command, FitArgs, LocalGravity, MethodArg, RecordCommand};
 
 /// The options the user gave explicitly on the command line for one subcommand.
 pub struct Given<'a>(&'a ArgMatches);
@@ -48,6 +48,42 @@ impl<'a> Given<'a> {
 /// The long flag of a clap id (`device_id` -> `--device-id`).
 fn flag(id: &str) -> String {
     format!("--{}", id.replace('_', "-"))
+}
+
+/// The `--g` of a command and its `--latitude`/`--height`, when it has them.
+fn gravity_of(command: &mut Command) -> Option<(&mut f64, &LocalGravity)> {
+    match command {
+        Command::Fit(a) => Some((&mut a.common.g, &a.common.local)),
+        Command::Select(a) => Some((&mut a.common.g, &a.common.local)),
+        Command::Compare(a) => Some((&mut a.common.g, &a.common.local)),
+        Command::Diagnose(a) => Some((&mut a.common.g, &a.common.local)),
+        Command::Plan(a) => Some((&mut a.g, &a.local)),
+        Command::Simulate(a) => Some((&mut a.g, &a.local)),
+        _ => None,
+    }
+}
+
+/// Checks `--latitude`/`--height` and puts the local gravity they give into the command's `g`:
+/// `--g` and `--latitude` together are refused, as is `--height` without `--latitude`.
+pub fn resolve_gravity(command: &mut Command, given: &Given) -> anyhow::Result<()> {
+    let Some((g, local)) = gravity_of(command) else { return Ok(()) };
+    if given.has("g") && given.has("latitude") {
+        return Err(bad("--g and --latitude both give gravity: give one of them"));
+    }
+    if given.has("height") && !given.has("latitude") {
+        return Err(bad("--height needs --latitude (it corrects the normal gravity there)"));
+    }
+    if let Some(lat) = local.latitude {
+        if !(lat.is_finite() && (-90.0..=90.0).contains(&lat)) {
+            return Err(bad(format!("--latitude must be in -90..=90 degrees, got {lat}")));
+        }
+        let h = local.height.unwrap_or(0.0);
+        if !(h.is_finite() && h.abs() <= 100_000.0) {
+            return Err(bad(format!("--height must be within ±100000 m, got {h}")));
+        }
+        *g = accelcal_shared::normal_gravity(lat, h);
+    }
+    Ok(())
 }
 
 /// Checks a parsed command line before anything is read or written.
