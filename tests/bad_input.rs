@@ -79,7 +79,7 @@ fn every_bad_campaign_is_refused_by_every_command() {
         let f = file.to_str().unwrap();
         let runs: [Vec<&str>; 6] = [
             vec!["select", f, "--json", j, "--plot", plots],
-            vec!["fit", f, "--json", j, "--record", cal],
+            vec!["fit", f, "--json", j, "--record", cal, "--device-id", "51454d552d422d4c34373545"],
             vec!["compare", f, "--json", j, "--plot", plots],
             vec!["compare", good, "--validate", f, "--json", j],
             vec!["diagnose", f, "--json", j, "--plot", plots],

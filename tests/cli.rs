@@ -42,16 +42,29 @@ fn simulate(d: &Dir, name: &str, extra: &[&str]) -> String {
 
 /// The subcommands, from the command tree the binary prints (`help` excluded).
 fn commands() -> Vec<String> {
+    /// The subcommands listed under `Commands:` in a help text.
+    fn listed(help: &str) -> Vec<String> {
+        help.lines()
+            .skip_while(|l| *l != "Commands:")
+            .skip(1)
+            .take_while(|l| !l.trim().is_empty())
+            .map(|l| l.split_whitespace().next().unwrap().to_string())
+            .filter(|c| c != "help")
+            .collect()
+    }
     let top = ok(&["--help"]);
-    let list: Vec<String> = top
-        .lines()
-        .skip_while(|l| *l != "Commands:")
-        .skip(1)
-        .take_while(|l| !l.trim().is_empty())
-        .map(|l| l.split_whitespace().next().unwrap().to_string())
-        .filter(|c| c != "help")
-        .collect();
+    let mut list = Vec::new();
+    // A command with subcommands (`record`) stands for its subcommands (`record show`).
+    for cmd in listed(&top) {
+        let subs = listed(&ok(&[&cmd, "--help"]));
+        if subs.is_empty() {
+            list.push(cmd);
+        } else {
+            list.extend(subs.iter().map(|s| format!("{cmd} {s}")));
+        }
+    }
     assert!(list.len() >= 10, "the command tree has shrunk: {list:?}\n{top}");
+    assert!(list.iter().any(|c| c == "record show"), "{list:?}");
     list
 }
 
@@ -119,6 +132,8 @@ const UNITS: &[(&str, &str)] = &[
     ("--timeout-s", "Seconds"),
     ("--baud", "Baud rate"),
     ("--magnitude", "in units of the per-position noise"),
+    ("--latitude", "degrees"),
+    ("--height", ", m "),
 ];
 
 /// Numeric options without a physical unit (counts, seeds, ratios).
@@ -138,8 +153,9 @@ const DIMENSIONLESS: &[&str] = &[
 fn every_command_has_help_naming_its_options_units_and_defaults_once() {
     let mut seen = std::collections::BTreeSet::new();
     for cmd in commands() {
-        let long = ok(&[&cmd, "--help"]);
-        let short = ok(&[&cmd, "-h"]);
+        let words: Vec<&str> = cmd.split(' ').collect();
+        let long = ok(&[&words[..], &["--help"]].concat());
+        let short = ok(&[&words[..], &["-h"]].concat());
         let usage =
             long.lines().find(|l| l.starts_with("Usage: ")).unwrap_or_else(|| panic!("{cmd}: {long}"));
         assert!(usage.starts_with(&format!("Usage: accelcal {cmd} ")), "{cmd}: {usage}");
@@ -295,6 +311,120 @@ fn fit_lsq_and_test_turns_write_json_and_record() {
     assert!(!d.p("r.rec").exists());
     let e = bad(&["fit", &c, "--device-id", "000000000000000000000001"]);
     assert!(e.contains("--device-id does not apply to fit without --record"), "{e}");
+}
+
+/// `--latitude`/`--height` set g to the normal gravity there, as every command with `--g` uses it.
+#[test]
+fn latitude_and_height_give_local_gravity() {
+    let g = |args: &[&str]| -> f64 {
+        let out = ok(&[&["plan", "--plan", "six"], args].concat());
+        let at = out.find("g = ").unwrap() + 4;
+        out[at..].split(' ').next().unwrap().parse().unwrap()
+    };
+    assert_eq!(g(&[]), 9.81);
+    assert_eq!(g(&["--latitude", "45"]), accelcal_shared::normal_gravity(45.0, 0.0));
+    assert!((g(&["--latitude", "45"]) - 9.80620).abs() < 5e-6);
+    assert!(
+        (g(&["--latitude", "45"]) - g(&["--latitude", "45", "--height", "1000"]) - 3.086e-3).abs() < 1e-12
+    );
+    assert_eq!(g(&["--latitude", "-45"]), g(&["--latitude", "45"]));
+    // The campaign commands use it too: a fit with the local g differs from one with 9.81.
+    let d = Dir::new();
+    let c = simulate(&d, "c.csv", &["--seed", "4", "--samples", "2", "--latitude", "0"]);
+    let a = ok(&["fit", &c, "--latitude", "0"]);
+    let b = ok(&["fit", &c, "--g", &accelcal_shared::normal_gravity(0.0, 0.0).to_string()]);
+    assert_eq!(a, b);
+    assert_ne!(a, ok(&["fit", &c]));
+}
+
+/// `record show` prints every field of a record as `fit` wrote it, and the node's verdict; bad
+/// bytes are bad input naming the file.
+#[test]
+fn record_show_prints_what_fit_wrote() {
+    let d = Dir::new();
+    let c = simulate(&d, "c.csv", &["--seed", "4", "--samples", "2"]);
+    let id = "0102030405060708090a0b0c";
+    ok(&["fit", &c, "--record", &d.s("r.rec"), "--device-id", id, "--created", "1800000000"]);
+    let bytes = std::fs::read(d.p("r.rec")).unwrap();
+    let rec = Record::parse(&bytes).unwrap();
+    let out = ok(&["record", "show", &d.s("r.rec"), "--json", &d.s("r.json")]);
+    let crc = u32::from_le_bytes(bytes[bytes.len() - 4..].try_into().unwrap());
+    assert!(
+        out.starts_with(&format!(
+            "record {}: 134 bytes, format version 1, CRC-32 {crc:#010x}\n",
+            d.s("r.rec")
+        )),
+        "{out}"
+    );
+    assert!(out.contains(&format!("device id: {id}\n")), "{out}");
+    assert!(out.contains("created: 1800000000 (2027-01-15T08:00:00Z)\n"), "{out}");
+    assert!(out.contains("terms: 1,ax,ay,az\n"), "{out}");
+    assert!(out.contains("node: accepts it"), "{out}");
+    let j = json(&d.p("r.json"));
+    assert_eq!(j["device_id"], id);
+    assert_eq!(j["node_accepts"], true);
+    assert_eq!(j["refusal"], Value::Null);
+    for c in 0..3 {
+        let row: Vec<f64> =
+            j["coefficients"][c].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+        // (serde_json's reader may be one ulp off; the printed text is exact.)
+        assert!(
+            row.iter().zip(&rec.coefficients[c]).all(|(a, b)| (a - b).abs() <= 1e-15 * b.abs()),
+            "channel {c}"
+        );
+        let line = out.lines().find(|l| l.starts_with(&format!("channel {c}: "))).unwrap();
+        let printed: Vec<f64> =
+            line.split(": ").nth(1).unwrap().split(' ').map(|v| v.parse().unwrap()).collect();
+        assert_eq!(printed, rec.coefficients[c][..4], "channel {c}: printed in full precision");
+    }
+    std::fs::write(d.p("bad.rec"), &bytes[..40]).unwrap();
+    let e = bad(&["record", "show", &d.s("bad.rec")]);
+    assert_eq!(e.trim_end(), format!("error: {}: record is truncated", d.s("bad.rec")));
+    let e = bad(&["record", "show", &d.s("r.rec"), "--json", &d.s("r.rec")]);
+    assert!(e.contains("is the input FILE: refusing to overwrite it"), "{e}");
+}
+
+/// A record that a node would refuse is refused by `fit --record` and by `flash` with the node's
+/// reason, exit code 2, one line, and nothing is written.
+#[test]
+fn records_a_node_would_refuse_are_not_written_nor_flashed() {
+    let d = Dir::new();
+    let c = simulate(&d, "c.csv", &["--seed", "4", "--samples", "2"]);
+    let (rec, j) = (d.s("r.rec"), d.s("r.json"));
+    let id = "51454d552d422d4c34373545";
+    let e = bad(&["fit", &c, "--terms", "ax,ay,az,ax*ay", "--record", &rec, "--device-id", id, "--json", &j]);
+    assert_eq!(e.lines().count(), 1, "{e}");
+    assert!(
+        e.contains(&format!("{rec}: a node would refuse this record: NotModel4: the node applies model 4")),
+        "{e}"
+    );
+    let zero = "000000000000000000000000";
+    let e = bad(&["fit", &c, "--record", &rec, "--device-id", zero, "--json", &j]);
+    assert!(e.contains(&format!("{rec}: a node would refuse this record: WrongDevice: ")), "{e}");
+    assert!(e.contains("all zeros"), "{e}");
+    let e = bad(&["fit", &c, "--record", &rec]);
+    assert!(e.contains("fit --record needs --device-id HEX"), "{e}");
+    assert!(!d.p("r.rec").exists() && !d.p("r.json").exists());
+    // flash refuses a record no node accepts before it looks for a probe.
+    ok(&["fit", &c, "--record", &d.s("good.rec"), "--device-id", id]);
+    let mut r = Record::parse(&std::fs::read(d.p("good.rec")).unwrap()).unwrap();
+    r.device_id = [0; 12];
+    let mut buf = [0u8; accelcal_shared::record::MAX_RECORD_LEN];
+    let n = r.emit(&mut buf).unwrap();
+    std::fs::write(d.p("zero.rec"), &buf[..n]).unwrap();
+    // record show says the same, and exits 0: it only reports.
+    let out = ok(&["record", "show", &d.s("zero.rec"), "--json", &d.s("zero.json")]);
+    assert!(out.contains("device id: 000000000000000000000000\n"), "{out}");
+    assert!(out.contains("node: a node would refuse this record: WrongDevice: "), "{out}");
+    let j = json(&d.p("zero.json"));
+    assert_eq!(j["node_accepts"], false);
+    assert!(j["refusal"].as_str().unwrap().contains("all zeros"), "{j}");
+    let e = bad(&["flash", &d.s("zero.rec"), "--probe", "ffff:ffff"]);
+    assert_eq!(e.lines().count(), 1, "{e}");
+    assert!(
+        e.contains(&format!("{}: a node would refuse this record: WrongDevice: ", d.s("zero.rec"))),
+        "{e}"
+    );
 }
 
 #[test]
@@ -609,16 +739,13 @@ fn files(dir: &Path) -> std::collections::BTreeMap<PathBuf, Vec<u8>> {
 /// Command lines (`C` a campaign, `V` a second one, `R` a raw recording, other names outputs in
 /// the same directory) that the settings refuse, and what the one error line must say.
 const REFUSED: &[(&str, &str)] = &[
-    ("fit R --method gravity-norm --record x.rec", "--record does not apply to fit --method gravity-norm"),
+    ("fit R --method gravity-norm --record x.rec", "fit --record needs --device-id HEX"),
     (
         "fit R --method gravity-norm --device-id 00112233445566778899aabb",
-        "--device-id does not apply to fit --method gravity-norm",
+        "--device-id does not apply to fit without --record",
     ),
+    ("fit R --method gravity-norm --created 1800000000", "--created does not apply to fit without --record"),
     ("fit R --method gravity-norm --terms ax,ay", "--terms does not apply to fit --method gravity-norm"),
-    (
-        "fit R --method gravity-norm --created 1800000000",
-        "--created does not apply to fit --method gravity-norm",
-    ),
     ("fit R --method gravity-norm --campaign-out R", "--campaign-out R is the input CAMPAIGN"),
     ("fit C --plot d", "--plot does not apply to fit --method lsq"),
     ("fit C --campaign-out x.csv", "--campaign-out does not apply to fit --method lsq"),
@@ -627,9 +754,16 @@ const REFUSED: &[(&str, &str)] = &[
     ("fit C --method test-turns --structure auto", "--structure does not apply to fit --method test-turns"),
     ("fit C --device-id 00112233445566778899aabb", "--device-id does not apply to fit without --record"),
     ("fit C --created 1800000000", "--created does not apply to fit without --record"),
-    ("fit C --record C", "--record C is the input CAMPAIGN: refusing to overwrite it"),
+    ("fit C --record r.rec", "fit --record needs --device-id HEX"),
+    (
+        "fit C --record C --device-id 00112233445566778899aabb",
+        "--record C is the input CAMPAIGN: refusing to overwrite it",
+    ),
     ("fit C --json C", "--json C is the input CAMPAIGN: refusing to overwrite it"),
-    ("fit C --json o.json --record o.json", "--json and --record name the same path"),
+    (
+        "fit C --json o.json --record o.json --device-id 00112233445566778899aabb",
+        "--json and --record name the same path",
+    ),
     ("compare C --json C", "--json C is the input CAMPAIGN: refusing to overwrite it"),
     ("compare C --validate V --json V", "--json V is the input --validate"),
     ("compare C --plot C", "--plot C is the input CAMPAIGN"),
@@ -640,6 +774,10 @@ const REFUSED: &[(&str, &str)] = &[
     ("simulate --out a.csv --truth a.csv", "--out and --truth name the same path"),
     ("simulate --out a.csv --json a.csv", "--out and --json name the same path"),
     ("hil --qemu R --record V --out C C", "--out C is the input CAMPAIGN"),
+    ("fit C --g 9.8 --latitude 45", "--g and --latitude both give gravity: give one of them"),
+    ("select C --height 300", "--height needs --latitude"),
+    ("plan --latitude 91", "--latitude must be in -90..=90 degrees, got 91"),
+    ("simulate --out a.csv --latitude 45 --height inf", "--height must be within ±100000 m"),
 ];
 
 /// Command lines in which every option applies: they run, and write what they are asked to.

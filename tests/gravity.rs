@@ -262,3 +262,90 @@ fn real_recording_result_does_not_hinge_on_the_threshold() {
         }
     }
 }
+
+/// `fit --method gravity-norm --record` writes the equivalent model-4 record: the node's
+/// calibration of that record (shared::linear, the f64 reference) gives the gravity-norm model's
+/// acceleration at every hold to 1e-9 relative. The quadratic structure is refused, nothing
+/// written.
+#[test]
+fn cli_writes_the_equivalent_model4_record() {
+    use accelcal_core::gravity::fit::TriadModel;
+    use accelcal_shared::record::Record;
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = SessionConfig { seed: 12, holds: 20, ..SessionConfig::default() };
+    let (data, _) = simulate(&cfg).write(dir.path(), "session").unwrap();
+    let (json, rec) = (dir.path().join("cal.json"), dir.path().join("cal.rec"));
+    let id = "51454d552d422d4c34373545";
+    let (code, out, err) = accelcal(&[
+        "fit",
+        data.to_str().unwrap(),
+        "--method",
+        "gravity-norm",
+        "--structure",
+        "imu-tk",
+        "--g",
+        "9.81744",
+        "--json",
+        json.to_str().unwrap(),
+        "--record",
+        rec.to_str().unwrap(),
+        "--device-id",
+        id,
+        "--created",
+        "1800000000",
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(
+        out.contains("record: ") && out.contains("(134 bytes, model 4 from imu_tk (bias+scale+misalignment)"),
+        "{out}"
+    );
+    let record = Record::parse(&std::fs::read(&rec).unwrap()).unwrap();
+    assert_eq!(accelcal_shared::boot::gate(&record), Ok(()));
+    assert_eq!(record.created_unix_s, 1_800_000_000);
+    let cal = record.model4().unwrap().invert().unwrap();
+    let j: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let f = |v: &serde_json::Value| v.as_f64().unwrap();
+    let model = TriadModel {
+        bias: std::array::from_fn(|i| f(&j["channels"][i]["bias"])),
+        scale: std::array::from_fn(|i| f(&j["channels"][i]["scale"])),
+        alpha: std::array::from_fn(|i| f(&j["alpha"][i])),
+        quad: [0.0; 3],
+    };
+    let holds = j["per_hold"].as_array().unwrap();
+    assert!(holds.len() >= 15, "{}", holds.len());
+    let mut worst = 0.0f64;
+    for h in holds {
+        let u: [f64; 3] = std::array::from_fn(|i| f(&h["mean"][i]));
+        let (want, got) = (model.apply(u), cal.apply(u));
+        let norm = want.iter().map(|v| v * v).sum::<f64>().sqrt();
+        for i in 0..3 {
+            worst = worst.max((got[i] - want[i]).abs() / norm);
+        }
+    }
+    assert!(worst < 1e-9, "worst relative difference {worst:e}");
+
+    let quad = dir.path().join("quad.rec");
+    let (code, out, err) = accelcal(&[
+        "fit",
+        data.to_str().unwrap(),
+        "--method",
+        "gravity-norm",
+        "--structure",
+        "quadratic",
+        "--record",
+        quad.to_str().unwrap(),
+        "--device-id",
+        id,
+    ]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(out.is_empty(), "{out}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(
+        err.contains(&format!(
+            "{}: the imu_tk + per-axis quadratic structure is not model 4",
+            quad.display()
+        )),
+        "{err}"
+    );
+    assert!(!quad.exists());
+}

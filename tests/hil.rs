@@ -28,7 +28,7 @@ use accelcal_shared::wire::{
     DEFAULT_RATE_HZ, PROTOCOL_VERSION, RATE_MAX_HZ, RATE_MIN_HZ,
 };
 use accelcal_shared::G_STANDARD;
-use common::{accelcal, ok};
+use common::{accelcal, bad, ok};
 use support::{node_elf, record_bytes};
 
 /// Hex of the QEMU node's device id, "QEMU-B-L475E" (`accelcal_shared::contract::QEMU_DEVICE_ID`).
@@ -493,12 +493,17 @@ fn node_refuses_a_record_of_another_model() {
     let shown = node_runs_uncalibrated(&SlotImage::build(&bytes, 1).unwrap(), RecordFault::NotModel4);
     assert!(shown.contains("NO RECORD (NotModel4: the node applies model 4"), "{shown}");
 
-    // The same through the CLI, with a record `accelcal fit` wrote for that structure.
+    // The same through the CLI. `accelcal fit` no longer writes such a record (the node's check
+    // refuses it first), so the test writes the bytes itself.
     let dir = tempfile::tempdir().unwrap();
     let camp = dir.path().join("campaign.csv");
     let rec = dir.path().join("quad.rec");
     ok(&["simulate", "--out", s(&camp), "--seed", "11", "--samples", "10"]);
-    ok(&["fit", s(&camp), "--terms", "ax,ay,az,ax^2", "--record", s(&rec), "--device-id", QEMU_ID_HEX]);
+    let e =
+        bad(&["fit", s(&camp), "--terms", "ax,ay,az,ax^2", "--record", s(&rec), "--device-id", QEMU_ID_HEX]);
+    assert!(e.contains("a node would refuse this record: NotModel4"), "{e}");
+    assert!(!rec.exists());
+    std::fs::write(&rec, &bytes).unwrap();
     let out_path = dir.path().join("node.csv");
     let out =
         accelcal(&["hil", "--qemu", s(&node_elf()), "--record", s(&rec), s(&camp), "--out", s(&out_path)]);

@@ -3,6 +3,7 @@
 
 use std::path::Path;
 
+use accelcal_shared::boot::{self, BootError};
 use accelcal_shared::record::{Record, MAX_CHANNELS, MAX_RECORD_LEN};
 use accelcal_shared::terms::MODEL_4;
 use accelcal_shared::{Structure, N_BASIS};
@@ -92,6 +93,29 @@ pub fn record(fits: &[(String, LsqFit)], device_id: [u8; 12], created_unix_s: u6
         rec.coefficients[c][..f.coefficients.len()].copy_from_slice(&f.coefficients);
     }
     Ok(rec)
+}
+
+/// Refuses a record that a node would refuse (the node's own check, [`boot::gate`]): bad input
+/// naming `path` (the record file, read or about to be written), with the node's reason as the
+/// node reports it.
+pub fn gate(path: &Path, rec: &Record) -> anyhow::Result<()> {
+    boot::gate(rec).map_err(|e| bad(format!("{}: {}", path.display(), refusal(e))))
+}
+
+/// Why a node would refuse a record, as the node reports it (the fault's name first), with what
+/// to do about it.
+pub fn refusal(e: BootError) -> String {
+    let reason = match e {
+        // The node reports a record for no device like one for another device; say which.
+        BootError::NoDeviceId => format!("WrongDevice: {e}"),
+        _ => e.fault().to_string(),
+    };
+    let hint = match e {
+        BootError::NoDeviceId => " (give the MCU's unique id: `fit --device-id HEX`)",
+        BootError::NotModel4 => " (fit it with `--terms ax,ay,az`, the default)",
+        _ => "",
+    };
+    format!("a node would refuse this record: {reason}{hint}")
 }
 
 /// Writes a record file (atomically).

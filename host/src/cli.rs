@@ -40,6 +40,9 @@ pub enum Command {
     /// record slot; the firmware is never erased, the old record stays in force until the new
     /// one is complete).
     Flash(FlashArgs),
+    /// Inspect calibration record files.
+    #[command(subcommand)]
+    Record(RecordCommand),
     /// Show a sensor node's live stream (calibrated samples and status) from its serial port.
     Monitor(MonitorArgs),
     /// Replay a campaign through the node firmware running in QEMU and write what it computed.
@@ -51,12 +54,28 @@ pub enum Command {
     BenchDiagnose(BenchDiagnoseArgs),
 }
 
+/// Local gravity from the site instead of `--g`: WGS84 normal gravity with the free-air
+/// correction (`accelcal_shared::normal_gravity`).
+#[derive(Debug, Args, Clone, Default)]
+pub struct LocalGravity {
+    /// Geodetic latitude of the rig, degrees (-90..=90): g becomes WGS84 normal gravity there
+    /// (Somigliana) with the free-air correction for --height, instead of --g.
+    #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
+    pub latitude: Option<f64>,
+    /// Height of the rig above the WGS84 ellipsoid, m (with --latitude; 0 when not given).
+    #[arg(long, value_name = "M", allow_negative_numbers = true)]
+    pub height: Option<f64>,
+}
+
 /// Options shared by the commands that read a campaign.
 #[derive(Debug, Args, Clone)]
 pub struct CommonArgs {
     /// Gravity at the rig, m/s².
     #[arg(long, default_value_t = accelcal_shared::G_STANDARD)]
     pub g: f64,
+    /// Local gravity instead of --g.
+    #[command(flatten)]
+    pub local: LocalGravity,
     /// Write machine-readable results to this JSON file.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
@@ -93,6 +112,9 @@ pub struct PlanArgs {
     /// Gravity at the rig, m/s².
     #[arg(long, default_value_t = accelcal_shared::G_STANDARD)]
     pub g: f64,
+    /// Local gravity instead of --g.
+    #[command(flatten)]
+    pub local: LocalGravity,
     /// Write the positions and their accelerations (m/s²) as JSON.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
@@ -159,6 +181,9 @@ pub struct SimulateArgs {
     /// Gravity, m/s².
     #[arg(long, default_value_t = accelcal_shared::G_STANDARD)]
     pub g: f64,
+    /// Local gravity instead of --g.
+    #[command(flatten)]
+    pub local: LocalGravity,
     /// Write a summary (rows, positions, channels) as JSON.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
@@ -304,9 +329,10 @@ pub struct FitArgs {
     /// Write the calibration record for the firmware to this file.
     #[arg(long, value_name = "FILE")]
     pub record: Option<PathBuf>,
-    /// Device id for the record: the MCU's 96-bit unique id as 24 hex digits.
-    #[arg(long, default_value = "000000000000000000000000", value_name = "HEX")]
-    pub device_id: String,
+    /// Device id for the record: the MCU's 96-bit unique id as 24 hex digits [required with
+    /// --record: a node accepts only a record made for it].
+    #[arg(long, value_name = "HEX")]
+    pub device_id: Option<String>,
     /// Creation time written into the record, seconds since the Unix epoch [default: now].
     #[arg(long, value_name = "UNIX_S")]
     pub created: Option<u64>,
@@ -390,6 +416,25 @@ pub struct FlashArgs {
     /// Debug probe to use, as VID:PID or VID:PID:SERIAL [default: the first one found].
     #[arg(long, value_name = "SELECTOR")]
     pub probe: Option<String>,
+}
+
+/// `accelcal record`: the calibration record files.
+#[derive(Debug, Subcommand)]
+pub enum RecordCommand {
+    /// Print a calibration record (device id, terms, coefficients, created, CRC, length) and
+    /// whether a node would accept it, with the node's reason when not.
+    Show(RecordShowArgs),
+}
+
+/// `accelcal record show`.
+#[derive(Debug, Args)]
+pub struct RecordShowArgs {
+    /// The calibration record file (from `accelcal fit --record`).
+    #[arg(value_name = "FILE")]
+    pub file: PathBuf,
+    /// Write the same as machine-readable JSON to this file.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
 }
 
 /// `accelcal monitor`: show a node's live stream.

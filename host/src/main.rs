@@ -12,10 +12,12 @@ use clap::{CommandFactory, FromArgMatches};
 fn main() {
     reset_sigpipe();
     let matches = cli::Cli::command().get_matches();
-    let cli = cli::Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
+    let mut cli = cli::Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     // The whole command line is checked before any file is opened.
     let given = settings::Given::of(&matches).expect("clap requires a subcommand");
-    if let Err(e) = settings::check(&cli.command, &given) {
+    let checked = settings::check(&cli.command, &given)
+        .and_then(|()| settings::resolve_gravity(&mut cli.command, &given));
+    if let Err(e) = checked {
         eprintln!("error: {e:#}");
         std::process::exit(2);
     }

@@ -4,8 +4,8 @@
 //! here, from the flags and from which options the user really gave (clap's value source, so that
 //! a default never counts as given):
 //! - an option that does not apply to the chosen mode is refused, naming the option and the mode
-//!   it belongs to (`fit --method gravity-norm --record x.rec` would otherwise write nothing and
-//!   say nothing);
+//!   it belongs to (`fit --method gravity-norm --terms ax,ay` would otherwise fit what it
+//!   always fits and say nothing);
 //! - an output path equal to an input path, or to another output, is refused (`fit c.csv --record
 //!   c.csv` would overwrite the campaign).
 //!
@@ -17,7 +17,7 @@ use accelcal_core::error::bad;
 use clap::parser::ValueSource;
 use clap::ArgMatches;
 
-use crate::cli::{Algorithm, Command, FitArgs, MethodArg};
+use crate::cli::{Algorithm, Command, FitArgs, LocalGravity, MethodArg, RecordCommand};
 
 /// The options the user gave explicitly on the command line for one subcommand.
 pub struct Given<'a>(&'a ArgMatches);
@@ -48,6 +48,42 @@ impl<'a> Given<'a> {
 /// The long flag of a clap id (`device_id` -> `--device-id`).
 fn flag(id: &str) -> String {
     format!("--{}", id.replace('_', "-"))
+}
+
+/// The `--g` of a command and its `--latitude`/`--height`, when it has them.
+fn gravity_of(command: &mut Command) -> Option<(&mut f64, &LocalGravity)> {
+    match command {
+        Command::Fit(a) => Some((&mut a.common.g, &a.common.local)),
+        Command::Select(a) => Some((&mut a.common.g, &a.common.local)),
+        Command::Compare(a) => Some((&mut a.common.g, &a.common.local)),
+        Command::Diagnose(a) => Some((&mut a.common.g, &a.common.local)),
+        Command::Plan(a) => Some((&mut a.g, &a.local)),
+        Command::Simulate(a) => Some((&mut a.g, &a.local)),
+        _ => None,
+    }
+}
+
+/// Checks `--latitude`/`--height` and puts the local gravity they give into the command's `g`:
+/// `--g` and `--latitude` together are refused, as is `--height` without `--latitude`.
+pub fn resolve_gravity(command: &mut Command, given: &Given) -> anyhow::Result<()> {
+    let Some((g, local)) = gravity_of(command) else { return Ok(()) };
+    if given.has("g") && given.has("latitude") {
+        return Err(bad("--g and --latitude both give gravity: give one of them"));
+    }
+    if given.has("height") && !given.has("latitude") {
+        return Err(bad("--height needs --latitude (it corrects the normal gravity there)"));
+    }
+    if let Some(lat) = local.latitude {
+        if !(lat.is_finite() && (-90.0..=90.0).contains(&lat)) {
+            return Err(bad(format!("--latitude must be in -90..=90 degrees, got {lat}")));
+        }
+        let h = local.height.unwrap_or(0.0);
+        if !(h.is_finite() && h.abs() <= 100_000.0) {
+            return Err(bad(format!("--height must be within ±100000 m, got {h}")));
+        }
+        *g = accelcal_shared::normal_gravity(lat, h);
+    }
+    Ok(())
 }
 
 /// Checks a parsed command line before anything is read or written.
@@ -93,6 +129,9 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
             &[("CAMPAIGN", &a.campaign), ("--record", &a.record), ("--qemu", &a.elf)],
             &[("--out", Some(&a.out))],
         ),
+        Command::Record(RecordCommand::Show(a)) => {
+            distinct(&[("FILE", &a.file)], &[("--json", a.json.as_deref())])
+        }
         Command::BenchDiagnose(_)
         | Command::Demo(_)
         | Command::Flash(_)
@@ -104,27 +143,30 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
 /// The options of `fit` that belong to one method only.
 const GRAVITY_ONLY: [&str; 7] =
     ["format", "plot", "min_hold_s", "threshold", "window_s", "structure", "campaign_out"];
-const CAMPAIGN_ONLY: [&str; 4] = ["terms", "record", "device_id", "created"];
 
 fn check_fit(a: &FitArgs, given: &Given) -> anyhow::Result<()> {
     match a.method {
         MethodArg::GravityNorm => given.refuse(
-            &CAMPAIGN_ONLY,
+            &["terms"],
             "fit --method gravity-norm",
-            " (it applies to --method lsq and test-turns, which fit a campaign)",
+            " (it applies to --method lsq and test-turns, which fit a campaign; gravity-norm picks --structure)",
         )?,
         MethodArg::Lsq | MethodArg::TestTurns => {
             let mode =
                 format!("fit --method {}", if a.method == MethodArg::Lsq { "lsq" } else { "test-turns" });
             given.refuse(&GRAVITY_ONLY, &mode, " (it applies to --method gravity-norm)")?;
-            if a.record.is_none() {
-                given.refuse(
-                    &["device_id", "created"],
-                    "fit without --record",
-                    " (it is written into the record)",
-                )?;
-            }
         }
+    }
+    if a.record.is_none() {
+        given.refuse(
+            &["device_id", "created"],
+            "fit without --record",
+            " (it is written into the record)",
+        )?;
+    } else if a.device_id.is_none() {
+        return Err(bad(
+            "fit --record needs --device-id HEX, the MCU's 96-bit unique id: a node accepts only a record made for it",
+        ));
     }
     distinct(
         &[("CAMPAIGN", &a.campaign)],

@@ -3,6 +3,10 @@
 //!
 //! The firmware reads the slots (turning a flash ECC error into an unreadable slot), calls
 //! [`decide`] and applies the result; everything it decides is tested here on the host.
+//!
+//! The record part of the decision is [`accept`]: the node calls it (through [`decide`]) on the
+//! record in force, and the host calls it (through [`gate`]) on a record before writing it, so
+//! the host refuses exactly the records a node would refuse, for the node's reason.
 
 use crate::linear::{LinearCalF32, LinearCalFixed};
 use crate::record::{Record, RecordError};
@@ -67,6 +71,9 @@ pub enum BootError {
     BadRecord(RecordError),
     /// The record was made for another device.
     WrongDevice,
+    /// The record's device id is all zeros: it was made for no device, and no MCU has that id
+    /// (the node reports it as [`RecordFault::WrongDevice`]).
+    NoDeviceId,
     /// The record is not model 4 for three channels.
     NotModel4,
     /// The record's sensitivity matrix cannot be inverted (or does not fit fixed point).
@@ -79,7 +86,7 @@ impl BootError {
         match *self {
             BootError::NoSlot(_) => RecordFault::NoSlot,
             BootError::BadRecord(e) => RecordFault::BadRecord(record_error_code(e)),
-            BootError::WrongDevice => RecordFault::WrongDevice,
+            BootError::WrongDevice | BootError::NoDeviceId => RecordFault::WrongDevice,
             BootError::NotModel4 => RecordFault::NotModel4,
             BootError::Singular => RecordFault::Singular,
         }
@@ -92,8 +99,13 @@ impl core::fmt::Display for BootError {
             BootError::NoSlot(e) => write!(f, "no valid record slot ({e})"),
             BootError::BadRecord(e) => write!(f, "record slot holds an invalid record: {e}"),
             BootError::WrongDevice => f.write_str("the record was made for another device"),
+            BootError::NoDeviceId => f.write_str(
+                "the record's device id is all zeros: it was made for no device, no node accepts it",
+            ),
             BootError::NotModel4 => f.write_str("the record is not model 4 for three channels"),
-            BootError::Singular => f.write_str("the record's sensitivity matrix cannot be inverted"),
+            BootError::Singular => f.write_str(
+                "the record's sensitivity matrix cannot be inverted (or does not fit fixed point)",
+            ),
         }
     }
 }
@@ -115,14 +127,7 @@ pub fn decide(
         _ => None,
     };
     let record = Record::parse(active.image.record).map_err(BootError::BadRecord)?;
-    if record.device_id != *device_id {
-        return Err(BootError::WrongDevice);
-    }
-    let inverse = record.model4().ok_or(BootError::NotModel4)?.invert().map_err(|_| BootError::Singular)?;
-    let cal = match arith {
-        Arithmetic::F32 => NodeCal::F32(inverse.to_f32()),
-        Arithmetic::Fixed => NodeCal::Fixed(inverse.to_fixed().map_err(|_| BootError::Singular)?),
-    };
+    let cal = accept(&record, device_id, arith)?;
     Ok(Boot {
         slot: active.slot,
         slot_version: active.image.version,
@@ -131,6 +136,34 @@ pub fn decide(
         cal,
         skipped,
     })
+}
+
+/// Whether the node with unique id `device_id`, calibrating in `arith`, accepts `record` (a
+/// parsed record), and the calibration it then applies; or why not, in this order: a device id of
+/// all zeros, another device's id, not model 4 on three channels, a sensitivity matrix that
+/// cannot be inverted (or, in fixed point, does not fit the format).
+pub fn accept(record: &Record, device_id: &[u8; 12], arith: Arithmetic) -> Result<NodeCal, BootError> {
+    if record.device_id == [0; 12] {
+        return Err(BootError::NoDeviceId);
+    }
+    if record.device_id != *device_id {
+        return Err(BootError::WrongDevice);
+    }
+    let inverse = record.model4().ok_or(BootError::NotModel4)?.invert().map_err(|_| BootError::Singular)?;
+    Ok(match arith {
+        Arithmetic::F32 => NodeCal::F32(inverse.to_f32()),
+        Arithmetic::Fixed => NodeCal::Fixed(inverse.to_fixed().map_err(|_| BootError::Singular)?),
+    })
+}
+
+/// The check of a record about to be written: whether every node build (f32 and fixed point)
+/// whose unique id is the record's own device id accepts it ([`accept`]). A record that passes
+/// is refused by a node for one reason only: that it is another device.
+pub fn gate(record: &Record) -> Result<(), BootError> {
+    for arith in [Arithmetic::F32, Arithmetic::Fixed] {
+        accept(record, &record.device_id, arith)?;
+    }
+    Ok(())
 }
 
 #[cfg(test)]
@@ -210,10 +243,39 @@ mod tests {
         let e = no([Some(&page), Some(&erased)]);
         assert_eq!(e, BootError::BadRecord(RecordError::UnsupportedVersion(9)));
         assert_eq!(e.fault(), RecordFault::BadRecord(3));
+        let zero = SlotImage::build(&record([0; 12], 1), 1).unwrap();
+        assert_eq!(no([Some(&zero), None]), BootError::NoDeviceId);
+        assert_eq!(no([Some(&zero), None]).fault(), RecordFault::WrongDevice);
         // Next to a valid slot it is skipped, and named.
         let ok = SlotImage::build(&good, 0).unwrap();
         let boot = decide([Some(&page), Some(&ok)], &ID, Arithmetic::F32).unwrap();
         assert_eq!(boot.slot, 1);
         assert_eq!(boot.skipped, Some(SlotError::Record(RecordError::UnsupportedVersion(9))));
+    }
+
+    #[test]
+    fn the_gate_refuses_what_a_node_refuses_and_passes_what_it_accepts() {
+        let ok = Record::from_model4(ID, 1, &model());
+        assert_eq!(gate(&ok), Ok(()));
+        assert!(accept(&ok, &ID, Arithmetic::F32).is_ok());
+        assert_eq!(accept(&ok, b"another-chip", Arithmetic::F32), Err(BootError::WrongDevice));
+        assert_eq!(gate(&Record::from_model4([0; 12], 1, &model())), Err(BootError::NoDeviceId));
+        let mut five = ok;
+        five.n_channels = 5;
+        assert_eq!(gate(&five), Err(BootError::NotModel4));
+        let mut quad = ok;
+        quad.structure = Structure::from_indices(&[0, 1, 2, 3, 4]);
+        assert_eq!(gate(&quad), Err(BootError::NotModel4));
+        let mut sing = model();
+        sing.k[2] = sing.k[1];
+        assert_eq!(gate(&Record::from_model4(ID, 1, &sing)), Err(BootError::Singular));
+        // Invertible, but K⁻¹ far too large for fixed point: the f32 build would accept it, the
+        // fixed-point build would not, so the gate refuses it.
+        let mut tiny = model();
+        tiny.k = [[1e-9, 0.0, 0.0], [0.0, 1e-9, 0.0], [0.0, 0.0, 1e-9]];
+        let tiny = Record::from_model4(ID, 1, &tiny);
+        assert!(accept(&tiny, &ID, Arithmetic::F32).is_ok());
+        assert_eq!(accept(&tiny, &ID, Arithmetic::Fixed), Err(BootError::Singular));
+        assert_eq!(gate(&tiny), Err(BootError::Singular));
     }
 }

@@ -34,6 +34,25 @@ pub fn gravity(alpha_deg: f64, beta_deg: f64, g: f64) -> [f64; 3] {
     [-g * cb * sa, -g * sb, -g * ca * cb]
 }
 
+/// Normal gravity (m/s²) at geodetic latitude `latitude_deg` and height `height_m` above the
+/// ellipsoid: the WGS84 normal gravity on the ellipsoid by Somigliana's closed formula,
+/// `γ = γ_e (1 + k sin²φ) / √(1 − e² sin²φ)`, less the free-air gradient 3.086e-6 m/s² per metre.
+/// (NIMA TR8350.2, 3rd ed., eq. 4-1 and table 3.4.) Without a gravity survey it is good to about
+/// 1e-3 m/s²: local anomalies are not modelled.
+pub fn normal_gravity(latitude_deg: f64, height_m: f64) -> f64 {
+    /// Normal gravity at the equator, m/s².
+    const GAMMA_E: f64 = 9.780_325_335_9;
+    /// Somigliana's constant k.
+    const K: f64 = 0.001_931_852_652_41;
+    /// First eccentricity squared e².
+    const E2: f64 = 0.006_694_379_990_13;
+    /// Free-air gradient, m/s² per metre.
+    const FREE_AIR: f64 = 3.086e-6;
+    let s = libm::sin(latitude_deg.to_radians());
+    let s2 = s * s;
+    GAMMA_E * (1.0 + K * s2) / libm::sqrt(1.0 - E2 * s2) - FREE_AIR * height_m
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -76,5 +95,17 @@ mod tests {
         assert_eq!(gravity(180.0, 0.0, 9.81), [-0.0 * 9.81, -0.0, 9.81]);
         assert_eq!(gravity(450.0, 0.0, 9.81)[0], -9.81);
         assert_eq!(gravity(-270.0, 0.0, 9.81)[0], -9.81);
+    }
+
+    #[test]
+    fn normal_gravity_matches_published_values() {
+        // WGS84 normal gravity: equator 9.7803253359, pole 9.8321849378 (TR8350.2 table 3.4);
+        // 45° at sea level 9.80620 to 5 decimals.
+        assert!((normal_gravity(0.0, 0.0) - 9.780_325_335_9).abs() < 1e-10);
+        assert!((normal_gravity(90.0, 0.0) - 9.832_184_937_8).abs() < 1e-9);
+        assert!((normal_gravity(-90.0, 0.0) - 9.832_184_937_8).abs() < 1e-9);
+        assert!((normal_gravity(45.0, 0.0) - 9.806_20).abs() < 5e-6, "{}", normal_gravity(45.0, 0.0));
+        // Free air: 1000 m up is 3.086 mm/s² less.
+        assert!((normal_gravity(45.0, 0.0) - normal_gravity(45.0, 1000.0) - 3.086e-3).abs() < 1e-12);
     }
 }

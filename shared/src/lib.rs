@@ -25,5 +25,5 @@ pub mod terms;
 pub mod testturn;
 pub mod wire;
 
-pub use kinematics::{gravity, G_STANDARD};
+pub use kinematics::{gravity, normal_gravity, G_STANDARD};
 pub use terms::{Basis, Structure, Term, BASIS, N_BASIS};

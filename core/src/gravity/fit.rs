@@ -136,6 +136,20 @@ impl TriadModel {
         Some(u)
     }
 
+    /// The same calibration as model 4 (`u = u0 + K·a`, the node's model), exactly: with the
+    /// quadratic terms zero, `a = T·S⁻¹·(u − b)` inverts to `u = b + S·T⁻¹·a`, so `u0 = b` and
+    /// `K = S·T⁻¹` (row i of the upper unit-triangular `T⁻¹` scaled by `s_i`). `None` when a
+    /// quadratic term is not zero: that model is not linear in `u`.
+    pub fn model4(&self) -> Option<accelcal_shared::linear::Model4> {
+        if self.quad.iter().any(|&q| q != 0.0) {
+            return None;
+        }
+        let [yz, zy, zx] = self.alpha;
+        let t_inv = [[1.0, yz, yz * zx - zy], [0.0, 1.0, zx], [0.0, 0.0, 1.0]];
+        let k = std::array::from_fn(|i| t_inv[i].map(|v| self.scale[i] * v));
+        Some(accelcal_shared::linear::Model4 { u0: self.bias, k })
+    }
+
     /// The full 12-parameter vector in the order of [`PARAM_NAMES`].
     pub fn to_vec(&self) -> [f64; 12] {
         let mut p = [0.0; 12];
@@ -473,6 +487,28 @@ mod tests {
                 m.raw_from_specific_force([G * r * phi.cos(), G * r * phi.sin(), G * z]).unwrap()
             })
             .collect()
+    }
+
+    #[test]
+    fn model4_is_the_same_calibration_and_quadratic_has_none() {
+        let m = truth();
+        let cal = m.model4().unwrap().invert().unwrap();
+        for u in exact_means(&m, 12) {
+            let (want, got) = (m.apply(u), cal.apply(u));
+            for i in 0..3 {
+                assert!((got[i] - want[i]).abs() < 1e-12 * G, "{got:?} {want:?}");
+            }
+        }
+        // u = u0 + K·a is the forward model itself.
+        let a = [3.0, -7.0, 5.5];
+        let (u, k) = (m.raw_from_specific_force(a).unwrap(), m.model4().unwrap());
+        for i in 0..3 {
+            let fwd = k.u0[i] + (0..3).map(|j| k.k[i][j] * a[j]).sum::<f64>();
+            assert!((fwd - u[i]).abs() < 1e-9, "{fwd} {}", u[i]);
+        }
+        let mut q = m;
+        q.quad[1] = 1e-4;
+        assert!(q.model4().is_none());
     }
 
     #[test]

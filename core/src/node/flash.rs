@@ -3,7 +3,8 @@
 //! The write never leaves the node without a valid record and never touches the firmware:
 //! 1. attach, read both record slots and the MCU's unique id; a slot the probe cannot read (the
 //!    read fails, or it raised a double ECC error in that slot, `FLASH_ECCR`) is unreadable;
-//! 2. refuse a record made for another device;
+//! 2. refuse a record no node accepts ([`accelcal_shared::boot::gate`], checked before the probe is
+//!    opened) and a record made for another device;
 //! 3. plan the write with [`WritePlan::from_readings`]: the slot *not* in force (an unreadable slot
 //!    is never in force, so it is the target), sequence number one higher, a version-2 page;
 //! 4. program exactly that slot's 2 KiB page (one flash sector; `keep_unwritten_bytes` keeps
@@ -35,6 +36,9 @@ pub enum FlashError {
     /// The record file is not a valid record.
     #[error("invalid calibration record: {0}")]
     Record(accelcal_shared::record::RecordError),
+    /// A node would refuse the record ([`accelcal_shared::boot::gate`]).
+    #[error("{}", crate::calibrate::refusal(*.0))]
+    Refused(accelcal_shared::boot::BootError),
     /// No probe is connected (or none matches the selector).
     #[error("no debug probe found{0}")]
     NoProbe(String),
@@ -89,6 +93,7 @@ pub struct FlashReport {
 /// `chip` (e.g. `STM32L475VGTx`). Once attached, the core is reset whatever happens.
 pub fn flash_record(record: &[u8], chip: &str, selector: Option<&str>) -> Result<FlashReport, FlashError> {
     let rec = Record::parse(record).map_err(FlashError::Record)?;
+    accelcal_shared::boot::gate(&rec).map_err(FlashError::Refused)?;
     let record = &record[..rec.len()];
 
     let lister = Lister::new();

@@ -1,6 +1,6 @@
 //! `accelcal fit`: coefficients by least squares or test turns, and the calibration record.
 
-use accelcal_core::calibrate::{fit_positions, parse_device_id, record, write_record, Method};
+use accelcal_core::calibrate::{fit_positions, gate, parse_device_id, record, write_record, Method};
 use accelcal_core::error::bad;
 use accelcal_core::lsq::{self, LsqFit};
 use accelcal_core::output::{finite, write_json};
@@ -82,23 +82,25 @@ pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
     };
     super::check_g(a.common.g)?;
     let structure = lsq::parse_terms(&a.terms).map_err(|e| bad(format!("--terms: {e}")))?;
-    let device_id = parse_device_id(&a.device_id)?;
+    let device_id = a.device_id.as_deref().map(parse_device_id).transpose()?;
     // Streamed: the fits need the dwell statistics only, so memory does not grow with the rows.
     let r = super::reduce_campaign(&a.campaign, a.common.codes, warnings)?;
     let fits = fit_positions(&r.positions(a.common.g), &r.channel_stats(), method, structure)
         .with_context(|| a.campaign.display().to_string())?;
+    // The record is built and checked first: a record a node would refuse writes nothing.
+    let rec = match &a.record {
+        Some(path) => {
+            let rec = record(&fits, device_id.unwrap_or_default(), created(a.created))?;
+            gate(path, &rec)?;
+            Some((path, rec))
+        }
+        None => None,
+    };
     print_table(method, &fits);
     if let Some(j) = &a.common.json {
         write_json(j, &to_json(method, &fits))?;
     }
-    if let Some(path) = &a.record {
-        let created = a.created.unwrap_or_else(|| {
-            std::time::SystemTime::now()
-                .duration_since(std::time::UNIX_EPOCH)
-                .map(|d| d.as_secs())
-                .unwrap_or(0)
-        });
-        let rec = record(&fits, device_id, created)?;
+    if let Some((path, rec)) = rec {
         write_record(path, &rec)?;
         println!(
             "record: {} ({} bytes, {} channels, terms {})",
@@ -109,4 +111,11 @@ pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// The creation time of a record: `--created`, or now.
+pub fn created(given: Option<u64>) -> u64 {
+    given.unwrap_or_else(|| {
+        std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0)
+    })
 }

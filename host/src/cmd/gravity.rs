@@ -4,12 +4,14 @@
 
 use std::path::Path;
 
+use accelcal_core::calibrate::{gate, parse_device_id, write_record};
 use accelcal_core::error::bad;
 use accelcal_core::gravity::{
     self, fit::GravityStructure, fit::TriadModel, holds::DetectorConfig, holds::ThresholdSource,
 };
 use accelcal_core::gravity::{imutk, Calibration, StructureChoice};
 use accelcal_core::output::{write_atomic, write_atomic_with, write_json};
+use accelcal_shared::record::Record;
 use anyhow::Context;
 use serde::Serialize;
 
@@ -241,7 +243,26 @@ pub fn calibrate_file(a: &FitArgs) -> anyhow::Result<(imutk::Recording, Calibrat
 /// Runs `accelcal fit --method gravity-norm`: prints the report, writes the JSON, the plots and
 /// the holds as a campaign if asked.
 pub fn run(a: &FitArgs) -> anyhow::Result<()> {
+    // The device id is checked before the input is read.
+    let device_id = a.device_id.as_deref().map(parse_device_id).transpose()?;
     let (rec, cal) = calibrate_file(a)?;
+    // The record is built and checked first: a record a node would refuse writes nothing.
+    let record = match &a.record {
+        Some(path) => {
+            let r = model4_record(&cal.fit.model, device_id.unwrap_or_default(), super::fit::created(a.created))
+                .ok_or_else(|| {
+                    bad(format!(
+                        "{}: the {} structure is not model 4 (its quadratic terms make it nonlinear in the codes), \
+                         the node cannot apply it: fit with --structure imu-tk or bias-scale for a record",
+                        path.display(),
+                        cal.fit.structure.name()
+                    ))
+                })?;
+            gate(path, &r)?;
+            Some((path, r))
+        }
+        None => None,
+    };
     print!("{}", human_report(&a.campaign, rec.len(), &cal));
     if let Some(path) = &a.common.json {
         write_json(path, &json_report(&cal))?;
@@ -255,7 +276,22 @@ pub fn run(a: &FitArgs) -> anyhow::Result<()> {
         write_atomic_with(path, |w| c.write(w).context("writing CSV"))?;
         println!("wrote {} ({} holds as position dwells)", path.display(), cal.detection.holds.len());
     }
+    if let Some((path, r)) = record {
+        write_record(path, &r)?;
+        println!(
+            "record: {} ({} bytes, model 4 from {}: u0 = bias, K = S·T⁻¹)",
+            path.display(),
+            r.len(),
+            cal.fit.structure.name()
+        );
+    }
     Ok(())
+}
+
+/// The model-4 record equivalent to a gravity-norm model ([`TriadModel::model4`]), or `None` for
+/// a model with quadratic terms.
+pub fn model4_record(m: &TriadModel, device_id: [u8; 12], created_unix_s: u64) -> Option<Record> {
+    m.model4().map(|m4| Record::from_model4(device_id, created_unix_s, &m4))
 }
 
 /// Writes `gravity-residuals.svg` and `gravity-detector.svg` into `dir` (created if missing).

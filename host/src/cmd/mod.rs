@@ -8,6 +8,7 @@ pub mod fit;
 pub mod gravity;
 pub mod node;
 pub mod plan;
+pub mod record;
 pub mod select;
 pub mod simulate;
 
@@ -23,6 +24,7 @@ pub fn run(cli: Cli, warnings: &mut Warnings) -> anyhow::Result<()> {
         Command::Compare(a) => compare::run(&a, warnings),
         Command::Demo(a) => demo::run(&a),
         Command::Flash(a) => node::run_flash(&a),
+        Command::Record(crate::cli::RecordCommand::Show(a)) => record::run_show(&a),
         Command::Monitor(a) => node::run_monitor(&a),
         Command::Hil(a) => node::run_hil(&a, warnings),
         Command::Diagnose(a) => diagnose::run(&a, warnings),

@@ -16,9 +16,9 @@ fn read_file(path: &PathBuf, what: &str) -> anyhow::Result<Vec<u8>> {
 /// Runs `accelcal flash`.
 pub fn run_flash(a: &FlashArgs) -> anyhow::Result<()> {
     let record = read_file(&a.record, "record")?;
-    if let Err(e) = accelcal_shared::record::Record::parse(&record) {
-        return Err(bad(format!("{}: {e}", a.record.display())));
-    }
+    let rec = accelcal_shared::record::Record::parse(&record)
+        .map_err(|e| bad(format!("{}: {e}", a.record.display())))?;
+    accelcal_core::calibrate::gate(&a.record, &rec)?;
     let r = flash::flash_record(&record, &a.chip, a.probe.as_deref())
         .with_context(|| format!("writing {} to the node", a.record.display()))?;
     println!(

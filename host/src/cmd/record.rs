@@ -1,0 +1,112 @@
+//! `accelcal record show`: what a calibration record file holds, and whether a node would accept
+//! it (the node's own check, `accelcal_shared::boot::gate`).
+
+use accelcal_core::calibrate::refusal;
+use accelcal_core::error::bad;
+use accelcal_core::output::write_json;
+use accelcal_shared::boot;
+use accelcal_shared::record::{Record, FORMAT_VERSION};
+use serde::Serialize;
+
+use crate::cli::RecordShowArgs;
+
+/// The JSON written by `record show --json`.
+#[derive(Debug, Serialize)]
+pub struct RecordJson {
+    /// Record length in bytes, CRC included.
+    pub length: usize,
+    /// Record format version.
+    pub format_version: u16,
+    /// CRC-32 (ISO-HDLC) as stored, `0x` and 8 hex digits.
+    pub crc32: String,
+    /// Device id, 24 hex digits (as `fit --device-id` takes it).
+    pub device_id: String,
+    /// Creation time, seconds since the Unix epoch.
+    pub created_unix_s: u64,
+    /// Creation time as a UTC date and time (ISO 8601).
+    pub created_utc: String,
+    /// The model's terms, in record order.
+    pub terms: Vec<String>,
+    /// Coefficients per channel, in term order (codes, codes per (m/s²)ⁿ).
+    pub coefficients: Vec<Vec<f64>>,
+    /// Whether a node (every build, with the record's device id) accepts the record.
+    pub node_accepts: bool,
+    /// Why a node would refuse it, as the node reports it (`null` when it accepts it).
+    pub refusal: Option<String>,
+}
+
+/// The record's description.
+pub fn describe(bytes: &[u8], rec: &Record) -> RecordJson {
+    let n = rec.len();
+    let mut crc = [0u8; 4];
+    crc.copy_from_slice(&bytes[n - 4..n]);
+    let n_t = rec.structure.len();
+    let verdict = boot::gate(rec);
+    RecordJson {
+        length: n,
+        format_version: FORMAT_VERSION,
+        crc32: format!("{:#010x}", u32::from_le_bytes(crc)),
+        device_id: rec.device_id.iter().map(|b| format!("{b:02x}")).collect(),
+        created_unix_s: rec.created_unix_s,
+        created_utc: utc(rec.created_unix_s),
+        terms: rec.structure.terms().map(|t| t.to_string()).collect(),
+        coefficients: (0..rec.n_channels as usize).map(|c| rec.coefficients[c][..n_t].to_vec()).collect(),
+        node_accepts: verdict.is_ok(),
+        refusal: verdict.err().map(refusal),
+    }
+}
+
+/// Runs `accelcal record show`.
+pub fn run_show(a: &RecordShowArgs) -> anyhow::Result<()> {
+    let path = a.file.display();
+    let bytes = std::fs::read(&a.file).map_err(|e| bad(format!("{path}: cannot read the record: {e}")))?;
+    let rec = Record::parse(&bytes).map_err(|e| bad(format!("{path}: {e}")))?;
+    let j = describe(&bytes, &rec);
+    println!("record {path}: {} bytes, format version {}, CRC-32 {}", j.length, j.format_version, j.crc32);
+    println!("device id: {}", j.device_id);
+    println!("created: {} ({})", j.created_unix_s, j.created_utc);
+    println!("terms: {}", j.terms.join(","));
+    for (c, coef) in j.coefficients.iter().enumerate() {
+        let v: Vec<String> = coef.iter().map(|v| v.to_string()).collect();
+        println!("channel {c}: {}", v.join(" "));
+    }
+    match &j.refusal {
+        None => println!("node: accepts it (model 4 on three channels, invertible in f32 and fixed point)"),
+        Some(r) => println!("node: {r}"),
+    }
+    if let Some(p) = &a.json {
+        write_json(p, &j)?;
+        println!("wrote {}", p.display());
+    }
+    Ok(())
+}
+
+/// A Unix time as `YYYY-MM-DDTHH:MM:SSZ` (proleptic Gregorian calendar, days to civil date after
+/// H. Hinnant's `civil_from_days`).
+pub fn utc(unix_s: u64) -> String {
+    let days = (unix_s / 86_400) as i64;
+    let secs = unix_s % 86_400;
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let day = doy - (153 * mp + 2) / 5 + 1;
+    let month = if mp < 10 { mp + 3 } else { mp - 9 };
+    let year = yoe + era * 400 + i64::from(month <= 2);
+    format!("{year:04}-{month:02}-{day:02}T{:02}:{:02}:{:02}Z", secs / 3600, secs / 60 % 60, secs % 60)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::utc;
+
+    #[test]
+    fn unix_times_become_utc_dates() {
+        assert_eq!(utc(0), "1970-01-01T00:00:00Z");
+        assert_eq!(utc(951_782_400), "2000-02-29T00:00:00Z");
+        assert_eq!(utc(1_800_000_000), "2027-01-15T08:00:00Z");
+        assert_eq!(utc(4_102_444_799), "2099-12-31T23:59:59Z");
+    }
+}
