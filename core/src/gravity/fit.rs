@@ -209,7 +209,7 @@ pub enum FitError {
 /// Result of a gravity-norm fit.
 #[derive(Debug, Clone)]
 pub struct GravityFit {
-    /// GravityStructure fitted.
+    /// Structure fitted.
     pub structure: GravityStructure,
     /// Gravity magnitude used, in m/s².
     pub g: f64,

@@ -51,7 +51,7 @@ pub struct Calibration {
     pub fit: GravityFit,
     /// Scores of all structures on the same holds (fit and withheld-hold RMS).
     pub scores: Vec<StructureScore>,
-    /// GravityStructure selected on withheld holds (see [`fit::select`]), if any could be scored.
+    /// Structure selected on withheld holds (see [`fit::select`]), if any could be scored.
     pub selected: Option<GravityStructure>,
 }
 

@@ -90,7 +90,7 @@ pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
     // The record is built and checked first: a record a node would refuse writes nothing.
     let rec = match &a.record {
         Some(path) => {
-            let rec = record(&fits, device_id.unwrap_or_default(), created(a.created))?;
+            let rec = record(&fits, device_id.unwrap_or_default(), super::created(a.created))?;
             gate(path, &rec)?;
             Some((path, rec))
         }
@@ -111,11 +111,4 @@ pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
         );
     }
     Ok(())
-}
-
-/// The creation time of a record: `--created`, or now.
-pub fn created(given: Option<u64>) -> u64 {
-    given.unwrap_or_else(|| {
-        std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0)
-    })
 }

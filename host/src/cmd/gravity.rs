@@ -117,7 +117,7 @@ pub struct JsonDetector {
 /// A structure score in the JSON report.
 #[derive(Debug, Clone, Serialize)]
 pub struct JsonScore {
-    /// GravityStructure name.
+    /// Structure name.
     pub structure: String,
     /// Number of parameters.
     pub params: usize,
@@ -140,7 +140,7 @@ pub struct JsonReport {
     pub residual_rms: f64,
     /// Method name (`gravity-norm`).
     pub method: String,
-    /// GravityStructure fitted.
+    /// Structure fitted.
     pub structure: String,
     /// Gravity magnitude used, in m/s².
     pub g: f64,
@@ -158,7 +158,7 @@ pub struct JsonReport {
     pub per_hold: Vec<JsonHold>,
     /// GMDH-style scores of all structures.
     pub structures: Vec<JsonScore>,
-    /// GravityStructure selected on withheld holds (see `fit::select`).
+    /// Structure selected on withheld holds (see `fit::select`).
     pub selected_structure: Option<String>,
 }
 
@@ -249,7 +249,7 @@ pub fn run(a: &FitArgs) -> anyhow::Result<()> {
     // The record is built and checked first: a record a node would refuse writes nothing.
     let record = match &a.record {
         Some(path) => {
-            let r = model4_record(&cal.fit.model, device_id.unwrap_or_default(), super::fit::created(a.created))
+            let r = model4_record(&cal.fit.model, device_id.unwrap_or_default(), super::created(a.created))
                 .ok_or_else(|| {
                     bad(format!(
                         "{}: the {} structure is not model 4 (its quadratic terms make it nonlinear in the codes), \

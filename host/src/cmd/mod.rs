@@ -60,3 +60,10 @@ pub fn check_g(g: f64) -> anyhow::Result<()> {
     }
     Ok(())
 }
+
+/// The creation time of a record: `--created`, or now.
+pub fn created(given: Option<u64>) -> u64 {
+    given.unwrap_or_else(|| {
+        std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0)
+    })
+}
