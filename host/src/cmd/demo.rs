@@ -4,7 +4,7 @@ use accelcal_shared::terms::MODEL_4;
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 
-use accelcal_core::calibrate::{fit_all, record, write_record, Method};
+use accelcal_core::calibrate::{fit_all, gate, record, write_record, Method};
 
 use crate::cli::DemoArgs;
 use accelcal_core::gmdh::{Criterion, Settings, Split};
@@ -48,8 +48,12 @@ pub fn run(a: &DemoArgs) -> anyhow::Result<()> {
     let tt = fit_all(&campaign, g, Method::TestTurns, MODEL_4)?;
     write_json(&out.join("fit-lsq.json"), &super::fit::to_json(Method::Lsq, &lsq))?;
     write_json(&out.join("fit-test-turns.json"), &super::fit::to_json(Method::TestTurns, &tt))?;
-    let rec = record(&lsq, [0; 12], 0)?;
-    write_record(&out.join("calibration.rec"), &rec)?;
+    // For the QEMU node (`accelcal hil`), the only node a demo has; checked by the node's gate
+    // like every record the tool writes.
+    let rec_path = out.join("calibration.rec");
+    let rec = record(&lsq, accelcal_shared::contract::QEMU_DEVICE_ID, 0)?;
+    gate(&rec_path, &rec)?;
+    write_record(&rec_path, &rec)?;
     steps.inc(1);
 
     steps.set_message("comparing the methods on held-out positions");
