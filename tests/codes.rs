@@ -109,7 +109,11 @@ fn assert_close(a: &Value, b: &Value, at: &str) {
     match (a, b) {
         (Value::Number(x), Value::Number(y)) => {
             let (x, y) = (x.as_f64().unwrap(), y.as_f64().unwrap());
-            assert!((x - y).abs() <= 1e-9 * x.abs().max(y.abs()).max(1.0), "{at}: {x} != {y}");
+            // The diagnosis's period is the maximum of a periodogram, refined by a search: where
+            // the peak is flat (no significant period), a last-bit change of the residuals moves
+            // its location by about the square root of that change, so its fields agree to 1e-6.
+            let rel = if at.contains(".period.") { 1e-6 } else { 1e-9 };
+            assert!((x - y).abs() <= rel * x.abs().max(y.abs()).max(1.0), "{at}: {x} != {y}");
         }
         (Value::Object(x), Value::Object(y)) => {
             assert_eq!(x.keys().collect::<Vec<_>>(), y.keys().collect::<Vec<_>>(), "{at}");
