@@ -33,7 +33,17 @@ pub struct AtomicFile {
 
 impl AtomicFile {
     /// Creates the temporary file next to `path` (and `path`'s directory, if it is missing).
+    /// An existing path that is not a regular file (a device such as `/dev/null`, a FIFO, a
+    /// directory) is refused: renaming over it would replace the device node itself.
     pub fn create(path: &Path) -> anyhow::Result<AtomicFile> {
+        if let Ok(meta) = std::fs::metadata(path) {
+            if !meta.is_file() {
+                return Err(crate::error::bad(format!(
+                    "{}: exists and is not a regular file; refusing to replace it (write to a file)",
+                    path.display()
+                )));
+            }
+        }
         let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
         std::fs::create_dir_all(dir).map_err(|e| environment(format!("creating {}", dir.display()), e))?;
         let tmp = tempfile::NamedTempFile::new_in(dir)
@@ -72,4 +82,27 @@ pub fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> anyhow::Result
 /// A finite number, or `None` (JSON `null`).
 pub fn finite(v: f64) -> Option<f64> {
     v.is_finite().then_some(v)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_device_or_a_directory_is_never_replaced() {
+        let d = tempfile::tempdir().unwrap();
+        let e = write_atomic(d.path(), b"x").unwrap_err();
+        assert!(e.to_string().contains("is not a regular file"), "{e}");
+        assert!(crate::exit::is_bad_input(&e));
+        #[cfg(unix)]
+        {
+            let e = write_atomic(Path::new("/dev/null"), b"x").unwrap_err();
+            assert!(e.to_string().starts_with("/dev/null: exists and is not a regular file"), "{e}");
+            assert!(!std::fs::metadata("/dev/null").unwrap().is_file());
+        }
+        let f = d.path().join("out.json");
+        write_atomic(&f, b"1").unwrap();
+        write_atomic(&f, b"2").unwrap();
+        assert_eq!(std::fs::read(&f).unwrap(), b"2");
+    }
 }
