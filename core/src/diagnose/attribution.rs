@@ -34,7 +34,7 @@ use accelcal_shared::{Structure, Term};
 use nalgebra::DMatrix;
 use serde::Serialize;
 
-use super::{wls, zscore, Data, NOISE_Z, TAU_RANGE};
+use super::{golden_min, wls, zscore, Data, NOISE_Z, TAU_RANGE};
 
 /// The candidates are the effects of the registry.
 pub use crate::effects::EffectKind as Cand;
@@ -228,23 +228,7 @@ fn fit(d: &Data, base: Structure, set: &[Cand], rows: &[usize], adj: &[f64]) -> 
     let best = grid.iter().copied().min_by(|a, b| f(*a).total_cmp(&f(*b)))?;
     let step = (hi - lo) / 11.0;
     (lo, hi) = ((best - step).max(lo), (best + step).min(hi));
-    let phi = (5f64.sqrt() - 1.0) / 2.0;
-    let (mut a, mut b) = (hi - phi * (hi - lo), lo + phi * (hi - lo));
-    let (mut fa, mut fb) = (f(a), f(b));
-    for _ in 0..14 {
-        if fa < fb {
-            hi = b;
-            (b, fb) = (a, fa);
-            a = hi - phi * (hi - lo);
-            fa = f(a);
-        } else {
-            lo = a;
-            (a, fa) = (b, fb);
-            b = lo + phi * (hi - lo);
-            fb = f(b);
-        }
-    }
-    fit_at(d, base, set, ((lo + hi) / 2.0).exp(), rows, adj)
+    fit_at(d, base, set, golden_min(&f, lo, hi, 14).exp(), rows, adj)
 }
 
 /// Fits the deterministic part of `set` on `rows` (the bins of `positions`). With `angle_error`

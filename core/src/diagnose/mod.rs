@@ -31,6 +31,28 @@ pub fn zscore(chi2: f64, dof: f64) -> f64 {
     (chi2 - dof) / (2.0 * dof.max(1.0)).sqrt()
 }
 
+/// Minimum of `g` on `[lo, hi]` by golden-section search, `iterations` steps; the midpoint of the
+/// last bracket.
+pub fn golden_min(g: &dyn Fn(f64) -> f64, mut lo: f64, mut hi: f64, iterations: usize) -> f64 {
+    let k = (5f64.sqrt() - 1.0) / 2.0;
+    let (mut x1, mut x2) = (hi - k * (hi - lo), lo + k * (hi - lo));
+    let (mut g1, mut g2) = (g(x1), g(x2));
+    for _ in 0..iterations {
+        if g1 < g2 {
+            hi = x2;
+            (x2, g2) = (x1, g1);
+            x1 = hi - k * (hi - lo);
+            g1 = g(x1);
+        } else {
+            lo = x1;
+            (x1, g1) = (x2, g2);
+            x2 = lo + k * (hi - lo);
+            g2 = g(x2);
+        }
+    }
+    (lo + hi) / 2.0
+}
+
 /// Range of settling time constants searched, s.
 pub const TAU_RANGE: (f64, f64) = (0.03, 2.0);
 

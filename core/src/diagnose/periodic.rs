@@ -28,7 +28,7 @@
 
 use serde::Serialize;
 
-use super::NOISE_Z;
+use super::{golden_min, NOISE_Z};
 
 /// Grid steps per independent frequency.
 pub const OVERSAMPLE: f64 = 10.0;
@@ -107,7 +107,7 @@ pub fn strongest_period(t: &[f64], y: &[f64], var: &[f64]) -> Option<Period> {
     let step = 1.0 / (OVERSAMPLE * span);
     let grid: Vec<f64> = (0..).map(|i| f_lo + i as f64 * step).take_while(|f| *f <= f_hi).collect();
     let best = grid.iter().copied().min_by(|a, b| chi(*a).total_cmp(&chi(*b)))?;
-    let f = golden_min(&chi, (best - step).max(f_lo), (best + step).min(f_hi));
+    let f = golden_min(&chi, (best - step).max(f_lo), (best + step).min(f_hi), 40);
     let (chi1, a, b) = sine_fit(&tr, y, &w, f)?;
     let nu = n as f64 - 3.0;
     let fstat = ((chi0 - chi1).max(0.0) / 2.0) / (chi1 / nu).max(f64::MIN_POSITIVE);
@@ -122,27 +122,6 @@ pub fn strongest_period(t: &[f64], y: &[f64], var: &[f64]) -> Option<Period> {
         significant: false_alarm < FALSE_ALARM,
         searched_s: (1.0 / f_hi, 1.0 / f_lo),
     })
-}
-
-/// Minimum of `g` on `[lo, hi]` by golden-section search.
-fn golden_min(g: &dyn Fn(f64) -> f64, mut lo: f64, mut hi: f64) -> f64 {
-    let k = (5f64.sqrt() - 1.0) / 2.0;
-    let (mut x1, mut x2) = (hi - k * (hi - lo), lo + k * (hi - lo));
-    let (mut g1, mut g2) = (g(x1), g(x2));
-    for _ in 0..40 {
-        if g1 < g2 {
-            hi = x2;
-            (x2, g2) = (x1, g1);
-            x1 = hi - k * (hi - lo);
-            g1 = g(x1);
-        } else {
-            lo = x1;
-            (x1, g1) = (x2, g2);
-            x2 = lo + k * (hi - lo);
-            g2 = g(x2);
-        }
-    }
-    (lo + hi) / 2.0
 }
 
 /// The correlation of two channels' dwell residuals.
