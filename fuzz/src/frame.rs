@@ -154,13 +154,19 @@ impl Target for FrameTarget {
             (0..MAX_BLOCK as u16).map(|i| [i * 4099, 65535 - i, 0x8000 | i]).collect();
         let status = Status {
             protocol: wire::PROTOCOL_VERSION,
-            record: RecordStatus::InUse { slot: 1, sequence: 7, created_unix_s: 1_800_000_000 },
+            record: RecordStatus::InUse {
+                slot: 1,
+                sequence: 7,
+                created_unix_s: 1_800_000_000,
+                crc: 0xdead_beef,
+            },
             overruns: 3,
             sample_sets: u32::MAX,
             rate_hz: 1000,
             bad_frames: 128,
             reset_cause: ResetCause::IndependentWatchdog,
             trigger_mismatch: true,
+            output: wire::Output::Calibrated,
         };
         let f32s = (0..MAX_BLOCK).map(|i| [i as f32 * 0.5, -9.81, f32::MAX]).collect();
         let fixed = (0..MAX_BLOCK as i32).map(|i| [i << 16, -i, i32::MIN]).collect();
@@ -173,7 +179,21 @@ impl Target for FrameTarget {
                 record: RecordStatus::Missing(RecordFault::BadRecord(7)),
                 ..status
             })),
-            encode(&NodeMsg::Samples { seq: u32::MAX, data: Block::Calibrated(f32s) }),
+            encode(&NodeMsg::Samples { seq: u32::MAX, first: 1 << 20, data: Block::Calibrated(f32s) }),
+            encode(&NodeMsg::Samples { seq: 9, first: u32::MAX, data: Block::Raw(codes.clone()) }),
+            encode(&HostMsg::GetInfo),
+            encode(&HostMsg::SetOutput(wire::Output::Raw)),
+            encode(&NodeMsg::OutputSet(Status { output: wire::Output::Raw, ..status })),
+            encode(&NodeMsg::Info(wire::Info {
+                device_id: *b"QEMU-B-L475E",
+                firmware: [0, 1, 0],
+                protocol: wire::PROTOCOL_VERSION,
+                record: status.record,
+                rate_hz: 1000,
+                overruns: 5,
+                reset_cause: ResetCause::PowerOn,
+                output: wire::Output::Calibrated,
+            })),
             encode(&NodeMsg::Replayed { seq: 1, data: Block::CalibratedFixed(fixed) }),
             encode(&NodeMsg::Replayed { seq: 2, data: Block::Uncalibrated(codes) }),
             encode(&HostMsg::SetRate { hz: 4000 }),

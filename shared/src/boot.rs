@@ -42,6 +42,8 @@ pub struct Boot {
     pub sequence: u32,
     /// The record.
     pub record: Record,
+    /// The record's CRC-32, as stored in its last four bytes.
+    pub crc: u32,
     /// The calibration to apply.
     pub cal: NodeCal,
     /// The other slot, when it holds something that is not valid and not simply empty (worth a
@@ -56,6 +58,7 @@ impl Boot {
             slot: self.slot,
             sequence: self.sequence,
             created_unix_s: self.record.created_unix_s,
+            crc: self.crc,
         }
     }
 }
@@ -128,11 +131,18 @@ pub fn decide(
     };
     let record = Record::parse(active.image.record).map_err(BootError::BadRecord)?;
     let cal = accept(&record, device_id, arith)?;
+    // The parse checked that the record's bytes hold its length, CRC included.
+    let n = record.len();
+    let crc = match active.image.record.get(n.saturating_sub(4)..n) {
+        Some(&[a, b, c, d]) => u32::from_le_bytes([a, b, c, d]),
+        _ => return Err(BootError::BadRecord(RecordError::Truncated)),
+    };
     Ok(Boot {
         slot: active.slot,
         slot_version: active.image.version,
         sequence: active.image.sequence,
         record,
+        crc,
         cal,
         skipped,
     })
@@ -198,8 +208,13 @@ mod tests {
         let a = SlotImage::build(&record(ID, 1), 4).unwrap();
         let b = SlotImage::build_v1(&record(ID, 2), 5).unwrap();
         let boot = decide([Some(&a), Some(&b)], &ID, Arithmetic::F32).unwrap();
+        let rec = record(ID, 2);
+        assert_eq!(boot.crc, crate::record::crc32(&rec[..rec.len() - 4]));
         assert_eq!((boot.slot, boot.slot_version, boot.sequence), (1, 1, 5));
-        assert_eq!(boot.status(), RecordStatus::InUse { slot: 1, sequence: 5, created_unix_s: 2 });
+        assert_eq!(
+            boot.status(),
+            RecordStatus::InUse { slot: 1, sequence: 5, created_unix_s: 2, crc: boot.crc }
+        );
         let inv = model().invert().unwrap();
         assert_eq!(boot.cal, NodeCal::F32(inv.to_f32()));
         assert_eq!(boot.skipped, None);

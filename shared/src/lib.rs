@@ -17,6 +17,7 @@
 pub mod boot;
 pub mod contract;
 pub mod flash_ecc;
+pub mod frontend;
 pub mod kinematics;
 pub mod linear;
 pub mod record;

@@ -18,7 +18,13 @@ use serde::{Deserialize, Serialize};
 ///
 /// Version 2: [`Status`] gained `reset_cause` and `trigger_mismatch`; [`HostMsg::SetRate`],
 /// [`NodeMsg::RateSet`] and [`NodeMsg::Refused`] were added.
-pub const PROTOCOL_VERSION: u8 = 2;
+///
+/// Version 3: [`NodeMsg::Samples`] carries `first`, the node's sample counter of its first set
+/// (sets lost before the link show as a jump); [`RecordStatus::InUse`] carries the record's CRC;
+/// [`Status`] carries the [`Output`] mode; [`HostMsg::GetInfo`] / [`NodeMsg::Info`] (who the node
+/// is), [`HostMsg::SetOutput`] / [`NodeMsg::OutputSet`] (raw or calibrated streaming) and
+/// [`Block::Raw`] were added.
+pub const PROTOCOL_VERSION: u8 = 3;
 
 /// Most sample sets one message carries (live samples, replay requests and answers).
 pub const MAX_BLOCK: usize = 16;
@@ -98,6 +104,53 @@ pub enum HostMsg {
         /// The requested rate, Hz.
         hz: u32,
     },
+    /// Ask who the node is; the node answers [`NodeMsg::Info`].
+    GetInfo,
+    /// Stream live samples calibrated or raw; the node answers [`NodeMsg::OutputSet`] with its
+    /// status (in which `output` says what it now streams).
+    SetOutput(Output),
+}
+
+/// What the node streams as live samples.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Output {
+    /// Calibrated acceleration ([`Block::Calibrated`] or [`Block::CalibratedFixed`]); raw codes
+    /// flagged [`Block::Uncalibrated`] while the node has no valid record. The mode at boot.
+    Calibrated,
+    /// Raw codes ([`Block::Raw`]), whatever the record: what a recalibration records.
+    Raw,
+}
+
+impl Output {
+    /// The mode's name as the host tool writes it (`calibrated`, `raw`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Output::Calibrated => "calibrated",
+            Output::Raw => "raw",
+        }
+    }
+}
+
+/// Who the node is: the answer to [`HostMsg::GetInfo`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Info {
+    /// The MCU's 96-bit unique id (the QEMU board reports
+    /// [`crate::contract::QEMU_DEVICE_ID`]), which a record's device id must equal.
+    pub device_id: [u8; 12],
+    /// The firmware's version, major, minor, patch (its Cargo package version).
+    pub firmware: [u16; 3],
+    /// [`PROTOCOL_VERSION`] of the node's firmware.
+    pub protocol: u8,
+    /// The record in force, or why there is none.
+    pub record: RecordStatus,
+    /// Sampling rate per channel in force, Hz.
+    pub rate_hz: u32,
+    /// Sample sets lost since boot.
+    pub overruns: u32,
+    /// Why the node last reset.
+    pub reset_cause: ResetCause,
+    /// What the node streams now.
+    pub output: Output,
 }
 
 /// Whether the node accepts `hz` as its sampling rate ([`HostMsg::SetRate`]).
@@ -118,6 +171,8 @@ pub enum Block {
     CalibratedFixed(Vec<[i32; 3], MAX_BLOCK>),
     /// Raw codes, NOT calibrated: the node has no valid record.
     Uncalibrated(Vec<Codes, MAX_BLOCK>),
+    /// Raw codes streamed on request ([`Output::Raw`]), whatever the record.
+    Raw(Vec<Codes, MAX_BLOCK>),
 }
 
 impl Block {
@@ -126,7 +181,7 @@ impl Block {
         match self {
             Block::Calibrated(v) => v.len(),
             Block::CalibratedFixed(v) => v.len(),
-            Block::Uncalibrated(v) => v.len(),
+            Block::Uncalibrated(v) | Block::Raw(v) => v.len(),
         }
     }
 
@@ -164,6 +219,8 @@ pub enum RecordStatus {
         sequence: u32,
         /// The record's creation time, seconds since the Unix epoch.
         created_unix_s: u64,
+        /// The record's CRC-32 (its last four bytes, [`crate::record`]).
+        crc: u32,
     },
     /// No valid record: the node streams raw codes flagged uncalibrated.
     Missing(RecordFault),
@@ -190,6 +247,8 @@ pub struct Status {
     /// match what the node programmed; the defmt log names the fields. Always false on a board
     /// without an ADC (QEMU).
     pub trigger_mismatch: bool,
+    /// What the node streams now.
+    pub output: Output,
 }
 
 /// Why the node last reset, from the reset flags of RCC_CSR (RM0351 §6.4.29, bits 24..=31).
@@ -286,8 +345,13 @@ pub enum NodeMsg {
     Status(Status),
     /// Live samples, `seq` counting blocks since boot.
     Samples {
-        /// Block number since boot (gaps mean lost blocks).
+        /// Block number since boot (gaps mean blocks the link could not take).
         seq: u32,
+        /// The node's sample counter of the block's first set: every set the sampler produced
+        /// since boot, lost ones included, so `first / rate_hz` is the set's time and a jump
+        /// between consecutive blocks is the number of sets lost (counted in
+        /// [`Status::overruns`]).
+        first: u32,
         /// The sample sets.
         data: Block,
     },
@@ -302,6 +366,10 @@ pub enum NodeMsg {
     RateSet(Status),
     /// The answer to a request the node refused, and why.
     Refused(Refusal),
+    /// The answer to [`HostMsg::GetInfo`].
+    Info(Info),
+    /// The answer to [`HostMsg::SetOutput`]: the status with the new output mode.
+    OutputSet(Status),
 }
 
 /// Why a frame could not be encoded or decoded.
@@ -524,20 +592,42 @@ mod tests {
     fn status_round_trip_and_largest_message_fits() {
         let st = NodeMsg::Status(Status {
             protocol: PROTOCOL_VERSION,
-            record: RecordStatus::InUse { slot: 1, sequence: u32::MAX, created_unix_s: u64::MAX },
+            record: RecordStatus::InUse {
+                slot: 1,
+                sequence: u32::MAX,
+                created_unix_s: u64::MAX,
+                crc: u32::MAX,
+            },
             overruns: u32::MAX,
             sample_sets: u32::MAX,
             rate_hz: 1000,
             bad_frames: 3,
             reset_cause: ResetCause::IndependentWatchdog,
             trigger_mismatch: true,
+            output: Output::Raw,
         });
         let big = NodeMsg::Samples {
             seq: u32::MAX,
+            first: u32::MAX,
             data: Block::Calibrated(Vec::from_slice(&[[f32::MAX; 3]; MAX_BLOCK]).unwrap()),
         };
+        let info = NodeMsg::Info(Info {
+            device_id: [0xff; 12],
+            firmware: [u16::MAX; 3],
+            protocol: PROTOCOL_VERSION,
+            record: RecordStatus::InUse {
+                slot: 1,
+                sequence: u32::MAX,
+                created_unix_s: u64::MAX,
+                crc: u32::MAX,
+            },
+            rate_hz: u32::MAX,
+            overruns: u32::MAX,
+            reset_cause: ResetCause::Pin,
+            output: Output::Calibrated,
+        });
         let mut buf = [0u8; MAX_FRAME];
-        for m in [st, big] {
+        for m in [st, big, info] {
             let frame = encode(&m, &mut buf).unwrap().to_vec();
             assert!(frame.len() <= MAX_FRAME);
             assert_eq!(decode_all::<NodeMsg>(&frame), vec![Ok(m)]);
@@ -569,11 +659,26 @@ mod tests {
             bad_frames: 0,
             reset_cause: ResetCause::PowerOn,
             trigger_mismatch: false,
+            output: Output::Calibrated,
         };
-        let raw: &[u8] = &[0x03, 2, 0x01, 0x00, 0, 0, 0xfa, 0x01, 0, 0x07, 0x00];
+        let raw: &[u8] = &[0x03, 3, 0x01, 0x00, 0, 0, 0xfa, 0x01, 0, 0x07, 0x00, 0x00];
         assert_eq!(postcard::to_slice(&NodeMsg::RateSet(status), &mut [0u8; 32]).unwrap(), raw);
         let frame = encode(&NodeMsg::RateSet(status), &mut buf).unwrap().to_vec();
         assert_eq!(decode_all::<NodeMsg>(&frame), vec![Ok(NodeMsg::RateSet(status))]);
+    }
+
+    #[test]
+    fn info_and_output_literal_bytes() {
+        // GetInfo = variant 3; SetOutput = variant 4 with Raw = variant 1.
+        let mut buf = [0u8; MAX_FRAME];
+        assert_eq!(encode(&HostMsg::GetInfo, &mut buf).unwrap(), &[0x02, 0x03, 0x00]);
+        assert_eq!(encode(&HostMsg::SetOutput(Output::Raw), &mut buf).unwrap(), &[0x03, 0x04, 0x01, 0x00]);
+        // Samples = variant 1, seq 2, first 300 = [0xac, 0x02], Raw = block variant 3, one set.
+        let msg = NodeMsg::Samples { seq: 2, first: 300, data: Block::Raw(codes(&[[1, 2, 3]])) };
+        assert_eq!(
+            postcard::to_slice(&msg, &mut [0u8; 32]).unwrap(),
+            &[0x01, 0x02, 0xac, 0x02, 0x03, 0x01, 0x01, 0x02, 0x03]
+        );
     }
 
     #[test]
@@ -595,7 +700,13 @@ mod tests {
     fn every_request_fits_max_request_frame_and_the_ring_holds_the_requests_in_flight() {
         let mut buf = [0u8; MAX_FRAME];
         let largest = HostMsg::Replay { seq: u32::MAX, codes: codes(&[[65535; 3]; MAX_BLOCK]) };
-        for m in [largest, HostMsg::GetStatus, HostMsg::SetRate { hz: u32::MAX }] {
+        for m in [
+            largest,
+            HostMsg::GetStatus,
+            HostMsg::SetRate { hz: u32::MAX },
+            HostMsg::GetInfo,
+            HostMsg::SetOutput(Output::Raw),
+        ] {
             // +1: the leading zero a sender may add.
             let n = encode(&m, &mut buf).unwrap().len() + 1;
             assert!(n <= MAX_REQUEST_FRAME, "{m:?}: {n} bytes");

@@ -16,19 +16,26 @@ pub const NODE_BAUD: u32 = accelcal_shared::contract::BAUD_REAL;
 /// One line of text for a status report.
 pub fn format_status(s: &Status) -> String {
     let record = match s.record {
-        RecordStatus::InUse { slot, sequence, created_unix_s } => {
-            format!("record slot {slot} seq {sequence} created {created_unix_s}")
+        RecordStatus::InUse { slot, sequence, created_unix_s, crc } => {
+            format!("record slot {slot} seq {sequence} created {created_unix_s} crc {crc:08x}")
         }
         RecordStatus::Missing(f) => format!("NO RECORD ({f}): output is UNCALIBRATED"),
     };
     let trigger = if s.trigger_mismatch { ", ADC TRIGGER MISMATCH (see the node's log)" } else { "" };
     format!(
-        "status: protocol {}, {record}, rate {} Hz, sample sets {}, overruns {}, bad frames {}, last reset {}{trigger}",
-        s.protocol, s.rate_hz, s.sample_sets, s.overruns, s.bad_frames, s.reset_cause
+        "status: protocol {}, {record}, output {}, rate {} Hz, sample sets {}, overruns {}, bad frames {}, last reset {}{trigger}",
+        s.protocol,
+        s.output.name(),
+        s.rate_hz,
+        s.sample_sets,
+        s.overruns,
+        s.bad_frames,
+        s.reset_cause
     )
 }
 
-/// Lines of text for a block of samples: `seq ax ay az` (m/s²) or `seq RAW x y z`.
+/// Lines of text for a block of samples: `seq ax ay az` (m/s²), `seq RAW x y z` (raw codes on
+/// request) or `seq UNCALIBRATED x y z` (raw codes because the node has no record).
 pub fn format_block(seq: u32, data: &Block) -> Vec<String> {
     match data {
         Block::Calibrated(v) => {
@@ -41,7 +48,10 @@ pub fn format_block(seq: u32, data: &Block) -> Vec<String> {
                 format!("{seq} {:.5} {:.5} {:.5}", f(a[0]), f(a[1]), f(a[2]))
             })
             .collect(),
-        Block::Uncalibrated(v) => v.iter().map(|c| format!("{seq} RAW {} {} {}", c[0], c[1], c[2])).collect(),
+        Block::Uncalibrated(v) => {
+            v.iter().map(|c| format!("{seq} UNCALIBRATED {} {} {}", c[0], c[1], c[2])).collect()
+        }
+        Block::Raw(v) => v.iter().map(|c| format!("{seq} RAW {} {} {}", c[0], c[1], c[2])).collect(),
     }
 }
 
@@ -83,28 +93,27 @@ pub fn monitor_stream(
 ) -> anyhow::Result<()> {
     let mut rx = Receiver::new(port);
     let mut seen = 0u64;
-    let mut last_seq: Option<u32> = None;
+    // The node's sample counter expected for the next block's first set.
+    let mut next_first: Option<u32> = None;
     while count.is_none_or(|c| seen < c) {
         match rx.recv() {
             Ok(Ok(NodeMsg::Status(s))) => writeln!(out, "{}", format_status(&s))?,
-            Ok(Ok(NodeMsg::Samples { seq, data })) => {
-                if let Some(prev) = last_seq {
-                    if seq != prev.wrapping_add(1) {
-                        writeln!(
-                            out,
-                            "# gap: blocks {} to {} lost",
-                            prev.wrapping_add(1),
-                            seq.wrapping_sub(1)
-                        )?;
+            Ok(Ok(NodeMsg::Samples { seq, first, data })) => {
+                if let Some(expected) = next_first {
+                    let lost = first.wrapping_sub(expected);
+                    if lost != 0 {
+                        writeln!(out, "# gap: {lost} sample sets lost before block {seq}")?;
                     }
                 }
-                last_seq = Some(seq);
+                next_first = Some(first.wrapping_add(data.len() as u32));
                 for line in format_block(seq, &data) {
                     writeln!(out, "{line}")?;
                 }
             }
             Ok(Ok(NodeMsg::Replayed { seq, .. })) => writeln!(out, "# replay answer {seq}")?,
             Ok(Ok(NodeMsg::RateSet(s))) => writeln!(out, "rate set: {}", format_status(&s))?,
+            Ok(Ok(NodeMsg::OutputSet(s))) => writeln!(out, "output set: {}", format_status(&s))?,
+            Ok(Ok(NodeMsg::Info(i))) => writeln!(out, "# info: {i:?}")?,
             Ok(Ok(NodeMsg::Refused(r))) => anyhow::bail!("the node refused the request: {r}"),
             Ok(Err(e)) => writeln!(out, "# bad frame: {e}")?,
             Err(LinkError::Closed) => break,

@@ -1,0 +1,264 @@
+//! The dividing head: which head a command drives (`--head manual|sim:ADDR`) and the control
+//! protocol of an emulated head (`accelcal emulate` serves it, `acquire` and `verify` drive it),
+//! defined once for both ends.
+//!
+//! The protocol is one ASCII line per request and per reply over TCP (`sim:HOST:PORT`):
+//!
+//! | request | reply |
+//! |---|---|
+//! | `MOVE <alpha_deg> <beta_deg>` | `OK <alpha_deg> <beta_deg>` once the head stands still at the new angles |
+//! | `WHERE` | `AT <alpha_deg> <beta_deg> STILL` or `AT … MOVING` (the angles it is passing) |
+//!
+//! Any request the head cannot carry out is answered `ERR <reason>`. Angles are degrees in the
+//! paper's convention (α about the spindle, β the tilt; `accelcal_shared::kinematics`).
+
+use std::io::{BufRead, BufReader, Write};
+use std::net::TcpStream;
+use std::time::Duration;
+
+/// Which head a command drives.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum HeadSpec {
+    /// An operator turns the head by hand; the command shows the angles and waits for Enter.
+    Manual,
+    /// An emulated head at this TCP address (`HOST:PORT`), as `accelcal emulate` prints it.
+    Sim(String),
+}
+
+impl std::str::FromStr for HeadSpec {
+    type Err = String;
+    fn from_str(s: &str) -> Result<HeadSpec, String> {
+        if s == "manual" {
+            return Ok(HeadSpec::Manual);
+        }
+        match s.strip_prefix("sim:") {
+            Some(addr)
+                if addr.rsplit_once(':').is_some_and(|(h, p)| !h.is_empty() && p.parse::<u16>().is_ok()) =>
+            {
+                Ok(HeadSpec::Sim(addr.to_string()))
+            }
+            _ => Err(format!(
+                "`{s}`: expected `manual` or `sim:HOST:PORT` (the `head` that `accelcal emulate` prints)"
+            )),
+        }
+    }
+}
+
+impl std::fmt::Display for HeadSpec {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            HeadSpec::Manual => f.write_str("manual"),
+            HeadSpec::Sim(a) => write!(f, "sim:{a}"),
+        }
+    }
+}
+
+/// A request to a head.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Request {
+    /// Turn to these angles, degrees.
+    Move {
+        /// α, degrees.
+        alpha_deg: f64,
+        /// β, degrees.
+        beta_deg: f64,
+    },
+    /// Where is the head now?
+    Where,
+}
+
+/// A head's reply.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Reply {
+    /// The move is done: the head stands at these angles.
+    Ok {
+        /// α, degrees.
+        alpha_deg: f64,
+        /// β, degrees.
+        beta_deg: f64,
+    },
+    /// The head's angles now, and whether it is moving.
+    At {
+        /// α, degrees.
+        alpha_deg: f64,
+        /// β, degrees.
+        beta_deg: f64,
+        /// True while a move is under way.
+        moving: bool,
+    },
+    /// The request was refused.
+    Err(String),
+}
+
+fn angles<'a>(mut words: impl Iterator<Item = &'a str>, what: &str) -> Result<(f64, f64), String> {
+    let mut num = |name: &str| -> Result<f64, String> {
+        words
+            .next()
+            .and_then(|w| w.parse::<f64>().ok())
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| format!("{what}: expected {name} in degrees, a finite number"))
+    };
+    Ok((num("alpha")?, num("beta")?))
+}
+
+impl Request {
+    /// The request's line, without the newline.
+    pub fn line(&self) -> String {
+        match *self {
+            Request::Move { alpha_deg, beta_deg } => format!("MOVE {alpha_deg} {beta_deg}"),
+            Request::Where => "WHERE".into(),
+        }
+    }
+
+    /// Parses a request line (surrounding white space ignored).
+    pub fn parse(line: &str) -> Result<Request, String> {
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("MOVE") => {
+                let (alpha_deg, beta_deg) = angles(words, "MOVE")?;
+                Ok(Request::Move { alpha_deg, beta_deg })
+            }
+            Some("WHERE") => Ok(Request::Where),
+            _ => Err(format!("unknown request `{}` (expected MOVE <alpha> <beta> or WHERE)", line.trim())),
+        }
+    }
+}
+
+impl Reply {
+    /// The reply's line, without the newline.
+    pub fn line(&self) -> String {
+        match self {
+            Reply::Ok { alpha_deg, beta_deg } => format!("OK {alpha_deg} {beta_deg}"),
+            Reply::At { alpha_deg, beta_deg, moving } => {
+                format!("AT {alpha_deg} {beta_deg} {}", if *moving { "MOVING" } else { "STILL" })
+            }
+            Reply::Err(m) => format!("ERR {}", m.replace('\n', " ")),
+        }
+    }
+
+    /// Parses a reply line.
+    pub fn parse(line: &str) -> Result<Reply, String> {
+        let line = line.trim();
+        if let Some(m) = line.strip_prefix("ERR") {
+            return Ok(Reply::Err(m.trim().to_string()));
+        }
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("OK") => {
+                let (alpha_deg, beta_deg) = angles(words, "OK")?;
+                Ok(Reply::Ok { alpha_deg, beta_deg })
+            }
+            Some("AT") => {
+                let rest: Vec<&str> = words.collect();
+                let moving = match rest.get(2) {
+                    Some(&"MOVING") => true,
+                    Some(&"STILL") => false,
+                    _ => return Err(format!("`{line}`: expected AT <alpha> <beta> MOVING|STILL")),
+                };
+                let (alpha_deg, beta_deg) = angles(rest.into_iter(), "AT")?;
+                Ok(Reply::At { alpha_deg, beta_deg, moving })
+            }
+            _ => Err(format!("unexpected reply `{line}` from the head")),
+        }
+    }
+}
+
+/// Why the emulated head could not be driven.
+#[derive(Debug, thiserror::Error)]
+pub enum HeadError {
+    /// The connection failed or timed out.
+    #[error("head {addr}: {source}")]
+    Io {
+        /// The head's address.
+        addr: String,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// The head answered something else than the protocol allows, or refused.
+    #[error("head {addr}: {message}")]
+    Protocol {
+        /// The head's address.
+        addr: String,
+        /// What went wrong.
+        message: String,
+    },
+}
+
+/// A connection to an emulated head.
+pub struct SimHead {
+    addr: String,
+    reader: BufReader<TcpStream>,
+    writer: TcpStream,
+}
+
+impl SimHead {
+    /// Connects to the head at `addr` (`HOST:PORT`); a move may take up to `timeout`.
+    pub fn connect(addr: &str, timeout: Duration) -> Result<SimHead, HeadError> {
+        let io = |source| HeadError::Io { addr: addr.to_string(), source };
+        let stream = TcpStream::connect(addr).map_err(io)?;
+        stream.set_read_timeout(Some(timeout)).map_err(io)?;
+        stream.set_nodelay(true).map_err(io)?;
+        let writer = stream.try_clone().map_err(io)?;
+        Ok(SimHead { addr: addr.to_string(), reader: BufReader::new(stream), writer })
+    }
+
+    /// Sends one request and reads its reply; `ERR` replies are errors.
+    pub fn request(&mut self, req: Request) -> Result<Reply, HeadError> {
+        let addr = self.addr.clone();
+        let io = |source| HeadError::Io { addr: addr.clone(), source };
+        writeln!(self.writer, "{}", req.line()).map_err(io)?;
+        let mut line = String::new();
+        if self.reader.read_line(&mut line).map_err(io)? == 0 {
+            return Err(HeadError::Protocol { addr, message: "connection closed".into() });
+        }
+        match Reply::parse(&line) {
+            Ok(Reply::Err(message)) => {
+                Err(HeadError::Protocol { addr, message: format!("refused: {message}") })
+            }
+            Ok(r) => Ok(r),
+            Err(message) => Err(HeadError::Protocol { addr, message }),
+        }
+    }
+
+    /// Turns the head to `(alpha_deg, beta_deg)` and returns when it stands there.
+    pub fn move_to(&mut self, alpha_deg: f64, beta_deg: f64) -> Result<(), HeadError> {
+        match self.request(Request::Move { alpha_deg, beta_deg })? {
+            Reply::Ok { .. } => Ok(()),
+            other => Err(HeadError::Protocol {
+                addr: self.addr.clone(),
+                message: format!("expected OK after MOVE, got `{}`", other.line()),
+            }),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lines_round_trip() {
+        for r in [Request::Move { alpha_deg: 30.0, beta_deg: -90.0 }, Request::Where] {
+            assert_eq!(Request::parse(&r.line()), Ok(r));
+        }
+        for r in [
+            Reply::Ok { alpha_deg: 0.0, beta_deg: 60.5 },
+            Reply::At { alpha_deg: 12.25, beta_deg: -3.0, moving: true },
+            Reply::At { alpha_deg: 0.0, beta_deg: 0.0, moving: false },
+            Reply::Err("no such angle".into()),
+        ] {
+            assert_eq!(Reply::parse(&r.line()), Ok(r));
+        }
+        assert!(Request::parse("MOVE 1 nan").is_err());
+        assert!(Request::parse("JUMP").is_err());
+        assert!(Reply::parse("AT 1 2").is_err());
+    }
+
+    #[test]
+    fn head_specs() {
+        assert_eq!("manual".parse::<HeadSpec>(), Ok(HeadSpec::Manual));
+        assert_eq!("sim:127.0.0.1:4000".parse::<HeadSpec>(), Ok(HeadSpec::Sim("127.0.0.1:4000".into())));
+        assert!("sim:nowhere".parse::<HeadSpec>().is_err());
+        assert!("auto".parse::<HeadSpec>().is_err());
+    }
+}
