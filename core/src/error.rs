@@ -27,3 +27,9 @@ pub struct Environment {
 pub fn environment(what: impl Into<String>, e: impl Into<anyhow::Error>) -> anyhow::Error {
     anyhow::Error::new(Environment { what: what.into(), source: e.into().into() })
 }
+
+/// The user stopped the command (Ctrl-C, SIGTERM) before it finished; what it had completed is
+/// kept and the message says how to continue. Exit code 130, as a shell reports SIGINT.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct Interrupted(pub String);

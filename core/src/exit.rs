@@ -14,15 +14,21 @@ use crate::error::Environment;
 pub fn is_bad_input(e: &anyhow::Error) -> bool {
     !e.chain().any(|c| {
         c.is::<Environment>()
+            || c.is::<crate::error::Interrupted>()
             || c.is::<crate::node::hil::HilError>()
             || c.is::<crate::node::flash::FlashError>()
             || c.is::<crate::node::link::LinkError>()
+            || c.is::<crate::node::session::SessionError>()
+            || c.is::<crate::node::head::HeadError>()
     })
 }
 
-/// The process exit code of a failure: 2 for bad input, 1 for the environment.
+/// The process exit code of a failure: 130 when the user stopped the command
+/// ([`crate::error::Interrupted`]), 2 for bad input, 1 for the environment.
 pub fn code(e: &anyhow::Error) -> i32 {
-    if is_bad_input(e) {
+    if e.chain().any(|c| c.is::<crate::error::Interrupted>()) {
+        130
+    } else if is_bad_input(e) {
         2
     } else {
         1

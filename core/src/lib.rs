@@ -11,6 +11,7 @@
 
 // `!(x > t)` is deliberate: a NaN must fail every range check. Index loops mirror the math.
 #![allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
+pub mod acquire;
 pub mod calibrate;
 pub mod campaign;
 pub mod compare;

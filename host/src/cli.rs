@@ -47,6 +47,14 @@ pub enum Command {
     Monitor(MonitorArgs),
     /// Replay a campaign through the node firmware running in QEMU and write what it computed.
     Hil(HilArgs),
+    /// Ask a node who it is: device id (what `fit --record --device-id` needs), firmware, record
+    /// in force, sampling rate, overruns, last reset.
+    Info(InfoArgs),
+    /// Switch a node's live stream between calibrated acceleration and raw ADC codes.
+    Output(OutputArgs),
+    /// Record a campaign from a node on a dividing head: set each position of a plan (operator
+    /// or emulated head), wait for a static stream, record raw code sets.
+    Acquire(AcquireArgs),
     /// Diagnose the gap between a campaign and its linear-sensor simulation, and attribute it to
     /// effects checked on withheld data.
     Diagnose(DiagnoseArgs),
@@ -456,6 +464,101 @@ pub struct MonitorArgs {
     /// second).
     #[arg(long, default_value_t = 5.0, value_name = "S")]
     pub timeout_s: f64,
+}
+
+/// The node's serial link, shared by the commands that talk to a running node.
+#[derive(Debug, Args, Clone)]
+pub struct PortArgs {
+    /// Serial port of the node: the board's ST-LINK virtual COM port (e.g. /dev/ttyACM0) or the
+    /// `port` that `accelcal emulate` prints.
+    #[arg(long, value_name = "DEV")]
+    pub port: String,
+    /// Baud rate of the node's USART1 (a pty ignores it).
+    #[arg(long, default_value_t = accelcal_core::node::monitor::NODE_BAUD)]
+    pub baud: u32,
+    /// Seconds to wait for the node's answer to a request.
+    #[arg(long, default_value_t = 5.0, value_name = "S")]
+    pub answer_timeout_s: f64,
+}
+
+/// `accelcal info`: who the node is.
+#[derive(Debug, Args)]
+pub struct InfoArgs {
+    /// The node's link.
+    #[command(flatten)]
+    pub link: PortArgs,
+    /// Write the answer as JSON to this file: `{"device_id", "firmware", "record": {"slot",
+    /// "sequence", "created_unix_s", "crc"} or null, "rate_hz", "overruns", "reset_cause"}`.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+}
+
+/// What a node streams.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum OutputArg {
+    /// Calibrated acceleration, m/s² (raw codes flagged uncalibrated when the node has no record).
+    Calibrated,
+    /// Raw ADC codes, whatever the record (what a recalibration records).
+    Raw,
+}
+
+/// `accelcal output`: switch a node's live stream.
+#[derive(Debug, Args)]
+pub struct OutputArgs {
+    /// The node's link.
+    #[command(flatten)]
+    pub link: PortArgs,
+    /// What the node streams from now on (until it resets: it boots calibrated).
+    #[arg(value_enum, value_name = "MODE")]
+    pub mode: OutputArg,
+}
+
+/// `accelcal acquire`: record a campaign from a node on a dividing head.
+#[derive(Debug, Args)]
+pub struct AcquireArgs {
+    /// The node's link.
+    #[command(flatten)]
+    pub link: PortArgs,
+    /// The head: `manual` (the command shows each position's angles and what the unit should
+    /// read, and waits for Enter) or `sim:HOST:PORT` (the emulated head `accelcal emulate` prints).
+    #[arg(long, value_name = "HEAD")]
+    pub head: accelcal_core::node::head::HeadSpec,
+    /// Position plan: head (62 positions), six (the test-turn positions), random:N, or a plan
+    /// file (CSV `alpha_deg,beta_deg`).
+    #[arg(long, default_value = "head")]
+    pub plan: String,
+    /// Campaign CSV to write (raw codes; the header comments carry device id, serial, firmware,
+    /// g, plan, date, tool version). Must not exist, unless --resume.
+    #[arg(long, short, value_name = "CAMPAIGN")]
+    pub out: PathBuf,
+    /// Sample sets recorded per position, after the stream is static.
+    #[arg(long, default_value_t = 400, value_name = "N")]
+    pub samples: usize,
+    /// The unit's serial number, written into the campaign.
+    #[arg(long, value_name = "S")]
+    pub serial: Option<String>,
+    /// Gravity at the rig, m/s² [default: 9.81, announced; better --latitude/--height].
+    #[arg(long, value_name = "M_S2")]
+    pub g: Option<f64>,
+    /// Local gravity instead of --g.
+    #[command(flatten)]
+    pub local: LocalGravity,
+    /// Continue an interrupted acquisition in --out (same node, plan and --samples): keep its
+    /// complete positions and record the rest.
+    #[arg(long)]
+    pub resume: bool,
+    /// Set the node's sampling rate per channel first, Hz (100..=4000) [default: the node's].
+    #[arg(long, value_name = "HZ")]
+    pub rate: Option<u32>,
+    /// Seconds a position may take to become static before it is refused.
+    #[arg(long, default_value_t = 30.0, value_name = "S")]
+    pub settle_timeout_s: f64,
+    /// Static test: sets per window (two consecutive windows are compared).
+    #[arg(long, default_value_t = 64, value_name = "N")]
+    pub static_window: usize,
+    /// Static test: largest change of the window means, in standard errors.
+    #[arg(long, default_value_t = 3.0, value_name = "Z")]
+    pub static_z: f64,
 }
 
 /// `accelcal hil`: replay a campaign through the node's QEMU build.

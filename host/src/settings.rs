@@ -66,24 +66,36 @@ fn gravity_of(command: &mut Command) -> Option<(&mut f64, &LocalGravity)> {
 /// Checks `--latitude`/`--height` and puts the local gravity they give into the command's `g`:
 /// `--g` and `--latitude` together are refused, as is `--height` without `--latitude`.
 pub fn resolve_gravity(command: &mut Command, given: &Given) -> anyhow::Result<()> {
+    if let Command::Acquire(a) = command {
+        if let Some(g) = local_gravity(given, &a.local)? {
+            a.g = Some(g);
+        }
+        return Ok(());
+    }
     let Some((g, local)) = gravity_of(command) else { return Ok(()) };
+    if let Some(v) = local_gravity(given, local)? {
+        *g = v;
+    }
+    Ok(())
+}
+
+/// The gravity `--latitude`/`--height` give, after checking them against `--g`.
+fn local_gravity(given: &Given, local: &LocalGravity) -> anyhow::Result<Option<f64>> {
     if given.has("g") && given.has("latitude") {
         return Err(bad("--g and --latitude both give gravity: give one of them"));
     }
     if given.has("height") && !given.has("latitude") {
         return Err(bad("--height needs --latitude (it corrects the normal gravity there)"));
     }
-    if let Some(lat) = local.latitude {
-        if !(lat.is_finite() && (-90.0..=90.0).contains(&lat)) {
-            return Err(bad(format!("--latitude must be in -90..=90 degrees, got {lat}")));
-        }
-        let h = local.height.unwrap_or(0.0);
-        if !(h.is_finite() && h.abs() <= 100_000.0) {
-            return Err(bad(format!("--height must be within ±100000 m, got {h}")));
-        }
-        *g = accelcal_shared::normal_gravity(lat, h);
+    let Some(lat) = local.latitude else { return Ok(None) };
+    if !(lat.is_finite() && (-90.0..=90.0).contains(&lat)) {
+        return Err(bad(format!("--latitude must be in -90..=90 degrees, got {lat}")));
     }
-    Ok(())
+    let h = local.height.unwrap_or(0.0);
+    if !(h.is_finite() && h.abs() <= 100_000.0) {
+        return Err(bad(format!("--height must be within ±100000 m, got {h}")));
+    }
+    Ok(Some(accelcal_shared::normal_gravity(lat, h)))
 }
 
 /// Checks a parsed command line before anything is read or written.
@@ -132,11 +144,48 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
         Command::Record(RecordCommand::Show(a)) => {
             distinct(&[("FILE", &a.file)], &[("--json", a.json.as_deref())])
         }
+        Command::Acquire(a) => {
+            if !a.resume && a.out.exists() {
+                return Err(bad(format!(
+                    "--out {} exists: continue it with --resume, or choose another file",
+                    a.out.display()
+                )));
+            }
+            if a.samples < 2 {
+                return Err(bad(format!("--samples must be at least 2 sets per position, got {}", a.samples)));
+            }
+            if a.static_window < 2 || !(a.static_z.is_finite() && a.static_z > 0.0) {
+                return Err(bad("--static-window must be at least 2 sets and --static-z a positive number"));
+            }
+            if !(a.settle_timeout_s.is_finite() && a.settle_timeout_s > 0.0) {
+                return Err(bad(format!("--settle-timeout-s must be a positive number of seconds, got {}", a.settle_timeout_s)));
+            }
+            if let Some(hz) = a.rate {
+                accelcal_shared::wire::check_rate(hz).map_err(|r| bad(format!("--rate: {r}")))?;
+            }
+            if let Some(g) = a.g {
+                crate::cmd::check_g(g)?;
+            }
+            check_answer_timeout(&a.link)
+        }
+        Command::Info(a) => {
+            check_answer_timeout(&a.link)?;
+            distinct(&[], &[("--json", a.json.as_deref())])
+        }
+        Command::Output(a) => check_answer_timeout(&a.link),
         Command::BenchDiagnose(_)
         | Command::Demo(_)
         | Command::Flash(_)
         | Command::Monitor(_)
         | Command::Plan(_) => Ok(()),
+    }
+}
+
+fn check_answer_timeout(link: &crate::cli::PortArgs) -> anyhow::Result<()> {
+    if link.answer_timeout_s.is_finite() && link.answer_timeout_s > 0.0 {
+        Ok(())
+    } else {
+        Err(bad(format!("--answer-timeout-s must be a positive number of seconds, got {}", link.answer_timeout_s)))
     }
 }
 

@@ -8,6 +8,7 @@ pub mod head;
 pub mod hil;
 pub mod link;
 pub mod monitor;
+pub mod session;
 
 /// Flash addresses of the two record slots (`accelcal_shared::contract`, checked against the
 /// repository's `memory.x`: the last two 2 KiB pages of the STM32L475VG's 1 MiB flash).

@@ -6,6 +6,7 @@ pub mod demo;
 pub mod diagnose;
 pub mod fit;
 pub mod gravity;
+pub mod live;
 pub mod node;
 pub mod plan;
 pub mod record;
@@ -27,6 +28,9 @@ pub fn run(cli: Cli, warnings: &mut Warnings) -> anyhow::Result<()> {
         Command::Record(crate::cli::RecordCommand::Show(a)) => record::run_show(&a),
         Command::Monitor(a) => node::run_monitor(&a),
         Command::Hil(a) => node::run_hil(&a, warnings),
+        Command::Info(a) => live::run_info(&a),
+        Command::Output(a) => live::run_output(&a),
+        Command::Acquire(a) => live::run_acquire(&a),
         Command::Diagnose(a) => diagnose::run(&a, warnings),
         Command::BenchDiagnose(a) => bench_diagnose::run(&a),
     }

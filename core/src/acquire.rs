@@ -1,0 +1,658 @@
+//! Acquisition: a campaign recorded from a live node on a dividing head (`accelcal acquire`).
+//!
+//! For each position of a plan the head is set (by an operator or an emulated head, through a
+//! [`Positioner`]), the node's raw stream is watched until it is static ([`StaticRule`]), the
+//! settling part is dropped, and `samples` sets are recorded with `t_s` from the node's sample
+//! counter (`first / rate_hz`, so lost sets leave a gap in time, never a shifted row).
+//!
+//! Invariants (what makes it crash-safe):
+//! - a position's rows reach the file only once the position is complete, in one write followed
+//!   by a flush and an fsync; the campaign on disk is therefore always the header plus whole
+//!   positions, except for a write cut by a crash, which `--resume` truncates;
+//! - `--resume` checks that the file was acquired from the same node with the same plan and sample
+//!   count, truncates an incomplete last position and continues with the next one;
+//! - a stop request (Ctrl-C) is seen within the link's poll interval; the position under way is
+//!   discarded and the file keeps the completed ones.
+
+use std::fs::{File, OpenOptions};
+use std::io::{Seek, SeekFrom, Write};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use accelcal_shared::wire::{Block, Codes, Output};
+
+use crate::error::{bad, environment};
+use crate::node::head::{HeadError, SimHead};
+use crate::node::session::{device_id_hex, firmware_version, Session};
+use crate::sim::Plan;
+
+/// When the stream counts as static: two consecutive windows of `window` sets whose means differ,
+/// on every channel, by at most `z` standard errors of the difference (the standard error from the
+/// two windows' own scatter, at least `min_sd` codes per set so that a quiet, quantised channel is
+/// not held to zero).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StaticRule {
+    /// Sets per window.
+    pub window: usize,
+    /// Largest accepted change of the window means, standard errors.
+    pub z: f64,
+    /// Floor of the per-set standard deviation, codes.
+    pub min_sd: f64,
+}
+
+impl Default for StaticRule {
+    fn default() -> StaticRule {
+        StaticRule { window: 64, z: 3.0, min_sd: 0.5 }
+    }
+}
+
+impl StaticRule {
+    /// The rule in words, as the campaign header and the command's output state it.
+    pub fn describe(&self) -> String {
+        format!(
+            "static once two consecutive windows of {} sets have means within {} standard errors on every channel \
+             (per-set sd floor {} codes); the sets up to the end of the second window are dropped",
+            self.window, self.z, self.min_sd
+        )
+    }
+}
+
+/// Watches a stream of code sets and says when it has become static ([`StaticRule`]).
+#[derive(Clone, Debug)]
+pub struct SettleDetector {
+    rule: StaticRule,
+    prev: Option<WindowStats>,
+    cur: WindowAcc,
+    /// Sets seen.
+    pub seen: usize,
+    /// The largest change of the means of the last compared windows, in standard errors (for the
+    /// message of a position that does not settle).
+    pub last_z: f64,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct WindowStats {
+    mean: [f64; 3],
+    var: [f64; 3],
+}
+
+#[derive(Clone, Debug, Default)]
+struct WindowAcc {
+    n: usize,
+    first: [f64; 3],
+    sum: [f64; 3],
+    sum2: [f64; 3],
+}
+
+impl WindowAcc {
+    fn push(&mut self, c: Codes) {
+        for k in 0..3 {
+            let v = c[k] as f64;
+            if self.n == 0 {
+                self.first[k] = v;
+            }
+            // Shifted sums: exact for whole codes, no cancellation.
+            let d = v - self.first[k];
+            self.sum[k] += d;
+            self.sum2[k] += d * d;
+        }
+        self.n += 1;
+    }
+
+    fn stats(&self) -> WindowStats {
+        let n = self.n as f64;
+        let mut s = WindowStats { mean: [0.0; 3], var: [0.0; 3] };
+        for k in 0..3 {
+            let m = self.sum[k] / n;
+            s.mean[k] = self.first[k] + m;
+            s.var[k] = ((self.sum2[k] - n * m * m) / (n - 1.0).max(1.0)).max(0.0);
+        }
+        s
+    }
+}
+
+impl SettleDetector {
+    /// A detector at the start of a position.
+    pub fn new(rule: StaticRule) -> SettleDetector {
+        SettleDetector { rule, prev: None, cur: WindowAcc::default(), seen: 0, last_z: f64::INFINITY }
+    }
+
+    /// Feeds one set; true once the stream is static (from the next set on, sets are recorded).
+    pub fn push(&mut self, c: Codes) -> bool {
+        self.seen += 1;
+        self.cur.push(c);
+        if self.cur.n < self.rule.window.max(2) {
+            return false;
+        }
+        let now = std::mem::take(&mut self.cur).stats();
+        let verdict = match self.prev {
+            Some(p) => {
+                let w = self.rule.window.max(2) as f64;
+                let floor = self.rule.min_sd * self.rule.min_sd;
+                let z = (0..3)
+                    .map(|k| {
+                        let se = ((p.var[k].max(floor) + now.var[k].max(floor)) / w).sqrt();
+                        (now.mean[k] - p.mean[k]).abs() / se
+                    })
+                    .fold(0.0, f64::max);
+                self.last_z = z;
+                z <= self.rule.z
+            }
+            None => false,
+        };
+        self.prev = Some(now);
+        verdict
+    }
+}
+
+/// What sets the head to a position.
+pub trait Positioner {
+    /// Sets the head to position `k` (0-based) of `n`, `(alpha_deg, beta_deg)`; `expected` is the
+    /// acceleration the unit should read there, m/s² (g times the paper's kinematics). Returns once
+    /// the head stands there (an operator confirmed it, or the emulated head arrived).
+    fn set(&mut self, k: usize, n: usize, angles: (f64, f64), expected: [f64; 3]) -> anyhow::Result<()>;
+
+    /// Position `k` did not become static in time (`why` says by how much); true to try it again
+    /// (the head is set again), false to stop the acquisition with an error.
+    fn unsettled(&mut self, k: usize, why: &str) -> anyhow::Result<bool>;
+}
+
+/// The emulated head as a [`Positioner`]: moves and never retries.
+impl Positioner for SimHead {
+    fn set(&mut self, _k: usize, _n: usize, (a, b): (f64, f64), _expected: [f64; 3]) -> anyhow::Result<()> {
+        self.move_to(a, b).map_err(|e: HeadError| anyhow::Error::new(e))
+    }
+    fn unsettled(&mut self, _k: usize, _why: &str) -> anyhow::Result<bool> {
+        Ok(false)
+    }
+}
+
+/// Settings of an acquisition (checked by the caller before any I/O).
+#[derive(Clone, Debug)]
+pub struct AcquireConfig {
+    /// The campaign file written.
+    pub out: PathBuf,
+    /// The positions.
+    pub plan: Plan,
+    /// How the plan was given (`head`, `six`, a file name), for the header.
+    pub plan_name: String,
+    /// Sets recorded per position.
+    pub samples: usize,
+    /// When the stream is static.
+    pub rule: StaticRule,
+    /// How long a position may take to become static.
+    pub settle_timeout: Duration,
+    /// Local gravity, m/s².
+    pub g: f64,
+    /// How g was obtained (for the header: `--g`, `--latitude/--height`, or the 9.81 fallback).
+    pub g_source: String,
+    /// The unit's serial number, when given.
+    pub serial: Option<String>,
+    /// Continue an interrupted acquisition in `out`.
+    pub resume: bool,
+    /// The acquisition's date (UTC, ISO 8601).
+    pub date: String,
+    /// This tool's version.
+    pub tool_version: String,
+}
+
+/// How one position went.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PositionReport {
+    /// Index in the plan.
+    pub index: usize,
+    /// Angles, degrees.
+    pub angles: (f64, f64),
+    /// Sets dropped before the stream was static.
+    pub dropped: usize,
+    /// Time from the head's arrival to static, s (node's clock).
+    pub settle_s: f64,
+    /// Sets lost by the node while recording (gaps in its sample counter).
+    pub lost: u64,
+    /// Mean codes of the recorded sets.
+    pub mean: [f64; 3],
+}
+
+/// Progress callbacks of an acquisition.
+pub trait Progress {
+    /// Position `report.index` is on disk; `done` of `total` positions are; `left` is the expected
+    /// time for the rest.
+    fn position_done(&mut self, report: &PositionReport, done: usize, total: usize, left: Duration);
+    /// Positions found complete in the file that is resumed.
+    fn resumed(&mut self, done: usize, truncated_rows: usize);
+}
+
+/// What an acquisition did.
+#[derive(Clone, Debug)]
+pub struct AcquireSummary {
+    /// Positions complete in the file.
+    pub positions: usize,
+    /// Positions in the plan.
+    pub planned: usize,
+    /// Whether it stopped on request before the end.
+    pub interrupted: bool,
+    /// Sets lost while recording, all positions of this run.
+    pub lost: u64,
+    /// The node's device id.
+    pub device_id: String,
+}
+
+/// The header of an acquired campaign: `# key: value` lines before the CSV header.
+fn header(cfg: &AcquireConfig, device_id: &str, firmware: &str, rate_hz: u32) -> String {
+    let mut h = String::new();
+    let mut line = |k: &str, v: &str| h.push_str(&format!("# {k}: {v}\n"));
+    line("acquired_by", &format!("accelcal {} acquire", cfg.tool_version));
+    line("device_id", device_id);
+    line("serial", cfg.serial.as_deref().unwrap_or("-"));
+    line("firmware", firmware);
+    line("g_m_s2", &format!("{}", cfg.g));
+    line("g_source", &cfg.g_source);
+    line("plan", &format!("{} ({} positions)", cfg.plan_name, cfg.plan.positions.len()));
+    line("samples", &cfg.samples.to_string());
+    line("rate_hz", &rate_hz.to_string());
+    line("static_rule", &cfg.rule.describe());
+    line("date", &cfg.date);
+    h.push_str(&format!("# {} unsigned16\n", crate::campaign::CODES_COMMENT));
+    h.push_str("t_s,alpha_deg,beta_deg,x,y,z\n");
+    h
+}
+
+/// The `# key: value` comments before a campaign's header row.
+fn header_values(text: &str) -> Vec<(String, String)> {
+    text.lines()
+        .take_while(|l| l.starts_with('#'))
+        .filter_map(|l| l.trim_start_matches('#').split_once(':'))
+        .map(|(k, v)| (k.trim().to_string(), v.trim().to_string()))
+        .collect()
+}
+
+/// What [`open_resumed`] found in a campaign to continue.
+struct Resumed {
+    file: File,
+    done: usize,
+    truncated_rows: usize,
+}
+
+/// Opens an acquired campaign for continuing: checks that it is the same node, plan and sample
+/// count, keeps its complete positions and truncates the rest.
+fn open_resumed(cfg: &AcquireConfig, device_id: &str) -> anyhow::Result<Resumed> {
+    let path = &cfg.out;
+    let d = path.display();
+    let text = std::fs::read_to_string(path).map_err(|e| bad(format!("{d}: cannot read the campaign to resume: {e}")))?;
+    let values = header_values(&text);
+    let get = |k: &str| values.iter().find(|(key, _)| key == k).map(|(_, v)| v.as_str());
+    if get("acquired_by").is_none() {
+        return Err(bad(format!("{d}: not a campaign written by `accelcal acquire` (no `# acquired_by:` line): cannot resume it")));
+    }
+    let want_plan = format!("{} ({} positions)", cfg.plan_name, cfg.plan.positions.len());
+    for (key, want) in
+        [("device_id", device_id.to_string()), ("plan", want_plan), ("samples", cfg.samples.to_string())]
+    {
+        let have = get(key).unwrap_or("(missing)");
+        if have != want {
+            return Err(bad(format!(
+                "{d}: cannot resume: the campaign's {key} is `{have}`, this acquisition's is `{want}`"
+            )));
+        }
+    }
+    // Walk the rows: header row, then complete lines grouped into positions by their angles.
+    let mut offset = 0usize;
+    let mut header_end = None;
+    let mut keep_end = 0usize;
+    let mut done = 0usize;
+    let mut rows_in_pos = 0usize;
+    let mut cur: Option<(String, String)> = None;
+    let mut total_rows = 0usize;
+    for line in text.split_inclusive('\n') {
+        offset += line.len();
+        if header_end.is_none() {
+            if !line.starts_with('#') && !line.trim().is_empty() {
+                header_end = Some(offset);
+                keep_end = offset;
+            }
+            continue;
+        }
+        if !line.ends_with('\n') {
+            break; // a row cut by a crash
+        }
+        let mut f = line.trim_end().split(',');
+        let (_, a, b) = (f.next(), f.next().unwrap_or(""), f.next().unwrap_or(""));
+        let key = (a.to_string(), b.to_string());
+        if cur.as_ref() != Some(&key) {
+            if rows_in_pos != 0 && rows_in_pos != cfg.samples {
+                break;
+            }
+            cur = Some(key);
+            rows_in_pos = 0;
+        }
+        rows_in_pos += 1;
+        total_rows += 1;
+        if rows_in_pos == cfg.samples {
+            let Some(&(pa, pb)) = cfg.plan.positions.get(done) else {
+                return Err(bad(format!("{d}: cannot resume: the campaign has more positions than the plan")));
+            };
+            let same = a.parse::<f64>().ok() == Some(pa) && b.parse::<f64>().ok() == Some(pb);
+            if !same {
+                return Err(bad(format!(
+                    "{d}: cannot resume: its position {} is at ({a}, {b}) degrees, the plan's at ({pa}, {pb})",
+                    done + 1
+                )));
+            }
+            done += 1;
+            keep_end = offset;
+        }
+    }
+    let Some(_) = header_end else {
+        return Err(bad(format!("{d}: cannot resume: the campaign has no header row")));
+    };
+    let truncated_rows = total_rows - done * cfg.samples;
+    let mut file = OpenOptions::new().write(true).open(path).map_err(|e| environment(format!("opening {d}"), e))?;
+    file.set_len(keep_end as u64).map_err(|e| environment(format!("truncating {d}"), e))?;
+    file.seek(SeekFrom::End(0)).map_err(|e| environment(format!("seeking {d}"), e))?;
+    Ok(Resumed { file, done, truncated_rows })
+}
+
+/// Writes whole positions to the campaign file, each made durable before the next begins.
+struct CampaignFile {
+    file: File,
+    path: PathBuf,
+}
+
+impl CampaignFile {
+    fn append(&mut self, text: &str) -> anyhow::Result<()> {
+        let d = self.path.display();
+        self.file.write_all(text.as_bytes()).map_err(|e| environment(format!("writing {d}"), e))?;
+        self.file.flush().map_err(|e| environment(format!("writing {d}"), e))?;
+        self.file.sync_data().map_err(|e| environment(format!("syncing {d}"), e))?;
+        Ok(())
+    }
+}
+
+/// Runs an acquisition on an open node session. The node is switched to raw output for the
+/// acquisition and back to what it streamed before at the end (also when it fails).
+pub fn acquire(
+    node: &mut Session,
+    head: &mut dyn Positioner,
+    cfg: &AcquireConfig,
+    progress: &mut dyn Progress,
+    stop: &AtomicBool,
+) -> anyhow::Result<AcquireSummary> {
+    let info = node.info()?;
+    let device_id = device_id_hex(&info.device_id);
+    let firmware = firmware_version(info.firmware);
+    if info.rate_hz == 0 {
+        return Err(bad(format!("{}: the node reports a sampling rate of 0 Hz: it has no live sample source", node.port())));
+    }
+    let (mut out, done) = if cfg.resume {
+        let r = open_resumed(cfg, &device_id)?;
+        progress.resumed(r.done, r.truncated_rows);
+        (CampaignFile { file: r.file, path: cfg.out.clone() }, r.done)
+    } else {
+        let d = cfg.out.display();
+        let file = OpenOptions::new().write(true).create_new(true).open(&cfg.out).map_err(|e| {
+            if e.kind() == std::io::ErrorKind::AlreadyExists {
+                bad(format!("{d} exists: continue it with --resume, or choose another --out"))
+            } else {
+                environment(format!("creating {d}"), e)
+            }
+        })?;
+        let mut f = CampaignFile { file, path: cfg.out.clone() };
+        f.append(&header(cfg, &device_id, &firmware, info.rate_hz))?;
+        (f, 0)
+    };
+    let before = info.output;
+    node.set_output(Output::Raw)?;
+    let result = run_positions(node, head, cfg, progress, stop, &mut out, done, info.rate_hz);
+    // Put the node back as it was, whatever happened.
+    let restored = if before != Output::Raw { node.set_output(before).map(|_| ()) } else { Ok(()) };
+    let (positions, lost, interrupted) = result?;
+    restored?;
+    Ok(AcquireSummary { positions, planned: cfg.plan.positions.len(), interrupted, lost, device_id })
+}
+
+#[allow(clippy::too_many_arguments)]
+fn run_positions(
+    node: &mut Session,
+    head: &mut dyn Positioner,
+    cfg: &AcquireConfig,
+    progress: &mut dyn Progress,
+    stop: &AtomicBool,
+    out: &mut CampaignFile,
+    done: usize,
+    rate_hz: u32,
+) -> anyhow::Result<(usize, u64, bool)> {
+    let n = cfg.plan.positions.len();
+    let t0 = Instant::now();
+    let mut lost_total = 0u64;
+    for k in done..n {
+        let angles = cfg.plan.positions[k];
+        let expected = accelcal_shared::gravity(angles.0, angles.1, cfg.g);
+        let rows = loop {
+            head.set(k, n, angles, expected)?;
+            if stop.load(Ordering::Relaxed) {
+                return Ok((k, lost_total, true));
+            }
+            match record_position(node, cfg, rate_hz, k, angles, stop)? {
+                Recorded::Done(rows, report) => {
+                    lost_total += report.lost;
+                    break (rows, report);
+                }
+                Recorded::Stopped => return Ok((k, lost_total, true)),
+                Recorded::Unsettled(why) => {
+                    if !head.unsettled(k, &why)? {
+                        return Err(bad(format!(
+                            "position {} of {n} (alpha {} deg, beta {} deg) refused: {why}; the campaign keeps the {k} \
+                             positions before it: retry with --resume",
+                            k + 1,
+                            angles.0,
+                            angles.1
+                        )));
+                    }
+                }
+            }
+        };
+        let (text, report) = rows;
+        out.append(&text)?;
+        let finished = k + 1 - done;
+        let per = t0.elapsed() / finished as u32;
+        progress.position_done(&report, k + 1, n, per * (n - k - 1) as u32);
+    }
+    Ok((n, lost_total, false))
+}
+
+enum Recorded {
+    Done(String, PositionReport),
+    Stopped,
+    Unsettled(String),
+}
+
+/// Waits for a static stream at one position and records its sets.
+fn record_position(
+    node: &mut Session,
+    cfg: &AcquireConfig,
+    rate_hz: u32,
+    k: usize,
+    angles: (f64, f64),
+    stop: &AtomicBool,
+) -> anyhow::Result<Recorded> {
+    // Blocks produced before the head stood still are dropped.
+    node.flush_stream()?;
+    let started = Instant::now();
+    let mut det = SettleDetector::new(cfg.rule);
+    let mut settled_at: Option<u32> = None;
+    let mut arrival: Option<u32> = None;
+    let mut text = String::new();
+    let mut recorded = 0usize;
+    let mut next_first: Option<u32> = None;
+    let mut lost = 0u64;
+    let mut sum = [0.0f64; 3];
+    while recorded < cfg.samples {
+        if stop.load(Ordering::Relaxed) {
+            return Ok(Recorded::Stopped);
+        }
+        if settled_at.is_none() && started.elapsed() > cfg.settle_timeout {
+            return Ok(Recorded::Unsettled(format!(
+                "the stream did not become static within {} s (last change of the window means: {:.1} standard errors, \
+                 the rule allows {}); is the head still moving, or the unit vibrating?",
+                cfg.settle_timeout.as_secs_f64(),
+                det.last_z,
+                cfg.rule.z
+            )));
+        }
+        let Some(msg) = poll_samples(node)? else { continue };
+        let sets = match &msg.data {
+            Block::Raw(v) => v,
+            other => {
+                return Err(bad(format!(
+                    "{}: the node streams {} blocks after it was switched to raw output",
+                    node.port(),
+                    block_kind(other)
+                )))
+            }
+        };
+        arrival.get_or_insert(msg.first);
+        if let Some(exp) = next_first {
+            let gap = msg.first.wrapping_sub(exp) as u64;
+            if settled_at.is_some() {
+                lost += gap;
+            }
+        }
+        next_first = Some(msg.first.wrapping_add(sets.len() as u32));
+        for (i, c) in sets.iter().enumerate() {
+            let counter = msg.first.wrapping_add(i as u32);
+            if settled_at.is_none() {
+                if det.push(*c) {
+                    settled_at = Some(counter.wrapping_add(1));
+                }
+                continue;
+            }
+            if recorded == cfg.samples {
+                break;
+            }
+            let t_s = counter as f64 / rate_hz as f64;
+            text.push_str(&format!("{t_s:.6},{},{},{},{},{}\n", angles.0, angles.1, c[0], c[1], c[2]));
+            for j in 0..3 {
+                sum[j] += c[j] as f64;
+            }
+            recorded += 1;
+        }
+    }
+    let settle_s = settled_at.unwrap_or(0).wrapping_sub(arrival.unwrap_or(0)) as f64 / rate_hz as f64;
+    let report = PositionReport {
+        index: k,
+        angles,
+        dropped: det.seen,
+        settle_s,
+        lost,
+        mean: sum.map(|s| s / cfg.samples as f64),
+    };
+    Ok(Recorded::Done(text, report))
+}
+
+/// The next live block, or `None` after a poll interval without one.
+fn poll_samples(node: &mut Session) -> anyhow::Result<Option<crate::node::session::Samples>> {
+    use accelcal_shared::wire::NodeMsg;
+    Ok(match node.poll()? {
+        Some(NodeMsg::Samples { seq, first, data }) => Some(crate::node::session::Samples { seq, first, data }),
+        _ => None,
+    })
+}
+
+fn block_kind(b: &Block) -> &'static str {
+    match b {
+        Block::Calibrated(_) => "calibrated",
+        Block::CalibratedFixed(_) => "calibrated (fixed-point)",
+        Block::Uncalibrated(_) => "uncalibrated",
+        Block::Raw(_) => "raw",
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, Normal};
+
+    fn noisy(rng: &mut rand_chacha::ChaCha8Rng, mean: [f64; 3], sd: f64) -> Codes {
+        let n = Normal::new(0.0, sd).unwrap();
+        mean.map(|m| (m + n.sample(rng)).round() as u16)
+    }
+
+    #[test]
+    fn a_settling_stream_becomes_static_only_after_it_settles() {
+        let rule = StaticRule::default();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let mut det = SettleDetector::new(rule);
+        // An exponential approach of 2000 codes with tau = 100 sets, noise 20 codes.
+        let mut at = None;
+        for i in 0..3000 {
+            let off = 2000.0 * (-(i as f64) / 100.0).exp();
+            if det.push(noisy(&mut rng, [32768.0 + off, 30000.0, 40000.0 - off], 20.0)) {
+                at = Some(i);
+                break;
+            }
+        }
+        let at = at.expect("settles");
+        // Static means the remaining offset is within a few standard errors of a window mean
+        // (20/sqrt(64) = 2.5 codes): after about tau·ln(2000/7.5) = 560 sets.
+        assert!((450..1200).contains(&at), "static after {at} sets");
+        // A quiet, quantised stream (every code equal) is static after two windows.
+        let mut det = SettleDetector::new(rule);
+        let n = (0..200).position(|_| det.push([100, 200, 300])).unwrap();
+        assert_eq!(n + 1, 2 * rule.window);
+        // A stream that keeps moving never is.
+        let mut det = SettleDetector::new(rule);
+        assert!(!(0..5000).any(|i| det.push([(1000 + i) as u16, 2000, 3000])));
+        assert!(det.last_z > 10.0);
+        assert!(rule.describe().contains("64 sets"));
+    }
+
+    fn cfg(out: PathBuf, samples: usize) -> AcquireConfig {
+        AcquireConfig {
+            out,
+            plan: Plan::six(),
+            plan_name: "six".into(),
+            samples,
+            rule: StaticRule::default(),
+            settle_timeout: Duration::from_secs(5),
+            g: 9.81,
+            g_source: "--g".into(),
+            serial: Some("S1".into()),
+            resume: true,
+            date: "2026-11-29T00:00:00Z".into(),
+            tool_version: "0.1.0".into(),
+        }
+    }
+
+    #[test]
+    fn resume_keeps_whole_positions_and_refuses_another_node_or_plan() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("c.csv");
+        let c = cfg(path.clone(), 3);
+        let mut text = header(&c, "51454d552d422d4c34373545", "0.1.0", 1000);
+        for (p, (a, b)) in Plan::six().positions.iter().take(2).enumerate() {
+            for i in 0..3 {
+                text.push_str(&format!("{},{a},{b},1,2,3\n", (p * 3 + i) as f64 / 1000.0));
+            }
+        }
+        let whole = text.len();
+        // Two rows of the third position and a row cut short.
+        text.push_str("0.006,90,0,1,2,3\n0.007,90,0,1,2,3\n0.008,90,0,1");
+        std::fs::write(&path, &text).unwrap();
+        let r = open_resumed(&c, "51454d552d422d4c34373545").unwrap();
+        assert_eq!((r.done, r.truncated_rows), (2, 2));
+        drop(r);
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), text[..whole]);
+        // The file reads as a campaign of two dwells.
+        let camp = crate::campaign::Campaign::read(&path).unwrap();
+        assert_eq!(camp.dwells().len(), 2);
+        let e = open_resumed(&c, "000000000000000000000000").err().unwrap().to_string();
+        assert!(e.contains("device_id is `51454d552d422d4c34373545`"), "{e}");
+        let mut other = cfg(path.clone(), 3);
+        other.plan = Plan::head();
+        other.plan_name = "head".into();
+        let e = open_resumed(&other, "51454d552d422d4c34373545").err().unwrap().to_string();
+        assert!(e.contains("plan is `six (6 positions)`"), "{e}");
+    }
+}

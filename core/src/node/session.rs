@@ -1,0 +1,323 @@
+//! A conversation with a running node over its link (a serial port: the real board's ST-LINK
+//! virtual COM port, or the pty of `accelcal emulate`): who it is ([`HostMsg::GetInfo`]), its
+//! output mode and sampling rate, and its live sample blocks. Used by `info`, `acquire` and the
+//! commands after them.
+//!
+//! The node sends status reports every second and live blocks all the time; a request's answer is
+//! found among them by its kind. Every wait is bounded by the session's `answer` timeout, so a
+//! node that does not answer is an error that says what to check, never a hang.
+
+use std::io::{self, Read, Write};
+use std::time::{Duration, Instant};
+
+use accelcal_shared::wire::{self, Block, HostMsg, Info, NodeMsg, Output, Status};
+
+use super::link::{self, LinkError, Receiver};
+
+/// Why a conversation with the node failed (a failure of the environment: exit code 1).
+#[derive(Debug, thiserror::Error)]
+pub enum SessionError {
+    /// The port could not be opened.
+    #[error("{port}: cannot open the node's serial port: {source}")]
+    Open {
+        /// The port.
+        port: String,
+        /// The cause.
+        source: serialport::Error,
+    },
+    /// The link failed.
+    #[error("{port}: {source}")]
+    Link {
+        /// The port.
+        port: String,
+        /// The cause.
+        source: LinkError,
+    },
+    /// No answer in time.
+    #[error(
+        "{port}: no {what} from the node within {secs} s (is the board powered and running the accelcal firmware, \
+         and is this its link port?)"
+    )]
+    Timeout {
+        /// The port.
+        port: String,
+        /// What was awaited.
+        what: &'static str,
+        /// The timeout, s.
+        secs: f64,
+    },
+    /// The node refused a request.
+    #[error("{port}: the node refused the request: {refusal}")]
+    Refused {
+        /// The port.
+        port: String,
+        /// Its reason.
+        refusal: wire::Refusal,
+    },
+    /// The node speaks another protocol version.
+    #[error("{port}: the node speaks link protocol {node}, this tool {host}: flash a matching firmware")]
+    Protocol {
+        /// The port.
+        port: String,
+        /// The node's version.
+        node: u8,
+        /// This tool's.
+        host: u8,
+    },
+}
+
+/// How often a blocking read gives control back (to check a stop flag or a deadline).
+const POLL: Duration = Duration::from_millis(100);
+
+/// An open link to a node.
+pub struct Session {
+    port: String,
+    tx: Box<dyn Write + Send>,
+    rx: Receiver<Box<dyn Read + Send>>,
+    answer: Duration,
+}
+
+/// A block of live samples: the node's sample counter of its first set, and the sets.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Samples {
+    /// Block number since boot.
+    pub seq: u32,
+    /// Sample counter of the first set (lost sets included).
+    pub first: u32,
+    /// The sets.
+    pub data: Block,
+}
+
+impl Session {
+    /// Opens the serial port `port` at `baud` (a pty ignores the baud rate); requests wait up to
+    /// `answer` for their reply.
+    pub fn open(port: &str, baud: u32, answer: Duration) -> Result<Session, SessionError> {
+        let open = |source| SessionError::Open { port: port.to_string(), source };
+        let p = serialport::new(port, baud).timeout(POLL).open().map_err(open)?;
+        let tx = p.try_clone().map_err(open)?;
+        Ok(Session::from_streams(port, Box::new(tx), Box::new(p), answer))
+    }
+
+    /// A session over any pair of byte streams (tests); reads must time out every [`POLL`] or so.
+    pub fn from_streams(
+        port: &str,
+        tx: Box<dyn Write + Send>,
+        rx: Box<dyn Read + Send>,
+        answer: Duration,
+    ) -> Session {
+        Session { port: port.to_string(), tx, rx: Receiver::new(rx), answer }
+    }
+
+    /// The port's name, for messages.
+    pub fn port(&self) -> &str {
+        &self.port
+    }
+
+    fn link(&self, source: LinkError) -> SessionError {
+        SessionError::Link { port: self.port.clone(), source }
+    }
+
+    /// Sends a request.
+    pub fn send(&mut self, msg: &HostMsg) -> Result<(), SessionError> {
+        link::send(&mut self.tx, msg).map_err(|e| self.link(e))
+    }
+
+    /// The next message, or `None` when nothing arrived within the poll interval. Frames that do
+    /// not decode are skipped (the node's stream resynchronises at the next frame).
+    pub fn poll(&mut self) -> Result<Option<NodeMsg>, SessionError> {
+        match self.rx.recv() {
+            Ok(Ok(m)) => Ok(Some(m)),
+            Ok(Err(_)) => Ok(None),
+            Err(LinkError::Io(e)) if matches!(e.kind(), io::ErrorKind::TimedOut | io::ErrorKind::WouldBlock) => {
+                Ok(None)
+            }
+            Err(e) => Err(self.link(e)),
+        }
+    }
+
+    /// Waits for the first message that `pick` accepts, up to the answer timeout; a refusal is an
+    /// error. `what` names the awaited answer in the timeout's message.
+    fn await_msg<T>(
+        &mut self,
+        what: &'static str,
+        mut pick: impl FnMut(NodeMsg) -> Option<T>,
+    ) -> Result<T, SessionError> {
+        let deadline = Instant::now() + self.answer;
+        while Instant::now() < deadline {
+            match self.poll()? {
+                Some(NodeMsg::Refused(refusal)) => {
+                    return Err(SessionError::Refused { port: self.port.clone(), refusal })
+                }
+                Some(m) => {
+                    if let Some(t) = pick(m) {
+                        return Ok(t);
+                    }
+                }
+                None => {}
+            }
+        }
+        Err(SessionError::Timeout { port: self.port.clone(), what, secs: self.answer.as_secs_f64() })
+    }
+
+    fn check_protocol(&self, node: u8) -> Result<(), SessionError> {
+        if node == wire::PROTOCOL_VERSION {
+            Ok(())
+        } else {
+            Err(SessionError::Protocol { port: self.port.clone(), node, host: wire::PROTOCOL_VERSION })
+        }
+    }
+
+    /// Who the node is.
+    pub fn info(&mut self) -> Result<Info, SessionError> {
+        self.send(&HostMsg::GetInfo)?;
+        let info = self.await_msg("answer to GetInfo", |m| match m {
+            NodeMsg::Info(i) => Some(i),
+            _ => None,
+        })?;
+        self.check_protocol(info.protocol)?;
+        Ok(info)
+    }
+
+    /// The node's status now. Every block received after it was produced after the request.
+    pub fn status(&mut self) -> Result<Status, SessionError> {
+        self.send(&HostMsg::GetStatus)?;
+        let s = self.await_msg("status report", |m| match m {
+            NodeMsg::Status(s) => Some(s),
+            _ => None,
+        })?;
+        self.check_protocol(s.protocol)?;
+        Ok(s)
+    }
+
+    /// Switches live streaming to `output`; returns the node's status after the switch.
+    pub fn set_output(&mut self, output: Output) -> Result<Status, SessionError> {
+        self.send(&HostMsg::SetOutput(output))?;
+        self.await_msg("answer to SetOutput", |m| match m {
+            NodeMsg::OutputSet(s) => Some(s),
+            _ => None,
+        })
+    }
+
+    /// Sets the sampling rate, Hz; returns the node's status after the change.
+    pub fn set_rate(&mut self, hz: u32) -> Result<Status, SessionError> {
+        self.send(&HostMsg::SetRate { hz })?;
+        self.await_msg("answer to SetRate", |m| match m {
+            NodeMsg::RateSet(s) => Some(s),
+            _ => None,
+        })
+    }
+
+    /// The next block of live samples, up to the answer timeout.
+    pub fn samples(&mut self) -> Result<Samples, SessionError> {
+        self.await_msg("live samples", |m| match m {
+            NodeMsg::Samples { seq, first, data } => Some(Samples { seq, first, data }),
+            _ => None,
+        })
+    }
+
+    /// Discards every block produced before this call: asks for a status and drops what comes
+    /// before its answer (the node's link sends in order).
+    pub fn flush_stream(&mut self) -> Result<(), SessionError> {
+        self.status().map(|_| ())
+    }
+}
+
+/// A device id as `fit --device-id` takes it: 24 lower-case hex digits.
+pub fn device_id_hex(id: &[u8; 12]) -> String {
+    id.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// A firmware version `[major, minor, patch]` as `major.minor.patch`.
+pub fn firmware_version(v: [u16; 3]) -> String {
+    format!("{}.{}.{}", v[0], v[1], v[2])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use accelcal_shared::wire::{RecordStatus, ResetCause, MAX_FRAME};
+    use std::collections::VecDeque;
+    use std::sync::{Arc, Mutex};
+
+    /// A scripted node: bytes queued to be read, reads time out when empty.
+    #[derive(Clone, Default)]
+    struct Script(Arc<Mutex<VecDeque<u8>>>);
+    impl Read for Script {
+        fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+            let mut q = self.0.lock().unwrap();
+            if q.is_empty() {
+                return Err(io::Error::new(io::ErrorKind::TimedOut, "timed out"));
+            }
+            let n = buf.len().min(q.len());
+            for b in buf.iter_mut().take(n) {
+                *b = q.pop_front().unwrap();
+            }
+            Ok(n)
+        }
+    }
+
+    fn frame(m: &NodeMsg) -> Vec<u8> {
+        let mut buf = [0u8; MAX_FRAME];
+        wire::encode(m, &mut buf).unwrap().to_vec()
+    }
+
+    fn info(protocol: u8) -> Info {
+        Info {
+            device_id: *b"QEMU-B-L475E",
+            firmware: [0, 1, 0],
+            protocol,
+            record: RecordStatus::InUse { slot: 0, sequence: 1, created_unix_s: 2, crc: 3 },
+            rate_hz: 1000,
+            overruns: 0,
+            reset_cause: ResetCause::PowerOn,
+            output: Output::Calibrated,
+        }
+    }
+
+    fn session(msgs: &[NodeMsg]) -> (Session, Arc<Mutex<Vec<u8>>>) {
+        let script = Script::default();
+        for m in msgs {
+            script.0.lock().unwrap().extend(frame(m));
+        }
+        #[derive(Clone)]
+        struct Sink(Arc<Mutex<Vec<u8>>>);
+        impl Write for Sink {
+            fn write(&mut self, b: &[u8]) -> io::Result<usize> {
+                self.0.lock().unwrap().extend_from_slice(b);
+                Ok(b.len())
+            }
+            fn flush(&mut self) -> io::Result<()> {
+                Ok(())
+            }
+        }
+        let sent = Arc::new(Mutex::new(Vec::new()));
+        let s = Session::from_streams(
+            "test",
+            Box::new(Sink(sent.clone())),
+            Box::new(script),
+            Duration::from_millis(300),
+        );
+        (s, sent)
+    }
+
+    #[test]
+    fn info_is_found_among_other_messages() {
+        let block = NodeMsg::Samples { seq: 0, first: 0, data: Block::Raw(Default::default()) };
+        let (mut s, sent) = session(&[block, NodeMsg::Info(info(wire::PROTOCOL_VERSION))]);
+        assert_eq!(s.info().unwrap(), info(wire::PROTOCOL_VERSION));
+        // A leading zero, then GetInfo (variant 3).
+        assert_eq!(*sent.lock().unwrap(), vec![0x00, 0x02, 0x03, 0x00]);
+        assert_eq!(device_id_hex(b"QEMU-B-L475E"), "51454d552d422d4c34373545");
+        assert_eq!(firmware_version([0, 1, 12]), "0.1.12");
+    }
+
+    #[test]
+    fn silence_and_other_protocols_are_errors_that_say_so() {
+        let (mut s, _) = session(&[]);
+        let e = s.info().unwrap_err().to_string();
+        assert!(e.starts_with("test: no answer to GetInfo from the node within 0.3 s"), "{e}");
+        let (mut s, _) = session(&[NodeMsg::Info(info(2))]);
+        let e = s.info().unwrap_err().to_string();
+        assert!(e.contains("protocol 2"), "{e}");
+    }
+}

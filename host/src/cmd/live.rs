@@ -1,0 +1,232 @@
+//! The commands that talk to a running node over its link: `accelcal info`, `accelcal output`,
+//! `accelcal acquire`.
+
+use std::io::{BufRead, Write};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use accelcal_core::acquire::{self, AcquireConfig, PositionReport, Positioner, Progress, StaticRule};
+use accelcal_core::error::{bad, Interrupted};
+use accelcal_core::node::head::{HeadSpec, SimHead};
+use accelcal_core::node::session::{device_id_hex, firmware_version, Session};
+use accelcal_core::output::write_json;
+use accelcal_core::sim::Plan;
+use accelcal_shared::wire::{Info, Output, RecordStatus};
+use serde_json::json;
+
+use crate::cli::{AcquireArgs, InfoArgs, OutputArg, OutputArgs, PortArgs};
+
+fn open(link: &PortArgs) -> anyhow::Result<Session> {
+    Ok(Session::open(&link.port, link.baud, Duration::from_secs_f64(link.answer_timeout_s))?)
+}
+
+/// The reset cause's variant name (`PowerOn`, `IndependentWatchdog`, ...).
+fn reset_name(i: &Info) -> String {
+    format!("{:?}", i.reset_cause)
+}
+
+/// `accelcal info`'s JSON document (the field names are an interface).
+pub fn info_json(i: &Info) -> serde_json::Value {
+    let record = match i.record {
+        RecordStatus::InUse { slot, sequence, created_unix_s, crc } => json!({
+            "slot": slot, "sequence": sequence, "created_unix_s": created_unix_s, "crc": format!("{crc:08x}")
+        }),
+        RecordStatus::Missing(_) => serde_json::Value::Null,
+    };
+    json!({
+        "device_id": device_id_hex(&i.device_id),
+        "firmware": firmware_version(i.firmware),
+        "record": record,
+        "rate_hz": i.rate_hz,
+        "overruns": i.overruns,
+        "reset_cause": reset_name(i),
+    })
+}
+
+/// What `accelcal info` prints.
+pub fn info_text(i: &Info) -> String {
+    let record = match i.record {
+        RecordStatus::InUse { slot, sequence, created_unix_s, crc } => format!(
+            "slot {slot}, sequence {sequence}, created {} ({created_unix_s}), CRC {crc:08x}",
+            super::record::utc(created_unix_s)
+        ),
+        RecordStatus::Missing(f) => format!("none ({f}): the node streams UNCALIBRATED codes"),
+    };
+    format!(
+        "device id   {}\nfirmware    {} (link protocol {})\nrecord      {record}\nrate        {} Hz per channel\n\
+         overruns    {} sample sets lost since boot\nlast reset  {}\noutput      {}",
+        device_id_hex(&i.device_id),
+        firmware_version(i.firmware),
+        i.protocol,
+        i.rate_hz,
+        i.overruns,
+        i.reset_cause,
+        i.output.name()
+    )
+}
+
+/// Runs `accelcal info`.
+pub fn run_info(a: &InfoArgs) -> anyhow::Result<()> {
+    let mut s = open(&a.link)?;
+    let info = s.info()?;
+    println!("{}", info_text(&info));
+    if let Some(p) = &a.json {
+        write_json(p, &info_json(&info))?;
+    }
+    Ok(())
+}
+
+/// Runs `accelcal output`.
+pub fn run_output(a: &OutputArgs) -> anyhow::Result<()> {
+    let mut s = open(&a.link)?;
+    let mode = match a.mode {
+        OutputArg::Calibrated => Output::Calibrated,
+        OutputArg::Raw => Output::Raw,
+    };
+    let st = s.set_output(mode)?;
+    println!("output: the node now streams {}", st.output.name());
+    if let (Output::Calibrated, RecordStatus::Missing(f)) = (st.output, st.record) {
+        println!("note: the node has no record ({f}): its calibrated stream is raw codes flagged uncalibrated");
+    }
+    Ok(())
+}
+
+/// The operator at a manual head: shown the angles and the expected reading, confirms with Enter.
+struct ManualHead;
+
+fn read_line() -> anyhow::Result<String> {
+    let mut line = String::new();
+    if std::io::stdin().lock().read_line(&mut line)? == 0 {
+        return Err(bad("standard input closed while waiting for the operator (--head manual needs a terminal)"));
+    }
+    Ok(line)
+}
+
+impl Positioner for ManualHead {
+    fn set(&mut self, k: usize, n: usize, (a, b): (f64, f64), e: [f64; 3]) -> anyhow::Result<()> {
+        eprint!(
+            "position {}/{n}: set the head to alpha {a} deg, beta {b} deg; the unit should then read \
+             ax {:+.3}, ay {:+.3}, az {:+.3} m/s². Press Enter when it stands there. ",
+            k + 1,
+            e[0],
+            e[1],
+            e[2]
+        );
+        std::io::stderr().flush()?;
+        read_line().map(|_| ())
+    }
+
+    fn unsettled(&mut self, k: usize, why: &str) -> anyhow::Result<bool> {
+        eprint!("position {}: {why}. Retry it? [Y/n] ", k + 1);
+        std::io::stderr().flush()?;
+        Ok(!read_line()?.trim().eq_ignore_ascii_case("n"))
+    }
+}
+
+/// Progress lines on stderr.
+struct Lines;
+
+fn duration(d: Duration) -> String {
+    let s = d.as_secs();
+    if s >= 60 {
+        format!("{} min {:02} s", s / 60, s % 60)
+    } else {
+        format!("{s} s")
+    }
+}
+
+impl Progress for Lines {
+    fn position_done(&mut self, r: &PositionReport, done: usize, total: usize, left: Duration) {
+        eprintln!(
+            "position {done}/{total} (alpha {} deg, beta {} deg): static after {:.2} s ({} sets dropped), recorded; \
+             {} sets lost; mean codes {:.1} {:.1} {:.1}; about {} left",
+            r.angles.0,
+            r.angles.1,
+            r.settle_s,
+            r.dropped,
+            r.lost,
+            r.mean[0],
+            r.mean[1],
+            r.mean[2],
+            duration(left)
+        );
+    }
+    fn resumed(&mut self, done: usize, truncated_rows: usize) {
+        eprintln!(
+            "resume: {done} complete positions kept{}",
+            if truncated_rows > 0 {
+                format!(", {truncated_rows} rows of an unfinished position removed")
+            } else {
+                String::new()
+            }
+        );
+    }
+}
+
+/// Where the acquisition's g came from, and whether it is the announced fallback.
+fn g_source(a: &AcquireArgs) -> (f64, String, bool) {
+    match (a.g, a.local.latitude) {
+        (Some(g), Some(lat)) => {
+            (g, format!("WGS84 normal gravity at latitude {lat} deg, height {} m", a.local.height.unwrap_or(0.0)), false)
+        }
+        (Some(g), None) => (g, "--g".into(), false),
+        _ => (accelcal_shared::G_STANDARD, "default 9.81 m/s² (no --g or --latitude given)".into(), true),
+    }
+}
+
+/// Runs `accelcal acquire`.
+pub fn run_acquire(a: &AcquireArgs) -> anyhow::Result<()> {
+    let plan = Plan::from_spec(&a.plan, 1).map_err(|e| bad(format!("--plan {e}")))?;
+    let (g, g_source, fallback) = g_source(a);
+    if fallback {
+        eprintln!("note: g = 9.81 m/s² (standard gravity) is assumed: give --g or --latitude/--height for the rig's site");
+    }
+    let stop = Arc::new(AtomicBool::new(false));
+    {
+        let stop = stop.clone();
+        ctrlc::set_handler(move || stop.store(true, Ordering::Relaxed))
+            .map_err(|e| anyhow::anyhow!("cannot install the Ctrl-C handler: {e}"))?;
+    }
+    let mut node = open(&a.link)?;
+    if let Some(hz) = a.rate {
+        node.set_rate(hz)?;
+    }
+    let mut head: Box<dyn Positioner> = match &a.head {
+        HeadSpec::Manual => Box::new(ManualHead),
+        HeadSpec::Sim(addr) => Box::new(SimHead::connect(addr, Duration::from_secs(120))?),
+    };
+    let cfg = AcquireConfig {
+        out: a.out.clone(),
+        plan,
+        plan_name: a.plan.clone(),
+        samples: a.samples,
+        rule: StaticRule { window: a.static_window, z: a.static_z, ..StaticRule::default() },
+        settle_timeout: Duration::from_secs_f64(a.settle_timeout_s),
+        g,
+        g_source,
+        serial: a.serial.clone(),
+        resume: a.resume,
+        date: super::record::utc(super::created(None)),
+        tool_version: env!("CARGO_PKG_VERSION").into(),
+    };
+    eprintln!("acquire: {}", cfg.rule.describe());
+    let sum = acquire::acquire(&mut node, head.as_mut(), &cfg, &mut Lines, &stop)?;
+    if sum.interrupted {
+        return Err(anyhow::Error::new(Interrupted(format!(
+            "interrupted: {} holds {} of {} positions; continue with --resume",
+            a.out.display(),
+            sum.positions,
+            sum.planned
+        ))));
+    }
+    println!(
+        "acquire: {} positions of device {} written to {} ({} sets each, {} sets lost while recording)",
+        sum.positions,
+        sum.device_id,
+        a.out.display(),
+        a.samples,
+        sum.lost
+    );
+    Ok(())
+}
