@@ -86,13 +86,13 @@ struct WindowAcc {
 }
 
 impl WindowAcc {
-    fn push(&mut self, c: Codes) {
+    fn push(&mut self, c: [f64; 3]) {
         for k in 0..3 {
-            let v = c[k] as f64;
+            let v = c[k];
             if self.n == 0 {
                 self.first[k] = v;
             }
-            // Shifted sums: exact for whole codes, no cancellation.
+            // Shifted sums: exact for whole codes, and no cancellation for any values.
             let d = v - self.first[k];
             self.sum[k] += d;
             self.sum2[k] += d * d;
@@ -118,8 +118,9 @@ impl SettleDetector {
         SettleDetector { rule, prev: None, cur: WindowAcc::default(), seen: 0, last_z: f64::INFINITY }
     }
 
-    /// Feeds one set; true once the stream is static (from the next set on, sets are recorded).
-    pub fn push(&mut self, c: Codes) -> bool {
+    /// Feeds one set (codes or m/s², in the unit of the rule's `min_sd`); true once the stream is
+    /// static (from the next set on, sets are recorded).
+    pub fn push(&mut self, c: [f64; 3]) -> bool {
         self.seen += 1;
         self.cur.push(c);
         if self.cur.n < self.rule.window.max(2) {
@@ -279,11 +280,14 @@ struct Resumed {
 fn open_resumed(cfg: &AcquireConfig, device_id: &str) -> anyhow::Result<Resumed> {
     let path = &cfg.out;
     let d = path.display();
-    let text = std::fs::read_to_string(path).map_err(|e| bad(format!("{d}: cannot read the campaign to resume: {e}")))?;
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| bad(format!("{d}: cannot read the campaign to resume: {e}")))?;
     let values = header_values(&text);
     let get = |k: &str| values.iter().find(|(key, _)| key == k).map(|(_, v)| v.as_str());
     if get("acquired_by").is_none() {
-        return Err(bad(format!("{d}: not a campaign written by `accelcal acquire` (no `# acquired_by:` line): cannot resume it")));
+        return Err(bad(format!(
+            "{d}: not a campaign written by `accelcal acquire` (no `# acquired_by:` line): cannot resume it"
+        )));
     }
     let want_plan = format!("{} ({} positions)", cfg.plan_name, cfg.plan.positions.len());
     for (key, want) in
@@ -330,7 +334,9 @@ fn open_resumed(cfg: &AcquireConfig, device_id: &str) -> anyhow::Result<Resumed>
         total_rows += 1;
         if rows_in_pos == cfg.samples {
             let Some(&(pa, pb)) = cfg.plan.positions.get(done) else {
-                return Err(bad(format!("{d}: cannot resume: the campaign has more positions than the plan")));
+                return Err(bad(format!(
+                    "{d}: cannot resume: the campaign has more positions than the plan"
+                )));
             };
             let same = a.parse::<f64>().ok() == Some(pa) && b.parse::<f64>().ok() == Some(pb);
             if !same {
@@ -347,7 +353,8 @@ fn open_resumed(cfg: &AcquireConfig, device_id: &str) -> anyhow::Result<Resumed>
         return Err(bad(format!("{d}: cannot resume: the campaign has no header row")));
     };
     let truncated_rows = total_rows - done * cfg.samples;
-    let mut file = OpenOptions::new().write(true).open(path).map_err(|e| environment(format!("opening {d}"), e))?;
+    let mut file =
+        OpenOptions::new().write(true).open(path).map_err(|e| environment(format!("opening {d}"), e))?;
     file.set_len(keep_end as u64).map_err(|e| environment(format!("truncating {d}"), e))?;
     file.seek(SeekFrom::End(0)).map_err(|e| environment(format!("seeking {d}"), e))?;
     Ok(Resumed { file, done, truncated_rows })
@@ -382,7 +389,10 @@ pub fn acquire(
     let device_id = device_id_hex(&info.device_id);
     let firmware = firmware_version(info.firmware);
     if info.rate_hz == 0 {
-        return Err(bad(format!("{}: the node reports a sampling rate of 0 Hz: it has no live sample source", node.port())));
+        return Err(bad(format!(
+            "{}: the node reports a sampling rate of 0 Hz: it has no live sample source",
+            node.port()
+        )));
     }
     let (mut out, done) = if cfg.resume {
         let r = open_resumed(cfg, &device_id)?;
@@ -461,13 +471,128 @@ fn run_positions(
     Ok((n, lost_total, false))
 }
 
-enum Recorded {
-    Done(String, PositionReport),
+/// The sets of one position, recorded once the stream was static.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Capture {
+    /// Each recorded set with the node's sample counter.
+    pub sets: Vec<(u32, [f64; 3])>,
+    /// Sets watched before the stream was static (dropped).
+    pub dropped: usize,
+    /// Sets from the first one after the head's arrival to static (divide by the rate for
+    /// seconds).
+    pub settle_sets: u32,
+    /// Sets the node lost while recording.
+    pub lost: u64,
+}
+
+impl Capture {
+    /// Mean of the recorded sets.
+    pub fn mean(&self) -> [f64; 3] {
+        let n = self.sets.len().max(1) as f64;
+        let mut m = [0.0; 3];
+        for (_, v) in &self.sets {
+            for k in 0..3 {
+                m[k] += v[k] / n;
+            }
+        }
+        m
+    }
+
+    /// Standard deviation of the recorded sets (n − 1).
+    pub fn sd(&self) -> [f64; 3] {
+        let m = self.mean();
+        let n = self.sets.len() as f64;
+        let mut s = [0.0; 3];
+        for (_, v) in &self.sets {
+            for k in 0..3 {
+                s[k] += (v[k] - m[k]).powi(2);
+            }
+        }
+        s.map(|x| (x / (n - 1.0).max(1.0)).sqrt())
+    }
+}
+
+/// How waiting for one position ended.
+pub enum Captured {
+    /// Recorded.
+    Done(Capture),
+    /// A stop was requested.
     Stopped,
+    /// The stream did not become static in time; why.
     Unsettled(String),
 }
 
-/// Waits for a static stream at one position and records its sets.
+/// What the values of a live block are, or why the block is not what the caller records.
+pub type BlockValues = fn(&Block) -> Result<Vec<[f64; 3]>, String>;
+
+/// Raw code blocks as values (what `acquire` records).
+pub fn raw_values(b: &Block) -> Result<Vec<[f64; 3]>, String> {
+    match b {
+        Block::Raw(v) => Ok(v.iter().map(|c: &Codes| c.map(f64::from)).collect()),
+        other => {
+            Err(format!("the node streams {} blocks after it was switched to raw output", block_kind(other)))
+        }
+    }
+}
+
+/// Waits for a static stream at the position the head has just reached, drops the settling part
+/// and records `samples` sets, converted by `values`.
+pub fn capture(
+    node: &mut Session,
+    rule: StaticRule,
+    settle_timeout: Duration,
+    samples: usize,
+    stop: &AtomicBool,
+    values: BlockValues,
+) -> anyhow::Result<Captured> {
+    // Blocks produced before the head stood still are dropped.
+    node.flush_stream()?;
+    let started = Instant::now();
+    let mut det = SettleDetector::new(rule);
+    let mut settled_at: Option<u32> = None;
+    let mut arrival: Option<u32> = None;
+    let mut next_first: Option<u32> = None;
+    let mut cap = Capture { sets: Vec::with_capacity(samples), dropped: 0, settle_sets: 0, lost: 0 };
+    while cap.sets.len() < samples {
+        if stop.load(Ordering::Relaxed) {
+            return Ok(Captured::Stopped);
+        }
+        if settled_at.is_none() && started.elapsed() > settle_timeout {
+            return Ok(Captured::Unsettled(format!(
+                "the stream did not become static within {} s (last change of the window means: {:.1} standard errors, \
+                 the rule allows {}); is the head still moving, or the unit vibrating?",
+                settle_timeout.as_secs_f64(),
+                det.last_z,
+                rule.z
+            )));
+        }
+        let Some(msg) = poll_samples(node)? else { continue };
+        let vals = values(&msg.data).map_err(|e| bad(format!("{}: {e}", node.port())))?;
+        arrival.get_or_insert(msg.first);
+        if let (Some(exp), Some(_)) = (next_first, settled_at) {
+            cap.lost += msg.first.wrapping_sub(exp) as u64;
+        }
+        next_first = Some(msg.first.wrapping_add(vals.len() as u32));
+        for (i, v) in vals.into_iter().enumerate() {
+            let counter = msg.first.wrapping_add(i as u32);
+            if settled_at.is_none() {
+                if det.push(v) {
+                    settled_at = Some(counter.wrapping_add(1));
+                }
+                continue;
+            }
+            if cap.sets.len() == samples {
+                break;
+            }
+            cap.sets.push((counter, v));
+        }
+    }
+    cap.dropped = det.seen;
+    cap.settle_sets = settled_at.unwrap_or(0).wrapping_sub(arrival.unwrap_or(0));
+    Ok(Captured::Done(cap))
+}
+
+/// Waits for a static stream at one position and records its raw sets as campaign rows.
 fn record_position(
     node: &mut Session,
     cfg: &AcquireConfig,
@@ -476,90 +601,46 @@ fn record_position(
     angles: (f64, f64),
     stop: &AtomicBool,
 ) -> anyhow::Result<Recorded> {
-    // Blocks produced before the head stood still are dropped.
-    node.flush_stream()?;
-    let started = Instant::now();
-    let mut det = SettleDetector::new(cfg.rule);
-    let mut settled_at: Option<u32> = None;
-    let mut arrival: Option<u32> = None;
+    let cap = match capture(node, cfg.rule, cfg.settle_timeout, cfg.samples, stop, raw_values)? {
+        Captured::Done(c) => c,
+        Captured::Stopped => return Ok(Recorded::Stopped),
+        Captured::Unsettled(why) => return Ok(Recorded::Unsettled(why)),
+    };
     let mut text = String::new();
-    let mut recorded = 0usize;
-    let mut next_first: Option<u32> = None;
-    let mut lost = 0u64;
-    let mut sum = [0.0f64; 3];
-    while recorded < cfg.samples {
-        if stop.load(Ordering::Relaxed) {
-            return Ok(Recorded::Stopped);
-        }
-        if settled_at.is_none() && started.elapsed() > cfg.settle_timeout {
-            return Ok(Recorded::Unsettled(format!(
-                "the stream did not become static within {} s (last change of the window means: {:.1} standard errors, \
-                 the rule allows {}); is the head still moving, or the unit vibrating?",
-                cfg.settle_timeout.as_secs_f64(),
-                det.last_z,
-                cfg.rule.z
-            )));
-        }
-        let Some(msg) = poll_samples(node)? else { continue };
-        let sets = match &msg.data {
-            Block::Raw(v) => v,
-            other => {
-                return Err(bad(format!(
-                    "{}: the node streams {} blocks after it was switched to raw output",
-                    node.port(),
-                    block_kind(other)
-                )))
-            }
-        };
-        arrival.get_or_insert(msg.first);
-        if let Some(exp) = next_first {
-            let gap = msg.first.wrapping_sub(exp) as u64;
-            if settled_at.is_some() {
-                lost += gap;
-            }
-        }
-        next_first = Some(msg.first.wrapping_add(sets.len() as u32));
-        for (i, c) in sets.iter().enumerate() {
-            let counter = msg.first.wrapping_add(i as u32);
-            if settled_at.is_none() {
-                if det.push(*c) {
-                    settled_at = Some(counter.wrapping_add(1));
-                }
-                continue;
-            }
-            if recorded == cfg.samples {
-                break;
-            }
-            let t_s = counter as f64 / rate_hz as f64;
-            text.push_str(&format!("{t_s:.6},{},{},{},{},{}\n", angles.0, angles.1, c[0], c[1], c[2]));
-            for j in 0..3 {
-                sum[j] += c[j] as f64;
-            }
-            recorded += 1;
-        }
+    for (counter, c) in &cap.sets {
+        let t_s = *counter as f64 / rate_hz as f64;
+        text.push_str(&format!("{t_s:.6},{},{},{},{},{}\n", angles.0, angles.1, c[0], c[1], c[2]));
     }
-    let settle_s = settled_at.unwrap_or(0).wrapping_sub(arrival.unwrap_or(0)) as f64 / rate_hz as f64;
     let report = PositionReport {
         index: k,
         angles,
-        dropped: det.seen,
-        settle_s,
-        lost,
-        mean: sum.map(|s| s / cfg.samples as f64),
+        dropped: cap.dropped,
+        settle_s: cap.settle_sets as f64 / rate_hz as f64,
+        lost: cap.lost,
+        mean: cap.mean(),
     };
     Ok(Recorded::Done(text, report))
+}
+
+enum Recorded {
+    Done(String, PositionReport),
+    Stopped,
+    Unsettled(String),
 }
 
 /// The next live block, or `None` after a poll interval without one.
 fn poll_samples(node: &mut Session) -> anyhow::Result<Option<crate::node::session::Samples>> {
     use accelcal_shared::wire::NodeMsg;
     Ok(match node.poll()? {
-        Some(NodeMsg::Samples { seq, first, data }) => Some(crate::node::session::Samples { seq, first, data }),
+        Some(NodeMsg::Samples { seq, first, data }) => {
+            Some(crate::node::session::Samples { seq, first, data })
+        }
         _ => None,
     })
 }
 
-fn block_kind(b: &Block) -> &'static str {
+/// The kind of a block, in words.
+pub fn block_kind(b: &Block) -> &'static str {
     match b {
         Block::Calibrated(_) => "calibrated",
         Block::CalibratedFixed(_) => "calibrated (fixed-point)",
@@ -574,9 +655,9 @@ mod tests {
     use rand::SeedableRng;
     use rand_distr::{Distribution, Normal};
 
-    fn noisy(rng: &mut rand_chacha::ChaCha8Rng, mean: [f64; 3], sd: f64) -> Codes {
+    fn noisy(rng: &mut rand_chacha::ChaCha8Rng, mean: [f64; 3], sd: f64) -> [f64; 3] {
         let n = Normal::new(0.0, sd).unwrap();
-        mean.map(|m| (m + n.sample(rng)).round() as u16)
+        mean.map(|m| (m + n.sample(rng)).round())
     }
 
     #[test]
@@ -599,11 +680,11 @@ mod tests {
         assert!((450..1200).contains(&at), "static after {at} sets");
         // A quiet, quantised stream (every code equal) is static after two windows.
         let mut det = SettleDetector::new(rule);
-        let n = (0..200).position(|_| det.push([100, 200, 300])).unwrap();
+        let n = (0..200).position(|_| det.push([100.0, 200.0, 300.0])).unwrap();
         assert_eq!(n + 1, 2 * rule.window);
         // A stream that keeps moving never is.
         let mut det = SettleDetector::new(rule);
-        assert!(!(0..5000).any(|i| det.push([(1000 + i) as u16, 2000, 3000])));
+        assert!(!(0..5000).any(|i| det.push([(1000 + i) as f64, 2000.0, 3000.0])));
         assert!(det.last_z > 10.0);
         assert!(rule.describe().contains("64 sets"));
     }

@@ -15,6 +15,7 @@ pub fn is_bad_input(e: &anyhow::Error) -> bool {
     !e.chain().any(|c| {
         c.is::<Environment>()
             || c.is::<crate::error::Interrupted>()
+            || c.is::<crate::verify::Failed>()
             || c.is::<crate::node::hil::HilError>()
             || c.is::<crate::node::flash::FlashError>()
             || c.is::<crate::node::link::LinkError>()

@@ -29,3 +29,4 @@ pub mod positions;
 pub mod reduce;
 pub mod sim;
 pub mod testturn;
+pub mod verify;

@@ -55,6 +55,10 @@ pub enum Command {
     /// Record a campaign from a node on a dividing head: set each position of a plan (operator
     /// or emulated head), wait for a static stream, record raw code sets.
     Acquire(AcquireArgs),
+    /// Check a calibrated node on the head: at each position compare its mean calibrated
+    /// acceleration with g times the head's kinematics. Exit code 0 when every position passes,
+    /// 1 when one fails.
+    Verify(VerifyArgs),
     /// Diagnose the gap between a campaign and its linear-sensor simulation, and attribute it to
     /// effects checked on withheld data.
     Diagnose(DiagnoseArgs),
@@ -559,6 +563,43 @@ pub struct AcquireArgs {
     /// Static test: largest change of the window means, in standard errors.
     #[arg(long, default_value_t = 3.0, value_name = "Z")]
     pub static_z: f64,
+}
+
+/// `accelcal verify`: check a calibrated node on the head.
+#[derive(Debug, Args)]
+pub struct VerifyArgs {
+    /// The node's link.
+    #[command(flatten)]
+    pub link: PortArgs,
+    /// The head: `manual` or `sim:HOST:PORT` (as for `acquire`).
+    #[arg(long, value_name = "HEAD")]
+    pub head: accelcal_core::node::head::HeadSpec,
+    /// Position plan: six (the test-turn positions), head, random:N, or a plan file.
+    #[arg(long, default_value = "six")]
+    pub plan: String,
+    /// Sample sets averaged per position, after the stream is static.
+    #[arg(long, default_value_t = 400, value_name = "N")]
+    pub samples: usize,
+    /// Pass bound on every component's error, m/s² [default: derived per position, 4·sqrt(σ_cal² +
+    /// σ_mean²), σ_cal from --fit's standard errors, σ_mean from the measured scatter].
+    #[arg(long, value_name = "M_S2")]
+    pub tolerance: Option<f64>,
+    /// The `fit --json` output of the record's fit: its standard errors enter the derived
+    /// tolerance.
+    #[arg(long, value_name = "FIT_JSON")]
+    pub fit: Option<PathBuf>,
+    /// Gravity at the rig, m/s² [default: 9.81, announced; better --latitude/--height].
+    #[arg(long, value_name = "M_S2")]
+    pub g: Option<f64>,
+    /// Local gravity instead of --g.
+    #[command(flatten)]
+    pub local: LocalGravity,
+    /// Seconds a position may take to become static before it is refused.
+    #[arg(long, default_value_t = 30.0, value_name = "S")]
+    pub settle_timeout_s: f64,
+    /// Write the verification table as JSON to this file.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
 }
 
 /// `accelcal hil`: replay a campaign through the node's QEMU build.

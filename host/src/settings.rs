@@ -66,9 +66,14 @@ fn gravity_of(command: &mut Command) -> Option<(&mut f64, &LocalGravity)> {
 /// Checks `--latitude`/`--height` and puts the local gravity they give into the command's `g`:
 /// `--g` and `--latitude` together are refused, as is `--height` without `--latitude`.
 pub fn resolve_gravity(command: &mut Command, given: &Given) -> anyhow::Result<()> {
-    if let Command::Acquire(a) = command {
-        if let Some(g) = local_gravity(given, &a.local)? {
-            a.g = Some(g);
+    let optional = match command {
+        Command::Acquire(a) => Some((&mut a.g, &a.local)),
+        Command::Verify(a) => Some((&mut a.g, &a.local)),
+        _ => None,
+    };
+    if let Some((g, local)) = optional {
+        if let Some(v) = local_gravity(given, local)? {
+            *g = Some(v);
         }
         return Ok(());
     }
@@ -152,13 +157,19 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
                 )));
             }
             if a.samples < 2 {
-                return Err(bad(format!("--samples must be at least 2 sets per position, got {}", a.samples)));
+                return Err(bad(format!(
+                    "--samples must be at least 2 sets per position, got {}",
+                    a.samples
+                )));
             }
             if a.static_window < 2 || !(a.static_z.is_finite() && a.static_z > 0.0) {
                 return Err(bad("--static-window must be at least 2 sets and --static-z a positive number"));
             }
             if !(a.settle_timeout_s.is_finite() && a.settle_timeout_s > 0.0) {
-                return Err(bad(format!("--settle-timeout-s must be a positive number of seconds, got {}", a.settle_timeout_s)));
+                return Err(bad(format!(
+                    "--settle-timeout-s must be a positive number of seconds, got {}",
+                    a.settle_timeout_s
+                )));
             }
             if let Some(hz) = a.rate {
                 accelcal_shared::wire::check_rate(hz).map_err(|r| bad(format!("--rate: {r}")))?;
@@ -173,6 +184,38 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
             distinct(&[], &[("--json", a.json.as_deref())])
         }
         Command::Output(a) => check_answer_timeout(&a.link),
+        Command::Verify(a) => {
+            if a.tolerance.is_some() {
+                given.refuse(
+                    &["fit"],
+                    "verify --tolerance",
+                    " (it derives the tolerance; --tolerance sets it)",
+                )?;
+            }
+            if let Some(t) = a.tolerance {
+                if !(t.is_finite() && t > 0.0) {
+                    return Err(bad(format!("--tolerance must be a positive number of m/s², got {t}")));
+                }
+            }
+            if a.samples < 2 {
+                return Err(bad(format!(
+                    "--samples must be at least 2 sets per position, got {}",
+                    a.samples
+                )));
+            }
+            if !(a.settle_timeout_s.is_finite() && a.settle_timeout_s > 0.0) {
+                return Err(bad(format!(
+                    "--settle-timeout-s must be a positive number of seconds, got {}",
+                    a.settle_timeout_s
+                )));
+            }
+            if let Some(g) = a.g {
+                crate::cmd::check_g(g)?;
+            }
+            check_answer_timeout(&a.link)?;
+            let fit: Vec<(&str, &Path)> = a.fit.iter().map(|p| ("--fit", p.as_path())).collect();
+            distinct(&fit, &[("--json", a.json.as_deref())])
+        }
         Command::BenchDiagnose(_)
         | Command::Demo(_)
         | Command::Flash(_)
@@ -185,7 +228,10 @@ fn check_answer_timeout(link: &crate::cli::PortArgs) -> anyhow::Result<()> {
     if link.answer_timeout_s.is_finite() && link.answer_timeout_s > 0.0 {
         Ok(())
     } else {
-        Err(bad(format!("--answer-timeout-s must be a positive number of seconds, got {}", link.answer_timeout_s)))
+        Err(bad(format!(
+            "--answer-timeout-s must be a positive number of seconds, got {}",
+            link.answer_timeout_s
+        )))
     }
 }
 

@@ -128,7 +128,9 @@ impl Session {
         match self.rx.recv() {
             Ok(Ok(m)) => Ok(Some(m)),
             Ok(Err(_)) => Ok(None),
-            Err(LinkError::Io(e)) if matches!(e.kind(), io::ErrorKind::TimedOut | io::ErrorKind::WouldBlock) => {
+            Err(LinkError::Io(e))
+                if matches!(e.kind(), io::ErrorKind::TimedOut | io::ErrorKind::WouldBlock) =>
+            {
                 Ok(None)
             }
             Err(e) => Err(self.link(e)),

@@ -12,10 +12,13 @@ use accelcal_core::node::head::{HeadSpec, SimHead};
 use accelcal_core::node::session::{device_id_hex, firmware_version, Session};
 use accelcal_core::output::write_json;
 use accelcal_core::sim::Plan;
+use accelcal_core::verify::{
+    calibrated_rule, uncertainty_from_fit_json, verify, Failed, PositionCheck, Tolerance, VerifyConfig,
+};
 use accelcal_shared::wire::{Info, Output, RecordStatus};
 use serde_json::json;
 
-use crate::cli::{AcquireArgs, InfoArgs, OutputArg, OutputArgs, PortArgs};
+use crate::cli::{AcquireArgs, InfoArgs, OutputArg, OutputArgs, PortArgs, VerifyArgs};
 
 fn open(link: &PortArgs) -> anyhow::Result<Session> {
     Ok(Session::open(&link.port, link.baud, Duration::from_secs_f64(link.answer_timeout_s))?)
@@ -87,7 +90,9 @@ pub fn run_output(a: &OutputArgs) -> anyhow::Result<()> {
     let st = s.set_output(mode)?;
     println!("output: the node now streams {}", st.output.name());
     if let (Output::Calibrated, RecordStatus::Missing(f)) = (st.output, st.record) {
-        println!("note: the node has no record ({f}): its calibrated stream is raw codes flagged uncalibrated");
+        println!(
+            "note: the node has no record ({f}): its calibrated stream is raw codes flagged uncalibrated"
+        );
     }
     Ok(())
 }
@@ -98,7 +103,9 @@ struct ManualHead;
 fn read_line() -> anyhow::Result<String> {
     let mut line = String::new();
     if std::io::stdin().lock().read_line(&mut line)? == 0 {
-        return Err(bad("standard input closed while waiting for the operator (--head manual needs a terminal)"));
+        return Err(bad(
+            "standard input closed while waiting for the operator (--head manual needs a terminal)",
+        ));
     }
     Ok(line)
 }
@@ -164,38 +171,54 @@ impl Progress for Lines {
     }
 }
 
-/// Where the acquisition's g came from, and whether it is the announced fallback.
-fn g_source(a: &AcquireArgs) -> (f64, String, bool) {
-    match (a.g, a.local.latitude) {
-        (Some(g), Some(lat)) => {
-            (g, format!("WGS84 normal gravity at latitude {lat} deg, height {} m", a.local.height.unwrap_or(0.0)), false)
-        }
+/// Where a command's g came from (`--g`, `--latitude`, or the announced 9.81 fallback, which is
+/// announced here, once).
+fn g_source(g: Option<f64>, local: &crate::cli::LocalGravity) -> (f64, String) {
+    let (g, source, fallback) = g_and_source(g, local);
+    if fallback {
+        eprintln!("note: g = 9.81 m/s² (standard gravity) is assumed: give --g or --latitude/--height for the rig's site");
+    }
+    (g, source)
+}
+
+fn g_and_source(g: Option<f64>, local: &crate::cli::LocalGravity) -> (f64, String, bool) {
+    match (g, local.latitude) {
+        (Some(g), Some(lat)) => (
+            g,
+            format!("WGS84 normal gravity at latitude {lat} deg, height {} m", local.height.unwrap_or(0.0)),
+            false,
+        ),
         (Some(g), None) => (g, "--g".into(), false),
         _ => (accelcal_shared::G_STANDARD, "default 9.81 m/s² (no --g or --latitude given)".into(), true),
     }
 }
 
+/// A flag set by Ctrl-C or SIGTERM.
+fn stop_flag() -> anyhow::Result<Arc<AtomicBool>> {
+    let stop = Arc::new(AtomicBool::new(false));
+    let s = stop.clone();
+    ctrlc::set_handler(move || s.store(true, Ordering::Relaxed))
+        .map_err(|e| anyhow::anyhow!("cannot install the Ctrl-C handler: {e}"))?;
+    Ok(stop)
+}
+
+fn connect_head(spec: &HeadSpec) -> anyhow::Result<Box<dyn Positioner>> {
+    Ok(match spec {
+        HeadSpec::Manual => Box::new(ManualHead),
+        HeadSpec::Sim(addr) => Box::new(SimHead::connect(addr, Duration::from_secs(120))?),
+    })
+}
+
 /// Runs `accelcal acquire`.
 pub fn run_acquire(a: &AcquireArgs) -> anyhow::Result<()> {
     let plan = Plan::from_spec(&a.plan, 1).map_err(|e| bad(format!("--plan {e}")))?;
-    let (g, g_source, fallback) = g_source(a);
-    if fallback {
-        eprintln!("note: g = 9.81 m/s² (standard gravity) is assumed: give --g or --latitude/--height for the rig's site");
-    }
-    let stop = Arc::new(AtomicBool::new(false));
-    {
-        let stop = stop.clone();
-        ctrlc::set_handler(move || stop.store(true, Ordering::Relaxed))
-            .map_err(|e| anyhow::anyhow!("cannot install the Ctrl-C handler: {e}"))?;
-    }
+    let (g, g_source) = g_source(a.g, &a.local);
+    let stop = stop_flag()?;
     let mut node = open(&a.link)?;
     if let Some(hz) = a.rate {
         node.set_rate(hz)?;
     }
-    let mut head: Box<dyn Positioner> = match &a.head {
-        HeadSpec::Manual => Box::new(ManualHead),
-        HeadSpec::Sim(addr) => Box::new(SimHead::connect(addr, Duration::from_secs(120))?),
-    };
+    let mut head = connect_head(&a.head)?;
     let cfg = AcquireConfig {
         out: a.out.clone(),
         plan,
@@ -227,6 +250,74 @@ pub fn run_acquire(a: &AcquireArgs) -> anyhow::Result<()> {
         a.out.display(),
         a.samples,
         sum.lost
+    );
+    Ok(())
+}
+
+/// One row of the verification table.
+fn check_line(c: &PositionCheck, n: usize) -> String {
+    let e = c.error_m_s2;
+    let t = c.tolerance_m_s2;
+    format!(
+        "position {}/{n} (alpha {} deg, beta {} deg): error {:+.5} {:+.5} {:+.5} m/s², tolerance {:.5} {:.5} {:.5}: {}",
+        c.position,
+        c.alpha_deg,
+        c.beta_deg,
+        e[0],
+        e[1],
+        e[2],
+        t[0],
+        t[1],
+        t[2],
+        if c.pass { "pass" } else { "FAIL" }
+    )
+}
+
+/// Runs `accelcal verify`.
+pub fn run_verify(a: &VerifyArgs) -> anyhow::Result<()> {
+    let plan = Plan::from_spec(&a.plan, 1).map_err(|e| bad(format!("--plan {e}")))?;
+    let tolerance = match (a.tolerance, &a.fit) {
+        (Some(t), _) => Tolerance::Fixed(t),
+        (None, Some(p)) => {
+            let text = std::fs::read_to_string(p)
+                .map_err(|e| bad(format!("{}: cannot read the fit JSON: {e}", p.display())))?;
+            Tolerance::Derived(Some(uncertainty_from_fit_json(&text, &p.display().to_string())?))
+        }
+        (None, None) => Tolerance::Derived(None),
+    };
+    let (g, g_source) = g_source(a.g, &a.local);
+    let stop = stop_flag()?;
+    let mut node = open(&a.link)?;
+    let mut head = connect_head(&a.head)?;
+    let cfg = VerifyConfig {
+        plan,
+        samples: a.samples,
+        rule: calibrated_rule(),
+        settle_timeout: Duration::from_secs_f64(a.settle_timeout_s),
+        g,
+        tolerance,
+    };
+    println!("verify: g = {g} m/s² ({g_source}); pass rule: {}", cfg.tolerance.describe());
+    let report = verify(&mut node, head.as_mut(), &cfg, &mut |c, n| println!("{}", check_line(c, n)), &stop)?;
+    if let Some(p) = &a.json {
+        write_json(p, &report)?;
+    }
+    if report.interrupted {
+        return Err(anyhow::Error::new(Interrupted(format!(
+            "interrupted after {} of {} positions: the node is not verified",
+            report.positions.len(),
+            cfg.plan.positions.len()
+        ))));
+    }
+    let failed = report.positions.iter().filter(|p| !p.pass).count();
+    if failed > 0 {
+        return Err(anyhow::Error::new(Failed { failed, total: report.positions.len() }));
+    }
+    println!(
+        "verify: PASS, {} positions of device {} (record {})",
+        report.positions.len(),
+        report.device_id,
+        report.record["crc"].as_str().map(|c| format!("CRC {c}")).unwrap_or_default()
     );
     Ok(())
 }

@@ -31,6 +31,7 @@ pub fn run(cli: Cli, warnings: &mut Warnings) -> anyhow::Result<()> {
         Command::Info(a) => live::run_info(&a),
         Command::Output(a) => live::run_output(&a),
         Command::Acquire(a) => live::run_acquire(&a),
+        Command::Verify(a) => live::run_verify(&a),
         Command::Diagnose(a) => diagnose::run(&a, warnings),
         Command::BenchDiagnose(a) => bench_diagnose::run(&a),
     }

@@ -1,0 +1,347 @@
+//! Verification of a calibrated node (`accelcal verify`): with the node streaming calibrated
+//! acceleration, each position of a plan is set, the stream is let settle ([`StaticRule`]), and
+//! the mean acceleration is compared with what the head imposes, `g` times the paper's
+//! kinematics (`accelcal_shared::gravity`).
+//!
+//! A position passes when every component's error is within its tolerance. The tolerance is
+//! either given (`--tolerance`, m/s², the same for every component) or derived per position and
+//! component as `K · sqrt(σ_cal² + σ_mean²)` with `K` = [`TOLERANCE_K`]: `σ_mean` is the standard
+//! error of the measured mean (the recorded sets' scatter over √N), `σ_cal` the uncertainty of
+//! the calibration at that acceleration propagated from the fit's standard errors (`fit --json`):
+//! `sqrt(se(1)² + Σ_j se(a_j)²·a_j²) / |k_ii|` for channel i, whose own-axis sensitivity is
+//! `k_ii`. Without the fit's standard errors, `σ_cal` is 0 and the rule says so.
+
+use std::sync::atomic::AtomicBool;
+use std::time::Duration;
+
+use accelcal_shared::wire::{Block, Output, RecordStatus};
+use serde::Serialize;
+
+use crate::acquire::{block_kind, capture, Captured, Positioner, StaticRule};
+use crate::error::bad;
+use crate::node::session::{device_id_hex, Session};
+use crate::sim::Plan;
+
+/// Coverage factor of the derived tolerance.
+pub const TOLERANCE_K: f64 = 4.0;
+
+/// The static rule for calibrated streams: the default windows, with a per-set floor of half an
+/// LSB of a ±2 g 16-bit ADC (3·10⁻⁴ m/s²).
+pub fn calibrated_rule() -> StaticRule {
+    StaticRule { min_sd: 3e-4, ..StaticRule::default() }
+}
+
+/// One channel's calibration uncertainty, from the fit's standard errors.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ChannelUncertainty {
+    /// Standard error of the zero offset, codes.
+    pub se_bias: f64,
+    /// Standard errors of the sensitivities to ax, ay, az, codes per m/s².
+    pub se_k: [f64; 3],
+    /// The channel's own-axis sensitivity, codes per m/s².
+    pub k_own: f64,
+}
+
+impl ChannelUncertainty {
+    /// Standard uncertainty of the calibrated acceleration along the channel's axis at `a`, m/s².
+    pub fn sigma(&self, a: [f64; 3]) -> f64 {
+        let v = self.se_bias.powi(2) + (0..3).map(|j| (self.se_k[j] * a[j]).powi(2)).sum::<f64>();
+        v.sqrt() / self.k_own.abs()
+    }
+}
+
+/// How the tolerance is set.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Tolerance {
+    /// The same bound for every component, m/s².
+    Fixed(f64),
+    /// Derived from the measurement's scatter and, when known, the fit's standard errors of the
+    /// channels x, y, z.
+    Derived(Option<[ChannelUncertainty; 3]>),
+}
+
+impl Tolerance {
+    /// The rule in words.
+    pub fn describe(&self) -> String {
+        match self {
+            Tolerance::Fixed(t) => format!("|error| <= {t} m/s² on every component (--tolerance)"),
+            Tolerance::Derived(Some(_)) => format!(
+                "|error| <= {TOLERANCE_K}·sqrt(σ_cal² + σ_mean²) per component: σ_cal from the fit's standard errors \
+                 at the position's acceleration, σ_mean the standard error of the measured mean"
+            ),
+            Tolerance::Derived(None) => format!(
+                "|error| <= {TOLERANCE_K}·σ_mean per component, σ_mean the standard error of the measured mean \
+                 (no fit JSON given: the calibration's own uncertainty is not included)"
+            ),
+        }
+    }
+
+    /// Bounds for one position's components.
+    fn bounds(&self, expected: [f64; 3], sd_mean: [f64; 3]) -> [f64; 3] {
+        match self {
+            Tolerance::Fixed(t) => [*t; 3],
+            Tolerance::Derived(cal) => {
+                let mut b = [0.0; 3];
+                for i in 0..3 {
+                    let s_cal = cal.map_or(0.0, |c| c[i].sigma(expected));
+                    b[i] = TOLERANCE_K * (s_cal * s_cal + sd_mean[i] * sd_mean[i]).sqrt();
+                }
+                b
+            }
+        }
+    }
+}
+
+/// Reads the channels' uncertainties from `fit --json` output (model 4 of channels x, y, z).
+pub fn uncertainty_from_fit_json(text: &str, what: &str) -> anyhow::Result<[ChannelUncertainty; 3]> {
+    let v: serde_json::Value =
+        serde_json::from_str(text).map_err(|e| bad(format!("{what}: not a JSON document: {e}")))?;
+    let chans = v["channels"]
+        .as_array()
+        .ok_or_else(|| bad(format!("{what}: no `channels` (is it `fit --json` output?)")))?;
+    let mut out = [ChannelUncertainty { se_bias: 0.0, se_k: [0.0; 3], k_own: 0.0 }; 3];
+    for (i, name) in ["x", "y", "z"].iter().enumerate() {
+        let ch = chans
+            .iter()
+            .find(|c| c["channel"] == *name)
+            .ok_or_else(|| bad(format!("{what}: no channel `{name}`")))?;
+        let terms: Vec<&str> =
+            ch["terms"].as_array().into_iter().flatten().filter_map(|t| t.as_str()).collect();
+        let num = |key: &str, term: &str| -> anyhow::Result<f64> {
+            let at = terms.iter().position(|t| *t == term).ok_or_else(|| {
+                bad(format!("{what}: channel {name} has no term `{term}`: verification needs a model-4 fit"))
+            })?;
+            ch[key][at]
+                .as_f64()
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| bad(format!("{what}: channel {name}: no finite {key} for `{term}`")))
+        };
+        out[i] = ChannelUncertainty {
+            se_bias: num("std_errors", "1")?,
+            se_k: [num("std_errors", "ax")?, num("std_errors", "ay")?, num("std_errors", "az")?],
+            k_own: num("coefficients", ["ax", "ay", "az"][i])?,
+        };
+        if out[i].k_own == 0.0 {
+            return Err(bad(format!("{what}: channel {name} has a zero own-axis sensitivity")));
+        }
+    }
+    Ok(out)
+}
+
+/// A verification in which a position failed (exit code 1: the node, not the input, is wrong).
+#[derive(Debug, thiserror::Error)]
+#[error("verification failed: {failed} of {total} positions outside the tolerance")]
+pub struct Failed {
+    /// Positions that failed.
+    pub failed: usize,
+    /// Positions checked.
+    pub total: usize,
+}
+
+/// Settings of a verification.
+#[derive(Clone, Debug)]
+pub struct VerifyConfig {
+    /// The positions.
+    pub plan: Plan,
+    /// Sets averaged per position.
+    pub samples: usize,
+    /// When the stream is static (m/s²).
+    pub rule: StaticRule,
+    /// How long a position may take to become static.
+    pub settle_timeout: Duration,
+    /// Local gravity, m/s².
+    pub g: f64,
+    /// The pass bound.
+    pub tolerance: Tolerance,
+}
+
+/// One position's check.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct PositionCheck {
+    /// Index in the plan (1-based, as printed).
+    pub position: usize,
+    /// α, degrees.
+    pub alpha_deg: f64,
+    /// β, degrees.
+    pub beta_deg: f64,
+    /// What the head imposes, m/s².
+    pub expected_m_s2: [f64; 3],
+    /// The node's mean calibrated acceleration, m/s².
+    pub measured_m_s2: [f64; 3],
+    /// measured − expected, m/s².
+    pub error_m_s2: [f64; 3],
+    /// Standard error of the measured mean, m/s².
+    pub sd_mean_m_s2: [f64; 3],
+    /// The bound each component's error is held to, m/s².
+    pub tolerance_m_s2: [f64; 3],
+    /// Sets the node lost while this position was recorded.
+    pub lost: u64,
+    /// Every component within its bound.
+    pub pass: bool,
+}
+
+/// A verification's result.
+#[derive(Clone, Debug, Serialize)]
+pub struct VerifyReport {
+    /// The node's device id (hex).
+    pub device_id: String,
+    /// The record in force: slot, sequence, created, CRC (hex).
+    pub record: serde_json::Value,
+    /// Gravity used, m/s².
+    pub g_m_s2: f64,
+    /// The tolerance rule in words.
+    pub tolerance_rule: String,
+    /// The static rule in words.
+    pub static_rule: String,
+    /// Every position checked.
+    pub positions: Vec<PositionCheck>,
+    /// Every position passed (false also when interrupted).
+    pub pass: bool,
+    /// Stopped on request before the end.
+    pub interrupted: bool,
+}
+
+/// Calibrated blocks as values in m/s².
+fn calibrated_values(b: &Block) -> Result<Vec<[f64; 3]>, String> {
+    match b {
+        Block::Calibrated(v) => Ok(v.iter().map(|a| a.map(f64::from)).collect()),
+        Block::CalibratedFixed(v) => {
+            Ok(v.iter().map(|a| a.map(|q| q as f64 / accelcal_shared::contract::FIXED_SCALE)).collect())
+        }
+        Block::Uncalibrated(_) => {
+            Err("the node has no valid record: it streams uncalibrated codes (see `accelcal info`)".into())
+        }
+        other => Err(format!(
+            "the node streams {} blocks after it was switched to calibrated output",
+            block_kind(other)
+        )),
+    }
+}
+
+/// The record in force as JSON (null when none).
+pub fn record_json(r: RecordStatus) -> serde_json::Value {
+    match r {
+        RecordStatus::InUse { slot, sequence, created_unix_s, crc } => serde_json::json!({
+            "slot": slot, "sequence": sequence, "created_unix_s": created_unix_s, "crc": format!("{crc:08x}")
+        }),
+        RecordStatus::Missing(_) => serde_json::Value::Null,
+    }
+}
+
+/// Runs a verification; `on_position` sees each check as it is made.
+pub fn verify(
+    node: &mut Session,
+    head: &mut dyn Positioner,
+    cfg: &VerifyConfig,
+    on_position: &mut dyn FnMut(&PositionCheck, usize),
+    stop: &AtomicBool,
+) -> anyhow::Result<VerifyReport> {
+    let info = node.info()?;
+    if let RecordStatus::Missing(f) = info.record {
+        return Err(bad(format!(
+            "{}: the node has no record in force ({f}): nothing to verify",
+            node.port()
+        )));
+    }
+    let before = info.output;
+    node.set_output(Output::Calibrated)?;
+    let mut report = VerifyReport {
+        device_id: device_id_hex(&info.device_id),
+        record: record_json(info.record),
+        g_m_s2: cfg.g,
+        tolerance_rule: cfg.tolerance.describe(),
+        static_rule: cfg.rule.describe(),
+        positions: Vec::new(),
+        pass: false,
+        interrupted: false,
+    };
+    let result = run(node, head, cfg, on_position, stop, &mut report);
+    let restored = if before != Output::Calibrated { node.set_output(before).map(|_| ()) } else { Ok(()) };
+    result?;
+    restored?;
+    report.pass = !report.interrupted && report.positions.iter().all(|p| p.pass);
+    Ok(report)
+}
+
+fn run(
+    node: &mut Session,
+    head: &mut dyn Positioner,
+    cfg: &VerifyConfig,
+    on_position: &mut dyn FnMut(&PositionCheck, usize),
+    stop: &AtomicBool,
+    report: &mut VerifyReport,
+) -> anyhow::Result<()> {
+    let n = cfg.plan.positions.len();
+    for (k, &(a, b)) in cfg.plan.positions.iter().enumerate() {
+        let expected = accelcal_shared::gravity(a, b, cfg.g);
+        let cap = loop {
+            head.set(k, n, (a, b), expected)?;
+            match capture(node, cfg.rule, cfg.settle_timeout, cfg.samples, stop, calibrated_values)? {
+                Captured::Done(c) => break c,
+                Captured::Stopped => {
+                    report.interrupted = true;
+                    return Ok(());
+                }
+                Captured::Unsettled(why) => {
+                    if !head.unsettled(k, &why)? {
+                        return Err(bad(format!(
+                            "position {} of {n} (alpha {a} deg, beta {b} deg): {why}",
+                            k + 1
+                        )));
+                    }
+                }
+            }
+        };
+        let measured = cap.mean();
+        let sd_mean = cap.sd().map(|s| s / (cap.sets.len() as f64).sqrt());
+        let error = [0, 1, 2].map(|i| measured[i] - expected[i]);
+        let bound = cfg.tolerance.bounds(expected, sd_mean);
+        let check = PositionCheck {
+            position: k + 1,
+            alpha_deg: a,
+            beta_deg: b,
+            expected_m_s2: expected,
+            measured_m_s2: measured,
+            error_m_s2: error,
+            sd_mean_m_s2: sd_mean,
+            tolerance_m_s2: bound,
+            lost: cap.lost,
+            pass: (0..3).all(|i| error[i].abs() <= bound[i]),
+        };
+        on_position(&check, n);
+        report.positions.push(check);
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tolerances_follow_the_stated_rule() {
+        let c = ChannelUncertainty { se_bias: 0.5, se_k: [0.03, 0.0, 0.0], k_own: 1670.0 };
+        let a = [9.81, 0.0, 0.0];
+        let s = c.sigma(a);
+        assert!((s - (0.25f64 + (0.03f64 * 9.81).powi(2)).sqrt() / 1670.0).abs() < 1e-15);
+        let t = Tolerance::Derived(Some([c; 3]));
+        let b = t.bounds(a, [0.002, 0.0, 0.0]);
+        assert!((b[0] - 4.0 * (s * s + 4e-6).sqrt()).abs() < 1e-12);
+        assert_eq!(Tolerance::Fixed(0.01).bounds(a, [1.0; 3]), [0.01; 3]);
+        assert_eq!(Tolerance::Derived(None).bounds(a, [0.001; 3]), [0.004; 3]);
+        assert!(Tolerance::Derived(None).describe().contains("not included"));
+    }
+
+    #[test]
+    fn uncertainties_are_read_from_fit_json() {
+        let j = r#"{"method":"lsq","channels":[
+            {"channel":"x","terms":["1","ax","ay","az"],"coefficients":[32768,1670,3,-2],"std_errors":[0.5,0.01,0.02,0.03]},
+            {"channel":"y","terms":["1","ax","ay","az"],"coefficients":[32000,1,1650,2],"std_errors":[0.6,0.01,0.02,0.03]},
+            {"channel":"z","terms":["1","ax","ay","az"],"coefficients":[33000,1,2,1690],"std_errors":[0.7,0.01,0.02,0.03]}]}"#;
+        let u = uncertainty_from_fit_json(j, "fit.json").unwrap();
+        assert_eq!(u[1], ChannelUncertainty { se_bias: 0.6, se_k: [0.01, 0.02, 0.03], k_own: 1650.0 });
+        let quad = j.replacen(r#""terms":["1","ax","ay","az"]"#, r#""terms":["1","ax","ay","ax^2"]"#, 1);
+        let e = uncertainty_from_fit_json(&quad, "fit.json").unwrap_err().to_string();
+        assert!(e.contains("channel x has no term `az`"), "{e}");
+    }
+}
