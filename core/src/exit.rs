@@ -21,6 +21,7 @@ pub fn is_bad_input(e: &anyhow::Error) -> bool {
             || c.is::<crate::node::link::LinkError>()
             || c.is::<crate::node::session::SessionError>()
             || c.is::<crate::node::head::HeadError>()
+            || c.is::<crate::node::gdb::GdbError>()
     })
 }
 

@@ -428,6 +428,22 @@ pub struct FlashArgs {
     /// Debug probe to use, as VID:PID or VID:PID:SERIAL [default: the first one found].
     #[arg(long, value_name = "SELECTOR")]
     pub probe: Option<String>,
+    /// Write through a GDB server instead of probe-rs: Black Magic Probe, OpenOCD, or the
+    /// `gdb` address that `accelcal emulate` prints.
+    #[arg(long, value_name = "HOST:PORT")]
+    pub gdb: Option<String>,
+    /// The node's serial port: after the write and the reset, the node is asked which record it
+    /// runs (the write is confirmed only if it is the new one); with --gdb, also where the
+    /// device id comes from when the server cannot read the MCU's unique id (QEMU).
+    #[arg(long, value_name = "DEV")]
+    pub port: Option<String>,
+    /// Baud rate of the node's USART1 (with --port; a pty ignores it).
+    #[arg(long, default_value_t = accelcal_core::node::monitor::NODE_BAUD)]
+    pub baud: u32,
+    /// Fault injection for tests of the torn-write safety (with --gdb): erase the target slot,
+    /// write only this many bytes of its page, then reset the MCU. The old record stays in force.
+    #[arg(long, value_name = "BYTES")]
+    pub cut_after: Option<usize>,
 }
 
 /// `accelcal record`: the calibration record files.

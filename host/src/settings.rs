@@ -216,11 +216,22 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
             let fit: Vec<(&str, &Path)> = a.fit.iter().map(|p| ("--fit", p.as_path())).collect();
             distinct(&fit, &[("--json", a.json.as_deref())])
         }
-        Command::BenchDiagnose(_)
-        | Command::Demo(_)
-        | Command::Flash(_)
-        | Command::Monitor(_)
-        | Command::Plan(_) => Ok(()),
+        Command::Flash(a) => {
+            if a.gdb.is_some() {
+                given.refuse(&["chip", "probe"], "flash --gdb", " (they select a probe-rs probe)")?;
+            } else {
+                given.refuse(
+                    &["cut_after"],
+                    "flash without --gdb",
+                    " (it cuts a write through a GDB server)",
+                )?;
+            }
+            if a.port.is_none() {
+                given.refuse(&["baud"], "flash without --port", "")?;
+            }
+            Ok(())
+        }
+        Command::BenchDiagnose(_) | Command::Demo(_) | Command::Monitor(_) | Command::Plan(_) => Ok(()),
     }
 }
 

@@ -59,6 +59,15 @@ pub enum FlashError {
     /// probe-rs failed.
     #[error("probe: {0}")]
     Probe(String),
+    /// The GDB server failed.
+    #[error(transparent)]
+    Gdb(#[from] super::gdb::GdbError),
+    /// The GDB server cannot read the MCU's unique id and the node's link did not give it.
+    #[error(
+        "the gdb server cannot read the MCU's unique id at {UID_ADDR:#010x} ({0}); give --port so that the node \
+         tells its id over its link (QEMU does not map the unique-id area)"
+    )]
+    NoDeviceId(String),
     /// The write failed and the reset after it failed too: the core may be left halted.
     #[error("{error}; resetting the core afterwards failed too ({reset}): power-cycle the node")]
     NotReset {
@@ -148,33 +157,170 @@ fn finish(
     }
 }
 
+/// What writing a record slot needs of the node's memory: a probe-rs session, or a GDB server.
+pub trait NodeMemory {
+    /// Reads `buf.len()` bytes at `addr`.
+    fn read(&mut self, addr: u32, buf: &mut [u8]) -> Result<(), FlashError>;
+    /// Writes one 32-bit word at `addr` (a peripheral register).
+    fn write_u32(&mut self, addr: u32, v: u32) -> Result<(), FlashError>;
+    /// Erases the flash page at `addr` and programs `page` into it, in ascending order.
+    fn program_page(&mut self, addr: u32, page: &[u8]) -> Result<(), FlashError>;
+}
+
+/// A probe-rs session as [`NodeMemory`].
+struct Probe<'a>(&'a mut Session);
+
+impl NodeMemory for Probe<'_> {
+    fn read(&mut self, addr: u32, buf: &mut [u8]) -> Result<(), FlashError> {
+        self.0.core(0).map_err(probe_err)?.read_8(addr.into(), buf).map_err(probe_err)
+    }
+    fn write_u32(&mut self, addr: u32, v: u32) -> Result<(), FlashError> {
+        self.0.core(0).map_err(probe_err)?.write_word_32(addr.into(), v).map_err(probe_err)
+    }
+    fn program_page(&mut self, addr: u32, page: &[u8]) -> Result<(), FlashError> {
+        let mut loader = self.0.target().flash_loader();
+        // The whole page: exactly one 2 KiB sector, erased bytes included, programmed in ascending
+        // double words, so the commit double word at the page's end is programmed last.
+        loader.add_data(addr.into(), page).map_err(probe_err)?;
+        let mut options = DownloadOptions::default();
+        options.keep_unwritten_bytes = true;
+        options.verify = true;
+        loader.commit(self.0, options).map_err(probe_err)
+    }
+}
+
+/// A GDB server as [`NodeMemory`]. Flash is programmed by the server's flash driver when it has
+/// one (`vFlashErase`/`vFlashWrite`/`vFlashDone`: Black Magic Probe, OpenOCD); otherwise (QEMU's
+/// gdbstub, whose flash is plain memory) the page is first filled with 0xFF, as an erase leaves
+/// it, then written in ascending chunks, so that the commit double word at its end lands last.
+pub struct Gdb {
+    client: super::gdb::GdbClient,
+    /// Program only this many bytes of the page after erasing it, then stop (a write cut
+    /// part-way, for tests of the torn-write safety).
+    pub cut_after: Option<usize>,
+}
+
+impl NodeMemory for Gdb {
+    fn read(&mut self, addr: u32, buf: &mut [u8]) -> Result<(), FlashError> {
+        Ok(self.client.read(addr, buf)?)
+    }
+    fn write_u32(&mut self, addr: u32, v: u32) -> Result<(), FlashError> {
+        Ok(self.client.write(addr, &v.to_le_bytes())?)
+    }
+    fn program_page(&mut self, addr: u32, page: &[u8]) -> Result<(), FlashError> {
+        let n = self.cut_after.unwrap_or(page.len()).min(page.len());
+        if self.cut_after.is_none() && self.client.program_flash(addr, page)? {
+            return Ok(());
+        }
+        self.client.write(addr, &vec![0xFF; page.len()])?;
+        Ok(self.client.write(addr, &page[..n])?)
+    }
+}
+
+/// SCB AIRCR (ARMv7-M ARM §B3.2.6): VECTKEY 0x05FA with SYSRESETREQ requests a system reset.
+const AIRCR: u32 = 0xE000_ED0C;
+const AIRCR_SYSRESETREQ: u32 = 0x05FA_0004;
+
+/// What a write through a GDB server did.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GdbFlash {
+    /// The record was written and read back in force; the MCU was reset.
+    Written(FlashReport),
+    /// The write was cut after `bytes` bytes of slot `slot` (`cut_after`), and the MCU reset.
+    Cut {
+        /// Slot written in part.
+        slot: u8,
+        /// Bytes written after the erase.
+        bytes: usize,
+    },
+}
+
+/// Writes `record` into the inactive slot through the GDB server at `addr` (steps 1–5 of the
+/// module docs), then resets the MCU (SYSRESETREQ) and detaches, so the node boots with the new
+/// record. `device_id` is the node's id as its link reports it, used when the server cannot read
+/// the unique-id area (QEMU). `cut_after` stops the page write part-way (tests).
+pub fn flash_record_gdb(
+    record: &[u8],
+    addr: &str,
+    device_id: Option<[u8; 12]>,
+    cut_after: Option<usize>,
+) -> Result<GdbFlash, FlashError> {
+    let rec = Record::parse(record).map_err(FlashError::Record)?;
+    accelcal_shared::boot::gate(&rec).map_err(FlashError::Refused)?;
+    let record = &record[..rec.len()];
+    let client = super::gdb::GdbClient::connect(addr, std::time::Duration::from_secs(10))?;
+    let mut mem = Gdb { client, cut_after };
+    let mut uid = [0u8; 12];
+    let uid = match mem.read(UID_ADDR, &mut uid) {
+        Ok(()) => uid,
+        Err(e) => device_id.ok_or_else(|| FlashError::NoDeviceId(e.to_string()))?,
+    };
+    let result = match cut_after {
+        None => write_slot(&mut mem, &rec, record, uid).map(GdbFlash::Written),
+        Some(n) => plan_write(&mut mem, &rec, record, uid).and_then(|plan| {
+            mem.program_page(SLOT_ADDRS[plan.slot as usize], &plan.page)?;
+            Ok(GdbFlash::Cut { slot: plan.slot, bytes: n.min(plan.page.len()) })
+        }),
+    };
+    // Reset and let the target run, whatever happened once connected.
+    let reset = mem.write_u32(AIRCR, AIRCR_SYSRESETREQ).and_then(|()| Ok(mem.client.detach()?));
+    match (result, reset) {
+        (Ok(r), Ok(())) => Ok(r),
+        (Ok(_), Err(e)) => Err(FlashError::Probe(format!("resetting the MCU after the write: {e}"))),
+        (Err(e), Ok(())) => Err(e),
+        (Err(error), Err(reset)) => {
+            Err(FlashError::NotReset { error: Box::new(error), reset: reset.to_string() })
+        }
+    }
+}
+
 /// Steps 1–5 of the module docs on an attached session (the caller resets the core).
 fn write_attached(session: &mut Session, rec: &Record, record: &[u8]) -> Result<FlashReport, FlashError> {
-    let mut slots = [[0u8; SLOT_SIZE]; N_SLOTS];
+    let mut mem = Probe(session);
     let mut uid = [0u8; 12];
-    let readable = read_slots(session, &mut slots)?;
-    session.core(0).map_err(probe_err)?.read_8(UID_ADDR.into(), &mut uid).map_err(probe_err)?;
+    mem.read(UID_ADDR, &mut uid)?;
+    write_slot(&mut mem, rec, record, uid)
+}
+
+/// Reads both slots, checks the device, plans the write, programs the slot not in force and
+/// reads both slots back to check that the new record is in force (steps 1–5; `uid` is the MCU's
+/// unique id as read by the caller).
+pub fn write_slot(
+    mem: &mut impl NodeMemory,
+    rec: &Record,
+    record: &[u8],
+    uid: [u8; 12],
+) -> Result<FlashReport, FlashError> {
+    let plan = plan_write(mem, rec, record, uid)?;
+    let address = SLOT_ADDRS[plan.slot as usize];
+    mem.program_page(address, &plan.page)?;
+    check_in_force(mem, &plan)?;
+    Ok(FlashReport { slot: plan.slot, sequence: plan.sequence, address: address.into() })
+}
+
+/// Steps 1–3: the slots as they are, the device check, and the plan.
+pub fn plan_write(
+    mem: &mut impl NodeMemory,
+    rec: &Record,
+    record: &[u8],
+    uid: [u8; 12],
+) -> Result<WritePlan, FlashError> {
+    let mut slots = [[0u8; SLOT_SIZE]; N_SLOTS];
+    let readable = read_slots(mem, &mut slots)?;
     if rec.device_id != uid {
         return Err(FlashError::WrongDevice { record: hex(&rec.device_id), mcu: hex(&uid) });
     }
-    let plan = WritePlan::from_readings(readings(&slots, readable), record).map_err(FlashError::Plan)?;
-    let address = SLOT_ADDRS[plan.slot as usize].into();
+    WritePlan::from_readings(readings(&slots, readable), record).map_err(FlashError::Plan)
+}
 
-    let mut loader = session.target().flash_loader();
-    // The whole page: exactly one 2 KiB sector, erased bytes included, programmed in ascending
-    // double words, so the commit double word at the page's end is programmed last.
-    loader.add_data(address, &plan.page).map_err(probe_err)?;
-    let mut options = DownloadOptions::default();
-    options.keep_unwritten_bytes = true;
-    options.verify = true;
-    loader.commit(session, options).map_err(probe_err)?;
-
-    let readable = read_slots(session, &mut slots)?;
+/// Step 5: reads both slots and checks that the planned write is in force.
+pub fn check_in_force(mem: &mut impl NodeMemory, plan: &WritePlan) -> Result<(), FlashError> {
+    let mut slots = [[0u8; SLOT_SIZE]; N_SLOTS];
+    let readable = read_slots(mem, &mut slots)?;
     match select_readings(readings(&slots, readable)) {
-        Ok(a) if a.slot == plan.slot && a.image.sequence == plan.sequence => {}
-        _ => return Err(FlashError::Verify(plan.slot)),
+        Ok(a) if a.slot == plan.slot && a.image.sequence == plan.sequence => Ok(()),
+        _ => Err(FlashError::Verify(plan.slot)),
     }
-    Ok(FlashReport { slot: plan.slot, sequence: plan.sequence, address })
 }
 
 /// The slot readings: a slot's bytes when it was readable.
@@ -182,25 +328,25 @@ fn readings(slots: &[[u8; SLOT_SIZE]; N_SLOTS], readable: [bool; N_SLOTS]) -> [O
     [0, 1].map(|i| readable[i].then_some(&slots[i][..]))
 }
 
-/// Reads both slots through the probe; returns which ones were readable. A slot is unreadable
-/// when the probe's read fails or when reading it raised a double ECC error in it (FLASH_ECCR, the
-/// same decision as the node's NMI handler, [`nmi_action`]); that error is then cleared. (If the
-/// node's firmware is running, its NMI handler may clear ECCD first; the torn slot's bytes then
-/// fail its commit or CRC check, so it is not in force and is planned as the target all the same.)
+/// Reads both slots; returns which ones were readable. A slot is unreadable when the read fails
+/// or when reading it raised a double ECC error in it (FLASH_ECCR, the same decision as the node's
+/// NMI handler, [`nmi_action`]); that error is then cleared. (If the node's firmware is running,
+/// its NMI handler may clear ECCD first; the torn slot's bytes then fail its commit or CRC check,
+/// so it is not in force and is planned as the target all the same.)
 fn read_slots(
-    session: &mut Session,
+    mem: &mut impl NodeMemory,
     slots: &mut [[u8; SLOT_SIZE]; N_SLOTS],
 ) -> Result<[bool; N_SLOTS], FlashError> {
-    let mut core = session.core(0).map_err(probe_err)?;
     let mut readable = [true; N_SLOTS];
     for (i, buf) in slots.iter_mut().enumerate() {
-        if core.read_8(SLOT_ADDRS[i].into(), buf).is_err() {
+        if mem.read(SLOT_ADDRS[i], buf).is_err() {
             readable[i] = false;
         }
-        let eccr = core.read_word_32(FLASH_ECCR_ADDR.into()).map_err(probe_err)?;
-        if let NmiAction::SlotUnreadable { slot, clear } = nmi_action(eccr) {
+        let mut eccr = [0u8; 4];
+        mem.read(FLASH_ECCR_ADDR, &mut eccr)?;
+        if let NmiAction::SlotUnreadable { slot, clear } = nmi_action(u32::from_le_bytes(eccr)) {
             readable[slot as usize] = false;
-            core.write_word_32(FLASH_ECCR_ADDR.into(), clear).map_err(probe_err)?;
+            mem.write_u32(FLASH_ECCR_ADDR, clear)?;
         }
     }
     Ok(readable)

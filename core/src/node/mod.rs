@@ -4,6 +4,7 @@
 //! `accelcal_shared::wire` over any byte stream.
 
 pub mod flash;
+pub mod gdb;
 pub mod head;
 pub mod hil;
 pub mod link;

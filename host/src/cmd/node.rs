@@ -4,7 +4,9 @@ use std::io::Write;
 use std::path::PathBuf;
 
 use accelcal_core::error::bad;
+use accelcal_core::node::session::Session;
 use accelcal_core::node::{flash, hil, monitor};
+use accelcal_shared::wire::RecordStatus;
 use anyhow::Context;
 
 use crate::cli::{FlashArgs, HilArgs, MonitorArgs};
@@ -19,16 +21,62 @@ pub fn run_flash(a: &FlashArgs) -> anyhow::Result<()> {
     let rec = accelcal_shared::record::Record::parse(&record)
         .map_err(|e| bad(format!("{}: {e}", a.record.display())))?;
     accelcal_core::calibrate::gate(&a.record, &rec)?;
-    let r = flash::flash_record(&record, &a.chip, a.probe.as_deref())
-        .with_context(|| format!("writing {} to the node", a.record.display()))?;
+    let answer = std::time::Duration::from_secs(10);
+    let node_id = match (&a.gdb, &a.port) {
+        (Some(_), Some(port)) => Some(Session::open(port, a.baud, answer)?.info()?.device_id),
+        _ => None,
+    };
+    let writing = || format!("writing {} to the node", a.record.display());
+    let (slot, sequence, address) = match &a.gdb {
+        None => {
+            let r = flash::flash_record(&record, &a.chip, a.probe.as_deref()).with_context(writing)?;
+            (r.slot, r.sequence, r.address)
+        }
+        Some(addr) => {
+            match flash::flash_record_gdb(&record, addr, node_id, a.cut_after).with_context(writing)? {
+                flash::GdbFlash::Written(r) => (r.slot, r.sequence, r.address),
+                flash::GdbFlash::Cut { slot, bytes } => {
+                    println!(
+                    "flash: write CUT after {bytes} bytes of record slot {slot} (--cut-after), MCU reset: the previous \
+                     record stays in force"
+                );
+                    return Ok(());
+                }
+            }
+        }
+    };
     println!(
-        "flash: wrote {} to record slot {} at {:#010x}, sequence {}; the node now uses it",
-        a.record.display(),
-        r.slot,
-        r.address,
-        r.sequence
+        "flash: wrote {} to record slot {slot} at {address:#010x}, sequence {sequence}; MCU reset",
+        a.record.display()
     );
+    if let Some(port) = &a.port {
+        let crc = u32::from_le_bytes(record[rec.len() - 4..rec.len()].try_into().expect("4 bytes"));
+        confirm(port, a.baud, slot, sequence, crc)?;
+    }
     Ok(())
+}
+
+/// Asks the rebooted node which record it runs; it must be the one just written.
+fn confirm(port: &str, baud: u32, slot: u8, sequence: u32, crc: u32) -> anyhow::Result<()> {
+    let mut s = Session::open(port, baud, std::time::Duration::from_secs(10))?;
+    // The node reboots: wait for its first answer.
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(20);
+    let info = loop {
+        match s.info() {
+            Ok(i) => break i,
+            Err(e) if std::time::Instant::now() > deadline => return Err(e.into()),
+            Err(_) => {}
+        }
+    };
+    match info.record {
+        RecordStatus::InUse { slot: s2, sequence: q, crc: c, .. } if (s2, q, c) == (slot, sequence, crc) => {
+            println!("flash: confirmed over {port}: the node runs the new record (slot {slot}, sequence {sequence}, CRC {crc:08x})");
+            Ok(())
+        }
+        other => Err(anyhow::Error::new(flash::FlashError::Verify(slot)).context(format!(
+            "{port}: after the reset the node reports {other:?}, not the new record (slot {slot}, sequence {sequence}, CRC {crc:08x})"
+        ))),
+    }
 }
 
 /// Runs `accelcal monitor`.
