@@ -16,6 +16,7 @@ pub mod campaign;
 pub mod compare;
 pub mod diagnose;
 pub mod effects;
+pub mod emulate;
 pub mod error;
 pub mod exit;
 pub mod gmdh;

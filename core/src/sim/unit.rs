@@ -257,16 +257,7 @@ impl Unit {
     /// bench has no temperature).
     pub fn for_node(t: &Truth) -> Result<Unit, UnitError> {
         let u = Unit::from_truth(t)?;
-        let got: Vec<String> = u.channels.iter().map(|c| format!("{}:{}", c.name, c.axis)).collect();
-        let triad = u.channels.len() == 3
-            && u.channels
-                .iter()
-                .zip(["x", "y", "z"])
-                .enumerate()
-                .all(|(i, (c, n))| c.name == n && c.axis == i);
-        if !triad {
-            return Err(UnitError::NotATriad(format!("[{}]", got.join(", "))));
-        }
+        u.check_triad()?;
         if let Some((index, e)) = u.effects.iter().enumerate().find(|(_, e)| e.needs_temperature()) {
             return Err(UnitError::Effect {
                 index,
@@ -277,6 +268,23 @@ impl Unit {
             });
         }
         Ok(u)
+    }
+
+    /// Checks that the unit is a triad: exactly three channels `x`, `y`, `z` along axes 0, 1, 2.
+    pub fn check_triad(&self) -> Result<(), UnitError> {
+        let triad = self.channels.len() == 3
+            && self
+                .channels
+                .iter()
+                .zip(["x", "y", "z"])
+                .enumerate()
+                .all(|(i, (c, n))| c.name == n && c.axis == i);
+        if triad {
+            return Ok(());
+        }
+        let got: Vec<String> =
+            self.channels.iter().map(|c| format!("{} (axis {})", c.name, c.axis)).collect();
+        Err(UnitError::NotATriad(got.join(", ")))
     }
 
     /// Reads a truth file (`accelcal simulate --truth`) and rebuilds the unit for the emulated
