@@ -318,3 +318,138 @@ impl Unit {
         sample_set(&self.channels, &self.effects, set, noise, rng, true, |ch, u| out[ch] = u);
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::{simulate, Layout, SimConfig};
+    use rand::SeedableRng;
+    use rand_chacha::ChaCha8Rng;
+    use rand_distr::StandardNormal;
+
+    const SPECS: [&str; 6] = [
+        "settling=gain:3.5,tau:0.25",
+        "hysteresis=h:7",
+        "nonlinearity=k2:0.4,ax*ay:0.125,ax*ay*az:1e-3",
+        "bias_drift=rate:0.3",
+        "angle_error=sd_mrad:2",
+        "head_misalignment=rx_mrad:1.5,rz_mrad:-0.7",
+    ];
+
+    fn config(seed: u64, samples: usize) -> SimConfig {
+        SimConfig {
+            seed,
+            samples,
+            effects: SPECS.iter().map(|s| super::effects::parse(s).unwrap()).collect(),
+            ..SimConfig::default()
+        }
+    }
+
+    #[test]
+    fn the_unit_reproduces_simulate_bit_for_bit() {
+        let cfg = config(7, 12);
+        let (c, truth) = simulate(&cfg);
+        let unit = Unit::from_truth(&truth).unwrap();
+        // `simulate` draws 4 normals per channel (bias, scale, two misalignments) before the noise.
+        let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
+        for _ in 0..4 * unit.channels.len() {
+            let _: f64 = rng.sample(StandardNormal);
+        }
+        let noise = unit.noise_distribution();
+        let dt = 1.0 / cfg.rate_hz;
+        let (mut t, mut row, mut prev_accel) = (0.0f64, 0, None);
+        for (p, &angles) in cfg.plan.positions.iter().enumerate() {
+            let accel = unit.standing_accel(p, angles);
+            for s in 0..cfg.samples {
+                let set = SetCtx {
+                    t_s: t,
+                    position: p,
+                    sample: s,
+                    accel,
+                    t_in_dwell_s: s as f64 * dt,
+                    temp_c: f64::NAN,
+                    prev_accel,
+                };
+                let mut out = [0.0; 3];
+                unit.sample(&set, &noise, &mut rng, &mut out);
+                for ch in 0..3 {
+                    assert_eq!(
+                        out[ch].to_bits(),
+                        c.channels[ch].codes[row].to_bits(),
+                        "position {p} sample {s}"
+                    );
+                }
+                row += 1;
+                t += dt;
+            }
+            prev_accel = Some(accel);
+            t += cfg.move_s;
+        }
+        assert_eq!(row, c.len());
+    }
+
+    #[test]
+    fn descriptions_rebuild_the_same_effects() {
+        let mut specs: Vec<String> = SPECS.iter().map(|s| s.to_string()).collect();
+        specs.extend(crate::effects::names().map(String::from));
+        specs.push("temperature=bias:0.1,scale:-35.25,t_ref:20".into());
+        specs.push("bias_drift=rate:1e-300".into());
+        for s in &specs {
+            let e = super::effects::parse(s).unwrap();
+            let d = e.describe();
+            let rebuilt = super::effects::from_description(&d).unwrap();
+            assert_eq!(rebuilt.name(), e.name());
+            assert_eq!(rebuilt.describe(), d, "{s}");
+        }
+    }
+
+    #[test]
+    fn bad_entries_and_layouts_are_named() {
+        let (_, mut truth) = simulate(&SimConfig { samples: 1, ..config(3, 1) });
+        assert_eq!(Unit::for_node(&truth).unwrap().effects.len(), SPECS.len());
+        truth.effects.push(serde_json::json!({"name": "settling", "tau": "long"}));
+        let e = Unit::from_truth(&truth).unwrap_err().to_string();
+        assert!(e.starts_with("effects[6]: effect `settling`: `tau` must be a number"), "{e}");
+        truth.effects[6] = serde_json::json!({"name": "wobble", "a": 1});
+        let e = Unit::from_truth(&truth).unwrap_err().to_string();
+        assert!(e.contains("effects[6]") && e.contains("unknown effect `wobble`"), "{e}");
+        truth.effects[6] = serde_json::json!("settling");
+        assert!(Unit::from_truth(&truth).unwrap_err().to_string().contains("effects[6]: expected an object"));
+        truth.effects[6] = serde_json::json!({"name": "temperature", "bias": 1.0});
+        assert!(Unit::from_truth(&truth).is_ok());
+        let e = Unit::for_node(&truth).unwrap_err().to_string();
+        assert!(e.contains("effects[6]") && e.contains("needs a temperature"), "{e}");
+
+        let (_, block) =
+            simulate(&SimConfig { samples: 1, layout: Layout::Block(3), ..SimConfig::default() });
+        assert!(Unit::from_truth(&block).is_ok());
+        let e = Unit::for_node(&block).unwrap_err().to_string();
+        assert!(e.contains("expected channels x, y, z along axes 0, 1, 2, got a1 (axis 0)"), "{e}");
+        let (_, mut swapped) = simulate(&SimConfig { samples: 1, ..SimConfig::default() });
+        swapped.channels.swap(0, 1);
+        assert!(matches!(Unit::for_node(&swapped), Err(UnitError::NotATriad(_))));
+        swapped.channels.pop();
+        assert!(matches!(Unit::for_node(&swapped), Err(UnitError::NotATriad(_))));
+    }
+
+    #[test]
+    fn truth_files_are_read_and_their_errors_name_the_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let (_, truth) = simulate(&config(4, 1));
+        let p = dir.path().join("unit.json");
+        std::fs::write(&p, serde_json::to_string_pretty(&truth).unwrap()).unwrap();
+        let u = Unit::read_for_node(&p).unwrap();
+        assert_eq!(u.channels.len(), 3);
+        std::fs::write(&p, "{}").unwrap();
+        let e = Unit::read_for_node(&p).unwrap_err().to_string();
+        assert!(e.starts_with(&format!("{}: not a truth file", p.display())), "{e}");
+        let mut bad = truth.clone();
+        bad.g = f64::NAN;
+        std::fs::write(&p, serde_json::to_string(&bad).unwrap().replace("NaN", "null")).unwrap();
+        assert!(Unit::read_for_node(&p).is_err());
+        bad.g = -1.0;
+        std::fs::write(&p, serde_json::to_string(&bad).unwrap()).unwrap();
+        let e = Unit::read_for_node(&p).unwrap_err().to_string();
+        assert!(e.contains("unit.json: g must be a finite number > 0"), "{e}");
+    }
+}
