@@ -276,3 +276,201 @@ pub fn read_ctl<R: Read>(
     }
     Ok(stats)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::emulate::head::{Clock, HeadState, Motion};
+    use crate::sim::{effects, simulate, Plan, SimConfig};
+    use accelcal_shared::frontend::lost_between;
+    use std::sync::Arc;
+    use std::time::Instant;
+
+    fn unit(cfg: &SimConfig) -> Unit {
+        Unit::for_node(&simulate(cfg).1).unwrap()
+    }
+
+    #[test]
+    fn standing_codes_average_to_bias_plus_k_times_the_kinematics() {
+        let cfg = SimConfig { seed: 11, samples: 1, ..SimConfig::default() };
+        let u = unit(&cfg);
+        let chans = u.channels.clone();
+        let mut fe = FrontEnd::new(u, 5).unwrap();
+        let pose = HeadState::new(Motion::default(), (30.0, -60.0)).pose(1.0);
+        let n = 4000u64;
+        let mut sum = [0.0f64; 3];
+        for i in 0..n {
+            let c = fe.codes(&pose, i, 1.0 + i as f64 * 1e-3);
+            (0..3).for_each(|ch| sum[ch] += c[ch] as f64);
+        }
+        let a = accelcal_shared::gravity(30.0, -60.0, cfg.g);
+        let tol = 5.0 * cfg.noise / (n as f64).sqrt();
+        for (ch, t) in chans.iter().enumerate() {
+            let expect = t.bias + (0..3).map(|j| t.k[j] * a[j]).sum::<f64>();
+            let mean = sum[ch] / n as f64;
+            assert!((mean - expect).abs() < tol, "{}: {mean} vs {expect} ± {tol}", t.name);
+        }
+    }
+
+    #[test]
+    fn standing_dwells_are_the_codes_of_simulate() {
+        // Noise 0, so the two RNGs do not matter; the head reaches plan position p at the time
+        // `simulate` starts its dwell p.
+        let effects =
+            ["settling=gain:3.5,tau:0.25", "hysteresis=h:7", "angle_error=sd_mrad:2", "bias_drift=rate:0.3"];
+        let cfg = SimConfig {
+            seed: 9,
+            samples: 25,
+            noise: 0.0,
+            plan: Plan::head(),
+            effects: effects.iter().map(|s| effects::parse(s).unwrap()).collect(),
+            ..SimConfig::default()
+        };
+        let (c, truth) = simulate(&cfg);
+        let mut fe = FrontEnd::new(Unit::for_node(&truth).unwrap(), 1).unwrap();
+        let motion = Motion { speed_deg_s: 360.0, overhead_s: 0.1 };
+        let mut head = HeadState::new(motion, cfg.plan.positions[0]);
+        let dt = 1.0 / cfg.rate_hz;
+        let dwell = cfg.samples as f64 * dt + cfg.move_s;
+        let (mut row, mut n, mut mismatches) = (0, 0u64, 0);
+        for (p, &angles) in cfg.plan.positions.iter().enumerate() {
+            let t_p = p as f64 * dwell;
+            if p > 0 {
+                let from = cfg.plan.positions[p - 1];
+                let end = head.start_move(t_p - motion.duration_s(from, angles), angles).unwrap();
+                assert!((end - t_p).abs() < 1e-9);
+            }
+            for s in 0..cfg.samples {
+                let t = t_p + s as f64 * dt;
+                let pose = head.pose(t.max(t_p));
+                assert_eq!(pose.moves_completed, p);
+                let codes = fe.codes(&pose, n, t);
+                mismatches += (0..3).filter(|&ch| codes[ch] as f64 != c.channels[ch].codes[row]).count();
+                row += 1;
+                n += 1;
+            }
+        }
+        assert_eq!(mismatches, 0);
+    }
+
+    #[test]
+    fn moving_orientation_is_interpolated_and_steps_stay_those_of_the_completed_move() {
+        let cfg = SimConfig {
+            seed: 2,
+            samples: 1,
+            effects: vec![effects::parse("settling=gain:5,tau:1").unwrap()],
+            ..SimConfig::default()
+        };
+        let fe = FrontEnd::new(unit(&cfg), 1).unwrap();
+        let mut head = HeadState::new(Motion::default(), (0.0, 0.0));
+        head.start_move(0.0, (0.0, 90.0)).unwrap();
+        let at1 = head.pose(2.0);
+        head.start_move(3.0, (0.0, -90.0)).unwrap();
+        let mid = head.pose(4.6);
+        let (a, prev) = fe.accel(&mid);
+        let exact = accelcal_shared::gravity(0.0, mid.beta_deg, cfg.g);
+        assert!(mid.beta_deg.abs() < 5.0 && mid.moving.is_some(), "{mid:?}");
+        assert!((0..3).all(|j| (a[j] - exact[j]).abs() < 1e-12), "{a:?} {exact:?}");
+        let (a1, prev1) = fe.accel(&at1);
+        let step = |a: [f64; 3], p: Option<[f64; 3]>| [0, 1, 2].map(|j| a[j] - p.unwrap()[j]);
+        let (s_mid, s_1) = (step(a, prev), step(a1, prev1));
+        assert!((0..3).all(|j| (s_mid[j] - s_1[j]).abs() < 1e-12), "{s_mid:?} {s_1:?}");
+    }
+
+    fn run_for(
+        rate_hz: u32,
+        opts: PaceOptions,
+        seconds: f64,
+        writer: &mut (dyn Write + Send),
+    ) -> (FeStats, f64, FeCounters) {
+        let head = Arc::new(Head::new(Clock::start(), Motion::default(), (0.0, 0.0)));
+        let mut fe = FrontEnd::new(unit(&SimConfig { samples: 1, ..SimConfig::default() }), 3).unwrap();
+        let rate = AtomicU32::new(rate_hz);
+        let (stop, counters) = (AtomicBool::new(false), FeCounters::default());
+        let t0 = Instant::now();
+        let stats = std::thread::scope(|s| {
+            let h = s.spawn(|| run_frontend(&mut fe, &head, &rate, writer, &stop, &opts, &counters));
+            std::thread::sleep(Duration::from_secs_f64(seconds));
+            stop.store(true, Ordering::Relaxed);
+            h.join().unwrap().unwrap()
+        });
+        (stats, t0.elapsed().as_secs_f64(), counters)
+    }
+
+    fn indices(bytes: &[u8]) -> Vec<u16> {
+        let mut d = FrameDecoder::<FE_MAX_FRAME>::new();
+        let mut v = Vec::new();
+        d.push(bytes, |m: Result<FeSet, _>| v.push(m.unwrap().index));
+        v
+    }
+
+    #[test]
+    fn the_loop_sends_rate_times_duration_sets_in_order() {
+        for factor in [1.0, 2.0] {
+            let mut out = Vec::new();
+            let opts = PaceOptions { rate_factor: factor, backlog_s: 0.5 };
+            let (stats, elapsed, counters) = run_for(1000, opts, 0.4, &mut out);
+            let idx = indices(&out);
+            assert_eq!(idx.len() as u64, stats.sent);
+            assert_eq!(counters.sent.load(Ordering::Relaxed), stats.sent);
+            assert!(idx.iter().enumerate().all(|(i, &x)| x == i as u16), "sets out of order or lost");
+            let expect = 1000.0 * factor * elapsed;
+            assert!((stats.sent as f64) <= expect + 1.0, "{stats:?} in {elapsed} s: ahead of time");
+            assert!((stats.sent as f64) > 0.8 * 1000.0 * factor * 0.4, "{stats:?} in {elapsed} s");
+        }
+    }
+
+    /// A writer that takes 20 ms per write.
+    struct Slow(Vec<u8>);
+    impl Write for Slow {
+        fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
+            std::thread::sleep(Duration::from_millis(20));
+            self.0.extend_from_slice(b);
+            Ok(b.len())
+        }
+        fn flush(&mut self) -> std::io::Result<()> {
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn a_slow_writer_makes_the_index_jump_by_the_sets_skipped() {
+        let mut w = Slow(Vec::new());
+        let opts = PaceOptions { rate_factor: 1.0, backlog_s: 0.005 };
+        let (stats, elapsed, counters) = run_for(1000, opts, 0.4, &mut w);
+        let idx = indices(&w.0);
+        assert_eq!(idx.len() as u64, stats.sent);
+        let lost: u64 = idx.windows(2).map(|p| lost_between(p[0], p[1]) as u64).sum();
+        assert!(lost > 100, "{stats:?}");
+        assert_eq!(counters.skipped.load(Ordering::Relaxed), stats.skipped);
+        // Sets lost between two sent ones are the ones skipped then (none after the last).
+        assert!(lost <= stats.skipped && stats.skipped - lost <= 1000, "{lost} {stats:?}");
+        assert!((stats.sent as f64) < 0.5 * 1000.0 * elapsed, "{stats:?}");
+    }
+
+    #[test]
+    fn the_reader_takes_the_node_s_rate_and_counts_bad_frames() {
+        let mut bytes = Vec::new();
+        let mut buf = [0u8; FE_MAX_FRAME];
+        bytes.extend_from_slice(wire::encode(&FeCtl::Rate { hz: 2000 }, &mut buf).unwrap());
+        bytes.extend_from_slice(&[0x05, 0xff, 0x00]);
+        bytes.extend_from_slice(wire::encode(&FeCtl::Rate { hz: 500 }, &mut buf).unwrap());
+        let rate = AtomicU32::new(0);
+        let stats = read_ctl(&bytes[..], &rate, &AtomicBool::new(false)).unwrap();
+        assert_eq!(rate.load(Ordering::Relaxed), 500);
+        assert_eq!(stats, CtlStats { rates: 2, bad_frames: 1, last_rate_hz: Some(500) });
+    }
+
+    #[test]
+    fn bad_options_and_non_triads_are_refused() {
+        let head = Head::new(Clock::start(), Motion::default(), (0.0, 0.0));
+        let mut fe = FrontEnd::new(unit(&SimConfig { samples: 1, ..SimConfig::default() }), 3).unwrap();
+        let opts = PaceOptions { rate_factor: 0.0, ..PaceOptions::default() };
+        let (rate, stop) = (AtomicU32::new(100), AtomicBool::new(false));
+        let r = run_frontend(&mut fe, &head, &rate, std::io::sink(), &stop, &opts, &FeCounters::default());
+        assert!(matches!(r, Err(FrontendError::Options(_))));
+        let mut u = unit(&SimConfig { samples: 1, ..SimConfig::default() });
+        u.channels.pop();
+        assert!(FrontEnd::new(u, 1).is_err());
+    }
+}

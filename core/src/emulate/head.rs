@@ -393,3 +393,91 @@ pub fn spawn_head_server(
     let h = std::thread::spawn(move || serve_head(listener, &head, &stop));
     Ok((addr, h))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::node::head::SimHead;
+    use std::io::{BufRead, BufReader};
+
+    #[test]
+    fn moves_take_the_stated_time_and_interpolate_the_angles() {
+        let m = Motion::default();
+        assert_eq!(m.duration_s((0.0, 0.0), (90.0, -30.0)), 0.1 + 1.5);
+        assert_eq!(m.duration_s((10.0, 0.0), (10.0, 0.0)), 0.1);
+        let mut h = HeadState::new(m, (0.0, 0.0));
+        let p0 = h.pose(0.7);
+        assert_eq!((p0.moves_completed, p0.stand, p0.prev_stand, p0.moving), (0, (0.0, 0.0), None, None));
+        let end = h.start_move(1.0, (90.0, -30.0)).unwrap();
+        assert_eq!(end, 2.6);
+        let mid = h.pose(1.8);
+        assert_eq!((mid.alpha_deg, mid.beta_deg, mid.moves_completed), (45.0, -15.0, 0));
+        assert_eq!(mid.moving, Some(((90.0, -30.0), 0.5)));
+        let before = h.clone();
+        assert_eq!(h.start_move(2.0, (0.0, 0.0)), Err("the head is moving".into()));
+        assert_eq!(h, before);
+        let done = h.pose(2.6);
+        assert_eq!((done.alpha_deg, done.beta_deg, done.moving), (90.0, -30.0, None));
+        assert_eq!((done.moves_completed, done.prev_stand, done.stopped_at_s), (1, Some((0.0, 0.0)), 2.6));
+        // The next move starts from where the last one ended and counts on.
+        let end = h.start_move(3.0, (90.0, 30.0)).unwrap();
+        assert!((end - 4.1).abs() < 1e-12);
+        let p = h.pose(5.0);
+        assert_eq!((p.moves_completed, p.stand, p.prev_stand), (2, (90.0, 30.0), Some((90.0, -30.0))));
+        assert!(h.start_move(6.0, (f64::NAN, 0.0)).is_err());
+        assert!(Motion { speed_deg_s: 0.0, overhead_s: 0.1 }.check().is_err());
+        assert!(Motion { speed_deg_s: 10.0, overhead_s: -1.0 }.check().is_err());
+        assert!(Motion::default().check().is_ok());
+    }
+
+    fn raw(addr: &str, line: &str) -> String {
+        let mut s = TcpStream::connect(addr).unwrap();
+        s.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+        s.write_all(line.as_bytes()).unwrap();
+        let mut reply = String::new();
+        BufReader::new(s).read_line(&mut reply).unwrap();
+        reply
+    }
+
+    #[test]
+    fn the_server_answers_the_head_protocol_over_tcp() {
+        let head =
+            Arc::new(Head::new(Clock::start(), Motion { speed_deg_s: 900.0, overhead_s: 0.05 }, (0.0, 0.0)));
+        let stop = Arc::new(AtomicBool::new(false));
+        let (addr, server) = spawn_head_server(bind_head(0).unwrap(), head.clone(), stop.clone()).unwrap();
+        let addr = addr.to_string();
+        let mut client = SimHead::connect(&addr, Duration::from_secs(5)).unwrap();
+        let t0 = Instant::now();
+        client.move_to(90.0, -45.0).unwrap();
+        let took = t0.elapsed().as_secs_f64();
+        assert!((0.15..1.0).contains(&took), "{took}");
+        assert_eq!(
+            client.request(Request::Where).unwrap(),
+            Reply::At { alpha_deg: 90.0, beta_deg: -45.0, moving: false }
+        );
+        // A move under way (started by someone else): WHERE sees it, MOVE is refused.
+        // (0.75 s, so that the two requests below fall within it even on a loaded machine.)
+        head.start_move((720.0, 45.0)).unwrap();
+        match client.request(Request::Where).unwrap() {
+            Reply::At { alpha_deg, moving: true, .. } => assert!((90.0..=720.0).contains(&alpha_deg)),
+            r => panic!("{r:?}"),
+        }
+        let e = client.move_to(1.0, 2.0).unwrap_err().to_string();
+        assert!(e.contains("refused: the head is moving"), "{e}");
+        drop(client);
+        // Connections are served one after the other; bad requests get ERR.
+        assert!(raw(&addr, "JUMP\n").starts_with("ERR unknown request `JUMP`"));
+        assert!(raw(&addr, "MOVE 1 nan\n").starts_with("ERR MOVE: expected beta"));
+        assert!(raw(&addr, &"X".repeat(MAX_LINE + 10)).starts_with("ERR request longer than"));
+        let t = Instant::now();
+        while head.pose().moving.is_some() && t.elapsed() < Duration::from_secs(5) {
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        assert_eq!(head.pose().moves_completed, 2);
+        stop.store(true, Ordering::Relaxed);
+        let stats = server.join().unwrap().unwrap();
+        assert_eq!(stats.connections, 4);
+        assert_eq!(stats.moves, 1);
+        assert_eq!(stats.requests, 7);
+    }
+}
