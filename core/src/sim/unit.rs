@@ -254,10 +254,18 @@ impl Unit {
 
     /// Rebuilds a unit for the emulated node: [`Unit::from_truth`], and exactly three channels
     /// `x`, `y`, `z` along axes 0, 1, 2. Effects needing a temperature are refused (the emulated
-    /// bench has no temperature).
+    /// bench has no temperature). Biases are the node's unsigned 16-bit codes, so one outside
+    /// 0..=65535 is refused (a truth of `simulate --codes signed16` holds biases less mid-scale).
     pub fn for_node(t: &Truth) -> Result<Unit, UnitError> {
         let u = Unit::from_truth(t)?;
         u.check_triad()?;
+        let (lo, hi) = CodeRange::Unsigned16.rails();
+        if let Some(c) = u.channels.iter().find(|c| !(lo..=hi).contains(&c.bias)) {
+            return Err(UnitError::Invalid(format!(
+                "channel `{}`: bias {} is outside the node's unsigned 16-bit codes 0..=65535 (a truth of `simulate --codes signed16`?)",
+                c.name, c.bias
+            )));
+        }
         if let Some((index, e)) = u.effects.iter().enumerate().find(|(_, e)| e.needs_temperature()) {
             return Err(UnitError::Effect {
                 index,
@@ -426,6 +434,10 @@ mod tests {
         let e = Unit::for_node(&block).unwrap_err().to_string();
         assert!(e.contains("expected channels x, y, z along axes 0, 1, 2, got a1 (axis 0)"), "{e}");
         let (_, mut swapped) = simulate(&SimConfig { samples: 1, ..SimConfig::default() });
+        let mut signed = swapped.clone();
+        signed.channels[1].bias = -120.0;
+        let e = Unit::for_node(&signed).unwrap_err().to_string();
+        assert!(e.contains("channel `y`: bias -120 is outside"), "{e}");
         swapped.channels.swap(0, 1);
         assert!(matches!(Unit::for_node(&swapped), Err(UnitError::NotATriad(_))));
         swapped.channels.pop();
