@@ -416,7 +416,8 @@ mod tests {
             assert!(idx.iter().enumerate().all(|(i, &x)| x == i as u16), "sets out of order or lost");
             let expect = 1000.0 * factor * elapsed;
             assert!((stats.sent as f64) <= expect + 1.0, "{stats:?} in {elapsed} s: ahead of time");
-            assert!((stats.sent as f64) > 0.8 * 1000.0 * factor * 0.4, "{stats:?} in {elapsed} s");
+            // (Generous: the loop's thread may start late on a loaded machine.)
+            assert!((stats.sent as f64) > 0.5 * 1000.0 * factor * 0.4, "{stats:?} in {elapsed} s");
         }
     }
 
