@@ -4,7 +4,8 @@
 //! simulator ([`sim`]), combinatorial GMDH structure selection ([`gmdh`]), least-squares and
 //! test-turn fits and the calibration record ([`lsq`], [`testturn`], [`calibrate`]), the
 //! comparison of the two methods ([`compare`]), gravity-norm calibration ([`gravity`]), the
-//! sim-to-real diagnosis ([`diagnose`]) and the host side of the sensor node ([`node`]).
+//! sim-to-real diagnosis ([`diagnose`]), the host side of the sensor node ([`node`]) and the
+//! emulated bench that feeds the QEMU node ([`emulate`]).
 //!
 //! Nothing here parses a command line, prints, draws or shows progress: the `accelcal` binary
 //! does that. Errors say themselves whether they are the user's input to fix ([`exit`]).
@@ -17,6 +18,7 @@ pub mod campaign;
 pub mod compare;
 pub mod diagnose;
 pub mod effects;
+pub mod emulate;
 pub mod error;
 pub mod exit;
 pub mod gmdh;

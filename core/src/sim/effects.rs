@@ -394,6 +394,43 @@ pub fn parse(spec: &str) -> Result<Box<dyn Effect>, String> {
     Ok(e)
 }
 
+/// The registry spec (`NAME=KEY:VALUE,...`, what [`parse`] reads) of an effect's description
+/// ([`Effect::describe`]: an object with `name`, numeric parameters, and the nonlinearity's
+/// `terms` object of term → coefficient). Numbers are written in Rust's shortest round-trip form,
+/// so the rebuilt effect has exactly the described parameters.
+pub fn spec_of_description(d: &serde_json::Value) -> Result<String, String> {
+    let obj = d.as_object().ok_or_else(|| format!("expected an object with a `name`, got `{d}`"))?;
+    let name = obj
+        .get("name")
+        .and_then(|n| n.as_str())
+        .ok_or_else(|| format!("expected a string `name` in `{d}`"))?;
+    let number = |key: &str, v: &serde_json::Value| -> Result<String, String> {
+        if key.is_empty() || key.contains([',', ':', '=']) {
+            return Err(format!("effect `{name}`: bad parameter name `{key}`"));
+        }
+        let x = v.as_f64().ok_or_else(|| format!("effect `{name}`: `{key}` must be a number, got `{v}`"))?;
+        Ok(format!("{key}:{x:?}"))
+    };
+    let mut params = Vec::new();
+    for (key, v) in obj.iter().filter(|(k, _)| k.as_str() != "name") {
+        match v.as_object() {
+            Some(terms) if key == "terms" => {
+                for (t, c) in terms {
+                    params.push(number(t, c)?);
+                }
+            }
+            _ => params.push(number(key, v)?),
+        }
+    }
+    Ok(if params.is_empty() { name.to_string() } else { format!("{name}={}", params.join(",")) })
+}
+
+/// Rebuilds an effect from its description ([`Effect::describe`], as a truth file holds it)
+/// through the registry's parser, [`parse`]: the one path from parameters to an effect.
+pub fn from_description(d: &serde_json::Value) -> Result<Box<dyn Effect>, String> {
+    parse(&spec_of_description(d)?)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -4,15 +4,16 @@
 
 pub mod effects;
 pub mod plan;
+pub mod unit;
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
-use serde::Serialize;
 
-use crate::campaign::{Campaign, Channel, CodeRange};
+use crate::campaign::{Campaign, Channel};
 pub use effects::{Effect, Kinematics, SampleCtx};
 pub use plan::Plan;
+pub use unit::{sample_set, standing_accel, ChannelTruth, SetCtx, Truth, Unit, UnitError};
 
 /// Nominal MS9002-class sensitivity: ±2 g over the 16-bit range, i.e. 16384 codes per g.
 pub const NOMINAL_CODES_PER_G: f64 = 16384.0;
@@ -138,36 +139,8 @@ impl Default for SimConfig {
     }
 }
 
-/// The truth behind a simulated campaign, written beside it as JSON.
-#[derive(Clone, Debug, Serialize, serde::Deserialize)]
-pub struct Truth {
-    /// Seed used.
-    pub seed: u64,
-    /// Gravity, m/s².
-    pub g: f64,
-    /// Noise per sample, codes.
-    pub noise: f64,
-    /// Each channel's linear model.
-    pub channels: Vec<ChannelTruth>,
-    /// The effects, with their parameters.
-    pub effects: Vec<serde_json::Value>,
-}
-
-/// One channel's true linear model `u = bias + k·a` (before effects, noise and quantisation).
-#[derive(Clone, Debug, Serialize, serde::Deserialize)]
-pub struct ChannelTruth {
-    /// Channel name.
-    pub name: String,
-    /// Nominal sensitive axis (0 = x, 1 = y, 2 = z).
-    pub axis: usize,
-    /// Zero offset, codes.
-    pub bias: f64,
-    /// Sensitivity to ax, ay, az, codes per m/s².
-    pub k: [f64; 3],
-}
-
 fn normal(sd: f64) -> Normal<f64> {
-    Normal::new(0.0, sd.abs()).expect("finite standard deviation")
+    unit::noise_distribution(sd)
 }
 
 /// Runs the simulation.
@@ -197,8 +170,6 @@ pub fn simulate(cfg: &SimConfig) -> (Campaign, Truth) {
         ..Campaign::default()
     };
     let noise = normal(cfg.noise);
-    // The simulated ADC: unsigned 16-bit codes, clipped at its rails.
-    let (lo, hi) = CodeRange::Unsigned16.rails();
     let dt = 1.0 / cfg.rate_hz;
     let duration = cfg.plan.positions.len() as f64 * (cfg.samples as f64 * dt + cfg.move_s);
     if cfg.temp.is_some() {
@@ -207,18 +178,7 @@ pub fn simulate(cfg: &SimConfig) -> (Campaign, Truth) {
     let mut t = 0.0f64;
     let mut prev_accel: Option<[f64; 3]> = None;
     for (p, &(alpha, beta)) in cfg.plan.positions.iter().enumerate() {
-        let mut kin = Kinematics {
-            position: p,
-            seed: cfg.seed,
-            alpha_rad: alpha.to_radians(),
-            beta_rad: beta.to_radians(),
-            r: effects::rotation([0.0; 3]),
-            changed: false,
-        };
-        for e in &cfg.effects {
-            e.kinematics(&mut kin);
-        }
-        let accel = if kin.changed { kin.accel(cfg.g) } else { accelcal_shared::gravity(alpha, beta, cfg.g) };
+        let accel = standing_accel(&cfg.effects, cfg.seed, p, (alpha, beta), cfg.g);
         for s in 0..cfg.samples {
             c.t_s.push((t * 1e6).round() / 1e6);
             c.alpha_deg.push(alpha);
@@ -227,27 +187,19 @@ pub fn simulate(cfg: &SimConfig) -> (Campaign, Truth) {
             if let Some(v) = c.temp_c.as_mut() {
                 v.push((temp_c * 1000.0).round() / 1000.0);
             }
-            for (ch, truth) in chans.iter().enumerate() {
-                let signal = (0..3).map(|j| truth.k[j] * accel[j]).sum::<f64>();
-                let ctx = SampleCtx {
-                    t_s: t,
-                    position: p,
-                    sample: s,
-                    accel,
-                    channel: ch,
-                    axis: truth.axis,
-                    t_in_dwell_s: s as f64 * dt,
-                    temp_c,
-                    prev_accel,
-                    signal,
-                };
-                let mut u = truth.bias + signal;
-                for e in &cfg.effects {
-                    u += e.output(&ctx);
-                }
-                u += noise.sample(&mut rng);
-                c.channels[ch].codes.push(if cfg.quantize { u.round().clamp(lo, hi) } else { u });
-            }
+            let set = SetCtx {
+                t_s: t,
+                position: p,
+                sample: s,
+                accel,
+                t_in_dwell_s: s as f64 * dt,
+                temp_c,
+                prev_accel,
+            };
+            // The simulated ADC: unsigned 16-bit codes, clipped at its rails (in `sample_set`).
+            sample_set(&chans, &cfg.effects, &set, &noise, &mut rng, cfg.quantize, |ch, u| {
+                c.channels[ch].codes.push(u)
+            });
             t += dt;
         }
         prev_accel = Some(accel);
