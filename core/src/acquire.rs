@@ -259,6 +259,16 @@ fn header(cfg: &AcquireConfig, device_id: &str, firmware: &str, rate_hz: u32) ->
     h
 }
 
+/// The `# key: value` comment lines at the start of a campaign (what `acquire` writes there: device
+/// id, serial, firmware, g, plan, date...), read from `path`'s first 64 KiB.
+pub fn campaign_header(path: &std::path::Path) -> anyhow::Result<Vec<(String, String)>> {
+    use std::io::Read;
+    let mut head = Vec::new();
+    let f = File::open(path).map_err(|e| bad(format!("{}: cannot read: {e}", path.display())))?;
+    f.take(65536).read_to_end(&mut head).map_err(|e| bad(format!("{}: cannot read: {e}", path.display())))?;
+    Ok(header_values(&String::from_utf8_lossy(&head)))
+}
+
 /// The `# key: value` comments before a campaign's header row.
 fn header_values(text: &str) -> Vec<(String, String)> {
     text.lines()

@@ -156,7 +156,7 @@ pub struct VerifyConfig {
 }
 
 /// One position's check.
-#[derive(Clone, Debug, Serialize, PartialEq)]
+#[derive(Clone, Debug, Serialize, serde::Deserialize, PartialEq)]
 pub struct PositionCheck {
     /// Index in the plan (1-based, as printed).
     pub position: usize,
@@ -181,7 +181,7 @@ pub struct PositionCheck {
 }
 
 /// A verification's result.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, serde::Deserialize)]
 pub struct VerifyReport {
     /// The node's device id (hex).
     pub device_id: String,

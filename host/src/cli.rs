@@ -59,6 +59,10 @@ pub enum Command {
     /// acceleration with g times the head's kinematics. Exit code 0 when every position passes,
     /// 1 when one fails.
     Verify(VerifyArgs),
+    /// Write a unit's calibration certificate: one self-contained HTML page (prints on one A4
+    /// page) with identification, g, record CRC, model selection, coefficients ± standard
+    /// errors, Table 2 and the verification.
+    Report(ReportArgs),
     /// Diagnose the gap between a campaign and its linear-sensor simulation, and attribute it to
     /// effects checked on withheld data.
     Diagnose(DiagnoseArgs),
@@ -616,6 +620,26 @@ pub struct VerifyArgs {
     /// Write the verification table as JSON to this file.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
+}
+
+/// `accelcal report`: a unit's calibration certificate.
+#[derive(Debug, Args)]
+pub struct ReportArgs {
+    /// The unit's campaign (from `accelcal acquire`: its header names serial, device, firmware, g).
+    #[arg(long, value_name = "CAMPAIGN")]
+    pub campaign: PathBuf,
+    /// The record written to the node (from `fit --record`).
+    #[arg(long, value_name = "RECORD")]
+    pub record: PathBuf,
+    /// The verification after flashing (`verify --json`); without it the page says "not verified".
+    #[arg(long, value_name = "VERIFY_JSON")]
+    pub verify: Option<PathBuf>,
+    /// Gravity at the rig, m/s² [default: the campaign's `# g_m_s2:`, else 9.81, announced].
+    #[arg(long, value_name = "M_S2")]
+    pub g: Option<f64>,
+    /// The certificate to write (HTML).
+    #[arg(long, short, value_name = "FILE")]
+    pub out: PathBuf,
 }
 
 /// `accelcal hil`: replay a campaign through the node's QEMU build.

@@ -216,6 +216,16 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
             let fit: Vec<(&str, &Path)> = a.fit.iter().map(|p| ("--fit", p.as_path())).collect();
             distinct(&fit, &[("--json", a.json.as_deref())])
         }
+        Command::Report(a) => {
+            if let Some(g) = a.g {
+                crate::cmd::check_g(g)?;
+            }
+            let mut inputs = vec![("--campaign", a.campaign.as_path()), ("--record", a.record.as_path())];
+            if let Some(v) = &a.verify {
+                inputs.push(("--verify", v));
+            }
+            distinct(&inputs, &[("--out", Some(&a.out))])
+        }
         Command::Flash(a) => {
             if a.gdb.is_some() {
                 given.refuse(&["chip", "probe"], "flash --gdb", " (they select a probe-rs probe)")?;

@@ -10,6 +10,7 @@ pub mod live;
 pub mod node;
 pub mod plan;
 pub mod record;
+pub mod report;
 pub mod select;
 pub mod simulate;
 
@@ -32,6 +33,7 @@ pub fn run(cli: Cli, warnings: &mut Warnings) -> anyhow::Result<()> {
         Command::Output(a) => live::run_output(&a),
         Command::Acquire(a) => live::run_acquire(&a),
         Command::Verify(a) => live::run_verify(&a),
+        Command::Report(a) => report::run(&a),
         Command::Diagnose(a) => diagnose::run(&a, warnings),
         Command::BenchDiagnose(a) => bench_diagnose::run(&a),
     }

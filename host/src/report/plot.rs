@@ -26,6 +26,14 @@ fn svg_file(
     size: (u32, u32),
     draw: impl FnOnce(&DrawingArea<SVGBackend, plotters::coord::Shift>) -> anyhow::Result<()>,
 ) -> anyhow::Result<()> {
+    write_atomic(path, svg_string(size, draw)?.as_bytes())
+}
+
+/// Renders an SVG of `size` pixels on a white background with `draw`, into a string.
+fn svg_string(
+    size: (u32, u32),
+    draw: impl FnOnce(&DrawingArea<SVGBackend, plotters::coord::Shift>) -> anyhow::Result<()>,
+) -> anyhow::Result<String> {
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, size).into_drawing_area();
@@ -33,7 +41,7 @@ fn svg_file(
         draw(&root)?;
         root.present().map_err(|e| anyhow!("{e}"))?;
     }
-    write_atomic(path, svg.as_bytes())
+    Ok(svg)
 }
 
 fn span(vals: impl Iterator<Item = f64>) -> (f64, f64) {
@@ -89,11 +97,33 @@ fn xy(
     series: &[(String, Vec<(f64, f64)>)],
     joined: bool,
 ) -> anyhow::Result<()> {
+    write_atomic(path, xy_svg(title, xdesc, ydesc, series, joined, (900, 500))?.as_bytes())
+}
+
+/// [`lines`] rendered into a string of `size` pixels, for pages that inline their plots.
+pub fn lines_svg(
+    title: &str,
+    xdesc: &str,
+    ydesc: &str,
+    series: &[(String, Vec<(f64, f64)>)],
+    size: (u32, u32),
+) -> anyhow::Result<String> {
+    xy_svg(title, xdesc, ydesc, series, true, size)
+}
+
+fn xy_svg(
+    title: &str,
+    xdesc: &str,
+    ydesc: &str,
+    series: &[(String, Vec<(f64, f64)>)],
+    joined: bool,
+    size: (u32, u32),
+) -> anyhow::Result<String> {
     let (x0, x1) = span(series.iter().flat_map(|s| s.1.iter().map(|p| p.0)));
     let (y0, y1) = span(series.iter().flat_map(|s| s.1.iter().map(|p| p.1)));
     let (x0, x1) = if joined { (x0.floor() - 0.5, x1.ceil() + 0.5) } else { (x0, x1) };
     let xfmt = |x: &f64| if joined { format!("{x:.0}") } else { format!("{x:.2}") };
-    svg_file(path, (900, 500), |root| {
+    svg_string(size, |root| {
         let mut chart = ChartBuilder::on(root)
             .caption(title, ("sans-serif", 22))
             .margin(12)
