@@ -47,6 +47,9 @@ pub enum Command {
     Monitor(MonitorArgs),
     /// Replay a campaign through the node firmware running in QEMU and write what it computed.
     Hil(HilArgs),
+    /// Run the emulated bench: the node's QEMU build fed live by a simulated unit on an emulated
+    /// dividing head. Prints one JSON line `{"port", "gdb", "head"}` and runs until Ctrl-C.
+    Emulate(EmulateArgs),
     /// Ask a node who it is: device id (what `fit --record --device-id` needs), firmware, record
     /// in force, sampling rate, overruns, last reset.
     Info(InfoArgs),
@@ -503,6 +506,41 @@ pub struct PortArgs {
     /// Seconds to wait for the node's answer to a request.
     #[arg(long, default_value_t = 5.0, value_name = "S")]
     pub answer_timeout_s: f64,
+}
+
+/// `accelcal emulate`: the emulated bench.
+#[derive(Debug, Args)]
+pub struct EmulateArgs {
+    /// The node's QEMU build (firmware/target/thumbv7em-none-eabihf/release/node-qemu).
+    #[arg(long = "qemu", value_name = "ELF")]
+    pub elf: PathBuf,
+    /// The unit on the head: a truth file of `accelcal simulate --truth` (triad x, y, z; its bias,
+    /// sensitivities, misalignment, noise and effects are what the front end produces).
+    #[arg(long, value_name = "UNIT_JSON")]
+    pub unit: PathBuf,
+    /// Seed of the front end's noise [default: the unit's seed].
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// A record to put into slot 0 before boot, as if it had been flashed earlier (for the QEMU
+    /// node its device id is 51454d552d422d4c34373545).
+    #[arg(long, value_name = "RECORD")]
+    pub record: Option<PathBuf>,
+    /// The QEMU executable (QEMU >= 9 with the b-l475e-iot01a machine).
+    #[arg(long, default_value = "qemu-system-arm", value_name = "PATH")]
+    pub qemu_bin: PathBuf,
+    /// Angular speed of the head's two axes, degrees per second (each move also takes 0.1 s).
+    #[arg(long, default_value_t = 60.0, value_name = "DEG_S")]
+    pub head_speed: f64,
+    /// The front end converts at this factor times the rate the node asks for (above 1: faster
+    /// than the node can take, to provoke overruns).
+    #[arg(long, default_value_t = 1.0, value_name = "F")]
+    pub rate_factor: f64,
+    /// TCP port of QEMU's gdbstub on 127.0.0.1 [default: a free one].
+    #[arg(long, default_value_t = 0, value_name = "PORT")]
+    pub gdb_port: u16,
+    /// TCP port of the emulated head on 127.0.0.1 [default: a free one].
+    #[arg(long, default_value_t = 0, value_name = "PORT")]
+    pub head_port: u16,
 }
 
 /// `accelcal info`: who the node is.

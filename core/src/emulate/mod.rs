@@ -9,6 +9,7 @@
 //! USART2 output and one running [`frontend::run_frontend`] into its input; set the stop flag and
 //! join.
 
+pub mod bench;
 pub mod frontend;
 pub mod head;
 

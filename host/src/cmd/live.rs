@@ -194,7 +194,7 @@ fn g_and_source(g: Option<f64>, local: &crate::cli::LocalGravity) -> (f64, Strin
 }
 
 /// A flag set by Ctrl-C or SIGTERM.
-fn stop_flag() -> anyhow::Result<Arc<AtomicBool>> {
+pub fn stop_flag() -> anyhow::Result<Arc<AtomicBool>> {
     let stop = Arc::new(AtomicBool::new(false));
     let s = stop.clone();
     ctrlc::set_handler(move || s.store(true, Ordering::Relaxed))

@@ -4,6 +4,7 @@ pub mod bench_diagnose;
 pub mod compare;
 pub mod demo;
 pub mod diagnose;
+pub mod emulate;
 pub mod fit;
 pub mod gravity;
 pub mod live;
@@ -29,6 +30,7 @@ pub fn run(cli: Cli, warnings: &mut Warnings) -> anyhow::Result<()> {
         Command::Record(crate::cli::RecordCommand::Show(a)) => record::run_show(&a),
         Command::Monitor(a) => node::run_monitor(&a),
         Command::Hil(a) => node::run_hil(&a, warnings),
+        Command::Emulate(a) => emulate::run(&a),
         Command::Info(a) => live::run_info(&a),
         Command::Output(a) => live::run_output(&a),
         Command::Acquire(a) => live::run_acquire(&a),

@@ -1,0 +1,58 @@
+//! `accelcal emulate`: the emulated bench (the node in QEMU, a simulated unit's front end, an
+//! emulated dividing head) until Ctrl-C or SIGTERM.
+
+use std::io::Write;
+use std::sync::atomic::Ordering;
+
+use accelcal_core::emulate::bench::{Bench, BenchOptions};
+use accelcal_core::emulate::{Motion, PaceOptions};
+use accelcal_core::error::bad;
+use accelcal_core::sim::Unit;
+
+use crate::cli::EmulateArgs;
+
+/// Runs `accelcal emulate`.
+pub fn run(a: &EmulateArgs) -> anyhow::Result<()> {
+    let unit = Unit::read_for_node(&a.unit)?;
+    if !a.elf.is_file() {
+        return Err(bad(format!(
+            "{}: no such firmware ELF (build it with `cargo xtask test` or see firmware/README.md)",
+            a.elf.display()
+        )));
+    }
+    let record = match &a.record {
+        Some(p) => Some(std::fs::read(p).map_err(|e| bad(format!("{}: cannot read the record: {e}", p.display())))?),
+        None => None,
+    };
+    let opts = BenchOptions {
+        qemu: a.qemu_bin.clone(),
+        elf: a.elf.clone(),
+        seed: a.seed.unwrap_or(unit.seed),
+        unit,
+        record,
+        motion: Motion { speed_deg_s: a.head_speed, ..Motion::default() },
+        pace: PaceOptions { rate_factor: a.rate_factor, ..PaceOptions::default() },
+        gdb_port: a.gdb_port,
+        head_port: a.head_port,
+    };
+    let stop = super::live::stop_flag()?;
+    let mut bench = Bench::start(&opts)?;
+    let line = serde_json::to_string(&bench.endpoints)?;
+    let mut out = std::io::stdout().lock();
+    writeln!(out, "{line}")?;
+    out.flush()?;
+    drop(out);
+    eprintln!(
+        "emulate: node running in QEMU, link {}, gdbstub {}, head {}; Ctrl-C stops",
+        bench.endpoints.port, bench.endpoints.gdb, bench.endpoints.head
+    );
+    let result = bench.run_until(&stop);
+    eprintln!(
+        "emulate: stopped; the front end sent {} sample sets at {} Hz ({} skipped because QEMU fell behind)",
+        bench.counters.sent.load(Ordering::Relaxed),
+        bench.rate_hz.load(Ordering::Relaxed),
+        bench.counters.skipped.load(Ordering::Relaxed)
+    );
+    drop(bench);
+    result.map_err(|e| e.context("the emulated node stopped"))
+}
