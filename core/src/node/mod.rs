@@ -1,5 +1,6 @@
-//! Talking to the sensor node (the firmware in `firmware/`): replaying a campaign through the QEMU
-//! build ([`hil`]), writing a calibration record into a real node's flash through a debug probe
+//! Talking to the sensor node (the firmware in `firmware/`): running its QEMU build ([`qemu`]: the
+//! link on a socket or a pty, the emulated front end, slot images, a gdbstub), replaying a campaign
+//! through it ([`hil`]), writing a calibration record into a real node's flash through a debug probe
 //! ([`flash`]), and showing a node's live stream ([`monitor`]). [`link`] frames the protocol of
 //! `accelcal_shared::wire` over any byte stream.
 
@@ -8,6 +9,7 @@ pub mod head;
 pub mod hil;
 pub mod link;
 pub mod monitor;
+pub mod qemu;
 
 /// Flash addresses of the two record slots (`accelcal_shared::contract`, checked against the
 /// repository's `memory.x`: the last two 2 KiB pages of the STM32L475VG's 1 MiB flash).
