@@ -417,7 +417,11 @@ fn node_runs_a_version_2_slot_and_still_reads_a_version_1_slot() {
     for (page, sequence) in [(v2, 17), (v1, 16)] {
         let mut node = QemuNode::start(&HilOptions::new(node_elf()), Some(&page)).unwrap();
         let status = node.status().unwrap();
-        assert_eq!(status.record, RecordStatus::InUse { slot: 0, sequence, created_unix_s: 1_800_000_000 });
+        let crc = u32::from_le_bytes(bytes[bytes.len() - 4..].try_into().unwrap());
+        assert_eq!(
+            status.record,
+            RecordStatus::InUse { slot: 0, sequence, created_unix_s: 1_800_000_000, crc }
+        );
         let want: Vec<[f32; 3]> = codes.iter().map(|u| cal.apply(*u)).collect();
         let answer = node.request(&replay_msg(9, &codes)).unwrap();
         let want =
@@ -601,7 +605,7 @@ fn monitor_shows_the_status_stream_of_a_node_on_a_serial_port() {
     let lines: Vec<&str> = out.lines().collect();
     assert_eq!(lines.len(), 2, "{out}");
     for l in lines {
-        assert!(l.starts_with("status: protocol 2, NO RECORD (NoSlot: no record slot holds"), "{l}");
+        assert!(l.starts_with("status: protocol 3, NO RECORD (NoSlot: no record slot holds"), "{l}");
         assert!(l.contains(", rate 1000 Hz, ") && l.contains(", last reset PowerOn: "), "{l}");
     }
 
@@ -612,7 +616,7 @@ fn monitor_shows_the_status_stream_of_a_node_on_a_serial_port() {
         .unwrap();
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let set: Vec<&str> = text.lines().filter(|l| l.starts_with("rate set: status: protocol 2, ")).collect();
+    let set: Vec<&str> = text.lines().filter(|l| l.starts_with("rate set: status: protocol 3, ")).collect();
     assert_eq!(set.len(), 1, "{text}");
     assert!(set[0].contains(", rate 250 Hz, "), "{text}");
     // A rate outside the range is refused before the port is opened, with the range.

@@ -4,7 +4,7 @@
 use embassy_executor::Spawner;
 
 use crate::app::node::{self, Node};
-use crate::board::{Board, LinkRxImpl, LinkTxImpl, SampleClockImpl};
+use crate::board::{Board, LinkRxImpl, LinkTxImpl, SampleClockImpl, SourceImpl};
 
 #[embassy_executor::task]
 async fn link_rx(rx: LinkRxImpl, clock: SampleClockImpl, node: Node) {
@@ -21,9 +21,8 @@ async fn status(node: Node) {
     node::report_status(node).await
 }
 
-#[cfg(feature = "board-real")]
 #[embassy_executor::task]
-async fn sampler(source: crate::board::SourceImpl, node: Node) {
+async fn sampler(source: SourceImpl, node: Node) {
     node::stream_samples(source, node).await
 }
 
@@ -33,6 +32,5 @@ pub fn spawn_all(spawner: Spawner, board: Board, node: Node) {
     spawner.spawn(link_tx(board.tx).expect("link_tx spawned once"));
     spawner.spawn(link_rx(board.rx, board.clock, node).expect("link_rx spawned once"));
     spawner.spawn(status(node).expect("status spawned once"));
-    #[cfg(feature = "board-real")]
     spawner.spawn(sampler(board.source, node).expect("sampler spawned once"));
 }

@@ -1,16 +1,13 @@
-//! Hardware in the loop on QEMU: boot the node's QEMU build with a calibration record in its
-//! flash, replay raw code sets through its link, and collect what the node computed.
+//! Hardware in the loop on QEMU: boot the node with a calibration record in its flash, replay raw
+//! code sets through its link, and collect what the node computed.
 //!
-//! QEMU runs `-M b-l475e-iot01a` with USART1 on a unix-socket chardev that this process connects
-//! to, the record loaded as slot 0's page image by QEMU's generic loader (`-device
-//! loader,file=...,addr=0x080FF000`; the loader refuses raw files larger than the machine's RAM
-//! size, which is 0 on this board unless `-m` is given), and semihosting on for the node's defmt
-//! output (kept in a file next to the socket, for diagnosis).
+//! QEMU is run by [`super::qemu`] with USART1 on a unix-socket chardev that this process connects
+//! to, the record as slot 0's page image, and USART2 (the live front end) on `null`, so the node's
+//! sampler sees nothing and only the replay answers and status reports come back.
 
 use std::io::{Read, Write};
 use std::os::unix::net::UnixStream;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use accelcal_shared::record::Record;
@@ -20,11 +17,13 @@ use accelcal_shared::wire::{self, Block, Codes, HostMsg, NodeMsg, RecordStatus, 
 use anyhow::Context;
 
 use super::link::{self, LinkError, Receiver};
-use super::RECORD_SLOTS;
+use super::qemu::{Link, LinkChannel, Qemu, QemuError, QemuOptions};
 use crate::campaign::{CodeRange, Row};
 use crate::error::bad;
 use crate::input::Input;
 use crate::reduce::DwellRows;
+
+pub use super::qemu::SPIN_CHARDEV;
 
 /// How to run the node in QEMU.
 #[derive(Clone, Debug)]
@@ -40,17 +39,6 @@ pub struct HilOptions {
     pub spin_main_loop: bool,
 }
 
-/// A second serial port (USART2, which the node never enables) reading `/dev/zero`.
-///
-/// QEMU's stm32l4x5 USART model takes one byte at a time (`can_receive` is 1 only while RXNE is
-/// clear) and does not call `qemu_chr_fe_accept_input()` when the guest reads RDR, so the link's
-/// socket is polled again only at the main loop's next iteration, which otherwise waits for a
-/// timer (the node's 1 kHz SysTick) or another event: about 7 kB/s, 820 sample sets/s. A chardev
-/// that is always readable makes the main loop iterate without pause; the model drops what it
-/// reads, because USART2's receiver is off.
-pub const SPIN_CHARDEV: [&str; 4] =
-    ["-chardev", "file,id=spin,path=/dev/null,input-path=/dev/zero", "-serial", "chardev:spin"];
-
 impl HilOptions {
     /// Defaults: `qemu-system-arm` from `PATH`, 20 s timeout, QEMU's main loop not kept busy.
     pub fn new(elf: impl Into<PathBuf>) -> Self {
@@ -59,6 +47,18 @@ impl HilOptions {
             elf: elf.into(),
             timeout: Duration::from_secs(20),
             spin_main_loop: false,
+        }
+    }
+
+    /// The QEMU run of a replay: link on a socket, no front end, `slot0` in record slot 0 (slot 1
+    /// blank, reading zeros).
+    pub fn qemu_options(&self, slot0: Option<&[u8]>) -> QemuOptions {
+        QemuOptions {
+            qemu: self.qemu.clone(),
+            spin_main_loop: self.spin_main_loop,
+            timeout: self.timeout,
+            slots: [slot0.map(<[u8]>::to_vec), None],
+            ..QemuOptions::new(&self.elf)
         }
     }
 }
@@ -97,6 +97,9 @@ pub enum HilError {
     /// The node did not answer in time.
     #[error("the node did not answer within {0:?}")]
     Timeout(Duration),
+    /// QEMU was asked for something it cannot run.
+    #[error(transparent)]
+    Qemu(QemuError),
     /// The link failed.
     #[error(transparent)]
     Link(#[from] LinkError),
@@ -109,6 +112,18 @@ pub enum HilError {
     /// Local file trouble (temporary directory).
     #[error("{0}")]
     Io(#[from] std::io::Error),
+}
+
+impl From<QemuError> for HilError {
+    fn from(e: QemuError) -> Self {
+        match e {
+            QemuError::Spawn { qemu, source } => HilError::Spawn { qemu, source },
+            QemuError::Exited { status, stderr } => HilError::QemuExited { status, stderr },
+            QemuError::Timeout(t) => HilError::Timeout(t),
+            QemuError::Io(e) => HilError::Io(e),
+            e @ QemuError::SlotSize { .. } => HilError::Qemu(e),
+        }
+    }
 }
 
 fn hex(b: &[u8]) -> String {
@@ -129,9 +144,7 @@ fn rejection_hint(fault: accelcal_shared::wire::RecordFault) -> String {
 
 /// A QEMU process running the node's QEMU build, with its link connected; killed when dropped.
 pub struct QemuNode {
-    child: Child,
-    stderr_path: PathBuf,
-    _dir: tempfile::TempDir,
+    qemu: Qemu,
     stream: UnixStream,
     rx: Receiver<UnixStream>,
     timeout: Duration,
@@ -142,55 +155,31 @@ impl QemuNode {
     /// record slot 0, or with both slots blank (QEMU's flash reads as zeros), and connects to its
     /// link.
     pub fn start(opts: &HilOptions, slot0: Option<&[u8]>) -> Result<QemuNode, HilError> {
-        let dir = tempfile::Builder::new().prefix("accelcal-hil").tempdir()?;
-        let slot_path = dir.path().join("slot0.bin");
-        let sock = dir.path().join("link.sock");
-        let stderr_path = dir.path().join("qemu.stderr");
-        let mut cmd = Command::new(&opts.qemu);
-        cmd.args(["-M", "b-l475e-iot01a", "-m", "1M", "-display", "none", "-monitor", "none"])
-            .args(["-semihosting-config", "enable=on,target=native"])
-            .arg("-chardev")
-            .arg(format!("socket,id=link,path={},server=on,wait=on", sock.display()))
-            .args(["-serial", "chardev:link"]);
-        if opts.spin_main_loop {
-            cmd.args(SPIN_CHARDEV);
+        QemuNode::launch(&opts.qemu_options(slot0))
+    }
+
+    /// Boots the node as `opts` says (the link must be [`LinkChannel::Socket`]), connects to its
+    /// link and waits for its boot status; the front-end socket, if any, is left in the returned
+    /// node's [`QemuNode::qemu`]. `opts.timeout` also bounds every wait for an answer.
+    pub fn launch(opts: &QemuOptions) -> Result<QemuNode, HilError> {
+        if opts.link != LinkChannel::Socket {
+            return Err(HilError::Protocol("a QemuNode talks over a socket link".into()));
         }
-        if let Some(page) = slot0 {
-            std::fs::write(&slot_path, page)?;
-            cmd.arg("-device").arg(format!(
-                "loader,file={},addr={:#x}",
-                slot_path.display(),
-                RECORD_SLOTS[0]
-            ));
-        }
-        cmd.arg("-kernel")
-            .arg(&opts.elf)
-            .stdin(Stdio::null())
-            .stdout(std::fs::File::create(dir.path().join("defmt.bin"))?)
-            .stderr(std::fs::File::create(&stderr_path)?);
-        let mut child = cmd.spawn().map_err(|source| HilError::Spawn { qemu: opts.qemu.clone(), source })?;
-        let t0 = Instant::now();
-        let stream = loop {
-            if let Ok(s) = UnixStream::connect(&sock) {
-                break s;
-            }
-            if let Some(status) = child.try_wait()? {
-                let stderr = std::fs::read_to_string(&stderr_path).unwrap_or_default();
-                return Err(HilError::QemuExited { status, stderr });
-            }
-            if t0.elapsed() > opts.timeout {
-                let _ = child.kill();
-                return Err(HilError::Timeout(opts.timeout));
-            }
-            std::thread::sleep(Duration::from_millis(20));
+        let mut qemu = Qemu::start(opts)?;
+        let Some(Link::Socket(stream)) = qemu.take_link() else {
+            unreachable!("a socket link was asked for")
         };
         stream.set_read_timeout(Some(Duration::from_millis(200)))?;
         let rx = Receiver::new(stream.try_clone()?);
-        let mut node = QemuNode { child, stderr_path, _dir: dir, stream, rx, timeout: opts.timeout };
+        let mut node = QemuNode { qemu, stream, rx, timeout: opts.timeout };
         node.wait_boot_status()?;
         Ok(node)
     }
 
+    /// The QEMU process (its front-end socket, its files).
+    pub fn qemu(&mut self) -> &mut Qemu {
+        &mut self.qemu
+    }
     /// Waits for the status report the node sends at boot, once its link is up (QEMU starts the
     /// guest only once this process has connected, so the report cannot be missed). Nothing is
     /// sent before it: bytes sent before the node enables its receiver would be lost in part.
@@ -252,23 +241,29 @@ impl QemuNode {
         }
     }
 
+    /// Sends `msg` on the link (with a leading zero).
+    pub fn send(&mut self, msg: &HostMsg) -> Result<(), HilError> {
+        link::send(&mut self.stream, msg)?;
+        Ok(())
+    }
+
+    /// The node's next message, or `None` when none came within the link's read timeout (200 ms).
+    pub fn recv(&mut self) -> Result<Option<NodeMsg>, HilError> {
+        match self.rx.recv() {
+            Ok(Ok(m)) => Ok(Some(m)),
+            Ok(Err(e)) => Err(HilError::Protocol(format!("bad frame from the node: {e}"))),
+            Err(e) if is_timeout(&e) => Ok(None),
+            Err(e) => Err(self.explain(e)),
+        }
+    }
+
     /// Turns a link error into the more telling "QEMU exited" when QEMU is gone.
     fn explain(&mut self, e: LinkError) -> HilError {
         std::thread::sleep(Duration::from_millis(100));
-        match self.child.try_wait() {
-            Ok(Some(status)) => HilError::QemuExited {
-                status,
-                stderr: std::fs::read_to_string(&self.stderr_path).unwrap_or_default(),
-            },
-            _ => HilError::Link(e),
+        match self.qemu.exited() {
+            Some(e) => e.into(),
+            None => HilError::Link(e),
         }
-    }
-}
-
-impl Drop for QemuNode {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
     }
 }
 

@@ -1,7 +1,9 @@
-//! Talking to the sensor node (the firmware in `firmware/`): replaying a campaign through the QEMU
-//! build ([`hil`]), writing a calibration record into a real node's flash through a debug probe
-//! ([`flash`]), and showing a node's live stream ([`monitor`]). [`link`] frames the protocol of
-//! `accelcal_shared::wire` over any byte stream.
+//! Talking to the sensor node (the firmware in `firmware/`): running its QEMU build ([`qemu`]: the
+//! link on a socket or a pty, the emulated front end, slot images, a gdbstub), replaying a campaign
+//! through it ([`hil`]), writing a calibration record into a node's flash through a debug probe
+//! or a GDB server ([`flash`], [`gdb`]), showing a node's live stream ([`monitor`]), asking it who
+//! it is and what it streams ([`session`]), and driving an emulated dividing head ([`head`]).
+//! [`link`] frames the protocol of `accelcal_shared::wire` over any byte stream.
 
 pub mod flash;
 pub mod gdb;
@@ -9,6 +11,7 @@ pub mod head;
 pub mod hil;
 pub mod link;
 pub mod monitor;
+pub mod qemu;
 pub mod session;
 
 /// Flash addresses of the two record slots (`accelcal_shared::contract`, checked against the

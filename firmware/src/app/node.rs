@@ -1,15 +1,23 @@
 //! The node's async loops: serving host requests, streaming live samples, reporting status and
 //! sending frames. Each runs forever in its own task and talks to the others through [`OUTBOX`].
+//!
+//! Live samples leave the node as [`NodeMsg::Samples`] blocks whose `first` is the node's sample
+//! counter: it counts every set the sampler produced since boot, the ones the source lost
+//! ([`Overrun`](super::ports::Overrun)) and the ones in blocks the [`OUTBOX`] could not take
+//! included, so a jump of `first` between consecutive blocks equals the sets counted in
+//! [`Stats::overruns`] meanwhile. [`HostMsg::SetOutput`] switches the stream between calibrated
+//! blocks and [`Block::Raw`] codes.
 
 use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
 use accelcal_shared::wire::{
-    self, Codes, FrameDecoder, FrameError, HostMsg, NodeMsg, RecordStatus, ResetCause, Status, MAX_BLOCK,
-    MAX_FRAME, PROTOCOL_VERSION,
+    self, Block, Codes, FrameDecoder, FrameError, HostMsg, Info, NodeMsg, Output, RecordStatus, ResetCause,
+    Status, MAX_BLOCK, MAX_FRAME, PROTOCOL_VERSION,
 };
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::channel::Channel;
 use embassy_time::{Duration, Timer};
+use heapless::Vec;
 
 use super::calib::Calibration;
 use super::ports::{LinkRx, LinkTx, SampleClock, SampleSource};
@@ -29,6 +37,9 @@ pub struct Stats {
     pub rate_hz: AtomicU32,
     /// The last read-back of the sampling trigger configuration did not match.
     pub trigger_mismatch: AtomicBool,
+    /// Live samples leave as raw codes ([`Output::Raw`]) instead of calibrated
+    /// ([`Output::Calibrated`], the mode at boot); changed by [`HostMsg::SetOutput`].
+    pub raw_output: AtomicBool,
 }
 
 /// The node's counters since boot, and the state that [`HostMsg::SetRate`] changes.
@@ -38,7 +49,42 @@ pub static STATS: Stats = Stats {
     bad_frames: AtomicU32::new(0),
     rate_hz: AtomicU32::new(0),
     trigger_mismatch: AtomicBool::new(false),
+    raw_output: AtomicBool::new(false),
 };
+
+impl Stats {
+    /// What the node streams now.
+    pub fn output(&self) -> Output {
+        if self.raw_output.load(Ordering::Relaxed) {
+            Output::Raw
+        } else {
+            Output::Calibrated
+        }
+    }
+}
+
+/// The firmware's version, major, minor, patch: this crate's Cargo package version, parsed at
+/// compile time.
+pub const FIRMWARE_VERSION: [u16; 3] = [
+    parse_u16(env!("CARGO_PKG_VERSION_MAJOR")),
+    parse_u16(env!("CARGO_PKG_VERSION_MINOR")),
+    parse_u16(env!("CARGO_PKG_VERSION_PATCH")),
+];
+
+/// A decimal number of at most 65535, in a const context (a bad version fails the build).
+const fn parse_u16(s: &str) -> u16 {
+    let b = s.as_bytes();
+    assert!(!b.is_empty(), "empty version number");
+    let mut v: u32 = 0;
+    let mut i = 0;
+    while i < b.len() {
+        assert!(b[i].is_ascii_digit(), "version number is not decimal");
+        v = v * 10 + (b[i] - b'0') as u32;
+        assert!(v <= u16::MAX as u32, "version number above 65535");
+        i += 1;
+    }
+    v as u16
+}
 
 /// Interval of the unsolicited status reports.
 pub const STATUS_PERIOD: Duration = Duration::from_secs(1);
@@ -52,6 +98,8 @@ pub struct Node {
     pub record: RecordStatus,
     /// Why the node last reset.
     pub reset_cause: ResetCause,
+    /// The id a record must carry (the MCU's unique id; the QEMU board's fixed id).
+    pub device_id: [u8; 12],
 }
 
 impl Node {
@@ -61,12 +109,27 @@ impl Node {
         cal: Calibration,
         record: RecordStatus,
         reset_cause: ResetCause,
+        device_id: [u8; 12],
         clock: &impl SampleClock,
     ) -> Node {
         defmt::info!("last reset: {}", defmt::Display2Format(&reset_cause));
         STATS.rate_hz.store(clock.rate_hz(), Ordering::Relaxed);
         note_trigger_check(clock.trigger_ok());
-        Node { cal, record, reset_cause }
+        Node { cal, record, reset_cause, device_id }
+    }
+
+    /// Who the node is ([`HostMsg::GetInfo`]).
+    pub fn info(&self) -> Info {
+        Info {
+            device_id: self.device_id,
+            firmware: FIRMWARE_VERSION,
+            protocol: PROTOCOL_VERSION,
+            record: self.record,
+            rate_hz: STATS.rate_hz.load(Ordering::Relaxed),
+            overruns: STATS.overruns.load(Ordering::Relaxed),
+            reset_cause: self.reset_cause,
+            output: STATS.output(),
+        }
     }
 
     /// The current status report.
@@ -80,6 +143,17 @@ impl Node {
             bad_frames: STATS.bad_frames.load(Ordering::Relaxed),
             reset_cause: self.reset_cause,
             trigger_mismatch: STATS.trigger_mismatch.load(Ordering::Relaxed),
+            output: STATS.output(),
+        }
+    }
+
+    /// The output block of a live block of `codes` in the output mode now in force.
+    fn live_block(&self, codes: &[Codes]) -> Block {
+        match STATS.output() {
+            Output::Calibrated => self.cal.apply_block(codes),
+            Output::Raw => {
+                Block::Raw(Vec::from_slice(&codes[..codes.len().min(MAX_BLOCK)]).unwrap_or_default())
+            }
         }
     }
 
@@ -89,6 +163,12 @@ impl Node {
             Ok(HostMsg::Replay { seq, codes }) => {
                 let data = self.cal.apply_block(&codes);
                 OUTBOX.send(NodeMsg::Replayed { seq, data }).await;
+            }
+            Ok(HostMsg::GetInfo) => OUTBOX.send(NodeMsg::Info(self.info())).await,
+            Ok(HostMsg::SetOutput(output)) => {
+                STATS.raw_output.store(output == Output::Raw, Ordering::Relaxed);
+                defmt::info!("live output set to {=str}", output.name());
+                OUTBOX.send(NodeMsg::OutputSet(self.status())).await;
             }
             Ok(HostMsg::SetRate { hz }) => match wire::check_rate(hz) {
                 Ok(()) => {
@@ -160,22 +240,28 @@ pub async fn report_status(node: Node) -> ! {
     }
 }
 
-/// Reads live sample sets, calibrates them and queues them for the link, forever. Sets that the
-/// source lost, or that the link could not take in time, are counted as overruns.
+/// Reads live sample sets, calibrates them (or not, in [`Output::Raw`]) and queues them for the
+/// link, forever. Sets that the source lost, or that the link could not take in time, are counted
+/// as overruns and advance the sample counter (`first`) all the same.
 pub async fn stream_samples(mut source: impl SampleSource, node: Node) -> ! {
     let mut codes: [Codes; MAX_BLOCK] = [[0; 3]; MAX_BLOCK];
     let mut seq: u32 = 0;
+    // The node's sample counter: the number of the next set the sampler produces.
+    let mut next: u32 = 0;
     loop {
         match source.read_block(&mut codes).await {
             Ok(n) => {
+                let first = next;
+                next = next.wrapping_add(n as u32);
                 STATS.sample_sets.fetch_add(n as u32, Ordering::Relaxed);
-                let data = node.cal.apply_block(&codes[..n]);
-                if OUTBOX.try_send(NodeMsg::Samples { seq, data }).is_err() {
+                let data = node.live_block(&codes[..n]);
+                if OUTBOX.try_send(NodeMsg::Samples { seq, first, data }).is_err() {
                     STATS.overruns.fetch_add(n as u32, Ordering::Relaxed);
                 }
                 seq = seq.wrapping_add(1);
             }
             Err(o) => {
+                next = next.wrapping_add(o.lost);
                 STATS.overruns.fetch_add(o.lost, Ordering::Relaxed);
                 defmt::warn!("sampling overrun: {=u32} sample sets lost", o.lost);
             }

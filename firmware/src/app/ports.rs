@@ -23,7 +23,7 @@ pub struct Overrun {
     pub lost: u32,
 }
 
-/// A source of live sample sets (the ADC on the real board).
+/// A source of live sample sets (the ADC on the real board, the emulated front end on QEMU).
 pub trait SampleSource {
     /// Waits for the next block of sample sets and copies it into `out`; returns how many.
     /// An `Err` reports sets lost since the last call; the source keeps running.

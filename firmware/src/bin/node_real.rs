@@ -9,7 +9,8 @@ use accelcal_node::{app, board, executor::Executor, tasks};
 fn main() -> ! {
     let (board, watchdog) = board::init();
     let (cal, record) = app::calib::load(&board.storage);
-    let node = app::node::Node::new(cal, record, board.reset_cause, &board.clock);
+    let device_id = app::ports::RecordStorage::device_id(&board.storage);
+    let node = app::node::Node::new(cal, record, board.reset_cause, device_id, &board.clock);
     let executor = cortex_m::singleton!(: Executor = Executor::new()).expect("main runs once");
     executor.run(|spawner| tasks::spawn_all(spawner, board, node), watchdog)
 }

@@ -1,15 +1,18 @@
 //! The QEMU board: what QEMU 10's `b-l475e-iot01a` machine really emulates (see
-//! `shared/docs/qemu-b-l475e.md`). USART1 is the host link (`-serial`), time comes from SysTick,
-//! defmt goes out over semihosting, and sample sets arrive over the link as replay requests (the
-//! ADC, DMA and timers are stubs in QEMU, so there is no live sample source).
+//! `shared/docs/qemu-b-l475e.md`). USART1 is the host link (the first `-serial`), time comes from
+//! SysTick, defmt goes out over semihosting. The ADC, DMA and timers are stubs in QEMU, so live
+//! sample sets come from an emulated analog front end on USART2 (the second `-serial`,
+//! [`frontend`]), and replayed ones over the link as replay requests. The node never enables
+//! USART3 (the host may attach a chardev to it to keep QEMU's main loop busy).
 //!
 //! QEMU 10.0.2 models RCC: RCC_CSR reads 0x0C00_0600 after QEMU's reset (BORRSTF | PINRSTF |
 //! MSISRANGE 6, the chip's power-on value), so the node reads and reports it like the real board
 //! ([`ResetCause::PowerOn`]) and clears it (RMVF). The IWDG is an unimplemented-device stub (reads
 //! 0, ignores writes, `info mtree`: "IWDG", priority −1000): there is no watchdog to feed. TIM6
-//! and the ADC are stubs too, so the sampling rate is only recorded: [`SampleClockImpl`] accepts
-//! every rate the app passes and has no trigger configuration to read back.
+//! and the ADC are stubs too: [`SampleClockImpl`] accepts every rate the app passes, tells the
+//! front end (which paces the sets), and has no trigger configuration to read back.
 
+mod frontend;
 mod time;
 mod usart;
 
@@ -22,6 +25,7 @@ use defmt_semihosting as _;
 
 use crate::app::ports::{RecordStorage, SampleClock, Watchdog};
 
+pub use frontend::{SourceImpl, RING_SETS};
 pub use usart::{LinkRxImpl, LinkTxImpl};
 
 /// RCC_CSR (RM0351 §6.4.29): reset flags in bits 24..=31, RMVF (write 1 to clear them) bit 23.
@@ -38,7 +42,8 @@ fn take_reset_cause() -> ResetCause {
     ResetCause::from_rcc_csr(csr)
 }
 
-/// The sampling rate, recorded only: QEMU's TIM6 and ADC are stubs.
+/// The sampling rate: QEMU's TIM6 and ADC are stubs, so the front end paces the sets; it is told
+/// every new rate ([`accelcal_shared::frontend::FeCtl::Rate`] on USART2).
 pub struct SampleClockImpl {
     rate_hz: u32,
 }
@@ -49,6 +54,7 @@ impl SampleClock for SampleClockImpl {
     }
     fn set_rate(&mut self, hz: u32) -> bool {
         self.rate_hz = hz;
+        frontend::send_rate(hz);
         true
     }
     fn trigger_ok(&self) -> bool {
@@ -89,20 +95,24 @@ pub struct Board {
     pub tx: LinkTxImpl,
     /// Record slots and device id.
     pub storage: Storage,
-    /// The (recorded) sampling rate.
+    /// Live sample sets from the emulated front end (USART2).
+    pub source: SourceImpl,
+    /// The sampling rate, as the front end is told.
     pub clock: SampleClockImpl,
     /// Why the emulated MCU last reset, as QEMU's RCC model says.
     pub reset_cause: ResetCause,
 }
 
-/// Brings up the emulated chip: reset cause, SysTick time base, USART1.
+/// Brings up the emulated chip: reset cause, SysTick time base, USART1 (link), USART2 (front end,
+/// told the sampling rate at boot).
 pub fn init() -> (Board, WatchdogImpl) {
     let reset_cause = take_reset_cause();
     let mut core = cortex_m::Peripherals::take().expect("init runs once");
     time::init(&mut core.SYST);
     let (rx, tx) = usart::init();
+    let source = frontend::init(DEFAULT_RATE_HZ);
     let clock = SampleClockImpl { rate_hz: DEFAULT_RATE_HZ };
-    (Board { rx, tx, storage: Storage, clock, reset_cause }, WatchdogImpl)
+    (Board { rx, tx, storage: Storage, source, clock, reset_cause }, WatchdogImpl)
 }
 
 /// Device interrupts: cortex-m-rt routes every one to `DefaultHandler`; dispatch on the number.
@@ -110,6 +120,8 @@ pub fn init() -> (Board, WatchdogImpl) {
 unsafe fn DefaultHandler(irqn: i16) {
     if irqn == usart::USART1_IRQN {
         usart::on_interrupt();
+    } else if irqn == frontend::USART2_IRQN {
+        frontend::on_interrupt();
     } else {
         fail(format_args!("unexpected interrupt {irqn}"));
     }
