@@ -21,7 +21,6 @@ use crate::node::qemu::{BlankSlot, Link, LinkChannel, Qemu, QemuOptions};
 use crate::sim::Unit;
 
 /// How to run the bench.
-#[derive(Clone, Debug)]
 pub struct BenchOptions {
     /// The QEMU executable.
     pub qemu: PathBuf,
@@ -68,6 +67,9 @@ pub struct Bench {
     pub rate_hz: Arc<AtomicU32>,
 }
 
+/// Send buffer of the front end's socket, bytes (the kernel doubles it and applies its minimum).
+const FE_SEND_BUFFER: usize = 2048;
+
 /// A free TCP port on 127.0.0.1 (the port is released before QEMU binds it: a small race that
 /// QEMU reports if lost).
 fn free_port() -> std::io::Result<u16> {
@@ -76,10 +78,10 @@ fn free_port() -> std::io::Result<u16> {
 
 impl Bench {
     /// Starts QEMU, the front end and the head.
-    pub fn start(opts: &BenchOptions) -> anyhow::Result<Bench> {
+    pub fn start(opts: BenchOptions) -> anyhow::Result<Bench> {
         opts.unit.check_triad()?;
         opts.motion.check().map_err(|e| bad(format!("head motion: {e}")))?;
-        let mut fe = FrontEnd::new(opts.unit.clone(), opts.seed)?;
+        let mut fe = FrontEnd::new(opts.unit, opts.seed)?;
         let gdb_port = if opts.gdb_port == 0 { free_port()? } else { opts.gdb_port };
         let head_listener = bind_head(opts.head_port)?;
         let mut q = QemuOptions::new(&opts.elf);
@@ -99,6 +101,11 @@ impl Bench {
             _ => anyhow::bail!("QEMU did not give the link a pseudo-terminal"),
         };
         let fe_sock = qemu.take_frontend().ok_or_else(|| anyhow::anyhow!("QEMU did not open the front end"))?;
+        // A converter has no queue: sets the node has not taken must not pile up in the socket
+        // (its default buffer holds seconds of sets, which would reach the node late, from a
+        // head pose long past). With the smallest send buffer the writer blocks within a few
+        // sets and the pacing loop skips what it cannot send, which the node counts as lost.
+        socket2::SockRef::from(&fe_sock).set_send_buffer_size(FE_SEND_BUFFER)?;
         let stop = Arc::new(AtomicBool::new(false));
         let head = Arc::new(Head::new(Clock::start(), opts.motion, (0.0, 0.0)));
         let (head_addr, head_thread) = spawn_head_server(head_listener, head.clone(), stop.clone())?;

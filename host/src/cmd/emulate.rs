@@ -36,7 +36,7 @@ pub fn run(a: &EmulateArgs) -> anyhow::Result<()> {
         head_port: a.head_port,
     };
     let stop = super::live::stop_flag()?;
-    let mut bench = Bench::start(&opts)?;
+    let mut bench = Bench::start(opts)?;
     let line = serde_json::to_string(&bench.endpoints)?;
     let mut out = std::io::stdout().lock();
     writeln!(out, "{line}")?;

@@ -1,0 +1,355 @@
+//! The production line in emulation: `accelcal emulate` (the node's QEMU build fed live by a
+//! simulated unit on an emulated head) driven by the other commands exactly as a real bench is:
+//! through the node's serial port (a pty), QEMU's gdbstub and the head's TCP address.
+//!
+//! Needs `qemu-system-arm` (`scripts/setup-qemu.sh`) and the node's QEMU build (`cargo xtask test`
+//! builds it); the certificate check needs `chromium` (`scripts/setup-chromium.sh`).
+
+mod common;
+#[allow(dead_code)]
+mod support;
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use accelcal_core::node::session::Session;
+use accelcal_shared::wire::{Block, NodeMsg};
+use common::{accelcal, ok, succeed};
+
+/// A running `accelcal emulate`; stopped with SIGINT (as a user's Ctrl-C) when dropped.
+struct Emulator {
+    child: Child,
+    port: String,
+    gdb: String,
+    head: String,
+}
+
+impl Emulator {
+    fn start(unit: &Path, extra: &[&str]) -> Emulator {
+        let elf = support::node_elf();
+        let mut child = Command::new(env!("CARGO_BIN_EXE_accelcal"))
+            .args(["emulate", "--qemu"])
+            .arg(&elf)
+            .arg("--unit")
+            .arg(unit)
+            .args(["--head-speed", "600"])
+            .args(extra)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("accelcal emulate starts");
+        let mut line = String::new();
+        BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).expect("emulate prints its endpoints");
+        let v: serde_json::Value = serde_json::from_str(&line).unwrap_or_else(|e| panic!("{e}: `{line}`"));
+        let s = |k: &str| v[k].as_str().unwrap_or_else(|| panic!("no `{k}` in {line}")).to_string();
+        assert!(s("head").starts_with("sim:127.0.0.1:"), "{line}");
+        Emulator { port: s("port"), gdb: s("gdb"), head: s("head"), child }
+    }
+
+    /// Stops it like Ctrl-C does and returns its exit code.
+    fn stop(mut self) -> Option<i32> {
+        let code = interrupt(&mut self.child, Duration::from_secs(10));
+        std::mem::forget(self);
+        code
+    }
+}
+
+impl Drop for Emulator {
+    fn drop(&mut self) {
+        interrupt(&mut self.child, Duration::from_secs(10));
+    }
+}
+
+/// Sends SIGINT and waits up to `within` for the exit (then kills); returns the exit code.
+fn interrupt(child: &mut Child, within: Duration) -> Option<i32> {
+    let _ = Command::new("kill").args(["-INT", &child.id().to_string()]).status();
+    let t0 = Instant::now();
+    while t0.elapsed() < within {
+        if let Ok(Some(st)) = child.try_wait() {
+            return st.code();
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let _ = child.kill();
+    let _ = child.wait();
+    None
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// A simulated unit's truth file (and its simulated campaign on the head plan).
+fn unit(dir: &Path, name: &str, seed: u64, samples: usize) -> (PathBuf, PathBuf) {
+    let truth = dir.join(format!("{name}.json"));
+    let campaign = dir.join(format!("{name}-sim.csv"));
+    ok(&[
+        "simulate",
+        "--seed",
+        &seed.to_string(),
+        "--samples",
+        &samples.to_string(),
+        "-o",
+        s(&campaign),
+        "--truth",
+        s(&truth),
+    ]);
+    (truth, campaign)
+}
+
+fn json(p: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+}
+
+/// The fit's coefficients and standard errors of channels x, y, z (model 4).
+fn fit(campaign: &Path, out: &Path, extra: &[&str]) -> Vec<(Vec<f64>, Vec<f64>)> {
+    let mut args = vec!["fit", s(campaign), "--g", "9.81", "--json", s(out)];
+    args.extend_from_slice(extra);
+    ok(&args);
+    let v = json(out);
+    v["channels"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| {
+            let f = |k: &str| c[k].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect::<Vec<_>>();
+            (f("coefficients"), f("std_errors"))
+        })
+        .collect()
+}
+
+/// The largest |fit − truth| / standard error over every coefficient.
+fn worst_z(fits: &[(Vec<f64>, Vec<f64>)], truth: &serde_json::Value) -> f64 {
+    let mut worst = 0.0f64;
+    for (c, (coef, se)) in fits.iter().enumerate() {
+        let t = &truth["channels"][c];
+        let want = [t["bias"].as_f64().unwrap(), t["k"][0].as_f64().unwrap(), t["k"][1].as_f64().unwrap(), t["k"][2].as_f64().unwrap()];
+        for i in 0..4 {
+            worst = worst.max((coef[i] - want[i]).abs() / se[i]);
+        }
+    }
+    worst
+}
+
+/// (alpha, beta, rows) of each dwell of a campaign, in order.
+fn dwells(campaign: &Path) -> Vec<(String, String, usize)> {
+    let text = std::fs::read_to_string(campaign).unwrap();
+    let mut out: Vec<(String, String, usize)> = Vec::new();
+    for line in text.lines().filter(|l| !l.starts_with('#')).skip(1) {
+        let f: Vec<&str> = line.split(',').collect();
+        match out.last_mut() {
+            Some(d) if d.0 == f[1] && d.1 == f[2] => d.2 += 1,
+            _ => out.push((f[1].to_string(), f[2].to_string(), 1)),
+        }
+    }
+    out
+}
+
+/// Issue 13: acquiring the head plan from a unit with known truth on the emulated bench; GMDH
+/// picks model 4 and LSQ recovers the unit as well as from `simulate`'s campaign of it.
+#[test]
+fn acquired_campaign_recovers_the_unit() {
+    let dir = tempfile::tempdir().unwrap();
+    let (truth, sim) = unit(dir.path(), "u", 5, 200);
+    let em = Emulator::start(&truth, &[]);
+    let info = dir.path().join("info.json");
+    ok(&["info", "--port", &em.port, "--json", s(&info)]);
+    assert_eq!(json(&info)["device_id"], "51454d552d422d4c34373545");
+    let c = dir.path().join("c.csv");
+    let out = succeed(&["acquire", "--port", &em.port, "--head", &em.head, "--plan", "head", "--samples", "200", "--g", "9.81", "--serial", "U5", "-o", s(&c)]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("position 62/62"), "{err}");
+    let header = std::fs::read_to_string(&c).unwrap();
+    for key in ["# device_id: 51454d552d422d4c34373545", "# serial: U5", "# firmware: 0.1.0", "# g_m_s2: 9.81", "# plan: head (62 positions)"] {
+        assert!(header.contains(key), "{key} missing");
+    }
+    let d = dwells(&c);
+    assert_eq!(d.len(), 62);
+    assert!(d.iter().all(|x| x.2 == 200));
+
+    let sel = dir.path().join("sel.json");
+    ok(&["select", s(&c), "--g", "9.81", "--json", s(&sel)]);
+    for ch in json(&sel)["channels"].as_array().unwrap() {
+        assert_eq!(ch["selected"]["terms"], serde_json::json!(["1", "ax", "ay", "az"]), "{}", ch["channel"]);
+    }
+    let t = json(&truth);
+    let z_acq = worst_z(&fit(&c, &dir.path().join("fa.json"), &[]), &t);
+    let z_sim = worst_z(&fit(&sim, &dir.path().join("fs.json"), &[]), &t);
+    // Both within 5 standard errors of the truth for all 12 coefficients (a bound that a correct
+    // fit exceeds with probability about 12 · 6e-7).
+    assert!(z_acq < 5.0 && z_sim < 5.0, "acquired: {z_acq:.2} SE, simulated: {z_sim:.2} SE");
+    assert_eq!(em.stop(), Some(0));
+}
+
+/// Issue 13: an acquisition stopped by Ctrl-C keeps its complete positions and `--resume` ends
+/// with the same positions as an unbroken one.
+#[test]
+fn interrupted_acquisition_resumes_to_the_same_positions() {
+    let dir = tempfile::tempdir().unwrap();
+    let (truth, _) = unit(dir.path(), "u", 6, 10);
+    let em = Emulator::start(&truth, &[]);
+    let full = dir.path().join("full.csv");
+    ok(&["acquire", "--port", &em.port, "--head", &em.head, "--plan", "six", "--samples", "300", "--g", "9.81", "-o", s(&full)]);
+    let cut = dir.path().join("cut.csv");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_accelcal"))
+        .args(["acquire", "--port", &em.port, "--head", &em.head, "--plan", "six", "--samples", "300", "--g", "9.81", "-o", s(&cut)])
+        .stderr(Stdio::piped())
+        .stdout(Stdio::null())
+        .spawn()
+        .unwrap();
+    // Wait for two complete positions, then Ctrl-C.
+    let t0 = Instant::now();
+    while dwells(&cut).iter().filter(|d| d.2 == 300).count() < 2 {
+        assert!(t0.elapsed() < Duration::from_secs(60), "no progress");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let code = interrupt(&mut child, Duration::from_secs(20));
+    let mut err = String::new();
+    std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
+    assert_eq!(code, Some(130), "{err}");
+    assert!(err.contains("continue with --resume"), "{err}");
+    let kept = dwells(&cut);
+    assert!(kept.len() >= 2 && kept.len() < 6 && kept.iter().all(|d| d.2 == 300), "{kept:?}");
+    let out = succeed(&["acquire", "--port", &em.port, "--head", &em.head, "--plan", "six", "--samples", "300", "--g", "9.81", "-o", s(&cut), "--resume"]);
+    assert!(String::from_utf8_lossy(&out.stderr).contains(&format!("resume: {} complete positions kept", kept.len())));
+    assert_eq!(dwells(&cut), dwells(&full));
+    // A campaign of another plan is not resumed.
+    let e = common::bad(&["acquire", "--port", &em.port, "--head", &em.head, "--plan", "head", "--samples", "300", "--g", "9.81", "-o", s(&cut), "--resume"]);
+    assert!(e.contains("cannot resume: the campaign's plan is `six (6 positions)`"), "{e}");
+}
+
+/// Issue 13: a front end faster than the node can take makes overruns that the stream (jumps of
+/// `first`) and the status both report; raw and calibrated output switch.
+#[test]
+fn overruns_are_reported_and_output_modes_switch() {
+    let dir = tempfile::tempdir().unwrap();
+    let (truth, _) = unit(dir.path(), "u", 7, 10);
+    let em = Emulator::start(&truth, &["--rate-factor", "30"]);
+    let mut node = Session::open(&em.port, 921_600, Duration::from_secs(5)).unwrap();
+    let before = node.status().unwrap().overruns;
+    let (mut jumps, mut next, mut blocks) = (0u64, None::<u32>, 0);
+    let t0 = Instant::now();
+    while t0.elapsed() < Duration::from_secs(2) {
+        if let Some(NodeMsg::Samples { first, data, .. }) = node.poll().unwrap() {
+            if let Some(n) = next {
+                jumps += first.wrapping_sub(n) as u64;
+            }
+            next = Some(first.wrapping_add(data.len() as u32));
+            blocks += 1;
+        }
+    }
+    let after = node.status().unwrap().overruns;
+    assert!(blocks > 10, "{blocks} blocks");
+    assert!(jumps > 0, "no sets lost at 30 times the node's rate");
+    assert!((after - before) as u64 >= jumps, "status {} lost, stream jumps {jumps}", after - before);
+    // No record: calibrated output is flagged uncalibrated; raw output is raw.
+    let kind = |node: &mut Session| loop {
+        if let Some(NodeMsg::Samples { data, .. }) = node.poll().unwrap() {
+            break std::mem::discriminant(&data);
+        }
+    };
+    drop(node);
+    assert!(ok(&["output", "--port", &em.port, "raw"]).contains("now streams raw"));
+    let mut node = Session::open(&em.port, 921_600, Duration::from_secs(5)).unwrap();
+    node.flush_stream().unwrap();
+    assert_eq!(kind(&mut node), std::mem::discriminant(&Block::Raw(Default::default())));
+    drop(node);
+    assert!(ok(&["output", "--port", &em.port, "calibrated"]).contains("now streams calibrated"));
+    let mut node = Session::open(&em.port, 921_600, Duration::from_secs(5)).unwrap();
+    node.flush_stream().unwrap();
+    assert_eq!(kind(&mut node), std::mem::discriminant(&Block::Uncalibrated(Default::default())));
+}
+
+/// Issue 14: the whole line in emulation, with its negatives.
+#[test]
+fn the_production_line_in_emulation() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n);
+    let (truth, _) = unit(dir.path(), "u", 11, 10);
+    let em = Emulator::start(&truth, &[]);
+    ok(&["info", "--port", &em.port, "--json", s(&p("info.json"))]);
+    let id = json(&p("info.json"))["device_id"].as_str().unwrap().to_string();
+    assert!(json(&p("info.json"))["record"].is_null());
+    let c = p("c.csv");
+    ok(&["acquire", "--port", &em.port, "--head", &em.head, "--plan", "head", "--samples", "200", "--g", "9.81", "--serial", "U11", "-o", s(&c)]);
+    let rec = p("u11.rec");
+    fit(&c, &p("fit.json"), &["--record", s(&rec), "--device-id", &id]);
+
+    // A record of another device is refused before anything is written.
+    let other = p("other.rec");
+    fit(&c, &p("fit-other.json"), &["--record", s(&other), "--device-id", "0123456789abcdef01234567"]);
+    let out = accelcal(&["flash", s(&other), "--gdb", &em.gdb, "--port", &em.port]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("is for device 0123456789abcdef01234567"), "{err}");
+    ok(&["info", "--port", &em.port, "--json", s(&p("info2.json"))]);
+    assert!(json(&p("info2.json"))["record"].is_null(), "nothing was written");
+
+    // Reflash through the gdbstub, confirmed over the link.
+    let out = ok(&["flash", s(&rec), "--gdb", &em.gdb, "--port", &em.port]);
+    assert!(out.contains("confirmed over"), "{out}");
+    ok(&["info", "--port", &em.port, "--json", s(&p("info3.json"))]);
+    let good_crc = json(&p("info3.json"))["record"]["crc"].as_str().unwrap().to_string();
+
+    let verify = |name: &str| {
+        accelcal(&["verify", "--port", &em.port, "--head", &em.head, "--plan", "six", "--g", "9.81", "--fit", s(&p("fit.json")), "--json", s(&p(name))])
+    };
+    let v = verify("verify.json");
+    assert_eq!(v.status.code(), Some(0), "{}{}", String::from_utf8_lossy(&v.stdout), String::from_utf8_lossy(&v.stderr));
+    assert!(json(&p("verify.json"))["pass"].as_bool().unwrap());
+
+    // The certificate, one A4 page.
+    let cert = p("cert.html");
+    ok(&["report", "--campaign", s(&c), "--record", s(&rec), "--verify", s(&p("verify.json")), "-o", s(&cert)]);
+    let html = std::fs::read_to_string(&cert).unwrap();
+    for want in ["U11", &id, &good_crc, "VERIFIED", "1,ax,ay,az", "<svg"] {
+        assert!(html.contains(want), "certificate lacks {want}");
+    }
+    assert_eq!(pdf_pages(&cert, &p("cert.pdf")), 1);
+
+    // Wrong coefficients (another unit's fit, this node's id): verify fails with exit code 1.
+    let (truth2, sim2) = unit(dir.path(), "w", 12, 50);
+    let _ = truth2;
+    let wrong = p("wrong.rec");
+    fit(&sim2, &p("fit-wrong.json"), &["--record", s(&wrong), "--device-id", &id]);
+    ok(&["flash", s(&wrong), "--gdb", &em.gdb, "--port", &em.port]);
+    let v = verify("verify-wrong.json");
+    assert_eq!(v.status.code(), Some(1), "{}", String::from_utf8_lossy(&v.stderr));
+    assert!(!json(&p("verify-wrong.json"))["pass"].as_bool().unwrap());
+
+    // Back to the good record; then reflashes cut part-way leave it in force.
+    ok(&["flash", s(&rec), "--gdb", &em.gdb, "--port", &em.port]);
+    for cut in ["0", "24", "1000", "2040", "2047"] {
+        let out = ok(&["flash", s(&wrong), "--gdb", &em.gdb, "--cut-after", cut]);
+        assert!(out.contains("write CUT"), "{out}");
+        let info = p(&format!("info-cut{cut}.json"));
+        let t0 = Instant::now();
+        // The node reboots after the cut write.
+        while accelcal(&["info", "--port", &em.port, "--json", s(&info)]).status.code() != Some(0) {
+            assert!(t0.elapsed() < Duration::from_secs(20));
+        }
+        let good = json(&p("info3.json"));
+        let now = json(&info);
+        assert_eq!(now["record"]["crc"], good["record"]["crc"], "cut after {cut} bytes");
+    }
+    let v = verify("verify-after-cuts.json");
+    assert_eq!(v.status.code(), Some(0), "{}", String::from_utf8_lossy(&v.stdout));
+    assert_eq!(em.stop(), Some(0));
+}
+
+/// Prints `html` to PDF with headless Chromium and counts the pages.
+fn pdf_pages(html: &Path, pdf: &Path) -> usize {
+    let out = Command::new("chromium")
+        .args(["--headless", "--no-sandbox", "--disable-gpu", "--no-pdf-header-footer"])
+        .arg(format!("--print-to-pdf={}", pdf.display()))
+        .arg(html)
+        .output()
+        .expect("chromium is installed (bash scripts/setup-chromium.sh)");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let bytes = std::fs::read(pdf).unwrap();
+    let text = String::from_utf8_lossy(&bytes);
+    // The page tree's count: "/Count N" in the /Pages dictionary (uncompressed in Chromium's PDFs).
+    let n = text.split("/Count ").nth(1).and_then(|r| r.split(|c: char| !c.is_ascii_digit()).next()).and_then(|n| n.parse().ok());
+    n.expect("a /Count in the PDF")
+}
