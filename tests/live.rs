@@ -17,7 +17,7 @@ use std::sync::{Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
 use accelcal_core::node::link::{self, Receiver};
-use accelcal_core::node::qemu::{Link, Qemu, QemuOptions};
+use accelcal_core::node::qemu::{Link, LinkChannel, Qemu, QemuOptions};
 use accelcal_shared::contract::QEMU_DEVICE_ID;
 use accelcal_shared::frontend::{FeCtl, FeSet, FE_MAX_FRAME};
 use accelcal_shared::linear::{LinearCalF32, Model4};
@@ -376,4 +376,49 @@ fn node_tells_the_front_end_its_rate() {
     assert_eq!(s.rate_hz, 4000);
     // The refused rate sent nothing: the next message is the accepted one.
     assert_eq!(bench.next_ctl(), FeCtl::Rate { hz: 4000 });
+}
+
+/// The link on a pseudo-terminal (what `accelcal emulate` offers to serial-port programs): QEMU
+/// names it, the node answers on it; the gdbstub answers on its port.
+#[test]
+fn qemu_offers_the_link_on_a_pty_and_a_gdbstub() {
+    let _lock = ONE_QEMU.lock().unwrap_or_else(|e| e.into_inner());
+    let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let opts = QemuOptions { link: LinkChannel::Pty, gdb_port: Some(port), ..QemuOptions::new(node_elf()) };
+    let mut qemu = Qemu::start(&opts).unwrap();
+    let Some(Link::Pty(path)) = qemu.take_link() else { panic!("a pty link") };
+    let pty = std::fs::OpenOptions::new().read(true).write(true).open(&path).unwrap();
+    let (tx, msgs) = mpsc::channel();
+    let mut rx = Receiver::new(pty.try_clone().unwrap());
+    std::thread::spawn(move || {
+        while let Ok(m) = rx.recv() {
+            if tx.send(m).is_err() {
+                break;
+            }
+        }
+    });
+    let mut w = pty;
+    let t0 = Instant::now();
+    let info = loop {
+        assert!(t0.elapsed() < Duration::from_secs(10), "no Info on {}", path.display());
+        link::send(&mut w, &HostMsg::GetInfo).unwrap();
+        if let Ok(Ok(NodeMsg::Info(i))) = msgs.recv_timeout(Duration::from_millis(500)) {
+            break i;
+        }
+    };
+    assert_eq!(&info.device_id, b"QEMU-B-L475E");
+
+    let mut gdb = std::net::TcpStream::connect(("127.0.0.1", port)).unwrap();
+    gdb.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+    // `?` (why the target stopped), checksum 0x3f.
+    gdb.write_all(b"$?#3f").unwrap();
+    let mut reply = Vec::new();
+    let mut buf = [0u8; 64];
+    while !reply.contains(&b'#') {
+        let n = gdb.read(&mut buf).unwrap();
+        assert!(n > 0, "gdbstub closed");
+        reply.extend_from_slice(&buf[..n]);
+    }
+    let reply = String::from_utf8_lossy(&reply);
+    assert!(reply.starts_with("+$T") || reply.starts_with("+$S"), "{reply}");
 }

@@ -167,7 +167,7 @@ impl QemuNode {
         }
         let mut qemu = Qemu::start(opts)?;
         let Some(Link::Socket(stream)) = qemu.take_link() else {
-            unreachable!("a socket link was asked for")
+            return Err(HilError::Protocol("QEMU's link is not a connected socket".into()));
         };
         stream.set_read_timeout(Some(Duration::from_millis(200)))?;
         let rx = Receiver::new(stream.try_clone()?);
@@ -238,22 +238,6 @@ impl QemuNode {
                 }
                 Err(e) => return Err(self.explain(e)),
             }
-        }
-    }
-
-    /// Sends `msg` on the link (with a leading zero).
-    pub fn send(&mut self, msg: &HostMsg) -> Result<(), HilError> {
-        link::send(&mut self.stream, msg)?;
-        Ok(())
-    }
-
-    /// The node's next message, or `None` when none came within the link's read timeout (200 ms).
-    pub fn recv(&mut self) -> Result<Option<NodeMsg>, HilError> {
-        match self.rx.recv() {
-            Ok(Ok(m)) => Ok(Some(m)),
-            Ok(Err(e)) => Err(HilError::Protocol(format!("bad frame from the node: {e}"))),
-            Err(e) if is_timeout(&e) => Ok(None),
-            Err(e) => Err(self.explain(e)),
         }
     }
 

@@ -27,7 +27,7 @@ use accelcal_shared::wire::{self, Codes, FrameDecoder, MAX_BLOCK};
 use critical_section::Mutex;
 use embassy_sync::waitqueue::AtomicWaker;
 
-use super::usart::{reg_read, reg_write, Irq, Rx, Usart, CR1_RE, CR1_RXNEIE, CR1_TE};
+use super::usart::{reg_read, reg_write, Irq, Usart, CR1_RE, CR1_RXNEIE, CR1_TE};
 use crate::app::ports::{Overrun, SampleSource};
 
 /// USART2 base address (RM0351 §2.2.2, memory map, APB1).
@@ -155,7 +155,8 @@ pub(super) fn send_rate(hz: u32) {
 /// USART2 interrupt: takes every received byte (no flow control) into the decoder and the ring.
 pub(super) fn on_interrupt() {
     let mut any = false;
-    while let Rx::Byte(b) = USART2.receive() {
+    while USART2.rx_pending() {
+        let b = USART2.read_rdr();
         critical_section::with(|cs| STATE.borrow_ref_mut(cs).push_byte(b));
         any = true;
     }

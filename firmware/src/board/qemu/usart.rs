@@ -61,14 +61,6 @@ pub(super) struct Usart {
     pub base: usize,
 }
 
-/// What one pass over the receiver found.
-pub(super) enum Rx {
-    /// A byte was taken from RDR.
-    Byte(u8),
-    /// RDR holds nothing.
-    Empty,
-}
-
 impl Usart {
     fn read(self, off: usize) -> u32 {
         reg_read(self.base + off)
@@ -90,22 +82,19 @@ impl Usart {
         critical_section::with(|_| self.write(CR1, (self.read(CR1) & !clear) | set));
     }
 
-    /// Clears an overrun, then takes the received byte if there is one.
-    pub fn receive(self) -> Rx {
+    /// Whether RDR holds a byte; clears an overrun on the way (one read of ISR: every register
+    /// access is a trip into QEMU's device model, which the link's speed in QEMU depends on).
+    pub fn rx_pending(self) -> bool {
         let isr = self.read(ISR);
         if isr & ISR_ORE != 0 {
             self.write(ICR, ISR_ORE);
         }
-        if isr & ISR_RXNE == 0 {
-            Rx::Empty
-        } else {
-            Rx::Byte(self.read(RDR) as u8)
-        }
+        isr & ISR_RXNE != 0
     }
 
-    /// Whether RDR holds a byte.
-    pub fn rx_ready(self) -> bool {
-        self.read(ISR) & ISR_RXNE != 0
+    /// Takes the byte in RDR (the caller has seen [`Usart::rx_pending`]).
+    pub fn read_rdr(self) -> u8 {
+        self.read(RDR) as u8
     }
 
     /// Whether TDR can take a byte.
@@ -140,17 +129,12 @@ pub(super) fn init() -> (LinkRxImpl, LinkTxImpl) {
 
 /// USART1 interrupt: moves received bytes into the pipe; masks itself when the pipe is full.
 pub(super) fn on_interrupt() {
-    loop {
-        if USART1.rx_ready() && RX_PIPE.is_full() {
+    while USART1.rx_pending() {
+        if RX_PIPE.is_full() {
             USART1.modify_cr1(0, CR1_RXNEIE);
             break;
         }
-        match USART1.receive() {
-            Rx::Byte(b) => {
-                let _ = RX_PIPE.try_write(&[b]);
-            }
-            Rx::Empty => break,
-        }
+        let _ = RX_PIPE.try_write(&[USART1.read_rdr()]);
     }
 }
 
