@@ -17,7 +17,7 @@ use std::sync::{Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
 use accelcal_core::node::link::{self, Receiver};
-use accelcal_core::node::qemu::{Link, LinkChannel, Qemu, QemuOptions};
+use accelcal_core::node::qemu::{BlankSlot, Link, LinkChannel, Qemu, QemuOptions};
 use accelcal_shared::contract::QEMU_DEVICE_ID;
 use accelcal_shared::frontend::{FeCtl, FeSet, FE_MAX_FRAME};
 use accelcal_shared::linear::{LinearCalF32, Model4};
@@ -379,12 +379,20 @@ fn node_tells_the_front_end_its_rate() {
 }
 
 /// The link on a pseudo-terminal (what `accelcal emulate` offers to serial-port programs): QEMU
-/// names it, the node answers on it; the gdbstub answers on its port.
+/// names it, the node answers on it; a record in slot 1 next to an erased slot 0 is in force; the
+/// gdbstub answers on its port.
 #[test]
 fn qemu_offers_the_link_on_a_pty_and_a_gdbstub() {
     let _lock = ONE_QEMU.lock().unwrap_or_else(|e| e.into_inner());
     let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
-    let opts = QemuOptions { link: LinkChannel::Pty, gdb_port: Some(port), ..QemuOptions::new(node_elf()) };
+    let page = SlotImage::build(&record(), 3).unwrap().to_vec();
+    let opts = QemuOptions {
+        link: LinkChannel::Pty,
+        gdb_port: Some(port),
+        slots: [None, Some(page)],
+        blank: BlankSlot::Erased,
+        ..QemuOptions::new(node_elf())
+    };
     let mut qemu = Qemu::start(&opts).unwrap();
     let Some(Link::Pty(path)) = qemu.take_link() else { panic!("a pty link") };
     let pty = std::fs::OpenOptions::new().read(true).write(true).open(&path).unwrap();
@@ -407,6 +415,7 @@ fn qemu_offers_the_link_on_a_pty_and_a_gdbstub() {
         }
     };
     assert_eq!(&info.device_id, b"QEMU-B-L475E");
+    assert!(matches!(info.record, RecordStatus::InUse { slot: 1, sequence: 3, .. }), "{:?}", info.record);
 
     let mut gdb = std::net::TcpStream::connect(("127.0.0.1", port)).unwrap();
     gdb.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
