@@ -37,11 +37,13 @@ impl Emulator {
             .args(["--head-speed", "600"])
             .args(extra)
             .stdout(Stdio::piped())
-            .stderr(Stdio::null())
+            .stderr(Stdio::inherit())
             .spawn()
             .expect("accelcal emulate starts");
         let mut line = String::new();
-        BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).expect("emulate prints its endpoints");
+        BufReader::new(child.stdout.take().unwrap())
+            .read_line(&mut line)
+            .expect("emulate prints its endpoints");
         let v: serde_json::Value = serde_json::from_str(&line).unwrap_or_else(|e| panic!("{e}: `{line}`"));
         let s = |k: &str| v[k].as_str().unwrap_or_else(|| panic!("no `{k}` in {line}")).to_string();
         assert!(s("head").starts_with("sim:127.0.0.1:"), "{line}");
@@ -114,7 +116,8 @@ fn fit(campaign: &Path, out: &Path, extra: &[&str]) -> Vec<(Vec<f64>, Vec<f64>)>
         .unwrap()
         .iter()
         .map(|c| {
-            let f = |k: &str| c[k].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect::<Vec<_>>();
+            let f =
+                |k: &str| c[k].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect::<Vec<_>>();
             (f("coefficients"), f("std_errors"))
         })
         .collect()
@@ -125,7 +128,12 @@ fn worst_z(fits: &[(Vec<f64>, Vec<f64>)], truth: &serde_json::Value) -> f64 {
     let mut worst = 0.0f64;
     for (c, (coef, se)) in fits.iter().enumerate() {
         let t = &truth["channels"][c];
-        let want = [t["bias"].as_f64().unwrap(), t["k"][0].as_f64().unwrap(), t["k"][1].as_f64().unwrap(), t["k"][2].as_f64().unwrap()];
+        let want = [
+            t["bias"].as_f64().unwrap(),
+            t["k"][0].as_f64().unwrap(),
+            t["k"][1].as_f64().unwrap(),
+            t["k"][2].as_f64().unwrap(),
+        ];
         for i in 0..4 {
             worst = worst.max((coef[i] - want[i]).abs() / se[i]);
         }
@@ -158,11 +166,33 @@ fn acquired_campaign_recovers_the_unit() {
     ok(&["info", "--port", &em.port, "--json", s(&info)]);
     assert_eq!(json(&info)["device_id"], "51454d552d422d4c34373545");
     let c = dir.path().join("c.csv");
-    let out = succeed(&["acquire", "--port", &em.port, "--head", &em.head, "--plan", "head", "--samples", "200", "--g", "9.81", "--serial", "U5", "-o", s(&c)]);
+    let out = succeed(&[
+        "acquire",
+        "--port",
+        &em.port,
+        "--head",
+        &em.head,
+        "--plan",
+        "head",
+        "--samples",
+        "200",
+        "--g",
+        "9.81",
+        "--serial",
+        "U5",
+        "-o",
+        s(&c),
+    ]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("position 62/62"), "{err}");
     let header = std::fs::read_to_string(&c).unwrap();
-    for key in ["# device_id: 51454d552d422d4c34373545", "# serial: U5", "# firmware: 0.1.0", "# g_m_s2: 9.81", "# plan: head (62 positions)"] {
+    for key in [
+        "# device_id: 51454d552d422d4c34373545",
+        "# serial: U5",
+        "# firmware: 0.1.0",
+        "# g_m_s2: 9.81",
+        "# plan: head (62 positions)",
+    ] {
         assert!(header.contains(key), "{key} missing");
     }
     let d = dwells(&c);
@@ -191,10 +221,38 @@ fn interrupted_acquisition_resumes_to_the_same_positions() {
     let (truth, _) = unit(dir.path(), "u", 6, 10);
     let em = Emulator::start(&truth, &[]);
     let full = dir.path().join("full.csv");
-    ok(&["acquire", "--port", &em.port, "--head", &em.head, "--plan", "six", "--samples", "300", "--g", "9.81", "-o", s(&full)]);
+    ok(&[
+        "acquire",
+        "--port",
+        &em.port,
+        "--head",
+        &em.head,
+        "--plan",
+        "six",
+        "--samples",
+        "300",
+        "--g",
+        "9.81",
+        "-o",
+        s(&full),
+    ]);
     let cut = dir.path().join("cut.csv");
     let mut child = Command::new(env!("CARGO_BIN_EXE_accelcal"))
-        .args(["acquire", "--port", &em.port, "--head", &em.head, "--plan", "six", "--samples", "300", "--g", "9.81", "-o", s(&cut)])
+        .args([
+            "acquire",
+            "--port",
+            &em.port,
+            "--head",
+            &em.head,
+            "--plan",
+            "six",
+            "--samples",
+            "300",
+            "--g",
+            "9.81",
+            "-o",
+            s(&cut),
+        ])
         .stderr(Stdio::piped())
         .stdout(Stdio::null())
         .spawn()
@@ -212,11 +270,42 @@ fn interrupted_acquisition_resumes_to_the_same_positions() {
     assert!(err.contains("continue with --resume"), "{err}");
     let kept = dwells(&cut);
     assert!(kept.len() >= 2 && kept.len() < 6 && kept.iter().all(|d| d.2 == 300), "{kept:?}");
-    let out = succeed(&["acquire", "--port", &em.port, "--head", &em.head, "--plan", "six", "--samples", "300", "--g", "9.81", "-o", s(&cut), "--resume"]);
-    assert!(String::from_utf8_lossy(&out.stderr).contains(&format!("resume: {} complete positions kept", kept.len())));
+    let out = succeed(&[
+        "acquire",
+        "--port",
+        &em.port,
+        "--head",
+        &em.head,
+        "--plan",
+        "six",
+        "--samples",
+        "300",
+        "--g",
+        "9.81",
+        "-o",
+        s(&cut),
+        "--resume",
+    ]);
+    assert!(String::from_utf8_lossy(&out.stderr)
+        .contains(&format!("resume: {} complete positions kept", kept.len())));
     assert_eq!(dwells(&cut), dwells(&full));
     // A campaign of another plan is not resumed.
-    let e = common::bad(&["acquire", "--port", &em.port, "--head", &em.head, "--plan", "head", "--samples", "300", "--g", "9.81", "-o", s(&cut), "--resume"]);
+    let e = common::bad(&[
+        "acquire",
+        "--port",
+        &em.port,
+        "--head",
+        &em.head,
+        "--plan",
+        "head",
+        "--samples",
+        "300",
+        "--g",
+        "9.81",
+        "-o",
+        s(&cut),
+        "--resume",
+    ]);
     assert!(e.contains("cannot resume: the campaign's plan is `six (6 positions)`"), "{e}");
 }
 
@@ -273,7 +362,23 @@ fn the_production_line_in_emulation() {
     let id = json(&p("info.json"))["device_id"].as_str().unwrap().to_string();
     assert!(json(&p("info.json"))["record"].is_null());
     let c = p("c.csv");
-    ok(&["acquire", "--port", &em.port, "--head", &em.head, "--plan", "head", "--samples", "200", "--g", "9.81", "--serial", "U11", "-o", s(&c)]);
+    ok(&[
+        "acquire",
+        "--port",
+        &em.port,
+        "--head",
+        &em.head,
+        "--plan",
+        "head",
+        "--samples",
+        "200",
+        "--g",
+        "9.81",
+        "--serial",
+        "U11",
+        "-o",
+        s(&c),
+    ]);
     let rec = p("u11.rec");
     fit(&c, &p("fit.json"), &["--record", s(&rec), "--device-id", &id]);
 
@@ -293,15 +398,45 @@ fn the_production_line_in_emulation() {
     let good_crc = json(&p("info3.json"))["record"]["crc"].as_str().unwrap().to_string();
 
     let verify = |name: &str| {
-        accelcal(&["verify", "--port", &em.port, "--head", &em.head, "--plan", "six", "--g", "9.81", "--fit", s(&p("fit.json")), "--json", s(&p(name))])
+        accelcal(&[
+            "verify",
+            "--port",
+            &em.port,
+            "--head",
+            &em.head,
+            "--plan",
+            "six",
+            "--g",
+            "9.81",
+            "--fit",
+            s(&p("fit.json")),
+            "--json",
+            s(&p(name)),
+        ])
     };
     let v = verify("verify.json");
-    assert_eq!(v.status.code(), Some(0), "{}{}", String::from_utf8_lossy(&v.stdout), String::from_utf8_lossy(&v.stderr));
+    assert_eq!(
+        v.status.code(),
+        Some(0),
+        "{}{}",
+        String::from_utf8_lossy(&v.stdout),
+        String::from_utf8_lossy(&v.stderr)
+    );
     assert!(json(&p("verify.json"))["pass"].as_bool().unwrap());
 
     // The certificate, one A4 page.
     let cert = p("cert.html");
-    ok(&["report", "--campaign", s(&c), "--record", s(&rec), "--verify", s(&p("verify.json")), "-o", s(&cert)]);
+    ok(&[
+        "report",
+        "--campaign",
+        s(&c),
+        "--record",
+        s(&rec),
+        "--verify",
+        s(&p("verify.json")),
+        "-o",
+        s(&cert),
+    ]);
     let html = std::fs::read_to_string(&cert).unwrap();
     for want in ["U11", &id, &good_crc, "VERIFIED", "1,ax,ay,az", "<svg"] {
         assert!(html.contains(want), "certificate lacks {want}");
@@ -350,6 +485,10 @@ fn pdf_pages(html: &Path, pdf: &Path) -> usize {
     let bytes = std::fs::read(pdf).unwrap();
     let text = String::from_utf8_lossy(&bytes);
     // The page tree's count: "/Count N" in the /Pages dictionary (uncompressed in Chromium's PDFs).
-    let n = text.split("/Count ").nth(1).and_then(|r| r.split(|c: char| !c.is_ascii_digit()).next()).and_then(|n| n.parse().ok());
+    let n = text
+        .split("/Count ")
+        .nth(1)
+        .and_then(|r| r.split(|c: char| !c.is_ascii_digit()).next())
+        .and_then(|n| n.parse().ok());
     n.expect("a /Count in the PDF")
 }

@@ -218,7 +218,10 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
         }
         Command::Emulate(a) => {
             if !(a.head_speed.is_finite() && a.head_speed > 0.0) {
-                return Err(bad(format!("--head-speed must be a positive number of degrees per second, got {}", a.head_speed)));
+                return Err(bad(format!(
+                    "--head-speed must be a positive number of degrees per second, got {}",
+                    a.head_speed
+                )));
             }
             if !(a.rate_factor.is_finite() && a.rate_factor > 0.0 && a.rate_factor <= 100.0) {
                 return Err(bad(format!("--rate-factor must be in (0, 100], got {}", a.rate_factor)));

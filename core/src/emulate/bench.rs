@@ -90,7 +90,7 @@ impl Bench {
         q.frontend = true;
         q.gdb_port = Some(gdb_port);
         q.blank = BlankSlot::Erased;
-        q.spin_main_loop = true;
+        q.spin_main_loop = std::env::var_os("ACCELCAL_EMULATE_SPIN").is_some();
         if let Some(rec) = &opts.record {
             let image = SlotImage::build(rec, 1).map_err(|e| bad(format!("--record: {e}")))?;
             q.slots[0] = Some(image.to_vec());
@@ -100,7 +100,8 @@ impl Bench {
             Some(Link::Pty(p)) => p.display().to_string(),
             _ => anyhow::bail!("QEMU did not give the link a pseudo-terminal"),
         };
-        let fe_sock = qemu.take_frontend().ok_or_else(|| anyhow::anyhow!("QEMU did not open the front end"))?;
+        let fe_sock =
+            qemu.take_frontend().ok_or_else(|| anyhow::anyhow!("QEMU did not open the front end"))?;
         // A converter has no queue: sets the node has not taken must not pile up in the socket
         // (its default buffer holds seconds of sets, which would reach the node late, from a
         // head pose long past). With the smallest send buffer the writer blocks within a few
@@ -121,7 +122,8 @@ impl Bench {
             }));
         }
         {
-            let (rate, stop, counters, head, pace) = (rate_hz.clone(), stop.clone(), counters.clone(), head.clone(), opts.pace);
+            let (rate, stop, counters, head, pace) =
+                (rate_hz.clone(), stop.clone(), counters.clone(), head.clone(), opts.pace);
             threads.push(std::thread::spawn(move || {
                 let _ = run_frontend(&mut fe, &head, &rate, fe_sock, &stop, &pace, &counters);
             }));
@@ -129,7 +131,8 @@ impl Bench {
         threads.push(std::thread::spawn(move || {
             let _ = head_thread.join();
         }));
-        let endpoints = Endpoints { port, gdb: format!("127.0.0.1:{gdb_port}"), head: format!("sim:{head_addr}") };
+        let endpoints =
+            Endpoints { port, gdb: format!("127.0.0.1:{gdb_port}"), head: format!("sim:{head_addr}") };
         Ok(Bench { qemu: Some(qemu), stop, threads, endpoints, counters, rate_hz })
     }
 

@@ -68,6 +68,8 @@ pub enum SessionError {
 
 /// How often a blocking read gives control back (to check a stop flag or a deadline).
 const POLL: Duration = Duration::from_millis(100);
+/// How long a request waits for its answer before it is sent again.
+const RESEND: Duration = Duration::from_millis(1000);
 
 /// An open link to a node.
 pub struct Session {
@@ -137,15 +139,26 @@ impl Session {
         }
     }
 
-    /// Waits for the first message that `pick` accepts, up to the answer timeout; a refusal is an
-    /// error. `what` names the awaited answer in the timeout's message.
+    /// Sends `request` (when given) and waits for the first message that `pick` accepts, up to the
+    /// answer timeout, sending the request again every [`RESEND`] (every request of the protocol
+    /// may be repeated: a node that was not yet listening, or a pty not yet read by QEMU, loses
+    /// the first copy); a refusal is an error. `what` names the awaited answer in the timeout's
+    /// message.
     fn await_msg<T>(
         &mut self,
+        request: Option<&HostMsg>,
         what: &'static str,
         mut pick: impl FnMut(NodeMsg) -> Option<T>,
     ) -> Result<T, SessionError> {
         let deadline = Instant::now() + self.answer;
+        let mut next_send = Instant::now();
         while Instant::now() < deadline {
+            if let Some(r) = request {
+                if Instant::now() >= next_send {
+                    self.send(r)?;
+                    next_send = Instant::now() + RESEND;
+                }
+            }
             match self.poll()? {
                 Some(NodeMsg::Refused(refusal)) => {
                     return Err(SessionError::Refused { port: self.port.clone(), refusal })
@@ -171,8 +184,7 @@ impl Session {
 
     /// Who the node is.
     pub fn info(&mut self) -> Result<Info, SessionError> {
-        self.send(&HostMsg::GetInfo)?;
-        let info = self.await_msg("answer to GetInfo", |m| match m {
+        let info = self.await_msg(Some(&HostMsg::GetInfo), "answer to GetInfo", |m| match m {
             NodeMsg::Info(i) => Some(i),
             _ => None,
         })?;
@@ -182,8 +194,7 @@ impl Session {
 
     /// The node's status now. Every block received after it was produced after the request.
     pub fn status(&mut self) -> Result<Status, SessionError> {
-        self.send(&HostMsg::GetStatus)?;
-        let s = self.await_msg("status report", |m| match m {
+        let s = self.await_msg(Some(&HostMsg::GetStatus), "status report", |m| match m {
             NodeMsg::Status(s) => Some(s),
             _ => None,
         })?;
@@ -193,8 +204,7 @@ impl Session {
 
     /// Switches live streaming to `output`; returns the node's status after the switch.
     pub fn set_output(&mut self, output: Output) -> Result<Status, SessionError> {
-        self.send(&HostMsg::SetOutput(output))?;
-        self.await_msg("answer to SetOutput", |m| match m {
+        self.await_msg(Some(&HostMsg::SetOutput(output)), "answer to SetOutput", |m| match m {
             NodeMsg::OutputSet(s) => Some(s),
             _ => None,
         })
@@ -202,8 +212,7 @@ impl Session {
 
     /// Sets the sampling rate, Hz; returns the node's status after the change.
     pub fn set_rate(&mut self, hz: u32) -> Result<Status, SessionError> {
-        self.send(&HostMsg::SetRate { hz })?;
-        self.await_msg("answer to SetRate", |m| match m {
+        self.await_msg(Some(&HostMsg::SetRate { hz }), "answer to SetRate", |m| match m {
             NodeMsg::RateSet(s) => Some(s),
             _ => None,
         })
@@ -211,7 +220,7 @@ impl Session {
 
     /// The next block of live samples, up to the answer timeout.
     pub fn samples(&mut self) -> Result<Samples, SessionError> {
-        self.await_msg("live samples", |m| match m {
+        self.await_msg(None, "live samples", |m| match m {
             NodeMsg::Samples { seq, first, data } => Some(Samples { seq, first, data }),
             _ => None,
         })
@@ -307,7 +316,7 @@ mod tests {
         let block = NodeMsg::Samples { seq: 0, first: 0, data: Block::Raw(Default::default()) };
         let (mut s, sent) = session(&[block, NodeMsg::Info(info(wire::PROTOCOL_VERSION))]);
         assert_eq!(s.info().unwrap(), info(wire::PROTOCOL_VERSION));
-        // A leading zero, then GetInfo (variant 3).
+        // A leading zero, then GetInfo (variant 3), once: the answer came at once.
         assert_eq!(*sent.lock().unwrap(), vec![0x00, 0x02, 0x03, 0x00]);
         assert_eq!(device_id_hex(b"QEMU-B-L475E"), "51454d552d422d4c34373545");
         assert_eq!(firmware_version([0, 1, 12]), "0.1.12");

@@ -21,7 +21,9 @@ pub fn run(a: &EmulateArgs) -> anyhow::Result<()> {
         )));
     }
     let record = match &a.record {
-        Some(p) => Some(std::fs::read(p).map_err(|e| bad(format!("{}: cannot read the record: {e}", p.display())))?),
+        Some(p) => {
+            Some(std::fs::read(p).map_err(|e| bad(format!("{}: cannot read the record: {e}", p.display())))?)
+        }
         None => None,
     };
     let opts = BenchOptions {
