@@ -222,6 +222,8 @@ pub trait Progress {
     fn position_done(&mut self, report: &PositionReport, done: usize, total: usize, left: Duration);
     /// Positions found complete in the file that is resumed.
     fn resumed(&mut self, done: usize, truncated_rows: usize);
+    /// The campaign file is ready and the acquisition begins with position `from` (0-based).
+    fn started(&mut self, from: usize, total: usize, rule: &StaticRule);
 }
 
 /// What an acquisition did.
@@ -421,6 +423,7 @@ pub fn acquire(
         f.append(&header(cfg, &device_id, &firmware, info.rate_hz))?;
         (f, 0)
     };
+    progress.started(done, cfg.plan.positions.len(), &cfg.rule);
     let before = info.output;
     node.set_output(Output::Raw)?;
     let result = run_positions(node, head, cfg, progress, stop, &mut out, done, info.rate_hz);

@@ -40,6 +40,8 @@ fn test() -> anyhow::Result<()> {
     // First: QEMU, both firmware builds and the QEMU tests (the workspace tests below include
     // tests/hil.rs, which needs the QEMU build).
     firmware::test()?;
+    // The certificate test (tests/line.rs) prints a page with headless Chromium.
+    run(&r, "bash", &["scripts/setup-chromium.sh"])?;
     run(&r, "cargo", &["test", "--workspace", "--locked"])?;
     // A short fuzzing run (test profile: overflow checks on, artifacts shared with the tests).
     run(&r, "cargo", &fuzz_args("test", TEST_FUZZ_SECONDS, "all"))?;

@@ -159,6 +159,9 @@ impl Progress for Lines {
             duration(left)
         );
     }
+    fn started(&mut self, from: usize, total: usize, rule: &StaticRule) {
+        eprintln!("acquire: positions {} to {total}; {}", from + 1, rule.describe());
+    }
     fn resumed(&mut self, done: usize, truncated_rows: usize) {
         eprintln!(
             "resume: {done} complete positions kept{}",
@@ -233,7 +236,6 @@ pub fn run_acquire(a: &AcquireArgs) -> anyhow::Result<()> {
         date: super::record::utc(super::created(None)),
         tool_version: env!("CARGO_PKG_VERSION").into(),
     };
-    eprintln!("acquire: {}", cfg.rule.describe());
     let sum = acquire::acquire(&mut node, head.as_mut(), &cfg, &mut Lines, &stop)?;
     if sum.interrupted {
         return Err(anyhow::Error::new(Interrupted(format!(
