@@ -536,11 +536,11 @@ pub struct EmulateArgs {
     #[arg(long, default_value_t = 1.0, value_name = "F")]
     pub rate_factor: f64,
     /// TCP port of QEMU's gdbstub on 127.0.0.1 [default: a free one].
-    #[arg(long, default_value_t = 0, value_name = "PORT")]
-    pub gdb_port: u16,
+    #[arg(long, value_name = "PORT")]
+    pub gdb_port: Option<u16>,
     /// TCP port of the emulated head on 127.0.0.1 [default: a free one].
-    #[arg(long, default_value_t = 0, value_name = "PORT")]
-    pub head_port: u16,
+    #[arg(long, value_name = "PORT")]
+    pub head_port: Option<u16>,
 }
 
 /// `accelcal info`: who the node is.

@@ -40,7 +40,7 @@ fn fw_dir() -> PathBuf {
     root().join("firmware")
 }
 
-fn elf(bin: &str) -> PathBuf {
+pub fn elf(bin: &str) -> PathBuf {
     fw_dir().join("target/thumbv7em-none-eabihf/release").join(bin)
 }
 
@@ -93,7 +93,7 @@ pub fn ensure_thumb_target() -> anyhow::Result<()> {
     }
 }
 
-fn setup_qemu() -> anyhow::Result<()> {
+pub fn setup_qemu() -> anyhow::Result<()> {
     run(Command::new("bash").arg(root().join("scripts/setup-qemu.sh")))
 }
 
@@ -101,7 +101,7 @@ fn build_real() -> anyhow::Result<()> {
     run(&mut fw_cargo(&["build", "--release", "--locked", "--features", "board-real", "--bin", "node-real"]))
 }
 
-fn build_qemu() -> anyhow::Result<()> {
+pub fn build_qemu() -> anyhow::Result<()> {
     run(&mut fw_cargo(&["build", "--release", "--locked", "--features", "board-qemu", "--bin", "node-qemu"]))
 }
 

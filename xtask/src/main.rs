@@ -15,6 +15,7 @@ use anyhow::{bail, Context};
 
 mod firmware;
 mod gmdh;
+mod live;
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("xtask sits in the workspace").to_path_buf()
@@ -114,11 +115,15 @@ fn lint() -> anyhow::Result<()> {
 /// `bench` runs both benchmarks; `bench firmware` only the firmware's (no Python, no PyPI).
 fn bench(only: Option<&str>) -> anyhow::Result<()> {
     match only {
-        None => gmdh::bench(&root())?,
-        Some("firmware") => {}
-        Some(other) => anyhow::bail!("bench: unknown part `{other}` (the one part: firmware)"),
+        None => {
+            gmdh::bench(&root())?;
+            firmware::bench()?;
+            live::bench()
+        }
+        Some("firmware") => firmware::bench(),
+        Some("live") => live::bench(),
+        Some(other) => anyhow::bail!("bench: unknown part `{other}` (the parts: firmware, live)"),
     }
-    firmware::bench()
 }
 
 fn main() -> anyhow::Result<()> {
@@ -129,7 +134,7 @@ fn main() -> anyhow::Result<()> {
         "bench" => bench(std::env::args().nth(2).as_deref()),
         "fuzz" => fuzz(&std::env::args().skip(2).collect::<Vec<_>>()),
         _ => {
-            eprintln!("usage: cargo xtask <test|lint|bench|fuzz>\n  test   every test: host, shared (desktop and no_std target), firmware builds, QEMU\n  lint   rustfmt --check and clippy -D warnings\n  bench  [firmware]: the benchmarks quoted in the README (`firmware`: only the firmware's)\n  fuzz   [--seconds N] [--target record|slots|frame|all] [--seed S]: the parsers' mutation fuzzer");
+            eprintln!("usage: cargo xtask <test|lint|bench|fuzz>\n  test   every test: host, shared (desktop and no_std target), firmware builds, QEMU\n  lint   rustfmt --check and clippy -D warnings\n  bench  [firmware|live]: the benchmarks quoted in the README (a part: only that one)\n  fuzz   [--seconds N] [--target record|slots|frame|all] [--seed S]: the parsers' mutation fuzzer");
             std::process::exit(2)
         }
     }

@@ -34,8 +34,8 @@ pub fn run(a: &EmulateArgs) -> anyhow::Result<()> {
         record,
         motion: Motion { speed_deg_s: a.head_speed, ..Motion::default() },
         pace: PaceOptions { rate_factor: a.rate_factor, ..PaceOptions::default() },
-        gdb_port: a.gdb_port,
-        head_port: a.head_port,
+        gdb_port: a.gdb_port.unwrap_or(0),
+        head_port: a.head_port.unwrap_or(0),
     };
     let stop = super::live::stop_flag()?;
     let mut bench = Bench::start(opts)?;
