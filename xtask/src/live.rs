@@ -15,7 +15,7 @@ use crate::{root, run};
 /// Seconds measured at each rate.
 const SECONDS: u64 = 30;
 /// Rates measured, Hz.
-const RATES: [u32; 5] = [250, 500, 750, 1000, 2000];
+const RATES: [u32; 6] = [100, 250, 500, 750, 1000, 2000];
 
 pub fn bench() -> anyhow::Result<()> {
     let r = root();

@@ -6,9 +6,9 @@ use std::io::Write;
 use anyhow::Context;
 use std::time::Duration;
 
-use accelcal_shared::wire::{self, Block, HostMsg, NodeMsg, RecordStatus, Status};
+use accelcal_shared::wire::{self, Block, NodeMsg, RecordStatus, Status};
 
-use super::link::{self, LinkError, Receiver};
+use super::link::{LinkError, Receiver};
 
 /// The node's USART1 baud rate (`firmware/src/board/real.rs`).
 pub const NODE_BAUD: u32 = accelcal_shared::contract::BAUD_REAL;
@@ -76,8 +76,12 @@ pub fn monitor(
         .open()
         .map_err(|e| crate::error::bad(format!("{port_name}: cannot open serial port: {e}")))?;
     if let Some(hz) = rate {
-        let mut tx = port.try_clone()?;
-        link::send(&mut tx, &HostMsg::SetRate { hz })?;
+        // Through a session: the request is resent until the node answers (a pty that QEMU has
+        // not started reading yet loses the first copy), and a refusal is an error.
+        let (tx, rx) = (port.try_clone()?, port.try_clone()?);
+        let mut s = super::session::Session::from_streams(port_name, Box::new(tx), Box::new(rx), silence);
+        let st = s.set_rate(hz)?;
+        writeln!(out, "rate set: {}", format_status(&st))?;
     }
     monitor_stream(port, port_name, baud, count, silence, out)
 }
