@@ -911,3 +911,27 @@ fn every_readme_example_prints_what_the_readme_shows() {
     }
     assert!(checked >= 12, "{checked} README examples checked");
 }
+
+/// A campaign that states its g (`# g_m_s2:`, as `acquire` writes it) is fitted at that g unless
+/// --g or --latitude says otherwise.
+#[test]
+fn a_campaign_s_stated_g_is_used() {
+    let d = Dir::new();
+    let plain = simulate(&d, "plain.csv", &["--seed", "3", "--samples", "5", "--g", "9.7803"]);
+    let stated = d.s("stated.csv");
+    std::fs::write(&stated, format!("# g_m_s2: 9.7803\n{}", std::fs::read_to_string(&plain).unwrap()))
+        .unwrap();
+    let fit = |campaign: &str, extra: &[&str], out: &str| {
+        let mut args = vec!["fit", campaign, "--json", out];
+        args.extend_from_slice(extra);
+        ok(&args);
+        json(Path::new(out))["channels"][0]["coefficients"][1].as_f64().unwrap()
+    };
+    let k_stated = fit(&stated, &[], &d.s("a.json"));
+    let k_given = fit(&plain, &["--g", "9.7803"], &d.s("b.json"));
+    let k_default = fit(&plain, &[], &d.s("c.json"));
+    let k_override = fit(&stated, &["--g", "9.81"], &d.s("d.json"));
+    assert_eq!(k_stated, k_given);
+    assert_eq!(k_default, k_override);
+    assert!((k_stated / k_default - 9.81 / 9.7803).abs() < 1e-9);
+}

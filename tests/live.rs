@@ -70,7 +70,7 @@ impl Bench {
         let slot0 = record.map(|r| SlotImage::build(r, 1).unwrap().to_vec());
         let opts = QemuOptions {
             frontend: true,
-            spin_main_loop: true,
+            spin_main_loop: false,
             slots: [slot0, None],
             ..QemuOptions::new(node_elf())
         };

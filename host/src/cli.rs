@@ -89,9 +89,13 @@ pub struct LocalGravity {
 /// Options shared by the commands that read a campaign.
 #[derive(Debug, Args, Clone)]
 pub struct CommonArgs {
-    /// Gravity at the rig, m/s².
-    #[arg(long, default_value_t = accelcal_shared::G_STANDARD)]
+    /// Gravity at the rig, m/s² [default: the campaign's `# g_m_s2:` line (written by `acquire`),
+    /// else 9.81].
+    #[arg(long, default_value_t = accelcal_shared::G_STANDARD, hide_default_value = true)]
     pub g: f64,
+    /// Whether --g or --latitude gave g (set by `settings::resolve_gravity`, not a flag).
+    #[arg(skip)]
+    pub g_given: bool,
     /// Local gravity instead of --g.
     #[command(flatten)]
     pub local: LocalGravity,

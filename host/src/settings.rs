@@ -77,6 +77,14 @@ pub fn resolve_gravity(command: &mut Command, given: &Given) -> anyhow::Result<(
         }
         return Ok(());
     }
+    let stated = given.has("g") || given.has("latitude");
+    match command {
+        Command::Fit(a) => a.common.g_given = stated,
+        Command::Select(a) => a.common.g_given = stated,
+        Command::Compare(a) => a.common.g_given = stated,
+        Command::Diagnose(a) => a.common.g_given = stated,
+        _ => {}
+    }
     let Some((g, local)) = gravity_of(command) else { return Ok(()) };
     if let Some(v) = local_gravity(given, local)? {
         *g = v;

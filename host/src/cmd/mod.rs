@@ -21,10 +21,19 @@ use crate::cli::{Cli, Command};
 pub fn run(cli: Cli, warnings: &mut Warnings) -> anyhow::Result<()> {
     match cli.command {
         Command::Simulate(a) => simulate::run(&a),
-        Command::Select(a) => select::run(&a, warnings),
+        Command::Select(mut a) => {
+            campaign_g(&mut a.common, &a.campaign)?;
+            select::run(&a, warnings)
+        }
         Command::Plan(a) => plan::run(&a),
-        Command::Fit(a) => fit::run(&a, warnings),
-        Command::Compare(a) => compare::run(&a, warnings),
+        Command::Fit(mut a) => {
+            campaign_g(&mut a.common, &a.campaign)?;
+            fit::run(&a, warnings)
+        }
+        Command::Compare(mut a) => {
+            campaign_g(&mut a.common, &a.campaign)?;
+            compare::run(&a, warnings)
+        }
         Command::Demo(a) => demo::run(&a),
         Command::Flash(a) => node::run_flash(&a),
         Command::Record(crate::cli::RecordCommand::Show(a)) => record::run_show(&a),
@@ -36,7 +45,10 @@ pub fn run(cli: Cli, warnings: &mut Warnings) -> anyhow::Result<()> {
         Command::Acquire(a) => live::run_acquire(&a),
         Command::Verify(a) => live::run_verify(&a),
         Command::Report(a) => report::run(&a),
-        Command::Diagnose(a) => diagnose::run(&a, warnings),
+        Command::Diagnose(mut a) => {
+            campaign_g(&mut a.common, &a.campaign)?;
+            diagnose::run(&a, warnings)
+        }
         Command::BenchDiagnose(a) => bench_diagnose::run(&a),
     }
 }
@@ -60,6 +72,26 @@ pub fn error_line(w: &Warnings, e: &anyhow::Error) -> String {
     } else {
         format!("{line} (note: {})", w.lines().join("; "))
     }
+}
+
+/// Without --g or --latitude, a campaign that states the gravity it was acquired at (`# g_m_s2:`,
+/// written by `acquire`) is calibrated at that g, not at 9.81.
+fn campaign_g(common: &mut crate::cli::CommonArgs, campaign: &std::path::Path) -> anyhow::Result<()> {
+    if common.g_given || !campaign.is_file() {
+        return Ok(());
+    }
+    let header = accelcal_core::acquire::campaign_header(campaign)?;
+    if let Some((_, v)) = header.iter().find(|(k, _)| k == "g_m_s2") {
+        let g: f64 = v.parse().map_err(|_| {
+            accelcal_core::error::bad(format!(
+                "{}: `# g_m_s2: {v}` is not a number of m/s²",
+                campaign.display()
+            ))
+        })?;
+        check_g(g)?;
+        common.g = g;
+    }
+    Ok(())
 }
 
 /// Checks that g is usable.
