@@ -192,7 +192,8 @@ impl Session {
         Ok(info)
     }
 
-    /// The node's status now. Every block received after it was produced after the request.
+    /// The node's status (the first status report that arrives: the answer, or a periodic report
+    /// still in the port's buffer).
     pub fn status(&mut self) -> Result<Status, SessionError> {
         let s = self.await_msg(Some(&HostMsg::GetStatus), "status report", |m| match m {
             NodeMsg::Status(s) => Some(s),
@@ -226,10 +227,12 @@ impl Session {
         })
     }
 
-    /// Discards every block produced before this call: asks for a status and drops what comes
-    /// before its answer (the node's link sends in order).
+    /// Discards every block produced before this call: asks who the node is and drops what comes
+    /// before the answer (the node's link sends in order, and `Info` is sent only on request,
+    /// unlike the periodic status reports, so an old report still in the port's buffer cannot be
+    /// taken for the answer).
     pub fn flush_stream(&mut self) -> Result<(), SessionError> {
-        self.status().map(|_| ())
+        self.info().map(|_| ())
     }
 }
 
