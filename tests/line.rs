@@ -149,6 +149,21 @@ fn worst_z(fits: &[(Vec<f64>, Vec<f64>)], truth: &serde_json::Value) -> f64 {
     worst
 }
 
+/// The arguments of `acquire` on the bench `em` with `plan`, `samples` per position, g 9.81, into
+/// `out`, then `extra`.
+fn acquire_args<'a>(
+    em: &'a Emulator,
+    plan: &'a str,
+    samples: &'a str,
+    out: &'a Path,
+    extra: &[&'a str],
+) -> Vec<&'a str> {
+    let mut a = vec!["acquire", "--port", &em.port, "--head", &em.head, "--plan", plan, "--samples", samples];
+    a.extend_from_slice(&["--g", "9.81", "-o", s(out)]);
+    a.extend_from_slice(extra);
+    a
+}
+
 /// (alpha, beta, rows) of each dwell of a campaign, in order.
 fn dwells(campaign: &Path) -> Vec<(String, String, usize)> {
     let text = std::fs::read_to_string(campaign).unwrap_or_default();
@@ -175,23 +190,7 @@ fn acquired_campaign_recovers_the_unit() {
     ok(&["info", "--port", &em.port, "--json", s(&info)]);
     assert_eq!(json(&info)["device_id"], "51454d552d422d4c34373545");
     let c = dir.path().join("c.csv");
-    let out = succeed(&[
-        "acquire",
-        "--port",
-        &em.port,
-        "--head",
-        &em.head,
-        "--plan",
-        "head",
-        "--samples",
-        "200",
-        "--g",
-        "9.81",
-        "--serial",
-        "U5",
-        "-o",
-        s(&c),
-    ]);
+    let out = succeed(&acquire_args(&em, "head", "200", &c, &["--serial", "U5"]));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("position 62/62"), "{err}");
     let header = std::fs::read_to_string(&c).unwrap();
@@ -231,38 +230,10 @@ fn interrupted_acquisition_resumes_to_the_same_positions() {
     let (truth, _) = unit(dir.path(), "u", 6, 10);
     let em = Emulator::start(&truth, &[]);
     let full = dir.path().join("full.csv");
-    ok(&[
-        "acquire",
-        "--port",
-        &em.port,
-        "--head",
-        &em.head,
-        "--plan",
-        "six",
-        "--samples",
-        "300",
-        "--g",
-        "9.81",
-        "-o",
-        s(&full),
-    ]);
+    ok(&acquire_args(&em, "six", "300", &full, &[]));
     let cut = dir.path().join("cut.csv");
     let mut child = Command::new(env!("CARGO_BIN_EXE_accelcal"))
-        .args([
-            "acquire",
-            "--port",
-            &em.port,
-            "--head",
-            &em.head,
-            "--plan",
-            "six",
-            "--samples",
-            "300",
-            "--g",
-            "9.81",
-            "-o",
-            s(&cut),
-        ])
+        .args(acquire_args(&em, "six", "300", &cut, &[]))
         .stderr(Stdio::piped())
         .stdout(Stdio::null())
         .spawn()
@@ -280,42 +251,12 @@ fn interrupted_acquisition_resumes_to_the_same_positions() {
     assert!(err.contains("continue with --resume"), "{err}");
     let kept = dwells(&cut);
     assert!(kept.len() >= 2 && kept.len() < 6 && kept.iter().all(|d| d.2 == 300), "{kept:?}");
-    let out = succeed(&[
-        "acquire",
-        "--port",
-        &em.port,
-        "--head",
-        &em.head,
-        "--plan",
-        "six",
-        "--samples",
-        "300",
-        "--g",
-        "9.81",
-        "-o",
-        s(&cut),
-        "--resume",
-    ]);
+    let out = succeed(&acquire_args(&em, "six", "300", &cut, &["--resume"]));
     assert!(String::from_utf8_lossy(&out.stderr)
         .contains(&format!("resume: {} complete positions kept", kept.len())));
     assert_eq!(dwells(&cut), dwells(&full));
     // A campaign of another plan is not resumed.
-    let e = common::bad(&[
-        "acquire",
-        "--port",
-        &em.port,
-        "--head",
-        &em.head,
-        "--plan",
-        "head",
-        "--samples",
-        "300",
-        "--g",
-        "9.81",
-        "-o",
-        s(&cut),
-        "--resume",
-    ]);
+    let e = common::bad(&acquire_args(&em, "head", "300", &cut, &["--resume"]));
     assert!(e.contains("cannot resume: the campaign's plan is `six (6 positions)`"), "{e}");
 }
 
@@ -374,23 +315,7 @@ fn the_production_line_in_emulation() {
     let id = json(&p("info.json"))["device_id"].as_str().unwrap().to_string();
     assert!(json(&p("info.json"))["record"].is_null());
     let c = p("c.csv");
-    ok(&[
-        "acquire",
-        "--port",
-        &em.port,
-        "--head",
-        &em.head,
-        "--plan",
-        "head",
-        "--samples",
-        "200",
-        "--g",
-        "9.81",
-        "--serial",
-        "U11",
-        "-o",
-        s(&c),
-    ]);
+    ok(&acquire_args(&em, "head", "200", &c, &["--serial", "U11"]));
     let rec = p("u11.rec");
     fit(&c, &p("fit.json"), &["--record", s(&rec), "--device-id", &id]);
 

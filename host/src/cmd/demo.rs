@@ -7,7 +7,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use accelcal_core::calibrate::{fit_all, gate, record, write_record, Method};
 
 use crate::cli::DemoArgs;
-use accelcal_core::gmdh::{Criterion, Settings, Split};
+use accelcal_core::gmdh::Split;
 use accelcal_core::output::{write_atomic_with, write_json};
 use accelcal_core::sim::{self, SimConfig};
 
@@ -28,13 +28,7 @@ pub fn run(a: &DemoArgs) -> anyhow::Result<()> {
     steps.inc(1);
 
     steps.set_message("GMDH over the paper's 11 models (regularity criterion, alternate split)");
-    let settings = Settings {
-        basis: accelcal_shared::Basis::Paper,
-        criterion: Criterion::Regularity,
-        split: Split::Alternate,
-        tolerance: 1.0,
-        max_terms: accelcal_shared::N_BASIS,
-    };
+    let settings = super::select::paper_settings();
     let sel = super::select::compute(&campaign, g, &[], &settings)?;
     write_json(
         &out.join("select.json"),

@@ -14,7 +14,6 @@ use accelcal_core::acquire::campaign_header;
 use accelcal_core::calibrate::{fit_all, Method};
 use accelcal_core::campaign::Campaign;
 use accelcal_core::error::bad;
-use accelcal_core::gmdh::{Criterion, Settings, Split};
 use accelcal_core::output::write_atomic;
 use accelcal_core::verify::VerifyReport;
 use accelcal_shared::record::{crc32, Record};
@@ -82,13 +81,7 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
         }
     };
     let campaign = Campaign::read(&a.campaign)?;
-    let settings = Settings {
-        basis: accelcal_shared::Basis::Paper,
-        criterion: Criterion::Regularity,
-        split: Split::Alternate,
-        tolerance: 1.0,
-        max_terms: accelcal_shared::N_BASIS,
-    };
+    let settings = super::select::paper_settings();
     let sel = super::select::compute(&campaign, g, &[], &settings)?;
     let lsq = fit_all(&campaign, g, Method::Lsq, MODEL_4)?;
     let cmp = accelcal_core::compare::compute(&campaign, None, g).ok();

@@ -58,6 +58,18 @@ fn names(s: Structure) -> Vec<String> {
     s.terms().map(|t| t.to_string()).collect()
 }
 
+/// The paper's selection: its 11 models, the regularity criterion, the alternate split, a 1-code
+/// tolerance (what `demo` and the certificate run).
+pub fn paper_settings() -> Settings {
+    Settings {
+        basis: accelcal_shared::Basis::Paper,
+        criterion: gmdh::Criterion::Regularity,
+        split: gmdh::Split::Alternate,
+        tolerance: 1.0,
+        max_terms: accelcal_shared::N_BASIS,
+    }
+}
+
 /// Runs exhaustive GMDH on the chosen channels of a campaign, with a progress bar for large bases.
 pub fn compute(
     c: &Campaign,
