@@ -15,7 +15,7 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use accelcal_core::node::session::Session;
-use accelcal_shared::wire::{Block, NodeMsg};
+use accelcal_shared::wire::Block;
 use common::{accelcal, ok, succeed};
 
 /// One emulated bench at a time: each runs QEMU and a paced front end, and two at once on a
@@ -273,7 +273,8 @@ fn overruns_are_reported_and_output_modes_switch() {
     let (mut jumps, mut next, mut blocks) = (0u64, None::<u32>, 0);
     let t0 = Instant::now();
     while t0.elapsed() < Duration::from_secs(2) {
-        if let Some(NodeMsg::Samples { first, data, .. }) = node.poll().unwrap() {
+        if let Some(accelcal_core::node::session::Samples { first, data, .. }) = node.poll_samples().unwrap()
+        {
             if let Some(n) = next {
                 jumps += first.wrapping_sub(n) as u64;
             }
@@ -287,7 +288,7 @@ fn overruns_are_reported_and_output_modes_switch() {
     assert!((after - before) as u64 >= jumps, "status {} lost, stream jumps {jumps}", after - before);
     // No record: calibrated output is flagged uncalibrated; raw output is raw.
     let kind = |node: &mut Session| loop {
-        if let Some(NodeMsg::Samples { data, .. }) = node.poll().unwrap() {
+        if let Some(accelcal_core::node::session::Samples { data, .. }) = node.poll_samples().unwrap() {
             break std::mem::discriminant(&data);
         }
     };

@@ -23,7 +23,7 @@ use std::time::{Duration, Instant};
 use accelcal_shared::wire::{Block, Codes, Output};
 
 use crate::error::{bad, environment};
-use crate::node::head::{HeadError, SimHead};
+use crate::node::head::SimHead;
 use crate::node::session::{device_id_hex, firmware_version, Session};
 use crate::sim::Plan;
 
@@ -162,7 +162,7 @@ pub trait Positioner {
 /// The emulated head as a [`Positioner`]: moves and never retries.
 impl Positioner for SimHead {
     fn set(&mut self, _k: usize, _n: usize, (a, b): (f64, f64), _expected: [f64; 3]) -> anyhow::Result<()> {
-        self.move_to(a, b).map_err(|e: HeadError| anyhow::Error::new(e))
+        Ok(self.move_to(a, b)?)
     }
     fn unsettled(&mut self, _k: usize, _why: &str) -> anyhow::Result<bool> {
         Ok(false)
@@ -579,7 +579,7 @@ pub fn capture(
                 rule.z
             )));
         }
-        let Some(msg) = poll_samples(node)? else { continue };
+        let Some(msg) = node.poll_samples()? else { continue };
         let vals = values(&msg.data).map_err(|e| bad(format!("{}: {e}", node.port())))?;
         arrival.get_or_insert(msg.first);
         if let (Some(exp), Some(_)) = (next_first, settled_at) {
@@ -639,17 +639,6 @@ enum Recorded {
     Done(String, PositionReport),
     Stopped,
     Unsettled(String),
-}
-
-/// The next live block, or `None` after a poll interval without one.
-fn poll_samples(node: &mut Session) -> anyhow::Result<Option<crate::node::session::Samples>> {
-    use accelcal_shared::wire::NodeMsg;
-    Ok(match node.poll()? {
-        Some(NodeMsg::Samples { seq, first, data }) => {
-            Some(crate::node::session::Samples { seq, first, data })
-        }
-        _ => None,
-    })
 }
 
 /// The kind of a block, in words.

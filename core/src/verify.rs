@@ -19,7 +19,7 @@ use serde::Serialize;
 
 use crate::acquire::{block_kind, capture, Captured, Positioner, StaticRule};
 use crate::error::bad;
-use crate::node::session::{device_id_hex, Session};
+use crate::node::session::{device_id_hex, record_json, Session};
 use crate::sim::Plan;
 
 /// Coverage factor of the derived tolerance.
@@ -215,16 +215,6 @@ fn calibrated_values(b: &Block) -> Result<Vec<[f64; 3]>, String> {
             "the node streams {} blocks after it was switched to calibrated output",
             block_kind(other)
         )),
-    }
-}
-
-/// The record in force as JSON (null when none).
-pub fn record_json(r: RecordStatus) -> serde_json::Value {
-    match r {
-        RecordStatus::InUse { slot, sequence, created_unix_s, crc } => serde_json::json!({
-            "slot": slot, "sequence": sequence, "created_unix_s": created_unix_s, "crc": format!("{crc:08x}")
-        }),
-        RecordStatus::Missing(_) => serde_json::Value::Null,
     }
 }
 

@@ -82,10 +82,6 @@ fn probe_err(e: impl std::fmt::Display) -> FlashError {
     FlashError::Probe(e.to_string())
 }
 
-fn hex(b: &[u8]) -> String {
-    b.iter().map(|x| format!("{x:02x}")).collect()
-}
-
 /// What was written.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct FlashReport {
@@ -145,10 +141,7 @@ fn seen(probes: &[probe_rs::probe::DebugProbeInfo]) -> String {
 
 /// The outcome of a write followed by the core reset: the write's error first, a failed reset
 /// named with it.
-fn finish(
-    result: Result<FlashReport, FlashError>,
-    reset: Result<(), String>,
-) -> Result<FlashReport, FlashError> {
+fn finish<T>(result: Result<T, FlashError>, reset: Result<(), String>) -> Result<T, FlashError> {
     match (result, reset) {
         (Ok(report), Ok(())) => Ok(report),
         (Ok(_), Err(reset)) => Err(FlashError::Probe(format!("resetting the core after the write: {reset}"))),
@@ -264,14 +257,7 @@ pub fn flash_record_gdb(
     };
     // Reset and let the target run, whatever happened once connected.
     let reset = mem.write_u32(AIRCR, AIRCR_SYSRESETREQ).and_then(|()| Ok(mem.client.detach()?));
-    match (result, reset) {
-        (Ok(r), Ok(())) => Ok(r),
-        (Ok(_), Err(e)) => Err(FlashError::Probe(format!("resetting the MCU after the write: {e}"))),
-        (Err(e), Ok(())) => Err(e),
-        (Err(error), Err(reset)) => {
-            Err(FlashError::NotReset { error: Box::new(error), reset: reset.to_string() })
-        }
-    }
+    finish(result, reset.map_err(|e| e.to_string()))
 }
 
 /// Steps 1–5 of the module docs on an attached session (the caller resets the core).
@@ -308,7 +294,10 @@ pub fn plan_write(
     let mut slots = [[0u8; SLOT_SIZE]; N_SLOTS];
     let readable = read_slots(mem, &mut slots)?;
     if rec.device_id != uid {
-        return Err(FlashError::WrongDevice { record: hex(&rec.device_id), mcu: hex(&uid) });
+        return Err(FlashError::WrongDevice {
+            record: super::session::device_id_hex(&rec.device_id),
+            mcu: super::session::device_id_hex(&uid),
+        });
     }
     WritePlan::from_readings(readings(&slots, readable), record).map_err(FlashError::Plan)
 }
@@ -373,9 +362,9 @@ mod tests {
         assert_eq!(finish(Ok(report()), Ok(())).unwrap(), report());
         let e = finish(Ok(report()), Err("link lost".into())).unwrap_err();
         assert_eq!(e.to_string(), "probe: resetting the core after the write: link lost");
-        let e = finish(Err(FlashError::Verify(1)), Ok(())).unwrap_err();
+        let e = finish::<FlashReport>(Err(FlashError::Verify(1)), Ok(())).unwrap_err();
         assert!(matches!(e, FlashError::Verify(1)), "{e}");
-        let e = finish(Err(FlashError::Verify(1)), Err("link lost".into())).unwrap_err();
+        let e = finish::<FlashReport>(Err(FlashError::Verify(1)), Err("link lost".into())).unwrap_err();
         assert_eq!(
             e.to_string(),
             "after writing slot 1, the record in force is not the new one; resetting the core \

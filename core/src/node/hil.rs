@@ -126,16 +126,15 @@ impl From<QemuError> for HilError {
     }
 }
 
-fn hex(b: &[u8]) -> String {
-    b.iter().map(|x| format!("{x:02x}")).collect()
-}
-
 /// What to do about a record the QEMU node refused, where there is something to say.
 fn rejection_hint(fault: accelcal_shared::wire::RecordFault) -> String {
     use accelcal_shared::wire::RecordFault;
     match fault {
         RecordFault::WrongDevice => {
-            format!(" (a record for the QEMU node needs device id {})", hex(&super::QEMU_DEVICE_ID))
+            format!(
+                " (a record for the QEMU node needs device id {})",
+                super::session::device_id_hex(&super::QEMU_DEVICE_ID)
+            )
         }
         RecordFault::NotModel4 => " (fit it with `--terms ax,ay,az`, the default)".into(),
         _ => String::new(),

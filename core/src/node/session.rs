@@ -219,10 +219,11 @@ impl Session {
         })
     }
 
-    /// The next block of live samples, up to the answer timeout.
-    pub fn samples(&mut self) -> Result<Samples, SessionError> {
-        self.await_msg(None, "live samples", |m| match m {
-            NodeMsg::Samples { seq, first, data } => Some(Samples { seq, first, data }),
+    /// The next message if it is a block of live samples; `None` when nothing arrived within the
+    /// poll interval or the message was another one (a caller loops, checking its own deadline).
+    pub fn poll_samples(&mut self) -> Result<Option<Samples>, SessionError> {
+        Ok(match self.poll()? {
+            Some(NodeMsg::Samples { seq, first, data }) => Some(Samples { seq, first, data }),
             _ => None,
         })
     }
@@ -233,6 +234,19 @@ impl Session {
     /// taken for the answer).
     pub fn flush_stream(&mut self) -> Result<(), SessionError> {
         self.info().map(|_| ())
+    }
+}
+
+/// The record in force as JSON, as `info --json` and `verify --json` write it: `{"slot",
+/// "sequence", "created_unix_s", "crc"}` (CRC as 8 hex digits), or null when there is none.
+pub fn record_json(r: accelcal_shared::wire::RecordStatus) -> serde_json::Value {
+    match r {
+        accelcal_shared::wire::RecordStatus::InUse { slot, sequence, created_unix_s, crc } => {
+            serde_json::json!({
+                "slot": slot, "sequence": sequence, "created_unix_s": created_unix_s, "crc": format!("{crc:08x}")
+            })
+        }
+        accelcal_shared::wire::RecordStatus::Missing(_) => serde_json::Value::Null,
     }
 }
 

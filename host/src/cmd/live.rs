@@ -9,7 +9,7 @@ use std::time::Duration;
 use accelcal_core::acquire::{self, AcquireConfig, PositionReport, Positioner, Progress, StaticRule};
 use accelcal_core::error::{bad, Interrupted};
 use accelcal_core::node::head::{HeadSpec, SimHead};
-use accelcal_core::node::session::{device_id_hex, firmware_version, Session};
+use accelcal_core::node::session::{device_id_hex, firmware_version, record_json, Session};
 use accelcal_core::output::write_json;
 use accelcal_core::sim::Plan;
 use accelcal_core::verify::{
@@ -31,16 +31,10 @@ fn reset_name(i: &Info) -> String {
 
 /// `accelcal info`'s JSON document (the field names are an interface).
 pub fn info_json(i: &Info) -> serde_json::Value {
-    let record = match i.record {
-        RecordStatus::InUse { slot, sequence, created_unix_s, crc } => json!({
-            "slot": slot, "sequence": sequence, "created_unix_s": created_unix_s, "crc": format!("{crc:08x}")
-        }),
-        RecordStatus::Missing(_) => serde_json::Value::Null,
-    };
     json!({
         "device_id": device_id_hex(&i.device_id),
         "firmware": firmware_version(i.firmware),
-        "record": record,
+        "record": record_json(i.record),
         "rate_hz": i.rate_hz,
         "overruns": i.overruns,
         "reset_cause": reset_name(i),

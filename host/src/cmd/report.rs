@@ -35,7 +35,7 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
         .map_err(|e| bad(format!("{}: cannot read the record: {e}", a.record.display())))?;
     let rec = Record::parse(&rec_bytes).map_err(|e| bad(format!("{}: {e}", a.record.display())))?;
     let crc = crc32(&rec_bytes[..rec.len() - 4]);
-    let device_id: String = rec.device_id.iter().map(|b| format!("{b:02x}")).collect();
+    let device_id = accelcal_core::node::session::device_id_hex(&rec.device_id);
     if let Some(d) = get("device_id") {
         if d != device_id {
             return Err(bad(format!(
