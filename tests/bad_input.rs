@@ -54,6 +54,8 @@ fn good_record(dir: &Path) -> PathBuf {
         structure: MODEL_4,
         n_channels: 3,
         coefficients,
+        g_m_s2: None,
+        thermal: None,
     };
     let mut buf = [0u8; MAX_RECORD_LEN];
     let n = rec.emit(&mut buf).unwrap();

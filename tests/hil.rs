@@ -433,7 +433,7 @@ fn node_runs_a_version_2_slot_and_still_reads_a_version_1_slot() {
     node_runs_uncalibrated(&uncommitted, RecordFault::NoSlot);
 }
 
-/// A record of format version 2 that is otherwise intact (its own CRC and the slot's recomputed,
+/// A record of format version 3 (a future one) that is otherwise intact (its own CRC and the slot's recomputed,
 /// so that only the version differs) is refused by the node, which says which check failed and
 /// streams uncalibrated; `accelcal hil` refuses the file before booting the node, naming both
 /// versions.
@@ -441,11 +441,11 @@ fn node_runs_a_version_2_slot_and_still_reads_a_version_1_slot() {
 fn node_refuses_a_record_of_another_format_version() {
     let v1 = record_bytes(&qemu_model4_record());
     let mut v2 = v1.clone();
-    v2[4..6].copy_from_slice(&2u16.to_le_bytes());
+    v2[4..6].copy_from_slice(&3u16.to_le_bytes());
     let n = v2.len();
     let crc = crc32(&v2[..n - 4]);
     v2[n - 4..].copy_from_slice(&crc.to_le_bytes());
-    assert_eq!(Record::parse(&v2), Err(RecordError::UnsupportedVersion(2)));
+    assert_eq!(Record::parse(&v2), Err(RecordError::UnsupportedVersion(3)));
     let good_page = SlotImage::build(&v1, 1).unwrap();
     let page = with_record(&good_page, &v2);
     // Only the version, the record's CRC and the slot's CRC differ from the version-1 slot.
@@ -455,12 +455,12 @@ fn node_refuses_a_record_of_another_format_version() {
     };
     assert!(differ.contains(&(16 + 4)) && differ.iter().all(|&i| allowed(i)), "{differ:?}");
 
-    let code = record_error_code(RecordError::UnsupportedVersion(2));
+    let code = record_error_code(RecordError::UnsupportedVersion(3));
     let shown = node_runs_uncalibrated(&page, RecordFault::BadRecord(code));
     assert!(
         shown.contains(
             "NO RECORD (BadRecord(UnsupportedVersion): the record in force is invalid: its format \
-             version is not 1, the only one the node reads): output is UNCALIBRATED"
+             version is not 1 or 2, the ones the node reads): output is UNCALIBRATED"
         ),
         "{shown}"
     );
@@ -476,7 +476,10 @@ fn node_refuses_a_record_of_another_format_version() {
     assert_eq!(out.status.code(), Some(2), "{stderr}");
     assert_eq!(
         stderr,
-        format!("error: {}: unsupported record format version 2 (this build reads version 1)\n", s(&rec))
+        format!(
+            "error: {}: unsupported record format version 3 (this build reads versions 1 and 2)\n",
+            s(&rec)
+        )
     );
     assert!(!out_path.exists());
 }
@@ -605,7 +608,7 @@ fn monitor_shows_the_status_stream_of_a_node_on_a_serial_port() {
     let lines: Vec<&str> = out.lines().collect();
     assert_eq!(lines.len(), 2, "{out}");
     for l in lines {
-        assert!(l.starts_with("status: protocol 3, NO RECORD (NoSlot: no record slot holds"), "{l}");
+        assert!(l.starts_with("status: protocol 4, NO RECORD (NoSlot: no record slot holds"), "{l}");
         assert!(l.contains(", rate 1000 Hz, ") && l.contains(", last reset PowerOn: "), "{l}");
     }
 
@@ -616,7 +619,7 @@ fn monitor_shows_the_status_stream_of_a_node_on_a_serial_port() {
         .unwrap();
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let set: Vec<&str> = text.lines().filter(|l| l.starts_with("rate set: status: protocol 3, ")).collect();
+    let set: Vec<&str> = text.lines().filter(|l| l.starts_with("rate set: status: protocol 4, ")).collect();
     assert_eq!(set.len(), 1, "{text}");
     assert!(set[0].contains(", rate 250 Hz, "), "{text}");
     // A rate outside the range is refused before the port is opened, with the range.

@@ -119,7 +119,7 @@ impl Bench {
                     std::thread::sleep(wait);
                 }
             }
-            let set = FeSet { index: i as u16, codes: codes_of(i) };
+            let set = FeSet { index: i as u16, codes: codes_of(i), temp_cc: 2500 };
             self.fe.write_all(wire::encode(&set, &mut buf).unwrap()).unwrap();
         }
     }

@@ -88,6 +88,8 @@ pub fn record(fits: &[(String, LsqFit)], device_id: [u8; 12], created_unix_s: u6
         structure,
         n_channels: fits.len() as u8,
         coefficients: [[0.0; N_BASIS]; MAX_CHANNELS],
+        g_m_s2: None,
+        thermal: None,
     };
     for (c, (_, f)) in fits.iter().enumerate() {
         rec.coefficients[c][..f.coefficients.len()].copy_from_slice(&f.coefficients);

@@ -49,9 +49,9 @@ pub struct LsqFit {
 }
 
 impl LsqFit {
-    /// Model output (codes) at acceleration `a`.
-    pub fn eval(&self, a: [f64; 3]) -> f64 {
-        self.structure.terms().zip(&self.coefficients).map(|(t, c)| c * t.eval(a)).sum()
+    /// Model output (codes) at `x = [ax, ay, az, t]` (see [`Positions::x`]).
+    pub fn eval(&self, x: [f64; 4]) -> f64 {
+        self.structure.terms().zip(&self.coefficients).map(|(t, c)| c * t.eval(x)).sum()
     }
 }
 
@@ -78,7 +78,7 @@ pub fn fit(
         return Err(LsqError::TooFewPositions { model, terms: k, positions: n });
     }
     // Rows scaled by sqrt(weight); columns scaled to unit RMS for the conditioning.
-    let mut x = DMatrix::from_fn(n, k, |r, c| pos.weight[idx[r]].sqrt() * terms[c].eval(pos.accel[idx[r]]));
+    let mut x = DMatrix::from_fn(n, k, |r, c| pos.weight[idx[r]].sqrt() * terms[c].eval(pos.x(idx[r])));
     let y = DVector::from_fn(n, |r, _| pos.weight[idx[r]].sqrt() * ch.mean[idx[r]]);
     let wsum: f64 = idx.iter().map(|&i| pos.weight[i]).sum();
     let mut scale = vec![1.0; k];

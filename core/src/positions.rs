@@ -19,7 +19,14 @@ pub struct Positions {
     pub weight: Vec<f64>,
     /// Gravity used for the kinematics, m/s².
     pub g: f64,
+    /// Mean temperature in each dwell, °C, when the campaign has a `temp_c` column.
+    pub temp_c: Option<Vec<f64>>,
+    /// Reference temperature of the thermal terms, °C: their `t` is `temp_c − t_ref_c`.
+    pub t_ref_c: f64,
 }
+
+/// The reference temperature of the thermal terms unless `--t-ref` says otherwise, °C.
+pub const T_REF_DEFAULT_C: f64 = 25.0;
 
 /// One channel's dwell statistics.
 #[derive(Clone, Debug)]
@@ -91,16 +98,47 @@ impl ChannelStats {
 }
 
 impl Positions {
-    /// Positions of a campaign for gravity `g`.
+    /// Positions of a campaign for gravity `g`, with its dwells' mean temperatures.
     pub fn new(c: &Campaign, g: f64) -> Positions {
-        Positions::from_dwells(c.dwells(), g)
+        let mut pos = Positions::from_dwells(c.dwells(), g);
+        pos.temp_c = c.temp_c.as_ref().map(|t| {
+            pos.dwells.iter().map(|d| t[d.start..d.end].iter().sum::<f64>() / d.len() as f64).collect()
+        });
+        pos
     }
 
-    /// Positions of a list of dwells for gravity `g`.
+    /// Positions of a list of dwells for gravity `g` (no temperature).
     pub fn from_dwells(dwells: Vec<Dwell>, g: f64) -> Positions {
         let accel = dwells.iter().map(|d| d.accel(g)).collect();
         let weight = dwells.iter().map(|d| d.len() as f64).collect();
-        Positions { dwells, accel, weight, g }
+        Positions { dwells, accel, weight, g, temp_c: None, t_ref_c: T_REF_DEFAULT_C }
+    }
+
+    /// The variables of the model terms at position `p`: `[ax, ay, az, t]` (m/s², and °C from
+    /// the reference; NaN without a temperature, which only a term in `t` would read).
+    pub fn x(&self, p: usize) -> [f64; 4] {
+        let a = self.accel[p];
+        let t = self.temp_c.as_ref().map_or(f64::NAN, |t| t[p] - self.t_ref_c);
+        [a[0], a[1], a[2], t]
+    }
+
+    /// Refuses a structure with terms in `t` when the positions have no temperature: the message
+    /// names the term.
+    pub fn check_terms(&self, s: accelcal_shared::Structure) -> Result<(), String> {
+        match s.terms().find(|t| t.is_thermal()) {
+            Some(t) if self.temp_c.is_none() => {
+                Err(format!("term `{t}` needs the temperature, and the campaign has no `temp_c` column"))
+            }
+            _ => Ok(()),
+        }
+    }
+
+    /// Lowest and highest dwell temperature, °C, when there is a temperature.
+    pub fn temp_range(&self) -> Option<(f64, f64)> {
+        let t = self.temp_c.as_ref()?;
+        let lo = t.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = t.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        (lo <= hi).then_some((lo, hi))
     }
 
     /// Number of positions.

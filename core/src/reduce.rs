@@ -41,12 +41,16 @@ pub struct Reduced {
     pub warnings: Vec<String>,
     /// The range of the codes.
     pub codes: CodeRange,
+    /// The temperature of each dwell, °C, when the file has a `temp_c` column.
+    pub temp: Option<Vec<DwellAcc>>,
 }
 
 impl Reduced {
-    /// The positions for gravity `g`.
+    /// The positions for gravity `g`, with the dwells' mean temperatures.
     pub fn positions(&self, g: f64) -> Positions {
-        Positions::from_dwells(self.dwells.clone(), g)
+        let mut pos = Positions::from_dwells(self.dwells.clone(), g);
+        pos.temp_c = self.temp.as_ref().map(|t| t.iter().map(DwellAcc::mean).collect());
+        pos
     }
 
     /// The dwell statistics of every channel.
@@ -83,12 +87,19 @@ impl Campaign {
             t_range: (f64::NAN, f64::NAN),
             warnings: Vec::new(),
             codes: rows.codes(),
+            temp: rows.has_temp().then(Vec::new),
         };
         while let Some((k, row)) = rows.next_row()? {
             let i = r.rows;
             if k == r.dwells.len() {
                 r.dwells.push(Dwell { start: i, end: i, alpha_deg: row.alpha, beta_deg: row.beta });
                 r.accs.iter_mut().for_each(|a| a.push(DwellAcc::default()));
+                if let Some(t) = r.temp.as_mut() {
+                    t.push(DwellAcc::default());
+                }
+            }
+            if let (Some(t), Some(v)) = (r.temp.as_mut(), row.temp) {
+                t[k].push(v);
             }
             r.dwells[k].end = i + 1;
             for (a, &v) in r.accs.iter_mut().zip(&row.codes) {

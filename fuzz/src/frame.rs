@@ -179,8 +179,22 @@ impl Target for FrameTarget {
                 record: RecordStatus::Missing(RecordFault::BadRecord(7)),
                 ..status
             })),
-            encode(&NodeMsg::Samples { seq: u32::MAX, first: 1 << 20, data: Block::Calibrated(f32s) }),
-            encode(&NodeMsg::Samples { seq: 9, first: u32::MAX, data: Block::Raw(codes.clone()) }),
+            encode(&NodeMsg::Samples {
+                seq: u32::MAX,
+                first: 1 << 20,
+                data: Block::Calibrated(f32s),
+                temp: Some(accelcal_shared::wire::BlockTemp {
+                    mean_c: -40.0,
+                    applied_c: Some(f32::MAX),
+                    out_of_range: true,
+                }),
+            }),
+            encode(&NodeMsg::Samples {
+                seq: 9,
+                first: u32::MAX,
+                data: Block::Raw(codes.clone()),
+                temp: None,
+            }),
             encode(&HostMsg::GetInfo),
             encode(&HostMsg::SetOutput(wire::Output::Raw)),
             encode(&NodeMsg::OutputSet(Status { output: wire::Output::Raw, ..status })),

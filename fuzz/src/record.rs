@@ -28,6 +28,8 @@ pub(crate) fn record(n_channels: u8, structure: Structure, coef: impl Fn(usize, 
         structure,
         n_channels,
         coefficients: [[0.0; N_BASIS]; MAX_CHANNELS],
+        g_m_s2: None,
+        thermal: None,
     };
     for c in 0..n_channels as usize {
         for n in 0..structure.len() {

@@ -11,6 +11,7 @@
 use crate::linear::{LinearCalF32, LinearCalFixed};
 use crate::record::{Record, RecordError};
 use crate::slots::{self, SlotError, SlotReading, N_SLOTS};
+use crate::thermal::{self, ThermalCalF32, ThermalModel};
 use crate::wire::{record_error_code, RecordFault, RecordStatus};
 
 /// The arithmetic the node calibrates in.
@@ -44,8 +45,11 @@ pub struct Boot {
     pub record: Record,
     /// The record's CRC-32, as stored in its last four bytes.
     pub crc: u32,
-    /// The calibration to apply.
+    /// The calibration to apply (for a thermal record: at its reference temperature, until the
+    /// node has read a temperature).
     pub cal: NodeCal,
+    /// For a record with thermal terms: the model the node re-evaluates per block of sample sets.
+    pub thermal: Option<ThermalCalF32>,
     /// The other slot, when it holds something that is not valid and not simply empty (worth a
     /// log line: e.g. a newer record of another format version, or an unreadable page).
     pub skipped: Option<SlotError>,
@@ -77,7 +81,8 @@ pub enum BootError {
     /// The record's device id is all zeros: it was made for no device, and no MCU has that id
     /// (the node reports it as [`RecordFault::WrongDevice`]).
     NoDeviceId,
-    /// The record is not model 4 for three channels.
+    /// The record is not model 4 (with, or without, the thermal terms `t`, `t^2`, `ax*t`,
+    /// `ay*t`, `az*t`) for three channels.
     NotModel4,
     /// The record's sensitivity matrix cannot be inverted (or does not fit fixed point).
     Singular,
@@ -105,7 +110,10 @@ impl core::fmt::Display for BootError {
             BootError::NoDeviceId => f.write_str(
                 "the record's device id is all zeros: it was made for no device, no node accepts it",
             ),
-            BootError::NotModel4 => f.write_str("the record is not model 4 for three channels"),
+            BootError::NotModel4 => f.write_str(
+                "the record is not model 4 (optionally with the thermal terms t, t^2, ax*t, ay*t, az*t) \
+                 for three channels",
+            ),
             BootError::Singular => f.write_str(
                 "the record's sensitivity matrix cannot be inverted (or does not fit fixed point)",
             ),
@@ -141,6 +149,7 @@ pub fn decide(
         slot: active.slot,
         slot_version: active.image.version,
         sequence: active.image.sequence,
+        thermal: ThermalModel::of(&record).map(|m| m.to_f32()),
         record,
         crc,
         cal,
@@ -149,9 +158,11 @@ pub fn decide(
 }
 
 /// Whether the node with unique id `device_id`, calibrating in `arith`, accepts `record` (a
-/// parsed record), and the calibration it then applies; or why not, in this order: a device id of
-/// all zeros, another device's id, not model 4 on three channels, a sensitivity matrix that
-/// cannot be inverted (or, in fixed point, does not fit the format).
+/// parsed record), and the calibration it then applies (a thermal record's at its reference
+/// temperature); or why not, in this order: a device id of all zeros, another device's id, not
+/// model 4 (with or without thermal terms) on three channels, a sensitivity matrix that cannot be
+/// inverted (for a thermal record: anywhere on [`ThermalModel::invertible`]'s grid over the
+/// calibrated range) or, in fixed point, does not fit the format.
 pub fn accept(record: &Record, device_id: &[u8; 12], arith: Arithmetic) -> Result<NodeCal, BootError> {
     if record.device_id == [0; 12] {
         return Err(BootError::NoDeviceId);
@@ -159,10 +170,29 @@ pub fn accept(record: &Record, device_id: &[u8; 12], arith: Arithmetic) -> Resul
     if record.device_id != *device_id {
         return Err(BootError::WrongDevice);
     }
-    let inverse = record.model4().ok_or(BootError::NotModel4)?.invert().map_err(|_| BootError::Singular)?;
+    if record.n_channels != 3 || !thermal::node_applies(record.structure) {
+        return Err(BootError::NotModel4);
+    }
+    let singular = |_| BootError::Singular;
+    if let Some(m) = ThermalModel::of(record) {
+        m.invertible().map_err(singular)?;
+        let f = m.to_f32();
+        let t_ref = m.thermal.t_ref_c;
+        return Ok(match arith {
+            Arithmetic::F32 => NodeCal::F32(f.at(t_ref).map_err(singular)?),
+            Arithmetic::Fixed => {
+                let (lo, hi) = (m.thermal.t_min_c, m.thermal.t_max_c);
+                for temp in [lo, hi] {
+                    f.at_wide(temp).and_then(|c| c.to_fixed()).map_err(singular)?;
+                }
+                NodeCal::Fixed(f.at_wide(t_ref).and_then(|c| c.to_fixed()).map_err(singular)?)
+            }
+        });
+    }
+    let inverse = record.model4().ok_or(BootError::NotModel4)?.invert().map_err(singular)?;
     Ok(match arith {
         Arithmetic::F32 => NodeCal::F32(inverse.to_f32()),
-        Arithmetic::Fixed => NodeCal::Fixed(inverse.to_fixed().map_err(|_| BootError::Singular)?),
+        Arithmetic::Fixed => NodeCal::Fixed(inverse.to_fixed().map_err(singular)?),
     })
 }
 
@@ -292,5 +322,42 @@ mod tests {
         assert!(accept(&tiny, &ID, Arithmetic::F32).is_ok());
         assert_eq!(accept(&tiny, &ID, Arithmetic::Fixed), Err(BootError::Singular));
         assert_eq!(gate(&tiny), Err(BootError::Singular));
+    }
+
+    #[test]
+    fn a_thermal_record_is_accepted_with_its_model_and_checked_over_its_range() {
+        use crate::record::{TempSource, Thermal};
+        let mut r = Record::from_model4(ID, 7, &model());
+        r.g_m_s2 = Some(9.81);
+        r.structure = Structure::from_indices(&[1, 2, 3, 20, 22]);
+        for c in 0..3 {
+            r.coefficients[c][4] = 3.0; // t, codes/°C
+            r.coefficients[c][5] = if c == 0 { 0.167 } else { 0.0 }; // ax*t
+        }
+        r.thermal =
+            Some(Thermal { t_ref_c: 25.0, t_min_c: -10.0, t_max_c: 50.0, source: TempSource::FrontEnd });
+        assert_eq!(gate(&r), Ok(()));
+        let page = SlotImage::build(&bytes(&r), 3).unwrap();
+        let boot = decide([Some(&page), None], &ID, Arithmetic::F32).unwrap();
+        let th = boot.thermal.expect("a thermal record carries its model");
+        assert_eq!(boot.cal, NodeCal::F32(th.at(25.0).unwrap()));
+        assert_eq!(th.thermal.source, TempSource::FrontEnd);
+        assert!(decide([Some(&page), None], &ID, Arithmetic::Fixed).is_ok());
+        // Model 4 boots without a thermal model.
+        assert_eq!(
+            decide([Some(&SlotImage::build(&record(ID, 1), 1).unwrap()), None], &ID, Arithmetic::F32)
+                .unwrap()
+                .thermal,
+            None
+        );
+        // Thermal terms on a quadratic model are not what a node applies.
+        let mut quad = r;
+        quad.structure = Structure::from_indices(&[1, 2, 3, 4, 20]);
+        assert_eq!(gate(&quad), Err(BootError::NotModel4));
+        // A sensitivity that vanishes inside the calibrated range is refused.
+        let mut vanishing = r;
+        vanishing.coefficients[0][5] = -1671.2 / 30.0; // K_xx(t) = 0 at 55 °C
+        vanishing.thermal.as_mut().unwrap().t_max_c = 60.0;
+        assert_eq!(gate(&vanishing), Err(BootError::Singular));
     }
 }

@@ -23,6 +23,26 @@ pub struct FeSet {
     pub index: u16,
     /// Raw codes, channels x, y, z (unsigned 16-bit, as the node's ADC delivers them).
     pub codes: Codes,
+    /// The front end's temperature channel at this set, in 0.01 °C (the sensor's own temperature,
+    /// which a thermal record with the front-end input applies).
+    pub temp_cc: i16,
+}
+
+impl FeSet {
+    /// The temperature, °C.
+    pub fn temp_c(&self) -> f32 {
+        self.temp_cc as f32 / 100.0
+    }
+
+    /// The temperature field of `temp_c` (°C), rounded to 0.01 °C and clamped to the field.
+    pub fn temp_field(temp_c: f64) -> i16 {
+        let v = libm::round(temp_c * 100.0);
+        if v.is_nan() {
+            0
+        } else {
+            v.clamp(i16::MIN as f64, i16::MAX as f64) as i16
+        }
+    }
 }
 
 /// What the node tells the front end.
@@ -36,9 +56,9 @@ pub enum FeCtl {
     },
 }
 
-/// Longest frame of a [`FeSet`] or [`FeCtl`], the terminator included: 1 + 4·3 varint bytes,
-/// one COBS byte and the zero (tested).
-pub const FE_MAX_FRAME: usize = 16;
+/// Longest frame of a [`FeSet`] or [`FeCtl`], the terminator included: 3 + 3·3 + 3 varint bytes
+/// (index, codes, temperature), one COBS byte and the zero (tested).
+pub const FE_MAX_FRAME: usize = 17;
 
 /// Sets lost between two consecutive [`FeSet::index`] values `prev` and `next` (0 when `next`
 /// follows `prev`).
@@ -54,7 +74,7 @@ mod tests {
     #[test]
     fn frames_fit_and_round_trip() {
         let mut buf = [0u8; FE_MAX_FRAME];
-        let set = FeSet { index: u16::MAX, codes: [u16::MAX; 3] };
+        let set = FeSet { index: u16::MAX, codes: [u16::MAX; 3], temp_cc: i16::MIN };
         let frame = encode(&set, &mut buf).unwrap().to_vec();
         assert!(frame.len() <= FE_MAX_FRAME, "{}", frame.len());
         let mut d = FrameDecoder::<FE_MAX_FRAME>::new();

@@ -24,7 +24,8 @@ pub mod record;
 pub mod slots;
 pub mod terms;
 pub mod testturn;
+pub mod thermal;
 pub mod wire;
 
 pub use kinematics::{gravity, normal_gravity, G_STANDARD};
-pub use terms::{Basis, Structure, Term, BASIS, N_BASIS};
+pub use terms::{Basis, Structure, Term, BASIS, N_ACCEL_BASIS, N_BASIS};

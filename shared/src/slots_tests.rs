@@ -15,6 +15,8 @@ fn record_bytes(tag: f64) -> std::vec::Vec<u8> {
         structure: MODEL_4,
         n_channels: 3,
         coefficients: [[0.0; N_BASIS]; MAX_CHANNELS],
+        g_m_s2: None,
+        thermal: None,
     };
     r.coefficients[0][..4].copy_from_slice(&[32000.0 + tag, 1670.0, 3.0, -2.0]);
     r.coefficients[1][..4].copy_from_slice(&[33000.0, 1.5, 1650.0 + tag, 4.0]);

@@ -24,7 +24,24 @@ use serde::{Deserialize, Serialize};
 /// [`Status`] carries the [`Output`] mode; [`HostMsg::GetInfo`] / [`NodeMsg::Info`] (who the node
 /// is), [`HostMsg::SetOutput`] / [`NodeMsg::OutputSet`] (raw or calibrated streaming) and
 /// [`Block::Raw`] were added.
-pub const PROTOCOL_VERSION: u8 = 3;
+///
+/// Version 4: [`NodeMsg::Samples`] carries `temp`, the temperature read with the block and the
+/// one a thermal record was applied at ([`BlockTemp`]).
+pub const PROTOCOL_VERSION: u8 = 4;
+
+/// The temperature of a block of live samples.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BlockTemp {
+    /// Mean of the temperature input over the block's sets, °C (the front end's channel on the
+    /// emulated bench, the MCU's sensor on the board).
+    pub mean_c: f32,
+    /// With a thermal record in force and calibrated output: the filtered temperature the
+    /// calibration of the block's last set was evaluated at, °C.
+    pub applied_c: Option<f32>,
+    /// The calibration was applied outside the record's calibrated temperature range (or could
+    /// not be evaluated there): the output is extrapolated.
+    pub out_of_range: bool,
+}
 
 /// Most sample sets one message carries (live samples, replay requests and answers).
 pub const MAX_BLOCK: usize = 16;
@@ -354,6 +371,8 @@ pub enum NodeMsg {
         first: u32,
         /// The sample sets.
         data: Block,
+        /// The block's temperature, when the node reads one.
+        temp: Option<BlockTemp>,
     },
     /// The answer to [`HostMsg::Replay`] with the same `seq`.
     Replayed {
@@ -424,7 +443,7 @@ impl core::fmt::Display for RecordFault {
 
 /// Names of the [`crate::record::RecordError`] variants by their [`record_error_code`] (code 1
 /// first), as [`RecordFault::BadRecord`] is displayed.
-pub const RECORD_ERROR_NAMES: [&str; 9] = [
+pub const RECORD_ERROR_NAMES: [&str; 10] = [
     "Truncated",
     "BadMagic",
     "UnsupportedVersion",
@@ -434,23 +453,25 @@ pub const RECORD_ERROR_NAMES: [&str; 9] = [
     "BadCrc",
     "NonFinite",
     "BufferTooSmall",
+    "BadThermal",
 ];
 
 /// What each record error means, in the order of [`RECORD_ERROR_NAMES`]. (The code does not
 /// carry the error's value: an unsupported version is named, not its number.)
-const RECORD_ERROR_WORDS: [&str; 9] = [
+const RECORD_ERROR_WORDS: [&str; 10] = [
     "it is truncated",
     "it is not a calibration record (bad magic)",
-    "its format version is not 1, the only one the node reads",
+    "its format version is not 1 or 2, the ones the node reads",
     "its length field is inconsistent",
     "its channel count is out of range",
     "its term list is invalid",
     "its CRC does not match",
     "it holds a non-finite coefficient",
     "buffer too small",
+    "its gravity or temperature fields are inconsistent with its terms",
 ];
 
-const _: () = assert!(crate::record::FORMAT_VERSION == 1, "update RECORD_ERROR_WORDS");
+const _: () = assert!(crate::record::FORMAT_VERSION == 2, "update RECORD_ERROR_WORDS");
 
 /// The variant name of a record error code (see [`record_error_code`]), or `None` for a code this
 /// build does not know.
@@ -471,6 +492,7 @@ pub fn record_error_code(e: crate::record::RecordError) -> u8 {
         E::BadCrc => 7,
         E::NonFinite => 8,
         E::BufferTooSmall => 9,
+        E::BadThermal => 10,
     }
 }
 
@@ -610,6 +632,7 @@ mod tests {
             seq: u32::MAX,
             first: u32::MAX,
             data: Block::Calibrated(Vec::from_slice(&[[f32::MAX; 3]; MAX_BLOCK]).unwrap()),
+            temp: Some(BlockTemp { mean_c: f32::MAX, applied_c: Some(f32::MAX), out_of_range: true }),
         };
         let info = NodeMsg::Info(Info {
             device_id: [0xff; 12],
@@ -674,10 +697,11 @@ mod tests {
         assert_eq!(encode(&HostMsg::GetInfo, &mut buf).unwrap(), &[0x02, 0x03, 0x00]);
         assert_eq!(encode(&HostMsg::SetOutput(Output::Raw), &mut buf).unwrap(), &[0x03, 0x04, 0x01, 0x00]);
         // Samples = variant 1, seq 2, first 300 = [0xac, 0x02], Raw = block variant 3, one set.
-        let msg = NodeMsg::Samples { seq: 2, first: 300, data: Block::Raw(codes(&[[1, 2, 3]])) };
+        // No temperature: Option None = 0x00.
+        let msg = NodeMsg::Samples { seq: 2, first: 300, data: Block::Raw(codes(&[[1, 2, 3]])), temp: None };
         assert_eq!(
             postcard::to_slice(&msg, &mut [0u8; 32]).unwrap(),
-            &[0x01, 0x02, 0xac, 0x02, 0x03, 0x01, 0x01, 0x02, 0x03]
+            &[0x01, 0x02, 0xac, 0x02, 0x03, 0x01, 0x01, 0x02, 0x03, 0x00]
         );
     }
 
@@ -816,13 +840,14 @@ mod tests {
         let errors = [
             E::Truncated,
             E::BadMagic,
-            E::UnsupportedVersion(2),
+            E::UnsupportedVersion(3),
             E::BadLength,
             E::BadChannelCount,
             E::BadTerms,
             E::BadCrc,
             E::NonFinite,
             E::BufferTooSmall,
+            E::BadThermal,
         ];
         // Every code's name is its error's variant name.
         for e in errors {
@@ -831,12 +856,12 @@ mod tests {
             assert_eq!(debug.split('(').next().unwrap(), name);
         }
         assert_eq!(record_error_name(0), None);
-        assert_eq!(record_error_name(10), None);
+        assert_eq!(record_error_name(11), None);
         let shown = |f: RecordFault| std::format!("{f}");
         assert_eq!(
-            shown(RecordFault::BadRecord(record_error_code(E::UnsupportedVersion(2)))),
+            shown(RecordFault::BadRecord(record_error_code(E::UnsupportedVersion(3)))),
             "BadRecord(UnsupportedVersion): the record in force is invalid: its format version is not \
-             1, the only one the node reads"
+             1 or 2, the ones the node reads"
         );
         assert_eq!(
             shown(RecordFault::BadRecord(200)),

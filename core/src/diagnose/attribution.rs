@@ -146,7 +146,7 @@ impl Ctx<'_> {
         let own = d.own[ch];
         let step = d.step[ch][p];
         match col.kind {
-            Kind::Base(i) => self.terms[i].eval(a),
+            Kind::Base(i) => self.terms[i].eval([a[0], a[1], a[2], f64::NAN]),
             Kind::Drift => bin.t - self.t_mid,
             Kind::TempBias => d.temp.as_ref().map_or(0.0, |t| t[row] - self.temp_mid),
             Kind::TempScale => {

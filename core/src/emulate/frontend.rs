@@ -8,7 +8,8 @@
 //!   standing at position p (p = moves completed), the block sees
 //!   [`Unit::standing_accel`]`(p, angles)` exactly as `simulate` at plan position p, with
 //!   `t_in_dwell_s` the time since the head stopped, `prev_accel` the acceleration at position
-//!   p − 1 (None at p = 0) and `temp_c` NaN.
+//!   p − 1 (None at p = 0) and `temp_c` the sensor's temperature ([`SensorTemp`]: the chamber
+//!   setpoint followed with a first-order lag; 25 °C soaked unless set).
 //! - While the head moves from position p to p + 1 the angles are those of the head's motion,
 //!   and the kinematic effects' angles are interpolated between those of position p and of
 //!   position p + 1 (continuous at both ends). Effects of the step (settling, hysteresis) keep
@@ -43,6 +44,44 @@ pub struct FrontEnd {
     rng: ChaCha8Rng,
     /// Position of the current dwell and its first set's index (for `SetCtx::sample`).
     dwell: Option<(usize, u64)>,
+    /// The block's temperature, °C.
+    temp: SensorTemp,
+}
+
+/// The sensor's temperature on the emulated bench: it follows the chamber's setpoint as a first
+/// order lag with time constant `tau_s` (the thermal lag between chamber and sensor).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SensorTemp {
+    /// Chamber setpoint, °C.
+    pub chamber_c: f64,
+    /// Sensor temperature at `at_s`, °C.
+    pub sensor_c: f64,
+    /// Time of `sensor_c` on the bench clock, s.
+    pub at_s: f64,
+    /// Thermal time constant, s.
+    pub tau_s: f64,
+}
+
+impl SensorTemp {
+    /// A sensor soaked at `temp_c` with time constant `tau_s`.
+    pub fn soaked(temp_c: f64, tau_s: f64) -> SensorTemp {
+        SensorTemp { chamber_c: temp_c, sensor_c: temp_c, at_s: 0.0, tau_s }
+    }
+
+    /// The sensor temperature at `t_s` (not before the last call's time).
+    pub fn at(&mut self, t_s: f64) -> f64 {
+        let dt = (t_s - self.at_s).max(0.0);
+        let f = if self.tau_s > 0.0 { (-dt / self.tau_s).exp() } else { 0.0 };
+        self.sensor_c = self.chamber_c + (self.sensor_c - self.chamber_c) * f;
+        self.at_s = self.at_s.max(t_s);
+        self.sensor_c
+    }
+
+    /// Changes the chamber setpoint at `t_s`.
+    pub fn set_chamber(&mut self, t_s: f64, chamber_c: f64) {
+        self.at(t_s);
+        self.chamber_c = chamber_c;
+    }
 }
 
 impl FrontEnd {
@@ -50,7 +89,18 @@ impl FrontEnd {
     pub fn new(unit: Unit, seed: u64) -> Result<FrontEnd, UnitError> {
         unit.check_triad()?;
         let noise = unit.noise_distribution();
-        Ok(FrontEnd { unit, noise, rng: ChaCha8Rng::seed_from_u64(seed), dwell: None })
+        let temp = SensorTemp::soaked(crate::positions::T_REF_DEFAULT_C, 0.0);
+        Ok(FrontEnd { unit, noise, rng: ChaCha8Rng::seed_from_u64(seed), dwell: None, temp })
+    }
+
+    /// The sensor's temperature model (chamber setpoint, lag).
+    pub fn temp_mut(&mut self) -> &mut SensorTemp {
+        &mut self.temp
+    }
+
+    /// The sensor's temperature at `t_s`, °C.
+    pub fn temp_c(&mut self, t_s: f64) -> f64 {
+        self.temp.at(t_s)
     }
 
     /// The unit.
@@ -101,7 +151,7 @@ impl FrontEnd {
             sample: (n - first) as usize,
             accel,
             t_in_dwell_s: (t_s - pose.stopped_at_s).max(0.0),
-            temp_c: f64::NAN,
+            temp_c: self.temp.at(t_s),
             prev_accel,
         }
     }
@@ -215,7 +265,11 @@ pub fn run_frontend<W: Write>(
         for n in first..=due {
             let t = time_of(n);
             let pose = head.pose_at(t);
-            let set = FeSet { index: n as u16, codes: fe.codes(&pose, n, t) };
+            let set = FeSet {
+                index: n as u16,
+                codes: fe.codes(&pose, n, t),
+                temp_cc: FeSet::temp_field(fe.temp_c(t)),
+            };
             let frame = wire::encode(&set, &mut buf).map_err(|e| FrontendError::Options(format!("{e:?}")))?;
             writer.write_all(frame).map_err(FrontendError::Write)?;
             stats.sent += 1;

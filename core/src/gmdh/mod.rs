@@ -188,7 +188,7 @@ impl Prepared {
             let t = accelcal_shared::BASIS[bi];
             let mut ss = 0.0;
             for p in 0..n {
-                let v = t.eval(pos.accel[p]);
+                let v = t.eval(pos.x(p));
                 z[p * m + c] = v;
                 ss += pos.weight[p] * v * v;
             }

@@ -17,7 +17,7 @@ fn fit(pos: &Positions, ch: &ChannelStats, s: Structure, idx: &[usize]) -> Optio
     if n < k {
         return None;
     }
-    let mut x = DMatrix::from_fn(n, k, |r, c| pos.weight[idx[r]].sqrt() * terms[c].eval(pos.accel[idx[r]]));
+    let mut x = DMatrix::from_fn(n, k, |r, c| pos.weight[idx[r]].sqrt() * terms[c].eval(pos.x(idx[r])));
     let y = DVector::from_fn(n, |r, _| pos.weight[idx[r]].sqrt() * ch.mean[idx[r]]);
     let mut scale = vec![1.0; k];
     for c in 0..k {
@@ -39,7 +39,7 @@ fn fit(pos: &Positions, ch: &ChannelStats, s: Structure, idx: &[usize]) -> Optio
 fn sse(pos: &Positions, ch: &ChannelStats, s: Structure, beta: &[f64], idx: &[usize]) -> f64 {
     idx.iter()
         .map(|&p| {
-            let pred: f64 = s.terms().zip(beta).map(|(t, b)| b * t.eval(pos.accel[p])).sum();
+            let pred: f64 = s.terms().zip(beta).map(|(t, b)| b * t.eval(pos.x(p))).sum();
             pos.weight[p] * (ch.mean[p] - pred).powi(2)
         })
         .sum()

@@ -102,7 +102,7 @@ pub fn monitor_stream(
     while count.is_none_or(|c| seen < c) {
         match rx.recv() {
             Ok(Ok(NodeMsg::Status(s))) => writeln!(out, "{}", format_status(&s))?,
-            Ok(Ok(NodeMsg::Samples { seq, first, data })) => {
+            Ok(Ok(NodeMsg::Samples { seq, first, data, .. })) => {
                 if let Some(expected) = next_first {
                     let lost = first.wrapping_sub(expected);
                     if lost != 0 {

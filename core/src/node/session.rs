@@ -88,6 +88,8 @@ pub struct Samples {
     pub first: u32,
     /// The sets.
     pub data: Block,
+    /// The block's temperature, when the node reads one.
+    pub temp: Option<wire::BlockTemp>,
 }
 
 impl Session {
@@ -223,7 +225,7 @@ impl Session {
     /// poll interval or the message was another one (a caller loops, checking its own deadline).
     pub fn poll_samples(&mut self) -> Result<Option<Samples>, SessionError> {
         Ok(match self.poll()? {
-            Some(NodeMsg::Samples { seq, first, data }) => Some(Samples { seq, first, data }),
+            Some(NodeMsg::Samples { seq, first, data, temp }) => Some(Samples { seq, first, data, temp }),
             _ => None,
         })
     }
@@ -330,7 +332,7 @@ mod tests {
 
     #[test]
     fn info_is_found_among_other_messages() {
-        let block = NodeMsg::Samples { seq: 0, first: 0, data: Block::Raw(Default::default()) };
+        let block = NodeMsg::Samples { seq: 0, first: 0, data: Block::Raw(Default::default()), temp: None };
         let (mut s, sent) = session(&[block, NodeMsg::Info(info(wire::PROTOCOL_VERSION))]);
         assert_eq!(s.info().unwrap(), info(wire::PROTOCOL_VERSION));
         // A leading zero, then GetInfo (variant 3), once: the answer came at once.

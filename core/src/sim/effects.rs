@@ -92,6 +92,11 @@ impl Kinematics {
     }
 }
 
+/// The term variables of an acceleration: a nonlinearity's terms are in acceleration only.
+fn accel4(a: [f64; 3]) -> [f64; 4] {
+    [a[0], a[1], a[2], 0.0]
+}
+
 fn mat_vec(m: &[[f64; 3]; 3], v: [f64; 3]) -> [f64; 3] {
     [0, 1, 2].map(|i| (0..3).map(|j| m[i][j] * v[j]).sum())
 }
@@ -152,7 +157,7 @@ impl Effect for Nonlinearity {
     }
     fn output(&self, ctx: &SampleCtx) -> f64 {
         let own = ctx.accel[ctx.axis];
-        self.k2 * own * own + self.terms.iter().map(|(t, c)| c * t.eval(ctx.accel)).sum::<f64>()
+        self.k2 * own * own + self.terms.iter().map(|(t, c)| c * t.eval(accel4(ctx.accel))).sum::<f64>()
     }
 }
 
@@ -362,6 +367,11 @@ pub fn parse(spec: &str) -> Result<Box<dyn Effect>, String> {
                     e.k2 = v;
                 } else {
                     let t = Term::parse(&k).map_err(|err| format!("effect `nonlinearity`: `{k}`: {err}"))?;
+                    if t.is_thermal() {
+                        return Err(format!(
+                            "effect `nonlinearity`: `{k}` is a term in temperature (use the `temperature` effect)"
+                        ));
+                    }
                     e.terms.push((t, v));
                 }
             }

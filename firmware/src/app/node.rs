@@ -255,7 +255,7 @@ pub async fn stream_samples(mut source: impl SampleSource, node: Node) -> ! {
                 next = next.wrapping_add(n as u32);
                 STATS.sample_sets.fetch_add(n as u32, Ordering::Relaxed);
                 let data = node.live_block(&codes[..n]);
-                if OUTBOX.try_send(NodeMsg::Samples { seq, first, data }).is_err() {
+                if OUTBOX.try_send(NodeMsg::Samples { seq, first, data, temp: None }).is_err() {
                     STATS.overruns.fetch_add(n as u32, Ordering::Relaxed);
                 }
                 seq = seq.wrapping_add(1);
