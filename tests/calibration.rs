@@ -199,7 +199,7 @@ fn record_carries_the_fit_to_the_node_arithmetic() {
         .iter()
         .map(|s| (s.name.clone(), lsq::fit(&p, s, MODEL_4, None).unwrap()))
         .collect();
-    let rec = accelcal_core::calibrate::record(&fits, [7; 12], 1_800_000_000).unwrap();
+    let rec = accelcal_core::calibrate::record(&fits, [7; 12], 1_800_000_000, 9.81, None).unwrap();
     let mut buf = [0u8; MAX_RECORD_LEN];
     let n = rec.emit(&mut buf).unwrap();
     let back = Record::parse(&buf[..n]).unwrap();

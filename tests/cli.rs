@@ -124,6 +124,8 @@ const UNITS: &[(&str, &str)] = &[
     ("--bias-sd", "codes"),
     ("--misalign-sd", "rad"),
     ("--temp-profile", "°C"),
+    ("--thermal", "°C"),
+    ("--t-ref", "°C"),
     ("--tolerance", "codes"),
     ("--tolerance", "m/s²"),
     ("--min-hold-s", "seconds"),
@@ -367,7 +369,7 @@ fn record_show_prints_what_fit_wrote() {
     let crc = u32::from_le_bytes(bytes[bytes.len() - 4..].try_into().unwrap());
     assert!(
         out.starts_with(&format!(
-            "record {}: 134 bytes, format version 1, CRC-32 {crc:#010x}\n",
+            "record {}: 156 bytes, format version 2, CRC-32 {crc:#010x}\n",
             d.s("r.rec")
         )),
         "{out}"
@@ -375,11 +377,14 @@ fn record_show_prints_what_fit_wrote() {
     assert!(out.contains(&format!("device id: {id}\n")), "{out}");
     assert!(out.contains("created: 1800000000 (2027-01-15T08:00:00Z)\n"), "{out}");
     assert!(out.contains("terms: 1,ax,ay,az\n"), "{out}");
+    assert!(out.contains("g: 9.81 m/s² (the gravity the fit used)\n"), "{out}");
     assert!(out.contains("node: accepts it"), "{out}");
     let j = json(&d.p("r.json"));
     assert_eq!(j["device_id"], id);
     assert_eq!(j["node_accepts"], true);
     assert_eq!(j["refusal"], Value::Null);
+    assert_eq!(j["g_m_s2"], 9.81);
+    assert_eq!(j["thermal"], Value::Null);
     for c in 0..3 {
         let row: Vec<f64> =
             j["coefficients"][c].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();

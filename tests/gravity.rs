@@ -296,7 +296,7 @@ fn cli_writes_the_equivalent_model4_record() {
     ]);
     assert_eq!(code, Some(0), "{err}");
     assert!(
-        out.contains("record: ") && out.contains("(134 bytes, model 4 from imu_tk (bias+scale+misalignment)"),
+        out.contains("record: ") && out.contains("(156 bytes, model 4 from imu_tk (bias+scale+misalignment)"),
         "{out}"
     );
     let record = Record::parse(&std::fs::read(&rec).unwrap()).unwrap();

@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use accelcal_shared::boot::{self, BootError};
-use accelcal_shared::record::{Record, MAX_CHANNELS, MAX_RECORD_LEN};
+use accelcal_shared::record::{Record, Thermal, MAX_CHANNELS, MAX_RECORD_LEN};
 use accelcal_shared::terms::MODEL_4;
 use accelcal_shared::{Structure, N_BASIS};
 
@@ -52,6 +52,7 @@ pub fn fit_positions(
     method: Method,
     structure: Structure,
 ) -> anyhow::Result<Vec<(String, LsqFit)>> {
+    pos.check_terms(structure).map_err(bad)?;
     match method {
         Method::Lsq => stats
             .iter()
@@ -73,23 +74,49 @@ pub fn fit_positions(
     }
 }
 
-/// Builds the record of a set of fits (all with the same structure).
-pub fn record(fits: &[(String, LsqFit)], device_id: [u8; 12], created_unix_s: u64) -> anyhow::Result<Record> {
+/// Refuses a gravity a record cannot state ([`accelcal_shared::record::G_RANGE`]).
+pub fn check_record_g(g: f64) -> anyhow::Result<()> {
+    if !accelcal_shared::record::G_RANGE.contains(&g) {
+        return Err(bad(format!(
+            "a record states the local gravity its fit used, 9.7 to 9.9 m/s² on the Earth's surface; \
+             the fit used {g} m/s² (--g)"
+        )));
+    }
+    Ok(())
+}
+
+/// Builds the record of a set of fits (all with the same structure), fitted with gravity `g`
+/// (m/s², written into the record) and, for a structure with terms in `t`, the temperature part.
+pub fn record(
+    fits: &[(String, LsqFit)],
+    device_id: [u8; 12],
+    created_unix_s: u64,
+    g: f64,
+    thermal: Option<Thermal>,
+) -> anyhow::Result<Record> {
     if fits.is_empty() || fits.len() > MAX_CHANNELS {
         return Err(bad(format!(
             "a calibration record holds 1 to {MAX_CHANNELS} channels, the campaign has {}",
             fits.len()
         )));
     }
+    check_record_g(g)?;
     let structure = fits[0].1.structure;
+    if structure.is_thermal() != thermal.is_some() {
+        return Err(bad(if structure.is_thermal() {
+            format!("the terms `{structure}` hold the temperature: the record needs --temp-input (mcu or front-end)")
+        } else {
+            "--temp-input applies to a record with terms in t only".to_string()
+        }));
+    }
     let mut rec = Record {
         device_id,
         created_unix_s,
         structure,
         n_channels: fits.len() as u8,
         coefficients: [[0.0; N_BASIS]; MAX_CHANNELS],
-        g_m_s2: None,
-        thermal: None,
+        g_m_s2: Some(g),
+        thermal,
     };
     for (c, (_, f)) in fits.iter().enumerate() {
         rec.coefficients[c][..f.coefficients.len()].copy_from_slice(&f.coefficients);
@@ -114,7 +141,9 @@ pub fn refusal(e: BootError) -> String {
     };
     let hint = match e {
         BootError::NoDeviceId => " (give the MCU's unique id: `fit --device-id HEX`)",
-        BootError::NotModel4 => " (fit it with `--terms ax,ay,az`, the default)",
+        BootError::NotModel4 => {
+            " (fit it with `--terms ax,ay,az`, the default, optionally with t, t^2, ax*t, ay*t, az*t)"
+        }
         _ => "",
     };
     format!("a node would refuse this record: {reason}{hint}")

@@ -193,6 +193,11 @@ pub struct SimulateArgs {
     /// temp_c column.
     #[arg(long, value_name = "BASE:AMP:CYCLES", value_parser = parse_temp)]
     pub temp_profile: Option<TempProfile>,
+    /// A thermal campaign: the plan repeated at each chamber temperature T1, T2, … (°C), each
+    /// pass after a soak of SOAK_S seconds, the sensor following the chamber with a thermal lag
+    /// (first order, time constant TAU_S seconds, starting at 25 °C); adds a `temp_c` column.
+    #[arg(long, value_name = "T1,T2,…:SOAK_S:TAU_S", value_parser = parse_thermal, allow_hyphen_values = true)]
+    pub thermal: Option<accelcal_core::sim::ThermalPlan>,
     /// An ideal ADC: no rounding to whole codes, no clipping (for checks against exact values).
     #[arg(long)]
     pub ideal_adc: bool,
@@ -216,6 +221,10 @@ fn parse_layout(s: &str) -> Result<Layout, String> {
     s.parse()
 }
 
+fn parse_thermal(s: &str) -> Result<accelcal_core::sim::ThermalPlan, String> {
+    s.parse()
+}
+
 fn parse_temp(s: &str) -> Result<TempProfile, String> {
     s.parse()
 }
@@ -231,6 +240,11 @@ pub enum BasisArg {
     Quadratic,
     /// Subsets of the terms up to degree 3 (524,288 models).
     Cubic,
+    /// Subsets of 1, ax, ay, az, t, t^2, ax*t, ay*t, az*t (256 models; needs `temp_c`).
+    LinearThermal,
+    /// Subsets of the terms up to degree 2 and t, t^2, ax*t, ay*t, az*t (16,384 models; needs
+    /// `temp_c`).
+    QuadraticThermal,
 }
 
 impl From<BasisArg> for accelcal_shared::Basis {
@@ -240,6 +254,35 @@ impl From<BasisArg> for accelcal_shared::Basis {
             BasisArg::Linear => accelcal_shared::Basis::Linear,
             BasisArg::Quadratic => accelcal_shared::Basis::Quadratic,
             BasisArg::Cubic => accelcal_shared::Basis::Cubic,
+            BasisArg::LinearThermal => accelcal_shared::Basis::LinearThermal,
+            BasisArg::QuadraticThermal => accelcal_shared::Basis::QuadraticThermal,
+        }
+    }
+}
+
+/// The temperature variable of the thermal terms.
+#[derive(Debug, Args)]
+pub struct ThermalArgs {
+    /// Reference temperature of the thermal terms, °C: their variable t is `temp_c − T_REF`
+    /// (the campaign's `temp_c` column, dwell means).
+    #[arg(long, value_name = "DEG_C", default_value_t = accelcal_core::positions::T_REF_DEFAULT_C)]
+    pub t_ref: f64,
+}
+
+/// Where a node reads its temperature.
+#[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
+pub enum TempInputArg {
+    /// The MCU's internal temperature sensor (ADC1, factory-calibrated).
+    Mcu,
+    /// The front end's temperature channel.
+    FrontEnd,
+}
+
+impl From<TempInputArg> for accelcal_shared::record::TempSource {
+    fn from(t: TempInputArg) -> Self {
+        match t {
+            TempInputArg::Mcu => accelcal_shared::record::TempSource::Mcu,
+            TempInputArg::FrontEnd => accelcal_shared::record::TempSource::FrontEnd,
         }
     }
 }
@@ -256,7 +299,9 @@ pub struct SelectArgs {
     #[arg(long, value_enum, default_value_t = CriterionArg::Regularity)]
     pub criterion: CriterionArg,
     /// Division of the positions into A (fitting) and B (checking): `alternate`, `halves`, or
-    /// `tail:FRACTION` (the last FRACTION of the positions in B).
+    /// `tail:FRACTION` (the last FRACTION of the positions in B), or `temp:T1[,T2,…]` (every
+    /// position within 2.5 °C of a listed temperature in B: the check is on temperatures the fit
+    /// did not see).
     #[arg(long, default_value = "alternate", value_parser = parse_split)]
     pub split: Split,
     /// The simplest model whose criterion is within this many codes of the best is selected
@@ -288,6 +333,8 @@ pub struct SelectArgs {
     /// Write the criterion-against-complexity plot (SVG) into this directory.
     #[arg(long, value_name = "DIR")]
     pub plot: Option<PathBuf>,
+    #[command(flatten)]
+    pub thermal: ThermalArgs,
     #[command(flatten)]
     pub common: CommonArgs,
 }
@@ -359,6 +406,13 @@ pub struct FitArgs {
     /// Creation time written into the record, seconds since the Unix epoch [default: now].
     #[arg(long, value_name = "UNIX_S")]
     pub created: Option<u64>,
+    #[command(flatten)]
+    pub thermal: ThermalArgs,
+    /// Where the node reads the temperature that a record with terms in t applies: `mcu` (the
+    /// MCU's internal sensor, the real board) or `front-end` (the front end's temperature channel,
+    /// the emulated bench) [required with --record and terms in t].
+    #[arg(long, value_enum, value_name = "INPUT")]
+    pub temp_input: Option<TempInputArg>,
     #[command(flatten)]
     pub common: CommonArgs,
     /// Options of --method gravity-norm.

@@ -48,18 +48,42 @@ pub enum Split {
     Halves,
     /// The last `FRACTION` of the positions in B.
     Tail(f64),
+    /// Whole temperatures held out: every position whose dwell temperature lies within
+    /// [`TEMP_SPLIT_TOL_C`] of one of the listed temperatures (°C, up to 4) in B, the others in A.
+    Temp {
+        /// The held-out temperatures, °C (the first `n` used).
+        at: [f64; 4],
+        /// How many are listed.
+        n: usize,
+    },
 }
+
+/// Half-width of the temperature band of `--split temp:…`, °C.
+pub const TEMP_SPLIT_TOL_C: f64 = 2.5;
 
 impl std::str::FromStr for Split {
     type Err = String;
     fn from_str(s: &str) -> Result<Split, String> {
+        if let Some(list) = s.strip_prefix("temp:") {
+            let v: Vec<f64> = list.split(',').filter_map(|x| x.trim().parse().ok()).collect();
+            if v.is_empty()
+                || v.len() > 4
+                || v.len() != list.split(',').count()
+                || v.iter().any(|x| !x.is_finite())
+            {
+                return Err(format!("`{s}`: expected temp:T1[,T2,…], 1 to 4 temperatures in °C"));
+            }
+            let mut at = [0.0; 4];
+            at[..v.len()].copy_from_slice(&v);
+            return Ok(Split::Temp { at, n: v.len() });
+        }
         match s {
             "alternate" => Ok(Split::Alternate),
             "halves" => Ok(Split::Halves),
             _ => match s.strip_prefix("tail:").map(str::parse::<f64>) {
                 Some(Ok(f)) if f > 0.0 && f < 1.0 => Ok(Split::Tail(f)),
                 Some(_) => Err(format!("`{s}`: the tail fraction must be a number in (0, 1)")),
-                None => Err(format!("`{s}`: expected alternate, halves or tail:FRACTION")),
+                None => Err(format!("`{s}`: expected alternate, halves, tail:FRACTION or temp:T1[,T2,…]")),
             },
         }
     }
@@ -71,16 +95,44 @@ impl std::fmt::Display for Split {
             Split::Alternate => f.write_str("alternate"),
             Split::Halves => f.write_str("halves"),
             Split::Tail(x) => write!(f, "tail:{x}"),
+            Split::Temp { at, n } => {
+                f.write_str("temp:")?;
+                for (i, t) in at[..*n].iter().enumerate() {
+                    write!(f, "{}{t}", if i > 0 { "," } else { "" })?;
+                }
+                Ok(())
+            }
         }
     }
 }
 
 impl Split {
-    /// Position indices of parts A and B for `n` positions.
+    /// Position indices of parts A and B of `pos`.
+    pub fn parts_of(self, pos: &Positions) -> Result<(Vec<usize>, Vec<usize>), GmdhError> {
+        match self {
+            Split::Temp { at, n } => {
+                let temps = pos.temp_c.as_ref().ok_or(GmdhError::NoTemperature)?;
+                let (mut a, mut b) = (Vec::new(), Vec::new());
+                for (i, t) in temps.iter().enumerate() {
+                    if at[..n].iter().any(|x| (t - x).abs() <= TEMP_SPLIT_TOL_C) {
+                        b.push(i)
+                    } else {
+                        a.push(i)
+                    }
+                }
+                Ok((a, b))
+            }
+            _ => Ok(self.parts(pos.len())),
+        }
+    }
+
+    /// Position indices of parts A and B for `n` positions (a temperature split puts all in A:
+    /// use [`Split::parts_of`]).
     pub fn parts(self, n: usize) -> (Vec<usize>, Vec<usize>) {
         let (mut a, mut b) = (Vec::new(), Vec::new());
         for i in 0..n {
             let in_b = match self {
+                Split::Temp { .. } => false,
                 Split::Alternate => i % 2 == 1,
                 Split::Halves => i >= n.div_ceil(2),
                 Split::Tail(f) => {
@@ -103,6 +155,9 @@ pub enum GmdhError {
     /// One part of the split is empty.
     #[error("the split leaves part {0} without positions ({1} positions in all)")]
     EmptyPart(char, usize),
+    /// A thermal basis or a temperature split on a campaign without temperatures.
+    #[error("the campaign has no `temp_c` column: the thermal bases and --split temp need the temperature")]
+    NoTemperature,
     /// No candidate is identifiable on this plan and split.
     #[error("no candidate model is identifiable on this plan and split")]
     NothingIdentifiable,
@@ -173,7 +228,10 @@ impl Prepared {
     /// Prepares one channel for `settings` on positions `pos`.
     pub fn new(pos: &Positions, ch: &ChannelStats, settings: &Settings) -> Result<Prepared, GmdhError> {
         let n = pos.len();
-        let (ia, ib) = settings.split.parts(n);
+        if settings.basis.is_thermal() && pos.temp_c.is_none() {
+            return Err(GmdhError::NoTemperature);
+        }
+        let (ia, ib) = settings.split.parts_of(pos)?;
         if ia.is_empty() {
             return Err(GmdhError::EmptyPart('A', n));
         }
@@ -311,5 +369,12 @@ mod tests {
         assert_eq!("tail:0.5".parse::<Split>(), Ok(Split::Tail(0.5)));
         assert!("tail:1.5".parse::<Split>().is_err());
         assert!("every".parse::<Split>().is_err());
+        let temp: Split = "temp:50,-10".parse().unwrap();
+        assert_eq!(temp.to_string(), "temp:50,-10");
+        assert!("temp:".parse::<Split>().is_err() && "temp:1,x".parse::<Split>().is_err());
+        let mut pos = Positions::from_dwells(Vec::new(), 9.81);
+        assert!(matches!(temp.parts_of(&pos), Err(GmdhError::NoTemperature)));
+        pos.temp_c = Some(vec![-9.0, 10.0, 30.0, 48.0, 52.4, 53.0]);
+        assert_eq!(temp.parts_of(&pos).unwrap(), (vec![1, 2, 5], vec![0, 3, 4]));
     }
 }

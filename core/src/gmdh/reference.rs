@@ -47,7 +47,7 @@ fn sse(pos: &Positions, ch: &ChannelStats, s: Structure, beta: &[f64], idx: &[us
 
 /// The criterion of structure `s`, or `None` when it is not identifiable where it is fitted.
 pub fn criterion(pos: &Positions, ch: &ChannelStats, s: Structure, settings: &Settings) -> Option<f64> {
-    let (a, b) = settings.split.parts(pos.len());
+    let (a, b) = settings.split.parts_of(pos).expect("split of the positions");
     let all: Vec<usize> = (0..pos.len()).collect();
     let rows = |idx: &[usize]| idx.iter().map(|&p| pos.weight[p]).sum::<f64>();
     match settings.criterion {

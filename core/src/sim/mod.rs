@@ -80,6 +80,60 @@ pub struct SimConfig {
     pub quantize: bool,
     /// Temperature of the block over the campaign; when set, the campaign has a `temp_c` column.
     pub temp: Option<TempProfile>,
+    /// A thermal campaign: the plan repeated at several chamber temperatures (exclusive with
+    /// `temp`); the campaign then has a `temp_c` column, the sensor's temperature.
+    pub thermal: Option<ThermalPlan>,
+}
+
+/// A thermal campaign's chamber: before each pass of the plan the chamber steps to the next
+/// setpoint and the rig waits `soak_s`; the sensor follows the chamber as a first-order lag with
+/// time constant `tau_s` the whole time (starting soaked at 25 °C), so a short soak leaves the
+/// sensor still moving during the pass.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ThermalPlan {
+    /// Chamber setpoints, °C, one pass of the plan at each.
+    pub chamber_c: Vec<f64>,
+    /// Wait after each step of the chamber before the pass starts, s.
+    pub soak_s: f64,
+    /// Thermal time constant between chamber and sensor, s.
+    pub tau_s: f64,
+}
+
+impl std::str::FromStr for ThermalPlan {
+    type Err = String;
+    /// Parses `T1,T2,…:SOAK_S:TAU_S` (°C, s, s).
+    fn from_str(s: &str) -> Result<ThermalPlan, String> {
+        let err = || {
+            format!("`{s}`: expected T1,T2,…:SOAK_S:TAU_S (°C list, soak s, lag s; e.g. -10,20,50:900:120)")
+        };
+        let parts: Vec<&str> = s.split(':').collect();
+        let [temps, soak, tau] = parts[..] else { return Err(err()) };
+        let chamber_c: Vec<f64> =
+            temps.split(',').map(|x| x.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|_| err())?;
+        let soak_s: f64 = soak.trim().parse().map_err(|_| err())?;
+        let tau_s: f64 = tau.trim().parse().map_err(|_| err())?;
+        let ok = !chamber_c.is_empty()
+            && chamber_c.iter().all(|t| t.is_finite() && (-60.0..=150.0).contains(t))
+            && soak_s.is_finite()
+            && soak_s >= 0.0
+            && tau_s.is_finite()
+            && tau_s >= 0.0;
+        if ok {
+            Ok(ThermalPlan { chamber_c, soak_s, tau_s })
+        } else {
+            Err(err())
+        }
+    }
+}
+
+/// The sensor's temperature after `dt` s of following `chamber_c` from `from_c` with time
+/// constant `tau_s`.
+pub fn lag(from_c: f64, chamber_c: f64, dt: f64, tau_s: f64) -> f64 {
+    if tau_s > 0.0 {
+        chamber_c + (from_c - chamber_c) * (-dt / tau_s).exp()
+    } else {
+        chamber_c
+    }
 }
 
 /// A temperature profile: `base + amp·sin(2π·cycles·t/T + phase)` over a campaign of duration T.
@@ -135,6 +189,7 @@ impl Default for SimConfig {
             effects: Vec::new(),
             quantize: true,
             temp: None,
+            thermal: None,
         }
     }
 }
@@ -172,18 +227,31 @@ pub fn simulate(cfg: &SimConfig) -> (Campaign, Truth) {
     let noise = normal(cfg.noise);
     let dt = 1.0 / cfg.rate_hz;
     let duration = cfg.plan.positions.len() as f64 * (cfg.samples as f64 * dt + cfg.move_s);
-    if cfg.temp.is_some() {
+    if cfg.temp.is_some() || cfg.thermal.is_some() {
         c.temp_c = Some(Vec::new());
     }
     let mut t = 0.0f64;
     let mut prev_accel: Option<[f64; 3]> = None;
-    for (p, &(alpha, beta)) in cfg.plan.positions.iter().enumerate() {
+    // The thermal plan's chamber and sensor: (chamber setpoint, sensor temperature, its time).
+    let passes = cfg.thermal.as_ref().map_or(1, |th| th.chamber_c.len());
+    let mut sensor = (25.0f64, 25.0f64, 0.0f64);
+    let n_plan = cfg.plan.positions.len();
+    for (p, &(alpha, beta)) in (0..passes).flat_map(|_| cfg.plan.positions.iter()).enumerate() {
+        if let Some(th) = cfg.thermal.as_ref().filter(|_| p % n_plan == 0) {
+            sensor.1 = lag(sensor.1, sensor.0, t - sensor.2, th.tau_s);
+            sensor = (th.chamber_c[p / n_plan], sensor.1, t);
+            t += th.soak_s;
+        }
         let accel = standing_accel(&cfg.effects, cfg.seed, p, (alpha, beta), cfg.g);
         for s in 0..cfg.samples {
             c.t_s.push((t * 1e6).round() / 1e6);
             c.alpha_deg.push(alpha);
             c.beta_deg.push(beta);
-            let temp_c = cfg.temp.map(|tp| tp.at(t, duration)).unwrap_or(f64::NAN);
+            let temp_c = match (&cfg.thermal, cfg.temp) {
+                (Some(th), _) => lag(sensor.1, sensor.0, t - sensor.2, th.tau_s),
+                (None, Some(tp)) => tp.at(t, duration),
+                (None, None) => f64::NAN,
+            };
             if let Some(v) = c.temp_c.as_mut() {
                 v.push((temp_c * 1000.0).round() / 1000.0);
             }

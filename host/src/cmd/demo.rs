@@ -45,7 +45,7 @@ pub fn run(a: &DemoArgs) -> anyhow::Result<()> {
     // For the QEMU node (`accelcal hil`), the only node a demo has; checked by the node's gate
     // like every record the tool writes.
     let rec_path = out.join("calibration.rec");
-    let rec = record(&lsq, accelcal_shared::contract::QEMU_DEVICE_ID, 0)?;
+    let rec = record(&lsq, accelcal_shared::contract::QEMU_DEVICE_ID, 0, g, None)?;
     gate(&rec_path, &rec)?;
     write_record(&rec_path, &rec)?;
     steps.inc(1);

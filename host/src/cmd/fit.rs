@@ -72,6 +72,11 @@ pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
         MethodArg::Lsq => Method::Lsq,
         MethodArg::TestTurns => Method::TestTurns,
         MethodArg::GravityNorm => {
+            if a.temp_input.is_some() {
+                return Err(bad(
+                    "--temp-input does not apply to fit --method gravity-norm (its model has no terms in t)",
+                ));
+            }
             if a.common.codes.is_some() {
                 return Err(bad(
                     "--codes does not apply to fit --method gravity-norm (it applies to --method lsq and test-turns, which fit a campaign)",
@@ -83,14 +88,36 @@ pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
     super::check_g(a.common.g)?;
     let structure = lsq::parse_terms(&a.terms).map_err(|e| bad(format!("--terms: {e}")))?;
     let device_id = a.device_id.as_deref().map(parse_device_id).transpose()?;
+    if a.temp_input.is_some() && a.record.is_none() {
+        return Err(bad("--temp-input applies to --record only"));
+    }
+    super::check_t_ref(a.thermal.t_ref)?;
     // Streamed: the fits need the dwell statistics only, so memory does not grow with the rows.
     let r = super::reduce_campaign(&a.campaign, a.common.codes, warnings)?;
-    let fits = fit_positions(&r.positions(a.common.g), &r.channel_stats(), method, structure)
+    let mut pos = r.positions(a.common.g);
+    pos.t_ref_c = a.thermal.t_ref;
+    let fits = fit_positions(&pos, &r.channel_stats(), method, structure)
         .with_context(|| a.campaign.display().to_string())?;
     // The record is built and checked first: a record a node would refuse writes nothing.
     let rec = match &a.record {
         Some(path) => {
-            let rec = record(&fits, device_id.unwrap_or_default(), super::created(a.created))?;
+            let thermal = match (a.temp_input, pos.temp_range()) {
+                (Some(input), Some((lo, hi))) => Some(accelcal_shared::record::Thermal {
+                    t_ref_c: a.thermal.t_ref as f32,
+                    t_min_c: lo as f32,
+                    t_max_c: hi as f32,
+                    source: input.into(),
+                }),
+                (Some(_), None) => {
+                    return Err(bad(format!(
+                        "{}: --temp-input needs the campaign's temperature, and it has no `temp_c` column",
+                        a.campaign.display()
+                    )))
+                }
+                (None, _) => None,
+            };
+            let rec =
+                record(&fits, device_id.unwrap_or_default(), super::created(a.created), a.common.g, thermal)?;
             gate(path, &rec)?;
             Some((path, rec))
         }

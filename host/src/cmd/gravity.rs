@@ -249,7 +249,12 @@ pub fn run(a: &FitArgs) -> anyhow::Result<()> {
     // The record is built and checked first: a record a node would refuse writes nothing.
     let record = match &a.record {
         Some(path) => {
+            accelcal_core::calibrate::check_record_g(a.common.g)?;
             let r = model4_record(&cal.fit.model, device_id.unwrap_or_default(), super::created(a.created))
+                .map(|mut r| {
+                    r.g_m_s2 = Some(a.common.g);
+                    r
+                })
                 .ok_or_else(|| {
                     bad(format!(
                         "{}: the {} structure is not model 4 (its quadratic terms make it nonlinear in the codes), \

@@ -102,6 +102,16 @@ pub fn check_g(g: f64) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Checks `--t-ref`, °C.
+pub fn check_t_ref(t_ref: f64) -> anyhow::Result<()> {
+    if !(t_ref.is_finite() && (-100.0..=200.0).contains(&t_ref)) {
+        return Err(accelcal_core::error::bad(format!(
+            "--t-ref must be a temperature in -100..=200 °C, got {t_ref}"
+        )));
+    }
+    Ok(())
+}
+
 /// The creation time of a record: `--created`, or now.
 pub fn created(given: Option<u64>) -> u64 {
     given.unwrap_or_else(|| {

@@ -27,8 +27,12 @@ pub struct RecordJson {
     pub created_utc: String,
     /// The model's terms, in record order.
     pub terms: Vec<String>,
-    /// Coefficients per channel, in term order (codes, codes per (m/s²)ⁿ).
+    /// Coefficients per channel, in term order (codes, codes per (m/s²)ⁿ, codes per °C…).
     pub coefficients: Vec<Vec<f64>>,
+    /// Local gravity the fit used, m/s² (`null` in a format-1 record, which does not say).
+    pub g_m_s2: Option<f64>,
+    /// The temperature part of a record with terms in t (`null` otherwise).
+    pub thermal: Option<ThermalJson>,
     /// Whether a node (every build, with the record's device id) accepts the record.
     pub node_accepts: bool,
     /// Why a node would refuse it, as the node reports it (`null` when it accepts it).
@@ -51,9 +55,29 @@ pub fn describe(bytes: &[u8], rec: &Record) -> RecordJson {
         created_utc: utc(rec.created_unix_s),
         terms: rec.structure.terms().map(|t| t.to_string()).collect(),
         coefficients: (0..rec.n_channels as usize).map(|c| rec.coefficients[c][..n_t].to_vec()).collect(),
+        g_m_s2: rec.g_m_s2,
+        thermal: rec.thermal.map(|t| ThermalJson {
+            t_ref_c: t.t_ref_c,
+            t_min_c: t.t_min_c,
+            t_max_c: t.t_max_c,
+            input: t.source.name(),
+        }),
         node_accepts: verdict.is_ok(),
         refusal: verdict.err().map(refusal),
     }
+}
+
+/// The temperature part of a record, as `record show --json` writes it.
+#[derive(Debug, Serialize)]
+pub struct ThermalJson {
+    /// Reference temperature, °C: the terms' t is `temp_c − t_ref_c`.
+    pub t_ref_c: f32,
+    /// Lowest calibrated temperature, °C.
+    pub t_min_c: f32,
+    /// Highest calibrated temperature, °C.
+    pub t_max_c: f32,
+    /// Where the node reads the temperature: `mcu` or `front-end`.
+    pub input: &'static str,
 }
 
 /// Runs `accelcal record show`.
@@ -65,12 +89,28 @@ pub fn run_show(a: &RecordShowArgs) -> anyhow::Result<()> {
     println!("record {path}: {} bytes, format version {}, CRC-32 {}", j.length, j.format_version, j.crc32);
     println!("device id: {}", j.device_id);
     println!("created: {} ({})", j.created_unix_s, j.created_utc);
+    match j.g_m_s2 {
+        Some(g) => println!("g: {g} m/s² (the gravity the fit used)"),
+        None => println!("g: not stated (format version 1)"),
+    }
     println!("terms: {}", j.terms.join(","));
+    if let Some(t) = &j.thermal {
+        println!(
+            "temperature: t = temp_c − {} °C, calibrated {} to {} °C, read from the {}",
+            t.t_ref_c,
+            t.t_min_c,
+            t.t_max_c,
+            if t.input == "mcu" { "MCU's sensor" } else { "front end's channel" }
+        );
+    }
     for (c, coef) in j.coefficients.iter().enumerate() {
         let v: Vec<String> = coef.iter().map(|v| v.to_string()).collect();
         println!("channel {c}: {}", v.join(" "));
     }
     match &j.refusal {
+        None if j.thermal.is_some() => println!(
+            "node: accepts it (model 4 with thermal terms on three channels, invertible over the calibrated range in f32 and fixed point)"
+        ),
         None => println!("node: accepts it (model 4 on three channels, invertible in f32 and fixed point)"),
         Some(r) => println!("node: {r}"),
     }

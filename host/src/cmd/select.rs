@@ -311,7 +311,9 @@ pub fn run(a: &SelectArgs, warnings: &mut super::Warnings) -> anyhow::Result<()>
     }
     // Streamed: GMDH needs the dwell statistics only.
     let r = super::reduce_campaign(&a.campaign, a.common.codes, warnings)?;
-    let (pos, stats) = (r.positions(a.common.g), r.channel_stats());
+    super::check_t_ref(a.thermal.t_ref)?;
+    let (mut pos, stats) = (r.positions(a.common.g), r.channel_stats());
+    pos.t_ref_c = a.thermal.t_ref;
     if a.max_terms == 0 || a.width == 0 || a.threads == Some(0) {
         return Err(bad("--max-terms, --width and --threads must be at least 1"));
     }

@@ -18,9 +18,15 @@ pub fn config(a: &SimulateArgs) -> anyhow::Result<SimConfig> {
         .iter()
         .map(|s| sim::effects::parse(s).map_err(|e| bad(format!("--effect {e}"))))
         .collect::<anyhow::Result<Vec<_>>>()?;
-    if a.temp_profile.is_none() {
+    if a.temp_profile.is_some() && a.thermal.is_some() {
+        return Err(bad("--temp-profile and --thermal both set the temperature: give one"));
+    }
+    if a.temp_profile.is_none() && a.thermal.is_none() {
         if let Some(e) = effects.iter().find(|e| e.needs_temperature()) {
-            return Err(bad(format!("--effect {} needs --temp-profile BASE:AMP:CYCLES", e.name())));
+            return Err(bad(format!(
+                "--effect {} needs a temperature: --temp-profile BASE:AMP:CYCLES or --thermal T1,T2,…:SOAK_S:TAU_S",
+                e.name()
+            )));
         }
     }
     for (name, v) in [
@@ -54,6 +60,7 @@ pub fn config(a: &SimulateArgs) -> anyhow::Result<SimConfig> {
         effects,
         quantize: !a.ideal_adc,
         temp: a.temp_profile,
+        thermal: a.thermal.clone(),
     })
 }
 
