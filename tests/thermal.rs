@@ -99,8 +99,8 @@ fn error_at(pos: &Positions, means: &[Vec<f64>], rec: &Record, at_c: f64) -> f64
         // Dwell means as codes (f32 carries them to 1/256 code).
         let d = [0, 1, 2].map(|c| means[c][p] as f32);
         let a = [0, 1, 2].map(|i| (0..3).map(|j| cal.m[i][j] * (d[j] - cal.u0[j])).sum::<f32>());
-        for i in 0..3 {
-            ss += (a[i] as f64 - pos.accel[p][i]).powi(2);
+        for (ai, want) in a.iter().zip(pos.accel[p]) {
+            ss += (*ai as f64 - want).powi(2);
             n += 1;
         }
     }
