@@ -157,6 +157,46 @@ pub trait Positioner {
     /// Position `k` did not become static in time (`why` says by how much); true to try it again
     /// (the head is set again), false to stop the acquisition with an error.
     fn unsettled(&mut self, k: usize, why: &str) -> anyhow::Result<bool>;
+
+    /// Sets the rig's thermal chamber to `setpoint_c` (°C); the caller then waits its soak time.
+    fn chamber(&mut self, setpoint_c: f64) -> anyhow::Result<()>;
+}
+
+/// A thermal acquisition's chamber: the plan is run once at each setpoint, after a soak.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Chamber {
+    /// Setpoints, °C.
+    pub setpoints_c: Vec<f64>,
+    /// Wait after each change of the setpoint before the first position, s.
+    pub soak: Duration,
+}
+
+impl Chamber {
+    /// The header's words for it.
+    pub fn describe(&self) -> String {
+        let list: Vec<String> = self.setpoints_c.iter().map(|t| t.to_string()).collect();
+        format!("{} °C, soak {} s", list.join(","), self.soak.as_secs_f64())
+    }
+}
+
+/// Sets the chamber to `setpoint_c` and waits `soak`, reading (and dropping) the node's stream
+/// meanwhile; returns early (false) when `stop` is set.
+pub fn soak(
+    node: &mut Session,
+    head: &mut dyn Positioner,
+    setpoint_c: f64,
+    soak: Duration,
+    stop: &AtomicBool,
+) -> anyhow::Result<bool> {
+    head.chamber(setpoint_c)?;
+    let t0 = Instant::now();
+    while t0.elapsed() < soak {
+        if stop.load(Ordering::Relaxed) {
+            return Ok(false);
+        }
+        node.poll_samples()?;
+    }
+    Ok(true)
 }
 
 /// The emulated head as a [`Positioner`]: moves and never retries.
@@ -166,6 +206,10 @@ impl Positioner for SimHead {
     }
     fn unsettled(&mut self, _k: usize, _why: &str) -> anyhow::Result<bool> {
         Ok(false)
+    }
+    fn chamber(&mut self, setpoint_c: f64) -> anyhow::Result<()> {
+        self.set_chamber(setpoint_c)?;
+        Ok(())
     }
 }
 
@@ -196,6 +240,28 @@ pub struct AcquireConfig {
     pub date: String,
     /// This tool's version.
     pub tool_version: String,
+    /// A thermal acquisition: the plan at each chamber setpoint, with the node's temperature
+    /// recorded as `temp_c`.
+    pub chamber: Option<Chamber>,
+}
+
+impl AcquireConfig {
+    /// The positions in acquisition order: the plan, once per chamber setpoint.
+    pub fn positions(&self) -> Vec<(f64, f64)> {
+        let passes = self.chamber.as_ref().map_or(1, |c| c.setpoints_c.len());
+        (0..passes).flat_map(|_| self.plan.positions.iter().copied()).collect()
+    }
+
+    /// The header's plan: its name and the number of positions acquired.
+    fn plan_words(&self) -> String {
+        let n = self.positions().len();
+        match &self.chamber {
+            None => format!("{} ({n} positions)", self.plan_name),
+            Some(c) => {
+                format!("{} at {} chamber setpoints ({n} positions)", self.plan_name, c.setpoints_c.len())
+            }
+        }
+    }
 }
 
 /// How one position went.
@@ -251,13 +317,20 @@ fn header(cfg: &AcquireConfig, device_id: &str, firmware: &str, rate_hz: u32) ->
     line("firmware", firmware);
     line("g_m_s2", &format!("{}", cfg.g));
     line("g_source", &cfg.g_source);
-    line("plan", &format!("{} ({} positions)", cfg.plan_name, cfg.plan.positions.len()));
+    line("plan", &cfg.plan_words());
+    if let Some(c) = &cfg.chamber {
+        line("chamber", &c.describe());
+    }
     line("samples", &cfg.samples.to_string());
     line("rate_hz", &rate_hz.to_string());
     line("static_rule", &cfg.rule.describe());
     line("date", &cfg.date);
     h.push_str(&format!("# {} unsigned16\n", crate::campaign::CODES_COMMENT));
-    h.push_str("t_s,alpha_deg,beta_deg,x,y,z\n");
+    h.push_str(if cfg.chamber.is_some() {
+        "t_s,alpha_deg,beta_deg,temp_c,x,y,z\n"
+    } else {
+        "t_s,alpha_deg,beta_deg,x,y,z\n"
+    });
     h
 }
 
@@ -301,10 +374,14 @@ fn open_resumed(cfg: &AcquireConfig, device_id: &str) -> anyhow::Result<Resumed>
             "{d}: not a campaign written by `accelcal acquire` (no `# acquired_by:` line): cannot resume it"
         )));
     }
-    let want_plan = format!("{} ({} positions)", cfg.plan_name, cfg.plan.positions.len());
-    for (key, want) in
-        [("device_id", device_id.to_string()), ("plan", want_plan), ("samples", cfg.samples.to_string())]
-    {
+    let want_chamber = cfg.chamber.as_ref().map_or("(missing)".to_string(), Chamber::describe);
+    let positions = cfg.positions();
+    for (key, want) in [
+        ("device_id", device_id.to_string()),
+        ("plan", cfg.plan_words()),
+        ("samples", cfg.samples.to_string()),
+        ("chamber", want_chamber),
+    ] {
         let have = get(key).unwrap_or("(missing)");
         if have != want {
             return Err(bad(format!(
@@ -345,7 +422,7 @@ fn open_resumed(cfg: &AcquireConfig, device_id: &str) -> anyhow::Result<Resumed>
         rows_in_pos += 1;
         total_rows += 1;
         if rows_in_pos == cfg.samples {
-            let Some(&(pa, pb)) = cfg.plan.positions.get(done) else {
+            let Some(&(pa, pb)) = positions.get(done) else {
                 return Err(bad(format!(
                     "{d}: cannot resume: the campaign has more positions than the plan"
                 )));
@@ -423,7 +500,7 @@ pub fn acquire(
         f.append(&header(cfg, &device_id, &firmware, info.rate_hz))?;
         (f, 0)
     };
-    progress.started(done, cfg.plan.positions.len(), &cfg.rule);
+    progress.started(done, cfg.positions().len(), &cfg.rule);
     let before = info.output;
     node.set_output(Output::Raw)?;
     let result = run_positions(node, head, cfg, progress, stop, &mut out, done, info.rate_hz);
@@ -431,7 +508,7 @@ pub fn acquire(
     let restored = if before != Output::Raw { node.set_output(before).map(|_| ()) } else { Ok(()) };
     let (positions, lost, interrupted) = result?;
     restored?;
-    Ok(AcquireSummary { positions, planned: cfg.plan.positions.len(), interrupted, lost, device_id })
+    Ok(AcquireSummary { positions, planned: cfg.positions().len(), interrupted, lost, device_id })
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -445,12 +522,20 @@ fn run_positions(
     done: usize,
     rate_hz: u32,
 ) -> anyhow::Result<(usize, u64, bool)> {
-    let n = cfg.plan.positions.len();
+    let positions = cfg.positions();
+    let n = positions.len();
+    let per_pass = cfg.plan.positions.len();
     let t0 = Instant::now();
     let mut lost_total = 0u64;
     for k in done..n {
-        let angles = cfg.plan.positions[k];
+        let angles = positions[k];
         let expected = accelcal_shared::gravity(angles.0, angles.1, cfg.g);
+        // A new chamber setpoint (or a resumed pass): set it and soak.
+        if let Some(c) = cfg.chamber.as_ref().filter(|_| k % per_pass == 0 || k == done) {
+            if !soak(node, head, c.setpoints_c[k / per_pass], c.soak, stop)? {
+                return Ok((k, lost_total, true));
+            }
+        }
         let rows = loop {
             head.set(k, n, angles, expected)?;
             if stop.load(Ordering::Relaxed) {
@@ -489,6 +574,10 @@ fn run_positions(
 pub struct Capture {
     /// Each recorded set with the node's sample counter.
     pub sets: Vec<(u32, [f64; 3])>,
+    /// The temperature of each recorded set (its block's mean, °C), when the node reports one.
+    pub temps: Vec<Option<f32>>,
+    /// A recorded block was calibrated outside the record's temperature range.
+    pub out_of_range: bool,
     /// Sets watched before the stream was static (dropped).
     pub dropped: usize,
     /// Sets from the first one after the head's arrival to static (divide by the rate for
@@ -499,6 +588,12 @@ pub struct Capture {
 }
 
 impl Capture {
+    /// Mean temperature of the recorded sets, °C, when every set has one.
+    pub fn mean_temp_c(&self) -> Option<f64> {
+        let t: Option<Vec<f32>> = self.temps.iter().copied().collect();
+        t.filter(|t| !t.is_empty()).map(|t| t.iter().map(|&v| v as f64).sum::<f64>() / t.len() as f64)
+    }
+
     /// Mean of the recorded sets.
     pub fn mean(&self) -> [f64; 3] {
         let n = self.sets.len().max(1) as f64;
@@ -565,7 +660,14 @@ pub fn capture(
     let mut settled_at: Option<u32> = None;
     let mut arrival: Option<u32> = None;
     let mut next_first: Option<u32> = None;
-    let mut cap = Capture { sets: Vec::with_capacity(samples), dropped: 0, settle_sets: 0, lost: 0 };
+    let mut cap = Capture {
+        sets: Vec::with_capacity(samples),
+        temps: Vec::with_capacity(samples),
+        out_of_range: false,
+        dropped: 0,
+        settle_sets: 0,
+        lost: 0,
+    };
     while cap.sets.len() < samples {
         if stop.load(Ordering::Relaxed) {
             return Ok(Captured::Stopped);
@@ -598,6 +700,8 @@ pub fn capture(
                 break;
             }
             cap.sets.push((counter, v));
+            cap.temps.push(msg.temp.map(|t| t.mean_c));
+            cap.out_of_range |= msg.temp.is_some_and(|t| t.out_of_range);
         }
     }
     cap.dropped = det.seen;
@@ -620,9 +724,24 @@ fn record_position(
         Captured::Unsettled(why) => return Ok(Recorded::Unsettled(why)),
     };
     let mut text = String::new();
-    for (counter, c) in &cap.sets {
+    for ((counter, c), temp) in cap.sets.iter().zip(&cap.temps) {
         let t_s = *counter as f64 / rate_hz as f64;
-        text.push_str(&format!("{t_s:.6},{},{},{},{},{}\n", angles.0, angles.1, c[0], c[1], c[2]));
+        match (&cfg.chamber, temp) {
+            (None, _) => {
+                text.push_str(&format!("{t_s:.6},{},{},{},{},{}\n", angles.0, angles.1, c[0], c[1], c[2]))
+            }
+            (Some(_), Some(tc)) => text.push_str(&format!(
+                "{t_s:.6},{},{},{tc:.2},{},{},{}\n",
+                angles.0, angles.1, c[0], c[1], c[2]
+            )),
+            (Some(_), None) => {
+                return Err(bad(format!(
+                    "{}: the node reports no temperature with its samples: a thermal acquisition (--chamber) \
+                     needs a node with a temperature input (link protocol 4)",
+                    node.port()
+                )))
+            }
+        }
     }
     let report = PositionReport {
         index: k,
@@ -705,6 +824,7 @@ mod tests {
             resume: true,
             date: "2026-11-29T00:00:00Z".into(),
             tool_version: "0.1.0".into(),
+            chamber: None,
         }
     }
 

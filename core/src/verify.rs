@@ -153,6 +153,8 @@ pub struct VerifyConfig {
     pub g: f64,
     /// The pass bound.
     pub tolerance: Tolerance,
+    /// Verify at this chamber setpoint (°C), after this soak.
+    pub chamber: Option<(f64, Duration)>,
 }
 
 /// One position's check.
@@ -176,6 +178,10 @@ pub struct PositionCheck {
     pub tolerance_m_s2: [f64; 3],
     /// Sets the node lost while this position was recorded.
     pub lost: u64,
+    /// The node's mean temperature over the recorded sets, °C (`null` when it reports none).
+    pub temp_c: Option<f64>,
+    /// A thermal record was applied outside its calibrated temperature range in a recorded set.
+    pub out_of_range: bool,
     /// Every component within its bound.
     pub pass: bool,
 }
@@ -189,6 +195,8 @@ pub struct VerifyReport {
     pub record: serde_json::Value,
     /// Gravity used, m/s².
     pub g_m_s2: f64,
+    /// The chamber setpoint of the verification, °C (`null`: none set).
+    pub chamber_c: Option<f64>,
     /// The tolerance rule in words.
     pub tolerance_rule: String,
     /// The static rule in words.
@@ -239,6 +247,7 @@ pub fn verify(
         device_id: device_id_hex(&info.device_id),
         record: record_json(info.record),
         g_m_s2: cfg.g,
+        chamber_c: cfg.chamber.map(|c| c.0),
         tolerance_rule: cfg.tolerance.describe(),
         static_rule: cfg.rule.describe(),
         positions: Vec::new(),
@@ -262,6 +271,12 @@ fn run(
     report: &mut VerifyReport,
 ) -> anyhow::Result<()> {
     let n = cfg.plan.positions.len();
+    if let Some((setpoint_c, soak)) = cfg.chamber {
+        if !crate::acquire::soak(node, head, setpoint_c, soak, stop)? {
+            report.interrupted = true;
+            return Ok(());
+        }
+    }
     for (k, &(a, b)) in cfg.plan.positions.iter().enumerate() {
         let expected = accelcal_shared::gravity(a, b, cfg.g);
         let cap = loop {
@@ -296,6 +311,8 @@ fn run(
             sd_mean_m_s2: sd_mean,
             tolerance_m_s2: bound,
             lost: cap.lost,
+            temp_c: cap.mean_temp_c(),
+            out_of_range: cap.out_of_range,
             pass: (0..3).all(|i| error[i].abs() <= bound[i]),
         };
         on_position(&check, n);

@@ -599,6 +599,15 @@ pub struct EmulateArgs {
     /// TCP port of the emulated head on 127.0.0.1 [default: a free one].
     #[arg(long, value_name = "PORT")]
     pub head_port: Option<u16>,
+    /// Temperature of the thermal chamber around the head at start, °C (the sensor is soaked
+    /// there); `CHAMBER <temp_c>` on the head's protocol (`acquire --chamber`, `verify
+    /// --chamber`) changes it. The unit's `temperature` effect and the front end's temperature
+    /// channel follow the sensor's temperature.
+    #[arg(long, default_value_t = 25.0, value_name = "DEG_C", allow_hyphen_values = true)]
+    pub temp_c: f64,
+    /// Thermal time constant between the chamber and the sensor, seconds (first-order lag).
+    #[arg(long, default_value_t = 30.0, value_name = "S")]
+    pub thermal_lag_s: f64,
 }
 
 /// `accelcal info`: who the node is.
@@ -679,6 +688,14 @@ pub struct AcquireArgs {
     /// Static test: largest change of the window means, in standard errors.
     #[arg(long, default_value_t = 3.0, value_name = "Z")]
     pub static_z: f64,
+    /// A thermal campaign: run the plan at each of these chamber setpoints (°C, comma-separated),
+    /// each after --soak-s, and record the node's temperature as `temp_c`.
+    #[arg(long, value_name = "T1,T2,…", value_delimiter = ',', allow_hyphen_values = true)]
+    pub chamber: Vec<f64>,
+    /// Seconds to wait after each change of the chamber setpoint before the first position
+    /// [with --chamber].
+    #[arg(long, value_name = "S")]
+    pub soak_s: Option<f64>,
 }
 
 /// `accelcal verify`: check a calibrated node on the head.
@@ -716,6 +733,12 @@ pub struct VerifyArgs {
     /// Write the verification table as JSON to this file.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
+    /// Verify at this chamber setpoint, °C, after --soak-s.
+    #[arg(long, value_name = "DEG_C", allow_hyphen_values = true)]
+    pub chamber: Option<f64>,
+    /// Seconds to wait after setting the chamber before the first position [with --chamber].
+    #[arg(long, value_name = "S")]
+    pub soak_s: Option<f64>,
 }
 
 /// `accelcal report`: a unit's calibration certificate.

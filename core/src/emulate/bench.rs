@@ -15,7 +15,7 @@ use std::time::Duration;
 use accelcal_shared::slots::SlotImage;
 
 use super::frontend::{read_ctl, run_frontend, FeCounters, FrontEnd, PaceOptions};
-use super::head::{bind_head, spawn_head_server, Clock, Head, Motion};
+use super::head::{bind_head, spawn_head_server, Clock, Head, Motion, SensorTemp};
 use crate::error::bad;
 use crate::node::qemu::{BlankSlot, Link, LinkChannel, Qemu, QemuOptions};
 use crate::sim::Unit;
@@ -34,6 +34,8 @@ pub struct BenchOptions {
     pub record: Option<Vec<u8>>,
     /// The head's motion.
     pub motion: Motion,
+    /// The thermal chamber: the sensor's starting temperature (soaked there) and its lag.
+    pub sensor: SensorTemp,
     /// The front end's pacing.
     pub pace: PaceOptions,
     /// Port of the gdbstub (0: a free one).
@@ -108,7 +110,7 @@ impl Bench {
         // sets and the pacing loop skips what it cannot send, which the node counts as lost.
         socket2::SockRef::from(&fe_sock).set_send_buffer_size(FE_SEND_BUFFER)?;
         let stop = Arc::new(AtomicBool::new(false));
-        let head = Arc::new(Head::new(Clock::start(), opts.motion, (0.0, 0.0)));
+        let head = Arc::new(Head::with_chamber(Clock::start(), opts.motion, (0.0, 0.0), opts.sensor));
         let (head_addr, head_thread) = spawn_head_server(head_listener, head.clone(), stop.clone())?;
         let rate_hz = Arc::new(AtomicU32::new(0));
         let counters = Arc::new(FeCounters::default());

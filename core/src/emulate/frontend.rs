@@ -8,8 +8,9 @@
 //!   standing at position p (p = moves completed), the block sees
 //!   [`Unit::standing_accel`]`(p, angles)` exactly as `simulate` at plan position p, with
 //!   `t_in_dwell_s` the time since the head stopped, `prev_accel` the acceleration at position
-//!   p − 1 (None at p = 0) and `temp_c` the sensor's temperature ([`SensorTemp`]: the chamber
-//!   setpoint followed with a first-order lag; 25 °C soaked unless set).
+//!   p − 1 (None at p = 0) and `temp_c` the sensor's temperature on the bench
+//!   ([`super::head::SensorTemp`]: the chamber setpoint followed with a first-order lag), which is
+//!   also the set's temperature channel.
 //! - While the head moves from position p to p + 1 the angles are those of the head's motion,
 //!   and the kinematic effects' angles are interpolated between those of position p and of
 //!   position p + 1 (continuous at both ends). Effects of the step (settling, hysteresis) keep
@@ -44,44 +45,6 @@ pub struct FrontEnd {
     rng: ChaCha8Rng,
     /// Position of the current dwell and its first set's index (for `SetCtx::sample`).
     dwell: Option<(usize, u64)>,
-    /// The block's temperature, °C.
-    temp: SensorTemp,
-}
-
-/// The sensor's temperature on the emulated bench: it follows the chamber's setpoint as a first
-/// order lag with time constant `tau_s` (the thermal lag between chamber and sensor).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SensorTemp {
-    /// Chamber setpoint, °C.
-    pub chamber_c: f64,
-    /// Sensor temperature at `at_s`, °C.
-    pub sensor_c: f64,
-    /// Time of `sensor_c` on the bench clock, s.
-    pub at_s: f64,
-    /// Thermal time constant, s.
-    pub tau_s: f64,
-}
-
-impl SensorTemp {
-    /// A sensor soaked at `temp_c` with time constant `tau_s`.
-    pub fn soaked(temp_c: f64, tau_s: f64) -> SensorTemp {
-        SensorTemp { chamber_c: temp_c, sensor_c: temp_c, at_s: 0.0, tau_s }
-    }
-
-    /// The sensor temperature at `t_s` (not before the last call's time).
-    pub fn at(&mut self, t_s: f64) -> f64 {
-        let dt = (t_s - self.at_s).max(0.0);
-        let f = if self.tau_s > 0.0 { (-dt / self.tau_s).exp() } else { 0.0 };
-        self.sensor_c = self.chamber_c + (self.sensor_c - self.chamber_c) * f;
-        self.at_s = self.at_s.max(t_s);
-        self.sensor_c
-    }
-
-    /// Changes the chamber setpoint at `t_s`.
-    pub fn set_chamber(&mut self, t_s: f64, chamber_c: f64) {
-        self.at(t_s);
-        self.chamber_c = chamber_c;
-    }
 }
 
 impl FrontEnd {
@@ -89,18 +52,7 @@ impl FrontEnd {
     pub fn new(unit: Unit, seed: u64) -> Result<FrontEnd, UnitError> {
         unit.check_triad()?;
         let noise = unit.noise_distribution();
-        let temp = SensorTemp::soaked(crate::positions::T_REF_DEFAULT_C, 0.0);
-        Ok(FrontEnd { unit, noise, rng: ChaCha8Rng::seed_from_u64(seed), dwell: None, temp })
-    }
-
-    /// The sensor's temperature model (chamber setpoint, lag).
-    pub fn temp_mut(&mut self) -> &mut SensorTemp {
-        &mut self.temp
-    }
-
-    /// The sensor's temperature at `t_s`, °C.
-    pub fn temp_c(&mut self, t_s: f64) -> f64 {
-        self.temp.at(t_s)
+        Ok(FrontEnd { unit, noise, rng: ChaCha8Rng::seed_from_u64(seed), dwell: None })
     }
 
     /// The unit.
@@ -134,8 +86,9 @@ impl FrontEnd {
         (now, prev)
     }
 
-    /// The context of set `n`, taken at `t_s` on the bench clock with the head in `pose`.
-    pub fn set_ctx(&mut self, pose: &HeadPose, n: u64, t_s: f64) -> SetCtx {
+    /// The context of set `n`, taken at `t_s` on the bench clock with the head in `pose` and the
+    /// block at `temp_c` (°C; NaN: no temperature).
+    pub fn set_ctx(&mut self, pose: &HeadPose, n: u64, t_s: f64, temp_c: f64) -> SetCtx {
         let p = pose.moves_completed;
         let first = match self.dwell {
             Some((q, first)) if q == p => first,
@@ -151,14 +104,15 @@ impl FrontEnd {
             sample: (n - first) as usize,
             accel,
             t_in_dwell_s: (t_s - pose.stopped_at_s).max(0.0),
-            temp_c: self.temp.at(t_s),
+            temp_c,
             prev_accel,
         }
     }
 
-    /// The codes of set `n` (channels x, y, z), at `t_s` with the head in `pose`.
-    pub fn codes(&mut self, pose: &HeadPose, n: u64, t_s: f64) -> Codes {
-        let set = self.set_ctx(pose, n, t_s);
+    /// The codes of set `n` (channels x, y, z), at `t_s` with the head in `pose` and the block at
+    /// `temp_c` (°C).
+    pub fn codes(&mut self, pose: &HeadPose, n: u64, t_s: f64, temp_c: f64) -> Codes {
+        let set = self.set_ctx(pose, n, t_s, temp_c);
         let mut out = [0.0; 3];
         self.unit.sample(&set, &self.noise, &mut self.rng, &mut out);
         // `sample` rounds and clips to 0..=65535, so the cast is exact.
@@ -265,10 +219,11 @@ pub fn run_frontend<W: Write>(
         for n in first..=due {
             let t = time_of(n);
             let pose = head.pose_at(t);
+            let temp_c = head.sensor_temp_at(t);
             let set = FeSet {
                 index: n as u16,
-                codes: fe.codes(&pose, n, t),
-                temp_cc: FeSet::temp_field(fe.temp_c(t)),
+                codes: fe.codes(&pose, n, t, temp_c),
+                temp_cc: FeSet::temp_field(temp_c),
             };
             let frame = wire::encode(&set, &mut buf).map_err(|e| FrontendError::Options(format!("{e:?}")))?;
             writer.write_all(frame).map_err(FrontendError::Write)?;
@@ -354,7 +309,7 @@ mod tests {
         let n = 4000u64;
         let mut sum = [0.0f64; 3];
         for i in 0..n {
-            let c = fe.codes(&pose, i, 1.0 + i as f64 * 1e-3);
+            let c = fe.codes(&pose, i, 1.0 + i as f64 * 1e-3, 25.0);
             (0..3).for_each(|ch| sum[ch] += c[ch] as f64);
         }
         let a = accelcal_shared::gravity(30.0, -60.0, cfg.g);
@@ -398,7 +353,8 @@ mod tests {
                 let t = t_p + s as f64 * dt;
                 let pose = head.pose(t.max(t_p));
                 assert_eq!(pose.moves_completed, p);
-                let codes = fe.codes(&pose, n, t);
+                // `simulate` without a temperature profile: no temperature.
+                let codes = fe.codes(&pose, n, t, f64::NAN);
                 mismatches += (0..3).filter(|&ch| codes[ch] as f64 != c.channels[ch].codes[row]).count();
                 row += 1;
                 n += 1;

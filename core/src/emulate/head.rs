@@ -199,17 +199,80 @@ impl HeadState {
     }
 }
 
-/// The head shared between the server and the front end (put it in an `Arc`).
+/// The sensor's temperature on the emulated bench: it follows the chamber's setpoint as a first
+/// order lag with time constant `tau_s` (the thermal lag between chamber and sensor).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SensorTemp {
+    /// Chamber setpoint, °C.
+    pub chamber_c: f64,
+    /// Sensor temperature at `at_s`, °C.
+    pub sensor_c: f64,
+    /// Time of `sensor_c` on the bench clock, s.
+    pub at_s: f64,
+    /// Thermal time constant, s.
+    pub tau_s: f64,
+}
+
+impl SensorTemp {
+    /// A sensor soaked at `temp_c` with time constant `tau_s`.
+    pub fn soaked(temp_c: f64, tau_s: f64) -> SensorTemp {
+        SensorTemp { chamber_c: temp_c, sensor_c: temp_c, at_s: 0.0, tau_s }
+    }
+
+    /// The sensor temperature at `t_s` (not before the last call's time).
+    pub fn at(&mut self, t_s: f64) -> f64 {
+        let dt = (t_s - self.at_s).max(0.0);
+        let f = if self.tau_s > 0.0 { (-dt / self.tau_s).exp() } else { 0.0 };
+        self.sensor_c = self.chamber_c + (self.sensor_c - self.chamber_c) * f;
+        self.at_s = self.at_s.max(t_s);
+        self.sensor_c
+    }
+
+    /// Changes the chamber setpoint at `t_s`.
+    pub fn set_chamber(&mut self, t_s: f64, chamber_c: f64) {
+        self.at(t_s);
+        self.chamber_c = chamber_c;
+    }
+}
+
+/// The rig shared between the server and the front end (put it in an `Arc`): the head and the
+/// thermal chamber around it.
 #[derive(Debug)]
 pub struct Head {
     clock: Clock,
     state: Mutex<HeadState>,
+    chamber: Mutex<SensorTemp>,
 }
 
 impl Head {
-    /// A head on `clock` standing at `angles`.
+    /// A head on `clock` standing at `angles`, the sensor soaked at 25 °C with no thermal lag.
     pub fn new(clock: Clock, motion: Motion, angles: (f64, f64)) -> Head {
-        Head { clock, state: Mutex::new(HeadState::new(motion, angles)) }
+        Head::with_chamber(clock, motion, angles, SensorTemp::soaked(25.0, 0.0))
+    }
+
+    /// A head in a thermal chamber whose sensor starts as `sensor` says.
+    pub fn with_chamber(clock: Clock, motion: Motion, angles: (f64, f64), sensor: SensorTemp) -> Head {
+        Head { clock, state: Mutex::new(HeadState::new(motion, angles)), chamber: Mutex::new(sensor) }
+    }
+
+    fn chamber(&self) -> MutexGuard<'_, SensorTemp> {
+        self.chamber.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// The sensor's temperature at `t_s` on the bench clock, °C.
+    pub fn sensor_temp_at(&self, t_s: f64) -> f64 {
+        self.chamber().at(t_s)
+    }
+
+    /// Sets the chamber to `temp_c` now.
+    pub fn set_chamber(&self, temp_c: f64) {
+        let t = self.clock.now_s();
+        self.chamber().set_chamber(t, temp_c);
+    }
+
+    /// The chamber's setpoint, °C.
+    pub fn chamber_setpoint(&self) -> f64 {
+        self.chamber().chamber_c
     }
 
     /// The bench clock.
@@ -304,6 +367,11 @@ pub fn answer(line: &str, head: &Head, stop: &AtomicBool) -> Option<Reply> {
             let p = head.pose();
             Reply::At { alpha_deg: p.alpha_deg, beta_deg: p.beta_deg, moving: p.moving.is_some() }
         }
+        Ok(Request::Chamber { temp_c }) => {
+            head.set_chamber(temp_c);
+            Reply::Temp { setpoint_c: head.chamber_setpoint() }
+        }
+        Ok(Request::Temp) => Reply::Temp { setpoint_c: head.chamber_setpoint() },
         Ok(Request::Move { alpha_deg, beta_deg }) => match head.start_move((alpha_deg, beta_deg)) {
             Err(e) => Reply::Err(e),
             Ok(end_s) => {

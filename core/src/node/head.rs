@@ -8,6 +8,8 @@
 //! |---|---|
 //! | `MOVE <alpha_deg> <beta_deg>` | `OK <alpha_deg> <beta_deg>` once the head stands still at the new angles |
 //! | `WHERE` | `AT <alpha_deg> <beta_deg> STILL` or `AT … MOVING` (the angles it is passing) |
+//! | `CHAMBER <temp_c>` | `TEMP <setpoint_c>`: the rig's thermal chamber now heads for this temperature (°C, −60..=150) |
+//! | `TEMP` | `TEMP <setpoint_c>`: the chamber's setpoint |
 //!
 //! Any request the head cannot carry out is answered `ERR <reason>`. Angles are degrees in the
 //! paper's convention (α about the spindle, β the tilt; `accelcal_shared::kinematics`).
@@ -65,7 +67,17 @@ pub enum Request {
     },
     /// Where is the head now?
     Where,
+    /// Set the thermal chamber to this temperature, °C.
+    Chamber {
+        /// Setpoint, °C.
+        temp_c: f64,
+    },
+    /// What is the chamber's setpoint?
+    Temp,
 }
+
+/// The chamber setpoints the protocol accepts, °C.
+pub const CHAMBER_RANGE_C: std::ops::RangeInclusive<f64> = -60.0..=150.0;
 
 /// A head's reply.
 #[derive(Clone, Debug, PartialEq)]
@@ -85,6 +97,11 @@ pub enum Reply {
         beta_deg: f64,
         /// True while a move is under way.
         moving: bool,
+    },
+    /// The chamber's setpoint, °C.
+    Temp {
+        /// Setpoint, °C.
+        setpoint_c: f64,
     },
     /// The request was refused.
     Err(String),
@@ -107,6 +124,8 @@ impl Request {
         match *self {
             Request::Move { alpha_deg, beta_deg } => format!("MOVE {alpha_deg} {beta_deg}"),
             Request::Where => "WHERE".into(),
+            Request::Chamber { temp_c } => format!("CHAMBER {temp_c}"),
+            Request::Temp => "TEMP".into(),
         }
     }
 
@@ -119,7 +138,15 @@ impl Request {
                 Ok(Request::Move { alpha_deg, beta_deg })
             }
             Some("WHERE") => Ok(Request::Where),
-            _ => Err(format!("unknown request `{}` (expected MOVE <alpha> <beta> or WHERE)", line.trim())),
+            Some("TEMP") => Ok(Request::Temp),
+            Some("CHAMBER") => match words.next().and_then(|w| w.parse::<f64>().ok()) {
+                Some(temp_c) if CHAMBER_RANGE_C.contains(&temp_c) => Ok(Request::Chamber { temp_c }),
+                _ => Err("CHAMBER: expected a temperature in -60..=150 °C".into()),
+            },
+            _ => Err(format!(
+                "unknown request `{}` (expected MOVE <alpha> <beta>, WHERE, CHAMBER <temp_c> or TEMP)",
+                line.trim()
+            )),
         }
     }
 }
@@ -132,6 +159,7 @@ impl Reply {
             Reply::At { alpha_deg, beta_deg, moving } => {
                 format!("AT {alpha_deg} {beta_deg} {}", if *moving { "MOVING" } else { "STILL" })
             }
+            Reply::Temp { setpoint_c } => format!("TEMP {setpoint_c}"),
             Reply::Err(m) => format!("ERR {}", m.replace('\n', " ")),
         }
     }
@@ -147,6 +175,12 @@ impl Reply {
             Some("OK") => {
                 let (alpha_deg, beta_deg) = angles(words, "OK")?;
                 Ok(Reply::Ok { alpha_deg, beta_deg })
+            }
+            Some("TEMP") => {
+                match words.next().and_then(|w| w.parse::<f64>().ok()).filter(|v| v.is_finite()) {
+                    Some(setpoint_c) => Ok(Reply::Temp { setpoint_c }),
+                    None => Err(format!("`{line}`: expected TEMP <setpoint_c>")),
+                }
             }
             Some("AT") => {
                 let rest: Vec<&str> = words.collect();
@@ -220,6 +254,17 @@ impl SimHead {
         }
     }
 
+    /// Sets the rig's thermal chamber to `temp_c` (°C); returns the setpoint it confirmed.
+    pub fn set_chamber(&mut self, temp_c: f64) -> Result<f64, HeadError> {
+        match self.request(Request::Chamber { temp_c })? {
+            Reply::Temp { setpoint_c } => Ok(setpoint_c),
+            other => Err(HeadError::Protocol {
+                addr: self.addr.clone(),
+                message: format!("expected TEMP after CHAMBER, got `{}`", other.line()),
+            }),
+        }
+    }
+
     /// Turns the head to `(alpha_deg, beta_deg)` and returns when it stands there.
     pub fn move_to(&mut self, alpha_deg: f64, beta_deg: f64) -> Result<(), HeadError> {
         match self.request(Request::Move { alpha_deg, beta_deg })? {
@@ -238,7 +283,12 @@ mod tests {
 
     #[test]
     fn lines_round_trip() {
-        for r in [Request::Move { alpha_deg: 30.0, beta_deg: -90.0 }, Request::Where] {
+        for r in [
+            Request::Move { alpha_deg: 30.0, beta_deg: -90.0 },
+            Request::Where,
+            Request::Chamber { temp_c: -10.5 },
+            Request::Temp,
+        ] {
             assert_eq!(Request::parse(&r.line()), Ok(r));
         }
         for r in [
@@ -246,11 +296,13 @@ mod tests {
             Reply::At { alpha_deg: 12.25, beta_deg: -3.0, moving: true },
             Reply::At { alpha_deg: 0.0, beta_deg: 0.0, moving: false },
             Reply::Err("no such angle".into()),
+            Reply::Temp { setpoint_c: 50.0 },
         ] {
             assert_eq!(Reply::parse(&r.line()), Ok(r));
         }
         assert!(Request::parse("MOVE 1 nan").is_err());
         assert!(Request::parse("JUMP").is_err());
+        assert!(Request::parse("CHAMBER 400").is_err() && Request::parse("CHAMBER").is_err());
         assert!(Reply::parse("AT 1 2").is_err());
     }
 

@@ -253,9 +253,10 @@ impl Unit {
     }
 
     /// Rebuilds a unit for the emulated node: [`Unit::from_truth`], and exactly three channels
-    /// `x`, `y`, `z` along axes 0, 1, 2. Effects needing a temperature are refused (the emulated
-    /// bench has no temperature). Biases are the node's unsigned 16-bit codes, so one outside
-    /// 0..=65535 is refused (a truth of `simulate --codes signed16` holds biases less mid-scale).
+    /// `x`, `y`, `z` along axes 0, 1, 2. Effects needing a temperature see the sensor's
+    /// temperature in the bench's thermal chamber. Biases are the node's unsigned 16-bit codes, so
+    /// one outside 0..=65535 is refused (a truth of `simulate --codes signed16` holds biases less
+    /// mid-scale).
     pub fn for_node(t: &Truth) -> Result<Unit, UnitError> {
         let u = Unit::from_truth(t)?;
         u.check_triad()?;
@@ -265,15 +266,6 @@ impl Unit {
                 "channel `{}`: bias {} is outside the node's unsigned 16-bit codes 0..=65535 (a truth of `simulate --codes signed16`?)",
                 c.name, c.bias
             )));
-        }
-        if let Some((index, e)) = u.effects.iter().enumerate().find(|(_, e)| e.needs_temperature()) {
-            return Err(UnitError::Effect {
-                index,
-                message: format!(
-                    "effect `{}` needs a temperature, which the emulated bench does not have",
-                    e.name()
-                ),
-            });
         }
         Ok(u)
     }

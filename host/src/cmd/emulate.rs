@@ -5,6 +5,7 @@ use std::io::Write;
 use std::sync::atomic::Ordering;
 
 use accelcal_core::emulate::bench::{Bench, BenchOptions};
+use accelcal_core::emulate::head::SensorTemp;
 use accelcal_core::emulate::{Motion, PaceOptions};
 use accelcal_core::error::bad;
 use accelcal_core::sim::Unit;
@@ -13,6 +14,15 @@ use crate::cli::EmulateArgs;
 
 /// Runs `accelcal emulate`.
 pub fn run(a: &EmulateArgs) -> anyhow::Result<()> {
+    if !accelcal_core::node::head::CHAMBER_RANGE_C.contains(&a.temp_c) {
+        return Err(bad(format!("--temp-c must be a temperature in -60..=150 °C, got {}", a.temp_c)));
+    }
+    if !(a.thermal_lag_s.is_finite() && a.thermal_lag_s >= 0.0) {
+        return Err(bad(format!(
+            "--thermal-lag-s must be a number of seconds >= 0, got {}",
+            a.thermal_lag_s
+        )));
+    }
     let unit = Unit::read_for_node(&a.unit)?;
     if !a.elf.is_file() {
         return Err(bad(format!(
@@ -33,6 +43,7 @@ pub fn run(a: &EmulateArgs) -> anyhow::Result<()> {
         unit,
         record,
         motion: Motion { speed_deg_s: a.head_speed, ..Motion::default() },
+        sensor: SensorTemp::soaked(a.temp_c, a.thermal_lag_s),
         pace: PaceOptions { rate_factor: a.rate_factor, ..PaceOptions::default() },
         gdb_port: a.gdb_port.unwrap_or(0),
         head_port: a.head_port.unwrap_or(0),

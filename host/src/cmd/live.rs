@@ -123,6 +123,33 @@ impl Positioner for ManualHead {
         std::io::stderr().flush()?;
         Ok(!read_line()?.trim().eq_ignore_ascii_case("n"))
     }
+
+    fn chamber(&mut self, setpoint_c: f64) -> anyhow::Result<()> {
+        eprint!("set the thermal chamber to {setpoint_c} °C; press Enter when it is set (the soak time starts then). ");
+        std::io::stderr().flush()?;
+        read_line().map(|_| ())
+    }
+}
+
+/// The chamber options of `acquire`/`verify`, checked: the soak is required with a setpoint and
+/// refused without one.
+fn soak_of(setpoints: &[f64], soak_s: Option<f64>) -> anyhow::Result<Option<Duration>> {
+    match (setpoints.is_empty(), soak_s) {
+        (true, None) => Ok(None),
+        (true, Some(_)) => Err(bad("--soak-s applies with --chamber only")),
+        (false, None) => Err(bad("--chamber needs --soak-s (seconds to wait at each setpoint)")),
+        (false, Some(s)) if !(s.is_finite() && s >= 0.0) => {
+            Err(bad(format!("--soak-s must be a number of seconds >= 0, got {s}")))
+        }
+        (false, Some(s)) => {
+            if let Some(t) =
+                setpoints.iter().find(|t| !accelcal_core::node::head::CHAMBER_RANGE_C.contains(*t))
+            {
+                return Err(bad(format!("--chamber {t}: a setpoint must be in -60..=150 °C")));
+            }
+            Ok(Some(Duration::from_secs_f64(s)))
+        }
+    }
 }
 
 /// Progress lines on stderr.
@@ -209,6 +236,7 @@ fn connect_head(spec: &HeadSpec) -> anyhow::Result<Box<dyn Positioner>> {
 /// Runs `accelcal acquire`.
 pub fn run_acquire(a: &AcquireArgs) -> anyhow::Result<()> {
     let plan = Plan::from_spec(&a.plan, 1).map_err(|e| bad(format!("--plan {e}")))?;
+    let soak = soak_of(&a.chamber, a.soak_s)?;
     let (g, g_source) = g_source(a.g, &a.local);
     let stop = stop_flag()?;
     let mut node = open(&a.link)?;
@@ -229,6 +257,7 @@ pub fn run_acquire(a: &AcquireArgs) -> anyhow::Result<()> {
         resume: a.resume,
         date: super::record::utc(super::created(None)),
         tool_version: env!("CARGO_PKG_VERSION").into(),
+        chamber: soak.map(|soak| acquire::Chamber { setpoints_c: a.chamber.clone(), soak }),
     };
     let sum = acquire::acquire(&mut node, head.as_mut(), &cfg, &mut Lines, &stop)?;
     if sum.interrupted {
@@ -254,8 +283,13 @@ pub fn run_acquire(a: &AcquireArgs) -> anyhow::Result<()> {
 fn check_line(c: &PositionCheck, n: usize) -> String {
     let e = c.error_m_s2;
     let t = c.tolerance_m_s2;
+    let temp = match (c.temp_c, c.out_of_range) {
+        (Some(t), false) => format!(", {t:.1} °C"),
+        (Some(t), true) => format!(", {t:.1} °C OUTSIDE the record's range"),
+        (None, _) => String::new(),
+    };
     format!(
-        "position {}/{n} (alpha {} deg, beta {} deg): error {:+.5} {:+.5} {:+.5} m/s², tolerance {:.5} {:.5} {:.5}: {}",
+        "position {}/{n} (alpha {} deg, beta {} deg{temp}): error {:+.5} {:+.5} {:+.5} m/s², tolerance {:.5} {:.5} {:.5}: {}",
         c.position,
         c.alpha_deg,
         c.beta_deg,
@@ -281,6 +315,7 @@ pub fn run_verify(a: &VerifyArgs) -> anyhow::Result<()> {
         }
         (None, None) => Tolerance::Derived(None),
     };
+    let soak = soak_of(a.chamber.as_slice(), a.soak_s)?;
     let (g, g_source) = g_source(a.g, &a.local);
     let stop = stop_flag()?;
     let mut node = open(&a.link)?;
@@ -292,6 +327,7 @@ pub fn run_verify(a: &VerifyArgs) -> anyhow::Result<()> {
         settle_timeout: Duration::from_secs_f64(a.settle_timeout_s),
         g,
         tolerance,
+        chamber: a.chamber.zip(soak),
     };
     println!("verify: g = {g} m/s² ({g_source}); pass rule: {}", cfg.tolerance.describe());
     let report = verify(&mut node, head.as_mut(), &cfg, &mut |c, n| println!("{}", check_line(c, n)), &stop)?;
