@@ -236,7 +236,7 @@ fn single_sample_dwells_are_accepted_with_a_warning() {
     campaign(&c, &EIGHT_POSITIONS.map(|(a, b)| (a, b, if a == 90.0 { 1 } else { 3 })));
     let c = c.to_str().unwrap();
     for method in ["lsq", "test-turns"] {
-        let out = accelcal(&["fit", c, "--method", method]);
+        let out = accelcal(&["fit", c, "--method", method, "--g", "9.81"]);
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(out.status.success(), "{err}");
         assert_eq!(err.trim_end(), format!("warning: {c}:8: 1 dwell(s) with a single sample (first at this line): their scatter is unknown"));
@@ -267,7 +267,7 @@ fn a_refusal_after_excluded_samples_is_one_line_naming_the_exclusion() {
     let e = bad(&["diagnose", c]);
     assert!(e.starts_with(&format!("error: {c}: every dwell has a single sample")), "{e}");
     assert!(e.contains(&format!("(note: {excluded}")) && e.contains(&single), "{e}");
-    let out = accelcal(&["fit", c]);
+    let out = accelcal(&["fit", c, "--g", "9.81"]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{err}");
     let lines: Vec<&str> = err.lines().collect();
@@ -323,4 +323,40 @@ fn hil_refuses_signed_codes_before_any_node_is_started() {
     let e = hil(commented, &["--codes", "unsigned16"]);
     assert!(e.contains(&format!("{commented}:1: `# codes: signed16` contradicts --codes unsigned16")), "{e}");
     assert_no_output(&out, "hil with signed codes");
+}
+
+/// A campaign that does not state its gravity, fitted without --g or --latitude: the 9.81 m/s²
+/// fallback is announced once, as a note after the result, by each of the commands that need g;
+/// a failure's one line does not carry it; --g silences it.
+#[test]
+fn the_gravity_fallback_is_announced_once() {
+    let d = tempfile::tempdir().unwrap();
+    let c = d.path().join("plain.csv");
+    campaign(&c, &EIGHT_POSITIONS.map(|(a, b)| (a, b, 3)));
+    let c = c.to_str().unwrap();
+    let note = format!(
+        "note: g = 9.81 m/s² assumed: {c} does not state its gravity (`# g_m_s2:`) and neither --g nor --latitude was given"
+    );
+    for cmd in [&["fit", c][..], &["select", c, "--basis", "linear"][..], &["compare", c][..]] {
+        let out = accelcal(cmd);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{cmd:?}: {err}");
+        assert_eq!(err.matches("g = 9.81 m/s² assumed").count(), 1, "{cmd:?}: {err}");
+        assert_eq!(err.lines().last(), Some(note.as_str()), "{cmd:?}: {err}");
+    }
+    let quiet = accelcal(&["fit", c, "--g", "9.81"]);
+    assert!(String::from_utf8_lossy(&quiet.stderr).is_empty());
+    let e = bad(&["fit", c, "--terms", "ax,ay,az,ax^2,ay^2,az^2,ax*ay,ax*az,ay*az"]);
+    assert!(!e.contains("assumed"), "{e}");
+    // A simulated campaign states its g.
+    let sim = d.path().join("sim.csv");
+    ok_quiet(&["simulate", "-o", sim.to_str().unwrap(), "--samples", "3", "--g", "9.8"]);
+    assert!(std::fs::read_to_string(&sim).unwrap().starts_with("# g_m_s2: 9.8\n"));
+    let out = accelcal(&["fit", sim.to_str().unwrap()]);
+    assert!(out.status.success() && String::from_utf8_lossy(&out.stderr).is_empty());
+}
+
+fn ok_quiet(args: &[&str]) {
+    let out = accelcal(args);
+    assert!(out.status.success(), "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
 }

@@ -241,9 +241,11 @@ fn simulate_is_seeded_and_writes_truth() {
     assert_eq!(truth["channels"].as_array().unwrap().len(), 3);
     assert_eq!(json(&d.p("sum.json"))["positions"], 62);
     let head = std::fs::read_to_string(&a).unwrap();
-    assert!(head.starts_with("t_s,alpha_deg,beta_deg,x,y,z\n"));
+    assert!(head.starts_with("# g_m_s2: 9.81\nt_s,alpha_deg,beta_deg,x,y,z\n"));
     let block = simulate(&d, "blk.csv", &["--layout", "block:5", "--plan", "six", "--samples", "2"]);
-    assert!(std::fs::read_to_string(block).unwrap().starts_with("t_s,alpha_deg,beta_deg,a1,a2,a3,a4,a5\n"));
+    assert!(std::fs::read_to_string(block)
+        .unwrap()
+        .starts_with("# g_m_s2: 9.81\nt_s,alpha_deg,beta_deg,a1,a2,a3,a4,a5\n"));
 }
 
 #[test]
@@ -350,13 +352,15 @@ fn latitude_and_height_give_local_gravity() {
         (g(&["--latitude", "45"]) - g(&["--latitude", "45", "--height", "1000"]) - 3.086e-3).abs() < 1e-12
     );
     assert_eq!(g(&["--latitude", "-45"]), g(&["--latitude", "45"]));
-    // The campaign commands use it too: a fit with the local g differs from one with 9.81.
+    // The campaign commands use it too: a fit with the local g differs from one with 9.81, and
+    // the campaign simulated there states it, so a fit without --g uses it.
     let d = Dir::new();
     let c = simulate(&d, "c.csv", &["--seed", "4", "--samples", "2", "--latitude", "0"]);
     let a = ok(&["fit", &c, "--latitude", "0"]);
     let b = ok(&["fit", &c, "--g", &accelcal_shared::normal_gravity(0.0, 0.0).to_string()]);
     assert_eq!(a, b);
-    assert_ne!(a, ok(&["fit", &c]));
+    assert_ne!(a, ok(&["fit", &c, "--g", "9.81"]));
+    assert_eq!(a, ok(&["fit", &c]));
 }
 
 /// `record show` prints every field of a record as `fit` wrote it, and the node's verdict; bad
@@ -926,10 +930,13 @@ fn every_readme_example_prints_what_the_readme_shows() {
 #[test]
 fn a_campaign_s_stated_g_is_used() {
     let d = Dir::new();
-    let plain = simulate(&d, "plain.csv", &["--seed", "3", "--samples", "5", "--g", "9.7803"]);
+    // `simulate` states its g: strip the line for a campaign that does not.
+    let sim = simulate(&d, "sim.csv", &["--seed", "3", "--samples", "5", "--g", "9.7803"]);
+    let text = std::fs::read_to_string(&sim).unwrap();
+    let plain = d.s("plain.csv");
+    std::fs::write(&plain, text.strip_prefix("# g_m_s2: 9.7803\n").unwrap()).unwrap();
     let stated = d.s("stated.csv");
-    std::fs::write(&stated, format!("# g_m_s2: 9.7803\n{}", std::fs::read_to_string(&plain).unwrap()))
-        .unwrap();
+    std::fs::write(&stated, &text).unwrap();
     let fit = |campaign: &str, extra: &[&str], out: &str| {
         let mut args = vec!["fit", campaign, "--json", out];
         args.extend_from_slice(extra);

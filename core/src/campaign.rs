@@ -110,6 +110,10 @@ pub struct Campaign {
     pub warnings: Vec<String>,
     /// The range of the codes (written as a `# codes:` comment line when it is not the default).
     pub codes: CodeRange,
+    /// The gravity the campaign was made at, m/s², written as a `# g_m_s2:` comment line (as
+    /// `acquire` writes it; the fitting commands take g from it). Not read back by
+    /// [`Campaign::read`]: `accelcal`'s commands read the line themselves.
+    pub g_m_s2: Option<f64>,
 }
 
 /// One position dwell: a run of consecutive rows with the same commanded angles.
@@ -221,9 +225,12 @@ impl Campaign {
         Ok(c)
     }
 
-    /// Writes the campaign as CSV (a `# codes:` line unless the codes are `unsigned16`, the
-    /// header, then one row per sample set).
+    /// Writes the campaign as CSV (a `# g_m_s2:` line when it states its g, a `# codes:` line
+    /// unless the codes are `unsigned16`, the header, then one row per sample set).
     pub fn write<W: Write>(&self, mut w: W) -> Result<(), csv::Error> {
+        if let Some(g) = self.g_m_s2 {
+            writeln!(w, "# g_m_s2: {g}")?;
+        }
         if self.codes != CodeRange::default() {
             writeln!(w, "# {CODES_COMMENT} {}", self.codes)?;
         }
@@ -255,9 +262,10 @@ impl Campaign {
 
 /// The campaign readers' warnings (excluded samples, single-sample dwells), collected while a
 /// command runs so that its front end can report them once it ends (after a success, or folded
-/// into the line of a failure, which they may explain).
+/// into the line of a failure, which they may explain), and notes about a result (what was
+/// assumed), reported after a success only.
 #[derive(Debug, Default, Clone, PartialEq)]
-pub struct Warnings(Vec<String>);
+pub struct Warnings(Vec<String>, Vec<String>);
 
 impl Warnings {
     /// Adds a reader's warnings, one line each.
@@ -268,6 +276,16 @@ impl Warnings {
     /// The warnings, one line each, in the order they came.
     pub fn lines(&self) -> &[String] {
         &self.0
+    }
+
+    /// Adds a note about the result (e.g. a default that was assumed), one line.
+    pub fn note(&mut self, line: String) {
+        self.1.push(line);
+    }
+
+    /// The notes, one line each.
+    pub fn notes(&self) -> &[String] {
+        &self.1
     }
 }
 

@@ -222,6 +222,7 @@ pub fn simulate(cfg: &SimConfig) -> (Campaign, Truth) {
         .collect();
     let mut c = Campaign {
         channels: chans.iter().map(|t| Channel { name: t.name.clone(), codes: Vec::new() }).collect(),
+        g_m_s2: Some(cfg.g),
         ..Campaign::default()
     };
     let noise = normal(cfg.noise);

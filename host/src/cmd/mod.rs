@@ -22,16 +22,16 @@ pub fn run(cli: Cli, warnings: &mut Warnings) -> anyhow::Result<()> {
     match cli.command {
         Command::Simulate(a) => simulate::run(&a),
         Command::Select(mut a) => {
-            campaign_g(&mut a.common, &a.campaign)?;
+            campaign_g(&mut a.common, &a.campaign, warnings)?;
             select::run(&a, warnings)
         }
         Command::Plan(a) => plan::run(&a),
         Command::Fit(mut a) => {
-            campaign_g(&mut a.common, &a.campaign)?;
+            campaign_g(&mut a.common, &a.campaign, warnings)?;
             fit::run(&a, warnings)
         }
         Command::Compare(mut a) => {
-            campaign_g(&mut a.common, &a.campaign)?;
+            campaign_g(&mut a.common, &a.campaign, warnings)?;
             compare::run(&a, warnings)
         }
         Command::Demo(a) => demo::run(&a),
@@ -46,7 +46,7 @@ pub fn run(cli: Cli, warnings: &mut Warnings) -> anyhow::Result<()> {
         Command::Verify(a) => live::run_verify(&a),
         Command::Report(a) => report::run(&a),
         Command::Diagnose(mut a) => {
-            campaign_g(&mut a.common, &a.campaign)?;
+            campaign_g(&mut a.common, &a.campaign, warnings)?;
             diagnose::run(&a, warnings)
         }
         Command::BenchDiagnose(a) => bench_diagnose::run(&a),
@@ -56,10 +56,14 @@ pub fn run(cli: Cli, warnings: &mut Warnings) -> anyhow::Result<()> {
 pub use accelcal_core::campaign::Warnings;
 pub use accelcal_core::reduce::reduce_campaign;
 
-/// Prints the warnings on stderr, one `warning:` line each (after a success).
+/// Prints the warnings on stderr, one `warning:` line each, then the notes, one `note:` line
+/// each (after a success).
 pub fn print_warnings(w: &Warnings) {
     for line in w.lines() {
         eprintln!("warning: {line}");
+    }
+    for line in w.notes() {
+        eprintln!("note: {line}");
     }
 }
 
@@ -75,8 +79,13 @@ pub fn error_line(w: &Warnings, e: &anyhow::Error) -> String {
 }
 
 /// Without --g or --latitude, a campaign that states the gravity it was acquired at (`# g_m_s2:`,
-/// written by `acquire`) is calibrated at that g, not at 9.81.
-fn campaign_g(common: &mut crate::cli::CommonArgs, campaign: &std::path::Path) -> anyhow::Result<()> {
+/// written by `acquire` and `simulate`) is calibrated at that g; one that does not is calibrated
+/// at 9.81, and a warning says so (once).
+fn campaign_g(
+    common: &mut crate::cli::CommonArgs,
+    campaign: &std::path::Path,
+    warnings: &mut Warnings,
+) -> anyhow::Result<()> {
     if common.g_given || !campaign.is_file() {
         return Ok(());
     }
@@ -90,6 +99,12 @@ fn campaign_g(common: &mut crate::cli::CommonArgs, campaign: &std::path::Path) -
         })?;
         check_g(g)?;
         common.g = g;
+    } else {
+        warnings.note(format!(
+            "g = {} m/s² assumed: {} does not state its gravity (`# g_m_s2:`) and neither --g nor --latitude was given",
+            common.g,
+            campaign.display()
+        ));
     }
     Ok(())
 }
