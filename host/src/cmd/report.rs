@@ -11,13 +11,13 @@
 use std::fmt::Write as _;
 
 use accelcal_core::acquire::campaign_header;
-use accelcal_core::calibrate::{fit_all, Method};
+use accelcal_core::calibrate::{fit_positions, Method};
 use accelcal_core::campaign::Campaign;
 use accelcal_core::error::bad;
 use accelcal_core::output::write_atomic;
+use accelcal_core::positions::Positions;
 use accelcal_core::verify::VerifyReport;
 use accelcal_shared::record::{crc32, Record};
-use accelcal_shared::terms::MODEL_4;
 
 use crate::cli::ReportArgs;
 use crate::report::plot::lines_svg;
@@ -81,9 +81,19 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
         }
     };
     let campaign = Campaign::read(&a.campaign)?;
-    let settings = super::select::paper_settings();
-    let sel = super::select::compute(&campaign, g, &[], &settings)?;
-    let lsq = fit_all(&campaign, g, Method::Lsq, MODEL_4)?;
+    // The positions at the record's reference temperature; a thermal record's structure is
+    // chosen among the linear-thermal candidates, and its coefficients are those of its terms.
+    let mut pos = Positions::new(&campaign, g);
+    if let Some(t) = rec.thermal {
+        pos.t_ref_c = t.t_ref_c as f64;
+    }
+    let stats = pos.channel_stats(&campaign);
+    let mut settings = super::select::paper_settings();
+    if rec.structure.is_thermal() {
+        settings.basis = accelcal_shared::Basis::LinearThermal;
+    }
+    let sel = super::select::compute_on(&pos, &stats, &[], &settings)?;
+    let lsq = fit_positions(&pos, &stats, Method::Lsq, rec.structure)?;
     let cmp = accelcal_core::compare::compute(&campaign, None, g).ok();
 
     let mut h = String::new();
@@ -114,9 +124,21 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
         (
             "Record",
             format!(
-                "CRC {crc:08x}, created {}, model 4 ({} bytes)",
+                "CRC {crc:08x}, created {}, {} ({} bytes, format {})",
                 super::record::utc(rec.created_unix_s),
-                rec.len()
+                match rec.thermal {
+                    Some(t) => format!(
+                        "model 4 with thermal terms {}, t = temp_c − {} °C, calibrated {} to {} °C, temperature from the {}",
+                        rec.structure,
+                        t.t_ref_c,
+                        t.t_min_c,
+                        t.t_max_c,
+                        t.source.name()
+                    ),
+                    None => "model 4".to_string(),
+                },
+                rec.len(),
+                rec.version()
             ),
         ),
         ("g used", format!("{g} m/s² ({})", g_source)),
@@ -166,11 +188,24 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
     h.push_str("</table>");
 
     // Coefficients.
-    let _ = write!(h, "<h2>Coefficients in force (record), &plusmn; standard error of the LSQ fit of this campaign</h2><table><tr><th class=\"l\">channel</th><th>u0, codes</th><th>k·ax, codes/(m/s²)</th><th>k·ay</th><th>k·az</th><th>residual RMS, codes</th></tr>");
+    let _ = write!(h, "<h2>Coefficients in force (record), &plusmn; standard error of the LSQ fit of this campaign</h2><table><tr><th class=\"l\">channel</th>");
+    for (i, t) in rec.structure.terms().enumerate() {
+        let head = match (i, t.to_string().as_str()) {
+            (0, _) => "u0, codes".to_string(),
+            (1, _) => "k·ax, codes/(m/s²)".to_string(),
+            (2, _) => "k·ay".to_string(),
+            (3, _) => "k·az".to_string(),
+            (_, "t") => "t, codes/°C".to_string(),
+            (_, "t^2") => "t², codes/°C²".to_string(),
+            (_, name) => format!("{name}, codes/(m/s²)/°C"),
+        };
+        let _ = write!(h, "<th>{}</th>", esc(&head));
+    }
+    h.push_str("<th>residual RMS, codes</th></tr>");
     let mut max_rel = 0.0f64;
     for (c, (name, fit)) in lsq.iter().enumerate() {
         let _ = write!(h, "<tr><td class=\"l\">{}</td>", esc(name));
-        for t in 0..4 {
+        for t in 0..rec.structure.len() {
             let v = rec.coefficients.get(c).map_or(f64::NAN, |row| row[t]);
             max_rel = max_rel.max(((v - fit.coefficients[t]) / fit.std_errors[t].max(1e-12)).abs());
             let _ = write!(h, "<td>{v:.4} &plusmn; {:.4}</td>", fit.std_errors[t]);
