@@ -253,9 +253,10 @@ fn replay_hands_out_answers_before_the_end_of_the_campaign_is_read() {
     let mut row = last_row(&camp);
     row[1] = "zero".into();
     let line = append_row(&camp, &row.join(","));
-    let codes = CampaignCodes::open(&camp).unwrap();
+    let codes = CampaignCodes::open(&camp).unwrap().map(|b| b.map(|(c, rows)| (c, None, rows.t_s)));
     let mut answered = 0;
-    let e = replay_blocks(&HilOptions::new(node_elf()), &record, codes, |t_s, accel| {
+    let e = replay_blocks(&HilOptions::new(node_elf()), &record, codes, |t_s, accel, temp| {
+        assert_eq!(temp, None);
         for (k, (t, a)) in t_s.iter().zip(accel).enumerate() {
             let i = answered + k;
             assert_eq!(*t, all.t_s[i]);
@@ -277,7 +278,7 @@ fn replay_hands_out_answers_before_the_end_of_the_campaign_is_read() {
 }
 
 fn replay_msg(seq: u32, codes: &[[u16; 3]]) -> HostMsg {
-    HostMsg::Replay { seq, codes: heapless::Vec::from_slice(codes).unwrap() }
+    HostMsg::Replay { seq, codes: heapless::Vec::from_slice(codes).unwrap(), temp: None }
 }
 
 /// Without a valid record the node says so and returns raw codes flagged uncalibrated, unchanged.
@@ -289,8 +290,11 @@ fn node_without_record_answers_uncalibrated() {
     assert_eq!(status.protocol, PROTOCOL_VERSION);
     let codes = [[1, 2, 3], [65535, 0, 32768]];
     let answer = node.request(&replay_msg(5, &codes)).unwrap();
-    let want =
-        NodeMsg::Replayed { seq: 5, data: Block::Uncalibrated(heapless::Vec::from_slice(&codes).unwrap()) };
+    let want = NodeMsg::Replayed {
+        seq: 5,
+        data: Block::Uncalibrated(heapless::Vec::from_slice(&codes).unwrap()),
+        temp: None,
+    };
     assert_eq!(answer, want);
 }
 
@@ -355,7 +359,7 @@ fn node_refuses_a_corrupt_record_and_survives_garbage() {
     let before = node.status().unwrap().bad_frames;
     node.send_raw(&[0x00, 0x02, 0x63, 0x00]).unwrap();
     let answer = node.request(&replay_msg(1, &[[10, 20, 30]])).unwrap();
-    assert!(matches!(answer, NodeMsg::Replayed { seq: 1, data: Block::Uncalibrated(_) }), "{answer:?}");
+    assert!(matches!(answer, NodeMsg::Replayed { seq: 1, data: Block::Uncalibrated(_), .. }), "{answer:?}");
     assert_eq!(node.status().unwrap().bad_frames, before + 1);
 }
 
@@ -385,7 +389,7 @@ fn node_runs_uncalibrated(page: &[u8; SLOT_SIZE], want: RecordFault) -> String {
     let codes = [[100, 200, 300], [65535, 0, 32768]];
     let answer = node.request(&replay_msg(3, &codes)).unwrap();
     let raw = Block::Uncalibrated(heapless::Vec::from_slice(&codes).unwrap());
-    assert_eq!(answer, NodeMsg::Replayed { seq: 3, data: raw });
+    assert_eq!(answer, NodeMsg::Replayed { seq: 3, data: raw, temp: None });
     format_status(&status)
 }
 
@@ -424,8 +428,11 @@ fn node_runs_a_version_2_slot_and_still_reads_a_version_1_slot() {
         );
         let want: Vec<[f32; 3]> = codes.iter().map(|u| cal.apply(*u)).collect();
         let answer = node.request(&replay_msg(9, &codes)).unwrap();
-        let want =
-            NodeMsg::Replayed { seq: 9, data: Block::Calibrated(heapless::Vec::from_slice(&want).unwrap()) };
+        let want = NodeMsg::Replayed {
+            seq: 9,
+            data: Block::Calibrated(heapless::Vec::from_slice(&want).unwrap()),
+            temp: None,
+        };
         assert_eq!(answer, want, "slot format of sequence {sequence}");
     }
     let mut uncommitted = v2;
