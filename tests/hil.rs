@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use accelcal_core::campaign::Campaign;
-use accelcal_core::node::hil::{replay_blocks, CampaignCodes, HilOptions, QemuNode};
+use accelcal_core::node::hil::{replay_blocks, replay_with_temps, CampaignCodes, HilOptions, QemuNode};
 use accelcal_core::node::monitor::format_status;
 use accelcal_shared::contract::QEMU_DEVICE_ID;
 use accelcal_shared::kinematics::gravity;
@@ -25,11 +25,11 @@ use accelcal_shared::slots::{SlotImage, COMMIT_OFFSET, SLOT_MAGIC_V2, SLOT_SIZE}
 use accelcal_shared::terms::{Structure, MODEL_4};
 use accelcal_shared::wire::{
     record_error_code, Block, HostMsg, NodeMsg, RecordFault, RecordStatus, Refusal, ResetCause,
-    DEFAULT_RATE_HZ, PROTOCOL_VERSION, RATE_MAX_HZ, RATE_MIN_HZ,
+    DEFAULT_RATE_HZ, MAX_BLOCK, PROTOCOL_VERSION, RATE_MAX_HZ, RATE_MIN_HZ,
 };
 use accelcal_shared::G_STANDARD;
 use common::{accelcal, bad, ok};
-use support::{node_elf, record_bytes};
+use support::{node_elf, record_bytes, thermal_model};
 
 /// Hex of the QEMU node's device id, "QEMU-B-L475E" (`accelcal_shared::contract::QEMU_DEVICE_ID`).
 const QEMU_ID_HEX: &str = "51454d552d422d4c34373545";
@@ -636,4 +636,112 @@ fn monitor_shows_the_status_stream_of_a_node_on_a_serial_port() {
         String::from_utf8_lossy(&out.stderr),
         "error: --rate: RateOutOfRange: sampling rate 50 Hz refused, the node accepts 100..=4000 Hz\n"
     );
+}
+
+/// A thermal record (model 4 with `t`, `ax*t`, `ay*t`, `az*t`, front-end input, −10..50 °C)
+/// replayed with a temperature ramp from −20 to 60 °C: the node's output is, bit for bit, the
+/// host's run of the shared f32 path (a fresh `ThermalTracker` fed the sets in order,
+/// `apply_block`), its block reports equal the host's, the blocks calibrated outside the range are
+/// flagged, and every set is within 5e-5 m/s² (under 1 % of a code, ≈ 6e-3 m/s²) of the f64
+/// reference evaluated at the same filtered temperature (`ThermalModel::at(t).invert().apply`).
+#[test]
+fn thermal_record_replays_the_shared_f32_path_bit_for_bit() {
+    use accelcal_shared::terms::T_INDEX;
+    use accelcal_shared::thermal::ThermalTracker;
+    let model = thermal_model();
+    let rec = model.to_record(QEMU_DEVICE_ID, 1_800_000_000, 9.81);
+    let want = Structure::from_indices(&[1, 2, 3, T_INDEX, T_INDEX + 2, T_INDEX + 3, T_INDEX + 4]);
+    assert_eq!(rec.structure, want);
+    let n = 60 * MAX_BLOCK;
+    let temps: Vec<f32> = (0..n).map(|i| -20.0 + 80.0 * i as f32 / n as f32).collect();
+    // Codes of a triad turning in gravity at the set's temperature.
+    let codes: Vec<[u16; 3]> = (0..n)
+        .map(|i| {
+            let phi = i as f64 * 0.05;
+            let a = [9.81 * phi.cos(), 9.81 * phi.sin() * 0.6, 9.81 * phi.sin() * 0.8];
+            let m = model.at(temps[i] as f64);
+            std::array::from_fn(|c| {
+                let u = m.u0[c] + (0..3).map(|j| m.k[c][j] * a[j]).sum::<f64>();
+                u.round().clamp(0.0, 65535.0) as u16
+            })
+        })
+        .collect();
+    let run =
+        replay_with_temps(&HilOptions::new(node_elf()), &record_bytes(&rec), &codes, Some(&temps)).unwrap();
+    assert_eq!(run.accel.len(), n);
+
+    let f = model.to_f32();
+    let mut host = ThermalTracker::new(f, f.at(25.0).unwrap());
+    let mut reference = ThermalTracker::new(f, f.at(25.0).unwrap());
+    let mut flagged = 0;
+    let mut worst = 0.0f64;
+    for (k, ((c, t), node)) in
+        codes.chunks(MAX_BLOCK).zip(temps.chunks(MAX_BLOCK)).zip(run.accel.chunks(MAX_BLOCK)).enumerate()
+    {
+        let mut out = [[0.0f32; 3]; MAX_BLOCK];
+        let flag = host.apply_block(c, t, &mut out);
+        for (i, (a, b)) in node.iter().zip(&out).enumerate() {
+            assert_eq!(a.map(f32::to_bits), b.map(f32::to_bits), "block {k} set {i}: node {a:?}, host {b:?}");
+        }
+        assert_eq!(run.temp[k], ThermalTracker::block_temp(t, Some((&host, flag))), "block {k}");
+        flagged += usize::from(flag);
+        // The f64 reference at the temperature each set's calibration was evaluated at.
+        for ((u, &temp), a) in c.iter().zip(t).zip(node) {
+            reference.on_set(temp);
+            let at = reference.applied_c().unwrap();
+            let exact = model.at(at as f64).invert().unwrap().apply(u.map(f64::from));
+            for j in 0..3 {
+                worst = worst.max((exact[j] - a[j] as f64).abs());
+            }
+        }
+    }
+    eprintln!("thermal replay: node vs f64 reference, largest difference {worst:e} m/s²; {flagged} of 60 blocks flagged");
+    assert!(worst < 5e-5, "node vs f64 reference: {worst:e} m/s²");
+    // The ramp starts and ends outside −10..50 °C (the filter lags the ramp by a few blocks).
+    let flags: Vec<bool> = run.temp.iter().map(|t| t.unwrap().out_of_range).collect();
+    assert!(flags[0] && flags[flags.len() - 1], "{flags:?}");
+    assert!(flags.iter().any(|f| !f) && flagged > 0, "{flags:?}");
+    let first_in = flags.iter().position(|f| !f).unwrap();
+    let last_in = flags.iter().rposition(|f| !f).unwrap();
+    assert!(flags[first_in..=last_in].iter().all(|f| !f), "{flags:?}");
+    for (b, f) in run.temp.iter().zip(&flags) {
+        let applied = b.unwrap().applied_c.unwrap();
+        assert_eq!(*f, !(-10.0..=50.0).contains(&applied), "{b:?}");
+    }
+    assert!(matches!(run.status.record, RecordStatus::InUse { .. }));
+}
+
+/// A thermal record whose temperature input the board lacks (the MCU's sensor, on the QEMU board)
+/// is refused at boot with `NoTempInput`, though the host gate passes it (it cannot know the
+/// board).
+#[test]
+fn a_thermal_record_for_the_mcu_sensor_is_refused_by_the_qemu_node() {
+    use accelcal_shared::record::TempSource;
+    let mut model = thermal_model();
+    model.thermal.source = TempSource::Mcu;
+    let rec = model.to_record(QEMU_DEVICE_ID, 1_800_000_000, 9.81);
+    assert_eq!(accelcal_shared::boot::gate(&rec), Ok(()));
+    let page = SlotImage::build(&record_bytes(&rec), 1).unwrap();
+    let mut node = QemuNode::start(&HilOptions::new(node_elf()), Some(&page)).unwrap();
+    assert_eq!(node.status().unwrap().record, RecordStatus::Missing(RecordFault::NoTempInput));
+}
+
+/// `accelcal hil` with a thermal record and a campaign without `temp_c` is bad input (exit 2)
+/// naming the column, before any node is started.
+#[test]
+fn hil_refuses_a_thermal_record_with_a_campaign_without_temperatures() {
+    let dir = tempfile::tempdir().unwrap();
+    let camp = dir.path().join("c.csv");
+    std::fs::write(
+        &camp,
+        "t_s,alpha_deg,beta_deg,x,y,z\n0,0,0,32000,33000,31000\n0.1,0,0,32000,33000,31000\n",
+    )
+    .unwrap();
+    let rec = dir.path().join("t.rec");
+    let model = thermal_model();
+    std::fs::write(&rec, record_bytes(&model.to_record(QEMU_DEVICE_ID, 1_800_000_000, 9.81))).unwrap();
+    let out = dir.path().join("out.csv");
+    let stderr = bad(&["hil", s(&camp), "--record", s(&rec), "--qemu", s(&node_elf()), "--out", s(&out)]);
+    assert!(stderr.contains("no column `temp_c`") && stderr.contains("thermal terms"), "{stderr}");
+    assert!(!out.exists());
 }
