@@ -330,20 +330,43 @@ impl ThermalTracker {
     /// without a temperature or an output slot are left alone). Returns whether a set of the block
     /// was calibrated with a flagged calibration ([`ThermalTracker::out_of_range`]).
     ///
-    /// The firmware and a host replay run this same function, so their outputs agree bit for bit.
-    /// The flag is exact for blocks of at most [`SETS_PER_UPDATE`] sets (the node's blocks): the
-    /// calibration changes at most once within such a block, so the first set's state and the
-    /// last set's state are the only two the block's sets were calibrated with.
+    /// The result is exactly that of calling `on_set` set by set (tested), computed in runs: the
+    /// sets up to the next re-evaluation share one calibration, which the run keeps in registers
+    /// while it adds the sets' temperatures to the block sum in order, so a set costs model 4's
+    /// arithmetic and one addition. The firmware and a host replay run this same function, so
+    /// their outputs agree bit for bit. The flag is exact for blocks of at most
+    /// [`SETS_PER_UPDATE`] sets (the node's blocks): the calibration changes at most once within
+    /// such a block, so the first set's state and the last set's state are the only two the
+    /// block's sets were calibrated with.
     #[inline(always)]
     pub fn apply_block(&mut self, codes: &[Codes], temp_c: &[f32], out: &mut [[f32; 3]]) -> bool {
-        let mut sets = codes.iter().zip(temp_c).zip(out.iter_mut());
-        let Some(((u, &t), a)) = sets.next() else { return false };
-        *a = self.on_set(t).apply(*u);
-        let first = self.out_of_range();
-        for ((u, &t), a) in sets {
-            *a = self.on_set(t).apply(*u);
+        let n = codes.len().min(temp_c.len()).min(out.len());
+        let (codes, temp_c, out) = (&codes[..n], &temp_c[..n], &mut out[..n]);
+        let mut first = None;
+        let mut i = 0;
+        while i < n {
+            if self.filter.value().is_none() || self.n + 1 == SETS_PER_UPDATE {
+                // This set re-evaluates the calibration and is calibrated with the new one.
+                out[i] = self.on_set(temp_c[i]).apply(codes[i]);
+                i += 1;
+            } else {
+                // The sets before the next re-evaluation: one calibration, the sum in order.
+                let k = (SETS_PER_UPDATE - 1 - self.n).min(n - i);
+                let cal = self.cal;
+                let mut sum = self.sum;
+                for ((u, &t), a) in codes[i..i + k].iter().zip(&temp_c[i..i + k]).zip(&mut out[i..i + k]) {
+                    sum += t;
+                    *a = cal.apply(*u);
+                }
+                self.sum = sum;
+                self.n += k;
+                i += k;
+            }
+            if first.is_none() {
+                first = Some(self.out_of_range());
+            }
         }
-        first || self.out_of_range()
+        first.is_some_and(|f| f || self.out_of_range())
     }
 
     /// The block's temperature report: the mean of `temp_c` (the block's sets' temperatures), and,
@@ -555,6 +578,27 @@ mod tests {
         }
         for i in 0..40 {
             assert_eq!(out[i], single.on_set(temps[i]).apply(codes[i]), "set {i}");
+        }
+        // Blocks of any length give what set-by-set calibration gives, the block sums included.
+        let (mut runs, mut sets) = (ThermalTracker::new(m, start), ThermalTracker::new(m, start));
+        let mut at = 0;
+        for (k, len) in
+            [1usize, 15, 16, 3, 16, 7, 16, 16, 9, 1, 0, 16].into_iter().cycle().take(60).enumerate()
+        {
+            let t: std::vec::Vec<f32> = (at..at + len).map(|i| 20.0 + 0.37 * (i % 50) as f32).collect();
+            let c: std::vec::Vec<Codes> =
+                (at..at + len).map(|i| [i as u16, 65535 - i as u16, 32768]).collect();
+            let mut o = std::vec![[0.0f32; 3]; len];
+            runs.apply_block(&c, &t, &mut o);
+            for j in 0..len {
+                assert_eq!(o[j], sets.on_set(t[j]).apply(c[j]), "block {k} set {j}");
+            }
+            assert_eq!(
+                (runs.sum, runs.n, runs.applied_c()),
+                (sets.sum, sets.n, sets.applied_c()),
+                "block {k}"
+            );
+            at += len;
         }
         // Evaluated at 20, then at 20 + 0.25·(62.5 − 20) = 30.625, then at 58.6, past 50.
         assert_eq!(flags, [false, false, true]);

@@ -17,7 +17,9 @@
 use accelcal_shared::boot::{self, Arithmetic, NodeCal, TempInputs};
 use accelcal_shared::linear::{LinearCalF32, LinearCalFixed};
 use accelcal_shared::slots::{SlotRead, N_SLOTS, SLOT_SIZE};
-use accelcal_shared::thermal::{ThermalCalF32, ThermalTracker, ThermalTrackerFixed};
+#[cfg(feature = "fixed-point")]
+use accelcal_shared::thermal::ThermalTrackerFixed;
+use accelcal_shared::thermal::{ThermalCalF32, ThermalTracker};
 use accelcal_shared::wire::{Block, BlockTemp, Codes, RecordStatus, MAX_BLOCK};
 use heapless::Vec;
 
@@ -31,9 +33,12 @@ pub enum Calibration {
     /// Model 4 in fixed point (output m/s²·2¹⁶), for FPU-less parts.
     Fixed(LinearCalFixed),
     /// Model 4 with thermal terms, in f32: the model, and the calibration at its reference
-    /// temperature (applied where no temperature is known).
+    /// temperature (applied where no temperature is known). Each build has the thermal path of
+    /// its own arithmetic only (flash).
+    #[cfg(not(feature = "fixed-point"))]
     ThermalF32(ThermalCalF32, LinearCalF32),
     /// Model 4 with thermal terms, re-quantised to fixed point at each evaluation.
+    #[cfg(feature = "fixed-point")]
     ThermalFixed(ThermalCalF32, LinearCalFixed),
     /// No valid record: sample sets leave the node as raw codes flagged uncalibrated.
     Uncalibrated,
@@ -42,7 +47,8 @@ pub enum Calibration {
 /// Calibrates `codes` into `out` (m/s²), pairwise, with a thermal record, in f32: each set with
 /// the calibration the tracker gives for its temperature (`temp_c`, °C, one per set). Returns
 /// whether a set was calibrated outside the record's range. The thermal hot path.
-#[cfg_attr(not(feature = "fixed-point"), unsafe(no_mangle))]
+#[cfg(not(feature = "fixed-point"))]
+#[unsafe(no_mangle)]
 #[inline(never)]
 pub fn calibrate_block_thermal_f32(
     tracker: &mut ThermalTracker,
@@ -54,7 +60,8 @@ pub fn calibrate_block_thermal_f32(
 }
 
 /// [`calibrate_block_thermal_f32`] in fixed point (m/s²·2¹⁶).
-#[cfg_attr(feature = "fixed-point", unsafe(no_mangle))]
+#[cfg(feature = "fixed-point")]
+#[unsafe(no_mangle)]
 #[inline(never)]
 pub fn calibrate_block_thermal_fixed(
     tracker: &mut ThermalTrackerFixed,
@@ -71,8 +78,10 @@ pub enum Applier {
     /// Model 4 (or no record): nothing to keep.
     Static(Calibration),
     /// A thermal record in f32.
+    #[cfg(not(feature = "fixed-point"))]
     ThermalF32(ThermalTracker),
     /// A thermal record in fixed point.
+    #[cfg(feature = "fixed-point")]
     ThermalFixed(ThermalTrackerFixed),
 }
 
@@ -86,12 +95,14 @@ impl Applier {
         let (codes, temp_c) = (&codes[..n], &temp_c[..n]);
         match self {
             Applier::Static(cal) => (cal.apply_block(codes), ThermalTracker::block_temp(temp_c, None)),
+            #[cfg(not(feature = "fixed-point"))]
             Applier::ThermalF32(tr) => {
                 let mut v = Vec::new();
                 let _ = v.resize(n, [0.0; 3]);
                 let flagged = calibrate_block_thermal_f32(tr, codes, temp_c, &mut v);
                 (Block::Calibrated(v), ThermalTracker::block_temp(temp_c, Some((tr, flagged))))
             }
+            #[cfg(feature = "fixed-point")]
             Applier::ThermalFixed(tr) => {
                 let mut v = Vec::new();
                 let _ = v.resize(n, [0; 3]);
@@ -107,9 +118,11 @@ impl Applier {
     pub fn track(&mut self, temp_c: &[f32]) -> Option<BlockTemp> {
         match self {
             Applier::Static(_) => {}
+            #[cfg(not(feature = "fixed-point"))]
             Applier::ThermalF32(tr) => temp_c.iter().for_each(|&t| {
                 tr.on_set(t);
             }),
+            #[cfg(feature = "fixed-point")]
             Applier::ThermalFixed(tr) => temp_c.iter().for_each(|&t| {
                 tr.on_set(t);
             }),
@@ -140,7 +153,9 @@ impl Calibration {
     /// A fresh applier of this calibration (a thermal record's tracker not yet fed).
     pub fn applier(&self) -> Applier {
         match *self {
+            #[cfg(not(feature = "fixed-point"))]
             Calibration::ThermalF32(model, start) => Applier::ThermalF32(ThermalTracker::new(model, start)),
+            #[cfg(feature = "fixed-point")]
             Calibration::ThermalFixed(model, start) => {
                 Applier::ThermalFixed(ThermalTrackerFixed::new(model, start))
             }
@@ -154,18 +169,12 @@ impl Calibration {
         let n = codes.len().min(MAX_BLOCK);
         let codes = &codes[..n];
         match self {
-            Calibration::F32(cal) | Calibration::ThermalF32(_, cal) => {
-                let mut v = Vec::new();
-                let _ = v.resize(n, [0.0; 3]);
-                calibrate_block_f32(cal, codes, &mut v);
-                Block::Calibrated(v)
-            }
-            Calibration::Fixed(cal) | Calibration::ThermalFixed(_, cal) => {
-                let mut v = Vec::new();
-                let _ = v.resize(n, [0; 3]);
-                calibrate_block_fixed(cal, codes, &mut v);
-                Block::CalibratedFixed(v)
-            }
+            #[cfg(not(feature = "fixed-point"))]
+            Calibration::ThermalF32(_, cal) => apply_f32(cal, codes),
+            Calibration::F32(cal) => apply_f32(cal, codes),
+            #[cfg(feature = "fixed-point")]
+            Calibration::ThermalFixed(_, cal) => apply_fixed(cal, codes),
+            Calibration::Fixed(cal) => apply_fixed(cal, codes),
             Calibration::Uncalibrated => {
                 let mut v = Vec::new();
                 let _ = v.extend_from_slice(codes);
@@ -173,6 +182,22 @@ impl Calibration {
             }
         }
     }
+}
+
+/// Model 4 in f32 on a block of `codes`.
+fn apply_f32(cal: &LinearCalF32, codes: &[Codes]) -> Block {
+    let mut v = Vec::new();
+    let _ = v.resize(codes.len(), [0.0; 3]);
+    calibrate_block_f32(cal, codes, &mut v);
+    Block::Calibrated(v)
+}
+
+/// Model 4 in fixed point on a block of `codes`.
+fn apply_fixed(cal: &LinearCalFixed, codes: &[Codes]) -> Block {
+    let mut v = Vec::new();
+    let _ = v.resize(codes.len(), [0; 3]);
+    calibrate_block_fixed(cal, codes, &mut v);
+    Block::CalibratedFixed(v)
 }
 
 /// Reads the record slots and returns the calibration to apply and what to report about it: the
@@ -208,8 +233,16 @@ pub fn load(storage: &impl RecordStorage, inputs: TempInputs) -> (Calibration, R
             let cal = match (boot.cal, boot.thermal) {
                 (NodeCal::F32(c), None) => Calibration::F32(c),
                 (NodeCal::Fixed(c), None) => Calibration::Fixed(c),
+                #[cfg(not(feature = "fixed-point"))]
                 (NodeCal::F32(c), Some(m)) => Calibration::ThermalF32(m, c),
+                #[cfg(feature = "fixed-point")]
                 (NodeCal::Fixed(c), Some(m)) => Calibration::ThermalFixed(m, c),
+                // Not reached: the boot decision calibrates in the build's own arithmetic
+                // (`arith` above), whose thermal path is the one compiled in.
+                #[cfg(not(feature = "fixed-point"))]
+                (NodeCal::Fixed(c), Some(_)) => Calibration::Fixed(c),
+                #[cfg(feature = "fixed-point")]
+                (NodeCal::F32(c), Some(_)) => Calibration::F32(c),
             };
             if let Some(m) = boot.thermal {
                 defmt::info!(
