@@ -326,7 +326,7 @@ impl Basis {
             Basis::Paper | Basis::Quadratic => Structure::from_mask((1 << 10) - 1),
             Basis::Cubic => Structure::from_mask((1 << 20) - 1),
             Basis::LinearThermal => Structure::from_mask(0b1111 | Structure::THERMAL_MASK),
-            Basis::QuadraticThermal => Structure::from_mask((1 << 10) - 1 | Structure::THERMAL_MASK),
+            Basis::QuadraticThermal => Structure::from_mask(((1 << 10) - 1) | Structure::THERMAL_MASK),
         }
     }
 
@@ -356,12 +356,10 @@ impl Basis {
             }
             Basis::LinearThermal | Basis::QuadraticThermal => {
                 let mut mask = 1u32;
-                let mut j = 0;
-                for i in self.full().indices().skip(1) {
+                for (j, i) in self.full().indices().skip(1).enumerate() {
                     if n >> j & 1 == 1 {
                         mask |= 1 << i;
                     }
-                    j += 1;
                 }
                 Structure::from_mask(mask)
             }
