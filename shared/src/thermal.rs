@@ -169,14 +169,13 @@ impl ThermalCalF32 {
     /// determinant) in f32. Fails when `K(t)` is singular or badly conditioned there.
     pub fn at(&self, temp_c: f32) -> Result<LinearCalF32, LinearError> {
         let t = temp_c - self.thermal.t_ref_c;
-        let mut u0 = [0.0f32; 3];
-        let mut k = [[0.0f32; 3]; 3];
-        for i in 0..3 {
-            u0[i] = self.bias[i][0] + t * (self.bias[i][1] + t * self.bias[i][2]);
-            for j in 0..3 {
-                k[i][j] = self.k[i][j] + self.kt[i][j] * t;
-            }
-        }
+        // Written out element by element (the node runs this once per block; loops here cost
+        // their counters): the same operations, in the same order, as the loops they replace.
+        let (b, k0, kt) = (&self.bias, &self.k, &self.kt);
+        let u = |i: usize| b[i][0] + t * (b[i][1] + t * b[i][2]);
+        let u0 = [u(0), u(1), u(2)];
+        let row = |i: usize| [k0[i][0] + kt[i][0] * t, k0[i][1] + kt[i][1] * t, k0[i][2] + kt[i][2] * t];
+        let k = [row(0), row(1), row(2)];
         let cof = |r0: usize, r1: usize, c0: usize, c1: usize| k[r0][c0] * k[r1][c1] - k[r0][c1] * k[r1][c0];
         // Adjugate: m[j][i] = cofactor(i, j).
         let adj = [
@@ -185,18 +184,23 @@ impl ThermalCalF32 {
             [cof(1, 2, 0, 1), -cof(0, 2, 0, 1), cof(0, 1, 0, 1)],
         ];
         let det = k[0][0] * adj[0][0] + k[0][1] * adj[1][0] + k[0][2] * adj[2][0];
-        // Reciprocal condition in the 1-norm, as Model4::invert checks it.
+        // Reciprocal condition in the 1-norm, as Model4::invert checks it. Written out (the
+        // node runs this once per block): a NaN anywhere fails the finiteness check below.
         let norm1 = |m: &[[f32; 3]; 3]| {
-            (0..3).map(|j| (0..3).map(|i| libm::fabsf(m[i][j])).sum::<f32>()).fold(0.0f32, f32::max)
-        };
-        let mut m = [[0.0f32; 3]; 3];
-        for i in 0..3 {
-            for j in 0..3 {
-                m[i][j] = adj[i][j] / det;
+            let col = |j: usize| libm::fabsf(m[0][j]) + libm::fabsf(m[1][j]) + libm::fabsf(m[2][j]);
+            let (a, b, c) = (col(0), col(1), col(2));
+            let ab = if a > b { a } else { b };
+            if ab > c {
+                ab
+            } else {
+                c
             }
-        }
+        };
+        let div = |r: [f32; 3]| [r[0] / det, r[1] / det, r[2] / det];
+        let m = [div(adj[0]), div(adj[1]), div(adj[2])];
         let rcond = 1.0 / (norm1(&k) * norm1(&m));
-        let finite = m.iter().flatten().chain(u0.iter()).all(|v| v.is_finite());
+        let fin = |r: &[f32; 3]| r[0].is_finite() && r[1].is_finite() && r[2].is_finite();
+        let finite = fin(&m[0]) && fin(&m[1]) && fin(&m[2]) && fin(&u0);
         if !(rcond > 1e-6) || !finite {
             return Err(LinearError::Singular);
         }
