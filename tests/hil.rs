@@ -653,19 +653,7 @@ fn thermal_record_replays_the_shared_f32_path_bit_for_bit() {
     let want = Structure::from_indices(&[1, 2, 3, T_INDEX, T_INDEX + 2, T_INDEX + 3, T_INDEX + 4]);
     assert_eq!(rec.structure, want);
     let n = 60 * MAX_BLOCK;
-    let temps: Vec<f32> = (0..n).map(|i| -20.0 + 80.0 * i as f32 / n as f32).collect();
-    // Codes of a triad turning in gravity at the set's temperature.
-    let codes: Vec<[u16; 3]> = (0..n)
-        .map(|i| {
-            let phi = i as f64 * 0.05;
-            let a = [9.81 * phi.cos(), 9.81 * phi.sin() * 0.6, 9.81 * phi.sin() * 0.8];
-            let m = model.at(temps[i] as f64);
-            std::array::from_fn(|c| {
-                let u = m.u0[c] + (0..3).map(|j| m.k[c][j] * a[j]).sum::<f64>();
-                u.round().clamp(0.0, 65535.0) as u16
-            })
-        })
-        .collect();
+    let (codes, temps) = thermal_ramp(&model, n);
     let run =
         replay_with_temps(&HilOptions::new(node_elf()), &record_bytes(&rec), &codes, Some(&temps)).unwrap();
     assert_eq!(run.accel.len(), n);
@@ -709,6 +697,108 @@ fn thermal_record_replays_the_shared_f32_path_bit_for_bit() {
         assert_eq!(*f, !(-10.0..=50.0).contains(&applied), "{b:?}");
     }
     assert!(matches!(run.status.record, RecordStatus::InUse { .. }));
+}
+
+/// `n` code sets of a triad turning in gravity under `model` during a temperature ramp from −20 to
+/// 60 °C, and the ramp's temperatures.
+fn thermal_ramp(model: &accelcal_shared::thermal::ThermalModel, n: usize) -> (Vec<[u16; 3]>, Vec<f32>) {
+    let temps: Vec<f32> = (0..n).map(|i| -20.0 + 80.0 * i as f32 / n as f32).collect();
+    let codes = (0..n)
+        .map(|i| {
+            let phi = i as f64 * 0.05;
+            let a = [9.81 * phi.cos(), 9.81 * phi.sin() * 0.6, 9.81 * phi.sin() * 0.8];
+            let m = model.at(temps[i] as f64);
+            std::array::from_fn(|c| {
+                let u = m.u0[c] + (0..3).map(|j| m.k[c][j] * a[j]).sum::<f64>();
+                u.round().clamp(0.0, 65535.0) as u16
+            })
+        })
+        .collect();
+    (codes, temps)
+}
+
+/// The fixed-point build applies a thermal record as the shared `ThermalTrackerFixed` does: each
+/// re-evaluated f32 calibration re-quantised, bit for bit, with the same block reports.
+#[test]
+fn fixed_point_node_applies_a_thermal_record_as_the_shared_fixed_tracker() {
+    use accelcal_shared::contract::FIXED_SCALE;
+    use accelcal_shared::thermal::{ThermalTracker, ThermalTrackerFixed};
+    let model = thermal_model();
+    let rec = record_bytes(&model.to_record(QEMU_DEVICE_ID, 1_800_000_000, 9.81));
+    let (codes, temps) = thermal_ramp(&model, 30 * MAX_BLOCK);
+    let run = replay_with_temps(&HilOptions::new(node_fixed_elf()), &rec, &codes, Some(&temps)).unwrap();
+    let f = model.to_f32();
+    let mut host = ThermalTrackerFixed::new(f, f.at_wide(25.0).unwrap().to_fixed().unwrap());
+    for (k, ((c, t), node)) in
+        codes.chunks(MAX_BLOCK).zip(temps.chunks(MAX_BLOCK)).zip(run.accel.chunks(MAX_BLOCK)).enumerate()
+    {
+        let mut out = [[0i32; 3]; MAX_BLOCK];
+        let flag = host.apply_block(c, t, &mut out);
+        for (i, (a, q)) in node.iter().zip(&out).enumerate() {
+            // `replay` converts the node's m/s²·2¹⁶ exactly (|a| < 256 m/s²).
+            assert_eq!(*a, q.map(|v| (v as f64 / FIXED_SCALE) as f32), "block {k} set {i}");
+        }
+        assert_eq!(run.temp[k], ThermalTracker::block_temp(t, Some((host.tracker(), flag))), "block {k}");
+    }
+    assert!(
+        run.temp.iter().any(|t| t.unwrap().out_of_range) && run.temp.iter().any(|t| !t.unwrap().out_of_range)
+    );
+}
+
+/// `accelcal hil` replays a campaign's `temp_c` with a thermal record: its output has the block's
+/// applied temperature and flag on every row, and the accelerations are the shared f32 path fed
+/// the campaign's rows in order.
+#[test]
+fn hil_replays_temp_c_with_a_thermal_record() {
+    use accelcal_shared::thermal::ThermalTracker;
+    let dir = tempfile::tempdir().unwrap();
+    let (camp, _) = campaign_and_record(dir.path(), QEMU_ID_HEX);
+    // The simulated campaign with a temperature column: a ramp from 0 to 60 °C over its rows.
+    let text = std::fs::read_to_string(&camp).unwrap();
+    let rows = text.lines().count() - 1;
+    let mut with_temp = String::new();
+    for (i, line) in text.lines().enumerate() {
+        let mut f: Vec<String> = line.split(',').map(String::from).collect();
+        f.insert(
+            3,
+            if i == 0 { "temp_c".into() } else { format!("{:.2}", 60.0 * (i - 1) as f64 / rows as f64) },
+        );
+        with_temp += &(f.join(",") + "\n");
+    }
+    let camp = dir.path().join("thermal.csv");
+    std::fs::write(&camp, with_temp).unwrap();
+    let model = thermal_model();
+    let rec = dir.path().join("thermal.rec");
+    std::fs::write(&rec, record_bytes(&model.to_record(QEMU_DEVICE_ID, 1_800_000_000, 9.81))).unwrap();
+    let out = dir.path().join("out.csv");
+    ok(&["hil", s(&camp), "--record", s(&rec), "--qemu", s(&node_elf()), "--out", s(&out)]);
+    let text = std::fs::read_to_string(&out).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("t_s,ax,ay,az,applied_c,out_of_range"));
+    let got: Vec<Vec<String>> = lines.map(|l| l.split(',').map(String::from).collect()).collect();
+    let f = model.to_f32();
+    let mut host = ThermalTracker::new(f, f.at(25.0).unwrap());
+    let blocks: Vec<_> = CampaignCodes::open(&camp).unwrap().map(|b| b.unwrap()).collect();
+    let mut row = 0;
+    let mut flagged = 0;
+    for (codes, r) in &blocks {
+        let t = r.temp_c.as_ref().unwrap();
+        let mut want = vec![[0.0f32; 3]; codes.len()];
+        let flag = host.apply_block(codes, t, &mut want);
+        flagged += usize::from(flag);
+        for w in &want {
+            let g = &got[row];
+            assert_eq!(g.len(), 6, "{g:?}");
+            let a: Vec<f32> = g[1..4].iter().map(|v| v.parse().unwrap()).collect();
+            assert_eq!(a, w.to_vec(), "row {row}");
+            assert_eq!(g[4].parse::<f32>().unwrap(), host.applied_c().unwrap(), "row {row}");
+            assert_eq!(g[5], if flag { "1" } else { "0" }, "row {row}");
+            row += 1;
+        }
+    }
+    assert_eq!(row, got.len());
+    // The ramp ends above the calibrated 50 °C.
+    assert!(flagged > 0 && flagged < blocks.len(), "{flagged} of {} blocks flagged", blocks.len());
 }
 
 /// A thermal record whose temperature input the board lacks (the MCU's sensor, on the QEMU board)
