@@ -148,6 +148,10 @@ fn rejection_hint(fault: accelcal_shared::wire::RecordFault) -> String {
             )
         }
         RecordFault::NotModel4 => " (fit it with `--terms ax,ay,az`, the default)".into(),
+        RecordFault::NoTempInput => {
+            " (the QEMU board has only the front end's temperature channel: a thermal record for it names the input `front-end`)"
+                .into()
+        }
         _ => String::new(),
     }
 }
