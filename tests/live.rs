@@ -3,7 +3,8 @@
 //! the node's `FeCtl` messages back, while it talks to the node over the link (USART1). The node's
 //! `Samples` blocks must number every set (`first`), carry the fed codes (raw) or the shared f32
 //! model-4 calibration of them (bit-exact), and count every lost set in both the status and the
-//! jumps of `first`.
+//! jumps of `first`; every block carries the front end's temperature, and with a thermal record
+//! the temperature its calibration was evaluated at (bit-exact with the shared tracker).
 //!
 //! QEMU runs one at a time here (a lock): each keeps its main loop busy (one host core) so that
 //! 1 kHz of sets gets through. Needs `qemu-system-arm` and the QEMU build, like `hil.rs`.
@@ -24,13 +25,19 @@ use accelcal_shared::linear::{LinearCalF32, Model4};
 use accelcal_shared::record::Record;
 use accelcal_shared::slots::SlotImage;
 use accelcal_shared::wire::{
-    self, Block, Codes, FrameDecoder, HostMsg, Info, NodeMsg, Output, RecordStatus, ResetCause, Status,
-    MAX_BLOCK, PROTOCOL_VERSION,
+    self, Block, BlockTemp, Codes, FrameDecoder, HostMsg, Info, NodeMsg, Output, RecordStatus, ResetCause,
+    Status, MAX_BLOCK, PROTOCOL_VERSION,
 };
-use support::{node_elf, record_bytes};
+use support::{node_elf, record_bytes, thermal_model};
 
 /// One QEMU at a time (each spins a host core).
 static ONE_QEMU: Mutex<()> = Mutex::new(());
+
+/// The fed sets' temperature (0.01 °C), from the set's index: a ramp of 0.1 °C per set from
+/// 20 °C, wrapping every 400 sets (so a thermal record's tracker follows a changing temperature).
+fn temp_cc_of(index: u32) -> i16 {
+    2000 + 10 * (index % 400) as i16
+}
 
 /// The fed sets' codes, from the set's index: distinct, over most of the 16-bit range.
 fn codes_of(index: u32) -> Codes {
@@ -119,7 +126,7 @@ impl Bench {
                     std::thread::sleep(wait);
                 }
             }
-            let set = FeSet { index: i as u16, codes: codes_of(i), temp_cc: 2500 };
+            let set = FeSet { index: i as u16, codes: codes_of(i), temp_cc: temp_cc_of(i) };
             self.fe.write_all(wire::encode(&set, &mut buf).unwrap()).unwrap();
         }
     }
@@ -154,6 +161,18 @@ impl Bench {
             assert!(t0.elapsed() < Duration::from_secs(10), "{} blocks only", blocks.len());
             if let Some(NodeMsg::Samples { first, data, .. }) = self.recv() {
                 blocks.push((first, data));
+            }
+        }
+    }
+
+    /// Collects `Samples` with their temperature reports until `sets` sets are in `blocks` (or
+    /// 10 s have passed).
+    fn collect_temp(&mut self, blocks: &mut Vec<(u32, Block, Option<BlockTemp>)>, sets: usize) {
+        let t0 = Instant::now();
+        while blocks.iter().map(|(_, b, _)| b.len()).sum::<usize>() < sets {
+            assert!(t0.elapsed() < Duration::from_secs(10), "{} blocks only", blocks.len());
+            if let Some(NodeMsg::Samples { first, data, temp, .. }) = self.recv() {
+                blocks.push((first, data, temp));
             }
         }
     }
@@ -430,4 +449,74 @@ fn qemu_offers_the_link_on_a_pty_and_a_gdbstub() {
     }
     let reply = String::from_utf8_lossy(&reply);
     assert!(reply.starts_with("+$T") || reply.starts_with("+$S"), "{reply}");
+}
+
+/// Every live block carries the front end's temperature: with a model-4 record its mean only;
+/// with a thermal record, in calibrated output, also the filtered temperature the calibration was
+/// evaluated at, and the calibrated sets are, bit for bit, the shared f32 path (`ThermalTracker`
+/// fed every set since boot, `apply_block`); in raw output the mean only.
+#[test]
+fn live_blocks_carry_the_front_ends_temperature() {
+    use accelcal_shared::thermal::{block_mean, ThermalTracker};
+    let temps = |first: u32, n: usize| -> Vec<f32> {
+        (first..first + n as u32)
+            .map(|i| FeSet { index: 0, codes: [0; 3], temp_cc: temp_cc_of(i) }.temp_c())
+            .collect()
+    };
+    // Model 4: the mean, no applied temperature.
+    {
+        let mut bench = Bench::start(Some(&record()));
+        assert_eq!(bench.next_ctl(), FeCtl::Rate { hz: 1000 });
+        bench.feed(0..64, true);
+        let mut blocks = Vec::new();
+        bench.collect_temp(&mut blocks, 64);
+        for (first, b, temp) in &blocks {
+            let t = temps(*first, b.len());
+            assert_eq!(
+                *temp,
+                Some(BlockTemp { mean_c: block_mean(&t).unwrap(), applied_c: None, out_of_range: false })
+            );
+        }
+    }
+    // A thermal record.
+    let model = thermal_model();
+    let rec = record_bytes(&model.to_record(QEMU_DEVICE_ID, 1_800_000_000, 9.81));
+    let mut bench = Bench::start(Some(&rec));
+    assert_eq!(bench.next_ctl(), FeCtl::Rate { hz: 1000 });
+    let f = model.to_f32();
+    let mut host = ThermalTracker::new(f, f.at(25.0).unwrap());
+    bench.feed(0..320, true);
+    let mut blocks = Vec::new();
+    bench.collect_temp(&mut blocks, 320);
+    let mut next = 0;
+    for (first, b, temp) in &blocks {
+        assert_eq!(*first, next, "a jump in `first`");
+        let Block::Calibrated(v) = b else { panic!("block {first} is not calibrated: {b:?}") };
+        let t = temps(*first, v.len());
+        let codes: Vec<Codes> = (*first..*first + v.len() as u32).map(codes_of).collect();
+        let mut out = vec![[0.0f32; 3]; v.len()];
+        let flag = host.apply_block(&codes, &t, &mut out);
+        assert_eq!(
+            v.iter().map(|a| a.map(f32::to_bits)).collect::<Vec<_>>(),
+            out.iter().map(|a| a.map(f32::to_bits)).collect::<Vec<_>>(),
+            "block {first}"
+        );
+        let want = ThermalTracker::block_temp(&t, Some((&host, flag)));
+        assert_eq!(*temp, want, "block {first}");
+        assert!(want.unwrap().applied_c.is_some());
+        next += v.len() as u32;
+    }
+    // Raw output: the mean only.
+    let mut ignored = Vec::new();
+    assert_eq!(bench.set_output(Output::Raw, &mut ignored).output, Output::Raw);
+    assert!(ignored.is_empty(), "{ignored:?}");
+    bench.feed(320..352, true);
+    let mut raw = Vec::new();
+    bench.collect_temp(&mut raw, 32);
+    for (first, b, temp) in &raw {
+        assert!(matches!(b, Block::Raw(_)), "{b:?}");
+        let t = temps(*first, b.len());
+        assert_eq!(temp.unwrap().mean_c, block_mean(&t).unwrap());
+        assert_eq!(temp.unwrap().applied_c, None);
+    }
 }

@@ -74,13 +74,14 @@ fn runs(input: &[u8]) -> Vec<usize> {
 }
 
 fn host_sentinel() -> HostMsg {
-    HostMsg::Replay { seq: 0xC0FFEE, codes: heapless::Vec::from_slice(&[[1, 0, 65535]]).unwrap() }
+    HostMsg::Replay { seq: 0xC0FFEE, codes: heapless::Vec::from_slice(&[[1, 0, 65535]]).unwrap(), temp: None }
 }
 
 fn node_sentinel() -> NodeMsg {
     NodeMsg::Replayed {
         seq: 0xC0FFEE,
         data: Block::Uncalibrated(heapless::Vec::from_slice(&[[7, 0, 9]]).unwrap()),
+        temp: None,
     }
 }
 
@@ -172,7 +173,15 @@ impl Target for FrameTarget {
         let fixed = (0..MAX_BLOCK as i32).map(|i| [i << 16, -i, i32::MIN]).collect();
         let frames = [
             encode(&HostMsg::GetStatus),
-            encode(&HostMsg::Replay { seq: 300, codes: codes.clone() }),
+            encode(&HostMsg::Replay { seq: 300, codes: codes.clone(), temp: None }),
+            encode(&HostMsg::Replay {
+                seq: 301,
+                codes: codes.clone(),
+                temp: Some(wire::ReplayTemp {
+                    restart: true,
+                    temp_c: (0..codes.len()).map(|i| i as f32 - 10.5).collect(),
+                }),
+            }),
             encode(&host_sentinel()),
             encode(&NodeMsg::Status(status)),
             encode(&NodeMsg::Status(Status {
@@ -208,8 +217,12 @@ impl Target for FrameTarget {
                 reset_cause: ResetCause::PowerOn,
                 output: wire::Output::Calibrated,
             })),
-            encode(&NodeMsg::Replayed { seq: 1, data: Block::CalibratedFixed(fixed) }),
-            encode(&NodeMsg::Replayed { seq: 2, data: Block::Uncalibrated(codes) }),
+            encode(&NodeMsg::Replayed { seq: 1, data: Block::CalibratedFixed(fixed), temp: None }),
+            encode(&NodeMsg::Replayed {
+                seq: 2,
+                data: Block::Uncalibrated(codes),
+                temp: Some(wire::BlockTemp { mean_c: 25.0, applied_c: None, out_of_range: false }),
+            }),
             encode(&HostMsg::SetRate { hz: 4000 }),
             encode(&HostMsg::SetRate { hz: u32::MAX }),
             encode(&NodeMsg::RateSet(Status { rate_hz: 250, reset_cause: ResetCause::Pin, ..status })),

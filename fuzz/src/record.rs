@@ -28,8 +28,14 @@ pub(crate) fn record(n_channels: u8, structure: Structure, coef: impl Fn(usize, 
         structure,
         n_channels,
         coefficients: [[0.0; N_BASIS]; MAX_CHANNELS],
-        g_m_s2: None,
-        thermal: None,
+        // A structure with thermal terms needs gravity and its temperature part (record format 2).
+        g_m_s2: structure.is_thermal().then_some(9.81),
+        thermal: structure.is_thermal().then_some(accelcal_shared::record::Thermal {
+            t_ref_c: 25.0,
+            t_min_c: -10.0,
+            t_max_c: 50.0,
+            source: accelcal_shared::record::TempSource::FrontEnd,
+        }),
     };
     for c in 0..n_channels as usize {
         for n in 0..structure.len() {

@@ -9,7 +9,7 @@
 //! the host refuses exactly the records a node would refuse, for the node's reason.
 
 use crate::linear::{LinearCalF32, LinearCalFixed};
-use crate::record::{Record, RecordError};
+use crate::record::{Record, RecordError, TempSource};
 use crate::slots::{self, SlotError, SlotReading, N_SLOTS};
 use crate::thermal::{self, ThermalCalF32, ThermalModel};
 use crate::wire::{record_error_code, RecordFault, RecordStatus};
@@ -86,6 +86,42 @@ pub enum BootError {
     NotModel4,
     /// The record's sensitivity matrix cannot be inverted (or does not fit fixed point).
     Singular,
+    /// The record's thermal terms read a temperature input this node does not have (see
+    /// [`TempInputs`]).
+    NoTempInput(TempSource),
+}
+
+/// The temperature inputs a node has, which a thermal record's [`TempSource`] must name.
+///
+/// The boards: the real B-L475E-IOT01A reads the MCU's internal sensor only (its analog front end
+/// has three channels, x, y, z); the QEMU board reads the emulated front end's temperature only
+/// (QEMU's ADC is a stub, so it has no MCU sensor). A node does not substitute one input for the
+/// other: a record fitted against the front end's sensor describes the unit's own temperature,
+/// the MCU's sensor sits on another die with its own offset and lag, so applying the record with
+/// it would compensate with the wrong temperature, silently.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TempInputs {
+    /// The MCU's internal sensor ([`TempSource::Mcu`]).
+    pub mcu: bool,
+    /// The front end's temperature channel ([`TempSource::FrontEnd`]).
+    pub front_end: bool,
+}
+
+impl TempInputs {
+    /// The real board: the MCU's sensor.
+    pub const MCU: TempInputs = TempInputs { mcu: true, front_end: false };
+    /// The QEMU board: the emulated front end's channel.
+    pub const FRONT_END: TempInputs = TempInputs { mcu: false, front_end: true };
+    /// Every input: what [`gate`] assumes, since it cannot know the board the record goes to.
+    pub const ALL: TempInputs = TempInputs { mcu: true, front_end: true };
+
+    /// Whether the node has `source`.
+    pub const fn has(self, source: TempSource) -> bool {
+        match source {
+            TempSource::Mcu => self.mcu,
+            TempSource::FrontEnd => self.front_end,
+        }
+    }
 }
 
 impl BootError {
@@ -97,6 +133,7 @@ impl BootError {
             BootError::WrongDevice | BootError::NoDeviceId => RecordFault::WrongDevice,
             BootError::NotModel4 => RecordFault::NotModel4,
             BootError::Singular => RecordFault::Singular,
+            BootError::NoTempInput(_) => RecordFault::NoTempInput,
         }
     }
 }
@@ -117,16 +154,23 @@ impl core::fmt::Display for BootError {
             BootError::Singular => f.write_str(
                 "the record's sensitivity matrix cannot be inverted (or does not fit fixed point)",
             ),
+            BootError::NoTempInput(s) => write!(
+                f,
+                "the record's thermal terms read the temperature input `{}`, which this node does not have",
+                s.name()
+            ),
         }
     }
 }
 
 /// Decides which record is in force. `readings` are the two slots as read (`None`: unreadable),
-/// `device_id` the MCU's unique id, `arith` the node's arithmetic. Accepts any bytes.
+/// `device_id` the MCU's unique id, `arith` the node's arithmetic, `inputs` the temperature
+/// inputs the board has. Accepts any bytes.
 pub fn decide(
     readings: [SlotReading<'_>; N_SLOTS],
     device_id: &[u8; 12],
     arith: Arithmetic,
+    inputs: TempInputs,
 ) -> Result<Boot, BootError> {
     let active = slots::select_readings(readings).map_err(|e| match e {
         SlotError::Record(r) => BootError::BadRecord(r),
@@ -138,7 +182,7 @@ pub fn decide(
         _ => None,
     };
     let record = Record::parse(active.image.record).map_err(BootError::BadRecord)?;
-    let cal = accept(&record, device_id, arith)?;
+    let cal = accept(&record, device_id, arith, inputs)?;
     // The parse checked that the record's bytes hold its length, CRC included.
     let n = record.len();
     let crc = match active.image.record.get(n.saturating_sub(4)..n) {
@@ -157,13 +201,19 @@ pub fn decide(
     })
 }
 
-/// Whether the node with unique id `device_id`, calibrating in `arith`, accepts `record` (a
-/// parsed record), and the calibration it then applies (a thermal record's at its reference
-/// temperature); or why not, in this order: a device id of all zeros, another device's id, not
-/// model 4 (with or without thermal terms) on three channels, a sensitivity matrix that cannot be
+/// Whether the node with unique id `device_id`, calibrating in `arith`, with the temperature
+/// inputs `inputs`, accepts `record` (a parsed record), and the calibration it then applies (a
+/// thermal record's at its reference temperature); or why not, in this order: a device id of all
+/// zeros, another device's id, not model 4 (with or without thermal terms) on three channels, a
+/// thermal record whose temperature input the node lacks, a sensitivity matrix that cannot be
 /// inverted (for a thermal record: anywhere on [`ThermalModel::invertible`]'s grid over the
 /// calibrated range) or, in fixed point, does not fit the format.
-pub fn accept(record: &Record, device_id: &[u8; 12], arith: Arithmetic) -> Result<NodeCal, BootError> {
+pub fn accept(
+    record: &Record,
+    device_id: &[u8; 12],
+    arith: Arithmetic,
+    inputs: TempInputs,
+) -> Result<NodeCal, BootError> {
     if record.device_id == [0; 12] {
         return Err(BootError::NoDeviceId);
     }
@@ -175,6 +225,9 @@ pub fn accept(record: &Record, device_id: &[u8; 12], arith: Arithmetic) -> Resul
     }
     let singular = |_| BootError::Singular;
     if let Some(m) = ThermalModel::of(record) {
+        if !inputs.has(m.thermal.source) {
+            return Err(BootError::NoTempInput(m.thermal.source));
+        }
         m.invertible().map_err(singular)?;
         let f = m.to_f32();
         let t_ref = m.thermal.t_ref_c;
@@ -197,11 +250,15 @@ pub fn accept(record: &Record, device_id: &[u8; 12], arith: Arithmetic) -> Resul
 }
 
 /// The check of a record about to be written: whether every node build (f32 and fixed point)
-/// whose unique id is the record's own device id accepts it ([`accept`]). A record that passes
-/// is refused by a node for one reason only: that it is another device.
+/// whose unique id is the record's own device id, and which has the record's temperature input,
+/// accepts it ([`accept`] with [`TempInputs::ALL`]). The gate checks the record alone: it cannot
+/// know the board the record will reach, so a record that passes is refused by a node for one of
+/// two reasons only: that it is another device, or that its board lacks the record's temperature
+/// input ([`BootError::NoTempInput`]: a front-end record on the real board, an MCU-sensor record
+/// on the QEMU board).
 pub fn gate(record: &Record) -> Result<(), BootError> {
     for arith in [Arithmetic::F32, Arithmetic::Fixed] {
-        accept(record, &record.device_id, arith)?;
+        accept(record, &record.device_id, arith, TempInputs::ALL)?;
     }
     Ok(())
 }
@@ -237,7 +294,7 @@ mod tests {
     fn the_newer_valid_slot_is_in_force_with_its_calibration() {
         let a = SlotImage::build(&record(ID, 1), 4).unwrap();
         let b = SlotImage::build_v1(&record(ID, 2), 5).unwrap();
-        let boot = decide([Some(&a), Some(&b)], &ID, Arithmetic::F32).unwrap();
+        let boot = decide([Some(&a), Some(&b)], &ID, Arithmetic::F32, TempInputs::ALL).unwrap();
         let rec = record(ID, 2);
         assert_eq!(boot.crc, crate::record::crc32(&rec[..rec.len() - 4]));
         assert_eq!((boot.slot, boot.slot_version, boot.sequence), (1, 1, 5));
@@ -248,7 +305,7 @@ mod tests {
         let inv = model().invert().unwrap();
         assert_eq!(boot.cal, NodeCal::F32(inv.to_f32()));
         assert_eq!(boot.skipped, None);
-        let boot = decide([Some(&a), None], &ID, Arithmetic::Fixed).unwrap();
+        let boot = decide([Some(&a), None], &ID, Arithmetic::Fixed, TempInputs::ALL).unwrap();
         assert_eq!((boot.slot, boot.slot_version, boot.sequence), (0, 2, 4));
         assert_eq!(boot.cal, NodeCal::Fixed(inv.to_fixed().unwrap()));
         assert_eq!(boot.skipped, Some(SlotError::Unreadable));
@@ -257,7 +314,7 @@ mod tests {
     #[test]
     fn each_reason_for_no_record() {
         let erased = [0xffu8; SLOT_SIZE];
-        let no = |r: [SlotReading<'_>; 2]| decide(r, &ID, Arithmetic::F32).unwrap_err();
+        let no = |r: [SlotReading<'_>; 2]| decide(r, &ID, Arithmetic::F32, TempInputs::ALL).unwrap_err();
         assert_eq!(no([Some(&erased), Some(&erased)]), BootError::NoSlot(SlotError::NotCommitted));
         assert_eq!(no([None, Some(&erased)]), BootError::NoSlot(SlotError::Unreadable));
         assert_eq!(no([None, None]).fault(), RecordFault::NoSlot);
@@ -293,7 +350,7 @@ mod tests {
         assert_eq!(no([Some(&zero), None]).fault(), RecordFault::WrongDevice);
         // Next to a valid slot it is skipped, and named.
         let ok = SlotImage::build(&good, 0).unwrap();
-        let boot = decide([Some(&page), Some(&ok)], &ID, Arithmetic::F32).unwrap();
+        let boot = decide([Some(&page), Some(&ok)], &ID, Arithmetic::F32, TempInputs::ALL).unwrap();
         assert_eq!(boot.slot, 1);
         assert_eq!(boot.skipped, Some(SlotError::Record(RecordError::UnsupportedVersion(9))));
     }
@@ -302,8 +359,11 @@ mod tests {
     fn the_gate_refuses_what_a_node_refuses_and_passes_what_it_accepts() {
         let ok = Record::from_model4(ID, 1, &model());
         assert_eq!(gate(&ok), Ok(()));
-        assert!(accept(&ok, &ID, Arithmetic::F32).is_ok());
-        assert_eq!(accept(&ok, b"another-chip", Arithmetic::F32), Err(BootError::WrongDevice));
+        assert!(accept(&ok, &ID, Arithmetic::F32, TempInputs::MCU).is_ok());
+        assert_eq!(
+            accept(&ok, b"another-chip", Arithmetic::F32, TempInputs::ALL),
+            Err(BootError::WrongDevice)
+        );
         assert_eq!(gate(&Record::from_model4([0; 12], 1, &model())), Err(BootError::NoDeviceId));
         let mut five = ok;
         five.n_channels = 5;
@@ -319,8 +379,8 @@ mod tests {
         let mut tiny = model();
         tiny.k = [[1e-9, 0.0, 0.0], [0.0, 1e-9, 0.0], [0.0, 0.0, 1e-9]];
         let tiny = Record::from_model4(ID, 1, &tiny);
-        assert!(accept(&tiny, &ID, Arithmetic::F32).is_ok());
-        assert_eq!(accept(&tiny, &ID, Arithmetic::Fixed), Err(BootError::Singular));
+        assert!(accept(&tiny, &ID, Arithmetic::F32, TempInputs::ALL).is_ok());
+        assert_eq!(accept(&tiny, &ID, Arithmetic::Fixed, TempInputs::ALL), Err(BootError::Singular));
         assert_eq!(gate(&tiny), Err(BootError::Singular));
     }
 
@@ -338,16 +398,42 @@ mod tests {
             Some(Thermal { t_ref_c: 25.0, t_min_c: -10.0, t_max_c: 50.0, source: TempSource::FrontEnd });
         assert_eq!(gate(&r), Ok(()));
         let page = SlotImage::build(&bytes(&r), 3).unwrap();
-        let boot = decide([Some(&page), None], &ID, Arithmetic::F32).unwrap();
+        let boot = decide([Some(&page), None], &ID, Arithmetic::F32, TempInputs::FRONT_END).unwrap();
         let th = boot.thermal.expect("a thermal record carries its model");
         assert_eq!(boot.cal, NodeCal::F32(th.at(25.0).unwrap()));
         assert_eq!(th.thermal.source, TempSource::FrontEnd);
-        assert!(decide([Some(&page), None], &ID, Arithmetic::Fixed).is_ok());
+        assert!(decide([Some(&page), None], &ID, Arithmetic::Fixed, TempInputs::ALL).is_ok());
+        // A board without the record's input refuses it, in both arithmetics; the gate, which
+        // cannot know the board, passes it (above).
+        for arith in [Arithmetic::F32, Arithmetic::Fixed] {
+            let e = decide([Some(&page), None], &ID, arith, TempInputs::MCU).unwrap_err();
+            assert_eq!(e, BootError::NoTempInput(TempSource::FrontEnd));
+            assert_eq!(e.fault(), RecordFault::NoTempInput);
+            assert!(e.to_string().contains("`front-end`"), "{e}");
+        }
+        let mut mcu = r;
+        mcu.thermal.as_mut().unwrap().source = TempSource::Mcu;
+        assert_eq!(gate(&mcu), Ok(()));
+        assert!(accept(&mcu, &ID, Arithmetic::F32, TempInputs::MCU).is_ok());
+        assert_eq!(
+            accept(&mcu, &ID, Arithmetic::F32, TempInputs::FRONT_END),
+            Err(BootError::NoTempInput(TempSource::Mcu))
+        );
+        // Model 4 needs no temperature input at all.
+        let none = TempInputs { mcu: false, front_end: false };
+        assert!(accept(&Record::from_model4(ID, 1, &model()), &ID, Arithmetic::F32, none).is_ok());
+        // A record for another device is refused as such before its input is looked at.
+        assert_eq!(accept(&r, b"another-chip", Arithmetic::F32, none), Err(BootError::WrongDevice));
         // Model 4 boots without a thermal model.
         assert_eq!(
-            decide([Some(&SlotImage::build(&record(ID, 1), 1).unwrap()), None], &ID, Arithmetic::F32)
-                .unwrap()
-                .thermal,
+            decide(
+                [Some(&SlotImage::build(&record(ID, 1), 1).unwrap()), None],
+                &ID,
+                Arithmetic::F32,
+                TempInputs::ALL
+            )
+            .unwrap()
+            .thermal,
             None
         );
         // Thermal terms on a quadratic model are not what a node applies.

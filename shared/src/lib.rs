@@ -20,6 +20,7 @@ pub mod flash_ecc;
 pub mod frontend;
 pub mod kinematics;
 pub mod linear;
+pub mod mcu_temp;
 pub mod record;
 pub mod slots;
 pub mod terms;

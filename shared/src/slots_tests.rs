@@ -180,7 +180,8 @@ impl SlotFlash for SimFlash {
 /// The node's boot decision on the simulated flash: (slot, sequence, record bytes).
 fn boot(f: &SimFlash) -> Result<(u8, u32, std::vec::Vec<u8>), boot::BootError> {
     let (a, b) = (f.reading(0), f.reading(1));
-    let b = boot::decide([a.as_ref().map(|p| &p[..]), b.as_ref().map(|p| &p[..])], &ID, Arithmetic::F32)?;
+    let readings = [a.as_ref().map(|p| &p[..]), b.as_ref().map(|p| &p[..])];
+    let b = boot::decide(readings, &ID, Arithmetic::F32, boot::TempInputs::ALL)?;
     let mut buf = [0u8; MAX_RECORD_LEN];
     let n = b.record.emit(&mut buf).unwrap();
     Ok((b.slot, b.sequence, buf[..n].to_vec()))

@@ -11,9 +11,10 @@
 //!
 //! [`ThermalModel`] is the f64 reference the f32 evaluation is held to.
 
-use crate::linear::{LinearCal, LinearCalF32, LinearError, Model4};
+use crate::linear::{LinearCal, LinearCalF32, LinearCalFixed, LinearError, Model4};
 use crate::record::{Record, Thermal};
 use crate::terms::{Structure, BASIS, MODEL_4, T_INDEX};
+use crate::wire::{BlockTemp, Codes};
 
 /// Sample sets per temperature update: one stream block.
 pub const SETS_PER_UPDATE: usize = crate::wire::MAX_BLOCK;
@@ -65,6 +66,44 @@ impl ThermalModel {
             }
         }
         Some(m)
+    }
+
+    /// The record of this model for `device_id`, made at `created_unix_s`, with gravity `g_m_s2`:
+    /// model 4 with `t`, and with `t^2` and each `ax*t`, `ay*t`, `az*t` whose coefficient is not
+    /// zero on some channel ([`ThermalModel::of`] reads it back).
+    pub fn to_record(&self, device_id: [u8; 12], created_unix_s: u64, g_m_s2: f64) -> Record {
+        let mut idx: heapless::Vec<usize, 8> = heapless::Vec::new();
+        let _ = idx.extend_from_slice(&[1, 2, 3, T_INDEX]);
+        if self.bias.iter().any(|b| b[2] != 0.0) {
+            let _ = idx.push(T_INDEX + 1);
+        }
+        for axis in 0..3 {
+            if self.kt.iter().any(|r| r[axis] != 0.0) {
+                let _ = idx.push(T_INDEX + 2 + axis);
+            }
+        }
+        let structure = Structure::from_indices(&idx);
+        let mut r = Record {
+            device_id,
+            created_unix_s,
+            structure,
+            n_channels: 3,
+            coefficients: [[0.0; crate::terms::N_BASIS]; crate::record::MAX_CHANNELS],
+            g_m_s2: Some(g_m_s2),
+            thermal: Some(self.thermal),
+        };
+        for (n, i) in structure.indices().enumerate() {
+            for c in 0..3 {
+                r.coefficients[c][n] = match i {
+                    0 => self.bias[c][0],
+                    1..=3 => self.k[c][i - 1],
+                    _ if i == T_INDEX => self.bias[c][1],
+                    _ if i == T_INDEX + 1 => self.bias[c][2],
+                    _ => self.kt[c][i - T_INDEX - 2],
+                };
+            }
+        }
+        r
     }
 
     /// The model-4 calibration at temperature `temp_c` (°C), in f64.
@@ -130,14 +169,13 @@ impl ThermalCalF32 {
     /// determinant) in f32. Fails when `K(t)` is singular or badly conditioned there.
     pub fn at(&self, temp_c: f32) -> Result<LinearCalF32, LinearError> {
         let t = temp_c - self.thermal.t_ref_c;
-        let mut u0 = [0.0f32; 3];
-        let mut k = [[0.0f32; 3]; 3];
-        for i in 0..3 {
-            u0[i] = self.bias[i][0] + t * (self.bias[i][1] + t * self.bias[i][2]);
-            for j in 0..3 {
-                k[i][j] = self.k[i][j] + self.kt[i][j] * t;
-            }
-        }
+        // Written out element by element (the node runs this once per block; loops here cost
+        // their counters): the same operations, in the same order, as the loops they replace.
+        let (b, k0, kt) = (&self.bias, &self.k, &self.kt);
+        let u = |i: usize| b[i][0] + t * (b[i][1] + t * b[i][2]);
+        let u0 = [u(0), u(1), u(2)];
+        let row = |i: usize| [k0[i][0] + kt[i][0] * t, k0[i][1] + kt[i][1] * t, k0[i][2] + kt[i][2] * t];
+        let k = [row(0), row(1), row(2)];
         let cof = |r0: usize, r1: usize, c0: usize, c1: usize| k[r0][c0] * k[r1][c1] - k[r0][c1] * k[r1][c0];
         // Adjugate: m[j][i] = cofactor(i, j).
         let adj = [
@@ -146,18 +184,23 @@ impl ThermalCalF32 {
             [cof(1, 2, 0, 1), -cof(0, 2, 0, 1), cof(0, 1, 0, 1)],
         ];
         let det = k[0][0] * adj[0][0] + k[0][1] * adj[1][0] + k[0][2] * adj[2][0];
-        // Reciprocal condition in the 1-norm, as Model4::invert checks it.
+        // Reciprocal condition in the 1-norm, as Model4::invert checks it. Written out (the
+        // node runs this once per block): a NaN anywhere fails the finiteness check below.
         let norm1 = |m: &[[f32; 3]; 3]| {
-            (0..3).map(|j| (0..3).map(|i| libm::fabsf(m[i][j])).sum::<f32>()).fold(0.0f32, f32::max)
-        };
-        let mut m = [[0.0f32; 3]; 3];
-        for i in 0..3 {
-            for j in 0..3 {
-                m[i][j] = adj[i][j] / det;
+            let col = |j: usize| libm::fabsf(m[0][j]) + libm::fabsf(m[1][j]) + libm::fabsf(m[2][j]);
+            let (a, b, c) = (col(0), col(1), col(2));
+            let ab = if a > b { a } else { b };
+            if ab > c {
+                ab
+            } else {
+                c
             }
-        }
+        };
+        let div = |r: [f32; 3]| [r[0] / det, r[1] / det, r[2] / det];
+        let m = [div(adj[0]), div(adj[1]), div(adj[2])];
         let rcond = 1.0 / (norm1(&k) * norm1(&m));
-        let finite = m.iter().flatten().chain(u0.iter()).all(|v| v.is_finite());
+        let fin = |r: &[f32; 3]| r[0].is_finite() && r[1].is_finite() && r[2].is_finite();
+        let finite = fin(&m[0]) && fin(&m[1]) && fin(&m[2]) && fin(&u0);
         if !(rcond > 1e-6) || !finite {
             return Err(LinearError::Singular);
         }
@@ -215,16 +258,26 @@ pub struct ThermalTracker {
     n: usize,
     cal: LinearCalF32,
     failed: bool,
+    evaluations: u32,
 }
 
 impl ThermalTracker {
     /// A tracker of `model`, applying `start` (the model at its reference temperature, which the
     /// record gate checked) until the first set's temperature arrives.
     pub fn new(model: ThermalCalF32, start: LinearCalF32) -> ThermalTracker {
-        ThermalTracker { model, filter: TempFilter::default(), sum: 0.0, n: 0, cal: start, failed: false }
+        ThermalTracker {
+            model,
+            filter: TempFilter::default(),
+            sum: 0.0,
+            n: 0,
+            cal: start,
+            failed: false,
+            evaluations: 0,
+        }
     }
 
     fn evaluate(&mut self, temp_c: f32) {
+        self.evaluations = self.evaluations.wrapping_add(1);
         match self.model.at(temp_c) {
             Ok(c) => {
                 self.cal = c;
@@ -268,6 +321,137 @@ impl ThermalTracker {
     /// The model.
     pub fn model(&self) -> &ThermalCalF32 {
         &self.model
+    }
+
+    /// How many times the calibration was evaluated (wrapping): it changes exactly when
+    /// [`ThermalTracker::on_set`] re-evaluated the calibration.
+    pub fn evaluations(&self) -> u32 {
+        self.evaluations
+    }
+
+    /// The node's thermal hot path, f32: calibrates `codes` pairwise into `out`, each set with
+    /// the calibration [`ThermalTracker::on_set`] returns for its temperature in `temp_c` (sets
+    /// without a temperature or an output slot are left alone). Returns whether a set of the block
+    /// was calibrated with a flagged calibration ([`ThermalTracker::out_of_range`]).
+    ///
+    /// The result is exactly that of calling `on_set` set by set (tested), computed in runs: the
+    /// sets up to the next re-evaluation share one calibration, which the run keeps in registers
+    /// while it adds the sets' temperatures to the block sum in order, so a set costs model 4's
+    /// arithmetic and one addition. The firmware and a host replay run this same function, so
+    /// their outputs agree bit for bit. The flag is exact for blocks of at most
+    /// [`SETS_PER_UPDATE`] sets (the node's blocks): the calibration changes at most once within
+    /// such a block, so the first set's state and the last set's state are the only two the
+    /// block's sets were calibrated with.
+    #[inline(always)]
+    pub fn apply_block(&mut self, codes: &[Codes], temp_c: &[f32], out: &mut [[f32; 3]]) -> bool {
+        let n = codes.len().min(temp_c.len()).min(out.len());
+        let (codes, temp_c, out) = (&codes[..n], &temp_c[..n], &mut out[..n]);
+        let mut first = None;
+        let mut i = 0;
+        while i < n {
+            if self.filter.value().is_none() || self.n + 1 == SETS_PER_UPDATE {
+                // This set re-evaluates the calibration and is calibrated with the new one.
+                out[i] = self.on_set(temp_c[i]).apply(codes[i]);
+                i += 1;
+            } else {
+                // The sets before the next re-evaluation: one calibration, the sum in order.
+                let k = (SETS_PER_UPDATE - 1 - self.n).min(n - i);
+                let cal = self.cal;
+                let mut sum = self.sum;
+                for ((u, &t), a) in codes[i..i + k].iter().zip(&temp_c[i..i + k]).zip(&mut out[i..i + k]) {
+                    sum += t;
+                    *a = cal.apply(*u);
+                }
+                self.sum = sum;
+                self.n += k;
+                i += k;
+            }
+            if first.is_none() {
+                first = Some(self.out_of_range());
+            }
+        }
+        first.is_some_and(|f| f || self.out_of_range())
+    }
+
+    /// The block's temperature report: the mean of `temp_c` (the block's sets' temperatures), and,
+    /// when the tracker's calibration was applied to the block, the temperature it was evaluated
+    /// at and `flagged` ([`ThermalTracker::apply_block`]'s result). `None` for an empty block.
+    pub fn block_temp(temp_c: &[f32], applied: Option<(&ThermalTracker, bool)>) -> Option<BlockTemp> {
+        let mean_c = block_mean(temp_c)?;
+        Some(match applied {
+            Some((tr, flagged)) => BlockTemp { mean_c, applied_c: tr.applied_c(), out_of_range: flagged },
+            None => BlockTemp { mean_c, applied_c: None, out_of_range: false },
+        })
+    }
+}
+
+/// Mean of a block's temperatures, f32, summed in order (`None` for no temperature).
+pub fn block_mean(temp_c: &[f32]) -> Option<f32> {
+    if temp_c.is_empty() {
+        return None;
+    }
+    Some(temp_c.iter().sum::<f32>() / temp_c.len() as f32)
+}
+
+/// A [`ThermalTracker`] for the fixed-point build: the tracker's f32 calibration, re-quantised
+/// ([`LinearCal::to_fixed`]) each time the tracker re-evaluates it. Where it does not fit fixed
+/// point the last fixed calibration stays and the output is flagged.
+#[derive(Clone, Copy, Debug)]
+pub struct ThermalTrackerFixed {
+    tracker: ThermalTracker,
+    fixed: LinearCalFixed,
+    seen: u32,
+    failed: bool,
+}
+
+impl ThermalTrackerFixed {
+    /// A tracker of `model`, applying `start` (the model at its reference temperature in fixed
+    /// point, which the record gate checked) until the first set's temperature arrives.
+    pub fn new(model: ThermalCalF32, start: LinearCalFixed) -> ThermalTrackerFixed {
+        let tracker = ThermalTracker::new(model, LinearCalF32 { u0: [0.0; 3], m: [[0.0; 3]; 3] });
+        ThermalTrackerFixed { tracker, fixed: start, seen: 0, failed: false }
+    }
+
+    /// The fixed-point calibration for the next set at `temp_c` (see [`ThermalTracker::on_set`]).
+    #[inline]
+    pub fn on_set(&mut self, temp_c: f32) -> &LinearCalFixed {
+        let c = *self.tracker.on_set(temp_c);
+        if self.tracker.evaluations() != self.seen {
+            self.seen = self.tracker.evaluations();
+            let wide = LinearCal { u0: c.u0.map(|v| v as f64), m: c.m.map(|r| r.map(|v| v as f64)) };
+            match wide.to_fixed() {
+                Ok(f) => {
+                    self.fixed = f;
+                    self.failed = false;
+                }
+                Err(_) => self.failed = true,
+            }
+        }
+        &self.fixed
+    }
+
+    /// [`ThermalTracker::apply_block`] in fixed point (output m/s²·2¹⁶).
+    #[inline(always)]
+    pub fn apply_block(&mut self, codes: &[Codes], temp_c: &[f32], out: &mut [[i32; 3]]) -> bool {
+        let mut sets = codes.iter().zip(temp_c).zip(out.iter_mut());
+        let Some(((u, &t), a)) = sets.next() else { return false };
+        *a = self.on_set(t).apply(*u);
+        let first = self.out_of_range();
+        for ((u, &t), a) in sets {
+            *a = self.on_set(t).apply(*u);
+        }
+        first || self.out_of_range()
+    }
+
+    /// See [`ThermalTracker::out_of_range`]; also set while the calibration does not fit fixed
+    /// point.
+    pub fn out_of_range(&self) -> bool {
+        self.failed || self.tracker.out_of_range()
+    }
+
+    /// The f32 tracker underneath.
+    pub fn tracker(&self) -> &ThermalTracker {
+        &self.tracker
     }
 }
 
@@ -317,6 +501,15 @@ mod tests {
         let mut quad = record();
         quad.structure = Structure::from_indices(&[1, 2, 3, 4, 20]);
         assert_eq!(ThermalModel::of(&quad), None);
+        // The record of a model reads back as the model, with the terms it uses.
+        let back = m.to_record(*b"QEMU-B-L475E", 1, 9.81);
+        assert_eq!(back, record());
+        let mut lin = m;
+        lin.bias[0][2] = 0.0;
+        lin.kt[2][2] = 0.0;
+        let r = lin.to_record(*b"QEMU-B-L475E", 1, 9.81);
+        assert_eq!(r.structure, Structure::from_indices(&[1, 2, 3, 20, 22, 23]));
+        assert_eq!(ThermalModel::of(&r), Some(lin));
     }
 
     #[test]
@@ -369,6 +562,71 @@ mod tests {
             tr.on_set(60.0);
         }
         assert!(tr.out_of_range() && tr.applied_c().unwrap() > 59.9);
+    }
+
+    #[test]
+    fn a_block_is_calibrated_set_by_set_and_flagged_when_any_set_was() {
+        let m = ThermalModel::of(&record()).unwrap().to_f32();
+        let start = m.at(25.0).unwrap();
+        let (mut block, mut single) = (ThermalTracker::new(m, start), ThermalTracker::new(m, start));
+        let codes: std::vec::Vec<Codes> = (0..40u16).map(|i| [32000 + i, 33000, 31000 - i]).collect();
+        // A ramp that leaves the range (50 °C) during the third block.
+        let temps: std::vec::Vec<f32> = (0..40).map(|i| 20.0 + 5.0 * i as f32).collect();
+        let mut out = [[0.0f32; 3]; 40];
+        let mut flags = std::vec::Vec::new();
+        for ((c, t), o) in codes.chunks(16).zip(temps.chunks(16)).zip(out.chunks_mut(16)) {
+            flags.push(block.apply_block(c, t, o));
+            let b = ThermalTracker::block_temp(t, Some((&block, *flags.last().unwrap()))).unwrap();
+            assert_eq!(b.mean_c, block_mean(t).unwrap());
+            assert_eq!(b.applied_c, block.applied_c());
+        }
+        for i in 0..40 {
+            assert_eq!(out[i], single.on_set(temps[i]).apply(codes[i]), "set {i}");
+        }
+        // Blocks of any length give what set-by-set calibration gives, the block sums included.
+        let (mut runs, mut sets) = (ThermalTracker::new(m, start), ThermalTracker::new(m, start));
+        let mut at = 0;
+        for (k, len) in
+            [1usize, 15, 16, 3, 16, 7, 16, 16, 9, 1, 0, 16].into_iter().cycle().take(60).enumerate()
+        {
+            let t: std::vec::Vec<f32> = (at..at + len).map(|i| 20.0 + 0.37 * (i % 50) as f32).collect();
+            let c: std::vec::Vec<Codes> =
+                (at..at + len).map(|i| [i as u16, 65535 - i as u16, 32768]).collect();
+            let mut o = std::vec![[0.0f32; 3]; len];
+            runs.apply_block(&c, &t, &mut o);
+            for j in 0..len {
+                assert_eq!(o[j], sets.on_set(t[j]).apply(c[j]), "block {k} set {j}");
+            }
+            assert_eq!(
+                (runs.sum, runs.n, runs.applied_c()),
+                (sets.sum, sets.n, sets.applied_c()),
+                "block {k}"
+            );
+            at += len;
+        }
+        // Evaluated at 20, then at 20 + 0.25·(62.5 − 20) = 30.625, then at 58.6, past 50.
+        assert_eq!(flags, [false, false, true]);
+        assert!(!block.apply_block(&[], &[], &mut []));
+        assert_eq!(ThermalTracker::block_temp(&[], None), None);
+        let b = ThermalTracker::block_temp(&[20.0, 21.0], None).unwrap();
+        assert_eq!(b, BlockTemp { mean_c: 20.5, applied_c: None, out_of_range: false });
+    }
+
+    #[test]
+    fn the_fixed_point_tracker_requantises_what_the_f32_tracker_evaluates() {
+        let m = ThermalModel::of(&record()).unwrap().to_f32();
+        let start = m.at_wide(25.0).unwrap().to_fixed().unwrap();
+        let mut fx = ThermalTrackerFixed::new(m, start);
+        let mut f = ThermalTracker::new(m, m.at(25.0).unwrap());
+        for i in 0..100 {
+            let t = 10.0 + 0.3 * i as f32;
+            let c = *f.on_set(t);
+            let wide = LinearCal { u0: c.u0.map(|v| v as f64), m: c.m.map(|r| r.map(|v| v as f64)) };
+            assert_eq!(*fx.on_set(t), wide.to_fixed().unwrap(), "set {i}");
+            assert_eq!(fx.out_of_range(), f.out_of_range());
+            assert_eq!(fx.tracker().applied_c(), f.applied_c());
+        }
+        assert_eq!(f.evaluations(), 1 + 99 / SETS_PER_UPDATE as u32);
     }
 
     #[test]

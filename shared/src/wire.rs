@@ -26,7 +26,9 @@ use serde::{Deserialize, Serialize};
 /// [`Block::Raw`] were added.
 ///
 /// Version 4: [`NodeMsg::Samples`] carries `temp`, the temperature read with the block and the
-/// one a thermal record was applied at ([`BlockTemp`]).
+/// one a thermal record was applied at ([`BlockTemp`]); [`HostMsg::Replay`] carries each set's
+/// temperature ([`ReplayTemp`]) and [`NodeMsg::Replayed`] the block's [`BlockTemp`];
+/// [`RecordFault::NoTempInput`] was added.
 pub const PROTOCOL_VERSION: u8 = 4;
 
 /// The temperature of a block of live samples.
@@ -84,15 +86,16 @@ pub const DEFAULT_RATE_HZ: u32 = 1000;
 pub const LINK_RX_RING: usize = 2048;
 
 /// Longest frame of any [`HostMsg`], with the single `0x00` a sender may put in front of it to
-/// resynchronise the receiver: a [`HostMsg::Replay`] of [`MAX_BLOCK`] sets is 1 (variant) +
-/// 5 (seq) + 1 (length) + 16·3·3 (u16 varints) = 151 bytes, + 1 COBS + 1 terminator + 1 leading
-/// zero (tested).
-pub const MAX_REQUEST_FRAME: usize = 154;
+/// resynchronise the receiver: a [`HostMsg::Replay`] of [`MAX_BLOCK`] sets with their
+/// temperatures is 1 (variant) + 5 (seq) + 1 (length) + 16·3·3 (u16 varints) + 1 (`Some`) +
+/// 1 (`restart`) + 1 (length) + 16·4 (f32) = 218 bytes, + 1 COBS + 1 terminator + 1 leading zero
+/// (tested).
+pub const MAX_REQUEST_FRAME: usize = 221;
 
 /// Requests ([`HostMsg`]) the host may send before the node has answered them (flow control).
 ///
 /// The bytes of a request leave the node's receive ring before its answer is produced, so the
-/// ring never holds more than the unanswered requests: 13 × 154 = 2002 bytes ≤
+/// ring never holds more than the unanswered requests: 9 × 221 = 1989 bytes ≤
 /// [`LINK_RX_RING`]. Every request is answered: `GetStatus` by a status, `Replay` by `Replayed`,
 /// `SetRate` by `RateSet` or `Refused`; frames that do not decode are not answered, so a host
 /// that sends one counts it as answered.
@@ -102,7 +105,7 @@ const _: () = assert!(MAX_REQUESTS_IN_FLIGHT * MAX_REQUEST_FRAME <= LINK_RX_RING
 const _: () = assert!(MAX_REQUESTS_IN_FLIGHT >= 8, "enough requests in flight to keep the node busy");
 
 /// What the host sends to the node.
-#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub enum HostMsg {
     /// Ask for a [`NodeMsg::Status`] now.
     GetStatus,
@@ -113,6 +116,10 @@ pub enum HostMsg {
         seq: u32,
         /// Raw code sets, x, y, z.
         codes: Vec<Codes, MAX_BLOCK>,
+        /// The sets' temperatures, for a record with thermal terms; `None` replays a thermal
+        /// record at its reference temperature (the calibration a node applies before it has
+        /// read a temperature).
+        temp: Option<ReplayTemp>,
     },
     /// Set the live sampling rate per channel to `hz`; the node answers [`NodeMsg::RateSet`] with
     /// its new status, or [`NodeMsg::Refused`] when `hz` is outside
@@ -126,6 +133,22 @@ pub enum HostMsg {
     /// Stream live samples calibrated or raw; the node answers [`NodeMsg::OutputSet`] with its
     /// status (in which `output` says what it now streams).
     SetOutput(Output),
+}
+
+/// The temperatures of a [`HostMsg::Replay`]'s sets.
+///
+/// The node replays a thermal record as it applies it live, with a
+/// [`crate::thermal::ThermalTracker`] fed each set's temperature in order; its replay tracker is
+/// its own (the live stream's is untouched), started afresh by a request with `restart` and kept
+/// from one request to the next otherwise, so a host that sends a run's blocks in order, the first
+/// with `restart`, reproduces the node's output bit for bit with a tracker of its own.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ReplayTemp {
+    /// Start a fresh tracker with this request (the first request of a replay run).
+    pub restart: bool,
+    /// Temperature of each set, °C, one per code set (the node calibrates only the sets that have
+    /// one).
+    pub temp_c: Vec<f32, MAX_BLOCK>,
 }
 
 /// What the node streams as live samples.
@@ -223,6 +246,10 @@ pub enum RecordFault {
     NotModel4,
     /// The record's sensitivity matrix cannot be inverted (or does not fit fixed point).
     Singular,
+    /// The record's thermal terms read a temperature input the node's board does not have
+    /// ([`crate::boot::TempInputs`]: the real board has the MCU's sensor, the QEMU board the
+    /// front end's channel).
+    NoTempInput,
 }
 
 /// The calibration record the node uses, or why it has none.
@@ -380,6 +407,9 @@ pub enum NodeMsg {
         seq: u32,
         /// The request's code sets, calibrated (or flagged uncalibrated).
         data: Block,
+        /// With the request's temperatures: the block's temperature as in live samples
+        /// ([`BlockTemp`]; `applied_c` from the replay tracker when a thermal record is in force).
+        temp: Option<BlockTemp>,
     },
     /// The answer to an accepted [`HostMsg::SetRate`]: the status with the new rate.
     RateSet(Status),
@@ -436,6 +466,10 @@ impl core::fmt::Display for RecordFault {
             ),
             RecordFault::Singular => f.write_str(
                 "Singular: the record's sensitivity matrix cannot be inverted (or does not fit the fixed-point build)",
+            ),
+            RecordFault::NoTempInput => f.write_str(
+                "NoTempInput: the record's thermal terms read a temperature input this board does not have \
+                 (the real board reads the MCU's sensor, the QEMU board the front end's channel)",
             ),
         }
     }
@@ -584,26 +618,40 @@ mod tests {
         // Replay = variant 1, seq 300 = varint [0xac, 0x02], 2 sets, u16 varints:
         // 1 → [0x01], 2 → [0x02], 0x8000 → [0x80, 0x80, 0x02], then 0, 65535 → [0xff, 0xff, 0x03], 7.
         let raw: &[u8] =
-            &[0x01, 0xac, 0x02, 0x02, 0x01, 0x02, 0x80, 0x80, 0x02, 0x00, 0xff, 0xff, 0x03, 0x07];
-        let msg = HostMsg::Replay { seq: 300, codes: codes(&[[1, 2, 0x8000], [0, 65535, 7]]) };
+            &[0x01, 0xac, 0x02, 0x02, 0x01, 0x02, 0x80, 0x80, 0x02, 0x00, 0xff, 0xff, 0x03, 0x07, 0x00];
+        let msg = HostMsg::Replay { seq: 300, codes: codes(&[[1, 2, 0x8000], [0, 65535, 7]]), temp: None };
         assert_eq!(postcard::to_slice(&msg, &mut [0u8; 64]).unwrap(), raw);
-        // COBS: the zero at offset 9 splits the body into 9 + 4 non-zero bytes.
-        let framed: &[u8] =
-            &[0x0a, 0x01, 0xac, 0x02, 0x02, 0x01, 0x02, 0x80, 0x80, 0x02, 0x05, 0xff, 0xff, 0x03, 0x07, 0x00];
+        // (then `None` temperatures: [0x00])
+        // COBS: the zeros at offsets 9 and 14 split the body into 9 + 4 + 0 non-zero bytes.
+        let framed: &[u8] = &[
+            0x0a, 0x01, 0xac, 0x02, 0x02, 0x01, 0x02, 0x80, 0x80, 0x02, 0x05, 0xff, 0xff, 0x03, 0x07, 0x01,
+            0x00,
+        ];
         let mut buf = [0u8; MAX_FRAME];
         assert_eq!(encode(&msg, &mut buf).unwrap(), framed);
         assert_eq!(decode_all::<HostMsg>(framed), vec![Ok(msg)]);
+        // With temperatures: Some = [0x01], restart = [0x01], 1 temperature, f32 LE 25.5.
+        let temp = ReplayTemp { restart: true, temp_c: Vec::from_slice(&[25.5]).unwrap() };
+        let msg = HostMsg::Replay { seq: 1, codes: codes(&[[1, 2, 3]]), temp: Some(temp) };
+        let raw: &[u8] = &[0x01, 0x01, 0x01, 0x01, 0x02, 0x03, 0x01, 0x01, 0x01, 0x00, 0x00, 0xcc, 0x41];
+        assert_eq!(postcard::to_slice(&msg, &mut [0u8; 64]).unwrap(), raw);
+        let frame = encode(&msg, &mut buf).unwrap().to_vec();
+        assert_eq!(decode_all::<HostMsg>(&frame), vec![Ok(msg)]);
     }
 
     #[test]
     fn replayed_answer_literal_bytes() {
         // Replayed = variant 2, seq 5, Calibrated = variant 0, 1 set of f32 LE: 1.0, -2.5, 0.0.
+        // Then the temperature: None = [0x00].
         let msg = NodeMsg::Replayed {
             seq: 5,
             data: Block::Calibrated(Vec::from_slice(&[[1.0, -2.5, 0.0]]).unwrap()),
+            temp: None,
         };
-        let raw: &[u8] =
-            &[0x02, 0x05, 0x00, 0x01, 0x00, 0x00, 0x80, 0x3f, 0x00, 0x00, 0x20, 0xc0, 0x00, 0x00, 0x00, 0x00];
+        let raw: &[u8] = &[
+            0x02, 0x05, 0x00, 0x01, 0x00, 0x00, 0x80, 0x3f, 0x00, 0x00, 0x20, 0xc0, 0x00, 0x00, 0x00, 0x00,
+            0x00,
+        ];
         assert_eq!(postcard::to_slice(&msg, &mut [0u8; 64]).unwrap(), raw);
         let mut buf = [0u8; MAX_FRAME];
         let frame = encode(&msg, &mut buf).unwrap().to_vec();
@@ -684,7 +732,7 @@ mod tests {
             trigger_mismatch: false,
             output: Output::Calibrated,
         };
-        let raw: &[u8] = &[0x03, 3, 0x01, 0x00, 0, 0, 0xfa, 0x01, 0, 0x07, 0x00, 0x00];
+        let raw: &[u8] = &[0x03, PROTOCOL_VERSION, 0x01, 0x00, 0, 0, 0xfa, 0x01, 0, 0x07, 0x00, 0x00];
         assert_eq!(postcard::to_slice(&NodeMsg::RateSet(status), &mut [0u8; 32]).unwrap(), raw);
         let frame = encode(&NodeMsg::RateSet(status), &mut buf).unwrap().to_vec();
         assert_eq!(decode_all::<NodeMsg>(&frame), vec![Ok(NodeMsg::RateSet(status))]);
@@ -723,7 +771,9 @@ mod tests {
     #[test]
     fn every_request_fits_max_request_frame_and_the_ring_holds_the_requests_in_flight() {
         let mut buf = [0u8; MAX_FRAME];
-        let largest = HostMsg::Replay { seq: u32::MAX, codes: codes(&[[65535; 3]; MAX_BLOCK]) };
+        let temp =
+            || Some(ReplayTemp { restart: true, temp_c: Vec::from_slice(&[f32::MAX; MAX_BLOCK]).unwrap() });
+        let largest = HostMsg::Replay { seq: u32::MAX, codes: codes(&[[65535; 3]; MAX_BLOCK]), temp: temp() };
         for m in [
             largest,
             HostMsg::GetStatus,
@@ -735,11 +785,14 @@ mod tests {
             let n = encode(&m, &mut buf).unwrap().len() + 1;
             assert!(n <= MAX_REQUEST_FRAME, "{m:?}: {n} bytes");
         }
-        let n = encode(&HostMsg::Replay { seq: u32::MAX, codes: codes(&[[65535; 3]; MAX_BLOCK]) }, &mut buf)
-            .unwrap()
-            .len();
+        let n = encode(
+            &HostMsg::Replay { seq: u32::MAX, codes: codes(&[[65535; 3]; MAX_BLOCK]), temp: temp() },
+            &mut buf,
+        )
+        .unwrap()
+        .len();
         assert_eq!(n + 1, MAX_REQUEST_FRAME, "the bound is tight");
-        assert_eq!(MAX_REQUESTS_IN_FLIGHT, 13);
+        assert_eq!(MAX_REQUESTS_IN_FLIGHT, 9);
     }
 
     #[test]
@@ -788,7 +841,7 @@ mod tests {
 
     #[test]
     fn frames_split_across_pushes_decode() {
-        let msg = HostMsg::Replay { seq: 9, codes: codes(&[[10, 20, 30]; 16]) };
+        let msg = HostMsg::Replay { seq: 9, codes: codes(&[[10, 20, 30]; 16]), temp: None };
         let mut buf = [0u8; MAX_FRAME];
         let frame = encode(&msg, &mut buf).unwrap().to_vec();
         let mut d = FrameDecoder::<MAX_FRAME>::new();

@@ -4,7 +4,8 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use accelcal_shared::record::{Record, MAX_RECORD_LEN};
+use accelcal_shared::record::{Record, TempSource, Thermal, MAX_RECORD_LEN};
+use accelcal_shared::thermal::ThermalModel;
 
 /// The node's QEMU build: `ACCELCAL_NODE_QEMU_ELF`, else the firmware's release target directory.
 /// Fails, naming the command that provides it, when the ELF or `qemu-system-arm` with the
@@ -45,4 +46,18 @@ pub fn record_bytes(r: &Record) -> Vec<u8> {
     let mut buf = [0u8; MAX_RECORD_LEN];
     let n = r.emit(&mut buf).unwrap();
     buf[..n].to_vec()
+}
+
+/// The thermal model the QEMU tests load (`hil.rs`, `live.rs`): model 4 of a plausible triad with
+/// `t` (3 codes/°C of bias on each channel) and `ax*t`, `ay*t`, `az*t` (100 ppm/°C of each
+/// sensitivity, the unit), read from the front end, calibrated over −10..50 °C.
+#[allow(dead_code)] // not every test binary loads it
+pub fn thermal_model() -> ThermalModel {
+    let k = [[1671.2, 8.5, -3.25], [-4.0, 1650.75, 6.5], [2.5, -7.75, 1689.0]];
+    ThermalModel {
+        thermal: Thermal { t_ref_c: 25.0, t_min_c: -10.0, t_max_c: 50.0, source: TempSource::FrontEnd },
+        bias: [[32100.5, 3.0, 0.0], [33012.25, 3.0, 0.0], [31877.75, 3.0, 0.0]],
+        k,
+        kt: k.map(|r| r.map(|v| v * 1e-4)),
+    }
 }

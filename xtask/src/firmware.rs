@@ -10,9 +10,12 @@ use std::time::{Duration, Instant};
 
 use accelcal_shared::contract;
 use accelcal_shared::linear::Model4;
-use accelcal_shared::record::{Record, MAX_RECORD_LEN};
+use accelcal_shared::record::{Record, TempSource, Thermal, MAX_RECORD_LEN};
 use accelcal_shared::slots::SlotImage;
-use accelcal_shared::wire::{self, Block, FrameDecoder, HostMsg, NodeMsg, RecordStatus, MAX_FRAME};
+use accelcal_shared::thermal::ThermalModel;
+use accelcal_shared::wire::{
+    self, Block, FrameDecoder, HostMsg, NodeMsg, RecordStatus, ReplayTemp, MAX_FRAME,
+};
 use anyhow::{bail, ensure, Context};
 use object::{Object, ObjectSection, ObjectSymbol, SectionKind};
 
@@ -31,6 +34,8 @@ const RAM_BUDGET: u64 = 16 * 1024;
 const HOT_PATH: &str = "calibrate_block_f32";
 /// The fixed-point build's hot path.
 const HOT_PATH_FIXED: &str = "calibrate_block_fixed";
+/// The hot path with a thermal record (firmware/src/app/calib.rs).
+const HOT_PATH_THERMAL: &str = "calibrate_block_thermal_f32";
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
@@ -208,13 +213,82 @@ fn symbol_range(path: &Path, name: &str) -> anyhow::Result<std::ops::Range<u64>>
     Ok(start..start + sym.size())
 }
 
-/// The record the benchmark loads: a plausible triad (codes per m/s² ≈ 1670, mid-scale offsets).
-fn bench_record() -> anyhow::Result<Vec<u8>> {
-    let m = Model4 {
+/// The address ranges of function `name` and of every function it calls, directly or not: the
+/// targets of the Thumb-2 `BL` instructions in their code that are the start of a function symbol
+/// (a literal-pool word that happens to decode as `BL` is passed over unless it lands on one).
+/// The first range is `name`'s.
+fn call_tree(path: &Path, name: &str) -> anyhow::Result<Vec<(String, std::ops::Range<u64>)>> {
+    let data = std::fs::read(path)?;
+    let file = object::File::parse(&*data)?;
+    let functions: std::collections::BTreeMap<u64, (String, u64)> = file
+        .symbols()
+        .filter(|s| s.kind() == object::SymbolKind::Text && s.size() > 0)
+        .filter_map(|s| Some((s.address() & !1, (s.name().ok()?.to_string(), s.size()))))
+        .collect();
+    let root = symbol_range(path, name)?;
+    let mut todo = vec![(name.to_string(), root)];
+    let mut done: Vec<(String, std::ops::Range<u64>)> = Vec::new();
+    while let Some((n, range)) = todo.pop() {
+        if done.iter().any(|(_, r)| r.start == range.start) {
+            continue;
+        }
+        let section = file
+            .sections()
+            .find(|s| s.address() <= range.start && range.end <= s.address() + s.size())
+            .with_context(|| format!("{n}: not in a section"))?;
+        let bytes = section.data()?;
+        let code =
+            &bytes[(range.start - section.address()) as usize..(range.end - section.address()) as usize];
+        let hw = |i: usize| code.get(i..i + 2).map(|b| u16::from_le_bytes([b[0], b[1]]) as u32);
+        let mut i = 0;
+        while let Some(h1) = hw(i) {
+            if h1 >> 11 < 0b11101 {
+                i += 2;
+                continue;
+            }
+            let h2 = hw(i + 2).unwrap_or(0);
+            if h1 >> 11 == 0b11110 && h2 >> 14 == 0b11 && (h2 >> 12) & 1 == 1 {
+                let s = (h1 >> 10) & 1;
+                let i1 = !(((h2 >> 13) & 1) ^ s) & 1;
+                let i2 = !(((h2 >> 11) & 1) ^ s) & 1;
+                let imm = (s << 24) | (i1 << 23) | (i2 << 22) | ((h1 & 0x3ff) << 12) | ((h2 & 0x7ff) << 1);
+                let offset = ((imm << 7) as i32 >> 7) as i64;
+                let target = (range.start as i64 + i as i64 + 4 + offset) as u64;
+                if let Some((callee, size)) = functions.get(&target) {
+                    todo.push((callee.clone(), target..target + size));
+                }
+            }
+            i += 4;
+        }
+        done.push((n, range));
+    }
+    Ok(done)
+}
+
+/// The benchmark's triad: plausible (codes per m/s² ≈ 1670, mid-scale offsets).
+fn bench_model() -> Model4 {
+    Model4 {
         u0: [32100.5, 33012.25, 31877.75],
         k: [[1671.2, 8.5, -3.25], [-4.0, 1650.75, 6.5], [2.5, -7.75, 1689.0]],
+    }
+}
+
+/// The record the benchmark loads: the triad as model 4, or with thermal terms (`t` and each
+/// axis's `·t`: 3 codes/°C of bias and 100 ppm/°C of sensitivity, the unit), read from
+/// the QEMU board's front end over −10..50 °C.
+fn bench_record(thermal: bool) -> anyhow::Result<Vec<u8>> {
+    let m = bench_model();
+    let r = if thermal {
+        let th = ThermalModel {
+            thermal: Thermal { t_ref_c: 25.0, t_min_c: -10.0, t_max_c: 50.0, source: TempSource::FrontEnd },
+            bias: m.u0.map(|b| [b, 3.0, 0.0]),
+            k: m.k,
+            kt: m.k.map(|r| r.map(|v| v * 1e-4)),
+        };
+        th.to_record(contract::QEMU_DEVICE_ID, 1_800_000_000, 9.81)
+    } else {
+        Record::from_model4(contract::QEMU_DEVICE_ID, 1_800_000_000, &m)
     };
-    let r = Record::from_model4(contract::QEMU_DEVICE_ID, 1_800_000_000, &m);
     let mut buf = [0u8; MAX_RECORD_LEN];
     let n = r.emit(&mut buf).map_err(|e| anyhow::anyhow!("{e}"))?;
     Ok(buf[..n].to_vec())
@@ -236,17 +310,22 @@ fn frame(msg: &HostMsg) -> anyhow::Result<Vec<u8>> {
     Ok(out)
 }
 
-/// Boots the QEMU node with instruction tracing restricted to `range`, replays `n_calls` blocks of
-/// `per_call` code sets, and returns (instructions executed in `range`, calls entering it).
+/// Boots the QEMU node with instruction tracing restricted to `ranges` (the first is the hot
+/// path's, the others those of the functions it calls), replays `n_calls` blocks of `per_call`
+/// code sets (with temperatures and the thermal record when `thermal`), and returns (instructions
+/// executed in `ranges` from the first entry into the hot path on, calls entering the hot path,
+/// the part of those instructions in the hot path's own range).
 fn count_instructions(
     elf: &Path,
     dir: &Path,
-    range: &std::ops::Range<u64>,
+    ranges: &[std::ops::Range<u64>],
     n_calls: usize,
     per_call: usize,
-) -> anyhow::Result<(u64, u64)> {
+    thermal: bool,
+) -> anyhow::Result<(u64, u64, u64)> {
+    let range = &ranges[0];
     let slot = dir.join("slot0.bin");
-    std::fs::write(&slot, SlotImage::build(&bench_record()?, 1).map_err(|e| anyhow::anyhow!("{e}"))?)?;
+    std::fs::write(&slot, SlotImage::build(&bench_record(thermal)?, 1).map_err(|e| anyhow::anyhow!("{e}"))?)?;
     let sock = dir.join(format!("link{per_call}.sock"));
     let log = dir.join(format!("exec{per_call}.log"));
     let _ = std::fs::remove_file(&sock);
@@ -255,7 +334,7 @@ fn count_instructions(
         .args(["-semihosting-config", "enable=on,target=native"])
         .args(["-accel", "tcg,one-insn-per-tb=on", "-d", "exec,nochain"])
         .arg("-dfilter")
-        .arg(format!("{:#x}..{:#x}", range.start, range.end - 1))
+        .arg(ranges.iter().map(|r| format!("{:#x}..{:#x}", r.start, r.end - 1)).collect::<Vec<_>>().join(","))
         .arg("-D")
         .arg(&log)
         .arg("-chardev")
@@ -314,7 +393,12 @@ fn count_instructions(
             })
             .collect::<Vec<_>>();
         let codes = heapless::Vec::from_slice(&codes).map_err(|_| anyhow::anyhow!("block too large"))?;
-        all.extend_from_slice(&frame(&HostMsg::Replay { seq: k as u32, codes })?);
+        // A slow ramp inside the calibrated range.
+        let temp = thermal.then(|| ReplayTemp {
+            restart: k == 0,
+            temp_c: (0..per_call).map(|i| 20.0 + 0.01 * (k * per_call + i) as f32).collect(),
+        });
+        all.extend_from_slice(&frame(&HostMsg::Replay { seq: k as u32, codes, temp })?);
     }
     s.write_all(&all)?;
     let mut answered = 0;
@@ -334,8 +418,11 @@ fn count_instructions(
     }
     drop(qemu); // the log is complete once QEMU has exited
     let text = std::fs::read_to_string(&log).with_context(|| format!("reading {}", log.display()))?;
-    let (mut insns, mut calls, mut retried) = (0u64, 0u64, 0u64);
+    let (mut insns, mut calls, mut retried, mut own) = (0u64, 0u64, 0u64, 0u64);
     let mut prev = None;
+    // The callees also run at boot (the record check evaluates a thermal model): count from the
+    // first entry into the hot path on.
+    let mut entered = false;
     for line in text.lines().filter(|l| l.starts_with("Trace ")) {
         // "Trace 0: 0x7f.. [00000000/08001554/00000000/ff200000] calibrate_block_f32"
         let pc = line
@@ -352,14 +439,16 @@ fn count_instructions(
             continue;
         }
         prev = Some(pc);
-        if range.contains(&pc) {
+        entered |= pc == range.start;
+        if entered && ranges.iter().any(|r| r.contains(&pc)) {
             insns += 1;
+            own += range.contains(&pc) as u64;
             calls += (pc == range.start) as u64;
         }
     }
     println!("  ({retried} trace entries were interrupt retries, not counted)");
     ensure!(calls == n_calls as u64, "traced {calls} calls of the hot path, expected {n_calls}");
-    Ok((insns, calls))
+    Ok((insns, calls, own))
 }
 
 /// `cargo xtask bench`: exact instructions per calibrated triad sample set on QEMU's Cortex-M4F,
@@ -376,11 +465,15 @@ pub fn bench() -> anyhow::Result<()> {
     std::fs::create_dir_all(&dir)?;
     const CALLS: usize = 64;
     let block = wire::MAX_BLOCK;
-    let (i16, _) = count_instructions(&qemu_elf, &dir, &range, CALLS, block)?;
-    let (i1, _) = count_instructions(&qemu_elf, &dir, &range, CALLS, 1)?;
+    let (i16, _, _) = count_instructions(&qemu_elf, &dir, std::slice::from_ref(&range), CALLS, block, false)?;
+    let (i1, _, _) = count_instructions(&qemu_elf, &dir, std::slice::from_ref(&range), CALLS, 1, false)?;
+    let thermal_tree = call_tree(&qemu_elf, HOT_PATH_THERMAL)?;
+    let thermal_ranges: Vec<_> = thermal_tree.iter().map(|(_, r)| r.clone()).collect();
+    let (t16, _, t16_own) = count_instructions(&qemu_elf, &dir, &thermal_ranges, CALLS, block, true)?;
     build_qemu_fixed()?;
     let fixed_range = symbol_range(&fixed_elf(), HOT_PATH_FIXED)?;
-    let (q16, _) = count_instructions(&fixed_elf(), &dir, &fixed_range, CALLS, block)?;
+    let (q16, _, _) =
+        count_instructions(&fixed_elf(), &dir, std::slice::from_ref(&fixed_range), CALLS, block, false)?;
     let _ = std::fs::remove_dir_all(&dir);
     let per_set_block = i16 as f64 / (CALLS * block) as f64;
     let per_set_marginal = (i16 - i1) as f64 / (CALLS * (block - 1)) as f64;
@@ -395,6 +488,16 @@ pub fn bench() -> anyhow::Result<()> {
     );
     println!("  {CALLS} calls x 1 set:   {i1} instructions = {per_call_single:.2} per single-set call");
     println!("  marginal cost of one more set in a block: {per_set_marginal:.2} instructions");
+    let per_set_thermal = t16 as f64 / (CALLS * block) as f64;
+    println!(
+        "thermal record (`{HOT_PATH_THERMAL}` and what it calls: {}): {CALLS} calls x {block} sets: {t16} instructions = {per_set_thermal:.2} per sample set (aim 60; model 4: {per_set_block:.2}), the calibration re-evaluated once per {block} sets included",
+        thermal_tree.iter().skip(1).map(|(n, _)| n.as_str()).collect::<Vec<_>>().join(", ")
+    );
+    println!(
+        "  of which in `{HOT_PATH_THERMAL}` itself {:.2} per set, in what it calls (the re-evaluation) {:.2} per set",
+        t16_own as f64 / (CALLS * block) as f64,
+        (t16 - t16_own) as f64 / (CALLS * block) as f64
+    );
     println!(
         "fixed-point build (`{HOT_PATH_FIXED}`): {CALLS} calls x {block} sets: {q16} instructions = {:.2} per sample set",
         q16 as f64 / (CALLS * block) as f64
@@ -404,6 +507,9 @@ pub fn bench() -> anyhow::Result<()> {
     ensure!(ram <= RAM_BUDGET, "static RAM {ram} B exceeds the 16 KiB budget");
     if per_set_block > 40.0 {
         println!("warning: {per_set_block:.2} instructions per sample set exceeds the 40 aim");
+    }
+    if per_set_thermal > 60.0 {
+        println!("warning: {per_set_thermal:.2} instructions per sample set with a thermal record exceeds the 60 aim");
     }
     Ok(())
 }

@@ -4,6 +4,12 @@
 //! QEMU is run by [`super::qemu`] with USART1 on a unix-socket chardev that this process connects
 //! to, the record as slot 0's page image, and USART2 (the live front end) on `null`, so the node's
 //! sampler sees nothing and only the replay answers and status reports come back.
+//!
+//! A record with thermal terms is replayed with each set's temperature (the campaign's `temp_c`,
+//! as f32): the first request of a run restarts the node's replay tracker
+//! ([`accelcal_shared::wire::ReplayTemp`]), so the node's output is the shared f32 path
+//! ([`accelcal_shared::thermal::ThermalTracker::apply_block`]) fed the run's sets in order, which
+//! the host reproduces bit for bit.
 
 use std::io::{Read, Write};
 use std::os::unix::net::UnixStream;
@@ -12,7 +18,9 @@ use std::time::{Duration, Instant};
 
 use accelcal_shared::record::Record;
 use accelcal_shared::slots::SlotImage;
-use accelcal_shared::wire::{self, Block, Codes, HostMsg, NodeMsg, RecordStatus, Status, MAX_BLOCK};
+use accelcal_shared::wire::{
+    self, Block, BlockTemp, Codes, HostMsg, NodeMsg, RecordStatus, ReplayTemp, Status, MAX_BLOCK,
+};
 
 use anyhow::Context;
 
@@ -68,6 +76,9 @@ impl HilOptions {
 pub struct HilRun {
     /// The node's calibrated acceleration for each replayed code set, m/s².
     pub accel: Vec<[f32; 3]>,
+    /// The temperature report of each replayed block (of [`MAX_BLOCK`] sets), when the sets were
+    /// sent with temperatures.
+    pub temp: Vec<Option<BlockTemp>>,
     /// The node's status after the replay.
     pub status: Status,
 }
@@ -137,6 +148,10 @@ fn rejection_hint(fault: accelcal_shared::wire::RecordFault) -> String {
             )
         }
         RecordFault::NotModel4 => " (fit it with `--terms ax,ay,az`, the default)".into(),
+        RecordFault::NoTempInput => {
+            " (the QEMU board has only the front end's temperature channel: a thermal record for it names the input `front-end`)"
+                .into()
+        }
         _ => String::new(),
     }
 }
@@ -256,39 +271,61 @@ fn is_timeout(e: &LinkError) -> bool {
 
 /// Code sets to replay: one request's worth.
 pub type CodeBlock = heapless::Vec<Codes, MAX_BLOCK>;
+/// The temperatures of a block's sets, °C.
+pub type TempBlock = heapless::Vec<f32, MAX_BLOCK>;
 
 /// How many requests may wait for their answer: the protocol's bound
-/// ([`wire::MAX_REQUESTS_IN_FLIGHT`], 13), which the real node's receive ring is sized for. In
+/// ([`wire::MAX_REQUESTS_IN_FLIGHT`], 9), which the real node's receive ring is sized for. In
 /// QEMU it keeps the node's input (the socket, read one byte at a time) from running dry, and the
-/// requests (at most 154 bytes each) fit the socket's buffer, so sending never waits for the node
+/// requests (at most `wire::MAX_REQUEST_FRAME`, 221 bytes each) fit the socket's buffer, so sending never waits for the node
 /// and one thread does both.
 const IN_FLIGHT: usize = wire::MAX_REQUESTS_IN_FLIGHT;
 
 /// Boots the QEMU node with `record` (the bytes of a record file) in slot 0, replays `codes`
 /// through it in blocks of [`MAX_BLOCK`], and returns the node's answers in order.
 pub fn replay(opts: &HilOptions, record: &[u8], codes: &[Codes]) -> Result<HilRun, HilError> {
+    replay_with_temps(opts, record, codes, None)
+}
+
+/// [`replay`] with each set's temperature `temp_c` (°C, as many as `codes`) when given: what a
+/// record with thermal terms needs.
+pub fn replay_with_temps(
+    opts: &HilOptions,
+    record: &[u8],
+    codes: &[Codes],
+    temp_c: Option<&[f32]>,
+) -> Result<HilRun, HilError> {
+    if temp_c.is_some_and(|t| t.len() != codes.len()) {
+        return Err(HilError::Protocol("one temperature per code set is needed".into()));
+    }
     let mut accel = Vec::with_capacity(codes.len());
-    let blocks = codes
-        .chunks(MAX_BLOCK)
-        .map(|c| Ok::<_, HilError>((CodeBlock::from_slice(c).expect("chunks of MAX_BLOCK"), ())));
-    let status = replay_blocks(opts, record, blocks, |(), a| {
+    let mut temp = Vec::new();
+    let blocks = codes.chunks(MAX_BLOCK).enumerate().map(|(k, c)| {
+        let t = temp_c.map(|t| {
+            TempBlock::from_slice(&t[k * MAX_BLOCK..k * MAX_BLOCK + c.len()]).expect("chunks of MAX_BLOCK")
+        });
+        Ok::<_, HilError>((CodeBlock::from_slice(c).expect("chunks of MAX_BLOCK"), t, ()))
+    });
+    let status = replay_blocks(opts, record, blocks, |(), a, t| {
         accel.extend_from_slice(a);
+        temp.push(t);
         Ok(())
     })?;
-    Ok(HilRun { accel, status })
+    Ok(HilRun { accel, temp, status })
 }
 
 /// Boots the QEMU node with `record` (the bytes of a record file) in slot 0 and replays the blocks
-/// `blocks` yields, each with a tag of the caller's, as they come: at most `IN_FLIGHT` (13) requests
-/// wait for their answer, so memory does not grow with the blocks. Each answer, checked (in order,
-/// as many sets as were sent, calibrated), goes to `answered` with its block's tag. Returns the
-/// node's status after the last answer; the first error of `blocks`, of `answered` or of the node
-/// ends the replay, and the node is shut down.
+/// `blocks` yields, each with its sets' temperatures (or `None`) and a tag of the caller's, as they
+/// come: at most `IN_FLIGHT` (9) requests wait for their answer, so memory does not grow with the
+/// blocks. The first block with temperatures restarts the node's replay tracker. Each answer,
+/// checked (in order, as many sets as were sent, calibrated), goes to `answered` with its block's
+/// tag and temperature report. Returns the node's status after the last answer; the first error
+/// of `blocks`, of `answered` or of the node ends the replay, and the node is shut down.
 pub fn replay_blocks<T, E: From<HilError>>(
     opts: &HilOptions,
     record: &[u8],
-    blocks: impl IntoIterator<Item = Result<(CodeBlock, T), E>>,
-    mut answered: impl FnMut(T, &[[f32; 3]]) -> Result<(), E>,
+    blocks: impl IntoIterator<Item = Result<(CodeBlock, Option<TempBlock>, T), E>>,
+    mut answered: impl FnMut(T, &[[f32; 3]], Option<BlockTemp>) -> Result<(), E>,
 ) -> Result<Status, E> {
     let rec =
         Record::parse(record).map_err(|e| HilError::Record(accelcal_shared::slots::SlotError::Record(e)))?;
@@ -303,30 +340,37 @@ pub fn replay_blocks<T, E: From<HilError>>(
     // (seq, sets sent, tag) of the requests waiting for their answer, oldest first.
     let mut waiting = std::collections::VecDeque::with_capacity(IN_FLIGHT);
     let mut seq = 0u32;
+    let mut restart = true;
     let mut accel = Vec::with_capacity(MAX_BLOCK);
     loop {
         while waiting.len() < IN_FLIGHT {
             let Some(block) = blocks.next() else { break };
-            let (codes, tag) = block?;
+            let (codes, temp_c, tag) = block?;
             let sent = codes.len();
-            node.send_raw(&link::frame(&HostMsg::Replay { seq, codes }).map_err(HilError::from)?)?;
+            let temp = temp_c.map(|temp_c| ReplayTemp { restart: std::mem::take(&mut restart), temp_c });
+            node.send_raw(&link::frame(&HostMsg::Replay { seq, codes, temp }).map_err(HilError::from)?)?;
             waiting.push_back((seq, sent, tag));
             seq = seq.wrapping_add(1);
         }
         let Some((want, sent, tag)) = waiting.pop_front() else { break };
-        node.next_block(want, sent, &mut accel)?;
-        answered(tag, &accel)?;
+        let temp = node.next_block(want, sent, &mut accel)?;
+        answered(tag, &accel, temp)?;
     }
     Ok(node.status()?)
 }
 
 impl QemuNode {
-    /// Waits for the answer to request `want`, which carried `sent` code sets, and puts the
-    /// node's calibrated acceleration into `accel`.
-    fn next_block(&mut self, want: u32, sent: usize, accel: &mut Vec<[f32; 3]>) -> Result<(), HilError> {
-        let (seq, data) = loop {
-            if let NodeMsg::Replayed { seq, data } = self.next_answer()? {
-                break (seq, data);
+    /// Waits for the answer to request `want`, which carried `sent` code sets, puts the node's
+    /// calibrated acceleration into `accel` and returns the block's temperature report.
+    fn next_block(
+        &mut self,
+        want: u32,
+        sent: usize,
+        accel: &mut Vec<[f32; 3]>,
+    ) -> Result<Option<BlockTemp>, HilError> {
+        let (seq, data, temp) = loop {
+            if let NodeMsg::Replayed { seq, data, temp } = self.next_answer()? {
+                break (seq, data, temp);
             }
         };
         if seq != want {
@@ -349,12 +393,22 @@ impl QemuNode {
                 )))
             }
         }
-        Ok(())
+        Ok(temp)
     }
 }
 
 /// The times of a block's rows, s.
 pub type TimeBlock = heapless::Vec<f64, MAX_BLOCK>;
+
+/// What a block's rows say besides their codes.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct RowsBlock {
+    /// The rows' times, s.
+    pub t_s: TimeBlock,
+    /// The rows' temperatures (`temp_c`, as f32, the node's precision), when the campaign has
+    /// them.
+    pub temp_c: Option<TempBlock>,
+}
 
 /// A campaign's channels `x`, `y`, `z` as the code sets the node's ADC would deliver (every code a
 /// whole number in 0..=65535), with the rows' times, a block of [`MAX_BLOCK`] rows at a time: read
@@ -379,7 +433,9 @@ pub struct CampaignCodes<R: Read> {
     /// File columns (1-based) of x, y, z, for error messages.
     xyz_columns: [usize; 3],
     /// The first block, read before the channels were checked.
-    first: Option<(CodeBlock, TimeBlock)>,
+    first: Option<(CodeBlock, RowsBlock)>,
+    /// Whether the file has a `temp_c` column.
+    has_temp: bool,
     warnings: Vec<String>,
 }
 
@@ -410,6 +466,7 @@ impl<R: Read> CampaignCodes<R> {
         let names = rows.channel_names();
         let columns = rows.channel_columns();
         let codes = rows.codes();
+        let has_temp = rows.has_temp();
         let mut c = CampaignCodes {
             rows: Some(rows),
             path: path.to_owned(),
@@ -417,6 +474,7 @@ impl<R: Read> CampaignCodes<R> {
             xyz: [0; 3],
             xyz_columns: [0; 3],
             first: None,
+            has_temp,
             warnings: Vec::new(),
         };
         let mut first = Vec::with_capacity(MAX_BLOCK);
@@ -438,7 +496,7 @@ impl<R: Read> CampaignCodes<R> {
                 path.display()
             )));
         }
-        let mut block = (CodeBlock::new(), TimeBlock::new());
+        let mut block = c.empty_block();
         for row in first {
             c.row = row;
             c.push_row(&mut block)?;
@@ -462,8 +520,17 @@ impl<R: Read> CampaignCodes<R> {
         }
     }
 
+    /// Whether the campaign has a `temp_c` column.
+    pub fn has_temp(&self) -> bool {
+        self.has_temp
+    }
+
+    fn empty_block(&self) -> (CodeBlock, RowsBlock) {
+        (CodeBlock::new(), RowsBlock { t_s: TimeBlock::new(), temp_c: self.has_temp.then(TempBlock::new) })
+    }
+
     /// Adds the current row to `block`, checking its codes.
-    fn push_row(&mut self, (codes, t_s): &mut (CodeBlock, TimeBlock)) -> anyhow::Result<()> {
+    fn push_row(&mut self, (codes, rows): &mut (CodeBlock, RowsBlock)) -> anyhow::Result<()> {
         let mut set = [0u16; 3];
         for (k, (&col, name)) in self.xyz.iter().zip(["x", "y", "z"]).enumerate() {
             let v = self.row.codes[col];
@@ -478,18 +545,22 @@ impl<R: Read> CampaignCodes<R> {
             }
             set[k] = v as u16;
         }
-        // Both have room: blocks are filled to MAX_BLOCK and no further.
+        // All have room: blocks are filled to MAX_BLOCK and no further.
         let _ = codes.push(set);
-        let _ = t_s.push(self.row.t);
+        let _ = rows.t_s.push(self.row.t);
+        if let Some(t) = rows.temp_c.as_mut() {
+            // The campaign reader gives every row of a file with `temp_c` its value.
+            let _ = t.push(self.row.temp.map_or(f32::NAN, |v| v as f32));
+        }
         Ok(())
     }
 
     /// The next block of code sets and their times; `None` after the last.
-    fn next_block(&mut self) -> anyhow::Result<Option<(CodeBlock, TimeBlock)>> {
+    fn next_block(&mut self) -> anyhow::Result<Option<(CodeBlock, RowsBlock)>> {
         if let Some(first) = self.first.take() {
             return Ok((!first.0.is_empty()).then_some(first));
         }
-        let mut block = (CodeBlock::new(), TimeBlock::new());
+        let mut block = self.empty_block();
         while !block.0.is_full() && self.advance()? {
             self.push_row(&mut block)?;
         }
@@ -504,7 +575,7 @@ impl<R: Read> CampaignCodes<R> {
 }
 
 impl<R: Read> Iterator for CampaignCodes<R> {
-    type Item = anyhow::Result<(CodeBlock, TimeBlock)>;
+    type Item = anyhow::Result<(CodeBlock, RowsBlock)>;
 
     fn next(&mut self) -> Option<Self::Item> {
         self.next_block().transpose()
@@ -513,12 +584,31 @@ impl<R: Read> Iterator for CampaignCodes<R> {
 
 /// The header of the CSV that `accelcal hil` writes.
 pub const CSV_HEADER: &str = "t_s,ax,ay,az";
+/// The header of the CSV that `accelcal hil` writes for a record with thermal terms: each row
+/// also carries its block's [`BlockTemp`], the filtered temperature the calibration was evaluated
+/// at (°C) and whether a set of the block was calibrated outside the record's range (0 or 1).
+pub const CSV_HEADER_THERMAL: &str = "t_s,ax,ay,az,applied_c,out_of_range";
 
 /// Writes the node's answers for rows at times `t_s` as CSV rows `t_s,ax,ay,az` (m/s²; f32
-/// values printed exactly) under [`CSV_HEADER`].
-pub fn write_rows(w: &mut impl Write, t_s: &[f64], accel: &[[f32; 3]]) -> std::io::Result<()> {
+/// values printed exactly) under [`CSV_HEADER`], with the block's `applied_c,out_of_range`
+/// (empty when the node reported none) when `temp` is given (under [`CSV_HEADER_THERMAL`]).
+pub fn write_rows(
+    w: &mut impl Write,
+    t_s: &[f64],
+    accel: &[[f32; 3]],
+    temp: Option<Option<BlockTemp>>,
+) -> std::io::Result<()> {
+    let tail = match temp {
+        None => String::new(),
+        Some(None) => ",,".into(),
+        Some(Some(b)) => format!(
+            ",{},{}",
+            b.applied_c.map(|v| v.to_string()).unwrap_or_default(),
+            u8::from(b.out_of_range)
+        ),
+    };
     for (t, a) in t_s.iter().zip(accel) {
-        writeln!(w, "{t},{},{},{}", a[0], a[1], a[2])?;
+        writeln!(w, "{t},{},{},{}{tail}", a[0], a[1], a[2])?;
     }
     Ok(())
 }
@@ -528,7 +618,7 @@ mod tests {
     use super::*;
     use crate::campaign::Campaign;
 
-    fn blocks(text: &str) -> anyhow::Result<Vec<(CodeBlock, TimeBlock)>> {
+    fn blocks(text: &str) -> anyhow::Result<Vec<(CodeBlock, RowsBlock)>> {
         CampaignCodes::new(text.as_bytes(), Path::new("c.csv"))?.collect()
     }
 
@@ -549,7 +639,10 @@ mod tests {
         let mut codes = CampaignCodes::new(text.as_bytes(), Path::new("c.csv")).unwrap();
         let got: Vec<_> = codes.by_ref().collect::<anyhow::Result<_>>().unwrap();
         assert_eq!(got.iter().map(|(c, _)| c.len()).collect::<Vec<_>>(), vec![16, 16, 12]);
-        let t: Vec<f64> = got.iter().flat_map(|(_, t)| t.clone()).collect();
+        let t: Vec<f64> = got.iter().flat_map(|(_, r)| r.t_s.clone()).collect();
+        let temp: Vec<f32> = got.iter().flat_map(|(_, r)| r.temp_c.clone().unwrap()).collect();
+        assert_eq!(temp, vec![25.0; t.len()]);
+        assert!(codes.has_temp());
         let sets: Vec<Codes> = got.iter().flat_map(|(c, _)| c.clone()).collect();
         assert_eq!(t, c.t_s);
         let ch = |n: &str| &c.channels[c.channel(n).unwrap()].codes;
@@ -570,7 +663,7 @@ mod tests {
         let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
         enc.write_all(text.as_bytes()).unwrap();
         std::fs::write(&gz, enc.finish().unwrap()).unwrap();
-        let read = |p: &Path| -> Vec<(CodeBlock, TimeBlock)> {
+        let read = |p: &Path| -> Vec<(CodeBlock, RowsBlock)> {
             CampaignCodes::open(p).unwrap().collect::<anyhow::Result<_>>().unwrap()
         };
         assert_eq!(read(&gz), read(&plain));
@@ -594,6 +687,9 @@ mod tests {
             "reading the campaign: c.csv:3:3: expected a number in `beta_deg`, found `zero`"
         );
         let e = CampaignCodes::new("t_s,alpha_deg,beta_deg,x,y\n0,0,0,1,2\n".as_bytes(), Path::new("c.csv"));
+        // Without `temp_c` the blocks carry no temperatures.
+        let plain = blocks("t_s,alpha_deg,beta_deg,x,y,z\n0,0,0,1,2,3\n0.1,0,0,1,2,3\n").unwrap();
+        assert_eq!(plain[0].1.temp_c, None);
         assert!(format!("{}", e.err().unwrap()).starts_with("c.csv: no channel `z`"));
         // After the first block: the blocks before it come first.
         let mut bad = triad(40);

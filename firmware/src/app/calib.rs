@@ -2,14 +2,25 @@
 //! every sample set.
 //!
 //! The hot path is [`calibrate_block_f32`] (or [`calibrate_block_fixed`] in the `fixed-point`
-//! build): `a = K⁻¹ (u − u0)` per sample set, 3 subtractions and 9 multiply-adds. They are
-//! exported unmangled and never inlined so that the benchmark can find them in the ELF and count
-//! the instructions QEMU executes inside them.
+//! build): `a = K⁻¹ (u − u0)` per sample set, 3 subtractions and 9 multiply-adds. With a thermal
+//! record it is [`calibrate_block_thermal_f32`] (or [`calibrate_block_thermal_fixed`]): the same
+//! per set, plus the shared [`ThermalTracker`]'s add and compare, and once per
+//! [`SETS_PER_UPDATE`](accelcal_shared::thermal::SETS_PER_UPDATE) sets the re-evaluation of the
+//! calibration at the filtered temperature. They are exported unmangled and never inlined so that
+//! the benchmark can find them in the ELF and count the instructions QEMU executes inside them.
+//!
+//! The calibration in force ([`Calibration`]) is fixed at boot and shared by the tasks; the state
+//! a thermal record needs (the tracker) belongs to whoever applies it: [`Calibration::applier`]
+//! makes a fresh one, the live stream keeps one for its life and the replay path one per replay
+//! run.
 
-use accelcal_shared::boot::{self, Arithmetic, NodeCal};
+use accelcal_shared::boot::{self, Arithmetic, NodeCal, TempInputs};
 use accelcal_shared::linear::{LinearCalF32, LinearCalFixed};
 use accelcal_shared::slots::{SlotRead, N_SLOTS, SLOT_SIZE};
-use accelcal_shared::wire::{Block, Codes, RecordStatus};
+#[cfg(feature = "fixed-point")]
+use accelcal_shared::thermal::ThermalTrackerFixed;
+use accelcal_shared::thermal::{ThermalCalF32, ThermalTracker};
+use accelcal_shared::wire::{Block, BlockTemp, Codes, RecordStatus, MAX_BLOCK};
 use heapless::Vec;
 
 use super::ports::RecordStorage;
@@ -21,8 +32,103 @@ pub enum Calibration {
     F32(LinearCalF32),
     /// Model 4 in fixed point (output m/s²·2¹⁶), for FPU-less parts.
     Fixed(LinearCalFixed),
+    /// Model 4 with thermal terms, in f32: the model, and the calibration at its reference
+    /// temperature (applied where no temperature is known). Each build has the thermal path of
+    /// its own arithmetic only (flash).
+    #[cfg(not(feature = "fixed-point"))]
+    ThermalF32(ThermalCalF32, LinearCalF32),
+    /// Model 4 with thermal terms, re-quantised to fixed point at each evaluation.
+    #[cfg(feature = "fixed-point")]
+    ThermalFixed(ThermalCalF32, LinearCalFixed),
     /// No valid record: sample sets leave the node as raw codes flagged uncalibrated.
     Uncalibrated,
+}
+
+/// Calibrates `codes` into `out` (m/s²), pairwise, with a thermal record, in f32: each set with
+/// the calibration the tracker gives for its temperature (`temp_c`, °C, one per set). Returns
+/// whether a set was calibrated outside the record's range. The thermal hot path.
+#[cfg(not(feature = "fixed-point"))]
+#[unsafe(no_mangle)]
+#[inline(never)]
+pub fn calibrate_block_thermal_f32(
+    tracker: &mut ThermalTracker,
+    codes: &[Codes],
+    temp_c: &[f32],
+    out: &mut [[f32; 3]],
+) -> bool {
+    tracker.apply_block(codes, temp_c, out)
+}
+
+/// [`calibrate_block_thermal_f32`] in fixed point (m/s²·2¹⁶).
+#[cfg(feature = "fixed-point")]
+#[unsafe(no_mangle)]
+#[inline(never)]
+pub fn calibrate_block_thermal_fixed(
+    tracker: &mut ThermalTrackerFixed,
+    codes: &[Codes],
+    temp_c: &[f32],
+    out: &mut [[i32; 3]],
+) -> bool {
+    tracker.apply_block(codes, temp_c, out)
+}
+
+/// The calibration in force with the state its application needs: a thermal record's tracker.
+#[derive(Clone, Copy, Debug)]
+pub enum Applier {
+    /// Model 4 (or no record): nothing to keep.
+    Static(Calibration),
+    /// A thermal record in f32.
+    #[cfg(not(feature = "fixed-point"))]
+    ThermalF32(ThermalTracker),
+    /// A thermal record in fixed point.
+    #[cfg(feature = "fixed-point")]
+    ThermalFixed(ThermalTrackerFixed),
+}
+
+impl Applier {
+    /// Calibrates a block of `codes` with their temperatures `temp_c` (one per set; the block is
+    /// cut to the shorter of the two and to [`MAX_BLOCK`]), and reports the block's temperature:
+    /// its mean, and for a thermal record the temperature the calibration was evaluated at and
+    /// whether a set was calibrated outside the record's range.
+    pub fn apply_block(&mut self, codes: &[Codes], temp_c: &[f32]) -> (Block, Option<BlockTemp>) {
+        let n = codes.len().min(temp_c.len()).min(MAX_BLOCK);
+        let (codes, temp_c) = (&codes[..n], &temp_c[..n]);
+        match self {
+            Applier::Static(cal) => (cal.apply_block(codes), ThermalTracker::block_temp(temp_c, None)),
+            #[cfg(not(feature = "fixed-point"))]
+            Applier::ThermalF32(tr) => {
+                let mut v = Vec::new();
+                let _ = v.resize(n, [0.0; 3]);
+                let flagged = calibrate_block_thermal_f32(tr, codes, temp_c, &mut v);
+                (Block::Calibrated(v), ThermalTracker::block_temp(temp_c, Some((tr, flagged))))
+            }
+            #[cfg(feature = "fixed-point")]
+            Applier::ThermalFixed(tr) => {
+                let mut v = Vec::new();
+                let _ = v.resize(n, [0; 3]);
+                let flagged = calibrate_block_thermal_fixed(tr, codes, temp_c, &mut v);
+                (Block::CalibratedFixed(v), ThermalTracker::block_temp(temp_c, Some((tr.tracker(), flagged))))
+            }
+        }
+    }
+
+    /// Feeds the temperatures of sets that are not calibrated (raw output) to a thermal record's
+    /// tracker, so that its filter keeps following the temperature; returns the block's
+    /// temperature report (mean only).
+    pub fn track(&mut self, temp_c: &[f32]) -> Option<BlockTemp> {
+        match self {
+            Applier::Static(_) => {}
+            #[cfg(not(feature = "fixed-point"))]
+            Applier::ThermalF32(tr) => temp_c.iter().for_each(|&t| {
+                tr.on_set(t);
+            }),
+            #[cfg(feature = "fixed-point")]
+            Applier::ThermalFixed(tr) => temp_c.iter().for_each(|&t| {
+                tr.on_set(t);
+            }),
+        }
+        ThermalTracker::block_temp(temp_c, None)
+    }
 }
 
 /// Calibrates `codes` into `out` (m/s²), pairwise, in f32. The node's hot path.
@@ -44,23 +150,31 @@ pub fn calibrate_block_fixed(cal: &LinearCalFixed, codes: &[Codes], out: &mut [[
 }
 
 impl Calibration {
-    /// The output block for raw `codes` (at most [`MAX_BLOCK`](accelcal_shared::wire::MAX_BLOCK)).
+    /// A fresh applier of this calibration (a thermal record's tracker not yet fed).
+    pub fn applier(&self) -> Applier {
+        match *self {
+            #[cfg(not(feature = "fixed-point"))]
+            Calibration::ThermalF32(model, start) => Applier::ThermalF32(ThermalTracker::new(model, start)),
+            #[cfg(feature = "fixed-point")]
+            Calibration::ThermalFixed(model, start) => {
+                Applier::ThermalFixed(ThermalTrackerFixed::new(model, start))
+            }
+            cal => Applier::Static(cal),
+        }
+    }
+
+    /// The output block for raw `codes` (at most [`MAX_BLOCK`]) without temperatures: a thermal
+    /// record is applied at its reference temperature.
     pub fn apply_block(&self, codes: &[Codes]) -> Block {
-        let n = codes.len().min(accelcal_shared::wire::MAX_BLOCK);
+        let n = codes.len().min(MAX_BLOCK);
         let codes = &codes[..n];
         match self {
-            Calibration::F32(cal) => {
-                let mut v = Vec::new();
-                let _ = v.resize(n, [0.0; 3]);
-                calibrate_block_f32(cal, codes, &mut v);
-                Block::Calibrated(v)
-            }
-            Calibration::Fixed(cal) => {
-                let mut v = Vec::new();
-                let _ = v.resize(n, [0; 3]);
-                calibrate_block_fixed(cal, codes, &mut v);
-                Block::CalibratedFixed(v)
-            }
+            #[cfg(not(feature = "fixed-point"))]
+            Calibration::ThermalF32(_, cal) => apply_f32(cal, codes),
+            Calibration::F32(cal) => apply_f32(cal, codes),
+            #[cfg(feature = "fixed-point")]
+            Calibration::ThermalFixed(_, cal) => apply_fixed(cal, codes),
+            Calibration::Fixed(cal) => apply_fixed(cal, codes),
             Calibration::Uncalibrated => {
                 let mut v = Vec::new();
                 let _ = v.extend_from_slice(codes);
@@ -70,10 +184,27 @@ impl Calibration {
     }
 }
 
+/// Model 4 in f32 on a block of `codes`.
+fn apply_f32(cal: &LinearCalF32, codes: &[Codes]) -> Block {
+    let mut v = Vec::new();
+    let _ = v.resize(codes.len(), [0.0; 3]);
+    calibrate_block_f32(cal, codes, &mut v);
+    Block::Calibrated(v)
+}
+
+/// Model 4 in fixed point on a block of `codes`.
+fn apply_fixed(cal: &LinearCalFixed, codes: &[Codes]) -> Block {
+    let mut v = Vec::new();
+    let _ = v.resize(codes.len(), [0; 3]);
+    calibrate_block_fixed(cal, codes, &mut v);
+    Block::CalibratedFixed(v)
+}
+
 /// Reads the record slots and returns the calibration to apply and what to report about it: the
-/// decision is [`boot::decide`] (shared, tested on the host). Every way a record can be unusable
-/// ends in [`Calibration::Uncalibrated`] with the reason.
-pub fn load(storage: &impl RecordStorage) -> (Calibration, RecordStatus) {
+/// decision is [`boot::decide`] (shared, tested on the host), given the board's temperature
+/// `inputs` (a thermal record naming an input the board lacks is refused). Every way a record can
+/// be unusable ends in [`Calibration::Uncalibrated`] with the reason.
+pub fn load(storage: &impl RecordStorage, inputs: TempInputs) -> (Calibration, RecordStatus) {
     let mut bufs = [[0u8; SLOT_SIZE]; N_SLOTS];
     let [a, b] = &mut bufs;
     let reads = [storage.read_slot(0, a), storage.read_slot(1, b)];
@@ -87,7 +218,7 @@ pub fn load(storage: &impl RecordStorage) -> (Calibration, RecordStatus) {
         (reads[1] == SlotRead::Complete).then_some(&b[..]),
     ];
     let arith = if cfg!(feature = "fixed-point") { Arithmetic::Fixed } else { Arithmetic::F32 };
-    match boot::decide(readings, &storage.device_id(), arith) {
+    match boot::decide(readings, &storage.device_id(), arith, inputs) {
         Ok(boot) => {
             if let Some(e) = boot.skipped {
                 defmt::warn!("record slot {=u8} skipped: {}", boot.slot ^ 1, defmt::Display2Format(&e));
@@ -99,10 +230,29 @@ pub fn load(storage: &impl RecordStorage) -> (Calibration, RecordStatus) {
                 boot.sequence,
                 boot.record.created_unix_s
             );
-            let cal = match boot.cal {
-                NodeCal::F32(c) => Calibration::F32(c),
-                NodeCal::Fixed(c) => Calibration::Fixed(c),
+            let cal = match (boot.cal, boot.thermal) {
+                (NodeCal::F32(c), None) => Calibration::F32(c),
+                (NodeCal::Fixed(c), None) => Calibration::Fixed(c),
+                #[cfg(not(feature = "fixed-point"))]
+                (NodeCal::F32(c), Some(m)) => Calibration::ThermalF32(m, c),
+                #[cfg(feature = "fixed-point")]
+                (NodeCal::Fixed(c), Some(m)) => Calibration::ThermalFixed(m, c),
+                // Not reached: the boot decision calibrates in the build's own arithmetic
+                // (`arith` above), whose thermal path is the one compiled in.
+                #[cfg(not(feature = "fixed-point"))]
+                (NodeCal::Fixed(c), Some(_)) => Calibration::Fixed(c),
+                #[cfg(feature = "fixed-point")]
+                (NodeCal::F32(c), Some(_)) => Calibration::F32(c),
             };
+            if let Some(m) = boot.thermal {
+                defmt::info!(
+                    "thermal record: input {=str}, t_ref {=f32} °C, calibrated {=f32}..={=f32} °C",
+                    m.thermal.source.name(),
+                    m.thermal.t_ref_c,
+                    m.thermal.t_min_c,
+                    m.thermal.t_max_c
+                );
+            }
             (cal, boot.status())
         }
         Err(e) => {

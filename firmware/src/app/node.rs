@@ -7,19 +7,25 @@
 //! included, so a jump of `first` between consecutive blocks equals the sets counted in
 //! [`Stats::overruns`] meanwhile. [`HostMsg::SetOutput`] switches the stream between calibrated
 //! blocks and [`Block::Raw`] codes.
+//!
+//! Every live block carries its temperature ([`BlockTemp`]): both boards read one (the QEMU board
+//! the front end's channel with each set, the real board the MCU's sensor once per block). With
+//! a thermal record the live stream keeps one tracker for its life, fed every set's temperature
+//! in order (in raw output too); the replay path keeps another, restarted by the host
+//! ([`accelcal_shared::wire::ReplayTemp`]), so that a replay is reproducible on the host.
 
 use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
 use accelcal_shared::wire::{
-    self, Block, Codes, FrameDecoder, FrameError, HostMsg, Info, NodeMsg, Output, RecordStatus, ResetCause,
-    Status, MAX_BLOCK, MAX_FRAME, PROTOCOL_VERSION,
+    self, Block, BlockTemp, Codes, FrameDecoder, FrameError, HostMsg, Info, NodeMsg, Output, RecordStatus,
+    ResetCause, Status, MAX_BLOCK, MAX_FRAME, PROTOCOL_VERSION,
 };
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::channel::Channel;
 use embassy_time::{Duration, Timer};
 use heapless::Vec;
 
-use super::calib::Calibration;
+use super::calib::{Applier, Calibration};
 use super::ports::{LinkRx, LinkTx, SampleClock, SampleSource};
 
 /// Messages waiting for the link transmitter.
@@ -147,22 +153,42 @@ impl Node {
         }
     }
 
-    /// The output block of a live block of `codes` in the output mode now in force.
-    fn live_block(&self, codes: &[Codes]) -> Block {
+    /// The output block of a live block of `codes` with their temperatures `temp_c`, in the
+    /// output mode now in force, calibrated by the live stream's `applier`, and the block's
+    /// temperature report. In raw output a thermal record's tracker is still fed the
+    /// temperatures, so its filter is current when calibrated output resumes.
+    fn live_block(applier: &mut Applier, codes: &[Codes], temp_c: &[f32]) -> (Block, Option<BlockTemp>) {
         match STATS.output() {
-            Output::Calibrated => self.cal.apply_block(codes),
+            Output::Calibrated => applier.apply_block(codes, temp_c),
             Output::Raw => {
-                Block::Raw(Vec::from_slice(&codes[..codes.len().min(MAX_BLOCK)]).unwrap_or_default())
+                let n = codes.len().min(temp_c.len()).min(MAX_BLOCK);
+                (Block::Raw(Vec::from_slice(&codes[..n]).unwrap_or_default()), applier.track(&temp_c[..n]))
             }
         }
     }
 
-    async fn handle(&self, msg: Result<HostMsg, FrameError>, clock: &mut impl SampleClock) {
+    /// Answers one host frame. `replay` is the replay path's applier: a thermal record's tracker
+    /// of the current replay run, started afresh by a request with temperatures and `restart`
+    /// (or the first with temperatures).
+    async fn handle(
+        &self,
+        msg: Result<HostMsg, FrameError>,
+        clock: &mut impl SampleClock,
+        replay: &mut Option<Applier>,
+    ) {
         match msg {
             Ok(HostMsg::GetStatus) => OUTBOX.send(NodeMsg::Status(self.status())).await,
-            Ok(HostMsg::Replay { seq, codes }) => {
+            Ok(HostMsg::Replay { seq, codes, temp: None }) => {
                 let data = self.cal.apply_block(&codes);
-                OUTBOX.send(NodeMsg::Replayed { seq, data }).await;
+                OUTBOX.send(NodeMsg::Replayed { seq, data, temp: None }).await;
+            }
+            Ok(HostMsg::Replay { seq, codes, temp: Some(t) }) => {
+                if t.restart {
+                    *replay = None;
+                }
+                let applier = replay.get_or_insert_with(|| self.cal.applier());
+                let (data, temp) = applier.apply_block(&codes, &t.temp_c);
+                OUTBOX.send(NodeMsg::Replayed { seq, data, temp }).await;
             }
             Ok(HostMsg::GetInfo) => OUTBOX.send(NodeMsg::Info(self.info())).await,
             Ok(HostMsg::SetOutput(output)) => {
@@ -205,13 +231,14 @@ fn note_trigger_check(ok: bool) {
 pub async fn serve_link(mut rx: impl LinkRx, mut clock: impl SampleClock, node: Node) -> ! {
     let mut decoder = FrameDecoder::<MAX_FRAME>::new();
     let mut buf = [0u8; 32];
+    let mut replay = None;
     loop {
         let n = rx.read(&mut buf).await;
         for &b in &buf[..n] {
             let mut got = None;
             decoder.push(&[b], |m| got = Some(m));
             if let Some(m) = got {
-                node.handle(m, &mut clock).await;
+                node.handle(m, &mut clock, &mut replay).await;
             }
         }
     }
@@ -245,17 +272,19 @@ pub async fn report_status(node: Node) -> ! {
 /// as overruns and advance the sample counter (`first`) all the same.
 pub async fn stream_samples(mut source: impl SampleSource, node: Node) -> ! {
     let mut codes: [Codes; MAX_BLOCK] = [[0; 3]; MAX_BLOCK];
+    let mut temp_c = [0.0f32; MAX_BLOCK];
+    let mut applier = node.cal.applier();
     let mut seq: u32 = 0;
     // The node's sample counter: the number of the next set the sampler produces.
     let mut next: u32 = 0;
     loop {
-        match source.read_block(&mut codes).await {
+        match source.read_block(&mut codes, &mut temp_c).await {
             Ok(n) => {
                 let first = next;
                 next = next.wrapping_add(n as u32);
                 STATS.sample_sets.fetch_add(n as u32, Ordering::Relaxed);
-                let data = node.live_block(&codes[..n]);
-                if OUTBOX.try_send(NodeMsg::Samples { seq, first, data, temp: None }).is_err() {
+                let (data, temp) = Node::live_block(&mut applier, &codes[..n], &temp_c[..n]);
+                if OUTBOX.try_send(NodeMsg::Samples { seq, first, data, temp }).is_err() {
                     STATS.overruns.fetch_add(n as u32, Ordering::Relaxed);
                 }
                 seq = seq.wrapping_add(1);

@@ -23,11 +23,18 @@ pub struct Overrun {
     pub lost: u32,
 }
 
-/// A source of live sample sets (the ADC on the real board, the emulated front end on QEMU).
+/// A source of live sample sets (the ADC on the real board, the emulated front end on QEMU), each
+/// with the temperature of the board's temperature input.
 pub trait SampleSource {
-    /// Waits for the next block of sample sets and copies it into `out`; returns how many.
-    /// An `Err` reports sets lost since the last call; the source keeps running.
-    async fn read_block(&mut self, out: &mut [Codes; MAX_BLOCK]) -> Result<usize, Overrun>;
+    /// Waits for the next block of sample sets and copies it into `out`, and each set's
+    /// temperature (°C) into `temp_c` (a board that reads the temperature once per block gives
+    /// every set of the block that reading); returns how many sets. An `Err` reports sets lost
+    /// since the last call; the source keeps running.
+    async fn read_block(
+        &mut self,
+        out: &mut [Codes; MAX_BLOCK],
+        temp_c: &mut [f32; MAX_BLOCK],
+    ) -> Result<usize, Overrun>;
 }
 
 /// What paces the live samples (the real board's TIM6 triggering the ADC): its rate can change

@@ -8,7 +8,7 @@ use accelcal_node::{app, board, executor::Executor, tasks};
 #[cortex_m_rt::entry]
 fn main() -> ! {
     let (board, watchdog) = board::init();
-    let (cal, record) = app::calib::load(&board.storage);
+    let (cal, record) = app::calib::load(&board.storage, board::TEMP_INPUTS);
     let device_id = app::ports::RecordStorage::device_id(&board.storage);
     let node = app::node::Node::new(cal, record, board.reset_cause, device_id, &board.clock);
     let executor = cortex_m::singleton!(: Executor = Executor::new()).expect("main runs once");

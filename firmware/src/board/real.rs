@@ -23,6 +23,26 @@
 //! set at run time ([`SampleClockImpl`]), and the trigger configuration is read back from the
 //! registers at boot and after every change.
 //!
+//! Temperature (the board's only temperature input, [`TEMP_INPUTS`]): the MCU's internal sensor,
+//! ADC1 channel 17 (ADC_CCR CH17SEL, RM0351 §18.4.32), read once per block by an injected
+//! sequence started by software (ADC_JSQR JEXTEN = 00, JADSTART; RM0351 §18.4.20, "Injected
+//! channel management") right after the DMA has delivered a block, when the regular scan has just
+//! ended: two conversions of channel 17, the first discarded for the same erratum as the regular
+//! scan's first rank, 640.5 ADC cycles each (the datasheet's minimum sampling time of the sensor
+//! is 5 µs; 640.5 cycles are 8.0 µs at 80 MHz), not oversampled (CFGR2 JOVSE = 0): 1306 ADC
+//! cycles, 16.3 µs. An injected sequence that meets a running regular scan interrupts it and the
+//! regular oversampling resumes where it stopped (CFGR2 ROVSM = 0, "continued"), so the scan
+//! ends 16.3 µs late, still before the next trigger at every rate up to
+//! [`RATE_MAX_HZ`](accelcal_shared::wire::RATE_MAX_HZ)
+//! (159 + 16.3 µs < 250 µs). Embassy-stm32 0.6.0 has injected-sequence support on the G4 ADC only
+//! (`src/adc/g4.rs`), so the registers are programmed here through its PAC (stm32-metapac 21
+//! `peripherals/adc_v3.rs`: JSQR, JDR, ISR.JEOS, CR.JADSTART; JQDIS, CFGR bit 31, is not in the
+//! PAC and keeps its reset value 1, which software triggers need). The reading is converted with
+//! the part's factory calibration ([`accelcal_shared::mcu_temp`]: TS_CAL1, TS_CAL2 and VREFINT_CAL
+//! from system memory, VDDA from one VREFINT reading at boot) and every set of the block carries
+//! it; the application's shared tracker filters it. A part whose calibration values are not
+//! plausible reads NaN, which a thermal record flags as out of range.
+//!
 //! Watchdog: the IWDG with a 4 s timeout, fed by the executor's loop, frozen while a
 //! debugger halts the core (DBGMCU_APB1FZR1 DBG_IWDG_STOP) so that `accelcal
 //! flash`, which halts the core, is never interrupted by it. A panic or a hard fault logs over
@@ -31,8 +51,10 @@
 
 use core::sync::atomic::{AtomicU8, Ordering};
 
+use accelcal_shared::boot::TempInputs;
 use accelcal_shared::contract::BAUD_REAL;
 use accelcal_shared::flash_ecc::{self, NmiAction};
+use accelcal_shared::mcu_temp::{self, McuTempCal};
 use accelcal_shared::slots::{SlotRead, SLOT_SIZE};
 use accelcal_shared::wire::{Codes, ResetCause, DEFAULT_RATE_HZ, LINK_RX_RING, MAX_BLOCK};
 use defmt_rtt as _;
@@ -66,6 +88,19 @@ const SCAN_CHANNELS: [u8; N_SCAN] = [0, 14, 13, 4];
 const SAMPLE_TIME: SampleTime = SampleTime::CYCLES247_5;
 /// Sampling time of the discarded first conversion (its value is never used).
 const DUMMY_SAMPLE_TIME: SampleTime = SampleTime::CYCLES2_5;
+/// The board's temperature input: the MCU's sensor. The front end has no temperature channel, so
+/// a record naming it is refused at boot.
+pub const TEMP_INPUTS: TempInputs = TempInputs::MCU;
+/// ADC1 channel of the temperature sensor (VSENSE, RM0351 §18.4.32).
+const TEMP_CHANNEL: u8 = 17;
+/// Sampling time of the temperature sensor and of VREFINT at boot: 640.5 ADC cycles = 8.0 µs at
+/// 80 MHz (datasheet minimum 5 µs for the sensor, 4 µs for VREFINT).
+const TEMP_SAMPLE_TIME: SampleTime = SampleTime::CYCLES640_5;
+/// ADC_CFGR JQDIS (bit 31, RM0351 §18.7.4): injected queue disabled, needed for software
+/// triggers of the injected sequence; its reset value, not modelled by stm32-metapac 21.
+const CFGR_JQDIS: u32 = 1 << 31;
+/// Hardware oversampling ratio of the regular scan and of the boot readings.
+const OVERSAMPLING: f32 = 16.0;
 /// EXTSEL value for TIM6_TRGO (RM0351 §18.4.18, Table 96: EXT13).
 const EXTSEL_TIM6_TRGO: u8 = 13;
 /// EXTEN value for a rising-edge hardware trigger (RM0351 §18.7.4, ADC_CFGR EXTEN = 01).
@@ -120,13 +155,80 @@ impl LinkTx for LinkTxImpl {
     }
 }
 
-/// The ADC1 triad: timer-triggered, oversampled, DMA ring buffer.
+/// The ADC1 triad: timer-triggered, oversampled, DMA ring buffer; and the MCU's temperature.
 pub struct SourceImpl {
     adc: RingBufferedAdc<'static, ADC1>,
+    temp: McuTemp,
+}
+
+/// The temperature sensor's injected reading, once per block.
+struct McuTemp {
+    /// The part's calibration (`None`: implausible values, the temperature reads NaN).
+    cal: Option<McuTempCal>,
+    /// The last temperature read, °C.
+    last_c: f32,
+}
+
+impl McuTemp {
+    /// Programs the injected sequence (the regular scan is not running yet): channel 17 twice,
+    /// software trigger, not oversampled, no auto-injection, no discontinuous mode.
+    fn configure() {
+        let adc = pac::ADC1;
+        adc.cfgr().modify(|w| {
+            w.set_jauto(false);
+            w.set_jdiscen(false);
+            w.0 |= CFGR_JQDIS;
+        });
+        adc.cfgr2().modify(|w| w.set_jovse(false));
+        let ch = TEMP_CHANNEL as usize;
+        adc.smpr(ch / 10).modify(|w| w.set_smp(ch % 10, TEMP_SAMPLE_TIME));
+        adc.jsqr().write(|w| {
+            w.set_jl(1);
+            w.set_jsq(0, TEMP_CHANNEL);
+            w.set_jsq(1, TEMP_CHANNEL);
+            w.set_jexten(0);
+        });
+    }
+
+    /// Starts the injected sequence.
+    fn start() {
+        pac::ADC1.cr().modify(|w| w.set_jadstart(true));
+    }
+
+    /// The temperature of the block just delivered: the sequence started after the previous
+    /// block, if it has ended (the last temperature otherwise); then starts the next one.
+    fn poll(&mut self) -> f32 {
+        let adc = pac::ADC1;
+        if adc.isr().read().jeos() {
+            // JDR2: the second conversion (the first is the erratum's discarded one).
+            let ts = adc.jdr(1).read().jdata();
+            // ISR flags are write-1-to-clear: write JEOS and JEOC only, leave the regular flags.
+            adc.isr().write(|w| {
+                w.set_jeos(true);
+                w.set_jeoc(true);
+            });
+            self.last_c = self.cal.map_or(f32::NAN, |c| c.temp_c(ts as f32));
+            McuTemp::start();
+        } else if !adc.cr().read().jadstart() {
+            McuTemp::start();
+        }
+        self.last_c
+    }
+}
+
+/// Reads a u16 of system memory (the factory calibration values).
+fn read_system_u16(addr: u32) -> u16 {
+    // SAFETY: the calibration values are read-only system memory of every STM32L475, mapped for
+    // the program's lifetime (DS10969, "Temperature sensor calibration values"); 2-aligned.
+    unsafe { core::ptr::read_volatile(addr as usize as *const u16) }
 }
 
 impl SampleSource for SourceImpl {
-    async fn read_block(&mut self, out: &mut [Codes; MAX_BLOCK]) -> Result<usize, Overrun> {
+    async fn read_block(
+        &mut self,
+        out: &mut [Codes; MAX_BLOCK],
+        temp_c: &mut [f32; MAX_BLOCK],
+    ) -> Result<usize, Overrun> {
         let mut raw = [0u16; MAX_BLOCK * N_SCAN];
         match self.adc.read(&mut raw).await {
             Ok(_) => {
@@ -134,6 +236,7 @@ impl SampleSource for SourceImpl {
                 for (set, c) in out.iter_mut().zip(raw.chunks_exact(N_SCAN)) {
                     *set = [c[1], c[2], c[3]];
                 }
+                temp_c.fill(self.temp.poll());
                 Ok(MAX_BLOCK)
             }
             Err(_) => {
@@ -316,8 +419,32 @@ pub fn init() -> (Board, WatchdogImpl) {
         oversampling_mode: Some((Rovsm::CONTINUED, Trovs::AUTOMATIC, true)),
         ..Default::default()
     };
-    let adc = Adc::new_with_config(p.ADC1, adc_cfg);
-    let vrefint = adc.enable_vrefint();
+    let mut adc = Adc::new_with_config(p.ADC1, adc_cfg);
+    let mut vrefint = adc.enable_vrefint();
+    // The temperature sensor's calibration: VDDA from VREFINT and the first temperature, read
+    // once each (oversampled 16×; embassy's blocking read converts twice for the erratum).
+    let mut sensor = adc.enable_temperature();
+    let vref_sum = adc.blocking_read(&mut vrefint, TEMP_SAMPLE_TIME);
+    let ts_sum = adc.blocking_read(&mut sensor, TEMP_SAMPLE_TIME);
+    let cal = McuTempCal::new(
+        read_system_u16(mcu_temp::TS_CAL1_ADDR),
+        read_system_u16(mcu_temp::TS_CAL2_ADDR),
+        read_system_u16(mcu_temp::VREFINT_CAL_ADDR),
+        vref_sum as f32 / OVERSAMPLING,
+    );
+    let first_c = cal.map_or(f32::NAN, |c| c.temp_c(ts_sum as f32 / OVERSAMPLING));
+    match cal {
+        Some(c) => defmt::info!(
+            "MCU temperature sensor: TS_CAL1 {=u16}, TS_CAL2 {=u16}, VDDA/3.0 V {=f32}, now {=f32} °C",
+            c.ts_cal1,
+            c.ts_cal2,
+            c.vdda_ratio,
+            first_c
+        ),
+        None => {
+            defmt::error!("MCU temperature sensor: implausible factory calibration, temperature reads NaN")
+        }
+    }
     let dma_buf = cortex_m::singleton!(: [u16; 2 * MAX_BLOCK * N_SCAN] = [0; 2 * MAX_BLOCK * N_SCAN])
         .expect("init runs once");
     // Ranks as SCAN_CHANNELS says: the discarded conversion first.
@@ -336,10 +463,13 @@ pub fn init() -> (Board, WatchdogImpl) {
         w.set_extsel(EXTSEL_TIM6_TRGO);
     });
 
+    McuTemp::configure();
+
     let timer = Timer::new(p.TIM6);
     // TRGO on every update event (TIM6_CR2 MMS = 010, RM0351 §30.4.2).
     timer.regs_basic().cr2().modify(|w| w.set_mms(Mms::UPDATE));
     adc.start();
+    McuTemp::start();
     let mut clock = SampleClockImpl { timer, rate_hz: DEFAULT_RATE_HZ };
     // Starts TIM6 (the app reads the trigger configuration back when it builds the node).
     clock.set_rate(DEFAULT_RATE_HZ);
@@ -353,7 +483,7 @@ pub fn init() -> (Board, WatchdogImpl) {
         rx: LinkRxImpl(rx),
         tx: LinkTxImpl(tx),
         storage: Storage,
-        source: SourceImpl { adc },
+        source: SourceImpl { adc, temp: McuTemp { cal, last_c: first_c } },
         clock,
         reset_cause,
     };

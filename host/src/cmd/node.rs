@@ -91,9 +91,10 @@ pub fn run_monitor(a: &MonitorArgs) -> anyhow::Result<()> {
 /// Runs `accelcal hil`.
 pub fn run_hil(a: &HilArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
     let record = read_file(&a.record, "record")?;
-    if let Err(e) = accelcal_shared::record::Record::parse(&record) {
-        return Err(bad(format!("{}: {e}", a.record.display())));
-    }
+    let thermal = match accelcal_shared::record::Record::parse(&record) {
+        Ok(r) => r.thermal.is_some(),
+        Err(e) => return Err(bad(format!("{}: {e}", a.record.display()))),
+    };
     if !a.elf.is_file() {
         return Err(bad(format!(
             "{}: no such firmware ELF (build it with `cargo xtask test` or see firmware/README.md)",
@@ -102,22 +103,38 @@ pub fn run_hil(a: &HilArgs, warnings: &mut super::Warnings) -> anyhow::Result<()
     }
     // The header and the first block are checked before the node starts.
     let mut codes = hil::CampaignCodes::open_with(&a.campaign, a.codes)?;
+    if thermal && !codes.has_temp() {
+        return Err(bad(format!(
+            "{}: no column `temp_c`: the record {} has thermal terms, and the node replays each set with its temperature",
+            a.campaign.display(),
+            a.record.display()
+        )));
+    }
     let mut opts = hil::HilOptions::new(&a.elf);
     opts.qemu = a.qemu_bin.clone();
     opts.timeout = std::time::Duration::from_secs(a.timeout_s);
     let mut out = accelcal_core::output::AtomicFile::create(&a.out)?;
     let writing = || format!("writing {}", a.out.display());
-    writeln!(out.writer(), "{}", hil::CSV_HEADER).with_context(writing)?;
-    let mut sets = 0;
-    let status = hil::replay_blocks(&opts, &record, codes.by_ref(), |t_s, accel| {
+    let header = if thermal { hil::CSV_HEADER_THERMAL } else { hil::CSV_HEADER };
+    writeln!(out.writer(), "{header}").with_context(writing)?;
+    let (mut sets, mut flagged) = (0, 0);
+    // A thermal record's blocks go with their temperatures; a model-4 record's without.
+    let blocks = codes.by_ref().map(|b| b.map(|(c, rows)| (c, rows.temp_c.filter(|_| thermal), rows.t_s)));
+    let status = hil::replay_blocks(&opts, &record, blocks, |t_s, accel, temp| {
         sets += accel.len();
-        hil::write_rows(out.writer(), &t_s, accel).with_context(writing)
+        flagged += usize::from(temp.is_some_and(|t| t.out_of_range)) * accel.len();
+        hil::write_rows(out.writer(), &t_s, accel, thermal.then_some(temp)).with_context(writing)
     })
     .map_err(|e| if e.is::<hil::HilError>() { e.context("running the node in QEMU") } else { e })?;
     warnings.extend(codes.warnings());
     out.commit()?;
+    let thermal_note = if thermal {
+        format!("; {flagged} sets in blocks calibrated outside the record's temperature range")
+    } else {
+        String::new()
+    };
     println!(
-        "hil: {} sample sets replayed through {}; {}; wrote {}",
+        "hil: {} sample sets replayed through {}{thermal_note}; {}; wrote {}",
         sets,
         a.elf.display(),
         monitor::format_status(&status),

@@ -3,7 +3,8 @@
 //!
 //! The front end sends one [`FeSet`] frame per sampling period. The receive interrupt drains RDR
 //! every time (there is NO flow control on this port, unlike USART1: an ADC does not wait for the
-//! firmware either), decodes the frames and appends their code sets to a ring of
+//! firmware either), decodes the frames and appends their code sets, each with its temperature
+//! ([`FeSet::temp_c`], the board's only temperature input), to a ring of
 //! [`RING_SETS`] sets. A set that finds the ring full is dropped and counted, and a jump in
 //! [`FeSet::index`] is counted as sets lost ([`frontend::lost_between`]); either count is attached
 //! to the next set that enters the ring, so that the sampler reports the loss
@@ -44,10 +45,11 @@ pub(super) const USART2_IRQN: i16 = 38;
 /// before it loses sets, and a node that would overrun on the board overruns here too.
 pub const RING_SETS: usize = 2 * MAX_BLOCK;
 
-/// A set in the ring, and how many sets were lost just before it.
+/// A set in the ring with its temperature, and how many sets were lost just before it.
 #[derive(Clone, Copy)]
 struct Entry {
     codes: Codes,
+    temp_c: f32,
     lost_before: u32,
 }
 
@@ -67,7 +69,7 @@ struct State {
 }
 
 static STATE: Mutex<RefCell<State>> = Mutex::new(RefCell::new(State {
-    ring: [Entry { codes: [0; 3], lost_before: 0 }; RING_SETS],
+    ring: [Entry { codes: [0; 3], temp_c: 0.0, lost_before: 0 }; RING_SETS],
     head: 0,
     len: 0,
     pending_lost: 0,
@@ -95,14 +97,22 @@ impl State {
             return;
         }
         let at = (self.head + self.len) % RING_SETS;
-        self.ring[at] = Entry { codes: set.codes, lost_before: self.pending_lost.saturating_add(lost) };
+        self.ring[at] = Entry {
+            codes: set.codes,
+            temp_c: set.temp_c(),
+            lost_before: self.pending_lost.saturating_add(lost),
+        };
         self.pending_lost = 0;
         self.len += 1;
     }
 
     /// The next loss or block, if one is ready: a loss before the oldest set first; else the sets
     /// up to the next loss or [`MAX_BLOCK`], once a full block or a loss after it is there.
-    fn take(&mut self, out: &mut [Codes; MAX_BLOCK]) -> Option<Result<usize, Overrun>> {
+    fn take(
+        &mut self,
+        out: &mut [Codes; MAX_BLOCK],
+        temp_c: &mut [f32; MAX_BLOCK],
+    ) -> Option<Result<usize, Overrun>> {
         if self.len == 0 {
             return None;
         }
@@ -117,8 +127,9 @@ impl State {
         if n < MAX_BLOCK && n == self.len {
             return None;
         }
-        for (k, o) in out.iter_mut().take(n).enumerate() {
-            *o = self.ring[(self.head + k) % RING_SETS].codes;
+        for (k, (o, t)) in out.iter_mut().zip(temp_c.iter_mut()).take(n).enumerate() {
+            let e = &self.ring[(self.head + k) % RING_SETS];
+            (*o, *t) = (e.codes, e.temp_c);
         }
         self.head = (self.head + n) % RING_SETS;
         self.len -= n;
@@ -171,10 +182,14 @@ pub struct SourceImpl {
 }
 
 impl SampleSource for SourceImpl {
-    async fn read_block(&mut self, out: &mut [Codes; MAX_BLOCK]) -> Result<usize, Overrun> {
+    async fn read_block(
+        &mut self,
+        out: &mut [Codes; MAX_BLOCK],
+        temp_c: &mut [f32; MAX_BLOCK],
+    ) -> Result<usize, Overrun> {
         poll_fn(|cx| {
             WAKER.register(cx.waker());
-            match critical_section::with(|cs| STATE.borrow_ref_mut(cs).take(out)) {
+            match critical_section::with(|cs| STATE.borrow_ref_mut(cs).take(out, temp_c)) {
                 Some(r) => Poll::Ready(r),
                 None => Poll::Pending,
             }

@@ -23,7 +23,13 @@ use accelcal_shared::wire::{ResetCause, DEFAULT_RATE_HZ};
 use cortex_m_rt::exception;
 use defmt_semihosting as _;
 
+use accelcal_shared::boot::TempInputs;
+
 use crate::app::ports::{RecordStorage, SampleClock, Watchdog};
+
+/// The board's temperature input: the emulated front end's channel ([`frontend`]); QEMU's ADC is
+/// a stub, so there is no MCU sensor. A record naming the MCU's sensor is refused at boot.
+pub const TEMP_INPUTS: TempInputs = TempInputs::FRONT_END;
 
 pub use frontend::{SourceImpl, RING_SETS};
 pub use usart::{LinkRxImpl, LinkTxImpl};
