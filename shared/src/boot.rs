@@ -69,6 +69,7 @@ impl Boot {
 
 /// Why no record is in force.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum BootError {
     /// Neither slot holds a valid slot image; the more informative of the two slots' errors
     /// (see [`slots::select_readings`]) that is not about the record itself.

@@ -69,6 +69,7 @@ mod field {
 
 /// Where a node with a thermal record reads its temperature.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum TempSource {
     /// The MCU's internal sensor (ADC1, factory-calibrated; RM0351 §16.4.32).
     Mcu,
@@ -125,6 +126,7 @@ pub fn crc32(bytes: &[u8]) -> u32 {
 
 /// Why bytes are not a valid record.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum RecordError {
     /// Fewer bytes than the header or than the length field says.
     Truncated,

@@ -57,6 +57,7 @@ const _: () = assert!(SLOT_HEADER_LEN + MAX_RECORD_LEN <= COMMIT_OFFSET);
 
 /// Why a slot image is not valid.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum SlotError {
     /// The slot is shorter than its header, its record length, or (version 2) a whole page.
     Truncated,

@@ -125,27 +125,26 @@ impl ThermalModel {
         ThermalCalF32 { thermal: self.thermal, bias: f(self.bias), k: f(self.k), kt: f(self.kt) }
     }
 
-    /// Whether the model inverts, in f64 and in the node's f32 evaluation, at the reference and
-    /// at 17 temperatures evenly over the calibrated range, its ends included, with the
-    /// determinant of `K(t)` of one sign at all of them (the record gate's check: `det K(t)` is a
-    /// cubic in `t`, so a singular point between two grid temperatures changes its sign there).
+    /// Whether the node's f32 evaluation ([`ThermalCalF32::at`], which checks the reciprocal
+    /// condition) inverts the model at the reference and at 17 temperatures evenly over the
+    /// calibrated range, its ends included, with the determinant of `K(t)⁻¹` of one sign at all of
+    /// them (the record gate's check: `det K(t)` is a cubic in `t`, so a singular point between
+    /// two grid temperatures changes its sign there). f32 only: what the node runs at boot, in
+    /// the node's arithmetic, without f64 arithmetic in its flash.
     pub fn invertible(&self) -> Result<(), LinearError> {
         let th = self.thermal;
         let f = self.to_f32();
-        let det = |k: [[f64; 3]; 3]| {
-            k[0][0] * (k[1][1] * k[2][2] - k[1][2] * k[2][1])
-                - k[0][1] * (k[1][0] * k[2][2] - k[1][2] * k[2][0])
-                + k[0][2] * (k[1][0] * k[2][1] - k[1][1] * k[2][0])
+        let det = |m: &[[f32; 3]; 3]| {
+            m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+                - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+                + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
         };
-        let sign = det(self.at(th.t_ref_c as f64).k) > 0.0;
+        let sign = det(&f.at(th.t_ref_c)?.m) > 0.0;
         let grid = (0..=16).map(|i| th.t_min_c + (th.t_max_c - th.t_min_c) * i as f32 / 16.0);
         for temp in grid.chain([th.t_ref_c]) {
-            let m = self.at(temp as f64);
-            if (det(m.k) > 0.0) != sign {
+            if (det(&f.at(temp)?.m) > 0.0) != sign {
                 return Err(LinearError::Singular);
             }
-            m.invert()?;
-            f.at(temp)?;
         }
         Ok(())
     }

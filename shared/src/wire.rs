@@ -302,6 +302,7 @@ pub struct Status {
 /// the order of the variants below (Pin last); the node clears the flags (RMVF) after reading
 /// them, so each boot sees only its own reset's flags.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum ResetCause {
     /// No reset flag set (flags cleared and no reset recorded since, or not readable).
     Unknown,
@@ -359,6 +360,7 @@ impl core::fmt::Display for ResetCause {
 
 /// Why the node refused a host request.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Refusal {
     /// [`HostMsg::SetRate`] outside the accepted range; the rate is unchanged.
     RateOutOfRange {
@@ -423,6 +425,7 @@ pub enum NodeMsg {
 
 /// Why a frame could not be encoded or decoded.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum FrameError {
     /// The frame is longer than the decoder's buffer (or the encode buffer is too small).
     TooLong,

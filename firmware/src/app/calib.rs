@@ -221,7 +221,7 @@ pub fn load(storage: &impl RecordStorage, inputs: TempInputs) -> (Calibration, R
     match boot::decide(readings, &storage.device_id(), arith, inputs) {
         Ok(boot) => {
             if let Some(e) = boot.skipped {
-                defmt::warn!("record slot {=u8} skipped: {}", boot.slot ^ 1, defmt::Display2Format(&e));
+                defmt::warn!("record slot {=u8} skipped: {}", boot.slot ^ 1, e);
             }
             defmt::info!(
                 "record in use: slot {=u8} (format v{=u8}), sequence {=u32}, created {=u64}",
@@ -256,10 +256,7 @@ pub fn load(storage: &impl RecordStorage, inputs: TempInputs) -> (Calibration, R
             (cal, boot.status())
         }
         Err(e) => {
-            defmt::warn!(
-                "no valid calibration record ({}): streaming raw codes flagged UNCALIBRATED",
-                defmt::Display2Format(&e)
-            );
+            defmt::warn!("no valid calibration record ({}): streaming raw codes flagged UNCALIBRATED", e);
             (Calibration::Uncalibrated, RecordStatus::Missing(e.fault()))
         }
     }

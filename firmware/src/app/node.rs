@@ -118,7 +118,7 @@ impl Node {
         device_id: [u8; 12],
         clock: &impl SampleClock,
     ) -> Node {
-        defmt::info!("last reset: {}", defmt::Display2Format(&reset_cause));
+        defmt::info!("last reset: {}", reset_cause);
         STATS.rate_hz.store(clock.rate_hz(), Ordering::Relaxed);
         note_trigger_check(clock.trigger_ok());
         Node { cal, record, reset_cause, device_id }
@@ -205,13 +205,13 @@ impl Node {
                     OUTBOX.send(NodeMsg::RateSet(self.status())).await;
                 }
                 Err(refusal) => {
-                    defmt::warn!("request refused: {}", defmt::Display2Format(&refusal));
+                    defmt::warn!("request refused: {}", refusal);
                     OUTBOX.send(NodeMsg::Refused(refusal)).await;
                 }
             },
             Err(e) => {
                 STATS.bad_frames.fetch_add(1, Ordering::Relaxed);
-                defmt::warn!("bad host frame: {}", defmt::Display2Format(&e));
+                defmt::warn!("bad host frame: {}", e);
             }
         }
     }
@@ -252,7 +252,7 @@ pub async fn transmit(mut tx: impl LinkTx) -> ! {
         match wire::encode(&msg, &mut buf) {
             Ok(frame) => tx.write_all(frame).await,
             // Unreachable with the message sizes of `wire` (tested there); never send a partial frame.
-            Err(e) => defmt::error!("frame encode failed: {}", defmt::Display2Format(&e)),
+            Err(e) => defmt::error!("frame encode failed: {}", e),
         }
     }
 }

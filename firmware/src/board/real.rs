@@ -352,7 +352,11 @@ fn take_reset_cause() -> ResetCause {
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo) -> ! {
     cortex_m::interrupt::disable();
-    defmt::error!("panic: {}", defmt::Display2Format(info));
+    // The location only: formatting the message would link `core::fmt` (about 5 KiB of flash).
+    match info.location() {
+        Some(l) => defmt::error!("panic at {=str}:{=u32}", l.file(), l.line()),
+        None => defmt::error!("panic"),
+    }
     cortex_m::peripheral::SCB::sys_reset()
 }
 

@@ -159,7 +159,7 @@ pub(super) fn send_rate(hz: u32) {
             }
         }
         // Unreachable: FE_MAX_FRAME holds every FeCtl (tested in shared).
-        Err(e) => defmt::error!("front-end frame encode failed: {}", defmt::Display2Format(&e)),
+        Err(e) => defmt::error!("front-end frame encode failed: {}", e),
     }
 }
 
