@@ -217,7 +217,9 @@ fn hil_refuses_a_bad_row_at_the_end_of_a_campaign_and_leaves_no_output() {
     std::fs::remove_file(&out_path).unwrap();
 
     let head = std::fs::read_to_string(&camp).unwrap();
-    let x = head.lines().next().unwrap().split(',').position(|h| h == "x").unwrap();
+    // The header row (after the `# g_m_s2:` comment that `simulate` writes).
+    let header = head.lines().find(|l| !l.starts_with('#')).unwrap();
+    let x = header.split(',').position(|h| h == "x").unwrap();
     for (value, want) in [
         ("oops", "{camp}:{line}:{col}: expected a number in `x`, found `oops`"),
         ("30000.5", "{camp}:{line}:{col}: channel x: code 30000.5 is not a whole number in 0..=65535"),
@@ -755,9 +757,11 @@ fn hil_replays_temp_c_with_a_thermal_record() {
     let (camp, _) = campaign_and_record(dir.path(), QEMU_ID_HEX);
     // The simulated campaign with a temperature column: a ramp from 0 to 60 °C over its rows.
     let text = std::fs::read_to_string(&camp).unwrap();
-    let rows = text.lines().count() - 1;
-    let mut with_temp = String::new();
-    for (i, line) in text.lines().enumerate() {
+    // Rows after the comment lines (`simulate` states its g) and the header.
+    let body: Vec<&str> = text.lines().filter(|l| !l.starts_with('#')).collect();
+    let rows = body.len() - 1;
+    let mut with_temp: String = text.lines().take_while(|l| l.starts_with('#')).map(|l| format!("{l}\n")).collect();
+    for (i, line) in body.iter().enumerate() {
         let mut f: Vec<String> = line.split(',').map(String::from).collect();
         f.insert(
             3,
