@@ -760,7 +760,8 @@ fn hil_replays_temp_c_with_a_thermal_record() {
     // Rows after the comment lines (`simulate` states its g) and the header.
     let body: Vec<&str> = text.lines().filter(|l| !l.starts_with('#')).collect();
     let rows = body.len() - 1;
-    let mut with_temp: String = text.lines().take_while(|l| l.starts_with('#')).map(|l| format!("{l}\n")).collect();
+    let mut with_temp: String =
+        text.lines().take_while(|l| l.starts_with('#')).map(|l| format!("{l}\n")).collect();
     for (i, line) in body.iter().enumerate() {
         let mut f: Vec<String> = line.split(',').map(String::from).collect();
         f.insert(

@@ -164,6 +164,20 @@ fn acquire_args<'a>(
     a
 }
 
+/// `verify` of the emulator's node on its head, plan six at g = 9.81, the tolerance derived from
+/// `fit_json`, the report into `json_out`.
+fn verify_args<'a>(
+    em: &'a Emulator,
+    fit_json: &'a Path,
+    json_out: &'a Path,
+    extra: &[&'a str],
+) -> Vec<&'a str> {
+    let mut a = vec!["verify", "--port", &em.port, "--head", &em.head, "--plan", "six", "--g", "9.81"];
+    a.extend_from_slice(&["--fit", s(fit_json), "--json", s(json_out)]);
+    a.extend_from_slice(extra);
+    a
+}
+
 /// (alpha, beta, rows) of each dwell of a campaign, in order.
 fn dwells(campaign: &Path) -> Vec<(String, String, usize)> {
     let text = std::fs::read_to_string(campaign).unwrap_or_default();
@@ -200,6 +214,8 @@ fn acquired_campaign_recovers_the_unit() {
         "# firmware: 0.1.0",
         "# g_m_s2: 9.81",
         "# plan: head (62 positions)",
+        // The emulated node reports its temperature (the bench's chamber, 25 °C): recorded.
+        "t_s,alpha_deg,beta_deg,temp_c,x,y,z\n",
     ] {
         assert!(header.contains(key), "{key} missing");
     }
@@ -335,23 +351,7 @@ fn the_production_line_in_emulation() {
     ok(&["info", "--port", &em.port, "--json", s(&p("info3.json"))]);
     let good_crc = json(&p("info3.json"))["record"]["crc"].as_str().unwrap().to_string();
 
-    let verify = |name: &str| {
-        accelcal(&[
-            "verify",
-            "--port",
-            &em.port,
-            "--head",
-            &em.head,
-            "--plan",
-            "six",
-            "--g",
-            "9.81",
-            "--fit",
-            s(&p("fit.json")),
-            "--json",
-            s(&p(name)),
-        ])
-    };
+    let verify = |name: &str| accelcal(&verify_args(&em, &p("fit.json"), &p(name), &[]));
     let v = verify("verify.json");
     assert_eq!(
         v.status.code(),
@@ -507,27 +507,9 @@ fn thermal_record_removes_the_temperature_error_in_verify() {
     );
 
     let verify_at = |fit_json: &str, temp: f64, name: &str| -> (f64, bool, f64) {
-        let out = accelcal(&[
-            "verify",
-            "--port",
-            &em.port,
-            "--head",
-            &em.head,
-            "--plan",
-            "six",
-            "--samples",
-            "200",
-            "--g",
-            "9.81",
-            "--fit",
-            s(&p(fit_json)),
-            "--chamber",
-            &temp.to_string(),
-            "--soak-s",
-            "6",
-            "--json",
-            s(&p(name)),
-        ]);
+        let temp = temp.to_string();
+        let extra = ["--samples", "200", "--chamber", &temp, "--soak-s", "6"];
+        let out = accelcal(&verify_args(&em, &p(fit_json), &p(name), &extra));
         assert!(matches!(out.status.code(), Some(0 | 1)), "{}", String::from_utf8_lossy(&out.stderr));
         verify_summary(&p(name))
     };

@@ -308,7 +308,7 @@ pub struct AcquireSummary {
 }
 
 /// The header of an acquired campaign: `# key: value` lines before the CSV header.
-fn header(cfg: &AcquireConfig, device_id: &str, firmware: &str, rate_hz: u32) -> String {
+fn header(cfg: &AcquireConfig, device_id: &str, firmware: &str, rate_hz: u32, with_temp: bool) -> String {
     let mut h = String::new();
     let mut line = |k: &str, v: &str| h.push_str(&format!("# {k}: {v}\n"));
     line("acquired_by", &format!("accelcal {} acquire", cfg.tool_version));
@@ -326,7 +326,7 @@ fn header(cfg: &AcquireConfig, device_id: &str, firmware: &str, rate_hz: u32) ->
     line("static_rule", &cfg.rule.describe());
     line("date", &cfg.date);
     h.push_str(&format!("# {} unsigned16\n", crate::campaign::CODES_COMMENT));
-    h.push_str(if cfg.chamber.is_some() {
+    h.push_str(if with_temp {
         "t_s,alpha_deg,beta_deg,temp_c,x,y,z\n"
     } else {
         "t_s,alpha_deg,beta_deg,x,y,z\n"
@@ -358,6 +358,8 @@ struct Resumed {
     file: File,
     done: usize,
     truncated_rows: usize,
+    /// The campaign records `temp_c`.
+    with_temp: bool,
 }
 
 /// Opens an acquired campaign for continuing: checks that it is the same node, plan and sample
@@ -392,6 +394,7 @@ fn open_resumed(cfg: &AcquireConfig, device_id: &str) -> anyhow::Result<Resumed>
     // Walk the rows: header row, then complete lines grouped into positions by their angles.
     let mut offset = 0usize;
     let mut header_end = None;
+    let mut with_temp = false;
     let mut keep_end = 0usize;
     let mut done = 0usize;
     let mut rows_in_pos = 0usize;
@@ -403,6 +406,7 @@ fn open_resumed(cfg: &AcquireConfig, device_id: &str) -> anyhow::Result<Resumed>
             if !line.starts_with('#') && !line.trim().is_empty() {
                 header_end = Some(offset);
                 keep_end = offset;
+                with_temp = line.trim_end().split(',').any(|c| c == "temp_c");
             }
             continue;
         }
@@ -446,7 +450,7 @@ fn open_resumed(cfg: &AcquireConfig, device_id: &str) -> anyhow::Result<Resumed>
         OpenOptions::new().write(true).open(path).map_err(|e| environment(format!("opening {d}"), e))?;
     file.set_len(keep_end as u64).map_err(|e| environment(format!("truncating {d}"), e))?;
     file.seek(SeekFrom::End(0)).map_err(|e| environment(format!("seeking {d}"), e))?;
-    Ok(Resumed { file, done, truncated_rows })
+    Ok(Resumed { file, done, truncated_rows, with_temp })
 }
 
 /// Writes whole positions to the campaign file, each made durable before the next begins.
@@ -483,32 +487,62 @@ pub fn acquire(
             node.port()
         )));
     }
-    let (mut out, done) = if cfg.resume {
-        let r = open_resumed(cfg, &device_id)?;
-        progress.resumed(r.done, r.truncated_rows);
-        (CampaignFile { file: r.file, path: cfg.out.clone() }, r.done)
-    } else {
-        let d = cfg.out.display();
-        let file = OpenOptions::new().write(true).create_new(true).open(&cfg.out).map_err(|e| {
-            if e.kind() == std::io::ErrorKind::AlreadyExists {
-                bad(format!("{d} exists: continue it with --resume, or choose another --out"))
-            } else {
-                environment(format!("creating {d}"), e)
-            }
-        })?;
-        let mut f = CampaignFile { file, path: cfg.out.clone() };
-        f.append(&header(cfg, &device_id, &firmware, info.rate_hz))?;
-        (f, 0)
-    };
-    progress.started(done, cfg.positions().len(), &cfg.rule);
+    if !cfg.resume && cfg.out.exists() {
+        return Err(bad(format!(
+            "{} exists: continue it with --resume, or choose another --out",
+            cfg.out.display()
+        )));
+    }
     let before = info.output;
     node.set_output(Output::Raw)?;
-    let result = run_positions(node, head, cfg, progress, stop, &mut out, done, info.rate_hz);
+    let result = (|| {
+        let (mut out, done, with_temp) = if cfg.resume {
+            let r = open_resumed(cfg, &device_id)?;
+            progress.resumed(r.done, r.truncated_rows);
+            (CampaignFile { file: r.file, path: cfg.out.clone() }, r.done, r.with_temp)
+        } else {
+            // The campaign records the node's temperature when its blocks carry one.
+            let with_temp = reports_temperature(node)?;
+            let d = cfg.out.display();
+            let file = OpenOptions::new().write(true).create_new(true).open(&cfg.out).map_err(|e| {
+                if e.kind() == std::io::ErrorKind::AlreadyExists {
+                    bad(format!("{d} exists: continue it with --resume, or choose another --out"))
+                } else {
+                    environment(format!("creating {d}"), e)
+                }
+            })?;
+            let mut f = CampaignFile { file, path: cfg.out.clone() };
+            f.append(&header(cfg, &device_id, &firmware, info.rate_hz, with_temp))?;
+            (f, 0, with_temp)
+        };
+        if cfg.chamber.is_some() && !with_temp {
+            return Err(bad(format!(
+                "{}: the node reports no temperature with its samples (or {} has no `temp_c` column): a thermal \
+                 acquisition (--chamber) needs a node with a temperature input (link protocol 4)",
+                node.port(),
+                cfg.out.display()
+            )));
+        }
+        progress.started(done, cfg.positions().len(), &cfg.rule);
+        run_positions(node, head, cfg, progress, stop, &mut out, done, info.rate_hz, with_temp)
+    })();
     // Put the node back as it was, whatever happened.
     let restored = if before != Output::Raw { node.set_output(before).map(|_| ()) } else { Ok(()) };
     let (positions, lost, interrupted) = result?;
     restored?;
     Ok(AcquireSummary { positions, planned: cfg.positions().len(), interrupted, lost, device_id })
+}
+
+/// Whether the node's live blocks carry a temperature: the first block within 3 s says (false
+/// when none comes: the acquisition then fails at its first position, saying why).
+fn reports_temperature(node: &mut Session) -> anyhow::Result<bool> {
+    let t0 = Instant::now();
+    while t0.elapsed() < Duration::from_secs(3) {
+        if let Some(s) = node.poll_samples()? {
+            return Ok(s.temp.is_some());
+        }
+    }
+    Ok(false)
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -521,6 +555,7 @@ fn run_positions(
     out: &mut CampaignFile,
     done: usize,
     rate_hz: u32,
+    with_temp: bool,
 ) -> anyhow::Result<(usize, u64, bool)> {
     let positions = cfg.positions();
     let n = positions.len();
@@ -541,7 +576,7 @@ fn run_positions(
             if stop.load(Ordering::Relaxed) {
                 return Ok((k, lost_total, true));
             }
-            match record_position(node, cfg, rate_hz, k, angles, stop)? {
+            match record_position(node, cfg, rate_hz, k, angles, stop, with_temp)? {
                 Recorded::Done(rows, report) => {
                     lost_total += report.lost;
                     break (rows, report);
@@ -717,6 +752,7 @@ fn record_position(
     k: usize,
     angles: (f64, f64),
     stop: &AtomicBool,
+    with_temp: bool,
 ) -> anyhow::Result<Recorded> {
     let cap = match capture(node, cfg.rule, cfg.settle_timeout, cfg.samples, stop, raw_values)? {
         Captured::Done(c) => c,
@@ -726,18 +762,18 @@ fn record_position(
     let mut text = String::new();
     for ((counter, c), temp) in cap.sets.iter().zip(&cap.temps) {
         let t_s = *counter as f64 / rate_hz as f64;
-        match (&cfg.chamber, temp) {
-            (None, _) => {
+        match (with_temp, temp) {
+            (false, _) => {
                 text.push_str(&format!("{t_s:.6},{},{},{},{},{}\n", angles.0, angles.1, c[0], c[1], c[2]))
             }
-            (Some(_), Some(tc)) => text.push_str(&format!(
+            (true, Some(tc)) => text.push_str(&format!(
                 "{t_s:.6},{},{},{tc:.2},{},{},{}\n",
                 angles.0, angles.1, c[0], c[1], c[2]
             )),
-            (Some(_), None) => {
+            (true, None) => {
                 return Err(bad(format!(
-                    "{}: the node reports no temperature with its samples: a thermal acquisition (--chamber) \
-                     needs a node with a temperature input (link protocol 4)",
+                    "{}: a block came without the temperature the node reported before: the campaign \
+                     records `temp_c`",
                     node.port()
                 )))
             }
@@ -833,7 +869,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("c.csv");
         let c = cfg(path.clone(), 3);
-        let mut text = header(&c, "51454d552d422d4c34373545", "0.1.0", 1000);
+        let mut text = header(&c, "51454d552d422d4c34373545", "0.1.0", 1000, false);
         for (p, (a, b)) in Plan::six().positions.iter().take(2).enumerate() {
             for i in 0..3 {
                 text.push_str(&format!("{},{a},{b},1,2,3\n", (p * 3 + i) as f64 / 1000.0));

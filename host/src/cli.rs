@@ -656,8 +656,9 @@ pub struct AcquireArgs {
     /// file (CSV `alpha_deg,beta_deg`).
     #[arg(long, default_value = "head")]
     pub plan: String,
-    /// Campaign CSV to write (raw codes; the header comments carry device id, serial, firmware,
-    /// g, plan, date, tool version). Must not exist, unless --resume.
+    /// Campaign CSV to write (raw codes, and `temp_c` when the node reports its temperature, as
+    /// protocol 4 nodes do; the header comments carry device id, serial, firmware, g, plan, date,
+    /// tool version). Must not exist, unless --resume.
     #[arg(long, short, value_name = "CAMPAIGN")]
     pub out: PathBuf,
     /// Sample sets recorded per position, after the stream is static.
@@ -689,7 +690,7 @@ pub struct AcquireArgs {
     #[arg(long, default_value_t = 3.0, value_name = "Z")]
     pub static_z: f64,
     /// A thermal campaign: run the plan at each of these chamber setpoints (°C, comma-separated),
-    /// each after --soak-s, and record the node's temperature as `temp_c`.
+    /// each after --soak-s (the node must report its temperature, recorded as `temp_c`).
     #[arg(long, value_name = "T1,T2,…", value_delimiter = ',', allow_hyphen_values = true)]
     pub chamber: Vec<f64>,
     /// Seconds to wait after each change of the chamber setpoint before the first position
