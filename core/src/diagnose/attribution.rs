@@ -132,9 +132,35 @@ struct Ctx<'a> {
     settle: Vec<f64>,
     t_mid: f64,
     temp_mid: f64,
+    /// The head misalignment (rx, rz, mrad) fitted with `hysteresis`: where the commanded input
+    /// of a channel does not change, the misaligned head still moves it a little, and the
+    /// direction of that small step is the direction of approach.
+    tilt: Option<(f64, f64)>,
 }
 
 impl Ctx<'_> {
+    /// The direction of approach of channel `ch` at position `p`: the sign of the commanded
+    /// step, or, where that is zero, of the step the misaligned head makes (0 without one).
+    fn approach(&self, ch: usize, p: usize) -> f64 {
+        let (d, own) = (self.d, self.d.own[ch]);
+        let step = d.step[ch][p];
+        if step.abs() >= 1e-6 {
+            return step.signum();
+        }
+        match self.tilt {
+            Some((rx, rz)) if p > 0 => {
+                let (now, before) = (derivatives(d, p), derivatives(d, p - 1));
+                let small = rx * (now[0][own] - before[0][own]) + rz * (now[1][own] - before[1][own]);
+                if small.abs() < 1e-6 {
+                    0.0
+                } else {
+                    small.signum()
+                }
+            }
+            _ => 0.0,
+        }
+    }
+
     fn value(&self, col: &Col, ch: usize, row: usize) -> f64 {
         if col.ch.is_some_and(|c| c != ch) {
             return 0.0;
@@ -156,13 +182,7 @@ impl Ctx<'_> {
             Kind::Nl(1) => a[0] * a[1],
             Kind::Nl(2) => a[0] * a[2],
             Kind::Nl(_) => a[1] * a[2],
-            Kind::Hyst => {
-                if step.abs() < 1e-6 {
-                    0.0
-                } else {
-                    step.signum()
-                }
-            }
+            Kind::Hyst => self.approach(ch, p),
             Kind::Settle => step * self.settle[row],
             Kind::HmX => dot(&d.k[ch], &derivatives(d, p)[0]),
             Kind::HmZ => dot(&d.k[ch], &derivatives(d, p)[1]),
@@ -178,7 +198,7 @@ pub(super) struct Design {
     cols: Vec<Col>,
 }
 
-fn design(d: &Data, base: Structure, set: &[Cand], tau: f64) -> Design {
+fn design(d: &Data, base: Structure, set: &[Cand], tau: f64, tilt: Option<(f64, f64)>) -> Design {
     let nb = d.bins.len();
     let temp_mid = d.temp.as_ref().map_or(0.0, |t| t.iter().sum::<f64>() / t.len() as f64);
     let ctx = Ctx {
@@ -187,6 +207,7 @@ fn design(d: &Data, base: Structure, set: &[Cand], tau: f64) -> Design {
         settle: if set.contains(&Cand::Settling) { d.settle(tau) } else { Vec::new() },
         t_mid: d.bins.iter().map(|b| b.t).sum::<f64>() / nb as f64,
         temp_mid,
+        tilt,
     };
     let cols = columns(d, base, set);
     let n = nb * d.nch();
@@ -203,15 +224,31 @@ pub(super) struct Fitted {
     cov: DMatrix<f64>,
     pub(super) wsse: f64,
     pub(super) tau: f64,
+    /// The head misalignment the hysteresis column used (see `Ctx::tilt`).
+    tilt: Option<(f64, f64)>,
 }
 
 fn fit_at(d: &Data, base: Structure, set: &[Cand], tau: f64, rows: &[usize], adj: &[f64]) -> Option<Fitted> {
-    let mut design = design(d, base, set, tau);
-    for (y, a) in design.y.iter_mut().zip(adj) {
-        *y -= a;
+    let once = |tilt: Option<(f64, f64)>| -> Option<Fitted> {
+        let mut design = design(d, base, set, tau, tilt);
+        for (y, a) in design.y.iter_mut().zip(adj) {
+            *y -= a;
+        }
+        let f = wls(&design.x, &design.y, &design.w, rows)?;
+        Some(Fitted { design, beta: f.beta, cov: f.cov, wsse: f.wsse, tau, tilt })
+    };
+    let f = once(None)?;
+    // With both, the hysteresis column takes the fitted misalignment's small steps (a second fit).
+    if set.contains(&Cand::Hysteresis) && set.contains(&Cand::HeadMisalignment) {
+        return once(tilt_of(&f));
     }
-    let f = wls(&design.x, &design.y, &design.w, rows)?;
-    Some(Fitted { design, beta: f.beta, cov: f.cov, wsse: f.wsse, tau })
+    Some(f)
+}
+
+/// The fitted head misalignment (rx, rz, mrad) of a fit that has it.
+fn tilt_of(f: &Fitted) -> Option<(f64, f64)> {
+    let at = |k: Kind| f.design.cols.iter().position(|c| c.kind == k).map(|i| f.beta[i]);
+    Some((at(Kind::HmX)?, at(Kind::HmZ)?))
 }
 
 /// Fits the deterministic part of `set` on the stacked `rows`; with `settling`, the time constant
@@ -251,18 +288,19 @@ pub(super) fn fit_backfit(
         return Some((plain, 0.0));
     }
     let mut prior = angle_variance(d, &residuals(&plain), positions);
-    let mut tau = plain.tau;
+    let (mut tau, mut tilt) = (plain.tau, plain.tilt);
     let mut best = None;
     for pass in 0..3 {
         if !(prior > 0.0) {
             break;
         }
-        let m = fit_mixed(d, base, set, tau, rows, positions, prior)?;
+        let m = fit_mixed(d, base, set, tau, tilt, rows, positions, prior)?;
         let adj = m.1;
         let full: Vec<f64> = residuals(&m.0).iter().zip(&adj).map(|(r, a)| r + a).collect();
         prior = angle_variance(d, &full, positions);
-        if set.contains(&Cand::Settling) && pass < 2 {
-            tau = fit(d, base, set, rows, &adj)?.tau;
+        if pass < 2 && (set.contains(&Cand::Settling) || tilt.is_some()) {
+            let again = fit(d, base, set, rows, &adj)?;
+            (tau, tilt) = (again.tau, again.tilt);
         }
         best = Some(m.0);
     }
@@ -278,16 +316,18 @@ pub(super) fn fit_backfit(
 /// complement) so that β is the generalised least-squares estimate under the covariance
 /// `σ²/n + prior·Z·Zᵀ`. Returns the fit, with the fitted angle errors `Z·u` taken out of its data,
 /// and `Z·u` (stacked).
+#[allow(clippy::too_many_arguments)]
 fn fit_mixed(
     d: &Data,
     base: Structure,
     set: &[Cand],
     tau: f64,
+    tilt: Option<(f64, f64)>,
     rows: &[usize],
     positions: &[usize],
     prior: f64,
 ) -> Option<(Fitted, Vec<f64>)> {
-    let mut design = design(d, base, set, tau);
+    let mut design = design(d, base, set, tau, tilt);
     let nb = d.bins.len();
     let k = design.x.ncols();
     let (x, y, w) = (&design.x, &design.y, &design.w);
@@ -348,7 +388,7 @@ fn fit_mixed(
         })
         .sum::<f64>()
         + penalty;
-    Some((Fitted { design, beta, cov, wsse, tau }, adj))
+    Some((Fitted { design, beta, cov, wsse, tau, tilt }, adj))
 }
 
 pub(super) fn residuals(f: &Fitted) -> Vec<f64> {
