@@ -1,32 +1,19 @@
-//! Attribution: which effects explain the gap, decided on withheld positions (the GMDH idea
-//! applied to effects: an external criterion decides).
+//! Attribution: the effects' models and how a set of them is scored on withheld positions (the
+//! GMDH idea applied to effects: an external criterion decides; [`super::selection`] chooses).
 //!
 //! Every candidate is linear in its parameters on the bins (see the table in the README): the
 //! baseline terms per channel plus the effect's columns (per channel, or shared by all channels
 //! for `head_misalignment`, whose columns are `k_c·∂a/∂ω` with the fitted sensitivities), fitted
 //! jointly by weighted least squares. `settling` adds a time constant found by a golden-section
-//! search on the fitting part. `angle_error` is a random effect: on a withheld position its two
-//! angle errors are estimated from the *other* channels' residuals and predict the channel left
-//! out.
+//! search on the fitting part ([`Data::tau_range`]). `angle_error` is a random effect: fitted as a
+//! mixed model with the deterministic part (per-position angle errors with an estimated variance,
+//! eliminated per position), and on a withheld position its two angle errors are estimated from
+//! the *other* channels' residuals and predict the channel left out.
 //!
 //! **Criterion.** Positions are split alternately into A and B; a model fitted on A is scored on
-//! B and one fitted on B on A. The score is the held-out χ² = Σ n·r²/σ² over withheld bins.
-//! **Greedy selection.** Starting from the baseline, every remaining candidate is added in turn;
-//! the one with the largest held-out χ² drop `D` among those passing both rules is kept:
-//! (1) `D > max(25 + 5·√(2p), 0.05·χ²_before)`, p the parameters it adds (under the null
-//! hypothesis, that the effect is absent, an added column raises the held-out χ² on average and
-//! `D` has a spread of about `2√(2p)`, so the first term is more than five spreads; the second
-//! asks for a practically relevant drop, as collinear columns widen the null spread); (2) `D` is
-//! at least [`MIN_EXPLAINED`] (50%) of the remaining excess held-out χ² (held-out χ² minus its
-//! noise expectation, the number of withheld bins), for `angle_error` the shape rule
-//! [`MIN_ANGLE_SHAPE`] instead. Rounds go on until no candidate passes. An effect that removes
-//! only a slice of a residual it does not describe is not named: the residual stays unexplained.
-//! **Pairs.** When the greedy path stalls (the first round keeps nothing, or it keeps one effect
-//! and the full-data residual is still beyond the noise), every pair of candidates is scored
-//! (greedy's blind spot: two effects present whose sum a third one mimics better than either
-//! alone, or a second effect hidden behind angle errors); the best pair is named when each
-//! member's marginal drop passes rule (1), together they remove at least half the excess, and it
-//! beats the greedy set on the held-out χ².
+//! B and one fitted on B on A. The score is the held-out χ² = Σ n·r²/σ² over withheld bins, and
+//! each effect of the set has a held-out [`Signature`]: how much of its predicted contribution
+//! the withheld data carry.
 
 use std::collections::BTreeMap;
 

@@ -564,8 +564,10 @@ pub fn summarise(outcomes: Vec<Outcome>) -> Summary {
         kinds.entry(o.case.kind).or_default().add(o);
         let t = label(&o.case.truth);
         truths.entry(t.clone()).or_insert_with(|| (o.case.kind, Tally::default())).1.add(o);
-        let shown: Vec<String> = o
-            .reported
+        // In the registry's order, as the truth is written.
+        let mut reported = o.reported.clone();
+        reported.sort_by_key(|n| Cand::from_name(n));
+        let shown: Vec<String> = reported
             .iter()
             .map(|n| if o.partial.contains(n) { format!("~{n}") } else { n.to_string() })
             .collect();

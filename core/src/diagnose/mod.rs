@@ -7,8 +7,10 @@
 //! noise, that no model can change). Every model
 //! here (the baseline and the effects) is linear in its parameters on the bins, so fitting is a
 //! weighted least squares with weights `n/σ²`. [`gap`] localises the residual of the baseline,
-//! [`attribution`] fits each effect on one half of the positions and scores it on the other, and
-//! [`bench`] runs the blind benchmark.
+//! [`attribution`] fits effects on one half of the positions and scores them on the other,
+//! [`selection`] chooses the set that explains the gap, [`structure`] checks what each named
+//! effect left (partial effects, where the rest lies, confounded effects), and [`bench`] runs
+//! the blind benchmark.
 
 pub mod attribution;
 pub mod bench;

@@ -247,9 +247,9 @@ fn best_subset(d: &Data, base: Structure, r1: &Round) -> Option<Pick> {
     for (pair, _) in pairs.iter().take(4) {
         for &c in cands.iter().filter(|c| !pair.contains(c)) {
             let t = key(vec![pair[0], pair[1], c]);
-            if !scores.contains_key(&t) {
-                let s = heldout(d, base, &t);
-                scores.insert(t, s);
+            if let std::collections::btree_map::Entry::Vacant(e) = scores.entry(t) {
+                let s = heldout(d, base, e.key());
+                e.insert(s);
             }
         }
     }
