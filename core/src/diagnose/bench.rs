@@ -53,15 +53,9 @@ impl Outside {
     pub const ALL: [Outside; 5] =
         [Outside::Hum, Outside::Crosstalk, Outside::SupplyDroop, Outside::AxisWobble, Outside::CableWindup];
 
-    /// Name in the tables.
+    /// Name in the tables (in the order of [`Outside::ALL`]).
     pub fn name(self) -> &'static str {
-        match self {
-            Outside::Hum => "hum",
-            Outside::Crosstalk => "crosstalk",
-            Outside::SupplyDroop => "supply_droop",
-            Outside::AxisWobble => "axis_wobble",
-            Outside::CableWindup => "cable_windup",
-        }
+        ["hum", "crosstalk", "supply_droop", "axis_wobble", "cable_windup"][self as usize]
     }
 }
 
@@ -165,15 +159,9 @@ impl CaseKind {
     pub const ALL: [CaseKind; 5] =
         [CaseKind::Clean, CaseKind::Single, CaseKind::Pair, CaseKind::Triple, CaseKind::Outside];
 
-    /// Name in the tables.
+    /// Name in the tables (in the order of [`CaseKind::ALL`]).
     pub fn name(self) -> &'static str {
-        match self {
-            CaseKind::Clean => "clean",
-            CaseKind::Single => "one effect",
-            CaseKind::Pair => "two effects",
-            CaseKind::Triple => "three effects",
-            CaseKind::Outside => "outside library",
-        }
+        ["clean", "one effect", "two effects", "three effects", "outside library"][self as usize]
     }
 
     /// The kind of campaign `index`: of every 8, one clean, two single, two pairs, one triple,
@@ -600,6 +588,14 @@ mod tests {
         let triples: std::collections::BTreeSet<Vec<Cand>> = (0..35).map(|k| combination(k, 3)).collect();
         assert_eq!(triples.len(), 35);
         assert_eq!(combination(35, 3), combination(0, 3));
+    }
+
+    #[test]
+    fn names_follow_the_order_of_all() {
+        assert!(Outside::ALL.iter().enumerate().all(|(i, o)| *o as usize == i));
+        assert!(CaseKind::ALL.iter().enumerate().all(|(i, k)| *k as usize == i));
+        assert_eq!(Outside::CableWindup.name(), "cable_windup");
+        assert_eq!((CaseKind::of(13), CaseKind::of(14)), (CaseKind::Triple, CaseKind::Outside));
     }
 
     #[test]
