@@ -72,13 +72,14 @@ pub fn print_summary(s: &Summary, seed: u64, range: (f64, f64)) {
                 .filter(|(rep, _)| t.right < t.campaigns && rep.as_str() != truth.as_str())
                 .map(|(rep, n)| format!("{n}x {}", abbrev(rep)))
                 .collect();
-            println!(
+            let row = format!(
                 "  {:<15} {:<24} {:>10}  {}",
                 kind.name(),
                 abbrev(truth),
                 format!("{}/{}/{}", t.right, t.wrong, t.missed),
                 others.join(", ")
             );
+            println!("{}", row.trim_end());
         }
     }
     println!();
