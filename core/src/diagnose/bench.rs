@@ -155,11 +155,7 @@ pub enum CaseKind {
 }
 
 impl CaseKind {
-    /// Every kind, in table order.
-    pub const ALL: [CaseKind; 5] =
-        [CaseKind::Clean, CaseKind::Single, CaseKind::Pair, CaseKind::Triple, CaseKind::Outside];
-
-    /// Name in the tables (in the order of [`CaseKind::ALL`]).
+    /// Name in the tables (in the order of declaration, which is the tables' order).
     pub fn name(self) -> &'static str {
         ["clean", "one effect", "two effects", "three effects", "outside library"][self as usize]
     }
@@ -593,7 +589,7 @@ mod tests {
     #[test]
     fn names_follow_the_order_of_all() {
         assert!(Outside::ALL.iter().enumerate().all(|(i, o)| *o as usize == i));
-        assert!(CaseKind::ALL.iter().enumerate().all(|(i, k)| *k as usize == i));
+        assert_eq!((CaseKind::Clean.name(), CaseKind::Outside.name()), ("clean", "outside library"));
         assert_eq!(Outside::CableWindup.name(), "cable_windup");
         assert_eq!((CaseKind::of(13), CaseKind::of(14)), (CaseKind::Triple, CaseKind::Outside));
     }
