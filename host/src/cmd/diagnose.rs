@@ -295,11 +295,19 @@ fn print_leftovers(r: &Report) {
         }
     }
     for c in &a.confounds {
+        // What each alone does on the withheld positions, from the first round.
+        let drops: Vec<String> = c
+            .effects
+            .iter()
+            .filter_map(|n| a.rounds.first()?.trials.iter().find(|t| t.name == *n))
+            .map(|t| format!("{} {}", t.name, sig(t.chi2_drop, 4)))
+            .collect();
         println!(
-            "confounded: {} and {} (time and temperature correlate, r = {}); the held-out test cannot tell them apart; to separate them: {}",
+            "confounded: {} and {} (time and temperature correlate, r = {}; held-out chi2 drop alone: {}): on this campaign each can stand for the other, and only the shape of the temperature curve tells them apart; to separate them: {}",
             c.effects[0],
             c.effects[1],
             sig(c.r, 3),
+            drops.join(", "),
             c.separate
         );
     }
