@@ -93,14 +93,22 @@ pub fn family(d: &Data, c: Cand, tau: f64) -> (&'static str, Vec<Vec<f64>>) {
         }
         Cand::Nonlinearity => {
             for ch in 0..nch {
-                for e in [[3, 0, 0], [0, 3, 0], [0, 0, 3], [1, 1, 1]] {
+                let own = d.own[ch];
+                // The squares of the other axes (the library has the own axis's only: with the
+                // constant, they hold one more direction, since ax² + ay² + az² = g²), and cubes.
+                let others = (0..3).filter(|&i| i != own).map(|i| {
+                    let mut e = [0; 3];
+                    e[i] = 2;
+                    e
+                });
+                for e in others.chain([[3, 0, 0], [0, 3, 0], [0, 0, 3], [1, 1, 1]]) {
                     cols.push(only(ch, &|_, row| {
                         let a = d.accel[d.bins[row].pos];
                         (0..3).map(|i| (a[i] / d.g).powi(e[i])).product::<f64>()
                     }));
                 }
             }
-            "higher orders of the input (cubic terms per channel)"
+            "other terms of the input (the other axes' squares and the cubic terms, per channel)"
         }
         Cand::HeadMisalignment => {
             for axis in [0, 1] {
@@ -213,9 +221,31 @@ fn final_fit(d: &Data, base: Structure, set: &[Cand]) -> Option<(Fitted, Vec<f64
     Some((f, resid, at))
 }
 
-/// The leftover structure of every effect of `set`, and where the final residual lies.
+/// The leftover structure of every effect of `set`, and where the final residual lies. When
+/// `angle_error` is itself partial (the "random" angle errors follow the head's angles), it may
+/// not hide the structure the other effects left: theirs is tested again without it, and the
+/// worse of the two counts.
 pub fn leftovers(d: &Data, base: Structure, set: &[Cand]) -> (Vec<Leftover>, Vec<Where>) {
-    let Some((f, _, at)) = final_fit(d, base, set) else { return (Vec::new(), Vec::new()) };
+    let Some((mut out, at)) = leftovers_of(d, base, set) else { return (Vec::new(), Vec::new()) };
+    let angle_partial = out.iter().any(|l| l.name == Cand::AngleError.name() && l.partial);
+    let rest: Vec<Cand> = set.iter().copied().filter(|&c| c != Cand::AngleError).collect();
+    if angle_partial && !rest.is_empty() {
+        if let Some((again, _)) = leftovers_of(d, base, &rest) {
+            for l in out.iter_mut() {
+                if let Some(a) = again.iter().find(|a| a.name == l.name) {
+                    l.z_family = l.z_family.max(a.z_family);
+                    l.z_domain = l.z_domain.max(a.z_domain);
+                    l.partial |= a.partial;
+                }
+            }
+        }
+    }
+    (out, at)
+}
+
+/// [`leftovers`] of one set as it is fitted.
+fn leftovers_of(d: &Data, base: Structure, set: &[Cand]) -> Option<(Vec<Leftover>, Vec<Where>)> {
+    let (f, _, at) = final_fit(d, base, set)?;
     let all: Vec<usize> = (0..d.bins.len() * d.nch()).collect();
     let combine = |zs: Vec<f64>| -> f64 {
         // The channels' z-scores of independent χ² pooled into one.
@@ -242,7 +272,7 @@ pub fn leftovers(d: &Data, base: Structure, set: &[Cand]) -> (Vec<Leftover>, Vec
             }
         })
         .collect();
-    (out, at)
+    Some((out, at))
 }
 
 /// z of the χ² drop the columns `extra` bring to the design of the fit `f` (scaled by the residual variance
