@@ -1,7 +1,8 @@
 //! Tests of the sim-to-real gap diagnosis: every effect of the library found on a seeded campaign
 //! that has it (magnitude ≥ 5σ of the per-position noise), nothing on clean campaigns, a foreign
-//! residual left unexplained, the CLI's JSON keys and exit codes, and a small blind benchmark
-//! held to the accuracy aim.
+//! residual left unexplained, a drift found behind random angle errors, an effect outside the
+//! library not given a library name, a partial effect, a drift and a rising temperature reported
+//! as confounded, the CLI's JSON keys and exit codes, and a small blind benchmark held to the aims.
 
 mod common;
 
@@ -179,13 +180,102 @@ fn the_gap_is_localised_where_the_effect_acts() {
 }
 
 #[test]
-fn small_blind_benchmark_meets_the_aim() {
+fn small_blind_benchmark_meets_the_aims() {
     let s = bench::run(48, 0xb11d, bench::MAGNITUDE, &|| {});
-    assert_eq!(s.clean, 6);
-    assert_eq!(s.clean_false_positives, 0, "{:#?}", s.confusion);
-    assert!(s.accuracy_effects >= 0.95, "{:.3}: {:#?}", s.accuracy_effects, s.confusion);
-    assert!(s.shrink_vs_oracle_all > 0.95, "{}", s.shrink_vs_oracle_all);
-    assert!(s.outcomes.iter().all(|o| o.case.truth.is_none() || o.case.magnitude >= 4.5));
+    let kind = |k: bench::CaseKind| s.kinds[&k].clone();
+    let (clean, one, two, out) = (
+        kind(bench::CaseKind::Clean),
+        kind(bench::CaseKind::Single),
+        kind(bench::CaseKind::Pair),
+        kind(bench::CaseKind::Outside),
+    );
+    assert_eq!((clean.campaigns, one.campaigns, two.campaigns, out.campaigns), (6, 12, 12, 12));
+    assert_eq!(clean.wrong, 0, "{:#?}", s.confusion);
+    assert!(one.right_share() >= 0.95, "{:#?}", s.confusion);
+    assert!(two.right_share() >= 0.90, "{:#?}", s.confusion);
+    assert!(s.outside_overclaimed <= 1, "{:#?}", s.confusion);
+    assert!(s.shrink_vs_oracle > 0.9, "{}", s.shrink_vs_oracle);
+    // Every effect of a campaign has its own magnitude in the range, the outside ones too.
+    for o in &s.outcomes {
+        assert_eq!(o.case.magnitudes.len(), o.case.truth.len());
+        assert!(o.case.magnitudes.iter().all(|m| (2.95..=8.05).contains(m)), "{:?}", o.case);
+    }
+}
+
+#[test]
+fn a_drift_behind_random_angle_errors_is_named_with_them() {
+    // The pair that named nothing before the joint search (angle errors hid the drift).
+    let mut cfg = config(12, None);
+    cfg.effects = vec![
+        effects::parse("angle_error=sd_mrad:1").unwrap(),
+        effects::parse("bias_drift=rate:0.12").unwrap(),
+    ];
+    let (c, _) = sim::simulate(&cfg);
+    let r = diagnose::diagnose(&c, accelcal_shared::G_STANDARD, MODEL_4).unwrap();
+    let mut names: Vec<&str> = r.effects.iter().map(|e| e.name.as_str()).collect();
+    names.sort();
+    assert_eq!(names, ["angle_error", "bias_drift"], "{:#?}", r.attribution.rounds);
+    assert!(r.effects.iter().all(|e| !e.partial), "{:#?}", r.attribution.leftovers);
+    assert!(r.attribution.signatures.iter().all(|s| s.present()), "{:?}", r.attribution.signatures);
+    let rate = &r.effects.iter().find(|e| e.name == "bias_drift").unwrap().parameters["y"]["rate"];
+    assert!((rate.value - 0.12).abs() < 4.0 * rate.sd.unwrap(), "{rate:?}");
+}
+
+#[test]
+fn an_effect_outside_the_library_is_not_given_a_library_name() {
+    // Cable wind-up: a bias proportional to the head's alpha (rewound at each row), 8 codes per
+    // turn of 360 degrees on x, -6 on z. Hysteresis and the rest take a slice at most; what is
+    // named is partial and the rest is reported as unexplained, with where it lies.
+    let r = disturbed(|ch, _, k| {
+        let alpha = (k % 12) as f64 * 30.0;
+        [40.0, 0.0, -30.0][ch] * alpha / 360.0
+    });
+    let full: Vec<&str> = r.effects.iter().filter(|e| !e.partial).map(|e| e.name.as_str()).collect();
+    assert!(full.is_empty() || r.attribution.joint_explained <= 0.5, "{full:?}: {:#?}", r.attribution);
+    assert!(r.unexplained_rms > 2.0, "{}", r.unexplained_rms);
+    let at = &r.attribution.residual_where;
+    assert!(at[0].z_positions > 4.0 && at[2].z_positions > 4.0 && at[1].z_positions < 4.0, "{at:?}");
+}
+
+#[test]
+fn an_effect_that_removes_part_of_a_wider_structure_is_partial() {
+    // A transient even in the step (a square-law supply droop) on top of settling: settling is
+    // named, but a transient of its kind is left, so it is reported as partial.
+    let (mut c, _) = sim::simulate(&config(31, Some("settling=gain:20,tau:0.5")));
+    let dwells = c.dwells();
+    for (k, w) in dwells.iter().enumerate() {
+        let droop = if k == 0 || k % 2 == 1 { 0.0 } else { 40.0 };
+        for ch in &mut c.channels {
+            for i in w.start..w.end {
+                ch.codes[i] -= (droop * (-((i - w.start) as f64) / 50.0).exp()).round();
+            }
+        }
+    }
+    let r = diagnose::diagnose(&c, accelcal_shared::G_STANDARD, MODEL_4).unwrap();
+    let e = r.effects.iter().find(|e| e.name == "settling").expect("settling is named");
+    let left = r.attribution.leftovers.iter().find(|l| l.name == "settling").unwrap();
+    assert!(e.partial && left.partial && left.z_family >= diagnose::structure::PARTIAL_Z, "{left:?}");
+    assert_eq!(left.domain, "in dwell");
+}
+
+#[test]
+fn a_drift_and_a_temperature_that_rises_with_time_are_reported_as_confounded() {
+    let mut cfg = config(17, Some("bias_drift=rate:0.2"));
+    // A quarter cycle from the trough: the temperature rises steadily over the campaign.
+    cfg.temp =
+        Some(TempProfile { base_c: 25.0, amp_c: 5.0, cycles: 0.25, phase: -std::f64::consts::FRAC_PI_2 });
+    let (c, _) = sim::simulate(&cfg);
+    let r = diagnose::diagnose(&c, accelcal_shared::G_STANDARD, MODEL_4).unwrap();
+    let cf = &r.attribution.confounds;
+    assert_eq!(cf.len(), 1, "{cf:?}");
+    assert_eq!(cf[0].effects, ["bias_drift", "temperature"]);
+    assert!(cf[0].r > 0.9 && cf[0].separate.contains("temperature"), "{cf:?}");
+    // One of the two is named, never both, and the report says they cannot be told apart.
+    let names: Vec<&str> = r.effects.iter().map(|e| e.name.as_str()).collect();
+    assert_eq!(names.len(), 1, "{names:?}");
+    assert!(["bias_drift", "temperature"].contains(&names[0]));
+    // On the default profile (1.5 cycles), nothing is confounded.
+    assert!(run(17, Some("bias_drift=rate:0.2")).attribution.confounds.is_empty());
 }
 
 /// Checks every "explained" share of a diagnosis report against the numbers on its row and its

@@ -474,7 +474,7 @@ pub struct BenchDiagnoseArgs {
     pub seed: u64,
     /// Range of the effects' magnitudes, `LO:HI`, in units of the per-position noise (RMS of the
     /// effect's contribution to the dwell means over σ/√samples).
-    #[arg(long, default_value = "5:15", value_name = "LO:HI")]
+    #[arg(long, default_value = "3:8", value_name = "LO:HI")]
     pub magnitude: String,
     /// Write the results (confusion table, per-campaign rows) as JSON.
     #[arg(long, value_name = "FILE")]

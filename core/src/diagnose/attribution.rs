@@ -1,40 +1,27 @@
-//! Attribution: which effects explain the gap, decided on withheld positions (the GMDH idea
-//! applied to effects: an external criterion decides).
+//! Attribution: the effects' models and how a set of them is scored on withheld positions (the
+//! GMDH idea applied to effects: an external criterion decides; [`super::selection`] chooses).
 //!
 //! Every candidate is linear in its parameters on the bins (see the table in the README): the
 //! baseline terms per channel plus the effect's columns (per channel, or shared by all channels
 //! for `head_misalignment`, whose columns are `k_c·∂a/∂ω` with the fitted sensitivities), fitted
 //! jointly by weighted least squares. `settling` adds a time constant found by a golden-section
-//! search on the fitting part. `angle_error` is a random effect: on a withheld position its two
-//! angle errors are estimated from the *other* channels' residuals and predict the channel left
-//! out.
+//! search on the fitting part ([`Data::tau_range`]). `angle_error` is a random effect: fitted as a
+//! mixed model with the deterministic part (per-position angle errors with an estimated variance,
+//! eliminated per position), and on a withheld position its two angle errors are estimated from
+//! the *other* channels' residuals and predict the channel left out.
 //!
 //! **Criterion.** Positions are split alternately into A and B; a model fitted on A is scored on
-//! B and one fitted on B on A. The score is the held-out χ² = Σ n·r²/σ² over withheld bins.
-//! **Greedy selection.** Starting from the baseline, every remaining candidate is added in turn;
-//! the one with the largest held-out χ² drop `D` among those passing both rules is kept:
-//! (1) `D > max(25 + 5·√(2p), 0.05·χ²_before)`, p the parameters it adds (under the null
-//! hypothesis, that the effect is absent, an added column raises the held-out χ² on average and
-//! `D` has a spread of about `2√(2p)`, so the first term is more than five spreads; the second
-//! asks for a practically relevant drop, as collinear columns widen the null spread); (2) `D` is
-//! at least [`MIN_EXPLAINED`] (50%) of the remaining excess held-out χ² (held-out χ² minus its
-//! noise expectation, the number of withheld bins), for `angle_error` the shape rule
-//! [`MIN_ANGLE_SHAPE`] instead. Rounds go on until no candidate passes. An effect that removes
-//! only a slice of a residual it does not describe is not named: the residual stays unexplained.
-//! **Pairs.** When the greedy path stalls (the first round keeps nothing, or it keeps one effect
-//! and the full-data residual is still beyond the noise), every pair of candidates is scored
-//! (greedy's blind spot: two effects present whose sum a third one mimics better than either
-//! alone, or a second effect hidden behind angle errors); the best pair is named when each
-//! member's marginal drop passes rule (1), together they remove at least half the excess, and it
-//! beats the greedy set on the held-out χ².
+//! B and one fitted on B on A. The score is the held-out χ² = Σ n·r²/σ² over withheld bins, and
+//! each effect of the set has a held-out [`Signature`]: how much of its predicted contribution
+//! the withheld data carry.
 
 use std::collections::BTreeMap;
 
 use accelcal_shared::{Structure, Term};
-use nalgebra::DMatrix;
+use nalgebra::{DMatrix, DVector, Matrix2, Vector2};
 use serde::Serialize;
 
-use super::{golden_min, wls, zscore, Data, NOISE_Z, TAU_RANGE};
+use super::{golden_min, solve_normal, wls, Data};
 
 /// The candidates are the effects of the registry.
 pub use crate::effects::EffectKind as Cand;
@@ -132,9 +119,35 @@ struct Ctx<'a> {
     settle: Vec<f64>,
     t_mid: f64,
     temp_mid: f64,
+    /// The head misalignment (rx, rz, mrad) fitted with `hysteresis`: where the commanded input
+    /// of a channel does not change, the misaligned head still moves it a little, and the
+    /// direction of that small step is the direction of approach.
+    tilt: Option<(f64, f64)>,
 }
 
 impl Ctx<'_> {
+    /// The direction of approach of channel `ch` at position `p`: the sign of the commanded
+    /// step, or, where that is zero, of the step the misaligned head makes (0 without one).
+    fn approach(&self, ch: usize, p: usize) -> f64 {
+        let (d, own) = (self.d, self.d.own[ch]);
+        let step = d.step[ch][p];
+        if step.abs() >= 1e-6 {
+            return step.signum();
+        }
+        match self.tilt {
+            Some((rx, rz)) if p > 0 => {
+                let (now, before) = (derivatives(d, p), derivatives(d, p - 1));
+                let small = rx * (now[0][own] - before[0][own]) + rz * (now[1][own] - before[1][own]);
+                if small.abs() < 1e-6 {
+                    0.0
+                } else {
+                    small.signum()
+                }
+            }
+            _ => 0.0,
+        }
+    }
+
     fn value(&self, col: &Col, ch: usize, row: usize) -> f64 {
         if col.ch.is_some_and(|c| c != ch) {
             return 0.0;
@@ -156,13 +169,7 @@ impl Ctx<'_> {
             Kind::Nl(1) => a[0] * a[1],
             Kind::Nl(2) => a[0] * a[2],
             Kind::Nl(_) => a[1] * a[2],
-            Kind::Hyst => {
-                if step.abs() < 1e-6 {
-                    0.0
-                } else {
-                    step.signum()
-                }
-            }
+            Kind::Hyst => self.approach(ch, p),
             Kind::Settle => step * self.settle[row],
             Kind::HmX => dot(&d.k[ch], &derivatives(d, p)[0]),
             Kind::HmZ => dot(&d.k[ch], &derivatives(d, p)[1]),
@@ -171,14 +178,14 @@ impl Ctx<'_> {
 }
 
 /// The joint design over channels: stacked row `ch·bins + row`.
-struct Design {
-    x: DMatrix<f64>,
-    y: Vec<f64>,
-    w: Vec<f64>,
+pub(super) struct Design {
+    pub(super) x: DMatrix<f64>,
+    pub(super) y: Vec<f64>,
+    pub(super) w: Vec<f64>,
     cols: Vec<Col>,
 }
 
-fn design(d: &Data, base: Structure, set: &[Cand], tau: f64) -> Design {
+fn design(d: &Data, base: Structure, set: &[Cand], tau: f64, tilt: Option<(f64, f64)>) -> Design {
     let nb = d.bins.len();
     let temp_mid = d.temp.as_ref().map_or(0.0, |t| t.iter().sum::<f64>() / t.len() as f64);
     let ctx = Ctx {
@@ -187,6 +194,7 @@ fn design(d: &Data, base: Structure, set: &[Cand], tau: f64) -> Design {
         settle: if set.contains(&Cand::Settling) { d.settle(tau) } else { Vec::new() },
         t_mid: d.bins.iter().map(|b| b.t).sum::<f64>() / nb as f64,
         temp_mid,
+        tilt,
     };
     let cols = columns(d, base, set);
     let n = nb * d.nch();
@@ -197,21 +205,37 @@ fn design(d: &Data, base: Structure, set: &[Cand], tau: f64) -> Design {
 }
 
 /// A deterministic fit: coefficients, covariance and the design it belongs to.
-struct Fitted {
-    design: Design,
-    beta: Vec<f64>,
+pub(super) struct Fitted {
+    pub(super) design: Design,
+    pub(super) beta: Vec<f64>,
     cov: DMatrix<f64>,
-    wsse: f64,
-    tau: f64,
+    pub(super) wsse: f64,
+    pub(super) tau: f64,
+    /// The head misalignment the hysteresis column used (see `Ctx::tilt`).
+    tilt: Option<(f64, f64)>,
 }
 
 fn fit_at(d: &Data, base: Structure, set: &[Cand], tau: f64, rows: &[usize], adj: &[f64]) -> Option<Fitted> {
-    let mut design = design(d, base, set, tau);
-    for (y, a) in design.y.iter_mut().zip(adj) {
-        *y -= a;
+    let once = |tilt: Option<(f64, f64)>| -> Option<Fitted> {
+        let mut design = design(d, base, set, tau, tilt);
+        for (y, a) in design.y.iter_mut().zip(adj) {
+            *y -= a;
+        }
+        let f = wls(&design.x, &design.y, &design.w, rows)?;
+        Some(Fitted { design, beta: f.beta, cov: f.cov, wsse: f.wsse, tau, tilt })
+    };
+    let f = once(None)?;
+    // With both, the hysteresis column takes the fitted misalignment's small steps (a second fit).
+    if set.contains(&Cand::Hysteresis) && set.contains(&Cand::HeadMisalignment) {
+        return once(tilt_of(&f));
     }
-    let f = wls(&design.x, &design.y, &design.w, rows)?;
-    Some(Fitted { design, beta: f.beta, cov: f.cov, wsse: f.wsse, tau })
+    Some(f)
+}
+
+/// The fitted head misalignment (rx, rz, mrad) of a fit that has it.
+fn tilt_of(f: &Fitted) -> Option<(f64, f64)> {
+    let at = |k: Kind| f.design.cols.iter().position(|c| c.kind == k).map(|i| f.beta[i]);
+    Some((at(Kind::HmX)?, at(Kind::HmZ)?))
 }
 
 /// Fits the deterministic part of `set` on the stacked `rows`; with `settling`, the time constant
@@ -222,7 +246,8 @@ fn fit(d: &Data, base: Structure, set: &[Cand], rows: &[usize], adj: &[f64]) -> 
         return fit_at(d, base, set, 1.0, rows, adj);
     }
     let f = |lt: f64| fit_at(d, base, set, lt.exp(), rows, adj).map_or(f64::INFINITY, |f| f.wsse);
-    let (mut lo, mut hi) = (TAU_RANGE.0.ln(), TAU_RANGE.1.ln());
+    let range = d.tau_range();
+    let (mut lo, mut hi) = (range.0.ln(), range.1.ln());
     // A coarse scan first (the criterion need not be unimodal), then golden sections.
     let grid: Vec<f64> = (0..12).map(|i| lo + (hi - lo) * i as f64 / 11.0).collect();
     let best = grid.iter().copied().min_by(|a, b| f(*a).total_cmp(&f(*b)))?;
@@ -232,34 +257,128 @@ fn fit(d: &Data, base: Structure, set: &[Cand], rows: &[usize], adj: &[f64]) -> 
 }
 
 /// Fits the deterministic part of `set` on `rows` (the bins of `positions`). With `angle_error`
-/// in the set, backfitting: the angle errors of `positions` are estimated from all channels and
-/// taken out of the data, and the deterministic part refitted (three passes), so that angle
-/// errors do not bias the other parameters. Returns the fit (its residuals have the fitted angle
-/// errors removed on `rows`) and the angle-error variance (mrad², 0 without `angle_error`).
-fn fit_backfit(
+/// in the set, a mixed model: the angle errors (δα, δβ) of each of `positions` are random effects
+/// of variance `prior` (mrad², estimated from the data), fitted jointly with the deterministic
+/// part ([`fit_mixed`]); the variance is re-estimated from the residual of each fit (three
+/// passes), and with `settling` the time constant is searched with the angle errors taken out.
+/// Returns the fit (its data have the fitted angle errors removed on `rows`, so its residuals
+/// do) and the angle-error variance (mrad², 0 without `angle_error`).
+pub(super) fn fit_backfit(
     d: &Data,
     base: Structure,
     set: &[Cand],
     rows: &[usize],
     positions: &[usize],
 ) -> Option<(Fitted, f64)> {
+    let plain = fit(d, base, set, rows, &[])?;
     if !set.contains(&Cand::AngleError) {
-        return Some((fit(d, base, set, rows, &[])?, 0.0));
+        return Some((plain, 0.0));
     }
-    let mut adj = vec![0.0; d.bins.len() * d.nch()];
-    let mut prior = 0.0;
-    for _ in 0..3 {
-        let f = fit(d, base, set, rows, &adj)?;
-        let full: Vec<f64> = residuals(&f).iter().zip(&adj).map(|(r, a)| r + a).collect();
+    let mut prior = angle_variance(d, &residuals(&plain), positions);
+    let (mut tau, mut tilt) = (plain.tau, plain.tilt);
+    let mut best = None;
+    for pass in 0..3 {
+        if !(prior > 0.0) {
+            break;
+        }
+        let m = fit_mixed(d, base, set, tau, tilt, rows, positions, prior)?;
+        let adj = m.1;
+        let full: Vec<f64> = residuals(&m.0).iter().zip(&adj).map(|(r, a)| r + a).collect();
         prior = angle_variance(d, &full, positions);
-        let mut left = full.clone();
-        angle_correct(d, &mut left, positions, false, prior);
-        adj = full.iter().zip(&left).map(|(f, l)| f - l).collect();
+        if pass < 2 && (set.contains(&Cand::Settling) || tilt.is_some()) {
+            let again = fit(d, base, set, rows, &adj)?;
+            (tau, tilt) = (again.tau, again.tilt);
+        }
+        best = Some(m.0);
     }
-    Some((fit(d, base, set, rows, &adj)?, prior))
+    match best {
+        Some(f) => Some((f, prior)),
+        None => Some((plain, 0.0)),
+    }
 }
 
-fn residuals(f: &Fitted) -> Vec<f64> {
+/// The mixed-model fit at a time constant `tau` and an angle-error variance `prior` (mrad²): the
+/// deterministic coefficients β with the angle errors u of `positions` as random effects,
+/// `min Σ w·(y − X·β − Z·u)² + Σ |u|²/prior`, the per-position 2×2 blocks eliminated (Schur
+/// complement) so that β is the generalised least-squares estimate under the covariance
+/// `σ²/n + prior·Z·Zᵀ`. Returns the fit, with the fitted angle errors `Z·u` taken out of its data,
+/// and `Z·u` (stacked).
+#[allow(clippy::too_many_arguments)]
+fn fit_mixed(
+    d: &Data,
+    base: Structure,
+    set: &[Cand],
+    tau: f64,
+    tilt: Option<(f64, f64)>,
+    rows: &[usize],
+    positions: &[usize],
+    prior: f64,
+) -> Option<(Fitted, Vec<f64>)> {
+    let mut design = design(d, base, set, tau, tilt);
+    let nb = d.bins.len();
+    let k = design.x.ncols();
+    let (x, y, w) = (&design.x, &design.y, &design.w);
+    let mut gram = DMatrix::<f64>::zeros(k, k);
+    let mut rhs = DVector::<f64>::zeros(k);
+    let mut by_pos: Vec<Vec<usize>> = vec![Vec::new(); d.npos()];
+    for &r in rows {
+        by_pos[d.bins[r % nb].pos].push(r);
+        let xr = x.row(r);
+        gram += w[r] * xr.transpose() * xr;
+        rhs += w[r] * y[r] * xr.transpose();
+    }
+    // Per position: A = ZᵀWZ + I/prior, B = ZᵀWX, c = ZᵀWy.
+    let mut blocks = Vec::new();
+    for &p in positions {
+        if by_pos[p].is_empty() {
+            continue;
+        }
+        let gr = angle_gains(d, p);
+        let mut a = Matrix2::<f64>::identity() / prior;
+        let mut b = DMatrix::<f64>::zeros(2, k);
+        let mut c = Vector2::<f64>::zeros();
+        for &r in &by_pos[p] {
+            let z = Vector2::new(gr[r / nb][0], gr[r / nb][1]);
+            a += w[r] * z * z.transpose();
+            for j in 0..k {
+                b[(0, j)] += w[r] * z[0] * x[(r, j)];
+                b[(1, j)] += w[r] * z[1] * x[(r, j)];
+            }
+            c += w[r] * y[r] * z;
+        }
+        let ai = a.try_inverse()?;
+        let ai_d = DMatrix::from_fn(2, 2, |i, j| ai[(i, j)]);
+        let c_d = DVector::from_fn(2, |i, _| c[i]);
+        gram -= b.transpose() * &ai_d * &b;
+        rhs -= b.transpose() * &ai_d * &c_d;
+        blocks.push((p, gr, ai_d, b, c_d));
+    }
+    let (beta, cov) = solve_normal(&gram, &rhs)?;
+    let mut adj = vec![0.0; y.len()];
+    let mut penalty = 0.0;
+    for (p, gr, ai, b, c) in &blocks {
+        let u = ai * (c - b * &beta);
+        penalty += (u[0] * u[0] + u[1] * u[1]) / prior;
+        for &r in &by_pos[*p] {
+            adj[r] = gr[r / nb][0] * u[0] + gr[r / nb][1] * u[1];
+        }
+    }
+    for (yv, a) in design.y.iter_mut().zip(&adj) {
+        *yv -= a;
+    }
+    let beta: Vec<f64> = beta.iter().copied().collect();
+    let wsse = rows
+        .iter()
+        .map(|&r| {
+            let e = design.y[r] - (0..k).map(|j| design.x[(r, j)] * beta[j]).sum::<f64>();
+            design.w[r] * e * e
+        })
+        .sum::<f64>()
+        + penalty;
+    Some((Fitted { design, beta, cov, wsse, tau, tilt }, adj))
+}
+
+pub(super) fn residuals(f: &Fitted) -> Vec<f64> {
     let x = &f.design.x;
     (0..x.nrows())
         .map(|r| f.design.y[r] - (0..x.ncols()).map(|c| x[(r, c)] * f.beta[c]).sum::<f64>())
@@ -267,7 +386,7 @@ fn residuals(f: &Fitted) -> Vec<f64> {
 }
 
 /// Sensitivities of each channel's dwell mean to δα and δβ (codes per mrad) at a position.
-fn angle_gains(d: &Data, p: usize) -> Vec<[f64; 2]> {
+pub(super) fn angle_gains(d: &Data, p: usize) -> Vec<[f64; 2]> {
     let der = derivatives(d, p);
     (0..d.nch()).map(|c| [dot(&d.k[c], &der[2]), dot(&d.k[c], &der[3])]).collect()
 }
@@ -387,8 +506,41 @@ fn nparams(d: &Data, base: Structure, set: &[Cand]) -> usize {
 /// Scores `set` on withheld positions: fitted on the even positions and scored on the odd ones,
 /// then the other way round.
 pub fn heldout(d: &Data, base: Structure, set: &[Cand]) -> Score {
+    heldout_signatures(d, base, set).0
+}
+
+/// Whether a kept effect's own signature is present in the withheld data: its contribution `p`,
+/// predicted on the withheld positions by the fit on the others, against the withheld residual
+/// of the model without it, `u = r + p`. The amplitude `Σw·u·p/Σw·p²` is 1 when the held-out data
+/// carry the effect as fitted and 0 when they do not; its z is `Σw·u·p/√(Σw·p²)`. (The χ² drop the
+/// effect brings on the same rows is `Σw·p²·(2·amplitude − 1)`: a drop can come from a small
+/// part of a large prediction, the amplitude says how much of the prediction is there.)
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct Signature {
+    /// Effect name.
+    pub name: &'static str,
+    /// Held-out amplitude of the predicted contribution (1: fully present).
+    pub amplitude: f64,
+    /// Its z-score against the noise.
+    pub z: f64,
+}
+
+/// The least held-out amplitude and z of a kept effect's signature.
+pub const SIGNATURE: (f64, f64) = (0.5, 5.0);
+
+impl Signature {
+    /// Whether the signature is present in the withheld data.
+    pub fn present(&self) -> bool {
+        self.amplitude >= SIGNATURE.0 && self.z >= SIGNATURE.1
+    }
+}
+
+/// [`heldout`], with the held-out [`Signature`] of every effect of `set`.
+pub fn heldout_signatures(d: &Data, base: Structure, set: &[Cand]) -> (Score, Vec<Signature>) {
     let nb = d.bins.len();
     let (mut chi2, mut ss, mut count, mut shape) = (0.0, 0.0, 0usize, 0.0);
+    // Per effect: Σ w·u·p and Σ w·p².
+    let mut sig = vec![(0.0, 0.0); set.len()];
     for parity in [0, 1] {
         let stacked = |keep: &dyn Fn(usize) -> bool| -> Vec<usize> {
             (0..nb * d.nch()).filter(|&r| keep(d.bins[r % nb].pos)).collect()
@@ -397,22 +549,27 @@ pub fn heldout(d: &Data, base: Structure, set: &[Cand]) -> Score {
         let test_rows = stacked(&|p| p % 2 != parity);
         let fit_pos: Vec<usize> = (0..d.npos()).filter(|p| p % 2 == parity).collect();
         let Some((f, prior)) = fit_backfit(d, base, set, &fit_rows, &fit_pos) else {
-            return Score {
-                chi2: f64::INFINITY,
-                rms: f64::INFINITY,
-                bins: 0,
-                params: 0,
-                chi2_shape: f64::INFINITY,
-            };
+            let inf = f64::INFINITY;
+            return (Score { chi2: inf, rms: inf, bins: 0, params: 0, chi2_shape: inf }, Vec::new());
         };
         let mut r = residuals(&f);
+        let mut angle_pred = Vec::new();
         if set.contains(&Cand::AngleError) {
             let test_pos: Vec<usize> = (0..d.npos()).filter(|p| p % 2 != parity).collect();
             let mut all = r.clone();
             angle_correct(d, &mut all, &test_pos, false, prior);
             shape += test_rows.iter().map(|&i| f.design.w[i] * all[i] * all[i]).sum::<f64>();
             shape += 2.0 * test_pos.len() as f64;
+            let before = r.clone();
             angle_correct(d, &mut r, &test_pos, true, prior);
+            angle_pred = before.iter().zip(&r).map(|(b, a)| b - a).collect();
+        }
+        for (k, &c) in set.iter().enumerate() {
+            let p = if c == Cand::AngleError { angle_pred.clone() } else { contribution(&f, c) };
+            for &i in &test_rows {
+                sig[k].0 += f.design.w[i] * (r[i] + p[i]) * p[i];
+                sig[k].1 += f.design.w[i] * p[i] * p[i];
+            }
         }
         for &i in &test_rows {
             chi2 += f.design.w[i] * r[i] * r[i];
@@ -421,204 +578,31 @@ pub fn heldout(d: &Data, base: Structure, set: &[Cand]) -> Score {
         }
     }
     let chi2_shape = if set.contains(&Cand::AngleError) { shape } else { chi2 };
-    Score {
+    let score = Score {
         chi2,
         rms: (ss / count.max(1) as f64).sqrt(),
         bins: count,
         params: nparams(d, base, set),
         chi2_shape,
-    }
-}
-
-/// One candidate's trial in one round of the greedy selection.
-#[derive(Clone, Debug, Serialize)]
-pub struct Trial {
-    /// Effect name.
-    pub name: &'static str,
-    /// Held-out score with the effect added.
-    pub score: Score,
-    /// Drop of the held-out χ² it brings.
-    pub chi2_drop: f64,
-    /// Threshold of the drop: the larger of 25 + 5·√(2p) and 5% of the held-out χ² before.
-    pub threshold: f64,
-    /// Fraction of the remaining excess χ² it removes.
-    pub explained: f64,
-    /// The fraction its shape rule uses: `explained`, except for `angle_error` (see
-    /// [`significant`]).
-    pub shape_explained: f64,
-}
-
-/// One round of the greedy selection.
-#[derive(Clone, Debug, Serialize)]
-pub struct Round {
-    /// Held-out score of the model so far.
-    pub before: Score,
-    /// Every candidate tried, best first.
-    pub trials: Vec<Trial>,
-    /// The effect kept, if any.
-    pub kept: Option<&'static str>,
-}
-
-/// The least fraction of the remaining excess χ² an effect must remove on withheld positions to
-/// be kept in a round, and that the kept effects together must remove to be named.
-pub const MIN_EXPLAINED: f64 = 0.5;
-
-/// The least fraction of the excess χ² that the per-position angle subspace must hold for
-/// `angle_error` to be named. Its held-out prediction (each channel from the others) is limited
-/// by geometry (on a triad at α = 0 a change of α moves ax only), so its shape is checked by
-/// estimating the angles from all channels: two parameters per position in a space of three
-/// channels hold about 2/3 of a residual without angle structure, all of one with it.
-pub const MIN_ANGLE_SHAPE: f64 = 0.8;
-
-/// Whether a trial may be kept in its round: a drop above the threshold that removes at least
-/// [`MIN_EXPLAINED`] of the remaining excess (for `angle_error`: the shape rule).
-pub fn significant(t: &Trial) -> bool {
-    let min = if t.name == Cand::AngleError.name() { MIN_ANGLE_SHAPE } else { MIN_EXPLAINED };
-    t.chi2_drop > t.threshold && t.shape_explained >= min
-}
-
-/// The outcome of the greedy selection.
-#[derive(Clone, Debug, Serialize)]
-pub struct EffectSelection {
-    /// The effects named, in the order kept (empty when they explain too little together).
-    pub set: Vec<Cand>,
-    /// Every round.
-    pub rounds: Vec<Round>,
-    /// Fraction of the baseline's held-out excess χ² the kept effects remove together.
-    pub joint_explained: f64,
-    /// Effects kept but not named because together they explain less than [`MIN_EXPLAINED`] of
-    /// the excess (the residual is reported as unexplained instead).
-    pub not_named: Vec<&'static str>,
-    /// For each named effect: the held-out score before and after adding it.
-    pub steps: Vec<(Score, Score)>,
-    /// Whether the set came from the pair search (the greedy path stalled).
-    pub from_pairs: bool,
-}
-
-/// Greedy selection of effects by held-out χ² drop: each round keeps the candidate with the
-/// largest drop among those that pass [`significant`]; the kept effects are named when together
-/// they remove at least [`MIN_EXPLAINED`] of the baseline's held-out excess χ².
-pub fn select(d: &Data, base: Structure) -> EffectSelection {
-    let mut set: Vec<Cand> = Vec::new();
-    let mut rounds = Vec::new();
-    let mut before = heldout(d, base, &set);
-    loop {
-        let remaining: Vec<Cand> =
-            Cand::ALL.into_iter().filter(|c| !set.contains(c) && c.available(d)).collect();
-        if remaining.is_empty() {
-            break;
-        }
-        let excess = (before.chi2 - before.bins as f64).max(1e-9);
-        let mut trials: Vec<(Cand, Trial)> = remaining
-            .iter()
-            .map(|&c| {
-                let mut s = set.clone();
-                s.push(c);
-                let score = heldout(d, base, &s);
-                let drop = before.chi2 - score.chi2;
-                let p = score.params.saturating_sub(before.params).max(1) as f64;
-                let shape_explained = if c == Cand::AngleError {
-                    (before.chi2 - score.chi2_shape) / excess
-                } else {
-                    drop / excess
-                };
-                let t = Trial {
-                    name: c.name(),
-                    score,
-                    chi2_drop: drop,
-                    threshold: (25.0 + 5.0 * (2.0 * p).sqrt()).max(0.05 * before.chi2),
-                    explained: drop / excess,
-                    shape_explained,
-                };
-                (c, t)
-            })
-            .collect();
-        trials.sort_by(|a, b| b.1.chi2_drop.total_cmp(&a.1.chi2_drop));
-        let best = trials.iter().find(|(_, t)| significant(t)).map(|(c, t)| (*c, t.score));
-        rounds.push(Round {
-            before,
-            trials: trials.iter().map(|(_, t)| t.clone()).collect(),
-            kept: best.map(|b| b.0.name()),
-        });
-        match best {
-            Some((c, score)) => {
-                set.push(c);
-                before = score;
-            }
-            None => break,
-        }
-    }
-    let first = rounds.first().map_or(before, |r| r.before);
-    let excess = (first.chi2 - first.bins as f64).max(1e-9);
-    let mut steps: Vec<(Score, Score)> = Vec::new();
-    for (i, r) in rounds.iter().enumerate().take(set.len()) {
-        let after = rounds.get(i + 1).map_or(before, |n| n.before);
-        steps.push((r.before, after));
-    }
-    let mut joint_explained = if set.is_empty() { 0.0 } else { (first.chi2 - before.chi2_shape) / excess };
-    let mut from_pairs = false;
-    let stalled = set.is_empty() || set.len() == 1 && residual_z(d, base, &set) >= NOISE_Z;
-    if stalled && !rounds.is_empty() {
-        if let Some((pair, pair_steps, joint)) = best_pair(d, base, &rounds[0]) {
-            if set.is_empty() || pair_steps[1].1.chi2 < before.chi2 {
-                (set, steps, joint_explained, from_pairs) = (pair, pair_steps, joint, true);
-            }
-        }
-    }
-    let mut not_named = Vec::new();
-    if joint_explained < MIN_EXPLAINED {
-        not_named = set.iter().map(|c| c.name()).collect();
-        set.clear();
-        steps.clear();
-    }
-    EffectSelection { set, rounds, joint_explained, not_named, steps, from_pairs }
-}
-
-/// A pair found by [`best_pair`]: the effects, their steps, and the fraction of the excess removed.
-type PairPick = (Vec<Cand>, Vec<(Score, Score)>, f64);
-
-/// z of the χ² of the full-data fit of the baseline and `set`.
-fn residual_z(d: &Data, base: Structure, set: &[Cand]) -> f64 {
-    full_fit(d, base, set).map_or(f64::INFINITY, |f| zscore(f.chi2, f.dof))
-}
-
-/// The pair search, for when the greedy path stalls: the first round keeps nothing (two effects
-/// present whose sum a third one mimics better than either alone), or it keeps one effect and a
-/// residual beyond the noise remains (with angle errors present, the leave-one-channel-out
-/// residual hides a second effect from rule (2)). Every pair of deterministic candidates (not
-/// `angle_error`: paired, it named a drift `settling` on spot checks) is scored; a pair qualifies when each member's marginal drop (the
-/// pair against the other member alone) passes the round-1 threshold; the qualifying pair with
-/// the lowest held-out χ² is returned, ordered by single-effect drop, with its steps and the
-/// fraction of the excess it removes.
-fn best_pair(d: &Data, base: Structure, r1: &Round) -> Option<PairPick> {
-    let single = |c: Cand| r1.trials.iter().find(|t| t.name == c.name());
-    let cands: Vec<Cand> = Cand::ALL
-        .into_iter()
-        .filter(|&c| c != Cand::AngleError && c.available(d) && single(c).is_some())
+    };
+    let sigs = set
+        .iter()
+        .zip(&sig)
+        .map(|(c, &(up, pp))| Signature {
+            name: c.name(),
+            amplitude: if pp > 0.0 { up / pp } else { 0.0 },
+            z: if pp > 0.0 { up / pp.sqrt() } else { 0.0 },
+        })
         .collect();
-    let excess = (r1.before.chi2 - r1.before.bins as f64).max(1e-9);
-    let mut best: Option<PairPick> = None;
-    for (i, &a) in cands.iter().enumerate() {
-        for &b in &cands[i + 1..] {
-            let (ta, tb) = (single(a)?, single(b)?);
-            let score = heldout(d, base, &[a, b]);
-            let ok = |alone: &Trial, other: &Trial| {
-                let p = score.params.saturating_sub(other.score.params).max(1) as f64;
-                let thr = (25.0 + 5.0 * (2.0 * p).sqrt()).max(0.05 * other.score.chi2);
-                other.score.chi2 - score.chi2 > thr && alone.chi2_drop > 0.0
-            };
-            if !(ok(ta, tb) && ok(tb, ta)) {
-                continue;
-            }
-            if best.as_ref().is_some_and(|(_, s, _)| s[1].1.chi2 <= score.chi2) {
-                continue;
-            }
-            let (first, second, t1) = if ta.chi2_drop >= tb.chi2_drop { (a, b, ta) } else { (b, a, tb) };
-            let steps = vec![(r1.before, t1.score), (t1.score, score)];
-            best = Some((vec![first, second], steps, (r1.before.chi2 - score.chi2_shape) / excess));
-        }
-    }
-    best
+    (score, sigs)
+}
+
+/// The contribution of effect `c` to every stacked row of a fit (its columns times their
+/// coefficients).
+fn contribution(f: &Fitted, c: Cand) -> Vec<f64> {
+    let x = &f.design.x;
+    let mine: Vec<usize> = (0..x.ncols()).filter(|&k| f.design.cols[k].cand == Some(c)).collect();
+    (0..x.nrows()).map(|r| mine.iter().map(|&k| x[(r, k)] * f.beta[k]).sum()).collect()
 }
 
 /// A parameter estimate with its one-sigma uncertainty (None when not available).

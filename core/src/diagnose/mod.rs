@@ -7,14 +7,18 @@
 //! noise, that no model can change). Every model
 //! here (the baseline and the effects) is linear in its parameters on the bins, so fitting is a
 //! weighted least squares with weights `n/σ²`. [`gap`] localises the residual of the baseline,
-//! [`attribution`] fits each effect on one half of the positions and scores it on the other, and
-//! [`bench`] runs the blind benchmark.
+//! [`attribution`] fits effects on one half of the positions and scores them on the other,
+//! [`selection`] chooses the set that explains the gap, [`structure`] checks what each named
+//! effect left (partial effects, where the rest lies, confounded effects), and [`bench`] runs
+//! the blind benchmark.
 
 pub mod attribution;
 pub mod bench;
 pub mod bins;
 pub mod gap;
 pub mod periodic;
+pub mod selection;
+pub mod structure;
 
 use std::collections::BTreeMap;
 
@@ -53,7 +57,8 @@ pub fn golden_min(g: &dyn Fn(f64) -> f64, mut lo: f64, mut hi: f64, iterations: 
     (lo + hi) / 2.0
 }
 
-/// Range of settling time constants searched, s.
+/// Range of settling time constants searched, s: from the lower bound to the larger of the upper
+/// bound and the longest dwell ([`Data::tau_range`]).
 pub const TAU_RANGE: (f64, f64) = (0.03, 2.0);
 
 /// Why a campaign cannot be diagnosed.
@@ -161,6 +166,13 @@ impl Data {
         Data::from_binned(&b, self.g)
     }
 
+    /// The settling time constants searched on these data, s: [`TAU_RANGE`], its upper end raised
+    /// to the longest dwell (a relaxation as slow as the hold is a transient of the hold too).
+    pub fn tau_range(&self) -> (f64, f64) {
+        let longest = self.bins.iter().map(|b| b.span.1).fold(0.0, f64::max);
+        (TAU_RANGE.0, TAU_RANGE.1.max(longest))
+    }
+
     /// Number of positions.
     pub fn npos(&self) -> usize {
         self.accel.len()
@@ -243,8 +255,17 @@ pub fn wls(x: &DMatrix<f64>, y: &[f64], w: &[f64], rows: &[usize]) -> Option<Wls
     let k = x.ncols();
     let xs = DMatrix::from_fn(rows.len(), k, |r, c| w[rows[r]].sqrt() * x[(rows[r], c)]);
     let ys = DVector::from_fn(rows.len(), |r, _| w[rows[r]].sqrt() * y[rows[r]]);
-    let gram = xs.transpose() * &xs;
-    let d: Vec<f64> = (0..k).map(|i| gram[(i, i)].sqrt()).map(|v| if v > 0.0 { v } else { 1.0 }).collect();
+    let (beta_v, cov) = solve_normal(&(xs.transpose() * &xs), &(xs.transpose() * &ys))?;
+    let resid = &ys - &xs * &beta_v;
+    Some(Wls { beta: beta_v.iter().copied().collect(), cov, wsse: resid.norm_squared() })
+}
+
+/// Solves the normal equations `gram·β = rhs` with the columns scaled to unit diagonal and a
+/// pseudo-inverse (eigenvalues below 1e-12 of the largest dropped); returns β and the inverse.
+pub fn solve_normal(gram: &DMatrix<f64>, rhs: &DVector<f64>) -> Option<(DVector<f64>, DMatrix<f64>)> {
+    let k = gram.ncols();
+    let d: Vec<f64> =
+        (0..k).map(|i| gram[(i, i)].max(0.0).sqrt()).map(|v| if v > 0.0 { v } else { 1.0 }).collect();
     let gs = DMatrix::from_fn(k, k, |i, j| gram[(i, j)] / (d[i] * d[j]));
     let eig = gs.symmetric_eigen();
     let lmax = eig.eigenvalues.iter().cloned().fold(0.0, f64::max);
@@ -259,9 +280,8 @@ pub fn wls(x: &DMatrix<f64>, y: &[f64], w: &[f64], rows: &[usize]) -> Option<Wls
         }
     }
     let cov = DMatrix::from_fn(k, k, |i, j| inv[(i, j)] / (d[i] * d[j]));
-    let beta_v = &cov * (xs.transpose() * &ys);
-    let resid = &ys - &xs * &beta_v;
-    Some(Wls { beta: beta_v.iter().copied().collect(), cov, wsse: resid.norm_squared() })
+    let beta = &cov * rhs;
+    Some((beta, cov))
 }
 
 /// An effect the diagnosis found.
@@ -280,6 +300,9 @@ pub struct FoundEffect {
     pub heldout_rms_after: f64,
     /// Drop of the held-out χ² it brought.
     pub heldout_chi2_drop: f64,
+    /// Whether the effect is partial: structure of its kind is left in the residual (see
+    /// [`structure`]); the rest is reported as unexplained.
+    pub partial: bool,
 }
 
 /// The attribution's result.
@@ -293,13 +316,23 @@ pub struct Attribution {
     /// z of the final χ² (below 4: consistent with the noise).
     pub final_z: f64,
     /// Every round of the greedy selection.
-    pub rounds: Vec<attribution::Round>,
+    pub rounds: Vec<selection::Round>,
     /// Fraction of the baseline's held-out excess χ² the kept effects remove together.
     pub joint_explained: f64,
-    /// Effects the rounds kept but that were not named (they explain too little together).
+    /// Effects kept but not named (they explain too little together, or their signature is
+    /// missing from the withheld data).
     pub not_named: Vec<&'static str>,
-    /// Whether the effects came from the pair search (the greedy path stalled).
-    pub from_pairs: bool,
+    /// Whether the effects came from the joint search of pairs and triples (the greedy path
+    /// stalled).
+    pub from_joint_search: bool,
+    /// The held-out signature of every effect kept.
+    pub signatures: Vec<attribution::Signature>,
+    /// What each named effect left of its kind.
+    pub leftovers: Vec<structure::Leftover>,
+    /// Where the residual of the final model lies, per channel.
+    pub residual_where: Vec<structure::Where>,
+    /// Effects the campaign cannot tell apart.
+    pub confounds: Vec<structure::Confound>,
 }
 
 /// The whole diagnosis: the gap and its attribution.
@@ -319,9 +352,10 @@ pub struct Report {
 
 /// Selects and fits the effects on prepared data.
 pub fn attribute(d: &Data, base: Structure) -> Attribution {
-    let sel = attribution::select(d, base);
+    let sel = selection::select(d, base);
     let set = sel.set.clone();
     let ff = attribution::full_fit(d, base, &set);
+    let (leftovers, residual_where) = structure::leftovers(d, base, &set);
     let mut effects = Vec::new();
     for (i, &c) in set.iter().enumerate() {
         let (before, after) = sel.steps[i];
@@ -345,6 +379,7 @@ pub fn attribute(d: &Data, base: Structure) -> Attribution {
             heldout_rms_before: before.rms,
             heldout_rms_after: after.rms,
             heldout_chi2_drop: before.chi2 - after.chi2,
+            partial: leftovers.get(i).is_some_and(|l| l.partial),
         });
     }
     let (unexplained_rms, final_z) = match &ff {
@@ -365,7 +400,11 @@ pub fn attribute(d: &Data, base: Structure) -> Attribution {
         rounds: sel.rounds,
         joint_explained: sel.joint_explained,
         not_named: sel.not_named,
-        from_pairs: sel.from_pairs,
+        from_joint_search: sel.from_joint_search,
+        signatures: sel.signatures,
+        leftovers,
+        residual_where,
+        confounds: structure::confounds(d),
     }
 }
 

@@ -44,6 +44,11 @@ pub fn to_json(r: &Report) -> serde_json::Value {
         "gap": r.gap,
         "rounds": r.attribution.rounds,
         "final_z": r.attribution.final_z,
+        "joint_explained": r.attribution.joint_explained,
+        "signatures": r.attribution.signatures,
+        "leftovers": r.attribution.leftovers,
+        "residual_where": r.attribution.residual_where,
+        "confounds": r.attribution.confounds,
     })
 }
 
@@ -194,28 +199,15 @@ pub fn print_report(r: &Report) {
         println!("  -> {}", round.kept.unwrap_or("nothing significant"));
     }
     println!();
-    let a = &r.attribution;
-    if !a.not_named.is_empty() {
-        println!(
-            "kept by the rounds but not named: {} (together they remove {:.0}% of the excess, less than {:.0}%)",
-            a.not_named.join(", "),
-            100.0 * a.joint_explained,
-            100.0 * diagnose::attribution::MIN_EXPLAINED
-        );
-    }
-    if a.from_pairs {
-        println!(
-            "the greedy path stalled below {:.0}% of the excess; the pair search named the effects below",
-            100.0 * diagnose::attribution::MIN_EXPLAINED
-        );
-    }
+    print_selection_notes(r);
     if r.effects.is_empty() {
         println!("effects found: none");
     }
     for e in &r.effects {
         println!(
-            "effect {} on {}: held-out rms {} -> {} codes",
+            "effect {}{} on {}: held-out rms {} -> {} codes",
             e.name,
+            if e.partial { " (PARTIAL)" } else { "" },
             e.channels.join(","),
             sig(e.heldout_rms_before, 4),
             sig(e.heldout_rms_after, 4)
@@ -241,6 +233,84 @@ pub fn print_report(r: &Report) {
         sig(r.unexplained_rms, 3),
         sig(r.attribution.final_z, 3)
     );
+    print_leftovers(r);
+}
+
+/// Effects kept but not named, and where the named set came from.
+fn print_selection_notes(r: &Report) {
+    let a = &r.attribution;
+    let min = 100.0 * diagnose::selection::MIN_EXPLAINED;
+    for s in a.signatures.iter().filter(|s| !s.present()) {
+        println!(
+            "{}: its signature is not in the withheld data (amplitude {}, z = {}; needs >= {} and >= {}): not named",
+            s.name,
+            sig(s.amplitude, 3),
+            sig(s.z, 3),
+            diagnose::attribution::SIGNATURE.0,
+            diagnose::attribution::SIGNATURE.1
+        );
+    }
+    if !a.not_named.is_empty() && r.effects.is_empty() {
+        println!(
+            "kept but not named: {} (together they remove {:.0}% of the excess, less than {min:.0}%, or their signature is missing)",
+            a.not_named.join(", "),
+            100.0 * a.joint_explained,
+        );
+    }
+    if a.from_joint_search && !r.effects.is_empty() {
+        println!("the greedy path stalled; the joint search of pairs and triples named the effects below");
+    }
+}
+
+/// What the named effects left of their kind, where the residual lies, and confounded effects.
+fn print_leftovers(r: &Report) {
+    let a = &r.attribution;
+    let z = diagnose::structure::PARTIAL_Z;
+    for l in a.leftovers.iter().filter(|l| l.partial) {
+        println!(
+            "  {} is partial: structure of its kind is left (its wider family, {}: z = {}; the residual {}: z = {}; partial at z >= {z})",
+            l.name,
+            l.family,
+            sig(l.z_family, 3),
+            l.domain,
+            sig(l.z_domain, 3)
+        );
+    }
+    if r.unexplained_rms > 0.0 {
+        let at: Vec<String> = a
+            .residual_where
+            .iter()
+            .filter(|w| w.z_positions >= diagnose::NOISE_Z || w.z_in_dwell >= diagnose::NOISE_Z)
+            .map(|w| {
+                format!(
+                    "{} (positions z = {}, in dwell z = {})",
+                    w.channel,
+                    sig(w.z_positions, 3),
+                    sig(w.z_in_dwell, 3)
+                )
+            })
+            .collect();
+        if !at.is_empty() {
+            println!("  the unexplained residual lies on {}", at.join("; "));
+        }
+    }
+    for c in &a.confounds {
+        // What each alone does on the withheld positions, from the first round.
+        let drops: Vec<String> = c
+            .effects
+            .iter()
+            .filter_map(|n| a.rounds.first()?.trials.iter().find(|t| t.name == *n))
+            .map(|t| format!("{} {}", t.name, sig(t.chi2_drop, 4)))
+            .collect();
+        println!(
+            "confounded: {} and {} (time and temperature correlate, r = {}; held-out chi2 drop alone: {}): on this campaign each can stand for the other, and only the shape of the temperature curve tells them apart; to separate them: {}",
+            c.effects[0],
+            c.effects[1],
+            sig(c.r, 3),
+            drops.join(", "),
+            c.separate
+        );
+    }
 }
 
 #[cfg(test)]
