@@ -182,3 +182,45 @@ fn thermal_terms_without_a_temperature_are_bad_input() {
     ]);
     assert!(e.contains("--thermal"), "{e}");
 }
+
+/// `diagnose` offers the remedy: on a campaign whose unit has the thermal coefficients it names
+/// `temperature` and the baseline with `t` and the own-axis `·t` terms (text and JSON `remedy`);
+/// diagnosed against that baseline, the same campaign shows no temperature effect, and no remedy.
+#[test]
+fn diagnose_names_the_thermal_terms_and_the_compensated_campaign_is_quiet() {
+    let d = tempfile::tempdir().unwrap();
+    let camp = d.path().join("warm.csv");
+    let c = camp.to_str().unwrap();
+    ok(&[
+        "simulate",
+        "--out",
+        c,
+        "--seed",
+        "8",
+        "--samples",
+        "100",
+        "--temp-profile",
+        "25:15:1",
+        "--effect",
+        THERMAL_EFFECT,
+    ]);
+    let j = d.path().join("diag.json");
+    let out = ok(&["diagnose", c, "--json", j.to_str().unwrap()]);
+    assert!(out.contains("effect temperature on x,y,z"), "{out}");
+    assert!(
+        out.contains(
+            "remedy: model the temperature: `accelcal fit CAMPAIGN --terms 'ax,ay,az,t,ax*t,ay*t,az*t'`"
+        ),
+        "{out}"
+    );
+    assert_eq!(json(&j)["remedy"], "1,ax,ay,az,t,ax*t,ay*t,az*t");
+    let out = ok(&["diagnose", c, "--terms", "ax,ay,az,t,ax*t,ay*t,az*t", "--json", j.to_str().unwrap()]);
+    assert!(out.contains("effects found: none"), "{out}");
+    assert_eq!(json(&j)["remedy"], Value::Null);
+    assert!(json(&j)["effects"].as_array().unwrap().is_empty());
+    // A thermal baseline needs the temperature.
+    let plain = d.path().join("plain.csv");
+    ok(&["simulate", "--out", plain.to_str().unwrap(), "--samples", "20"]);
+    let e = bad(&["diagnose", plain.to_str().unwrap(), "--terms", "ax,ay,az,t"]);
+    assert!(e.contains("baseline term `t` needs the temperature"), "{e}");
+}

@@ -159,7 +159,12 @@ impl Ctx<'_> {
         let own = d.own[ch];
         let step = d.step[ch][p];
         match col.kind {
-            Kind::Base(i) => self.terms[i].eval([a[0], a[1], a[2], f64::NAN]),
+            // A baseline term in `t` sees the bin's temperature from the default reference
+            // (`Data::check` refuses one without a temperature).
+            Kind::Base(i) => {
+                let t = d.temp.as_ref().map_or(f64::NAN, |t| t[row] - crate::positions::T_REF_DEFAULT_C);
+                self.terms[i].eval([a[0], a[1], a[2], t])
+            }
             Kind::Drift => bin.t - self.t_mid,
             Kind::TempBias => d.temp.as_ref().map_or(0.0, |t| t[row] - self.temp_mid),
             Kind::TempScale => {

@@ -78,6 +78,9 @@ pub enum DiagnoseError {
     /// The baseline cannot be fitted.
     #[error("the baseline cannot be fitted on this campaign")]
     Unfittable,
+    /// A baseline term in `t` on a campaign without `temp_c`.
+    #[error("baseline term `{0}` needs the temperature, and the campaign has no `temp_c` column")]
+    NoTemperature(String),
 }
 
 /// A campaign reduced to bins, with what every model needs.
@@ -229,6 +232,9 @@ impl Data {
 
     /// Checks that the baseline can be fitted on half the positions.
     pub fn check(&self, baseline: Structure) -> Result<(), DiagnoseError> {
+        if let Some(t) = baseline.terms().find(|t| t.is_thermal()).filter(|_| self.temp.is_none()) {
+            return Err(DiagnoseError::NoTemperature(t.to_string()));
+        }
         let need = 2 * baseline.terms().count() + 2;
         if self.npos() < need {
             return Err(DiagnoseError::TooFewPositions { positions: self.npos(), need });
@@ -348,6 +354,33 @@ pub struct Report {
     pub gap: gap::Gap,
     /// Details of the attribution.
     pub attribution: Attribution,
+    /// When `temperature` is found: the baseline with the thermal terms its parameters call for
+    /// (what `fit --terms` and a thermal record would use; `null` otherwise).
+    pub remedy: Option<String>,
+}
+
+/// Significance of a temperature parameter for the remedy, in standard errors.
+pub const REMEDY_Z: f64 = 3.0;
+
+/// The baseline `base` with the thermal terms that a found `temperature` effect calls for: `t`
+/// where a channel's bias coefficient is beyond [`REMEDY_Z`] standard errors, and the own-axis
+/// `·t` term of every channel whose scale coefficient is (one record holds one structure, so the
+/// union over the channels). `None` when no effect is `temperature` or nothing is significant.
+pub fn thermal_remedy(effects: &[FoundEffect], d: &Data, base: Structure) -> Option<Structure> {
+    let e = effects.iter().find(|e| e.name == crate::effects::EffectKind::Temperature.name())?;
+    let sig = |v: &attribution::Estimate| v.sd.is_some_and(|sd| v.value.abs() > REMEDY_Z * sd);
+    let mut mask = base.mask();
+    for (ch, name) in d.channels.iter().enumerate() {
+        let Some(ps) = e.parameters.get(name) else { continue };
+        if ps.get("bias").is_some_and(sig) {
+            mask |= 1 << accelcal_shared::terms::T_INDEX;
+        }
+        if ps.get("scale").is_some_and(sig) {
+            mask |= 1 << (accelcal_shared::terms::T_INDEX + 2 + d.own[ch]);
+        }
+    }
+    let s = Structure::from_mask(mask);
+    (s != base).then_some(s)
 }
 
 /// Selects and fits the effects on prepared data.
@@ -422,6 +455,7 @@ pub fn diagnose_data(d: &Data, base: Structure) -> Result<Report, DiagnoseError>
         effects: attribution.effects.clone(),
         unexplained_rms: attribution.unexplained_rms,
         baseline: base.to_string(),
+        remedy: thermal_remedy(&attribution.effects, d, base).map(|s| s.to_string()),
         gap,
         attribution,
     })

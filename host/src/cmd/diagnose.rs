@@ -49,6 +49,7 @@ pub fn to_json(r: &Report) -> serde_json::Value {
         "leftovers": r.attribution.leftovers,
         "residual_where": r.attribution.residual_where,
         "confounds": r.attribution.confounds,
+        "remedy": r.remedy,
     })
 }
 
@@ -233,6 +234,12 @@ pub fn print_report(r: &Report) {
         sig(r.unexplained_rms, 3),
         sig(r.attribution.final_z, 3)
     );
+    if let Some(terms) = &r.remedy {
+        let terms = terms.trim_start_matches("1,");
+        println!(
+            "remedy: model the temperature: `accelcal fit CAMPAIGN --terms '{terms}'` (with --record, add --temp-input mcu or front-end); `accelcal select CAMPAIGN --basis linear-thermal` lets GMDH choose; `diagnose --terms '{terms}'` shows what is left"
+        );
+    }
     print_leftovers(r);
 }
 
