@@ -135,7 +135,11 @@ fn assert_close(a: &Value, b: &Value, at: &str) {
 fn simulate_writes_signed_codes_as_the_unsigned_ones_less_32768() {
     let p = pair();
     let text = std::fs::read_to_string(&p.signed).unwrap();
-    assert!(text.starts_with("# codes: signed16\nt_s,alpha_deg,beta_deg,x,y,z\n"), "{}", &text[..60]);
+    assert!(
+        text.starts_with("# g_m_s2: 9.81\n# codes: signed16\nt_s,alpha_deg,beta_deg,x,y,z\n"),
+        "{}",
+        &text[..80]
+    );
     let (u, sg) = (rows(&p.unsigned), rows(&p.signed));
     assert_eq!(u.len(), 62 * 12);
     assert_eq!(u.len(), sg.len());
@@ -160,7 +164,7 @@ fn signed_campaigns_give_the_unsigned_results_with_the_bias_shifted_by_32768() {
     // The same signed campaign without its comment line: the range comes from --codes.
     let bare = p.path("bare.csv");
     let text = std::fs::read_to_string(&p.signed).unwrap();
-    std::fs::write(&bare, text.strip_prefix("# codes: signed16\n").unwrap()).unwrap();
+    std::fs::write(&bare, text.replacen("# codes: signed16\n", "", 1)).unwrap();
     let signed16 = ["--codes", "signed16"];
     for cmd in ["select", "fit", "compare", "diagnose"] {
         let mut want = p.json(cmd, &p.unsigned, &[]);
@@ -190,7 +194,8 @@ fn a_codes_flag_that_contradicts_the_comment_line_is_refused_naming_both() {
     let f = s(&p.signed);
     let (rec, out) = (p.path("r.rec"), p.path("o.csv"));
     std::fs::write(&rec, b"not read").unwrap();
-    let want = format!("{f}:1: `# codes: signed16` contradicts --codes unsigned16");
+    // Line 2: `simulate` writes its `# g_m_s2:` line first.
+    let want = format!("{f}:2: `# codes: signed16` contradicts --codes unsigned16");
     for args in [
         vec!["select", f, "--codes", "unsigned16"],
         vec!["fit", f, "--codes", "unsigned16"],
