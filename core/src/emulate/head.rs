@@ -221,9 +221,9 @@ impl SensorTemp {
 
     /// The sensor temperature at `t_s` (not before the last call's time).
     pub fn at(&mut self, t_s: f64) -> f64 {
-        let dt = (t_s - self.at_s).max(0.0);
-        let f = if self.tau_s > 0.0 { (-dt / self.tau_s).exp() } else { 0.0 };
-        self.sensor_c = self.chamber_c + (self.sensor_c - self.chamber_c) * f;
+        // The same lag as `simulate --thermal`'s.
+        self.sensor_c =
+            crate::sim::lag(self.sensor_c, self.chamber_c, (t_s - self.at_s).max(0.0), self.tau_s);
         self.at_s = self.at_s.max(t_s);
         self.sensor_c
     }
