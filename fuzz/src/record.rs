@@ -17,7 +17,7 @@ use crate::Target;
 #[derive(Default)]
 pub struct RecordTarget {
     accepted: u64,
-    rejected: [u64; 9],
+    rejected: [u64; RECORD_ERROR_NAMES.len()],
 }
 
 /// The bytes of a record for the QEMU node's device id with `coef(channel, term)` coefficients.
