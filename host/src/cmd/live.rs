@@ -200,7 +200,10 @@ impl Progress for Lines {
 fn g_source(g: Option<f64>, local: &crate::cli::LocalGravity) -> (f64, String) {
     let (g, source, fallback) = g_and_source(g, local);
     if fallback {
-        eprintln!("note: g = 9.81 m/s² (standard gravity) is assumed: give --g or --latitude/--height for the rig's site");
+        eprintln!(
+            "note: {}",
+            super::g_fallback("neither --g nor --latitude/--height was given for the rig's site")
+        );
     }
     (g, source)
 }

@@ -100,13 +100,18 @@ fn campaign_g(
         check_g(g)?;
         common.g = g;
     } else {
-        warnings.note(format!(
-            "g = {} m/s² assumed: {} does not state its gravity (`# g_m_s2:`) and neither --g nor --latitude was given",
-            common.g,
+        warnings.note(g_fallback(&format!(
+            "{} does not state its gravity (`# g_m_s2:`) and neither --g nor --latitude was given",
             campaign.display()
-        ));
+        )));
     }
     Ok(())
+}
+
+/// The one announcement of the 9.81 m/s² fallback (without the `note: ` prefix), with why it
+/// applies: `select`/`fit`/`compare`/`diagnose`, `acquire`/`verify` and `report` all say it so.
+pub fn g_fallback(why: &str) -> String {
+    format!("g = {} m/s² assumed: {why}", accelcal_shared::G_STANDARD)
 }
 
 /// Checks that g is usable.

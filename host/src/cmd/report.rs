@@ -75,7 +75,11 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
         (None, Some(g)) => (g, format!("the campaign's ({})", get("g_source").unwrap_or_default())),
         (None, None) => {
             eprintln!(
-                "note: g = 9.81 m/s² (standard gravity) is assumed: the campaign does not state it; give --g"
+                "note: {}",
+                super::g_fallback(&format!(
+                    "{} does not state its gravity (`# g_m_s2:`) and --g was not given",
+                    a.campaign.display()
+                ))
             );
             (accelcal_shared::G_STANDARD, "default 9.81 m/s² (not stated by the campaign)".into())
         }
