@@ -8,12 +8,15 @@
 //! component as `K · sqrt(σ_cal² + σ_mean²)` with `K` = [`TOLERANCE_K`]: `σ_mean` is the standard
 //! error of the measured mean (the recorded sets' scatter over √N), `σ_cal` the uncertainty of
 //! the calibration at that acceleration propagated from the fit's standard errors (`fit --json`):
-//! `sqrt(se(1)² + Σ_j se(a_j)²·a_j²) / |k_ii|` for channel i, whose own-axis sensitivity is
-//! `k_ii`. Without the fit's standard errors, `σ_cal` is 0 and the rule says so.
+//! `sqrt(Σ_j se_j²·φ_j²) / |k_ii|` for channel i, over its terms `φ_j` (model 4: `1`, `ax`, `ay`,
+//! `az`; a thermal fit's terms in `t` too, at the position's mean temperature), with `k_ii` its
+//! own-axis sensitivity (at that temperature). The terms' covariances are left out. Without the
+//! fit's standard errors, `σ_cal` is 0 and the rule says so.
 
 use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
+use accelcal_shared::terms::Term;
 use accelcal_shared::wire::{Block, Output, RecordStatus};
 use serde::Serialize;
 
@@ -32,21 +35,46 @@ pub fn calibrated_rule() -> StaticRule {
 }
 
 /// One channel's calibration uncertainty, from the fit's standard errors.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct ChannelUncertainty {
-    /// Standard error of the zero offset, codes.
-    pub se_bias: f64,
-    /// Standard errors of the sensitivities to ax, ay, az, codes per m/s².
-    pub se_k: [f64; 3],
-    /// The channel's own-axis sensitivity, codes per m/s².
+    /// The fit's terms with their standard errors (codes per unit of the term): model 4's `1`,
+    /// `ax`, `ay`, `az`, and a thermal fit's terms in `t` too.
+    pub terms: Vec<(Term, f64)>,
+    /// The channel's own-axis sensitivity, codes per m/s², at the reference temperature.
     pub k_own: f64,
+    /// Its temperature coefficient (the own axis's `·t` term), codes per m/s² per °C; 0 without.
+    pub k_own_t: f64,
 }
 
 impl ChannelUncertainty {
-    /// Standard uncertainty of the calibrated acceleration along the channel's axis at `a`, m/s².
-    pub fn sigma(&self, a: [f64; 3]) -> f64 {
-        let v = self.se_bias.powi(2) + (0..3).map(|j| (self.se_k[j] * a[j]).powi(2)).sum::<f64>();
-        v.sqrt() / self.k_own.abs()
+    /// Standard uncertainty of the calibrated acceleration along the channel's axis at `a`
+    /// (m/s²) and `t` (°C from the fit's reference temperature), m/s²: the terms' standard errors
+    /// propagated through the terms' values, over the own-axis sensitivity at `t`.
+    pub fn sigma(&self, a: [f64; 3], t: f64) -> f64 {
+        let x = [a[0], a[1], a[2], t];
+        let v: f64 = self.terms.iter().map(|(term, se)| (se * term.eval(x)).powi(2)).sum();
+        v.sqrt() / (self.k_own + self.k_own_t * t).abs()
+    }
+}
+
+/// The calibration's uncertainty on the three channels, from `fit --json`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CalUncertainty {
+    /// Channels x, y, z.
+    pub channels: [ChannelUncertainty; 3],
+    /// The fit's reference temperature, °C (`t = temp_c − t_ref`); `None` for a fit without
+    /// terms in `t`.
+    pub t_ref_c: Option<f64>,
+}
+
+impl CalUncertainty {
+    /// `t` at a position whose mean temperature is `temp_c`: 0 for a fit without thermal terms
+    /// and where the node reported no temperature (the calibration at its reference).
+    fn t(&self, temp_c: Option<f64>) -> f64 {
+        match (self.t_ref_c, temp_c) {
+            (Some(t_ref), Some(temp)) => temp - t_ref,
+            _ => 0.0,
+        }
     }
 }
 
@@ -55,9 +83,8 @@ impl ChannelUncertainty {
 pub enum Tolerance {
     /// The same bound for every component, m/s².
     Fixed(f64),
-    /// Derived from the measurement's scatter and, when known, the fit's standard errors of the
-    /// channels x, y, z.
-    Derived(Option<[ChannelUncertainty; 3]>),
+    /// Derived from the measurement's scatter and, when known, the fit's standard errors.
+    Derived(Option<CalUncertainty>),
 }
 
 impl Tolerance {
@@ -65,9 +92,10 @@ impl Tolerance {
     pub fn describe(&self) -> String {
         match self {
             Tolerance::Fixed(t) => format!("|error| <= {t} m/s² on every component (--tolerance)"),
-            Tolerance::Derived(Some(_)) => format!(
+            Tolerance::Derived(Some(c)) => format!(
                 "|error| <= {TOLERANCE_K}·sqrt(σ_cal² + σ_mean²) per component: σ_cal from the fit's standard errors \
-                 at the position's acceleration, σ_mean the standard error of the measured mean"
+                 at the position's acceleration{}, σ_mean the standard error of the measured mean",
+                if c.t_ref_c.is_some() { " and temperature" } else { "" }
             ),
             Tolerance::Derived(None) => format!(
                 "|error| <= {TOLERANCE_K}·σ_mean per component, σ_mean the standard error of the measured mean \
@@ -76,14 +104,14 @@ impl Tolerance {
         }
     }
 
-    /// Bounds for one position's components.
-    fn bounds(&self, expected: [f64; 3], sd_mean: [f64; 3]) -> [f64; 3] {
+    /// Bounds for one position's components, at its mean temperature `temp_c` (°C) when known.
+    fn bounds(&self, expected: [f64; 3], temp_c: Option<f64>, sd_mean: [f64; 3]) -> [f64; 3] {
         match self {
             Tolerance::Fixed(t) => [*t; 3],
             Tolerance::Derived(cal) => {
                 let mut b = [0.0; 3];
                 for i in 0..3 {
-                    let s_cal = cal.map_or(0.0, |c| c[i].sigma(expected));
+                    let s_cal = cal.as_ref().map_or(0.0, |c| c.channels[i].sigma(expected, c.t(temp_c)));
                     b[i] = TOLERANCE_K * (s_cal * s_cal + sd_mean[i] * sd_mean[i]).sqrt();
                 }
                 b
@@ -92,40 +120,62 @@ impl Tolerance {
     }
 }
 
-/// Reads the channels' uncertainties from `fit --json` output (model 4 of channels x, y, z).
-pub fn uncertainty_from_fit_json(text: &str, what: &str) -> anyhow::Result<[ChannelUncertainty; 3]> {
+/// Reads the calibration's uncertainty from `fit --json` output: model 4 of channels x, y, z,
+/// with or without terms in `t` (then the document's `t_ref_c` is needed).
+pub fn uncertainty_from_fit_json(text: &str, what: &str) -> anyhow::Result<CalUncertainty> {
     let v: serde_json::Value =
         serde_json::from_str(text).map_err(|e| bad(format!("{what}: not a JSON document: {e}")))?;
     let chans = v["channels"]
         .as_array()
         .ok_or_else(|| bad(format!("{what}: no `channels` (is it `fit --json` output?)")))?;
-    let mut out = [ChannelUncertainty { se_bias: 0.0, se_k: [0.0; 3], k_own: 0.0 }; 3];
+    let mut out = Vec::with_capacity(3);
+    let mut thermal = false;
     for (i, name) in ["x", "y", "z"].iter().enumerate() {
         let ch = chans
             .iter()
             .find(|c| c["channel"] == *name)
             .ok_or_else(|| bad(format!("{what}: no channel `{name}`")))?;
-        let terms: Vec<&str> =
+        let names: Vec<&str> =
             ch["terms"].as_array().into_iter().flatten().filter_map(|t| t.as_str()).collect();
-        let num = |key: &str, term: &str| -> anyhow::Result<f64> {
-            let at = terms.iter().position(|t| *t == term).ok_or_else(|| {
-                bad(format!("{what}: channel {name} has no term `{term}`: verification needs a model-4 fit"))
-            })?;
+        let num = |key: &str, at: usize, term: &str| -> anyhow::Result<f64> {
             ch[key][at]
                 .as_f64()
                 .filter(|v| v.is_finite())
                 .ok_or_else(|| bad(format!("{what}: channel {name}: no finite {key} for `{term}`")))
         };
-        out[i] = ChannelUncertainty {
-            se_bias: num("std_errors", "1")?,
-            se_k: [num("std_errors", "ax")?, num("std_errors", "ay")?, num("std_errors", "az")?],
-            k_own: num("coefficients", ["ax", "ay", "az"][i])?,
+        let mut terms = Vec::with_capacity(names.len());
+        for (at, n) in names.iter().enumerate() {
+            let term = Term::parse(n).map_err(|e| bad(format!("{what}: channel {name}: term `{n}`: {e}")))?;
+            thermal |= term.pow[3] > 0;
+            terms.push((term, num("std_errors", at, n)?));
+        }
+        for needed in ["1", "ax", "ay", "az"] {
+            if !names.contains(&needed) {
+                return Err(bad(format!(
+                    "{what}: channel {name} has no term `{needed}`: verification needs a model-4 fit"
+                )));
+            }
+        }
+        let coefficient = |term: &str| -> anyhow::Result<f64> {
+            names.iter().position(|t| *t == term).map_or(Ok(0.0), |at| num("coefficients", at, term))
         };
-        if out[i].k_own == 0.0 {
+        let own = ["ax", "ay", "az"][i];
+        let k_own = coefficient(own)?;
+        if k_own == 0.0 {
             return Err(bad(format!("{what}: channel {name} has a zero own-axis sensitivity")));
         }
+        out.push(ChannelUncertainty { terms, k_own, k_own_t: coefficient(&format!("{own}*t"))? });
     }
-    Ok(out)
+    let t_ref_c = if thermal {
+        Some(v["t_ref_c"].as_f64().filter(|t| t.is_finite()).ok_or_else(|| {
+            bad(format!("{what}: the fit has terms in t but no `t_ref_c` (write it again with `fit --json`)"))
+        })?)
+    } else {
+        None
+    };
+    let channels: [ChannelUncertainty; 3] =
+        out.try_into().map_err(|_| bad(format!("{what}: three channels x, y, z expected")))?;
+    Ok(CalUncertainty { channels, t_ref_c })
 }
 
 /// A verification in which a position failed (exit code 1: the node, not the input, is wrong).
@@ -300,7 +350,8 @@ fn run(
         let measured = cap.mean();
         let sd_mean = cap.sd().map(|s| s / (cap.sets.len() as f64).sqrt());
         let error = [0, 1, 2].map(|i| measured[i] - expected[i]);
-        let bound = cfg.tolerance.bounds(expected, sd_mean);
+        let temp_c = cap.mean_temp_c();
+        let bound = cfg.tolerance.bounds(expected, temp_c, sd_mean);
         let check = PositionCheck {
             position: k + 1,
             alpha_deg: a,
@@ -311,7 +362,7 @@ fn run(
             sd_mean_m_s2: sd_mean,
             tolerance_m_s2: bound,
             lost: cap.lost,
-            temp_c: cap.mean_temp_c(),
+            temp_c,
             out_of_range: cap.out_of_range,
             pass: (0..3).all(|i| error[i].abs() <= bound[i]),
         };
@@ -325,18 +376,54 @@ fn run(
 mod tests {
     use super::*;
 
+    fn model4(se_bias: f64, se_k: [f64; 3], k_own: f64) -> ChannelUncertainty {
+        let terms = ["1", "ax", "ay", "az"].iter().zip([se_bias, se_k[0], se_k[1], se_k[2]]);
+        ChannelUncertainty {
+            terms: terms.map(|(t, se)| (Term::parse(t).unwrap(), se)).collect(),
+            k_own,
+            k_own_t: 0.0,
+        }
+    }
+
     #[test]
     fn tolerances_follow_the_stated_rule() {
-        let c = ChannelUncertainty { se_bias: 0.5, se_k: [0.03, 0.0, 0.0], k_own: 1670.0 };
+        let c = model4(0.5, [0.03, 0.0, 0.0], 1670.0);
         let a = [9.81, 0.0, 0.0];
-        let s = c.sigma(a);
+        let s = c.sigma(a, 0.0);
         assert!((s - (0.25f64 + (0.03f64 * 9.81).powi(2)).sqrt() / 1670.0).abs() < 1e-15);
-        let t = Tolerance::Derived(Some([c; 3]));
-        let b = t.bounds(a, [0.002, 0.0, 0.0]);
-        assert!((b[0] - 4.0 * (s * s + 4e-6).sqrt()).abs() < 1e-12);
-        assert_eq!(Tolerance::Fixed(0.01).bounds(a, [1.0; 3]), [0.01; 3]);
-        assert_eq!(Tolerance::Derived(None).bounds(a, [0.001; 3]), [0.004; 3]);
+        let t =
+            Tolerance::Derived(Some(CalUncertainty { channels: [c.clone(), c.clone(), c], t_ref_c: None }));
+        let b = t.bounds(a, Some(40.0), [0.002, 0.0, 0.0]);
+        assert!(
+            (b[0] - 4.0 * (s * s + 4e-6).sqrt()).abs() < 1e-12,
+            "no thermal terms: the temperature is not used"
+        );
+        assert_eq!(Tolerance::Fixed(0.01).bounds(a, None, [1.0; 3]), [0.01; 3]);
+        assert_eq!(Tolerance::Derived(None).bounds(a, None, [0.001; 3]), [0.004; 3]);
         assert!(Tolerance::Derived(None).describe().contains("not included"));
+    }
+
+    #[test]
+    fn thermal_terms_widen_the_tolerance_away_from_t_ref() {
+        let mut c = model4(0.5, [0.03, 0.0, 0.0], 1670.0);
+        c.terms.push((Term::parse("t").unwrap(), 0.02));
+        c.terms.push((Term::parse("ax*t").unwrap(), 0.001));
+        c.k_own_t = 0.167;
+        let a = [9.81, 0.0, 0.0];
+        let at_ref = c.sigma(a, 0.0);
+        assert!((at_ref - model4(0.5, [0.03, 0.0, 0.0], 1670.0).sigma(a, 0.0)).abs() < 1e-18);
+        let t = -35.0;
+        let want =
+            (0.25f64 + (0.03f64 * 9.81).powi(2) + (0.02f64 * t).powi(2) + (0.001f64 * 9.81 * t).powi(2))
+                .sqrt()
+                / (1670.0 + 0.167 * t);
+        assert!((c.sigma(a, t) - want).abs() < 1e-15);
+        let cal = CalUncertainty { channels: [c.clone(), c.clone(), c], t_ref_c: Some(25.0) };
+        assert_eq!(cal.t(Some(-10.0)), -35.0);
+        assert_eq!(cal.t(None), 0.0);
+        let tol = Tolerance::Derived(Some(cal));
+        assert!(tol.bounds(a, Some(-10.0), [1e-4; 3])[0] > tol.bounds(a, Some(25.0), [1e-4; 3])[0]);
+        assert!(tol.describe().contains("and temperature"));
     }
 
     #[test]
@@ -346,9 +433,23 @@ mod tests {
             {"channel":"y","terms":["1","ax","ay","az"],"coefficients":[32000,1,1650,2],"std_errors":[0.6,0.01,0.02,0.03]},
             {"channel":"z","terms":["1","ax","ay","az"],"coefficients":[33000,1,2,1690],"std_errors":[0.7,0.01,0.02,0.03]}]}"#;
         let u = uncertainty_from_fit_json(j, "fit.json").unwrap();
-        assert_eq!(u[1], ChannelUncertainty { se_bias: 0.6, se_k: [0.01, 0.02, 0.03], k_own: 1650.0 });
+        assert_eq!(u.channels[1], model4(0.6, [0.01, 0.02, 0.03], 1650.0));
+        assert_eq!(u.t_ref_c, None);
         let quad = j.replacen(r#""terms":["1","ax","ay","az"]"#, r#""terms":["1","ax","ay","ax^2"]"#, 1);
         let e = uncertainty_from_fit_json(&quad, "fit.json").unwrap_err().to_string();
         assert!(e.contains("channel x has no term `az`"), "{e}");
+        // A thermal fit: its terms in t are read, with the document's reference temperature.
+        let th = j.replacen(
+            r#""terms":["1","ax","ay","az"],"coefficients":[32768,1670,3,-2],"std_errors":[0.5,0.01,0.02,0.03]"#,
+            r#""terms":["1","ax","ay","az","t","ax*t"],"coefficients":[32768,1670,3,-2,3,0.167],"std_errors":[0.5,0.01,0.02,0.03,0.02,0.001]"#,
+            1,
+        );
+        let e = uncertainty_from_fit_json(&th, "fit.json").unwrap_err().to_string();
+        assert!(e.contains("no `t_ref_c`"), "{e}");
+        let th = th.replacen(r#"{"method":"lsq","#, r#"{"method":"lsq","t_ref_c":25.0,"#, 1);
+        let u = uncertainty_from_fit_json(&th, "fit.json").unwrap();
+        assert_eq!(u.t_ref_c, Some(25.0));
+        assert_eq!((u.channels[0].terms.len(), u.channels[0].k_own_t), (6, 0.167));
+        assert_eq!(u.channels[1].k_own_t, 0.0);
     }
 }

@@ -719,7 +719,7 @@ pub struct VerifyArgs {
     #[arg(long, value_name = "M_S2")]
     pub tolerance: Option<f64>,
     /// The `fit --json` output of the record's fit: its standard errors enter the derived
-    /// tolerance.
+    /// tolerance (a thermal fit's terms in t too, at each position's temperature).
     #[arg(long, value_name = "FIT_JSON")]
     pub fit: Option<PathBuf>,
     /// Gravity at the rig, m/s² [default: 9.81, announced; better --latitude/--height].

@@ -32,6 +32,24 @@ pub enum NodeCal {
     Fixed(LinearCalFixed),
 }
 
+impl NodeCal {
+    /// The calibration if it is in f32.
+    pub fn into_f32(self) -> Option<LinearCalF32> {
+        match self {
+            NodeCal::F32(c) => Some(c),
+            NodeCal::Fixed(_) => None,
+        }
+    }
+
+    /// The calibration if it is in fixed point.
+    pub fn into_fixed(self) -> Option<LinearCalFixed> {
+        match self {
+            NodeCal::Fixed(c) => Some(c),
+            NodeCal::F32(_) => None,
+        }
+    }
+}
+
 /// A record in force.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Boot {

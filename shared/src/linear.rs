@@ -55,19 +55,17 @@ impl Model4 {
             return Err(LinearError::Singular);
         }
         let inv = k.try_inverse().ok_or(LinearError::Singular)?;
-        // Reciprocal condition number in the 1-norm.
-        let norm1 = |m: &Matrix3<f64>| {
-            (0..3).map(|j| (0..3).map(|i| libm::fabs(m[(i, j)])).sum::<f64>()).fold(0.0, f64::max)
+        // The inverse as columns (nalgebra's storage order): no indexing, so no panic path.
+        let cols: [[f64; 3]; 3] = inv.into();
+        let m: [[f64; 3]; 3] = core::array::from_fn(|i| core::array::from_fn(|j| cols[j][i]));
+        // Reciprocal condition number in the 1-norm: the largest column sum of absolute values.
+        let norm1 = |cols: [[f64; 3]; 3]| {
+            cols.iter().map(|c| c.iter().map(|v| libm::fabs(*v)).sum::<f64>()).fold(0.0, f64::max)
         };
-        let rcond = 1.0 / (norm1(&k) * norm1(&inv));
-        if !(rcond > 1e-9) || !inv.iter().all(|v| v.is_finite()) {
+        let k_cols: [[f64; 3]; 3] = core::array::from_fn(|j| core::array::from_fn(|i| self.k[i][j]));
+        let rcond = 1.0 / (norm1(k_cols) * norm1(cols));
+        if !(rcond > 1e-9) || !cols.iter().flatten().all(|v| v.is_finite()) {
             return Err(LinearError::Singular);
-        }
-        let mut m = [[0.0; 3]; 3];
-        for (i, row) in m.iter_mut().enumerate() {
-            for (j, v) in row.iter_mut().enumerate() {
-                *v = inv[(i, j)];
-            }
         }
         Ok(LinearCal { u0: self.u0, m })
     }

@@ -49,20 +49,21 @@ impl ThermalModel {
             return None;
         }
         let mut m = ThermalModel { thermal, bias: [[0.0; 3]; 3], k: [[0.0; 3]; 3], kt: [[0.0; 3]; 3] };
+        // Slots by `get`: a term the node cannot hold gives `None`, never a panic path.
         for (n, i) in record.structure.indices().enumerate() {
-            for c in 0..3 {
-                let v = record.coefficients[c][n];
-                match i {
-                    0 => m.bias[c][0] = v,
-                    1..=3 => m.k[c][i - 1] = v,
-                    _ if i == T_INDEX => m.bias[c][1] = v,
-                    _ if i == T_INDEX + 1 => m.bias[c][2] = v,
-                    _ => {
-                        // ax*t, ay*t, az*t: the axis is the term's acceleration factor.
-                        let axis = BASIS[i].pow.iter().position(|&p| p == 1)?;
-                        m.kt[c][axis] = v;
-                    }
-                }
+            // ax*t, ay*t, az*t: the axis is the term's acceleration factor.
+            let axis = BASIS.get(i)?.pow.iter().position(|&p| p == 1);
+            let channels = m.bias.iter_mut().zip(&mut m.k).zip(&mut m.kt).zip(&record.coefficients);
+            for (((bias, k), kt), coefficients) in channels {
+                let v = *coefficients.get(n)?;
+                let slot = match i {
+                    0 => &mut bias[0],
+                    1..=3 => k.get_mut(i - 1)?,
+                    _ if i == T_INDEX => &mut bias[1],
+                    _ if i == T_INDEX + 1 => &mut bias[2],
+                    _ => kt.get_mut(axis?)?,
+                };
+                *slot = v;
             }
         }
         Some(m)

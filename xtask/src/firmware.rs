@@ -55,13 +55,23 @@ fn run(cmd: &mut Command) -> anyhow::Result<()> {
     let args: Vec<String> = cmd.get_args().map(|a| a.to_string_lossy().into_owned()).collect();
     let envs: Vec<String> = cmd
         .get_envs()
-        .filter_map(|(k, v)| Some(format!("{}={} ", k.to_string_lossy(), v?.to_string_lossy())))
+        .filter_map(|(k, v)| Some(format!("{}={} ", k.to_string_lossy(), shell_quote(&v?.to_string_lossy()))))
         .collect();
     let close = if dir.is_empty() { "" } else { ")" };
     println!("$ {dir}{}{} {}{close}", envs.concat(), cmd.get_program().to_string_lossy(), args.join(" "));
     let status = cmd.status().with_context(|| format!("cannot run {:?}", cmd.get_program()))?;
     ensure!(status.success(), "{:?} failed: {status}", cmd.get_program());
     Ok(())
+}
+
+/// `v` as one shell word: quoted when it holds a space or a shell metacharacter (so that a printed
+/// command can be pasted as it is).
+fn shell_quote(v: &str) -> String {
+    if v.chars().all(|c| c.is_ascii_alphanumeric() || "-_=./,:@%+".contains(c)) {
+        v.to_string()
+    } else {
+        format!("'{}'", v.replace('\'', r"'\''"))
+    }
 }
 
 /// A cargo command for the firmware workspace (its own .cargo/config.toml picks the target).
@@ -72,11 +82,48 @@ fn fw_cargo(args: &[&str]) -> Command {
     for k in ["RUSTFLAGS", "CARGO_ENCODED_RUSTFLAGS", "CARGO_TARGET_DIR", "CARGO_BUILD_TARGET"] {
         c.env_remove(k);
     }
+    let flags = remap_flags();
+    if flags.iter().any(|f| f.contains(char::is_whitespace)) {
+        c.env("CARGO_ENCODED_RUSTFLAGS", flags.join("\x1f"));
+    } else {
+        c.env("RUSTFLAGS", flags.join(" "));
+    }
     c
+}
+
+/// The `--remap-path-prefix` flags of every firmware build, what cargo's `trim-paths` (not stable
+/// in the pinned toolchain) does: the registry's source directories and the repository root are
+/// cut from the paths compiled into the image (the panic locations), so that
+/// `/root/.cargo/registry/src/index.crates.io-…/embassy-stm32-0.6.0/src/dma/mod.rs` is stored as
+/// `embassy-stm32-0.6.0/src/dma/mod.rs` and `<repository>/shared/src/wire.rs` as
+/// `shared/src/wire.rs`. The image then holds no path of the build machine, and its size (the
+/// flash budget) does not depend on where the repository and CARGO_HOME are.
+pub fn remap_flags() -> Vec<String> {
+    let mut prefixes = Vec::new();
+    let cargo_home = std::env::var_os("CARGO_HOME")
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cargo")));
+    if let Some(Ok(dirs)) = cargo_home.map(|h| std::fs::read_dir(h.join("registry/src"))) {
+        let mut dirs: Vec<PathBuf> =
+            dirs.filter_map(|d| Some(d.ok()?.path())).filter(|d| d.is_dir()).collect();
+        dirs.sort();
+        prefixes.extend(dirs);
+    }
+    // Lexically, as cargo names the path dependency `../shared` (no symlink resolution).
+    prefixes.push(Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap_or(Path::new("/")).to_path_buf());
+    prefixes.iter().map(|p| format!("--remap-path-prefix={}/=", p.display())).collect()
 }
 
 /// The MCU target of the firmware and of `shared`'s no_std build.
 pub const THUMB: &str = "thumbv7em-none-eabihf";
+
+/// What every firmware build needs first: the thumb target, and the dependencies' sources in
+/// cargo's registry (fetched before [`remap_flags`] lists the registry's directories, so that a
+/// fresh CARGO_HOME gets the same image as a used one).
+pub fn prepare() -> anyhow::Result<()> {
+    ensure_thumb_target()?;
+    run(&mut fw_cargo(&["fetch", "--locked"]))
+}
 
 /// Installs the thumb target into the pinned toolchain when it is missing (idempotent).
 /// rustup applies `rust-toolchain.toml`'s `targets` only to a toolchain it installs itself, so a
@@ -131,10 +178,23 @@ fn build_qemu_fixed() -> anyhow::Result<()> {
     ]))
 }
 
+/// `cargo xtask firmware`: the three node images (the real board's, QEMU's in f32 and in fixed
+/// point), built as the tests and the benchmark build them; prints where they are.
+pub fn build() -> anyhow::Result<()> {
+    prepare()?;
+    build_real()?;
+    build_qemu()?;
+    build_qemu_fixed()?;
+    for p in [elf("node-real"), elf("node-qemu"), fixed_elf()] {
+        println!("built {}", p.display());
+    }
+    Ok(())
+}
+
 /// `cargo xtask test` (firmware part): installs QEMU when missing, builds the real firmware and
 /// the QEMU builds (f32 and fixed point), and runs the QEMU tests.
 pub fn test() -> anyhow::Result<()> {
-    ensure_thumb_target()?;
+    prepare()?;
     setup_qemu()?;
     build_real()?;
     build_qemu()?;
@@ -150,7 +210,7 @@ pub fn test() -> anyhow::Result<()> {
 /// `cargo xtask lint` (firmware part): rustfmt and clippy (warnings are errors) on the firmware
 /// workspace, for each board and for the fixed-point variant.
 pub fn lint() -> anyhow::Result<()> {
-    ensure_thumb_target()?;
+    prepare()?;
     run(&mut fw_cargo(&["fmt", "--all", "--check"]))?;
     for features in ["board-real", "board-qemu", "board-qemu,fixed-point"] {
         run(&mut fw_cargo(&[
@@ -454,7 +514,7 @@ fn count_instructions(
 /// `cargo xtask bench`: exact instructions per calibrated triad sample set on QEMU's Cortex-M4F,
 /// and the real release build's flash and static RAM.
 pub fn bench() -> anyhow::Result<()> {
-    ensure_thumb_target()?;
+    prepare()?;
     setup_qemu()?;
     build_real()?;
     build_qemu()?;

@@ -19,7 +19,7 @@ const RATES: [u32; 6] = [100, 250, 500, 750, 1000, 2000];
 
 pub fn bench() -> anyhow::Result<()> {
     let r = root();
-    crate::firmware::ensure_thumb_target()?;
+    crate::firmware::prepare()?;
     crate::firmware::setup_qemu()?;
     crate::firmware::build_qemu()?;
     run(&r, "cargo", &["build", "--release", "--locked", "-p", "accelcal"])?;

@@ -133,8 +133,9 @@ fn main() -> anyhow::Result<()> {
         "lint" => lint(),
         "bench" => bench(std::env::args().nth(2).as_deref()),
         "fuzz" => fuzz(&std::env::args().skip(2).collect::<Vec<_>>()),
+        "firmware" => firmware::build(),
         _ => {
-            eprintln!("usage: cargo xtask <test|lint|bench|fuzz>\n  test   every test: host, shared (desktop and no_std target), firmware builds, QEMU\n  lint   rustfmt --check and clippy -D warnings\n  bench  [firmware|live]: the benchmarks quoted in the README (a part: only that one)\n  fuzz   [--seconds N] [--target record|slots|frame|all] [--seed S]: the parsers' mutation fuzzer");
+            eprintln!("usage: cargo xtask <test|lint|bench|fuzz|firmware>\n  test   every test: host, shared (desktop and no_std target), firmware builds, QEMU\n  lint   rustfmt --check and clippy -D warnings\n  bench  [firmware|live]: the benchmarks quoted in the README (a part: only that one)\n  fuzz   [--seconds N] [--target record|slots|frame|all] [--seed S]: the parsers' mutation fuzzer\n  firmware  the node images (real board, QEMU f32, QEMU fixed point), as the tests build them");
             std::process::exit(2)
         }
     }

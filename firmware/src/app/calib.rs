@@ -15,31 +15,43 @@
 //! run.
 
 use accelcal_shared::boot::{self, Arithmetic, NodeCal, TempInputs};
-use accelcal_shared::linear::{LinearCalF32, LinearCalFixed};
+#[cfg(not(feature = "fixed-point"))]
+use accelcal_shared::linear::LinearCalF32;
+#[cfg(feature = "fixed-point")]
+use accelcal_shared::linear::LinearCalFixed;
 use accelcal_shared::slots::{SlotRead, N_SLOTS, SLOT_SIZE};
 #[cfg(feature = "fixed-point")]
 use accelcal_shared::thermal::ThermalTrackerFixed;
 use accelcal_shared::thermal::{ThermalCalF32, ThermalTracker};
-use accelcal_shared::wire::{Block, BlockTemp, Codes, RecordStatus, MAX_BLOCK};
+use accelcal_shared::wire::{Block, BlockTemp, Codes, RecordFault, RecordStatus, MAX_BLOCK};
 use heapless::Vec;
 
 use super::ports::RecordStorage;
 
+/// Model 4 in the build's arithmetic: f32 (the Cortex-M4F's FPU path) or, with the
+/// `fixed-point` feature, fixed point (output m/s²·2¹⁶, for FPU-less parts). Each build compiles
+/// the calibration of its own arithmetic only (flash).
+#[cfg(not(feature = "fixed-point"))]
+pub type LinearCal = LinearCalF32;
+/// Model 4 in the build's arithmetic (see the f32 build's definition).
+#[cfg(feature = "fixed-point")]
+pub type LinearCal = LinearCalFixed;
+
+/// The build's thermal tracker: f32, or re-quantised to fixed point at each evaluation.
+#[cfg(not(feature = "fixed-point"))]
+pub type Tracker = ThermalTracker;
+/// The build's thermal tracker (see the f32 build's definition).
+#[cfg(feature = "fixed-point")]
+pub type Tracker = ThermalTrackerFixed;
+
 /// The calibration in force, or none.
 #[derive(Clone, Copy, Debug)]
 pub enum Calibration {
-    /// Model 4 in f32 (the Cortex-M4F's FPU path).
-    F32(LinearCalF32),
-    /// Model 4 in fixed point (output m/s²·2¹⁶), for FPU-less parts.
-    Fixed(LinearCalFixed),
-    /// Model 4 with thermal terms, in f32: the model, and the calibration at its reference
-    /// temperature (applied where no temperature is known). Each build has the thermal path of
-    /// its own arithmetic only (flash).
-    #[cfg(not(feature = "fixed-point"))]
-    ThermalF32(ThermalCalF32, LinearCalF32),
-    /// Model 4 with thermal terms, re-quantised to fixed point at each evaluation.
-    #[cfg(feature = "fixed-point")]
-    ThermalFixed(ThermalCalF32, LinearCalFixed),
+    /// Model 4.
+    Model4(LinearCal),
+    /// Model 4 with thermal terms: the model (evaluated in f32), and the calibration at its
+    /// reference temperature (applied where no temperature is known).
+    Thermal(ThermalCalF32, LinearCal),
     /// No valid record: sample sets leave the node as raw codes flagged uncalibrated.
     Uncalibrated,
 }
@@ -77,12 +89,8 @@ pub fn calibrate_block_thermal_fixed(
 pub enum Applier {
     /// Model 4 (or no record): nothing to keep.
     Static(Calibration),
-    /// A thermal record in f32.
-    #[cfg(not(feature = "fixed-point"))]
-    ThermalF32(ThermalTracker),
-    /// A thermal record in fixed point.
-    #[cfg(feature = "fixed-point")]
-    ThermalFixed(ThermalTrackerFixed),
+    /// A thermal record.
+    Thermal(Tracker),
 }
 
 impl Applier {
@@ -96,14 +104,14 @@ impl Applier {
         match self {
             Applier::Static(cal) => (cal.apply_block(codes), ThermalTracker::block_temp(temp_c, None)),
             #[cfg(not(feature = "fixed-point"))]
-            Applier::ThermalF32(tr) => {
+            Applier::Thermal(tr) => {
                 let mut v = Vec::new();
                 let _ = v.resize(n, [0.0; 3]);
                 let flagged = calibrate_block_thermal_f32(tr, codes, temp_c, &mut v);
                 (Block::Calibrated(v), ThermalTracker::block_temp(temp_c, Some((tr, flagged))))
             }
             #[cfg(feature = "fixed-point")]
-            Applier::ThermalFixed(tr) => {
+            Applier::Thermal(tr) => {
                 let mut v = Vec::new();
                 let _ = v.resize(n, [0; 3]);
                 let flagged = calibrate_block_thermal_fixed(tr, codes, temp_c, &mut v);
@@ -116,23 +124,18 @@ impl Applier {
     /// tracker, so that its filter keeps following the temperature; returns the block's
     /// temperature report (mean only).
     pub fn track(&mut self, temp_c: &[f32]) -> Option<BlockTemp> {
-        match self {
-            Applier::Static(_) => {}
-            #[cfg(not(feature = "fixed-point"))]
-            Applier::ThermalF32(tr) => temp_c.iter().for_each(|&t| {
+        if let Applier::Thermal(tr) = self {
+            temp_c.iter().for_each(|&t| {
                 tr.on_set(t);
-            }),
-            #[cfg(feature = "fixed-point")]
-            Applier::ThermalFixed(tr) => temp_c.iter().for_each(|&t| {
-                tr.on_set(t);
-            }),
+            });
         }
         ThermalTracker::block_temp(temp_c, None)
     }
 }
 
 /// Calibrates `codes` into `out` (m/s²), pairwise, in f32. The node's hot path.
-#[cfg_attr(not(feature = "fixed-point"), unsafe(no_mangle))]
+#[cfg(not(feature = "fixed-point"))]
+#[unsafe(no_mangle)]
 #[inline(never)]
 pub fn calibrate_block_f32(cal: &LinearCalF32, codes: &[Codes], out: &mut [[f32; 3]]) {
     for (u, a) in codes.iter().zip(out.iter_mut()) {
@@ -141,7 +144,8 @@ pub fn calibrate_block_f32(cal: &LinearCalF32, codes: &[Codes], out: &mut [[f32;
 }
 
 /// Calibrates `codes` into `out` (m/s²·2¹⁶), pairwise, in fixed point.
-#[cfg_attr(feature = "fixed-point", unsafe(no_mangle))]
+#[cfg(feature = "fixed-point")]
+#[unsafe(no_mangle)]
 #[inline(never)]
 pub fn calibrate_block_fixed(cal: &LinearCalFixed, codes: &[Codes], out: &mut [[i32; 3]]) {
     for (u, a) in codes.iter().zip(out.iter_mut()) {
@@ -153,12 +157,7 @@ impl Calibration {
     /// A fresh applier of this calibration (a thermal record's tracker not yet fed).
     pub fn applier(&self) -> Applier {
         match *self {
-            #[cfg(not(feature = "fixed-point"))]
-            Calibration::ThermalF32(model, start) => Applier::ThermalF32(ThermalTracker::new(model, start)),
-            #[cfg(feature = "fixed-point")]
-            Calibration::ThermalFixed(model, start) => {
-                Applier::ThermalFixed(ThermalTrackerFixed::new(model, start))
-            }
+            Calibration::Thermal(model, start) => Applier::Thermal(Tracker::new(model, start)),
             cal => Applier::Static(cal),
         }
     }
@@ -169,12 +168,7 @@ impl Calibration {
         let n = codes.len().min(MAX_BLOCK);
         let codes = &codes[..n];
         match self {
-            #[cfg(not(feature = "fixed-point"))]
-            Calibration::ThermalF32(_, cal) => apply_f32(cal, codes),
-            Calibration::F32(cal) => apply_f32(cal, codes),
-            #[cfg(feature = "fixed-point")]
-            Calibration::ThermalFixed(_, cal) => apply_fixed(cal, codes),
-            Calibration::Fixed(cal) => apply_fixed(cal, codes),
+            Calibration::Model4(cal) | Calibration::Thermal(_, cal) => apply(cal, codes),
             Calibration::Uncalibrated => {
                 let mut v = Vec::new();
                 let _ = v.extend_from_slice(codes);
@@ -185,7 +179,8 @@ impl Calibration {
 }
 
 /// Model 4 in f32 on a block of `codes`.
-fn apply_f32(cal: &LinearCalF32, codes: &[Codes]) -> Block {
+#[cfg(not(feature = "fixed-point"))]
+fn apply(cal: &LinearCal, codes: &[Codes]) -> Block {
     let mut v = Vec::new();
     let _ = v.resize(codes.len(), [0.0; 3]);
     calibrate_block_f32(cal, codes, &mut v);
@@ -193,7 +188,8 @@ fn apply_f32(cal: &LinearCalF32, codes: &[Codes]) -> Block {
 }
 
 /// Model 4 in fixed point on a block of `codes`.
-fn apply_fixed(cal: &LinearCalFixed, codes: &[Codes]) -> Block {
+#[cfg(feature = "fixed-point")]
+fn apply(cal: &LinearCal, codes: &[Codes]) -> Block {
     let mut v = Vec::new();
     let _ = v.resize(codes.len(), [0; 3]);
     calibrate_block_fixed(cal, codes, &mut v);
@@ -230,19 +226,14 @@ pub fn load(storage: &impl RecordStorage, inputs: TempInputs) -> (Calibration, R
                 boot.sequence,
                 boot.record.created_unix_s
             );
-            let cal = match (boot.cal, boot.thermal) {
-                (NodeCal::F32(c), None) => Calibration::F32(c),
-                (NodeCal::Fixed(c), None) => Calibration::Fixed(c),
-                #[cfg(not(feature = "fixed-point"))]
-                (NodeCal::F32(c), Some(m)) => Calibration::ThermalF32(m, c),
-                #[cfg(feature = "fixed-point")]
-                (NodeCal::Fixed(c), Some(m)) => Calibration::ThermalFixed(m, c),
-                // Not reached: the boot decision calibrates in the build's own arithmetic
-                // (`arith` above), whose thermal path is the one compiled in.
-                #[cfg(not(feature = "fixed-point"))]
-                (NodeCal::Fixed(c), Some(_)) => Calibration::Fixed(c),
-                #[cfg(feature = "fixed-point")]
-                (NodeCal::F32(c), Some(_)) => Calibration::F32(c),
+            // The boot decision calibrates in the build's own arithmetic (`arith` above).
+            let Some(c) = own(boot.cal) else {
+                defmt::error!("boot decision in the other arithmetic: streaming raw codes");
+                return (Calibration::Uncalibrated, RecordStatus::Missing(RecordFault::Singular));
+            };
+            let cal = match boot.thermal {
+                None => Calibration::Model4(c),
+                Some(m) => Calibration::Thermal(m, c),
             };
             if let Some(m) = boot.thermal {
                 defmt::info!(
@@ -260,4 +251,16 @@ pub fn load(storage: &impl RecordStorage, inputs: TempInputs) -> (Calibration, R
             (Calibration::Uncalibrated, RecordStatus::Missing(e.fault()))
         }
     }
+}
+
+/// The boot decision's calibration if it is in this build's arithmetic.
+#[cfg(not(feature = "fixed-point"))]
+fn own(cal: NodeCal) -> Option<LinearCal> {
+    cal.into_f32()
+}
+
+/// The boot decision's calibration if it is in this build's arithmetic.
+#[cfg(feature = "fixed-point")]
+fn own(cal: NodeCal) -> Option<LinearCal> {
+    cal.into_fixed()
 }

@@ -277,9 +277,10 @@ impl SampleClock for SampleClockImpl {
 }
 
 /// Compares a register field with what was programmed; logs a mismatch.
-fn field_ok(name: &str, got: u32, want: u32) -> bool {
+/// `name` is interned: it lives in the defmt table on the host, not in the node's flash.
+fn field_ok(name: defmt::Str, got: u32, want: u32) -> bool {
     if got != want {
-        defmt::error!("ADC trigger read-back: {} = {=u32}, programmed {=u32}", name, got, want);
+        defmt::error!("ADC trigger read-back: {=istr} = {=u32}, programmed {=u32}", name, got, want);
     }
     got == want
 }
@@ -295,26 +296,46 @@ fn read_back_trigger(timer: &Timer<'static, TIM6>, rate_hz: u32) -> bool {
     let cfgr = adc.cfgr().read();
     let cfgr2 = adc.cfgr2().read();
     let sqr1 = adc.sqr1().read();
-    let mut ok = field_ok("CFGR.EXTEN", cfgr.exten().into(), EXTEN_RISING.into());
-    ok &= field_ok("CFGR.EXTSEL", cfgr.extsel().into(), EXTSEL_TIM6_TRGO.into());
-    ok &= field_ok("CFGR.CONT", cfgr.cont().into(), 0);
-    ok &= field_ok("CFGR.DMAEN", cfgr.dmaen().into(), 1);
-    ok &= field_ok("CFGR.DMACFG", cfgr.dmacfg().to_bits().into(), Dmacfg::CIRCULAR.to_bits().into());
-    ok &= field_ok("CR.ADSTART", adc.cr().read().adstart().into(), 1);
-    ok &= field_ok("CFGR2.ROVSE", cfgr2.rovse().into(), 1);
-    ok &= field_ok("CFGR2.OVSR", cfgr2.ovsr().to_bits().into(), OversamplingRatio::RATIO16.to_bits().into());
-    ok &= field_ok("CFGR2.OVSS", cfgr2.ovss().to_bits().into(), OversamplingShift::SHIFT0.to_bits().into());
-    ok &= field_ok("CFGR2.TROVS", cfgr2.trovs().to_bits().into(), Trovs::AUTOMATIC.to_bits().into());
-    ok &= field_ok("SQR1.L", sqr1.l().into(), (N_SCAN - 1) as u32);
+    let mut ok = field_ok(defmt::intern!("CFGR.EXTEN"), cfgr.exten().into(), EXTEN_RISING.into());
+    ok &= field_ok(defmt::intern!("CFGR.EXTSEL"), cfgr.extsel().into(), EXTSEL_TIM6_TRGO.into());
+    ok &= field_ok(defmt::intern!("CFGR.CONT"), cfgr.cont().into(), 0);
+    ok &= field_ok(defmt::intern!("CFGR.DMAEN"), cfgr.dmaen().into(), 1);
+    ok &= field_ok(
+        defmt::intern!("CFGR.DMACFG"),
+        cfgr.dmacfg().to_bits().into(),
+        Dmacfg::CIRCULAR.to_bits().into(),
+    );
+    ok &= field_ok(defmt::intern!("CR.ADSTART"), adc.cr().read().adstart().into(), 1);
+    ok &= field_ok(defmt::intern!("CFGR2.ROVSE"), cfgr2.rovse().into(), 1);
+    ok &= field_ok(
+        defmt::intern!("CFGR2.OVSR"),
+        cfgr2.ovsr().to_bits().into(),
+        OversamplingRatio::RATIO16.to_bits().into(),
+    );
+    ok &= field_ok(
+        defmt::intern!("CFGR2.OVSS"),
+        cfgr2.ovss().to_bits().into(),
+        OversamplingShift::SHIFT0.to_bits().into(),
+    );
+    ok &= field_ok(
+        defmt::intern!("CFGR2.TROVS"),
+        cfgr2.trovs().to_bits().into(),
+        Trovs::AUTOMATIC.to_bits().into(),
+    );
+    ok &= field_ok(defmt::intern!("SQR1.L"), sqr1.l().into(), (N_SCAN - 1) as u32);
     for (rank, &ch) in SCAN_CHANNELS.iter().enumerate() {
-        ok &= field_ok("SQR1.SQx", sqr1.sq(rank).into(), ch.into());
+        ok &= field_ok(defmt::intern!("SQR1.SQx"), sqr1.sq(rank).into(), ch.into());
         let want = if rank == 0 { DUMMY_SAMPLE_TIME } else { SAMPLE_TIME };
         let got = adc.smpr(ch as usize / 10).read().smp(ch as usize % 10);
-        ok &= field_ok("SMPRx.SMPy", got.to_bits().into(), want.to_bits().into());
+        ok &= field_ok(defmt::intern!("SMPRx.SMPy"), got.to_bits().into(), want.to_bits().into());
     }
     let tim = timer.regs_basic();
-    ok &= field_ok("TIM6_CR2.MMS", tim.cr2().read().mms().to_bits().into(), Mms::UPDATE.to_bits().into());
-    ok &= field_ok("TIM6_CR1.CEN", tim.cr1().read().cen().into(), 1);
+    ok &= field_ok(
+        defmt::intern!("TIM6_CR2.MMS"),
+        tim.cr2().read().mms().to_bits().into(),
+        Mms::UPDATE.to_bits().into(),
+    );
+    ok &= field_ok(defmt::intern!("TIM6_CR1.CEN"), tim.cr1().read().cen().into(), 1);
     let period = (tim.psc().read() as u64 + 1) * (tim.arr().read().arr() as u64 + 1);
     let achieved_mhz = timer.get_clock_frequency().0 as u64 * 1000 / period;
     let want_mhz = rate_hz as u64 * 1000;

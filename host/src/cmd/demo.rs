@@ -40,8 +40,14 @@ pub fn run(a: &DemoArgs) -> anyhow::Result<()> {
     steps.set_message("fitting model 4 by LSQ and by test turns; writing the calibration record");
     let lsq = fit_all(&campaign, g, Method::Lsq, MODEL_4)?;
     let tt = fit_all(&campaign, g, Method::TestTurns, MODEL_4)?;
-    write_json(&out.join("fit-lsq.json"), &super::fit::to_json(Method::Lsq, &lsq))?;
-    write_json(&out.join("fit-test-turns.json"), &super::fit::to_json(Method::TestTurns, &tt))?;
+    write_json(
+        &out.join("fit-lsq.json"),
+        &super::fit::to_json(Method::Lsq, &lsq, accelcal_core::positions::T_REF_DEFAULT_C),
+    )?;
+    write_json(
+        &out.join("fit-test-turns.json"),
+        &super::fit::to_json(Method::TestTurns, &tt, accelcal_core::positions::T_REF_DEFAULT_C),
+    )?;
     // For the QEMU node (`accelcal hil`), the only node a demo has; checked by the node's gate
     // like every record the tool writes.
     let rec_path = out.join("calibration.rec");

@@ -24,13 +24,18 @@ pub struct FitChannelJson {
 #[derive(Serialize)]
 pub struct FitJson {
     method: &'static str,
+    /// The reference temperature of the terms in `t` (°C), when a fit has one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    t_ref_c: Option<f64>,
     channels: Vec<FitChannelJson>,
 }
 
-/// The JSON document of a set of fits.
-pub fn to_json(method: Method, fits: &[(String, LsqFit)]) -> FitJson {
+/// The JSON document of a set of fits; `t_ref_c` (°C) is stated when a fit has a term in `t`.
+pub fn to_json(method: Method, fits: &[(String, LsqFit)], t_ref_c: f64) -> FitJson {
+    let thermal = fits.iter().any(|(_, f)| f.structure.terms().any(|t| t.pow[3] > 0));
     FitJson {
         method: method.name(),
+        t_ref_c: thermal.then_some(t_ref_c),
         channels: fits
             .iter()
             .map(|(name, f)| FitChannelJson {
@@ -125,7 +130,7 @@ pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
     };
     print_table(method, &fits);
     if let Some(j) = &a.common.json {
-        write_json(j, &to_json(method, &fits))?;
+        write_json(j, &to_json(method, &fits, a.thermal.t_ref))?;
     }
     if let Some((path, rec)) = rec {
         write_record(path, &rec)?;
