@@ -35,7 +35,7 @@ pub fn firmware_elf(var: &str, default: &str, build: &str) -> PathBuf {
         .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../firmware").join(default));
     assert!(
         elf.is_file(),
-        "{} is missing: build it with `cargo xtask test` (or `cd firmware && {build}`)",
+        "{} is missing: build it with `cargo xtask firmware` (or `cd firmware && {build}`)",
         elf.display()
     );
     elf
