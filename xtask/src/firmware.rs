@@ -99,6 +99,11 @@ fn fw_cargo(args: &[&str]) -> Command {
 /// `shared/src/wire.rs`. The image then holds no path of the build machine, and its size (the
 /// flash budget) does not depend on where the repository and CARGO_HOME are.
 pub fn remap_flags() -> Vec<String> {
+    remap_prefixes().iter().map(|p| format!("--remap-path-prefix={}/=", p.display())).collect()
+}
+
+/// The directories [`remap_flags`] cuts from the image's paths.
+fn remap_prefixes() -> Vec<PathBuf> {
     let mut prefixes = Vec::new();
     let cargo_home = std::env::var_os("CARGO_HOME")
         .map(PathBuf::from)
@@ -111,7 +116,27 @@ pub fn remap_flags() -> Vec<String> {
     }
     // Lexically, as cargo names the path dependency `../shared` (no symlink resolution).
     prefixes.push(Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap_or(Path::new("/")).to_path_buf());
-    prefixes.iter().map(|p| format!("--remap-path-prefix={}/=", p.display())).collect()
+    prefixes
+}
+
+/// Checks [`remap_flags`]' invariant on a built image: no section that goes into the MCU's flash
+/// holds a path of the build machine (a registry directory or the repository root).
+fn check_no_machine_paths(path: &Path) -> anyhow::Result<()> {
+    let data = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    let file = object::File::parse(&*data).with_context(|| format!("parsing {}", path.display()))?;
+    let prefixes: Vec<String> = remap_prefixes().iter().map(|p| format!("{}/", p.display())).collect();
+    for s in file.sections().filter(|s| FLASH.contains(&s.address()) && s.size() > 0) {
+        let bytes = s.data().with_context(|| format!("{}: section {:?}", path.display(), s.name()))?;
+        for p in &prefixes {
+            ensure!(
+                !bytes.windows(p.len()).any(|w| w == p.as_bytes()),
+                "{}: section {} holds the build machine's path {p} (is the path remapping gone?)",
+                path.display(),
+                s.name().unwrap_or("?")
+            );
+        }
+    }
+    Ok(())
 }
 
 /// The MCU target of the firmware and of `shared`'s no_std build.
@@ -186,6 +211,7 @@ pub fn build() -> anyhow::Result<()> {
     build_qemu()?;
     build_qemu_fixed()?;
     for p in [elf("node-real"), elf("node-qemu"), fixed_elf()] {
+        check_no_machine_paths(&p)?;
         println!("built {}", p.display());
     }
     Ok(())
@@ -199,6 +225,10 @@ pub fn test() -> anyhow::Result<()> {
     build_real()?;
     build_qemu()?;
     build_qemu_fixed()?;
+    for p in [elf("node-real"), elf("node-qemu"), fixed_elf()] {
+        check_no_machine_paths(&p)?;
+    }
+    println!("firmware images: no path of the build machine in flash");
     let mut t = Command::new(std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into()));
     t.current_dir(root())
         .args(["test", "-p", "accelcal", "--test", "hil"])
