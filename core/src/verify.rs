@@ -146,7 +146,7 @@ pub fn uncertainty_from_fit_json(text: &str, what: &str) -> anyhow::Result<CalUn
         let mut terms = Vec::with_capacity(names.len());
         for (at, n) in names.iter().enumerate() {
             let term = Term::parse(n).map_err(|e| bad(format!("{what}: channel {name}: term `{n}`: {e}")))?;
-            thermal |= term.pow[3] > 0;
+            thermal |= term.is_thermal();
             terms.push((term, num("std_errors", at, n)?));
         }
         for needed in ["1", "ax", "ay", "az"] {

@@ -253,7 +253,8 @@ pub fn load(storage: &impl RecordStorage, inputs: TempInputs) -> (Calibration, R
     }
 }
 
-/// The boot decision's calibration if it is in this build's arithmetic.
+/// The boot decision's calibration if it is in this build's arithmetic. (A function of its own:
+/// with the conversion written inline in [`load`], the real image measured 160 B larger.)
 #[cfg(not(feature = "fixed-point"))]
 fn own(cal: NodeCal) -> Option<LinearCal> {
     cal.into_f32()

@@ -32,7 +32,7 @@ pub struct FitJson {
 
 /// The JSON document of a set of fits; `t_ref_c` (°C) is stated when a fit has a term in `t`.
 pub fn to_json(method: Method, fits: &[(String, LsqFit)], t_ref_c: f64) -> FitJson {
-    let thermal = fits.iter().any(|(_, f)| f.structure.terms().any(|t| t.pow[3] > 0));
+    let thermal = fits.iter().any(|(_, f)| f.structure.is_thermal());
     FitJson {
         method: method.name(),
         t_ref_c: thermal.then_some(t_ref_c),
