@@ -601,36 +601,55 @@ fn monitor_shows_the_status_stream_of_a_node_on_a_serial_port() {
     let line = rx.recv_timeout(std::time::Duration::from_secs(10)).expect("qemu names its pty");
     let pty = line.split_whitespace().find(|w| w.starts_with("/dev/")).unwrap_or_else(|| panic!("{line}"));
     let mon = Command::new(env!("CARGO_BIN_EXE_accelcal"))
-        .args(["monitor", "--port", pty, "--count", "2"])
+        .args(["monitor", "--port", pty, "--count", "4"])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
     let mut mon = Kill(mon);
+    // Each line with the time it arrived (monitor's stdout is line-buffered).
+    let (tx, rx) = std::sync::mpsc::channel();
+    let stdout = mon.0.stdout.take().unwrap();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+            let _ = tx.send((std::time::Instant::now(), line));
+        }
+    });
     let t0 = std::time::Instant::now();
     while mon.0.try_wait().unwrap().is_none() {
         assert!(t0.elapsed() < std::time::Duration::from_secs(30), "monitor did not finish");
         std::thread::sleep(std::time::Duration::from_millis(50));
     }
-    let mut out = String::new();
-    std::io::Read::read_to_string(mon.0.stdout.as_mut().unwrap(), &mut out).unwrap();
-    let lines: Vec<&str> = out.lines().collect();
-    assert_eq!(lines.len(), 2, "{out}");
-    for l in lines {
+    let lines: Vec<(std::time::Instant, String)> = rx.iter().collect();
+    assert_eq!(lines.len(), 4, "{lines:?}");
+    for (_, l) in &lines {
         assert!(l.starts_with("status: protocol 4, NO RECORD (NoSlot: no record slot holds"), "{l}");
         assert!(l.contains(", rate 1000 Hz, ") && l.contains(", last reset PowerOn: "), "{l}");
     }
+    // The node's 1 s status period is 1 s of the host's time: QEMU's time base is the host clock,
+    // not a count of SysTick interrupts (QEMU loses those; counted, 3 periods took about 10.5 s).
+    let three = lines[3].0 - lines[0].0;
+    assert!((2.5..6.0).contains(&three.as_secs_f64()), "3 status periods took {three:?}, want about 3 s");
 
-    // `--rate` sets the node's rate first: the node answers with its new status.
+    // `--rate` sets the node's rate first: the node answers with its new status. The request is
+    // sent again every second until answered, and QEMU polls a reopened pty once a second: when
+    // both copies reach the node, it answers both, and the stream shows the second answer too.
     let out = Command::new(env!("CARGO_BIN_EXE_accelcal"))
         .args(["monitor", "--port", pty, "--count", "3", "--rate", "250"])
         .output()
         .unwrap();
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let set: Vec<&str> = text.lines().filter(|l| l.starts_with("rate set: status: protocol 4, ")).collect();
-    assert_eq!(set.len(), 1, "{text}");
-    assert!(set[0].contains(", rate 250 Hz, "), "{text}");
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines.len(), 4, "{text}");
+    assert!(lines[0].starts_with("rate set: status: protocol 4, "), "{text}");
+    for l in &lines {
+        assert!(
+            l.starts_with("rate set: status: protocol 4, ") || l.starts_with("status: protocol 4, "),
+            "{text}"
+        );
+        assert!(l.contains(", rate 250 Hz, "), "{text}");
+    }
     // A rate outside the range is refused before the port is opened, with the range.
     let out = accelcal(&["monitor", "--port", pty, "--rate", "50"]);
     assert_eq!(out.status.code(), Some(2));

@@ -30,12 +30,27 @@ pub struct Receiver<R> {
     inner: R,
     decoder: Box<FrameDecoder<MAX_FRAME>>,
     pending: std::collections::VecDeque<Result<NodeMsg, FrameError>>,
+    /// Bytes are dropped up to and including the next frame delimiter (a stream joined mid-frame).
+    skip_to_delimiter: bool,
 }
 
 impl<R: Read> Receiver<R> {
-    /// Wraps a byte stream.
+    /// Wraps a byte stream that starts at a frame boundary (a node's link from its boot on).
     pub fn new(inner: R) -> Self {
-        Receiver { inner, decoder: Box::new(FrameDecoder::new()), pending: Default::default() }
+        Receiver {
+            inner,
+            decoder: Box::new(FrameDecoder::new()),
+            pending: Default::default(),
+            skip_to_delimiter: false,
+        }
+    }
+
+    /// Wraps a byte stream joined while the node was already sending (a serial port opened on a
+    /// running node, or a stream another reader has read from): the bytes before the first frame
+    /// delimiter are the tail of a frame and are dropped, not reported as a bad frame. A joiner at
+    /// a frame boundary loses one whole frame that way.
+    pub fn mid_stream(inner: R) -> Self {
+        Receiver { skip_to_delimiter: true, ..Receiver::new(inner) }
     }
 
     /// The next frame: a message, or why the frame was bad (the caller decides whether that is
@@ -50,8 +65,18 @@ impl<R: Read> Receiver<R> {
             if n == 0 {
                 return Err(LinkError::Closed);
             }
+            let mut bytes = &buf[..n];
+            if self.skip_to_delimiter {
+                match bytes.iter().position(|&b| b == 0) {
+                    Some(end) => {
+                        bytes = &bytes[end + 1..];
+                        self.skip_to_delimiter = false;
+                    }
+                    None => continue,
+                }
+            }
             let pending = &mut self.pending;
-            self.decoder.push(&buf[..n], |m| pending.push_back(m));
+            self.decoder.push(bytes, |m| pending.push_back(m));
         }
     }
 }
@@ -63,4 +88,77 @@ pub fn send(w: &mut impl Write, msg: &HostMsg) -> Result<(), LinkError> {
     w.write_all(&bytes)?;
     w.flush()?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use accelcal_shared::wire::{Output, RecordStatus, ResetCause, Status};
+
+    fn status() -> NodeMsg {
+        NodeMsg::Status(Status {
+            protocol: wire::PROTOCOL_VERSION,
+            record: RecordStatus::InUse {
+                slot: 1,
+                sequence: 7,
+                created_unix_s: 1_800_000_000,
+                crc: 0xdead_beef,
+            },
+            overruns: 0,
+            sample_sets: 123_456,
+            rate_hz: 1000,
+            bad_frames: 0,
+            reset_cause: ResetCause::PowerOn,
+            trigger_mismatch: false,
+            output: Output::Calibrated,
+        })
+    }
+
+    fn status_frame() -> Vec<u8> {
+        let mut buf = [0u8; MAX_FRAME];
+        wire::encode(&status(), &mut buf).unwrap().to_vec()
+    }
+
+    /// The tail of a frame, then two whole frames, read a few bytes at a time.
+    fn joined_mid_frame() -> Vec<u8> {
+        let f = status_frame();
+        let mut bytes = f[f.len() / 2..].to_vec();
+        bytes.extend_from_slice(&f);
+        bytes.extend_from_slice(&f);
+        bytes
+    }
+
+    /// Reads `bytes` in chunks of 7 (a serial port hands out what has arrived).
+    struct Chunks(Vec<u8>, usize);
+    impl Read for Chunks {
+        fn read(&mut self, out: &mut [u8]) -> io::Result<usize> {
+            let n = (self.0.len() - self.1).min(7).min(out.len());
+            out[..n].copy_from_slice(&self.0[self.1..self.1 + n]);
+            self.1 += n;
+            Ok(n)
+        }
+    }
+
+    fn all<R: Read>(mut rx: Receiver<R>) -> Vec<Result<NodeMsg, FrameError>> {
+        std::iter::from_fn(|| rx.recv().ok()).collect()
+    }
+
+    #[test]
+    fn a_stream_joined_mid_frame_starts_at_the_next_frame() {
+        let got = all(Receiver::mid_stream(Chunks(joined_mid_frame(), 0)));
+        let want = status();
+        assert_eq!(got.len(), 2, "{got:?}");
+        assert!(got.iter().all(|m| m.as_ref() == Ok(&want)), "{got:?}");
+        // Read as a stream from its start, the tail is a bad frame.
+        let got = all(Receiver::new(Chunks(joined_mid_frame(), 0)));
+        assert_eq!(got.len(), 3, "{got:?}");
+        assert!(got[0].is_err() && got[1..].iter().all(|m| m.as_ref() == Ok(&want)), "{got:?}");
+    }
+
+    #[test]
+    fn a_stream_joined_at_a_boundary_loses_one_frame() {
+        let mut bytes = status_frame();
+        bytes.extend_from_slice(&status_frame());
+        assert_eq!(all(Receiver::mid_stream(Chunks(bytes, 0))).len(), 1);
+    }
 }

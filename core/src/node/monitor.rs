@@ -86,7 +86,8 @@ pub fn monitor(
     monitor_stream(port, port_name, baud, count, silence, out)
 }
 
-/// [`monitor`] on an open byte stream whose reads time out after `silence`.
+/// [`monitor`] on an open byte stream whose reads time out after `silence`, joined mid-stream
+/// (bytes up to the first frame delimiter are dropped).
 pub fn monitor_stream(
     port: impl std::io::Read,
     port_name: &str,
@@ -95,7 +96,9 @@ pub fn monitor_stream(
     silence: Duration,
     out: &mut impl Write,
 ) -> anyhow::Result<()> {
-    let mut rx = Receiver::new(port);
+    // The port was opened on a running node (or the rate request's session read from it): the
+    // first bytes may be the tail of a frame.
+    let mut rx = Receiver::mid_stream(port);
     let mut seen = 0u64;
     // The node's sample counter expected for the next block's first set.
     let mut next_first: Option<u32> = None;

@@ -4,8 +4,9 @@
 //! Exactly one board is compiled in, chosen by a cargo feature:
 //! - `board-real`: the B-L475E-IOT01A with embassy-stm32 (the only module importing it);
 //! - `board-qemu`: QEMU's `b-l475e-iot01a` machine, whose ADC, DMA, timers and flash controller are
-//!   stubs: SysTick time driver, USART1 by 32-bit register access, live samples from an emulated
-//!   front end on USART2, replayed ones over the link.
+//!   stubs: a time driver on the host's clock (semihosting) with SysTick alarms, USART1 by
+//!   32-bit register access, live samples from an emulated front end on USART2, replayed ones
+//!   over the link.
 
 #[cfg(all(feature = "board-real", feature = "board-qemu"))]
 compile_error!("choose one board: features `board-real` and `board-qemu` exclude each other");

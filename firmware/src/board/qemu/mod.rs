@@ -1,9 +1,10 @@
 //! The QEMU board: what QEMU 10's `b-l475e-iot01a` machine really emulates (see
-//! `shared/docs/qemu-b-l475e.md`). USART1 is the host link (the first `-serial`), time comes from
-//! SysTick, defmt goes out over semihosting. The ADC, DMA and timers are stubs in QEMU, so live
-//! sample sets come from an emulated analog front end on USART2 (the second `-serial`,
-//! [`frontend`]), and replayed ones over the link as replay requests. The node never enables
-//! USART3 (the host may attach a chardev to it to keep QEMU's main loop busy).
+//! `shared/docs/qemu-b-l475e.md`). USART1 is the host link (the first `-serial`), time is the
+//! host's clock (semihosting) with SysTick firing the alarms, defmt goes out over semihosting.
+//! The ADC, DMA and timers are stubs in QEMU, so live sample sets come from an emulated analog
+//! front end on USART2 (the second `-serial`, [`frontend`]), and replayed ones over the link as
+//! replay requests. The node never enables USART3 (the host may attach a chardev to it to keep
+//! QEMU's main loop busy).
 //!
 //! QEMU 10.0.2 models RCC: RCC_CSR reads 0x0C00_0600 after QEMU's reset (BORRSTF | PINRSTF |
 //! MSISRANGE 6, the chip's power-on value), so the node reads and reports it like the real board
@@ -109,7 +110,7 @@ pub struct Board {
     pub reset_cause: ResetCause,
 }
 
-/// Brings up the emulated chip: reset cause, SysTick time base, USART1 (link), USART2 (front end,
+/// Brings up the emulated chip: reset cause, time base (host clock, SysTick), USART1 (link), USART2 (front end,
 /// told the sampling rate at boot).
 pub fn init() -> (Board, WatchdogImpl) {
     let reset_cause = take_reset_cause();
