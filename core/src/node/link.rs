@@ -93,35 +93,22 @@ pub fn send(w: &mut impl Write, msg: &HostMsg) -> Result<(), LinkError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use accelcal_shared::wire::{Output, RecordStatus, ResetCause, Status};
+    use accelcal_shared::wire::{Block, MAX_BLOCK};
 
-    fn status() -> NodeMsg {
-        NodeMsg::Status(Status {
-            protocol: wire::PROTOCOL_VERSION,
-            record: RecordStatus::InUse {
-                slot: 1,
-                sequence: 7,
-                created_unix_s: 1_800_000_000,
-                crc: 0xdead_beef,
-            },
-            overruns: 0,
-            sample_sets: 123_456,
-            rate_hz: 1000,
-            bad_frames: 0,
-            reset_cause: ResetCause::PowerOn,
-            trigger_mismatch: false,
-            output: Output::Calibrated,
-        })
+    /// A block of raw codes, as a node streams them.
+    fn samples() -> NodeMsg {
+        let codes = (0..MAX_BLOCK as u16).map(|i| [32_768 + i, 1000 * i, 65_535 - i]).collect();
+        NodeMsg::Samples { seq: 41, first: 656, data: Block::Raw(codes), temp: None }
     }
 
-    fn status_frame() -> Vec<u8> {
+    fn samples_frame() -> Vec<u8> {
         let mut buf = [0u8; MAX_FRAME];
-        wire::encode(&status(), &mut buf).unwrap().to_vec()
+        wire::encode(&samples(), &mut buf).unwrap().to_vec()
     }
 
     /// The tail of a frame, then two whole frames, read a few bytes at a time.
     fn joined_mid_frame() -> Vec<u8> {
-        let f = status_frame();
+        let f = samples_frame();
         let mut bytes = f[f.len() / 2..].to_vec();
         bytes.extend_from_slice(&f);
         bytes.extend_from_slice(&f);
@@ -146,7 +133,7 @@ mod tests {
     #[test]
     fn a_stream_joined_mid_frame_starts_at_the_next_frame() {
         let got = all(Receiver::mid_stream(Chunks(joined_mid_frame(), 0)));
-        let want = status();
+        let want = samples();
         assert_eq!(got.len(), 2, "{got:?}");
         assert!(got.iter().all(|m| m.as_ref() == Ok(&want)), "{got:?}");
         // Read as a stream from its start, the tail is a bad frame.
@@ -157,8 +144,8 @@ mod tests {
 
     #[test]
     fn a_stream_joined_at_a_boundary_loses_one_frame() {
-        let mut bytes = status_frame();
-        bytes.extend_from_slice(&status_frame());
+        let mut bytes = samples_frame();
+        bytes.extend_from_slice(&samples_frame());
         assert_eq!(all(Receiver::mid_stream(Chunks(bytes, 0))).len(), 1);
     }
 }
