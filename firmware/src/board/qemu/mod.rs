@@ -110,8 +110,8 @@ pub struct Board {
     pub reset_cause: ResetCause,
 }
 
-/// Brings up the emulated chip: reset cause, time base (host clock, SysTick), USART1 (link), USART2 (front end,
-/// told the sampling rate at boot).
+/// Brings up the emulated chip: reset cause, time base (host clock, SysTick), USART1 (link),
+/// USART2 (front end, told the sampling rate at boot).
 pub fn init() -> (Board, WatchdogImpl) {
     let reset_cause = take_reset_cause();
     let mut core = cortex_m::Peripherals::take().expect("init runs once");

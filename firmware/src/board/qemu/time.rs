@@ -82,8 +82,9 @@ fn host_elapsed() -> Option<u64> {
 impl HostClockDriver {
     fn now_cs(&self, cs: critical_section::CriticalSection) -> u64 {
         let hz = self.host_hz.borrow(cs).get().max(1);
-        // The host's clock is monotonic; 128-bit product: no overflow for any frequency.
-        let ticks = host_elapsed().unwrap_or(0);
+        // The host's clock is monotonic (`init` checked that it answers); 128-bit product: no
+        // overflow for any frequency.
+        let ticks = host_elapsed().unwrap_or_else(|| super::fail(format_args!("SYS_ELAPSED refused")));
         (u128::from(ticks) * u128::from(TICK_HZ) / u128::from(hz)) as u64
     }
 
