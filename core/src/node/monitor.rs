@@ -75,30 +75,33 @@ pub fn monitor(
         .timeout(silence)
         .open()
         .map_err(|e| crate::error::bad(format!("{port_name}: cannot open serial port: {e}")))?;
-    if let Some(hz) = rate {
-        // Through a session: the request is resent until the node answers (a pty that QEMU has
-        // not started reading yet loses the first copy), and a refusal is an error.
-        let (tx, rx) = (port.try_clone()?, port.try_clone()?);
-        let mut s = super::session::Session::from_streams(port_name, Box::new(tx), Box::new(rx), silence);
-        let st = s.set_rate(hz)?;
-        writeln!(out, "rate set: {}", format_status(&st))?;
-    }
-    monitor_stream(port, port_name, baud, count, silence, out)
+    let rx: Receiver<Box<dyn std::io::Read + Send>> = match rate {
+        Some(hz) => {
+            // Through a session: the request is resent until the node answers (a pty that QEMU
+            // has not started reading yet loses the first copy), and a refusal is an error. The
+            // stream goes on from the session's receiver, so nothing it read past the answer is
+            // lost.
+            let tx = port.try_clone()?;
+            let mut s = super::session::Session::from_streams(port_name, Box::new(tx), port, silence);
+            let st = s.set_rate(hz)?;
+            writeln!(out, "rate set: {}", format_status(&st))?;
+            s.into_receiver()
+        }
+        // The port was opened on a running node: the first bytes may be the tail of a frame.
+        None => Receiver::mid_stream(Box::new(port)),
+    };
+    monitor_stream(rx, port_name, baud, count, silence, out)
 }
 
-/// [`monitor`] on an open byte stream whose reads time out after `silence`, joined mid-stream
-/// (bytes up to the first frame delimiter are dropped).
+/// [`monitor`] on a receiver whose reads time out after `silence`.
 pub fn monitor_stream(
-    port: impl std::io::Read,
+    mut rx: Receiver<impl std::io::Read>,
     port_name: &str,
     baud: u32,
     count: Option<u64>,
     silence: Duration,
     out: &mut impl Write,
 ) -> anyhow::Result<()> {
-    // The port was opened on a running node (or the rate request's session read from it): the
-    // first bytes may be the tail of a frame.
-    let mut rx = Receiver::mid_stream(port);
     let mut seen = 0u64;
     // The node's sample counter expected for the next block's first set.
     let mut next_first: Option<u32> = None;
@@ -155,8 +158,15 @@ mod silence_tests {
     #[test]
     fn a_silent_port_fails_with_what_to_check() {
         let mut out = Vec::new();
-        let e = monitor_stream(Silent, "/dev/ttyACM0", 921_600, None, Duration::from_secs(5), &mut out)
-            .unwrap_err();
+        let e = monitor_stream(
+            Receiver::mid_stream(Silent),
+            "/dev/ttyACM0",
+            921_600,
+            None,
+            Duration::from_secs(5),
+            &mut out,
+        )
+        .unwrap_err();
         let msg = format!("{e:#}");
         assert!(msg.starts_with("/dev/ttyACM0: no frame from the node in 5 s"), "{msg}");
         assert!(msg.contains("baud rate 921600"), "{msg}");

@@ -112,6 +112,12 @@ impl Session {
         Session { port: port.to_string(), tx, rx: Receiver::new(rx), answer }
     }
 
+    /// The receiving half, with whatever it has read past the last answer: a reader that goes on
+    /// from here misses nothing the node sent.
+    pub fn into_receiver(self) -> Receiver<Box<dyn Read + Send>> {
+        self.rx
+    }
+
     /// The port's name, for messages.
     pub fn port(&self) -> &str {
         &self.port
