@@ -165,7 +165,11 @@ fn acquire_args<'a>(
 }
 
 /// `verify` of the emulator's node on its head, plan six at g = 9.81, the tolerance derived from
-/// `fit_json`, the report into `json_out`.
+/// `fit_json` with coverage factor 5, the report into `json_out`. At the default K = 4 a good
+/// node fails one of a verification's 18 components with probability about 1/900 (Gaussian
+/// errors); these tests run 5 verifications that must pass (90 components), so at K = 4 about
+/// one CI run in 175 would fail for nothing (one did). At K = 5 that is one in 19,000, and the
+/// records these tests must reject still miss by more than ten standard uncertainties.
 fn verify_args<'a>(
     em: &'a Emulator,
     fit_json: &'a Path,
@@ -173,7 +177,7 @@ fn verify_args<'a>(
     extra: &[&'a str],
 ) -> Vec<&'a str> {
     let mut a = vec!["verify", "--port", &em.port, "--head", &em.head, "--plan", "six", "--g", "9.81"];
-    a.extend_from_slice(&["--fit", s(fit_json), "--json", s(json_out)]);
+    a.extend_from_slice(&["--fit", s(fit_json), "--json", s(json_out), "--coverage", "5"]);
     a.extend_from_slice(extra);
     a
 }
@@ -441,6 +445,29 @@ fn verify_summary(p: &Path) -> (f64, bool, f64) {
         .flat_map(|c| c["error_m_s2"].as_array().unwrap().iter().map(|e| e.as_f64().unwrap().abs()))
         .fold(0.0, f64::max);
     let temp = pos.iter().map(|c| c["temp_c"].as_f64().unwrap()).sum::<f64>() / pos.len() as f64;
+    // Each position's errors, tolerances and temperature: what a failure needs to be understood.
+    eprintln!("{}:", p.display());
+    for c in pos {
+        let v3 = |k: &str| {
+            c[k].as_array()
+                .unwrap()
+                .iter()
+                .map(|e| format!("{:+.5}", e.as_f64().unwrap()))
+                .collect::<Vec<_>>()
+        };
+        eprintln!(
+            "  position {} ({}, {}): error {:?} tolerance {:?} sd_mean {:?} temp {} °C lost {} {}",
+            c["position"],
+            c["alpha_deg"],
+            c["beta_deg"],
+            v3("error_m_s2"),
+            v3("tolerance_m_s2"),
+            v3("sd_mean_m_s2"),
+            c["temp_c"],
+            c["lost"],
+            if c["pass"].as_bool().unwrap() { "pass" } else { "FAIL" }
+        );
+    }
     (worst, v["pass"].as_bool().unwrap(), temp)
 }
 

@@ -40,6 +40,9 @@ pub struct LsqFit {
     /// One-sigma standard errors of the coefficients (NaN when there are no residual degrees of
     /// freedom).
     pub std_errors: Vec<f64>,
+    /// Covariance matrix of the coefficients, row by row in term order (its diagonal the squared
+    /// standard errors; NaN where they are).
+    pub covariance: Vec<Vec<f64>>,
     /// Condition number of the design matrix with its columns scaled to unit RMS.
     pub condition: f64,
     /// RMS residual over the rows used, codes.
@@ -109,15 +112,33 @@ pub fn fit(
     let sse = resid.norm_squared() + within;
     let dof = wsum - k as f64;
     let sigma2 = if dof > 0.0 { sse / dof } else { f64::NAN };
-    // Cov(β_s) = σ² V Σ⁻² Vᵀ.
+    // Cov(β_s) = σ² V Σ⁻² Vᵀ, and β = D⁻¹ β_s with D the column scales.
     let v_t = svd.v_t.as_ref().expect("V requested");
-    let mut std_errors = vec![0.0; k];
-    for c in 0..k {
-        let var: f64 = (0..k).map(|s| (v_t[(s, c)] / svd.singular_values[s]).powi(2)).sum();
-        std_errors[c] = (sigma2 * var).sqrt() / scale[c];
-    }
+    let covariance: Vec<Vec<f64>> = (0..k)
+        .map(|c| {
+            (0..k)
+                .map(|d| {
+                    let s: f64 = (0..k)
+                        .map(|s| {
+                            v_t[(s, c)] * v_t[(s, d)] / (svd.singular_values[s] * svd.singular_values[s])
+                        })
+                        .sum();
+                    sigma2 * s / (scale[c] * scale[d])
+                })
+                .collect()
+        })
+        .collect();
+    let std_errors = (0..k).map(|c| covariance[c][c].sqrt()).collect();
     let coefficients = (0..k).map(|c| beta_s[c] / scale[c]).collect();
-    Ok(LsqFit { structure, coefficients, std_errors, condition: smax / smin, rms: (sse / wsum).sqrt(), dof })
+    Ok(LsqFit {
+        structure,
+        coefficients,
+        std_errors,
+        covariance,
+        condition: smax / smin,
+        rms: (sse / wsum).sqrt(),
+        dof,
+    })
 }
 
 /// Parses a comma-separated term list (`ax,ay,az`); the intercept is always added.
@@ -129,4 +150,54 @@ pub fn parse_terms(list: &str) -> Result<Structure, String> {
         mask |= 1 << i;
     }
     Ok(Structure::from_mask(mask))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::{self, effects, SimConfig, ThermalPlan};
+
+    /// The covariance equals σ²·(XᵀWX)⁻¹ computed from the normal equations, term by term, for a
+    /// thermal model on a noisy thermal campaign; its diagonal is the squared standard errors.
+    #[test]
+    fn covariance_is_sigma2_times_the_inverse_normal_matrix() {
+        let cfg = SimConfig {
+            seed: 3,
+            samples: 50,
+            effects: vec![effects::parse("temperature=bias:3,scale:100").unwrap()],
+            thermal: Some("-10,20,50:0:0".parse::<ThermalPlan>().unwrap()),
+            ..SimConfig::default()
+        };
+        let (c, _) = sim::simulate(&cfg);
+        let pos = Positions::new(&c, cfg.g);
+        let structure = parse_terms("ax,ay,az,t,ax*t,ay*t,az*t").unwrap();
+        for ch in pos.channel_stats(&c) {
+            let f = fit(&pos, &ch, structure, None).unwrap();
+            let terms: Vec<_> = structure.terms().collect();
+            let k = terms.len();
+            let n = pos.len();
+            let x = DMatrix::from_fn(n, k, |r, j| terms[j].eval(pos.x(r)));
+            let w = DMatrix::from_diagonal(&DVector::from_iterator(n, pos.weight.iter().copied()));
+            let inv = (x.transpose() * w * &x).try_inverse().unwrap();
+            let wsum: f64 = pos.weight.iter().sum();
+            let sigma2 = f.rms * f.rms * wsum / f.dof;
+            for a in 0..k {
+                for b in 0..k {
+                    let want = sigma2 * inv[(a, b)];
+                    let scale = (sigma2 * inv[(a, a)] * inv[(b, b)] * sigma2).sqrt();
+                    assert!(
+                        (f.covariance[a][b] - want).abs() <= 1e-7 * scale,
+                        "{}: cov({}, {}) = {} vs {want}",
+                        ch.name,
+                        terms[a],
+                        terms[b],
+                        f.covariance[a][b]
+                    );
+                }
+                assert_eq!(f.std_errors[a], f.covariance[a][a].sqrt());
+            }
+            // Off the diagonal it matters: the bias and its temperature coefficient covary.
+            assert!(f.covariance[0][4].abs() > 0.1 * f.std_errors[0] * f.std_errors[4], "{}", ch.name);
+        }
+    }
 }

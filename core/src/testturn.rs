@@ -66,10 +66,20 @@ pub fn fit(pos: &Positions, ch: &ChannelStats, pairs: &Pairs) -> LsqFit {
     let (p, m) = pairs.pairs[row.own_axis].expect("the own axis has a pair");
     let (u0, _) = testturn::two_position(ch.mean[p], ch.mean[m], g);
     se[0] = (mean_var(p) + mean_var(m)).sqrt() / 2.0;
+    // The pairs use disjoint positions, so the sensitivities are uncorrelated; u0 and the own
+    // axis's sensitivity share the own pair: Cov((u₊+u₋)/2, (u₊−u₋)/2g) = (var₊ − var₋)/4g.
+    let mut covariance = vec![vec![0.0; 4]; 4];
+    for (c, s) in se.iter().enumerate() {
+        covariance[c][c] = s * s;
+    }
+    let own = row.own_axis + 1;
+    let c0 = (mean_var(p) - mean_var(m)) / (4.0 * g);
+    (covariance[0][own], covariance[own][0]) = (c0, c0);
     LsqFit {
         structure: MODEL_4,
         coefficients: vec![u0, row.k[0], row.k[1], row.k[2]],
         std_errors: se.to_vec(),
+        covariance,
         condition: 1.0,
         rms: f64::NAN,
         dof: 0.0,

@@ -5,13 +5,19 @@
 //!
 //! A position passes when every component's error is within its tolerance. The tolerance is
 //! either given (`--tolerance`, m/s², the same for every component) or derived per position and
-//! component as `K · sqrt(σ_cal² + σ_mean²)` with `K` = [`TOLERANCE_K`]: `σ_mean` is the standard
-//! error of the measured mean (the recorded sets' scatter over √N), `σ_cal` the uncertainty of
-//! the calibration at that acceleration propagated from the fit's standard errors (`fit --json`):
-//! `sqrt(Σ_j se_j²·φ_j²) / |k_ii|` for channel i, over its terms `φ_j` (model 4: `1`, `ax`, `ay`,
-//! `az`; a thermal fit's terms in `t` too, at the position's mean temperature), with `k_ii` its
-//! own-axis sensitivity (at that temperature). The terms' covariances are left out. Without the
-//! fit's standard errors, `σ_cal` is 0 and the rule says so.
+//! component as `K · sqrt(σ_cal² + σ_mean²)` with the coverage factor `K` (`--coverage`, default
+//! [`DEFAULT_COVERAGE`]): `σ_mean` is the standard error of the measured mean (the recorded sets'
+//! scatter over √N), `σ_cal` the uncertainty of the calibration at that acceleration propagated
+//! from the fit (`fit --json`): `sqrt(φᵀ C φ) / |k_ii|` for channel i, with `φ` its terms' values
+//! (model 4: `1`, `ax`, `ay`, `az`; a thermal fit's terms in `t` too, at the position's mean
+//! temperature), `C` the coefficients' covariance matrix and `k_ii` the own-axis sensitivity (at
+//! that temperature). A fit JSON without `covariance` (written before it had one) gives the
+//! standard errors only: `C` is then taken diagonal and the rule says so. Without a fit, `σ_cal`
+//! is 0 and the rule says so.
+//!
+//! With `K` = 4 and Gaussian errors, one component of a correctly calibrated node falls outside
+//! with probability 6.3·10⁻⁵, so a six-position verification (18 components) fails a good node
+//! about once in 900 runs; `K` = 5 makes that once in 10⁵.
 
 use std::sync::atomic::AtomicBool;
 use std::time::Duration;
@@ -25,8 +31,8 @@ use crate::error::bad;
 use crate::node::session::{device_id_hex, record_json, Session};
 use crate::sim::Plan;
 
-/// Coverage factor of the derived tolerance.
-pub const TOLERANCE_K: f64 = 4.0;
+/// Coverage factor of the derived tolerance when `--coverage` is not given.
+pub const DEFAULT_COVERAGE: f64 = 4.0;
 
 /// The static rule for calibrated streams: the default windows, with a per-set floor of half an
 /// LSB of a ±2 g 16-bit ADC (3·10⁻⁴ m/s²).
@@ -40,6 +46,8 @@ pub struct ChannelUncertainty {
     /// The fit's terms with their standard errors (codes per unit of the term): model 4's `1`,
     /// `ax`, `ay`, `az`, and a thermal fit's terms in `t` too.
     pub terms: Vec<(Term, f64)>,
+    /// The coefficients' covariance matrix in the order of `terms`, when the fit JSON has it.
+    pub covariance: Option<Vec<Vec<f64>>>,
     /// The channel's own-axis sensitivity, codes per m/s², at the reference temperature.
     pub k_own: f64,
     /// Its temperature coefficient (the own axis's `·t` term), codes per m/s² per °C; 0 without.
@@ -48,12 +56,20 @@ pub struct ChannelUncertainty {
 
 impl ChannelUncertainty {
     /// Standard uncertainty of the calibrated acceleration along the channel's axis at `a`
-    /// (m/s²) and `t` (°C from the fit's reference temperature), m/s²: the terms' standard errors
-    /// propagated through the terms' values, over the own-axis sensitivity at `t`.
+    /// (m/s²) and `t` (°C from the fit's reference temperature), m/s²: `sqrt(φᵀ C φ)` over the
+    /// own-axis sensitivity at `t`, `φ` the terms' values and `C` the covariance matrix (diagonal
+    /// from the standard errors when there is none).
     pub fn sigma(&self, a: [f64; 3], t: f64) -> f64 {
         let x = [a[0], a[1], a[2], t];
-        let v: f64 = self.terms.iter().map(|(term, se)| (se * term.eval(x)).powi(2)).sum();
-        v.sqrt() / (self.k_own + self.k_own_t * t).abs()
+        let phi: Vec<f64> = self.terms.iter().map(|(term, _)| term.eval(x)).collect();
+        let v: f64 = match &self.covariance {
+            Some(c) => {
+                (0..phi.len()).map(|i| (0..phi.len()).map(|j| phi[i] * c[i][j] * phi[j]).sum::<f64>()).sum()
+            }
+            None => self.terms.iter().zip(&phi).map(|((_, se), f)| (se * f).powi(2)).sum(),
+        };
+        // A covariance matrix is positive semi-definite; rounding may leave a tiny negative.
+        v.max(0.0).sqrt() / (self.k_own + self.k_own_t * t).abs()
     }
 }
 
@@ -83,8 +99,14 @@ impl CalUncertainty {
 pub enum Tolerance {
     /// The same bound for every component, m/s².
     Fixed(f64),
-    /// Derived from the measurement's scatter and, when known, the fit's standard errors.
-    Derived(Option<CalUncertainty>),
+    /// Derived from the measurement's scatter and, when known, the fit's uncertainty, with
+    /// coverage factor `k`.
+    Derived {
+        /// The calibration's uncertainty, from `fit --json`.
+        cal: Option<CalUncertainty>,
+        /// Coverage factor (> 0).
+        k: f64,
+    },
 }
 
 impl Tolerance {
@@ -92,13 +114,18 @@ impl Tolerance {
     pub fn describe(&self) -> String {
         match self {
             Tolerance::Fixed(t) => format!("|error| <= {t} m/s² on every component (--tolerance)"),
-            Tolerance::Derived(Some(c)) => format!(
-                "|error| <= {TOLERANCE_K}·sqrt(σ_cal² + σ_mean²) per component: σ_cal from the fit's standard errors \
-                 at the position's acceleration{}, σ_mean the standard error of the measured mean",
+            Tolerance::Derived { cal: Some(c), k } => format!(
+                "|error| <= {k}·sqrt(σ_cal² + σ_mean²) per component: σ_cal from the fit's {} at the position's \
+                 acceleration{}, σ_mean the standard error of the measured mean",
+                if c.channels.iter().all(|ch| ch.covariance.is_some()) {
+                    "covariance matrix"
+                } else {
+                    "standard errors (the fit JSON has no covariance: the terms' covariances are left out)"
+                },
                 if c.t_ref_c.is_some() { " and temperature" } else { "" }
             ),
-            Tolerance::Derived(None) => format!(
-                "|error| <= {TOLERANCE_K}·σ_mean per component, σ_mean the standard error of the measured mean \
+            Tolerance::Derived { cal: None, k } => format!(
+                "|error| <= {k}·σ_mean per component, σ_mean the standard error of the measured mean \
                  (no fit JSON given: the calibration's own uncertainty is not included)"
             ),
         }
@@ -108,16 +135,43 @@ impl Tolerance {
     fn bounds(&self, expected: [f64; 3], temp_c: Option<f64>, sd_mean: [f64; 3]) -> [f64; 3] {
         match self {
             Tolerance::Fixed(t) => [*t; 3],
-            Tolerance::Derived(cal) => {
+            Tolerance::Derived { cal, k } => {
                 let mut b = [0.0; 3];
                 for i in 0..3 {
                     let s_cal = cal.as_ref().map_or(0.0, |c| c.channels[i].sigma(expected, c.t(temp_c)));
-                    b[i] = TOLERANCE_K * (s_cal * s_cal + sd_mean[i] * sd_mean[i]).sqrt();
+                    b[i] = k * (s_cal * s_cal + sd_mean[i] * sd_mean[i]).sqrt();
                 }
                 b
             }
         }
     }
+}
+
+/// A channel's `covariance` from a fit JSON: `n` rows of `n` finite numbers, symmetric, with a
+/// non-negative diagonal.
+fn covariance_of(c: &serde_json::Value, n: usize) -> Result<Vec<Vec<f64>>, String> {
+    let rows =
+        c.as_array().filter(|r| r.len() == n).ok_or_else(|| format!("`covariance` is not {n} rows"))?;
+    let mut m = Vec::with_capacity(n);
+    for (i, r) in rows.iter().enumerate() {
+        let r = r
+            .as_array()
+            .filter(|r| r.len() == n)
+            .ok_or_else(|| format!("`covariance` row {i} is not {n} numbers"))?;
+        let row: Option<Vec<f64>> = r.iter().map(|v| v.as_f64().filter(|v| v.is_finite())).collect();
+        m.push(row.ok_or_else(|| format!("`covariance` row {i} has a value that is not a finite number"))?);
+    }
+    for i in 0..n {
+        if m[i][i] < 0.0 {
+            return Err(format!("`covariance` has a negative variance at {i}"));
+        }
+        for j in 0..i {
+            if (m[i][j] - m[j][i]).abs() > 1e-9 * (m[i][i] * m[j][j]).sqrt() {
+                return Err(format!("`covariance` is not symmetric at ({i}, {j})"));
+            }
+        }
+    }
+    Ok(m)
 }
 
 /// Reads the calibration's uncertainty from `fit --json` output: model 4 of channels x, y, z,
@@ -164,7 +218,13 @@ pub fn uncertainty_from_fit_json(text: &str, what: &str) -> anyhow::Result<CalUn
         if k_own == 0.0 {
             return Err(bad(format!("{what}: channel {name} has a zero own-axis sensitivity")));
         }
-        out.push(ChannelUncertainty { terms, k_own, k_own_t: coefficient(&format!("{own}*t"))? });
+        let covariance = match &ch["covariance"] {
+            serde_json::Value::Null => None,
+            c => {
+                Some(covariance_of(c, names.len()).map_err(|e| bad(format!("{what}: channel {name}: {e}")))?)
+            }
+        };
+        out.push(ChannelUncertainty { terms, covariance, k_own, k_own_t: coefficient(&format!("{own}*t"))? });
     }
     let t_ref_c = if thermal {
         Some(v["t_ref_c"].as_f64().filter(|t| t.is_finite()).ok_or_else(|| {
@@ -380,6 +440,7 @@ mod tests {
         let terms = ["1", "ax", "ay", "az"].iter().zip([se_bias, se_k[0], se_k[1], se_k[2]]);
         ChannelUncertainty {
             terms: terms.map(|(t, se)| (Term::parse(t).unwrap(), se)).collect(),
+            covariance: None,
             k_own,
             k_own_t: 0.0,
         }
@@ -391,16 +452,24 @@ mod tests {
         let a = [9.81, 0.0, 0.0];
         let s = c.sigma(a, 0.0);
         assert!((s - (0.25f64 + (0.03f64 * 9.81).powi(2)).sqrt() / 1670.0).abs() < 1e-15);
-        let t =
-            Tolerance::Derived(Some(CalUncertainty { channels: [c.clone(), c.clone(), c], t_ref_c: None }));
+        let t = Tolerance::Derived {
+            cal: Some(CalUncertainty { channels: [c.clone(), c.clone(), c], t_ref_c: None }),
+            k: DEFAULT_COVERAGE,
+        };
         let b = t.bounds(a, Some(40.0), [0.002, 0.0, 0.0]);
         assert!(
             (b[0] - 4.0 * (s * s + 4e-6).sqrt()).abs() < 1e-12,
             "no thermal terms: the temperature is not used"
         );
         assert_eq!(Tolerance::Fixed(0.01).bounds(a, None, [1.0; 3]), [0.01; 3]);
-        assert_eq!(Tolerance::Derived(None).bounds(a, None, [0.001; 3]), [0.004; 3]);
-        assert!(Tolerance::Derived(None).describe().contains("not included"));
+        let none = Tolerance::Derived { cal: None, k: DEFAULT_COVERAGE };
+        assert_eq!(none.bounds(a, None, [0.001; 3]), [0.004; 3]);
+        assert!(none.describe().contains("not included"));
+        assert!(t.describe().contains("no covariance"), "{}", t.describe());
+        // The coverage factor scales the bound.
+        let five = Tolerance::Derived { cal: None, k: 5.0 };
+        assert_eq!(five.bounds(a, None, [0.001; 3]), [0.005; 3]);
+        assert!(five.describe().starts_with("|error| <= 5·σ_mean"), "{}", five.describe());
     }
 
     #[test]
@@ -421,7 +490,7 @@ mod tests {
         let cal = CalUncertainty { channels: [c.clone(), c.clone(), c], t_ref_c: Some(25.0) };
         assert_eq!(cal.t(Some(-10.0)), -35.0);
         assert_eq!(cal.t(None), 0.0);
-        let tol = Tolerance::Derived(Some(cal));
+        let tol = Tolerance::Derived { cal: Some(cal), k: DEFAULT_COVERAGE };
         assert!(tol.bounds(a, Some(-10.0), [1e-4; 3])[0] > tol.bounds(a, Some(25.0), [1e-4; 3])[0]);
         assert!(tol.describe().contains("and temperature"));
     }
@@ -451,5 +520,54 @@ mod tests {
         assert_eq!(u.t_ref_c, Some(25.0));
         assert_eq!((u.channels[0].terms.len(), u.channels[0].k_own_t), (6, 0.167));
         assert_eq!(u.channels[1].k_own_t, 0.0);
+        assert_eq!(u.channels[0].covariance, None);
+    }
+
+    /// With a covariance matrix, σ_cal is sqrt(φᵀCφ): a positive covariance of the bias and its
+    /// temperature coefficient widens the bound on the side of t where both terms have the same
+    /// sign and narrows it on the other, against the diagonal-only rule.
+    #[test]
+    fn the_covariance_enters_the_calibration_uncertainty() {
+        let mut c = model4(0.5, [0.0; 3], 1670.0);
+        c.terms.push((Term::parse("t").unwrap(), 0.02));
+        let diag = c.sigma([0.0; 3], 25.0);
+        let mut cov = vec![vec![0.0; 5]; 5];
+        (cov[0][0], cov[4][4]) = (0.25, 0.0004);
+        (cov[0][4], cov[4][0]) = (0.005, 0.005);
+        c.covariance = Some(cov);
+        let want = |t: f64| (0.25 + 0.0004 * t * t + 2.0 * 0.005 * t).sqrt() / 1670.0;
+        assert!((c.sigma([0.0; 3], 25.0) - want(25.0)).abs() < 1e-15);
+        assert!(c.sigma([0.0; 3], 25.0) > diag);
+        assert!(c.sigma([0.0; 3], -25.0) < diag);
+        let cal = CalUncertainty { channels: [c.clone(), c.clone(), c], t_ref_c: Some(25.0) };
+        assert!(Tolerance::Derived { cal: Some(cal), k: 4.0 }.describe().contains("covariance matrix"));
+    }
+
+    #[test]
+    fn covariances_are_read_from_fit_json_and_checked() {
+        let ch = |name: &str, cov: &str| {
+            format!(
+                r#"{{"channel":"{name}","terms":["1","ax","ay","az"],"coefficients":[32768,1670,3,1670],"std_errors":[0.5,0.01,0.02,0.03],"covariance":{cov}}}"#
+            )
+        };
+        let good = "[[0.25,0.001,0,0],[0.001,0.0001,0,0],[0,0,0.0004,0],[0,0,0,0.0009]]";
+        let doc = |x: &str| {
+            format!(r#"{{"method":"lsq","channels":[{},{},{}]}}"#, ch("x", x), ch("y", good), ch("z", good))
+        };
+        let u = uncertainty_from_fit_json(&doc(good), "fit.json").unwrap();
+        let c = u.channels[0].covariance.as_ref().unwrap();
+        assert_eq!((c[0][1], c[3][3]), (0.001, 0.0009));
+        for (bad_cov, why) in [
+            (
+                "[[0.25,0.001,0,0],[0.002,0.0001,0,0],[0,0,0.0004,0],[0,0,0,0.0009]]",
+                "not symmetric at (1, 0)",
+            ),
+            ("[[0.25,0,0,0],[0,0.0001,0,0],[0,0,0.0004,0]]", "is not 4 rows"),
+            ("[[0.25,0,0,0],[0,0.0001,0,0],[0,0,0.0004,0],[0,0,null,0.0009]]", "row 3 has a value"),
+            ("[[-0.25,0,0,0],[0,0.0001,0,0],[0,0,0.0004,0],[0,0,0,0.0009]]", "negative variance at 0"),
+        ] {
+            let e = uncertainty_from_fit_json(&doc(bad_cov), "fit.json").unwrap_err().to_string();
+            assert!(e.contains("fit.json: channel x: `covariance`") && e.contains(why), "{e}");
+        }
     }
 }

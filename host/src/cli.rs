@@ -714,10 +714,15 @@ pub struct VerifyArgs {
     /// Sample sets averaged per position, after the stream is static.
     #[arg(long, default_value_t = 400, value_name = "N")]
     pub samples: usize,
-    /// Pass bound on every component's error, m/s² [default: derived per position, 4·sqrt(σ_cal² +
-    /// σ_mean²), σ_cal from --fit's standard errors, σ_mean from the measured scatter].
+    /// Pass bound on every component's error, m/s² [default: derived per position, K·sqrt(σ_cal² +
+    /// σ_mean²), σ_cal from --fit's covariance, σ_mean from the measured scatter, K = --coverage].
     #[arg(long, value_name = "M_S2")]
     pub tolerance: Option<f64>,
+    /// Coverage factor K of the derived tolerance (>= 1). With Gaussian errors a good node fails a
+    /// six-position verification (18 components) about once in 900 runs at K = 4, once in 10⁵ at
+    /// K = 5 [default: 4; not with --tolerance].
+    #[arg(long, value_name = "K")]
+    pub coverage: Option<f64>,
     /// The `fit --json` output of the record's fit: its standard errors enter the derived
     /// tolerance (a thermal fit's terms in t too, at each position's temperature).
     #[arg(long, value_name = "FIT_JSON")]

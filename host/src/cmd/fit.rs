@@ -16,6 +16,9 @@ pub struct FitChannelJson {
     terms: Vec<String>,
     coefficients: Vec<f64>,
     std_errors: Vec<Option<f64>>,
+    /// The coefficients' covariance matrix, row by row in term order (codes² per units of the two
+    /// terms); `verify --fit` propagates it.
+    covariance: Vec<Vec<Option<f64>>>,
     condition: Option<f64>,
     rms_codes: Option<f64>,
 }
@@ -43,6 +46,7 @@ pub fn to_json(method: Method, fits: &[(String, LsqFit)], t_ref_c: f64) -> FitJs
                 terms: f.structure.terms().map(|t| t.to_string()).collect(),
                 coefficients: f.coefficients.clone(),
                 std_errors: f.std_errors.iter().map(|&v| finite(v)).collect(),
+                covariance: f.covariance.iter().map(|r| r.iter().map(|&v| finite(v)).collect()).collect(),
                 condition: finite(f.condition).filter(|_| method == Method::Lsq),
                 rms_codes: finite(f.rms),
             })

@@ -14,6 +14,7 @@ use accelcal_core::output::write_json;
 use accelcal_core::sim::Plan;
 use accelcal_core::verify::{
     calibrated_rule, uncertainty_from_fit_json, verify, Failed, PositionCheck, Tolerance, VerifyConfig,
+    DEFAULT_COVERAGE,
 };
 use accelcal_shared::wire::{Info, Output, RecordStatus};
 use serde_json::json;
@@ -309,14 +310,23 @@ fn check_line(c: &PositionCheck, n: usize) -> String {
 /// Runs `accelcal verify`.
 pub fn run_verify(a: &VerifyArgs) -> anyhow::Result<()> {
     let plan = Plan::from_spec(&a.plan, 1).map_err(|e| bad(format!("--plan {e}")))?;
+    let k = match (a.coverage, a.tolerance) {
+        (Some(_), Some(_)) => {
+            return Err(bad("--coverage sets the derived tolerance: it does not apply with --tolerance"))
+        }
+        (Some(k), None) if !(k.is_finite() && k >= 1.0) => {
+            return Err(bad(format!("--coverage must be a number >= 1, got {k}")))
+        }
+        (k, _) => k.unwrap_or(DEFAULT_COVERAGE),
+    };
     let tolerance = match (a.tolerance, &a.fit) {
         (Some(t), _) => Tolerance::Fixed(t),
         (None, Some(p)) => {
             let text = std::fs::read_to_string(p)
                 .map_err(|e| bad(format!("{}: cannot read the fit JSON: {e}", p.display())))?;
-            Tolerance::Derived(Some(uncertainty_from_fit_json(&text, &p.display().to_string())?))
+            Tolerance::Derived { cal: Some(uncertainty_from_fit_json(&text, &p.display().to_string())?), k }
         }
-        (None, None) => Tolerance::Derived(None),
+        (None, None) => Tolerance::Derived { cal: None, k },
     };
     let soak = soak_of(a.chamber.as_slice(), a.soak_s)?;
     let (g, g_source) = g_source(a.g, &a.local);
