@@ -152,6 +152,7 @@ const DIMENSIONLESS: &[&str] = &[
     "--seed",
     "--samples",
     "--scale-sd", // relative
+    "--coverage", // a multiple of the standard uncertainty
     "--width",
     "--max-terms",
     "--threads",
