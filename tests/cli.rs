@@ -808,11 +808,13 @@ const REFUSED: &[(&str, &str)] = &[
     ("select C --height 300", "--height needs --latitude"),
     ("plan --latitude 91", "--latitude must be in -90..=90 degrees, got 91"),
     ("simulate --out a.csv --latitude 45 --height inf", "--height must be within ±100000 m"),
-    ("verify --port P --head manual --coverage 0.5", "--coverage must be a number >= 1, got 0.5"),
     (
         "verify --port P --head manual --coverage 5 --tolerance 0.01",
-        "--coverage sets the derived tolerance: it does not apply with --tolerance",
+        "--coverage does not apply to verify --tolerance (it derives the tolerance; --tolerance sets it)",
     ),
+    ("verify --port P --head manual --tolerance 0", "--tolerance must be a positive number of m/s², got 0"),
+    ("verify --port P --head manual --fit F --tolerance 0.01", "--fit does not apply to verify --tolerance"),
+    ("verify --port P --head manual --coverage 0.5", "--coverage must be a number >= 1, got 0.5"),
 ];
 
 /// Command lines in which every option applies: they run, and write what they are asked to.

@@ -103,7 +103,7 @@ pub enum Tolerance {
     /// coverage factor `k`.
     Derived {
         /// The calibration's uncertainty, from `fit --json`.
-        cal: Option<CalUncertainty>,
+        cal: Option<Box<CalUncertainty>>,
         /// Coverage factor (> 0).
         k: f64,
     },
@@ -453,7 +453,7 @@ mod tests {
         let s = c.sigma(a, 0.0);
         assert!((s - (0.25f64 + (0.03f64 * 9.81).powi(2)).sqrt() / 1670.0).abs() < 1e-15);
         let t = Tolerance::Derived {
-            cal: Some(CalUncertainty { channels: [c.clone(), c.clone(), c], t_ref_c: None }),
+            cal: Some(Box::new(CalUncertainty { channels: [c.clone(), c.clone(), c], t_ref_c: None })),
             k: DEFAULT_COVERAGE,
         };
         let b = t.bounds(a, Some(40.0), [0.002, 0.0, 0.0]);
@@ -490,7 +490,7 @@ mod tests {
         let cal = CalUncertainty { channels: [c.clone(), c.clone(), c], t_ref_c: Some(25.0) };
         assert_eq!(cal.t(Some(-10.0)), -35.0);
         assert_eq!(cal.t(None), 0.0);
-        let tol = Tolerance::Derived { cal: Some(cal), k: DEFAULT_COVERAGE };
+        let tol = Tolerance::Derived { cal: Some(Box::new(cal)), k: DEFAULT_COVERAGE };
         assert!(tol.bounds(a, Some(-10.0), [1e-4; 3])[0] > tol.bounds(a, Some(25.0), [1e-4; 3])[0]);
         assert!(tol.describe().contains("and temperature"));
     }
@@ -540,7 +540,9 @@ mod tests {
         assert!(c.sigma([0.0; 3], 25.0) > diag);
         assert!(c.sigma([0.0; 3], -25.0) < diag);
         let cal = CalUncertainty { channels: [c.clone(), c.clone(), c], t_ref_c: Some(25.0) };
-        assert!(Tolerance::Derived { cal: Some(cal), k: 4.0 }.describe().contains("covariance matrix"));
+        assert!(Tolerance::Derived { cal: Some(Box::new(cal)), k: 4.0 }
+            .describe()
+            .contains("covariance matrix"));
     }
 
     #[test]

@@ -723,8 +723,9 @@ pub struct VerifyArgs {
     /// K = 5 [default: 4; not with --tolerance].
     #[arg(long, value_name = "K")]
     pub coverage: Option<f64>,
-    /// The `fit --json` output of the record's fit: its standard errors enter the derived
-    /// tolerance (a thermal fit's terms in t too, at each position's temperature).
+    /// The `fit --json` output of the record's fit: its covariance matrix enters the derived
+    /// tolerance (a thermal fit's terms in t too, at each position's temperature) [not with
+    /// --tolerance].
     #[arg(long, value_name = "FIT_JSON")]
     pub fit: Option<PathBuf>,
     /// Gravity at the rig, m/s² [default: 9.81, announced; better --latitude/--height].

@@ -195,7 +195,7 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
         Command::Verify(a) => {
             if a.tolerance.is_some() {
                 given.refuse(
-                    &["fit"],
+                    &["fit", "coverage"],
                     "verify --tolerance",
                     " (it derives the tolerance; --tolerance sets it)",
                 )?;
@@ -203,6 +203,11 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
             if let Some(t) = a.tolerance {
                 if !(t.is_finite() && t > 0.0) {
                     return Err(bad(format!("--tolerance must be a positive number of m/s², got {t}")));
+                }
+            }
+            if let Some(k) = a.coverage {
+                if !(k.is_finite() && k >= 1.0) {
+                    return Err(bad(format!("--coverage must be a number >= 1, got {k}")));
                 }
             }
             if a.samples < 2 {

@@ -310,21 +310,17 @@ fn check_line(c: &PositionCheck, n: usize) -> String {
 /// Runs `accelcal verify`.
 pub fn run_verify(a: &VerifyArgs) -> anyhow::Result<()> {
     let plan = Plan::from_spec(&a.plan, 1).map_err(|e| bad(format!("--plan {e}")))?;
-    let k = match (a.coverage, a.tolerance) {
-        (Some(_), Some(_)) => {
-            return Err(bad("--coverage sets the derived tolerance: it does not apply with --tolerance"))
-        }
-        (Some(k), None) if !(k.is_finite() && k >= 1.0) => {
-            return Err(bad(format!("--coverage must be a number >= 1, got {k}")))
-        }
-        (k, _) => k.unwrap_or(DEFAULT_COVERAGE),
-    };
+    // Checked in `settings`: --coverage >= 1, and neither it nor --fit with --tolerance.
+    let k = a.coverage.unwrap_or(DEFAULT_COVERAGE);
     let tolerance = match (a.tolerance, &a.fit) {
         (Some(t), _) => Tolerance::Fixed(t),
         (None, Some(p)) => {
             let text = std::fs::read_to_string(p)
                 .map_err(|e| bad(format!("{}: cannot read the fit JSON: {e}", p.display())))?;
-            Tolerance::Derived { cal: Some(uncertainty_from_fit_json(&text, &p.display().to_string())?), k }
+            Tolerance::Derived {
+                cal: Some(Box::new(uncertainty_from_fit_json(&text, &p.display().to_string())?)),
+                k,
+            }
         }
         (None, None) => Tolerance::Derived { cal: None, k },
     };
