@@ -191,8 +191,8 @@ mod tests {
             for ((na, fa), (nb, fb)) in a.iter().zip(&b) {
                 assert_eq!(na, nb);
                 assert_eq!(fa.coefficients, fb.coefficients, "{method:?} {na}");
-                assert_eq!(fa.std_errors.len(), fb.std_errors.len());
-                for (x, y) in fa.std_errors.iter().zip(&fb.std_errors) {
+                assert_eq!(fa.std_errors().len(), fb.std_errors().len());
+                for (x, y) in fa.std_errors().iter().zip(&fb.std_errors()) {
                     assert!(x == y || (x.is_nan() && y.is_nan()), "{method:?} {na}: {x} vs {y}");
                 }
                 assert!(fa.rms == fb.rms || (fa.rms.is_nan() && fb.rms.is_nan()));

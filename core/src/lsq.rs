@@ -37,11 +37,8 @@ pub struct LsqFit {
     pub structure: Structure,
     /// Coefficients in term order: codes, codes per (m/s²)ⁿ.
     pub coefficients: Vec<f64>,
-    /// One-sigma standard errors of the coefficients (NaN when there are no residual degrees of
-    /// freedom).
-    pub std_errors: Vec<f64>,
-    /// Covariance matrix of the coefficients, row by row in term order (its diagonal the squared
-    /// standard errors; NaN where they are).
+    /// Covariance matrix of the coefficients, row by row in term order (NaN where a coefficient's
+    /// uncertainty is unknown: no residual degrees of freedom, an axis test turns cannot reach).
     pub covariance: Vec<Vec<f64>>,
     /// Condition number of the design matrix with its columns scaled to unit RMS.
     pub condition: f64,
@@ -52,6 +49,12 @@ pub struct LsqFit {
 }
 
 impl LsqFit {
+    /// One-sigma standard errors of the coefficients, in term order: the square roots of the
+    /// covariance matrix's diagonal.
+    pub fn std_errors(&self) -> Vec<f64> {
+        (0..self.covariance.len()).map(|c| self.covariance[c][c].sqrt()).collect()
+    }
+
     /// Model output (codes) at `x = [ax, ay, az, t]` (see [`Positions::x`]).
     pub fn eval(&self, x: [f64; 4]) -> f64 {
         self.structure.terms().zip(&self.coefficients).map(|(t, c)| c * t.eval(x)).sum()
@@ -128,17 +131,8 @@ pub fn fit(
                 .collect()
         })
         .collect();
-    let std_errors = (0..k).map(|c| covariance[c][c].sqrt()).collect();
     let coefficients = (0..k).map(|c| beta_s[c] / scale[c]).collect();
-    Ok(LsqFit {
-        structure,
-        coefficients,
-        std_errors,
-        covariance,
-        condition: smax / smin,
-        rms: (sse / wsum).sqrt(),
-        dof,
-    })
+    Ok(LsqFit { structure, coefficients, covariance, condition: smax / smin, rms: (sse / wsum).sqrt(), dof })
 }
 
 /// Parses a comma-separated term list (`ax,ay,az`); the intercept is always added.
@@ -194,10 +188,11 @@ mod tests {
                         f.covariance[a][b]
                     );
                 }
-                assert_eq!(f.std_errors[a], f.covariance[a][a].sqrt());
+                assert_eq!(f.std_errors()[a], f.covariance[a][a].sqrt());
             }
             // Off the diagonal it matters: the bias and its temperature coefficient covary.
-            assert!(f.covariance[0][4].abs() > 0.1 * f.std_errors[0] * f.std_errors[4], "{}", ch.name);
+            let se = f.std_errors();
+            assert!(f.covariance[0][4].abs() > 0.1 * se[0] * se[4], "{}", ch.name);
         }
     }
 }

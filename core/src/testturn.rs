@@ -78,7 +78,6 @@ pub fn fit(pos: &Positions, ch: &ChannelStats, pairs: &Pairs) -> LsqFit {
     LsqFit {
         structure: MODEL_4,
         coefficients: vec![u0, row.k[0], row.k[1], row.k[2]],
-        std_errors: se.to_vec(),
         covariance,
         condition: 1.0,
         rms: f64::NAN,

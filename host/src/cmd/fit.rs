@@ -45,7 +45,7 @@ pub fn to_json(method: Method, fits: &[(String, LsqFit)], t_ref_c: f64) -> FitJs
                 channel: name.clone(),
                 terms: f.structure.terms().map(|t| t.to_string()).collect(),
                 coefficients: f.coefficients.clone(),
-                std_errors: f.std_errors.iter().map(|&v| finite(v)).collect(),
+                std_errors: f.std_errors().into_iter().map(finite).collect(),
                 covariance: f.covariance.iter().map(|r| r.iter().map(|&v| finite(v)).collect()).collect(),
                 condition: finite(f.condition).filter(|_| method == Method::Lsq),
                 rms_codes: finite(f.rms),
@@ -64,7 +64,7 @@ pub fn print_table(method: Method, fits: &[(String, LsqFit)]) {
             Method::TestTurns => println!("channel {name}: test turns"),
         }
         println!("  {:<10} {:>16} {:>14}", "term", "coefficient", "std error");
-        for ((t, c), s) in f.structure.terms().zip(&f.coefficients).zip(&f.std_errors) {
+        for ((t, c), s) in f.structure.terms().zip(&f.coefficients).zip(&f.std_errors()) {
             println!(
                 "  {:<10} {:>16} {:>14}",
                 t.to_string(),

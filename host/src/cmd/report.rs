@@ -209,10 +209,11 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
     let mut max_rel = 0.0f64;
     for (c, (name, fit)) in lsq.iter().enumerate() {
         let _ = write!(h, "<tr><td class=\"l\">{}</td>", esc(name));
+        let se = fit.std_errors();
         for t in 0..rec.structure.len() {
             let v = rec.coefficients.get(c).map_or(f64::NAN, |row| row[t]);
-            max_rel = max_rel.max(((v - fit.coefficients[t]) / fit.std_errors[t].max(1e-12)).abs());
-            let _ = write!(h, "<td>{v:.4} &plusmn; {:.4}</td>", fit.std_errors[t]);
+            max_rel = max_rel.max(((v - fit.coefficients[t]) / se[t].max(1e-12)).abs());
+            let _ = write!(h, "<td>{v:.4} &plusmn; {:.4}</td>", se[t]);
         }
         let _ = write!(h, "<td>{:.2}</td></tr>", fit.rms);
     }
