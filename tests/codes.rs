@@ -22,7 +22,8 @@ fn s(p: &Path) -> &str {
 }
 
 /// The same simulated block (head plan, so that `compare` has positions besides the test-turn
-/// ones and `diagnose` enough of them) written in unsigned and in signed codes.
+/// ones and `diagnose` enough of them) written in unsigned and in signed codes, at a g other than
+/// the 9.81 m/s² fallback (the campaigns state it in their `# g_m_s2:` line).
 struct Pair {
     dir: tempfile::TempDir,
     unsigned: PathBuf,
@@ -33,7 +34,7 @@ fn pair() -> Pair {
     let dir = tempfile::tempdir().unwrap();
     let (unsigned, signed) = (dir.path().join("u.csv"), dir.path().join("s.csv"));
     for (out, codes) in [(&unsigned, "unsigned16"), (&signed, "signed16")] {
-        ok(&["simulate", "-o", s(out), "--samples", "12", "--seed", "31", "--codes", codes]);
+        ok(&["simulate", "-o", s(out), "--samples", "12", "--seed", "31", "--codes", codes, "--g", "9.7803"]);
     }
     Pair { dir, unsigned, signed }
 }
@@ -136,7 +137,7 @@ fn simulate_writes_signed_codes_as_the_unsigned_ones_less_32768() {
     let p = pair();
     let text = std::fs::read_to_string(&p.signed).unwrap();
     assert!(
-        text.starts_with("# g_m_s2: 9.81\n# codes: signed16\nt_s,alpha_deg,beta_deg,x,y,z\n"),
+        text.starts_with("# g_m_s2: 9.7803\n# codes: signed16\nt_s,alpha_deg,beta_deg,x,y,z\n"),
         "{}",
         &text[..80]
     );
@@ -272,8 +273,11 @@ fn gzipped_campaigns_give_the_json_of_the_plain_ones() {
         gzip(plain, &gz);
         for cmd in ["fit", "select", "compare", "diagnose"] {
             let (a, b) = (p.path("a.json"), p.path("b.json"));
-            ok(&[cmd, s(plain), "--json", s(&a)]);
-            ok(&[cmd, s(&gz), "--json", s(&b)]);
+            let plain_err = ok(&[cmd, s(plain), "--json", s(&a)]);
+            let gz_err = ok(&[cmd, s(&gz), "--json", s(&b)]);
+            // The gzipped copy's `# g_m_s2:` line is read: no fallback to 9.81 announced.
+            assert!(!gz_err.contains("assumed"), "{cmd} {}: {gz_err}", gz.display());
+            assert_eq!(plain_err, gz_err.replace(s(&gz), s(plain)), "{cmd} {}", gz.display());
             let (a, b) = (std::fs::read_to_string(&a).unwrap(), std::fs::read_to_string(&b).unwrap());
             if cmd == "select" {
                 // Byte-identical but for the measured search times.

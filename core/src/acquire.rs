@@ -334,25 +334,6 @@ fn header(cfg: &AcquireConfig, device_id: &str, firmware: &str, rate_hz: u32, wi
     h
 }
 
-/// The `# key: value` comment lines at the start of a campaign (what `acquire` writes there: device
-/// id, serial, firmware, g, plan, date...), read from `path`'s first 64 KiB.
-pub fn campaign_header(path: &std::path::Path) -> anyhow::Result<Vec<(String, String)>> {
-    use std::io::Read;
-    let mut head = Vec::new();
-    let f = File::open(path).map_err(|e| bad(format!("{}: cannot read: {e}", path.display())))?;
-    f.take(65536).read_to_end(&mut head).map_err(|e| bad(format!("{}: cannot read: {e}", path.display())))?;
-    Ok(header_values(&String::from_utf8_lossy(&head)))
-}
-
-/// The `# key: value` comments before a campaign's header row.
-fn header_values(text: &str) -> Vec<(String, String)> {
-    text.lines()
-        .take_while(|l| l.starts_with('#'))
-        .filter_map(|l| l.trim_start_matches('#').split_once(':'))
-        .map(|(k, v)| (k.trim().to_string(), v.trim().to_string()))
-        .collect()
-}
-
 /// What [`open_resumed`] found in a campaign to continue.
 struct Resumed {
     file: File,
@@ -369,7 +350,7 @@ fn open_resumed(cfg: &AcquireConfig, device_id: &str) -> anyhow::Result<Resumed>
     let d = path.display();
     let text = std::fs::read_to_string(path)
         .map_err(|e| bad(format!("{d}: cannot read the campaign to resume: {e}")))?;
-    let values = header_values(&text);
+    let values = crate::campaign::header(path)?;
     let get = |k: &str| values.iter().find(|(key, _)| key == k).map(|(_, v)| v.as_str());
     if get("acquired_by").is_none() {
         return Err(bad(format!(

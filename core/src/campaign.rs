@@ -25,7 +25,8 @@ use accelcal_shared::kinematics;
 use crate::input::Input;
 
 mod codes;
-use codes::header_comments;
+use crate::error::{Classify, Kind};
+use codes::{header_comments, HeaderComments};
 pub use codes::{CodeRange, CODES_COMMENT};
 
 /// Why a campaign file was refused. Every variant names the file and, where there is one, the
@@ -81,6 +82,12 @@ pub enum CampaignError {
         /// What was expected.
         msg: String,
     },
+}
+
+impl Classify for CampaignError {
+    fn kind(&self) -> Kind {
+        Kind::BadInput
+    }
 }
 
 /// One ADC channel: its name (the column header) and one raw code per row.
@@ -302,6 +309,15 @@ pub fn read_campaign(
     Ok(c)
 }
 
+/// The `# key: value` comment lines before a campaign's header row (what `acquire` and
+/// `simulate` write there: device id, serial, firmware, g, plan, ...), in file order. Read as the
+/// rows are ([`open`]: a gzip file is decompressed), so a header line means the same in a plain
+/// and in a gzipped copy; a bad `# codes:` line is refused as every reader refuses it.
+pub fn header(path: &Path) -> Result<Vec<(String, String)>, CampaignError> {
+    let mut reader = BufReader::new(open(path)?);
+    Ok(header_comments(&mut reader, path)?.values)
+}
+
 /// Opens a campaign file, decompressing it when it is gzip.
 pub(crate) fn open(path: &Path) -> Result<Input, CampaignError> {
     Input::open(path).map_err(|cause| CampaignError::Io { path: path.to_owned(), cause })
@@ -378,7 +394,7 @@ impl<R: Read> RowReader<R> {
     pub fn new(reader: R, path: &Path, declared: Option<CodeRange>) -> Result<RowReader<R>, CampaignError> {
         let p = || path.to_owned();
         let mut reader = BufReader::new(reader);
-        let (prefix, stated) = header_comments(&mut reader, path)?;
+        let HeaderComments { prefix, stated, .. } = header_comments(&mut reader, path)?;
         let codes = match (stated, declared) {
             (Some((line, file)), Some(user)) if file != user => {
                 return Err(CampaignError::Line {
@@ -634,6 +650,31 @@ mod tests {
         let d = c.dwells();
         assert_eq!(d.len(), 2);
         assert_eq!((d[0].start, d[0].end, d[1].alpha_deg), (0, 2, 90.0));
+    }
+
+    #[test]
+    fn the_header_comments_read_the_same_from_a_gzipped_copy() {
+        use std::io::Write;
+        let text = "# g_m_s2: 9.7803\n# device_id: 51454d55\n\n# codes: unsigned16\n# note without a colon\n\
+                    t_s,alpha_deg,beta_deg,x\n# later: not header\n0,0,0,1\n";
+        let dir = tempfile::tempdir().unwrap();
+        let (plain, gz) = (dir.path().join("c.csv"), dir.path().join("c.dat"));
+        std::fs::write(&plain, text).unwrap();
+        let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+        enc.write_all(text.as_bytes()).unwrap();
+        std::fs::write(&gz, enc.finish().unwrap()).unwrap();
+        let want: Vec<(String, String)> =
+            [("g_m_s2", "9.7803"), ("device_id", "51454d55"), ("codes", "unsigned16")]
+                .map(|(k, v)| (k.to_string(), v.to_string()))
+                .into();
+        assert_eq!(header(&plain).unwrap(), want);
+        assert_eq!(header(&gz).unwrap(), want);
+        std::fs::write(&plain, "# codes: twelve\nt_s,alpha_deg,beta_deg,x\n").unwrap();
+        let e = header(&plain).unwrap_err().to_string();
+        assert!(
+            e.ends_with("c.csv:1: `# codes:`: unknown code range `twelve` (expected unsigned16 or signed16)"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -76,35 +76,51 @@ pub const CODES_COMMENT: &str = "codes:";
 /// The code range a `# codes:` line states, and the line.
 pub(super) type Stated = Option<(u64, CodeRange)>;
 
-/// Reads the comment and blank lines before the header row, returning their bytes (to be read
-/// again by the CSV layer, so that it counts lines from the start of the file) and the code range
-/// a `# codes:` line states, with its line. Nothing past them is consumed.
+/// What the comment lines before a campaign's header row say.
+#[derive(Debug, Default)]
+pub(super) struct HeaderComments {
+    /// Their bytes, to be read again by the CSV layer so that it counts lines from the start of
+    /// the file.
+    pub prefix: Vec<u8>,
+    /// The code range a `# codes:` line states, with its line.
+    pub stated: Stated,
+    /// Every `# key: value` line (trimmed), in file order: what `acquire` and `simulate` write
+    /// there (device id, serial, firmware, g, plan, ...).
+    pub values: Vec<(String, String)>,
+}
+
+/// Reads the comment and blank lines before the header row: the one reader of a campaign's
+/// header comments, used by the row reader and by [`super::header`]. Nothing past them is
+/// consumed.
 pub(super) fn header_comments<R: Read>(
     reader: &mut BufReader<R>,
     path: &Path,
-) -> Result<(Vec<u8>, Stated), CampaignError> {
+) -> Result<HeaderComments, CampaignError> {
     let io = |cause| CampaignError::Io { path: path.to_owned(), cause };
-    let mut prefix = Vec::new();
-    let mut stated: Stated = None;
+    let mut out = HeaderComments::default();
     let mut line = 0u64;
     loop {
         match reader.fill_buf().map_err(io)?.first() {
             Some(b'#' | b'\n' | b'\r') => {}
-            _ => return Ok((prefix, stated)),
+            _ => return Ok(out),
         }
-        let start = prefix.len();
-        reader.read_until(b'\n', &mut prefix).map_err(io)?;
+        let start = out.prefix.len();
+        reader.read_until(b'\n', &mut out.prefix).map_err(io)?;
         line += 1;
-        let text = String::from_utf8_lossy(&prefix[start..]);
-        let Some(value) = text.strip_prefix('#').map(str::trim).and_then(|c| c.strip_prefix(CODES_COMMENT))
-        else {
+        let text = String::from_utf8_lossy(&out.prefix[start..]);
+        let Some((key, value)) = text.strip_prefix('#').and_then(|c| c.split_once(':')) else {
             continue;
         };
+        let (key, value) = (key.trim(), value.trim());
+        out.values.push((key.to_string(), value.to_string()));
+        if key != CODES_COMMENT.trim_end_matches(':') {
+            continue;
+        }
         let at = |msg| CampaignError::Line { path: path.to_owned(), line, msg };
-        let codes: CodeRange = value.trim().parse().map_err(|e| at(format!("`# {CODES_COMMENT}`: {e}")))?;
-        if let Some((first, _)) = stated {
+        let codes: CodeRange = value.parse().map_err(|e| at(format!("`# {CODES_COMMENT}`: {e}")))?;
+        if let Some((first, _)) = out.stated {
             return Err(at(format!("a second `# {CODES_COMMENT}` line (the first is line {first})")));
         }
-        stated = Some((line, codes));
+        out.stated = Some((line, codes));
     }
 }

@@ -89,7 +89,7 @@ fn campaign_g(
     if common.g_given || !campaign.is_file() {
         return Ok(());
     }
-    let header = accelcal_core::acquire::campaign_header(campaign)?;
+    let header = accelcal_core::campaign::header(campaign)?;
     if let Some((_, v)) = header.iter().find(|(k, _)| k == "g_m_s2") {
         let g: f64 = v.parse().map_err(|_| {
             accelcal_core::error::bad(format!(

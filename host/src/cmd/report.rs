@@ -10,7 +10,6 @@
 
 use std::fmt::Write as _;
 
-use accelcal_core::acquire::campaign_header;
 use accelcal_core::calibrate::{fit_positions, Method};
 use accelcal_core::campaign::Campaign;
 use accelcal_core::error::bad;
@@ -29,7 +28,7 @@ fn esc(s: &str) -> String {
 
 /// Runs `accelcal report`.
 pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
-    let header = campaign_header(&a.campaign)?;
+    let header = accelcal_core::campaign::header(&a.campaign)?;
     let get = |k: &str| header.iter().find(|(key, _)| key == k).map(|(_, v)| v.clone());
     let rec_bytes = std::fs::read(&a.record)
         .map_err(|e| bad(format!("{}: cannot read the record: {e}", a.record.display())))?;
