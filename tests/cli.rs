@@ -959,3 +959,25 @@ fn a_campaign_s_stated_g_is_used() {
     assert_eq!(k_default, k_override);
     assert!((k_stated / k_default - 9.81 / 9.7803).abs() < 1e-9);
 }
+
+/// A failure of the environment is not bad input: `emulate` on a busy head port exits 1 (not 2),
+/// with the OS error once, before QEMU is started (the ELF here is not even one).
+#[test]
+fn a_busy_port_is_the_environment_and_its_os_error_is_printed_once() {
+    let d = Dir::new();
+    let campaign = d.s("u.csv");
+    let truth = d.s("u.json");
+    common::succeed(&["simulate", "-o", &campaign, "--truth", &truth, "--samples", "5", "--seed", "3"]);
+    let elf = d.s("not-an-elf");
+    std::fs::write(&elf, b"x").unwrap();
+    let busy = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = busy.local_addr().unwrap().port().to_string();
+    let out = common::accelcal(&["emulate", "--qemu", &elf, "--unit", &truth, "--head-port", &port]);
+    let err = String::from_utf8_lossy(&out.stderr).to_string();
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(err.starts_with(&format!("error: head server on 127.0.0.1:{port}: ")), "{err}");
+    let cause = err.rsplit(": ").next().unwrap().trim_end();
+    assert!(cause.contains("os error"), "{err}");
+    assert_eq!(err.matches(cause).count(), 1, "the OS error printed once: {err}");
+}

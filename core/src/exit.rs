@@ -1,61 +1,334 @@
-//! Which failures are the user's input to fix (exit code 2) and which come from the environment
-//! (exit code 1).
+//! The exit code of a failure, read off the error: every error type of the core states what its
+//! failures are ([`Classify`], implemented next to each type's definition, variant by variant
+//! where they differ), and this module only finds the first classified error in the chain.
 //!
-//! The rule is stated by the errors themselves, not by a list of input errors: an error is bad
-//! input unless something in its chain says it comes from the environment: the file system while
-//! writing an output ([`Environment`], attached where outputs are written), QEMU, the node's link
-//! or a debug probe (the node module's own error types). A new error type of the core is
-//! therefore bad input by default, which is what nearly every error of a calibration tool is (a
-//! campaign, a recording, a record, an option); a panic is a bug.
+//! - 130: the user stopped the command ([`Kind::Interrupted`], anywhere in the chain);
+//! - 2: bad input ([`Kind::BadInput`]): a campaign, a recording, a record, an option;
+//! - 1: anything else: the environment failed (a port, a process, a device, the file system),
+//!   the unit was rejected by a check, or an error that no type classified (an internal failure
+//!   is not the user's input to fix, so it is never reported as such).
+//!
+//! The outermost classified error decides: a context that says "writing out.json" over a file
+//! system error is the environment whatever the error below it says. Every error type of the
+//! core is in [`registry!`]'s list; a test reads the core's sources and fails on a
+//! `thiserror::Error` type missing from it.
 
-use crate::error::Environment;
+use crate::error::{Classify, Kind};
 
-/// Whether an error is the user's input to fix: nothing in its chain comes from the environment.
-pub fn is_bad_input(e: &anyhow::Error) -> bool {
-    !e.chain().any(|c| {
-        c.is::<Environment>()
-            || c.is::<crate::error::Interrupted>()
-            || c.is::<crate::verify::Failed>()
-            || c.is::<crate::node::hil::HilError>()
-            || c.is::<crate::node::flash::FlashError>()
-            || c.is::<crate::node::link::LinkError>()
-            || c.is::<crate::node::session::SessionError>()
-            || c.is::<crate::node::head::HeadError>()
-            || c.is::<crate::node::gdb::GdbError>()
-    })
+/// Lists the core's error types: [`kind_of`] tries each, the tests check the list is complete.
+macro_rules! registry {
+    ($($t:ty),* $(,)?) => {
+        /// The kind of one error of the chain, when its type is one of the core's.
+        fn kind_of(e: &(dyn std::error::Error + 'static)) -> Option<Kind> {
+            $(if let Some(x) = e.downcast_ref::<$t>() {
+                return Some(Classify::kind(x));
+            })*
+            None
+        }
+
+        /// The listed types' names (the last path segment).
+        #[cfg(test)]
+        fn registered() -> Vec<&'static str> {
+            vec![$(stringify!($t).rsplit("::").next().unwrap().trim()),*]
+        }
+
+        /// The name of the listed type `e` is, if any.
+        #[cfg(test)]
+        fn registered_name(e: &(dyn std::error::Error + 'static)) -> Option<&'static str> {
+            $(if e.is::<$t>() {
+                return Some(stringify!($t).rsplit("::").next().unwrap().trim());
+            })*
+            None
+        }
+    };
 }
 
-/// The process exit code of a failure: 130 when the user stopped the command
-/// ([`crate::error::Interrupted`]), 2 for bad input, 1 for the environment.
-pub fn code(e: &anyhow::Error) -> i32 {
+registry!(
+    crate::error::BadInput,
+    crate::error::Environment,
+    crate::error::Interrupted,
+    crate::verify::Failed,
+    crate::campaign::CampaignError,
+    crate::gmdh::GmdhError,
+    crate::lsq::LsqError,
+    crate::testturn::TestTurnError,
+    crate::diagnose::DiagnoseError,
+    crate::gravity::GravityError,
+    crate::gravity::fit::FitError,
+    crate::gravity::holds::HoldError,
+    crate::gravity::imutk::ImuTkError,
+    crate::gravity::imutk::RowProblem,
+    crate::sim::unit::UnitError,
+    crate::emulate::head::HeadServerError,
+    crate::emulate::frontend::FrontendError,
+    crate::node::flash::FlashError,
+    crate::node::gdb::GdbError,
+    crate::node::head::HeadError,
+    crate::node::hil::HilError,
+    crate::node::link::LinkError,
+    crate::node::qemu::QemuError,
+    crate::node::session::SessionError,
+);
+
+/// What the failure `e` is: [`Kind::Interrupted`] when the user stopped the command, else the
+/// kind of the outermost classified error of the chain, else [`Kind::Environment`].
+pub fn kind(e: &anyhow::Error) -> Kind {
     if e.chain().any(|c| c.is::<crate::error::Interrupted>()) {
-        130
-    } else if is_bad_input(e) {
-        2
-    } else {
-        1
+        return Kind::Interrupted;
+    }
+    e.chain().find_map(kind_of).unwrap_or(Kind::Environment)
+}
+
+/// Whether an error is the user's input to fix.
+pub fn is_bad_input(e: &anyhow::Error) -> bool {
+    kind(e) == Kind::BadInput
+}
+
+/// The process exit code of a failure: 130 when the user stopped the command, 2 for bad input,
+/// 1 otherwise.
+pub fn code(e: &anyhow::Error) -> i32 {
+    match kind(e) {
+        Kind::Interrupted => 130,
+        Kind::BadInput => 2,
+        Kind::Environment | Kind::Rejected => 1,
     }
 }
 
 #[cfg(test)]
 mod tests {
+    use std::path::PathBuf;
+    use std::time::Duration;
+
     use super::*;
     use crate::error::{bad, environment};
 
+    fn io() -> std::io::Error {
+        std::io::Error::new(std::io::ErrorKind::AddrInUse, "Address already in use (os error 98)")
+    }
+
+    fn exit_status() -> std::process::ExitStatus {
+        use std::os::unix::process::ExitStatusExt;
+        std::process::ExitStatus::from_raw(1 << 8)
+    }
+
+    /// One error of every variant of every registered type, with the kind it must have.
+    fn every_variant() -> Vec<(anyhow::Error, Kind)> {
+        use crate::campaign::CampaignError;
+        use crate::diagnose::DiagnoseError;
+        use crate::emulate::frontend::FrontendError;
+        use crate::emulate::head::HeadServerError;
+        use crate::gmdh::GmdhError;
+        use crate::gravity::fit::FitError;
+        use crate::gravity::holds::HoldError;
+        use crate::gravity::imutk::{ImuTkError, RowProblem};
+        use crate::gravity::GravityError;
+        use crate::lsq::LsqError;
+        use crate::node::flash::FlashError;
+        use crate::node::gdb::GdbError;
+        use crate::node::head::HeadError;
+        use crate::node::hil::HilError;
+        use crate::node::link::LinkError;
+        use crate::node::qemu::QemuError;
+        use crate::node::session::SessionError;
+        use crate::sim::unit::UnitError;
+        use accelcal_shared::boot::BootError;
+        use accelcal_shared::record::RecordError;
+        use accelcal_shared::slots::SlotError;
+        use accelcal_shared::wire::{FrameError, RecordFault, Refusal};
+        use Kind::*;
+
+        let p = || PathBuf::from("c.csv");
+        let addr = || "127.0.0.1:3333".to_string();
+        fn e<E: std::error::Error + Send + Sync + 'static>(x: E) -> anyhow::Error {
+            anyhow::Error::new(x)
+        }
+        let gdb = || GdbError::Io { addr: addr(), cause: io() };
+        let link = || LinkError::Io(io());
+        let unit_read = || UnitError::Read { path: "t.json".into(), cause: io() };
+        let json_err = serde_json::from_str::<u8>("x").unwrap_err();
+        let qemu_spawn = || QemuError::Spawn { qemu: "qemu-system-arm".into(), cause: io() };
+        vec![
+            (bad("x.csv:3:1: expected a number"), BadInput),
+            (environment("writing out.json", io()), Environment),
+            (e(crate::error::Interrupted("stopped".into())), Interrupted),
+            (e(crate::verify::Failed { failed: 1, total: 6 }), Rejected),
+            (e(CampaignError::Io { path: p(), cause: io() }), BadInput),
+            (e(CampaignError::Line { path: p(), line: 1, msg: "m".into() }), BadInput),
+            (e(CampaignError::File { path: p(), msg: "m".into() }), BadInput),
+            (e(CampaignError::Field { path: p(), line: 1, column: 1, msg: "m".into() }), BadInput),
+            (e(GmdhError::EmptyPart('A', 3)), BadInput),
+            (e(GmdhError::NoTemperature), BadInput),
+            (e(GmdhError::NothingIdentifiable), BadInput),
+            (e(GmdhError::Refit(LsqError::Unidentifiable { terms: vec!["ax".into()] })), BadInput),
+            (e(LsqError::TooFewPositions { model: "m".into(), terms: 4, positions: 3 }), BadInput),
+            (e(crate::testturn::TestTurnError::NoPairs), BadInput),
+            (e(DiagnoseError::TooFewPositions { positions: 6, need: 8 }), BadInput),
+            (e(DiagnoseError::NoNoiseEstimate), BadInput),
+            (e(DiagnoseError::Unfittable), BadInput),
+            (e(DiagnoseError::NoTemperature("t".into())), BadInput),
+            (e(GravityError::Holds(HoldError::BadSampling)), BadInput),
+            (e(GravityError::Fit { holds: 3, source: FitError::Singular }), BadInput),
+            (e(FitError::TooFewHolds { holds: 3, params: 9 }), BadInput),
+            (e(FitError::BadGravity(0.0)), BadInput),
+            (e(FitError::NonFinite(1)), BadInput),
+            (e(FitError::NoSpread { axis: 'x' }), BadInput),
+            (e(FitError::NotConverged("m".into())), BadInput),
+            (e(HoldError::TooShort { samples: 1, window: 2 }), BadInput),
+            (e(HoldError::BadConfig("m".into())), BadInput),
+            (e(ImuTkError::Io { file: "f".into(), source: io() }), BadInput),
+            (e(ImuTkError::NotUtf8 { file: "f".into(), line: 1 }), BadInput),
+            (
+                e(ImuTkError::Row {
+                    file: "f".into(),
+                    line: 1,
+                    column: 1,
+                    problem: RowProblem::FieldCount(3),
+                }),
+                BadInput,
+            ),
+            (e(ImuTkError::Empty { file: "f".into() }), BadInput),
+            (e(RowProblem::NotANumber("x".into())), BadInput),
+            (e(RowProblem::NotFinite("x".into())), BadInput),
+            (e(RowProblem::TimeNotIncreasing { prev: 1.0, now: 0.0 }), BadInput),
+            (e(unit_read()), BadInput),
+            (e(UnitError::Json { path: "t.json".into(), cause: json_err }), BadInput),
+            (e(UnitError::Invalid("m".into())), BadInput),
+            (e(UnitError::InFile { path: "t.json".into(), cause: Box::new(unit_read()) }), BadInput),
+            (e(UnitError::Effect { index: 0, message: "m".into() }), BadInput),
+            (e(UnitError::NotATriad("m".into())), BadInput),
+            (e(HeadServerError::Listen { addr: addr(), cause: io() }), Environment),
+            (e(FrontendError::Write(io())), Environment),
+            (e(FrontendError::Read(io())), Environment),
+            (e(FrontendError::Options("m".into())), BadInput),
+            (e(FlashError::Record(RecordError::BadMagic)), BadInput),
+            (e(FlashError::Refused(BootError::NoDeviceId)), BadInput),
+            (e(FlashError::Plan(SlotError::BadLength)), BadInput),
+            (e(FlashError::WrongDevice { record: "a".into(), mcu: "b".into() }), BadInput),
+            (e(FlashError::NoProbe(String::new())), Environment),
+            (e(FlashError::Verify(0)), Environment),
+            (e(FlashError::Probe("m".into())), Environment),
+            (e(FlashError::Gdb(gdb())), Environment),
+            (e(FlashError::NoDeviceId("m".into())), Environment),
+            (
+                e(FlashError::NotReset { error: Box::new(FlashError::Verify(0)), reset: "m".into() }),
+                Environment,
+            ),
+            (e(gdb()), Environment),
+            (e(GdbError::Protocol { addr: addr(), what: "m".into() }), Environment),
+            (e(HeadError::Io { addr: addr(), cause: io() }), Environment),
+            (e(HeadError::Protocol { addr: addr(), message: "m".into() }), Environment),
+            (e(HilError::Record(SlotError::BadLength)), BadInput),
+            (e(HilError::Spawn { qemu: "q".into(), cause: io() }), Environment),
+            (e(HilError::QemuExited { status: exit_status(), stderr: "m".into() }), Environment),
+            (e(HilError::Timeout(Duration::from_secs(3))), Environment),
+            (e(HilError::Qemu(qemu_spawn())), Environment),
+            (e(HilError::Link(link())), Environment),
+            (e(HilError::Rejected(RecordFault::Singular)), Environment),
+            (e(HilError::Protocol("m".into())), Environment),
+            (e(HilError::Io(io())), Environment),
+            (e(link()), Environment),
+            (e(LinkError::Closed), Environment),
+            (e(LinkError::Encode(FrameError::TooLong)), Environment),
+            (e(qemu_spawn()), Environment),
+            (e(QemuError::Exited { status: exit_status(), stderr: "m".into() }), Environment),
+            (e(QemuError::Timeout(Duration::from_secs(3))), Environment),
+            (e(QemuError::SlotSize { slot: 0, len: 5000 }), Environment),
+            (e(QemuError::Io(io())), Environment),
+            (e(SessionError::Link { port: "p".into(), cause: link() }), Environment),
+            (e(SessionError::Timeout { port: "p".into(), what: "answer", secs: 1.0 }), Environment),
+            (
+                e(SessionError::Refused {
+                    port: "p".into(),
+                    refusal: Refusal::RateOutOfRange { requested_hz: 5, min_hz: 100, max_hz: 4000 },
+                }),
+                Environment,
+            ),
+            (e(SessionError::Protocol { port: "p".into(), node: 3, host: 4 }), Environment),
+        ]
+    }
+
     #[test]
-    fn errors_are_bad_input_unless_the_environment_failed() {
-        assert!(is_bad_input(&bad("x.csv:3:1: expected a number")));
-        // An error type nobody listed is bad input by default.
-        #[derive(Debug, thiserror::Error)]
-        #[error("new kind of input error")]
-        struct NewInputError;
-        assert!(is_bad_input(&anyhow::Error::new(NewInputError).context("reading")));
-        let io = std::io::Error::new(std::io::ErrorKind::StorageFull, "disk full");
-        let e = environment("writing out.json", io).context("fit");
+    fn every_variant_of_every_error_type_has_its_kind_and_exit_code() {
+        for (e, want) in every_variant() {
+            assert_eq!(kind(&e), want, "{e:#}");
+            // Behind a context (as the commands add them) the kind is the same.
+            let e = e.context("running the command");
+            assert_eq!(kind(&e), want, "{e:#}");
+            let code_want = match want {
+                Kind::BadInput => 2,
+                Kind::Interrupted => 130,
+                Kind::Environment | Kind::Rejected => 1,
+            };
+            assert_eq!(code(&e), code_want, "{e:#}");
+        }
+    }
+
+    #[test]
+    fn no_message_prints_its_cause_twice() {
+        for (e, _) in every_variant() {
+            let links: Vec<String> = e.chain().map(|c| c.to_string()).collect();
+            for w in links.windows(2) {
+                assert!(!w[0].contains(&w[1]), "`{e:#}` prints `{}` twice", w[1]);
+            }
+        }
+    }
+
+    #[test]
+    fn every_error_type_of_the_core_is_registered_and_exercised() {
+        // Every `thiserror::Error` type defined in the core's sources.
+        let mut defined = Vec::new();
+        let mut stack = vec![PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("src")];
+        while let Some(d) = stack.pop() {
+            for entry in std::fs::read_dir(&d).unwrap() {
+                let path = entry.unwrap().path();
+                if path.is_dir() {
+                    stack.push(path);
+                    continue;
+                }
+                let text = std::fs::read_to_string(&path).unwrap();
+                let mut lines = text.lines();
+                while let Some(l) = lines.next() {
+                    if !(l.trim_start().starts_with("#[derive(") && l.contains("thiserror::Error")) {
+                        continue;
+                    }
+                    let decl =
+                        lines.by_ref().find(|l| l.contains(" enum ") || l.contains(" struct ")).unwrap();
+                    if decl.starts_with("        ") {
+                        continue; // a type local to a test
+                    }
+                    let name = decl
+                        .split_whitespace()
+                        .skip_while(|w| *w != "enum" && *w != "struct")
+                        .nth(1)
+                        .unwrap();
+                    defined.push(name.split(['{', '(', ';']).next().unwrap().to_string());
+                }
+            }
+        }
+        defined.sort();
+        let mut registered: Vec<String> = registered().into_iter().map(String::from).collect();
+        registered.sort();
+        assert_eq!(
+            defined, registered,
+            "every error type of the core states its kind and is in the registry"
+        );
+        // And the table above has an error of each.
+        let exercised: std::collections::BTreeSet<String> = every_variant()
+            .iter()
+            .filter_map(|(e, _)| registered_name(e.chain().next().unwrap()).map(String::from))
+            .collect();
+        assert_eq!(exercised.into_iter().collect::<Vec<_>>(), registered);
+    }
+
+    #[test]
+    fn an_error_no_type_classifies_is_not_called_bad_input() {
+        let e = anyhow::anyhow!("QEMU did not give the link a pseudo-terminal");
+        assert_eq!((kind(&e), code(&e)), (Kind::Environment, 1));
+        let e = anyhow::Error::new(io()).context("writing out.json");
         assert!(!is_bad_input(&e));
-        assert_eq!(format!("{e:#}"), "fit: writing out.json: disk full");
-        assert!(!is_bad_input(&anyhow::Error::new(crate::node::hil::HilError::Timeout(
-            std::time::Duration::from_secs(3)
-        ))));
+        // The outermost classified error decides.
+        let e = environment("writing out.json", bad("x")).context("fit");
+        assert_eq!(kind(&e), Kind::Environment);
+        assert_eq!(format!("{e:#}"), "fit: writing out.json: x");
     }
 }

@@ -3,6 +3,7 @@
 use accelcal_shared::Structure;
 use nalgebra::{DMatrix, DVector};
 
+use crate::error::{Classify, Kind};
 use crate::positions::{ChannelStats, Positions};
 
 /// Relative singular-value threshold below which a model counts as not identifiable: the
@@ -28,6 +29,12 @@ pub enum LsqError {
         /// Terms involved in the rank deficiency.
         terms: Vec<String>,
     },
+}
+
+impl Classify for LsqError {
+    fn kind(&self) -> Kind {
+        Kind::BadInput
+    }
 }
 
 /// A fitted model of one channel.

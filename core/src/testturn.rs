@@ -4,6 +4,7 @@
 use accelcal_shared::terms::MODEL_4;
 use accelcal_shared::testturn::{self, SixPositions};
 
+use crate::error::{Classify, Kind};
 use crate::lsq::LsqFit;
 use crate::positions::{ChannelStats, Positions};
 
@@ -13,6 +14,12 @@ pub enum TestTurnError {
     /// The plan has no pair of positions 180° apart along any axis.
     #[error("the plan has no pair of positions with an axis along +g and -g (test turns need them; e.g. alpha 0 and 180 at beta 0)")]
     NoPairs,
+}
+
+impl Classify for TestTurnError {
+    fn kind(&self) -> Kind {
+        Kind::BadInput
+    }
 }
 
 /// The positions used by the test turns: for each axis, the indices of its `+g` and `−g` dwells.

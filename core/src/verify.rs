@@ -28,6 +28,7 @@ use serde::Serialize;
 
 use crate::acquire::{block_kind, capture, Captured, Positioner, StaticRule};
 use crate::error::bad;
+use crate::error::{Classify, Kind};
 use crate::node::session::{device_id_hex, record_json, Session};
 use crate::sim::Plan;
 
@@ -246,6 +247,12 @@ pub struct Failed {
     pub failed: usize,
     /// Positions checked.
     pub total: usize,
+}
+
+impl Classify for Failed {
+    fn kind(&self) -> Kind {
+        Kind::Rejected
+    }
 }
 
 /// Settings of a verification.

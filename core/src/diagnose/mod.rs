@@ -26,6 +26,7 @@ use accelcal_shared::Structure;
 use nalgebra::{DMatrix, DVector};
 
 use crate::campaign::Campaign;
+use crate::error::{Classify, Kind};
 pub use bins::{Bin, Binned, BINS};
 
 /// The z-score of the χ² below which a residual is consistent with the noise.
@@ -81,6 +82,12 @@ pub enum DiagnoseError {
     /// A baseline term in `t` on a campaign without `temp_c`.
     #[error("baseline term `{0}` needs the temperature, and the campaign has no `temp_c` column")]
     NoTemperature(String),
+}
+
+impl Classify for DiagnoseError {
+    fn kind(&self) -> Kind {
+        Kind::BadInput
+    }
 }
 
 /// A campaign reduced to bins, with what every model needs.

@@ -35,6 +35,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::Normal;
 
 use super::head::{Head, HeadPose, POLL};
+use crate::error::{Classify, Kind};
 use crate::sim::effects::Kinematics;
 use crate::sim::unit::{SetCtx, Unit, UnitError};
 
@@ -160,13 +161,22 @@ pub struct FeStats {
 pub enum FrontendError {
     /// Writing a set failed (the node's end closed).
     #[error("front end: writing to the node failed: {0}")]
-    Write(#[source] std::io::Error),
+    Write(std::io::Error),
     /// Reading the node's messages failed.
     #[error("front end: reading from the node failed: {0}")]
-    Read(#[source] std::io::Error),
+    Read(std::io::Error),
     /// The pacing options are out of range.
     #[error("front end: {0}")]
     Options(String),
+}
+
+impl Classify for FrontendError {
+    fn kind(&self) -> Kind {
+        match self {
+            FrontendError::Write(_) | FrontendError::Read(_) => Kind::Environment,
+            FrontendError::Options(_) => Kind::BadInput,
+        }
+    }
 }
 
 /// Sends a set per sampling period of `rate_hz` × `opts.rate_factor` to `writer`, paced by the

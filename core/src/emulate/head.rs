@@ -26,6 +26,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
+use crate::error::{Classify, Kind};
 use crate::node::head::{Reply, Request};
 
 /// How often blocking loops look at their stop flag.
@@ -306,20 +307,26 @@ impl Head {
 #[derive(Debug, thiserror::Error)]
 pub enum HeadServerError {
     /// The listening socket failed.
-    #[error("head server on {addr}: {source}")]
+    #[error("head server on {addr}: {cause}")]
     Listen {
         /// The address.
         addr: String,
         /// The cause.
-        source: std::io::Error,
+        cause: std::io::Error,
     },
+}
+
+impl Classify for HeadServerError {
+    fn kind(&self) -> Kind {
+        Kind::Environment
+    }
 }
 
 /// Binds the head's listener on 127.0.0.1 at `port` (0: a free port; its address is
 /// `listener.local_addr()`).
 pub fn bind_head(port: u16) -> Result<TcpListener, HeadServerError> {
     let addr = format!("127.0.0.1:{port}");
-    TcpListener::bind(&addr).map_err(|source| HeadServerError::Listen { addr, source })
+    TcpListener::bind(&addr).map_err(|cause| HeadServerError::Listen { addr, cause })
 }
 
 /// What the server did.
@@ -340,7 +347,7 @@ pub fn serve_head(
     stop: &AtomicBool,
 ) -> Result<HeadServerStats, HeadServerError> {
     let addr = listener.local_addr().map(|a| a.to_string()).unwrap_or_default();
-    let err = |source| HeadServerError::Listen { addr: addr.clone(), source };
+    let err = |cause| HeadServerError::Listen { addr: addr.clone(), cause };
     listener.set_nonblocking(true).map_err(err)?;
     let mut stats = HeadServerStats::default();
     while !stop.load(Ordering::Relaxed) {
@@ -455,9 +462,8 @@ pub fn spawn_head_server(
     stop: Arc<AtomicBool>,
 ) -> Result<(SocketAddr, std::thread::JoinHandle<Result<HeadServerStats, HeadServerError>>), HeadServerError>
 {
-    let addr = listener
-        .local_addr()
-        .map_err(|source| HeadServerError::Listen { addr: "127.0.0.1".into(), source })?;
+    let addr =
+        listener.local_addr().map_err(|cause| HeadServerError::Listen { addr: "127.0.0.1".into(), cause })?;
     let h = std::thread::spawn(move || serve_head(listener, &head, &stop));
     Ok((addr, h))
 }

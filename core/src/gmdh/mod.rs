@@ -22,6 +22,7 @@ use accelcal_shared::terms::PAPER_MODELS;
 use accelcal_shared::{Basis, Structure};
 use rayon::prelude::*;
 
+use crate::error::{Classify, Kind};
 use crate::lsq::{self, LsqFit};
 use crate::positions::{ChannelStats, Positions};
 
@@ -164,6 +165,12 @@ pub enum GmdhError {
     /// The refit of the selected model failed.
     #[error(transparent)]
     Refit(#[from] lsq::LsqError),
+}
+
+impl Classify for GmdhError {
+    fn kind(&self) -> Kind {
+        Kind::BadInput
+    }
 }
 
 /// One candidate's score.

@@ -34,6 +34,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::solver;
+use crate::error::{Classify, Kind};
 
 /// Candidate model structures, from the simplest to the richest.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -204,6 +205,12 @@ pub enum FitError {
     /// `JᵀJ` is singular at the solution: the holds do not determine all parameters.
     #[error("the holds do not determine all parameters (singular normal matrix)")]
     Singular,
+}
+
+impl Classify for FitError {
+    fn kind(&self) -> Kind {
+        Kind::BadInput
+    }
 }
 
 /// Result of a gravity-norm fit.

@@ -21,6 +21,8 @@
 //! than `min_hold_s`, or if the variance of the whole run (summed over the axes) exceeds the threshold,
 //! which catches a slow drift that no single window shows.
 
+use crate::error::{Classify, Kind};
+
 /// Settings of the static-hold detector.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DetectorConfig {
@@ -159,6 +161,12 @@ pub enum HoldError {
     /// A setting is out of range.
     #[error("invalid detector setting: {0}")]
     BadConfig(String),
+}
+
+impl Classify for HoldError {
+    fn kind(&self) -> Kind {
+        Kind::BadInput
+    }
 }
 
 /// Runs the detector on raw codes `codes` sampled at times `t`.

@@ -5,6 +5,7 @@
 //! are skipped. The reader never panics on bad input; every error names the file, the 1-based line and
 //! the 1-based column (in characters) where the problem starts.
 
+use crate::error::{Classify, Kind};
 use std::io::{self, BufRead, Write};
 use std::path::Path;
 
@@ -63,6 +64,12 @@ pub enum RowProblem {
     },
 }
 
+impl Classify for RowProblem {
+    fn kind(&self) -> Kind {
+        Kind::BadInput
+    }
+}
+
 /// Errors of the imu_tk reader.
 #[derive(Debug, thiserror::Error)]
 pub enum ImuTkError {
@@ -101,6 +108,12 @@ pub enum ImuTkError {
         /// File name as given.
         file: String,
     },
+}
+
+impl Classify for ImuTkError {
+    fn kind(&self) -> Kind {
+        Kind::BadInput
+    }
 }
 
 /// Reads an imu_tk file from `path`; gzip input is recognised by its magic bytes, whatever the name

@@ -15,6 +15,7 @@ use fit::{FitError, GravityFit, GravityStructure, StructureScore};
 use holds::{Detection, DetectorConfig, HoldError};
 
 use crate::campaign::{Campaign, Channel};
+use crate::error::{Classify, Kind};
 
 /// Errors of the gravity-norm calibration pipeline.
 #[derive(Debug, thiserror::Error)]
@@ -31,6 +32,12 @@ pub enum GravityError {
         #[source]
         source: FitError,
     },
+}
+
+impl Classify for GravityError {
+    fn kind(&self) -> Kind {
+        Kind::BadInput
+    }
 }
 
 /// Which model structure to fit.

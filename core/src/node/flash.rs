@@ -21,6 +21,7 @@
 //! it relies on is tested with a power-cut simulation in the probe's programming order in
 //! `accelcal_shared::slots`.
 
+use crate::error::{Classify, Kind};
 use accelcal_shared::contract::{N_SLOTS, SLOT_ADDRS, UID_ADDR};
 use accelcal_shared::flash_ecc::{nmi_action, NmiAction, FLASH_ECCR_ADDR};
 use accelcal_shared::record::Record;
@@ -76,6 +77,25 @@ pub enum FlashError {
         /// The reset's error.
         reset: String,
     },
+}
+
+impl Classify for FlashError {
+    fn kind(&self) -> Kind {
+        match self {
+            // The record given: unreadable, one no node accepts, one too large for a slot, or
+            // another unit's.
+            FlashError::Record(_)
+            | FlashError::Refused(_)
+            | FlashError::Plan(_)
+            | FlashError::WrongDevice { .. } => Kind::BadInput,
+            FlashError::Gdb(e) => e.kind(),
+            FlashError::NoProbe(_)
+            | FlashError::Verify(_)
+            | FlashError::Probe(_)
+            | FlashError::NoDeviceId(_)
+            | FlashError::NotReset { .. } => Kind::Environment,
+        }
+    }
 }
 
 fn probe_err(e: impl std::fmt::Display) -> FlashError {

@@ -9,6 +9,7 @@
 //! (The crates.io RSP crates are servers (`gdbstub`) or an unmaintained parser; a client of five
 //! packets is smaller than adapting either.)
 
+use crate::error::{Classify, Kind};
 use std::io::{BufReader, Read, Write};
 use std::net::TcpStream;
 use std::time::Duration;
@@ -17,12 +18,12 @@ use std::time::Duration;
 #[derive(Debug, thiserror::Error)]
 pub enum GdbError {
     /// The connection failed or timed out.
-    #[error("gdb server {addr}: {source}")]
+    #[error("gdb server {addr}: {cause}")]
     Io {
         /// The server's address.
         addr: String,
         /// The cause.
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     /// The server answered an error code or something the protocol does not allow.
     #[error("gdb server {addr}: {what}")]
@@ -32,6 +33,12 @@ pub enum GdbError {
         /// What went wrong.
         what: String,
     },
+}
+
+impl Classify for GdbError {
+    fn kind(&self) -> Kind {
+        Kind::Environment
+    }
 }
 
 /// A connection to a GDB server.
@@ -78,7 +85,7 @@ fn unhex(s: &[u8]) -> Option<Vec<u8>> {
 impl GdbClient {
     /// Connects to `addr` (`HOST:PORT`); each answer may take up to `timeout`.
     pub fn connect(addr: &str, timeout: Duration) -> Result<GdbClient, GdbError> {
-        let io = |source| GdbError::Io { addr: addr.to_string(), source };
+        let io = |cause| GdbError::Io { addr: addr.to_string(), cause };
         let stream = TcpStream::connect(addr).map_err(io)?;
         stream.set_read_timeout(Some(timeout)).map_err(io)?;
         stream.set_nodelay(true).map_err(io)?;
@@ -89,8 +96,8 @@ impl GdbClient {
         Ok(c)
     }
 
-    fn io(&self, source: std::io::Error) -> GdbError {
-        GdbError::Io { addr: self.addr.clone(), source }
+    fn io(&self, cause: std::io::Error) -> GdbError {
+        GdbError::Io { addr: self.addr.clone(), cause }
     }
 
     fn protocol(&self, what: impl Into<String>) -> GdbError {

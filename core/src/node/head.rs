@@ -14,6 +14,7 @@
 //! Any request the head cannot carry out is answered `ERR <reason>`. Angles are degrees in the
 //! paper's convention (α about the spindle, β the tilt; `accelcal_shared::kinematics`).
 
+use crate::error::{Classify, Kind};
 use std::io::{BufRead, BufReader, Write};
 use std::net::TcpStream;
 use std::time::Duration;
@@ -201,12 +202,12 @@ impl Reply {
 #[derive(Debug, thiserror::Error)]
 pub enum HeadError {
     /// The connection failed or timed out.
-    #[error("head {addr}: {source}")]
+    #[error("head {addr}: {cause}")]
     Io {
         /// The head's address.
         addr: String,
         /// The cause.
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     /// The head answered something else than the protocol allows, or refused.
     #[error("head {addr}: {message}")]
@@ -216,6 +217,12 @@ pub enum HeadError {
         /// What went wrong.
         message: String,
     },
+}
+
+impl Classify for HeadError {
+    fn kind(&self) -> Kind {
+        Kind::Environment
+    }
 }
 
 /// A connection to an emulated head.
@@ -228,7 +235,7 @@ pub struct SimHead {
 impl SimHead {
     /// Connects to the head at `addr` (`HOST:PORT`); a move may take up to `timeout`.
     pub fn connect(addr: &str, timeout: Duration) -> Result<SimHead, HeadError> {
-        let io = |source| HeadError::Io { addr: addr.to_string(), source };
+        let io = |cause| HeadError::Io { addr: addr.to_string(), cause };
         let stream = TcpStream::connect(addr).map_err(io)?;
         stream.set_read_timeout(Some(timeout)).map_err(io)?;
         stream.set_nodelay(true).map_err(io)?;
@@ -239,7 +246,7 @@ impl SimHead {
     /// Sends one request and reads its reply; `ERR` replies are errors.
     pub fn request(&mut self, req: Request) -> Result<Reply, HeadError> {
         let addr = self.addr.clone();
-        let io = |source| HeadError::Io { addr: addr.clone(), source };
+        let io = |cause| HeadError::Io { addr: addr.clone(), cause };
         writeln!(self.writer, "{}", req.line()).map_err(io)?;
         let mut line = String::new();
         if self.reader.read_line(&mut line).map_err(io)? == 0 {

@@ -28,6 +28,7 @@ use super::link::{self, LinkError, Receiver};
 use super::qemu::{Link, LinkChannel, Qemu, QemuError, QemuOptions};
 use crate::campaign::{CodeRange, Row};
 use crate::error::bad;
+use crate::error::{Classify, Kind};
 use crate::input::Input;
 use crate::reduce::DwellRows;
 
@@ -90,12 +91,12 @@ pub enum HilError {
     #[error("invalid calibration record: {0}")]
     Record(accelcal_shared::slots::SlotError),
     /// QEMU could not be started.
-    #[error("cannot start {qemu}: {source} (install QEMU >= 9 with `bash scripts/setup-qemu.sh`)")]
+    #[error("cannot start {qemu}: {cause} (install QEMU >= 9 with `bash scripts/setup-qemu.sh`)")]
     Spawn {
         /// The executable.
         qemu: PathBuf,
         /// The cause.
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     /// QEMU ended before the replay finished.
     #[error("qemu exited ({status}): {stderr}")]
@@ -121,14 +122,31 @@ pub enum HilError {
     #[error("unexpected answer from the node: {0}")]
     Protocol(String),
     /// Local file trouble (temporary directory).
-    #[error("{0}")]
+    #[error(transparent)]
     Io(#[from] std::io::Error),
+}
+
+impl Classify for HilError {
+    fn kind(&self) -> Kind {
+        match self {
+            // The record given, refused before QEMU starts.
+            HilError::Record(_) => Kind::BadInput,
+            HilError::Link(e) => e.kind(),
+            HilError::Qemu(e) => e.kind(),
+            HilError::Spawn { .. }
+            | HilError::QemuExited { .. }
+            | HilError::Timeout(_)
+            | HilError::Rejected(_)
+            | HilError::Protocol(_)
+            | HilError::Io(_) => Kind::Environment,
+        }
+    }
 }
 
 impl From<QemuError> for HilError {
     fn from(e: QemuError) -> Self {
         match e {
-            QemuError::Spawn { qemu, source } => HilError::Spawn { qemu, source },
+            QemuError::Spawn { qemu, cause } => HilError::Spawn { qemu, cause },
             QemuError::Exited { status, stderr } => HilError::QemuExited { status, stderr },
             QemuError::Timeout(t) => HilError::Timeout(t),
             QemuError::Io(e) => HilError::Io(e),

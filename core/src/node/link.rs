@@ -3,20 +3,34 @@
 
 use std::io::{self, Read, Write};
 
+use crate::error::{Classify, Kind};
 use accelcal_shared::wire::{self, FrameDecoder, FrameError, HostMsg, NodeMsg, MAX_FRAME};
 
 /// Why a message could not be exchanged.
 #[derive(Debug, thiserror::Error)]
 pub enum LinkError {
-    /// The byte stream failed (including read timeouts).
+    /// The byte stream failed (including read timeouts). The cause is in the message, not a
+    /// `source` (a chain of causes would print it twice).
     #[error("node link i/o: {0}")]
-    Io(#[from] io::Error),
+    Io(io::Error),
     /// The stream ended.
     #[error("node link closed")]
     Closed,
     /// A message could not be encoded.
     #[error("cannot encode message: {0}")]
     Encode(FrameError),
+}
+
+impl From<io::Error> for LinkError {
+    fn from(e: io::Error) -> LinkError {
+        LinkError::Io(e)
+    }
+}
+
+impl Classify for LinkError {
+    fn kind(&self) -> Kind {
+        Kind::Environment
+    }
 }
 
 /// Encodes one message as a frame.

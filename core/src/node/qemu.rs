@@ -21,6 +21,7 @@ use std::time::{Duration, Instant};
 use accelcal_shared::slots::SLOT_SIZE;
 
 use super::RECORD_SLOTS;
+use crate::error::{Classify, Kind};
 
 /// A serial port on USART3, which the node never enables, reading `/dev/zero`.
 ///
@@ -103,12 +104,12 @@ impl QemuOptions {
 #[derive(Debug, thiserror::Error)]
 pub enum QemuError {
     /// QEMU could not be started.
-    #[error("cannot start {qemu}: {source} (install QEMU >= 9 with `bash scripts/setup-qemu.sh`)")]
+    #[error("cannot start {qemu}: {cause} (install QEMU >= 9 with `bash scripts/setup-qemu.sh`)")]
     Spawn {
         /// The executable.
         qemu: PathBuf,
         /// The cause.
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     /// QEMU ended.
     #[error("qemu exited ({status}): {stderr}")]
@@ -130,8 +131,14 @@ pub enum QemuError {
         len: usize,
     },
     /// Local file or socket trouble.
-    #[error("{0}")]
+    #[error(transparent)]
     Io(#[from] std::io::Error),
+}
+
+impl Classify for QemuError {
+    fn kind(&self) -> Kind {
+        Kind::Environment
+    }
 }
 
 /// The host link of a running node.
@@ -204,7 +211,7 @@ impl Qemu {
             .stdin(Stdio::null())
             .stdout(std::fs::File::create(&stdout_path)?)
             .stderr(std::fs::File::create(&stderr_path)?);
-        let child = cmd.spawn().map_err(|source| QemuError::Spawn { qemu: opts.qemu.clone(), source })?;
+        let child = cmd.spawn().map_err(|cause| QemuError::Spawn { qemu: opts.qemu.clone(), cause })?;
         let mut q = Qemu { child, stderr_path, dir, link: None, frontend: None };
         let t0 = Instant::now();
         q.link = Some(match opts.link {

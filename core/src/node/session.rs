@@ -13,25 +13,26 @@ use std::time::{Duration, Instant};
 use accelcal_shared::wire::{self, Block, HostMsg, Info, NodeMsg, Output, Status};
 
 use super::link::{self, LinkError, Receiver};
+use crate::error::{Classify, Kind};
 
 /// Why a conversation with the node failed (a failure of the environment: exit code 1).
 #[derive(Debug, thiserror::Error)]
 pub enum SessionError {
     /// The port could not be opened.
-    #[error("{port}: cannot open the node's serial port: {source}")]
+    #[error("{port}: cannot open the node's serial port: {cause}")]
     Open {
         /// The port.
         port: String,
         /// The cause.
-        source: serialport::Error,
+        cause: serialport::Error,
     },
     /// The link failed.
-    #[error("{port}: {source}")]
+    #[error("{port}: {cause}")]
     Link {
         /// The port.
         port: String,
         /// The cause.
-        source: LinkError,
+        cause: LinkError,
     },
     /// No answer in time.
     #[error(
@@ -66,6 +67,12 @@ pub enum SessionError {
     },
 }
 
+impl Classify for SessionError {
+    fn kind(&self) -> Kind {
+        Kind::Environment
+    }
+}
+
 /// How often a blocking read gives control back (to check a stop flag or a deadline).
 const POLL: Duration = Duration::from_millis(100);
 /// How long a request waits for its answer before it is sent again.
@@ -96,7 +103,7 @@ impl Session {
     /// Opens the serial port `port` at `baud` (a pty ignores the baud rate); requests wait up to
     /// `answer` for their reply.
     pub fn open(port: &str, baud: u32, answer: Duration) -> Result<Session, SessionError> {
-        let open = |source| SessionError::Open { port: port.to_string(), source };
+        let open = |cause| SessionError::Open { port: port.to_string(), cause };
         let p = serialport::new(port, baud).timeout(POLL).open().map_err(open)?;
         let tx = p.try_clone().map_err(open)?;
         Ok(Session::from_streams(port, Box::new(tx), Box::new(p), answer))
@@ -123,8 +130,8 @@ impl Session {
         &self.port
     }
 
-    fn link(&self, source: LinkError) -> SessionError {
-        SessionError::Link { port: self.port.clone(), source }
+    fn link(&self, cause: LinkError) -> SessionError {
+        SessionError::Link { port: self.port.clone(), cause }
     }
 
     /// Sends a request.

@@ -21,6 +21,7 @@ use serde::Serialize;
 
 use super::effects::{self, Effect, Kinematics, SampleCtx};
 use crate::campaign::CodeRange;
+use crate::error::{Classify, Kind};
 
 /// The truth behind a simulated campaign, written beside it as JSON.
 #[derive(Clone, Debug, Serialize, serde::Deserialize)]
@@ -154,31 +155,31 @@ pub fn noise_distribution(sd: f64) -> Normal<f64> {
 #[derive(Debug, thiserror::Error)]
 pub enum UnitError {
     /// The file could not be read.
-    #[error("{path}: {source}")]
+    #[error("{path}: {cause}")]
     Read {
         /// The file.
         path: String,
         /// The cause.
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     /// The file is not a truth document.
-    #[error("{path}: not a truth file of `accelcal simulate`: {source}")]
+    #[error("{path}: not a truth file of `accelcal simulate`: {cause}")]
     Json {
         /// The file.
         path: String,
         /// The cause.
-        source: serde_json::Error,
+        cause: serde_json::Error,
     },
     /// A value of the truth is out of range.
     #[error("{0}")]
     Invalid(String),
     /// What is wrong with a truth file.
-    #[error("{path}: {source}")]
+    #[error("{path}: {cause}")]
     InFile {
         /// The file.
         path: String,
         /// What is wrong.
-        source: Box<UnitError>,
+        cause: Box<UnitError>,
     },
     /// An effect cannot be rebuilt from its description.
     #[error("effects[{index}]: {message}")]
@@ -191,6 +192,12 @@ pub enum UnitError {
     /// The unit is not a triad `x`, `y`, `z` along axes 0, 1, 2 (what the emulated node samples).
     #[error("the emulated node samples a triad: expected channels x, y, z along axes 0, 1, 2, got {0}")]
     NotATriad(String),
+}
+
+impl Classify for UnitError {
+    fn kind(&self) -> Kind {
+        Kind::BadInput
+    }
 }
 
 /// A simulated unit: its channels' linear models, its effects, gravity and noise, sampled one set
@@ -292,10 +299,10 @@ impl Unit {
     pub fn read_for_node(path: &Path) -> Result<Unit, UnitError> {
         let p = path.display().to_string();
         let text =
-            std::fs::read_to_string(path).map_err(|source| UnitError::Read { path: p.clone(), source })?;
+            std::fs::read_to_string(path).map_err(|cause| UnitError::Read { path: p.clone(), cause })?;
         let t: Truth =
-            serde_json::from_str(&text).map_err(|source| UnitError::Json { path: p.clone(), source })?;
-        Unit::for_node(&t).map_err(|e| UnitError::InFile { path: p, source: Box::new(e) })
+            serde_json::from_str(&text).map_err(|cause| UnitError::Json { path: p.clone(), cause })?;
+        Unit::for_node(&t).map_err(|e| UnitError::InFile { path: p, cause: Box::new(e) })
     }
 
     /// The acceleration the block sees standing at `angles` (degrees) as position `position`.
