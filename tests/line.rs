@@ -410,9 +410,113 @@ fn the_production_line_in_emulation() {
         let now = json(&info);
         assert_eq!(now["record"]["crc"], good["record"]["crc"], "cut after {cut} bytes");
     }
+
+    // Issue 22.1: every failure of `flash --gdb` leaves the node running its record. Without
+    // --port the gdbstub cannot read QEMU's unique id: refused once connected (the core halted).
+    let out = accelcal(&["flash", s(&wrong), "--gdb", &em.gdb]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("cannot read the MCU's unique id") && err.contains("the MCU was reset"), "{err}");
+    assert_runs_record(&em, &p("info-no-id.json"), &good_crc);
+    // Faults injected into the gdbstub session in the middle of the page write (the 6th memory
+    // write: after the page's erase fill, in its data): an error answer, and a dropped connection.
+    for fault in [Fault::ErrorAnswer(6), Fault::Drop(6)] {
+        let proxy = gdb_proxy(&em.gdb, fault);
+        let out = accelcal(&["flash", s(&wrong), "--gdb", &proxy, "--port", &em.port]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{fault:?}: {err}");
+        assert!(err.contains("the MCU was reset and runs the record in force before"), "{fault:?}: {err}");
+        assert_runs_record(&em, &p("info-fault.json"), &good_crc);
+    }
+
     let v = verify("verify-after-cuts.json");
     assert_eq!(v.status.code(), Some(0), "{}", String::from_utf8_lossy(&v.stdout));
     assert_eq!(em.stop(), Some(0));
+}
+
+/// Waits up to 20 s for the node to answer `info` (it reboots after a flash) and checks that it
+/// runs the record with CRC `crc`.
+fn assert_runs_record(em: &Emulator, info: &Path, crc: &str) {
+    let t0 = Instant::now();
+    while accelcal(&["info", "--port", &em.port, "--json", s(info)]).status.code() != Some(0) {
+        assert!(t0.elapsed() < Duration::from_secs(20), "the node does not answer `info`: left halted?");
+    }
+    assert_eq!(json(info)["record"]["crc"].as_str(), Some(crc));
+}
+
+/// A fault injected into the first GDB session through [`gdb_proxy`], at the n-th memory write
+/// (`M` packet) of the client.
+#[derive(Clone, Copy, Debug)]
+enum Fault {
+    /// The write is not forwarded; the client is answered with the error `E0E`.
+    ErrorAnswer(usize),
+    /// Both connections are closed instead of forwarding the write.
+    Drop(usize),
+}
+
+/// A TCP proxy in front of the gdbstub at `target` that injects `fault` into its first session;
+/// later sessions (the flash tool reconnecting to release the core) pass through. Returns its
+/// address. The proxy's threads end with the connections (or with the test process).
+fn gdb_proxy(target: &str, fault: Fault) -> String {
+    use std::io::{Read, Write};
+    use std::net::{Shutdown, TcpListener, TcpStream};
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = listener.local_addr().unwrap().to_string();
+    let target = target.to_string();
+    std::thread::spawn(move || {
+        for (session, client) in listener.incoming().enumerate() {
+            let Ok(mut client) = client else { return };
+            let mut server = TcpStream::connect(&target).unwrap();
+            let (mut from_server, mut to_client) = (server.try_clone().unwrap(), client.try_clone().unwrap());
+            std::thread::spawn(move || {
+                let _ = std::io::copy(&mut from_server, &mut to_client);
+            });
+            std::thread::spawn(move || {
+                let (mut packet, mut in_packet, mut tail, mut writes, mut swallow_ack) =
+                    (Vec::new(), false, 0, 0, false);
+                let mut b = [0u8];
+                while matches!(client.read(&mut b), Ok(1)) {
+                    if swallow_ack && b[0] == b'+' {
+                        swallow_ack = false;
+                        continue;
+                    }
+                    packet.push(b[0]);
+                    match b[0] {
+                        b'$' if !in_packet => (in_packet, packet) = (true, vec![b'$']),
+                        b'#' if in_packet => tail = 2,
+                        _ if tail > 0 => tail -= 1,
+                        _ => {}
+                    }
+                    if in_packet && tail == 0 && packet.len() > 3 && packet[packet.len() - 3] == b'#' {
+                        in_packet = false;
+                        writes += usize::from(packet[1] == b'M');
+                        match fault {
+                            Fault::ErrorAnswer(n) if session == 0 && packet[1] == b'M' && writes == n => {
+                                let _ = client.write_all(b"+$E0E#ba");
+                                swallow_ack = true;
+                                packet.clear();
+                                continue;
+                            }
+                            Fault::Drop(n) if session == 0 && packet[1] == b'M' && writes == n => {
+                                let _ = client.shutdown(Shutdown::Both);
+                                let _ = server.shutdown(Shutdown::Both);
+                                return;
+                            }
+                            _ => {}
+                        }
+                    }
+                    if !in_packet {
+                        if server.write_all(&packet).is_err() {
+                            return;
+                        }
+                        packet.clear();
+                    }
+                }
+                let _ = server.shutdown(Shutdown::Both);
+            });
+        }
+    });
+    addr
 }
 
 /// Prints `html` to PDF with headless Chromium and counts the pages.

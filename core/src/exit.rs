@@ -215,6 +215,7 @@ mod tests {
             ),
             (e(gdb()), Environment),
             (e(GdbError::Protocol { addr: addr(), what: "m".into() }), Environment),
+            (e(GdbError::Closed { addr: addr() }), Environment),
             (e(HeadError::Io { addr: addr(), cause: io() }), Environment),
             (e(HeadError::Protocol { addr: addr(), message: "m".into() }), Environment),
             (e(HilError::Record(SlotError::BadLength)), BadInput),

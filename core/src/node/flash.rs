@@ -77,6 +77,10 @@ pub enum FlashError {
         /// The reset's error.
         reset: String,
     },
+    /// The write failed or was refused, and the MCU was then reset: it runs the record that was
+    /// in force before.
+    #[error("{0}; the MCU was reset and runs the record in force before")]
+    Released(Box<FlashError>),
 }
 
 impl Classify for FlashError {
@@ -89,6 +93,7 @@ impl Classify for FlashError {
             | FlashError::Plan(_)
             | FlashError::WrongDevice { .. } => Kind::BadInput,
             FlashError::Gdb(e) => e.kind(),
+            FlashError::Released(e) => e.kind(),
             FlashError::NoProbe(_)
             | FlashError::Verify(_)
             | FlashError::Probe(_)
@@ -165,7 +170,7 @@ fn finish<T>(result: Result<T, FlashError>, reset: Result<(), String>) -> Result
     match (result, reset) {
         (Ok(report), Ok(())) => Ok(report),
         (Ok(_), Err(reset)) => Err(FlashError::Probe(format!("resetting the core after the write: {reset}"))),
-        (Err(error), Ok(())) => Err(error),
+        (Err(error), Ok(())) => Err(FlashError::Released(Box::new(error))),
         (Err(error), Err(reset)) => Err(FlashError::NotReset { error: Box::new(error), reset }),
     }
 }
@@ -252,6 +257,13 @@ pub enum GdbFlash {
 /// module docs), then resets the MCU (SYSRESETREQ) and detaches, so the node boots with the new
 /// record. `device_id` is the node's id as its link reports it, used when the server cannot read
 /// the unique-id area (QEMU). `cut_after` stops the page write part-way (tests).
+///
+/// A GDB server halts the core when a client connects, and a server such as QEMU's leaves it
+/// halted when the client goes away without detaching: so once connected, every path, a refusal
+/// and a failure of the server's connection included, resets the MCU and detaches ([`release`]),
+/// reconnecting for it when the connection itself failed. The node then runs again with the
+/// record in force before (a failed or refused write never puts a record in force), and the
+/// error says so.
 pub fn flash_record_gdb(
     record: &[u8],
     addr: &str,
@@ -261,23 +273,60 @@ pub fn flash_record_gdb(
     let rec = Record::parse(record).map_err(FlashError::Record)?;
     accelcal_shared::boot::gate(&rec).map_err(FlashError::Refused)?;
     let record = &record[..rec.len()];
-    let client = super::gdb::GdbClient::connect(addr, std::time::Duration::from_secs(10))?;
+    let client = super::gdb::GdbClient::connect(addr, GDB_TIMEOUT)?;
     let mut mem = Gdb { client, cut_after };
+    let result = write_gdb(&mut mem, &rec, record, device_id, cut_after);
+    finish(result, release(mem.client, addr))
+}
+
+/// How long a GDB server may take to answer one request.
+const GDB_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(10);
+
+/// Steps 1–5 through a GDB server, or the cut write of `cut_after` (the caller releases the core).
+fn write_gdb(
+    mem: &mut Gdb,
+    rec: &Record,
+    record: &[u8],
+    device_id: Option<[u8; 12]>,
+    cut_after: Option<usize>,
+) -> Result<GdbFlash, FlashError> {
     let mut uid = [0u8; 12];
     let uid = match mem.read(UID_ADDR, &mut uid) {
         Ok(()) => uid,
         Err(e) => device_id.ok_or_else(|| FlashError::NoDeviceId(e.to_string()))?,
     };
-    let result = match cut_after {
-        None => write_slot(&mut mem, &rec, record, uid).map(GdbFlash::Written),
-        Some(n) => plan_write(&mut mem, &rec, record, uid).and_then(|plan| {
+    match cut_after {
+        None => write_slot(mem, rec, record, uid).map(GdbFlash::Written),
+        Some(n) => {
+            let plan = plan_write(mem, rec, record, uid)?;
             mem.program_page(SLOT_ADDRS[plan.slot as usize], &plan.page)?;
             Ok(GdbFlash::Cut { slot: plan.slot, bytes: n.min(plan.page.len()) })
-        }),
+        }
+    }
+}
+
+/// Resets the MCU (SYSRESETREQ) and detaches, so that the target runs; when the connection
+/// `client` failed (the server went away, a timeout), once more over a new connection. A reset
+/// the server refuses still detaches (the core then runs on from where it was halted).
+pub fn release(client: super::gdb::GdbClient, addr: &str) -> Result<(), String> {
+    use super::gdb::{GdbClient, GdbError};
+    // `Err(true, ..)`: the connection failed, worth another.
+    let once = |mut c: GdbClient| match c.write(AIRCR, &AIRCR_SYSRESETREQ.to_le_bytes()) {
+        Ok(()) => c.detach().map_err(|e| (true, e.to_string())),
+        Err(e @ GdbError::Protocol { .. }) => match c.detach() {
+            Ok(()) => Err((false, format!("the reset was refused ({e}); the core was resumed without it"))),
+            Err(d) => Err((true, format!("the reset was refused ({e}), the detach failed ({d})"))),
+        },
+        Err(e) => Err((true, e.to_string())),
     };
-    // Reset and let the target run, whatever happened once connected.
-    let reset = mem.write_u32(AIRCR, AIRCR_SYSRESETREQ).and_then(|()| Ok(mem.client.detach()?));
-    finish(result, reset.map_err(|e| e.to_string()))
+    match once(client) {
+        Ok(()) => Ok(()),
+        Err((false, e)) => Err(e),
+        Err((true, first)) => GdbClient::connect(addr, GDB_TIMEOUT)
+            .map_err(|e| e.to_string())
+            .and_then(|c| once(c).map_err(|(_, e)| e))
+            .map_err(|again| format!("{first}; over a new connection: {again}")),
+    }
 }
 
 /// Steps 1–5 of the module docs on an attached session (the caller resets the core).
@@ -383,7 +432,12 @@ mod tests {
         let e = finish(Ok(report()), Err("link lost".into())).unwrap_err();
         assert_eq!(e.to_string(), "probe: resetting the core after the write: link lost");
         let e = finish::<FlashReport>(Err(FlashError::Verify(1)), Ok(())).unwrap_err();
-        assert!(matches!(e, FlashError::Verify(1)), "{e}");
+        assert!(matches!(&e, FlashError::Released(b) if matches!(**b, FlashError::Verify(1))), "{e}");
+        assert_eq!(
+            e.to_string(),
+            "after writing slot 1, the record in force is not the new one; the MCU was reset and runs the \
+             record in force before"
+        );
         let e = finish::<FlashReport>(Err(FlashError::Verify(1)), Err("link lost".into())).unwrap_err();
         assert_eq!(
             e.to_string(),
@@ -405,5 +459,83 @@ mod tests {
         assert_eq!((plan.slot, plan.sequence), (1, 6));
         let plan = WritePlan::from_readings(readings(&slots, [false, true]), &buf[..n]).unwrap();
         assert_eq!((plan.slot, plan.sequence), (0, 1));
+    }
+
+    /// A GDB server that halts the target on connection (as QEMU's does), cannot read the
+    /// unique-id area, accepts memory writes and logs every packet; it serves `sessions`
+    /// connections. The first one is closed at its `drop_at`-th packet, when given.
+    fn halting_server(
+        sessions: usize,
+        drop_at: Option<usize>,
+    ) -> (String, std::thread::JoinHandle<Vec<String>>) {
+        use std::io::{Read, Write};
+        let l = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        let addr = l.local_addr().unwrap().to_string();
+        let server = std::thread::spawn(move || {
+            let mut log = Vec::new();
+            for session in 0..sessions {
+                let (mut s, _) = l.accept().unwrap();
+                let (mut buf, mut byte, mut n) = (Vec::new(), [0u8], 0);
+                while s.read(&mut byte).unwrap_or(0) == 1 {
+                    match byte[0] {
+                        b'$' => buf.clear(),
+                        b'#' => {
+                            s.read_exact(&mut [0u8; 2]).unwrap();
+                            let p = String::from_utf8(buf.clone()).unwrap();
+                            log.push(p.clone());
+                            n += 1;
+                            if session == 0 && drop_at == Some(n) {
+                                break;
+                            }
+                            let answer = match p.as_bytes()[0] {
+                                b'?' => "S05",
+                                b'm' => "E14",
+                                b'M' | b'D' => "OK",
+                                _ => "",
+                            };
+                            let sum = answer.bytes().fold(0u8, |a, b| a.wrapping_add(b));
+                            s.write_all(format!("+${answer}#{sum:02x}").as_bytes()).unwrap();
+                            s.read_exact(&mut [0u8]).unwrap();
+                            if p == "D" {
+                                break;
+                            }
+                        }
+                        b => buf.push(b),
+                    }
+                }
+            }
+            log
+        });
+        (addr, server)
+    }
+
+    fn record() -> Vec<u8> {
+        use accelcal_shared::linear::Model4;
+        let m = Model4 { u0: [32000.0; 3], k: [[1600.0, 0.0, 0.0], [0.0, 1600.0, 0.0], [0.0, 0.0, 1600.0]] };
+        let mut buf = [0u8; accelcal_shared::record::MAX_RECORD_LEN];
+        let n = Record::from_model4(*b"QEMU-B-L475E", 1, &m).emit(&mut buf).unwrap();
+        buf[..n].to_vec()
+    }
+
+    const RESET: &str = "Me000ed0c,4:0400fa05";
+
+    #[test]
+    fn a_refusal_once_connected_resets_and_detaches_and_says_so() {
+        let (addr, server) = halting_server(1, None);
+        let e = flash_record_gdb(&record(), &addr, None, None).unwrap_err();
+        assert!(matches!(&e, FlashError::Released(b) if matches!(**b, FlashError::NoDeviceId(_))), "{e}");
+        assert!(e.to_string().ends_with("the MCU was reset and runs the record in force before"), "{e}");
+        let log = server.join().unwrap();
+        assert_eq!(log[log.len() - 2..], [RESET.to_string(), "D".to_string()], "{log:?}");
+    }
+
+    #[test]
+    fn a_connection_lost_once_connected_is_released_over_a_new_one() {
+        // The first session is closed at its second packet (the unique-id read).
+        let (addr, server) = halting_server(2, Some(2));
+        let e = flash_record_gdb(&record(), &addr, None, None).unwrap_err();
+        assert!(matches!(&e, FlashError::Released(_)), "{e}");
+        let log = server.join().unwrap();
+        assert_eq!(log, ["?", "m1fff7590,c", "?", RESET, "D"], "{e}");
     }
 }

@@ -33,6 +33,12 @@ pub enum GdbError {
         /// What went wrong.
         what: String,
     },
+    /// The server closed the connection.
+    #[error("gdb server {addr}: connection closed")]
+    Closed {
+        /// The server's address.
+        addr: String,
+    },
 }
 
 impl Classify for GdbError {
@@ -91,8 +97,12 @@ impl GdbClient {
         stream.set_nodelay(true).map_err(io)?;
         let writer = stream.try_clone().map_err(io)?;
         let mut c = GdbClient { addr: addr.to_string(), reader: BufReader::new(stream), writer };
-        // Stop reason: also makes sure the target is halted and the server talks RSP.
-        c.request(b"?")?;
+        // Stop reason: also makes sure the target is halted and the server talks RSP. A server
+        // halts the target on connection: one that then fails is asked to let it run.
+        if let Err(e) = c.request(b"?") {
+            let _ = c.detach();
+            return Err(e);
+        }
         Ok(c)
     }
 
@@ -108,7 +118,7 @@ impl GdbClient {
         let mut b = [0u8];
         match self.reader.read(&mut b) {
             Ok(1) => Ok(b[0]),
-            Ok(_) => Err(self.protocol("connection closed")),
+            Ok(_) => Err(GdbError::Closed { addr: self.addr.clone() }),
             Err(e) => Err(self.io(e)),
         }
     }
@@ -225,7 +235,7 @@ impl GdbClient {
     pub fn detach(mut self) -> Result<(), GdbError> {
         // Some servers close the connection instead of answering OK; both are a detach.
         match self.request(b"D") {
-            Ok(_) | Err(GdbError::Protocol { .. }) => Ok(()),
+            Ok(_) | Err(GdbError::Protocol { .. } | GdbError::Closed { .. }) => Ok(()),
             Err(e) => Err(e),
         }
     }
