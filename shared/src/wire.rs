@@ -48,12 +48,16 @@ pub struct BlockTemp {
 /// Most sample sets one message carries (live samples, replay requests and answers).
 pub const MAX_BLOCK: usize = 16;
 
-/// Longest encoded frame of any message in this module, the terminating zero included.
-///
-/// The largest message is a block of [`MAX_BLOCK`] f32 triads: 1 (variant) + 5 (seq varint) +
-/// 1 (block variant) + 1 (length) + 16·12 bytes = 200 bytes, plus COBS overhead (1 byte per 254)
-/// and the terminator.
+/// Size of every frame buffer: at least the longest encoded frame of any message in this module,
+/// the terminating zero included ([`MAX_NODE_FRAME`], [`MAX_REQUEST_FRAME`]).
 pub const MAX_FRAME: usize = 256;
+
+/// Longest frame of any [`NodeMsg`]: [`NodeMsg::Samples`] with a block of [`MAX_BLOCK`] f32
+/// triads and its temperature, 1 (variant) + 5 (seq varint) + 5 (first varint) + 1 (block
+/// variant) + 1 (length) + 16·12 + 11 (`Some` [`BlockTemp`]) = 216 bytes, + 1 COBS + 1
+/// terminator (tested).
+pub const MAX_NODE_FRAME: usize = 218;
+const _: () = assert!(MAX_NODE_FRAME <= MAX_FRAME && MAX_REQUEST_FRAME <= MAX_FRAME);
 
 /// A raw 16-bit code set: channels x, y, z.
 pub type Codes = [u16; 3];
@@ -69,9 +73,9 @@ pub const RATE_MIN_HZ: u32 = 100;
 ///
 /// Two limits, both with margin: one ADC scan (a discarded conversion and three channels, each
 /// oversampled 16×, 247.5-cycle sampling at 80 MHz) takes 159 µs, so the ADC alone would allow
-/// 6.3 kHz; and a block of 16 calibrated sets is a frame of at most 202 bytes, so 4 kHz is
-/// 50.5 kB/s, 55 % of USART1 at 921600 baud (92.16 kB/s), leaving the rest for status reports
-/// and replay answers.
+/// 6.3 kHz; and a block of 16 calibrated sets is a frame of at most [`MAX_NODE_FRAME`] = 218
+/// bytes, so 4 kHz is 54.5 kB/s, 59 % of USART1 at 921600 baud (92.16 kB/s), leaving the rest for
+/// status reports and replay answers.
 pub const RATE_MAX_HZ: u32 = 4000;
 /// The live sampling rate the node starts with, Hz.
 pub const DEFAULT_RATE_HZ: u32 = 1000;
@@ -79,9 +83,10 @@ pub const DEFAULT_RATE_HZ: u32 = 1000;
 /// Size of the node's link receive ring, bytes (the real board's USART1 DMA ring).
 ///
 /// The link task stops reading the ring while it waits for room in its outbox (4 messages of at
-/// most 202 bytes, about 2.2 ms each at 921600 baud). With live sampling at [`RATE_MAX_HZ`]
-/// taking a slot every 4 ms, the wait is at most 3 transmissions, 6.6 ms, in which a host sending
-/// without pause delivers 608 bytes; 2048 bytes hold 22 ms of line time, 3.4× that. A host that
+/// most [`MAX_NODE_FRAME`] = 218 bytes, 2.37 ms each at 921600 baud). With live sampling at
+/// [`RATE_MAX_HZ`] taking a slot every 4 ms, the wait is at most 3 transmissions, 7.1 ms, in
+/// which a host sending without pause delivers 654 bytes; 2048 bytes hold 22 ms of line time,
+/// 3.1× that. A host that
 /// keeps to [`MAX_REQUESTS_IN_FLIGHT`] cannot overrun it however long the wait.
 pub const LINK_RX_RING: usize = 2048;
 
@@ -701,9 +706,10 @@ mod tests {
             output: Output::Calibrated,
         });
         let mut buf = [0u8; MAX_FRAME];
+        assert_eq!(encode(&big, &mut buf).unwrap().len(), MAX_NODE_FRAME, "the largest node message");
         for m in [st, big, info] {
             let frame = encode(&m, &mut buf).unwrap().to_vec();
-            assert!(frame.len() <= MAX_FRAME);
+            assert!(frame.len() <= MAX_NODE_FRAME);
             assert_eq!(decode_all::<NodeMsg>(&frame), vec![Ok(m)]);
         }
     }
