@@ -36,6 +36,16 @@ pub const ECCC: u32 = 1 << 30;
 /// `ECCD`, bit 31 (write 1 to clear).
 pub const ECCD: u32 = 1 << 31;
 
+/// The value to write to `FLASH_ECCR` before a record slot is read, from its value now: clears
+/// `ECCC` and `ECCD` (write 1 to clear) and keeps `ECCIE`. While either flag is set the flash does
+/// not update `ADDR_ECC`/`BK_ECC` for a new error (RM0351 §3.7.8, FLASH_ECCR; §3.3.2), so a
+/// single error corrected earlier (in the application's flash, say) would leave its address there,
+/// and a double error in the slot that follows would reach the NMI handler with the old address:
+/// not a slot, so a reset, at every boot. Cleared first, the register names the slot's own error.
+pub fn rearm(eccr: u32) -> u32 {
+    (eccr & ECCIE) | ECCC | ECCD
+}
+
 /// What the NMI handler must do.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum NmiAction {
@@ -94,6 +104,22 @@ mod tests {
         assert_eq!(nmi_action(0), NmiAction::Reset);
         // Bits above ADDR_ECC that are not fields do not move the address.
         assert_eq!(nmi_action(d2 | 1 << 22 | 0x7_F000), NmiAction::SlotUnreadable { slot: 0, clear: ECCD });
+    }
+
+    #[test]
+    fn rearming_clears_both_flags_and_keeps_the_interrupt_enable() {
+        assert_eq!(rearm(0), ECCC | ECCD);
+        assert_eq!(rearm(ECCIE), ECCIE | ECCC | ECCD);
+        // A corrected error latched in application flash (bank 1): its address is not kept.
+        assert_eq!(rearm(ECCC | ECCIE | 0x1_2340), ECCIE | ECCC | ECCD);
+        assert_eq!(rearm(u32::MAX), ECCIE | ECCC | ECCD);
+        // After the rearm, a double error in a slot is seen with the slot's own address.
+        let latched_elsewhere = ECCC | 0x0_0100; // bank 1, application flash
+        assert_eq!(nmi_action(latched_elsewhere | ECCD), NmiAction::Reset);
+        assert_eq!(
+            nmi_action(rearm(latched_elsewhere) & ECCIE | ECCD | BK_ECC | 0x7_F800),
+            NmiAction::SlotUnreadable { slot: 1, clear: ECCD }
+        );
     }
 
     #[test]

@@ -21,6 +21,7 @@ pub mod frontend;
 pub mod kinematics;
 pub mod linear;
 pub mod mcu_temp;
+pub mod overrun;
 pub mod record;
 pub mod slots;
 pub mod terms;

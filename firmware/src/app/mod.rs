@@ -9,3 +9,4 @@
 pub mod calib;
 pub mod node;
 pub mod ports;
+pub mod progress;

@@ -27,6 +27,7 @@ use heapless::Vec;
 
 use super::calib::{Applier, Calibration};
 use super::ports::{LinkRx, LinkTx, SampleClock, SampleSource};
+use super::progress::{self, SAMPLED, SENT};
 
 /// Messages waiting for the link transmitter.
 pub static OUTBOX: Channel<CriticalSectionRawMutex, NodeMsg, 4> = Channel::new();
@@ -254,6 +255,7 @@ pub async fn transmit(mut tx: impl LinkTx) -> ! {
             // Unreachable with the message sizes of `wire` (tested there); never send a partial frame.
             Err(e) => defmt::error!("frame encode failed: {}", e),
         }
+        progress::bump(&SENT);
     }
 }
 
@@ -278,7 +280,9 @@ pub async fn stream_samples(mut source: impl SampleSource, node: Node) -> ! {
     // The node's sample counter: the number of the next set the sampler produces.
     let mut next: u32 = 0;
     loop {
-        match source.read_block(&mut codes, &mut temp_c).await {
+        let block = source.read_block(&mut codes, &mut temp_c).await;
+        progress::bump(&SAMPLED);
+        match block {
             Ok(n) => {
                 let first = next;
                 next = next.wrapping_add(n as u32);

@@ -1,5 +1,6 @@
-//! The node firmware for the B-L475E-IOT01A board: initialise (the watchdog
-//! starts there), load the record, spawn; the executor's loop feeds the watchdog.
+//! The node firmware for the B-L475E-IOT01A board: start the watchdog,
+//! initialise, load the record, spawn; the executor's loop feeds the watchdog while the sampler
+//! and the link make progress.
 #![no_std]
 #![no_main]
 
@@ -7,7 +8,9 @@ use accelcal_node::{app, board, executor::Executor, tasks};
 
 #[cortex_m_rt::entry]
 fn main() -> ! {
-    let (board, watchdog) = board::init();
+    // The watchdog runs from here on: a hang in the board's bring-up or the record check resets.
+    let watchdog = board::start_watchdog();
+    let board = board::init();
     let (cal, record) = app::calib::load(&board.storage, board::TEMP_INPUTS);
     let device_id = app::ports::RecordStorage::device_id(&board.storage);
     let node = app::node::Node::new(cal, record, board.reset_cause, device_id, &board.clock);

@@ -43,9 +43,12 @@
 //! it; the application's shared tracker filters it. A part whose calibration values are not
 //! plausible reads NaN, which a thermal record flags as out of range.
 //!
-//! Watchdog: the IWDG with a 4 s timeout, fed by the executor's loop, frozen while a
-//! debugger halts the core (DBGMCU_APB1FZR1 DBG_IWDG_STOP) so that `accelcal
-//! flash`, which halts the core, is never interrupted by it. A panic or a hard fault logs over
+//! Watchdog: the IWDG with a 4 s timeout, started before anything else is brought up
+//! ([`start_watchdog`]) and fed by the executor's loop while the sampler and the link make
+//! progress; frozen while a debugger halts the core (DBGMCU_APB1FZR1 DBG_IWDG_STOP) so that
+//! `accelcal flash`, which halts the core, is never interrupted by it. TIM2 (embassy-time's
+//! driver, whose count of counter overflows needs its interrupt every 32.8 ms) and TIM6 (the ADC's
+//! trigger) are frozen with it, so that a halt stops the time and the sampling together. A panic or a hard fault logs over
 //! defmt and resets the MCU (`SCB::sys_reset`, reported as `ResetCause::Software` at the next
 //! boot); with the `debug-panic` feature, panic-probe halts instead, for a debugger.
 
@@ -60,12 +63,12 @@ use accelcal_shared::wire::{Codes, ResetCause, DEFAULT_RATE_HZ, LINK_RX_RING, MA
 use defmt_rtt as _;
 use embassy_stm32::adc::{Adc, AdcChannel, AdcConfig, RingBufferedAdc, SampleTime, CONTINUOUS};
 use embassy_stm32::pac::adc::vals::{Dmacfg, OversamplingRatio, OversamplingShift, Rovsm, Trovs};
+use embassy_stm32::pac::iwdg::vals::{Key, Pr};
 use embassy_stm32::pac::timer::vals::Mms;
-use embassy_stm32::peripherals::{ADC1, IWDG, TIM6};
+use embassy_stm32::peripherals::{ADC1, TIM6};
 use embassy_stm32::time::Hertz;
 use embassy_stm32::timer::low_level::{RoundTo, Timer};
 use embassy_stm32::usart::{self, RingBufferedUartRx, Uart, UartTx};
-use embassy_stm32::wdg::IndependentWatchdog;
 use embassy_stm32::{bind_interrupts, dma, mode::Async, pac, peripherals, rcc, Config};
 #[cfg(feature = "debug-panic")]
 use panic_probe as _;
@@ -75,10 +78,18 @@ use crate::app::ports::{LinkRx, LinkTx, Overrun, RecordStorage, SampleClock, Sam
 /// USART1 baud rate ([`BAUD_REAL`]): 4 kHz of calibrated triads in blocks of 16 is 50.5 kB/s of
 /// frames, 55 % of it.
 pub const BAUD: u32 = BAUD_REAL;
-/// Independent watchdog timeout, µs: 4× the longest legitimate iteration of the main loop (the
-/// 1 s status period, see `executor.rs`). embassy-stm32 assumes LSI = 32 kHz and picks prescaler
-/// 32, reload 3999; the STM32L475's LSI (29.5..=34 kHz in its datasheet) makes it 3.76..=4.34 s.
+/// Independent watchdog timeout, µs: 4× the longest legitimate interval between feeds (the 1 s
+/// status period, see `executor.rs`). [`IWDG_PR`] and [`IWDG_RELOAD`] give it at LSI = 32 kHz
+/// (the value embassy-stm32 0.6.0's `IndependentWatchdog::new` picks too, `src/wdg/mod.rs`); the
+/// STM32L475's LSI (29.5..=34 kHz in its datasheet) makes it 3.76..=4.34 s.
 pub const WATCHDOG_TIMEOUT_US: u32 = 4_000_000;
+/// IWDG_PR: LSI / 32, 1 kHz (RM0351 §32.4.2; stm32-metapac 21 `peripherals/iwdg_v2.rs`).
+const IWDG_PR: Pr = Pr::DIVIDE_BY32;
+/// IWDG_RLR: 4000 periods of 1 ms (RM0351 §32.4.3; the counter counts RL..=0).
+const IWDG_RELOAD: u16 = (WATCHDOG_TIMEOUT_US / 1000 - 1) as u16;
+/// Polls of IWDG_SR for the prescaler and reload updates (PVU, RVU: a few LSI periods after the
+/// LSI starts, ≈ 0.3 ms): more than 10 ms at the 4 MHz MSI clock of the core before `init`.
+const IWDG_UPDATE_POLLS: u32 = 20_000;
 /// Conversions per scan: the discarded one, then x, y, z.
 const N_SCAN: usize = 4;
 /// ADC1 channel of each rank of the scan: VREFINT (IN0, discarded), PC5 (IN14, x), PC4 (IN13, y),
@@ -119,6 +130,10 @@ pub struct Storage;
 impl RecordStorage for Storage {
     fn read_slot(&self, slot: u8, out: &mut [u8; SLOT_SIZE]) -> SlotRead {
         let bit = 1u8.checked_shl(slot as u32).unwrap_or(0);
+        // Re-arm FLASH_ECCR's address capture (ECCC and ECCD cleared, ECCIE kept), so that an
+        // error in this slot is reported with this slot's address (`flash_ecc::rearm`).
+        let eccr = pac::FLASH.eccr();
+        eccr.write_value(pac::flash::regs::Eccr(flash_ecc::rearm(eccr.read().0)));
         SLOT_ECC_FAULTS.fetch_and(!bit, Ordering::SeqCst);
         super::read_slot_with(slot, out, || SLOT_ECC_FAULTS.load(Ordering::SeqCst) & bit != 0)
     }
@@ -350,13 +365,42 @@ fn read_back_trigger(timer: &Timer<'static, TIM6>, rate_hz: u32) -> bool {
     ok
 }
 
-/// The independent watchdog.
-pub struct WatchdogImpl(IndependentWatchdog<'static, IWDG>);
+/// The independent watchdog, running ([`start_watchdog`]).
+pub struct WatchdogImpl(());
 
 impl Watchdog for WatchdogImpl {
     fn feed(&mut self) {
-        self.0.pet();
+        pac::IWDG.kr().write(|w| w.set_key(Key::RESET));
     }
+}
+
+/// Starts the independent watchdog with [`WATCHDOG_TIMEOUT_US`], before [`init`] (so that a
+/// hang in the clocks', the ADC's or the record's bring-up resets too), after freezing it, TIM2
+/// and TIM6 for a debugger's halts (DBGMCU_APB1FZR1 DBG_IWDG_STOP, DBG_TIM2_STOP,
+/// DBG_TIM6_STOP; stm32-metapac 21 `peripherals/dbgmcu_l4.rs`). The sequence is RM0351 §32.3
+/// "Software watchdog" with the window disabled, through stm32-metapac 21's
+/// `peripherals/iwdg_v2.rs` (KR 0x00, PR 0x04, RLR 0x08, SR 0x0C): start (KR = 0xCCCC, which
+/// also forces the LSI on, whatever RCC_CSR.LSION says), unlock (0x5555), PR, RLR, wait until SR
+/// shows both updates done (bounded), reload (0xAAAA). embassy-stm32's `IndependentWatchdog`
+/// needs the peripheral singleton that only `embassy_stm32::init` hands out, hence the registers.
+pub fn start_watchdog() -> WatchdogImpl {
+    pac::DBGMCU.apb1fzr1().modify(|w| {
+        w.set_iwdg(true);
+        w.set_tim2(true);
+        w.set_tim6(true);
+    });
+    let iwdg = pac::IWDG;
+    iwdg.kr().write(|w| w.set_key(Key::START));
+    iwdg.kr().write(|w| w.set_key(Key::ENABLE));
+    iwdg.pr().write(|w| w.set_pr(IWDG_PR));
+    iwdg.rlr().write(|w| w.set_rl(IWDG_RELOAD));
+    for _ in 0..IWDG_UPDATE_POLLS {
+        if iwdg.sr().read().0 == 0 {
+            break;
+        }
+    }
+    iwdg.kr().write(|w| w.set_key(Key::RESET));
+    WatchdogImpl(())
 }
 
 /// Reads the reset flags of RCC_CSR (RM0351 §6.4.29; stm32-metapac 21 `peripherals/rcc_l4.rs`,
@@ -423,8 +467,9 @@ fn clocks() -> Config {
     config
 }
 
-/// Brings up clocks, USART1, TIM6 and ADC1 with DMA, and starts the watchdog.
-pub fn init() -> (Board, WatchdogImpl) {
+/// Brings up clocks, USART1, TIM6 and ADC1 with DMA (the watchdog runs already:
+/// [`start_watchdog`]).
+pub fn init() -> Board {
     let reset_cause = take_reset_cause();
     let p = embassy_stm32::init(clocks());
 
@@ -499,20 +544,14 @@ pub fn init() -> (Board, WatchdogImpl) {
     // Starts TIM6 (the app reads the trigger configuration back when it builds the node).
     clock.set_rate(DEFAULT_RATE_HZ);
 
-    // A debugger halting the core (as `accelcal flash` does) freezes the watchdog.
-    pac::DBGMCU.apb1fzr1().modify(|w| w.set_iwdg(true));
-    let mut watchdog = IndependentWatchdog::new(p.IWDG, WATCHDOG_TIMEOUT_US);
-    watchdog.unleash();
-
-    let board = Board {
+    Board {
         rx: LinkRxImpl(rx),
         tx: LinkTxImpl(tx),
         storage: Storage,
         source: SourceImpl { adc, temp: McuTemp { cal, last_c: first_c } },
         clock,
         reset_cause,
-    };
-    (board, WatchdogImpl(watchdog))
+    }
 }
 
 /// Record slots in which a double ECC error was reported (bit n: slot n), set by the NMI handler.
