@@ -140,14 +140,18 @@ fn every_bad_record_is_refused_before_any_device_is_needed() {
     }
 }
 
-/// Writes a campaign from `(alpha, beta, samples)` dwells with codes near mid-scale.
+/// Writes a campaign from `(alpha, beta, samples)` dwells: channels x, y, z read
+/// `30000 + 200·a` codes for the acceleration `a` (m/s²) along their own axis (within the signed
+/// and the unsigned 16-bit ranges), plus a within-dwell
+/// step of one code per sample (a sensor with nothing else, so that `select` has a model to find).
 fn campaign(path: &Path, dwells: &[(f64, f64, usize)]) {
     let mut s = String::from("t_s,alpha_deg,beta_deg,x,y,z\n");
     let mut t = 0.0;
-    for (i, &(a, b, n)) in dwells.iter().enumerate() {
-        for k in 0..n {
-            let code = 30000 + 100 * i + k;
-            s += &format!("{t},{a},{b},{code},{},{}\n", code + 1, code + 2);
+    for &(a, b, n) in dwells {
+        let acc = accelcal_shared::gravity(a, b, 9.81);
+        let [x, y, z] = acc.map(|v| 30000 + (200.0 * v).round() as i64);
+        for k in 0..n as i64 {
+            s += &format!("{t},{a},{b},{},{},{}\n", x + k, y + k, z + k);
             t += 0.1;
         }
     }
@@ -169,11 +173,19 @@ fn too_few_positions_are_refused_naming_the_file() {
         )),
         "{e}"
     );
-    // select ranks what the plan identifies and marks the rest.
-    let sel = accelcal(&["select", c, "--channels", "x"]);
-    assert!(sel.status.success());
-    assert!(String::from_utf8_lossy(&sel.stdout)
-        .contains("1,ax,ay,az                                     unidentif."));
+    // select refuses to pick a model without `ax` because the split leaves 2 positions to fit
+    // 1,ax,az on (issue 22), and leave-one-out has too few positions too.
+    let e = bad(&["select", c, "--channels", "x", "--json", j]);
+    assert!(
+        e.contains(&format!(
+            "{c}: channel x: --split alternate leaves part A 2 of the 3 positions, too few to identify \
+             1,ax,az (3 terms: at least 3 positions in A, a campaign of at least 5 with this split), so \
+             the selection 1,az would drop its own axis term `ax`: use --criterion loo"
+        )),
+        "{e}"
+    );
+    let e = bad(&["select", c, "--channels", "x", "--criterion", "loo", "--json", j]);
+    assert!(e.contains("leaving one of the 3 positions out leaves too few"), "{e}");
     for cmd in ["compare", "diagnose"] {
         let e = bad(&[cmd, c, "--json", j]);
         assert!(e.contains(c), "{cmd}: {e}");

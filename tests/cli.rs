@@ -287,6 +287,40 @@ fn select_reports_table_1_and_json() {
     assert!(e.contains("no channel `w`"), "{e}");
 }
 
+/// Issue 22, item 2: on the six test-turn positions the alternate split leaves 3 positions to fit
+/// on, too few for model 4, so the regularity criterion can only rank models without one of the
+/// axes. `select` refuses that (nothing written) and points to the leave-one-out criterion, which
+/// picks model 4 on every channel.
+#[test]
+fn select_on_six_positions_refuses_the_split_and_leave_one_out_picks_model_4() {
+    let d = Dir::new();
+    let c =
+        simulate(&d, "six.csv", &["--plan", "six", "--samples", "100", "--seed", "5", "--codes", "signed16"]);
+    let j = d.s("sel.json");
+    let e = bad(&["select", &c, "--json", &j, "--plot", &d.s("plots")]);
+    assert!(
+        e.contains(&format!(
+            "{c}: channel x: --split alternate leaves part A 3 of the 6 positions, too few to identify \
+             1,ax,ay,az (4 terms: at least 4 positions in A, a campaign of at least 7 with this split)"
+        )) && e.contains("--criterion loo"),
+        "{e}"
+    );
+    assert!(!d.p("sel.json").exists() && !d.p("plots").exists());
+    let out = ok(&["select", &c, "--criterion", "loo", "--json", &j]);
+    assert!(out.contains("leave-one-out criterion"), "{out}");
+    let sel = json(&d.p("sel.json"));
+    assert_eq!(sel["criterion"], "loo");
+    assert!(sel["split"].is_null(), "{sel}");
+    for ch in sel["channels"].as_array().unwrap() {
+        assert_eq!(ch["selected"]["terms"], serde_json::json!(["1", "ax", "ay", "az"]), "{ch}");
+        // Model 4 on six positions: three times the dwell-mean residual, a few codes, not thousands.
+        assert!(ch["selected"]["criterion"].as_f64().unwrap() < 50.0, "{ch}");
+    }
+    // The exhaustive bases work with it too.
+    let out = ok(&["select", &c, "--criterion", "loo", "--basis", "cubic", "--channels", "z"]);
+    assert!(out.contains("1,ax,ay,az ") && out.contains("<- selected"), "{out}");
+}
+
 #[test]
 fn fit_lsq_and_test_turns_write_json_and_record() {
     let d = Dir::new();
@@ -800,6 +834,7 @@ const REFUSED: &[(&str, &str)] = &[
     ("select C --width 4", "--width does not apply to select --algorithm combi"),
     ("select C --top 3", "--top does not apply to select without --json"),
     ("select C --json C", "--json C is the input CAMPAIGN"),
+    ("select C --criterion loo --split halves", "--split does not apply to select --criterion loo"),
     ("diagnose C --json C", "--json C is the input CAMPAIGN"),
     ("simulate --out a.csv --truth a.csv", "--out and --truth name the same path"),
     ("simulate --out a.csv --json a.csv", "--out and --json name the same path"),
@@ -828,6 +863,7 @@ const ACCEPTED: &[(&str, &[&str])] = &[
     ),
     ("select C --algorithm multi --width 4 --basis quadratic", &[]),
     ("select C --json s.json --top 3", &["s.json"]),
+    ("select C --criterion loo --basis linear --json l.json", &["l.json"]),
     ("compare C --validate V --json c.json", &["c.json"]),
     ("diagnose C --json dj.json", &["dj.json"]),
     ("simulate --out a.csv --truth b.json --json a.json --samples 2", &["a.csv", "b.json", "a.json"]),

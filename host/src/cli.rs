@@ -295,7 +295,8 @@ pub struct SelectArgs {
     /// Candidate models.
     #[arg(long, value_enum, default_value_t = BasisArg::Paper)]
     pub basis: BasisArg,
-    /// External criterion, reported as an RMS in ADC codes.
+    /// External criterion, reported as an RMS in ADC codes of the dwell means' residuals (each
+    /// position weighted by its samples).
     #[arg(long, value_enum, default_value_t = CriterionArg::Regularity)]
     pub criterion: CriterionArg,
     /// Division of the positions into A (fitting) and B (checking): `alternate`, `halves`, or
@@ -352,6 +353,10 @@ pub enum CriterionArg {
     Symmetric,
     /// Residual on A∪B of the model fitted on A∪B.
     Rss,
+    /// Leave-one-out (PRESS): each position's dwell mean against the model fitted on all the
+    /// other positions, no split (so --split does not apply); for campaigns that a split leaves
+    /// too few positions to fit on, such as the six test-turn positions.
+    Loo,
 }
 
 impl From<CriterionArg> for Criterion {
@@ -360,6 +365,7 @@ impl From<CriterionArg> for Criterion {
             CriterionArg::Regularity => Criterion::Regularity,
             CriterionArg::Symmetric => Criterion::Symmetric,
             CriterionArg::Rss => Criterion::Rss,
+            CriterionArg::Loo => Criterion::Loo,
         }
     }
 }

@@ -17,7 +17,7 @@ use accelcal_core::error::bad;
 use clap::parser::ValueSource;
 use clap::ArgMatches;
 
-use crate::cli::{Algorithm, Command, FitArgs, LocalGravity, MethodArg, RecordCommand};
+use crate::cli::{Algorithm, Command, CriterionArg, FitArgs, LocalGravity, MethodArg, RecordCommand};
 
 /// The options the user gave explicitly on the command line for one subcommand.
 pub struct Given<'a>(&'a ArgMatches);
@@ -121,6 +121,13 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
                     &["width"],
                     "select --algorithm combi",
                     " (it sets the beam of --algorithm multi)",
+                )?;
+            }
+            if a.criterion == CriterionArg::Loo {
+                given.refuse(
+                    &["split"],
+                    "select --criterion loo",
+                    " (leave-one-out fits on all the positions but one: there is no split)",
                 )?;
             }
             if a.common.json.is_none() {

@@ -29,9 +29,15 @@
 //! columns: that candidate and its whole subtree are rank deficient and are recorded as such
 //! without being visited. This is the same test, on the same number, as a Cholesky pivot.
 //!
+//! Leave-one-out needs each position's residual and leverage, not sums: its kernel
+//! ([`loo`]) keeps residual vectors over the positions instead of Gram matrices, with the same
+//! depth-first walk, pivot test and pruning, at O(n) per updated column for n positions.
+//!
 //! Work is split into tasks that each fix which of the highest-index terms are present; the
 //! candidates of one task form a contiguous block of the result vector, so tasks write without
 //! locks. A task allocates its per-depth state once; nothing is allocated per candidate.
+
+mod loo;
 
 use accelcal_shared::N_BASIS;
 
@@ -52,6 +58,8 @@ pub enum Kind {
     Symmetric,
     /// Error on A∪B of the fit on A∪B.
     Rss,
+    /// Leave-one-out (PRESS) over A∪B: each position predicted by the fit on all the others.
+    Loo,
 }
 
 /// Sufficient statistics of one part over `m` scaled columns.
@@ -94,6 +102,27 @@ impl Stats {
     }
 }
 
+/// Whether the columns `cols` are identifiable from the statistics `st`: the engine's pivot test
+/// (each column's pivot above [`PIVOT_TOL`] of its diagonal), by elimination of their Gram matrix
+/// in the order given.
+pub fn identifiable(st: &Stats, m: usize, cols: &[usize]) -> bool {
+    let k = cols.len();
+    let mut g: Vec<f64> = (0..k * k).map(|i| st.gram[cols[i / k] * m + cols[i % k]]).collect();
+    for j in 0..k {
+        let pivot = g[j * k + j];
+        if !(pivot > PIVOT_TOL * st.gram[cols[j] * m + cols[j]]) {
+            return false;
+        }
+        for u in j + 1..k {
+            let c = g[u * k + j] / pivot;
+            for v in j + 1..k {
+                g[u * k + v] -= c * g[j * k + v];
+            }
+        }
+    }
+    true
+}
+
 /// The statistics a run needs.
 pub struct Problem {
     /// Number of columns (column 0 is the intercept).
@@ -106,6 +135,19 @@ pub struct Problem {
     pub ab: Stats,
     /// Criterion.
     pub kind: Kind,
+    /// The rows of A∪B (leave-one-out needs each position's residual and leverage).
+    pub rows: Rows,
+}
+
+/// The scaled rows of every position: what [`Stats`] sums.
+#[derive(Clone, Debug, Default)]
+pub struct Rows {
+    /// Regressors, row-major `n × m`.
+    pub z: Vec<f64>,
+    /// Responses.
+    pub y: Vec<f64>,
+    /// Weights (the positions' rows).
+    pub w: Vec<f64>,
 }
 
 /// Stride of the state matrices: room for every basis column and the response.
@@ -183,32 +225,41 @@ fn sweep<const FULL: bool>(
 }
 
 /// What a criterion keeps per node and how it scores one.
-trait Kernel<const NM: usize> {
+trait Kernel {
+    /// The state of one node.
+    type Node: Clone + Send + Sync;
+    /// The root node (the empty model) of `p` in `layout`.
+    fn root(p: &Problem, layout: &Layout) -> Self::Node;
     /// Adds the column at state index `s` to `par`, writing the child over `lo..=hi`.
     fn extend<const FULL: bool>(
         p: &Setup,
-        par: &Node<NM>,
-        ch: &mut Node<NM>,
+        par: &Self::Node,
+        ch: &mut Self::Node,
         s: usize,
         lo: usize,
         hi: usize,
     ) -> bool;
     /// The criterion of a node; `y` is the response's state index.
-    fn score(p: &Setup, n: &Node<NM>, y: usize) -> f64;
+    fn score(p: &Setup, n: &Self::Node, y: usize) -> f64;
 }
 
-/// The fixed data of a run in state indices: the columns' own diagonals (for the pivot test) and
-/// the parts' row counts.
+/// The fixed data of a run in state indices: the columns' own diagonals (for the pivot test), the
+/// parts' row counts and, for leave-one-out, the positions' weights.
 struct Setup {
     diag: [[f64; S]; 2],
     rows: [f64; 3],
+    w: Vec<f64>,
 }
 
 struct Regularity;
 struct Symmetric;
 struct Rss;
 
-impl Kernel<2> for Regularity {
+impl Kernel for Regularity {
+    type Node = Node<2>;
+    fn root(p: &Problem, layout: &Layout) -> Node<2> {
+        Node { m: [root_mat(&p.a, p.m, layout), root_mat(&p.b, p.m, layout)] }
+    }
     #[inline(always)]
     fn extend<const FULL: bool>(
         p: &Setup,
@@ -227,7 +278,12 @@ impl Kernel<2> for Regularity {
     }
 }
 
-impl Kernel<4> for Symmetric {
+impl Kernel for Symmetric {
+    type Node = Node<4>;
+    fn root(p: &Problem, layout: &Layout) -> Node<4> {
+        let (a, b) = (root_mat(&p.a, p.m, layout), root_mat(&p.b, p.m, layout));
+        Node { m: [a, b, b, a] }
+    }
     #[inline(always)]
     fn extend<const FULL: bool>(
         p: &Setup,
@@ -247,7 +303,11 @@ impl Kernel<4> for Symmetric {
     }
 }
 
-impl Kernel<1> for Rss {
+impl Kernel for Rss {
+    type Node = Node<1>;
+    fn root(p: &Problem, layout: &Layout) -> Node<1> {
+        Node { m: [root_mat(&p.ab, p.m, layout)] }
+    }
     #[inline(always)]
     fn extend<const FULL: bool>(
         p: &Setup,
@@ -317,33 +377,25 @@ fn root_mat(st: &Stats, m: usize, layout: &Layout) -> Mat {
 }
 
 /// Per-task working state: one node per depth (number of columns).
-struct Walker<'p, const NM: usize> {
+struct Walker<'p, K: Kernel> {
     setup: &'p Setup,
-    nodes: Vec<Node<NM>>,
+    nodes: Vec<K::Node>,
     y: usize,
     max_terms: usize,
 }
 
-impl<const NM: usize> Walker<'_, NM> {
+impl<K: Kernel> Walker<'_, K> {
     /// Adds column state index `s` to the node at depth `k` as the node at depth `k + 1`, written
     /// over the state indices `lo..=hi`.
     #[inline(always)]
-    fn step<K: Kernel<NM>, const FULL: bool>(&mut self, k: usize, s: usize, lo: usize, hi: usize) -> bool {
+    fn step<const FULL: bool>(&mut self, k: usize, s: usize, lo: usize, hi: usize) -> bool {
         let (done, rest) = self.nodes.split_at_mut(k + 1);
         K::extend::<FULL>(self.setup, &done[k], &mut rest[0], s, lo, hi)
     }
 
     /// Scores the node at depth `k` whose result index is `n`, then its children: columns
     /// `from..to` (column c ↔ bit c−1 of the index; here state index = column).
-    fn walk<K: Kernel<NM>>(
-        &mut self,
-        k: usize,
-        n: usize,
-        from: usize,
-        to: usize,
-        out: &mut [f64],
-        base: usize,
-    ) {
+    fn walk(&mut self, k: usize, n: usize, from: usize, to: usize, out: &mut [f64], base: usize) {
         out[n - base] = K::score(self.setup, &self.nodes[k], self.y);
         if k == self.max_terms {
             return;
@@ -352,13 +404,13 @@ impl<const NM: usize> Walker<'_, NM> {
             let child = n | 1 << (j - 1);
             if j + 1 == to || k + 1 == self.max_terms {
                 // A leaf needs only its own `(y, y)` entry, and no recursion.
-                out[child - base] = if self.step::<K, false>(k, j, self.y, self.y) {
+                out[child - base] = if self.step::<false>(k, j, self.y, self.y) {
                     K::score(self.setup, &self.nodes[k + 1], self.y)
                 } else {
                     f64::NAN
                 };
-            } else if self.step::<K, false>(k, j, j + 1, self.y) {
-                self.walk::<K>(k + 1, child, j + 1, to, out, base);
+            } else if self.step::<false>(k, j, j + 1, self.y) {
+                self.walk(k + 1, child, j + 1, to, out, base);
             } else {
                 // The child and every superset of it in this subtree are rank deficient.
                 mark_subtree(out, base, child, j + 1, to, k + 1, self.max_terms);
@@ -384,9 +436,9 @@ fn mark_subtree(out: &mut [f64], base: usize, n: usize, from: usize, to: usize, 
 }
 
 /// The setup and root node of a problem in `layout`.
-fn prepare<const NM: usize>(p: &Problem, layout: &Layout) -> (Setup, Node<NM>) {
+fn prepare<K: Kernel>(p: &Problem, layout: &Layout) -> (Setup, K::Node) {
     let (fit, fit_b): (&Stats, &Stats) = match p.kind {
-        Kind::Rss => (&p.ab, &p.ab),
+        Kind::Rss | Kind::Loo => (&p.ab, &p.ab),
         _ => (&p.a, &p.b),
     };
     let mut diag = [[0.0; S]; 2];
@@ -396,18 +448,8 @@ fn prepare<const NM: usize>(p: &Problem, layout: &Layout) -> (Setup, Node<NM>) {
             diag[1][i] = fit_b.gram[c * p.m + c];
         }
     }
-    let mats: Vec<Mat> = match p.kind {
-        Kind::Regularity => vec![root_mat(&p.a, p.m, layout), root_mat(&p.b, p.m, layout)],
-        Kind::Symmetric => vec![
-            root_mat(&p.a, p.m, layout),
-            root_mat(&p.b, p.m, layout),
-            root_mat(&p.b, p.m, layout),
-            root_mat(&p.a, p.m, layout),
-        ],
-        Kind::Rss => vec![root_mat(&p.ab, p.m, layout)],
-    };
-    let m: [Mat; NM] = mats.try_into().unwrap_or_else(|_| unreachable!("kind and NM agree"));
-    (Setup { diag, rows: [p.a.rows, p.b.rows, p.ab.rows] }, Node { m })
+    let w = if p.kind == Kind::Loo { p.rows.w.clone() } else { Vec::new() };
+    (Setup { diag, rows: [p.a.rows, p.b.rows, p.ab.rows], w }, K::root(p, layout))
 }
 
 /// Scores every subset of columns `1..m` (each with column 0, the intercept) with at most
@@ -416,17 +458,14 @@ fn prepare<const NM: usize>(p: &Problem, layout: &Layout) -> (Setup, Node<NM>) {
 /// `progress` receives counts of finished candidates.
 pub fn exhaustive(p: &Problem, max_terms: usize, progress: &(dyn Fn(u64) + Sync)) -> Vec<f64> {
     match p.kind {
-        Kind::Regularity => exhaustive_with::<2, Regularity>(p, max_terms, progress),
-        Kind::Symmetric => exhaustive_with::<4, Symmetric>(p, max_terms, progress),
-        Kind::Rss => exhaustive_with::<1, Rss>(p, max_terms, progress),
+        Kind::Regularity => exhaustive_with::<Regularity>(p, max_terms, progress),
+        Kind::Symmetric => exhaustive_with::<Symmetric>(p, max_terms, progress),
+        Kind::Rss => exhaustive_with::<Rss>(p, max_terms, progress),
+        Kind::Loo => exhaustive_with::<loo::Loo>(p, max_terms, progress),
     }
 }
 
-fn exhaustive_with<const NM: usize, K: Kernel<NM>>(
-    p: &Problem,
-    max_terms: usize,
-    progress: &(dyn Fn(u64) + Sync),
-) -> Vec<f64> {
+fn exhaustive_with<K: Kernel>(p: &Problem, max_terms: usize, progress: &(dyn Fn(u64) + Sync)) -> Vec<f64> {
     use rayon::prelude::*;
     let nb = p.m - 1;
     let total = 1usize << nb;
@@ -434,20 +473,20 @@ fn exhaustive_with<const NM: usize, K: Kernel<NM>>(
     let low = nb - q;
     let block = 1usize << low;
     let layout = Layout::new(p.m, low);
-    let (setup, root) = prepare::<NM>(p, &layout);
+    let (setup, root) = prepare::<K>(p, &layout);
     let mut out = vec![EXCLUDED; total];
-    let walker = || Walker { setup: &setup, nodes: vec![root.clone(); p.m + 1], y: layout.y, max_terms };
+    let walker = || Walker::<K> { setup: &setup, nodes: vec![root.clone(); p.m + 1], y: layout.y, max_terms };
     out.par_chunks_mut(block).enumerate().for_each_init(walker, |w, (t, chunk)| {
         let base = t << low;
         // The task's fixed columns: the intercept and the high columns chosen by t.
         let size = 1 + (base >> low).count_ones() as usize;
         if size <= max_terms {
-            w.nodes[0] = root.clone();
+            w.nodes[0].clone_from(&root);
             let fixed =
                 std::iter::once(0).chain((low..nb).filter(|bit| base & (1 << bit) != 0).map(|bit| bit + 1));
             // The prefix keeps every state index, both triangles (its columns come in any order).
-            if fixed.enumerate().all(|(k, c)| w.step::<K, true>(k, layout.index(c), 0, layout.n - 1)) {
-                w.walk::<K>(size, base, 1, low + 1, chunk, base);
+            if fixed.enumerate().all(|(k, c)| w.step::<true>(k, layout.index(c), 0, layout.n - 1)) {
+                w.walk(size, base, 1, low + 1, chunk, base);
             } else {
                 mark_subtree(chunk, base, base, 1, low + 1, size, max_terms);
             }
@@ -460,22 +499,23 @@ fn exhaustive_with<const NM: usize, K: Kernel<NM>>(
 /// Scores a given list of subsets (column lists, each starting with column 0).
 pub fn listed(p: &Problem, subsets: &[Vec<usize>]) -> Vec<f64> {
     match p.kind {
-        Kind::Regularity => listed_with::<2, Regularity>(p, subsets),
-        Kind::Symmetric => listed_with::<4, Symmetric>(p, subsets),
-        Kind::Rss => listed_with::<1, Rss>(p, subsets),
+        Kind::Regularity => listed_with::<Regularity>(p, subsets),
+        Kind::Symmetric => listed_with::<Symmetric>(p, subsets),
+        Kind::Rss => listed_with::<Rss>(p, subsets),
+        Kind::Loo => listed_with::<loo::Loo>(p, subsets),
     }
 }
 
-fn listed_with<const NM: usize, K: Kernel<NM>>(p: &Problem, subsets: &[Vec<usize>]) -> Vec<f64> {
+fn listed_with<K: Kernel>(p: &Problem, subsets: &[Vec<usize>]) -> Vec<f64> {
     let layout = Layout::new(p.m, p.m - 1);
-    let (setup, root) = prepare::<NM>(p, &layout);
-    let mut w = Walker { setup: &setup, nodes: vec![root.clone(); 2], y: layout.y, max_terms: N_BASIS };
+    let (setup, root) = prepare::<K>(p, &layout);
+    let mut w = Walker::<K> { setup: &setup, nodes: vec![root.clone(); 2], y: layout.y, max_terms: N_BASIS };
     subsets
         .iter()
         .map(|cols| {
-            w.nodes[0] = root.clone();
+            w.nodes[0].clone_from(&root);
             for &c in cols {
-                if !w.step::<K, true>(0, layout.index(c), 0, layout.n - 1) {
+                if !w.step::<true>(0, layout.index(c), 0, layout.n - 1) {
                     return f64::NAN;
                 }
                 w.nodes.swap(0, 1);

@@ -8,13 +8,21 @@
 //!
 //! - regularity `Δ(B|A)`: error on B of the model fitted on A;
 //! - symmetric `d`: error on B of the A-fit together with error on A of the B-fit, over A∪B;
-//! - rss: error on A∪B of the model fitted on A∪B.
+//! - rss: error on A∪B of the model fitted on A∪B;
+//! - loo (leave-one-out, PRESS): error at each position of the model fitted on all the others,
+//!   over A∪B; no split, so it works where a split leaves too few positions to fit on (the six
+//!   test-turn positions identify model 4, three of them do not).
+//!
+//! [`guard`] refuses a selection that drops an axis term only because the criterion cannot
+//! identify the model with it (a split's fitting part too small), or that drops the channel's own
+//! axis: such a model is the worst kind, not the best.
 //!
 //! [`engine`] scores candidates from sufficient statistics (cost independent of the number of
 //! samples); a rank-deficient candidate is reported as not identifiable, never ranked.
 //! [`reference`] computes the same criteria the slow way (QR on the rows) for the tests.
 
 pub mod engine;
+pub mod guard;
 pub mod multi;
 pub mod reference;
 
@@ -38,6 +46,20 @@ pub enum Criterion {
     Symmetric,
     /// Residual on A∪B of the model fitted on A∪B.
     Rss,
+    /// Leave-one-out: the residual at each position of the model fitted on all the others.
+    Loo,
+}
+
+impl Criterion {
+    /// Its name in tables.
+    pub fn name(self) -> &'static str {
+        match self {
+            Criterion::Regularity => "regularity",
+            Criterion::Symmetric => "symmetric",
+            Criterion::Rss => "rss",
+            Criterion::Loo => "leave-one-out",
+        }
+    }
 }
 
 /// How the positions are divided into the fitting part A and the checking part B.
@@ -162,6 +184,53 @@ pub enum GmdhError {
     /// No candidate is identifiable on this plan and split.
     #[error("no candidate model is identifiable on this plan and split")]
     NothingIdentifiable,
+    /// The selection lacks axis terms only because the criterion cannot identify the model with
+    /// them, although all the positions do ([`guard`]).
+    #[error("channel {channel}: {why}, so the selection {selected} would drop {dropped}: {remedy}")]
+    Blind {
+        /// Channel name.
+        channel: String,
+        /// Where the criterion cannot identify which model.
+        why: String,
+        /// The selection.
+        selected: Structure,
+        /// The axis terms it lacks, in words ("its own axis term `ax`", "the axis terms …").
+        dropped: String,
+        /// What to do instead.
+        remedy: String,
+    },
+    /// No position varies the channel's own axis.
+    #[error(
+        "channel {channel}: no position varies `{term}`, its own axis ({how}): the plan cannot calibrate it"
+    )]
+    OwnAxisConstant {
+        /// Channel name.
+        channel: String,
+        /// The own axis term.
+        term: String,
+        /// How the own axis is known.
+        how: &'static str,
+    },
+    /// The criterion drops the channel's own axis although the plan identifies it.
+    #[error(
+        "channel {channel}: the selection {selected} drops `{term}`, its own axis ({how}), although the \
+         plan identifies it: the channel does not respond along its axis beyond the tolerance ({criterion} \
+         codes with it, best {best})"
+    )]
+    OwnAxisDropped {
+        /// Channel name.
+        channel: String,
+        /// The selection.
+        selected: Structure,
+        /// The own axis term.
+        term: String,
+        /// How the own axis is known.
+        how: &'static str,
+        /// Criterion of the selection with the own axis term, codes (2 decimals).
+        criterion: String,
+        /// Best criterion, codes (2 decimals).
+        best: String,
+    },
     /// The refit of the selected model failed.
     #[error(transparent)]
     Refit(#[from] lsq::LsqError),
@@ -229,6 +298,10 @@ pub struct Prepared {
     pub cols: Vec<usize>,
     /// Statistics for the engine.
     pub problem: engine::Problem,
+    /// Positions in A and in B.
+    pub parts: [usize; 2],
+    /// What it was prepared for.
+    pub settings: Settings,
 }
 
 impl Prepared {
@@ -238,11 +311,16 @@ impl Prepared {
         if settings.basis.is_thermal() && pos.temp_c.is_none() {
             return Err(GmdhError::NoTemperature);
         }
-        let (ia, ib) = settings.split.parts_of(pos)?;
+        let all: Vec<usize> = (0..n).collect();
+        // Leave-one-out fits on all positions but one: no split.
+        let (ia, ib) = match settings.criterion {
+            Criterion::Loo => (all.clone(), Vec::new()),
+            _ => settings.split.parts_of(pos)?,
+        };
         if ia.is_empty() {
             return Err(GmdhError::EmptyPart('A', n));
         }
-        if ib.is_empty() {
+        if ib.is_empty() && settings.criterion != Criterion::Loo {
             return Err(GmdhError::EmptyPart('B', n));
         }
         let cols: Vec<usize> = settings.basis.full().indices().collect();
@@ -265,11 +343,11 @@ impl Prepared {
         }
         let ymean = (0..n).map(|p| pos.weight[p] * ch.mean[p]).sum::<f64>() / wsum;
         let y: Vec<f64> = ch.mean.iter().map(|v| v - ymean).collect();
-        let all: Vec<usize> = (0..n).collect();
         let kind = match settings.criterion {
             Criterion::Regularity => engine::Kind::Regularity,
             Criterion::Symmetric => engine::Kind::Symmetric,
             Criterion::Rss => engine::Kind::Rss,
+            Criterion::Loo => engine::Kind::Loo,
         };
         let problem = engine::Problem {
             m,
@@ -277,8 +355,14 @@ impl Prepared {
             b: engine::Stats::new(&z, m, &y, &pos.weight, &ib),
             ab: engine::Stats::new(&z, m, &y, &pos.weight, &all),
             kind,
+            rows: engine::Rows { z, y, w: pos.weight.clone() },
         };
-        Ok(Prepared { cols, problem })
+        Ok(Prepared { cols, problem, parts: [ia.len(), ib.len()], settings: *settings })
+    }
+
+    /// The columns of the terms of `s`, which lie in the basis, in order (column 0 first).
+    pub fn columns(&self, s: Structure) -> Vec<usize> {
+        s.indices().map(|bi| self.cols.iter().position(|&c| c == bi).expect("term in the basis")).collect()
     }
 
     /// Scores every candidate of the basis with at most `max_terms` terms, in enumeration order.
@@ -288,14 +372,7 @@ impl Prepared {
             Basis::Paper => {
                 let models: Vec<Structure> =
                     PAPER_MODELS.iter().copied().filter(|s| s.len() <= max_terms).collect();
-                let lists: Vec<Vec<usize>> = models
-                    .iter()
-                    .map(|s| {
-                        s.indices()
-                            .map(|bi| self.cols.iter().position(|&c| c == bi).expect("in basis"))
-                            .collect()
-                    })
-                    .collect();
+                let lists: Vec<Vec<usize>> = models.iter().map(|&s| self.columns(s)).collect();
                 let v = engine::listed(&self.problem, &lists);
                 progress(models.len() as u64);
                 models
@@ -360,6 +437,7 @@ pub fn select(
     let candidates = prepared.score(settings.basis, settings.max_terms, progress);
     let search_seconds = t0.elapsed().as_secs_f64();
     let (selected, best) = choose(&candidates, settings.tolerance).ok_or(GmdhError::NothingIdentifiable)?;
+    guard::check(&prepared, pos, ch, candidates[selected].structure)?;
     let fit = lsq::fit(pos, ch, candidates[selected].structure, None)?;
     Ok(Selection { channel: ch.name.clone(), candidates, selected, best, fit, search_seconds })
 }

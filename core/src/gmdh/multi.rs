@@ -24,12 +24,11 @@ pub fn select(
 ) -> Result<Selection, GmdhError> {
     let t0 = std::time::Instant::now();
     let prep = Prepared::new(pos, ch, settings)?;
-    let col = |bi: usize| prep.cols.iter().position(|&c| c == bi).expect("term in the basis");
     let score = |models: &[Structure]| -> Vec<Candidate> {
         let v: Vec<f64> = models
             .par_chunks(64)
             .flat_map_iter(|chunk| {
-                let lists: Vec<Vec<usize>> = chunk.iter().map(|s| s.indices().map(col).collect()).collect();
+                let lists: Vec<Vec<usize>> = chunk.iter().map(|&s| prep.columns(s)).collect();
                 engine::listed(&prep.problem, &lists)
             })
             .collect();
@@ -73,6 +72,7 @@ pub fn select(
     }
     let search_seconds = t0.elapsed().as_secs_f64();
     let (selected, best) = choose(&candidates, settings.tolerance).ok_or(GmdhError::NothingIdentifiable)?;
+    super::guard::check(&prep, pos, ch, candidates[selected].structure)?;
     let fit = lsq::fit(pos, ch, candidates[selected].structure, None)?;
     Ok(Selection { channel: ch.name.clone(), candidates, selected, best, fit, search_seconds })
 }

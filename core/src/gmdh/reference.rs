@@ -47,7 +47,10 @@ fn sse(pos: &Positions, ch: &ChannelStats, s: Structure, beta: &[f64], idx: &[us
 
 /// The criterion of structure `s`, or `None` when it is not identifiable where it is fitted.
 pub fn criterion(pos: &Positions, ch: &ChannelStats, s: Structure, settings: &Settings) -> Option<f64> {
-    let (a, b) = settings.split.parts_of(pos).expect("split of the positions");
+    let (a, b) = match settings.criterion {
+        Criterion::Loo => (Vec::new(), Vec::new()),
+        _ => settings.split.parts_of(pos).expect("split of the positions"),
+    };
     let all: Vec<usize> = (0..pos.len()).collect();
     let rows = |idx: &[usize]| idx.iter().map(|&p| pos.weight[p]).sum::<f64>();
     match settings.criterion {
@@ -63,6 +66,15 @@ pub fn criterion(pos: &Positions, ch: &ChannelStats, s: Structure, settings: &Se
         Criterion::Rss => {
             let beta = fit(pos, ch, s, &all)?;
             Some((sse(pos, ch, s, &beta, &all) / rows(&all)).sqrt())
+        }
+        // Every position left out in turn and predicted by the fit on the others (no hat matrix).
+        Criterion::Loo => {
+            let mut press = 0.0;
+            for p in 0..pos.len() {
+                let others: Vec<usize> = all.iter().copied().filter(|&q| q != p).collect();
+                press += sse(pos, ch, s, &fit(pos, ch, s, &others)?, &[p]);
+            }
+            Some((press / rows(&all)).sqrt())
         }
     }
 }

@@ -49,7 +49,8 @@ pub struct ChannelJson {
 pub struct SelectJson {
     basis: String,
     criterion: gmdh::Criterion,
-    split: String,
+    /// `null` for leave-one-out, which has no split.
+    split: Option<String>,
     tolerance: f64,
     channels: Vec<ChannelJson>,
 }
@@ -194,7 +195,7 @@ pub fn print_tables(sel: &[Selection], settings: &Settings) {
         println!(
             "channel {}: {} criterion, RMS ADC codes of dwell means (best {:.2}, tolerance {} code{})",
             s.channel,
-            format!("{:?}", settings.criterion).to_lowercase(),
+            settings.criterion.name(),
             s.best,
             settings.tolerance,
             if settings.tolerance == 1.0 { "" } else { "s" }
@@ -272,7 +273,7 @@ pub fn to_json(sel: &[Selection], settings: &Settings, split: &str, top: Option<
     SelectJson {
         basis: format!("{:?}", settings.basis).to_lowercase(),
         criterion: settings.criterion,
-        split: split.to_string(),
+        split: (settings.criterion != gmdh::Criterion::Loo).then(|| split.to_string()),
         tolerance: settings.tolerance,
         channels,
     }
@@ -289,11 +290,7 @@ pub fn plots(dir: &Path, sel: &[Selection], settings: &Settings) -> anyhow::Resu
         let sc = s.selected();
         crate::report::plot::criterion_vs_complexity(
             &path,
-            &format!(
-                "channel {}: {} criterion against complexity",
-                s.channel,
-                format!("{:?}", settings.criterion).to_lowercase()
-            ),
+            &format!("channel {}: {} criterion against complexity", s.channel, settings.criterion.name()),
             &pts,
             (sc.structure.len(), sc.criterion.expect("selected is identifiable")),
             s.best + settings.tolerance,
