@@ -448,16 +448,13 @@ mod tests {
 
     #[test]
     fn an_unreadable_slot_is_planned_as_the_target() {
-        use accelcal_shared::linear::Model4;
         use accelcal_shared::slots::SlotImage;
-        let m = Model4 { u0: [32000.0; 3], k: [[1600.0, 0.0, 0.0], [0.0, 1600.0, 0.0], [0.0, 0.0, 1600.0]] };
-        let mut buf = [0u8; accelcal_shared::record::MAX_RECORD_LEN];
-        let n = Record::from_model4(*b"QEMU-B-L475E", 1, &m).emit(&mut buf).unwrap();
-        let page = SlotImage::build(&buf[..n], 5).unwrap();
+        let rec = record();
+        let page = SlotImage::build(&rec, 5).unwrap();
         let slots = [page, [0u8; SLOT_SIZE]];
-        let plan = WritePlan::from_readings(readings(&slots, [true, false]), &buf[..n]).unwrap();
+        let plan = WritePlan::from_readings(readings(&slots, [true, false]), &rec).unwrap();
         assert_eq!((plan.slot, plan.sequence), (1, 6));
-        let plan = WritePlan::from_readings(readings(&slots, [false, true]), &buf[..n]).unwrap();
+        let plan = WritePlan::from_readings(readings(&slots, [false, true]), &rec).unwrap();
         assert_eq!((plan.slot, plan.sequence), (0, 1));
     }
 
@@ -509,6 +506,7 @@ mod tests {
         (addr, server)
     }
 
+    /// A model-4 record of QEMU's device id.
     fn record() -> Vec<u8> {
         use accelcal_shared::linear::Model4;
         let m = Model4 { u0: [32000.0; 3], k: [[1600.0, 0.0, 0.0], [0.0, 1600.0, 0.0], [0.0, 0.0, 1600.0]] };
