@@ -23,7 +23,7 @@
 
 use crate::error::{Classify, Kind};
 use accelcal_shared::contract::{N_SLOTS, SLOT_ADDRS, UID_ADDR};
-use accelcal_shared::flash_ecc::{nmi_action, NmiAction, FLASH_ECCR_ADDR};
+use accelcal_shared::flash_ecc::{nmi_action, rearm, NmiAction, ECCC, ECCD, FLASH_ECCR_ADDR};
 use accelcal_shared::record::Record;
 use accelcal_shared::slots::{select_readings, WritePlan, SLOT_SIZE};
 use probe_rs::flashing::DownloadOptions;
@@ -397,17 +397,29 @@ fn read_slots(
 ) -> Result<[bool; N_SLOTS], FlashError> {
     let mut readable = [true; N_SLOTS];
     for (i, buf) in slots.iter_mut().enumerate() {
+        // Re-arm the ECC address capture first, as the node does (`flash_ecc::rearm`): while ECCC
+        // or ECCD is set, FLASH_ECCR keeps an earlier error's address, and the slot's own double
+        // error would go unseen. Written only when a flag is set (the usual case writes nothing).
+        let eccr = read_eccr(mem)?;
+        if eccr & (ECCC | ECCD) != 0 {
+            mem.write_u32(FLASH_ECCR_ADDR, rearm(eccr))?;
+        }
         if mem.read(SLOT_ADDRS[i], buf).is_err() {
             readable[i] = false;
         }
-        let mut eccr = [0u8; 4];
-        mem.read(FLASH_ECCR_ADDR, &mut eccr)?;
-        if let NmiAction::SlotUnreadable { slot, clear } = nmi_action(u32::from_le_bytes(eccr)) {
+        if let NmiAction::SlotUnreadable { slot, clear } = nmi_action(read_eccr(mem)?) {
             readable[slot as usize] = false;
             mem.write_u32(FLASH_ECCR_ADDR, clear)?;
         }
     }
     Ok(readable)
+}
+
+/// FLASH_ECCR, read from the node.
+fn read_eccr(mem: &mut impl NodeMemory) -> Result<u32, FlashError> {
+    let mut eccr = [0u8; 4];
+    mem.read(FLASH_ECCR_ADDR, &mut eccr)?;
+    Ok(u32::from_le_bytes(eccr))
 }
 
 #[cfg(test)]
@@ -535,5 +547,53 @@ mod tests {
         assert!(matches!(&e, FlashError::Released(_)), "{e}");
         let log = server.join().unwrap();
         assert_eq!(log, ["?", "m1fff7590,c", "?", RESET, "D"], "{e}");
+    }
+
+    /// A node's flash as far as `read_slots` sees it: FLASH_ECCR latches an error's address only
+    /// while ECCC and ECCD are clear (RM0351, FLASH_ECCR), and reading slot 1 raises a double
+    /// error there.
+    struct LatchingFlash {
+        eccr: u32,
+        writes: Vec<u32>,
+    }
+
+    impl NodeMemory for LatchingFlash {
+        fn read(&mut self, addr: u32, buf: &mut [u8]) -> Result<(), FlashError> {
+            if addr == FLASH_ECCR_ADDR {
+                buf.copy_from_slice(&self.eccr.to_le_bytes());
+            } else if addr == SLOT_ADDRS[1] && self.eccr & (ECCC | ECCD) == 0 {
+                // Bank 2, offset of slot 1 (0x080F_F800 − 0x0808_0000).
+                self.eccr |= ECCD | accelcal_shared::flash_ecc::BK_ECC | 0x7_F800;
+            } else if addr == SLOT_ADDRS[1] {
+                self.eccr |= ECCD; // flagged, the address not updated
+            }
+            Ok(())
+        }
+        fn write_u32(&mut self, addr: u32, v: u32) -> Result<(), FlashError> {
+            assert_eq!(addr, FLASH_ECCR_ADDR);
+            self.writes.push(v);
+            // Write 1 to clear ECCC/ECCD: the address fields go with them.
+            self.eccr &= !(v & (ECCC | ECCD));
+            if self.eccr & (ECCC | ECCD) == 0 {
+                self.eccr &= accelcal_shared::flash_ecc::ECCIE;
+            }
+            Ok(())
+        }
+        fn program_page(&mut self, _: u32, _: &[u8]) -> Result<(), FlashError> {
+            unreachable!("read_slots does not program")
+        }
+    }
+
+    #[test]
+    fn a_corrected_error_latched_earlier_does_not_hide_a_torn_slot() {
+        let mut slots = [[0u8; SLOT_SIZE]; N_SLOTS];
+        // A single error corrected in application flash (bank 1) before the session.
+        let mut mem = LatchingFlash { eccr: ECCC | 0x0_4100, writes: vec![] };
+        assert_eq!(read_slots(&mut mem, &mut slots).unwrap(), [true, false]);
+        assert_eq!(mem.writes[0], ECCC | ECCD, "re-armed before slot 0");
+        // A clean node: nothing to re-arm, nothing written but the torn slot's clear.
+        let mut mem = LatchingFlash { eccr: 0, writes: vec![] };
+        assert_eq!(read_slots(&mut mem, &mut slots).unwrap(), [true, false]);
+        assert_eq!(mem.writes, [ECCD]);
     }
 }
