@@ -124,9 +124,7 @@ const UNITS: &[(&str, &str)] = &[
     ("--bias-sd", "codes"),
     ("--misalign-sd", "rad"),
     ("--temp-profile", "°C"),
-    ("--thermal", "°C"),
     ("--t-ref", "°C"),
-    ("--temp-c", "°C"),
     ("--thermal-lag-s", "seconds"),
     ("--chamber", "°C"),
     ("--soak-s", "Seconds"),
@@ -142,7 +140,6 @@ const UNITS: &[(&str, &str)] = &[
     ("--latitude", "degrees"),
     ("--height", ", m "),
     ("--head-speed", "degrees per second"),
-    ("--answer-timeout-s", "Seconds"),
     ("--settle-timeout-s", "Seconds"),
     ("--static-z", "standard errors"),
 ];
@@ -850,6 +847,26 @@ const REFUSED: &[(&str, &str)] = &[
     ("verify --port P --head manual --tolerance 0", "--tolerance must be a positive number of m/s², got 0"),
     ("verify --port P --head manual --fit F --tolerance 0.01", "--fit does not apply to verify --tolerance"),
     ("verify --port P --head manual --coverage 0.5", "--coverage must be a number >= 1, got 0.5"),
+    ("fit C --t-ref 20", "--t-ref does not apply to --terms ax,ay,az: it is the reference of the terms in t"),
+    ("fit R --method gravity-norm --t-ref 20", "--t-ref does not apply to fit --method gravity-norm"),
+    ("select C --t-ref 20", "--t-ref does not apply to a --basis without terms in t"),
+    ("simulate --out a.csv --soak-s 10", "--soak-s does not apply to simulate without --chamber"),
+    (
+        "simulate --out a.csv --thermal-lag-s 10",
+        "--thermal-lag-s does not apply to simulate without --chamber",
+    ),
+    (
+        "simulate --out a.csv --chamber 200",
+        "--chamber: each setpoint must be a temperature in -60..=150 °C, got 200",
+    ),
+    ("monitor --port P --timeout-s 0", "--timeout-s must be a positive number of seconds, got 0"),
+    ("info --port P --timeout-s 0", "--timeout-s must be a positive number of seconds, got 0"),
+    (
+        "hil --qemu R --record V --out o.csv C --timeout-s 0",
+        "--timeout-s must be a positive number of seconds, got 0",
+    ),
+    ("acquire --port P --head manual --out a.csv --rate-hz 50", "--rate-hz: RateOutOfRange"),
+    ("monitor --port P --rate 50", "--rate-hz: RateOutOfRange"),
 ];
 
 /// Command lines in which every option applies: they run, and write what they are asked to.

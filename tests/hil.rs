@@ -631,11 +631,11 @@ fn monitor_shows_the_status_stream_of_a_node_on_a_serial_port() {
     let three = lines[3].0 - lines[0].0;
     assert!((2.5..6.0).contains(&three.as_secs_f64()), "3 status periods took {three:?}, want about 3 s");
 
-    // `--rate` sets the node's rate first: the node answers with its new status. The request is
+    // `--rate-hz` sets the node's rate first: the node answers with its new status. The request is
     // sent again every second until answered, and QEMU polls a reopened pty once a second: when
     // both copies reach the node, it answers both, and the stream shows the second answer too.
     let out = Command::new(env!("CARGO_BIN_EXE_accelcal"))
-        .args(["monitor", "--port", pty, "--count", "3", "--rate", "250"])
+        .args(["monitor", "--port", pty, "--count", "3", "--rate-hz", "250"])
         .output()
         .unwrap();
     let text = String::from_utf8_lossy(&out.stdout);
@@ -650,12 +650,13 @@ fn monitor_shows_the_status_stream_of_a_node_on_a_serial_port() {
         );
         assert!(l.contains(", rate 250 Hz, "), "{text}");
     }
-    // A rate outside the range is refused before the port is opened, with the range.
+    // A rate outside the range is refused before the port is opened, with the range (`--rate`,
+    // the former name, still reaches the same option).
     let out = accelcal(&["monitor", "--port", pty, "--rate", "50"]);
     assert_eq!(out.status.code(), Some(2));
     assert_eq!(
         String::from_utf8_lossy(&out.stderr),
-        "error: --rate: RateOutOfRange: sampling rate 50 Hz refused, the node accepts 100..=4000 Hz\n"
+        "error: --rate-hz: RateOutOfRange: sampling rate 50 Hz refused, the node accepts 100..=4000 Hz\n"
     );
 }
 

@@ -595,16 +595,20 @@ fn thermal_record_removes_the_temperature_error_in_verify() {
         s(&truth),
         "--effect",
         "temperature=bias:3,scale:100",
-        "--thermal=25:0:0",
+        "--chamber=25",
+        "--soak-s",
+        "0",
+        "--thermal-lag-s",
+        "0",
     ]);
-    let em = Emulator::start(&truth, &["--temp-c", "20", "--thermal-lag-s", "1"]);
+    let em = Emulator::start(&truth, &["--chamber", "20", "--thermal-lag-s", "1"]);
     let c = p("thermal.csv");
     let out = succeed(&acquire_args(
         &em,
         "six",
         "200",
         &c,
-        &["--rate", "500", "--chamber=-10,20,50", "--soak-s", "6", "--serial", "U16"],
+        &["--rate-hz", "500", "--chamber=-10,20,50", "--soak-s", "6", "--serial", "U16"],
     ));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("position 18/18"), "{err}");

@@ -1,4 +1,4 @@
-//! Temperature compensation on the host (issue 16): a thermal campaign from `simulate --thermal`,
+//! Temperature compensation on the host (issue 16): a thermal campaign from `simulate --chamber`,
 //! GMDH choosing the thermal structure (`select --basis linear-thermal`, also with whole
 //! temperatures held out), a thermal record from `fit --temp-input`, and what that record does
 //! to the calibrated acceleration at each chamber temperature compared with a model-4 record,
@@ -18,7 +18,7 @@ use serde_json::Value;
 const ID: &str = "51454d552d422d4c34373545";
 /// The issue's unit: 3 codes/°C of bias and 100 ppm/°C of sensitivity, over −10…+50 °C.
 const THERMAL_EFFECT: &str = "temperature=bias:3,scale:100";
-const PLAN: &str = "--thermal=-10,10,30,50:900:120";
+const PLAN: &[&str] = &["--chamber=-10,10,30,50", "--soak-s", "900", "--thermal-lag-s", "120"];
 
 fn json(p: &Path) -> Value {
     serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
@@ -26,7 +26,8 @@ fn json(p: &Path) -> Value {
 
 fn simulate(dir: &Path, name: &str, extra: &[&str]) -> PathBuf {
     let out = dir.join(name);
-    let mut args = vec!["simulate", "--out", out.to_str().unwrap(), "--seed", "5", "--samples", "200", PLAN];
+    let mut args = vec!["simulate", "--out", out.to_str().unwrap(), "--seed", "5", "--samples", "200"];
+    args.extend_from_slice(PLAN);
     args.extend_from_slice(extra);
     ok(&args);
     out
@@ -180,7 +181,7 @@ fn thermal_terms_without_a_temperature_are_bad_input() {
         "--effect",
         "temperature=bias:3",
     ]);
-    assert!(e.contains("--thermal"), "{e}");
+    assert!(e.contains("--chamber T1,T2,…"), "{e}");
 }
 
 /// `diagnose` offers the remedy: on a campaign whose unit has the thermal coefficients it names

@@ -193,11 +193,19 @@ pub struct SimulateArgs {
     /// temp_c column.
     #[arg(long, value_name = "BASE:AMP:CYCLES", value_parser = parse_temp)]
     pub temp_profile: Option<TempProfile>,
-    /// A thermal campaign: the plan repeated at each chamber temperature T1, T2, … (°C), each
-    /// pass after a soak of SOAK_S seconds, the sensor following the chamber with a thermal lag
-    /// (first order, time constant TAU_S seconds, starting at 25 °C); adds a `temp_c` column.
-    #[arg(long, value_name = "T1,T2,…:SOAK_S:TAU_S", value_parser = parse_thermal, allow_hyphen_values = true)]
-    pub thermal: Option<accelcal_core::sim::ThermalPlan>,
+    /// A thermal campaign: the plan repeated at each of these chamber setpoints (°C,
+    /// comma-separated), each pass after --soak-s, the sensor following the chamber with a
+    /// first-order lag of --thermal-lag-s from 25 °C; adds a `temp_c` column (as `acquire
+    /// --chamber` records it).
+    #[arg(long, value_name = "T1,T2,…", value_delimiter = ',', allow_hyphen_values = true)]
+    pub chamber: Vec<f64>,
+    /// Seconds the chamber holds each setpoint before its pass starts [with --chamber; default: 900].
+    #[arg(long, value_name = "S")]
+    pub soak_s: Option<f64>,
+    /// Thermal time constant between the chamber and the sensor, seconds (first-order lag) [with
+    /// --chamber; default: 30, as `emulate`'s].
+    #[arg(long, value_name = "S")]
+    pub thermal_lag_s: Option<f64>,
     /// An ideal ADC: no rounding to whole codes, no clipping (for checks against exact values).
     #[arg(long)]
     pub ideal_adc: bool,
@@ -218,10 +226,6 @@ pub struct SimulateArgs {
 }
 
 fn parse_layout(s: &str) -> Result<Layout, String> {
-    s.parse()
-}
-
-fn parse_thermal(s: &str) -> Result<accelcal_core::sim::ThermalPlan, String> {
     s.parse()
 }
 
@@ -264,9 +268,16 @@ impl From<BasisArg> for accelcal_shared::Basis {
 #[derive(Debug, Args)]
 pub struct ThermalArgs {
     /// Reference temperature of the thermal terms, °C: their variable t is `temp_c − T_REF`
-    /// (the campaign's `temp_c` column, dwell means).
-    #[arg(long, value_name = "DEG_C", default_value_t = accelcal_core::positions::T_REF_DEFAULT_C)]
-    pub t_ref: f64,
+    /// (the campaign's `temp_c` column, dwell means) [default: 25; only with terms in t].
+    #[arg(long, value_name = "DEG_C", allow_hyphen_values = true)]
+    pub t_ref: Option<f64>,
+}
+
+impl ThermalArgs {
+    /// The reference temperature in force, °C.
+    pub fn t_ref_c(&self) -> f64 {
+        self.t_ref.unwrap_or(accelcal_core::positions::T_REF_DEFAULT_C)
+    }
 }
 
 /// Where a node reads its temperature.
@@ -305,9 +316,9 @@ pub struct SelectArgs {
     /// did not see).
     #[arg(long, default_value = "alternate", value_parser = parse_split)]
     pub split: Split,
-    /// The simplest model whose criterion is within this many codes of the best is selected
+    /// The simplest model whose criterion is within this many ADC codes of the best is selected
     /// (the paper's rule: one ADC code); 0 selects the minimum.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, value_name = "CODES")]
     pub tolerance: f64,
     /// Only these channels (comma-separated names) [default: all].
     #[arg(long, value_delimiter = ',')]
@@ -549,10 +560,10 @@ pub struct MonitorArgs {
     #[arg(long, value_name = "N")]
     pub count: Option<u64>,
     /// First set the node's sampling rate per channel, Hz (100..=4000).
-    #[arg(long, value_name = "HZ")]
-    pub rate: Option<u32>,
-    /// Seconds without any frame after which the command fails (the node sends its status every
-    /// second).
+    #[arg(long, alias = "rate", value_name = "HZ")]
+    pub rate_hz: Option<u32>,
+    /// Seconds the node may stay silent (no frame) before the command fails (the node sends its
+    /// status every second).
     #[arg(long, default_value_t = 5.0, value_name = "S")]
     pub timeout_s: f64,
 }
@@ -567,9 +578,9 @@ pub struct PortArgs {
     /// Baud rate of the node's USART1 (a pty ignores it).
     #[arg(long, default_value_t = accelcal_core::node::monitor::NODE_BAUD)]
     pub baud: u32,
-    /// Seconds to wait for the node's answer to a request.
-    #[arg(long, default_value_t = 5.0, value_name = "S")]
-    pub answer_timeout_s: f64,
+    /// Seconds the node may stay silent (no answer to a request) before the command fails.
+    #[arg(long, alias = "answer-timeout-s", default_value_t = 5.0, value_name = "S")]
+    pub timeout_s: f64,
 }
 
 /// `accelcal emulate`: the emulated bench.
@@ -609,8 +620,8 @@ pub struct EmulateArgs {
     /// there); `CHAMBER <temp_c>` on the head's protocol (`acquire --chamber`, `verify
     /// --chamber`) changes it. The unit's `temperature` effect and the front end's temperature
     /// channel follow the sensor's temperature.
-    #[arg(long, default_value_t = 25.0, value_name = "DEG_C", allow_hyphen_values = true)]
-    pub temp_c: f64,
+    #[arg(long, alias = "temp-c", default_value_t = 25.0, value_name = "DEG_C", allow_hyphen_values = true)]
+    pub chamber: f64,
     /// Thermal time constant between the chamber and the sensor, seconds (first-order lag).
     #[arg(long, default_value_t = 30.0, value_name = "S")]
     pub thermal_lag_s: f64,
@@ -684,8 +695,8 @@ pub struct AcquireArgs {
     #[arg(long)]
     pub resume: bool,
     /// Set the node's sampling rate per channel first, Hz (100..=4000) [default: the node's].
-    #[arg(long, value_name = "HZ")]
-    pub rate: Option<u32>,
+    #[arg(long, alias = "rate", value_name = "HZ")]
+    pub rate_hz: Option<u32>,
     /// Seconds a position may take to become static before it is refused.
     #[arg(long, default_value_t = 30.0, value_name = "S")]
     pub settle_timeout_s: f64,
@@ -793,9 +804,9 @@ pub struct HilArgs {
     /// The QEMU executable (QEMU >= 9 with the b-l475e-iot01a machine).
     #[arg(long, default_value = "qemu-system-arm", value_name = "PATH")]
     pub qemu_bin: PathBuf,
-    /// Seconds the node may stay silent before the run fails.
-    #[arg(long, default_value_t = 20)]
-    pub timeout_s: u64,
+    /// Seconds the node may stay silent (no frame) before the run fails.
+    #[arg(long, default_value_t = 20.0, value_name = "S")]
+    pub timeout_s: f64,
     /// Range of the campaign's raw codes [default: its `# codes:` line, else unsigned16]. Only
     /// unsigned16 can be replayed: the node samples a 16-bit unsigned ADC.
     #[arg(long, value_name = "RANGE", value_parser = parse_codes)]

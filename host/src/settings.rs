@@ -130,6 +130,11 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
                     " (leave-one-out fits on all the positions but one: there is no split)",
                 )?;
             }
+            if a.thermal.t_ref.is_some() && !accelcal_shared::Basis::from(a.basis).is_thermal() {
+                return Err(bad(
+                    "--t-ref does not apply to a --basis without terms in t (it applies to linear-thermal and quadratic-thermal)",
+                ));
+            }
             if a.common.json.is_none() {
                 given.refuse(
                     &["top"],
@@ -153,14 +158,26 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
             &[("CAMPAIGN", &a.campaign)],
             &[("--json", a.common.json.as_deref()), ("--plot", a.plot.as_deref())],
         ),
-        Command::Simulate(a) => distinct(
-            &[],
-            &[("--out", Some(&a.out)), ("--truth", a.truth.as_deref()), ("--json", a.json.as_deref())],
-        ),
-        Command::Hil(a) => distinct(
-            &[("CAMPAIGN", &a.campaign), ("--record", &a.record), ("--qemu", &a.elf)],
-            &[("--out", Some(&a.out))],
-        ),
+        Command::Simulate(a) => {
+            if a.chamber.is_empty() {
+                given.refuse(
+                    &["soak_s", "thermal_lag_s"],
+                    "simulate without --chamber",
+                    " (they shape a thermal campaign)",
+                )?;
+            }
+            distinct(
+                &[],
+                &[("--out", Some(&a.out)), ("--truth", a.truth.as_deref()), ("--json", a.json.as_deref())],
+            )
+        }
+        Command::Hil(a) => {
+            positive_seconds("--timeout-s", a.timeout_s)?;
+            distinct(
+                &[("CAMPAIGN", &a.campaign), ("--record", &a.record), ("--qemu", &a.elf)],
+                &[("--out", Some(&a.out))],
+            )
+        }
         Command::Record(RecordCommand::Show(a)) => {
             distinct(&[("FILE", &a.file)], &[("--json", a.json.as_deref())])
         }
@@ -186,8 +203,8 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
                     a.settle_timeout_s
                 )));
             }
-            if let Some(hz) = a.rate {
-                accelcal_shared::wire::check_rate(hz).map_err(|r| bad(format!("--rate: {r}")))?;
+            if let Some(hz) = a.rate_hz {
+                accelcal_shared::wire::check_rate(hz).map_err(|r| bad(format!("--rate-hz: {r}")))?;
             }
             if let Some(g) = a.g {
                 crate::cmd::check_g(g)?;
@@ -273,18 +290,26 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
             }
             Ok(())
         }
-        Command::BenchDiagnose(_) | Command::Demo(_) | Command::Monitor(_) | Command::Plan(_) => Ok(()),
+        Command::Monitor(a) => {
+            if let Some(hz) = a.rate_hz {
+                accelcal_shared::wire::check_rate(hz).map_err(|r| bad(format!("--rate-hz: {r}")))?;
+            }
+            positive_seconds("--timeout-s", a.timeout_s)
+        }
+        Command::BenchDiagnose(_) | Command::Demo(_) | Command::Plan(_) => Ok(()),
     }
 }
 
 fn check_answer_timeout(link: &crate::cli::PortArgs) -> anyhow::Result<()> {
-    if link.answer_timeout_s.is_finite() && link.answer_timeout_s > 0.0 {
+    positive_seconds("--timeout-s", link.timeout_s)
+}
+
+/// Refuses a number of seconds that is not positive and finite, naming its option.
+fn positive_seconds(option: &str, s: f64) -> anyhow::Result<()> {
+    if s.is_finite() && s > 0.0 {
         Ok(())
     } else {
-        Err(bad(format!(
-            "--answer-timeout-s must be a positive number of seconds, got {}",
-            link.answer_timeout_s
-        )))
+        Err(bad(format!("{option} must be a positive number of seconds, got {s}")))
     }
 }
 
@@ -303,6 +328,20 @@ fn check_fit(a: &FitArgs, given: &Given) -> anyhow::Result<()> {
             let mode =
                 format!("fit --method {}", if a.method == MethodArg::Lsq { "lsq" } else { "test-turns" });
             given.refuse(&GRAVITY_ONLY, &mode, " (it applies to --method gravity-norm)")?;
+        }
+    }
+    if a.thermal.t_ref.is_some() {
+        if a.method == MethodArg::GravityNorm {
+            return Err(bad(
+                "--t-ref does not apply to fit --method gravity-norm (its model has no terms in t)",
+            ));
+        }
+        // An unparsable --terms is reported where it is parsed.
+        if accelcal_core::lsq::parse_terms(&a.terms).is_ok_and(|s| !s.is_thermal()) {
+            return Err(bad(format!(
+                "--t-ref does not apply to --terms {}: it is the reference of the terms in t (t, t^2, ax*t, ...), and the model has none",
+                a.terms
+            )));
         }
     }
     if a.record.is_none() {

@@ -1,6 +1,6 @@
 //! `cargo xtask bench live`: sample sets per second through the node's live path in QEMU. The
 //! emulated bench (`accelcal emulate`, a simulated unit on the front end) runs the node's QEMU
-//! build; `accelcal monitor --rate R` reads its stream for a fixed time at each rate, counting the
+//! build; `accelcal monitor --rate-hz R` reads its stream for a fixed time at each rate, counting the
 //! sets that arrive and the sets the node reports lost (jumps of its sample counter).
 
 use std::io::{BufRead, BufReader};
@@ -69,7 +69,7 @@ fn sweep(exe: &Path, port: &str) -> anyhow::Result<()> {
         let count = (rate as u64 * SECONDS / 16 + SECONDS).to_string();
         let t0 = Instant::now();
         let out = Command::new(exe)
-            .args(["monitor", "--port", port, "--rate", &rate.to_string(), "--count", &count])
+            .args(["monitor", "--port", port, "--rate-hz", &rate.to_string(), "--count", &count])
             .output()
             .context("running accelcal monitor")?;
         let secs = t0.elapsed().as_secs_f64();

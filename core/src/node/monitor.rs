@@ -69,7 +69,7 @@ pub fn monitor(
     out: &mut impl Write,
 ) -> anyhow::Result<()> {
     if let Some(hz) = rate {
-        wire::check_rate(hz).map_err(|r| crate::error::bad(format!("--rate: {r}")))?;
+        wire::check_rate(hz).map_err(|r| crate::error::bad(format!("--rate-hz: {r}")))?;
     }
     let port = serialport::new(port_name, baud)
         .timeout(silence)

@@ -14,8 +14,8 @@ use crate::cli::EmulateArgs;
 
 /// Runs `accelcal emulate`.
 pub fn run(a: &EmulateArgs) -> anyhow::Result<()> {
-    if !accelcal_core::node::head::CHAMBER_RANGE_C.contains(&a.temp_c) {
-        return Err(bad(format!("--temp-c must be a temperature in -60..=150 °C, got {}", a.temp_c)));
+    if !accelcal_core::node::head::CHAMBER_RANGE_C.contains(&a.chamber) {
+        return Err(bad(format!("--chamber must be a temperature in -60..=150 °C, got {}", a.chamber)));
     }
     if !(a.thermal_lag_s.is_finite() && a.thermal_lag_s >= 0.0) {
         return Err(bad(format!(
@@ -43,7 +43,7 @@ pub fn run(a: &EmulateArgs) -> anyhow::Result<()> {
         unit,
         record,
         motion: Motion { speed_deg_s: a.head_speed, ..Motion::default() },
-        sensor: SensorTemp::soaked(a.temp_c, a.thermal_lag_s),
+        sensor: SensorTemp::soaked(a.chamber, a.thermal_lag_s),
         pace: PaceOptions { rate_factor: a.rate_factor, ..PaceOptions::default() },
         gdb_port: a.gdb_port.unwrap_or(0),
         head_port: a.head_port.unwrap_or(0),

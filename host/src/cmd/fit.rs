@@ -100,11 +100,11 @@ pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
     if a.temp_input.is_some() && a.record.is_none() {
         return Err(bad("--temp-input applies to --record only"));
     }
-    super::check_t_ref(a.thermal.t_ref)?;
+    super::check_t_ref(a.thermal.t_ref_c())?;
     // Streamed: the fits need the dwell statistics only, so memory does not grow with the rows.
     let r = super::reduce_campaign(&a.campaign, a.common.codes, warnings)?;
     let mut pos = r.positions(a.common.g);
-    pos.t_ref_c = a.thermal.t_ref;
+    pos.t_ref_c = a.thermal.t_ref_c();
     let fits = fit_positions(&pos, &r.channel_stats(), method, structure)
         .with_context(|| a.campaign.display().to_string())?;
     // The record is built and checked first: a record a node would refuse writes nothing.
@@ -112,7 +112,7 @@ pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
         Some(path) => {
             let thermal = match (a.temp_input, pos.temp_range()) {
                 (Some(input), Some((lo, hi))) => Some(accelcal_shared::record::Thermal {
-                    t_ref_c: a.thermal.t_ref as f32,
+                    t_ref_c: a.thermal.t_ref_c() as f32,
                     t_min_c: lo as f32,
                     t_max_c: hi as f32,
                     source: input.into(),
@@ -134,7 +134,7 @@ pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
     };
     print_table(method, &fits);
     if let Some(j) = &a.common.json {
-        write_json(j, &to_json(method, &fits, a.thermal.t_ref))?;
+        write_json(j, &to_json(method, &fits, a.thermal.t_ref_c()))?;
     }
     if let Some((path, rec)) = rec {
         write_record(path, &rec)?;

@@ -22,7 +22,7 @@ use serde_json::json;
 use crate::cli::{AcquireArgs, InfoArgs, OutputArg, OutputArgs, PortArgs, VerifyArgs};
 
 fn open(link: &PortArgs) -> anyhow::Result<Session> {
-    Ok(Session::open(&link.port, link.baud, Duration::from_secs_f64(link.answer_timeout_s))?)
+    Ok(Session::open(&link.port, link.baud, Duration::from_secs_f64(link.timeout_s))?)
 }
 
 /// The reset cause's variant name (`PowerOn`, `IndependentWatchdog`, ...).
@@ -244,7 +244,7 @@ pub fn run_acquire(a: &AcquireArgs) -> anyhow::Result<()> {
     let (g, g_source) = g_source(a.g, &a.local);
     let stop = stop_flag()?;
     let mut node = open(&a.link)?;
-    if let Some(hz) = a.rate {
+    if let Some(hz) = a.rate_hz {
         node.set_rate(hz)?;
     }
     let mut head = connect_head(&a.head)?;

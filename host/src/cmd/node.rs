@@ -81,11 +81,8 @@ fn confirm(port: &str, baud: u32, slot: u8, sequence: u32, crc: u32) -> anyhow::
 
 /// Runs `accelcal monitor`.
 pub fn run_monitor(a: &MonitorArgs) -> anyhow::Result<()> {
-    if !(a.timeout_s.is_finite() && a.timeout_s > 0.0) {
-        return Err(bad(format!("--timeout-s must be a positive number of seconds, got {}", a.timeout_s)));
-    }
     let silence = std::time::Duration::from_secs_f64(a.timeout_s);
-    monitor::monitor(&a.port, a.baud, a.count, a.rate, silence, &mut std::io::stdout().lock())
+    monitor::monitor(&a.port, a.baud, a.count, a.rate_hz, silence, &mut std::io::stdout().lock())
 }
 
 /// Runs `accelcal hil`.
@@ -112,7 +109,7 @@ pub fn run_hil(a: &HilArgs, warnings: &mut super::Warnings) -> anyhow::Result<()
     }
     let mut opts = hil::HilOptions::new(&a.elf);
     opts.qemu = a.qemu_bin.clone();
-    opts.timeout = std::time::Duration::from_secs(a.timeout_s);
+    opts.timeout = std::time::Duration::from_secs_f64(a.timeout_s);
     let mut out = accelcal_core::output::AtomicFile::create(&a.out)?;
     let writing = || format!("writing {}", a.out.display());
     let header = if thermal { hil::CSV_HEADER_THERMAL } else { hil::CSV_HEADER };

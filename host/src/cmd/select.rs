@@ -306,11 +306,11 @@ pub fn run(a: &SelectArgs, warnings: &mut super::Warnings) -> anyhow::Result<()>
     if !(a.tolerance.is_finite() && a.tolerance >= 0.0) {
         return Err(bad(format!("--tolerance must be a number of codes >= 0, got {}", a.tolerance)));
     }
+    super::check_t_ref(a.thermal.t_ref_c())?;
     // Streamed: GMDH needs the dwell statistics only.
     let r = super::reduce_campaign(&a.campaign, a.common.codes, warnings)?;
-    super::check_t_ref(a.thermal.t_ref)?;
     let (mut pos, stats) = (r.positions(a.common.g), r.channel_stats());
-    pos.t_ref_c = a.thermal.t_ref;
+    pos.t_ref_c = a.thermal.t_ref_c();
     if a.max_terms == 0 || a.width == 0 || a.threads == Some(0) {
         return Err(bad("--max-terms, --width and --threads must be at least 1"));
     }

@@ -9,6 +9,30 @@ use accelcal_core::error::bad;
 use accelcal_core::output::{write_atomic_with, write_json};
 use accelcal_core::sim::{self, Plan, SimConfig};
 
+/// Soak at each chamber setpoint when --soak-s is not given, s.
+const SOAK_DEFAULT_S: f64 = 900.0;
+/// Chamber-to-sensor lag when --thermal-lag-s is not given, s (`emulate`'s default).
+const THERMAL_LAG_DEFAULT_S: f64 = 30.0;
+
+/// The thermal plan of `--chamber`, `--soak-s` and `--thermal-lag-s` (settings refuses the last two
+/// without the first).
+fn thermal_plan(a: &SimulateArgs) -> anyhow::Result<Option<sim::ThermalPlan>> {
+    if a.chamber.is_empty() {
+        return Ok(None);
+    }
+    if let Some(t) = a.chamber.iter().find(|t| !(t.is_finite() && (-60.0..=150.0).contains(*t))) {
+        return Err(bad(format!("--chamber: each setpoint must be a temperature in -60..=150 °C, got {t}")));
+    }
+    let soak_s = a.soak_s.unwrap_or(SOAK_DEFAULT_S);
+    let tau_s = a.thermal_lag_s.unwrap_or(THERMAL_LAG_DEFAULT_S);
+    for (name, v) in [("--soak-s", soak_s), ("--thermal-lag-s", tau_s)] {
+        if !(v.is_finite() && v >= 0.0) {
+            return Err(bad(format!("{name} must be a number of seconds >= 0, got {v}")));
+        }
+    }
+    Ok(Some(sim::ThermalPlan { chamber_c: a.chamber.clone(), soak_s, tau_s }))
+}
+
 /// Builds the simulator settings from the command line.
 pub fn config(a: &SimulateArgs) -> anyhow::Result<SimConfig> {
     super::check_g(a.g)?;
@@ -18,13 +42,14 @@ pub fn config(a: &SimulateArgs) -> anyhow::Result<SimConfig> {
         .iter()
         .map(|s| sim::effects::parse(s).map_err(|e| bad(format!("--effect {e}"))))
         .collect::<anyhow::Result<Vec<_>>>()?;
-    if a.temp_profile.is_some() && a.thermal.is_some() {
-        return Err(bad("--temp-profile and --thermal both set the temperature: give one"));
+    let thermal = thermal_plan(a)?;
+    if a.temp_profile.is_some() && thermal.is_some() {
+        return Err(bad("--temp-profile and --chamber both set the temperature: give one"));
     }
-    if a.temp_profile.is_none() && a.thermal.is_none() {
+    if a.temp_profile.is_none() && thermal.is_none() {
         if let Some(e) = effects.iter().find(|e| e.needs_temperature()) {
             return Err(bad(format!(
-                "--effect {} needs a temperature: --temp-profile BASE:AMP:CYCLES or --thermal T1,T2,…:SOAK_S:TAU_S",
+                "--effect {} needs a temperature: --temp-profile BASE:AMP:CYCLES or --chamber T1,T2,…",
                 e.name()
             )));
         }
@@ -60,7 +85,7 @@ pub fn config(a: &SimulateArgs) -> anyhow::Result<SimConfig> {
         effects,
         quantize: !a.ideal_adc,
         temp: a.temp_profile,
-        thermal: a.thermal.clone(),
+        thermal,
     })
 }
 
