@@ -49,6 +49,10 @@ pub struct ChannelGap {
     pub in_dwell_profile: Vec<f64>,
     /// The strongest period of the dwell residuals over time (None with fewer than 6 positions).
     pub period: Option<Period>,
+    /// mg (1 mg = 9.80665e-3 m/s²) per code of this channel: one over its model-4 sensitivity
+    /// to its sensitive axis (`Data::k`), for giving effect sizes in acceleration; NaN for a
+    /// channel with no sensitivity.
+    pub mg_per_code: f64,
 }
 
 /// One position with a large residual.
@@ -172,6 +176,7 @@ pub fn localise(d: &Data, base: Structure) -> Option<Gap> {
             z_approach: if sd > 0.0 { approach_diff / sd } else { 0.0 },
             in_dwell_profile: prof.iter().map(|(s, n)| if *n > 0.0 { s / n } else { 0.0 }).collect(),
             period: strongest_period(&d.t_pos, &rp, &var),
+            mg_per_code: d.mg_per_code(ch),
         });
         position_residual.push(rp);
     }

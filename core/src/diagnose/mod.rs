@@ -120,6 +120,17 @@ pub struct Data {
 }
 
 impl Data {
+    /// mg per code of channel `ch`: `1000 / (|k_own| · g₀)` with g₀ = 9.80665 m/s² (a code is
+    /// `1/|k_own|` m/s² on the sensitive axis); NaN when the channel has no sensitivity.
+    pub fn mg_per_code(&self, ch: usize) -> f64 {
+        let k = self.k[ch][self.own[ch]].abs();
+        if k > 0.0 && k.is_finite() {
+            1000.0 / (k * accelcal_shared::G_STANDARD)
+        } else {
+            f64::NAN
+        }
+    }
+
     /// Reduces an in-memory campaign to bins.
     pub fn new(c: &Campaign, g: f64) -> Result<Data, DiagnoseError> {
         Data::from_binned(&Binned::from_campaign(c), g)

@@ -43,6 +43,10 @@ pub struct Period {
     pub period_s: f64,
     /// Its amplitude (half the peak-to-peak), codes.
     pub amplitude_codes: f64,
+    /// Whether the data resolve that amplitude ([`amplitude_resolved`]): false when the sine
+    /// reaches it only between the positions' times (uneven times let a long period fit with an
+    /// amplitude far above anything measured, even above the ADC's range), so it is not reported.
+    pub amplitude_resolved: bool,
     /// Probability that white residuals give a peak this high anywhere on the grid.
     pub false_alarm: f64,
     /// Whether `false_alarm` is below [`FALSE_ALARM`].
@@ -118,10 +122,28 @@ pub fn strongest_period(t: &[f64], y: &[f64], var: &[f64]) -> Option<Period> {
     Some(Period {
         period_s: 1.0 / f,
         amplitude_codes: a.hypot(b),
+        amplitude_resolved: amplitude_resolved(&tr, f, a, b),
         false_alarm,
         significant: false_alarm < FALSE_ALARM,
         searched_s: (1.0 / f_hi, 1.0 / f_lo),
     })
+}
+
+/// The span of every code range the campaigns use (16 bits), codes: no residual of a dwell mean
+/// reaches it.
+pub const CODE_SPAN: f64 = 65_535.0;
+
+/// Whether a sine `a·cos 2πft + b·sin 2πft` fitted at times `t` has an amplitude the data
+/// resolve: its values at the times reach at least half of it (a sine seen over a quarter period
+/// or more does), and its peak-to-peak is within the ADC's span ([`CODE_SPAN`]).
+pub fn amplitude_resolved(t: &[f64], f: f64, a: f64, b: f64) -> bool {
+    let amp = a.hypot(b);
+    let seen = t.iter().map(|&t| {
+        let (s, c) = (2.0 * std::f64::consts::PI * f * t).sin_cos();
+        (a * c + b * s).abs()
+    });
+    let seen = seen.fold(0.0, f64::max);
+    amp.is_finite() && 2.0 * amp <= CODE_SPAN && seen >= 0.5 * amp
 }
 
 /// The correlation of two channels' dwell residuals.
@@ -211,6 +233,21 @@ mod tests {
         assert!(p.significant && p.false_alarm < 1e-6, "{p:?}");
         assert!((p.period_s - 47.0).abs() < 0.02 * 47.0, "{p:?}");
         assert!((p.amplitude_codes - 10.0).abs() < 2.0, "{p:?}");
+        assert!(p.amplitude_resolved, "{p:?}");
+    }
+
+    #[test]
+    fn an_amplitude_the_times_never_see_or_beyond_the_adc_is_not_resolved() {
+        // Period 10 s sampled every 5 s from t = 0: a sine of any amplitude is 0 at every time.
+        let zeros: Vec<f64> = (0..20).map(|k| 5.0 * k as f64).collect();
+        assert!(!amplitude_resolved(&zeros, 0.1, 0.0, 1000.0));
+        // Sampled every 2.5 s, it reaches its peaks.
+        let quarters: Vec<f64> = (0..20).map(|k| 2.5 * k as f64).collect();
+        assert!(amplitude_resolved(&quarters, 0.1, 0.0, 1000.0));
+        assert!(amplitude_resolved(&quarters, 0.1, 600.0, 800.0));
+        // Peak-to-peak beyond the 16-bit range: not a period of any campaign's residuals.
+        assert!(!amplitude_resolved(&quarters, 0.1, 0.0, 40_000.0));
+        assert!(!amplitude_resolved(&quarters, 0.1, f64::NAN, 1.0));
     }
 
     #[test]

@@ -53,9 +53,8 @@ pub fn to_json(r: &Report) -> serde_json::Value {
     })
 }
 
-/// Appended to a trial row whose share of the excess is negative.
-pub const NEGATIVE_SHARE: &str =
-    "  (negative: fitted on the other positions, the effect made the held-out fit worse)";
+/// Appended to a trial row whose share of the excess is negative (printed `worse`).
+pub const NEGATIVE_SHARE: &str = "  (fitted on the other positions, the effect made the held-out fit worse)";
 
 /// The verdict of the headline: the noise test, and never "consistent with the noise" while an
 /// effect is named (the attribution may name one below the noise threshold when it passes its
@@ -85,19 +84,63 @@ fn print_periods(r: &Report) {
         sig(hi, 3),
         diagnose::periodic::FALSE_ALARM
     );
-    println!("{:<8} {:>10} {:>15} {:>12}", "channel", "period_s", "amplitude_codes", "false_alarm");
+    println!(
+        "{:<8} {:>10} {:>15} {:>12} {:>12}",
+        "channel", "period_s", "amplitude_codes", "amplitude_mg", "false_alarm"
+    );
     for c in &r.gap.channels {
         match &c.period {
-            Some(p) => println!(
-                "{:<8} {:>10} {:>15} {:>12}  {}",
-                c.name,
-                sig(p.period_s, 3),
-                sig(p.amplitude_codes, 3),
-                format!("{:.2e}", p.false_alarm),
-                if p.significant { "significant" } else { "not significant" }
-            ),
-            None => println!("{:<8} {:>10} {:>15} {:>12}", c.name, "-", "-", "-"),
+            Some(p) => {
+                let (codes, mg) = if p.amplitude_resolved {
+                    (sig(p.amplitude_codes, 3), mg(p.amplitude_codes, c.mg_per_code))
+                } else {
+                    ("unresolved".into(), "-".into())
+                };
+                println!(
+                    "{:<8} {:>10} {:>15} {:>12} {:>12}  {}",
+                    c.name,
+                    sig(p.period_s, 3),
+                    codes,
+                    mg,
+                    format!("{:.2e}", p.false_alarm),
+                    if p.significant { "significant" } else { "not significant" }
+                )
+            }
+            None => println!("{:<8} {:>10} {:>15} {:>12} {:>12}", c.name, "-", "-", "-", "-"),
         }
+    }
+    if r.gap.channels.iter().any(|c| c.period.as_ref().is_some_and(|p| !p.amplitude_resolved)) {
+        println!("  (unresolved: the sine reaches its amplitude only between the positions' times, or beyond the ADC's range)");
+    }
+}
+
+/// `codes` in mg at `mg_per_code` (3 significant digits), or `-` without a sensitivity.
+fn mg(codes: f64, mg_per_code: f64) -> String {
+    if mg_per_code.is_finite() {
+        sig(codes * mg_per_code, 3)
+    } else {
+        "-".into()
+    }
+}
+
+/// mg per code of the named channels together: their mean, of every channel when none is named
+/// or none of the names is a channel; NaN when none has a sensitivity.
+fn mg_per_code_of<'a>(r: &Report, names: impl IntoIterator<Item = &'a str>) -> f64 {
+    let names: Vec<&str> = names.into_iter().collect();
+    let named = |c: &&diagnose::gap::ChannelGap| names.contains(&c.name.as_str());
+    let all = !r.gap.channels.iter().any(|c| named(&c));
+    let v: Vec<f64> = r
+        .gap
+        .channels
+        .iter()
+        .filter(|c| all || named(c))
+        .map(|c| c.mg_per_code)
+        .filter(|m| m.is_finite())
+        .collect();
+    if v.is_empty() {
+        f64::NAN
+    } else {
+        v.iter().sum::<f64>() / v.len() as f64
     }
 }
 
@@ -185,14 +228,19 @@ pub fn print_report(r: &Report) {
         // baseline already fits to the noise) there is nothing to share.
         let has_excess = round.before.chi2 > round.before.bins as f64;
         for t in &round.trials {
-            // A negative share says why it is negative, on its row.
+            // A negative share is no share: the row says "worse" and why (the JSON keeps the value).
             let worse = has_excess && t.explained < 0.0;
+            let share = match (has_excess, worse) {
+                (false, _) => "-".into(),
+                (true, true) => "worse".into(),
+                (true, false) => format!("{:.0}%", 100.0 * t.explained),
+            };
             println!(
                 "  {:<18} {:>12} {:>10} {:>10} {:>10}{}",
                 t.name,
                 sig(t.chi2_drop, 5),
                 sig(t.threshold, 3),
-                if has_excess { format!("{:.0}%", 100.0 * t.explained) } else { "-".into() },
+                share,
                 sig(t.score.rms, 4),
                 if worse { NEGATIVE_SHARE } else { "" }
             );
@@ -205,13 +253,16 @@ pub fn print_report(r: &Report) {
         println!("effects found: none");
     }
     for e in &r.effects {
+        let per = mg_per_code_of(r, e.channels.iter().map(String::as_str));
         println!(
-            "effect {}{} on {}: held-out rms {} -> {} codes",
+            "effect {}{} on {}: held-out rms {} -> {} codes ({} -> {} mg)",
             e.name,
             if e.partial { " (PARTIAL)" } else { "" },
             e.channels.join(","),
             sig(e.heldout_rms_before, 4),
-            sig(e.heldout_rms_after, 4)
+            sig(e.heldout_rms_after, 4),
+            mg(e.heldout_rms_before, per),
+            mg(e.heldout_rms_after, per)
         );
         let kind = accelcal_core::effects::EffectKind::from_name(&e.name);
         for (who, ps) in &e.parameters {
@@ -219,10 +270,22 @@ pub fn print_report(r: &Report) {
                 .iter()
                 .map(|(k, v)| {
                     let unit = kind.and_then(|c| accelcal_core::effects::unit_of(c, k)).unwrap_or("");
-                    let unit = if unit.is_empty() { String::new() } else { format!(" {unit}") };
-                    match v.sd {
-                        Some(sd) => format!("{k} = {} ± {}{unit}", sig(v.value, 4), sig(sd, 2)),
-                        None => format!("{k} = {}{unit}", sig(v.value, 4)),
+                    let text = |value: f64, sd: Option<f64>, unit: &str| {
+                        let unit = if unit.is_empty() { String::new() } else { format!(" {unit}") };
+                        match sd {
+                            Some(sd) => format!("{} ± {}{unit}", sig(value, 4), sig(sd, 2)),
+                            None => format!("{}{unit}", sig(value, 4)),
+                        }
+                    };
+                    // A size in codes is also given in mg, at the channel's sensitivity.
+                    let per = mg_per_code_of(r, [who.as_str()]);
+                    match unit.strip_prefix("codes") {
+                        Some(rest) if per.is_finite() => format!(
+                            "{k} = {} ({})",
+                            text(v.value, v.sd, unit),
+                            text(v.value * per, v.sd.map(|sd| sd * per), &format!("mg{rest}"))
+                        ),
+                        _ => format!("{k} = {}", text(v.value, v.sd, unit)),
                     }
                 })
                 .collect();
@@ -230,8 +293,9 @@ pub fn print_report(r: &Report) {
         }
     }
     println!(
-        "unexplained rms: {} codes (final z = {})",
+        "unexplained rms: {} codes, {} mg (final z = {})",
         sig(r.unexplained_rms, 3),
+        mg(r.unexplained_rms, mg_per_code_of(r, [])),
         sig(r.attribution.final_z, 3)
     );
     if let Some(terms) = &r.remedy {
