@@ -293,7 +293,7 @@ fn check_line(c: &PositionCheck, n: usize) -> String {
         (None, _) => String::new(),
     };
     format!(
-        "position {}/{n} (alpha {} deg, beta {} deg{temp}): error {:+.5} {:+.5} {:+.5} m/s², tolerance {:.5} {:.5} {:.5}: {}",
+        "position {}/{n} (alpha {} deg, beta {} deg{temp}): error {:+.5} {:+.5} {:+.5} m/s², tolerance {:.5} {:.5} {:.5} m/s²: {}",
         c.position,
         c.alpha_deg,
         c.beta_deg,
