@@ -671,3 +671,111 @@ fn thermal_record_removes_the_temperature_error_in_verify() {
     }
     em.stop();
 }
+
+/// `accelcal station` for one unit, on the emulated head.
+fn station_args<'a>(em: &'a Emulator, serial: &'a str, dir: &'a Path, extra: &[&'a str]) -> Vec<&'a str> {
+    let mut v = vec![
+        "station",
+        "--port",
+        &em.port,
+        "--head",
+        &em.head,
+        "--gdb",
+        &em.gdb,
+        "--serial",
+        serial,
+        "--out",
+        s(dir),
+        "--plan",
+        "random:24",
+        "--samples",
+        "200",
+        "--rate-hz",
+        "1000",
+        "--g",
+        "9.81",
+        // The criterion of 24 positions of 200 noisy sets scatters by a few codes: a linear unit
+        // must not be rejected for it.
+        "--select-tolerance",
+        "5",
+    ];
+    v.extend_from_slice(extra);
+    v
+}
+
+/// The station's journal: each step's name and outcome.
+fn journal(dir: &Path) -> Vec<(String, String)> {
+    let j = json(&dir.join("station.json"));
+    j["steps"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| (r["step"].as_str().unwrap().to_string(), r["outcome"].as_str().unwrap().to_string()))
+        .collect()
+}
+
+/// Issue 23: `station` runs the line for a unit (info → acquire → select → fit → flash → as-left
+/// verify → certificate), journalled; the same command again keeps every step; another unit's
+/// directory is refused; a second unit on the node (the record now in force) is verified as found
+/// first; Ctrl-C to the station's process group (as a terminal sends it) stops it with 130 during
+/// the acquisition, and the same command again resumes the campaign and finishes.
+#[test]
+fn the_station_runs_the_line_journals_it_and_resumes_after_ctrl_c() {
+    use std::os::unix::process::CommandExt;
+    let _one = one_bench();
+    let dir = tempfile::tempdir().unwrap();
+    let (truth, _) = unit(dir.path(), "u", 21, 10);
+    let em = Emulator::start(&truth, &[]);
+    let a = dir.path().join("unit-a");
+    let out = succeed(&station_args(&em, "A-1", &a, &[]));
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("station: unit A-1 (device 51454d552d422d4c34373545) PASS"), "{text}");
+    let steps: Vec<String> = journal(&a).into_iter().map(|(s, _)| s).collect();
+    assert_eq!(steps, ["info", "as-found", "acquire", "select", "fit", "flash", "as-left", "certificate"]);
+    assert_eq!(journal(&a)[1].1, "skipped: no record in force");
+    assert!(a.join("certificate.html").is_file());
+    let crc = json(&a.join("as-left.json"))["record"]["crc"].as_str().unwrap().to_string();
+    assert_runs_record(&em, &a.join("info.json"), &crc);
+
+    // Again: nothing is repeated but `info` (the node must still be the unit's).
+    let err = String::from_utf8_lossy(&succeed(&station_args(&em, "A-1", &a, &[])).stderr).to_string();
+    assert_eq!(err.matches(", kept").count(), 7, "{err}");
+    assert!(!err.contains("step 3/8"), "{err}");
+    // Another serial in that directory: refused before anything runs.
+    let e = common::bad(&station_args(&em, "B-2", &a, &[]));
+    assert!(e.contains("holds the line of unit A-1, not of --serial B-2"), "{e}");
+
+    // A second unit on the same node, stopped by Ctrl-C mid-campaign, then resumed.
+    let b = dir.path().join("unit-b");
+    let fit_a = a.join("fit.json");
+    let extra = ["--as-found-fit", s(&fit_a)];
+    let mut child = Command::new(env!("CARGO_BIN_EXE_accelcal"))
+        .args(station_args(&em, "B-2", &b, &extra))
+        .process_group(0)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let t0 = Instant::now();
+    while dwells(&b.join("campaign.csv")).iter().filter(|d| d.2 == 200).count() < 2 {
+        assert!(t0.elapsed() < Duration::from_secs(120), "no progress");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    // To the station's process group, as a terminal's Ctrl-C (the station and its step).
+    let pgid = i32::try_from(child.id()).unwrap();
+    assert!(pgid > 1);
+    // SAFETY: kill(2) with a negative pid signals that process group only.
+    assert_eq!(unsafe { libc::kill(-pgid, libc::SIGINT) }, 0);
+    let status = child.wait().unwrap();
+    let mut err = String::new();
+    std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
+    assert_eq!(status.code(), Some(130), "{err}");
+    assert!(err.contains("stopped at step acquire: run the same command again"), "{err}");
+    assert!(err.contains("station: as-found PASS (6 positions)"), "{err}");
+    let out = succeed(&station_args(&em, "B-2", &b, &extra));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("as-found done at") && err.contains("--resume"), "{err}");
+    assert!(err.contains("resume: ") && err.contains("complete positions kept"), "{err}");
+    assert_eq!(dwells(&b.join("campaign.csv")).len(), 24);
+    assert_eq!(journal(&b).len(), 8);
+}

@@ -68,6 +68,7 @@ registry!(
     crate::node::link::LinkError,
     crate::node::qemu::QemuError,
     crate::node::session::SessionError,
+    crate::station::StationError,
 );
 
 /// What the failure `e` is: [`Kind::Interrupted`] when the user stopped the command, else the
@@ -91,6 +92,17 @@ pub fn code(e: &anyhow::Error) -> i32 {
         Kind::Interrupted => 130,
         Kind::BadInput => 2,
         Kind::Environment | Kind::Rejected => 1,
+    }
+}
+
+/// `accelcal station`'s exit code, which tells a rejected unit from a failed station: 1 the unit
+/// was rejected, 2 bad input, 3 the environment (port, probe, head, file system), 130 stopped.
+pub fn station_code(e: &anyhow::Error) -> i32 {
+    match kind(e) {
+        Kind::Interrupted => 130,
+        Kind::BadInput => 2,
+        Kind::Rejected => 1,
+        Kind::Environment => 3,
     }
 }
 
@@ -152,6 +164,26 @@ mod tests {
             (environment("writing out.json", io()), Environment),
             (e(crate::error::Interrupted("stopped".into())), Interrupted),
             (e(crate::verify::Failed { failed: 1, total: 6 }), Rejected),
+            (e(crate::station::StationError::NotDeployable("m".into())), Rejected),
+            (e(crate::station::StationError::BadJournal { path: p(), reason: "m".into() }), BadInput),
+            (
+                e(crate::station::StationError::OtherUnit {
+                    dir: p(),
+                    journal: "a".into(),
+                    given: "b".into(),
+                }),
+                BadInput,
+            ),
+            (
+                e(crate::station::StationError::OtherDevice {
+                    dir: p(),
+                    journal: "a".into(),
+                    node: "b".into(),
+                    serial: "s".into(),
+                }),
+                BadInput,
+            ),
+            (e(crate::station::StationError::Changed { file: p(), step: "info" }), BadInput),
             (e(CampaignError::Io { path: p(), cause: io() }), BadInput),
             (e(CampaignError::Line { path: p(), line: 1, msg: "m".into() }), BadInput),
             (e(CampaignError::File { path: p(), msg: "m".into() }), BadInput),

@@ -30,5 +30,6 @@ pub mod output;
 pub mod positions;
 pub mod reduce;
 pub mod sim;
+pub mod station;
 pub mod testturn;
 pub mod verify;

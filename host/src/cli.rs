@@ -71,6 +71,13 @@ pub enum Command {
     Diagnose(DiagnoseArgs),
     /// Blind benchmark of `diagnose` on simulated campaigns with withheld effects.
     BenchDiagnose(BenchDiagnoseArgs),
+    /// The whole line for one unit on the head: info, as-found verify (when a record is in
+    /// force), acquire, select (model 4 or the unit is rejected), fit, flash, as-left verify,
+    /// certificate; each step is the command of that name, run and journalled in the unit's
+    /// directory, so that running the same command again after Ctrl-C or a crash goes on where it
+    /// stopped. Exit code: 0 the unit passed, 1 it was rejected, 2 bad input, 3 the environment
+    /// failed (port, probe, head, file system), 130 stopped.
+    Station(StationArgs),
 }
 
 /// Local gravity from the site instead of `--g`: WGS84 normal gravity with the free-air
@@ -867,4 +874,67 @@ pub struct GravityOptions {
     /// diagnose` can examine a recording made without a dividing head.
     #[arg(long, value_name = "FILE")]
     pub campaign_out: Option<PathBuf>,
+}
+
+/// `accelcal station`.
+#[derive(Debug, Args)]
+pub struct StationArgs {
+    /// The node's link.
+    #[command(flatten)]
+    pub link: PortArgs,
+    /// The head: `manual` (the operator turns it; each step prompts) or `sim:HOST:PORT` (as for
+    /// `acquire`).
+    #[arg(long, value_name = "HEAD", value_parser = parse_head_text)]
+    pub head: String,
+    /// The unit's serial number (written into the campaign and the certificate; the unit's
+    /// directory is its own).
+    #[arg(long, value_name = "S")]
+    pub serial: String,
+    /// The unit's directory: the journal `station.json` and every file of the line (info.json,
+    /// as-found.json, campaign.csv, select.json, fit.json, record.rec, as-left.json,
+    /// certificate.html). Created if missing; the same directory again resumes the unit.
+    #[arg(long, short, value_name = "DIR")]
+    pub out: PathBuf,
+    /// Position plan of the campaign (head, six, random:N, or a plan file; see `acquire`).
+    #[arg(long, default_value = "head")]
+    pub plan: String,
+    /// Sample sets recorded per position, in the campaign and in each verification.
+    #[arg(long, default_value_t = 400, value_name = "N")]
+    pub samples: usize,
+    /// Set the node's sampling rate per channel for the campaign, Hz (100..=4000) [default: the
+    /// node's].
+    #[arg(long, value_name = "HZ")]
+    pub rate_hz: Option<u32>,
+    /// Gravity at the rig, m/s² [default: 9.81, announced; better --latitude/--height].
+    #[arg(long, value_name = "M_S2")]
+    pub g: Option<f64>,
+    /// Local gravity instead of --g.
+    #[command(flatten)]
+    pub local: LocalGravity,
+    /// The selection's tolerance, ADC codes: `select --tolerance` (the simplest model within it of
+    /// the best is selected; the paper's rule is one code).
+    #[arg(long, default_value_t = 1.0, value_name = "CODES")]
+    pub select_tolerance: f64,
+    /// Coverage factor K of the verifications' derived tolerance (>= 1) [default: verify's, 4].
+    #[arg(long, value_name = "K")]
+    pub coverage: Option<f64>,
+    /// The `fit --json` of the record in force, for the as-found verification's tolerance
+    /// [default: the tolerance from the measured scatter alone].
+    #[arg(long, value_name = "FIT_JSON")]
+    pub as_found_fit: Option<PathBuf>,
+    /// Flash through a GDB server (Black Magic Probe, OpenOCD, or `emulate`'s `gdb` address)
+    /// instead of probe-rs.
+    #[arg(long, value_name = "HOST:PORT")]
+    pub gdb: Option<String>,
+    /// probe-rs target name of the node's MCU [without --gdb].
+    #[arg(long, default_value = "STM32L475VGTx")]
+    pub chip: String,
+    /// Debug probe, as VID:PID or VID:PID:SERIAL [without --gdb; default: the first one found].
+    #[arg(long, value_name = "SELECTOR")]
+    pub probe: Option<String>,
+}
+
+/// A `--head` value, checked and kept as written (the station passes it on to each step).
+fn parse_head_text(s: &str) -> Result<String, String> {
+    s.parse::<accelcal_core::node::head::HeadSpec>().map(|_| s.to_string())
 }

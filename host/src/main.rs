@@ -1,5 +1,6 @@
 //! The `accelcal` binary: parse the command line, run the command, map errors to exit codes
-//! (2 for bad input, 1 for anything else). A failure prints one line; the campaign readers'
+//! (2 for bad input, 1 for anything else; `station` says 1 for a rejected unit, 3 for the
+//! environment). A failure prints one line; the campaign readers'
 //! warnings are printed after a success, or folded into that line.
 
 mod cli;
@@ -22,12 +23,17 @@ fn main() {
         std::process::exit(2);
     }
     let mut warnings = cmd::Warnings::default();
+    // The station tells a rejected unit (1) from a failed environment (3).
+    let code = match cli.command {
+        cli::Command::Station(_) => accelcal_core::exit::station_code,
+        _ => accelcal_core::exit::code,
+    };
     match cmd::run(cli, &mut warnings) {
         Ok(()) => cmd::print_warnings(&warnings),
         Err(e) => {
             // One line: the error, with the campaign's warnings folded in.
             eprintln!("error: {}", cmd::error_line(&warnings, &e));
-            std::process::exit(accelcal_core::exit::code(&e));
+            std::process::exit(code(&e));
         }
     }
 }

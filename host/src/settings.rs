@@ -69,6 +69,7 @@ pub fn resolve_gravity(command: &mut Command, given: &Given) -> anyhow::Result<(
     let optional = match command {
         Command::Acquire(a) => Some((&mut a.g, &a.local)),
         Command::Verify(a) => Some((&mut a.g, &a.local)),
+        Command::Station(a) => Some((&mut a.g, &a.local)),
         _ => None,
     };
     if let Some((g, local)) = optional {
@@ -295,6 +296,44 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
                 accelcal_shared::wire::check_rate(hz).map_err(|r| bad(format!("--rate-hz: {r}")))?;
             }
             positive_seconds("--timeout-s", a.timeout_s)
+        }
+        Command::Station(a) => {
+            if a.gdb.is_some() {
+                given.refuse(&["chip", "probe"], "station --gdb", " (they select a probe-rs probe)")?;
+            }
+            if a.serial.trim().is_empty() || a.serial.contains(['\n', '\r']) {
+                return Err(bad("--serial must be a non-empty single line"));
+            }
+            if a.samples < 2 {
+                return Err(bad(format!(
+                    "--samples must be at least 2 sets per position, got {}",
+                    a.samples
+                )));
+            }
+            if let Some(hz) = a.rate_hz {
+                accelcal_shared::wire::check_rate(hz).map_err(|r| bad(format!("--rate-hz: {r}")))?;
+            }
+            if !(a.select_tolerance.is_finite() && a.select_tolerance >= 0.0) {
+                return Err(bad(format!(
+                    "--select-tolerance must be a number of codes >= 0, got {}",
+                    a.select_tolerance
+                )));
+            }
+            if let Some(k) = a.coverage {
+                if !(k.is_finite() && k >= 1.0) {
+                    return Err(bad(format!("--coverage must be a number >= 1, got {k}")));
+                }
+            }
+            if let Some(g) = a.g {
+                crate::cmd::check_g(g)?;
+            }
+            if a.out.is_file() {
+                return Err(bad(format!(
+                    "--out {} is a file: the station needs a directory for the unit",
+                    a.out.display()
+                )));
+            }
+            check_answer_timeout(&a.link)
         }
         Command::BenchDiagnose(_) | Command::Demo(_) | Command::Plan(_) => Ok(()),
     }

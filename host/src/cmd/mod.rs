@@ -14,6 +14,7 @@ pub mod record;
 pub mod report;
 pub mod select;
 pub mod simulate;
+pub mod station;
 
 use crate::cli::{Cli, Command};
 
@@ -50,6 +51,7 @@ pub fn run(cli: Cli, warnings: &mut Warnings) -> anyhow::Result<()> {
             diagnose::run(&a, warnings)
         }
         Command::BenchDiagnose(a) => bench_diagnose::run(&a),
+        Command::Station(a) => station::run(&a),
     }
 }
 
