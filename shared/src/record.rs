@@ -117,7 +117,9 @@ pub struct Thermal {
     pub source: TempSource,
 }
 
-const CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+/// Bit by bit, without the 1 KiB lookup table (the node's flash budget): 8 rounds of 7
+/// instructions a byte on the node, ≈ 2 ms at 80 MHz for a 2 KiB slot, checked at boot only.
+const CRC: crc::Crc<u32, crc::NoTable> = crc::Crc::<u32, crc::NoTable>::new(&crc::CRC_32_ISO_HDLC);
 
 /// CRC-32 (ISO-HDLC, the zlib/Ethernet one) of `bytes`.
 pub fn crc32(bytes: &[u8]) -> u32 {
@@ -463,6 +465,13 @@ mod tests {
     use super::*;
     use crate::terms::MODEL_4;
     use proptest::prelude::*;
+
+    #[test]
+    fn crc32_is_iso_hdlc() {
+        // The catalogue's check value of CRC-32/ISO-HDLC (the zlib one), whichever implementation.
+        assert_eq!(crc32(b"123456789"), 0xCBF4_3926);
+        assert_eq!(crc32(b""), 0);
+    }
 
     fn sample() -> Record {
         let mut r = Record {

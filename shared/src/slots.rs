@@ -187,7 +187,8 @@ impl<'a> SlotImage<'a> {
 }
 
 fn slot_crc(header: &[u8], record: &[u8]) -> u32 {
-    const CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+    // Bit by bit, as `record::crc32` (no 1 KiB table in the node's flash).
+    const CRC: crc::Crc<u32, crc::NoTable> = crc::Crc::<u32, crc::NoTable>::new(&crc::CRC_32_ISO_HDLC);
     let mut d = CRC.digest();
     d.update(header);
     d.update(record);

@@ -19,9 +19,11 @@
 //! Sampling time 247.5 ADC cycles on x, y, z (firmware/README.md says why), 2.5 on the discarded
 //! conversion. DMA1 channel 1 (ADC1 request, RM0351 §11.6.7 Table 41) moves the codes in circular
 //! mode into a ring buffer of two blocks; the sampler task reads one half while the DMA fills the
-//! other. A lap of the ring is an overrun: counted and reported in every status. TIM6's rate is
-//! set at run time ([`SampleClockImpl`]), and the trigger configuration is read back from the
-//! registers at boot and after every change.
+//! other. A lap of the ring is an overrun, and the sets it lost are measured, not assumed
+//! ([`SourceImpl::measure_overrun`]): embassy-stm32 0.6.0's ring reports an overrun only once
+//! more than the whole ring is unread and then jumps the reader to the DMA's position, so the
+//! loss is any number of sets. TIM6's rate is set at run time ([`SampleClockImpl`]), and the
+//! trigger configuration is read back from the registers at boot and after every change.
 //!
 //! Temperature (the board's only temperature input, [`TEMP_INPUTS`]): the MCU's internal sensor,
 //! ADC1 channel 17 (ADC_CCR CH17SEL, RM0351 §18.4.32), read once per block by an injected
@@ -48,18 +50,22 @@
 //! progress; frozen while a debugger halts the core (DBGMCU_APB1FZR1 DBG_IWDG_STOP) so that
 //! `accelcal flash`, which halts the core, is never interrupted by it. TIM2 (embassy-time's
 //! driver, whose count of counter overflows needs its interrupt every 32.8 ms) and TIM6 (the ADC's
-//! trigger) are frozen with it, so that a halt stops the time and the sampling together. A panic or a hard fault logs over
-//! defmt and resets the MCU (`SCB::sys_reset`, reported as `ResetCause::Software` at the next
-//! boot); with the `debug-panic` feature, panic-probe halts instead, for a debugger.
+//! trigger) are frozen with it, so that a halt stops the time and the sampling together and the
+//! overrun measurement's two clocks never disagree. A panic or a hard fault logs over defmt and
+//! resets the MCU (`SCB::sys_reset`, reported as `ResetCause::Software` at the next boot); with
+//! the `debug-panic` feature, panic-probe halts instead, for a debugger.
 
+use core::cell::Cell;
 use core::sync::atomic::{AtomicU8, Ordering};
 
 use accelcal_shared::boot::TempInputs;
 use accelcal_shared::contract::BAUD_REAL;
 use accelcal_shared::flash_ecc::{self, NmiAction};
 use accelcal_shared::mcu_temp::{self, McuTempCal};
+use accelcal_shared::overrun::Tracker;
 use accelcal_shared::slots::{SlotRead, SLOT_SIZE};
 use accelcal_shared::wire::{Codes, ResetCause, DEFAULT_RATE_HZ, LINK_RX_RING, MAX_BLOCK};
+use critical_section::Mutex;
 use defmt_rtt as _;
 use embassy_stm32::adc::{Adc, AdcChannel, AdcConfig, RingBufferedAdc, SampleTime, CONTINUOUS};
 use embassy_stm32::pac::adc::vals::{Dmacfg, OversamplingRatio, OversamplingShift, Rovsm, Trovs};
@@ -70,6 +76,7 @@ use embassy_stm32::time::Hertz;
 use embassy_stm32::timer::low_level::{RoundTo, Timer};
 use embassy_stm32::usart::{self, RingBufferedUartRx, Uart, UartTx};
 use embassy_stm32::{bind_interrupts, dma, mode::Async, pac, peripherals, rcc, Config};
+use embassy_time::Instant;
 #[cfg(feature = "debug-panic")]
 use panic_probe as _;
 
@@ -92,6 +99,12 @@ const IWDG_RELOAD: u16 = (WATCHDOG_TIMEOUT_US / 1000 - 1) as u16;
 const IWDG_UPDATE_POLLS: u32 = 20_000;
 /// Conversions per scan: the discarded one, then x, y, z.
 const N_SCAN: usize = 4;
+/// Sets in the ADC's DMA ring: two blocks.
+const RING_SETS: usize = 2 * MAX_BLOCK;
+/// TIM6's kernel clock, MHz: APB1's timer clock, PCLK1 = SYSCLK = 80 MHz with the APB1 prescaler
+/// at 1 ([`clocks`]; RM0351 §6.2, "Timer clock": ×1 when the APB prescaler is 1). `init` checks it
+/// against embassy's `Timer::get_clock_frequency`.
+const TIM6_CLOCK_MHZ: u32 = 80;
 /// ADC1 channel of each rank of the scan: VREFINT (IN0, discarded), PC5 (IN14, x), PC4 (IN13, y),
 /// PC3 (IN4, z).
 const SCAN_CHANNELS: [u8; N_SCAN] = [0, 14, 13, 4];
@@ -176,6 +189,38 @@ pub struct SourceImpl {
     temp: McuTemp,
 }
 
+/// The count of sample sets across overruns ([`Tracker`]): updated by the sampler after
+/// every block and overrun ([`SourceImpl`]) and by [`SampleClockImpl`] at every rate change, so
+/// shared by two tasks (thread mode, one executor; no interrupt touches it).
+static TRACKER: Mutex<Cell<SetTracker>> = Mutex::new(Cell::new(SetTracker::new()));
+
+/// The board's [`Tracker`]: the ADC ring's sets and scan length, TIM6's clock.
+type SetTracker = Tracker<{ RING_SETS as u32 }, { N_SCAN as u32 }, TIM6_CLOCK_MHZ>;
+
+/// Runs `f` on [`TRACKER`].
+fn with_tracker<R>(f: impl FnOnce(&mut SetTracker) -> R) -> R {
+    critical_section::with(|cs| {
+        let cell = TRACKER.borrow(cs);
+        let mut tracker = cell.get();
+        let r = f(&mut tracker);
+        cell.set(tracker);
+        r
+    })
+}
+
+/// embassy-time's clock, µs (the build's `tick-hz-1_000_000`), truncated to 32 bits.
+#[inline(never)]
+fn now_us() -> u32 {
+    Instant::now().as_ticks() as u32
+}
+
+/// DMA1 channel 1's remaining transfers (CNDTR1, RM0351 §11.6.4; stm32-metapac 21
+/// `peripherals/bdma_v2.rs`, `Ch::ndtr` at 0x08 + 20·n + 0x04): the ADC ring's write position,
+/// counting down from the ring's length.
+fn adc_dma_ndtr() -> u16 {
+    pac::DMA1.ch(0).ndtr().read().ndt()
+}
+
 /// The temperature sensor's injected reading, once per block.
 struct McuTemp {
     /// The part's calibration (`None`: implausible values, the temperature reads NaN).
@@ -246,20 +291,50 @@ impl SampleSource for SourceImpl {
     ) -> Result<usize, Overrun> {
         let mut raw = [0u16; MAX_BLOCK * N_SCAN];
         match self.adc.read(&mut raw).await {
-            Ok(_) => {
+            Ok(unread) => {
                 // Rank 1 of each scan is the erratum's discarded conversion.
                 for (set, c) in out.iter_mut().zip(raw.chunks_exact(N_SCAN)) {
                     *set = [c[1], c[2], c[3]];
                 }
                 temp_c.fill(self.temp.poll());
+                // `unread` values follow the block (embassy's `read_exact` returns them): the
+                // count of scans begun is known exactly now.
+                let now = now_us();
+                with_tracker(|t| t.block(MAX_BLOCK as u32, unread as u32, now));
                 Ok(MAX_BLOCK)
             }
-            Err(_) => {
-                // The DMA lapped the reader: at least one block is gone. Restart from fresh data.
-                self.adc.clear();
-                Err(Overrun { lost: MAX_BLOCK as u32 })
-            }
+            Err(_) => Err(Overrun { lost: self.measure_overrun() }),
         }
+    }
+}
+
+impl SourceImpl {
+    /// After the ring reported an overrun: moves the reader to the DMA's position (embassy's
+    /// `clear`, `ReadableDmaRingBuffer::reset`: the reader resumes at the first whole scan at or
+    /// after it) and returns the sets lost since the last block, measured
+    /// ([`Tracker::overrun`]): modulo the ring from DMA1 channel 1's NDTR read on both sides of
+    /// the move (equal: no transfer in between, so it is the position embassy read; the DMA's
+    /// transfers are at least 52 µs apart, 16 × 260 ADC cycles, and the move takes about 1 µs),
+    /// the laps from the time since the count was last known, at TIM6's period.
+    #[inline(never)]
+    fn measure_overrun(&mut self) -> u32 {
+        let ndtr = loop {
+            let before = adc_dma_ndtr();
+            self.adc.clear();
+            if adc_dma_ndtr() == before {
+                break before;
+            }
+        };
+        let now = now_us();
+        let lost = with_tracker(|t| t.overrun(ndtr.into(), now));
+        if lost.off_by.unsigned_abs() > 3 {
+            defmt::error!(
+                "overrun measurement: DMA and TIM6 period disagree by {=i32} sets (exact below {=u32})",
+                lost.off_by,
+                RING_SETS as u32 / 2
+            );
+        }
+        lost.sets
     }
 }
 
@@ -276,6 +351,7 @@ impl SampleClock for SampleClockImpl {
 
     fn set_rate(&mut self, hz: u32) -> bool {
         self.timer.stop();
+        let now = now_us();
         self.timer.set_frequency(Hertz(hz), RoundTo::Slower);
         self.timer.reset();
         // TIM6_PSC is preloaded (RM0351 §30.3.1): an update event loads it now. With MMS = update
@@ -283,6 +359,11 @@ impl SampleClock for SampleClockImpl {
         self.timer.generate_update_event();
         self.timer.start();
         self.rate_hz = hz;
+        // The count of scans goes on from those begun under the old period, plus the one the
+        // update event starts, at the period PSC and ARR now give (TIM6's clock: TIM6_CLOCK_MHZ).
+        let tim = self.timer.regs_basic();
+        let period = (tim.psc().read() as u32 + 1).saturating_mul(tim.arr().read().arr() as u32 + 1);
+        with_tracker(|t| t.rate_changed(now, period));
         self.trigger_ok()
     }
 
@@ -540,6 +621,9 @@ pub fn init() -> Board {
     timer.regs_basic().cr2().modify(|w| w.set_mms(Mms::UPDATE));
     adc.start();
     McuTemp::start();
+    if timer.get_clock_frequency().0 != TIM6_CLOCK_MHZ * 1_000_000 {
+        defmt::error!("TIM6 clock is not {=u32} MHz: overrun counts will be wrong", TIM6_CLOCK_MHZ);
+    }
     let mut clock = SampleClockImpl { timer, rate_hz: DEFAULT_RATE_HZ };
     // Starts TIM6 (the app reads the trigger configuration back when it builds the node).
     clock.set_rate(DEFAULT_RATE_HZ);
