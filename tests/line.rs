@@ -836,6 +836,16 @@ fn a_manual_head_that_is_not_turned_is_refused() {
     let rec = dir.path().join("r.rec");
     ok(&["fit", s(&c), "--record", s(&rec), "--device-id", "51454d552d422d4c34373545"]);
     assert!(ok(&["record", "show", s(&rec)]).contains("node: accepts it"));
+
+    // Ctrl-C while the command waits for Enter stops it at once, with 130.
+    std::fs::remove_file(&c).unwrap();
+    let a = args(&[]);
+    let mut op = Operator::start(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    op.wait_for(&prompt(1), 1);
+    let code = interrupt(&mut op.child, Duration::from_secs(5));
+    let (_, err) = op.finish();
+    assert_eq!(code, Some(130), "{err}");
+    assert!(err.trim_end().ends_with("holds 0 of 6 positions; continue with --resume"), "{err}");
 }
 
 /// Issue 24: `--resume` takes samples, rate and g from the campaign, refuses an option that
