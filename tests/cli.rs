@@ -488,6 +488,72 @@ fn records_a_node_would_refuse_are_not_written_nor_flashed() {
     );
 }
 
+/// Issue 24: a record whose sensitivities no unit has (here one of −0.8 codes/(m/s²), as the
+/// unturned head's campaign gave) is refused by `fit --record` (see the table of refused command
+/// lines) and `flash`, and `record show` says so although a node would accept it.
+#[test]
+fn implausible_records_are_refused_and_record_show_says_why() {
+    let d = Dir::new();
+    let c = simulate(&d, "c.csv", &["--seed", "4", "--samples", "2"]);
+    ok(&["fit", &c, "--record", &d.s("good.rec"), "--device-id", "51454d552d422d4c34373545"]);
+    let mut r = Record::parse(&std::fs::read(d.p("good.rec")).unwrap()).unwrap();
+    r.coefficients[1][2] = -0.8;
+    let mut buf = [0u8; accelcal_shared::record::MAX_RECORD_LEN];
+    let n = r.emit(&mut buf).unwrap();
+    std::fs::write(d.p("flat.rec"), &buf[..n]).unwrap();
+    let why = "implausible sensitivity: channel 1's coefficient of ay is -0.8000 codes/(m/s²), a unit's is positive \
+               and 3.34 to 3340 codes/(m/s²) at g = 9.81 m/s²";
+    let out = ok(&["record", "show", &d.s("flat.rec"), "--json", &d.s("flat.json")]);
+    assert!(out.contains(&format!("node: would accept it, but accelcal refuses it: {why}")), "{out}");
+    let j = json(&d.p("flat.json"));
+    assert_eq!(j["node_accepts"], true);
+    assert!(j["refusal"].as_str().unwrap().starts_with(why), "{j}");
+    let e = bad(&["flash", &d.s("flat.rec"), "--probe", "ffff:ffff"]);
+    assert!(e.contains(&format!("{}: {why}", d.s("flat.rec"))), "{e}");
+}
+
+/// Issue 24: `acquire`'s check that the head moved as the plan says
+/// (`accelcal_core::acquire::MotionCheck`) accepts every position, in acquisition order, of the
+/// real Xsens recording's holds (their angles from the calibrated gravity direction) and of
+/// simulated campaigns with each effect, and refuses the unturned head's second position.
+#[test]
+fn the_motion_check_accepts_real_and_simulated_positions() {
+    use accelcal_core::acquire::MotionCheck;
+    use accelcal_core::campaign::Campaign;
+    let check = |path: &Path, g: f64| -> Result<usize, String> {
+        let c = Campaign::read(path).unwrap();
+        let mut m = MotionCheck::new(g);
+        for (k, d) in c.dwells().iter().enumerate() {
+            let mean = [0, 1, 2].map(|ch| {
+                c.channels[ch].codes[d.start..d.end].iter().sum::<f64>() / (d.end - d.start) as f64
+            });
+            m.check(d.accel(g), mean).map_err(|e| format!("{}: position {}: {e}", path.display(), k + 1))?;
+            m.accept(d.accel(g), mean, k + 1);
+        }
+        Ok(c.dwells().len())
+    };
+    let d = Dir::new();
+    let real = concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/data/real/imu_tk_xsens_acc.txt.gz");
+    ok(&["fit", real, "--method", "gravity-norm", "--g", "9.81744", "--campaign-out", &d.s("real.csv")]);
+    assert_eq!(check(&d.p("real.csv"), 9.81744), Ok(38));
+    let effects = [
+        "bias_drift=rate:2",
+        "nonlinearity=k2:50",
+        "head_misalignment=rx_mrad:20,ry_mrad:-20",
+        "hysteresis=h:50",
+        "settling=gain:30,tau:0.4",
+    ];
+    for (seed, effect) in effects.iter().enumerate() {
+        let name = format!("s{seed}.csv");
+        let seed = seed.to_string();
+        simulate(&d, &name, &["--seed", &seed, "--samples", "20", "--effect", effect]);
+        assert_eq!(check(&d.p(&name), 9.81), Ok(62), "{effect}");
+    }
+    unturned(&d.p("u.csv"));
+    let e = check(&d.p("u.csv"), 9.81).unwrap_err();
+    assert!(e.contains("position 2: its mean codes moved"), "{e}");
+}
+
 #[test]
 fn compare_gives_table_2_with_and_without_validation_campaign() {
     let d = Dir::new();
@@ -867,7 +933,55 @@ const REFUSED: &[(&str, &str)] = &[
     ),
     ("acquire --port P --head manual --out a.csv --rate-hz 50", "--rate-hz: RateOutOfRange"),
     ("monitor --port P --rate 50", "--rate-hz: RateOutOfRange"),
+    // Issue 24: `--resume` continues with the campaign's samples, rate and g (`A`, as `acquire`
+    // wrote it: 200 sets, 500 Hz, 9.81 m/s²), before the node is opened (`P` is no port).
+    (
+        "acquire --port P --head manual --plan six -o A --resume --samples 300",
+        "--samples 300 contradicts A's `# samples: 200`: --resume continues with the campaign's settings",
+    ),
+    (
+        "acquire --port P --head manual --plan six -o A --resume --rate-hz 1000",
+        "--rate-hz 1000 contradicts A's `# rate_hz: 500`",
+    ),
+    (
+        "acquire --port P --head manual --plan six -o A --resume --g 9.8",
+        "--g 9.8 contradicts A's `# g_m_s2: 9.81`",
+    ),
+    (
+        "acquire --port P --head manual --plan six -o C --resume",
+        "not a campaign written by `accelcal acquire`",
+    ),
+    // Issue 24: the record of a head that was never turned (`U`: six positions, one reading).
+    (
+        "fit U --record u.rec --device-id 51454d552d422d4c34373545",
+        "implausible sensitivity: channel 0's coefficient of ax is",
+    ),
 ];
+
+/// An acquired campaign's header (`A` of the table): 200 sets per position at 500 Hz, g 9.81.
+const ACQUIRED_HEADER: &str =
+    "# acquired_by: accelcal 0.1.0 acquire\n# device_id: 51454d552d422d4c34373545\n\
+    # g_m_s2: 9.81\n# plan: six (6 positions)\n# samples: 200\n# rate_hz: 500\n# codes: unsigned16\n\
+    t_s,alpha_deg,beta_deg,x,y,z\n";
+
+/// A campaign of the six positions at which the head was never turned: every dwell reads the
+/// same codes, give or take two.
+fn unturned(path: &Path) {
+    let mut text = String::from("t_s,alpha_deg,beta_deg,x,y,z\n");
+    for (p, (a, b)) in accelcal_core::sim::Plan::six().positions.into_iter().enumerate() {
+        for i in 0..20 {
+            let n = ((p * 20 + i) * 7 % 5) as i64 - 2;
+            text += &format!(
+                "{},{a},{b},{},{},{}\n",
+                (p * 20 + i) as f64 * 0.01,
+                32000 + n,
+                33000 - n,
+                34000 + n
+            );
+        }
+    }
+    std::fs::write(path, text).unwrap();
+}
 
 /// Command lines in which every option applies: they run, and write what they are asked to.
 const ACCEPTED: &[(&str, &[&str])] = &[
@@ -888,8 +1002,9 @@ const ACCEPTED: &[(&str, &[&str])] = &[
 
 /// The arguments of a table line, run in `d`: `C`, `V`, `R` and output names become paths there.
 fn table_args(d: &Dir, line: &str) -> Vec<String> {
-    let is_path =
-        |w: &str| ["C", "V", "R", "d", "p"].contains(&w) || w.contains('.') && w.parse::<f64>().is_err();
+    let is_path = |w: &str| {
+        ["C", "V", "R", "A", "U", "d", "p"].contains(&w) || w.contains('.') && w.parse::<f64>().is_err()
+    };
     line.split_whitespace().map(|w| if is_path(w) { d.s(w) } else { w.to_string() }).collect()
 }
 
@@ -903,13 +1018,16 @@ fn options_that_do_not_apply_and_outputs_that_are_inputs_are_refused_before_any_
         d.p("R"),
     )
     .unwrap();
+    std::fs::write(d.p("A"), ACQUIRED_HEADER).unwrap();
+    unturned(&d.p("U"));
     for (line, want) in REFUSED {
         let args = table_args(&d, line);
         let args: Vec<&str> = args.iter().map(String::as_str).collect();
         let before = files(d.0.path());
         let e = bad(&args);
         let want = want.replace(" C ", &format!(" {} ", d.s("C"))).replace(" V ", &format!(" {} ", d.s("V")));
-        let want = want.replace(" R ", &format!(" {} ", d.s("R")));
+        let want =
+            want.replace(" R ", &format!(" {} ", d.s("R"))).replace(" A's", &format!(" {}'s", d.s("A")));
         assert!(e.contains(&want), "`{line}`: expected `{want}` in: {e}");
         assert!(files(d.0.path()) == before, "`{line}`: a file was written or changed");
     }

@@ -12,10 +12,14 @@
 //! - `--resume` checks that the file was acquired from the same node with the same plan and sample
 //!   count, truncates an incomplete last position and continues with the next one;
 //! - a stop request (Ctrl-C) is seen within the link's poll interval; the position under way is
-//!   discarded and the file keeps the completed ones.
+//!   discarded and the file keeps the completed ones;
+//! - before each position the node is checked to stream raw codes at the campaign's rate (a node
+//!   that reset meanwhile is set back, and its restarted sample counter continues `t_s` after the
+//!   last row), and each recorded position must have moved as the plan says ([`MotionCheck`]),
+//!   else it is refused (the operator of a manual head may retry it).
 
 use std::fs::{File, OpenOptions};
-use std::io::{Seek, SeekFrom, Write};
+use std::io::Write;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -26,6 +30,12 @@ use crate::error::{bad, environment};
 use crate::node::head::SimHead;
 use crate::node::session::{device_id_hex, firmware_version, Session};
 use crate::sim::Plan;
+
+mod motion;
+mod resume;
+pub use motion::MotionCheck;
+use resume::open_resumed;
+pub use resume::{resume_settings, ResumeSettings};
 
 /// When the stream counts as static: two consecutive windows of `window` sets whose means differ,
 /// on every channel, by at most `z` standard errors of the difference (the standard error from the
@@ -154,9 +164,11 @@ pub trait Positioner {
     /// the head stands there (an operator confirmed it, or the emulated head arrived).
     fn set(&mut self, k: usize, n: usize, angles: (f64, f64), expected: [f64; 3]) -> anyhow::Result<()>;
 
-    /// Position `k` did not become static in time (`why` says by how much); true to try it again
-    /// (the head is set again), false to stop the acquisition with an error.
-    fn unsettled(&mut self, k: usize, why: &str) -> anyhow::Result<bool>;
+    /// Position `k` was refused: it did not become static in time, or its reading did not move as
+    /// the plan says (`why` says which, and by how much); true to try it again (the head is set
+    /// again), false to stop with an error naming the position. A positioner that waits for an
+    /// operator returns at once when a stop was requested (the caller checks its stop flag).
+    fn retry(&mut self, k: usize, why: &str) -> anyhow::Result<bool>;
 
     /// Sets the rig's thermal chamber to `setpoint_c` (°C); the caller then waits its soak time.
     fn chamber(&mut self, setpoint_c: f64) -> anyhow::Result<()>;
@@ -204,7 +216,7 @@ impl Positioner for SimHead {
     fn set(&mut self, _k: usize, _n: usize, (a, b): (f64, f64), _expected: [f64; 3]) -> anyhow::Result<()> {
         Ok(self.move_to(a, b)?)
     }
-    fn unsettled(&mut self, _k: usize, _why: &str) -> anyhow::Result<bool> {
+    fn retry(&mut self, _k: usize, _why: &str) -> anyhow::Result<bool> {
         Ok(false)
     }
     fn chamber(&mut self, setpoint_c: f64) -> anyhow::Result<()> {
@@ -224,6 +236,9 @@ pub struct AcquireConfig {
     pub plan_name: String,
     /// Sets recorded per position.
     pub samples: usize,
+    /// The node's sampling rate for the campaign, Hz: set first, and set again before a position
+    /// when the node streams at another (it reset); `None`: the node's rate at the start.
+    pub rate_hz: Option<u32>,
     /// When the stream is static.
     pub rule: StaticRule,
     /// How long a position may take to become static.
@@ -290,6 +305,8 @@ pub trait Progress {
     fn resumed(&mut self, done: usize, truncated_rows: usize);
     /// The campaign file is ready and the acquisition begins with position `from` (0-based).
     fn started(&mut self, from: usize, total: usize, rule: &StaticRule);
+    /// Something the operator should know (the node was set back after a reset).
+    fn note(&mut self, line: &str);
 }
 
 /// What an acquisition did.
@@ -332,106 +349,6 @@ fn header(cfg: &AcquireConfig, device_id: &str, firmware: &str, rate_hz: u32, wi
         "t_s,alpha_deg,beta_deg,x,y,z\n"
     });
     h
-}
-
-/// What [`open_resumed`] found in a campaign to continue.
-struct Resumed {
-    file: File,
-    done: usize,
-    truncated_rows: usize,
-    /// The campaign records `temp_c`.
-    with_temp: bool,
-}
-
-/// Opens an acquired campaign for continuing: checks that it is the same node, plan and sample
-/// count, keeps its complete positions and truncates the rest.
-fn open_resumed(cfg: &AcquireConfig, device_id: &str) -> anyhow::Result<Resumed> {
-    let path = &cfg.out;
-    let d = path.display();
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| bad(format!("{d}: cannot read the campaign to resume: {e}")))?;
-    let values = crate::campaign::header(path)?;
-    let get = |k: &str| values.iter().find(|(key, _)| key == k).map(|(_, v)| v.as_str());
-    if get("acquired_by").is_none() {
-        return Err(bad(format!(
-            "{d}: not a campaign written by `accelcal acquire` (no `# acquired_by:` line): cannot resume it"
-        )));
-    }
-    let want_chamber = cfg.chamber.as_ref().map_or("(missing)".to_string(), Chamber::describe);
-    let positions = cfg.positions();
-    for (key, want) in [
-        ("device_id", device_id.to_string()),
-        ("plan", cfg.plan_words()),
-        ("samples", cfg.samples.to_string()),
-        ("chamber", want_chamber),
-    ] {
-        let have = get(key).unwrap_or("(missing)");
-        if have != want {
-            return Err(bad(format!(
-                "{d}: cannot resume: the campaign's {key} is `{have}`, this acquisition's is `{want}`"
-            )));
-        }
-    }
-    // Walk the rows: header row, then complete lines grouped into positions by their angles.
-    let mut offset = 0usize;
-    let mut header_end = None;
-    let mut with_temp = false;
-    let mut keep_end = 0usize;
-    let mut done = 0usize;
-    let mut rows_in_pos = 0usize;
-    let mut cur: Option<(String, String)> = None;
-    let mut total_rows = 0usize;
-    for line in text.split_inclusive('\n') {
-        offset += line.len();
-        if header_end.is_none() {
-            if !line.starts_with('#') && !line.trim().is_empty() {
-                header_end = Some(offset);
-                keep_end = offset;
-                with_temp = line.trim_end().split(',').any(|c| c == "temp_c");
-            }
-            continue;
-        }
-        if !line.ends_with('\n') {
-            break; // a row cut by a crash
-        }
-        let mut f = line.trim_end().split(',');
-        let (_, a, b) = (f.next(), f.next().unwrap_or(""), f.next().unwrap_or(""));
-        let key = (a.to_string(), b.to_string());
-        if cur.as_ref() != Some(&key) {
-            if rows_in_pos != 0 && rows_in_pos != cfg.samples {
-                break;
-            }
-            cur = Some(key);
-            rows_in_pos = 0;
-        }
-        rows_in_pos += 1;
-        total_rows += 1;
-        if rows_in_pos == cfg.samples {
-            let Some(&(pa, pb)) = positions.get(done) else {
-                return Err(bad(format!(
-                    "{d}: cannot resume: the campaign has more positions than the plan"
-                )));
-            };
-            let same = a.parse::<f64>().ok() == Some(pa) && b.parse::<f64>().ok() == Some(pb);
-            if !same {
-                return Err(bad(format!(
-                    "{d}: cannot resume: its position {} is at ({a}, {b}) degrees, the plan's at ({pa}, {pb})",
-                    done + 1
-                )));
-            }
-            done += 1;
-            keep_end = offset;
-        }
-    }
-    let Some(_) = header_end else {
-        return Err(bad(format!("{d}: cannot resume: the campaign has no header row")));
-    };
-    let truncated_rows = total_rows - done * cfg.samples;
-    let mut file =
-        OpenOptions::new().write(true).open(path).map_err(|e| environment(format!("opening {d}"), e))?;
-    file.set_len(keep_end as u64).map_err(|e| environment(format!("truncating {d}"), e))?;
-    file.seek(SeekFrom::End(0)).map_err(|e| environment(format!("seeking {d}"), e))?;
-    Ok(Resumed { file, done, truncated_rows, with_temp })
 }
 
 /// Writes whole positions to the campaign file, each made durable before the next begins.
@@ -477,9 +394,24 @@ pub fn acquire(
     let before = info.output;
     node.set_output(Output::Raw)?;
     let result = (|| {
+        let rate_hz = match cfg.rate_hz {
+            Some(hz) if hz != info.rate_hz => {
+                if cfg.resume {
+                    progress.note(&format!(
+                        "the node streams at {} Hz, the campaign's rate is {hz} Hz: set to {hz} Hz",
+                        info.rate_hz
+                    ));
+                }
+                set_rate(node, hz)?
+            }
+            Some(hz) => hz,
+            None => info.rate_hz,
+        };
+        let mut history: (Vec<[f64; 3]>, f64) = (Vec::new(), f64::NEG_INFINITY);
         let (mut out, done, with_temp) = if cfg.resume {
             let r = open_resumed(cfg, &device_id)?;
             progress.resumed(r.done, r.truncated_rows);
+            history = (r.means, r.last_t);
             (CampaignFile { file: r.file, path: cfg.out.clone() }, r.done, r.with_temp)
         } else {
             // The campaign records the node's temperature when its blocks carry one.
@@ -493,7 +425,7 @@ pub fn acquire(
                 }
             })?;
             let mut f = CampaignFile { file, path: cfg.out.clone() };
-            f.append(&header(cfg, &device_id, &firmware, info.rate_hz, with_temp))?;
+            f.append(&header(cfg, &device_id, &firmware, rate_hz, with_temp))?;
             (f, 0, with_temp)
         };
         if cfg.chamber.is_some() && !with_temp {
@@ -505,7 +437,8 @@ pub fn acquire(
             )));
         }
         progress.started(done, cfg.positions().len(), &cfg.rule);
-        run_positions(node, head, cfg, progress, stop, &mut out, done, info.rate_hz, with_temp)
+        let at = Resume { done, means: history.0, clock: Clock { offset: 0.0, last: history.1 } };
+        run_positions(node, head, cfg, progress, stop, &mut out, at, rate_hz, with_temp)
     })();
     // Put the node back as it was, whatever happened.
     let restored = if before != Output::Raw { node.set_output(before).map(|_| ()) } else { Ok(()) };
@@ -526,6 +459,72 @@ fn reports_temperature(node: &mut Session) -> anyhow::Result<bool> {
     Ok(false)
 }
 
+/// Sets the node's rate to `hz` and checks that it took it; returns it.
+fn set_rate(node: &mut Session, hz: u32) -> anyhow::Result<u32> {
+    let st = node.set_rate(hz)?;
+    if st.rate_hz != hz {
+        return Err(anyhow::anyhow!(
+            "{}: the node was asked for {hz} Hz and reports {} Hz",
+            node.port(),
+            st.rate_hz
+        ));
+    }
+    Ok(hz)
+}
+
+/// Before a position: the node must stream raw codes at the campaign's rate. A node that reset
+/// since (it returns to its default rate and output) is set back, with a note.
+fn ensure_node(node: &mut Session, rate_hz: u32, progress: &mut dyn Progress) -> anyhow::Result<()> {
+    let info = node.info()?;
+    if info.rate_hz != rate_hz {
+        progress.note(&format!(
+            "the node streams at {} Hz, the campaign's rate is {rate_hz} Hz (did it reset? last reset: {}): set back \
+             to {rate_hz} Hz",
+            info.rate_hz, info.reset_cause
+        ));
+        set_rate(node, rate_hz)?;
+    }
+    if info.output != Output::Raw {
+        progress.note(&format!(
+            "the node streams {} output (did it reset?): set back to raw",
+            info.output.name()
+        ));
+        node.set_output(Output::Raw)?;
+    }
+    Ok(())
+}
+
+/// The `t_s` of recorded sets: the node's sample counter over the rate, plus an offset that keeps
+/// `t_s` increasing when the counter restarted (the node reset).
+#[derive(Clone, Copy, Debug)]
+struct Clock {
+    offset: f64,
+    /// `t_s` of the last row written.
+    last: f64,
+}
+
+impl Clock {
+    /// `t_s` of the set numbered `counter`; the first set of a position moves the offset when the
+    /// counter went back.
+    fn start(&mut self, counter: u32, rate_hz: u32) {
+        let t = counter as f64 / rate_hz as f64;
+        if t + self.offset <= self.last {
+            self.offset = self.last + 1.0 / rate_hz as f64 - t;
+        }
+    }
+
+    fn t(&self, counter: u32, rate_hz: u32) -> f64 {
+        counter as f64 / rate_hz as f64 + self.offset
+    }
+}
+
+/// Where an acquisition starts: the positions already in the file, their mean codes, the clock.
+struct Resume {
+    done: usize,
+    means: Vec<[f64; 3]>,
+    clock: Clock,
+}
+
 #[allow(clippy::too_many_arguments)]
 fn run_positions(
     node: &mut Session,
@@ -534,50 +533,66 @@ fn run_positions(
     progress: &mut dyn Progress,
     stop: &AtomicBool,
     out: &mut CampaignFile,
-    done: usize,
+    at: Resume,
     rate_hz: u32,
     with_temp: bool,
 ) -> anyhow::Result<(usize, u64, bool)> {
     let positions = cfg.positions();
     let n = positions.len();
     let per_pass = cfg.plan.positions.len();
+    let done = at.done;
+    let mut clock = at.clock;
+    let accel = |k: usize| accelcal_shared::gravity(positions[k].0, positions[k].1, cfg.g);
+    // The positions of the pass under way that the file already holds are the reference.
+    let mut motion = MotionCheck::new(cfg.g);
+    for (i, m) in at.means.iter().enumerate().skip(done - done % per_pass) {
+        motion.accept(accel(i), *m, i + 1);
+    }
     let t0 = Instant::now();
     let mut lost_total = 0u64;
     for k in done..n {
         let angles = positions[k];
-        let expected = accelcal_shared::gravity(angles.0, angles.1, cfg.g);
+        let expected = accel(k);
+        if k % per_pass == 0 {
+            motion.reset();
+        }
         // A new chamber setpoint (or a resumed pass): set it and soak.
         if let Some(c) = cfg.chamber.as_ref().filter(|_| k % per_pass == 0 || k == done) {
             if !soak(node, head, c.setpoints_c[k / per_pass], c.soak, stop)? {
                 return Ok((k, lost_total, true));
             }
         }
-        let rows = loop {
+        let (text, report, last_t) = loop {
             head.set(k, n, angles, expected)?;
             if stop.load(Ordering::Relaxed) {
                 return Ok((k, lost_total, true));
             }
-            match record_position(node, cfg, rate_hz, k, angles, stop, with_temp)? {
-                Recorded::Done(rows, report) => {
-                    lost_total += report.lost;
-                    break (rows, report);
-                }
+            ensure_node(node, rate_hz, progress)?;
+            let why = match record_position(node, cfg, rate_hz, k, angles, stop, with_temp, &mut clock)? {
+                Recorded::Done(text, report, last_t) => match motion.check(expected, report.mean) {
+                    Ok(()) => break (text, report, last_t),
+                    Err(why) => format!("the head did not move as the plan says: {why}"),
+                },
                 Recorded::Stopped => return Ok((k, lost_total, true)),
-                Recorded::Unsettled(why) => {
-                    if !head.unsettled(k, &why)? {
-                        return Err(bad(format!(
-                            "position {} of {n} (alpha {} deg, beta {} deg) refused: {why}; the campaign keeps the {k} \
-                             positions before it: retry with --resume",
-                            k + 1,
-                            angles.0,
-                            angles.1
-                        )));
-                    }
-                }
+                Recorded::Unsettled(why) => why,
+            };
+            if !head.retry(k, &why)? {
+                return Err(bad(format!(
+                    "position {} of {n} (alpha {} deg, beta {} deg) refused: {why}; the campaign keeps the {k} \
+                     positions before it: retry with --resume",
+                    k + 1,
+                    angles.0,
+                    angles.1
+                )));
+            }
+            if stop.load(Ordering::Relaxed) {
+                return Ok((k, lost_total, true));
             }
         };
-        let (text, report) = rows;
         out.append(&text)?;
+        motion.accept(expected, report.mean, k + 1);
+        lost_total += report.lost;
+        clock.last = last_t;
         let finished = k + 1 - done;
         let per = t0.elapsed() / finished as u32;
         progress.position_done(&report, k + 1, n, per * (n - k - 1) as u32);
@@ -726,6 +741,7 @@ pub fn capture(
 }
 
 /// Waits for a static stream at one position and records its raw sets as campaign rows.
+#[allow(clippy::too_many_arguments)]
 fn record_position(
     node: &mut Session,
     cfg: &AcquireConfig,
@@ -734,6 +750,7 @@ fn record_position(
     angles: (f64, f64),
     stop: &AtomicBool,
     with_temp: bool,
+    clock: &mut Clock,
 ) -> anyhow::Result<Recorded> {
     let cap = match capture(node, cfg.rule, cfg.settle_timeout, cfg.samples, stop, raw_values)? {
         Captured::Done(c) => c,
@@ -741,8 +758,11 @@ fn record_position(
         Captured::Unsettled(why) => return Ok(Recorded::Unsettled(why)),
     };
     let mut text = String::new();
+    clock.start(cap.sets.first().map_or(0, |s| s.0), rate_hz);
+    let mut last_t = clock.last;
     for ((counter, c), temp) in cap.sets.iter().zip(&cap.temps) {
-        let t_s = *counter as f64 / rate_hz as f64;
+        let t_s = clock.t(*counter, rate_hz);
+        last_t = t_s;
         match (with_temp, temp) {
             (false, _) => {
                 text.push_str(&format!("{t_s:.6},{},{},{},{},{}\n", angles.0, angles.1, c[0], c[1], c[2]))
@@ -768,11 +788,12 @@ fn record_position(
         lost: cap.lost,
         mean: cap.mean(),
     };
-    Ok(Recorded::Done(text, report))
+    Ok(Recorded::Done(text, report, last_t))
 }
 
 enum Recorded {
-    Done(String, PositionReport),
+    /// The rows, what they were, and the `t_s` of the last row.
+    Done(String, PositionReport, f64),
     Stopped,
     Unsettled(String),
 }
@@ -827,52 +848,85 @@ mod tests {
         assert!(rule.describe().contains("64 sets"));
     }
 
-    fn cfg(out: PathBuf, samples: usize) -> AcquireConfig {
-        AcquireConfig {
-            out,
-            plan: Plan::six(),
-            plan_name: "six".into(),
-            samples,
-            rule: StaticRule::default(),
-            settle_timeout: Duration::from_secs(5),
-            g: 9.81,
-            g_source: "--g".into(),
-            serial: Some("S1".into()),
-            resume: true,
-            date: "2026-11-29T00:00:00Z".into(),
-            tool_version: "0.1.0".into(),
-            chamber: None,
-        }
-    }
-
+    /// A node found at another rate and output before a position (it reset) is set back, with a
+    /// note each; `t_s` continues after the last row when its sample counter restarted.
     #[test]
-    fn resume_keeps_whole_positions_and_refuses_another_node_or_plan() {
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("c.csv");
-        let c = cfg(path.clone(), 3);
-        let mut text = header(&c, "51454d552d422d4c34373545", "0.1.0", 1000, false);
-        for (p, (a, b)) in Plan::six().positions.iter().take(2).enumerate() {
-            for i in 0..3 {
-                text.push_str(&format!("{},{a},{b},1,2,3\n", (p * 3 + i) as f64 / 1000.0));
+    fn a_node_that_reset_is_set_back_and_t_s_keeps_increasing() {
+        use accelcal_shared::wire::{self, Info, NodeMsg, RecordStatus, ResetCause, Status};
+        use std::collections::VecDeque;
+        use std::io::{self, Read};
+        struct Queue(VecDeque<u8>);
+        impl Read for Queue {
+            fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+                if self.0.is_empty() {
+                    return Err(io::Error::from(io::ErrorKind::TimedOut));
+                }
+                let n = buf.len().min(self.0.len());
+                for b in buf.iter_mut().take(n) {
+                    *b = self.0.pop_front().unwrap();
+                }
+                Ok(n)
             }
         }
-        let whole = text.len();
-        // Two rows of the third position and a row cut short.
-        text.push_str("0.006,90,0,1,2,3\n0.007,90,0,1,2,3\n0.008,90,0,1");
-        std::fs::write(&path, &text).unwrap();
-        let r = open_resumed(&c, "51454d552d422d4c34373545").unwrap();
-        assert_eq!((r.done, r.truncated_rows), (2, 2));
-        drop(r);
-        assert_eq!(std::fs::read_to_string(&path).unwrap(), text[..whole]);
-        // The file reads as a campaign of two dwells.
-        let camp = crate::campaign::Campaign::read(&path).unwrap();
-        assert_eq!(camp.dwells().len(), 2);
-        let e = open_resumed(&c, "000000000000000000000000").err().unwrap().to_string();
-        assert!(e.contains("device_id is `51454d552d422d4c34373545`"), "{e}");
-        let mut other = cfg(path.clone(), 3);
-        other.plan = Plan::head();
-        other.plan_name = "head".into();
-        let e = open_resumed(&other, "51454d552d422d4c34373545").err().unwrap().to_string();
-        assert!(e.contains("plan is `six (6 positions)`"), "{e}");
+        struct Notes(Vec<String>);
+        impl Progress for Notes {
+            fn position_done(&mut self, _: &PositionReport, _: usize, _: usize, _: Duration) {}
+            fn resumed(&mut self, _: usize, _: usize) {}
+            fn started(&mut self, _: usize, _: usize, _: &StaticRule) {}
+            fn note(&mut self, line: &str) {
+                self.0.push(line.to_string());
+            }
+        }
+        let record = RecordStatus::InUse { slot: 0, sequence: 1, created_unix_s: 2, crc: 3 };
+        let info = Info {
+            device_id: *b"QEMU-B-L475E",
+            firmware: [0, 1, 0],
+            protocol: wire::PROTOCOL_VERSION,
+            record,
+            rate_hz: 1000,
+            overruns: 0,
+            reset_cause: ResetCause::PowerOn,
+            output: Output::Calibrated,
+        };
+        let status = Status {
+            protocol: wire::PROTOCOL_VERSION,
+            record,
+            overruns: 0,
+            sample_sets: 0,
+            rate_hz: 500,
+            bad_frames: 0,
+            reset_cause: ResetCause::PowerOn,
+            trigger_mismatch: false,
+            output: Output::Raw,
+        };
+        let mut bytes = VecDeque::new();
+        for m in [NodeMsg::Info(info), NodeMsg::RateSet(status), NodeMsg::OutputSet(status)] {
+            let mut buf = [0u8; wire::MAX_FRAME];
+            bytes.extend(wire::encode(&m, &mut buf).unwrap());
+        }
+        let mut node = Session::from_streams(
+            "test",
+            Box::new(io::sink()),
+            Box::new(Queue(bytes)),
+            Duration::from_millis(300),
+        );
+        let mut notes = Notes(Vec::new());
+        ensure_node(&mut node, 500, &mut notes).unwrap();
+        assert_eq!(
+            notes.0,
+            [
+                "the node streams at 1000 Hz, the campaign's rate is 500 Hz (did it reset? last reset: PowerOn: \
+                 power-on or brown-out reset): set back to 500 Hz",
+                "the node streams calibrated output (did it reset?): set back to raw",
+            ]
+        );
+        // The counter restarted at 40 after rows up to 12.5 s: the next rows follow the last one.
+        let mut clock = Clock { offset: 0.0, last: 12.5 };
+        clock.start(40, 500);
+        assert!((clock.t(40, 500) - 12.502).abs() < 1e-9 && (clock.t(41, 500) - 12.504).abs() < 1e-9);
+        // A counter that went on is kept as it is.
+        let mut clock = Clock { offset: 0.0, last: 12.5 };
+        clock.start(7000, 500);
+        assert!((clock.t(7000, 500) - 14.0).abs() < 1e-12);
     }
 }

@@ -8,7 +8,7 @@ use accelcal_shared::record::{Record, Thermal, MAX_CHANNELS, MAX_RECORD_LEN};
 use accelcal_shared::terms::MODEL_4;
 use accelcal_shared::{Structure, N_BASIS};
 
-use crate::campaign::Campaign;
+use crate::campaign::{Campaign, CodeRange};
 use crate::error::bad;
 use crate::lsq::{self, LsqFit};
 use crate::output::write_atomic;
@@ -124,11 +124,58 @@ pub fn record(
     Ok(rec)
 }
 
-/// Refuses a record that a node would refuse (the node's own check, [`boot::gate`]): bad input
-/// naming `path` (the record file, read or about to be written), with the node's reason as the
-/// node reports it.
+/// Refuses a record that a node would refuse (the node's own check, [`boot::gate`]) or whose
+/// sensitivities no unit has ([`implausible`]): bad input naming `path` (the record file, read or
+/// about to be written), with the node's reason as the node reports it, or the implausible one.
 pub fn gate(path: &Path, rec: &Record) -> anyhow::Result<()> {
-    boot::gate(rec).map_err(|e| bad(format!("{}: {}", path.display(), refusal(e))))
+    verdict(rec).map_err(|why| bad(format!("{}: {why}", path.display())))
+}
+
+/// Why `fit`, `flash` and `record show` refuse a record: an implausible sensitivity
+/// ([`implausible`]) first (it says what went wrong: the sensitivities of a head that was never
+/// turned are also a matrix the node cannot invert), then the node's refusal ([`refusal`]).
+pub fn verdict(rec: &Record) -> Result<(), String> {
+    implausible(rec).map_or(Ok(()), Err)?;
+    boot::gate(rec).map_err(refusal)
+}
+
+/// The widest full scale a plausible unit has, in g: a record whose sensitivity says more (one g
+/// is a few codes) was fitted from positions that did not move, not from a unit.
+pub const MAX_FULL_SCALE_G: f64 = 1000.0;
+
+/// The plausible sensitivities of a unit along its own axis, codes per m/s², at gravity `g`
+/// (m/s²), for codes spanning the 16-bit ranges ([`CodeRange`], both 65,535 codes): from the
+/// full scale of [`MAX_FULL_SCALE_G`] (half the span over the sensitivity) to one that puts +1 g
+/// and −1 g at the two ends of the range (a unit turned in gravity reads both).
+pub fn sensitivity_range(g: f64) -> std::ops::RangeInclusive<f64> {
+    let span = CodeRange::ALL.map(|c| c.rails().1 - c.rails().0).into_iter().fold(0.0, f64::max);
+    span / (2.0 * MAX_FULL_SCALE_G * g)..=span / (2.0 * g)
+}
+
+/// Why a record's sensitivities are implausible, or `None`: each channel's coefficient of its own
+/// axis (channel 0 of `ax`, 1 of `ay`, 2 of `az`) must be positive (a channel reads more along its
+/// axis) and within [`sensitivity_range`] at the record's g (9.81 m/s² when it does not state
+/// one). Issue 24: a campaign of six positions at which the head was never turned gave a record
+/// of −0.8 codes/(m/s²) that a node accepts.
+pub fn implausible(rec: &Record) -> Option<String> {
+    let g = rec.g_m_s2.unwrap_or(accelcal_shared::G_STANDARD);
+    let range = sensitivity_range(g);
+    let terms: Vec<String> = rec.structure.terms().map(|t| t.to_string()).collect();
+    for (c, axis) in ["ax", "ay", "az"].into_iter().enumerate().take(rec.n_channels as usize) {
+        let Some(i) = terms.iter().position(|t| t == axis) else { continue };
+        let k = rec.coefficients[c][i];
+        if !range.contains(&k) {
+            return Some(format!(
+                "implausible sensitivity: channel {c}'s coefficient of {axis} is {k:.4} codes/(m/s²), a unit's is \
+                 positive and {:.2} to {:.0} codes/(m/s²) at g = {g} m/s² (16-bit codes, full scale ±1 g to ±{} g): \
+                 was the head turned between the positions?",
+                range.start(),
+                range.end(),
+                MAX_FULL_SCALE_G
+            ));
+        }
+    }
+    None
 }
 
 /// Why a node would refuse a record, as the node reports it (the fault's name first), with what
@@ -175,6 +222,41 @@ pub fn parse_device_id(s: &str) -> anyhow::Result<[u8; 12]> {
 mod tests {
     use super::*;
     use crate::sim::{simulate, SimConfig};
+
+    #[test]
+    fn sensitivities_no_unit_has_are_refused() {
+        let rec = |k: f64| {
+            let mut c = [[0.0; N_BASIS]; MAX_CHANNELS];
+            for (i, row) in c.iter_mut().take(3).enumerate() {
+                row[0] = 32768.0;
+                row[1 + i] = if i == 1 { k } else { 1670.0 };
+            }
+            Record {
+                device_id: *b"QEMU-B-L475E",
+                created_unix_s: 1,
+                structure: MODEL_4,
+                n_channels: 3,
+                coefficients: c,
+                g_m_s2: Some(9.81),
+                thermal: None,
+            }
+        };
+        // The simulated unit (~1670), the real Xsens unit (~414): plausible.
+        for k in [1670.0, 414.4, 3.4, 3339.0] {
+            assert_eq!(verdict(&rec(k)), Ok(()), "{k}");
+        }
+        // The unturned head of issue 24, a sign flip, a unit whose ±1 g exceeds the code range.
+        for k in [-0.8, 0.8, -1670.0, 3341.0] {
+            let e = verdict(&rec(k)).unwrap_err();
+            assert!(e.starts_with("implausible sensitivity: channel 1's coefficient of ay is"), "{e}");
+            assert!(e.contains("3.34 to 3340 codes/(m/s²) at g = 9.81 m/s²"), "{e}");
+        }
+        let e = gate(Path::new("r.rec"), &rec(-0.8)).unwrap_err().to_string();
+        assert!(
+            e.starts_with("r.rec: implausible sensitivity: channel 1's coefficient of ay is -0.8000"),
+            "{e}"
+        );
+    }
 
     #[test]
     fn streaming_and_in_memory_reads_give_the_same_fits() {

@@ -405,7 +405,7 @@ fn run(
                     return Ok(());
                 }
                 Captured::Unsettled(why) => {
-                    if !head.unsettled(k, &why)? {
+                    if !head.retry(k, &why)? {
                         return Err(bad(format!(
                             "position {} of {n} (alpha {a} deg, beta {b} deg): {why}",
                             k + 1

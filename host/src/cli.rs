@@ -685,9 +685,10 @@ pub struct AcquireArgs {
     /// tool version). Must not exist, unless --resume.
     #[arg(long, short, value_name = "CAMPAIGN")]
     pub out: PathBuf,
-    /// Sample sets recorded per position, after the stream is static.
-    #[arg(long, default_value_t = 400, value_name = "N")]
-    pub samples: usize,
+    /// Sample sets recorded per position, after the stream is static [default: 400; with
+    /// --resume, the campaign's].
+    #[arg(long, value_name = "N")]
+    pub samples: Option<usize>,
     /// The unit's serial number, written into the campaign.
     #[arg(long, value_name = "S")]
     pub serial: Option<String>,
@@ -697,11 +698,13 @@ pub struct AcquireArgs {
     /// Local gravity instead of --g.
     #[command(flatten)]
     pub local: LocalGravity,
-    /// Continue an interrupted acquisition in --out (same node, plan and --samples): keep its
-    /// complete positions and record the rest.
+    /// Continue an interrupted acquisition in --out (same node and plan): keep its complete
+    /// positions and record the rest, with the campaign's samples, rate and g (an option that
+    /// contradicts them is refused).
     #[arg(long)]
     pub resume: bool,
-    /// Set the node's sampling rate per channel first, Hz (100..=4000) [default: the node's].
+    /// Set the node's sampling rate per channel first, Hz (100..=4000) [default: the node's; with
+    /// --resume, the campaign's]; held for every position (set again after a node reset).
     #[arg(long, alias = "rate", value_name = "HZ")]
     pub rate_hz: Option<u32>,
     /// Seconds a position may take to become static before it is refused.

@@ -189,11 +189,8 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
                     a.out.display()
                 )));
             }
-            if a.samples < 2 {
-                return Err(bad(format!(
-                    "--samples must be at least 2 sets per position, got {}",
-                    a.samples
-                )));
+            if let Some(n) = a.samples.filter(|&n| n < 2) {
+                return Err(bad(format!("--samples must be at least 2 sets per position, got {n}")));
             }
             if a.static_window < 2 || !(a.static_z.is_finite() && a.static_z > 0.0) {
                 return Err(bad("--static-window must be at least 2 sets and --static-z a positive number"));

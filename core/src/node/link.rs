@@ -99,9 +99,15 @@ impl<R: Read> Receiver<R> {
 pub fn send(w: &mut impl Write, msg: &HostMsg) -> Result<(), LinkError> {
     let mut bytes = vec![0u8];
     bytes.extend_from_slice(&frame(msg)?);
+    // `write_all` retries a write cut by a signal (EINTR); the flush (a serial port's `tcdrain`)
+    // is retried here, so that a Ctrl-C never fails a request.
     w.write_all(&bytes)?;
-    w.flush()?;
-    Ok(())
+    loop {
+        match w.flush() {
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            r => return Ok(r?),
+        }
+    }
 }
 
 #[cfg(test)]

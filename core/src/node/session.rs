@@ -140,13 +140,19 @@ impl Session {
     }
 
     /// The next message, or `None` when nothing arrived within the poll interval. Frames that do
-    /// not decode are skipped (the node's stream resynchronises at the next frame).
+    /// not decode are skipped (the node's stream resynchronises at the next frame). A read cut by
+    /// a signal (EINTR: the serial port waits in `ppoll`, which a signal always interrupts, e.g.
+    /// the Ctrl-C that sets a caller's stop flag) is `None` too: the caller checks its flag and
+    /// polls again, and the receiver keeps the bytes it already had.
     pub fn poll(&mut self) -> Result<Option<NodeMsg>, SessionError> {
         match self.rx.recv() {
             Ok(Ok(m)) => Ok(Some(m)),
             Ok(Err(_)) => Ok(None),
             Err(LinkError::Io(e))
-                if matches!(e.kind(), io::ErrorKind::TimedOut | io::ErrorKind::WouldBlock) =>
+                if matches!(
+                    e.kind(),
+                    io::ErrorKind::TimedOut | io::ErrorKind::WouldBlock | io::ErrorKind::Interrupted
+                ) =>
             {
                 Ok(None)
             }
@@ -352,6 +358,31 @@ mod tests {
         assert_eq!(*sent.lock().unwrap(), vec![0x00, 0x02, 0x03, 0x00]);
         assert_eq!(device_id_hex(b"QEMU-B-L475E"), "51454d552d422d4c34373545");
         assert_eq!(firmware_version([0, 1, 12]), "0.1.12");
+    }
+
+    /// A read cut by a signal (Ctrl-C while the serial port waits) is no message yet, never an
+    /// error, and loses nothing (issue 24: `acquire` ended with exit 1 "Interrupted system call").
+    #[test]
+    fn a_read_cut_by_a_signal_is_no_message_yet() {
+        struct Cut(bool, Script);
+        impl Read for Cut {
+            fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+                if !std::mem::replace(&mut self.0, true) {
+                    return Err(io::Error::from(io::ErrorKind::Interrupted));
+                }
+                self.1.read(buf)
+            }
+        }
+        let script = Script::default();
+        script.0.lock().unwrap().extend(frame(&NodeMsg::Info(info(wire::PROTOCOL_VERSION))));
+        let mut s = Session::from_streams(
+            "test",
+            Box::new(io::sink()),
+            Box::new(Cut(false, script)),
+            Duration::from_millis(300),
+        );
+        assert_eq!(s.poll().unwrap(), None);
+        assert_eq!(s.poll().unwrap(), Some(NodeMsg::Info(info(wire::PROTOCOL_VERSION))));
     }
 
     #[test]

@@ -3,7 +3,7 @@
 
 use std::io::{BufRead, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::{mpsc, Arc};
 use std::time::Duration;
 
 use accelcal_core::acquire::{self, AcquireConfig, PositionReport, Positioner, Progress, StaticRule};
@@ -93,16 +93,46 @@ pub fn run_output(a: &OutputArgs) -> anyhow::Result<()> {
 }
 
 /// The operator at a manual head: shown the angles and the expected reading, confirms with Enter.
-struct ManualHead;
+/// Standard input is read by a thread, so that a Ctrl-C at a prompt stops the command at once
+/// (a read of a terminal is restarted after the signal, and would wait for Enter).
+struct ManualHead {
+    /// The operator's lines; `None` once standard input is closed.
+    lines: mpsc::Receiver<Option<String>>,
+    stop: Arc<AtomicBool>,
+}
 
-fn read_line() -> anyhow::Result<String> {
-    let mut line = String::new();
-    if std::io::stdin().lock().read_line(&mut line)? == 0 {
-        return Err(bad(
-            "standard input closed while waiting for the operator (--head manual needs a terminal)",
-        ));
+impl ManualHead {
+    fn new(stop: Arc<AtomicBool>) -> ManualHead {
+        let (tx, lines) = mpsc::channel();
+        std::thread::spawn(move || loop {
+            let mut line = String::new();
+            let got = match std::io::stdin().lock().read_line(&mut line) {
+                Ok(0) | Err(_) => None,
+                Ok(_) => Some(line),
+            };
+            let end = got.is_none();
+            if tx.send(got).is_err() || end {
+                break;
+            }
+        });
+        ManualHead { lines, stop }
     }
-    Ok(line)
+
+    /// The operator's next line; `None` when a stop was requested meanwhile.
+    fn read_line(&mut self) -> anyhow::Result<Option<String>> {
+        loop {
+            if self.stop.load(Ordering::Relaxed) {
+                return Ok(None);
+            }
+            match self.lines.recv_timeout(Duration::from_millis(100)) {
+                Ok(Some(line)) => return Ok(Some(line)),
+                Err(mpsc::RecvTimeoutError::Timeout) => {}
+                Ok(None) | Err(mpsc::RecvTimeoutError::Disconnected) => return Err(bad(
+                    "standard input closed while waiting for the operator (--head manual needs a terminal)",
+                )),
+            }
+        }
+    }
 }
 
 impl Positioner for ManualHead {
@@ -116,19 +146,21 @@ impl Positioner for ManualHead {
             e[2]
         );
         std::io::stderr().flush()?;
-        read_line().map(|_| ())
+        self.read_line().map(|_| ())
     }
 
-    fn unsettled(&mut self, k: usize, why: &str) -> anyhow::Result<bool> {
-        eprint!("position {}: {why}. Retry it? [Y/n] ", k + 1);
+    fn retry(&mut self, k: usize, why: &str) -> anyhow::Result<bool> {
+        let stop = if why.ends_with(['?', '.']) { "" } else { "." };
+        eprint!("position {} refused: {why}{stop} Retry it? [Y/n] ", k + 1);
         std::io::stderr().flush()?;
-        Ok(!read_line()?.trim().eq_ignore_ascii_case("n"))
+        // Stopped: "retry", and the caller sees its stop flag.
+        Ok(self.read_line()?.is_none_or(|l| !l.trim().eq_ignore_ascii_case("n")))
     }
 
     fn chamber(&mut self, setpoint_c: f64) -> anyhow::Result<()> {
         eprint!("set the thermal chamber to {setpoint_c} °C; press Enter when it is set (the soak time starts then). ");
         std::io::stderr().flush()?;
-        read_line().map(|_| ())
+        self.read_line().map(|_| ())
     }
 }
 
@@ -184,6 +216,9 @@ impl Progress for Lines {
     fn started(&mut self, from: usize, total: usize, rule: &StaticRule) {
         eprintln!("acquire: positions {} to {total}; {}", from + 1, rule.describe());
     }
+    fn note(&mut self, line: &str) {
+        eprintln!("note: {line}");
+    }
     fn resumed(&mut self, done: usize, truncated_rows: usize) {
         eprintln!(
             "resume: {done} complete positions kept{}",
@@ -230,29 +265,62 @@ pub fn stop_flag() -> anyhow::Result<Arc<AtomicBool>> {
     Ok(stop)
 }
 
-fn connect_head(spec: &HeadSpec) -> anyhow::Result<Box<dyn Positioner>> {
+fn connect_head(spec: &HeadSpec, stop: &Arc<AtomicBool>) -> anyhow::Result<Box<dyn Positioner>> {
     Ok(match spec {
-        HeadSpec::Manual => Box::new(ManualHead),
+        HeadSpec::Manual => Box::new(ManualHead::new(stop.clone())),
         HeadSpec::Sim(addr) => Box::new(SimHead::connect(addr, Duration::from_secs(120))?),
     })
+}
+
+/// `acquire --samples` when it is not given (and not resumed).
+pub const DEFAULT_SAMPLES: usize = 400;
+
+/// `--resume`'s samples, rate and g: the campaign's (its header), whatever the defaults; an
+/// option that contradicts them is refused, naming both (checked before the node is opened).
+fn resumed_settings(a: &AcquireArgs) -> anyhow::Result<(usize, Option<u32>, (f64, String))> {
+    let file = acquire::resume_settings(&a.out)?;
+    let d = a.out.display();
+    let clash = |option: String, key: &str, have: String| {
+        bad(format!(
+            "{option} contradicts {d}'s `# {key}: {have}`: --resume continues with the campaign's settings \
+             (leave the option out)"
+        ))
+    };
+    if let Some(n) = a.samples.filter(|&n| n != file.samples) {
+        return Err(clash(format!("--samples {n}"), "samples", file.samples.to_string()));
+    }
+    if let Some(hz) = a.rate_hz.filter(|&hz| hz != file.rate_hz) {
+        return Err(clash(format!("--rate-hz {hz}"), "rate_hz", file.rate_hz.to_string()));
+    }
+    if let Some(g) = a.g.filter(|&g| g != file.g) {
+        let option = if a.local.latitude.is_some() {
+            format!("--latitude (g = {g} m/s²)")
+        } else {
+            format!("--g {g}")
+        };
+        return Err(clash(option, "g_m_s2", file.g.to_string()));
+    }
+    Ok((file.samples, Some(file.rate_hz), (file.g, file.g_source)))
 }
 
 /// Runs `accelcal acquire`.
 pub fn run_acquire(a: &AcquireArgs) -> anyhow::Result<()> {
     let plan = Plan::from_spec(&a.plan, 1).map_err(|e| bad(format!("--plan {e}")))?;
     let soak = soak_of(&a.chamber, a.soak_s)?;
-    let (g, g_source) = g_source(a.g, &a.local);
+    let (samples, rate_hz, (g, g_source)) = if a.resume {
+        resumed_settings(a)?
+    } else {
+        (a.samples.unwrap_or(DEFAULT_SAMPLES), a.rate_hz, g_source(a.g, &a.local))
+    };
     let stop = stop_flag()?;
     let mut node = open(&a.link)?;
-    if let Some(hz) = a.rate_hz {
-        node.set_rate(hz)?;
-    }
-    let mut head = connect_head(&a.head)?;
+    let mut head = connect_head(&a.head, &stop)?;
     let cfg = AcquireConfig {
         out: a.out.clone(),
         plan,
         plan_name: a.plan.clone(),
-        samples: a.samples,
+        samples,
+        rate_hz,
         rule: StaticRule { window: a.static_window, z: a.static_z, ..StaticRule::default() },
         settle_timeout: Duration::from_secs_f64(a.settle_timeout_s),
         g,
@@ -277,7 +345,7 @@ pub fn run_acquire(a: &AcquireArgs) -> anyhow::Result<()> {
         sum.positions,
         sum.device_id,
         a.out.display(),
-        a.samples,
+        samples,
         sum.lost
     );
     Ok(())
@@ -328,7 +396,7 @@ pub fn run_verify(a: &VerifyArgs) -> anyhow::Result<()> {
     let (g, g_source) = g_source(a.g, &a.local);
     let stop = stop_flag()?;
     let mut node = open(&a.link)?;
-    let mut head = connect_head(&a.head)?;
+    let mut head = connect_head(&a.head, &stop)?;
     let cfg = VerifyConfig {
         plan,
         samples: a.samples,

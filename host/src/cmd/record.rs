@@ -1,7 +1,8 @@
-//! `accelcal record show`: what a calibration record file holds, and whether a node would accept
-//! it (the node's own check, `accelcal_shared::boot::gate`).
+//! `accelcal record show`: what a calibration record file holds, whether a node would accept it
+//! (the node's own check, `accelcal_shared::boot::gate`), and whether `fit --record` and `flash`
+//! would (`accelcal_core::calibrate::verdict`: also refuses sensitivities no unit has).
 
-use accelcal_core::calibrate::refusal;
+use accelcal_core::calibrate::verdict;
 use accelcal_core::error::bad;
 use accelcal_core::output::write_json;
 use accelcal_shared::boot;
@@ -35,7 +36,8 @@ pub struct RecordJson {
     pub thermal: Option<ThermalJson>,
     /// Whether a node (every build, with the record's device id) accepts the record.
     pub node_accepts: bool,
-    /// Why a node would refuse it, as the node reports it (`null` when it accepts it).
+    /// Why accelcal refuses it: a node's refusal as the node reports it, or an implausible
+    /// sensitivity that a node would accept (`null` when neither).
     pub refusal: Option<String>,
 }
 
@@ -45,7 +47,7 @@ pub fn describe(bytes: &[u8], rec: &Record) -> RecordJson {
     let mut crc = [0u8; 4];
     crc.copy_from_slice(&bytes[n - 4..n]);
     let n_t = rec.structure.len();
-    let verdict = boot::gate(rec);
+    let node = boot::gate(rec);
     RecordJson {
         length: n,
         format_version: FORMAT_VERSION,
@@ -62,8 +64,8 @@ pub fn describe(bytes: &[u8], rec: &Record) -> RecordJson {
             t_max_c: t.t_max_c,
             input: t.source.name(),
         }),
-        node_accepts: verdict.is_ok(),
-        refusal: verdict.err().map(refusal),
+        node_accepts: node.is_ok(),
+        refusal: verdict(rec).err(),
     }
 }
 
@@ -112,6 +114,7 @@ pub fn run_show(a: &RecordShowArgs) -> anyhow::Result<()> {
             "node: accepts it (model 4 with thermal terms on three channels, invertible over the calibrated range in f32 and fixed point)"
         ),
         None => println!("node: accepts it (model 4 on three channels, invertible in f32 and fixed point)"),
+        Some(r) if j.node_accepts => println!("node: would accept it, but accelcal refuses it: {r}"),
         Some(r) => println!("node: {r}"),
     }
     if let Some(p) = &a.json {
