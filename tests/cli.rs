@@ -129,6 +129,7 @@ const UNITS: &[(&str, &str)] = &[
     ("--chamber", "°C"),
     ("--soak-s", "Seconds"),
     ("--tolerance", "codes"),
+    ("--select-tolerance", "ADC codes"),
     ("--tolerance", "m/s²"),
     ("--min-hold-s", "seconds"),
     ("--window-s", "seconds"),
