@@ -813,6 +813,106 @@ fn diagnosis_report_is_the_readme_s() {
     assert_eq!(readme, out, "README's diagnosis example is stale");
 }
 
+/// The text of an HTML page as a reader sees it, one table row or paragraph a line, cells
+/// separated by ` | `; plots and style left out.
+fn page_text(html: &str) -> String {
+    let mut s = html.to_string();
+    for (open, close) in [("<title>", "</title>"), ("<style>", "</style>"), ("<svg", "</svg>")] {
+        while let Some(a) = s.find(open) {
+            let b = s[a..].find(close).map_or(s.len(), |b| a + b + close.len());
+            s.replace_range(a..b, "");
+        }
+    }
+    for (tag, with) in [
+        ("</tr>", "\n"),
+        ("</p>", "\n"),
+        ("</h1>", "\n"),
+        ("</h2>", "\n"),
+        ("</td>", " | "),
+        ("</th>", " | "),
+    ] {
+        s = s.replace(tag, with);
+    }
+    let mut out = String::new();
+    let mut in_tag = false;
+    for c in s.chars() {
+        match c {
+            '<' => in_tag = true,
+            '>' => in_tag = false,
+            _ if !in_tag => out.push(c),
+            _ => {}
+        }
+    }
+    let out =
+        out.replace("&mdash;", "—").replace("&plusmn;", "±").replace("&alpha;", "α").replace("&beta;", "β");
+    out.replace("&amp;", "&").replace("&lt;", "<").replace("&gt;", ">").replace("&quot;", "\"")
+}
+
+/// Issue 24.4: the certificate of a simulated unit, verified (a verification document of the
+/// record, as `verify --json` writes it): one g with its bound, per-axis tolerances, the
+/// temperature of the verification, GMDH next to the record's terms, Table 2 for information.
+#[test]
+fn the_certificate_is_the_snapshot() {
+    let d = Dir::new();
+    let c = simulate(&d, "u42.csv", &["--seed", "42", "--samples", "20", "--serial", "U-42"]);
+    let (rec, fit, cert) = (d.s("u42.rec"), d.s("u42-fit.json"), d.s("u42.html"));
+    // Fit by `method`, verify (a document of the record) and certify: the report's stdout and the
+    // page's text.
+    let certify = |method: &str| {
+        let id = "51454d552d422d4c34373545";
+        ok(&[
+            "fit",
+            &c,
+            "--method",
+            method,
+            "--record",
+            &rec,
+            "--device-id",
+            id,
+            "--created",
+            "1800000000",
+            "--json",
+            &fit,
+        ]);
+        let crc = json(&d.p("u42-fit.json"))["record_crc"].as_str().unwrap().to_string();
+        let verification = d.s("u42-verify.json");
+        std::fs::write(&verification, verification_json(&crc, 9.81).to_string()).unwrap();
+        let out = ok(&[
+            "report",
+            "--campaign",
+            &c,
+            "--record",
+            &rec,
+            "--fit",
+            &fit,
+            "--verify",
+            &verification,
+            "-o",
+            &cert,
+        ]);
+        assert!(out.contains(&format!("certificate of unit U-42 (device {id}, record CRC {crc})")), "{out}");
+        page_text(&std::fs::read_to_string(&cert).unwrap())
+    };
+    let text = certify("lsq");
+    let v = json(&d.p("u42-fit.json"));
+    assert_eq!(
+        (v["serial"].as_str(), v["device_id"].as_str()),
+        (Some("U-42"), Some("51454d552d422d4c34373545"))
+    );
+    let dir = d.0.path().to_str().unwrap();
+    let issued = text.lines().find(|l| l.starts_with("Issued")).unwrap().to_string();
+    let text = text.replace(dir, "DIR").replace(&issued, "Issued | (date) by accelcal (version) | ");
+    assert_eq!(text.matches(" m/s² (").count(), 1, "one g: {text}");
+    assert!(text.contains("g (local gravity) | 9.810 ± 0.005 m/s²"), "{text}");
+    assert!(text.contains("at 25.0 °C (the node's sensor, 24.9 to 25.1 °C over the positions)"), "{text}");
+    insta::assert_snapshot!("certificate_text", text);
+
+    // A test-turn record: Table 2 names it the record's method, LSQ the other one.
+    let text = certify("test-turns");
+    assert!(text.contains("test turns (the record's method) and LSQ"), "{text}");
+    assert!(text.contains("standard error of the test turns fit"), "{text}");
+}
+
 /// Numbers rounded to 9 significant digits: the snapshot then holds every digit a reader could
 /// care about without depending on the last bit of the platform's libm.
 fn rounded(v: &Value) -> Value {
@@ -864,8 +964,12 @@ fn files(dir: &Path) -> std::collections::BTreeMap<PathBuf, Vec<u8>> {
     out
 }
 
-/// Command lines (`C` a campaign, `V` a second one, `R` a raw recording, other names outputs in
-/// the same directory) that the settings refuse, and what the one error line must say.
+/// Command lines (`C` a campaign, `V` a second one, `D` the campaign `C` with a `# device_id:
+/// 51454d552d422d4c34373545` line, `R` a raw recording; `rc.rec`/`fc.json` the record and fit JSON
+/// of `C`, `rv.rec`/`fv.json` those of `V`, `old.json` a fit JSON without the unit's identity,
+/// `vc.json` a verification of `rc.rec`, `vx.json` one of another record, `vg.json` one of `rc.rec`
+/// at another g; other names outputs in the same directory) that are refused, and what the one
+/// error line must say.
 const REFUSED: &[(&str, &str)] = &[
     ("fit R --method gravity-norm --record x.rec", "fit --record needs --device-id HEX"),
     (
@@ -957,6 +1061,40 @@ const REFUSED: &[(&str, &str)] = &[
         "fit U --record u.rec --device-id 51454d552d422d4c34373545",
         "implausible sensitivity: channel 0's coefficient of ax is",
     ),
+    // Issue 24.2: files of different units, or that cannot say whose they are.
+    (
+        "fit D --record r.rec --device-id 00112233445566778899aabb",
+        "--device-id 00112233445566778899aabb contradicts D's `# device_id: 51454d552d422d4c34373545`: not the same unit",
+    ),
+    (
+        "report --campaign C --record rv.rec --fit fc.json -o o.html",
+        "fc.json has record CRC CRC_C but rv.rec has CRC_V: not the record of this fit",
+    ),
+    (
+        "report --campaign V --record rc.rec --fit fc.json -o o.html",
+        "fc.json has campaign SHA-256 SHA_C but V has SHA_V: not the campaign of this fit",
+    ),
+    (
+        "report --campaign D --record rv.rec --fit fv.json -o o.html",
+        "D has device id 51454d552d422d4c34373545 but rv.rec has 00112233445566778899aabb: not the same unit",
+    ),
+    (
+        "report --campaign C --record rc.rec --fit old.json -o o.html",
+        "old.json: the fit JSON does not say whose fit it is",
+    ),
+    (
+        "report --campaign C --record rc.rec --fit fc.json --g 9.8 -o o.html",
+        "fc.json has g 9.81 m/s² but --g has 9.8 m/s²: the certificate states one g",
+    ),
+    (
+        "report --campaign C --record rc.rec --fit fc.json --verify vx.json -o o.html",
+        "vx.json has record CRC 00000000 but rc.rec has CRC_C: the node did not run this record when it was verified",
+    ),
+    (
+        "report --campaign C --record rc.rec --fit fc.json --verify vg.json -o o.html",
+        "vg.json has g 9.8 m/s² but fc.json has 9.81 m/s²: the certificate states one g",
+    ),
+    ("report --campaign C --record rc.rec --fit fc.json --verify vc.json -o fc.json", "fc.json is the input --fit: refusing to overwrite it"),
 ];
 
 /// An acquired campaign's header (`A` of the table): 200 sets per position at 500 Hz, g 9.81.
@@ -999,12 +1137,75 @@ const ACCEPTED: &[(&str, &[&str])] = &[
     ("compare C --validate V --json c.json", &["c.json"]),
     ("diagnose C --json dj.json", &["dj.json"]),
     ("simulate --out a.csv --truth b.json --json a.json --samples 2", &["a.csv", "b.json", "a.json"]),
+    ("fit D --record d.rec --json d.json", &["d.rec", "d.json"]),
+    ("fit D --record d2.rec --device-id 51454d552d422d4c34373545", &["d2.rec"]),
+    ("report --campaign C --record rc.rec --fit fc.json --verify vc.json -o o.html", &["o.html"]),
 ];
+
+/// Makes the table's files of units (`D`, `rc.rec`, `fc.json`, `rv.rec`, `fv.json`, `old.json`,
+/// `vc.json`, `vx.json`, `vg.json`) from `C` and `V`; returns what the expected lines' `CRC_C`,
+/// `CRC_V`, `SHA_C` and `SHA_V` stand for.
+fn unit_files(d: &Dir) -> Vec<(&'static str, String)> {
+    let text = std::fs::read_to_string(d.p("C")).unwrap();
+    std::fs::write(d.p("D"), format!("# device_id: 51454d552d422d4c34373545\n{text}")).unwrap();
+    let created = ["--created", "1800000000", "--g", "9.81"];
+    for (c, id, n) in [("C", "51454d552d422d4c34373545", "c"), ("V", "00112233445566778899aabb", "v")] {
+        let (rec, fit) = (d.s(&format!("r{n}.rec")), d.s(&format!("f{n}.json")));
+        let campaign = d.s(c);
+        let mut args = vec!["fit", &campaign, "--record", &rec, "--device-id", id, "--json", &fit];
+        args.extend_from_slice(&created);
+        ok(&args);
+    }
+    let mut old = json(&d.p("fc.json"));
+    for k in ["device_id", "serial", "g_m_s2", "campaign_sha256", "record_crc"] {
+        old.as_object_mut().unwrap().remove(k);
+    }
+    std::fs::write(d.p("old.json"), old.to_string()).unwrap();
+    let crc = |n: &str| json(&d.p(n))["record_crc"].as_str().unwrap().to_string();
+    for (name, crc, g) in [
+        ("vc.json", crc("fc.json"), 9.81),
+        ("vx.json", "00000000".into(), 9.81),
+        ("vg.json", crc("fc.json"), 9.8),
+    ] {
+        std::fs::write(d.p(name), verification_json(&crc, g).to_string()).unwrap();
+    }
+    vec![
+        ("CRC_C", crc("fc.json")),
+        ("CRC_V", crc("fv.json")),
+        ("SHA_C", json(&d.p("fc.json"))["campaign_sha256"].as_str().unwrap().to_string()),
+        ("SHA_V", json(&d.p("fv.json"))["campaign_sha256"].as_str().unwrap().to_string()),
+    ]
+}
+
+/// A passing six-position `verify --json` document of the QEMU node running the record with CRC
+/// `crc`, at `g`, at about 25 °C.
+fn verification_json(crc: &str, g: f64) -> Value {
+    let positions: Vec<Value> = [(0, 0), (180, 0), (90, 0), (-90, 0), (0, 90), (0, -90)]
+        .iter()
+        .enumerate()
+        .map(|(k, (a, b))| {
+            let e = [0.001 * k as f64 - 0.002, -0.0015 + 0.0005 * k as f64, 0.0008];
+            serde_json::json!({
+                "position": k + 1, "alpha_deg": a, "beta_deg": b, "expected_m_s2": [0.0, 0.0, g],
+                "measured_m_s2": [0.0, 0.0, g], "error_m_s2": e, "sd_mean_m_s2": [0.001, 0.001, 0.001],
+                "tolerance_m_s2": [0.0095, 0.0104, 0.0101], "lost": 0, "temp_c": 24.9 + 0.05 * k as f64,
+                "out_of_range": false, "pass": true
+            })
+        })
+        .collect();
+    serde_json::json!({
+        "device_id": "51454d552d422d4c34373545",
+        "record": {"slot": 0, "sequence": 1, "created_unix_s": 1800000000u64, "crc": crc},
+        "g_m_s2": g, "chamber_c": null,
+        "tolerance_rule": "|error| <= 4·sqrt(σ_cal² + σ_mean²) per component: σ_cal from the fit's covariance matrix at the position's acceleration, σ_mean the standard error of the measured mean",
+        "static_rule": "static", "positions": positions, "pass": true, "interrupted": false
+    })
+}
 
 /// The arguments of a table line, run in `d`: `C`, `V`, `R` and output names become paths there.
 fn table_args(d: &Dir, line: &str) -> Vec<String> {
     let is_path = |w: &str| {
-        ["C", "V", "R", "A", "U", "d", "p"].contains(&w) || w.contains('.') && w.parse::<f64>().is_err()
+        ["C", "V", "D", "R", "A", "U", "d", "p"].contains(&w) || w.contains('.') && w.parse::<f64>().is_err()
     };
     line.split_whitespace().map(|w| if is_path(w) { d.s(w) } else { w.to_string() }).collect()
 }
@@ -1021,15 +1222,25 @@ fn options_that_do_not_apply_and_outputs_that_are_inputs_are_refused_before_any_
     .unwrap();
     std::fs::write(d.p("A"), ACQUIRED_HEADER).unwrap();
     unturned(&d.p("U"));
+    let subs = unit_files(&d);
     for (line, want) in REFUSED {
         let args = table_args(&d, line);
         let args: Vec<&str> = args.iter().map(String::as_str).collect();
         let before = files(d.0.path());
         let e = bad(&args);
-        let want = want.replace(" C ", &format!(" {} ", d.s("C"))).replace(" V ", &format!(" {} ", d.s("V")));
-        let want =
-            want.replace(" R ", &format!(" {} ", d.s("R"))).replace(" A's", &format!(" {}'s", d.s("A")));
-        assert!(e.contains(&want), "`{line}`: expected `{want}` in: {e}");
+        // The files of the line, named in the expected message, become their paths there too.
+        let mut want = format!(" {want}");
+        for (w, path) in line.split_whitespace().zip(table_args(&d, line)) {
+            if w != path {
+                want = want.replace(&format!(" {w} "), &format!(" {path} "));
+                want = want.replace(&format!(" {w}'s "), &format!(" {path}'s "));
+            }
+        }
+        for (k, v) in &subs {
+            want = want.replace(k, v);
+        }
+        let want = want.trim_start();
+        assert!(e.contains(want), "`{line}`: expected `{want}` in: {e}");
         assert!(files(d.0.path()) == before, "`{line}`: a file was written or changed");
     }
     for (line, outputs) in ACCEPTED {

@@ -354,14 +354,33 @@ fn the_production_line_in_emulation() {
     let c = p("c.csv");
     ok(&acquire_args(&em, "head", "200", &c, &["--serial", "U11"]));
     let rec = p("u11.rec");
-    fit(&c, &p("fit.json"), &["--record", s(&rec), "--device-id", &id]);
+    // The record's device id is the campaign's (issue 24.2); the fit JSON says whose fit it is.
+    fit(&c, &p("fit.json"), &["--record", s(&rec)]);
+    let f = json(&p("fit.json"));
+    assert_eq!((f["device_id"].as_str(), f["serial"].as_str()), (Some(id.as_str()), Some("U11")), "{f}");
+    let e =
+        common::bad(&["fit", s(&c), "--record", s(&p("x.rec")), "--device-id", "0123456789abcdef01234567"]);
+    assert!(
+        e.contains(&format!(
+            "--device-id 0123456789abcdef01234567 contradicts {}'s `# device_id: {id}`",
+            s(&c)
+        )),
+        "{e}"
+    );
 
     // A record of another device is refused before anything is written.
     let other = p("other.rec");
-    fit(&c, &p("fit-other.json"), &["--record", s(&other), "--device-id", "0123456789abcdef01234567"]);
-    let out = accelcal(&["flash", s(&other), "--gdb", &em.gdb, "--port", &em.port]);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && err.contains("is for device 0123456789abcdef01234567"), "{err}");
+    let (_, sim_other) = unit(dir.path(), "o", 13, 10);
+    fit(
+        &sim_other,
+        &p("fit-other.json"),
+        &["--record", s(&other), "--device-id", "0123456789abcdef01234567"],
+    );
+    let e = common::bad(&["flash", s(&other), "--gdb", &em.gdb, "--port", &em.port]);
+    assert!(
+        e.contains(&format!("the record is for device 0123456789abcdef01234567, the connected MCU is {id}")),
+        "{e}"
+    );
     ok(&["info", "--port", &em.port, "--json", s(&p("info2.json"))]);
     assert!(json(&p("info2.json"))["record"].is_null(), "nothing was written");
 
@@ -372,6 +391,10 @@ fn the_production_line_in_emulation() {
     let good_crc = json(&p("info3.json"))["record"]["crc"].as_str().unwrap().to_string();
 
     let verify = |name: &str| accelcal(&verify_args(&em, &p("fit.json"), &p(name), &[]));
+    // Another unit's fit JSON (same emulated device id, another record) is refused by verify
+    // (issue 24.2: it used to pass), naming both records' CRCs.
+    let e = common::bad(&verify_args(&em, &p("fit-other.json"), &p("v-other.json"), &[]));
+    assert!(e.contains("fit-other.json has device id 0123456789abcdef01234567 but the node on"), "{e}");
     let v = verify("verify.json");
     assert_eq!(
         v.status.code(),
@@ -390,6 +413,8 @@ fn the_production_line_in_emulation() {
         s(&c),
         "--record",
         s(&rec),
+        "--fit",
+        s(&p("fit.json")),
         "--verify",
         s(&p("verify.json")),
         "-o",
@@ -401,15 +426,39 @@ fn the_production_line_in_emulation() {
     }
     assert_eq!(pdf_pages(&cert, &p("cert.pdf")), 1);
 
-    // Wrong coefficients (another unit's fit, this node's id): verify fails with exit code 1.
+    // Wrong coefficients (another unit's fit, this node's id): verified with the fit of this
+    // unit's record, refused (the node runs another record); with its own fit, it fails with
+    // exit code 1.
     let (truth2, sim2) = unit(dir.path(), "w", 12, 50);
     let _ = truth2;
     let wrong = p("wrong.rec");
     fit(&sim2, &p("fit-wrong.json"), &["--record", s(&wrong), "--device-id", &id]);
     ok(&["flash", s(&wrong), "--gdb", &em.gdb, "--port", &em.port]);
-    let v = verify("verify-wrong.json");
+    let e = common::bad(&verify_args(&em, &p("fit.json"), &p("v-mismatch.json"), &[]));
+    let wrong_crc = json(&p("fit-wrong.json"))["record_crc"].as_str().unwrap().to_string();
+    assert!(
+        e.contains(&format!(
+            "fit.json has record CRC {good_crc} but the node on {} has {wrong_crc}",
+            em.port
+        )),
+        "{e}"
+    );
+    let v = accelcal(&verify_args(&em, &p("fit-wrong.json"), &p("verify-wrong.json"), &[]));
     assert_eq!(v.status.code(), Some(1), "{}", String::from_utf8_lossy(&v.stderr));
     assert!(!json(&p("verify-wrong.json"))["pass"].as_bool().unwrap());
+    // The certificate refuses the campaign of one unit with the record of another.
+    let e = common::bad(&[
+        "report",
+        "--campaign",
+        s(&c),
+        "--record",
+        s(&wrong),
+        "--fit",
+        s(&p("fit.json")),
+        "-o",
+        s(&p("x.html")),
+    ]);
+    assert!(e.contains(&format!("has record CRC {good_crc} but {} has {wrong_crc}", s(&wrong))), "{e}");
 
     // Back to the good record; then reflashes cut part-way leave it in force.
     ok(&["flash", s(&rec), "--gdb", &em.gdb, "--port", &em.port]);

@@ -329,11 +329,12 @@ fn header(cfg: &AcquireConfig, device_id: &str, firmware: &str, rate_hz: u32, wi
     let mut h = String::new();
     let mut line = |k: &str, v: &str| h.push_str(&format!("# {k}: {v}\n"));
     line("acquired_by", &format!("accelcal {} acquire", cfg.tool_version));
-    line("device_id", device_id);
-    line("serial", cfg.serial.as_deref().unwrap_or("-"));
+    use crate::campaign::identity::{DEVICE_ID_KEY, G_KEY, G_SOURCE_KEY, SERIAL_KEY};
+    line(DEVICE_ID_KEY, device_id);
+    line(SERIAL_KEY, cfg.serial.as_deref().unwrap_or("-"));
     line("firmware", firmware);
-    line("g_m_s2", &format!("{}", cfg.g));
-    line("g_source", &cfg.g_source);
+    line(G_KEY, &format!("{}", cfg.g));
+    line(G_SOURCE_KEY, &cfg.g_source);
     line("plan", &cfg.plan_words());
     if let Some(c) = &cfg.chamber {
         line("chamber", &c.describe());

@@ -196,11 +196,23 @@ pub fn refusal(e: BootError) -> String {
     format!("a node would refuse this record: {reason}{hint}")
 }
 
-/// Writes a record file (atomically).
-pub fn write_record(path: &Path, rec: &Record) -> anyhow::Result<()> {
+/// The bytes of a record file.
+pub fn record_bytes(rec: &Record) -> anyhow::Result<Vec<u8>> {
     let mut buf = [0u8; MAX_RECORD_LEN];
     let n = rec.emit(&mut buf).map_err(|e| anyhow::anyhow!("encoding the record: {e}"))?;
-    write_atomic(path, &buf[..n])
+    Ok(buf[..n].to_vec())
+}
+
+/// The CRC-32 of a record's bytes as `record show`, `info` and the fit JSON's `record_crc` state
+/// it: 8 lower-case hex digits of the CRC over everything before the CRC field (its last 4
+/// bytes).
+pub fn record_crc_hex(bytes: &[u8]) -> String {
+    format!("{:08x}", accelcal_shared::record::crc32(&bytes[..bytes.len().saturating_sub(4)]))
+}
+
+/// Writes a record file (atomically).
+pub fn write_record(path: &Path, rec: &Record) -> anyhow::Result<()> {
+    write_atomic(path, &record_bytes(rec)?)
 }
 
 /// Parses 24 hex digits into a 96-bit device id (as `accelcal fit --device-id` takes it).

@@ -25,6 +25,7 @@ use accelcal_shared::kinematics;
 use crate::input::Input;
 
 mod codes;
+pub mod identity;
 use crate::error::{Classify, Kind};
 use codes::{header_comments, HeaderComments};
 pub use codes::{CodeRange, CODES_COMMENT};
@@ -121,6 +122,9 @@ pub struct Campaign {
     /// `acquire` writes it; the fitting commands take g from it). Not read back by
     /// [`Campaign::read`]: `accelcal`'s commands read the line themselves.
     pub g_m_s2: Option<f64>,
+    /// The unit's serial number, written as a `# serial:` comment line (as `acquire` writes it);
+    /// not read back by [`Campaign::read`] ([`identity::CampaignId`] reads it).
+    pub serial: Option<String>,
 }
 
 /// One position dwell: a run of consecutive rows with the same commanded angles.
@@ -232,11 +236,15 @@ impl Campaign {
         Ok(c)
     }
 
-    /// Writes the campaign as CSV (a `# g_m_s2:` line when it states its g, a `# codes:` line
-    /// unless the codes are `unsigned16`, the header, then one row per sample set).
+    /// Writes the campaign as CSV (a `# serial:` line when it has one, a `# g_m_s2:` line when it
+    /// states its g, a `# codes:` line unless the codes are `unsigned16`, the header, then one row
+    /// per sample set).
     pub fn write<W: Write>(&self, mut w: W) -> Result<(), csv::Error> {
+        if let Some(s) = &self.serial {
+            writeln!(w, "# {}: {s}", identity::SERIAL_KEY)?;
+        }
         if let Some(g) = self.g_m_s2 {
-            writeln!(w, "# g_m_s2: {g}")?;
+            writeln!(w, "# {}: {g}", identity::G_KEY)?;
         }
         if self.codes != CodeRange::default() {
             writeln!(w, "# {CODES_COMMENT} {}", self.codes)?;

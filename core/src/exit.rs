@@ -49,6 +49,8 @@ registry!(
     crate::error::Interrupted,
     crate::verify::Failed,
     crate::campaign::CampaignError,
+    crate::campaign::identity::IdentityError,
+    crate::campaign::identity::Mismatch,
     crate::gmdh::GmdhError,
     crate::lsq::LsqError,
     crate::testturn::TestTurnError,
@@ -125,6 +127,7 @@ mod tests {
 
     /// One error of every variant of every registered type, with the kind it must have.
     fn every_variant() -> Vec<(anyhow::Error, Kind)> {
+        use crate::campaign::identity::IdentityError;
         use crate::campaign::CampaignError;
         use crate::diagnose::DiagnoseError;
         use crate::emulate::frontend::FrontendError;
@@ -188,6 +191,32 @@ mod tests {
             (e(CampaignError::Line { path: p(), line: 1, msg: "m".into() }), BadInput),
             (e(CampaignError::File { path: p(), msg: "m".into() }), BadInput),
             (e(CampaignError::Field { path: p(), line: 1, column: 1, msg: "m".into() }), BadInput),
+            (
+                e(IdentityError::Mismatch(Box::new(crate::campaign::identity::Mismatch {
+                    a: "f.json".into(),
+                    field: "serial",
+                    a_value: "1".into(),
+                    b: "c.csv".into(),
+                    b_value: "2".into(),
+                    consequence: "not the same unit",
+                }))),
+                BadInput,
+            ),
+            (
+                e(crate::campaign::identity::Mismatch {
+                    a: "f.json".into(),
+                    field: "g",
+                    a_value: "9.81 m/s²".into(),
+                    b: "v.json".into(),
+                    b_value: "9.8 m/s²".into(),
+                    consequence: "the certificate states one g",
+                }),
+                BadInput,
+            ),
+            (e(IdentityError::NoIdentity { what: "f.json".into() }), BadInput),
+            (e(IdentityError::BadIdentity { what: "f.json".into(), msg: "m".into() }), BadInput),
+            (e(IdentityError::BadDeviceId { path: p(), value: "1".into() }), BadInput),
+            (e(IdentityError::Campaign(CampaignError::File { path: p(), msg: "m".into() })), BadInput),
             (e(GmdhError::EmptyPart('A', 3)), BadInput),
             (e(GmdhError::NoTemperature), BadInput),
             (e(GmdhError::NothingIdentifiable), BadInput),

@@ -27,6 +27,7 @@ use accelcal_shared::wire::{Block, Output, RecordStatus};
 use serde::Serialize;
 
 use crate::acquire::{block_kind, capture, Captured, Positioner, StaticRule};
+use crate::campaign::identity::{self, Identity};
 use crate::error::bad;
 use crate::error::{Classify, Kind};
 use crate::node::session::{device_id_hex, record_json, Session};
@@ -272,6 +273,9 @@ pub struct VerifyConfig {
     pub tolerance: Tolerance,
     /// Verify at this chamber setpoint (°C), after this soak.
     pub chamber: Option<(f64, Duration)>,
+    /// The fit whose uncertainty sets the tolerance (`--fit`): its name and whose it is. The node
+    /// must be its unit and run its record.
+    pub fit: Option<(String, Identity)>,
 }
 
 /// One position's check.
@@ -324,6 +328,39 @@ pub struct VerifyReport {
     pub pass: bool,
     /// Stopped on request before the end.
     pub interrupted: bool,
+    /// Whose fit the tolerance came from (`--fit`), as its JSON states it (`null`: no fit given).
+    #[serde(default)]
+    pub fit: Option<Identity>,
+}
+
+/// Refuses a fit that is not the node's: another device id, or a record other than the one the
+/// node runs (the fit JSON names the record written with it; a fit JSON written without one
+/// cannot be matched and is refused too).
+fn check_fit(
+    fit: &(String, Identity),
+    node: &str,
+    device_id: &str,
+    record: RecordStatus,
+) -> anyhow::Result<()> {
+    let (what, id) = fit;
+    if let Some(d) = &id.device_id {
+        identity::same("device id", (what, d), (node, device_id), "not the same unit")?;
+    }
+    let Some(crc) = &id.record_crc else {
+        return Err(bad(format!(
+            "{what}: written without a record (`fit --record`), so it cannot be matched to the record the node \
+             runs: write the fit JSON with the record, `accelcal fit CAMPAIGN --record R --json F`"
+        )));
+    };
+    if let RecordStatus::InUse { crc: running, .. } = record {
+        identity::same(
+            "record CRC",
+            (what, crc),
+            (node, &format!("{running:08x}")),
+            "the node does not run the record of this fit (flash it, or give its own fit JSON)",
+        )?;
+    }
+    Ok(())
 }
 
 /// Calibrated blocks as values in m/s².
@@ -358,6 +395,10 @@ pub fn verify(
             node.port()
         )));
     }
+    if let Some(fit) = &cfg.fit {
+        let who = format!("the node on {}", node.port());
+        check_fit(fit, &who, &device_id_hex(&info.device_id), info.record)?;
+    }
     let before = info.output;
     node.set_output(Output::Calibrated)?;
     let mut report = VerifyReport {
@@ -370,6 +411,7 @@ pub fn verify(
         positions: Vec::new(),
         pass: false,
         interrupted: false,
+        fit: cfg.fit.as_ref().map(|(_, id)| id.clone()),
     };
     let result = run(node, head, cfg, on_position, stop, &mut report);
     let restored = if before != Output::Calibrated { node.set_output(before).map(|_| ()) } else { Ok(()) };
@@ -451,6 +493,40 @@ mod tests {
             k_own,
             k_own_t: 0.0,
         }
+    }
+
+    /// Issue 24.2: a fit JSON of another device, of another record, or written without a record
+    /// is refused before the node is verified, naming both values.
+    #[test]
+    fn a_fit_of_another_unit_or_record_is_refused() {
+        let id = Identity {
+            device_id: Some("51454d552d422d4c34373545".into()),
+            serial: Some("U-1".into()),
+            g_m_s2: 9.81,
+            campaign_sha256: "00".repeat(32),
+            record_crc: Some("b1fe3d0c".into()),
+        };
+        let running = |crc| RecordStatus::InUse { slot: 0, sequence: 1, created_unix_s: 0, crc };
+        let node = "the node on /dev/pts/3";
+        let check = |id: &Identity, dev: &str, crc| {
+            check_fit(&("f.json".into(), id.clone()), node, dev, running(crc))
+        };
+        assert!(check(&id, "51454d552d422d4c34373545", 0xb1fe3d0c).is_ok());
+        let e = check(&id, "0123456789abcdef01234567", 0xb1fe3d0c).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "f.json has device id 51454d552d422d4c34373545 but the node on /dev/pts/3 has 0123456789abcdef01234567: \
+             not the same unit"
+        );
+        assert_eq!(crate::exit::code(&e), 2);
+        let e = check(&id, "51454d552d422d4c34373545", 0x1617f971).unwrap_err().to_string();
+        assert!(
+            e.starts_with("f.json has record CRC b1fe3d0c but the node on /dev/pts/3 has 1617f971"),
+            "{e}"
+        );
+        let no_record = Identity { record_crc: None, ..id };
+        let e = check(&no_record, "51454d552d422d4c34373545", 0xb1fe3d0c).unwrap_err().to_string();
+        assert!(e.starts_with("f.json: written without a record"), "{e}");
     }
 
     #[test]

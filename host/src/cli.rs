@@ -227,6 +227,9 @@ pub struct SimulateArgs {
     /// Local gravity instead of --g.
     #[command(flatten)]
     pub local: LocalGravity,
+    /// The unit's serial number, written into the campaign (`# serial:`, as `acquire --serial`).
+    #[arg(long, value_name = "S")]
+    pub serial: Option<String>,
     /// Write a summary (rows, positions, channels) as JSON.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
@@ -784,10 +787,14 @@ pub struct ReportArgs {
     /// The record written to the node (from `fit --record`).
     #[arg(long, value_name = "RECORD")]
     pub record: PathBuf,
+    /// The fit JSON written with the record (`fit --record R --json F`): it ties the record to
+    /// the campaign (its SHA-256) and gives the method, g and the standard errors.
+    #[arg(long, value_name = "FIT_JSON")]
+    pub fit: PathBuf,
     /// The verification after flashing (`verify --json`); without it the page says "not verified".
     #[arg(long, value_name = "VERIFY_JSON")]
     pub verify: Option<PathBuf>,
-    /// Gravity at the rig, m/s² [default: the campaign's `# g_m_s2:`, else 9.81, announced].
+    /// Gravity at the rig, m/s² [default: the fit's; given, it must be the fit's].
     #[arg(long, value_name = "M_S2")]
     pub g: Option<f64>,
     /// The certificate to write (HTML).

@@ -267,7 +267,11 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
             if let Some(g) = a.g {
                 crate::cmd::check_g(g)?;
             }
-            let mut inputs = vec![("--campaign", a.campaign.as_path()), ("--record", a.record.as_path())];
+            let mut inputs = vec![
+                ("--campaign", a.campaign.as_path()),
+                ("--record", a.record.as_path()),
+                ("--fit", a.fit.as_path()),
+            ];
             if let Some(v) = &a.verify {
                 inputs.push(("--verify", v));
             }
@@ -386,7 +390,8 @@ fn check_fit(a: &FitArgs, given: &Given) -> anyhow::Result<()> {
             "fit without --record",
             " (it is written into the record)",
         )?;
-    } else if a.device_id.is_none() {
+    } else if a.device_id.is_none() && a.method == MethodArg::GravityNorm {
+        // A campaign's `# device_id:` line gives it otherwise (checked once the file is read).
         return Err(bad(
             "fit --record needs --device-id HEX, the MCU's 96-bit unique id: a node accepts only a record made for it",
         ));

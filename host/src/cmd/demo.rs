@@ -4,11 +4,13 @@ use accelcal_shared::terms::MODEL_4;
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 
-use accelcal_core::calibrate::{fit_all, gate, record, write_record, Method};
+use accelcal_core::calibrate::{fit_all, gate, record, record_bytes, record_crc_hex, Method};
+use accelcal_core::campaign::identity::{content_sha256, Identity};
+use accelcal_core::node::session::device_id_hex;
 
 use crate::cli::DemoArgs;
 use accelcal_core::gmdh::Split;
-use accelcal_core::output::{write_atomic_with, write_json};
+use accelcal_core::output::{write_atomic, write_atomic_with, write_json};
 use accelcal_core::sim::{self, SimConfig};
 
 /// Runs `accelcal demo`.
@@ -40,20 +42,28 @@ pub fn run(a: &DemoArgs) -> anyhow::Result<()> {
     steps.set_message("fitting model 4 by LSQ and by test turns; writing the calibration record");
     let lsq = fit_all(&campaign, g, Method::Lsq, MODEL_4)?;
     let tt = fit_all(&campaign, g, Method::TestTurns, MODEL_4)?;
-    write_json(
-        &out.join("fit-lsq.json"),
-        &super::fit::to_json(Method::Lsq, &lsq, accelcal_core::positions::T_REF_DEFAULT_C),
-    )?;
-    write_json(
-        &out.join("fit-test-turns.json"),
-        &super::fit::to_json(Method::TestTurns, &tt, accelcal_core::positions::T_REF_DEFAULT_C),
-    )?;
     // For the QEMU node (`accelcal hil`), the only node a demo has; checked by the node's gate
     // like every record the tool writes.
     let rec_path = out.join("calibration.rec");
     let rec = record(&lsq, accelcal_shared::contract::QEMU_DEVICE_ID, 0, g, None)?;
     gate(&rec_path, &rec)?;
-    write_record(&rec_path, &rec)?;
+    let rec_bytes = record_bytes(&rec)?;
+    let sha256 = content_sha256(&campaign_path)?;
+    let unit = |record_crc| Identity {
+        device_id: Some(device_id_hex(&accelcal_shared::contract::QEMU_DEVICE_ID)),
+        serial: None,
+        g_m_s2: g,
+        campaign_sha256: sha256.clone(),
+        record_crc,
+    };
+    let t_ref = accelcal_core::positions::T_REF_DEFAULT_C;
+    let lsq_json = super::fit::to_json(Method::Lsq, &lsq, t_ref, unit(Some(record_crc_hex(&rec_bytes))));
+    write_json(&out.join("fit-lsq.json"), &lsq_json)?;
+    write_json(
+        &out.join("fit-test-turns.json"),
+        &super::fit::to_json(Method::TestTurns, &tt, t_ref, unit(None)),
+    )?;
+    write_atomic(&rec_path, &rec_bytes)?;
     steps.inc(1);
 
     steps.set_message("comparing the methods on held-out positions");

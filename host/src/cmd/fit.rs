@@ -1,9 +1,13 @@
 //! `accelcal fit`: coefficients by least squares or test turns, and the calibration record.
 
-use accelcal_core::calibrate::{fit_positions, gate, parse_device_id, record, write_record, Method};
+use accelcal_core::calibrate::{
+    fit_positions, gate, parse_device_id, record, record_bytes, record_crc_hex, Method,
+};
+use accelcal_core::campaign::identity::{CampaignId, Identity};
 use accelcal_core::error::bad;
 use accelcal_core::lsq::{self, LsqFit};
-use accelcal_core::output::{finite, write_json};
+use accelcal_core::node::session::device_id_hex;
+use accelcal_core::output::{finite, write_atomic, write_json};
 use anyhow::Context;
 use serde::Serialize;
 
@@ -27,17 +31,22 @@ pub struct FitChannelJson {
 #[derive(Serialize)]
 pub struct FitJson {
     method: &'static str,
+    /// Whose fit it is: device id, serial, g, the campaign's hash, the record's CRC.
+    #[serde(flatten)]
+    identity: Identity,
     /// The reference temperature of the terms in `t` (°C), when a fit has one.
     #[serde(skip_serializing_if = "Option::is_none")]
     t_ref_c: Option<f64>,
     channels: Vec<FitChannelJson>,
 }
 
-/// The JSON document of a set of fits; `t_ref_c` (°C) is stated when a fit has a term in `t`.
-pub fn to_json(method: Method, fits: &[(String, LsqFit)], t_ref_c: f64) -> FitJson {
+/// The JSON document of a set of fits of the unit `identity`; `t_ref_c` (°C) is stated when a
+/// fit has a term in `t`.
+pub fn to_json(method: Method, fits: &[(String, LsqFit)], t_ref_c: f64, identity: Identity) -> FitJson {
     let thermal = fits.iter().any(|(_, f)| f.structure.is_thermal());
     FitJson {
         method: method.name(),
+        identity,
         t_ref_c: thermal.then_some(t_ref_c),
         channels: fits
             .iter()
@@ -96,11 +105,13 @@ pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
     };
     super::check_g(a.common.g)?;
     let structure = lsq::parse_terms(&a.terms).map_err(|e| bad(format!("--terms: {e}")))?;
-    let device_id = a.device_id.as_deref().map(parse_device_id).transpose()?;
+    let given_id = a.device_id.as_deref().map(parse_device_id).transpose()?;
     if a.temp_input.is_some() && a.record.is_none() {
         return Err(bad("--temp-input applies to --record only"));
     }
     super::check_t_ref(a.thermal.t_ref_c())?;
+    let unit = CampaignId::read(&a.campaign)?;
+    let device_id = record_device_id(a, given_id, &unit)?;
     // Streamed: the fits need the dwell statistics only, so memory does not grow with the rows.
     let r = super::reduce_campaign(&a.campaign, a.common.codes, warnings)?;
     let mut pos = r.positions(a.common.g);
@@ -128,23 +139,61 @@ pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
             let rec =
                 record(&fits, device_id.unwrap_or_default(), super::created(a.created), a.common.g, thermal)?;
             gate(path, &rec)?;
-            Some((path, rec))
+            Some((path, record_bytes(&rec)?, rec))
         }
         None => None,
     };
     print_table(method, &fits);
     if let Some(j) = &a.common.json {
-        write_json(j, &to_json(method, &fits, a.thermal.t_ref_c()))?;
+        let identity = Identity {
+            device_id: device_id.map(|d| device_id_hex(&d)).or(unit.device_id),
+            serial: unit.serial,
+            g_m_s2: a.common.g,
+            campaign_sha256: unit.sha256,
+            record_crc: rec.as_ref().map(|(_, bytes, _)| record_crc_hex(bytes)),
+        };
+        write_json(j, &to_json(method, &fits, a.thermal.t_ref_c(), identity))?;
     }
-    if let Some((path, rec)) = rec {
-        write_record(path, &rec)?;
+    if let Some((path, bytes, rec)) = rec {
+        write_atomic(path, &bytes)?;
         println!(
-            "record: {} ({} bytes, {} channels, terms {})",
+            "record: {} ({} bytes, {} channels, terms {}, device {}, CRC {})",
             path.display(),
             rec.len(),
             rec.n_channels,
-            rec.structure
+            rec.structure,
+            device_id_hex(&rec.device_id),
+            record_crc_hex(&bytes)
         );
     }
     Ok(())
+}
+
+/// The device id of `fit --record`: the campaign's `# device_id:` line, which `--device-id` may
+/// repeat but not contradict, else `--device-id`; refused when neither gives one. `None` without
+/// `--record`.
+fn record_device_id(
+    a: &FitArgs,
+    given: Option<[u8; 12]>,
+    unit: &CampaignId,
+) -> anyhow::Result<Option<[u8; 12]>> {
+    if a.record.is_none() {
+        return Ok(None);
+    }
+    let campaign = unit.device_id_bytes();
+    match (given, campaign) {
+        (Some(g), Some(c)) if g != c => Err(bad(format!(
+            "--device-id {} contradicts {}'s `# device_id: {}`: not the same unit (leave --device-id out: the \
+             campaign's is used)",
+            device_id_hex(&g),
+            a.campaign.display(),
+            device_id_hex(&c)
+        ))),
+        (Some(id), _) | (None, Some(id)) => Ok(Some(id)),
+        (None, None) => Err(bad(format!(
+            "fit --record needs --device-id HEX, the MCU's 96-bit unique id (`accelcal info` shows it): {} has no \
+             `# device_id:` line, and a node accepts only a record made for it",
+            a.campaign.display()
+        ))),
+    }
 }

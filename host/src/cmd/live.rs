@@ -7,6 +7,7 @@ use std::sync::{mpsc, Arc};
 use std::time::Duration;
 
 use accelcal_core::acquire::{self, AcquireConfig, PositionReport, Positioner, Progress, StaticRule};
+use accelcal_core::campaign::identity::{Identity, G_SOURCE_ASSUMED, G_SOURCE_NORMAL};
 use accelcal_core::error::{bad, Interrupted};
 use accelcal_core::node::head::{HeadSpec, SimHead};
 use accelcal_core::node::session::{device_id_hex, firmware_version, record_json, Session};
@@ -248,11 +249,11 @@ fn g_and_source(g: Option<f64>, local: &crate::cli::LocalGravity) -> (f64, Strin
     match (g, local.latitude) {
         (Some(g), Some(lat)) => (
             g,
-            format!("WGS84 normal gravity at latitude {lat} deg, height {} m", local.height.unwrap_or(0.0)),
+            format!("{G_SOURCE_NORMAL} at latitude {lat} deg, height {} m", local.height.unwrap_or(0.0)),
             false,
         ),
         (Some(g), None) => (g, "--g".into(), false),
-        _ => (accelcal_shared::G_STANDARD, "default 9.81 m/s² (no --g or --latitude given)".into(), true),
+        _ => (accelcal_shared::G_STANDARD, format!("{G_SOURCE_ASSUMED} (no --g or --latitude given)"), true),
     }
 }
 
@@ -380,20 +381,27 @@ pub fn run_verify(a: &VerifyArgs) -> anyhow::Result<()> {
     let plan = Plan::from_spec(&a.plan, 1).map_err(|e| bad(format!("--plan {e}")))?;
     // Checked in `settings`: --coverage >= 1, and neither it nor --fit with --tolerance.
     let k = a.coverage.unwrap_or(DEFAULT_COVERAGE);
+    let mut fit = None;
     let tolerance = match (a.tolerance, &a.fit) {
         (Some(t), _) => Tolerance::Fixed(t),
         (None, Some(p)) => {
             let text = std::fs::read_to_string(p)
                 .map_err(|e| bad(format!("{}: cannot read the fit JSON: {e}", p.display())))?;
-            Tolerance::Derived {
-                cal: Some(Box::new(uncertainty_from_fit_json(&text, &p.display().to_string())?)),
-                k,
-            }
+            let what = p.display().to_string();
+            let doc: serde_json::Value =
+                serde_json::from_str(&text).map_err(|e| bad(format!("{what}: not a JSON document: {e}")))?;
+            let cal = uncertainty_from_fit_json(&text, &what)?;
+            fit = Some((what.clone(), Identity::of_fit_json(&doc, &what)?));
+            Tolerance::Derived { cal: Some(Box::new(cal)), k }
         }
         (None, None) => Tolerance::Derived { cal: None, k },
     };
     let soak = soak_of(a.chamber.as_slice(), a.soak_s)?;
-    let (g, g_source) = g_source(a.g, &a.local);
+    // Without --g or --latitude, the g of the fit (the rig's, where the unit was calibrated).
+    let (g, g_source) = match (a.g, &fit) {
+        (None, Some((what, id))) => (id.g_m_s2, format!("the fit's, {what}")),
+        _ => g_source(a.g, &a.local),
+    };
     let stop = stop_flag()?;
     let mut node = open(&a.link)?;
     let mut head = connect_head(&a.head, &stop)?;
@@ -405,6 +413,7 @@ pub fn run_verify(a: &VerifyArgs) -> anyhow::Result<()> {
         g,
         tolerance,
         chamber: a.chamber.zip(soak),
+        fit,
     };
     println!("verify: g = {g} m/s² ({g_source}); pass rule: {}", cfg.tolerance.describe());
     let report = verify(&mut node, head.as_mut(), &cfg, &mut |c, n| println!("{}", check_line(c, n)), &stop)?;

@@ -10,78 +10,148 @@
 
 use std::fmt::Write as _;
 
-use accelcal_core::calibrate::{fit_positions, Method};
+use accelcal_core::calibrate::{record_crc_hex, Method};
+use accelcal_core::campaign::identity::{
+    g_uncertainty, same, CampaignId, Identity, IdentityError, Mismatch, G_KEY, G_SOURCE_KEY,
+};
 use accelcal_core::campaign::Campaign;
 use accelcal_core::error::bad;
+use accelcal_core::node::session::device_id_hex;
 use accelcal_core::output::write_atomic;
 use accelcal_core::positions::Positions;
 use accelcal_core::verify::VerifyReport;
-use accelcal_shared::record::{crc32, Record};
+use accelcal_shared::record::Record;
 
 use crate::cli::ReportArgs;
 use crate::report::plot::lines_svg;
+use crate::report::with_uncertainty;
 
 /// HTML-escapes text.
 fn esc(s: &str) -> String {
     s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
 }
 
-/// Runs `accelcal report`.
-pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
+/// The inputs of a certificate, read and checked to belong to one unit.
+struct Unit {
+    /// The campaign's header lines.
+    header: Vec<(String, String)>,
+    /// The record's bytes, parsed.
+    rec: Record,
+    /// Its CRC (hex).
+    crc: String,
+    /// Its device id (hex).
+    device_id: String,
+    /// The fit JSON.
+    fit: serde_json::Value,
+    /// Whose fit it is.
+    fit_id: Identity,
+    /// The verification, when given.
+    verify: Option<VerifyReport>,
+}
+
+impl Unit {
+    fn get(&self, k: &str) -> Option<String> {
+        self.header.iter().find(|(key, _)| key == k).map(|(_, v)| v.clone())
+    }
+}
+
+/// Reads the campaign's header and hash, the record, the fit JSON and the verification, and
+/// refuses any of them that is not of the same unit (one line naming both values): the campaign
+/// and the record (device id), the fit and the campaign (SHA-256 of its content), the fit and the
+/// record (the record's CRC, device id), the verification and the record (device id, CRC), the
+/// verification's g and the fit's (the certificate states one g).
+fn read_unit(a: &ReportArgs) -> anyhow::Result<Unit> {
+    let campaign = CampaignId::read(&a.campaign)?;
     let header = accelcal_core::campaign::header(&a.campaign)?;
-    let get = |k: &str| header.iter().find(|(key, _)| key == k).map(|(_, v)| v.clone());
     let rec_bytes = std::fs::read(&a.record)
         .map_err(|e| bad(format!("{}: cannot read the record: {e}", a.record.display())))?;
     let rec = Record::parse(&rec_bytes).map_err(|e| bad(format!("{}: {e}", a.record.display())))?;
-    let crc = crc32(&rec_bytes[..rec.len() - 4]);
-    let device_id = accelcal_core::node::session::device_id_hex(&rec.device_id);
-    if let Some(d) = get("device_id") {
-        if d != device_id {
-            return Err(bad(format!(
-                "{} is for device {device_id}, the campaign {} was acquired from {d}: not the same unit",
-                a.record.display(),
-                a.campaign.display()
-            )));
-        }
+    let crc = record_crc_hex(&rec_bytes[..rec.len()]);
+    let device_id = device_id_hex(&rec.device_id);
+    let (c_name, r_name, f_name) =
+        (a.campaign.display().to_string(), a.record.display().to_string(), a.fit.display().to_string());
+    if let Some(d) = &campaign.device_id {
+        same("device id", (&c_name, d), (&r_name, &device_id), "not the same unit")?;
     }
-    let verify: Option<VerifyReport> = match &a.verify {
+    let text = std::fs::read_to_string(&a.fit)
+        .map_err(|e| bad(format!("{f_name}: cannot read the fit JSON: {e}")))?;
+    let fit: serde_json::Value =
+        serde_json::from_str(&text).map_err(|e| bad(format!("{f_name}: not a JSON document: {e}")))?;
+    let fit_id = Identity::of_fit_json(&fit, &f_name)?;
+    same(
+        "campaign SHA-256",
+        (&f_name, &fit_id.campaign_sha256),
+        (&c_name, &campaign.sha256),
+        "not the campaign of this fit",
+    )?;
+    let Some(fit_crc) = &fit_id.record_crc else {
+        return Err(bad(format!(
+            "{f_name}: written without a record (`fit --record`), so it cannot be matched to {r_name}: write the \
+             fit JSON with the record, `accelcal fit CAMPAIGN --record R --json F`"
+        )));
+    };
+    same("record CRC", (&f_name, fit_crc), (&r_name, &crc), "not the record of this fit")?;
+    if let Some(given) = a.g {
+        same_g((&f_name, fit_id.g_m_s2), ("--g", given))?;
+    }
+    let verify = match &a.verify {
         Some(p) => {
-            let text =
-                std::fs::read_to_string(p).map_err(|e| bad(format!("{}: cannot read: {e}", p.display())))?;
+            let v_name = p.display().to_string();
+            let text = std::fs::read_to_string(p).map_err(|e| bad(format!("{v_name}: cannot read: {e}")))?;
             let v: VerifyReport = serde_json::from_str(&text)
-                .map_err(|e| bad(format!("{}: not `accelcal verify --json` output: {e}", p.display())))?;
-            if v.device_id != device_id {
-                return Err(bad(format!(
-                    "{}: verified device {}, the record is for {device_id}",
-                    p.display(),
-                    v.device_id
-                )));
-            }
-            let v_crc = v.record["crc"].as_str().unwrap_or("");
-            if v_crc != format!("{crc:08x}") {
-                return Err(bad(format!(
-                    "{}: the node ran record CRC {v_crc} during verification, {} has CRC {crc:08x}",
-                    p.display(),
-                    a.record.display()
-                )));
-            }
+                .map_err(|e| bad(format!("{v_name}: not `accelcal verify --json` output: {e}")))?;
+            same("device id", (&v_name, &v.device_id), (&r_name, &device_id), "not the same unit")?;
+            let v_crc = v.record["crc"].as_str().unwrap_or("(none)");
+            same(
+                "record CRC",
+                (&v_name, v_crc),
+                (&r_name, &crc),
+                "the node did not run this record when it was verified",
+            )?;
+            same_g((&v_name, v.g_m_s2), (&f_name, fit_id.g_m_s2))?;
             Some(v)
         }
         None => None,
     };
-    let (g, g_source) = match (a.g, get("g_m_s2").and_then(|v| v.parse::<f64>().ok())) {
-        (Some(g), _) => (g, "--g".to_string()),
-        (None, Some(g)) => (g, format!("the campaign's ({})", get("g_source").unwrap_or_default())),
-        (None, None) => {
-            eprintln!(
-                "note: {}",
-                super::g_fallback(&format!(
-                    "{} does not state its gravity (`# g_m_s2:`) and --g was not given",
-                    a.campaign.display()
-                ))
-            );
-            (accelcal_shared::G_STANDARD, "default 9.81 m/s² (not stated by the campaign)".into())
+    Ok(Unit { header, rec, crc, device_id, fit, fit_id, verify })
+}
+
+/// Refuses two gravities that differ (beyond the last digits of a round trip through text): the
+/// certificate states one g.
+fn same_g((a, ga): (&str, f64), (b, gb): (&str, f64)) -> anyhow::Result<()> {
+    if (ga - gb).abs() <= 1e-9 * gb.abs() {
+        return Ok(());
+    }
+    Err(IdentityError::Mismatch(Box::new(Mismatch {
+        a: a.to_string(),
+        field: "g",
+        a_value: format!("{ga} m/s²"),
+        b: b.to_string(),
+        b_value: format!("{gb} m/s²"),
+        consequence: "the certificate states one g (verify with the fit's g)",
+    }))
+    .into())
+}
+
+/// Runs `accelcal report`.
+pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
+    let u = read_unit(a)?;
+    let (rec, device_id, crc) = (&u.rec, &u.device_id, &u.crc);
+    let g = u.fit_id.g_m_s2;
+    // The g's origin: the campaign's, when the fit used it, else the fit's own --g/--latitude.
+    let campaign_g = u.get(G_KEY).and_then(|v| v.parse::<f64>().ok());
+    let (source, source_words) = match campaign_g {
+        Some(cg) if (cg - g).abs() <= 1e-9 * g => {
+            let s = u.get(G_SOURCE_KEY);
+            let words = s.clone().unwrap_or_else(|| format!("the campaign's `# {G_KEY}:`"));
+            (s, words)
         }
+        _ => (None, "the fit's --g or --latitude".to_string()),
+    };
+    let (g_bound, g_why) = g_uncertainty(g, source.as_deref());
+    let method = match u.fit["method"].as_str() {
+        Some("test-turns") => Method::TestTurns,
+        _ => Method::Lsq,
     };
     let campaign = Campaign::read(&a.campaign)?;
     // The positions at the record's reference temperature; a thermal record's structure is
@@ -96,11 +166,10 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
         settings.basis = accelcal_shared::Basis::LinearThermal;
     }
     let sel = super::select::compute_on(&pos, &stats, &[], &settings)?;
-    let lsq = fit_positions(&pos, &stats, Method::Lsq, rec.structure)?;
     let cmp = accelcal_core::compare::compute(&campaign, None, g).ok();
 
     let mut h = String::new();
-    let serial = get("serial").unwrap_or_else(|| "-".into());
+    let serial = u.fit_id.serial.clone().unwrap_or_else(|| "-".into());
     let now = super::record::utc(super::created(None));
     let _ = write!(
         h,
@@ -108,10 +177,12 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
         esc(&serial)
     );
     let _ = write!(h, "<h1>Calibration certificate &mdash; accelerometer triad {}</h1>", esc(&serial));
-    let verdict = match &verify {
-        Some(v) if v.pass => {
-            "<span class=\"pass\">VERIFIED: every position within tolerance</span>".to_string()
-        }
+    let temp = u.verify.as_ref().map(verification_temperature);
+    let verdict = match &u.verify {
+        Some(v) if v.pass => format!(
+            "<span class=\"pass\">VERIFIED: every position within its tolerance on every axis, {}</span>",
+            esc(temp.as_deref().unwrap_or_default())
+        ),
         Some(v) => format!(
             "<span class=\"fail\">NOT VERIFIED: {} of {} positions outside tolerance</span>",
             v.positions.iter().filter(|p| !p.pass).count(),
@@ -123,11 +194,11 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
     let rows = [
         ("Unit serial", serial.clone()),
         ("Device id (MCU)", device_id.clone()),
-        ("Firmware", get("firmware").unwrap_or_else(|| "-".into())),
+        ("Firmware", u.get("firmware").unwrap_or_else(|| "-".into())),
         (
             "Record",
             format!(
-                "CRC {crc:08x}, created {}, {} ({} bytes, format {})",
+                "CRC {crc}, created {}, {}, fitted by {} ({} bytes, format {})",
                 super::record::utc(rec.created_unix_s),
                 match rec.thermal {
                     Some(t) => format!(
@@ -138,21 +209,30 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
                         t.t_max_c,
                         t.source.name()
                     ),
-                    None => "model 4".to_string(),
+                    None => format!("model 4 ({})", rec.structure),
                 },
+                method_words(method),
                 rec.len(),
                 rec.version()
             ),
         ),
-        ("g used", format!("{g} m/s² ({})", g_source)),
+        (
+            "g (local gravity)",
+            format!(
+                "{} m/s² ({}; {g_why})",
+                with_uncertainty(g, g_bound),
+                source_words
+            ),
+        ),
         (
             "Campaign",
             format!(
-                "{} &mdash; plan {}, {} sets per position, acquired {}",
+                "{} &mdash; plan {}, {} sets per position, acquired {}; SHA-256 {}",
                 esc(&a.campaign.display().to_string()),
-                esc(&get("plan").unwrap_or_else(|| "-".into())),
-                esc(&get("samples").unwrap_or_else(|| "-".into())),
-                esc(&get("date").unwrap_or_else(|| "-".into()))
+                esc(&u.get("plan").unwrap_or_else(|| "-".into())),
+                esc(&u.get("samples").unwrap_or_else(|| "-".into())),
+                esc(&u.get("date").unwrap_or_else(|| "-".into())),
+                &u.fit_id.campaign_sha256[..16]
             ),
         ),
         ("Issued", format!("{now} by accelcal {}", env!("CARGO_PKG_VERSION"))),
@@ -162,38 +242,101 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
         let _ = write!(h, "<tr><th class=\"l\">{k}</th><td class=\"l\">{v}</td></tr>");
     }
     h.push_str("</table>");
+    if let Some(v) = &u.verify {
+        h.push_str(&verification(v, temp.as_deref().unwrap_or_default())?);
+    }
+    h.push_str(&coefficients(rec, &u.fit, method)?);
+    h.push_str(&structure(&sel, rec, &u.fit));
+    h.push_str(&table2(cmp.as_ref(), method)?);
+    h.push_str("</body></html>\n");
+    write_atomic(&a.out, h.as_bytes())?;
+    println!(
+        "report: certificate of unit {serial} (device {device_id}, record CRC {crc}) written to {}",
+        a.out.display()
+    );
+    Ok(())
+}
 
-    // Model structure.
-    h.push_str("<h2>Model structure (combinatorial GMDH, regularity criterion, 1-code tolerance)</h2><table><tr><th class=\"l\">channel</th><th class=\"l\">selected terms</th><th>criterion, codes</th><th>best, codes</th><th class=\"l\">why</th></tr>");
-    for s in &sel {
-        let c = s.selected();
-        let best = s
-            .candidates
-            .iter()
-            .filter(|c| c.criterion.is_some())
-            .min_by(|a, b| a.criterion.partial_cmp(&b.criterion).expect("finite criteria"))
-            .expect("a selection has an identifiable candidate");
-        let why = if c.structure == best.structure {
-            "the best candidate".to_string()
-        } else {
-            format!("simplest within 1 code of the best ({})", best.structure)
-        };
+/// The method's short label.
+fn label(m: Method) -> &'static str {
+    match m {
+        Method::Lsq => "LSQ",
+        Method::TestTurns => "test turns",
+    }
+}
+
+/// The method in words.
+fn method_words(m: Method) -> &'static str {
+    match m {
+        Method::Lsq => "least squares (LSQ) over every position",
+        Method::TestTurns => "test turns",
+    }
+}
+
+/// The temperature of a verification in words: the node's mean over the positions and their
+/// range, and the chamber setpoint when one was set.
+fn verification_temperature(v: &VerifyReport) -> String {
+    let temps: Vec<f64> = v.positions.iter().filter_map(|p| p.temp_c).collect();
+    let chamber = v.chamber_c.map(|c| format!(", chamber set to {c} °C")).unwrap_or_default();
+    if temps.is_empty() {
+        return format!("temperature not reported by the node{chamber}");
+    }
+    let mean = temps.iter().sum::<f64>() / temps.len() as f64;
+    let (lo, hi) = temps.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &t| (l.min(t), h.max(t)));
+    format!("at {mean:.1} °C (the node's sensor, {lo:.1} to {hi:.1} °C over the positions{chamber})")
+}
+
+/// The verification: each position's error and tolerance per axis, and the plot.
+fn verification(v: &VerifyReport, temp: &str) -> anyhow::Result<String> {
+    let mut h = String::new();
+    let _ = write!(
+        h,
+        "<h2>Verification on the head after flashing, {}: error of the calibrated output, m/s²</h2><p class=\"small\">Pass: {}</p><div class=\"cols\"><div class=\"wide\"><table><tr><th>pos.</th><th>&alpha;, &beta; (deg)</th><th>error x</th><th>error y</th><th>error z</th><th>tol. x</th><th>tol. y</th><th>tol. z</th><th></th></tr>",
+        esc(temp),
+        esc(&v.tolerance_rule)
+    );
+    for p in &v.positions {
+        let (e, t) = (p.error_m_s2, p.tolerance_m_s2);
         let _ = write!(
             h,
-            "<tr><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{:.2}</td><td>{:.2}</td><td class=\"l\">{}</td></tr>",
-            esc(&s.channel),
-            c.structure,
-            c.criterion.unwrap_or(f64::NAN),
-            s.best,
-            esc(&why)
+            "<tr><td>{}</td><td>{}, {}</td><td>{:+.5}</td><td>{:+.5}</td><td>{:+.5}</td><td>{:.5}</td><td>{:.5}</td><td>{:.5}</td><td class=\"{}\">{}</td></tr>",
+            p.position,
+            p.alpha_deg,
+            p.beta_deg,
+            e[0],
+            e[1],
+            e[2],
+            t[0],
+            t[1],
+            t[2],
+            if p.pass { "pass" } else { "fail" },
+            if p.pass { "pass" } else { "FAIL" }
         );
     }
-    h.push_str("</table>");
+    h.push_str("</table></div><div>");
+    let series: Vec<(String, Vec<(f64, f64)>)> = ["x", "y", "z"]
+        .iter()
+        .enumerate()
+        .map(|(i, n)| {
+            (format!("error {n}"), v.positions.iter().map(|p| (p.position as f64, p.error_m_s2[i])).collect())
+        })
+        .collect();
+    h.push_str(&lines_svg("Verification error per position", "position", "m/s²", &series, (640, 330))?);
+    h.push_str("</div></div>");
+    Ok(h)
+}
 
-    // Coefficients.
-    let _ = write!(h, "<h2>Coefficients in force (record), &plusmn; standard error of the LSQ fit of this campaign</h2><table><tr><th class=\"l\">channel</th>");
-    for (i, t) in rec.structure.terms().enumerate() {
-        let head = match (i, t.to_string().as_str()) {
+/// The record's coefficients with the standard errors of the fit that made them (the fit JSON).
+fn coefficients(rec: &Record, fit: &serde_json::Value, method: Method) -> anyhow::Result<String> {
+    let mut h = String::new();
+    let _ = write!(
+        h,
+        "<h2>Coefficients in force (record) &plusmn; standard error of the {} fit</h2><table><tr><th class=\"l\">channel</th>",
+        label(method)
+    );
+    let terms: Vec<String> = rec.structure.terms().map(|t| t.to_string()).collect();
+    for (i, t) in terms.iter().enumerate() {
+        let head = match (i, t.as_str()) {
             (0, _) => "u0, codes".to_string(),
             (1, _) => "k·ax, codes/(m/s²)".to_string(),
             (2, _) => "k·ay".to_string(),
@@ -205,96 +348,180 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
         let _ = write!(h, "<th>{}</th>", esc(&head));
     }
     h.push_str("<th>residual RMS, codes</th></tr>");
-    let mut max_rel = 0.0f64;
-    for (c, (name, fit)) in lsq.iter().enumerate() {
+    let channels = fit["channels"].as_array().map(Vec::as_slice).unwrap_or_default();
+    for (c, row) in rec.coefficients.iter().take(rec.n_channels as usize).enumerate() {
+        let ch = channels.get(c);
+        let name = ch.and_then(|ch| ch["channel"].as_str()).unwrap_or("?");
         let _ = write!(h, "<tr><td class=\"l\">{}</td>", esc(name));
-        let se = fit.std_errors();
-        for t in 0..rec.structure.len() {
-            let v = rec.coefficients.get(c).map_or(f64::NAN, |row| row[t]);
-            max_rel = max_rel.max(((v - fit.coefficients[t]) / se[t].max(1e-12)).abs());
-            let _ = write!(h, "<td>{v:.4} &plusmn; {:.4}</td>", se[t]);
+        for (i, t) in terms.iter().enumerate() {
+            let se = ch
+                .and_then(|ch| {
+                    let at = ch["terms"].as_array()?.iter().position(|n| n.as_str() == Some(t))?;
+                    ch["std_errors"][at].as_f64()
+                })
+                .map_or("-".to_string(), |s| format!("{s:.4}"));
+            let _ = write!(h, "<td>{:.4} &plusmn; {se}</td>", row[i]);
         }
-        let _ = write!(h, "<td>{:.2}</td></tr>", fit.rms);
+        let rms = ch.and_then(|ch| ch["rms_codes"].as_f64()).map_or("-".to_string(), |r| format!("{r:.2}"));
+        let _ = write!(h, "<td>{rms}</td></tr>");
     }
     h.push_str("</table>");
-    if max_rel > 1.0 {
-        let _ = write!(
-            h,
-            "<p class=\"fail\">The record differs from this campaign's LSQ fit by up to {max_rel:.1} standard errors: it was not fitted by LSQ from this campaign.</p>"
-        );
-    }
+    Ok(h)
+}
 
-    // Table 2.
-    h.push_str("<div class=\"cols\"><div>");
-    match &cmp {
-        Some(r) => {
-            let _ = write!(h, "<h2>LSQ against test turns (Table 2), m/s², {} held-out positions</h2><table><tr><th class=\"l\">channel</th><th>mean LSQ</th><th>mean TT</th><th>std LSQ</th><th>std TT</th></tr>", r.validation_positions);
-            for ch in &r.channels {
-                let _ = write!(
-                    h,
-                    "<tr><td class=\"l\">{}</td><td>{:.5}</td><td>{:.5}</td><td>{:.5}</td><td>{:.5}</td></tr>",
-                    esc(&ch.channel),
-                    ch.lsq.mean_error,
-                    ch.test_turns.mean_error,
-                    ch.lsq.std_error,
-                    ch.test_turns.std_error
-                );
-            }
-            h.push_str("</table>");
-        }
-        None => {
-            h.push_str("<h2>LSQ against test turns</h2><p>Not computed: the plan has no test-turn pairs.</p>")
-        }
-    }
-    h.push_str("</div><div>");
-    h.push_str(&fit_plot(cmp.as_ref())?);
-    h.push_str("</div></div>");
+/// A record coefficient of channel `c` and its standard error in the fit JSON (by term name).
+fn coefficient(rec: &Record, fit: &serde_json::Value, c: usize, term: &str) -> (f64, Option<f64>) {
+    let at = rec.structure.terms().position(|t| t.to_string() == term);
+    let v = at.map_or(f64::NAN, |i| rec.coefficients[c][i]);
+    let se = fit["channels"][c]["terms"]
+        .as_array()
+        .and_then(|ts| ts.iter().position(|n| n.as_str() == Some(term)))
+        .and_then(|i| fit["channels"][c]["std_errors"][i].as_f64());
+    (v, se)
+}
 
-    // Verification.
-    if let Some(v) = &verify {
-        let _ = write!(
-            h,
-            "<h2>Verification on the head after flashing (g = {} m/s²)</h2><p class=\"small\">{}</p><div class=\"cols\"><div><table><tr><th>pos.</th><th>&alpha;, &beta; (deg)</th><th>error x</th><th>error y</th><th>error z</th><th>tolerance</th><th></th></tr>",
-            v.g_m_s2,
-            esc(&v.tolerance_rule)
-        );
-        for p in &v.positions {
-            let tol = p.tolerance_m_s2.iter().cloned().fold(0.0, f64::max);
-            let _ = write!(
-                h,
-                "<tr><td>{}</td><td>{}, {}</td><td>{:+.5}</td><td>{:+.5}</td><td>{:+.5}</td><td>{:.5}</td><td class=\"{}\">{}</td></tr>",
-                p.position,
-                p.alpha_deg,
-                p.beta_deg,
-                p.error_m_s2[0],
-                p.error_m_s2[1],
-                p.error_m_s2[2],
-                tol,
-                if p.pass { "pass" } else { "fail" },
-                if p.pass { "pass" } else { "FAIL" }
-            );
-        }
-        h.push_str("</table></div><div>");
-        let series: Vec<(String, Vec<(f64, f64)>)> = ["x", "y", "z"]
+/// GMDH's choice per channel next to the record's structure, and why the record holds its terms
+/// where GMDH chose others: the terms GMDH leaves out with their fitted values in standard errors,
+/// the terms it adds that the node cannot apply.
+fn structure(sel: &[accelcal_core::gmdh::Selection], rec: &Record, fit: &serde_json::Value) -> String {
+    let mut h = String::new();
+    h.push_str("<h2>Model structure: GMDH (paper's 11 models, regularity criterion, 1-code tolerance) and the record</h2><table><tr><th class=\"l\">channel</th><th class=\"l\">GMDH selects</th><th>criterion, codes</th><th>best, codes</th><th class=\"l\">why</th><th>record's terms: criterion, codes</th></tr>");
+    let mut notes = Vec::new();
+    let record_terms: Vec<String> = rec.structure.terms().map(|t| t.to_string()).collect();
+    for (c, s) in sel.iter().enumerate() {
+        let chosen = s.selected();
+        let best = s
+            .candidates
             .iter()
-            .enumerate()
-            .map(|(i, n)| {
-                (
-                    format!("error {n}"),
-                    v.positions.iter().map(|p| (p.position as f64, p.error_m_s2[i])).collect(),
-                )
-            })
-            .collect();
-        h.push_str(&lines_svg("Verification error per position", "position", "m/s²", &series, (640, 330))?);
-        h.push_str("</div></div>");
+            .filter(|c| c.criterion.is_some())
+            .min_by(|a, b| a.criterion.partial_cmp(&b.criterion).expect("finite criteria"))
+            .expect("a selection has an identifiable candidate");
+        let why = if chosen.structure == best.structure {
+            "the best candidate".to_string()
+        } else {
+            format!("simplest within 1 code of the best ({})", best.structure)
+        };
+        let record_crit =
+            s.candidates.iter().find(|k| k.structure == rec.structure).and_then(|k| k.criterion);
+        let _ = write!(
+            h,
+            "<tr><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{:.2}</td><td>{:.2}</td><td class=\"l\">{}</td><td>{}</td></tr>",
+            esc(&s.channel),
+            chosen.structure,
+            chosen.criterion.unwrap_or(f64::NAN),
+            s.best,
+            esc(&why),
+            record_crit.map_or("-".to_string(), |v| format!("{v:.2}"))
+        );
+        if chosen.structure == rec.structure {
+            continue;
+        }
+        let gmdh_terms: Vec<String> = chosen.structure.terms().map(|t| t.to_string()).collect();
+        let mut parts = Vec::new();
+        for t in record_terms.iter().filter(|t| !gmdh_terms.contains(t)) {
+            let (v, se) = coefficient(rec, fit, c, t);
+            parts.push(match se {
+                Some(se) if se > 0.0 => format!(
+                    "GMDH leaves out {t}; the record's {t} term is {v:.4} &plusmn; {se:.4} ({:.1} standard errors from zero)",
+                    (v / se).abs()
+                ),
+                _ => format!("GMDH leaves out {t}; the record's {t} term is {v:.4}"),
+            });
+        }
+        let added: Vec<&String> = gmdh_terms.iter().filter(|t| !record_terms.contains(t)).collect();
+        if !added.is_empty() {
+            parts.push(format!(
+                "GMDH adds {}, which the node cannot apply: what they would explain is in the residual RMS above",
+                added.iter().map(|t| t.as_str()).collect::<Vec<_>>().join(", ")
+            ));
+        }
+        notes.push(format!(
+            "{}: {}{}",
+            esc(&s.channel),
+            parts.join("; "),
+            record_crit.map_or(String::new(), |r| format!(
+                "; the record's terms score {r:.2} codes against GMDH's {:.2}",
+                chosen.criterion.unwrap_or(f64::NAN)
+            ))
+        ));
     }
-    h.push_str("</body></html>\n");
-    write_atomic(&a.out, h.as_bytes())?;
-    println!(
-        "report: certificate of unit {serial} (device {device_id}, record CRC {crc:08x}) written to {}",
-        a.out.display()
+    h.push_str("</table>");
+    let _ = write!(
+        h,
+        "<p class=\"small\">The record holds {} on every channel: the node applies one structure to the triad, model 4 \
+         (the sensitivity matrix it inverts){}. {}</p>",
+        rec.structure,
+        if rec.structure.is_thermal() { " with its thermal terms" } else { "" },
+        if notes.is_empty() {
+            "GMDH selects the same terms.".to_string()
+        } else {
+            format!(
+                "Where GMDH selects other terms: {}. The verification, not this table, shows whether the record meets \
+                 its tolerance.",
+                notes.join(". ")
+            )
+        }
     );
-    Ok(())
+    h
+}
+
+/// The paper's Table 2 on held-out positions: the record's method and the other one, for
+/// information.
+fn table2(cmp: Option<&accelcal_core::compare::Comparison>, method: Method) -> anyhow::Result<String> {
+    let mut h = String::new();
+    let Some(r) = cmp else {
+        h.push_str("<h2>LSQ and test turns (Table 2)</h2><p class=\"small\">Not computed: the plan has no test-turn pairs.</p>");
+        return Ok(h);
+    };
+    let other = match method {
+        Method::Lsq => Method::TestTurns,
+        Method::TestTurns => Method::Lsq,
+    };
+    let _ = write!(
+        h,
+        "<div class=\"cols\"><div><h2>For information, the paper's Table 2: {} (the record's method) and {}, each fitted on the other positions and scored on {} held-out ones, m/s²</h2><table><tr><th class=\"l\">channel</th><th>mean, {}</th><th>worst position</th><th>mean, {}</th><th>worst position</th><th>sample sd</th></tr>",
+        label(method),
+        label(other),
+        r.validation_positions,
+        label(method),
+        label(other)
+    );
+    use accelcal_core::compare::{CompareChannel, ErrorStats};
+    /// Each held-out position's mean error per channel, and a channel's Table 2 row, of a method.
+    type Of<'a> = (&'a [(String, Vec<f64>)], fn(&CompareChannel) -> ErrorStats);
+    fn per(r: &accelcal_core::compare::Comparison, m: Method) -> Of<'_> {
+        match m {
+            Method::Lsq => (&r.per_position.lsq, |c| c.lsq),
+            Method::TestTurns => (&r.per_position.test_turns, |c| c.test_turns),
+        }
+    }
+    let per = |m: Method| per(r, m);
+    let worst = |m: Method, k: usize| {
+        per(m).0.get(k).map_or(f64::NAN, |(_, ys)| ys.iter().fold(0.0f64, |w, y| w.max(y.abs())))
+    };
+    for (k, ch) in r.channels.iter().enumerate() {
+        let _ = write!(
+            h,
+            "<tr><td class=\"l\">{}</td><td>{:+.5}</td><td>{:.5}</td><td>{:+.5}</td><td>{:.5}</td><td>{:.5}</td></tr>",
+            esc(&ch.channel),
+            per(method).1(ch).mean_error,
+            worst(method, k),
+            per(other).1(ch).mean_error,
+            worst(other, k),
+            per(method).1(ch).std_error
+        );
+    }
+    h.push_str("</table>");
+    h.push_str(
+        "<p class=\"small\">Both methods refitted on the other positions and scored on these: mean, the \
+         calibration's systematic error; worst position, the largest error of a held-out position's mean. \
+         Sample sd is the scatter of single samples about the true acceleration, the sensor's noise \
+         (the verification averages hundreds of sets): it is not a calibration error. Neither column is the \
+         record's pass criterion; the verification is.</p></div><div>",
+    );
+    h.push_str(&fit_plot(Some(r))?);
+    h.push_str("</div></div>");
+    Ok(h)
 }
 
 /// The LSQ calibration's error per held-out position (Table 2's data), inline SVG.
@@ -316,4 +543,4 @@ table{border-collapse:collapse;width:100%}td,th{border:1px solid #ccc;padding:1p
 font-variant-numeric:tabular-nums}th{background:#eee;font-weight:600}.l{text-align:left}.id th{width:24%}\
 .pass{color:#060}.fail{color:#b00;font-weight:bold}.verdict{font-size:10.5pt;margin:2px 0 5px}\
 .small{font-size:7.5pt;margin:1px 0 3px}.cols{display:flex;gap:5mm;align-items:flex-start}.cols>div{flex:1;min-width:0}\
-svg{width:100%;height:auto}";
+.cols>div.wide{flex:1.6}svg{width:100%;height:auto}";

@@ -105,6 +105,7 @@ pub fn run(a: &SimulateArgs) -> anyhow::Result<()> {
         }
         campaign.codes = CodeRange::Signed16;
     }
+    campaign.serial = a.serial.clone();
     write_atomic_with(&a.out, |w| campaign.write(w).context("writing CSV"))?;
     let truth_path = a.truth.clone().unwrap_or_else(|| a.out.with_extension("truth.json"));
     write_json(&truth_path, &truth)?;

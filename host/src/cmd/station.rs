@@ -340,6 +340,8 @@ impl Station<'_> {
             self.p(CAMPAIGN),
             "--record".into(),
             self.p(RECORD),
+            "--fit".into(),
+            self.p(FIT),
             "--verify".into(),
             self.p(AS_LEFT),
             "--out".into(),
