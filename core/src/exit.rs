@@ -49,6 +49,7 @@ registry!(
     crate::error::Interrupted,
     crate::verify::Failed,
     crate::campaign::CampaignError,
+    crate::db::DbError,
     crate::gmdh::GmdhError,
     crate::lsq::LsqError,
     crate::testturn::TestTurnError,
@@ -114,6 +115,7 @@ mod tests {
     /// One error of every variant of every registered type, with the kind it must have.
     fn every_variant() -> Vec<(anyhow::Error, Kind)> {
         use crate::campaign::CampaignError;
+        use crate::db::DbError;
         use crate::diagnose::DiagnoseError;
         use crate::emulate::frontend::FrontendError;
         use crate::emulate::head::HeadServerError;
@@ -156,6 +158,18 @@ mod tests {
             (e(CampaignError::Line { path: p(), line: 1, msg: "m".into() }), BadInput),
             (e(CampaignError::File { path: p(), msg: "m".into() }), BadInput),
             (e(CampaignError::Field { path: p(), line: 1, column: 1, msg: "m".into() }), BadInput),
+            (e(DbError::BadTarget { spec: "x".into(), why: "m".into() }), BadInput),
+            (e(DbError::NoDatabase { path: p() }), BadInput),
+            (e(DbError::Unreachable { target: "t".into(), cause: "m".into() }), Environment),
+            (e(DbError::Migration { cause: "m".into() }), Environment),
+            (e(DbError::Engine { cause: "m".into() }), Environment),
+            (e(DbError::Schema { what: "m".into() }), Environment),
+            (e(DbError::NoRun { run_id: "r".into() }), BadInput),
+            (e(DbError::Conflict { run_id: "r".into(), what: "m".into() }), BadInput),
+            (e(DbError::Mismatch { run_id: "r".into(), what: "m".into() }), BadInput),
+            (e(DbError::BadPiece { run_id: "r".into(), piece: "fit", cause: "m".into() }), BadInput),
+            (e(DbError::NoUnit { key: "k".into(), target: "t".into() }), BadInput),
+            (e(DbError::Ambiguous { key: "k".into(), devices: "a, b".into() }), BadInput),
             (e(GmdhError::EmptyPart('A', 3)), BadInput),
             (e(GmdhError::NoTemperature), BadInput),
             (e(GmdhError::NothingIdentifiable), BadInput),
