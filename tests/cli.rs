@@ -850,6 +850,12 @@ const REFUSED: &[(&str, &str)] = &[
     ("verify --port P --head manual --tolerance 0", "--tolerance must be a positive number of m/s², got 0"),
     ("verify --port P --head manual --fit F --tolerance 0.01", "--fit does not apply to verify --tolerance"),
     ("verify --port P --head manual --coverage 0.5", "--coverage must be a number >= 1, got 0.5"),
+    ("history U-1 --db cal.sqlite --tolerance-m-s2 0", "--tolerance-m-s2 must be a positive number, got 0"),
+    (
+        "history U-1 --db cal.sqlite --max-interval-days 0",
+        "--max-interval-days must be a positive number, got 0",
+    ),
+    ("history U-1 --db cal.sqlite --json cal.sqlite", "cal.sqlite is the database: refusing to overwrite it"),
 ];
 
 /// Command lines in which every option applies: they run, and write what they are asked to.

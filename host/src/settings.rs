@@ -274,6 +274,7 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
             Ok(())
         }
         Command::BenchDiagnose(_) | Command::Demo(_) | Command::Monitor(_) | Command::Plan(_) => Ok(()),
+        Command::History(a) => crate::cmd::history::check(a),
     }
 }
 

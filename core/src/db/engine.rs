@@ -229,11 +229,9 @@ impl Conn {
         match target {
             Target::Sqlite(path) => open_sqlite(path, create),
             Target::Postgres(spec) => {
-                let mut config: postgres::Config =
-                    spec.parse().map_err(|e: postgres::Error| DbError::BadTarget {
-                        spec: redact(spec),
-                        why: e.to_string(),
-                    })?;
+                let mut config: postgres::Config = spec.parse().map_err(|e: postgres::Error| {
+                    DbError::BadTarget { spec: redact(spec), why: e.to_string() }
+                })?;
                 if config.get_connect_timeout().is_none() {
                     config.connect_timeout(WAIT);
                 }
@@ -262,13 +260,18 @@ impl Conn {
 
     /// The schema versions applied, oldest first.
     pub fn applied_versions(&mut self) -> Result<Vec<i64>, DbError> {
-        let rows = self.transaction(|tx| tx.query("SELECT version FROM refinery_schema_history ORDER BY version", &[]))?;
+        let rows = self.transaction(|tx| {
+            tx.query("SELECT version FROM refinery_schema_history ORDER BY version", &[])
+        })?;
         rows.iter().map(|r| r[0].int()).collect()
     }
 
     /// Runs `f` in one transaction: committed when it returns `Ok`, rolled back otherwise (and by
     /// the engine when the process dies first).
-    pub fn transaction<T>(&mut self, f: impl FnOnce(&mut Tx<'_>) -> Result<T, DbError>) -> Result<T, DbError> {
+    pub fn transaction<T>(
+        &mut self,
+        f: impl FnOnce(&mut Tx<'_>) -> Result<T, DbError>,
+    ) -> Result<T, DbError> {
         match self {
             Conn::Sqlite(c) => {
                 let tx = c
@@ -315,7 +318,10 @@ fn open_sqlite(path: &Path, create: bool) -> Result<Conn, DbError> {
     if create {
         flags |= OpenFlags::SQLITE_OPEN_CREATE;
     }
-    let failed = |e: rusqlite::Error| DbError::Unreachable { target: path.display().to_string(), cause: e.to_string() };
+    let failed = |e: rusqlite::Error| DbError::Unreachable {
+        target: path.display().to_string(),
+        cause: e.to_string(),
+    };
     let c = rusqlite::Connection::open_with_flags(path, flags).map_err(failed)?;
     c.busy_timeout(WAIT).map_err(failed)?;
     // WAL: readers do not block the writer; FULL sync: a committed row survives a power cut.
@@ -329,11 +335,13 @@ impl Tx<'_> {
     /// Runs a statement that returns no rows; the number of rows it changed.
     pub fn execute(&mut self, sql: &str, params: &[Val]) -> Result<u64, DbError> {
         match self {
-            Tx::Sqlite(t) => {
-                t.execute(sql, rusqlite::params_from_iter(params.iter())).map(|n| n as u64).map_err(DbError::sqlite)
-            }
+            Tx::Sqlite(t) => t
+                .execute(sql, rusqlite::params_from_iter(params.iter()))
+                .map(|n| n as u64)
+                .map_err(DbError::sqlite),
             Tx::Postgres(t) => {
-                let p: Vec<&(dyn PgToSql + Sync)> = params.iter().map(|v| v as &(dyn PgToSql + Sync)).collect();
+                let p: Vec<&(dyn PgToSql + Sync)> =
+                    params.iter().map(|v| v as &(dyn PgToSql + Sync)).collect();
                 t.execute(sql, &p).map_err(DbError::pg)
             }
         }
@@ -345,7 +353,8 @@ impl Tx<'_> {
             Tx::Sqlite(t) => {
                 let mut st = t.prepare(sql).map_err(DbError::sqlite)?;
                 let n = st.column_count();
-                let mut rows = st.query(rusqlite::params_from_iter(params.iter())).map_err(DbError::sqlite)?;
+                let mut rows =
+                    st.query(rusqlite::params_from_iter(params.iter())).map_err(DbError::sqlite)?;
                 let mut out = Vec::new();
                 while let Some(r) = rows.next().map_err(DbError::sqlite)? {
                     out.push((0..n).map(|i| sqlite_val(r.get_ref(i))).collect::<Result<_, _>>()?);
@@ -353,7 +362,8 @@ impl Tx<'_> {
                 Ok(out)
             }
             Tx::Postgres(t) => {
-                let p: Vec<&(dyn PgToSql + Sync)> = params.iter().map(|v| v as &(dyn PgToSql + Sync)).collect();
+                let p: Vec<&(dyn PgToSql + Sync)> =
+                    params.iter().map(|v| v as &(dyn PgToSql + Sync)).collect();
                 let rows = t.query(sql, &p).map_err(DbError::pg)?;
                 rows.iter().map(|r| (0..r.len()).map(|i| pg_val(r, i)).collect()).collect()
             }

@@ -55,7 +55,11 @@ impl VerifySummary {
             pass: r.pass,
             positions: r.positions.len(),
             failed: r.positions.iter().filter(|p| !p.pass).count(),
-            max_abs_error_m_s2: r.positions.iter().flat_map(|p| p.error_m_s2).fold(0.0, |m, e| m.max(e.abs())),
+            max_abs_error_m_s2: r
+                .positions
+                .iter()
+                .flat_map(|p| p.error_m_s2)
+                .fold(0.0, |m, e| m.max(e.abs())),
         }
     }
 }
@@ -204,17 +208,23 @@ struct FitChannel {
 
 /// The model-4 part of a stored fit, or why there is none.
 fn model4(fit_json: &str) -> Result<Model4, String> {
-    let doc: FitDoc = serde_json::from_str(fit_json).map_err(|e| format!("its fit is not `fit --json` output: {e}"))?;
+    let doc: FitDoc =
+        serde_json::from_str(fit_json).map_err(|e| format!("its fit is not `fit --json` output: {e}"))?;
     let mut m = Model4 { coef: [[0.0; 4]; 3], var: [[0.0; 4]; 3] };
     for (c, name) in CHANNELS.iter().enumerate() {
-        let ch = doc.channels.iter().find(|ch| ch.channel == *name).ok_or(format!("its fit has no channel {name}"))?;
+        let ch = doc
+            .channels
+            .iter()
+            .find(|ch| ch.channel == *name)
+            .ok_or(format!("its fit has no channel {name}"))?;
         for (t, term) in TERMS.iter().enumerate() {
             let at = ch
                 .terms
                 .iter()
                 .position(|x| x == term)
                 .ok_or(format!("its fit's channel {name} has no term `{term}` (model 4 is needed)"))?;
-            m.coef[c][t] = *ch.coefficients.get(at).ok_or(format!("its fit's channel {name} lacks coefficients"))?;
+            m.coef[c][t] =
+                *ch.coefficients.get(at).ok_or(format!("its fit's channel {name} lacks coefficients"))?;
             let from_cov = ch.covariance.as_ref().and_then(|cv| cv.get(at)?.get(at).copied().flatten());
             let from_se = ch.std_errors.get(at).copied().flatten().map(|s| s * s);
             m.var[c][t] = from_cov.or(from_se).filter(|v| v.is_finite() && *v >= 0.0).unwrap_or(0.0);
@@ -382,13 +392,16 @@ fn recal(cals: &[Scaled], t_last: i64, rule: RecalRule) -> Recalibration {
             calibrations: cals.len(),
             due_unix_s: Some(due(max)),
             limiting: None,
-            basis: format!("one calibration: no drift known yet, the calibration plus {max} days (--max-interval-days)"),
+            basis: format!(
+                "one calibration: no drift known yet, the calibration plus {max} days (--max-interval-days)"
+            ),
         };
     }
     let mut best: Option<Limiting> = None;
     for c in 0..3 {
         for t in 0..4 {
-            let pts: Vec<(f64, f64, f64)> = cals.iter().map(|s| (s.t_days, s.q[c][t], s.sigma[c][t])).collect();
+            let pts: Vec<(f64, f64, f64)> =
+                cals.iter().map(|s| (s.t_days, s.q[c][t], s.sigma[c][t])).collect();
             let (r, se) = slope(&pts);
             let speed = r.abs() + rule.coverage * se;
             let days = if speed > 0.0 { rule.tolerance_m_s2 / speed } else { f64::INFINITY };
@@ -417,9 +430,20 @@ fn recal(cals: &[Scaled], t_last: i64, rule: RecalRule) -> Recalibration {
         );
         (best.days_to_tolerance, Some(best), basis)
     } else {
-        (max, None, format!("no coefficient's drift reaches the tolerance within {max} days (--max-interval-days)"))
+        (
+            max,
+            None,
+            format!("no coefficient's drift reaches the tolerance within {max} days (--max-interval-days)"),
+        )
     };
-    Recalibration { method: METHOD, rule, calibrations: cals.len(), due_unix_s: Some(due(days)), limiting, basis }
+    Recalibration {
+        method: METHOD,
+        rule,
+        calibrations: cals.len(),
+        due_unix_s: Some(due(days)),
+        limiting,
+        basis,
+    }
 }
 
 #[cfg(test)]

@@ -109,7 +109,9 @@ pub enum DbError {
         cause: String,
     },
     /// No run of the database names this unit.
-    #[error("no unit `{key}` in the database {target} (neither a serial number nor a device id of a stored run)")]
+    #[error(
+        "no unit `{key}` in the database {target} (neither a serial number nor a device id of a stored run)"
+    )]
     NoUnit {
         /// The serial or device id asked for.
         key: String,
@@ -360,7 +362,10 @@ pub fn sha256_hex(bytes: &[u8]) -> String {
 }
 
 fn now_unix_s() -> i64 {
-    std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_secs() as i64).unwrap_or(0)
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_secs() as i64)
+        .unwrap_or(0)
 }
 
 /// The gzip magic number.
@@ -475,7 +480,9 @@ impl Db {
             (plain, file.to_vec())
         } else {
             let mut z = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
-            std::io::Write::write_all(&mut z, file).and_then(|()| z.try_finish()).map_err(|e| bad(e.to_string()))?;
+            std::io::Write::write_all(&mut z, file)
+                .and_then(|()| z.try_finish())
+                .map_err(|e| bad(e.to_string()))?;
             (file.to_vec(), z.finish().map_err(|e| bad(e.to_string()))?)
         };
         let sha = sha256_hex(&plain);
@@ -573,9 +580,20 @@ impl Db {
 
     /// Stores a verification (`verify --json`): as found, with the record the unit came in
     /// with, or as left, with the new one. It must be of the run's unit.
-    pub fn store_verification(&mut self, run: RunId, phase: Phase, report: &VerifyReport) -> Result<Stored, DbError> {
+    pub fn store_verification(
+        &mut self,
+        run: RunId,
+        phase: Phase,
+        report: &VerifyReport,
+    ) -> Result<Stored, DbError> {
         let start = self.start_of(run)?;
-        self.check_same(run, "the verification's device id", &report.device_id, "the run's", &start.device_id)?;
+        self.check_same(
+            run,
+            "the verification's device id",
+            &report.device_id,
+            "the run's",
+            &start.device_id,
+        )?;
         let json = serde_json::to_string(report).expect("a verification report serialises");
         self.store(
             run,
@@ -632,12 +650,14 @@ impl Db {
             let has = |tx: &mut Tx<'_>, sql: &str| -> Result<bool, DbError> {
                 Ok(!tx.query(sql, std::slice::from_ref(&id))?.is_empty())
             };
-            let record = tx.query("SELECT bytes, crc32 FROM cal_record WHERE run_id = $1", std::slice::from_ref(&id))?;
+            let record =
+                tx.query("SELECT bytes, crc32 FROM cal_record WHERE run_id = $1", std::slice::from_ref(&id))?;
             let record = match record.first() {
                 Some(r) => Some(StoredRecord { run_id: run, bytes: r[0].bytes()?, crc32: crc_of(&r[1])? }),
                 None => None,
             };
-            let outcome = tx.query("SELECT outcome FROM run_end WHERE run_id = $1", std::slice::from_ref(&id))?;
+            let outcome =
+                tx.query("SELECT outcome FROM run_end WHERE run_id = $1", std::slice::from_ref(&id))?;
             Ok(Progress {
                 campaign: has(tx, "SELECT 1 FROM campaign WHERE run_id = $1")?,
                 fit: has(tx, "SELECT 1 FROM fit WHERE run_id = $1")?,
@@ -688,7 +708,10 @@ impl Db {
         if got.trim().eq_ignore_ascii_case(want.trim()) {
             Ok(())
         } else {
-            Err(DbError::Mismatch { run_id: run.to_string(), what: format!("{what} {got} is not {theirs} {want}") })
+            Err(DbError::Mismatch {
+                run_id: run.to_string(),
+                what: format!("{what} {got} is not {theirs} {want}"),
+            })
         }
     }
 
@@ -702,11 +725,17 @@ impl Db {
                 return Err(DbError::NoRun { run_id: run_s.clone() });
             }
             if p.table != "run_end" {
-                if let Some(r) = tx.query("SELECT outcome FROM run_end WHERE run_id = $1", std::slice::from_ref(&id))?.first()
+                if let Some(r) = tx
+                    .query("SELECT outcome FROM run_end WHERE run_id = $1", std::slice::from_ref(&id))?
+                    .first()
                 {
                     return Err(DbError::Conflict {
                         run_id: run_s.clone(),
-                        what: format!("the run is finished ({}): its {} cannot be stored", r[0].text()?, p.what),
+                        what: format!(
+                            "the run is finished ({}): its {} cannot be stored",
+                            r[0].text()?,
+                            p.what
+                        ),
                     });
                 }
             }
@@ -738,7 +767,12 @@ impl Db {
             values.extend(p.values);
             values.push(p.sha.into());
             tx.execute(
-                &format!("INSERT INTO {} ({}) VALUES ({})", p.table, columns.join(", "), placeholders.join(", ")),
+                &format!(
+                    "INSERT INTO {} ({}) VALUES ({})",
+                    p.table,
+                    columns.join(", "),
+                    placeholders.join(", ")
+                ),
                 &values,
             )?;
             Ok(Stored::New)
@@ -747,7 +781,8 @@ impl Db {
 }
 
 /// The `run` columns [`run_start`] reads, in its order.
-const RUN_COLUMNS: &str = "run_id, device_id, serial, station, head, operator, started_unix_s, software_version, \
+const RUN_COLUMNS: &str =
+    "run_id, device_id, serial, station, head, operator, started_unix_s, software_version, \
                            firmware_version, g_m_s2, g_source";
 
 fn run_start(r: &[Val]) -> Result<RunStart, DbError> {
@@ -779,23 +814,31 @@ fn record_crc(bytes: &[u8]) -> u32 {
 /// The rest of a run's rows.
 fn summary(tx: &mut Tx<'_>, start: RunStart) -> Result<RunSummary, DbError> {
     let id = [Val::from(start.run_id.to_string())];
-    let one = |tx: &mut Tx<'_>, sql: &str| -> Result<Option<Vec<Val>>, DbError> { Ok(tx.query(sql, &id)?.into_iter().next()) };
+    let one = |tx: &mut Tx<'_>, sql: &str| -> Result<Option<Vec<Val>>, DbError> {
+        Ok(tx.query(sql, &id)?.into_iter().next())
+    };
     let report = |v: Option<Vec<Val>>| -> Result<Option<VerifyReport>, DbError> {
         v.map(|r| {
-            serde_json::from_str(&r[0].text()?).map_err(|e| DbError::schema(format!("a stored verification: {e}")))
+            serde_json::from_str(&r[0].text()?)
+                .map_err(|e| DbError::schema(format!("a stored verification: {e}")))
         })
         .transpose()
     };
-    let campaign_sha256 = one(tx, "SELECT campaign_sha256 FROM campaign WHERE run_id = $1")?.map(|r| r[0].text()).transpose()?;
+    let campaign_sha256 = one(tx, "SELECT campaign_sha256 FROM campaign WHERE run_id = $1")?
+        .map(|r| r[0].text())
+        .transpose()?;
     let fit_json = one(tx, "SELECT fit_json FROM fit WHERE run_id = $1")?.map(|r| r[0].text()).transpose()?;
-    let record_crc32 = one(tx, "SELECT crc32 FROM cal_record WHERE run_id = $1")?.map(|r| crc_of(&r[0])).transpose()?;
-    let flashed_unix_s = one(tx, "SELECT flashed_unix_s FROM flash WHERE run_id = $1")?.map(|r| r[0].int()).transpose()?;
-    let as_found = report(one(tx, "SELECT report_json FROM verification WHERE run_id = $1 AND phase = 'as_found'")?)?;
-    let as_left = report(one(tx, "SELECT report_json FROM verification WHERE run_id = $1 AND phase = 'as_left'")?)?;
+    let record_crc32 =
+        one(tx, "SELECT crc32 FROM cal_record WHERE run_id = $1")?.map(|r| crc_of(&r[0])).transpose()?;
+    let flashed_unix_s =
+        one(tx, "SELECT flashed_unix_s FROM flash WHERE run_id = $1")?.map(|r| r[0].int()).transpose()?;
+    let as_found =
+        report(one(tx, "SELECT report_json FROM verification WHERE run_id = $1 AND phase = 'as_found'")?)?;
+    let as_left =
+        report(one(tx, "SELECT report_json FROM verification WHERE run_id = $1 AND phase = 'as_left'")?)?;
     let end = match one(tx, "SELECT outcome, reason, ended_unix_s FROM run_end WHERE run_id = $1")? {
         Some(r) => Some((Outcome::from_sql(&r[0].text()?)?, r[1].text()?, r[2].int()?)),
         None => None,
     };
     Ok(RunSummary { start, campaign_sha256, fit_json, record_crc32, flashed_unix_s, as_found, as_left, end })
 }
-

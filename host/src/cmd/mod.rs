@@ -7,6 +7,7 @@ pub mod diagnose;
 pub mod emulate;
 pub mod fit;
 pub mod gravity;
+pub mod history;
 pub mod live;
 pub mod node;
 pub mod plan;
@@ -50,6 +51,7 @@ pub fn run(cli: Cli, warnings: &mut Warnings) -> anyhow::Result<()> {
             diagnose::run(&a, warnings)
         }
         Command::BenchDiagnose(a) => bench_diagnose::run(&a),
+        Command::History(a) => history::run(&a),
     }
 }
 
