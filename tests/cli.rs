@@ -130,6 +130,8 @@ const UNITS: &[(&str, &str)] = &[
     ("--soak-s", "Seconds"),
     ("--tolerance", "codes"),
     ("--select-tolerance", "ADC codes"),
+    ("--tolerance-m-s2", "m/s²"),
+    ("--max-interval-days", "days"),
     ("--tolerance", "m/s²"),
     ("--min-hold-s", "seconds"),
     ("--window-s", "seconds"),
@@ -1095,6 +1097,12 @@ const REFUSED: &[(&str, &str)] = &[
         "vg.json has g 9.8 m/s² but fc.json has 9.81 m/s²: the certificate states one g",
     ),
     ("report --campaign C --record rc.rec --fit fc.json --verify vc.json -o fc.json", "fc.json is the input --fit: refusing to overwrite it"),
+    ("history U-1 --db cal.sqlite --tolerance-m-s2 0", "--tolerance-m-s2 must be a positive number, got 0"),
+    (
+        "history U-1 --db cal.sqlite --max-interval-days 0",
+        "--max-interval-days must be a positive number, got 0",
+    ),
+    ("history U-1 --db cal.sqlite --json cal.sqlite", "cal.sqlite is the database: refusing to overwrite it"),
 ];
 
 /// An acquired campaign's header (`A` of the table): 200 sets per position at 500 Hz, g 9.81.
@@ -1254,8 +1262,8 @@ fn options_that_do_not_apply_and_outputs_that_are_inputs_are_refused_before_any_
 }
 
 /// README examples whose inputs the README does not make: files edited by hand, described in the
-/// text around them.
-const README_HAND_MADE: &[&str] = &["three-sat.csv", "half.csv"];
+/// text around them, and the database `tests/db.rs` builds (`history`'s example).
+const README_HAND_MADE: &[&str] = &["three-sat.csv", "half.csv", "cal.sqlite"];
 
 /// Copies the directory `from` into `to`.
 fn copy_dir(from: &Path, to: &Path) {

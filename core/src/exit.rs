@@ -51,6 +51,7 @@ registry!(
     crate::campaign::CampaignError,
     crate::campaign::identity::IdentityError,
     crate::campaign::identity::Mismatch,
+    crate::db::DbError,
     crate::gmdh::GmdhError,
     crate::lsq::LsqError,
     crate::testturn::TestTurnError,
@@ -129,6 +130,7 @@ mod tests {
     fn every_variant() -> Vec<(anyhow::Error, Kind)> {
         use crate::campaign::identity::IdentityError;
         use crate::campaign::CampaignError;
+        use crate::db::DbError;
         use crate::diagnose::DiagnoseError;
         use crate::emulate::frontend::FrontendError;
         use crate::emulate::head::HeadServerError;
@@ -217,6 +219,18 @@ mod tests {
             (e(IdentityError::BadIdentity { what: "f.json".into(), msg: "m".into() }), BadInput),
             (e(IdentityError::BadDeviceId { path: p(), value: "1".into() }), BadInput),
             (e(IdentityError::Campaign(CampaignError::File { path: p(), msg: "m".into() })), BadInput),
+            (e(DbError::BadTarget { spec: "x".into(), why: "m".into() }), BadInput),
+            (e(DbError::NoDatabase { path: p() }), BadInput),
+            (e(DbError::Unreachable { target: "t".into(), cause: "m".into() }), Environment),
+            (e(DbError::Migration { cause: "m".into() }), Environment),
+            (e(DbError::Engine { cause: "m".into() }), Environment),
+            (e(DbError::Schema { what: "m".into() }), Environment),
+            (e(DbError::NoRun { run_id: "r".into() }), BadInput),
+            (e(DbError::Conflict { run_id: "r".into(), what: "m".into() }), BadInput),
+            (e(DbError::Mismatch { run_id: "r".into(), what: "m".into() }), BadInput),
+            (e(DbError::BadPiece { run_id: "r".into(), piece: "fit", cause: "m".into() }), BadInput),
+            (e(DbError::NoUnit { key: "k".into(), target: "t".into() }), BadInput),
+            (e(DbError::Ambiguous { key: "k".into(), devices: "a, b".into() }), BadInput),
             (e(GmdhError::EmptyPart('A', 3)), BadInput),
             (e(GmdhError::NoTemperature), BadInput),
             (e(GmdhError::NothingIdentifiable), BadInput),

@@ -16,6 +16,7 @@ pub mod acquire;
 pub mod calibrate;
 pub mod campaign;
 pub mod compare;
+pub mod db;
 pub mod diagnose;
 pub mod effects;
 pub mod emulate;

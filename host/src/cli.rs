@@ -78,6 +78,37 @@ pub enum Command {
     /// stopped. Exit code: 0 the unit passed, 1 it was rejected, 2 bad input, 3 the environment
     /// failed (port, probe, head, file system), 130 stopped.
     Station(StationArgs),
+    /// A unit's history from the calibration database: every run, the coefficient drift between
+    /// consecutive calibrations with its uncertainty, the as-found and as-left verifications, and
+    /// the recommended recalibration date.
+    #[command(after_long_help = accelcal_core::db::history::METHOD)]
+    History(HistoryArgs),
+}
+
+/// `accelcal history`: a unit's runs from the calibration database.
+#[derive(Debug, Args)]
+pub struct HistoryArgs {
+    /// The unit: its serial number, or its device id (24 hex digits, the MCU's unique id).
+    #[arg(value_name = "SERIAL|DEVICE")]
+    pub unit: String,
+    /// The calibration database: a SQLite file, or postgres://USER@HOST[:PORT]/DB for a line of
+    /// several stations [default: the ACCELCAL_DB environment variable].
+    #[arg(long, value_name = "FILE|URL")]
+    pub db: Option<String>,
+    /// The tolerance T the drift of a coefficient may reach before the unit is recalibrated,
+    /// as an acceleration error at 1 g, m/s².
+    #[arg(long = "tolerance-m-s2", value_name = "M_S2", default_value_t = 0.05)]
+    pub tolerance_m_s2: f64,
+    /// Coverage factor k on the drift rate's standard error.
+    #[arg(long, value_name = "K", default_value_t = 2.0)]
+    pub coverage: f64,
+    /// The longest recommended interval between calibrations, days (also the interval after a
+    /// single calibration).
+    #[arg(long, value_name = "DAYS", default_value_t = 365.0)]
+    pub max_interval_days: f64,
+    /// Write the history as JSON to this file.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
 }
 
 /// Local gravity from the site instead of `--g`: WGS84 normal gravity with the free-air

@@ -337,6 +337,7 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
             check_answer_timeout(&a.link)
         }
         Command::BenchDiagnose(_) | Command::Demo(_) | Command::Plan(_) => Ok(()),
+        Command::History(a) => crate::cmd::history::check(a),
     }
 }
 

@@ -43,6 +43,8 @@ fn test() -> anyhow::Result<()> {
     firmware::test()?;
     // The certificate test (tests/line.rs) prints a page with headless Chromium.
     run(&r, "bash", &["scripts/setup-chromium.sh"])?;
+    // The PostgreSQL tests (tests/db_pg.rs) start throwaway clusters of Debian's server.
+    run(&r, "bash", &["scripts/setup-postgres.sh"])?;
     run(&r, "cargo", &["test", "--workspace", "--locked"])?;
     // A short fuzzing run (test profile: overflow checks on, artifacts shared with the tests).
     run(&r, "cargo", &fuzz_args("test", TEST_FUZZ_SECONDS, "all"))?;

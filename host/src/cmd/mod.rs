@@ -7,6 +7,7 @@ pub mod diagnose;
 pub mod emulate;
 pub mod fit;
 pub mod gravity;
+pub mod history;
 pub mod live;
 pub mod node;
 pub mod plan;
@@ -52,6 +53,7 @@ pub fn run(cli: Cli, warnings: &mut Warnings) -> anyhow::Result<()> {
         }
         Command::BenchDiagnose(a) => bench_diagnose::run(&a),
         Command::Station(a) => station::run(&a),
+        Command::History(a) => history::run(&a),
     }
 }
 

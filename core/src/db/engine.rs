@@ -1,0 +1,420 @@
+//! The two database engines behind one small interface: a connection (SQLite file or PostgreSQL
+//! server), its migrations, and transactions that run statements written once for both (`$1`,
+//! `$2`… placeholders in order of first use, which SQLite reads as numbered parameters too).
+//! Nothing above this module knows which engine it talks to.
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use postgres::types::{to_sql_checked, IsNull, ToSql as PgToSql, Type};
+
+use super::DbError;
+
+/// The migrations of each engine (`core/migrations/<engine>/V<n>__<name>.sql`), embedded.
+mod embedded {
+    pub mod sqlite {
+        refinery::embed_migrations!("migrations/sqlite");
+    }
+    pub mod postgres {
+        refinery::embed_migrations!("migrations/postgres");
+    }
+}
+
+/// How long a SQLite writer waits for another's lock, and a PostgreSQL connection attempt
+/// lasts, before it fails.
+const WAIT: Duration = Duration::from_secs(10);
+
+/// Where the database is: `postgres://…` / `postgresql://…` (or libpq `key=value` words with
+/// `host=`), else the path of a SQLite file.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Target {
+    /// A SQLite file.
+    Sqlite(PathBuf),
+    /// A PostgreSQL server (the connection string as given).
+    Postgres(String),
+}
+
+impl Target {
+    /// Reads a `--db` / `ACCELCAL_DB` value.
+    pub fn parse(spec: &str) -> Result<Target, DbError> {
+        let s = spec.trim();
+        if s.is_empty() {
+            return Err(DbError::BadTarget { spec: spec.into(), why: "it is empty".into() });
+        }
+        if s.starts_with("postgres://") || s.starts_with("postgresql://") || s.contains("host=") {
+            s.parse::<postgres::Config>()
+                .map_err(|e| DbError::BadTarget { spec: redact(s), why: e.to_string() })?;
+            return Ok(Target::Postgres(s.into()));
+        }
+        Ok(Target::Sqlite(PathBuf::from(s)))
+    }
+
+    /// The target for messages, without a password.
+    pub fn display(&self) -> String {
+        match self {
+            Target::Sqlite(p) => p.display().to_string(),
+            Target::Postgres(s) => redact(s),
+        }
+    }
+}
+
+/// A connection string with its password (`user:secret@` or `password=secret`) replaced by `***`.
+fn redact(s: &str) -> String {
+    if let Some((scheme, rest)) = s.split_once("://") {
+        if let Some((userinfo, host)) = rest.split_once('@') {
+            if let Some((user, _)) = userinfo.split_once(':') {
+                return format!("{scheme}://{user}:***@{host}");
+            }
+        }
+        return s.into();
+    }
+    s.split_whitespace()
+        .map(|w| if w.starts_with("password=") { "password=***".to_string() } else { w.to_string() })
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// One value passed to or read from a statement.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Val {
+    /// SQL NULL (read only: every column is `NOT NULL`; outer joins give it).
+    Null,
+    /// `BIGINT`.
+    Int(i64),
+    /// `DOUBLE PRECISION`.
+    Real(f64),
+    /// `TEXT`.
+    Text(String),
+    /// `BLOB` / `BYTEA`.
+    Bytes(Vec<u8>),
+    /// `BOOLEAN` (SQLite stores 0 or 1).
+    Bool(bool),
+}
+
+impl From<&str> for Val {
+    fn from(s: &str) -> Val {
+        Val::Text(s.into())
+    }
+}
+impl From<String> for Val {
+    fn from(s: String) -> Val {
+        Val::Text(s)
+    }
+}
+impl From<i64> for Val {
+    fn from(v: i64) -> Val {
+        Val::Int(v)
+    }
+}
+impl From<f64> for Val {
+    fn from(v: f64) -> Val {
+        Val::Real(v)
+    }
+}
+impl From<bool> for Val {
+    fn from(v: bool) -> Val {
+        Val::Bool(v)
+    }
+}
+impl From<Vec<u8>> for Val {
+    fn from(v: Vec<u8>) -> Val {
+        Val::Bytes(v)
+    }
+}
+
+impl Val {
+    /// The text, or the schema is not what this build expects.
+    pub fn text(&self) -> Result<String, DbError> {
+        match self {
+            Val::Text(s) => Ok(s.clone()),
+            other => Err(DbError::schema(format!("expected text, read {other:?}"))),
+        }
+    }
+
+    /// The integer.
+    pub fn int(&self) -> Result<i64, DbError> {
+        match self {
+            Val::Int(v) => Ok(*v),
+            other => Err(DbError::schema(format!("expected an integer, read {other:?}"))),
+        }
+    }
+
+    /// The number.
+    pub fn real(&self) -> Result<f64, DbError> {
+        match self {
+            Val::Real(v) => Ok(*v),
+            Val::Int(v) => Ok(*v as f64),
+            other => Err(DbError::schema(format!("expected a number, read {other:?}"))),
+        }
+    }
+
+    /// The bytes.
+    pub fn bytes(&self) -> Result<Vec<u8>, DbError> {
+        match self {
+            Val::Bytes(v) => Ok(v.clone()),
+            other => Err(DbError::schema(format!("expected bytes, read {other:?}"))),
+        }
+    }
+}
+
+impl rusqlite::ToSql for Val {
+    fn to_sql(&self) -> rusqlite::Result<rusqlite::types::ToSqlOutput<'_>> {
+        use rusqlite::types::{ToSqlOutput, Value, ValueRef};
+        Ok(match self {
+            Val::Null => ToSqlOutput::Owned(Value::Null),
+            Val::Int(v) => ToSqlOutput::Owned(Value::Integer(*v)),
+            Val::Real(v) => ToSqlOutput::Owned(Value::Real(*v)),
+            Val::Text(s) => ToSqlOutput::Borrowed(ValueRef::Text(s.as_bytes())),
+            Val::Bytes(b) => ToSqlOutput::Borrowed(ValueRef::Blob(b)),
+            Val::Bool(b) => ToSqlOutput::Owned(Value::Integer(i64::from(*b))),
+        })
+    }
+}
+
+impl PgToSql for Val {
+    fn to_sql(
+        &self,
+        ty: &Type,
+        out: &mut bytes::BytesMut,
+    ) -> Result<IsNull, Box<dyn std::error::Error + Sync + Send>> {
+        /// The value's own encoding, after checking that the column's type takes it.
+        fn typed<T: PgToSql>(
+            v: &T,
+            ty: &Type,
+            out: &mut bytes::BytesMut,
+        ) -> Result<IsNull, Box<dyn std::error::Error + Sync + Send>> {
+            if T::accepts(ty) {
+                v.to_sql(ty, out)
+            } else {
+                Err(format!("a {} value given for a {ty} parameter", std::any::type_name::<T>()).into())
+            }
+        }
+        match self {
+            Val::Null => Ok(IsNull::Yes),
+            Val::Int(v) => typed(v, ty, out),
+            Val::Real(v) => typed(v, ty, out),
+            Val::Text(v) => typed(v, ty, out),
+            Val::Bytes(v) => typed(v, ty, out),
+            Val::Bool(v) => typed(v, ty, out),
+        }
+    }
+
+    fn accepts(_: &Type) -> bool {
+        true
+    }
+
+    to_sql_checked!();
+}
+
+/// An open connection.
+pub enum Conn {
+    /// SQLite.
+    Sqlite(rusqlite::Connection),
+    /// PostgreSQL.
+    Postgres(Box<postgres::Client>),
+}
+
+/// A transaction of either engine.
+pub enum Tx<'a> {
+    /// SQLite (begun `IMMEDIATE`: the write lock is taken at the start).
+    Sqlite(rusqlite::Transaction<'a>),
+    /// PostgreSQL.
+    Postgres(postgres::Transaction<'a>),
+}
+
+impl Conn {
+    /// Connects, without touching the schema. A SQLite file is created when `create`, else it
+    /// must exist.
+    pub fn open(target: &Target, create: bool) -> Result<Conn, DbError> {
+        match target {
+            Target::Sqlite(path) => open_sqlite(path, create),
+            Target::Postgres(spec) => {
+                let mut config: postgres::Config = spec.parse().map_err(|e: postgres::Error| {
+                    DbError::BadTarget { spec: redact(spec), why: e.to_string() }
+                })?;
+                if config.get_connect_timeout().is_none() {
+                    config.connect_timeout(WAIT);
+                }
+                let client = config
+                    .connect(postgres::NoTls)
+                    .map_err(|e| DbError::Unreachable { target: redact(spec), cause: e.to_string() })?;
+                Ok(Conn::Postgres(Box::new(client)))
+            }
+        }
+    }
+
+    /// Applies the migrations this build has and the database lacks (PostgreSQL: under an
+    /// advisory lock, so that stations starting together migrate once).
+    pub fn migrate(&mut self) -> Result<(), DbError> {
+        let failed = |e: refinery::Error| DbError::Migration { cause: e.to_string() };
+        match self {
+            Conn::Sqlite(c) => embedded::sqlite::migrations::runner().run(c).map(drop).map_err(failed),
+            Conn::Postgres(c) => {
+                c.execute("SELECT pg_advisory_lock($1)", &[&MIGRATION_LOCK]).map_err(DbError::pg)?;
+                let r = embedded::postgres::migrations::runner().run(c.as_mut()).map(drop).map_err(failed);
+                c.execute("SELECT pg_advisory_unlock($1)", &[&MIGRATION_LOCK]).map_err(DbError::pg)?;
+                r
+            }
+        }
+    }
+
+    /// The schema versions applied, oldest first.
+    pub fn applied_versions(&mut self) -> Result<Vec<i64>, DbError> {
+        let rows = self.transaction(|tx| {
+            tx.query("SELECT version FROM refinery_schema_history ORDER BY version", &[])
+        })?;
+        rows.iter().map(|r| r[0].int()).collect()
+    }
+
+    /// Runs `f` in one transaction: committed when it returns `Ok`, rolled back otherwise (and by
+    /// the engine when the process dies first).
+    pub fn transaction<T>(
+        &mut self,
+        f: impl FnOnce(&mut Tx<'_>) -> Result<T, DbError>,
+    ) -> Result<T, DbError> {
+        match self {
+            Conn::Sqlite(c) => {
+                let tx = c
+                    .transaction_with_behavior(rusqlite::TransactionBehavior::Immediate)
+                    .map_err(DbError::sqlite)?;
+                let mut tx = Tx::Sqlite(tx);
+                let out = f(&mut tx)?;
+                match tx {
+                    Tx::Sqlite(t) => t.commit().map_err(DbError::sqlite)?,
+                    Tx::Postgres(_) => unreachable!("a SQLite connection gives SQLite transactions"),
+                }
+                Ok(out)
+            }
+            Conn::Postgres(c) => {
+                let mut tx = Tx::Postgres(c.transaction().map_err(DbError::pg)?);
+                let out = f(&mut tx)?;
+                match tx {
+                    Tx::Postgres(t) => t.commit().map_err(DbError::pg)?,
+                    Tx::Sqlite(_) => unreachable!("a PostgreSQL connection gives PostgreSQL transactions"),
+                }
+                Ok(out)
+            }
+        }
+    }
+
+    /// The engine's name, for messages and tests.
+    pub fn engine(&self) -> &'static str {
+        match self {
+            Conn::Sqlite(_) => "sqlite",
+            Conn::Postgres(_) => "postgres",
+        }
+    }
+}
+
+/// Key of the PostgreSQL advisory lock held while migrating ("accelcal" in ASCII).
+const MIGRATION_LOCK: i64 = 0x6163_6365_6c63_616c;
+
+fn open_sqlite(path: &Path, create: bool) -> Result<Conn, DbError> {
+    use rusqlite::OpenFlags;
+    if !create && !path.exists() {
+        return Err(DbError::NoDatabase { path: path.to_path_buf() });
+    }
+    let mut flags = OpenFlags::SQLITE_OPEN_READ_WRITE | OpenFlags::SQLITE_OPEN_NO_MUTEX;
+    if create {
+        flags |= OpenFlags::SQLITE_OPEN_CREATE;
+    }
+    let failed = |e: rusqlite::Error| DbError::Unreachable {
+        target: path.display().to_string(),
+        cause: e.to_string(),
+    };
+    let c = rusqlite::Connection::open_with_flags(path, flags).map_err(failed)?;
+    c.busy_timeout(WAIT).map_err(failed)?;
+    // WAL: readers do not block the writer; FULL sync: a committed row survives a power cut.
+    c.pragma_update(None, "journal_mode", "WAL").map_err(failed)?;
+    c.pragma_update(None, "synchronous", "FULL").map_err(failed)?;
+    c.pragma_update(None, "foreign_keys", "ON").map_err(failed)?;
+    Ok(Conn::Sqlite(c))
+}
+
+impl Tx<'_> {
+    /// Runs a statement that returns no rows; the number of rows it changed.
+    pub fn execute(&mut self, sql: &str, params: &[Val]) -> Result<u64, DbError> {
+        match self {
+            Tx::Sqlite(t) => t
+                .execute(sql, rusqlite::params_from_iter(params.iter()))
+                .map(|n| n as u64)
+                .map_err(DbError::sqlite),
+            Tx::Postgres(t) => {
+                let p: Vec<&(dyn PgToSql + Sync)> =
+                    params.iter().map(|v| v as &(dyn PgToSql + Sync)).collect();
+                t.execute(sql, &p).map_err(DbError::pg)
+            }
+        }
+    }
+
+    /// Runs a query; its rows, each a vector of the selected columns.
+    pub fn query(&mut self, sql: &str, params: &[Val]) -> Result<Vec<Vec<Val>>, DbError> {
+        match self {
+            Tx::Sqlite(t) => {
+                let mut st = t.prepare(sql).map_err(DbError::sqlite)?;
+                let n = st.column_count();
+                let mut rows =
+                    st.query(rusqlite::params_from_iter(params.iter())).map_err(DbError::sqlite)?;
+                let mut out = Vec::new();
+                while let Some(r) = rows.next().map_err(DbError::sqlite)? {
+                    out.push((0..n).map(|i| sqlite_val(r.get_ref(i))).collect::<Result<_, _>>()?);
+                }
+                Ok(out)
+            }
+            Tx::Postgres(t) => {
+                let p: Vec<&(dyn PgToSql + Sync)> =
+                    params.iter().map(|v| v as &(dyn PgToSql + Sync)).collect();
+                let rows = t.query(sql, &p).map_err(DbError::pg)?;
+                rows.iter().map(|r| (0..r.len()).map(|i| pg_val(r, i)).collect()).collect()
+            }
+        }
+    }
+}
+
+fn sqlite_val(v: rusqlite::Result<rusqlite::types::ValueRef<'_>>) -> Result<Val, DbError> {
+    use rusqlite::types::ValueRef;
+    Ok(match v.map_err(DbError::sqlite)? {
+        ValueRef::Null => Val::Null,
+        ValueRef::Integer(i) => Val::Int(i),
+        ValueRef::Real(f) => Val::Real(f),
+        ValueRef::Text(t) => Val::Text(String::from_utf8_lossy(t).into_owned()),
+        ValueRef::Blob(b) => Val::Bytes(b.to_vec()),
+    })
+}
+
+fn pg_val(r: &postgres::Row, i: usize) -> Result<Val, DbError> {
+    let ty = r.columns()[i].type_().clone();
+    let get = |e: postgres::Error| DbError::pg(e);
+    let v = if ty == Type::INT8 {
+        r.try_get::<_, Option<i64>>(i).map_err(get)?.map(Val::Int)
+    } else if ty == Type::INT4 {
+        r.try_get::<_, Option<i32>>(i).map_err(get)?.map(|v| Val::Int(v.into()))
+    } else if ty == Type::FLOAT8 {
+        r.try_get::<_, Option<f64>>(i).map_err(get)?.map(Val::Real)
+    } else if ty == Type::TEXT || ty == Type::VARCHAR || ty == Type::NAME {
+        r.try_get::<_, Option<String>>(i).map_err(get)?.map(Val::Text)
+    } else if ty == Type::BYTEA {
+        r.try_get::<_, Option<Vec<u8>>>(i).map_err(get)?.map(Val::Bytes)
+    } else if ty == Type::BOOL {
+        r.try_get::<_, Option<bool>>(i).map_err(get)?.map(Val::Bool)
+    } else {
+        return Err(DbError::schema(format!("column {i} has type {ty}, which this build does not read")));
+    };
+    Ok(v.unwrap_or(Val::Null))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn targets_are_told_apart_and_passwords_never_shown() {
+        assert_eq!(Target::parse("cal.sqlite").unwrap(), Target::Sqlite("cal.sqlite".into()));
+        let t = Target::parse("postgres://line:secret@db.local:5433/accelcal").unwrap();
+        assert_eq!(t.display(), "postgres://line:***@db.local:5433/accelcal");
+        let t = Target::parse("host=/tmp port=5433 user=line password=secret").unwrap();
+        assert_eq!(t.display(), "host=/tmp port=5433 user=line password=***");
+        assert!(matches!(Target::parse("  "), Err(DbError::BadTarget { .. })));
+        assert!(matches!(Target::parse("postgres://h:notaport/db"), Err(DbError::BadTarget { .. })));
+    }
+}

@@ -1,0 +1,844 @@
+//! The calibration database: every calibration run of every unit, kept for its history and for
+//! recalibration. One schema (`core/migrations/<engine>/`, versioned, applied by refinery on
+//! open) for an embedded SQLite file (one station, nothing to start) and a PostgreSQL server
+//! (several stations).
+//!
+//! How a station uses it: [`Db::open`] (connects and migrates) → [`Db::begin_run`] with a
+//! [`RunId`] chosen at the start → one `store_*` per piece as the run produces it (campaign, fit,
+//! record, verifications, certificate) → [`Db::finish_run`]. Each piece is one row written in
+//! one transaction, so a crash leaves whole rows or none. Storing a piece the run already holds
+//! is a no-op when it is the same (its content hash) and refused when it differs, so a killed
+//! run resumed under its id ([`Db::progress`] says what it holds) stores nothing twice. The
+//! record is flashed only through the [`StoredRecord`] that [`Db::store_record`] returns: a
+//! unit is never flashed with a record that was not stored first. Rows are never updated or
+//! deleted (the engines' triggers refuse it).
+
+mod engine;
+pub mod history;
+
+use std::io::Read;
+use std::path::PathBuf;
+
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+
+pub use engine::Target;
+use engine::{Conn, Tx, Val};
+
+use crate::error::{Classify, Kind};
+use crate::verify::VerifyReport;
+
+/// The environment variable that names the database when `--db` is not given.
+pub const DB_ENV: &str = "ACCELCAL_DB";
+
+/// A failure of the calibration database.
+#[derive(Debug, thiserror::Error)]
+pub enum DbError {
+    /// `--db` / `ACCELCAL_DB` is not a database this build can open.
+    #[error("database `{spec}`: {why}")]
+    BadTarget {
+        /// The value, password hidden.
+        spec: String,
+        /// What is wrong with it.
+        why: String,
+    },
+    /// A reader was given a SQLite file that does not exist.
+    #[error("{}: no such database (it is created by the first run that stores into it)", path.display())]
+    NoDatabase {
+        /// The path given.
+        path: PathBuf,
+    },
+    /// The database cannot be opened or reached.
+    #[error("database {target} cannot be reached: {cause}")]
+    Unreachable {
+        /// The target, password hidden.
+        target: String,
+        /// The engine's message.
+        cause: String,
+    },
+    /// The schema could not be brought to this build's version.
+    #[error("migrating the database's schema failed: {cause}")]
+    Migration {
+        /// refinery's message.
+        cause: String,
+    },
+    /// A statement failed (the connection was lost, a constraint or an append-only trigger
+    /// refused it).
+    #[error("database: {cause}")]
+    Engine {
+        /// The engine's message.
+        cause: String,
+    },
+    /// A value read back is not what the schema says.
+    #[error("database schema mismatch: {what}")]
+    Schema {
+        /// What was read.
+        what: String,
+    },
+    /// The run has no row yet.
+    #[error("run {run_id}: not in the database (begin it first)")]
+    NoRun {
+        /// The run.
+        run_id: String,
+    },
+    /// A piece differs from the one the run already holds, or the run is finished.
+    #[error("run {run_id}: {what}")]
+    Conflict {
+        /// The run.
+        run_id: String,
+        /// What conflicts.
+        what: String,
+    },
+    /// A piece belongs to another unit (or another g) than its run.
+    #[error("run {run_id}: {what}")]
+    Mismatch {
+        /// The run.
+        run_id: String,
+        /// Both values, named.
+        what: String,
+    },
+    /// A piece is not what it claims to be (a record that does not parse, a fit that is not
+    /// `fit --json` output, a campaign that does not decompress).
+    #[error("run {run_id}: the {piece} cannot be stored: {cause}")]
+    BadPiece {
+        /// The run.
+        run_id: String,
+        /// Which piece.
+        piece: &'static str,
+        /// Why.
+        cause: String,
+    },
+    /// No run of the database names this unit.
+    #[error(
+        "no unit `{key}` in the database {target} (neither a serial number nor a device id of a stored run)"
+    )]
+    NoUnit {
+        /// The serial or device id asked for.
+        key: String,
+        /// The database.
+        target: String,
+    },
+    /// A serial number shared by runs of several device ids.
+    #[error("`{key}` is the serial number of several devices ({devices}): give the device id")]
+    Ambiguous {
+        /// The serial asked for.
+        key: String,
+        /// The device ids, comma-separated.
+        devices: String,
+    },
+}
+
+impl Classify for DbError {
+    fn kind(&self) -> Kind {
+        match self {
+            DbError::BadTarget { .. }
+            | DbError::NoDatabase { .. }
+            | DbError::NoRun { .. }
+            | DbError::Conflict { .. }
+            | DbError::Mismatch { .. }
+            | DbError::BadPiece { .. }
+            | DbError::NoUnit { .. }
+            | DbError::Ambiguous { .. } => Kind::BadInput,
+            DbError::Unreachable { .. }
+            | DbError::Migration { .. }
+            | DbError::Engine { .. }
+            | DbError::Schema { .. } => Kind::Environment,
+        }
+    }
+}
+
+impl DbError {
+    fn sqlite(e: rusqlite::Error) -> DbError {
+        DbError::Engine { cause: e.to_string() }
+    }
+
+    fn pg(e: postgres::Error) -> DbError {
+        // The server's own message (e.g. the append-only trigger's) is in the source.
+        let cause = match e.as_db_error() {
+            Some(d) => d.message().to_string(),
+            None => e.to_string(),
+        };
+        DbError::Engine { cause }
+    }
+
+    fn schema(what: String) -> DbError {
+        DbError::Schema { what }
+    }
+}
+
+/// A calibration run's id: a UUID the station chooses before storing anything, and keeps to
+/// resume the run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub struct RunId(uuid::Uuid);
+
+impl RunId {
+    /// A new random id.
+    pub fn new() -> RunId {
+        RunId(uuid::Uuid::new_v4())
+    }
+
+    /// Reads an id (`--run-id`, a resume file).
+    pub fn parse(s: &str) -> Result<RunId, DbError> {
+        uuid::Uuid::parse_str(s.trim()).map(RunId).map_err(|e| DbError::BadPiece {
+            run_id: s.into(),
+            piece: "run id",
+            cause: e.to_string(),
+        })
+    }
+}
+
+impl Default for RunId {
+    fn default() -> RunId {
+        RunId::new()
+    }
+}
+
+impl std::fmt::Display for RunId {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        self.0.hyphenated().fmt(f)
+    }
+}
+
+/// What is known when a run begins.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RunStart {
+    /// The run's id.
+    pub run_id: RunId,
+    /// The unit's MCU unique id, 24 hex digits (lower case).
+    pub device_id: String,
+    /// The unit's serial number (empty when not known).
+    pub serial: String,
+    /// The station's name.
+    pub station: String,
+    /// The dividing head (`manual`, `sim:ADDR`, a rig's name).
+    pub head: String,
+    /// Who ran it.
+    pub operator: String,
+    /// When it started, seconds since the Unix epoch.
+    pub started_unix_s: i64,
+    /// accelcal's version.
+    pub software_version: String,
+    /// The node's firmware version as it reports it (empty when not asked).
+    pub firmware_version: String,
+    /// Local gravity the run uses, m/s².
+    pub g_m_s2: f64,
+    /// Where g came from (`--g`, `--latitude 48.1 --height 520`, the campaign's header…).
+    pub g_source: String,
+}
+
+/// Whether a store wrote a row or found the same piece there already (a resumed run).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stored {
+    /// The row was written.
+    New,
+    /// The run already held this very piece; nothing was written.
+    Already,
+}
+
+/// Which verification.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Phase {
+    /// With the record in force when the unit came in, before anything is changed.
+    AsFound,
+    /// With the new record, after it was flashed.
+    AsLeft,
+}
+
+impl Phase {
+    fn sql(self) -> &'static str {
+        match self {
+            Phase::AsFound => "as_found",
+            Phase::AsLeft => "as_left",
+        }
+    }
+}
+
+/// How a run ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Outcome {
+    /// Calibrated, flashed and verified.
+    Pass,
+    /// The unit was rejected (the reason says why).
+    Rejected,
+}
+
+impl Outcome {
+    fn sql(self) -> &'static str {
+        match self {
+            Outcome::Pass => "pass",
+            Outcome::Rejected => "rejected",
+        }
+    }
+
+    fn from_sql(s: &str) -> Result<Outcome, DbError> {
+        match s {
+            "pass" => Ok(Outcome::Pass),
+            "rejected" => Ok(Outcome::Rejected),
+            other => Err(DbError::schema(format!("run_end.outcome `{other}`"))),
+        }
+    }
+}
+
+/// A record that is in the database: the only way to the bytes the flash step writes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StoredRecord {
+    run_id: RunId,
+    crc32: u32,
+    bytes: Vec<u8>,
+}
+
+impl StoredRecord {
+    /// The run that stored it.
+    pub fn run_id(&self) -> RunId {
+        self.run_id
+    }
+
+    /// The record's CRC-32 (its last four bytes).
+    pub fn crc32(&self) -> u32 {
+        self.crc32
+    }
+
+    /// The record's bytes, as stored: what is flashed.
+    pub fn bytes(&self) -> &[u8] {
+        &self.bytes
+    }
+}
+
+/// What a run holds: where a resumed run goes on.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Progress {
+    /// How it began.
+    pub start: RunStart,
+    /// The campaign is stored.
+    pub campaign: bool,
+    /// The fit is stored.
+    pub fit: bool,
+    /// The record, when stored.
+    pub record: Option<StoredRecord>,
+    /// The record was flashed.
+    pub flashed: bool,
+    /// The as-found verification is stored.
+    pub as_found: bool,
+    /// The as-left verification is stored.
+    pub as_left: bool,
+    /// The certificate is stored.
+    pub certificate: bool,
+    /// How it ended, when it did.
+    pub outcome: Option<Outcome>,
+}
+
+/// Everything stored about one run, for the unit's history.
+#[derive(Clone, Debug)]
+pub struct RunSummary {
+    /// How it began.
+    pub start: RunStart,
+    /// SHA-256 of the campaign (uncompressed), when stored.
+    pub campaign_sha256: Option<String>,
+    /// `fit --json`, when stored.
+    pub fit_json: Option<String>,
+    /// The record's CRC-32, when stored.
+    pub record_crc32: Option<u32>,
+    /// When the record was flashed.
+    pub flashed_unix_s: Option<i64>,
+    /// The as-found verification.
+    pub as_found: Option<VerifyReport>,
+    /// The as-left verification.
+    pub as_left: Option<VerifyReport>,
+    /// How it ended: outcome, reason, time.
+    pub end: Option<(Outcome, String, i64)>,
+}
+
+/// An open database, migrated to this build's schema.
+pub struct Db {
+    conn: Conn,
+    target: Target,
+}
+
+/// Hex SHA-256.
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect()
+}
+
+fn now_unix_s() -> i64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_secs() as i64)
+        .unwrap_or(0)
+}
+
+/// The gzip magic number.
+const GZIP_MAGIC: [u8; 2] = [0x1f, 0x8b];
+
+/// One piece of a run, ready to insert.
+struct Piece {
+    table: &'static str,
+    /// Its name in messages.
+    what: &'static str,
+    /// The verification's phase (the second key column).
+    phase: Option<Phase>,
+    /// Columns after `run_id` (and `phase`), without `content_sha256`.
+    columns: &'static [&'static str],
+    values: Vec<Val>,
+    sha: String,
+}
+
+impl Db {
+    /// Opens (a SQLite file is created when missing) and migrates the database `spec` names:
+    /// `postgres://…` or a file path.
+    pub fn open(spec: &str) -> Result<Db, DbError> {
+        Db::open_target(Target::parse(spec)?, true)
+    }
+
+    /// Opens an existing database for reading (a missing SQLite file is refused, not created).
+    pub fn open_existing(spec: &str) -> Result<Db, DbError> {
+        Db::open_target(Target::parse(spec)?, false)
+    }
+
+    fn open_target(target: Target, create: bool) -> Result<Db, DbError> {
+        let mut conn = Conn::open(&target, create)?;
+        conn.migrate()?;
+        Ok(Db { conn, target })
+    }
+
+    /// The database, for messages (password hidden).
+    pub fn target(&self) -> String {
+        self.target.display()
+    }
+
+    /// `sqlite` or `postgres`.
+    pub fn engine(&self) -> &'static str {
+        self.conn.engine()
+    }
+
+    /// The schema versions applied, oldest first.
+    pub fn schema_versions(&mut self) -> Result<Vec<i64>, DbError> {
+        self.conn.applied_versions()
+    }
+
+    /// Begins a run (no-op when it is already there with the same start, refused when the id
+    /// began another run).
+    pub fn begin_run(&mut self, s: &RunStart) -> Result<Stored, DbError> {
+        let device_id = s.device_id.to_ascii_lowercase();
+        if device_id.len() != 24 || !device_id.bytes().all(|b| b.is_ascii_hexdigit()) {
+            return Err(DbError::BadPiece {
+                run_id: s.run_id.to_string(),
+                piece: "run",
+                cause: format!("device id `{}` is not 24 hex digits", s.device_id),
+            });
+        }
+        let s = RunStart { device_id, ..s.clone() };
+        let sha = sha256_hex(serde_json::to_string(&s).expect("a run start serialises").as_bytes());
+        let values = vec![
+            s.device_id.clone().into(),
+            s.serial.clone().into(),
+            s.station.clone().into(),
+            s.head.clone().into(),
+            s.operator.clone().into(),
+            s.started_unix_s.into(),
+            s.software_version.clone().into(),
+            s.firmware_version.clone().into(),
+            s.g_m_s2.into(),
+            s.g_source.clone().into(),
+        ];
+        let run_id = s.run_id;
+        self.conn.transaction(|tx| {
+            let found = tx.query("SELECT content_sha256 FROM run WHERE run_id = $1", &[run_id.to_string().into()])?;
+            match found.first() {
+                Some(r) if r[0].text()? == sha => Ok(Stored::Already),
+                Some(_) => Err(DbError::Conflict {
+                    run_id: run_id.to_string(),
+                    what: "began already with another unit, station, operator, time or g (a run id is used once)"
+                        .into(),
+                }),
+                None => {
+                    let mut v = vec![Val::from(run_id.to_string())];
+                    v.extend(values);
+                    v.push(sha.into());
+                    tx.execute(
+                        "INSERT INTO run (run_id, device_id, serial, station, head, operator, started_unix_s, \
+                         software_version, firmware_version, g_m_s2, g_source, content_sha256) \
+                         VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12)",
+                        &v,
+                    )?;
+                    Ok(Stored::New)
+                }
+            }
+        })
+    }
+
+    /// Stores the run's campaign file (plain or gzip; kept gzip-compressed, hashed
+    /// uncompressed).
+    pub fn store_campaign(&mut self, run: RunId, file: &[u8]) -> Result<Stored, DbError> {
+        let bad = |cause: String| DbError::BadPiece { run_id: run.to_string(), piece: "campaign", cause };
+        let (plain, gzip) = if file.starts_with(&GZIP_MAGIC) {
+            let mut plain = Vec::new();
+            flate2::read::GzDecoder::new(file)
+                .read_to_end(&mut plain)
+                .map_err(|e| bad(format!("it starts as gzip but does not decompress: {e}")))?;
+            (plain, file.to_vec())
+        } else {
+            let mut z = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+            std::io::Write::write_all(&mut z, file)
+                .and_then(|()| z.try_finish())
+                .map_err(|e| bad(e.to_string()))?;
+            (file.to_vec(), z.finish().map_err(|e| bad(e.to_string()))?)
+        };
+        let sha = sha256_hex(&plain);
+        self.store(
+            run,
+            Piece {
+                table: "campaign",
+                what: "campaign",
+                phase: None,
+                columns: &["campaign_sha256", "gzip", "stored_unix_s"],
+                values: vec![sha.clone().into(), gzip.into(), now_unix_s().into()],
+                sha,
+            },
+        )
+    }
+
+    /// Stores the run's fit (`fit --json` output: the coefficients and their covariance). A
+    /// document that names a device id, serial or g refuses to go with a run of another.
+    pub fn store_fit(&mut self, run: RunId, fit_json: &str) -> Result<Stored, DbError> {
+        let bad = |cause: String| DbError::BadPiece { run_id: run.to_string(), piece: "fit", cause };
+        let v: serde_json::Value =
+            serde_json::from_str(fit_json).map_err(|e| bad(format!("not a JSON document: {e}")))?;
+        if !v["channels"].is_array() {
+            return Err(bad("no `channels` (is it `fit --json` output?)".into()));
+        }
+        let start = self.start_of(run)?;
+        if let Some(id) = v["device_id"].as_str() {
+            self.check_same(run, "the fit's device id", id, "the run's", &start.device_id)?;
+        }
+        if let (Some(serial), false) = (v["serial"].as_str(), start.serial.is_empty()) {
+            self.check_same(run, "the fit's serial", serial, "the run's", &start.serial)?;
+        }
+        if let Some(g) = v["g_m_s2"].as_f64() {
+            if (g - start.g_m_s2).abs() > 1e-9 * start.g_m_s2.abs() {
+                return Err(DbError::Mismatch {
+                    run_id: run.to_string(),
+                    what: format!("the fit's g {g} m/s² is not the run's g {} m/s²", start.g_m_s2),
+                });
+            }
+        }
+        self.store(
+            run,
+            Piece {
+                table: "fit",
+                what: "fit",
+                phase: None,
+                columns: &["fit_json", "stored_unix_s"],
+                values: vec![fit_json.into(), now_unix_s().into()],
+                sha: sha256_hex(fit_json.as_bytes()),
+            },
+        )
+    }
+
+    /// Stores the run's calibration record and returns the token the flash step writes from.
+    /// The record must parse and be made for the run's unit.
+    pub fn store_record(&mut self, run: RunId, bytes: &[u8]) -> Result<StoredRecord, DbError> {
+        let rec = accelcal_shared::record::Record::parse(bytes).map_err(|e| DbError::BadPiece {
+            run_id: run.to_string(),
+            piece: "record",
+            cause: e.to_string(),
+        })?;
+        let start = self.start_of(run)?;
+        let id = crate::node::session::device_id_hex(&rec.device_id);
+        self.check_same(run, "the record's device id", &id, "the run's", &start.device_id)?;
+        let crc32 = record_crc(bytes);
+        self.store(
+            run,
+            Piece {
+                table: "cal_record",
+                what: "record",
+                phase: None,
+                columns: &["bytes", "crc32", "stored_unix_s"],
+                values: vec![bytes.to_vec().into(), i64::from(crc32).into(), now_unix_s().into()],
+                sha: sha256_hex(bytes),
+            },
+        )?;
+        Ok(StoredRecord { run_id: run, crc32, bytes: bytes.to_vec() })
+    }
+
+    /// Notes that the stored record was flashed into the unit (once: a resumed run's second
+    /// flash of the same record keeps the first time).
+    pub fn record_flashed(&mut self, rec: &StoredRecord) -> Result<Stored, DbError> {
+        self.store(
+            rec.run_id,
+            Piece {
+                table: "flash",
+                what: "flash",
+                phase: None,
+                columns: &["crc32", "flashed_unix_s"],
+                values: vec![i64::from(rec.crc32).into(), now_unix_s().into()],
+                sha: sha256_hex(&rec.crc32.to_le_bytes()),
+            },
+        )
+    }
+
+    /// Stores a verification (`verify --json`): as found, with the record the unit came in
+    /// with, or as left, with the new one. It must be of the run's unit.
+    pub fn store_verification(
+        &mut self,
+        run: RunId,
+        phase: Phase,
+        report: &VerifyReport,
+    ) -> Result<Stored, DbError> {
+        let start = self.start_of(run)?;
+        self.check_same(
+            run,
+            "the verification's device id",
+            &report.device_id,
+            "the run's",
+            &start.device_id,
+        )?;
+        let json = serde_json::to_string(report).expect("a verification report serialises");
+        self.store(
+            run,
+            Piece {
+                table: "verification",
+                what: match phase {
+                    Phase::AsFound => "as-found verification",
+                    Phase::AsLeft => "as-left verification",
+                },
+                phase: Some(phase),
+                columns: &["pass", "report_json", "stored_unix_s"],
+                values: vec![report.pass.into(), json.clone().into(), now_unix_s().into()],
+                sha: sha256_hex(json.as_bytes()),
+            },
+        )
+    }
+
+    /// Stores the run's certificate (`report`'s HTML page).
+    pub fn store_certificate(&mut self, run: RunId, html: &str) -> Result<Stored, DbError> {
+        self.store(
+            run,
+            Piece {
+                table: "certificate",
+                what: "certificate",
+                phase: None,
+                columns: &["html", "stored_unix_s"],
+                values: vec![html.into(), now_unix_s().into()],
+                sha: sha256_hex(html.as_bytes()),
+            },
+        )
+    }
+
+    /// Ends the run; nothing more is stored under it afterwards.
+    pub fn finish_run(&mut self, run: RunId, outcome: Outcome, reason: &str) -> Result<Stored, DbError> {
+        let sha = sha256_hex(format!("{}\n{reason}", outcome.sql()).as_bytes());
+        self.store(
+            run,
+            Piece {
+                table: "run_end",
+                what: "end",
+                phase: None,
+                columns: &["outcome", "reason", "ended_unix_s"],
+                values: vec![outcome.sql().into(), reason.into(), now_unix_s().into()],
+                sha,
+            },
+        )
+    }
+
+    /// What the run holds, to resume it.
+    pub fn progress(&mut self, run: RunId) -> Result<Progress, DbError> {
+        let start = self.start_of(run)?;
+        let id = Val::from(run.to_string());
+        self.conn.transaction(|tx| {
+            let has = |tx: &mut Tx<'_>, sql: &str| -> Result<bool, DbError> {
+                Ok(!tx.query(sql, std::slice::from_ref(&id))?.is_empty())
+            };
+            let record =
+                tx.query("SELECT bytes, crc32 FROM cal_record WHERE run_id = $1", std::slice::from_ref(&id))?;
+            let record = match record.first() {
+                Some(r) => Some(StoredRecord { run_id: run, bytes: r[0].bytes()?, crc32: crc_of(&r[1])? }),
+                None => None,
+            };
+            let outcome =
+                tx.query("SELECT outcome FROM run_end WHERE run_id = $1", std::slice::from_ref(&id))?;
+            Ok(Progress {
+                campaign: has(tx, "SELECT 1 FROM campaign WHERE run_id = $1")?,
+                fit: has(tx, "SELECT 1 FROM fit WHERE run_id = $1")?,
+                record,
+                flashed: has(tx, "SELECT 1 FROM flash WHERE run_id = $1")?,
+                as_found: has(tx, "SELECT 1 FROM verification WHERE run_id = $1 AND phase = 'as_found'")?,
+                as_left: has(tx, "SELECT 1 FROM verification WHERE run_id = $1 AND phase = 'as_left'")?,
+                certificate: has(tx, "SELECT 1 FROM certificate WHERE run_id = $1")?,
+                outcome: outcome.first().map(|r| Outcome::from_sql(&r[0].text()?)).transpose()?,
+                start,
+            })
+        })
+    }
+
+    /// Every run of the unit `key` names (its serial number or its device id), oldest first.
+    pub fn unit_runs(&mut self, key: &str) -> Result<Vec<RunSummary>, DbError> {
+        let key = key.trim();
+        let target = self.target();
+        self.conn.transaction(|tx| {
+            let rows = tx.query(
+                &format!("SELECT {RUN_COLUMNS} FROM run WHERE device_id = $1 OR serial = $2 ORDER BY started_unix_s, run_id"),
+                &[key.to_ascii_lowercase().into(), key.into()],
+            )?;
+            if rows.is_empty() {
+                return Err(DbError::NoUnit { key: key.into(), target });
+            }
+            let starts: Vec<RunStart> = rows.iter().map(|r| run_start(r)).collect::<Result<_, _>>()?;
+            let mut devices: Vec<&str> = starts.iter().map(|s| s.device_id.as_str()).collect();
+            devices.dedup();
+            devices.sort_unstable();
+            devices.dedup();
+            if devices.len() > 1 {
+                return Err(DbError::Ambiguous { key: key.into(), devices: devices.join(", ") });
+            }
+            starts.into_iter().map(|s| summary(tx, s)).collect()
+        })
+    }
+
+    /// The run's start, or [`DbError::NoRun`].
+    fn start_of(&mut self, run: RunId) -> Result<RunStart, DbError> {
+        let rows = self.conn.transaction(|tx| {
+            tx.query(&format!("SELECT {RUN_COLUMNS} FROM run WHERE run_id = $1"), &[run.to_string().into()])
+        })?;
+        rows.first().map(|r| run_start(r)).unwrap_or_else(|| Err(DbError::NoRun { run_id: run.to_string() }))
+    }
+
+    fn check_same(&self, run: RunId, what: &str, got: &str, theirs: &str, want: &str) -> Result<(), DbError> {
+        if got.trim().eq_ignore_ascii_case(want.trim()) {
+            Ok(())
+        } else {
+            Err(DbError::Mismatch {
+                run_id: run.to_string(),
+                what: format!("{what} {got} is not {theirs} {want}"),
+            })
+        }
+    }
+
+    /// Inserts a piece in one transaction: after checking that the run exists and is not
+    /// finished, and that it holds no other piece of the kind (the same one: [`Stored::Already`]).
+    fn store(&mut self, run: RunId, p: Piece) -> Result<Stored, DbError> {
+        let run_s = run.to_string();
+        self.conn.transaction(|tx| {
+            let id = Val::from(run_s.clone());
+            if tx.query("SELECT 1 FROM run WHERE run_id = $1", std::slice::from_ref(&id))?.is_empty() {
+                return Err(DbError::NoRun { run_id: run_s.clone() });
+            }
+            if p.table != "run_end" {
+                if let Some(r) = tx
+                    .query("SELECT outcome FROM run_end WHERE run_id = $1", std::slice::from_ref(&id))?
+                    .first()
+                {
+                    return Err(DbError::Conflict {
+                        run_id: run_s.clone(),
+                        what: format!(
+                            "the run is finished ({}): its {} cannot be stored",
+                            r[0].text()?,
+                            p.what
+                        ),
+                    });
+                }
+            }
+            let mut key = vec![id];
+            let mut key_sql = "run_id = $1".to_string();
+            if let Some(phase) = p.phase {
+                key.push(phase.sql().into());
+                key_sql.push_str(" AND phase = $2");
+            }
+            let found = tx.query(&format!("SELECT content_sha256 FROM {} WHERE {key_sql}", p.table), &key)?;
+            if let Some(r) = found.first() {
+                return if r[0].text()? == p.sha {
+                    Ok(Stored::Already)
+                } else {
+                    Err(DbError::Conflict {
+                        run_id: run_s.clone(),
+                        what: format!("it holds another {} already (a run stores each piece once)", p.what),
+                    })
+                };
+            }
+            let mut columns: Vec<&str> = vec!["run_id"];
+            if p.phase.is_some() {
+                columns.push("phase");
+            }
+            columns.extend(p.columns);
+            columns.push("content_sha256");
+            let placeholders: Vec<String> = (1..=columns.len()).map(|i| format!("${i}")).collect();
+            let mut values = key;
+            values.extend(p.values);
+            values.push(p.sha.into());
+            tx.execute(
+                &format!(
+                    "INSERT INTO {} ({}) VALUES ({})",
+                    p.table,
+                    columns.join(", "),
+                    placeholders.join(", ")
+                ),
+                &values,
+            )?;
+            Ok(Stored::New)
+        })
+    }
+}
+
+/// The `run` columns [`run_start`] reads, in its order.
+const RUN_COLUMNS: &str =
+    "run_id, device_id, serial, station, head, operator, started_unix_s, software_version, \
+                           firmware_version, g_m_s2, g_source";
+
+fn run_start(r: &[Val]) -> Result<RunStart, DbError> {
+    Ok(RunStart {
+        run_id: RunId::parse(&r[0].text()?).map_err(|e| DbError::schema(e.to_string()))?,
+        device_id: r[1].text()?,
+        serial: r[2].text()?,
+        station: r[3].text()?,
+        head: r[4].text()?,
+        operator: r[5].text()?,
+        started_unix_s: r[6].int()?,
+        software_version: r[7].text()?,
+        firmware_version: r[8].text()?,
+        g_m_s2: r[9].real()?,
+        g_source: r[10].text()?,
+    })
+}
+
+fn crc_of(v: &Val) -> Result<u32, DbError> {
+    u32::try_from(v.int()?).map_err(|_| DbError::schema(format!("a CRC-32 out of range: {v:?}")))
+}
+
+/// A record's CRC-32: its last four bytes, little-endian (a parsed record is longer).
+fn record_crc(bytes: &[u8]) -> u32 {
+    let n = bytes.len();
+    u32::from_le_bytes(bytes[n - 4..].try_into().expect("four bytes"))
+}
+
+/// The rest of a run's rows.
+fn summary(tx: &mut Tx<'_>, start: RunStart) -> Result<RunSummary, DbError> {
+    let id = [Val::from(start.run_id.to_string())];
+    let one = |tx: &mut Tx<'_>, sql: &str| -> Result<Option<Vec<Val>>, DbError> {
+        Ok(tx.query(sql, &id)?.into_iter().next())
+    };
+    let report = |v: Option<Vec<Val>>| -> Result<Option<VerifyReport>, DbError> {
+        v.map(|r| {
+            serde_json::from_str(&r[0].text()?)
+                .map_err(|e| DbError::schema(format!("a stored verification: {e}")))
+        })
+        .transpose()
+    };
+    let campaign_sha256 = one(tx, "SELECT campaign_sha256 FROM campaign WHERE run_id = $1")?
+        .map(|r| r[0].text())
+        .transpose()?;
+    let fit_json = one(tx, "SELECT fit_json FROM fit WHERE run_id = $1")?.map(|r| r[0].text()).transpose()?;
+    let record_crc32 =
+        one(tx, "SELECT crc32 FROM cal_record WHERE run_id = $1")?.map(|r| crc_of(&r[0])).transpose()?;
+    let flashed_unix_s =
+        one(tx, "SELECT flashed_unix_s FROM flash WHERE run_id = $1")?.map(|r| r[0].int()).transpose()?;
+    let as_found =
+        report(one(tx, "SELECT report_json FROM verification WHERE run_id = $1 AND phase = 'as_found'")?)?;
+    let as_left =
+        report(one(tx, "SELECT report_json FROM verification WHERE run_id = $1 AND phase = 'as_left'")?)?;
+    let end = match one(tx, "SELECT outcome, reason, ended_unix_s FROM run_end WHERE run_id = $1")? {
+        Some(r) => Some((Outcome::from_sql(&r[0].text()?)?, r[1].text()?, r[2].int()?)),
+        None => None,
+    };
+    Ok(RunSummary { start, campaign_sha256, fit_json, record_crc32, flashed_unix_s, as_found, as_left, end })
+}

@@ -1,0 +1,146 @@
+//! `accelcal history SERIAL|DEVICE`: a unit's runs from the calibration database, the drift
+//! between its calibrations and the recommended recalibration date (`core::db::history`).
+
+use accelcal_core::db::history::{history, History, RecalRule, VerifySummary};
+use accelcal_core::db::{Db, Outcome, Target, DB_ENV};
+use accelcal_core::error::bad;
+use accelcal_core::output::write_json;
+use anyhow::Context;
+
+use super::record::utc;
+use crate::cli::HistoryArgs;
+use crate::report::sig;
+
+/// The database `--db` names, else `ACCELCAL_DB`.
+pub fn db_spec(given: Option<&str>) -> anyhow::Result<String> {
+    match given {
+        Some(s) => Ok(s.to_string()),
+        None => std::env::var(DB_ENV)
+            .ok()
+            .filter(|s| !s.trim().is_empty())
+            .ok_or_else(|| bad(format!("no calibration database: give --db FILE|URL or set {DB_ENV}"))),
+    }
+}
+
+/// Checks the command line before anything is opened.
+pub fn check(a: &HistoryArgs) -> anyhow::Result<()> {
+    let positive = |name: &str, v: f64| {
+        if v.is_finite() && v > 0.0 {
+            Ok(())
+        } else {
+            Err(bad(format!("{name} must be a positive number, got {v}")))
+        }
+    };
+    positive("--tolerance-m-s2", a.tolerance_m_s2)?;
+    positive("--coverage", a.coverage)?;
+    positive("--max-interval-days", a.max_interval_days)?;
+    if a.unit.trim().is_empty() {
+        return Err(bad("SERIAL|DEVICE is empty"));
+    }
+    let spec = db_spec(a.db.as_deref())?;
+    if let (Some(j), Target::Sqlite(f)) = (&a.json, Target::parse(&spec)?) {
+        if j == &f {
+            return Err(bad(format!("--json {} is the database: refusing to overwrite it", j.display())));
+        }
+    }
+    Ok(())
+}
+
+/// Runs `accelcal history`.
+pub fn run(a: &HistoryArgs) -> anyhow::Result<()> {
+    let spec = db_spec(a.db.as_deref())?;
+    let mut db = Db::open_existing(&spec)?;
+    let runs = db.unit_runs(&a.unit)?;
+    let rule = RecalRule {
+        tolerance_m_s2: a.tolerance_m_s2,
+        coverage: a.coverage,
+        max_interval_days: a.max_interval_days,
+    };
+    let h = history(&runs, rule);
+    print(&h, &db.target());
+    if let Some(j) = &a.json {
+        write_json(j, &h).with_context(|| format!("writing {}", j.display()))?;
+        println!("wrote {}", j.display());
+    }
+    Ok(())
+}
+
+/// A verification in one cell.
+fn verification(v: &Option<VerifySummary>) -> String {
+    match v {
+        None => "-".into(),
+        Some(v) => format!(
+            "{} {}/{}, max {} m/s²",
+            if v.pass { "pass" } else { "FAIL" },
+            v.positions - v.failed,
+            v.positions,
+            sig(v.max_abs_error_m_s2, 2)
+        ),
+    }
+}
+
+fn print(h: &History, target: &str) {
+    let n_cal = h.runs.iter().filter(|r| r.calibration.is_some()).count();
+    let serials = if h.serials.is_empty() { "no serial number".to_string() } else { h.serials.join(", ") };
+    println!(
+        "unit {} ({serials}): {} run{}, {n_cal} calibration{} in {target}",
+        h.device_id,
+        h.runs.len(),
+        if h.runs.len() == 1 { "" } else { "s" },
+        if n_cal == 1 { "" } else { "s" }
+    );
+    println!(
+        "{:>3}  {:<20}  {:<10}  {:<10}  {:<9}  {:<8}  {:<24}  {:<24}",
+        "cal", "started (UTC)", "station", "operator", "outcome", "record", "as found", "as left"
+    );
+    for r in &h.runs {
+        let outcome = match r.outcome {
+            Some(Outcome::Pass) => "pass",
+            Some(Outcome::Rejected) => "rejected",
+            None => "unfinished",
+        };
+        println!(
+            "{:>3}  {:<20}  {:<10}  {:<10}  {:<9}  {:<8}  {:<24}  {:<24}",
+            r.calibration.map_or("-".to_string(), |n| n.to_string()),
+            utc(r.started_unix_s.max(0) as u64),
+            r.station,
+            r.operator,
+            outcome,
+            r.record_crc32.as_deref().unwrap_or("-"),
+            verification(&r.as_found),
+            verification(&r.as_left),
+        );
+        if let Some(why) = &r.not_a_calibration {
+            println!("     not a calibration: {why}");
+        }
+        if matches!(r.outcome, Some(Outcome::Rejected)) {
+            println!("     rejected: {}", r.reason);
+        }
+    }
+    if !h.drifts.is_empty() {
+        println!("drift between consecutive calibrations, m/s² at 1 g ± standard uncertainty (the fits' covariances):");
+        for d in &h.drifts {
+            println!("  {} -> {} ({:.1} days)", d.from, d.to, d.days);
+            for ch in ["x", "y", "z"] {
+                let cells: Vec<String> = d
+                    .terms
+                    .iter()
+                    .filter(|t| t.channel == ch)
+                    .map(|t| {
+                        format!("{:>2} {:>10} ± {:<8}", t.term, sig(t.delta_m_s2, 3), sig(t.sigma_m_s2, 2))
+                    })
+                    .collect();
+                println!("    {ch}: {}", cells.join("  "));
+            }
+        }
+    }
+    let rc = &h.recalibration;
+    match rc.due_unix_s {
+        Some(t) => println!("recalibrate by {} ({})", &utc(t.max(0) as u64)[..10], rc.basis),
+        None => println!("recalibration: {}", rc.basis),
+    }
+    println!(
+        "  rule: tolerance {} m/s² at 1 g, k = {}, at most {} days (method: accelcal history --help)",
+        rc.rule.tolerance_m_s2, rc.rule.coverage, rc.rule.max_interval_days
+    );
+}

@@ -1,0 +1,239 @@
+//! The calibration database on SQLite (`core::db`): pieces stored once, append-only rows, a
+//! writer killed mid-unit resuming, two writers at once, one schema for both engines, and
+//! `accelcal history` end to end (its output a snapshot).
+
+mod dbkit;
+
+use std::path::Path;
+
+use accelcal_core::db::{Db, Outcome, RunId};
+use dbkit::*;
+
+fn db_file(d: &tempfile::TempDir) -> String {
+    d.path().join("cal.sqlite").display().to_string()
+}
+
+#[test]
+fn pieces_are_stored_once_and_a_finished_run_takes_nothing_more() {
+    let d = tempfile::tempdir().unwrap();
+    pieces_are_stored_once(&db_file(&d));
+}
+
+#[test]
+fn calibration_rows_are_never_updated_or_deleted() {
+    let d = tempfile::tempdir().unwrap();
+    let spec = db_file(&d);
+    let mut db = Db::open(&spec).unwrap();
+    calibrate(&mut db, &start(RunId::new(), DEVICE, "SN-1", "st-1", T0), &coefs(0.0, 0), Some(0.01));
+    drop(db);
+    let c = rusqlite::Connection::open(&spec).unwrap();
+    for table in ["run", "campaign", "fit", "cal_record", "flash", "verification", "certificate", "run_end"] {
+        let e = c.execute(&format!("UPDATE {table} SET content_sha256 = 'x'"), []).unwrap_err();
+        assert!(
+            e.to_string().contains(&format!("append-only: {table} rows are never updated")),
+            "{table}: {e}"
+        );
+        let e = c.execute(&format!("DELETE FROM {table}"), []).unwrap_err();
+        assert!(
+            e.to_string().contains(&format!("append-only: {table} rows are never deleted")),
+            "{table}: {e}"
+        );
+    }
+    let n: i64 = c.query_row("SELECT count(*) FROM run", [], |r| r.get(0)).unwrap();
+    assert_eq!(n, 1);
+}
+
+#[test]
+fn a_writer_killed_mid_unit_resumes_with_no_duplicate_and_no_partial_row() {
+    if writer_child() {
+        return;
+    }
+    let d = tempfile::tempdir().unwrap();
+    let spec = db_file(&d);
+    let run =
+        killed_writer_resumes(&spec, "a_writer_killed_mid_unit_resumes_with_no_duplicate_and_no_partial_row");
+    let c = rusqlite::Connection::open(&spec).unwrap();
+    for table in ["run", "campaign", "fit", "cal_record", "flash", "verification", "run_end"] {
+        let n: i64 = c
+            .query_row(&format!("SELECT count(*) FROM {table} WHERE run_id = ?1"), [run.to_string()], |r| {
+                r.get(0)
+            })
+            .unwrap();
+        assert_eq!(n, 1, "{table}");
+    }
+    let ok: String = c.query_row("PRAGMA integrity_check", [], |r| r.get(0)).unwrap();
+    assert_eq!(ok, "ok");
+}
+
+#[test]
+fn two_writers_at_once_lose_nothing() {
+    let d = tempfile::tempdir().unwrap();
+    two_writers_lose_nothing(&db_file(&d), 8);
+}
+
+/// `CREATE TABLE` blocks of a migration: table name → column names, in order.
+fn tables(sql: &str) -> Vec<(String, Vec<String>)> {
+    sql.split("CREATE TABLE ")
+        .skip(1)
+        .map(|block| {
+            let (name, body) = block.split_once(" (").unwrap();
+            let body = &body[..body.find("\n);").unwrap()];
+            let cols = body
+                .lines()
+                .map(|l| l.trim())
+                .filter(|l| !l.is_empty() && !l.starts_with("PRIMARY KEY") && !l.starts_with("--"))
+                .map(|l| l.split_whitespace().next().unwrap().to_string())
+                .collect();
+            (name.to_string(), cols)
+        })
+        .collect()
+}
+
+#[test]
+fn both_engines_have_the_same_tables_and_columns() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../core/migrations");
+    let versions = |engine: &str| -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(dir.join(engine))
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    };
+    assert_eq!(versions("sqlite"), versions("postgres"));
+    for v in versions("sqlite") {
+        let s = tables(&std::fs::read_to_string(dir.join("sqlite").join(&v)).unwrap());
+        let p = tables(&std::fs::read_to_string(dir.join("postgres").join(&v)).unwrap());
+        assert_eq!(s, p, "{v}");
+        assert_eq!(s.len(), 8, "{v}: {s:?}");
+    }
+}
+
+/// A unit with three calibrations 180 days apart whose x bias grows by 50 codes each time, an
+/// unfinished run between them, and another unit.
+fn three_calibrations(spec: &str) {
+    let mut db = Db::open(spec).unwrap();
+    for i in 0..3 {
+        let t = T0 + 180 * DAY * i as i64;
+        let s = start(
+            RunId::parse(&format!("00000000-0000-4000-8000-00000000000{i}")).unwrap(),
+            DEVICE,
+            "SN-0042",
+            "st-1",
+            t,
+        );
+        calibrate(&mut db, &s, &coefs(50.0, i), (i > 0).then_some(0.004 * i as f64));
+    }
+    let killed = start(
+        RunId::parse("00000000-0000-4000-8000-0000000000aa").unwrap(),
+        DEVICE,
+        "SN-0042",
+        "st-2",
+        T0 + 200 * DAY,
+    );
+    db.begin_run(&killed).unwrap();
+    db.store_campaign(killed.run_id, &campaign(10)).unwrap();
+    let other = start(RunId::new(), "00112233445566778899aabb", "SN-0043", "st-1", T0);
+    calibrate(&mut db, &other, &coefs(0.0, 0), None);
+}
+
+#[test]
+fn history_shows_every_run_the_drift_and_the_recalibration_date() {
+    let d = tempfile::tempdir().unwrap();
+    let spec = db_file(&d);
+    three_calibrations(&spec);
+    let json = d.path().join("h.json");
+    let (code, out, err) = accelcal(&["history", "SN-0042", "--db", &spec, "--json", json.to_str().unwrap()]);
+    assert_eq!(code, Some(0), "{err}");
+    insta::assert_snapshot!(
+        "history_stdout",
+        out.replace(&spec, "<db>").replace(json.to_str().unwrap(), "<json>")
+    );
+    let j: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(j["device_id"], DEVICE);
+    assert_eq!(j["runs"].as_array().unwrap().len(), 4);
+    assert_eq!(j["drifts"].as_array().unwrap().len(), 2);
+    let x1 = &j["drifts"][0]["terms"][0];
+    assert_eq!((x1["channel"].as_str(), x1["term"].as_str()), (Some("x"), Some("1")));
+    // 50 codes over the own sensitivity 1670 codes/(m/s²).
+    assert!((x1["delta_m_s2"].as_f64().unwrap() - 50.0 / 1670.0).abs() < 1e-12, "{x1}");
+    assert!((x1["sigma_m_s2"].as_f64().unwrap() - 0.5 * 2f64.sqrt() / 1670.0).abs() < 1e-12, "{x1}");
+    let rc = &j["recalibration"];
+    assert_eq!(rc["limiting"]["channel"], "x");
+    assert_eq!(rc["limiting"]["term"], "1");
+    // r = 50/1670 m/s² per 180 days; s_r = σ·sqrt(3/194400) per day (three equally weighted
+    // points at -360, -180, 0 days); τ = T / (|r| + 2 s_r).
+    let sigma = 0.5 / 1670.0;
+    let r = 50.0 / 1670.0 / 180.0;
+    let tau = 0.05 / (r + 2.0 * sigma * (3.0f64 / 194_400.0).sqrt());
+    let due = T0 + 360 * DAY + (tau * 86_400.0).round() as i64;
+    assert_eq!(rc["due_unix_s"].as_i64(), Some(due), "{rc}");
+    // The device id names the same unit.
+    let (code, by_id, _) = accelcal(&["history", DEVICE, "--db", &spec]);
+    assert_eq!(code, Some(0));
+    assert_eq!(by_id, out.replace(&format!("wrote {}\n", json.display()), ""));
+}
+
+#[test]
+fn history_after_one_calibration_recommends_the_maximum_interval() {
+    let d = tempfile::tempdir().unwrap();
+    let spec = db_file(&d);
+    three_calibrations(&spec);
+    let (code, out, err) = accelcal(&["history", "SN-0043", "--db", &spec, "--max-interval-days", "200"]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(
+        out.contains(
+            "recalibrate by 2026-07-20 (one calibration: no drift known yet, the calibration plus 200 days"
+        ),
+        "{out}"
+    );
+    let mut db = Db::open(&spec).unwrap();
+    let runs = db.unit_runs("SN-0043").unwrap();
+    assert_eq!(runs[0].end.as_ref().map(|e| e.0), Some(Outcome::Pass));
+}
+
+#[test]
+fn history_refuses_what_it_cannot_read() {
+    let d = tempfile::tempdir().unwrap();
+    let spec = db_file(&d);
+    three_calibrations(&spec);
+    let missing = d.path().join("none.sqlite");
+    let cases: Vec<(Vec<&str>, i32, String)> = vec![
+        (
+            vec!["history", "SN-0042"],
+            2,
+            "no calibration database: give --db FILE|URL or set ACCELCAL_DB".into(),
+        ),
+        (vec!["history", "SN-9", "--db", &spec], 2, format!("no unit `SN-9` in the database {spec}")),
+        (
+            vec!["history", "SN-0042", "--db", missing.to_str().unwrap()],
+            2,
+            format!("{}: no such database", missing.display()),
+        ),
+        (
+            vec!["history", "SN-0042", "--db", &spec, "--tolerance-m-s2", "0"],
+            2,
+            "--tolerance-m-s2 must be a positive number".into(),
+        ),
+        (
+            vec!["history", "SN-0042", "--db", &spec, "--json", &spec],
+            2,
+            "is the database: refusing to overwrite it".into(),
+        ),
+        (
+            vec!["history", "SN-0042", "--db", "postgres://accelcal@127.0.0.1:1/accelcal"],
+            1,
+            "database postgres://accelcal@127.0.0.1:1/accelcal cannot be reached".into(),
+        ),
+    ];
+    for (args, want_code, want) in cases {
+        let (code, out, err) = accelcal(&args);
+        assert_eq!(code, Some(want_code), "{args:?}: {err}");
+        assert!(
+            err.starts_with("error: ") && err.contains(&want) && err.lines().count() == 1,
+            "{args:?}: {err}"
+        );
+        assert!(out.is_empty(), "{args:?}: {out}");
+    }
+    assert!(!missing.exists(), "a reader created the database");
+}

@@ -1,0 +1,121 @@
+//! The calibration database on a real PostgreSQL server (Debian's package, installed by
+//! `scripts/setup-postgres.sh`; each test starts a throwaway cluster of its own with
+//! `scripts/postgres-cluster.sh`): the scenarios of `tests/db.rs`, the triggers that keep rows
+//! append-only, two stations writing at once, a station killed mid-unit, and `history`.
+
+mod dbkit;
+
+use std::path::PathBuf;
+use std::process::Command;
+
+use accelcal_core::db::{Db, RunId};
+use dbkit::*;
+
+/// A running cluster, stopped and removed on drop.
+struct Cluster {
+    dir: tempfile::TempDir,
+    url: String,
+}
+
+fn script() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../scripts/postgres-cluster.sh")
+}
+
+impl Cluster {
+    fn start() -> Cluster {
+        let dir = tempfile::Builder::new().prefix("accelcal-pg").tempdir().unwrap();
+        let out = Command::new("bash").arg(script()).arg("start").arg(dir.path()).output().unwrap();
+        assert!(
+            out.status.success(),
+            "starting a PostgreSQL cluster failed (is the server installed? scripts/setup-postgres.sh): {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let url = String::from_utf8(out.stdout).unwrap().trim().to_string();
+        Cluster { dir, url }
+    }
+}
+
+impl Drop for Cluster {
+    fn drop(&mut self) {
+        let _ = Command::new("bash").arg(script()).arg("stop").arg(self.dir.path()).status();
+    }
+}
+
+#[test]
+fn pieces_are_stored_once_and_a_finished_run_takes_nothing_more() {
+    let pg = Cluster::start();
+    pieces_are_stored_once(&pg.url);
+    assert_eq!(Db::open(&pg.url).unwrap().engine(), "postgres");
+}
+
+#[test]
+fn calibration_rows_are_never_updated_deleted_or_truncated() {
+    let pg = Cluster::start();
+    let mut db = Db::open(&pg.url).unwrap();
+    calibrate(&mut db, &start(RunId::new(), DEVICE, "SN-1", "st-1", T0), &coefs(0.0, 0), Some(0.01));
+    let mut c = postgres::Client::connect(&pg.url, postgres::NoTls).unwrap();
+    for table in ["run", "campaign", "fit", "cal_record", "flash", "verification", "certificate", "run_end"] {
+        for (sql, verb) in [
+            (format!("UPDATE {table} SET content_sha256 = 'x'"), "updated"),
+            (format!("DELETE FROM {table}"), "deleted"),
+            (format!("TRUNCATE {table} CASCADE"), "truncated"),
+        ] {
+            let e = c.batch_execute(&sql).unwrap_err();
+            let msg = e.as_db_error().map(|d| d.message().to_string()).unwrap_or_else(|| e.to_string());
+            assert_eq!(msg, format!("append-only: {table} rows are never {verb}"), "{sql}");
+        }
+    }
+    let n: i64 = c.query_one("SELECT count(*) FROM run", &[]).unwrap().get(0);
+    assert_eq!(n, 1);
+}
+
+#[test]
+fn a_station_killed_mid_unit_resumes_with_no_duplicate_and_no_partial_row() {
+    if writer_child() {
+        return;
+    }
+    let pg = Cluster::start();
+    let run = killed_writer_resumes(
+        &pg.url,
+        "a_station_killed_mid_unit_resumes_with_no_duplicate_and_no_partial_row",
+    );
+    let mut c = postgres::Client::connect(&pg.url, postgres::NoTls).unwrap();
+    for table in ["run", "campaign", "fit", "cal_record", "flash", "verification", "run_end"] {
+        let n: i64 = c
+            .query_one(&format!("SELECT count(*) FROM {table} WHERE run_id = $1"), &[&run.to_string()])
+            .unwrap()
+            .get(0);
+        assert_eq!(n, 1, "{table}");
+    }
+}
+
+#[test]
+fn two_stations_writing_at_once_lose_nothing() {
+    let pg = Cluster::start();
+    two_writers_lose_nothing(&pg.url, 20);
+}
+
+#[test]
+fn history_reads_the_server_and_matches_sqlite() {
+    let pg = Cluster::start();
+    let d = tempfile::tempdir().unwrap();
+    let file = d.path().join("cal.sqlite").display().to_string();
+    for spec in [&pg.url, &file] {
+        let mut db = Db::open(spec).unwrap();
+        for i in 0..2 {
+            let id = RunId::parse(&format!("00000000-0000-4000-8000-00000000000{i}")).unwrap();
+            calibrate(
+                &mut db,
+                &start(id, DEVICE, "SN-7", "st-1", T0 + 90 * DAY * i as i64),
+                &coefs(30.0, i),
+                None,
+            );
+        }
+    }
+    let (code, on_pg, err) = accelcal(&["history", "SN-7", "--db", &pg.url]);
+    assert_eq!(code, Some(0), "{err}");
+    let (code, on_sqlite, err) = accelcal(&["history", "SN-7", "--db", &file]);
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(on_pg.replace(&pg.url, "<db>"), on_sqlite.replace(&file, "<db>"));
+    assert!(on_pg.contains("2 runs, 2 calibrations"), "{on_pg}");
+}

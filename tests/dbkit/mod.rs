@@ -1,0 +1,317 @@
+//! What the database tests share (`tests/db.rs` on SQLite, `tests/db_pg.rs` on a PostgreSQL
+//! server): runs built from literal pieces, and the scenarios both engines must pass.
+#![allow(dead_code)]
+
+use std::io::{BufRead, BufReader};
+use std::process::{Command, Stdio};
+
+use accelcal_core::db::{Db, DbError, Outcome, Phase, RunId, RunStart, Stored};
+use accelcal_core::verify::{PositionCheck, VerifyReport};
+use accelcal_shared::record::{Record, MAX_CHANNELS, MAX_RECORD_LEN};
+use accelcal_shared::terms::MODEL_4;
+use accelcal_shared::N_BASIS;
+
+/// The QEMU node's device id, as hex.
+pub const DEVICE: &str = "51454d552d422d4c34373545";
+/// 2026-01-01T00:00:00Z.
+pub const T0: i64 = 1_767_225_600;
+pub const DAY: i64 = 86_400;
+pub const G: f64 = 9.80665;
+
+/// A unit's model 4: `[channel][1, ax, ay, az]`, codes and codes per m/s².
+pub type Coefs = [[f64; 4]; 3];
+
+/// A unit whose x bias grows by `bias_step` codes per calibration.
+pub fn coefs(bias_step: f64, i: usize) -> Coefs {
+    let mut c = [[0.0; 4]; 3];
+    for (ch, row) in c.iter_mut().enumerate() {
+        row[0] = 32768.0 + 10.0 * ch as f64;
+        row[1 + ch] = 1670.0;
+        row[1 + (ch + 1) % 3] = 3.0;
+    }
+    c[0][0] += bias_step * i as f64;
+    c
+}
+
+pub fn start(run_id: RunId, device: &str, serial: &str, station: &str, t: i64) -> RunStart {
+    RunStart {
+        run_id,
+        device_id: device.into(),
+        serial: serial.into(),
+        station: station.into(),
+        head: "sim:127.0.0.1:7001".into(),
+        operator: "ana".into(),
+        started_unix_s: t,
+        software_version: "0.1.0".into(),
+        firmware_version: "0.4.0".into(),
+        g_m_s2: G,
+        g_source: "--g".into(),
+    }
+}
+
+/// `fit --json` of model 4 with a diagonal covariance (σ 0.5 code on the bias, 0.02 on the
+/// sensitivities).
+pub fn fit_json(c: &Coefs) -> String {
+    let chans: Vec<serde_json::Value> = ["x", "y", "z"]
+        .iter()
+        .enumerate()
+        .map(|(i, name)| {
+            let var = [0.25, 4e-4, 4e-4, 4e-4];
+            let cov: Vec<Vec<f64>> =
+                (0..4).map(|r| (0..4).map(|k| if r == k { var[r] } else { 0.0 }).collect()).collect();
+            serde_json::json!({
+                "channel": name,
+                "terms": ["1", "ax", "ay", "az"],
+                "coefficients": c[i],
+                "std_errors": var.iter().map(|v: &f64| v.sqrt()).collect::<Vec<_>>(),
+                "covariance": cov,
+                "condition": 1.5,
+                "rms_codes": 0.4,
+            })
+        })
+        .collect();
+    serde_json::json!({"method": "lsq", "channels": chans}).to_string()
+}
+
+/// The record of `c` for `device` (hex).
+pub fn record(device: &str, c: &Coefs) -> Vec<u8> {
+    let mut id = [0u8; 12];
+    for (i, b) in id.iter_mut().enumerate() {
+        *b = u8::from_str_radix(&device[2 * i..2 * i + 2], 16).unwrap();
+    }
+    let mut coefficients = [[0.0; N_BASIS]; MAX_CHANNELS];
+    for ch in 0..3 {
+        coefficients[ch][..4].copy_from_slice(&c[ch]);
+    }
+    let rec = Record {
+        device_id: id,
+        created_unix_s: 1_800_000_000,
+        structure: MODEL_4,
+        n_channels: 3,
+        coefficients,
+        g_m_s2: Some(G),
+        thermal: None,
+    };
+    let mut buf = [0u8; MAX_RECORD_LEN];
+    let n = rec.emit(&mut buf).unwrap();
+    buf[..n].to_vec()
+}
+
+/// A six-position verification whose largest error is `max_err` m/s².
+pub fn verification(device: &str, max_err: f64, tol: f64) -> VerifyReport {
+    let positions = (1..=6)
+        .map(|p| {
+            let e = max_err * p as f64 / 6.0;
+            PositionCheck {
+                position: p,
+                alpha_deg: 90.0 * p as f64,
+                beta_deg: 0.0,
+                expected_m_s2: [0.0, 0.0, G],
+                measured_m_s2: [e, 0.0, G],
+                error_m_s2: [e, 0.0, 0.0],
+                sd_mean_m_s2: [1e-4; 3],
+                tolerance_m_s2: [tol; 3],
+                lost: 0,
+                temp_c: None,
+                out_of_range: false,
+                pass: e.abs() <= tol,
+            }
+        })
+        .collect::<Vec<_>>();
+    VerifyReport {
+        device_id: device.into(),
+        record: serde_json::json!({"slot": 0, "sequence": 1, "created_unix_s": 1_800_000_000, "crc": "00000000"}),
+        g_m_s2: G,
+        chamber_c: None,
+        tolerance_rule: format!("|error| <= {tol} m/s² on every component (--tolerance)"),
+        static_rule: "static".into(),
+        pass: positions.iter().all(|p| p.pass),
+        positions,
+        interrupted: false,
+        fit: None,
+    }
+}
+
+/// A campaign file of `rows` rows.
+pub fn campaign(rows: usize) -> Vec<u8> {
+    let mut s = String::from("# device_id: 51454d552d422d4c34373545\nposition,alpha_deg,beta_deg,x,y,z\n");
+    for r in 0..rows {
+        s.push_str(&format!("{},{},0,{},{},{}\n", r / 100 + 1, 90 * (r / 100), 32768 + r % 7, 32770, 34400));
+    }
+    s.into_bytes()
+}
+
+/// One whole calibration run, as a station stores it.
+pub fn calibrate(db: &mut Db, s: &RunStart, c: &Coefs, as_found: Option<f64>) -> RunId {
+    let run = s.run_id;
+    db.begin_run(s).unwrap();
+    if let Some(e) = as_found {
+        db.store_verification(run, Phase::AsFound, &verification(&s.device_id, e, 0.05)).unwrap();
+    }
+    db.store_campaign(run, &campaign(600)).unwrap();
+    db.store_fit(run, &fit_json(c)).unwrap();
+    let rec = db.store_record(run, &record(&s.device_id, c)).unwrap();
+    db.record_flashed(&rec).unwrap();
+    db.store_verification(run, Phase::AsLeft, &verification(&s.device_id, 0.002, 0.05)).unwrap();
+    db.store_certificate(run, "<html>certificate</html>").unwrap();
+    db.finish_run(run, Outcome::Pass, "verified").unwrap();
+    run
+}
+
+/// Every piece stored once, each stored again is a no-op, a different one is refused, and a
+/// finished run takes nothing more.
+pub fn pieces_are_stored_once(spec: &str) {
+    let mut db = Db::open(spec).unwrap();
+    let s = start(RunId::new(), DEVICE, "SN-0001", "st-1", T0);
+    let c = coefs(0.0, 0);
+    let run = s.run_id;
+    assert_eq!(db.begin_run(&s).unwrap(), Stored::New);
+    assert_eq!(db.begin_run(&s).unwrap(), Stored::Already);
+    let other = RunStart { station: "st-2".into(), ..s.clone() };
+    assert!(matches!(db.begin_run(&other), Err(DbError::Conflict { .. })));
+    assert_eq!(db.store_campaign(run, &campaign(300)).unwrap(), Stored::New);
+    assert_eq!(db.store_campaign(run, &campaign(300)).unwrap(), Stored::Already);
+    let e = db.store_campaign(run, &campaign(301)).unwrap_err();
+    assert!(e.to_string().contains("it holds another campaign already"), "{e}");
+    assert_eq!(db.store_fit(run, &fit_json(&c)).unwrap(), Stored::New);
+    let foreign = db.store_record(run, &record("00112233445566778899aabb", &c)).unwrap_err();
+    assert!(
+        foreign.to_string().contains(
+            "the record's device id 00112233445566778899aabb is not the run's 51454d552d422d4c34373545"
+        ),
+        "{foreign}"
+    );
+    let e = db.store_record(run, b"not a record").unwrap_err();
+    assert!(matches!(e, DbError::BadPiece { piece: "record", .. }), "{e}");
+    let rec = db.store_record(run, &record(DEVICE, &c)).unwrap();
+    assert_eq!(rec.bytes(), &record(DEVICE, &c)[..]);
+    let p = db.progress(run).unwrap();
+    assert!(p.campaign && p.fit && !p.flashed && p.record == Some(rec.clone()) && p.outcome.is_none());
+    db.record_flashed(&rec).unwrap();
+    let e = db.store_verification(run, Phase::AsLeft, &verification("00112233445566778899aabb", 0.001, 0.05));
+    assert!(matches!(e, Err(DbError::Mismatch { .. })), "{e:?}");
+    db.store_verification(run, Phase::AsLeft, &verification(DEVICE, 0.001, 0.05)).unwrap();
+    db.finish_run(run, Outcome::Pass, "verified").unwrap();
+    assert_eq!(db.finish_run(run, Outcome::Pass, "verified").unwrap(), Stored::Already);
+    let e = db.store_certificate(run, "<html/>").unwrap_err();
+    assert!(e.to_string().contains("the run is finished (pass): its certificate cannot be stored"), "{e}");
+    let e = db.store_fit(RunId::new(), &fit_json(&c)).unwrap_err();
+    assert!(matches!(e, DbError::NoRun { .. }), "{e}");
+    let p = db.progress(run).unwrap();
+    assert!(p.flashed && p.as_left && !p.as_found && !p.certificate && p.outcome == Some(Outcome::Pass));
+    assert_eq!(db.schema_versions().unwrap(), vec![1]);
+    // Opening again migrates nothing.
+    drop(db);
+    assert_eq!(Db::open(spec).unwrap().schema_versions().unwrap(), vec![1]);
+}
+
+/// The environment variable that turns a test process into the writer that is killed.
+pub const CHILD_ENV: &str = "ACCELCAL_TEST_DB_WRITER";
+
+/// In the child process: begins the run, stores the campaign and the fit, says so on stdout
+/// after each, and waits to be killed.
+pub fn writer_child() -> bool {
+    let Ok(arg) = std::env::var(CHILD_ENV) else { return false };
+    let (spec, run) = arg.split_once('\t').unwrap();
+    let run = RunId::parse(run).unwrap();
+    let mut db = Db::open(spec).unwrap();
+    let c = coefs(0.0, 0);
+    db.begin_run(&start(run, DEVICE, "SN-0009", "st-1", T0)).unwrap();
+    println!("begun");
+    db.store_campaign(run, &campaign(20_000)).unwrap();
+    println!("campaign");
+    db.store_fit(run, &fit_json(&c)).unwrap();
+    println!("fit");
+    loop {
+        std::thread::sleep(std::time::Duration::from_secs(1));
+    }
+}
+
+/// A writer killed (SIGKILL) after storing its fit; the run resumed under its id holds every
+/// piece once. `test` is the name of the calling test, which the child runs again.
+pub fn killed_writer_resumes(spec: &str, test: &str) -> RunId {
+    Db::open(spec).unwrap();
+    let run = RunId::new();
+    let mut child = Command::new(std::env::current_exe().unwrap())
+        .args(["--exact", test, "--nocapture", "--test-threads", "1"])
+        .env(CHILD_ENV, format!("{spec}\t{run}"))
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
+    loop {
+        let l = lines.next().expect("the writer ended before storing its fit").unwrap();
+        if l == "fit" {
+            break;
+        }
+    }
+    child.kill().unwrap(); // SIGKILL
+    let status = child.wait().unwrap();
+    assert!(!status.success());
+    let mut db = Db::open(spec).unwrap();
+    let p = db.progress(run).unwrap();
+    assert!(p.campaign && p.fit && p.record.is_none() && p.outcome.is_none(), "{p:?}");
+    // The station resumes: what is stored is skipped or stored again identically.
+    let c = coefs(0.0, 0);
+    assert_eq!(db.begin_run(&p.start).unwrap(), Stored::Already);
+    assert_eq!(db.store_campaign(run, &campaign(20_000)).unwrap(), Stored::Already);
+    assert_eq!(db.store_fit(run, &fit_json(&c)).unwrap(), Stored::Already);
+    let rec = db.store_record(run, &record(DEVICE, &c)).unwrap();
+    db.record_flashed(&rec).unwrap();
+    db.store_verification(run, Phase::AsLeft, &verification(DEVICE, 0.002, 0.05)).unwrap();
+    db.finish_run(run, Outcome::Pass, "verified").unwrap();
+    let runs = db.unit_runs("SN-0009").unwrap();
+    assert_eq!(runs.len(), 1);
+    assert!(runs[0].fit_json.is_some() && runs[0].campaign_sha256.is_some() && runs[0].end.is_some());
+    run
+}
+
+/// Two stations writing at once, `n` units each: every run whole, none lost.
+pub fn two_writers_lose_nothing(spec: &str, n: usize) {
+    Db::open(spec).unwrap();
+    let writers: Vec<_> = (0..2)
+        .map(|w| {
+            let spec = spec.to_string();
+            std::thread::spawn(move || {
+                let mut db = Db::open(&spec).unwrap();
+                for u in 0..n {
+                    let device = format!("{:012x}{:012x}", 0xabc000 + w, u);
+                    let s =
+                        start(RunId::new(), &device, &format!("W{w}-{u}"), &format!("st-{w}"), T0 + u as i64);
+                    calibrate(&mut db, &s, &coefs(1.0, u), Some(0.01));
+                }
+            })
+        })
+        .collect();
+    for w in writers {
+        w.join().unwrap();
+    }
+    let mut db = Db::open(spec).unwrap();
+    for w in 0..2 {
+        for u in 0..n {
+            let runs = db.unit_runs(&format!("W{w}-{u}")).unwrap();
+            assert_eq!(runs.len(), 1, "W{w}-{u}");
+            let r = &runs[0];
+            assert!(
+                r.fit_json.is_some()
+                    && r.record_crc32.is_some()
+                    && r.flashed_unix_s.is_some()
+                    && r.as_found.is_some()
+                    && r.as_left.is_some()
+                    && r.end.is_some(),
+                "W{w}-{u}: {r:?}"
+            );
+        }
+    }
+}
+
+/// Runs `accelcal` and returns (exit code, stdout, stderr).
+pub fn accelcal(args: &[&str]) -> (Option<i32>, String, String) {
+    let out =
+        Command::new(env!("CARGO_BIN_EXE_accelcal")).args(args).env_remove("ACCELCAL_DB").output().unwrap();
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
