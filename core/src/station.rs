@@ -18,7 +18,6 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
-use sha2::{Digest, Sha256};
 
 use crate::error::{Classify, Kind};
 
@@ -228,10 +227,9 @@ impl Journal {
     }
 }
 
-/// SHA-256 of a file's bytes, hex; `None` when it cannot be read.
+/// SHA-256 of a file's bytes, hex ([`crate::db::sha256_hex`]); `None` when it cannot be read.
 pub fn sha256_file(path: &Path) -> Option<String> {
-    let bytes = std::fs::read(path).ok()?;
-    Some(Sha256::digest(&bytes).iter().map(|b| format!("{b:02x}")).collect())
+    std::fs::read(path).ok().map(|bytes| crate::db::sha256_hex(&bytes))
 }
 
 /// The terms a node applies: model 4 (`1, ax, ay, az`), the only structure of the node's
