@@ -237,3 +237,93 @@ fn history_refuses_what_it_cannot_read() {
     }
     assert!(!missing.exists(), "a reader created the database");
 }
+
+/// Runs accelcal, which must succeed; its stdout.
+fn ok(args: &[&str]) -> String {
+    let (code, out, err) = accelcal(args);
+    assert_eq!(code, Some(0), "{args:?}: {err}");
+    out
+}
+
+/// Runs accelcal, which must refuse its input (exit 2) with one `error:` line; that line.
+fn bad(args: &[&str]) -> String {
+    let (code, _, err) = accelcal(args);
+    assert_eq!(code, Some(2), "{args:?}: {err}");
+    assert!(err.starts_with("error: ") && err.lines().count() == 1, "{args:?}: {err}");
+    err
+}
+
+/// The run id a command printed (`db: run <uuid> begun in ...`).
+fn run_id_in(err: &str) -> String {
+    let at = err.find("db: run ").expect("a run line") + "db: run ".len();
+    err[at..at + 36].to_string()
+}
+
+/// `fit`, `flash` and `report` given `--db`: each stores its piece in the run (`fit` begins it),
+/// storing again is a no-op, a piece of another unit or another record is refused, and a
+/// database that cannot be reached stops `flash` and `station` before they touch the node.
+#[test]
+fn commands_given_db_store_their_pieces_and_an_unreachable_database_stops_them_first() {
+    let d = tempfile::tempdir().unwrap();
+    let spec = db_file(&d);
+    let p = |n: &str| d.path().join(n).display().to_string();
+    let (c, r, f, cert) = (p("c.csv"), p("r.rec"), p("f.json"), p("cert.html"));
+    ok(&["simulate", "--seed", "7", "--samples", "20", "-o", &c]);
+    let fit = |extra: &[&str]| {
+        let mut a = vec!["fit", &c, "--record", &r, "--device-id", DEVICE, "--created", "1800000000"];
+        a.extend(["--json", &f, "--db", &spec]);
+        a.extend(extra);
+        accelcal(&a)
+    };
+    let (code, out, err) = fit(&[]);
+    assert_eq!(code, Some(0), "{err}");
+    let run = run_id_in(&err);
+    assert!(err.contains(&format!("db: run {run} begun in {spec}")), "{err}");
+    assert!(out.contains(&format!("db: run {run}: campaign, fit and record stored in {spec}")), "{out}");
+    // Again into the same run: the same pieces, nothing written twice.
+    let (code, _, err) = fit(&["--run-id", &run]);
+    assert_eq!(code, Some(0), "{err}");
+    let count = |table: &str| -> i64 {
+        let c = rusqlite::Connection::open(&spec).unwrap();
+        c.query_row(&format!("SELECT count(*) FROM {table} WHERE run_id = ?1"), [&run], |r| r.get(0)).unwrap()
+    };
+    for table in ["run", "campaign", "fit", "cal_record"] {
+        assert_eq!(count(table), 1, "{table}");
+    }
+    // Another record under that run: refused, and nothing flashed.
+    let other = p("other.rec");
+    ok(&["fit", &c, "--record", &other, "--device-id", DEVICE, "--created", "1800000001"]);
+    let e = bad(&["flash", &other, "--db", &spec, "--run-id", &run, "--gdb", "127.0.0.1:1"]);
+    assert!(e.contains(&format!("is not the record run {run} stored")), "{e}");
+    // The stored record gets as far as the probe (none listens here).
+    let (code, _, e) = accelcal(&["flash", &r, "--db", &spec, "--run-id", &run, "--gdb", "127.0.0.1:1"]);
+    assert_eq!(code, Some(1), "{e}");
+    assert!(!e.contains("database"), "{e}");
+    assert_eq!(count("flash"), 0);
+    // An unreachable database: the error is the database's, before the probe or the node.
+    let gone = "postgres://accelcal@127.0.0.1:1/accelcal";
+    let (code, _, e) = accelcal(&["flash", &r, "--db", gone, "--run-id", &run, "--gdb", "127.0.0.1:1"]);
+    assert_eq!(code, Some(1), "{e}");
+    assert!(e.contains(&format!("database {gone} cannot be reached")) && e.lines().count() == 1, "{e}");
+    let unit = d.path().join("line").join("SN-1");
+    let unit_s = unit.display().to_string();
+    let (code, _, e) = accelcal(&[
+        "station", "--port", "/dev/null", "--head", "manual", "--serial", "SN-1", "--out", &unit_s, "--db", gone,
+        "--gdb", "127.0.0.1:1",
+    ]);
+    assert_eq!(code, Some(3), "{e}");
+    assert!(e.contains(&format!("database {gone} cannot be reached")) && !e.contains("step"), "{e}");
+    // The certificate: stored once; a second is refused.
+    let report = ["report", "--campaign", &c, "--record", &r, "--fit", &f, "--out", &cert, "--db", &spec];
+    let mut a = report.to_vec();
+    a.extend(["--run-id", &run]);
+    let out = ok(&a);
+    assert!(out.contains(&format!("db: run {run}: certificate stored")), "{out}");
+    assert_eq!(count("certificate"), 1);
+    let html = std::fs::read_to_string(&cert).unwrap();
+    assert!(html.contains("First calibration of this unit in the database: no drift yet."), "no drift section");
+    let e = bad(&a);
+    assert!(e.contains(&format!("run {run} holds its certificate already")), "{e}");
+    let e = bad(&report);
+    assert!(e.contains("report --db needs --run-id"), "{e}");
+}

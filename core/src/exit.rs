@@ -170,6 +170,14 @@ mod tests {
             (e(crate::error::Interrupted("stopped".into())), Interrupted),
             (e(crate::verify::Failed { failed: 1, total: 6 }), Rejected),
             (e(crate::station::StationError::NotDeployable("m".into())), Rejected),
+            (
+                e(crate::station::StationError::RejectedBefore {
+                    serial: "s".into(),
+                    run_id: "r".into(),
+                    dir: p(),
+                }),
+                Rejected,
+            ),
             (e(crate::station::StationError::BadJournal { path: p(), reason: "m".into() }), BadInput),
             (
                 e(crate::station::StationError::OtherUnit {

@@ -122,12 +122,22 @@ pub enum StationError {
     /// The selection is not a model the node applies: the unit is rejected.
     #[error("{0}")]
     NotDeployable(String),
+    /// The unit's run ended rejected; its line is closed.
+    #[error("unit {serial} was rejected in run {run_id} (`accelcal history {serial}` says why): its line in {dir} is closed; to try the unit again, start it in a new --out")]
+    RejectedBefore {
+        /// The unit's serial.
+        serial: String,
+        /// The run.
+        run_id: String,
+        /// The unit directory.
+        dir: PathBuf,
+    },
 }
 
 impl Classify for StationError {
     fn kind(&self) -> Kind {
         match self {
-            StationError::NotDeployable(_) => Kind::Rejected,
+            StationError::NotDeployable(_) | StationError::RejectedBefore { .. } => Kind::Rejected,
             _ => Kind::BadInput,
         }
     }
@@ -157,6 +167,12 @@ pub struct Journal {
     pub serial: String,
     /// The node's device id (hex), once `info` has run.
     pub device_id: Option<String>,
+    /// The calibration run in the database (a UUID), once begun.
+    #[serde(default)]
+    pub run_id: Option<String>,
+    /// When the run began, seconds since the Unix epoch.
+    #[serde(default)]
+    pub started_unix_s: Option<i64>,
     /// The finished steps, in order.
     pub steps: Vec<StepRecord>,
 }
@@ -164,7 +180,14 @@ pub struct Journal {
 impl Journal {
     /// A new journal of unit `serial`.
     pub fn new(serial: &str) -> Journal {
-        Journal { version: JOURNAL_VERSION, serial: serial.into(), device_id: None, steps: Vec::new() }
+        Journal {
+            version: JOURNAL_VERSION,
+            serial: serial.into(),
+            device_id: None,
+            run_id: None,
+            started_unix_s: None,
+            steps: Vec::new(),
+        }
     }
 
     /// The journal in `dir` for unit `serial`: a new one when there is none, refused when it is

@@ -97,18 +97,33 @@ pub struct HistoryArgs {
     pub db: Option<String>,
     /// The tolerance T the drift of a coefficient may reach before the unit is recalibrated,
     /// as an acceleration error at 1 g, m/s².
-    #[arg(long = "tolerance-m-s2", value_name = "M_S2", default_value_t = 0.05)]
+    #[arg(long = "tolerance-m-s2", value_name = "M_S2", default_value_t = accelcal_core::db::history::DEFAULT_RULE.tolerance_m_s2)]
     pub tolerance_m_s2: f64,
     /// Coverage factor k on the drift rate's standard error.
-    #[arg(long, value_name = "K", default_value_t = 2.0)]
+    #[arg(long, value_name = "K", default_value_t = accelcal_core::db::history::DEFAULT_RULE.coverage)]
     pub coverage: f64,
     /// The longest recommended interval between calibrations, days (also the interval after a
     /// single calibration).
-    #[arg(long, value_name = "DAYS", default_value_t = 365.0)]
+    #[arg(long, value_name = "DAYS", default_value_t = accelcal_core::db::history::DEFAULT_RULE.max_interval_days)]
     pub max_interval_days: f64,
     /// Write the history as JSON to this file.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
+}
+
+/// Storing a command's result in the calibration database (`fit`, `verify`, `flash`, `report`).
+#[derive(Debug, Args, Clone, Default)]
+pub struct RunArgs {
+    /// Store this command's result in the calibration database: a SQLite file (created when
+    /// missing) or postgres://USER@HOST[:PORT]/DB. Opened before anything else is done, so an
+    /// unreachable database stops the command before it touches the node.
+    #[arg(long, value_name = "FILE|URL")]
+    pub db: Option<String>,
+    /// The calibration run the result belongs to (a UUID, as `fit --db` or `station` print it)
+    /// [with --db; `fit` and `verify` begin a run under this id when the database has none, or
+    /// under a new one when it is not given; `flash` and `report` need an existing run].
+    #[arg(long, value_name = "UUID")]
+    pub run_id: Option<String>,
 }
 
 /// Local gravity from the site instead of `--g`: WGS84 normal gravity with the free-air
@@ -476,6 +491,9 @@ pub struct FitArgs {
     /// Options of --method gravity-norm.
     #[command(flatten)]
     pub gravity: GravityOptions,
+    /// The calibration database.
+    #[command(flatten)]
+    pub run: RunArgs,
 }
 
 /// `accelcal compare`.
@@ -567,6 +585,9 @@ pub struct FlashArgs {
     /// write only this many bytes of its page, then reset the MCU. The old record stays in force.
     #[arg(long, value_name = "BYTES")]
     pub cut_after: Option<usize>,
+    /// The calibration database.
+    #[command(flatten)]
+    pub run: RunArgs,
 }
 
 /// `accelcal record`: the calibration record files.
@@ -807,6 +828,13 @@ pub struct VerifyArgs {
     /// Seconds to wait after setting the chamber before the first position [with --chamber].
     #[arg(long, value_name = "S")]
     pub soak_s: Option<f64>,
+    /// The calibration database.
+    #[command(flatten)]
+    pub run: RunArgs,
+    /// Which verification this is, for --db: `as-found` (with the record the unit came in with,
+    /// before it is changed) or `as-left` (with the new record, after flashing).
+    #[arg(long, value_enum, default_value = "as-left", requires = "db")]
+    pub phase: PhaseArg,
 }
 
 /// `accelcal report`: a unit's calibration certificate.
@@ -831,6 +859,13 @@ pub struct ReportArgs {
     /// The certificate to write (HTML).
     #[arg(long, short, value_name = "FILE")]
     pub out: PathBuf,
+    /// The calibration database.
+    #[command(flatten)]
+    pub run: RunArgs,
+    /// The as-found verification (`verify --json` with the record the unit came in with): the
+    /// certificate shows it next to the as-left one.
+    #[arg(long, value_name = "VERIFY_JSON")]
+    pub as_found: Option<PathBuf>,
 }
 
 /// `accelcal hil`: replay a campaign through the node's QEMU build.
@@ -973,6 +1008,27 @@ pub struct StationArgs {
     /// Debug probe, as VID:PID or VID:PID:SERIAL [without --gdb; default: the first one found].
     #[arg(long, value_name = "SELECTOR")]
     pub probe: Option<String>,
+    /// The calibration database every piece of the run is stored in (the record is flashed
+    /// only once it is stored): a SQLite file, or postgres://USER@HOST[:PORT]/DB for a line of
+    /// several stations [default: the ACCELCAL_DB environment variable, else calibration.sqlite
+    /// in the directory that holds --out].
+    #[arg(long, value_name = "FILE|URL")]
+    pub db: Option<String>,
+    /// The station's name in the database [default: the host name].
+    #[arg(long = "station", value_name = "NAME")]
+    pub station_name: Option<String>,
+    /// Who runs the station, for the database [default: the USER environment variable].
+    #[arg(long, value_name = "NAME")]
+    pub operator: Option<String>,
+}
+
+/// `verify --phase`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum PhaseArg {
+    /// Before the unit is changed, with the record it came in with.
+    AsFound,
+    /// After the new record was flashed.
+    AsLeft,
 }
 
 /// A `--head` value, checked and kept as written (the station passes it on to each step).

@@ -45,6 +45,36 @@ impl<'a> Given<'a> {
     }
 }
 
+/// `--run-id` goes with `--db`; `flash` and `report` store into an existing run, so they need it;
+/// `fit --method gravity-norm` writes no record and no campaign fit.
+fn check_run(command: &Command, given: &Given) -> anyhow::Result<()> {
+    let (run, name) = match command {
+        Command::Fit(a) => (&a.run, "fit"),
+        Command::Verify(a) => (&a.run, "verify"),
+        Command::Flash(a) => (&a.run, "flash"),
+        Command::Report(a) => (&a.run, "report"),
+        _ => return Ok(()),
+    };
+    if run.db.is_none() {
+        return given.refuse(&["run_id"], "a command without --db", " (it names the run stored into)");
+    }
+    if let Some(id) = &run.run_id {
+        accelcal_core::db::RunId::parse(id)?;
+    }
+    match command {
+        Command::Fit(a) if a.method == crate::cli::MethodArg::GravityNorm => {
+            given.refuse(&["db"], "fit --method gravity-norm", " (it stores the campaign's lsq or test-turns fit)")
+        }
+        Command::Flash(a) if a.cut_after.is_some() => {
+            given.refuse(&["db"], "flash --cut-after", " (a fault injection writes no record to keep)")
+        }
+        Command::Flash(_) | Command::Report(_) if run.run_id.is_none() => Err(bad(format!(
+            "{name} --db needs --run-id: the run whose record it writes (begun by `fit --db` or `station`)"
+        ))),
+        _ => Ok(()),
+    }
+}
+
 /// The long flag of a clap id (`device_id` -> `--device-id`).
 fn flag(id: &str) -> String {
     format!("--{}", id.replace('_', "-"))
@@ -114,6 +144,7 @@ fn local_gravity(given: &Given, local: &LocalGravity) -> anyhow::Result<Option<f
 
 /// Checks a parsed command line before anything is read or written.
 pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
+    check_run(command, given)?;
     match command {
         Command::Fit(a) => check_fit(a, given),
         Command::Select(a) => {

@@ -112,6 +112,7 @@ pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
     super::check_t_ref(a.thermal.t_ref_c())?;
     let unit = CampaignId::read(&a.campaign)?;
     let device_id = record_device_id(a, given_id, &unit)?;
+    let mut db = super::store::open(&a.run)?;
     // Streamed: the fits need the dwell statistics only, so memory does not grow with the rows.
     let r = super::reduce_campaign(&a.campaign, a.common.codes, warnings)?;
     let mut pos = r.positions(a.common.g);
@@ -144,17 +145,18 @@ pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
         None => None,
     };
     print_table(method, &fits);
+    let identity = Identity {
+        device_id: device_id.map(|d| device_id_hex(&d)).or(unit.device_id),
+        serial: unit.serial,
+        g_m_s2: a.common.g,
+        campaign_sha256: unit.sha256,
+        record_crc: rec.as_ref().map(|(_, bytes, _)| record_crc_hex(bytes)),
+    };
+    let doc = to_json(method, &fits, a.thermal.t_ref_c(), identity.clone());
     if let Some(j) = &a.common.json {
-        let identity = Identity {
-            device_id: device_id.map(|d| device_id_hex(&d)).or(unit.device_id),
-            serial: unit.serial,
-            g_m_s2: a.common.g,
-            campaign_sha256: unit.sha256,
-            record_crc: rec.as_ref().map(|(_, bytes, _)| record_crc_hex(bytes)),
-        };
-        write_json(j, &to_json(method, &fits, a.thermal.t_ref_c(), identity))?;
+        write_json(j, &doc)?;
     }
-    if let Some((path, bytes, rec)) = rec {
+    if let Some((path, bytes, rec)) = &rec {
         write_atomic(path, &bytes)?;
         println!(
             "record: {} ({} bytes, {} channels, terms {}, device {}, CRC {})",
@@ -163,8 +165,34 @@ pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
             rec.n_channels,
             rec.structure,
             device_id_hex(&rec.device_id),
-            record_crc_hex(&bytes)
+            record_crc_hex(bytes)
         );
+    }
+    if let Some(rdb) = &mut db {
+        let header = accelcal_core::campaign::header(&a.campaign)?;
+        let get = |k: &str| header.iter().find(|(key, _)| key == k).map(|(_, v)| v.clone()).unwrap_or_default();
+        let g_source = if a.common.g_given {
+            "--g / --latitude".to_string()
+        } else {
+            format!("the campaign's `# g_m_s2:` ({})", get("g_source"))
+        };
+        let Some(device_id) = identity.device_id.clone() else {
+            return Err(bad(format!(
+                "fit --db needs the unit's device id: {} has no `# device_id:` line (give --record with --device-id)",
+                a.campaign.display()
+            )));
+        };
+        let run = rdb.begin_or_continue(super::store::Begin {
+            device_id,
+            serial: identity.serial.clone().unwrap_or_default(),
+            head: String::new(),
+            firmware_version: get("firmware"),
+            g: (a.common.g, g_source),
+        })?;
+        let json = serde_json::to_string_pretty(&doc).context("serialising the fit")?;
+        let bytes = rec.as_ref().map(|(_, b, _)| b.as_slice());
+        super::store::fit_pieces(&mut rdb.db, run, &a.campaign, &json, bytes)?;
+        println!("db: run {run}: campaign, fit{} stored in {}", if bytes.is_some() { " and record" } else { "" }, rdb.db.target());
     }
     Ok(())
 }

@@ -245,7 +245,7 @@ fn g_source(g: Option<f64>, local: &crate::cli::LocalGravity) -> (f64, String) {
     (g, source)
 }
 
-fn g_and_source(g: Option<f64>, local: &crate::cli::LocalGravity) -> (f64, String, bool) {
+pub fn g_and_source(g: Option<f64>, local: &crate::cli::LocalGravity) -> (f64, String, bool) {
     match (g, local.latitude) {
         (Some(g), Some(lat)) => (
             g,
@@ -402,9 +402,11 @@ pub fn run_verify(a: &VerifyArgs) -> anyhow::Result<()> {
         (None, Some((what, id))) => (id.g_m_s2, format!("the fit's, {what}")),
         _ => g_source(a.g, &a.local),
     };
+    let mut db = super::store::open(&a.run)?;
     let stop = stop_flag()?;
     let mut node = open(&a.link)?;
     let mut head = connect_head(&a.head, &stop)?;
+    let serial = fit.as_ref().and_then(|(_, id)| id.serial.clone()).unwrap_or_default();
     let cfg = VerifyConfig {
         plan,
         samples: a.samples,
@@ -419,6 +421,18 @@ pub fn run_verify(a: &VerifyArgs) -> anyhow::Result<()> {
     let report = verify(&mut node, head.as_mut(), &cfg, &mut |c, n| println!("{}", check_line(c, n)), &stop)?;
     if let Some(p) = &a.json {
         write_json(p, &report)?;
+    }
+    if let (Some(rdb), false) = (&mut db, report.interrupted) {
+        let run = rdb.begin_or_continue(super::store::Begin {
+            device_id: report.device_id.clone(),
+            serial,
+            head: super::store::head_text(&a.head),
+            firmware_version: String::new(),
+            g: (g, g_source.clone()),
+        })?;
+        let phase = super::store::phase(a.phase);
+        rdb.db.store_verification(run, phase, &report)?;
+        println!("db: run {run}: {} verification stored in {}", super::store::phase_name(phase), rdb.db.target());
     }
     if report.interrupted {
         return Err(anyhow::Error::new(Interrupted(format!(

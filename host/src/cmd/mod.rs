@@ -16,6 +16,7 @@ pub mod report;
 pub mod select;
 pub mod simulate;
 pub mod station;
+pub mod store;
 
 use crate::cli::{Cli, Command};
 

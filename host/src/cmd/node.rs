@@ -21,6 +21,13 @@ pub fn run_flash(a: &FlashArgs) -> anyhow::Result<()> {
     let rec = accelcal_shared::record::Record::parse(&record)
         .map_err(|e| bad(format!("{}: {e}", a.record.display())))?;
     accelcal_core::calibrate::gate(&a.record, &rec)?;
+    // With --db, what is written is the run's stored record (the file must be it).
+    let mut db = super::store::open(&a.run)?;
+    let stored = match &mut db {
+        Some(rdb) => Some(super::store::record_to_flash(rdb, &a.record, &record)?),
+        None => None,
+    };
+    let record = stored.as_ref().map_or(record.clone(), |s| s.bytes().to_vec());
     let answer = std::time::Duration::from_secs(10);
     let node_id = match (&a.gdb, &a.port) {
         (Some(_), Some(port)) => Some(Session::open(port, a.baud, answer)?.info()?.device_id),
@@ -52,6 +59,10 @@ pub fn run_flash(a: &FlashArgs) -> anyhow::Result<()> {
     if let Some(port) = &a.port {
         let crc = u32::from_le_bytes(record[rec.len() - 4..rec.len()].try_into().expect("4 bytes"));
         confirm(port, a.baud, slot, sequence, crc)?;
+    }
+    if let (Some(rdb), Some(rec)) = (&mut db, &stored) {
+        rdb.db.record_flashed(rec)?;
+        println!("db: run {}: flash of record CRC {:08x} stored in {}", rec.run_id(), rec.crc32(), rdb.db.target());
     }
     Ok(())
 }

@@ -47,6 +47,8 @@ struct Unit {
     fit_id: Identity,
     /// The verification, when given.
     verify: Option<VerifyReport>,
+    /// The as-found verification (with the record the unit came in with), when given.
+    as_found: Option<VerifyReport>,
 }
 
 impl Unit {
@@ -113,7 +115,18 @@ fn read_unit(a: &ReportArgs) -> anyhow::Result<Unit> {
         }
         None => None,
     };
-    Ok(Unit { header, rec, crc, device_id, fit, fit_id, verify })
+    let as_found = match &a.as_found {
+        Some(p) => {
+            let v_name = p.display().to_string();
+            let text = std::fs::read_to_string(p).map_err(|e| bad(format!("{v_name}: cannot read: {e}")))?;
+            let v: VerifyReport = serde_json::from_str(&text)
+                .map_err(|e| bad(format!("{v_name}: not `accelcal verify --json` output: {e}")))?;
+            same("device id", (&v_name, &v.device_id), (&r_name, &device_id), "not the same unit")?;
+            Some(v)
+        }
+        None => None,
+    };
+    Ok(Unit { header, rec, crc, device_id, fit, fit_id, verify, as_found })
 }
 
 /// Refuses two gravities that differ (beyond the last digits of a round trip through text): the
@@ -135,7 +148,35 @@ fn same_g((a, ga): (&str, f64), (b, gb): (&str, f64)) -> anyhow::Result<()> {
 
 /// Runs `accelcal report`.
 pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
-    let u = read_unit(a)?;
+    let mut u = read_unit(a)?;
+    let mut db = super::store::open(&a.run)?;
+    let run = match &mut db {
+        Some(rdb) => Some(rdb.existing("report")?),
+        None => None,
+    };
+    if let Some((run, p)) = &run {
+        if !p.start.device_id.eq_ignore_ascii_case(&u.device_id) {
+            return Err(bad(format!(
+                "--run-id {run} is a run of device {}, not of the record's device {}",
+                p.start.device_id, u.device_id
+            )));
+        }
+        if p.certificate {
+            return Err(bad(format!("run {run} holds its certificate already (a run has one certificate)")));
+        }
+    }
+    // The unit's calibrations before this run, and this run as the next one (it ends `pass`
+    // when its certificate is issued): the drift since the last calibration.
+    let since_last = match (&mut db, &run) {
+        (Some(rdb), Some((run, _))) => {
+            let mut runs = rdb.db.unit_runs(&u.device_id)?;
+            if u.as_found.is_none() {
+                u.as_found = runs.iter().find(|r| r.start.run_id == *run).and_then(|r| r.as_found.clone());
+            }
+            Some(since_last_calibration(&mut runs, *run))
+        }
+        _ => None,
+    };
     let (rec, device_id, crc) = (&u.rec, &u.device_id, &u.crc);
     let g = u.fit_id.g_m_s2;
     // The g's origin: the campaign's, when the fit used it, else the fit's own --g/--latitude.
@@ -242,8 +283,14 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
         let _ = write!(h, "<tr><th class=\"l\">{k}</th><td class=\"l\">{v}</td></tr>");
     }
     h.push_str("</table>");
+    if let Some(v) = &u.as_found {
+        h.push_str(&as_found(v));
+    }
     if let Some(v) = &u.verify {
         h.push_str(&verification(v, temp.as_deref().unwrap_or_default())?);
+    }
+    if let Some(d) = &since_last {
+        h.push_str(&drift_since_last(d));
     }
     h.push_str(&coefficients(rec, &u.fit, method)?);
     h.push_str(&structure(&sel, rec, &u.fit));
@@ -254,7 +301,82 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
         "report: certificate of unit {serial} (device {device_id}, record CRC {crc}) written to {}",
         a.out.display()
     );
+    if let (Some(rdb), Some((run, _))) = (&mut db, &run) {
+        rdb.db.store_certificate(*run, &h)?;
+        println!("db: run {run}: certificate stored in {}", rdb.db.target());
+    }
     Ok(())
+}
+
+/// The unit's history with run `run` counted as its latest calibration.
+fn since_last_calibration(
+    runs: &mut [accelcal_core::db::RunSummary],
+    run: accelcal_core::db::RunId,
+) -> accelcal_core::db::history::History {
+    use accelcal_core::db::Outcome;
+    for r in runs.iter_mut().filter(|r| r.start.run_id == run && r.end.is_none()) {
+        r.end = Some((Outcome::Pass, "this certificate".into(), super::store::now_unix_s()));
+    }
+    accelcal_core::db::history::history(runs, accelcal_core::db::history::DEFAULT_RULE)
+}
+
+/// The as-found verification in brief: the record the unit came in with, passed or not.
+fn as_found(v: &VerifyReport) -> String {
+    let failed = v.positions.iter().filter(|p| !p.pass).count();
+    let max = v.positions.iter().flat_map(|p| p.error_m_s2).fold(0.0f64, |m, e| m.max(e.abs()));
+    let crc = v.record["crc"].as_str().unwrap_or("(none)");
+    let verdict = if v.pass {
+        format!("<span class=\"pass\">PASS</span>: every one of {} positions within its tolerance", v.positions.len())
+    } else {
+        format!("<span class=\"fail\">FAIL</span>: {failed} of {} positions outside tolerance", v.positions.len())
+    };
+    format!(
+        "<h2>As found (before recalibration), with the record in force then (CRC {})</h2><p>{verdict}; largest error {:.5} m/s²; pass: {}</p>",
+        esc(crc),
+        max,
+        esc(&v.tolerance_rule)
+    )
+}
+
+/// The drift of the coefficients since the unit's last calibration, and the recommended
+/// recalibration date.
+fn drift_since_last(h: &accelcal_core::db::history::History) -> String {
+    let mut s = String::new();
+    let last = h.drifts.last().filter(|d| Some(d.to) == h.runs.iter().filter_map(|r| r.calibration).max());
+    match last {
+        Some(d) => {
+            let _ = write!(
+                s,
+                "<h2>Drift since the last calibration ({:.0} days ago): change of each coefficient as an error at 1 g, m/s² &plusmn; standard uncertainty</h2><table><tr><th class=\"l\">channel</th><th>bias</th><th>ax</th><th>ay</th><th>az</th></tr>",
+                d.days
+            );
+            for ch in ["x", "y", "z"] {
+                let _ = write!(s, "<tr><td class=\"l\">{ch}</td>");
+                for t in d.terms.iter().filter(|t| t.channel == ch) {
+                    let _ = write!(
+                        s,
+                        "<td>{} &plusmn; {}</td>",
+                        crate::report::sig(t.delta_m_s2, 3),
+                        crate::report::sig(t.sigma_m_s2, 2)
+                    );
+                }
+                s.push_str("</tr>");
+            }
+            s.push_str("</table>");
+        }
+        None => s.push_str("<h2>Drift since the last calibration</h2><p>First calibration of this unit in the database: no drift yet.</p>"),
+    }
+    let rc = &h.recalibration;
+    let due = rc.due_unix_s.map_or("-".to_string(), |t| super::record::utc(t.max(0) as u64)[..10].to_string());
+    let _ = write!(
+        s,
+        "<p>Recommended recalibration by <b>{due}</b>: {} (tolerance {} m/s² at 1 g, k = {}, at most {} days; method in <code>accelcal history --help</code>).</p>",
+        esc(&rc.basis),
+        rc.rule.tolerance_m_s2,
+        rc.rule.coverage,
+        rc.rule.max_interval_days
+    );
+    s
 }
 
 /// The method's short label.
@@ -291,7 +413,7 @@ fn verification(v: &VerifyReport, temp: &str) -> anyhow::Result<String> {
     let mut h = String::new();
     let _ = write!(
         h,
-        "<h2>Verification on the head after flashing, {}: error of the calibrated output, m/s²</h2><p class=\"small\">Pass: {}</p><div class=\"cols\"><div class=\"wide\"><table><tr><th>pos.</th><th>&alpha;, &beta; (deg)</th><th>error x</th><th>error y</th><th>error z</th><th>tol. x</th><th>tol. y</th><th>tol. z</th><th></th></tr>",
+        "<h2>As left: verification on the head after flashing, {}: error of the calibrated output, m/s²</h2><p class=\"small\">Pass: {}</p><div class=\"cols\"><div class=\"wide\"><table><tr><th>pos.</th><th>&alpha;, &beta; (deg)</th><th>error x</th><th>error y</th><th>error z</th><th>tol. x</th><th>tol. y</th><th>tol. z</th><th></th></tr>",
         esc(temp),
         esc(&v.tolerance_rule)
     );

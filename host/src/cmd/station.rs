@@ -14,9 +14,10 @@ use std::process::Command;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
+use accelcal_core::db::{Db, Outcome, Phase, RunId, RunStart, StoredRecord, DB_ENV};
 use accelcal_core::error::{bad, environment, Interrupted};
 use accelcal_core::output::write_json;
-use accelcal_core::station::{deployable, sha256_file, Journal, Step, StepRecord, JOURNAL};
+use accelcal_core::station::{deployable, sha256_file, Journal, StationError, Step, StepRecord, JOURNAL};
 use accelcal_core::verify::Failed;
 use anyhow::Context;
 
@@ -41,6 +42,28 @@ struct Station<'a> {
     dir: &'a Path,
     journal: Journal,
     stop: Arc<AtomicBool>,
+    /// The calibration database, and its spec as given (the children open it too).
+    db: Db,
+    db_spec: String,
+    /// The run, once begun.
+    run: Option<RunId>,
+    /// The record as stored: the only one the flash step writes.
+    record: Option<StoredRecord>,
+    /// The run ended `pass` (a finished unit run again: its steps are checked, nothing stored).
+    ended: bool,
+}
+
+/// The station's database: `--db`, else `ACCELCAL_DB`, else `calibration.sqlite` beside the
+/// unit's directory (every unit of a line in one file).
+pub fn db_spec(a: &StationArgs) -> String {
+    if let Some(s) = &a.db {
+        return s.clone();
+    }
+    if let Some(s) = std::env::var(DB_ENV).ok().filter(|s| !s.trim().is_empty()) {
+        return s;
+    }
+    let parent = a.out.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    parent.join("calibration.sqlite").display().to_string()
 }
 
 /// How a child ended.
@@ -104,6 +127,18 @@ impl Station<'_> {
         v
     }
 
+    /// `--db SPEC --run-id R` for a step that stores its own piece.
+    fn db_args(&self) -> anyhow::Result<Vec<String>> {
+        let run = self.run.context("no run: step info has not run")?;
+        Ok(vec!["--db".into(), self.db_spec.clone(), "--run-id".into(), run.to_string()])
+    }
+
+    /// A command line as the journal keeps it: the database without its password.
+    fn journalled(&self, args: &[String]) -> Vec<String> {
+        let target = self.db.target();
+        args.iter().map(|a| if *a == self.db_spec { target.clone() } else { a.clone() }).collect()
+    }
+
     /// Runs `accelcal ARGS` as step `step`; `Failed` on exit code 1, an error on anything but 0.
     fn run(&self, step: Step, args: &[String]) -> anyhow::Result<Exit> {
         let n = Step::ALL.iter().position(|s| *s == step).unwrap_or(0) + 1;
@@ -117,7 +152,12 @@ impl Station<'_> {
         if self.stop.load(Ordering::Relaxed) {
             return Err(stopped());
         }
-        eprintln!("station: step {n}/{} {}: accelcal {}", Step::ALL.len(), step.name(), args.join(" "));
+        eprintln!(
+            "station: step {n}/{} {}: accelcal {}",
+            Step::ALL.len(),
+            step.name(),
+            self.journalled(args).join(" ")
+        );
         let exe = std::env::current_exe().context("finding the accelcal executable")?;
         let status = Command::new(exe)
             .args(args)
@@ -156,6 +196,7 @@ impl Station<'_> {
             .collect::<anyhow::Result<_>>()?;
         let finished = super::record::utc(super::created(None));
         eprintln!("station: {} {outcome}", step.name());
+        let command = self.journalled(&command);
         self.journal.finish(StepRecord { step, command, finished, outcome, outputs });
         write_json(&self.path(JOURNAL), &self.journal)
     }
@@ -204,12 +245,84 @@ impl Station<'_> {
             None => "no record in force".into(),
         };
         self.finish(Step::Info, args, format!("device {device}, {record}"), &[INFO])?;
+        self.begin(&info, &device)?;
         Ok(info)
+    }
+
+    /// Begins the run in the database (the journal keeps its id and time: the same run on a
+    /// resume), or refuses one that has ended.
+    fn begin(&mut self, info: &serde_json::Value, device: &str) -> anyhow::Result<()> {
+        let run = match &self.journal.run_id {
+            Some(r) => RunId::parse(r)?,
+            None => RunId::new(),
+        };
+        let started = *self.journal.started_unix_s.get_or_insert_with(super::store::now_unix_s);
+        let (g, g_source, _) = super::live::g_and_source(self.a.g, &self.a.local);
+        let start = RunStart {
+            run_id: run,
+            device_id: device.to_string(),
+            serial: self.a.serial.clone(),
+            station: self.a.station_name.clone().unwrap_or_else(super::store::host_name),
+            head: self.a.head.clone(),
+            operator: self.a.operator.clone().unwrap_or_else(super::store::user_name),
+            started_unix_s: started,
+            software_version: env!("CARGO_PKG_VERSION").into(),
+            firmware_version: info["firmware"].as_str().unwrap_or_default().to_string(),
+            g_m_s2: g,
+            g_source,
+        };
+        let new = self.db.begin_run(&start)? == accelcal_core::db::Stored::New;
+        let p = self.db.progress(run)?;
+        if p.outcome == Some(Outcome::Rejected) {
+            return Err(StationError::RejectedBefore {
+                serial: self.a.serial.clone(),
+                run_id: run.to_string(),
+                dir: self.dir.to_path_buf(),
+            }
+            .into());
+        }
+        self.ended = p.outcome.is_some();
+        self.record = p.record;
+        self.run = Some(run);
+        self.journal.run_id = Some(run.to_string());
+        write_json(&self.path(JOURNAL), &self.journal)?;
+        eprintln!(
+            "station: run {run} {} in {}",
+            if new { "begun" } else { "continued" },
+            self.db.target()
+        );
+        Ok(())
+    }
+
+    fn run_id(&self) -> anyhow::Result<RunId> {
+        self.run.context("no run: step info has not run")
+    }
+
+    /// Ends the run rejected, and returns the rejection.
+    fn reject(&mut self, e: anyhow::Error) -> anyhow::Error {
+        let run = match self.run_id() {
+            Ok(r) => r,
+            Err(e2) => return e2,
+        };
+        match self.db.finish_run(run, Outcome::Rejected, &format!("{e:#}")) {
+            Ok(_) => e,
+            Err(db) => anyhow::Error::new(db).context(format!("storing the rejection ({e:#})")),
+        }
     }
 
     /// Step `as-found`: the record in force, verified before anything changes. Its failure is
     /// the as-found result, not the station's.
     fn as_found(&mut self, info: &serde_json::Value) -> anyhow::Result<()> {
+        self.as_found_step(info)?;
+        if self.path(AS_FOUND).is_file() {
+            let run = self.run_id()?;
+            let path = self.path(AS_FOUND);
+            super::store::verification(&mut self.db, run, Phase::AsFound, &path)?;
+        }
+        Ok(())
+    }
+
+    fn as_found_step(&mut self, info: &serde_json::Value) -> anyhow::Result<()> {
         if self.done(Step::AsFound)? {
             return Ok(());
         }
@@ -228,6 +341,13 @@ impl Station<'_> {
     }
 
     fn acquire(&mut self) -> anyhow::Result<()> {
+        self.acquire_step()?;
+        let bytes = std::fs::read(self.path(CAMPAIGN)).with_context(|| self.p(CAMPAIGN))?;
+        self.db.store_campaign(self.run_id()?, &bytes)?;
+        Ok(())
+    }
+
+    fn acquire_step(&mut self) -> anyhow::Result<()> {
         if self.done(Step::Acquire)? {
             return Ok(());
         }
@@ -267,12 +387,24 @@ impl Station<'_> {
         }
         let text = std::fs::read_to_string(self.path(SELECT)).with_context(|| self.p(SELECT))?;
         let doc: serde_json::Value = serde_json::from_str(&text).with_context(|| self.p(SELECT))?;
-        // Not journalled when rejected: the same command again selects again, and rejects again.
-        deployable(&doc)?;
+        // Not journalled when rejected: the run ends rejected.
+        if let Err(e) = deployable(&doc) {
+            return Err(self.reject(e.into()));
+        }
         self.finish(Step::Select, args, "model 4 deployable on every channel".into(), &[SELECT])
     }
 
     fn fit(&mut self) -> anyhow::Result<()> {
+        self.fit_step()?;
+        let fit = std::fs::read_to_string(self.path(FIT)).with_context(|| self.p(FIT))?;
+        let record = std::fs::read(self.path(RECORD)).with_context(|| self.p(RECORD))?;
+        let run = self.run_id()?;
+        self.db.store_fit(run, &fit)?;
+        self.record = Some(self.db.store_record(run, &record)?);
+        Ok(())
+    }
+
+    fn fit_step(&mut self) -> anyhow::Result<()> {
         if self.done(Step::Fit)? {
             return Ok(());
         }
@@ -297,8 +429,22 @@ impl Station<'_> {
         if self.done(Step::Flash)? {
             return Ok(());
         }
+        // The record flashed is the stored one: the file must be it (the flash step, given the
+        // database, writes the stored bytes and notes the flash there).
+        let file = std::fs::read(self.path(RECORD)).with_context(|| self.p(RECORD))?;
+        match &self.record {
+            Some(r) if r.bytes() == file.as_slice() => {}
+            _ => {
+                return Err(bad(format!(
+                    "{} is not the record stored for run {}: nothing is flashed",
+                    self.p(RECORD),
+                    self.run_id()?
+                )))
+            }
+        }
         let a = self.a;
         let mut args = vec!["flash".to_string(), self.p(RECORD)];
+        args.extend(self.db_args()?);
         match &a.gdb {
             Some(g) => args.extend(["--gdb".into(), g.clone()]),
             None => {
@@ -325,8 +471,15 @@ impl Station<'_> {
         let _ = std::fs::remove_file(self.path(AS_LEFT));
         let args = self.verify_args(AS_LEFT, Some(self.p(FIT)));
         self.run(Step::AsLeft, &args)?;
-        // Not journalled when rejected: the same command again verifies again.
-        let n = self.verdict(AS_LEFT)??;
+        let verdict = self.verdict(AS_LEFT)?;
+        // Stored pass or fail; a failure ends the run rejected.
+        let run = self.run_id()?;
+        let path = self.path(AS_LEFT);
+        super::store::verification(&mut self.db, run, Phase::AsLeft, &path)?;
+        let n = match verdict {
+            Ok(n) => n,
+            Err(f) => return Err(self.reject(anyhow::Error::new(f).context("as-left verification"))),
+        };
         self.finish(Step::AsLeft, args, format!("PASS ({n} positions)"), &[AS_LEFT])
     }
 
@@ -334,7 +487,12 @@ impl Station<'_> {
         if self.done(Step::Certificate)? {
             return Ok(());
         }
-        let args: Vec<String> = vec![
+        let run = self.run_id()?;
+        if self.db.progress(run)?.certificate {
+            // Stored by the report step before a crash (it writes the file first).
+            return self.finish(Step::Certificate, vec![], "written (stored before the stop)".into(), &[CERTIFICATE]);
+        }
+        let mut args: Vec<String> = vec![
             "report".into(),
             "--campaign".into(),
             self.p(CAMPAIGN),
@@ -347,6 +505,10 @@ impl Station<'_> {
             "--out".into(),
             self.p(CERTIFICATE),
         ];
+        if self.path(AS_FOUND).is_file() {
+            args.extend(["--as-found".into(), self.p(AS_FOUND)]);
+        }
+        args.extend(self.db_args()?);
         if let Exit::Failed = self.run(Step::Certificate, &args)? {
             return Err(anyhow::anyhow!("step certificate failed (its error is above)"));
         }
@@ -357,12 +519,37 @@ impl Station<'_> {
 /// Runs `accelcal station`.
 pub fn run(a: &StationArgs) -> anyhow::Result<()> {
     let dir = a.out.as_path();
-    std::fs::create_dir_all(dir).map_err(|e| environment(format!("creating {}", dir.display()), e))?;
     let journal = Journal::open(dir, &a.serial)?;
+    std::fs::create_dir_all(dir).map_err(|e| environment(format!("creating {}", dir.display()), e))?;
+    // Opened before the node is touched: an unreachable database stops the station there.
+    let db_spec = db_spec(a);
+    let db = Db::open(&db_spec)?;
     // Ctrl-C goes to the step (same process group); the station waits for it to stop cleanly.
     let stop = super::live::stop_flag()?;
-    let mut s = Station { a, dir, journal, stop };
+    let mut s = Station { a, dir, journal, stop, db, db_spec, run: None, record: None, ended: false };
     let info = s.info()?;
+    if s.ended {
+        // A unit that passed, run again: its files must still be as the steps wrote them.
+        for step in Step::ALL.into_iter().skip(1) {
+            if !s.done(step)? {
+                return Err(bad(format!(
+                    "run {} ended pass in {}, but {} has no step {}: the journal does not match the database",
+                    s.run_id()?,
+                    s.db.target(),
+                    s.p(JOURNAL),
+                    step.name()
+                )));
+            }
+        }
+        println!(
+            "station: unit {} (device {}) PASS, finished before (run {} in {}); nothing to do",
+            a.serial,
+            s.journal.device_id.as_deref().unwrap_or("?"),
+            s.run_id()?,
+            s.db.target()
+        );
+        return Ok(());
+    }
     s.as_found(&info)?;
     s.acquire()?;
     s.select()?;
@@ -370,12 +557,15 @@ pub fn run(a: &StationArgs) -> anyhow::Result<()> {
     s.flash()?;
     s.as_left()?;
     s.certificate()?;
+    let run = s.run_id()?;
+    s.db.finish_run(run, Outcome::Pass, "as-left verification passed; certificate issued")?;
     println!(
-        "station: unit {} (device {}) PASS; certificate {}; journal {}",
+        "station: unit {} (device {}) PASS; certificate {}; journal {}; run {run} stored in {}",
         a.serial,
         s.journal.device_id.as_deref().unwrap_or("?"),
         s.p(CERTIFICATE),
-        s.p(JOURNAL)
+        s.p(JOURNAL),
+        s.db.target()
     );
     Ok(())
 }

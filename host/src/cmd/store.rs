@@ -1,0 +1,180 @@
+//! `--db`: a command's result into the calibration database ([`accelcal_core::db`]), for `fit`,
+//! `verify`, `flash`, `report` and the station.
+//!
+//! The database is opened (connected, migrated) before the command does anything else, so an
+//! unreachable database stops it before it touches a node or writes a file. Each piece is stored
+//! after the command's own output is complete; storing it again is a no-op
+//! ([`Stored::Already`]), so a command run again after a crash stores nothing twice.
+
+use std::path::Path;
+
+use accelcal_core::db::{Db, Phase, Progress, RunId, RunStart, Stored, StoredRecord};
+use accelcal_core::error::bad;
+use accelcal_core::verify::VerifyReport;
+
+use crate::cli::{PhaseArg, RunArgs};
+
+/// An open database and the run `--run-id` names.
+pub struct RunDb {
+    /// The database.
+    pub db: Db,
+    /// `--run-id`, parsed.
+    pub run: Option<RunId>,
+}
+
+/// Opens `--db` when given (`--run-id` parsed first: a bad id opens nothing).
+pub fn open(a: &RunArgs) -> anyhow::Result<Option<RunDb>> {
+    let Some(spec) = &a.db else { return Ok(None) };
+    let run = a.run_id.as_deref().map(RunId::parse).transpose()?;
+    let db = Db::open(spec)?;
+    Ok(Some(RunDb { db, run }))
+}
+
+/// What a command that may begin a run knows about it.
+pub struct Begin {
+    /// The unit's device id (24 hex digits).
+    pub device_id: String,
+    /// The unit's serial (empty: not known).
+    pub serial: String,
+    /// The head.
+    pub head: String,
+    /// The node's firmware version (empty: not asked).
+    pub firmware_version: String,
+    /// g, m/s², and where it came from.
+    pub g: (f64, String),
+}
+
+/// The station's name: the host name.
+pub fn host_name() -> String {
+    whoami::hostname().unwrap_or_else(|_| "unknown".into())
+}
+
+/// The operator: the account running the command.
+pub fn user_name() -> String {
+    whoami::username().unwrap_or_else(|_| "unknown".into())
+}
+
+/// Seconds since the Unix epoch.
+pub fn now_unix_s() -> i64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_secs() as i64)
+        .unwrap_or(0)
+}
+
+impl RunDb {
+    /// The run `--run-id` names when the database holds it (its device must be `device_id`),
+    /// else a run begun now under `--run-id` or a new id. Says which on stderr.
+    pub fn begin_or_continue(&mut self, b: Begin) -> anyhow::Result<RunId> {
+        if let Some(run) = self.run {
+            if let Some(p) = self.progress_if_any(run)? {
+                if !p.start.device_id.eq_ignore_ascii_case(&b.device_id) {
+                    return Err(bad(format!(
+                        "--run-id {run} is a run of device {}, not of this unit's device {}",
+                        p.start.device_id, b.device_id
+                    )));
+                }
+                eprintln!("db: run {run} in {}", self.db.target());
+                return Ok(run);
+            }
+        }
+        let run = self.run.unwrap_or_default();
+        let start = RunStart {
+            run_id: run,
+            device_id: b.device_id,
+            serial: b.serial,
+            station: host_name(),
+            head: b.head,
+            operator: user_name(),
+            started_unix_s: now_unix_s(),
+            software_version: env!("CARGO_PKG_VERSION").into(),
+            firmware_version: b.firmware_version,
+            g_m_s2: b.g.0,
+            g_source: b.g.1,
+        };
+        self.db.begin_run(&start)?;
+        self.run = Some(run);
+        eprintln!("db: run {run} begun in {} (give --run-id {run} to the line's next commands)", self.db.target());
+        Ok(run)
+    }
+
+    /// The run `--run-id` names, which must be in the database (`command` says who needs it).
+    pub fn existing(&mut self, command: &str) -> anyhow::Result<(RunId, Progress)> {
+        let run = self.run.ok_or_else(|| {
+            bad(format!(
+                "{command} --db needs --run-id: the run this belongs to (begun by `fit --db`, `verify --db` or `station`)"
+            ))
+        })?;
+        Ok((run, self.db.progress(run)?))
+    }
+
+    fn progress_if_any(&mut self, run: RunId) -> anyhow::Result<Option<Progress>> {
+        match self.db.progress(run) {
+            Ok(p) => Ok(Some(p)),
+            Err(accelcal_core::db::DbError::NoRun { .. }) => Ok(None),
+            Err(e) => Err(e.into()),
+        }
+    }
+}
+
+/// The verification phase of `--phase`.
+pub fn phase(p: PhaseArg) -> Phase {
+    match p {
+        PhaseArg::AsFound => Phase::AsFound,
+        PhaseArg::AsLeft => Phase::AsLeft,
+    }
+}
+
+/// The verification's name in messages.
+pub fn phase_name(p: Phase) -> &'static str {
+    match p {
+        Phase::AsFound => "as-found",
+        Phase::AsLeft => "as-left",
+    }
+}
+
+/// A head as the command line names it.
+pub fn head_text(h: &accelcal_core::node::head::HeadSpec) -> String {
+    match h {
+        accelcal_core::node::head::HeadSpec::Manual => "manual".into(),
+        accelcal_core::node::head::HeadSpec::Sim(addr) => format!("sim:{addr}"),
+    }
+}
+
+/// Stores a verification, read back from its JSON file (what `verify --json` wrote).
+pub fn verification(db: &mut Db, run: RunId, phase: Phase, json: &Path) -> anyhow::Result<Stored> {
+    let text = std::fs::read_to_string(json).map_err(|e| bad(format!("{}: {e}", json.display())))?;
+    let report: VerifyReport = serde_json::from_str(&text)
+        .map_err(|e| bad(format!("{}: not a `verify --json` report: {e}", json.display())))?;
+    Ok(db.store_verification(run, phase, &report)?)
+}
+
+/// Stores a fit's pieces: the campaign file, the fit JSON and, when written, the record.
+pub fn fit_pieces(
+    db: &mut Db,
+    run: RunId,
+    campaign: &Path,
+    fit_json: &str,
+    record: Option<&[u8]>,
+) -> anyhow::Result<Option<StoredRecord>> {
+    let bytes = std::fs::read(campaign).map_err(|e| bad(format!("{}: {e}", campaign.display())))?;
+    db.store_campaign(run, &bytes)?;
+    db.store_fit(run, fit_json)?;
+    Ok(record.map(|r| db.store_record(run, r)).transpose()?)
+}
+
+/// The record `flash --db` may write: the one the run holds, which must be the file's; a run
+/// without a record stores the file's first (a unit is never flashed with a record that is not
+/// stored).
+pub fn record_to_flash(rdb: &mut RunDb, file: &Path, bytes: &[u8]) -> anyhow::Result<StoredRecord> {
+    let (run, p) = rdb.existing("flash")?;
+    match p.record {
+        Some(stored) if stored.bytes() == bytes => Ok(stored),
+        Some(stored) => Err(bad(format!(
+            "{} is not the record run {run} stored (CRC {:08x}): flash the stored one, or give the run it belongs to",
+            file.display(),
+            stored.crc32()
+        ))),
+        None => Ok(rdb.db.store_record(run, bytes)?),
+    }
+}
