@@ -973,6 +973,19 @@ fn files(dir: &Path) -> std::collections::BTreeMap<PathBuf, Vec<u8>> {
 /// at another g; other names outputs in the same directory) that are refused, and what the one
 /// error line must say.
 const REFUSED: &[(&str, &str)] = &[
+    (
+        "fit C --run-id 7c9e6679-7425-40de-944b-e07fc1f90ae7",
+        "--run-id does not apply to a command without --db (it names the run stored into)",
+    ),
+    (
+        "fit R --method gravity-norm --db cal.sqlite",
+        "--db does not apply to fit --method gravity-norm (it stores the campaign's lsq or test-turns fit)",
+    ),
+    ("flash x.rec --db cal.sqlite --gdb 127.0.0.1:1", "flash --db needs --run-id"),
+    (
+        "report --campaign C --record x.rec --fit f.json --out c.html --db cal.sqlite",
+        "report --db needs --run-id",
+    ),
     ("fit R --method gravity-norm --record x.rec", "fit --record needs --device-id HEX"),
     (
         "fit R --method gravity-norm --device-id 00112233445566778899aabb",

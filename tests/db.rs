@@ -308,8 +308,19 @@ fn commands_given_db_store_their_pieces_and_an_unreachable_database_stops_them_f
     let unit = d.path().join("line").join("SN-1");
     let unit_s = unit.display().to_string();
     let (code, _, e) = accelcal(&[
-        "station", "--port", "/dev/null", "--head", "manual", "--serial", "SN-1", "--out", &unit_s, "--db", gone,
-        "--gdb", "127.0.0.1:1",
+        "station",
+        "--port",
+        "/dev/null",
+        "--head",
+        "manual",
+        "--serial",
+        "SN-1",
+        "--out",
+        &unit_s,
+        "--db",
+        gone,
+        "--gdb",
+        "127.0.0.1:1",
     ]);
     assert_eq!(code, Some(3), "{e}");
     assert!(e.contains(&format!("database {gone} cannot be reached")) && !e.contains("step"), "{e}");
@@ -321,7 +332,10 @@ fn commands_given_db_store_their_pieces_and_an_unreachable_database_stops_them_f
     assert!(out.contains(&format!("db: run {run}: certificate stored")), "{out}");
     assert_eq!(count("certificate"), 1);
     let html = std::fs::read_to_string(&cert).unwrap();
-    assert!(html.contains("First calibration of this unit in the database: no drift yet."), "no drift section");
+    assert!(
+        html.contains("First calibration of this unit in the database: no drift yet."),
+        "no drift section"
+    );
     let e = bad(&a);
     assert!(e.contains(&format!("run {run} holds its certificate already")), "{e}");
     let e = bad(&report);

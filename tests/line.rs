@@ -802,8 +802,15 @@ fn the_station_runs_the_line_journals_it_and_resumes_after_ctrl_c() {
     let crc = json(&a.join("as-left.json"))["record"]["crc"].as_str().unwrap().to_string();
     assert_runs_record(&em, &a.join("info.json"), &crc);
 
+    // The run is in the database beside the units' directories.
+    let db = dir.path().join("calibration.sqlite");
+    let run_a = json(&a.join("station.json"))["run_id"].as_str().unwrap().to_string();
+    assert!(text.contains(&format!("run {run_a} stored in {}", db.display())), "{text}");
+
     // Again: nothing is repeated but `info` (the node must still be the unit's).
-    let err = String::from_utf8_lossy(&succeed(&station_args(&em, "A-1", &a, &[])).stderr).to_string();
+    let again = succeed(&station_args(&em, "A-1", &a, &[]));
+    assert!(String::from_utf8_lossy(&again.stdout).contains("finished before"), "{again:?}");
+    let err = String::from_utf8_lossy(&again.stderr).to_string();
     assert_eq!(err.matches(", kept").count(), 7, "{err}");
     assert!(!err.contains("step 3/8"), "{err}");
     // Another serial in that directory: refused before anything runs.
@@ -843,6 +850,40 @@ fn the_station_runs_the_line_journals_it_and_resumes_after_ctrl_c() {
     assert!(err.contains("resume: ") && err.contains("complete positions kept"), "{err}");
     assert_eq!(dwells(&b.join("campaign.csv")).len(), 24);
     assert_eq!(journal(&b).len(), 8);
+
+    // The database: each piece of each run once, none half-written, B's certificate with its
+    // as-found verification and the drift since A's calibration (the same node).
+    let run_b = json(&b.join("station.json"))["run_id"].as_str().unwrap().to_string();
+    let c = rusqlite::Connection::open(&db).unwrap();
+    let count = |table: &str, run: &str| -> i64 {
+        c.query_row(&format!("SELECT count(*) FROM {table} WHERE run_id = ?1"), [run], |r| r.get(0)).unwrap()
+    };
+    for (table, a_rows, b_rows) in [
+        ("run", 1, 1),
+        ("campaign", 1, 1),
+        ("fit", 1, 1),
+        ("cal_record", 1, 1),
+        ("flash", 1, 1),
+        ("verification", 1, 2),
+        ("certificate", 1, 1),
+        ("run_end", 1, 1),
+    ] {
+        assert_eq!((count(table, &run_a), count(table, &run_b)), (a_rows, b_rows), "{table}");
+    }
+    let stored: String = c
+        .query_row("SELECT campaign_sha256 FROM campaign WHERE run_id = ?1", [&run_b], |r| r.get(0))
+        .unwrap();
+    let file = std::fs::read(b.join("campaign.csv")).unwrap();
+    assert_eq!(stored, accelcal_core::db::sha256_hex(&file));
+    let html = std::fs::read_to_string(b.join("certificate.html")).unwrap();
+    assert!(
+        html.contains("As found (before recalibration)")
+            && html.contains("Drift since the last calibration (")
+    );
+    let h =
+        String::from_utf8_lossy(&succeed(&["history", "51454d552d422d4c34373545", "--db", s(&db)]).stdout)
+            .to_string();
+    assert!(h.contains("2 runs, 2 calibrations"), "{h}");
 }
 
 /// Issue 24: Ctrl-C ends `acquire` with 130 wherever it lands (the serial port's wait, a write, a

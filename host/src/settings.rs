@@ -62,9 +62,11 @@ fn check_run(command: &Command, given: &Given) -> anyhow::Result<()> {
         accelcal_core::db::RunId::parse(id)?;
     }
     match command {
-        Command::Fit(a) if a.method == crate::cli::MethodArg::GravityNorm => {
-            given.refuse(&["db"], "fit --method gravity-norm", " (it stores the campaign's lsq or test-turns fit)")
-        }
+        Command::Fit(a) if a.method == crate::cli::MethodArg::GravityNorm => given.refuse(
+            &["db"],
+            "fit --method gravity-norm",
+            " (it stores the campaign's lsq or test-turns fit)",
+        ),
         Command::Flash(a) if a.cut_after.is_some() => {
             given.refuse(&["db"], "flash --cut-after", " (a fault injection writes no record to keep)")
         }

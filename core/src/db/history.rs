@@ -37,7 +37,8 @@ pub struct RecalRule {
 }
 
 /// `history`'s default rule, also the certificate's: 0.05 m/s² at 1 g, k = 2, at most a year.
-pub const DEFAULT_RULE: RecalRule = RecalRule { tolerance_m_s2: 0.05, coverage: 2.0, max_interval_days: 365.0 };
+pub const DEFAULT_RULE: RecalRule =
+    RecalRule { tolerance_m_s2: 0.05, coverage: 2.0, max_interval_days: 365.0 };
 
 /// A verification in a few numbers.
 #[derive(Clone, Debug, PartialEq, Serialize)]

@@ -157,7 +157,7 @@ pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
         write_json(j, &doc)?;
     }
     if let Some((path, bytes, rec)) = &rec {
-        write_atomic(path, &bytes)?;
+        write_atomic(path, bytes)?;
         println!(
             "record: {} ({} bytes, {} channels, terms {}, device {}, CRC {})",
             path.display(),
@@ -170,7 +170,8 @@ pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
     }
     if let Some(rdb) = &mut db {
         let header = accelcal_core::campaign::header(&a.campaign)?;
-        let get = |k: &str| header.iter().find(|(key, _)| key == k).map(|(_, v)| v.clone()).unwrap_or_default();
+        let get =
+            |k: &str| header.iter().find(|(key, _)| key == k).map(|(_, v)| v.clone()).unwrap_or_default();
         let g_source = if a.common.g_given {
             "--g / --latitude".to_string()
         } else {
@@ -192,7 +193,11 @@ pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
         let json = serde_json::to_string_pretty(&doc).context("serialising the fit")?;
         let bytes = rec.as_ref().map(|(_, b, _)| b.as_slice());
         super::store::fit_pieces(&mut rdb.db, run, &a.campaign, &json, bytes)?;
-        println!("db: run {run}: campaign, fit{} stored in {}", if bytes.is_some() { " and record" } else { "" }, rdb.db.target());
+        println!(
+            "db: run {run}: campaign, fit{} stored in {}",
+            if bytes.is_some() { " and record" } else { "" },
+            rdb.db.target()
+        );
     }
     Ok(())
 }

@@ -432,7 +432,11 @@ pub fn run_verify(a: &VerifyArgs) -> anyhow::Result<()> {
         })?;
         let phase = super::store::phase(a.phase);
         rdb.db.store_verification(run, phase, &report)?;
-        println!("db: run {run}: {} verification stored in {}", super::store::phase_name(phase), rdb.db.target());
+        println!(
+            "db: run {run}: {} verification stored in {}",
+            super::store::phase_name(phase),
+            rdb.db.target()
+        );
     }
     if report.interrupted {
         return Err(anyhow::Error::new(Interrupted(format!(

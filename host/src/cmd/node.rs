@@ -62,7 +62,12 @@ pub fn run_flash(a: &FlashArgs) -> anyhow::Result<()> {
     }
     if let (Some(rdb), Some(rec)) = (&mut db, &stored) {
         rdb.db.record_flashed(rec)?;
-        println!("db: run {}: flash of record CRC {:08x} stored in {}", rec.run_id(), rec.crc32(), rdb.db.target());
+        println!(
+            "db: run {}: flash of record CRC {:08x} stored in {}",
+            rec.run_id(),
+            rec.crc32(),
+            rdb.db.target()
+        );
     }
     Ok(())
 }

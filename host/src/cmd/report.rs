@@ -326,9 +326,15 @@ fn as_found(v: &VerifyReport) -> String {
     let max = v.positions.iter().flat_map(|p| p.error_m_s2).fold(0.0f64, |m, e| m.max(e.abs()));
     let crc = v.record["crc"].as_str().unwrap_or("(none)");
     let verdict = if v.pass {
-        format!("<span class=\"pass\">PASS</span>: every one of {} positions within its tolerance", v.positions.len())
+        format!(
+            "<span class=\"pass\">PASS</span>: every one of {} positions within its tolerance",
+            v.positions.len()
+        )
     } else {
-        format!("<span class=\"fail\">FAIL</span>: {failed} of {} positions outside tolerance", v.positions.len())
+        format!(
+            "<span class=\"fail\">FAIL</span>: {failed} of {} positions outside tolerance",
+            v.positions.len()
+        )
     };
     format!(
         "<h2>As found (before recalibration), with the record in force then (CRC {})</h2><p>{verdict}; largest error {:.5} m/s²; pass: {}</p>",
@@ -367,7 +373,8 @@ fn drift_since_last(h: &accelcal_core::db::history::History) -> String {
         None => s.push_str("<h2>Drift since the last calibration</h2><p>First calibration of this unit in the database: no drift yet.</p>"),
     }
     let rc = &h.recalibration;
-    let due = rc.due_unix_s.map_or("-".to_string(), |t| super::record::utc(t.max(0) as u64)[..10].to_string());
+    let due =
+        rc.due_unix_s.map_or("-".to_string(), |t| super::record::utc(t.max(0) as u64)[..10].to_string());
     let _ = write!(
         s,
         "<p>Recommended recalibration by <b>{due}</b>: {} (tolerance {} m/s² at 1 g, k = {}, at most {} days; method in <code>accelcal history --help</code>).</p>",

@@ -286,11 +286,7 @@ impl Station<'_> {
         self.run = Some(run);
         self.journal.run_id = Some(run.to_string());
         write_json(&self.path(JOURNAL), &self.journal)?;
-        eprintln!(
-            "station: run {run} {} in {}",
-            if new { "begun" } else { "continued" },
-            self.db.target()
-        );
+        eprintln!("station: run {run} {} in {}", if new { "begun" } else { "continued" }, self.db.target());
         Ok(())
     }
 
@@ -490,7 +486,12 @@ impl Station<'_> {
         let run = self.run_id()?;
         if self.db.progress(run)?.certificate {
             // Stored by the report step before a crash (it writes the file first).
-            return self.finish(Step::Certificate, vec![], "written (stored before the stop)".into(), &[CERTIFICATE]);
+            return self.finish(
+                Step::Certificate,
+                vec![],
+                "written (stored before the stop)".into(),
+                &[CERTIFICATE],
+            );
         }
         let mut args: Vec<String> = vec![
             "report".into(),

@@ -94,7 +94,10 @@ impl RunDb {
         };
         self.db.begin_run(&start)?;
         self.run = Some(run);
-        eprintln!("db: run {run} begun in {} (give --run-id {run} to the line's next commands)", self.db.target());
+        eprintln!(
+            "db: run {run} begun in {} (give --run-id {run} to the line's next commands)",
+            self.db.target()
+        );
         Ok(run)
     }
 
