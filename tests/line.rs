@@ -819,8 +819,8 @@ fn the_station_runs_the_line_journals_it_and_resumes_after_ctrl_c() {
 
     // A second unit on the same node, stopped by Ctrl-C mid-campaign, then resumed.
     let b = dir.path().join("unit-b");
-    let fit_a = a.join("fit.json");
-    let extra = ["--as-found-fit", s(&fit_a)];
+    // The as-found tolerance from the fit of the record in force, which the database finds.
+    let extra: [&str; 0] = [];
     let mut child = Command::new(env!("CARGO_BIN_EXE_accelcal"))
         .args(station_args(&em, "B-2", &b, &extra))
         .process_group(0)
@@ -844,6 +844,7 @@ fn the_station_runs_the_line_journals_it_and_resumes_after_ctrl_c() {
     assert_eq!(status.code(), Some(130), "{err}");
     assert!(err.contains("stopped at step acquire: run the same command again"), "{err}");
     assert!(err.contains("station: as-found PASS (6 positions)"), "{err}");
+    assert!(err.contains(&format!("station: the fit of the record in force (CRC {crc}) from ")), "{err}");
     let out = succeed(&station_args(&em, "B-2", &b, &extra));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("as-found done at") && err.contains("--resume"), "{err}");

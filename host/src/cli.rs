@@ -967,7 +967,7 @@ pub struct StationArgs {
     #[arg(long, value_name = "S")]
     pub serial: String,
     /// The unit's directory: the journal `station.json` and every file of the line (info.json,
-    /// as-found.json, campaign.csv, select.json, fit.json, record.rec, as-left.json,
+    /// as-found-fit.json, as-found.json, campaign.csv, select.json, fit.json, record.rec, as-left.json,
     /// certificate.html). Created if missing; the same directory again resumes the unit.
     #[arg(long, short, value_name = "DIR")]
     pub out: PathBuf,
@@ -995,7 +995,8 @@ pub struct StationArgs {
     #[arg(long, value_name = "K")]
     pub coverage: Option<f64>,
     /// The `fit --json` of the record in force, for the as-found verification's tolerance
-    /// [default: the tolerance from the measured scatter alone].
+    /// [default: the database's fit of that record (its CRC), else the tolerance from the
+    /// measured scatter alone].
     #[arg(long, value_name = "FIT_JSON")]
     pub as_found_fit: Option<PathBuf>,
     /// Flash through a GDB server (Black Magic Probe, OpenOCD, or `emulate`'s `gdb` address)

@@ -672,6 +672,22 @@ impl Db {
         })
     }
 
+    /// The stored fit (`fit --json`) of the record with CRC-32 `crc32` made for device
+    /// `device_id`: the fit of the record a unit came in with, for its as-found tolerance.
+    /// `None` when no run stored that record.
+    pub fn fit_of_record(&mut self, device_id: &str, crc32: u32) -> Result<Option<String>, DbError> {
+        let params = [Val::from(device_id.trim().to_ascii_lowercase()), Val::from(i64::from(crc32))];
+        let rows = self.conn.transaction(|tx| {
+            tx.query(
+                "SELECT f.fit_json FROM fit f JOIN cal_record r ON r.run_id = f.run_id \
+                 JOIN run ON run.run_id = f.run_id WHERE run.device_id = $1 AND r.crc32 = $2 \
+                 ORDER BY run.started_unix_s DESC",
+                &params,
+            )
+        })?;
+        rows.first().map(|r| r[0].text()).transpose()
+    }
+
     /// Every run of the unit `key` names (its serial number or its device id), oldest first.
     pub fn unit_runs(&mut self, key: &str) -> Result<Vec<RunSummary>, DbError> {
         let key = key.trim();

@@ -26,6 +26,7 @@ use crate::cli::StationArgs;
 /// File names in the unit's directory.
 const INFO: &str = "info.json";
 const AS_FOUND: &str = "as-found.json";
+const AS_FOUND_FIT: &str = "as-found-fit.json";
 const CAMPAIGN: &str = "campaign.csv";
 const SELECT: &str = "select.json";
 const FIT: &str = "fit.json";
@@ -326,7 +327,10 @@ impl Station<'_> {
             return self.finish(Step::AsFound, vec![], "skipped: no record in force".into(), &[]);
         }
         let _ = std::fs::remove_file(self.path(AS_FOUND));
-        let fit = self.a.as_found_fit.as_ref().map(|p| p.display().to_string());
+        let fit = match &self.a.as_found_fit {
+            Some(p) => Some(p.display().to_string()),
+            None => self.stored_fit_of(info)?,
+        };
         let args = self.verify_args(AS_FOUND, fit);
         self.run(Step::AsFound, &args)?;
         let outcome = match self.verdict(AS_FOUND)? {
@@ -334,6 +338,31 @@ impl Station<'_> {
             Err(f) => format!("FAIL ({f})"),
         };
         self.finish(Step::AsFound, args, outcome, &[AS_FOUND])
+    }
+
+    /// The fit of the record in force, from the database (written to the unit's directory for
+    /// the as-found verification's tolerance), when a run stored it.
+    fn stored_fit_of(&mut self, info: &serde_json::Value) -> anyhow::Result<Option<String>> {
+        let (Some(device), Some(crc)) = (self.journal.device_id.clone(), info["record"]["crc"].as_str())
+        else {
+            return Ok(None);
+        };
+        let Ok(crc) = u32::from_str_radix(crc, 16) else { return Ok(None) };
+        let Some(json) = self.db.fit_of_record(&device, crc)? else {
+            eprintln!(
+                "station: the record in force (CRC {crc:08x}) is not in {}: the as-found tolerance comes from the measured scatter alone",
+                self.db.target()
+            );
+            return Ok(None);
+        };
+        let path = self.path(AS_FOUND_FIT);
+        accelcal_core::output::write_atomic(&path, json.as_bytes())?;
+        eprintln!(
+            "station: the fit of the record in force (CRC {crc:08x}) from {}: {}",
+            self.db.target(),
+            path.display()
+        );
+        Ok(Some(path.display().to_string()))
     }
 
     fn acquire(&mut self) -> anyhow::Result<()> {
