@@ -983,6 +983,18 @@ const REFUSED: &[(&str, &str)] = &[
     ),
     ("flash x.rec --db cal.sqlite --gdb 127.0.0.1:1", "flash --db needs --run-id"),
     (
+        "station --port /dev/pts/7 --port /dev/pts/8 --head manual --serial S-1 --out u1 --out u2",
+        "2 --port, 1 --serial: give --serial once per --port, in the same order",
+    ),
+    (
+        "station --port /dev/pts/7 --port /dev/pts/8 --head manual --serial S-1 --serial S-2 --out u1 --out u2 --gdb 127.0.0.1:1",
+        "2 --port, 1 --gdb: give --gdb once per --port, in the same order (or not at all)",
+    ),
+    (
+        "station --port /dev/pts/7 --port /dev/pts/7 --head manual --serial S-1 --serial S-2 --out u1 --out u2",
+        "--port /dev/pts/7 is given twice: one unit per node",
+    ),
+    (
         "report --campaign C --record x.rec --fit f.json --out c.html --db cal.sqlite",
         "report --db needs --run-id",
     ),

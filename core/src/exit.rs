@@ -170,6 +170,7 @@ mod tests {
             (e(crate::error::Interrupted("stopped".into())), Interrupted),
             (e(crate::verify::Failed { failed: 1, total: 6 }), Rejected),
             (e(crate::station::StationError::NotDeployable("m".into())), Rejected),
+            (e(crate::station::StationError::Rejected { units: "a".into(), total: 2 }), Rejected),
             (
                 e(crate::station::StationError::RejectedBefore {
                     serial: "s".into(),

@@ -122,6 +122,14 @@ pub enum StationError {
     /// The selection is not a model the node applies: the unit is rejected.
     #[error("{0}")]
     NotDeployable(String),
+    /// Units of a station with several nodes were rejected (each said why as it was).
+    #[error("{units} rejected ({total} units on the head; the others passed)")]
+    Rejected {
+        /// The rejected units' serials, comma-separated.
+        units: String,
+        /// The units on the head.
+        total: usize,
+    },
     /// The unit's run ended rejected; its line is closed.
     #[error("unit {serial} was rejected in run {run_id} (`accelcal history {serial}` says why): its line in {dir} is closed; to try the unit again, start it in a new --out")]
     RejectedBefore {
@@ -137,7 +145,9 @@ pub enum StationError {
 impl Classify for StationError {
     fn kind(&self) -> Kind {
         match self {
-            StationError::NotDeployable(_) | StationError::RejectedBefore { .. } => Kind::Rejected,
+            StationError::NotDeployable(_)
+            | StationError::RejectedBefore { .. }
+            | StationError::Rejected { .. } => Kind::Rejected,
             _ => Kind::BadInput,
         }
     }

@@ -955,22 +955,32 @@ pub struct GravityOptions {
 /// `accelcal station`.
 #[derive(Debug, Args)]
 pub struct StationArgs {
-    /// The node's link.
-    #[command(flatten)]
-    pub link: PortArgs,
+    /// Serial port of a node on the head (the board's ST-LINK virtual COM port, or a `port` that
+    /// `accelcal emulate` prints). Repeat it for several nodes on one head, one unit each: they
+    /// are acquired together, and --serial, --out (and --gdb or --probe when given) are given
+    /// once per --port, in the same order.
+    #[arg(long = "port", value_name = "DEV", required = true)]
+    pub ports: Vec<String>,
+    /// Baud rate of the nodes' USART1 (a pty ignores it).
+    #[arg(long, default_value_t = accelcal_core::node::monitor::NODE_BAUD)]
+    pub baud: u32,
+    /// Seconds a node may stay silent (no answer to a request) before a step fails.
+    #[arg(long, alias = "answer-timeout-s", default_value_t = 5.0, value_name = "S")]
+    pub timeout_s: f64,
     /// The head: `manual` (the operator turns it; each step prompts) or `sim:HOST:PORT` (as for
     /// `acquire`).
     #[arg(long, value_name = "HEAD", value_parser = parse_head_text)]
     pub head: String,
     /// The unit's serial number (written into the campaign and the certificate; the unit's
-    /// directory is its own).
-    #[arg(long, value_name = "S")]
-    pub serial: String,
+    /// directory is its own); one per --port.
+    #[arg(long = "serial", value_name = "S", required = true)]
+    pub serials: Vec<String>,
     /// The unit's directory: the journal `station.json` and every file of the line (info.json,
     /// as-found-fit.json, as-found.json, campaign.csv, select.json, fit.json, record.rec, as-left.json,
-    /// certificate.html). Created if missing; the same directory again resumes the unit.
-    #[arg(long, short, value_name = "DIR")]
-    pub out: PathBuf,
+    /// certificate.html). Created if missing; the same directory again resumes the unit. One per
+    /// --port.
+    #[arg(long = "out", short, value_name = "DIR", required = true)]
+    pub outs: Vec<PathBuf>,
     /// Position plan of the campaign (head, six, random:N, or a plan file; see `acquire`).
     #[arg(long, default_value = "head")]
     pub plan: String,
@@ -1000,15 +1010,16 @@ pub struct StationArgs {
     #[arg(long, value_name = "FIT_JSON")]
     pub as_found_fit: Option<PathBuf>,
     /// Flash through a GDB server (Black Magic Probe, OpenOCD, or `emulate`'s `gdb` address)
-    /// instead of probe-rs.
+    /// instead of probe-rs; one per --port.
     #[arg(long, value_name = "HOST:PORT")]
-    pub gdb: Option<String>,
+    pub gdb: Vec<String>,
     /// probe-rs target name of the node's MCU [without --gdb].
     #[arg(long, default_value = "STM32L475VGTx")]
     pub chip: String,
-    /// Debug probe, as VID:PID or VID:PID:SERIAL [without --gdb; default: the first one found].
+    /// Debug probe, as VID:PID or VID:PID:SERIAL [without --gdb; one per --port; default with
+    /// one node: the first one found].
     #[arg(long, value_name = "SELECTOR")]
-    pub probe: Option<String>,
+    pub probe: Vec<String>,
     /// The calibration database every piece of the run is stored in (the record is flashed
     /// only once it is stored): a SQLite file, or postgres://USER@HOST[:PORT]/DB for a line of
     /// several stations [default: the ACCELCAL_DB environment variable, else calibration.sqlite

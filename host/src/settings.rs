@@ -332,12 +332,42 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
             positive_seconds("--timeout-s", a.timeout_s)
         }
         Command::Station(a) => {
-            if a.gdb.is_some() {
+            if !a.gdb.is_empty() {
                 given.refuse(&["chip", "probe"], "station --gdb", " (they select a probe-rs probe)")?;
             }
-            if a.serial.trim().is_empty() || a.serial.contains(['\n', '\r']) {
-                return Err(bad("--serial must be a non-empty single line"));
+            let n = a.ports.len();
+            let per_port = |option: &str, count: usize, optional: bool| {
+                if count == n || (optional && count == 0) {
+                    return Ok(());
+                }
+                Err(bad(format!(
+                    "{n} --port, {count} {option}: give {option} once per --port, in the same order{}",
+                    if optional { " (or not at all)" } else { "" }
+                )))
+            };
+            per_port("--serial", a.serials.len(), false)?;
+            per_port("--out", a.outs.len(), false)?;
+            per_port("--gdb", a.gdb.len(), true)?;
+            if n > 1 || a.probe.len() > 1 {
+                per_port("--probe", a.probe.len(), true)?;
             }
+            for s in &a.serials {
+                if s.trim().is_empty() || s.contains(['\n', '\r']) {
+                    return Err(bad("--serial must be a non-empty single line"));
+                }
+            }
+            let dup = |v: Vec<String>, option: &str| -> anyhow::Result<()> {
+                let mut sorted = v.clone();
+                sorted.sort();
+                match sorted.windows(2).find(|w| w[0] == w[1]) {
+                    Some(w) => Err(bad(format!("{option} {} is given twice: one unit per node", w[0]))),
+                    None => Ok(()),
+                }
+            };
+            dup(a.ports.clone(), "--port")?;
+            dup(a.serials.clone(), "--serial")?;
+            dup(a.outs.iter().map(|p| resolve(p).display().to_string()).collect(), "--out")?;
+            positive_seconds("--timeout-s", a.timeout_s)?;
             if a.samples < 2 {
                 return Err(bad(format!(
                     "--samples must be at least 2 sets per position, got {}",
@@ -361,13 +391,13 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
             if let Some(g) = a.g {
                 crate::cmd::check_g(g)?;
             }
-            if a.out.is_file() {
+            if let Some(out) = a.outs.iter().find(|o| o.is_file()) {
                 return Err(bad(format!(
                     "--out {} is a file: the station needs a directory for the unit",
-                    a.out.display()
+                    out.display()
                 )));
             }
-            check_answer_timeout(&a.link)
+            Ok(())
         }
         Command::BenchDiagnose(_) | Command::Demo(_) | Command::Plan(_) => Ok(()),
         Command::History(a) => crate::cmd::history::check(a),

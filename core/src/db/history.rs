@@ -22,8 +22,9 @@ the standard error scaled up by sqrt(χ²/(n−2)) when n > 2 calibrations scatt
 drift rate r ± s_r. From the last calibration the drift reaches the tolerance T (--tolerance-m-s2) after \
 τ = T / (|r| + k·s_r) (k: --coverage); the recommended date is the last calibration plus the smallest τ of the \
 12, at most --max-interval-days. With one calibration no drift is known yet: the date is the calibration plus \
---max-interval-days. A calibration is a run that ended `pass` with a stored model-4 fit; unfinished and \
-rejected runs are listed but not used.";
+--max-interval-days. Calibrations less than 1 day apart are repeats: the rate uses the latest of them. A \
+calibration is a run that ended `pass` with a stored model-4 fit; unfinished and rejected runs are listed but \
+not used.";
 
 /// Settings of the recalibration rule.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -241,6 +242,7 @@ fn model4(fit_json: &str) -> Result<Model4, String> {
 }
 
 /// A calibration in the common scale: `q[channel][term]` m/s² at 1 g, and its σ.
+#[derive(Clone)]
 struct Scaled {
     t_days: f64,
     q: [[f64; 4]; 3],
@@ -386,9 +388,42 @@ fn drifts_of(cals: &[Scaled]) -> Vec<Drift> {
         .collect()
 }
 
+/// Calibrations closer than this, days, are repeats of one calibration for the drift rate (a
+/// unit recalibrated the same day: their difference is noise, not drift over time).
+pub const MIN_SPAN_DAYS: f64 = 1.0;
+
+/// The calibrations the drift rate uses: the latest of each group of repeats
+/// ([`MIN_SPAN_DAYS`]), oldest first.
+fn epochs(cals: &[Scaled]) -> Vec<&Scaled> {
+    let mut kept: Vec<&Scaled> = Vec::new();
+    for s in cals.iter().rev() {
+        if kept.last().is_none_or(|k| k.t_days - s.t_days >= MIN_SPAN_DAYS) {
+            kept.push(s);
+        }
+    }
+    kept.reverse();
+    kept
+}
+
 fn recal(cals: &[Scaled], t_last: i64, rule: RecalRule) -> Recalibration {
     let due = |days: f64| t_last + (days * SECONDS_PER_DAY).round() as i64;
     let max = rule.max_interval_days;
+    let kept = epochs(cals);
+    if kept.len() < 2 && cals.len() >= 2 {
+        return Recalibration {
+            method: METHOD,
+            rule,
+            calibrations: cals.len(),
+            due_unix_s: Some(due(max)),
+            limiting: None,
+            basis: format!(
+                "{} calibrations, all within {MIN_SPAN_DAYS} day of the last (repeats, not drift over time): no drift known yet, the last calibration plus {max} days (--max-interval-days)",
+                cals.len()
+            ),
+        };
+    }
+    let cals: Vec<Scaled> = kept.into_iter().cloned().collect();
+    let cals = cals.as_slice();
     if cals.len() < 2 {
         return Recalibration {
             method: METHOD,
@@ -469,5 +504,25 @@ mod tests {
         assert!((tight.1 - stated_only).abs() < 1e-12, "{tight:?}");
         let loose = slope(&[(0.0, 0.0, 0.01), (1.0, 3.0, 0.01), (2.0, 2.0, 0.01)]);
         assert!(loose.1 > 0.01 * stated_only * 10.0, "{loose:?}");
+    }
+
+    #[test]
+    fn calibrations_within_a_day_are_repeats_for_the_drift_rate() {
+        let at = |t_days: f64, bias: f64| {
+            let mut q = [[0.0; 4]; 3];
+            q[0][0] = bias;
+            Scaled { t_days, q, sigma: [[0.001; 4]; 3] }
+        };
+        let rule = DEFAULT_RULE;
+        // Minutes apart: no rate, the maximum interval.
+        let r = recal(&[at(-0.002, 0.0), at(0.0, 0.001)], 1_000_000, rule);
+        assert!(r.limiting.is_none() && r.basis.contains("repeats"), "{r:?}");
+        assert_eq!(r.due_unix_s, Some(1_000_000 + 365 * 86_400));
+        // A year apart, then a same-day repeat: the rate from the year (the repeat's earlier
+        // calibration left out), 0.1 m/s² per year on x's bias.
+        let r = recal(&[at(-365.0, 0.0), at(-0.001, 0.5), at(0.0, 0.1)], 0, rule);
+        let l = r.limiting.expect("a rate");
+        assert_eq!((l.channel, l.term), ("x", "1"));
+        assert!((l.rate_m_s2_per_year - 0.1 * DAYS_PER_YEAR / 365.0).abs() < 1e-9, "{l:?}");
     }
 }

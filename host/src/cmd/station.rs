@@ -37,9 +37,32 @@ const CERTIFICATE: &str = "certificate.html";
 /// Plan of the verifications: the six test-turn positions.
 const VERIFY_PLAN: &str = "six";
 
-/// One run of the line.
+/// One node on the head: its link, its unit, its directory, its flash route.
+struct UnitSpec {
+    port: String,
+    serial: String,
+    dir: PathBuf,
+    gdb: Option<String>,
+    probe: Option<String>,
+}
+
+/// The units of the command line, paired by order (`settings` checked the counts).
+fn units(a: &StationArgs) -> Vec<UnitSpec> {
+    (0..a.ports.len())
+        .map(|i| UnitSpec {
+            port: a.ports[i].clone(),
+            serial: a.serials[i].clone(),
+            dir: a.outs[i].clone(),
+            gdb: a.gdb.get(i).cloned(),
+            probe: a.probe.get(i).cloned(),
+        })
+        .collect()
+}
+
+/// One unit's run of the line.
 struct Station<'a> {
     a: &'a StationArgs,
+    u: &'a UnitSpec,
     dir: &'a Path,
     journal: Journal,
     stop: Arc<AtomicBool>,
@@ -63,7 +86,8 @@ pub fn db_spec(a: &StationArgs) -> String {
     if let Some(s) = std::env::var(DB_ENV).ok().filter(|s| !s.trim().is_empty()) {
         return s;
     }
-    let parent = a.out.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let first = a.outs.first().map(PathBuf::as_path).unwrap_or(Path::new("."));
+    let parent = first.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
     parent.join("calibration.sqlite").display().to_string()
 }
 
@@ -85,15 +109,7 @@ impl Station<'_> {
 
     /// The node's link options.
     fn link(&self) -> Vec<String> {
-        let l = &self.a.link;
-        vec![
-            "--port".into(),
-            l.port.clone(),
-            "--baud".into(),
-            l.baud.to_string(),
-            "--timeout-s".into(),
-            l.timeout_s.to_string(),
-        ]
+        link_args(self.a, &[self.u.port.clone()])
     }
 
     /// The gravity options as given (the steps announce their source themselves).
@@ -262,7 +278,7 @@ impl Station<'_> {
         let start = RunStart {
             run_id: run,
             device_id: device.to_string(),
-            serial: self.a.serial.clone(),
+            serial: self.u.serial.clone(),
             station: self.a.station_name.clone().unwrap_or_else(super::store::host_name),
             head: self.a.head.clone(),
             operator: self.a.operator.clone().unwrap_or_else(super::store::user_name),
@@ -276,7 +292,7 @@ impl Station<'_> {
         let p = self.db.progress(run)?;
         if p.outcome == Some(Outcome::Rejected) {
             return Err(StationError::RejectedBefore {
-                serial: self.a.serial.clone(),
+                serial: self.u.serial.clone(),
                 run_id: run.to_string(),
                 dir: self.dir.to_path_buf(),
             }
@@ -365,34 +381,11 @@ impl Station<'_> {
         Ok(Some(path.display().to_string()))
     }
 
-    fn acquire(&mut self) -> anyhow::Result<()> {
-        self.acquire_step()?;
+    /// Stores the campaign of the finished step `acquire`.
+    fn store_campaign(&mut self) -> anyhow::Result<()> {
         let bytes = std::fs::read(self.path(CAMPAIGN)).with_context(|| self.p(CAMPAIGN))?;
         self.db.store_campaign(self.run_id()?, &bytes)?;
         Ok(())
-    }
-
-    fn acquire_step(&mut self) -> anyhow::Result<()> {
-        if self.done(Step::Acquire)? {
-            return Ok(());
-        }
-        let a = self.a;
-        let mut args = vec!["acquire".to_string()];
-        args.extend(self.link());
-        args.extend(["--head".into(), a.head.clone(), "--plan".into(), a.plan.clone()]);
-        args.extend(["--samples".into(), a.samples.to_string(), "--serial".into(), a.serial.clone()]);
-        args.extend(["--out".into(), self.p(CAMPAIGN)]);
-        if let Some(hz) = a.rate_hz {
-            args.extend(["--rate-hz".into(), hz.to_string()]);
-        }
-        args.extend(self.gravity());
-        if self.path(CAMPAIGN).exists() {
-            args.push("--resume".into());
-        }
-        if let Exit::Failed = self.run(Step::Acquire, &args)? {
-            return Err(anyhow::anyhow!("step acquire failed (its error is above)"));
-        }
-        self.finish(Step::Acquire, args, "campaign recorded".into(), &[CAMPAIGN])
     }
 
     fn select(&mut self) -> anyhow::Result<()> {
@@ -470,16 +463,16 @@ impl Station<'_> {
         let a = self.a;
         let mut args = vec!["flash".to_string(), self.p(RECORD)];
         args.extend(self.db_args()?);
-        match &a.gdb {
+        match &self.u.gdb {
             Some(g) => args.extend(["--gdb".into(), g.clone()]),
             None => {
                 args.extend(["--chip".into(), a.chip.clone()]);
-                if let Some(p) = &a.probe {
+                if let Some(p) = &self.u.probe {
                     args.extend(["--probe".into(), p.clone()]);
                 }
             }
         }
-        args.extend(["--port".into(), a.link.port.clone(), "--baud".into(), a.link.baud.to_string()]);
+        args.extend(["--port".into(), self.u.port.clone(), "--baud".into(), a.baud.to_string()]);
         if let Exit::Failed = self.run(Step::Flash, &args)? {
             return Err(anyhow::anyhow!(
                 "step flash failed (its error is above): the node runs the record it had"
@@ -546,56 +539,162 @@ impl Station<'_> {
     }
 }
 
-/// Runs `accelcal station`.
-pub fn run(a: &StationArgs) -> anyhow::Result<()> {
-    let dir = a.out.as_path();
-    let journal = Journal::open(dir, &a.serial)?;
-    std::fs::create_dir_all(dir).map_err(|e| environment(format!("creating {}", dir.display()), e))?;
-    // Opened before the node is touched: an unreachable database stops the station there.
-    let db_spec = db_spec(a);
-    let db = Db::open(&db_spec)?;
-    // Ctrl-C goes to the step (same process group); the station waits for it to stop cleanly.
-    let stop = super::live::stop_flag()?;
-    let mut s = Station { a, dir, journal, stop, db, db_spec, run: None, record: None, ended: false };
-    let info = s.info()?;
-    if s.ended {
-        // A unit that passed, run again: its files must still be as the steps wrote them.
+/// `--port P1 [--port P2 ...] --baud B --timeout-s T`.
+fn link_args(a: &StationArgs, ports: &[String]) -> Vec<String> {
+    let mut v = Vec::new();
+    for p in ports {
+        v.extend(["--port".into(), p.clone()]);
+    }
+    v.extend(["--baud".into(), a.baud.to_string(), "--timeout-s".into(), a.timeout_s.to_string()]);
+    v
+}
+
+/// Step `acquire` of every unit that has not done it, in one `acquire` over all their nodes (one
+/// head move per position, every node recorded there), then each unit's campaign stored.
+fn acquire_together(units: &mut [&mut Station<'_>]) -> anyhow::Result<()> {
+    let mut todo = Vec::new();
+    for (i, s) in units.iter().enumerate() {
+        if !s.done(Step::Acquire)? {
+            todo.push(i);
+        }
+    }
+    if let Some(&first) = todo.first() {
+        let a = units[first].a;
+        let ports: Vec<String> = todo.iter().map(|&i| units[i].u.port.clone()).collect();
+        let mut args = vec!["acquire".to_string()];
+        args.extend(link_args(a, &ports));
+        args.extend(["--head".into(), a.head.clone(), "--plan".into(), a.plan.clone()]);
+        args.extend(["--samples".into(), a.samples.to_string()]);
+        for &i in &todo {
+            args.extend(["--serial".into(), units[i].u.serial.clone(), "--out".into(), units[i].p(CAMPAIGN)]);
+        }
+        if let Some(hz) = a.rate_hz {
+            args.extend(["--rate-hz".into(), hz.to_string()]);
+        }
+        args.extend(units[first].gravity());
+        if todo.iter().any(|&i| units[i].path(CAMPAIGN).exists()) {
+            args.push("--resume".into());
+        }
+        if let Exit::Failed = units[first].run(Step::Acquire, &args)? {
+            return Err(anyhow::anyhow!("step acquire failed (its error is above)"));
+        }
+        for &i in &todo {
+            units[i].finish(Step::Acquire, args.clone(), "campaign recorded".into(), &[CAMPAIGN])?;
+        }
+    }
+    for s in units.iter_mut() {
+        s.store_campaign()?;
+    }
+    Ok(())
+}
+
+impl Station<'_> {
+    /// The unit's steps after the campaign; its run ends `pass`.
+    fn after_acquire(&mut self) -> anyhow::Result<()> {
+        self.select()?;
+        self.fit()?;
+        self.flash()?;
+        self.as_left()?;
+        self.certificate()?;
+        let run = self.run_id()?;
+        self.db.finish_run(run, Outcome::Pass, "as-left verification passed; certificate issued")?;
+        println!(
+            "station: unit {} (device {}) PASS; certificate {}; journal {}; run {run} stored in {}",
+            self.u.serial,
+            self.journal.device_id.as_deref().unwrap_or("?"),
+            self.p(CERTIFICATE),
+            self.p(JOURNAL),
+            self.db.target()
+        );
+        Ok(())
+    }
+
+    /// A unit that passed, run again: its files must still be as the steps wrote them.
+    fn passed_before(&self) -> anyhow::Result<()> {
         for step in Step::ALL.into_iter().skip(1) {
-            if !s.done(step)? {
+            if !self.done(step)? {
                 return Err(bad(format!(
                     "run {} ended pass in {}, but {} has no step {}: the journal does not match the database",
-                    s.run_id()?,
-                    s.db.target(),
-                    s.p(JOURNAL),
+                    self.run_id()?,
+                    self.db.target(),
+                    self.p(JOURNAL),
                     step.name()
                 )));
             }
         }
         println!(
             "station: unit {} (device {}) PASS, finished before (run {} in {}); nothing to do",
-            a.serial,
-            s.journal.device_id.as_deref().unwrap_or("?"),
-            s.run_id()?,
-            s.db.target()
+            self.u.serial,
+            self.journal.device_id.as_deref().unwrap_or("?"),
+            self.run_id()?,
+            self.db.target()
         );
+        Ok(())
+    }
+}
+
+/// Runs `accelcal station`: every unit's `info` and as-found verification, one node after the
+/// other; the campaigns together; then each unit's line to its certificate. A rejected unit does
+/// not stop the others (the station ends with exit code 1 after them); any other error stops the
+/// station.
+pub fn run(a: &StationArgs) -> anyhow::Result<()> {
+    let specs = units(a);
+    let db_spec = db_spec(a);
+    let mut stations = Vec::with_capacity(specs.len());
+    // Ctrl-C goes to the step (same process group); the station waits for it to stop cleanly.
+    let stop = super::live::stop_flag()?;
+    for u in &specs {
+        let journal = Journal::open(&u.dir, &u.serial)?;
+        std::fs::create_dir_all(&u.dir)
+            .map_err(|e| environment(format!("creating {}", u.dir.display()), e))?;
+        // Opened before the node is touched: an unreachable database stops the station there.
+        let db = Db::open(&db_spec)?;
+        stations.push(Station {
+            a,
+            u,
+            dir: &u.dir,
+            journal,
+            stop: stop.clone(),
+            db,
+            db_spec: db_spec.clone(),
+            run: None,
+            record: None,
+            ended: false,
+        });
+    }
+    let mut open: Vec<&mut Station<'_>> = Vec::new();
+    for s in stations.iter_mut() {
+        let info = s.info()?;
+        if s.ended {
+            s.passed_before()?;
+            continue;
+        }
+        s.as_found(&info)?;
+        open.push(s);
+    }
+    if open.is_empty() {
         return Ok(());
     }
-    s.as_found(&info)?;
-    s.acquire()?;
-    s.select()?;
-    s.fit()?;
-    s.flash()?;
-    s.as_left()?;
-    s.certificate()?;
-    let run = s.run_id()?;
-    s.db.finish_run(run, Outcome::Pass, "as-left verification passed; certificate issued")?;
-    println!(
-        "station: unit {} (device {}) PASS; certificate {}; journal {}; run {run} stored in {}",
-        a.serial,
-        s.journal.device_id.as_deref().unwrap_or("?"),
-        s.p(CERTIFICATE),
-        s.p(JOURNAL),
-        s.db.target()
-    );
-    Ok(())
+    acquire_together(&mut open)?;
+    let mut rejected = Vec::new();
+    for s in open {
+        match s.after_acquire() {
+            Ok(()) => {}
+            Err(e) if specs.len() > 1 && is_rejection(&e) => {
+                eprintln!("station: unit {} REJECTED: {e:#}", s.u.serial);
+                rejected.push(s.u.serial.clone());
+            }
+            Err(e) => return Err(e),
+        }
+    }
+    if rejected.is_empty() {
+        Ok(())
+    } else {
+        Err(StationError::Rejected { units: rejected.join(", "), total: specs.len() }.into())
+    }
+}
+
+/// Whether `e` rejects the unit (rather than failing the environment).
+fn is_rejection(e: &anyhow::Error) -> bool {
+    accelcal_core::exit::kind(e) == accelcal_core::error::Kind::Rejected
 }
