@@ -5,41 +5,8 @@
 
 mod dbkit;
 
-use std::path::PathBuf;
-use std::process::Command;
-
 use accelcal_core::db::{Db, RunId};
 use dbkit::*;
-
-/// A running cluster, stopped and removed on drop.
-struct Cluster {
-    dir: tempfile::TempDir,
-    url: String,
-}
-
-fn script() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../scripts/postgres-cluster.sh")
-}
-
-impl Cluster {
-    fn start() -> Cluster {
-        let dir = tempfile::Builder::new().prefix("accelcal-pg").tempdir().unwrap();
-        let out = Command::new("bash").arg(script()).arg("start").arg(dir.path()).output().unwrap();
-        assert!(
-            out.status.success(),
-            "starting a PostgreSQL cluster failed (is the server installed? scripts/setup-postgres.sh): {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        let url = String::from_utf8(out.stdout).unwrap().trim().to_string();
-        Cluster { dir, url }
-    }
-}
-
-impl Drop for Cluster {
-    fn drop(&mut self) {
-        let _ = Command::new("bash").arg(script()).arg("stop").arg(self.dir.path()).status();
-    }
-}
 
 #[test]
 fn pieces_are_stored_once_and_a_finished_run_takes_nothing_more() {

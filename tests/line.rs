@@ -6,6 +6,7 @@
 //! builds it); the certificate check needs `chromium` (`scripts/setup-chromium.sh`).
 
 mod common;
+mod dbkit;
 #[allow(dead_code)]
 mod support;
 
@@ -885,6 +886,66 @@ fn the_station_runs_the_line_journals_it_and_resumes_after_ctrl_c() {
         String::from_utf8_lossy(&succeed(&["history", "51454d552d422d4c34373545", "--db", s(&db)]).stdout)
             .to_string();
     assert!(h.contains("2 runs, 2 calibrations"), "{h}");
+}
+
+/// Issue 23: two stations (two benches, one unit each) calibrate at the same time into one
+/// PostgreSQL server (a throwaway cluster, `scripts/postgres-cluster.sh`): both pass and the
+/// server holds both runs whole, each piece once, with the station that ran it.
+#[test]
+fn two_stations_store_into_one_postgresql_server_at_once() {
+    use std::os::unix::process::CommandExt;
+    let _one = one_bench();
+    let pg = dbkit::Cluster::start();
+    let dir = tempfile::tempdir().unwrap();
+    let benches: Vec<Emulator> = [31u64, 32]
+        .iter()
+        .map(|&seed| Emulator::start(&unit(dir.path(), &format!("u{seed}"), seed, 10).0, &[]))
+        .collect();
+    let outs: Vec<PathBuf> = (1..=2).map(|i| dir.path().join(format!("st-{i}"))).collect();
+    let names = ["st-1", "st-2"];
+    let serials = ["P-1", "P-2"];
+    let children: Vec<Child> = (0..2)
+        .map(|i| {
+            let extra = ["--db", pg.url.as_str(), "--station", names[i]];
+            Command::new(env!("CARGO_BIN_EXE_accelcal"))
+                .args(station_args(&benches[i], serials[i], &outs[i], &extra))
+                .process_group(0)
+                .stdout(Stdio::piped())
+                .stderr(Stdio::piped())
+                .spawn()
+                .unwrap()
+        })
+        .collect();
+    for (i, c) in children.into_iter().enumerate() {
+        let out = c.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "station {}: {err}", names[i]);
+        assert!(!err.contains("password"), "{err}");
+    }
+    let mut client = postgres::Client::connect(&pg.url, postgres::NoTls).unwrap();
+    for (i, out) in outs.iter().enumerate() {
+        let run = json(&out.join("station.json"))["run_id"].as_str().unwrap().to_string();
+        let station: String =
+            client.query_one("SELECT station FROM run WHERE run_id = $1", &[&run]).unwrap().get(0);
+        assert_eq!(station, names[i]);
+        for (table, rows) in [
+            ("campaign", 1i64),
+            ("fit", 1),
+            ("cal_record", 1),
+            ("flash", 1),
+            ("verification", 1),
+            ("certificate", 1),
+            ("run_end", 1),
+        ] {
+            let n: i64 = client
+                .query_one(&format!("SELECT count(*) FROM {table} WHERE run_id = $1"), &[&run])
+                .unwrap()
+                .get(0);
+            assert_eq!(n, rows, "{table} of {}", names[i]);
+        }
+    }
+    let h = String::from_utf8_lossy(&succeed(&["history", "P-2", "--db", &pg.url]).stdout).to_string();
+    assert!(h.contains("1 run, 1 calibration") && h.contains("st-2"), "{h}");
 }
 
 /// Issue 24: Ctrl-C ends `acquire` with 130 wherever it lands (the serial port's wait, a write, a

@@ -315,3 +315,36 @@ pub fn accelcal(args: &[&str]) -> (Option<i32>, String, String) {
         String::from_utf8_lossy(&out.stderr).into_owned(),
     )
 }
+
+/// A running cluster, stopped and removed on drop.
+pub struct Cluster {
+    dir: tempfile::TempDir,
+    /// Its URL, for `--db`.
+    pub url: String,
+}
+
+fn script() -> std::path::PathBuf {
+    std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../scripts/postgres-cluster.sh")
+}
+
+impl Cluster {
+    /// Starts a throwaway cluster (`scripts/postgres-cluster.sh start`).
+    pub fn start() -> Cluster {
+        let dir = tempfile::Builder::new().prefix("accelcal-pg").tempdir().unwrap();
+        let out =
+            std::process::Command::new("bash").arg(script()).arg("start").arg(dir.path()).output().unwrap();
+        assert!(
+            out.status.success(),
+            "starting a PostgreSQL cluster failed (is the server installed? scripts/setup-postgres.sh): {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let url = String::from_utf8(out.stdout).unwrap().trim().to_string();
+        Cluster { dir, url }
+    }
+}
+
+impl Drop for Cluster {
+    fn drop(&mut self) {
+        let _ = std::process::Command::new("bash").arg(script()).arg("stop").arg(self.dir.path()).status();
+    }
+}
