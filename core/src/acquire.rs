@@ -17,6 +17,9 @@
 //!   that reset meanwhile is set back, and its restarted sample counter continues `t_s` after the
 //!   last row), and each recorded position must have moved as the plan says ([`MotionCheck`]),
 //!   else it is refused (the operator of a manual head may retry it).
+//!
+//! Several nodes on one head (one unit each) are acquired together by [`acquire_nodes`]: one head
+//! move per position, the nodes captured at once, one campaign per node (module `run`).
 
 use std::fs::File;
 use std::io::Write;
