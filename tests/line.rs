@@ -35,8 +35,8 @@ struct Emulator {
     port: String,
     gdb: String,
     head: String,
-    /// Each node's `port` and `device_id` (`nodes` of the printed line).
-    nodes: Vec<(String, String)>,
+    /// Each node's `port`, `gdb` and `device_id` (`nodes` of the printed line).
+    nodes: Vec<(String, String, String)>,
 }
 
 impl Emulator {
@@ -68,7 +68,8 @@ impl Emulator {
             n[k].as_str().unwrap_or_else(|| panic!("no `{k}` in a node of {line}")).to_string()
         };
         let nodes = v["nodes"].as_array().unwrap_or_else(|| panic!("no `nodes` in {line}"));
-        let nodes = nodes.iter().map(|n| (field(n, "port"), field(n, "device_id"))).collect();
+        let nodes =
+            nodes.iter().map(|n| (field(n, "port"), field(n, "gdb"), field(n, "device_id"))).collect();
         Emulator { port: s("port"), gdb: s("gdb"), head: s("head"), nodes, child }
     }
 

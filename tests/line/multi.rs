@@ -1,7 +1,7 @@
 //! Issue 23: several nodes on one head. `emulate` with two units (two QEMU nodes, two front ends
 //! reading one emulated head), `acquire` with two ports: each campaign carries its node's id and
 //! recovers its own unit, so a swapped or shared stream fails; `--resume` continues each campaign
-//! from its own complete positions.
+//! from its own complete positions; a record carries its node's id and only that node takes it.
 
 use super::*;
 
@@ -30,7 +30,7 @@ fn two_nodes_on_one_head_each_record_their_own_unit() {
     let (t1, _) = unit(dir.path(), "u1", 5, 10);
     let (t2, _) = unit(dir.path(), "u2", 6, 10);
     let em = Emulator::start_units(&[&t1, &t2], &[]);
-    let ids: Vec<&str> = em.nodes.iter().map(|n| n.1.as_str()).collect();
+    let ids: Vec<&str> = em.nodes.iter().map(|n| n.2.as_str()).collect();
     // The first node keeps the fixed QEMU id ("QEMU-B-L475E"), the second is "QEMU-NODE-02".
     assert_eq!(ids, ["51454d552d422d4c34373545", "51454d552d4e4f44452d3032"]);
     assert_eq!(em.nodes[0].0, em.port);
@@ -84,5 +84,16 @@ fn two_nodes_on_one_head_each_record_their_own_unit() {
     let swapped = [worst_z(&f1, &u2), worst_z(&f2, &u1)];
     assert!(own.iter().all(|&z| z < 5.0), "own units: {own:?}");
     assert!(swapped.iter().all(|&z| z > 20.0), "swapped units: {swapped:?}");
+    // A record fitted from each campaign carries its node's id (from the header): node 2 refuses
+    // node 1's before anything is written and runs its own.
+    let (ra, rb) = (dir.path().join("a.rec"), dir.path().join("b.rec"));
+    fit(&a, &dir.path().join("fa-rec.json"), &["--record", s(&ra)]);
+    fit(&b, &dir.path().join("fb-rec.json"), &["--record", s(&rb)]);
+    let g2 = em.nodes[1].1.as_str();
+    let e = common::bad(&["flash", s(&ra), "--gdb", g2, "--port", p2]);
+    let want = format!("the record is for device {}, the connected MCU is {}", ids[0], ids[1]);
+    assert!(e.contains(&want), "{e}");
+    let out = ok(&["flash", s(&rb), "--gdb", g2, "--port", p2]);
+    assert!(out.contains(&format!("confirmed over {p2}")), "{out}");
     assert_eq!(em.stop(), Some(0));
 }
