@@ -1083,6 +1083,25 @@ const REFUSED: &[(&str, &str)] = &[
         "acquire --port P --head manual --plan six -o C --resume",
         "not a campaign written by `accelcal acquire`",
     ),
+    // Issue 23: several nodes on one head, each option per node once per `--port`/`--unit`.
+    (
+        "acquire --port P --port Q --head manual --out a.csv",
+        "--out is given once for 2 --port options: give it once per --port (in the same order)",
+    ),
+    (
+        "acquire --port P --port Q --head manual --out a.csv --out b.csv --serial S",
+        "--serial is given once for 2 --port options: give it once per --port (in the same order), or not at all",
+    ),
+    ("acquire --port P --port P --head manual --out a.csv --out b.csv", "--port P is given twice (ports 1 and 2)"),
+    ("acquire --port P --port Q --head manual --out a.csv --out a.csv", "--out and --out name the same path"),
+    (
+        "emulate --qemu R --unit C --unit V --seed 1",
+        "--seed is given once for 2 --unit options: give it once per --unit (in the same order), or not at all",
+    ),
+    (
+        "emulate --qemu R --unit C --unit V --record a.rec --record b.rec --record c.rec",
+        "--record is given 3 times for 2 --unit options",
+    ),
     // Issue 24: the record of a head that was never turned (`U`: six positions, one reading).
     (
         "fit U --record u.rec --device-id 51454d552d422d4c34373545",

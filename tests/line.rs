@@ -7,6 +7,9 @@
 
 mod common;
 mod dbkit;
+/// Several nodes on one head (issue 23).
+#[path = "line/multi.rs"]
+mod multi;
 #[allow(dead_code)]
 mod support;
 
@@ -33,16 +36,22 @@ struct Emulator {
     port: String,
     gdb: String,
     head: String,
+    /// Each node's `port`, `gdb` and `device_id` (`nodes` of the printed line).
+    nodes: Vec<(String, String, String)>,
 }
 
 impl Emulator {
     fn start(unit: &Path, extra: &[&str]) -> Emulator {
+        Emulator::start_units(&[unit], extra)
+    }
+
+    /// An emulator with a node per unit on its head.
+    fn start_units(units: &[&Path], extra: &[&str]) -> Emulator {
         let elf = support::node_elf();
         let mut child = Command::new(env!("CARGO_BIN_EXE_accelcal"))
             .args(["emulate", "--qemu"])
             .arg(&elf)
-            .arg("--unit")
-            .arg(unit)
+            .args(units.iter().flat_map(|u| [Path::new("--unit"), u]))
             .args(["--head-speed", "600"])
             .args(extra)
             .stdout(Stdio::piped())
@@ -56,7 +65,13 @@ impl Emulator {
         let v: serde_json::Value = serde_json::from_str(&line).unwrap_or_else(|e| panic!("{e}: `{line}`"));
         let s = |k: &str| v[k].as_str().unwrap_or_else(|| panic!("no `{k}` in {line}")).to_string();
         assert!(s("head").starts_with("sim:127.0.0.1:"), "{line}");
-        Emulator { port: s("port"), gdb: s("gdb"), head: s("head"), child }
+        let field = |n: &serde_json::Value, k: &str| {
+            n[k].as_str().unwrap_or_else(|| panic!("no `{k}` in a node of {line}")).to_string()
+        };
+        let nodes = v["nodes"].as_array().unwrap_or_else(|| panic!("no `nodes` in {line}"));
+        let nodes =
+            nodes.iter().map(|n| (field(n, "port"), field(n, "gdb"), field(n, "device_id"))).collect();
+        Emulator { port: s("port"), gdb: s("gdb"), head: s("head"), nodes, child }
     }
 
     /// Stops it like Ctrl-C does and returns its exit code.

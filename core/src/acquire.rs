@@ -17,8 +17,11 @@
 //!   that reset meanwhile is set back, and its restarted sample counter continues `t_s` after the
 //!   last row), and each recorded position must have moved as the plan says ([`MotionCheck`]),
 //!   else it is refused (the operator of a manual head may retry it).
+//!
+//! Several nodes on one head (one unit each) are acquired together by [`acquire_nodes`]: one head
+//! move per position, the nodes captured at once, one campaign per node (module `run`).
 
-use std::fs::{File, OpenOptions};
+use std::fs::File;
 use std::io::Write;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -28,14 +31,16 @@ use accelcal_shared::wire::{Block, Codes, Output};
 
 use crate::error::{bad, environment};
 use crate::node::head::SimHead;
-use crate::node::session::{device_id_hex, firmware_version, Session};
+use crate::node::session::Session;
 use crate::sim::Plan;
 
 mod motion;
 mod resume;
+mod run;
 pub use motion::MotionCheck;
 use resume::open_resumed;
 pub use resume::{resume_settings, ResumeSettings};
+pub use run::{acquire, acquire_nodes, NodeRun};
 
 /// When the stream counts as static: two consecutive windows of `window` sets whose means differ,
 /// on every channel, by at most `z` standard errors of the difference (the standard error from the
@@ -200,13 +205,26 @@ pub fn soak(
     soak: Duration,
     stop: &AtomicBool,
 ) -> anyhow::Result<bool> {
+    soak_nodes(&mut [node], head, setpoint_c, soak, stop)
+}
+
+/// [`soak`] with several nodes on the head, their streams read in turn.
+fn soak_nodes(
+    nodes: &mut [&mut Session],
+    head: &mut dyn Positioner,
+    setpoint_c: f64,
+    soak: Duration,
+    stop: &AtomicBool,
+) -> anyhow::Result<bool> {
     head.chamber(setpoint_c)?;
     let t0 = Instant::now();
     while t0.elapsed() < soak {
-        if stop.load(Ordering::Relaxed) {
-            return Ok(false);
+        for node in nodes.iter_mut() {
+            if stop.load(Ordering::Relaxed) {
+                return Ok(false);
+            }
+            node.poll_samples()?;
         }
-        node.poll_samples()?;
     }
     Ok(true)
 }
@@ -368,86 +386,6 @@ impl CampaignFile {
     }
 }
 
-/// Runs an acquisition on an open node session. The node is switched to raw output for the
-/// acquisition and back to what it streamed before at the end (also when it fails).
-pub fn acquire(
-    node: &mut Session,
-    head: &mut dyn Positioner,
-    cfg: &AcquireConfig,
-    progress: &mut dyn Progress,
-    stop: &AtomicBool,
-) -> anyhow::Result<AcquireSummary> {
-    let info = node.info()?;
-    let device_id = device_id_hex(&info.device_id);
-    let firmware = firmware_version(info.firmware);
-    if info.rate_hz == 0 {
-        return Err(bad(format!(
-            "{}: the node reports a sampling rate of 0 Hz: it has no live sample source",
-            node.port()
-        )));
-    }
-    if !cfg.resume && cfg.out.exists() {
-        return Err(bad(format!(
-            "{} exists: continue it with --resume, or choose another --out",
-            cfg.out.display()
-        )));
-    }
-    let before = info.output;
-    node.set_output(Output::Raw)?;
-    let result = (|| {
-        let rate_hz = match cfg.rate_hz {
-            Some(hz) if hz != info.rate_hz => {
-                if cfg.resume {
-                    progress.note(&format!(
-                        "the node streams at {} Hz, the campaign's rate is {hz} Hz: set to {hz} Hz",
-                        info.rate_hz
-                    ));
-                }
-                set_rate(node, hz)?
-            }
-            Some(hz) => hz,
-            None => info.rate_hz,
-        };
-        let mut history: (Vec<[f64; 3]>, f64) = (Vec::new(), f64::NEG_INFINITY);
-        let (mut out, done, with_temp) = if cfg.resume {
-            let r = open_resumed(cfg, &device_id)?;
-            progress.resumed(r.done, r.truncated_rows);
-            history = (r.means, r.last_t);
-            (CampaignFile { file: r.file, path: cfg.out.clone() }, r.done, r.with_temp)
-        } else {
-            // The campaign records the node's temperature when its blocks carry one.
-            let with_temp = reports_temperature(node)?;
-            let d = cfg.out.display();
-            let file = OpenOptions::new().write(true).create_new(true).open(&cfg.out).map_err(|e| {
-                if e.kind() == std::io::ErrorKind::AlreadyExists {
-                    bad(format!("{d} exists: continue it with --resume, or choose another --out"))
-                } else {
-                    environment(format!("creating {d}"), e)
-                }
-            })?;
-            let mut f = CampaignFile { file, path: cfg.out.clone() };
-            f.append(&header(cfg, &device_id, &firmware, rate_hz, with_temp))?;
-            (f, 0, with_temp)
-        };
-        if cfg.chamber.is_some() && !with_temp {
-            return Err(bad(format!(
-                "{}: the node reports no temperature with its samples (or {} has no `temp_c` column): a thermal \
-                 acquisition (--chamber) needs a node with a temperature input (link protocol 4)",
-                node.port(),
-                cfg.out.display()
-            )));
-        }
-        progress.started(done, cfg.positions().len(), &cfg.rule);
-        let at = Resume { done, means: history.0, clock: Clock { offset: 0.0, last: history.1 } };
-        run_positions(node, head, cfg, progress, stop, &mut out, at, rate_hz, with_temp)
-    })();
-    // Put the node back as it was, whatever happened.
-    let restored = if before != Output::Raw { node.set_output(before).map(|_| ()) } else { Ok(()) };
-    let (positions, lost, interrupted) = result?;
-    restored?;
-    Ok(AcquireSummary { positions, planned: cfg.positions().len(), interrupted, lost, device_id })
-}
-
 /// Whether the node's live blocks carry a temperature: the first block within 3 s says (false
 /// when none comes: the acquisition then fails at its first position, saying why).
 fn reports_temperature(node: &mut Session) -> anyhow::Result<bool> {
@@ -517,88 +455,6 @@ impl Clock {
     fn t(&self, counter: u32, rate_hz: u32) -> f64 {
         counter as f64 / rate_hz as f64 + self.offset
     }
-}
-
-/// Where an acquisition starts: the positions already in the file, their mean codes, the clock.
-struct Resume {
-    done: usize,
-    means: Vec<[f64; 3]>,
-    clock: Clock,
-}
-
-#[allow(clippy::too_many_arguments)]
-fn run_positions(
-    node: &mut Session,
-    head: &mut dyn Positioner,
-    cfg: &AcquireConfig,
-    progress: &mut dyn Progress,
-    stop: &AtomicBool,
-    out: &mut CampaignFile,
-    at: Resume,
-    rate_hz: u32,
-    with_temp: bool,
-) -> anyhow::Result<(usize, u64, bool)> {
-    let positions = cfg.positions();
-    let n = positions.len();
-    let per_pass = cfg.plan.positions.len();
-    let done = at.done;
-    let mut clock = at.clock;
-    let accel = |k: usize| accelcal_shared::gravity(positions[k].0, positions[k].1, cfg.g);
-    // The positions of the pass under way that the file already holds are the reference.
-    let mut motion = MotionCheck::new(cfg.g);
-    for (i, m) in at.means.iter().enumerate().skip(done - done % per_pass) {
-        motion.accept(accel(i), *m, i + 1);
-    }
-    let t0 = Instant::now();
-    let mut lost_total = 0u64;
-    for k in done..n {
-        let angles = positions[k];
-        let expected = accel(k);
-        if k % per_pass == 0 {
-            motion.reset();
-        }
-        // A new chamber setpoint (or a resumed pass): set it and soak.
-        if let Some(c) = cfg.chamber.as_ref().filter(|_| k % per_pass == 0 || k == done) {
-            if !soak(node, head, c.setpoints_c[k / per_pass], c.soak, stop)? {
-                return Ok((k, lost_total, true));
-            }
-        }
-        let (text, report, last_t) = loop {
-            head.set(k, n, angles, expected)?;
-            if stop.load(Ordering::Relaxed) {
-                return Ok((k, lost_total, true));
-            }
-            ensure_node(node, rate_hz, progress)?;
-            let why = match record_position(node, cfg, rate_hz, k, angles, stop, with_temp, &mut clock)? {
-                Recorded::Done(text, report, last_t) => match motion.check(expected, report.mean) {
-                    Ok(()) => break (text, report, last_t),
-                    Err(why) => format!("the head did not move as the plan says: {why}"),
-                },
-                Recorded::Stopped => return Ok((k, lost_total, true)),
-                Recorded::Unsettled(why) => why,
-            };
-            if !head.retry(k, &why)? {
-                return Err(bad(format!(
-                    "position {} of {n} (alpha {} deg, beta {} deg) refused: {why}; the campaign keeps the {k} \
-                     positions before it: retry with --resume",
-                    k + 1,
-                    angles.0,
-                    angles.1
-                )));
-            }
-            if stop.load(Ordering::Relaxed) {
-                return Ok((k, lost_total, true));
-            }
-        };
-        out.append(&text)?;
-        motion.accept(expected, report.mean, k + 1);
-        lost_total += report.lost;
-        clock.last = last_t;
-        let finished = k + 1 - done;
-        let per = t0.elapsed() / finished as u32;
-        progress.position_done(&report, k + 1, n, per * (n - k - 1) as u32);
-    }
-    Ok((n, lost_total, false))
 }
 
 /// The sets of one position, recorded once the stream was static.

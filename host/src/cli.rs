@@ -652,16 +652,21 @@ pub struct EmulateArgs {
     #[arg(long = "qemu", value_name = "ELF")]
     pub elf: PathBuf,
     /// The unit on the head: a truth file of `accelcal simulate --truth` (triad x, y, z; its bias,
-    /// sensitivities, misalignment, noise and effects are what the front end produces).
-    #[arg(long, value_name = "UNIT_JSON")]
-    pub unit: PathBuf,
-    /// Seed of the front end's noise [default: the unit's seed].
+    /// sensitivities, misalignment, noise and effects are what the front end produces). Repeat it
+    /// for several nodes on the one head: one QEMU node per unit, each with its own front end,
+    /// link and gdbstub (`nodes` of the printed line, in this order).
+    #[arg(long, value_name = "UNIT_JSON", required = true)]
+    pub unit: Vec<PathBuf>,
+    /// Seed of the front end's noise [default: the unit's seed]; with several --unit, once per
+    /// unit in the same order, or not at all.
     #[arg(long)]
-    pub seed: Option<u64>,
-    /// A record to put into slot 0 before boot, as if it had been flashed earlier (for the QEMU
-    /// node its device id is 51454d552d422d4c34373545).
+    pub seed: Vec<u64>,
+    /// A record to put into slot 0 before boot, as if it had been flashed earlier; with several
+    /// --unit, once per unit in the same order, or not at all. The first node's device id is
+    /// 51454d552d422d4c34373545 (`QEMU-B-L475E`), node N's (N >= 2) `QEMU-NODE-NN` (N in two digits) in
+    /// hex (the `device_id` of `nodes` in the printed line).
     #[arg(long, value_name = "RECORD")]
-    pub record: Option<PathBuf>,
+    pub record: Vec<PathBuf>,
     /// The QEMU executable (QEMU >= 9 with the b-l475e-iot01a machine).
     #[arg(long, default_value = "qemu-system-arm", value_name = "PATH")]
     pub qemu_bin: PathBuf,
@@ -672,7 +677,8 @@ pub struct EmulateArgs {
     /// than the node can take, to provoke overruns).
     #[arg(long, default_value_t = 1.0, value_name = "F")]
     pub rate_factor: f64,
-    /// TCP port of QEMU's gdbstub on 127.0.0.1 [default: a free one].
+    /// TCP port of QEMU's gdbstub on 127.0.0.1 [default: a free one]; with several --unit, the
+    /// first node's, node N's is PORT + N - 1.
     #[arg(long, value_name = "PORT")]
     pub gdb_port: Option<u16>,
     /// TCP port of the emulated head on 127.0.0.1 [default: a free one].
@@ -724,9 +730,18 @@ pub struct OutputArgs {
 /// `accelcal acquire`: record a campaign from a node on a dividing head.
 #[derive(Debug, Args)]
 pub struct AcquireArgs {
-    /// The node's link.
-    #[command(flatten)]
-    pub link: PortArgs,
+    /// Serial port of the node: the board's ST-LINK virtual COM port (e.g. /dev/ttyACM0) or a
+    /// `port` that `accelcal emulate` prints. Repeat it for several nodes on the one head (one unit
+    /// each, acquired together: one head move per position, every node captured there), each with
+    /// its --out and --serial given in the same order.
+    #[arg(long, value_name = "DEV", required = true)]
+    pub port: Vec<String>,
+    /// Baud rate of the nodes' USART1 (a pty ignores it).
+    #[arg(long, default_value_t = accelcal_core::node::monitor::NODE_BAUD)]
+    pub baud: u32,
+    /// Seconds a node may stay silent (no answer to a request) before the command fails.
+    #[arg(long, alias = "answer-timeout-s", default_value_t = 5.0, value_name = "S")]
+    pub timeout_s: f64,
     /// The head: `manual` (the command shows each position's angles and what the unit should
     /// read, and waits for Enter) or `sim:HOST:PORT` (the emulated head `accelcal emulate` prints).
     #[arg(long, value_name = "HEAD")]
@@ -737,16 +752,18 @@ pub struct AcquireArgs {
     pub plan: String,
     /// Campaign CSV to write (raw codes, and `temp_c` when the node reports its temperature, as
     /// protocol 4 nodes do; the header comments carry device id, serial, firmware, g, plan, date,
-    /// tool version). Must not exist, unless --resume.
-    #[arg(long, short, value_name = "CAMPAIGN")]
-    pub out: PathBuf,
+    /// tool version). Must not exist, unless --resume. Once per --port, in the same order: each
+    /// node's own campaign.
+    #[arg(long, short, value_name = "CAMPAIGN", required = true)]
+    pub out: Vec<PathBuf>,
     /// Sample sets recorded per position, after the stream is static [default: 400; with
     /// --resume, the campaign's].
     #[arg(long, value_name = "N")]
     pub samples: Option<usize>,
-    /// The unit's serial number, written into the campaign.
+    /// The unit's serial number, written into the campaign; with several --port, once per port in
+    /// the same order, or not at all.
     #[arg(long, value_name = "S")]
-    pub serial: Option<String>,
+    pub serial: Vec<String>,
     /// Gravity at the rig, m/s² [default: 9.81, announced; better --latitude/--height].
     #[arg(long, value_name = "M_S2")]
     pub g: Option<f64>,
@@ -755,7 +772,9 @@ pub struct AcquireArgs {
     pub local: LocalGravity,
     /// Continue an interrupted acquisition in --out (same node and plan): keep its complete
     /// positions and record the rest, with the campaign's samples, rate and g (an option that
-    /// contradicts them is refused).
+    /// contradicts them is refused). With several --port each campaign continues from its own
+    /// complete positions (the head revisits a position while a node lacks it; the campaigns must
+    /// agree on samples, rate and g).
     #[arg(long)]
     pub resume: bool,
     /// Set the node's sampling rate per channel first, Hz (100..=4000) [default: the node's; with

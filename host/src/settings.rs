@@ -216,10 +216,23 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
             distinct(&[("FILE", &a.file)], &[("--json", a.json.as_deref())])
         }
         Command::Acquire(a) => {
-            if !a.resume && a.out.exists() {
+            let ports = a.port.len();
+            once_each("--out", a.out.len(), ports, "--port", false)?;
+            once_each("--serial", a.serial.len(), ports, "--port", true)?;
+            if let Some((i, p)) = a.port.iter().enumerate().find(|(i, p)| a.port[..*i].contains(p)) {
+                return Err(bad(format!(
+                    "--port {p} is given twice (ports {} and {})",
+                    a.port.iter().position(|q| q == p).unwrap() + 1,
+                    i + 1
+                )));
+            }
+            let outs: Vec<(&str, Option<&Path>)> =
+                a.out.iter().map(|o| ("--out", Some(o.as_path()))).collect();
+            distinct(&[], &outs)?;
+            if let Some(out) = a.out.iter().find(|o| !a.resume && o.exists()) {
                 return Err(bad(format!(
                     "--out {} exists: continue it with --resume, or choose another file",
-                    a.out.display()
+                    out.display()
                 )));
             }
             if let Some(n) = a.samples.filter(|&n| n < 2) {
@@ -240,7 +253,7 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
             if let Some(g) = a.g {
                 crate::cmd::check_g(g)?;
             }
-            check_answer_timeout(&a.link)
+            positive_seconds("--timeout-s", a.timeout_s)
         }
         Command::Info(a) => {
             check_answer_timeout(&a.link)?;
@@ -294,7 +307,9 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
             if !(a.rate_factor.is_finite() && a.rate_factor > 0.0 && a.rate_factor <= 100.0) {
                 return Err(bad(format!("--rate-factor must be in (0, 100], got {}", a.rate_factor)));
             }
-            Ok(())
+            let units = a.unit.len();
+            once_each("--seed", a.seed.len(), units, "--unit", true)?;
+            once_each("--record", a.record.len(), units, "--unit", true)
         }
         Command::Report(a) => {
             if let Some(g) = a.g {
@@ -402,6 +417,19 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
         Command::BenchDiagnose(_) | Command::Demo(_) | Command::Plan(_) => Ok(()),
         Command::History(a) => crate::cmd::history::check(a),
     }
+}
+
+/// An option given per node (`--out` per `--port`, `--seed` per `--unit`): `given` times for `n`
+/// of `per` must be once each (in the same order), or, when `optional`, not at all.
+fn once_each(option: &str, given: usize, n: usize, per: &str, optional: bool) -> anyhow::Result<()> {
+    if given == n || (optional && given == 0) {
+        return Ok(());
+    }
+    let times = if given == 1 { "once" } else { &format!("{given} times") };
+    let or_not = if optional { ", or not at all" } else { "" };
+    Err(bad(format!(
+        "{option} is given {times} for {n} {per} options: give it once per {per} (in the same order){or_not}"
+    )))
 }
 
 fn check_answer_timeout(link: &crate::cli::PortArgs) -> anyhow::Result<()> {

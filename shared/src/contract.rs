@@ -34,6 +34,60 @@ pub const UID_ADDR: u32 = 0x1FFF_7590;
 /// for the emulated node carry this id.
 pub const QEMU_DEVICE_ID: [u8; 12] = *b"QEMU-B-L475E";
 
+/// Start of SRAM2 (32 KiB): the application does not use it (`memory.x` has no region there).
+pub const SRAM2_BASE: u32 = 0x1000_0000;
+/// Where the emulator puts an emulated node's device id: the first 16 bytes of SRAM2, which QEMU
+/// maps and the application never touches. QEMU's generic loader writes them before boot (and
+/// again at each system reset); the QEMU board reads them there ([`qemu_device_id`]). The real
+/// board reads its unique-id register and never this area.
+pub const QEMU_ID_ADDR: u32 = SRAM2_BASE;
+/// Marks the block at [`QEMU_ID_ADDR`] as holding a device id (SRAM2 reads zeros otherwise).
+pub const QEMU_ID_MAGIC: [u8; 4] = *b"NdID";
+/// Size of the block at [`QEMU_ID_ADDR`]: the magic, then the 12-byte id.
+pub const QEMU_ID_BLOCK_LEN: usize = 16;
+
+/// The block the emulator loads at [`QEMU_ID_ADDR`] for a node reporting `id`.
+pub const fn qemu_id_block(id: [u8; 12]) -> [u8; QEMU_ID_BLOCK_LEN] {
+    let mut b = [0u8; QEMU_ID_BLOCK_LEN];
+    let mut i = 0;
+    while i < 4 {
+        b[i] = QEMU_ID_MAGIC[i];
+        i += 1;
+    }
+    while i < QEMU_ID_BLOCK_LEN {
+        b[i] = id[i - 4];
+        i += 1;
+    }
+    b
+}
+
+/// The device id a QEMU node reports given the block at [`QEMU_ID_ADDR`]: its id when the block
+/// starts with [`QEMU_ID_MAGIC`], else [`QEMU_DEVICE_ID`] (nothing was loaded).
+pub fn qemu_device_id(block: [u8; QEMU_ID_BLOCK_LEN]) -> [u8; 12] {
+    let (magic, id) = block.split_at(4);
+    match id.try_into() {
+        Ok(id) if magic == QEMU_ID_MAGIC => id,
+        _ => QEMU_DEVICE_ID,
+    }
+}
+
+/// The device id of emulated node `index` (0-based) of `accelcal emulate`: node 0 is
+/// [`QEMU_DEVICE_ID`] (no block loaded), node `i` ≥ 1 `QEMU-NODE-NN` with NN = i + 1 in two
+/// decimal digits (`None` from index 99 on).
+pub const fn qemu_node_id(index: usize) -> Option<[u8; 12]> {
+    if index == 0 {
+        return Some(QEMU_DEVICE_ID);
+    }
+    let n = index + 1;
+    if n > 99 {
+        return None;
+    }
+    let mut id = *b"QEMU-NODE-00";
+    id[10] = b'0' + (n / 10) as u8;
+    id[11] = b'0' + (n % 10) as u8;
+    Some(id)
+}
+
 /// USART1 baud rate of the real board (ST-LINK virtual COM port).
 pub const BAUD_REAL: u32 = 921_600;
 /// USART1 baud rate of the QEMU board (QEMU ignores it; the emulated BRR is set from it).
@@ -61,6 +115,25 @@ mod tests {
         assert_eq!(RAM_BASE + RAM_SIZE, 0x2001_8000);
         assert_eq!(FIXED_SCALE, 65536.0);
         assert_eq!(&QEMU_DEVICE_ID, b"QEMU-B-L475E");
+        assert_eq!(QEMU_ID_ADDR, 0x1000_0000);
+        assert_eq!(&qemu_id_block(*b"QEMU-NODE-02"), b"NdIDQEMU-NODE-02");
+    }
+
+    #[test]
+    fn the_qemu_node_ids() {
+        assert_eq!(qemu_node_id(0), Some(QEMU_DEVICE_ID));
+        assert_eq!(qemu_node_id(1), Some(*b"QEMU-NODE-02"));
+        assert_eq!(qemu_node_id(98), Some(*b"QEMU-NODE-99"));
+        assert_eq!(qemu_node_id(99), None);
+        // A loaded block gives its id back; SRAM2 as QEMU starts it (zeros), or anything without
+        // the magic, gives the fixed id.
+        let id = qemu_node_id(5).unwrap();
+        assert_eq!(qemu_device_id(qemu_id_block(id)), id);
+        assert_eq!(qemu_device_id([0; QEMU_ID_BLOCK_LEN]), QEMU_DEVICE_ID);
+        assert_eq!(qemu_device_id([0xff; QEMU_ID_BLOCK_LEN]), QEMU_DEVICE_ID);
+        let mut bad = qemu_id_block(id);
+        bad[0] ^= 1;
+        assert_eq!(qemu_device_id(bad), QEMU_DEVICE_ID);
     }
 
     /// The repository's linker script.
@@ -111,6 +184,11 @@ mod tests {
         assert_eq!(get("RECORDS"), (SLOT_ADDRS[0], (N_SLOTS * SLOT_SIZE) as u32));
         assert_eq!(get("RAM"), (RAM_BASE, RAM_SIZE));
         assert_eq!(r.len(), 3, "{r:?}");
+        // The emulated node's id block lies outside every region the linker places things in.
+        let id = QEMU_ID_ADDR..QEMU_ID_ADDR + QEMU_ID_BLOCK_LEN as u32;
+        for (name, o, l) in &r {
+            assert!(id.end <= *o || id.start >= o + l, "the QEMU id block overlaps {name}");
+        }
     }
 
     #[test]

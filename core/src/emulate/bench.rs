@@ -1,9 +1,12 @@
-//! The emulated bench as a whole (`accelcal emulate`): the node's QEMU build with its link on a
-//! pseudo-terminal, the emulated front end on USART2, the emulated head on TCP, and QEMU's
-//! gdbstub. [`Bench::start`] brings everything up and returns the three addresses a user's
-//! commands talk to; [`Bench::run_until`] keeps it running until a stop is requested or QEMU
-//! ends; dropping the bench stops the threads and kills QEMU (its temporary directory goes with
-//! it).
+//! The emulated bench as a whole (`accelcal emulate`): one or more nodes, each its QEMU build with
+//! its link on a pseudo-terminal, its own emulated front end on USART2 and QEMU's gdbstub, all
+//! front ends reading one emulated head on TCP (one head state, one chamber). [`Bench::start`]
+//! brings everything up and returns the addresses a user's commands talk to; [`Bench::run_until`]
+//! keeps it running until a stop is requested or a QEMU ends; dropping the bench stops the
+//! threads and kills every QEMU (their temporary directories go with them).
+//!
+//! Node `i` (0-based) reports the device id `contract::qemu_node_id(i)`: node 0 the fixed
+//! `contract::QEMU_DEVICE_ID`, the others an id loaded at `contract::QEMU_ID_ADDR`.
 
 use std::net::TcpListener;
 use std::path::PathBuf;
@@ -12,13 +15,25 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::Duration;
 
+use accelcal_shared::contract::qemu_node_id;
 use accelcal_shared::slots::SlotImage;
 
 use super::frontend::{read_ctl, run_frontend, FeCounters, FrontEnd, PaceOptions};
 use super::head::{bind_head, spawn_head_server, Clock, Head, Motion, SensorTemp};
 use crate::error::bad;
 use crate::node::qemu::{BlankSlot, Link, LinkChannel, Qemu, QemuOptions};
+use crate::node::session::device_id_hex;
 use crate::sim::Unit;
+
+/// One emulated node on the head: its unit, its front end's noise, its record.
+pub struct NodeOptions {
+    /// The unit the node's front end reads.
+    pub unit: Unit,
+    /// Seed of the front end's noise.
+    pub seed: u64,
+    /// A record (file bytes) to load into slot 0 before boot, as if flashed earlier.
+    pub record: Option<Vec<u8>>,
+}
 
 /// How to run the bench.
 pub struct BenchOptions {
@@ -26,47 +41,64 @@ pub struct BenchOptions {
     pub qemu: PathBuf,
     /// The node's QEMU build.
     pub elf: PathBuf,
-    /// The unit on the head.
-    pub unit: Unit,
-    /// Seed of the front end's noise.
-    pub seed: u64,
-    /// A record (file bytes) to load into slot 0 before boot, as if flashed earlier.
-    pub record: Option<Vec<u8>>,
+    /// The nodes on the head, at least one: node `i` reports the device id
+    /// `contract::qemu_node_id(i)` (the first one `contract::QEMU_DEVICE_ID`).
+    pub nodes: Vec<NodeOptions>,
     /// The head's motion.
     pub motion: Motion,
     /// The thermal chamber: the sensor's starting temperature (soaked there) and its lag.
     pub sensor: SensorTemp,
     /// The front end's pacing.
     pub pace: PaceOptions,
-    /// Port of the gdbstub (0: a free one).
+    /// Port of the first node's gdbstub (0: a free one); node `i`'s is this plus `i`.
     pub gdb_port: u16,
     /// Port of the head (0: a free one).
     pub head_port: u16,
 }
 
-/// What the bench's users connect to: the line `accelcal emulate` prints.
+/// Where to reach one emulated node.
 #[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
-pub struct Endpoints {
+pub struct NodeEndpoints {
     /// The node's link, a pseudo-terminal.
     pub port: String,
     /// QEMU's gdbstub, `HOST:PORT`.
     pub gdb: String,
+    /// The device id the node reports, hex.
+    pub device_id: String,
+}
+
+/// What the bench's users connect to: the line `accelcal emulate` prints (its field names are an
+/// interface). `port` and `gdb` are the first node's.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct Endpoints {
+    /// The first node's link, a pseudo-terminal.
+    pub port: String,
+    /// The first node's gdbstub, `HOST:PORT`.
+    pub gdb: String,
     /// The head, `sim:HOST:PORT`.
     pub head: String,
+    /// Every node, in the order of the units.
+    pub nodes: Vec<NodeEndpoints>,
+}
+
+/// One running node's front-end counters.
+pub struct NodeCounters {
+    /// Sets sent, sets skipped because QEMU fell behind.
+    pub counters: Arc<FeCounters>,
+    /// The rate the node asked its front end for, Hz (0 until it has).
+    pub rate_hz: Arc<AtomicU32>,
 }
 
 /// A running bench.
 pub struct Bench {
-    /// `None` only while dropping.
-    qemu: Option<Qemu>,
+    /// Empty only while dropping.
+    qemus: Vec<Qemu>,
     stop: Arc<AtomicBool>,
     threads: Vec<JoinHandle<()>>,
     /// Where to connect.
     pub endpoints: Endpoints,
-    /// The front end's counters (sets sent, sets skipped because QEMU fell behind).
-    pub counters: Arc<FeCounters>,
-    /// The rate the node asked the front end for, Hz (0 until it has).
-    pub rate_hz: Arc<AtomicU32>,
+    /// Each node's front-end counters, in the order of the units.
+    pub nodes: Vec<NodeCounters>,
 }
 
 /// Send buffer of the front end's socket, bytes (the kernel doubles it and applies its minimum).
@@ -79,77 +111,135 @@ fn free_port() -> std::io::Result<u16> {
 }
 
 impl Bench {
-    /// Starts QEMU, the front end and the head.
-    pub fn start(opts: BenchOptions) -> anyhow::Result<Bench> {
-        opts.unit.check_triad()?;
-        opts.motion.check().map_err(|e| bad(format!("head motion: {e}")))?;
-        let mut fe = FrontEnd::new(opts.unit, opts.seed)?;
-        let gdb_port = if opts.gdb_port == 0 { free_port()? } else { opts.gdb_port };
-        let head_listener = bind_head(opts.head_port)?;
-        let mut q = QemuOptions::new(&opts.elf);
-        q.qemu = opts.qemu.clone();
-        q.link = LinkChannel::Pty;
-        q.frontend = true;
-        q.gdb_port = Some(gdb_port);
-        q.blank = BlankSlot::Erased;
-        q.spin_main_loop = std::env::var_os("ACCELCAL_EMULATE_SPIN").is_some();
-        if let Some(rec) = &opts.record {
-            let image = SlotImage::build(rec, 1).map_err(|e| bad(format!("--record: {e}")))?;
-            q.slots[0] = Some(image.to_vec());
+    /// Starts the head, then each node: QEMU and its front end reading the one head.
+    pub fn start(mut opts: BenchOptions) -> anyhow::Result<Bench> {
+        if opts.nodes.is_empty() {
+            return Err(bad("the emulated bench needs at least one unit"));
         }
-        let mut qemu = Qemu::start(&q)?;
-        let port = match qemu.take_link() {
-            Some(Link::Pty(p)) => p.display().to_string(),
-            _ => anyhow::bail!("QEMU did not give the link a pseudo-terminal"),
-        };
-        let fe_sock =
-            qemu.take_frontend().ok_or_else(|| anyhow::anyhow!("QEMU did not open the front end"))?;
-        // A converter has no queue: sets the node has not taken must not pile up in the socket
-        // (its default buffer holds seconds of sets, which would reach the node late, from a
-        // head pose long past). With the smallest send buffer the writer blocks within a few
-        // sets and the pacing loop skips what it cannot send, which the node counts as lost.
-        socket2::SockRef::from(&fe_sock).set_send_buffer_size(FE_SEND_BUFFER)?;
+        for n in &opts.nodes {
+            n.unit.check_triad()?;
+        }
+        opts.motion.check().map_err(|e| bad(format!("head motion: {e}")))?;
+        let head_listener = bind_head(opts.head_port)?;
         let stop = Arc::new(AtomicBool::new(false));
         let head = Arc::new(Head::with_chamber(Clock::start(), opts.motion, (0.0, 0.0), opts.sensor));
-        let (head_addr, head_thread) = spawn_head_server(head_listener, head.clone(), stop.clone())?;
-        let rate_hz = Arc::new(AtomicU32::new(0));
-        let counters = Arc::new(FeCounters::default());
-        let mut threads = Vec::new();
-        {
-            let rx = fe_sock.try_clone()?;
-            rx.set_read_timeout(Some(Duration::from_millis(100)))?;
-            let (rate, stop) = (rate_hz.clone(), stop.clone());
-            threads.push(std::thread::spawn(move || {
-                let _ = read_ctl(rx, &rate, &stop);
-            }));
+        let mut bench = Bench {
+            qemus: Vec::new(),
+            stop: stop.clone(),
+            threads: Vec::new(),
+            endpoints: Endpoints {
+                port: String::new(),
+                gdb: String::new(),
+                head: String::new(),
+                nodes: Vec::new(),
+            },
+            nodes: Vec::new(),
+        };
+        for (i, node) in std::mem::take(&mut opts.nodes).into_iter().enumerate() {
+            let gdb_port = match opts.gdb_port {
+                0 => free_port()?,
+                p => p
+                    .checked_add(i as u16)
+                    .ok_or_else(|| bad(format!("--gdb-port {p}: no port for node {}", i + 1)))?,
+            };
+            let id = qemu_node_id(i)
+                .ok_or_else(|| bad(format!("the emulated bench runs at most 99 nodes, not {}", i + 1)))?;
+            let (qemu, ends, counters) =
+                start_node(&opts, node, i, id, gdb_port, &head, &stop, &mut bench.threads)?;
+            bench.qemus.push(qemu);
+            bench.endpoints.nodes.push(ends);
+            bench.nodes.push(counters);
         }
-        {
-            let (rate, stop, counters, head, pace) =
-                (rate_hz.clone(), stop.clone(), counters.clone(), head.clone(), opts.pace);
-            threads.push(std::thread::spawn(move || {
-                let _ = run_frontend(&mut fe, &head, &rate, fe_sock, &stop, &pace, &counters);
-            }));
-        }
-        threads.push(std::thread::spawn(move || {
+        let (head_addr, head_thread) = spawn_head_server(head_listener, head, stop)?;
+        bench.threads.push(std::thread::spawn(move || {
             let _ = head_thread.join();
         }));
-        let endpoints =
-            Endpoints { port, gdb: format!("127.0.0.1:{gdb_port}"), head: format!("sim:{head_addr}") };
-        Ok(Bench { qemu: Some(qemu), stop, threads, endpoints, counters, rate_hz })
+        let first = &bench.endpoints.nodes[0];
+        bench.endpoints.port = first.port.clone();
+        bench.endpoints.gdb = first.gdb.clone();
+        bench.endpoints.head = format!("sim:{head_addr}");
+        Ok(bench)
     }
 
-    /// Runs until `stop` is set (Ok) or QEMU ends (the error carries its status and stderr).
+    /// Runs until `stop` is set (Ok) or a QEMU ends (the error carries its status and stderr,
+    /// and names the node when there are several).
     pub fn run_until(&mut self, stop: &AtomicBool) -> anyhow::Result<()> {
+        let several = self.qemus.len() > 1;
         loop {
             if stop.load(Ordering::Relaxed) {
                 return Ok(());
             }
-            if let Some(e) = self.qemu.as_mut().and_then(Qemu::exited) {
-                return Err(e.into());
+            for (i, q) in self.qemus.iter_mut().enumerate() {
+                if let Some(e) = q.exited() {
+                    let e = anyhow::Error::new(e);
+                    return Err(if several {
+                        e.context(format!("node {} of {}", i + 1, self.qemus.len()))
+                    } else {
+                        e
+                    });
+                }
             }
             std::thread::sleep(Duration::from_millis(100));
         }
     }
+}
+
+/// Starts node `i`'s QEMU and its front end's two threads (into `threads`).
+#[allow(clippy::too_many_arguments)]
+fn start_node(
+    opts: &BenchOptions,
+    node: NodeOptions,
+    i: usize,
+    id: [u8; 12],
+    gdb_port: u16,
+    head: &Arc<Head>,
+    stop: &Arc<AtomicBool>,
+    threads: &mut Vec<JoinHandle<()>>,
+) -> anyhow::Result<(Qemu, NodeEndpoints, NodeCounters)> {
+    let mut fe = FrontEnd::new(node.unit, node.seed)?;
+    let mut q = QemuOptions::new(&opts.elf);
+    q.qemu = opts.qemu.clone();
+    q.link = LinkChannel::Pty;
+    q.frontend = true;
+    q.gdb_port = Some(gdb_port);
+    q.blank = BlankSlot::Erased;
+    // Node 0 reports the fixed id without a block, as before several nodes existed.
+    q.device_id = (i > 0).then_some(id);
+    q.spin_main_loop = std::env::var_os("ACCELCAL_EMULATE_SPIN").is_some();
+    if let Some(rec) = &node.record {
+        let image = SlotImage::build(rec, 1).map_err(|e| bad(format!("--record: {e}")))?;
+        q.slots[0] = Some(image.to_vec());
+    }
+    let mut qemu = Qemu::start(&q)?;
+    let port = match qemu.take_link() {
+        Some(Link::Pty(p)) => p.display().to_string(),
+        _ => anyhow::bail!("QEMU did not give the link a pseudo-terminal"),
+    };
+    let fe_sock = qemu.take_frontend().ok_or_else(|| anyhow::anyhow!("QEMU did not open the front end"))?;
+    // A converter has no queue: sets the node has not taken must not pile up in the socket
+    // (its default buffer holds seconds of sets, which would reach the node late, from a
+    // head pose long past). With the smallest send buffer the writer blocks within a few
+    // sets and the pacing loop skips what it cannot send, which the node counts as lost.
+    socket2::SockRef::from(&fe_sock).set_send_buffer_size(FE_SEND_BUFFER)?;
+    let rate_hz = Arc::new(AtomicU32::new(0));
+    let counters = Arc::new(FeCounters::default());
+    {
+        let rx = fe_sock.try_clone()?;
+        rx.set_read_timeout(Some(Duration::from_millis(100)))?;
+        let (rate, stop) = (rate_hz.clone(), stop.clone());
+        threads.push(std::thread::spawn(move || {
+            let _ = read_ctl(rx, &rate, &stop);
+        }));
+    }
+    {
+        let (rate, stop, counters, head, pace) =
+            (rate_hz.clone(), stop.clone(), counters.clone(), head.clone(), opts.pace);
+        threads.push(std::thread::spawn(move || {
+            let _ = run_frontend(&mut fe, &head, &rate, fe_sock, &stop, &pace, &counters);
+        }));
+    }
+    let ends = NodeEndpoints { port, gdb: format!("127.0.0.1:{gdb_port}"), device_id: device_id_hex(&id) };
+    Ok((qemu, ends, NodeCounters { counters, rate_hz }))
 }
 
 impl Drop for Bench {
@@ -157,7 +247,7 @@ impl Drop for Bench {
         self.stop.store(true, Ordering::Relaxed);
         // Kill QEMU first: a front end blocked writing to a halted guest then fails at once; the
         // other threads check the flag at least every 100 ms.
-        drop(self.qemu.take());
+        self.qemus.clear();
         for t in self.threads.drain(..) {
             let _ = t.join();
         }

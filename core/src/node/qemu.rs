@@ -6,9 +6,10 @@
 //! unix-socket chardev this process connects to, or a pseudo-terminal whose path QEMU names);
 //! serial1 = USART2, the front end (a unix-socket chardev the caller connects to, or `null` in
 //! replay, so the node's sampler sees nothing); serial2 = USART3, which the node never enables,
-//! optionally [`SPIN_CHARDEV`]. Record slots are loaded with QEMU's generic loader (`-device
-//! loader,file=...,addr=...`; the loader refuses raw files larger than the machine's RAM size,
-//! which is 0 on this board unless `-m` is given, hence `-m 1M`). Semihosting is on for the node's
+//! optionally [`SPIN_CHARDEV`]. Record slots, and the device id of a node that must not report
+//! the fixed QEMU id (at `accelcal_shared::contract::QEMU_ID_ADDR`, in SRAM2), are loaded with
+//! QEMU's generic loader (`-device loader,file=...,addr=...`; the loader refuses raw files larger
+//! than the machine's RAM size, which is 0 on this board unless `-m` is given, hence `-m 1M`). Semihosting is on for the node's
 //! defmt output, which goes to a file next to the sockets, for diagnosis. An optional gdbstub
 //! listens on `127.0.0.1:PORT`. The process is killed when [`Qemu`] is dropped.
 
@@ -18,6 +19,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
+use accelcal_shared::contract::{qemu_id_block, QEMU_ID_ADDR};
 use accelcal_shared::slots::SLOT_SIZE;
 
 use super::RECORD_SLOTS;
@@ -75,6 +77,10 @@ pub struct QemuOptions {
     pub slots: [Option<Vec<u8>>; 2],
     /// What a slot without an image holds.
     pub blank: BlankSlot,
+    /// The device id the node reports, loaded at `contract::QEMU_ID_ADDR` (SRAM2) as
+    /// `contract::qemu_id_block`; `None`: nothing is loaded and the node reports
+    /// `contract::QEMU_DEVICE_ID`.
+    pub device_id: Option<[u8; 12]>,
     /// Keep QEMU's main loop busy ([`SPIN_CHARDEV`] on USART3) so that the link and the front end
     /// are read at full speed; costs one host core while QEMU runs.
     pub spin_main_loop: bool,
@@ -94,6 +100,7 @@ impl QemuOptions {
             gdb_port: None,
             slots: [None, None],
             blank: BlankSlot::Zeros,
+            device_id: None,
             spin_main_loop: false,
             timeout: Duration::from_secs(20),
         }
@@ -205,6 +212,11 @@ impl Qemu {
             let path = dir.path().join(format!("slot{slot}.bin"));
             std::fs::write(&path, page)?;
             cmd.arg("-device").arg(format!("loader,file={},addr={:#x}", path.display(), RECORD_SLOTS[slot]));
+        }
+        if let Some(id) = opts.device_id {
+            let path = dir.path().join("device-id.bin");
+            std::fs::write(&path, qemu_id_block(id))?;
+            cmd.arg("-device").arg(format!("loader,file={},addr={QEMU_ID_ADDR:#x}", path.display()));
         }
         cmd.arg("-kernel")
             .arg(&opts.elf)

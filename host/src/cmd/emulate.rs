@@ -4,7 +4,7 @@
 use std::io::Write;
 use std::sync::atomic::Ordering;
 
-use accelcal_core::emulate::bench::{Bench, BenchOptions};
+use accelcal_core::emulate::bench::{Bench, BenchOptions, NodeOptions};
 use accelcal_core::emulate::head::SensorTemp;
 use accelcal_core::emulate::{Motion, PaceOptions};
 use accelcal_core::error::bad;
@@ -23,25 +23,27 @@ pub fn run(a: &EmulateArgs) -> anyhow::Result<()> {
             a.thermal_lag_s
         )));
     }
-    let unit = Unit::read_for_node(&a.unit)?;
+    let units = a.unit.iter().map(|p| Unit::read_for_node(p)).collect::<Result<Vec<_>, _>>()?;
     if !a.elf.is_file() {
         return Err(bad(format!(
             "{}: no such firmware ELF (build it with `cargo xtask test` or see firmware/README.md)",
             a.elf.display()
         )));
     }
-    let record = match &a.record {
-        Some(p) => {
-            Some(std::fs::read(p).map_err(|e| bad(format!("{}: cannot read the record: {e}", p.display())))?)
-        }
-        None => None,
-    };
+    let mut nodes = Vec::with_capacity(units.len());
+    for (i, unit) in units.into_iter().enumerate() {
+        let record = match a.record.get(i) {
+            Some(p) => Some(
+                std::fs::read(p).map_err(|e| bad(format!("{}: cannot read the record: {e}", p.display())))?,
+            ),
+            None => None,
+        };
+        nodes.push(NodeOptions { seed: a.seed.get(i).copied().unwrap_or(unit.seed), unit, record });
+    }
     let opts = BenchOptions {
         qemu: a.qemu_bin.clone(),
         elf: a.elf.clone(),
-        seed: a.seed.unwrap_or(unit.seed),
-        unit,
-        record,
+        nodes,
         motion: Motion { speed_deg_s: a.head_speed, ..Motion::default() },
         sensor: SensorTemp::soaked(a.chamber, a.thermal_lag_s),
         pace: PaceOptions { rate_factor: a.rate_factor, ..PaceOptions::default() },
@@ -55,17 +57,37 @@ pub fn run(a: &EmulateArgs) -> anyhow::Result<()> {
     writeln!(out, "{line}")?;
     out.flush()?;
     drop(out);
-    eprintln!(
-        "emulate: node running in QEMU, link {}, gdbstub {}, head {}; Ctrl-C stops",
-        bench.endpoints.port, bench.endpoints.gdb, bench.endpoints.head
-    );
+    let nodes = &bench.endpoints.nodes;
+    if let [node] = nodes.as_slice() {
+        eprintln!(
+            "emulate: node running in QEMU, link {}, gdbstub {}, head {}; Ctrl-C stops",
+            node.port, node.gdb, bench.endpoints.head
+        );
+    } else {
+        for (i, node) in nodes.iter().enumerate() {
+            eprintln!(
+                "emulate: node {} of {} ({}) running in QEMU, device {}, link {}, gdbstub {}",
+                i + 1,
+                nodes.len(),
+                a.unit[i].display(),
+                node.device_id,
+                node.port,
+                node.gdb
+            );
+        }
+        eprintln!("emulate: head {} shared by the {} nodes; Ctrl-C stops", bench.endpoints.head, nodes.len());
+    }
     let result = bench.run_until(&stop);
-    eprintln!(
-        "emulate: stopped; the front end sent {} sample sets at {} Hz ({} skipped because QEMU fell behind)",
-        bench.counters.sent.load(Ordering::Relaxed),
-        bench.rate_hz.load(Ordering::Relaxed),
-        bench.counters.skipped.load(Ordering::Relaxed)
-    );
+    let several = bench.nodes.len() > 1;
+    for (i, n) in bench.nodes.iter().enumerate() {
+        let which = if several { format!(" of node {}", i + 1) } else { String::new() };
+        eprintln!(
+            "emulate: stopped; the front end{which} sent {} sample sets at {} Hz ({} skipped because QEMU fell behind)",
+            n.counters.sent.load(Ordering::Relaxed),
+            n.rate_hz.load(Ordering::Relaxed),
+            n.counters.skipped.load(Ordering::Relaxed)
+        );
+    }
     drop(bench);
     result.map_err(|e| e.context("the emulated node stopped"))
 }

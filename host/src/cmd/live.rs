@@ -6,7 +6,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{mpsc, Arc};
 use std::time::Duration;
 
-use accelcal_core::acquire::{self, AcquireConfig, PositionReport, Positioner, Progress, StaticRule};
+use accelcal_core::acquire::{
+    self, AcquireConfig, NodeRun, PositionReport, Positioner, Progress, StaticRule,
+};
 use accelcal_core::campaign::identity::{Identity, G_SOURCE_ASSUMED, G_SOURCE_NORMAL};
 use accelcal_core::error::{bad, Interrupted};
 use accelcal_core::node::head::{HeadSpec, SimHead};
@@ -278,30 +280,75 @@ pub const DEFAULT_SAMPLES: usize = 400;
 
 /// `--resume`'s samples, rate and g: the campaign's (its header), whatever the defaults; an
 /// option that contradicts them is refused, naming both (checked before the node is opened).
+/// With several campaigns (one per node), they must agree.
 fn resumed_settings(a: &AcquireArgs) -> anyhow::Result<(usize, Option<u32>, (f64, String))> {
-    let file = acquire::resume_settings(&a.out)?;
-    let d = a.out.display();
-    let clash = |option: String, key: &str, have: String| {
-        bad(format!(
-            "{option} contradicts {d}'s `# {key}: {have}`: --resume continues with the campaign's settings \
-             (leave the option out)"
-        ))
-    };
-    if let Some(n) = a.samples.filter(|&n| n != file.samples) {
-        return Err(clash(format!("--samples {n}"), "samples", file.samples.to_string()));
-    }
-    if let Some(hz) = a.rate_hz.filter(|&hz| hz != file.rate_hz) {
-        return Err(clash(format!("--rate-hz {hz}"), "rate_hz", file.rate_hz.to_string()));
-    }
-    if let Some(g) = a.g.filter(|&g| g != file.g) {
-        let option = if a.local.latitude.is_some() {
-            format!("--latitude (g = {g} m/s²)")
-        } else {
-            format!("--g {g}")
+    let mut first: Option<(&std::path::Path, acquire::ResumeSettings)> = None;
+    for out in &a.out {
+        let file = acquire::resume_settings(out)?;
+        let d = out.display();
+        let clash = |option: String, key: &str, have: String| {
+            bad(format!(
+                "{option} contradicts {d}'s `# {key}: {have}`: --resume continues with the campaign's settings \
+                 (leave the option out)"
+            ))
         };
-        return Err(clash(option, "g_m_s2", file.g.to_string()));
+        if let Some(n) = a.samples.filter(|&n| n != file.samples) {
+            return Err(clash(format!("--samples {n}"), "samples", file.samples.to_string()));
+        }
+        if let Some(hz) = a.rate_hz.filter(|&hz| hz != file.rate_hz) {
+            return Err(clash(format!("--rate-hz {hz}"), "rate_hz", file.rate_hz.to_string()));
+        }
+        if let Some(g) = a.g.filter(|&g| g != file.g) {
+            let option = if a.local.latitude.is_some() {
+                format!("--latitude (g = {g} m/s²)")
+            } else {
+                format!("--g {g}")
+            };
+            return Err(clash(option, "g_m_s2", file.g.to_string()));
+        }
+        match &first {
+            None => first = Some((out, file)),
+            Some((p, f)) => {
+                for (key, mine, theirs) in [
+                    ("samples", file.samples.to_string(), f.samples.to_string()),
+                    ("rate_hz", file.rate_hz.to_string(), f.rate_hz.to_string()),
+                    ("g_m_s2", file.g.to_string(), f.g.to_string()),
+                ] {
+                    if mine != theirs {
+                        return Err(bad(format!(
+                            "{d}'s `# {key}: {mine}` is not {}'s `{theirs}`: the nodes of one acquisition share it \
+                             (resume them one at a time)",
+                            p.display()
+                        )));
+                    }
+                }
+            }
+        }
     }
+    let (_, file) = first.expect("--out is required");
     Ok((file.samples, Some(file.rate_hz), (file.g, file.g_source)))
+}
+
+/// A node's progress lines, prefixed with its port when several nodes are acquired.
+struct NodeLines(String);
+
+impl Progress for NodeLines {
+    fn position_done(&mut self, r: &PositionReport, done: usize, total: usize, left: Duration) {
+        eprint!("{}", self.0);
+        Lines.position_done(r, done, total, left);
+    }
+    fn started(&mut self, from: usize, total: usize, rule: &StaticRule) {
+        eprint!("{}", self.0);
+        Lines.started(from, total, rule);
+    }
+    fn note(&mut self, line: &str) {
+        eprint!("{}", self.0);
+        Lines.note(line);
+    }
+    fn resumed(&mut self, done: usize, truncated_rows: usize) {
+        eprint!("{}", self.0);
+        Lines.resumed(done, truncated_rows);
+    }
 }
 
 /// Runs `accelcal acquire`.
@@ -314,10 +361,14 @@ pub fn run_acquire(a: &AcquireArgs) -> anyhow::Result<()> {
         (a.samples.unwrap_or(DEFAULT_SAMPLES), a.rate_hz, g_source(a.g, &a.local))
     };
     let stop = stop_flag()?;
-    let mut node = open(&a.link)?;
+    let answer = Duration::from_secs_f64(a.timeout_s);
+    let mut nodes = Vec::with_capacity(a.port.len());
+    for port in &a.port {
+        nodes.push(Session::open(port, a.baud, answer)?);
+    }
     let mut head = connect_head(&a.head, &stop)?;
     let cfg = AcquireConfig {
-        out: a.out.clone(),
+        out: a.out[0].clone(),
         plan,
         plan_name: a.plan.clone(),
         samples,
@@ -326,29 +377,46 @@ pub fn run_acquire(a: &AcquireArgs) -> anyhow::Result<()> {
         settle_timeout: Duration::from_secs_f64(a.settle_timeout_s),
         g,
         g_source,
-        serial: a.serial.clone(),
+        serial: a.serial.first().cloned(),
         resume: a.resume,
         date: super::record::utc(super::created(None)),
         tool_version: env!("CARGO_PKG_VERSION").into(),
         chamber: soak.map(|soak| acquire::Chamber { setpoints_c: a.chamber.clone(), soak }),
     };
-    let sum = acquire::acquire(&mut node, head.as_mut(), &cfg, &mut Lines, &stop)?;
-    if sum.interrupted {
+    let several = a.port.len() > 1;
+    let cfgs: Vec<AcquireConfig> = (0..a.port.len())
+        .map(|i| AcquireConfig { out: a.out[i].clone(), serial: a.serial.get(i).cloned(), ..cfg.clone() })
+        .collect();
+    let mut lines: Vec<NodeLines> =
+        a.port.iter().map(|p| NodeLines(if several { format!("{p}: ") } else { String::new() })).collect();
+    let mut runs: Vec<NodeRun> = nodes
+        .iter_mut()
+        .zip(&cfgs)
+        .zip(lines.iter_mut())
+        .map(|((node, cfg), progress)| NodeRun { node, cfg, progress })
+        .collect();
+    let sums = acquire::acquire_nodes(&mut runs, head.as_mut(), &stop)?;
+    if sums.iter().any(|s| s.interrupted) {
+        let held: Vec<String> = sums
+            .iter()
+            .zip(&a.out)
+            .map(|(s, out)| format!("{} holds {} of {} positions", out.display(), s.positions, s.planned))
+            .collect();
         return Err(anyhow::Error::new(Interrupted(format!(
-            "interrupted: {} holds {} of {} positions; continue with --resume",
-            a.out.display(),
-            sum.positions,
-            sum.planned
+            "interrupted: {}; continue with --resume",
+            held.join(", ")
         ))));
     }
-    println!(
-        "acquire: {} positions of device {} written to {} ({} sets each, {} sets lost while recording)",
-        sum.positions,
-        sum.device_id,
-        a.out.display(),
-        samples,
-        sum.lost
-    );
+    for (sum, out) in sums.iter().zip(&a.out) {
+        println!(
+            "acquire: {} positions of device {} written to {} ({} sets each, {} sets lost while recording)",
+            sum.positions,
+            sum.device_id,
+            out.display(),
+            samples,
+            sum.lost
+        );
+    }
     Ok(())
 }
 

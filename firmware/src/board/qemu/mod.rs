@@ -81,12 +81,26 @@ impl Watchdog for WatchdogImpl {
     fn feed(&mut self) {}
 }
 
-/// The device id the QEMU board reports ([`accelcal_shared::contract::QEMU_DEVICE_ID`]). QEMU 10
-/// does not map the unique-id area (`contract::UID_ADDR`: reading it faults), so records meant for
-/// the emulated node carry this id.
+/// The device id the QEMU board reports when the emulator gave it none
+/// ([`accelcal_shared::contract::QEMU_DEVICE_ID`]). QEMU 10 does not map the unique-id area
+/// (`contract::UID_ADDR`: reading it faults), so records meant for the emulated node carry this id.
 pub const QEMU_DEVICE_ID: [u8; 12] = accelcal_shared::contract::QEMU_DEVICE_ID;
 
-/// Record slots in flash, and the emulated node's device id.
+/// The emulated node's device id: the block the emulator loaded at
+/// [`accelcal_shared::contract::QEMU_ID_ADDR`] (SRAM2, which the application does not use) for
+/// the second and later nodes on one emulated head, else [`QEMU_DEVICE_ID`].
+fn emulated_device_id() -> [u8; 12] {
+    use accelcal_shared::contract::{qemu_device_id, QEMU_ID_ADDR, QEMU_ID_BLOCK_LEN};
+    let mut block = [0u8; QEMU_ID_BLOCK_LEN];
+    for (i, b) in block.iter_mut().enumerate() {
+        // SAFETY: SRAM2 is mapped by QEMU's machine and outside every linker region (memory.x),
+        // so nothing of the application lives there; a byte read of RAM has no side effect.
+        *b = unsafe { read_volatile((QEMU_ID_ADDR as usize + i) as *const u8) };
+    }
+    qemu_device_id(block)
+}
+
+/// Record slots in flash, and the emulated node's device id ([`emulated_device_id`]).
 pub struct Storage;
 
 impl RecordStorage for Storage {
@@ -95,7 +109,7 @@ impl RecordStorage for Storage {
         super::read_slot_with(slot, out, || false)
     }
     fn device_id(&self) -> [u8; 12] {
-        QEMU_DEVICE_ID
+        emulated_device_id()
     }
 }
 
