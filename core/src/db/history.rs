@@ -408,34 +408,28 @@ fn epochs(cals: &[Scaled]) -> Vec<&Scaled> {
 fn recal(cals: &[Scaled], t_last: i64, rule: RecalRule) -> Recalibration {
     let due = |days: f64| t_last + (days * SECONDS_PER_DAY).round() as i64;
     let max = rule.max_interval_days;
-    let kept = epochs(cals);
-    if kept.len() < 2 && cals.len() >= 2 {
-        return Recalibration {
-            method: METHOD,
-            rule,
-            calibrations: cals.len(),
-            due_unix_s: Some(due(max)),
-            limiting: None,
-            basis: format!(
+    let kept: Vec<Scaled> = epochs(cals).into_iter().cloned().collect();
+    if kept.len() < 2 {
+        let basis = if cals.len() < 2 {
+            format!(
+                "one calibration: no drift known yet, the calibration plus {max} days (--max-interval-days)"
+            )
+        } else {
+            format!(
                 "{} calibrations, all within {MIN_SPAN_DAYS} day of the last (repeats, not drift over time): no drift known yet, the last calibration plus {max} days (--max-interval-days)",
                 cals.len()
-            ),
+            )
         };
-    }
-    let cals: Vec<Scaled> = kept.into_iter().cloned().collect();
-    let cals = cals.as_slice();
-    if cals.len() < 2 {
         return Recalibration {
             method: METHOD,
             rule,
             calibrations: cals.len(),
             due_unix_s: Some(due(max)),
             limiting: None,
-            basis: format!(
-                "one calibration: no drift known yet, the calibration plus {max} days (--max-interval-days)"
-            ),
+            basis,
         };
     }
+    let cals = kept.as_slice();
     let mut best: Option<Limiting> = None;
     for c in 0..3 {
         for t in 0..4 {

@@ -96,13 +96,18 @@ fn read_unit(a: &ReportArgs) -> anyhow::Result<Unit> {
     if let Some(given) = a.g {
         same_g((&f_name, fit_id.g_m_s2), ("--g", given))?;
     }
+    // A verification of this unit (device id).
+    let read_verification = |p: &std::path::Path| -> anyhow::Result<(String, VerifyReport)> {
+        let v_name = p.display().to_string();
+        let text = std::fs::read_to_string(p).map_err(|e| bad(format!("{v_name}: cannot read: {e}")))?;
+        let v: VerifyReport = serde_json::from_str(&text)
+            .map_err(|e| bad(format!("{v_name}: not `accelcal verify --json` output: {e}")))?;
+        same("device id", (&v_name, &v.device_id), (&r_name, &device_id), "not the same unit")?;
+        Ok((v_name, v))
+    };
     let verify = match &a.verify {
         Some(p) => {
-            let v_name = p.display().to_string();
-            let text = std::fs::read_to_string(p).map_err(|e| bad(format!("{v_name}: cannot read: {e}")))?;
-            let v: VerifyReport = serde_json::from_str(&text)
-                .map_err(|e| bad(format!("{v_name}: not `accelcal verify --json` output: {e}")))?;
-            same("device id", (&v_name, &v.device_id), (&r_name, &device_id), "not the same unit")?;
+            let (v_name, v) = read_verification(p)?;
             let v_crc = v.record["crc"].as_str().unwrap_or("(none)");
             same(
                 "record CRC",
@@ -115,17 +120,7 @@ fn read_unit(a: &ReportArgs) -> anyhow::Result<Unit> {
         }
         None => None,
     };
-    let as_found = match &a.as_found {
-        Some(p) => {
-            let v_name = p.display().to_string();
-            let text = std::fs::read_to_string(p).map_err(|e| bad(format!("{v_name}: cannot read: {e}")))?;
-            let v: VerifyReport = serde_json::from_str(&text)
-                .map_err(|e| bad(format!("{v_name}: not `accelcal verify --json` output: {e}")))?;
-            same("device id", (&v_name, &v.device_id), (&r_name, &device_id), "not the same unit")?;
-            Some(v)
-        }
-        None => None,
-    };
+    let as_found = a.as_found.as_deref().map(|p| read_verification(p).map(|(_, v)| v)).transpose()?;
     Ok(Unit { header, rec, crc, device_id, fit, fit_id, verify, as_found })
 }
 

@@ -34,6 +34,9 @@ const RECORD: &str = "record.rec";
 const AS_LEFT: &str = "as-left.json";
 const CERTIFICATE: &str = "certificate.html";
 
+/// The station's database file when neither --db nor ACCELCAL_DB names one.
+const DEFAULT_DB: &str = "calibration.sqlite";
+
 /// Plan of the verifications: the six test-turn positions.
 const VERIFY_PLAN: &str = "six";
 
@@ -75,6 +78,8 @@ struct Station<'a> {
     record: Option<StoredRecord>,
     /// The run ended `pass` (a finished unit run again: its steps are checked, nothing stored).
     ended: bool,
+    /// `SERIAL: ` before the unit's progress lines when the head carries several units.
+    tag: String,
 }
 
 /// The station's database: `--db`, else `ACCELCAL_DB`, else `calibration.sqlite` beside the
@@ -87,8 +92,10 @@ pub fn db_spec(a: &StationArgs) -> String {
         return s;
     }
     let first = a.outs.first().map(PathBuf::as_path).unwrap_or(Path::new("."));
-    let parent = first.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    parent.join("calibration.sqlite").display().to_string()
+    match first.parent().filter(|p| !p.as_os_str().is_empty()) {
+        Some(parent) => parent.join(DEFAULT_DB).display().to_string(),
+        None => DEFAULT_DB.into(),
+    }
 }
 
 /// How a child ended.
@@ -170,7 +177,9 @@ impl Station<'_> {
             return Err(stopped());
         }
         eprintln!(
-            "station: step {n}/{} {}: accelcal {}",
+            "station: {}step {n}/{} {}: accelcal {}",
+            // The campaign is one step of every unit on the head.
+            if step == Step::Acquire { "" } else { self.tag.as_str() },
             Step::ALL.len(),
             step.name(),
             self.journalled(args).join(" ")
@@ -212,7 +221,7 @@ impl Station<'_> {
             })
             .collect::<anyhow::Result<_>>()?;
         let finished = super::record::utc(super::created(None));
-        eprintln!("station: {} {outcome}", step.name());
+        eprintln!("station: {}{} {outcome}", self.tag, step.name());
         let command = self.journalled(&command);
         self.journal.finish(StepRecord { step, command, finished, outcome, outputs });
         write_json(&self.path(JOURNAL), &self.journal)
@@ -222,7 +231,13 @@ impl Station<'_> {
     fn done(&self, step: Step) -> anyhow::Result<bool> {
         Ok(match self.journal.done(self.dir, step)? {
             Some(r) => {
-                eprintln!("station: {} done at {} ({}), kept", step.name(), r.finished, r.outcome);
+                eprintln!(
+                    "station: {}{} done at {} ({}), kept",
+                    self.tag,
+                    step.name(),
+                    r.finished,
+                    r.outcome
+                );
                 true
             }
             None => false,
@@ -303,7 +318,12 @@ impl Station<'_> {
         self.run = Some(run);
         self.journal.run_id = Some(run.to_string());
         write_json(&self.path(JOURNAL), &self.journal)?;
-        eprintln!("station: run {run} {} in {}", if new { "begun" } else { "continued" }, self.db.target());
+        eprintln!(
+            "station: {}run {run} {} in {}",
+            self.tag,
+            if new { "begun" } else { "continued" },
+            self.db.target()
+        );
         Ok(())
     }
 
@@ -366,7 +386,8 @@ impl Station<'_> {
         let Ok(crc) = u32::from_str_radix(crc, 16) else { return Ok(None) };
         let Some(json) = self.db.fit_of_record(&device, crc)? else {
             eprintln!(
-                "station: the record in force (CRC {crc:08x}) is not in {}: the as-found tolerance comes from the measured scatter alone",
+                "station: {}the record in force (CRC {crc:08x}) is not in {}: the as-found tolerance comes from the measured scatter alone",
+                self.tag,
                 self.db.target()
             );
             return Ok(None);
@@ -374,7 +395,8 @@ impl Station<'_> {
         let path = self.path(AS_FOUND_FIT);
         accelcal_core::output::write_atomic(&path, json.as_bytes())?;
         eprintln!(
-            "station: the fit of the record in force (CRC {crc:08x}) from {}: {}",
+            "station: {}the fit of the record in force (CRC {crc:08x}) from {}: {}",
+            self.tag,
             self.db.target(),
             path.display()
         );
@@ -660,6 +682,7 @@ pub fn run(a: &StationArgs) -> anyhow::Result<()> {
             run: None,
             record: None,
             ended: false,
+            tag: if specs.len() > 1 { format!("{}: ", u.serial) } else { String::new() },
         });
     }
     let mut open: Vec<&mut Station<'_>> = Vec::new();
