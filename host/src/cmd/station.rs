@@ -14,7 +14,7 @@ use std::process::Command;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
-use accelcal_core::db::{Db, Outcome, Phase, RunId, RunStart, StoredRecord, DB_ENV};
+use accelcal_core::db::{Db, Outcome, Phase, RunId, RunStart, DB_ENV};
 use accelcal_core::error::{bad, environment, Interrupted};
 use accelcal_core::output::write_json;
 use accelcal_core::station::{deployable, sha256_file, Journal, StationError, Step, StepRecord, JOURNAL};
@@ -74,8 +74,6 @@ struct Station<'a> {
     db_spec: String,
     /// The run, once begun.
     run: Option<RunId>,
-    /// The record as stored: the only one the flash step writes.
-    record: Option<StoredRecord>,
     /// The run ended `pass` (a finished unit run again: its steps are checked, nothing stored).
     ended: bool,
     /// `SERIAL: ` before the unit's progress lines when the head carries several units.
@@ -116,7 +114,7 @@ impl Station<'_> {
 
     /// The node's link options.
     fn link(&self) -> Vec<String> {
-        link_args(self.a, &[self.u.port.clone()])
+        link_args(self.a, std::slice::from_ref(&self.u.port))
     }
 
     /// The gravity options as given (the steps announce their source themselves).
@@ -314,7 +312,6 @@ impl Station<'_> {
             .into());
         }
         self.ended = p.outcome.is_some();
-        self.record = p.record;
         self.run = Some(run);
         self.journal.run_id = Some(run.to_string());
         write_json(&self.path(JOURNAL), &self.journal)?;
@@ -440,7 +437,7 @@ impl Station<'_> {
         let record = std::fs::read(self.path(RECORD)).with_context(|| self.p(RECORD))?;
         let run = self.run_id()?;
         self.db.store_fit(run, &fit)?;
-        self.record = Some(self.db.store_record(run, &record)?);
+        self.db.store_record(run, &record)?;
         Ok(())
     }
 
@@ -469,19 +466,8 @@ impl Station<'_> {
         if self.done(Step::Flash)? {
             return Ok(());
         }
-        // The record flashed is the stored one: the file must be it (the flash step, given the
-        // database, writes the stored bytes and notes the flash there).
-        let file = std::fs::read(self.path(RECORD)).with_context(|| self.p(RECORD))?;
-        match &self.record {
-            Some(r) if r.bytes() == file.as_slice() => {}
-            _ => {
-                return Err(bad(format!(
-                    "{} is not the record stored for run {}: nothing is flashed",
-                    self.p(RECORD),
-                    self.run_id()?
-                )))
-            }
-        }
+        // Given the database, the flash step writes the record the run stored (step fit stored
+        // it; a file that is not it is refused) and notes the flash there.
         let a = self.a;
         let mut args = vec!["flash".to_string(), self.p(RECORD)];
         args.extend(self.db_args()?);
@@ -680,7 +666,6 @@ pub fn run(a: &StationArgs) -> anyhow::Result<()> {
             db,
             db_spec: db_spec.clone(),
             run: None,
-            record: None,
             ended: false,
             tag: if specs.len() > 1 { format!("{}: ", u.serial) } else { String::new() },
         });
