@@ -304,6 +304,21 @@ fn cli_writes_the_equivalent_model4_record() {
     assert_eq!(record.created_unix_s, 1_800_000_000);
     let cal = record.model4().unwrap().invert().unwrap();
     let j: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    // The JSON names its unit as `fit --method lsq`'s does (issue 24): device, g, the recording's
+    // hash, the record's CRC (the one `record show` prints).
+    let bytes = std::fs::read(&rec).unwrap();
+    let crc = format!("{:08x}", accelcal_shared::record::crc32(&bytes[..bytes.len() - 4]));
+    let sha = accelcal_core::db::sha256_hex(&std::fs::read(&data).unwrap());
+    assert_eq!(
+        (&j["device_id"], &j["serial"], &j["g_m_s2"], &j["campaign_sha256"], &j["record_crc"]),
+        (
+            &serde_json::json!(id),
+            &serde_json::Value::Null,
+            &serde_json::json!(9.81744),
+            &serde_json::json!(sha),
+            &serde_json::json!(crc)
+        )
+    );
     let f = |v: &serde_json::Value| v.as_f64().unwrap();
     let model = TriadModel {
         bias: std::array::from_fn(|i| f(&j["channels"][i]["bias"])),

@@ -4,12 +4,14 @@
 
 use std::path::Path;
 
-use accelcal_core::calibrate::{gate, parse_device_id, write_record};
+use accelcal_core::calibrate::{gate, parse_device_id, record_bytes, record_crc_hex, write_record};
+use accelcal_core::campaign::identity::{content_sha256, Identity};
 use accelcal_core::error::bad;
 use accelcal_core::gravity::{
     self, fit::GravityStructure, fit::TriadModel, holds::DetectorConfig, holds::ThresholdSource,
 };
 use accelcal_core::gravity::{imutk, Calibration, StructureChoice};
+use accelcal_core::node::session::device_id_hex;
 use accelcal_core::output::{write_atomic, write_atomic_with, write_json};
 use accelcal_shared::record::Record;
 use anyhow::Context;
@@ -160,6 +162,10 @@ pub struct JsonReport {
     pub structures: Vec<JsonScore>,
     /// Structure selected on withheld holds (see `fit::select`).
     pub selected_structure: Option<String>,
+    /// Whose fit it is, as `fit --method lsq` states it: device id (with `--record`), serial
+    /// (none in a raw recording), g, the recording's SHA-256, the record's CRC.
+    #[serde(flatten)]
+    pub identity: Identity,
 }
 
 const CHANNELS: [&str; 3] = ["x", "y", "z"];
@@ -173,7 +179,7 @@ fn channels(m: &TriadModel) -> Vec<JsonChannel> {
 }
 
 /// Builds the JSON report of a calibration.
-pub fn json_report(cal: &Calibration) -> JsonReport {
+pub fn json_report(cal: &Calibration, identity: Identity) -> JsonReport {
     let f = &cal.fit;
     let d = &cal.detection;
     JsonReport {
@@ -229,6 +235,7 @@ pub fn json_report(cal: &Calibration) -> JsonReport {
             })
             .collect(),
         selected_structure: cal.selected.map(|s| s.name().to_string()),
+        identity,
     }
 }
 
@@ -270,7 +277,15 @@ pub fn run(a: &FitArgs) -> anyhow::Result<()> {
     };
     print!("{}", human_report(&a.campaign, rec.len(), &cal));
     if let Some(path) = &a.common.json {
-        write_json(path, &json_report(&cal))?;
+        let crc = record.as_ref().map(|(_, r)| record_bytes(r).map(|b| record_crc_hex(&b))).transpose()?;
+        let identity = Identity {
+            device_id: record.as_ref().map(|(_, r)| device_id_hex(&r.device_id)),
+            serial: None,
+            g_m_s2: a.common.g,
+            campaign_sha256: content_sha256(&a.campaign)?,
+            record_crc: crc,
+        };
+        write_json(path, &json_report(&cal, identity))?;
         println!("wrote {}", path.display());
     }
     if let Some(dir) = &a.gravity.plot {
