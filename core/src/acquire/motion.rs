@@ -15,8 +15,12 @@
 //!   real Xsens unit's within 1 %), so a head turned part of the way, or to another position of
 //!   the plan, gives a ratio far from the others.
 //!
-//! It checks sizes, not directions: a position turned to the mirror image of the commanded one
-//! (every change of the same size) passes, and the first position of a pass is the reference.
+//! And directions, per channel: where the plan's gravity changed by at least [`MIN_CHANGE_G`] g
+//! along a channel's own axis, that channel's mean codes must have moved the same way. Its
+//! sensitivity to its own axis is positive (a record with another is refused, `calibrate::gate`)
+//! and the cross-axis sensitivities are small beside it, so a position turned to the mirror image
+//! of the commanded one (every change of the same size, some of the other sign) is caught. The
+//! first position of a pass is the reference.
 
 /// Smallest commanded change of gravity, in g, between two positions that the check compares.
 pub const MIN_CHANGE_G: f64 = 0.5;
@@ -68,6 +72,31 @@ impl MotionCheck {
     /// Whether the position commanded to read `a` (m/s²) that read mean codes `m` moved as the
     /// plan says from the accepted positions; why not, naming the earlier position.
     pub fn check(&self, a: [f64; 3], m: [f64; 3]) -> Result<(), String> {
+        self.check_sizes(a, m)?;
+        self.check_directions(a, m)
+    }
+
+    /// Each channel's mean moved the way its own axis's commanded gravity did (where that changed
+    /// by at least [`MIN_CHANGE_G`] g).
+    fn check_directions(&self, a: [f64; 3], m: [f64; 3]) -> Result<(), String> {
+        let min = MIN_CHANGE_G * self.g;
+        for &(ai, mi, i) in &self.seen {
+            for (c, name) in ["x", "y", "z"].iter().enumerate() {
+                let (da, dm) = (a[c] - ai[c], m[c] - mi[c]);
+                if da.abs() >= min && dm * da <= 0.0 {
+                    return Err(format!(
+                        "channel {name}'s mean codes moved {dm:+.1} codes from position {i}'s, where the plan's gravity \
+                         along {name} changed by {da:+.2} m/s²: the other way; is the head turned the other way (the \
+                         mirror image of this position)?"
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The sizes of the changes (see the module's documentation).
+    fn check_sizes(&self, a: [f64; 3], m: [f64; 3]) -> Result<(), String> {
         let floor = *crate::calibrate::sensitivity_range(self.g).start();
         let median = self.median_ratio();
         for (i, da, r) in self.pairs(a, m) {
@@ -141,6 +170,10 @@ mod tests {
         let part = accelcal_shared::gravity(20.0, 0.0, g);
         let e = m.check(a[2], unit(part)).unwrap_err();
         assert!(e.contains("the positions so far read"), "{e}");
+        // Turned to the mirror image (270° instead of 90°): every change has the size the plan
+        // says, but channel x moved the other way.
+        let e = m.check(a[2], unit(a[3])).unwrap_err();
+        assert!(e.starts_with("channel x's mean codes moved +16362.6 codes from position 1's, where the plan's gravity along x changed by -9.81 m/s²: the other way"), "{e}");
         // A new pass starts afresh.
         m.reset();
         assert!(m.check(a[2], unit(a[0])).is_ok());
