@@ -333,6 +333,16 @@ pub struct VerifyReport {
     pub fit: Option<Identity>,
 }
 
+impl VerifyReport {
+    /// Reads a report that `verify --json` wrote.
+    pub fn read(path: &std::path::Path) -> anyhow::Result<VerifyReport> {
+        let name = path.display();
+        let text = std::fs::read_to_string(path).map_err(|e| bad(format!("{name}: cannot read: {e}")))?;
+        serde_json::from_str(&text)
+            .map_err(|e| bad(format!("{name}: not `accelcal verify --json` output: {e}")))
+    }
+}
+
 /// Refuses a fit that is not the node's: another device id, or a record other than the one the
 /// node runs (the fit JSON names the record written with it; a fit JSON written without one
 /// cannot be matched and is refused too).

@@ -99,9 +99,7 @@ fn read_unit(a: &ReportArgs) -> anyhow::Result<Unit> {
     // A verification of this unit (device id).
     let read_verification = |p: &std::path::Path| -> anyhow::Result<(String, VerifyReport)> {
         let v_name = p.display().to_string();
-        let text = std::fs::read_to_string(p).map_err(|e| bad(format!("{v_name}: cannot read: {e}")))?;
-        let v: VerifyReport = serde_json::from_str(&text)
-            .map_err(|e| bad(format!("{v_name}: not `accelcal verify --json` output: {e}")))?;
+        let v = VerifyReport::read(p)?;
         same("device id", (&v_name, &v.device_id), (&r_name, &device_id), "not the same unit")?;
         Ok((v_name, v))
     };
@@ -310,7 +308,7 @@ fn since_last_calibration(
 ) -> accelcal_core::db::history::History {
     use accelcal_core::db::Outcome;
     for r in runs.iter_mut().filter(|r| r.start.run_id == run && r.end.is_none()) {
-        r.end = Some((Outcome::Pass, "this certificate".into(), super::store::now_unix_s()));
+        r.end = Some((Outcome::Pass, "this certificate".into(), accelcal_core::db::now_unix_s()));
     }
     accelcal_core::db::history::history(runs, accelcal_core::db::history::DEFAULT_RULE)
 }

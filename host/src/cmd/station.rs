@@ -18,7 +18,7 @@ use accelcal_core::db::{Db, Outcome, Phase, RunId, RunStart, DB_ENV};
 use accelcal_core::error::{bad, environment, Interrupted};
 use accelcal_core::output::write_json;
 use accelcal_core::station::{deployable, sha256_file, Journal, StationError, Step, StepRecord, JOURNAL};
-use accelcal_core::verify::Failed;
+use accelcal_core::verify::{Failed, VerifyReport};
 use anyhow::Context;
 
 use crate::cli::StationArgs;
@@ -245,17 +245,15 @@ impl Station<'_> {
     /// A verification's outcome from its JSON: `Ok` when every position passed, the count of
     /// failed positions otherwise; an error when the JSON is missing (the command did not get as
     /// far as checking: the environment).
-    fn verdict(&self, json: &str) -> anyhow::Result<Result<usize, Failed>> {
-        let text = std::fs::read_to_string(self.path(json))
-            .map_err(|e| environment(format!("the verification wrote no {}", self.p(json)), e))?;
-        let v: serde_json::Value = serde_json::from_str(&text).with_context(|| self.p(json))?;
-        let positions = v["positions"].as_array().map(Vec::as_slice).unwrap_or_default();
-        let failed = positions.iter().filter(|p| p["pass"] != serde_json::Value::Bool(true)).count();
-        Ok(if failed == 0 && !positions.is_empty() {
-            Ok(positions.len())
-        } else {
-            Err(Failed { failed, total: positions.len() })
-        })
+    fn verdict(&self, json: &str) -> anyhow::Result<(VerifyReport, Result<usize, Failed>)> {
+        if let Err(e) = std::fs::metadata(self.path(json)) {
+            return Err(environment(format!("the verification wrote no {}", self.p(json)), e));
+        }
+        let v = VerifyReport::read(&self.path(json))?;
+        let total = v.positions.len();
+        let failed = v.positions.iter().filter(|p| !p.pass).count();
+        let verdict = if failed == 0 && total > 0 { Ok(total) } else { Err(Failed { failed, total }) };
+        Ok((v, verdict))
     }
 
     /// Step `info`, run every time: the node on the port must be the journal's device.
@@ -286,7 +284,7 @@ impl Station<'_> {
             Some(r) => RunId::parse(r)?,
             None => RunId::new(),
         };
-        let started = *self.journal.started_unix_s.get_or_insert_with(super::store::now_unix_s);
+        let started = *self.journal.started_unix_s.get_or_insert_with(accelcal_core::db::now_unix_s);
         let (g, g_source, _) = super::live::g_and_source(self.a.g, &self.a.local);
         let start = RunStart {
             run_id: run,
@@ -366,7 +364,7 @@ impl Station<'_> {
         };
         let args = self.verify_args(AS_FOUND, fit);
         self.run(Step::AsFound, &args)?;
-        let outcome = match self.verdict(AS_FOUND)? {
+        let outcome = match self.verdict(AS_FOUND)?.1 {
             Ok(n) => format!("PASS ({n} positions)"),
             Err(f) => format!("FAIL ({f})"),
         };
@@ -497,11 +495,10 @@ impl Station<'_> {
         let _ = std::fs::remove_file(self.path(AS_LEFT));
         let args = self.verify_args(AS_LEFT, Some(self.p(FIT)));
         self.run(Step::AsLeft, &args)?;
-        let verdict = self.verdict(AS_LEFT)?;
+        let (report, verdict) = self.verdict(AS_LEFT)?;
         // Stored pass or fail; a failure ends the run rejected.
         let run = self.run_id()?;
-        let path = self.path(AS_LEFT);
-        super::store::verification(&mut self.db, run, Phase::AsLeft, &path)?;
+        self.db.store_verification(run, Phase::AsLeft, &report)?;
         let n = match verdict {
             Ok(n) => n,
             Err(f) => return Err(self.reject(anyhow::Error::new(f).context("as-left verification"))),

@@ -54,14 +54,6 @@ pub fn user_name() -> String {
     whoami::username().unwrap_or_else(|_| "unknown".into())
 }
 
-/// Seconds since the Unix epoch.
-pub fn now_unix_s() -> i64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map(|d| d.as_secs() as i64)
-        .unwrap_or(0)
-}
-
 impl RunDb {
     /// The run `--run-id` names when the database holds it (its device must be `device_id`),
     /// else a run begun now under `--run-id` or a new id. Says which on stderr.
@@ -86,7 +78,7 @@ impl RunDb {
             station: host_name(),
             head: b.head,
             operator: user_name(),
-            started_unix_s: now_unix_s(),
+            started_unix_s: accelcal_core::db::now_unix_s(),
             software_version: env!("CARGO_PKG_VERSION").into(),
             firmware_version: b.firmware_version,
             g_m_s2: b.g.0,
@@ -146,10 +138,7 @@ pub fn head_text(h: &accelcal_core::node::head::HeadSpec) -> String {
 
 /// Stores a verification, read back from its JSON file (what `verify --json` wrote).
 pub fn verification(db: &mut Db, run: RunId, phase: Phase, json: &Path) -> anyhow::Result<Stored> {
-    let text = std::fs::read_to_string(json).map_err(|e| bad(format!("{}: {e}", json.display())))?;
-    let report: VerifyReport = serde_json::from_str(&text)
-        .map_err(|e| bad(format!("{}: not a `verify --json` report: {e}", json.display())))?;
-    Ok(db.store_verification(run, phase, &report)?)
+    Ok(db.store_verification(run, phase, &VerifyReport::read(json)?)?)
 }
 
 /// Stores a fit's pieces: the campaign file, the fit JSON and, when written, the record.
