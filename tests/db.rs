@@ -131,7 +131,7 @@ fn three_calibrations(spec: &str) {
         "st-2",
         T0 + 200 * DAY,
     );
-    db.begin_run(&killed).unwrap();
+    db.begin_run(&killed, None).unwrap();
     db.store_campaign(killed.run_id, &campaign(10)).unwrap();
     let other = start(RunId::new(), "00112233445566778899aabb", "SN-0043", "st-1", T0);
     calibrate(&mut db, &other, &coefs(0.0, 0), None);

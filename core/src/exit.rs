@@ -52,6 +52,7 @@ registry!(
     crate::campaign::identity::IdentityError,
     crate::campaign::identity::Mismatch,
     crate::db::DbError,
+    crate::db::LabelClash,
     crate::gmdh::GmdhError,
     crate::lsq::LsqError,
     crate::testturn::TestTurnError,
@@ -126,6 +127,10 @@ mod tests {
         std::process::ExitStatus::from_raw(1 << 8)
     }
 
+    fn label_clash() -> crate::db::LabelClash {
+        crate::db::LabelClash::NothingToRelabel { device: "d".into(), serial: "s".into() }
+    }
+
     /// One error of every variant of every registered type, with the kind it must have.
     fn every_variant() -> Vec<(anyhow::Error, Kind)> {
         use crate::campaign::identity::IdentityError;
@@ -198,6 +203,15 @@ mod tests {
                 BadInput,
             ),
             (e(crate::station::StationError::Changed { file: p(), step: "info" }), BadInput),
+            (
+                e(crate::station::StationError::RecordReplaced {
+                    serial: "U".into(),
+                    node: "record CRC 00000001".into(),
+                    certified: "00000002".into(),
+                    run_id: "r".into(),
+                }),
+                Rejected,
+            ),
             (e(CampaignError::Io { path: p(), cause: io() }), BadInput),
             (e(CampaignError::Line { path: p(), line: 1, msg: "m".into() }), BadInput),
             (e(CampaignError::File { path: p(), msg: "m".into() }), BadInput),
@@ -240,6 +254,18 @@ mod tests {
             (e(DbError::BadPiece { run_id: "r".into(), piece: "fit", cause: "m".into() }), BadInput),
             (e(DbError::NoUnit { key: "k".into(), target: "t".into() }), BadInput),
             (e(DbError::Ambiguous { key: "k".into(), devices: "a, b".into() }), BadInput),
+            (e(DbError::ReadOnly { path: p() }), BadInput),
+            (e(DbError::Raced { cause: "m".into() }), Environment),
+            (
+                e(DbError::Tampered {
+                    run_id: "r".into(),
+                    first: crate::db::Mismatch { seq: 1, run_id: "r".into(), piece: "fit".into(), what: "m".into() },
+                    more: 0,
+                }),
+                BadInput,
+            ),
+            (e(DbError::Label(label_clash())), BadInput),
+            (e(label_clash()), BadInput),
             (e(GmdhError::EmptyPart('A', 3)), BadInput),
             (e(GmdhError::NoTemperature), BadInput),
             (e(GmdhError::NothingIdentifiable), BadInput),

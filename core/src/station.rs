@@ -130,6 +130,18 @@ pub enum StationError {
         /// The units on the head.
         total: usize,
     },
+    /// The node runs another record than the one its run certified.
+    #[error("unit {serial}: the node no longer runs its certified record: it runs {node}, but run {run_id} certified record CRC {certified} (someone flashed another record since): recalibrate it in a new --out, or flash the certified record back")]
+    RecordReplaced {
+        /// The unit's serial.
+        serial: String,
+        /// What the node runs: `record CRC xxxxxxxx`, or `no record`.
+        node: String,
+        /// The certified record's CRC-32 (8 hex digits).
+        certified: String,
+        /// The run that certified it.
+        run_id: String,
+    },
     /// The unit's run ended rejected; its line is closed.
     #[error("unit {serial} was rejected in run {run_id} (`accelcal history {serial}` says why): its line in {dir} is closed; to try the unit again, start it in a new --out")]
     RejectedBefore {
@@ -146,6 +158,7 @@ impl Classify for StationError {
     fn kind(&self) -> Kind {
         match self {
             StationError::NotDeployable(_)
+            | StationError::RecordReplaced { .. }
             | StationError::RejectedBefore { .. }
             | StationError::Rejected { .. } => Kind::Rejected,
             _ => Kind::BadInput,

@@ -83,6 +83,13 @@ pub enum Command {
     /// the recommended recalibration date.
     #[command(after_long_help = accelcal_core::db::history::METHOD)]
     History(HistoryArgs),
+    /// Take a calibration run out of the unit's history, the fleet's statistics and the
+    /// recalibration intervals (a mislabelled or mistaken run): an appended row with the reason;
+    /// nothing is deleted, and `history` lists the run as voided.
+    Void(VoidArgs),
+    /// The calibration database: `db verify` checks every row against its hash chain.
+    #[command(subcommand)]
+    Db(DbCommand),
 }
 
 /// `accelcal history`: a unit's runs from the calibration database.
@@ -92,7 +99,8 @@ pub struct HistoryArgs {
     #[arg(value_name = "SERIAL|DEVICE")]
     pub unit: String,
     /// The calibration database: a SQLite file, or postgres://USER@HOST[:PORT]/DB for a line of
-    /// several stations [default: the ACCELCAL_DB environment variable].
+    /// several stations [default: the ACCELCAL_DB environment variable, else calibration.sqlite
+    /// in the current directory when there is one, as `station --out UNIT` makes it].
     #[arg(long, value_name = "FILE|URL")]
     pub db: Option<String>,
     /// The tolerance T the drift of a coefficient may reach before the unit is recalibrated,
@@ -103,8 +111,8 @@ pub struct HistoryArgs {
     #[arg(long, value_name = "K", default_value_t = accelcal_core::db::history::DEFAULT_RULE.coverage)]
     pub coverage: f64,
     /// The longest recommended interval between calibrations, days (also the interval after a
-    /// single calibration).
-    #[arg(long, value_name = "DAYS", default_value_t = accelcal_core::db::history::DEFAULT_RULE.max_interval_days)]
+    /// single calibration; at most 36525, a century).
+    #[arg(long, value_name = "DAYS", default_value_t = accelcal_core::db::history::DEFAULT_RULE.max_interval_days, value_parser = parse_interval_days)]
     pub max_interval_days: f64,
     /// Write the history as JSON to this file.
     #[arg(long, value_name = "FILE")]
@@ -124,6 +132,52 @@ pub struct RunArgs {
     /// under a new one when it is not given; `flash` and `report` need an existing run].
     #[arg(long, value_name = "UUID")]
     pub run_id: Option<String>,
+    /// Begin the run even though the database ties this serial to another device, or this
+    /// device to another serial: the serial moves to this device, stored as a relabel row with
+    /// REASON [with --db, for `fit` and `verify` when they begin a run].
+    #[arg(long, value_name = "REASON")]
+    pub relabel: Option<String>,
+}
+
+/// `accelcal void`.
+#[derive(Debug, Args)]
+pub struct VoidArgs {
+    /// The run to void (a UUID, as `station`, `fit --db` and `history` print it).
+    #[arg(value_name = "RUN_ID")]
+    pub run_id: String,
+    /// Why the run is voided (stored with it; `history` shows it).
+    #[arg(long, value_name = "TEXT", required = true)]
+    pub reason: String,
+    /// The calibration database: a SQLite file, or postgres://USER@HOST[:PORT]/DB [default: the
+    /// ACCELCAL_DB environment variable, else calibration.sqlite in the current directory when
+    /// there is one].
+    #[arg(long, value_name = "FILE|URL")]
+    pub db: Option<String>,
+    /// Who voids it [default: the account running the command].
+    #[arg(long, value_name = "NAME")]
+    pub operator: Option<String>,
+}
+
+/// `accelcal db`: the calibration database itself.
+#[derive(Debug, Subcommand)]
+pub enum DbCommand {
+    /// Recompute every row's digest and the hash chain that links each run's rows and the runs
+    /// to each other, and the rows' content hashes; name the first row that does not match.
+    /// Exit code 0 when everything matches, 1 when a row does not.
+    Verify(DbVerifyArgs),
+}
+
+/// `accelcal db verify`.
+#[derive(Debug, Args)]
+pub struct DbVerifyArgs {
+    /// The calibration database: a SQLite file, or postgres://USER@HOST[:PORT]/DB [default: the
+    /// ACCELCAL_DB environment variable, else calibration.sqlite in the current directory when
+    /// there is one].
+    #[arg(long, value_name = "FILE|URL")]
+    pub db: Option<String>,
+    /// Write what was checked and every row that does not match as JSON to this file.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
 }
 
 /// Local gravity from the site instead of `--g`: WGS84 normal gravity with the free-air
@@ -1051,6 +1105,21 @@ pub struct StationArgs {
     /// Who runs the station, for the database [default: the USER environment variable].
     #[arg(long, value_name = "NAME")]
     pub operator: Option<String>,
+    /// Begin the run even though the database ties this --serial to another device, or the
+    /// node's device to another serial: the serial moves to this device, stored as a relabel row
+    /// with REASON (with several --port, it applies to each unit whose label clashes).
+    #[arg(long, value_name = "REASON")]
+    pub relabel: Option<String>,
+}
+
+/// `history --max-interval-days`: a positive number of days, at most a century.
+fn parse_interval_days(s: &str) -> Result<f64, String> {
+    let v: f64 = s.trim().parse().map_err(|e| format!("`{s}` is not a number of days: {e}"))?;
+    if v.is_finite() && v > 0.0 && v <= 36_525.0 {
+        Ok(v)
+    } else {
+        Err(format!("{v} days is not an interval: give a positive number of days, at most 36525 (a century)"))
+    }
 }
 
 /// `verify --phase`.

@@ -56,7 +56,11 @@ fn check_run(command: &Command, given: &Given) -> anyhow::Result<()> {
         _ => return Ok(()),
     };
     if run.db.is_none() {
+        given.refuse(&["relabel"], "a command without --db", " (it is stored with the run begun)")?;
         return given.refuse(&["run_id"], "a command without --db", " (it names the run stored into)");
+    }
+    if let Command::Flash(_) | Command::Report(_) = command {
+        given.refuse(&["relabel"], name, " (it begins no run: relabel where the run begins, `fit --db`, `verify --db` or `station`)")?;
     }
     if let Some(id) = &run.run_id {
         accelcal_core::db::RunId::parse(id)?;
@@ -416,6 +420,8 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
         }
         Command::BenchDiagnose(_) | Command::Demo(_) | Command::Plan(_) => Ok(()),
         Command::History(a) => crate::cmd::history::check(a),
+        Command::Void(a) => crate::cmd::db::check_void(a),
+        Command::Db(_) => Ok(()),
     }
 }
 

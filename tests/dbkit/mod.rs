@@ -144,7 +144,7 @@ pub fn campaign(rows: usize) -> Vec<u8> {
 /// One whole calibration run, as a station stores it.
 pub fn calibrate(db: &mut Db, s: &RunStart, c: &Coefs, as_found: Option<f64>) -> RunId {
     let run = s.run_id;
-    db.begin_run(s).unwrap();
+    db.begin_run(s, None).unwrap();
     if let Some(e) = as_found {
         db.store_verification(run, Phase::AsFound, &verification(&s.device_id, e, 0.05)).unwrap();
     }
@@ -165,10 +165,10 @@ pub fn pieces_are_stored_once(spec: &str) {
     let s = start(RunId::new(), DEVICE, "SN-0001", "st-1", T0);
     let c = coefs(0.0, 0);
     let run = s.run_id;
-    assert_eq!(db.begin_run(&s).unwrap(), Stored::New);
-    assert_eq!(db.begin_run(&s).unwrap(), Stored::Already);
+    assert_eq!(db.begin_run(&s, None).unwrap(), Stored::New);
+    assert_eq!(db.begin_run(&s, None).unwrap(), Stored::Already);
     let other = RunStart { station: "st-2".into(), ..s.clone() };
-    assert!(matches!(db.begin_run(&other), Err(DbError::Conflict { .. })));
+    assert!(matches!(db.begin_run(&other, None), Err(DbError::Conflict { .. })));
     assert_eq!(db.store_campaign(run, &campaign(300)).unwrap(), Stored::New);
     assert_eq!(db.store_campaign(run, &campaign(300)).unwrap(), Stored::Already);
     let e = db.store_campaign(run, &campaign(301)).unwrap_err();
@@ -199,10 +199,10 @@ pub fn pieces_are_stored_once(spec: &str) {
     assert!(matches!(e, DbError::NoRun { .. }), "{e}");
     let p = db.progress(run).unwrap();
     assert!(p.flashed && p.as_left && !p.as_found && !p.certificate && p.outcome == Some(Outcome::Pass));
-    assert_eq!(db.schema_versions().unwrap(), vec![1]);
+    assert_eq!(db.schema_versions().unwrap(), vec![1, 2]);
     // Opening again migrates nothing.
     drop(db);
-    assert_eq!(Db::open(spec).unwrap().schema_versions().unwrap(), vec![1]);
+    assert_eq!(Db::open(spec).unwrap().schema_versions().unwrap(), vec![1, 2]);
 }
 
 /// The environment variable that turns a test process into the writer that is killed.
@@ -216,7 +216,7 @@ pub fn writer_child() -> bool {
     let run = RunId::parse(run).unwrap();
     let mut db = Db::open(spec).unwrap();
     let c = coefs(0.0, 0);
-    db.begin_run(&start(run, DEVICE, "SN-0009", "st-1", T0)).unwrap();
+    db.begin_run(&start(run, DEVICE, "SN-0009", "st-1", T0, None)).unwrap();
     println!("begun");
     db.store_campaign(run, &campaign(20_000)).unwrap();
     println!("campaign");
@@ -253,7 +253,7 @@ pub fn killed_writer_resumes(spec: &str, test: &str) -> RunId {
     assert!(p.campaign && p.fit && p.record.is_none() && p.outcome.is_none(), "{p:?}");
     // The station resumes: what is stored is skipped or stored again identically.
     let c = coefs(0.0, 0);
-    assert_eq!(db.begin_run(&p.start).unwrap(), Stored::Already);
+    assert_eq!(db.begin_run(&p.start, None).unwrap(), Stored::Already);
     assert_eq!(db.store_campaign(run, &campaign(20_000)).unwrap(), Stored::Already);
     assert_eq!(db.store_fit(run, &fit_json(&c)).unwrap(), Stored::Already);
     let rec = db.store_record(run, &record(DEVICE, &c)).unwrap();

@@ -46,6 +46,16 @@ impl Target {
                 .map_err(|e| DbError::BadTarget { spec: redact(s), why: e.to_string() })?;
             return Ok(Target::Postgres(s.into()));
         }
+        // `postgress://…`, `sqlite://…`, `http://…`: a URL of a scheme this build does not open is
+        // refused, not taken for a SQLite file of that name.
+        if let Some((scheme, _)) = s.split_once("://") {
+            return Err(DbError::BadTarget {
+                spec: redact(s),
+                why: format!(
+                    "`{scheme}://` is not a database this build opens: PostgreSQL is postgres:// or postgresql://, a SQLite database is a file path"
+                ),
+            });
+        }
         Ok(Target::Sqlite(PathBuf::from(s)))
     }
 
@@ -206,12 +216,31 @@ impl PgToSql for Val {
     to_sql_checked!();
 }
 
-/// An open connection.
-pub enum Conn {
+/// An open connection, and its target for messages (password hidden).
+pub struct Conn {
+    link: Link,
+    target: String,
+    /// Opened read-only (a read-only SQLite file): transactions are deferred, not immediate.
+    read_only: bool,
+}
+
+/// The engine's connection.
+enum Link {
     /// SQLite.
     Sqlite(rusqlite::Connection),
     /// PostgreSQL.
     Postgres(Box<postgres::Client>),
+}
+
+/// How a database is opened.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Access {
+    /// To store into: a SQLite file is created when missing; the database must take writes
+    /// (checked here, before the caller does anything else) and is migrated.
+    Write,
+    /// To read: the SQLite file must exist; it is migrated when it can be written, else read as
+    /// it is (a read-only file or mount), which must then be at this build's schema.
+    Read,
 }
 
 /// A transaction of either engine.
@@ -222,12 +251,27 @@ pub enum Tx<'a> {
     Postgres(postgres::Transaction<'a>),
 }
 
+/// The newest schema version this build has (the migrations' last `V<n>`).
+pub fn schema_version() -> i64 {
+    embedded::sqlite::migrations::runner()
+        .get_migrations()
+        .iter()
+        .map(|m| i64::from(m.version()))
+        .max()
+        .unwrap_or(0)
+}
+
 impl Conn {
-    /// Connects, without touching the schema. A SQLite file is created when `create`, else it
-    /// must exist.
-    pub fn open(target: &Target, create: bool) -> Result<Conn, DbError> {
+    /// Connects and brings the schema to this build's version (see [`Access`]); `after` runs
+    /// under the same lock as the migration, once the schema is current, when the database
+    /// takes writes (the ledger's sealing of rows written before it existed).
+    pub fn open(
+        target: &Target,
+        access: Access,
+        after: impl FnOnce(&mut Conn) -> Result<(), DbError>,
+    ) -> Result<Conn, DbError> {
         match target {
-            Target::Sqlite(path) => open_sqlite(path, create),
+            Target::Sqlite(path) => open_sqlite(path, access, after),
             Target::Postgres(spec) => {
                 let mut config: postgres::Config = spec.parse().map_err(|e: postgres::Error| {
                     DbError::BadTarget { spec: redact(spec), why: e.to_string() }
@@ -237,25 +281,29 @@ impl Conn {
                 }
                 let client = config
                     .connect(postgres::NoTls)
-                    .map_err(|e| DbError::Unreachable { target: redact(spec), cause: e.to_string() })?;
-                Ok(Conn::Postgres(Box::new(client)))
+                    .map_err(|e| DbError::Unreachable { target: redact(spec), cause: pg_cause(&e) })?;
+                let mut conn = Conn { link: Link::Postgres(Box::new(client)), target: redact(spec), read_only: false };
+                // Under an advisory lock, so that stations starting together migrate once.
+                conn.pg_locked(|c| {
+                    let Link::Postgres(client) = &mut c.link else { unreachable!("a PostgreSQL connection") };
+                    embedded::postgres::migrations::runner().run(client.as_mut()).map_err(migration_failed)?;
+                    after(c)
+                })?;
+                Ok(conn)
             }
         }
     }
 
-    /// Applies the migrations this build has and the database lacks (PostgreSQL: under an
-    /// advisory lock, so that stations starting together migrate once).
-    pub fn migrate(&mut self) -> Result<(), DbError> {
-        let failed = |e: refinery::Error| DbError::Migration { cause: e.to_string() };
-        match self {
-            Conn::Sqlite(c) => embedded::sqlite::migrations::runner().run(c).map(drop).map_err(failed),
-            Conn::Postgres(c) => {
-                c.execute("SELECT pg_advisory_lock($1)", &[&MIGRATION_LOCK]).map_err(DbError::pg)?;
-                let r = embedded::postgres::migrations::runner().run(c.as_mut()).map(drop).map_err(failed);
-                c.execute("SELECT pg_advisory_unlock($1)", &[&MIGRATION_LOCK]).map_err(DbError::pg)?;
-                r
-            }
-        }
+    /// Runs `f` holding the migration's advisory lock (PostgreSQL).
+    fn pg_locked(&mut self, f: impl FnOnce(&mut Conn) -> Result<(), DbError>) -> Result<(), DbError> {
+        let lock = |c: &mut Conn, sql: &str| -> Result<(), DbError> {
+            let Link::Postgres(client) = &mut c.link else { unreachable!("a PostgreSQL connection") };
+            client.execute(sql, &[&MIGRATION_LOCK]).map(drop).map_err(DbError::pg)
+        };
+        lock(self, "SELECT pg_advisory_lock($1)")?;
+        let r = f(self);
+        lock(self, "SELECT pg_advisory_unlock($1)")?;
+        r
     }
 
     /// The schema versions applied, oldest first.
@@ -272,10 +320,29 @@ impl Conn {
         &mut self,
         f: impl FnOnce(&mut Tx<'_>) -> Result<T, DbError>,
     ) -> Result<T, DbError> {
-        match self {
-            Conn::Sqlite(c) => {
+        let target = self.target.clone();
+        self.transaction_here(f).map_err(|e| match e {
+            // The engine's message, with the database it came from.
+            DbError::Engine { cause } if !cause.starts_with(&target) => {
+                DbError::Engine { cause: format!("{target}: {cause}") }
+            }
+            e => e,
+        })
+    }
+
+    fn transaction_here<T>(
+        &mut self,
+        f: impl FnOnce(&mut Tx<'_>) -> Result<T, DbError>,
+    ) -> Result<T, DbError> {
+        let behavior = if self.read_only {
+            rusqlite::TransactionBehavior::Deferred
+        } else {
+            rusqlite::TransactionBehavior::Immediate
+        };
+        match &mut self.link {
+            Link::Sqlite(c) => {
                 let tx = c
-                    .transaction_with_behavior(rusqlite::TransactionBehavior::Immediate)
+                    .transaction_with_behavior(behavior)
                     .map_err(DbError::sqlite)?;
                 let mut tx = Tx::Sqlite(tx);
                 let out = f(&mut tx)?;
@@ -285,8 +352,10 @@ impl Conn {
                 }
                 Ok(out)
             }
-            Conn::Postgres(c) => {
+            Link::Postgres(c) => {
                 let mut tx = Tx::Postgres(c.transaction().map_err(DbError::pg)?);
+                // One writer at a time appends to the ledger (SQLite: `BEGIN IMMEDIATE` does it).
+                tx.execute("SELECT pg_advisory_xact_lock($1)", &[Val::Int(LEDGER_LOCK)])?;
                 let out = f(&mut tx)?;
                 match tx {
                     Tx::Postgres(t) => t.commit().map_err(DbError::pg)?,
@@ -299,36 +368,129 @@ impl Conn {
 
     /// The engine's name, for messages and tests.
     pub fn engine(&self) -> &'static str {
-        match self {
-            Conn::Sqlite(_) => "sqlite",
-            Conn::Postgres(_) => "postgres",
+        match self.link {
+            Link::Sqlite(_) => "sqlite",
+            Link::Postgres(_) => "postgres",
         }
     }
 }
 
 /// Key of the PostgreSQL advisory lock held while migrating ("accelcal" in ASCII).
 const MIGRATION_LOCK: i64 = 0x6163_6365_6c63_616c;
+/// Key of the PostgreSQL advisory lock each writing transaction holds ("ledger\0\0").
+const LEDGER_LOCK: i64 = 0x6c65_6467_6572_0000;
 
-fn open_sqlite(path: &Path, create: bool) -> Result<Conn, DbError> {
+fn migration_failed(e: refinery::Error) -> DbError {
+    DbError::Migration { cause: e.to_string() }
+}
+
+/// Whether `path` (an existing file) and its directory take writes (SQLite writes its `-wal` and
+/// `-shm` files beside the database).
+fn writable(path: &Path) -> bool {
+    let file_ok = std::fs::OpenOptions::new().append(true).open(path).is_ok();
+    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    // access(2) W_OK: a read-only mount or a directory without write permission says no.
+    let dir_ok = std::ffi::CString::new(dir.as_os_str().as_encoded_bytes())
+        // SAFETY: access(2) reads the NUL-terminated path and nothing else.
+        .map(|c| unsafe { libc::access(c.as_ptr(), libc::W_OK) } == 0)
+        .unwrap_or(false);
+    file_ok && dir_ok
+}
+
+fn open_sqlite(
+    path: &Path,
+    access: Access,
+    after: impl FnOnce(&mut Conn) -> Result<(), DbError>,
+) -> Result<Conn, DbError> {
     use rusqlite::OpenFlags;
-    if !create && !path.exists() {
+    let shown = path.display().to_string();
+    let failed = |e: rusqlite::Error| DbError::Unreachable { target: shown.clone(), cause: e.to_string() };
+    let exists = path.exists();
+    if access == Access::Read && !exists {
         return Err(DbError::NoDatabase { path: path.to_path_buf() });
     }
-    let mut flags = OpenFlags::SQLITE_OPEN_READ_WRITE | OpenFlags::SQLITE_OPEN_NO_MUTEX;
-    if create {
-        flags |= OpenFlags::SQLITE_OPEN_CREATE;
+    if access == Access::Read && !writable(path) {
+        // A read-only file or mount: read it as it is, without locks (nothing can change it).
+        let uri = format!("file:{}?immutable=1", uri_path(path));
+        let flags =
+            OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_URI | OpenFlags::SQLITE_OPEN_NO_MUTEX;
+        let c = rusqlite::Connection::open_with_flags(uri, flags).map_err(failed)?;
+        let mut conn = Conn { link: Link::Sqlite(c), target: shown.clone(), read_only: true };
+        let have = conn.applied_versions().unwrap_or_default();
+        if have.last().copied() != Some(schema_version()) {
+            return Err(DbError::Migration {
+                cause: format!(
+                    "{shown} is read-only and at schema version {}, this build reads version {}: open it once where it can be written",
+                    have.last().map_or("none".to_string(), i64::to_string),
+                    schema_version()
+                ),
+            });
+        }
+        return Ok(conn);
     }
-    let failed = |e: rusqlite::Error| DbError::Unreachable {
-        target: path.display().to_string(),
-        cause: e.to_string(),
-    };
+    if exists && !writable(path) {
+        return Err(DbError::ReadOnly { path: path.to_path_buf() });
+    }
+    let flags = OpenFlags::SQLITE_OPEN_READ_WRITE | OpenFlags::SQLITE_OPEN_CREATE | OpenFlags::SQLITE_OPEN_NO_MUTEX;
     let c = rusqlite::Connection::open_with_flags(path, flags).map_err(failed)?;
+    if c.is_readonly(rusqlite::MAIN_DB).map_err(failed)? {
+        return Err(DbError::ReadOnly { path: path.to_path_buf() });
+    }
     c.busy_timeout(WAIT).map_err(failed)?;
     // WAL: readers do not block the writer; FULL sync: a committed row survives a power cut.
     c.pragma_update(None, "journal_mode", "WAL").map_err(failed)?;
     c.pragma_update(None, "synchronous", "FULL").map_err(failed)?;
     c.pragma_update(None, "foreign_keys", "ON").map_err(failed)?;
-    Ok(Conn::Sqlite(c))
+    let mut conn = Conn { link: Link::Sqlite(c), target: shown.clone(), read_only: false };
+    // Processes opening a new file at once migrate one after the other: an exclusive flock(2) on
+    // the database file, which SQLite's own fcntl(2) locks do not see (refinery reads the applied
+    // versions before its transaction, so two first opens would both create the tables).
+    let lock = std::fs::File::open(path)
+        .map_err(|e| DbError::Unreachable { target: shown.clone(), cause: e.to_string() })?;
+    lock.lock().map_err(|e| DbError::Unreachable { target: shown.clone(), cause: format!("locking it to migrate: {e}") })?;
+    {
+        let Link::Sqlite(c) = &mut conn.link else { unreachable!("a SQLite connection") };
+        embedded::sqlite::migrations::runner().run(c).map_err(migration_failed)?;
+    }
+    after(&mut conn)?;
+    drop(lock);
+    Ok(conn)
+}
+
+/// A path for a `file:` URI: `%`, `?` and `#` percent-encoded.
+fn uri_path(path: &Path) -> String {
+    let mut out = String::new();
+    for c in path.to_string_lossy().chars() {
+        match c {
+            '%' => out.push_str("%25"),
+            '?' => out.push_str("%3f"),
+            '#' => out.push_str("%23"),
+            c => out.push(c),
+        }
+    }
+    out
+}
+
+/// A PostgreSQL error in the server's own words (`database "x" does not exist`, `password
+/// authentication failed for user "y"`), or the client's with its causes (`Connection refused`).
+pub fn pg_cause(e: &postgres::Error) -> String {
+    if let Some(d) = e.as_db_error() {
+        let mut s = d.message().to_string();
+        if let Some(detail) = d.detail() {
+            s.push_str(&format!(" ({detail})"));
+        }
+        return s;
+    }
+    let mut s = e.to_string();
+    let mut src = std::error::Error::source(e);
+    while let Some(c) = src {
+        let c_text = c.to_string();
+        if !s.contains(&c_text) {
+            s.push_str(&format!(": {c_text}"));
+        }
+        src = c.source();
+    }
+    s
 }
 
 impl Tx<'_> {

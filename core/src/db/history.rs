@@ -23,8 +23,8 @@ drift rate r ± s_r. From the last calibration the drift reaches the tolerance T
 τ = T / (|r| + k·s_r) (k: --coverage); the recommended date is the last calibration plus the smallest τ of the \
 12, at most --max-interval-days. With one calibration no drift is known yet: the date is the calibration plus \
 --max-interval-days. Calibrations less than 1 day apart are repeats: the rate uses the latest of them. A \
-calibration is a run that ended `pass` with a stored model-4 fit; unfinished and rejected runs are listed but \
-not used.";
+calibration is a run that ended `pass` with a stored model-4 fit; unfinished, rejected and voided runs are \
+listed but not used.";
 
 /// Settings of the recalibration rule.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -107,6 +107,10 @@ pub struct RunLine {
     pub as_found: Option<VerifySummary>,
     /// The as-left verification.
     pub as_left: Option<VerifySummary>,
+    /// Why the run was voided (`accelcal void`): a voided run is listed, never used.
+    pub voided: Option<String>,
+    /// When it was voided, Unix seconds.
+    pub voided_unix_s: Option<i64>,
 }
 
 /// One coefficient's change between two calibrations.
@@ -300,9 +304,10 @@ pub fn history(runs: &[RunSummary], rule: RecalRule) -> History {
     let mut cals: Vec<(usize, i64, f64, Model4)> = Vec::new();
     for r in runs {
         let passed = matches!(r.end, Some((Outcome::Pass, _, _)));
-        let model = match (&r.fit_json, passed) {
-            (Some(f), true) => Some(model4(f)),
-            (None, true) => Some(Err("no fit was stored".to_string())),
+        let model = match (&r.fit_json, passed, &r.voided) {
+            (_, true, Some((why, _))) => Some(Err(format!("voided: {why}"))),
+            (Some(f), true, None) => Some(model4(f)),
+            (None, true, None) => Some(Err("no fit was stored".to_string())),
             _ => None,
         };
         let number = match &model {
@@ -330,10 +335,12 @@ pub fn history(runs: &[RunSummary], rule: RecalRule) -> History {
             not_a_calibration: model.and_then(|m| m.err()),
             as_found: r.as_found.as_ref().map(VerifySummary::of),
             as_left: r.as_left.as_ref().map(VerifySummary::of),
+            voided: r.voided.as_ref().map(|v| v.0.clone()),
+            voided_unix_s: r.voided.as_ref().map(|v| v.1),
         });
     }
     let mut serials: Vec<String> = Vec::new();
-    for r in runs {
+    for r in runs.iter().filter(|r| r.voided.is_none()) {
         if !r.start.serial.is_empty() && !serials.contains(&r.start.serial) {
             serials.push(r.start.serial.clone());
         }

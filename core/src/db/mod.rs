@@ -13,8 +13,10 @@
 //! unit is never flashed with a record that was not stored first. Rows are never updated or
 //! deleted (the engines' triggers refuse it).
 
+pub mod chain;
 mod engine;
 pub mod history;
+mod label;
 
 use std::io::Read;
 use std::path::PathBuf;
@@ -22,8 +24,10 @@ use std::path::PathBuf;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
-pub use engine::Target;
+pub use chain::{ChainReport, Mismatch, RunSeal};
+pub use engine::{schema_version, Access, Target};
 use engine::{Conn, Tx, Val};
+pub use label::{Label, LabelClash, Relabel};
 
 use crate::error::{Classify, Kind};
 use crate::verify::VerifyReport;
@@ -56,6 +60,13 @@ pub enum DbError {
         /// The engine's message.
         cause: String,
     },
+    /// The SQLite file (or its directory, where SQLite writes its `-wal` and `-shm` files) does
+    /// not take writes.
+    #[error("{}: the database is read-only (the file or its directory cannot be written): a command that stores into it needs write access", path.display())]
+    ReadOnly {
+        /// The database file.
+        path: PathBuf,
+    },
     /// The schema could not be brought to this build's version.
     #[error("migrating the database's schema failed: {cause}")]
     Migration {
@@ -69,6 +80,25 @@ pub enum DbError {
         /// The engine's message.
         cause: String,
     },
+    /// Another writer stored the same key at the same moment (the store is tried again once).
+    #[error("database: {cause}")]
+    Raced {
+        /// The engine's message.
+        cause: String,
+    },
+    /// The run's rows do not match their hash chain: a row was changed behind accelcal's back.
+    #[error("run {run_id}: the database's rows do not match their hash chain: {first}{} (`db verify` lists them); nothing of the run is used", if *more > 0 { format!(", and {more} more") } else { String::new() })]
+    Tampered {
+        /// The run.
+        run_id: String,
+        /// The first row that does not match.
+        first: Mismatch,
+        /// How many more.
+        more: usize,
+    },
+    /// The serial or device of a new run contradicts the labels the database holds.
+    #[error("{0}")]
+    Label(LabelClash),
     /// A value read back is not what the schema says.
     #[error("database schema mismatch: {what}")]
     Schema {
@@ -138,7 +168,11 @@ impl Classify for DbError {
             | DbError::Mismatch { .. }
             | DbError::BadPiece { .. }
             | DbError::NoUnit { .. }
+            | DbError::ReadOnly { .. }
+            | DbError::Tampered { .. }
+            | DbError::Label(_)
             | DbError::Ambiguous { .. } => Kind::BadInput,
+            DbError::Raced { .. } => Kind::Environment,
             DbError::Unreachable { .. }
             | DbError::Migration { .. }
             | DbError::Engine { .. }
@@ -149,15 +183,23 @@ impl Classify for DbError {
 
 impl DbError {
     fn sqlite(e: rusqlite::Error) -> DbError {
-        DbError::Engine { cause: e.to_string() }
+        let cause = e.to_string();
+        match e.sqlite_error_code() {
+            Some(rusqlite::ErrorCode::ConstraintViolation)
+                if cause.contains("UNIQUE constraint") =>
+            {
+                DbError::Raced { cause }
+            }
+            _ => DbError::Engine { cause },
+        }
     }
 
     fn pg(e: postgres::Error) -> DbError {
-        // The server's own message (e.g. the append-only trigger's) is in the source.
-        let cause = match e.as_db_error() {
-            Some(d) => d.message().to_string(),
-            None => e.to_string(),
-        };
+        // The server's own message (e.g. the append-only trigger's), not the client's "db error".
+        let cause = engine::pg_cause(&e);
+        if e.code() == Some(&postgres::error::SqlState::UNIQUE_VIOLATION) {
+            return DbError::Raced { cause };
+        }
         DbError::Engine { cause }
     }
 
@@ -327,6 +369,8 @@ pub struct Progress {
     pub certificate: bool,
     /// How it ended, when it did.
     pub outcome: Option<Outcome>,
+    /// Why it was voided, when it was.
+    pub voided: Option<String>,
 }
 
 /// Everything stored about one run, for the unit's history.
@@ -348,6 +392,8 @@ pub struct RunSummary {
     pub as_left: Option<VerifyReport>,
     /// How it ended: outcome, reason, time.
     pub end: Option<(Outcome, String, i64)>,
+    /// Voided: the reason and when.
+    pub voided: Option<(String, i64)>,
 }
 
 /// An open database, migrated to this build's schema.
@@ -379,8 +425,8 @@ struct Piece {
     what: &'static str,
     /// The verification's phase (the second key column).
     phase: Option<Phase>,
-    /// Columns after `run_id` (and `phase`), without `content_sha256`.
-    columns: &'static [&'static str],
+    /// The values of the columns after `run_id` (and `phase`), without `content_sha256`, in the
+    /// order of [`chain::TABLES`].
     values: Vec<Val>,
     sha: String,
 }
@@ -388,18 +434,21 @@ struct Piece {
 impl Db {
     /// Opens (a SQLite file is created when missing) and migrates the database `spec` names:
     /// `postgres://…` or a file path.
+    /// The database must take writes (checked here, so a read-only file stops the command
+    /// before it does anything else).
     pub fn open(spec: &str) -> Result<Db, DbError> {
-        Db::open_target(Target::parse(spec)?, true)
+        Db::open_target(Target::parse(spec)?, Access::Write)
     }
 
-    /// Opens an existing database for reading (a missing SQLite file is refused, not created).
+    /// Opens an existing database for reading (a missing SQLite file is refused, not created; a
+    /// read-only file or mount is read as it is).
     pub fn open_existing(spec: &str) -> Result<Db, DbError> {
-        Db::open_target(Target::parse(spec)?, false)
+        Db::open_target(Target::parse(spec)?, Access::Read)
     }
 
-    fn open_target(target: Target, create: bool) -> Result<Db, DbError> {
-        let mut conn = Conn::open(&target, create)?;
-        conn.migrate()?;
+    fn open_target(target: Target, access: Access) -> Result<Db, DbError> {
+        // Rows of a version-1 database get their chain entries once, under the migration's lock.
+        let conn = Conn::open(&target, access, |c| c.transaction(|tx| chain::seal_legacy(tx).map(drop)))?;
         Ok(Db { conn, target })
     }
 
@@ -419,8 +468,10 @@ impl Db {
     }
 
     /// Begins a run (no-op when it is already there with the same start, refused when the id
-    /// began another run).
-    pub fn begin_run(&mut self, s: &RunStart) -> Result<Stored, DbError> {
+    /// began another run). A new run's serial must be its device's and no other device's label
+    /// ([`label`]'s rule), unless `relabel` moves it on purpose (the relabel rows are stored with
+    /// the run).
+    pub fn begin_run(&mut self, s: &RunStart, relabel: Option<&Relabel>) -> Result<Stored, DbError> {
         let device_id = s.device_id.to_ascii_lowercase();
         if device_id.len() != 24 || !device_id.bytes().all(|b| b.is_ascii_hexdigit()) {
             return Err(DbError::BadPiece {
@@ -430,8 +481,9 @@ impl Db {
             });
         }
         let s = RunStart { device_id, ..s.clone() };
-        let sha = sha256_hex(serde_json::to_string(&s).expect("a run start serialises").as_bytes());
-        let values = vec![
+        let sha = chain::run_content(&s);
+        let row: Vec<Val> = vec![
+            s.run_id.to_string().into(),
             s.device_id.clone().into(),
             s.serial.clone().into(),
             s.station.clone().into(),
@@ -442,31 +494,141 @@ impl Db {
             s.firmware_version.clone().into(),
             s.g_m_s2.into(),
             s.g_source.clone().into(),
+            sha.clone().into(),
         ];
         let run_id = s.run_id;
-        self.conn.transaction(|tx| {
-            let found = tx.query("SELECT content_sha256 FROM run WHERE run_id = $1", &[run_id.to_string().into()])?;
-            match found.first() {
-                Some(r) if r[0].text()? == sha => Ok(Stored::Already),
-                Some(_) => Err(DbError::Conflict {
-                    run_id: run_id.to_string(),
-                    what: "began already with another unit, station, operator, time or g (a run id is used once)"
-                        .into(),
-                }),
-                None => {
-                    let mut v = vec![Val::from(run_id.to_string())];
-                    v.extend(values);
-                    v.push(sha.into());
-                    tx.execute(
-                        "INSERT INTO run (run_id, device_id, serial, station, head, operator, started_unix_s, \
-                         software_version, firmware_version, g_m_s2, g_source, content_sha256) \
-                         VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12)",
-                        &v,
-                    )?;
-                    Ok(Stored::New)
+        self.retried(|conn| {
+            conn.transaction(|tx| {
+                let found =
+                    tx.query("SELECT content_sha256 FROM run WHERE run_id = $1", &[run_id.to_string().into()])?;
+                match found.first() {
+                    Some(r) if r[0].text()? == sha => Ok(Stored::Already),
+                    Some(_) => Err(DbError::Conflict {
+                        run_id: run_id.to_string(),
+                        what: "began already with another unit, station, operator, time or g (a run id is used once)"
+                            .into(),
+                    }),
+                    None => {
+                        label::check_new_run(tx, &s.device_id, &s.serial, relabel)?;
+                        insert_row(tx, chain::table("run"), &row)?;
+                        Ok(Stored::New)
+                    }
                 }
-            }
+            })
         })
+    }
+
+    /// Runs `f` again once when another writer stored the same key at the same moment (the
+    /// second try sees its row: the same piece, or a conflict).
+    fn retried<T>(&mut self, mut f: impl FnMut(&mut Conn) -> Result<T, DbError>) -> Result<T, DbError> {
+        match f(&mut self.conn) {
+            Err(DbError::Raced { .. }) => f(&mut self.conn),
+            r => r,
+        }
+    }
+
+    /// Takes run `run` out of the unit's history, the fleet's statistics and the recalibration
+    /// intervals: an appended row with the reason (the run's rows all stay). Voiding it again
+    /// with the same reason is a no-op; with another, refused.
+    pub fn void_run(&mut self, run: RunId, reason: &str, operator: &str) -> Result<Stored, DbError> {
+        let sha = sha256_hex(reason.as_bytes());
+        let row: Vec<Val> =
+            vec![run.to_string().into(), reason.into(), operator.into(), now_unix_s().into(), sha.clone().into()];
+        self.retried(|conn| {
+            conn.transaction(|tx| {
+                let id = Val::from(run.to_string());
+                if tx.query("SELECT 1 FROM run WHERE run_id = $1", std::slice::from_ref(&id))?.is_empty() {
+                    return Err(DbError::NoRun { run_id: run.to_string() });
+                }
+                if let Some(r) =
+                    tx.query("SELECT content_sha256, reason FROM void WHERE run_id = $1", std::slice::from_ref(&id))?.first()
+                {
+                    return if r[0].text()? == sha {
+                        Ok(Stored::Already)
+                    } else {
+                        Err(DbError::Conflict {
+                            run_id: run.to_string(),
+                            what: format!("it was voided already ({})", r[1].text()?),
+                        })
+                    };
+                }
+                insert_row(tx, chain::table("void"), &row)?;
+                Ok(Stored::New)
+            })
+        })
+    }
+
+    /// Run `run`'s verification of `phase` as stored: whether it passed, and its JSON.
+    pub fn verification(&mut self, run: RunId, phase: Phase) -> Result<Option<(bool, String)>, DbError> {
+        let rows = self.conn.transaction(|tx| {
+            tx.query(
+                "SELECT pass, report_json FROM verification WHERE run_id = $1 AND phase = $2",
+                &[run.to_string().into(), phase.sql().into()],
+            )
+        })?;
+        rows.first()
+            .map(|r| {
+                let pass = match &r[0] {
+                    Val::Bool(b) => *b,
+                    v => v.int()? != 0,
+                };
+                Ok((pass, r[1].text()?))
+            })
+            .transpose()
+    }
+
+    /// The label (current serial) of a device, if it has one.
+    pub fn label_of(&mut self, device_id: &str) -> Result<Option<Label>, DbError> {
+        let d = device_id.trim().to_ascii_lowercase();
+        self.conn.transaction(|tx| label::current(tx, &d))
+    }
+
+    /// Checks the whole database against its hash chain.
+    pub fn verify_chain(&mut self) -> Result<ChainReport, DbError> {
+        self.conn.transaction(chain::verify_all)
+    }
+
+    /// Checks run `run`'s rows against their hash chain: its seal, or [`DbError::Tampered`].
+    pub fn verify_run(&mut self, run: RunId) -> Result<RunSeal, DbError> {
+        let id = run.to_string();
+        match self.conn.transaction(|tx| chain::verify_run(tx, &id))? {
+            Ok(seal) => Ok(seal),
+            Err(mut m) => {
+                let first = m.remove(0);
+                Err(DbError::Tampered { run_id: id, first, more: m.len() })
+            }
+        }
+    }
+
+    /// The latest flash of a record into `device_id` (voided runs left out), other than run
+    /// `except`'s: the run, the record's CRC-32, when, and how the run ended.
+    pub fn last_flash(&mut self, device_id: &str, except: Option<RunId>) -> Result<Option<LastFlash>, DbError> {
+        let params = [
+            Val::from(device_id.trim().to_ascii_lowercase()),
+            Val::from(except.map(|r| r.to_string()).unwrap_or_default()),
+        ];
+        let rows = self.conn.transaction(|tx| {
+            tx.query(
+                "SELECT f.run_id, f.crc32, f.flashed_unix_s, e.outcome FROM flash f \
+                 JOIN run ON run.run_id = f.run_id LEFT JOIN run_end e ON e.run_id = f.run_id \
+                 WHERE run.device_id = $1 AND f.run_id <> $2 AND f.run_id NOT IN (SELECT run_id FROM void) \
+                 ORDER BY f.flashed_unix_s DESC, f.run_id DESC LIMIT 1",
+                &params,
+            )
+        })?;
+        rows.first()
+            .map(|r| {
+                Ok(LastFlash {
+                    run_id: RunId::parse(&r[0].text()?).map_err(|e| DbError::schema(e.to_string()))?,
+                    crc32: crc_of(&r[1])?,
+                    flashed_unix_s: r[2].int()?,
+                    outcome: match &r[3] {
+                        Val::Null => None,
+                        v => Some(Outcome::from_sql(&v.text()?)?),
+                    },
+                })
+            })
+            .transpose()
     }
 
     /// Stores the run's campaign file (plain or gzip; kept gzip-compressed, hashed
@@ -493,7 +655,6 @@ impl Db {
                 table: "campaign",
                 what: "campaign",
                 phase: None,
-                columns: &["campaign_sha256", "gzip", "stored_unix_s"],
                 values: vec![sha.clone().into(), gzip.into(), now_unix_s().into()],
                 sha,
             },
@@ -530,7 +691,6 @@ impl Db {
                 table: "fit",
                 what: "fit",
                 phase: None,
-                columns: &["fit_json", "stored_unix_s"],
                 values: vec![fit_json.into(), now_unix_s().into()],
                 sha: sha256_hex(fit_json.as_bytes()),
             },
@@ -555,7 +715,6 @@ impl Db {
                 table: "cal_record",
                 what: "record",
                 phase: None,
-                columns: &["bytes", "crc32", "stored_unix_s"],
                 values: vec![bytes.to_vec().into(), i64::from(crc32).into(), now_unix_s().into()],
                 sha: sha256_hex(bytes),
             },
@@ -572,7 +731,6 @@ impl Db {
                 table: "flash",
                 what: "flash",
                 phase: None,
-                columns: &["crc32", "flashed_unix_s"],
                 values: vec![i64::from(rec.crc32).into(), now_unix_s().into()],
                 sha: sha256_hex(&rec.crc32.to_le_bytes()),
             },
@@ -605,7 +763,6 @@ impl Db {
                     Phase::AsLeft => "as-left verification",
                 },
                 phase: Some(phase),
-                columns: &["pass", "report_json", "stored_unix_s"],
                 values: vec![report.pass.into(), json.clone().into(), now_unix_s().into()],
                 sha: sha256_hex(json.as_bytes()),
             },
@@ -620,7 +777,6 @@ impl Db {
                 table: "certificate",
                 what: "certificate",
                 phase: None,
-                columns: &["html", "stored_unix_s"],
                 values: vec![html.into(), now_unix_s().into()],
                 sha: sha256_hex(html.as_bytes()),
             },
@@ -636,7 +792,6 @@ impl Db {
                 table: "run_end",
                 what: "end",
                 phase: None,
-                columns: &["outcome", "reason", "ended_unix_s"],
                 values: vec![outcome.sql().into(), reason.into(), now_unix_s().into()],
                 sha,
             },
@@ -659,7 +814,9 @@ impl Db {
             };
             let outcome =
                 tx.query("SELECT outcome FROM run_end WHERE run_id = $1", std::slice::from_ref(&id))?;
+            let voided = tx.query("SELECT reason FROM void WHERE run_id = $1", std::slice::from_ref(&id))?;
             Ok(Progress {
+                voided: voided.first().map(|r| r[0].text()).transpose()?,
                 campaign: has(tx, "SELECT 1 FROM campaign WHERE run_id = $1")?,
                 fit: has(tx, "SELECT 1 FROM fit WHERE run_id = $1")?,
                 record,
@@ -689,26 +846,32 @@ impl Db {
         rows.first().map(|r| r[0].text()).transpose()
     }
 
-    /// Every run of the unit `key` names (its serial number or its device id), oldest first.
+    /// Every run of the unit `key` names, oldest first: a device id (24 hex digits), or a
+    /// serial — the device it labels now ([`label`]), else the one device that ever carried it.
     pub fn unit_runs(&mut self, key: &str) -> Result<Vec<RunSummary>, DbError> {
         let key = key.trim();
         let target = self.target();
         self.conn.transaction(|tx| {
+            let lower = key.to_ascii_lowercase();
+            let is_device = !tx
+                .query("SELECT 1 FROM run WHERE device_id = $1 LIMIT 1", &[lower.clone().into()])?
+                .is_empty();
+            let device = if is_device {
+                lower
+            } else {
+                let now: Vec<String> = label::devices_labelled(tx, key)?.into_iter().map(|l| l.device_id).collect();
+                let candidates = if now.is_empty() { label::devices_ever(tx, key)? } else { now };
+                match candidates.as_slice() {
+                    [] => return Err(DbError::NoUnit { key: key.into(), target }),
+                    [one] => one.clone(),
+                    many => return Err(DbError::Ambiguous { key: key.into(), devices: many.join(", ") }),
+                }
+            };
             let rows = tx.query(
-                &format!("SELECT {RUN_COLUMNS} FROM run WHERE device_id = $1 OR serial = $2 ORDER BY started_unix_s, run_id"),
-                &[key.to_ascii_lowercase().into(), key.into()],
+                &format!("SELECT {RUN_COLUMNS} FROM run WHERE device_id = $1 ORDER BY started_unix_s, run_id"),
+                &[device.into()],
             )?;
-            if rows.is_empty() {
-                return Err(DbError::NoUnit { key: key.into(), target });
-            }
             let starts: Vec<RunStart> = rows.iter().map(|r| run_start(r)).collect::<Result<_, _>>()?;
-            let mut devices: Vec<&str> = starts.iter().map(|s| s.device_id.as_str()).collect();
-            devices.dedup();
-            devices.sort_unstable();
-            devices.dedup();
-            if devices.len() > 1 {
-                return Err(DbError::Ambiguous { key: key.into(), devices: devices.join(", ") });
-            }
             starts.into_iter().map(|s| summary(tx, s)).collect()
         })
     }
@@ -732,69 +895,90 @@ impl Db {
         }
     }
 
-    /// Inserts a piece in one transaction: after checking that the run exists and is not
-    /// finished, and that it holds no other piece of the kind (the same one: [`Stored::Already`]).
+    /// Inserts a piece in one transaction: after checking that the run exists, is not
+    /// finished nor voided, and holds no other piece of the kind (the same one: [`Stored::Already`]).
     fn store(&mut self, run: RunId, p: Piece) -> Result<Stored, DbError> {
         let run_s = run.to_string();
-        self.conn.transaction(|tx| {
-            let id = Val::from(run_s.clone());
-            if tx.query("SELECT 1 FROM run WHERE run_id = $1", std::slice::from_ref(&id))?.is_empty() {
-                return Err(DbError::NoRun { run_id: run_s.clone() });
-            }
-            if p.table != "run_end" {
-                if let Some(r) = tx
-                    .query("SELECT outcome FROM run_end WHERE run_id = $1", std::slice::from_ref(&id))?
-                    .first()
-                {
+        let table = chain::table(p.table);
+        let mut row = vec![Val::from(run_s.clone())];
+        if let Some(phase) = p.phase {
+            row.push(phase.sql().into());
+        }
+        row.extend(p.values);
+        row.push(p.sha.clone().into());
+        debug_assert_eq!(row.len(), table.columns.len(), "{}: a value per column", p.table);
+        self.retried(|conn| {
+            conn.transaction(|tx| {
+                let id = Val::from(run_s.clone());
+                if tx.query("SELECT 1 FROM run WHERE run_id = $1", std::slice::from_ref(&id))?.is_empty() {
+                    return Err(DbError::NoRun { run_id: run_s.clone() });
+                }
+                if let Some(r) = tx.query("SELECT reason FROM void WHERE run_id = $1", std::slice::from_ref(&id))?.first() {
                     return Err(DbError::Conflict {
                         run_id: run_s.clone(),
-                        what: format!(
-                            "the run is finished ({}): its {} cannot be stored",
-                            r[0].text()?,
-                            p.what
-                        ),
+                        what: format!("the run is voided ({}): its {} cannot be stored", r[0].text()?, p.what),
                     });
                 }
-            }
-            let mut key = vec![id];
-            let mut key_sql = "run_id = $1".to_string();
-            if let Some(phase) = p.phase {
-                key.push(phase.sql().into());
-                key_sql.push_str(" AND phase = $2");
-            }
-            let found = tx.query(&format!("SELECT content_sha256 FROM {} WHERE {key_sql}", p.table), &key)?;
-            if let Some(r) = found.first() {
-                return if r[0].text()? == p.sha {
-                    Ok(Stored::Already)
-                } else {
-                    Err(DbError::Conflict {
-                        run_id: run_s.clone(),
-                        what: format!("it holds another {} already (a run stores each piece once)", p.what),
-                    })
-                };
-            }
-            let mut columns: Vec<&str> = vec!["run_id"];
-            if p.phase.is_some() {
-                columns.push("phase");
-            }
-            columns.extend(p.columns);
-            columns.push("content_sha256");
-            let placeholders: Vec<String> = (1..=columns.len()).map(|i| format!("${i}")).collect();
-            let mut values = key;
-            values.extend(p.values);
-            values.push(p.sha.into());
-            tx.execute(
-                &format!(
-                    "INSERT INTO {} ({}) VALUES ({})",
-                    p.table,
-                    columns.join(", "),
-                    placeholders.join(", ")
-                ),
-                &values,
-            )?;
-            Ok(Stored::New)
+                if p.table != "run_end" {
+                    if let Some(r) = tx
+                        .query("SELECT outcome FROM run_end WHERE run_id = $1", std::slice::from_ref(&id))?
+                        .first()
+                    {
+                        return Err(DbError::Conflict {
+                            run_id: run_s.clone(),
+                            what: format!(
+                                "the run is finished ({}): its {} cannot be stored",
+                                r[0].text()?,
+                                p.what
+                            ),
+                        });
+                    }
+                }
+                let mut key = vec![id];
+                let mut key_sql = "run_id = $1".to_string();
+                if let Some(phase) = p.phase {
+                    key.push(phase.sql().into());
+                    key_sql.push_str(" AND phase = $2");
+                }
+                let found = tx.query(&format!("SELECT content_sha256 FROM {} WHERE {key_sql}", p.table), &key)?;
+                if let Some(r) = found.first() {
+                    return if r[0].text()? == p.sha {
+                        Ok(Stored::Already)
+                    } else {
+                        Err(DbError::Conflict {
+                            run_id: run_s.clone(),
+                            what: format!("it holds another {} already (a run stores each piece once)", p.what),
+                        })
+                    };
+                }
+                insert_row(tx, table, &row)?;
+                Ok(Stored::New)
+            })
         })
     }
+}
+
+/// Inserts a row of `table` (a value per column, in its order) and its ledger entry.
+fn insert_row(tx: &mut Tx<'_>, table: &chain::Table, row: &[Val]) -> Result<(), DbError> {
+    let placeholders: Vec<String> = (1..=row.len()).map(|i| format!("${i}")).collect();
+    tx.execute(
+        &format!("INSERT INTO {} ({}) VALUES ({})", table.name, table.columns.join(", "), placeholders.join(", ")),
+        row,
+    )?;
+    chain::append(tx, table, row)
+}
+
+/// The latest flash into a device ([`Db::last_flash`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct LastFlash {
+    /// The run that flashed.
+    pub run_id: RunId,
+    /// The record's CRC-32.
+    pub crc32: u32,
+    /// When.
+    pub flashed_unix_s: i64,
+    /// How the run ended (`None`: not finished).
+    pub outcome: Option<Outcome>,
 }
 
 /// The `run` columns [`run_start`] reads, in its order.
@@ -802,7 +986,7 @@ const RUN_COLUMNS: &str =
     "run_id, device_id, serial, station, head, operator, started_unix_s, software_version, \
                            firmware_version, g_m_s2, g_source";
 
-fn run_start(r: &[Val]) -> Result<RunStart, DbError> {
+pub(crate) fn run_start(r: &[Val]) -> Result<RunStart, DbError> {
     Ok(RunStart {
         run_id: RunId::parse(&r[0].text()?).map_err(|e| DbError::schema(e.to_string()))?,
         device_id: r[1].text()?,
@@ -823,7 +1007,7 @@ fn crc_of(v: &Val) -> Result<u32, DbError> {
 }
 
 /// A record's CRC-32: its last four bytes, little-endian (a parsed record is longer).
-fn record_crc(bytes: &[u8]) -> u32 {
+pub(crate) fn record_crc(bytes: &[u8]) -> u32 {
     let n = bytes.len();
     u32::from_le_bytes(bytes[n - 4..].try_into().expect("four bytes"))
 }
@@ -857,5 +1041,9 @@ fn summary(tx: &mut Tx<'_>, start: RunStart) -> Result<RunSummary, DbError> {
         Some(r) => Some((Outcome::from_sql(&r[0].text()?)?, r[1].text()?, r[2].int()?)),
         None => None,
     };
-    Ok(RunSummary { start, campaign_sha256, fit_json, record_crc32, flashed_unix_s, as_found, as_left, end })
+    let voided = match one(tx, "SELECT reason, voided_unix_s FROM void WHERE run_id = $1")? {
+        Some(r) => Some((r[0].text()?, r[1].int()?)),
+        None => None,
+    };
+    Ok(RunSummary { start, campaign_sha256, fit_json, record_crc32, flashed_unix_s, as_found, as_left, end, voided })
 }

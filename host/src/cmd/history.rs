@@ -2,7 +2,7 @@
 //! between its calibrations and the recommended recalibration date (`core::db::history`).
 
 use accelcal_core::db::history::{history, History, RecalRule, VerifySummary};
-use accelcal_core::db::{Db, Outcome, Target, DB_ENV};
+use accelcal_core::db::{Db, Outcome, Target};
 use accelcal_core::error::bad;
 use accelcal_core::output::write_json;
 use anyhow::Context;
@@ -11,15 +11,9 @@ use super::record::utc;
 use crate::cli::HistoryArgs;
 use crate::report::sig;
 
-/// The database `--db` names, else `ACCELCAL_DB`.
+/// The database `--db` names, else `ACCELCAL_DB`, else the station's default file here.
 pub fn db_spec(given: Option<&str>) -> anyhow::Result<String> {
-    match given {
-        Some(s) => Ok(s.to_string()),
-        None => std::env::var(DB_ENV)
-            .ok()
-            .filter(|s| !s.trim().is_empty())
-            .ok_or_else(|| bad(format!("no calibration database: give --db FILE|URL or set {DB_ENV}"))),
-    }
+    super::store::reader_spec(given)
 }
 
 /// Checks the command line before anything is opened.
@@ -94,10 +88,11 @@ fn print(h: &History, target: &str) {
         "cal", "started (UTC)", "station", "operator", "outcome", "record", "as found", "as left"
     );
     for r in &h.runs {
-        let outcome = match r.outcome {
-            Some(Outcome::Pass) => "pass",
-            Some(Outcome::Rejected) => "rejected",
-            None => "unfinished",
+        let outcome = match (r.outcome, &r.voided) {
+            (_, Some(_)) => "voided",
+            (Some(Outcome::Pass), None) => "pass",
+            (Some(Outcome::Rejected), None) => "rejected",
+            (None, None) => "unfinished",
         };
         println!(
             "{:>3}  {:<20}  {:<10}  {:<10}  {:<9}  {:<8}  {:<24}  {:<24}",
@@ -110,7 +105,9 @@ fn print(h: &History, target: &str) {
             verification(&r.as_found),
             verification(&r.as_left),
         );
-        if let Some(why) = &r.not_a_calibration {
+        if let (Some(why), Some(t)) = (&r.voided, r.voided_unix_s) {
+            println!("     voided {}: {why} (run {})", utc(t.max(0) as u64), r.run_id);
+        } else if let Some(why) = &r.not_a_calibration {
             println!("     not a calibration: {why}");
         }
         if matches!(r.outcome, Some(Outcome::Rejected)) {

@@ -505,6 +505,13 @@ pub fn run_verify(a: &VerifyArgs) -> anyhow::Result<()> {
             super::store::phase_name(phase),
             rdb.db.target()
         );
+        // A failed as-left verification rejects the unit, as at the station.
+        let failed = report.positions.iter().filter(|p| !p.pass).count();
+        if phase == accelcal_core::db::Phase::AsLeft && failed > 0 {
+            let why = format!("as-left verification: {}", Failed { failed, total: report.positions.len() });
+            rdb.db.finish_run(run, accelcal_core::db::Outcome::Rejected, &why)?;
+            println!("db: run {run} ended rejected ({why})");
+        }
     }
     if report.interrupted {
         return Err(anyhow::Error::new(Interrupted(format!(

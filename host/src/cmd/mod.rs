@@ -2,6 +2,7 @@
 
 pub mod bench_diagnose;
 pub mod compare;
+pub mod db;
 pub mod demo;
 pub mod diagnose;
 pub mod emulate;
@@ -55,6 +56,8 @@ pub fn run(cli: Cli, warnings: &mut Warnings) -> anyhow::Result<()> {
         Command::BenchDiagnose(a) => bench_diagnose::run(&a),
         Command::Station(a) => station::run(&a),
         Command::History(a) => history::run(&a),
+        Command::Void(a) => db::run_void(&a),
+        Command::Db(crate::cli::DbCommand::Verify(a)) => db::run_verify(&a),
     }
 }
 

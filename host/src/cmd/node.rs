@@ -61,7 +61,14 @@ pub fn run_flash(a: &FlashArgs) -> anyhow::Result<()> {
         confirm(port, a.baud, slot, sequence, crc)?;
     }
     if let (Some(rdb), Some(rec)) = (&mut db, &stored) {
-        rdb.db.record_flashed(rec)?;
+        rdb.db.record_flashed(rec).with_context(|| {
+            format!(
+                "the node runs the new record CRC {:08x}{}, but the database did not note the flash: run the same flash again to note it",
+                rec.crc32(),
+                if a.port.is_some() { " (it said so after its reset)" } else { "" }
+            )
+        })?;
+        super::store::crash_point("db:flash");
         println!(
             "db: run {}: flash of record CRC {:08x} stored in {}",
             rec.run_id(),

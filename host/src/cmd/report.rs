@@ -158,6 +158,14 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
             return Err(bad(format!("run {run} holds its certificate already (a run has one certificate)")));
         }
     }
+    if let (Some(rdb), Some((run, p))) = (&mut db, &run) {
+        let Some(v) = &u.verify else {
+            return Err(bad(format!(
+                "report --db needs --verify: run {run}'s as-left verification, which the certificate states"
+            )));
+        };
+        super::store::check_certifiable(&mut rdb.db, *run, p, v)?;
+    }
     // The unit's calibrations before this run, and this run as the next one (it ends `pass`
     // when its certificate is issued): the drift since the last calibration.
     let since_last = match (&mut db, &run) {
@@ -296,7 +304,11 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
     );
     if let (Some(rdb), Some((run, _))) = (&mut db, &run) {
         rdb.db.store_certificate(*run, &h)?;
-        println!("db: run {run}: certificate stored in {}", rdb.db.target());
+        super::store::crash_point("db:certificate");
+        // The run is complete: it ends as the station ends it.
+        rdb.db.finish_run(*run, accelcal_core::db::Outcome::Pass, super::store::PASS_REASON)?;
+        super::store::crash_point("db:end");
+        println!("db: run {run}: certificate stored in {}; the run ended pass", rdb.db.target());
     }
     Ok(())
 }

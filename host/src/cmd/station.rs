@@ -14,13 +14,14 @@ use std::process::Command;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
-use accelcal_core::db::{Db, Outcome, Phase, RunId, RunStart, DB_ENV};
+use accelcal_core::db::{Db, Outcome, Phase, Relabel, RunId, RunStart, DB_ENV};
 use accelcal_core::error::{bad, environment, Interrupted};
 use accelcal_core::output::write_json;
 use accelcal_core::station::{deployable, sha256_file, Journal, StationError, Step, StepRecord, JOURNAL};
 use accelcal_core::verify::{Failed, VerifyReport};
 use anyhow::Context;
 
+use super::store::{crash_point, DEFAULT_DB, PASS_REASON};
 use crate::cli::StationArgs;
 
 /// File names in the unit's directory.
@@ -33,9 +34,6 @@ const FIT: &str = "fit.json";
 const RECORD: &str = "record.rec";
 const AS_LEFT: &str = "as-left.json";
 const CERTIFICATE: &str = "certificate.html";
-
-/// The station's database file when neither --db nor ACCELCAL_DB names one.
-const DEFAULT_DB: &str = "calibration.sqlite";
 
 /// Plan of the verifications: the six test-turn positions.
 const VERIFY_PLAN: &str = "six";
@@ -78,6 +76,8 @@ struct Station<'a> {
     ended: bool,
     /// `SERIAL: ` before the unit's progress lines when the head carries several units.
     tag: String,
+    /// What step info found on the node (`info --json`).
+    info: serde_json::Value,
 }
 
 /// The station's database: `--db`, else `ACCELCAL_DB`, else `calibration.sqlite` beside the
@@ -222,7 +222,9 @@ impl Station<'_> {
         eprintln!("station: {}{} {outcome}", self.tag, step.name());
         let command = self.journalled(&command);
         self.journal.finish(StepRecord { step, command, finished, outcome, outputs });
-        write_json(&self.path(JOURNAL), &self.journal)
+        write_json(&self.path(JOURNAL), &self.journal)?;
+        crash_point(&format!("journal:{}", step.name()));
+        Ok(())
     }
 
     /// Whether `step` is done (its files unchanged), saying so.
@@ -273,8 +275,41 @@ impl Station<'_> {
             None => "no record in force".into(),
         };
         self.finish(Step::Info, args, format!("device {device}, {record}"), &[INFO])?;
+        self.info = info.clone();
         self.begin(&info, &device)?;
         Ok(info)
+    }
+
+    /// The CRC (8 hex digits) of the record the node runs, from step info.
+    fn crc_in_force(&self) -> Option<String> {
+        self.info["record"]["crc"].as_str().map(|c| c.to_ascii_lowercase())
+    }
+
+    /// What the node runs, in words.
+    fn in_force_words(&self) -> String {
+        self.crc_in_force().map_or("no record".into(), |c| format!("record CRC {c}"))
+    }
+
+    /// A new run: says plainly when the node does not run the record its last flash in the
+    /// database wrote (another unit's record flashed since, or a record written by hand).
+    fn warn_replaced(&mut self) -> anyhow::Result<()> {
+        let (Some(device), Some(run)) = (self.journal.device_id.clone(), self.run) else { return Ok(()) };
+        let Some(last) = self.db.last_flash(&device, Some(run))? else { return Ok(()) };
+        let last_crc = format!("{:08x}", last.crc32);
+        if self.crc_in_force().as_deref() != Some(last_crc.as_str()) {
+            let what = match last.outcome {
+                Some(Outcome::Pass) => "its certified record",
+                _ => "the record its last run flashed",
+            };
+            eprintln!(
+                "station: {}WARNING: the node no longer runs {what}: it runs {}, but run {} flashed record CRC {last_crc} on {}",
+                self.tag,
+                self.in_force_words(),
+                last.run_id,
+                accelcal_core::output::utc_date_time(last.flashed_unix_s)
+            );
+        }
+        Ok(())
     }
 
     /// Begins the run in the database (the journal keeps its id and time: the same run on a
@@ -299,7 +334,16 @@ impl Station<'_> {
             g_m_s2: g,
             g_source,
         };
-        let new = self.db.begin_run(&start)? == accelcal_core::db::Stored::New;
+        // The journal keeps the id before the database has the run: a crash in between resumes
+        // the same run, never a second one.
+        if self.journal.run_id.is_none() {
+            self.journal.run_id = Some(run.to_string());
+            write_json(&self.path(JOURNAL), &self.journal)?;
+            crash_point("journal:run");
+        }
+        let relabel = self.a.relabel.clone().map(|reason| Relabel { reason, operator: start.operator.clone() });
+        let new = self.db.begin_run(&start, relabel.as_ref())? == accelcal_core::db::Stored::New;
+        crash_point("db:run");
         let p = self.db.progress(run)?;
         if p.outcome == Some(Outcome::Rejected) {
             return Err(StationError::RejectedBefore {
@@ -309,10 +353,15 @@ impl Station<'_> {
             }
             .into());
         }
+        if let Some(why) = &p.voided {
+            return Err(bad(format!(
+                "run {run} of unit {} was voided ({why}): its line in {} is closed; start the unit in a new --out",
+                self.u.serial,
+                self.dir.display()
+            )));
+        }
         self.ended = p.outcome.is_some();
         self.run = Some(run);
-        self.journal.run_id = Some(run.to_string());
-        write_json(&self.path(JOURNAL), &self.journal)?;
         eprintln!(
             "station: {}run {run} {} in {}",
             self.tag,
@@ -333,7 +382,10 @@ impl Station<'_> {
             Err(e2) => return e2,
         };
         match self.db.finish_run(run, Outcome::Rejected, &format!("{e:#}")) {
-            Ok(_) => e,
+            Ok(_) => {
+                crash_point("db:rejected");
+                e
+            }
             Err(db) => anyhow::Error::new(db).context(format!("storing the rejection ({e:#})")),
         }
     }
@@ -346,6 +398,7 @@ impl Station<'_> {
             let run = self.run_id()?;
             let path = self.path(AS_FOUND);
             super::store::verification(&mut self.db, run, Phase::AsFound, &path)?;
+            crash_point("db:as-found");
         }
         Ok(())
     }
@@ -402,6 +455,7 @@ impl Station<'_> {
     fn store_campaign(&mut self) -> anyhow::Result<()> {
         let bytes = std::fs::read(self.path(CAMPAIGN)).with_context(|| self.p(CAMPAIGN))?;
         self.db.store_campaign(self.run_id()?, &bytes)?;
+        crash_point("db:campaign");
         Ok(())
     }
 
@@ -435,7 +489,9 @@ impl Station<'_> {
         let record = std::fs::read(self.path(RECORD)).with_context(|| self.p(RECORD))?;
         let run = self.run_id()?;
         self.db.store_fit(run, &fit)?;
+        crash_point("db:fit");
         self.db.store_record(run, &record)?;
+        crash_point("db:record");
         Ok(())
     }
 
@@ -464,6 +520,18 @@ impl Station<'_> {
         if self.done(Step::Flash)? {
             return Ok(());
         }
+        // Flashed and noted before a stop, and the node runs it: nothing to write again.
+        let p = self.db.progress(self.run_id()?)?;
+        if let (true, Some(rec)) = (p.flashed, &p.record) {
+            if self.crc_in_force().as_deref() == Some(format!("{:08x}", rec.crc32()).as_str()) {
+                return self.finish(
+                    Step::Flash,
+                    vec![],
+                    "the node runs the new record (flashed before the stop)".into(),
+                    &[],
+                );
+            }
+        }
         // Given the database, the flash step writes the record the run stored (step fit stored
         // it; a file that is not it is refused) and notes the flash there.
         let a = self.a;
@@ -480,30 +548,34 @@ impl Station<'_> {
         }
         args.extend(["--port".into(), self.u.port.clone(), "--baud".into(), a.baud.to_string()]);
         if let Exit::Failed = self.run(Step::Flash, &args)? {
-            return Err(anyhow::anyhow!(
-                "step flash failed (its error is above): the node runs the record it had"
-            ));
+            // What the node runs is what the step said (a cut write keeps the old record; a
+            // confirmed write whose note failed runs the new one).
+            return Err(anyhow::anyhow!("step flash failed (its error above says what the node runs)"));
         }
         self.finish(Step::Flash, args, "the node runs the new record".into(), &[])
     }
 
-    /// Step `as-left`; its failure rejects the unit.
+    /// Step `as-left`; its failure rejects the unit. Journalled first, pass or fail, then
+    /// stored: a crash between the two stores it on the next run (never a second measurement).
     fn as_left(&mut self) -> anyhow::Result<()> {
-        if self.done(Step::AsLeft)? {
-            return Ok(());
+        if !self.done(Step::AsLeft)? {
+            let _ = std::fs::remove_file(self.path(AS_LEFT));
+            let args = self.verify_args(AS_LEFT, Some(self.p(FIT)));
+            self.run(Step::AsLeft, &args)?;
+            let outcome = match self.verdict(AS_LEFT)?.1 {
+                Ok(n) => format!("PASS ({n} positions)"),
+                Err(f) => format!("FAIL ({f})"),
+            };
+            self.finish(Step::AsLeft, args, outcome, &[AS_LEFT])?;
         }
-        let _ = std::fs::remove_file(self.path(AS_LEFT));
-        let args = self.verify_args(AS_LEFT, Some(self.p(FIT)));
-        self.run(Step::AsLeft, &args)?;
         let (report, verdict) = self.verdict(AS_LEFT)?;
-        // Stored pass or fail; a failure ends the run rejected.
         let run = self.run_id()?;
         self.db.store_verification(run, Phase::AsLeft, &report)?;
-        let n = match verdict {
-            Ok(n) => n,
-            Err(f) => return Err(self.reject(anyhow::Error::new(f).context("as-left verification"))),
-        };
-        self.finish(Step::AsLeft, args, format!("PASS ({n} positions)"), &[AS_LEFT])
+        crash_point("db:as-left");
+        match verdict {
+            Ok(_) => Ok(()),
+            Err(f) => Err(self.reject(anyhow::Error::new(f).context("as-left verification"))),
+        }
     }
 
     fn certificate(&mut self) -> anyhow::Result<()> {
@@ -602,7 +674,8 @@ impl Station<'_> {
         self.as_left()?;
         self.certificate()?;
         let run = self.run_id()?;
-        self.db.finish_run(run, Outcome::Pass, "as-left verification passed; certificate issued")?;
+        self.db.finish_run(run, Outcome::Pass, PASS_REASON)?;
+        crash_point("db:end");
         println!(
             "station: unit {} (device {}) PASS; certificate {}; journal {}; run {run} stored in {}",
             self.u.serial,
@@ -614,8 +687,22 @@ impl Station<'_> {
         Ok(())
     }
 
-    /// A unit that passed, run again: its files must still be as the steps wrote them.
-    fn passed_before(&self) -> anyhow::Result<()> {
+    /// A unit that passed, run again: its files must still be as the steps wrote them, and the
+    /// node must still run the record the run certified.
+    fn passed_before(&mut self) -> anyhow::Result<()> {
+        let run = self.run_id()?;
+        if let Some(rec) = self.db.progress(run)?.record {
+            let certified = format!("{:08x}", rec.crc32());
+            if self.crc_in_force().as_deref() != Some(certified.as_str()) {
+                return Err(StationError::RecordReplaced {
+                    serial: self.u.serial.clone(),
+                    node: self.in_force_words(),
+                    certified,
+                    run_id: run.to_string(),
+                }
+                .into());
+            }
+        }
         for step in Step::ALL.into_iter().skip(1) {
             if !self.done(step)? {
                 return Err(bad(format!(
@@ -664,6 +751,7 @@ pub fn run(a: &StationArgs) -> anyhow::Result<()> {
             db_spec: db_spec.clone(),
             run: None,
             ended: false,
+            info: serde_json::Value::Null,
             tag: if specs.len() > 1 { format!("{}: ", u.serial) } else { String::new() },
         });
     }
@@ -674,6 +762,7 @@ pub fn run(a: &StationArgs) -> anyhow::Result<()> {
             s.passed_before()?;
             continue;
         }
+        s.warn_replaced()?;
         s.as_found(&info)?;
         open.push(s);
     }

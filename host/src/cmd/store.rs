@@ -8,11 +8,49 @@
 
 use std::path::Path;
 
-use accelcal_core::db::{Db, Phase, Progress, RunId, RunStart, Stored, StoredRecord};
+use accelcal_core::db::{Db, Outcome, Phase, Progress, Relabel, RunId, RunStart, Stored, StoredRecord, DB_ENV};
 use accelcal_core::error::bad;
 use accelcal_core::verify::VerifyReport;
 
 use crate::cli::{PhaseArg, RunArgs};
+
+/// The station's database file when neither --db nor ACCELCAL_DB names one (beside the units'
+/// directories), and the readers' when it is in the current directory.
+pub const DEFAULT_DB: &str = "calibration.sqlite";
+
+/// The reason a run that passed ends with, whichever command ends it (`station`, `report --db`):
+/// the same words, so that ending it again is a no-op.
+pub const PASS_REASON: &str = "as-left verification passed; certificate issued";
+
+/// The database a reader (`history`, `void`, `db verify`) uses: `--db`, else `ACCELCAL_DB`, else
+/// the station's default file in the current directory when it is there.
+pub fn reader_spec(given: Option<&str>) -> anyhow::Result<String> {
+    if let Some(s) = given {
+        return Ok(s.to_string());
+    }
+    if let Some(s) = std::env::var(DB_ENV).ok().filter(|s| !s.trim().is_empty()) {
+        return Ok(s);
+    }
+    if Path::new(DEFAULT_DB).is_file() {
+        return Ok(DEFAULT_DB.into());
+    }
+    Err(bad(format!(
+        "no calibration database: give --db FILE|URL, set {DB_ENV}, or run where the station's {DEFAULT_DB} is"
+    )))
+}
+
+/// Fault injection for the crash tests: when the environment variable `ACCELCAL_CRASH_AT`
+/// names `point`, the process group (the station and its step) is killed with SIGKILL right
+/// here, as a power cut would stop them. No effect when it is not set.
+pub fn crash_point(point: &str) {
+    if std::env::var_os("ACCELCAL_CRASH_AT").is_some_and(|v| v == point) {
+        eprintln!("crash point {point}: killed (ACCELCAL_CRASH_AT)");
+        // SAFETY: kill(2) on the caller's own process group; nothing is read or written.
+        unsafe {
+            libc::kill(0, libc::SIGKILL);
+        }
+    }
+}
 
 /// An open database and the run `--run-id` names.
 pub struct RunDb {
@@ -20,6 +58,8 @@ pub struct RunDb {
     pub db: Db,
     /// `--run-id`, parsed.
     pub run: Option<RunId>,
+    /// `--relabel`: the relabel a run begun now stores.
+    pub relabel: Option<Relabel>,
 }
 
 /// Opens `--db` when given (`--run-id` parsed first: a bad id opens nothing).
@@ -27,7 +67,8 @@ pub fn open(a: &RunArgs) -> anyhow::Result<Option<RunDb>> {
     let Some(spec) = &a.db else { return Ok(None) };
     let run = a.run_id.as_deref().map(RunId::parse).transpose()?;
     let db = Db::open(spec)?;
-    Ok(Some(RunDb { db, run }))
+    let relabel = a.relabel.clone().map(|reason| Relabel { reason, operator: user_name() });
+    Ok(Some(RunDb { db, run, relabel }))
 }
 
 /// What a command that may begin a run knows about it.
@@ -84,7 +125,8 @@ impl RunDb {
             g_m_s2: b.g.0,
             g_source: b.g.1,
         };
-        self.db.begin_run(&start)?;
+        self.db.begin_run(&start, self.relabel.as_ref())?;
+        crash_point("db:run");
         self.run = Some(run);
         eprintln!(
             "db: run {run} begun in {} (give --run-id {run} to the line's next commands)",
@@ -160,6 +202,8 @@ pub fn fit_pieces(
 /// stored).
 pub fn record_to_flash(rdb: &mut RunDb, file: &Path, bytes: &[u8]) -> anyhow::Result<StoredRecord> {
     let (run, p) = rdb.existing("flash")?;
+    // The run's rows must still be the ones stored: a record forged in the database is not flashed.
+    rdb.db.verify_run(run)?;
     match p.record {
         Some(stored) if stored.bytes() == bytes => Ok(stored),
         Some(stored) => Err(bad(format!(
@@ -168,5 +212,32 @@ pub fn record_to_flash(rdb: &mut RunDb, file: &Path, bytes: &[u8]) -> anyhow::Re
             stored.crc32()
         ))),
         None => Ok(rdb.db.store_record(run, bytes)?),
+    }
+}
+
+/// What `report --db` needs before it certifies run `run`: its rows as stored (the hash chain),
+/// the record flashed, and a passing as-left verification that is the one `verify` names.
+pub fn check_certifiable(db: &mut Db, run: RunId, p: &Progress, verify: &VerifyReport) -> anyhow::Result<()> {
+    db.verify_run(run)?;
+    if let Some(why) = &p.voided {
+        return Err(bad(format!("run {run} is voided ({why}): it is not certified")));
+    }
+    if p.outcome == Some(Outcome::Rejected) {
+        return Err(bad(format!("run {run} ended rejected: it is not certified")));
+    }
+    if !p.flashed {
+        return Err(bad(format!(
+            "run {run} holds no flash of its record: flash it with `flash --db --run-id {run}` before certifying"
+        )));
+    }
+    match db.verification(run, Phase::AsLeft)? {
+        None => Err(bad(format!(
+            "run {run} holds no as-left verification: verify the flashed node with `verify --phase as-left --db --run-id {run}` before certifying"
+        ))),
+        Some((false, _)) => Err(bad(format!("run {run}'s as-left verification failed: the unit is not certified"))),
+        Some((true, json)) if json != serde_json::to_string(verify)? => Err(bad(format!(
+            "the --verify report is not run {run}'s stored as-left verification: certify with the one stored"
+        ))),
+        Some(_) => Ok(()),
     }
 }

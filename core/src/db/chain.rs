@@ -1,0 +1,476 @@
+//! The rows' hash chain (schema version 2, table `ledger`): every row of every table has one
+//! ledger entry, appended in the row's own transaction, that holds the row's digest and chains it
+//! to the run's previous entry (a run's first entry, and a relabel, to the latest entry of the
+//! whole ledger at the time, so runs are chained to each other). [`verify_all`] recomputes every
+//! digest and link and names the first row that does not match; [`verify_run`] does it for one
+//! run, before its record is flashed or its certificate issued.
+//!
+//! The digest of a row ([`row_digest`]) covers its table and every column, name and value, in
+//! the order of [`TABLES`]; a row's `content_sha256` is also recomputed from what it holds. What
+//! the chain does not stop: someone with write access who rewrites a run's entries and every
+//! entry after them consistently. That is seen only against a chain value kept outside the
+//! database ([`RunSeal`], printed on the certificate and kept in the station's journal).
+
+use serde::Serialize;
+use sha2::{Digest, Sha256};
+
+use super::engine::{Tx, Val};
+use super::{DbError, RunStart};
+
+/// A table's columns in the order its digest takes them (its key columns first).
+pub struct Table {
+    /// The table.
+    pub name: &'static str,
+    /// Its columns.
+    pub columns: &'static [&'static str],
+}
+
+/// Every table of the calibration, as the chain sees it.
+pub const TABLES: [Table; 10] = [
+    Table {
+        name: "run",
+        columns: &[
+            "run_id",
+            "device_id",
+            "serial",
+            "station",
+            "head",
+            "operator",
+            "started_unix_s",
+            "software_version",
+            "firmware_version",
+            "g_m_s2",
+            "g_source",
+            "content_sha256",
+        ],
+    },
+    Table { name: "campaign", columns: &["run_id", "campaign_sha256", "gzip", "stored_unix_s", "content_sha256"] },
+    Table { name: "fit", columns: &["run_id", "fit_json", "stored_unix_s", "content_sha256"] },
+    Table { name: "cal_record", columns: &["run_id", "bytes", "crc32", "stored_unix_s", "content_sha256"] },
+    Table { name: "flash", columns: &["run_id", "crc32", "flashed_unix_s", "content_sha256"] },
+    Table {
+        name: "verification",
+        columns: &["run_id", "phase", "pass", "report_json", "stored_unix_s", "content_sha256"],
+    },
+    Table { name: "certificate", columns: &["run_id", "html", "stored_unix_s", "content_sha256"] },
+    Table { name: "run_end", columns: &["run_id", "outcome", "reason", "ended_unix_s", "content_sha256"] },
+    Table { name: "void", columns: &["run_id", "reason", "operator", "voided_unix_s", "content_sha256"] },
+    Table {
+        name: "relabel",
+        columns: &[
+            "relabel_id",
+            "device_id",
+            "old_serial",
+            "new_serial",
+            "reason",
+            "operator",
+            "relabelled_unix_s",
+            "content_sha256",
+        ],
+    },
+];
+
+/// The table `name`.
+pub fn table(name: &str) -> &'static Table {
+    TABLES.iter().find(|t| t.name == name).expect("a table of the calibration schema")
+}
+
+/// The ledger's name of a row: its table, with the verification's phase or the relabel's id.
+pub fn piece_key(table: &str, row: &[Val]) -> Result<String, DbError> {
+    Ok(match table {
+        "verification" => format!("verification:{}", row[1].text()?),
+        "relabel" => format!("relabel:{}", row[0].text()?),
+        t => t.to_string(),
+    })
+}
+
+/// The run a row belongs to (`''` for a relabel).
+fn run_of(table: &str, row: &[Val]) -> Result<String, DbError> {
+    if table == "relabel" {
+        Ok(String::new())
+    } else {
+        row[0].text()
+    }
+}
+
+/// The digest of a row: its table, then each column's name, type and value.
+pub fn row_digest(table: &Table, row: &[Val]) -> String {
+    let mut h = Sha256::new();
+    h.update(table.name.as_bytes());
+    h.update([0]);
+    for (c, v) in table.columns.iter().zip(row) {
+        h.update(c.as_bytes());
+        h.update([0]);
+        let bytes = |h: &mut Sha256, tag: &[u8], b: &[u8]| {
+            h.update(tag);
+            h.update((b.len() as u64).to_le_bytes());
+            h.update(b);
+        };
+        match v {
+            Val::Null => h.update(b"n"),
+            // SQLite keeps a BOOLEAN as 0 or 1: both engines' reads digest the same.
+            Val::Int(i) => bytes(&mut h, b"i", &i.to_le_bytes()),
+            Val::Bool(b) => bytes(&mut h, b"i", &i64::from(*b).to_le_bytes()),
+            Val::Real(f) => bytes(&mut h, b"r", &f.to_bits().to_le_bytes()),
+            Val::Text(s) => bytes(&mut h, b"t", s.as_bytes()),
+            Val::Bytes(b) => bytes(&mut h, b"b", b),
+        }
+    }
+    hex(&h.finalize())
+}
+
+fn hex(d: &[u8]) -> String {
+    d.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// An entry's chain value.
+fn chain_value(seq: i64, prev_seq: i64, prev: &str, run: &str, piece: &str, row: &str) -> String {
+    super::sha256_hex(format!("{seq}\n{prev_seq}\n{prev}\n{run}\n{piece}\n{row}").as_bytes())
+}
+
+/// Appends the ledger entry of a row just inserted (in the same transaction).
+pub fn append(tx: &mut Tx<'_>, table: &Table, row: &[Val]) -> Result<(), DbError> {
+    let run = run_of(table.name, row)?;
+    let piece = piece_key(table.name, row)?;
+    let digest = row_digest(table, row);
+    let seq = tx.query("SELECT COALESCE(MAX(seq), 0) FROM ledger", &[])?[0][0].int()? + 1;
+    // The run's previous entry, or (a run's first row, a relabel) the ledger's latest.
+    let mut prev = if run.is_empty() || table.name == "run" {
+        Vec::new()
+    } else {
+        tx.query(
+            "SELECT seq, chain_sha256 FROM ledger WHERE run_id = $1 ORDER BY seq DESC LIMIT 1",
+            &[run.clone().into()],
+        )?
+    };
+    if prev.is_empty() {
+        prev = tx.query("SELECT seq, chain_sha256 FROM ledger ORDER BY seq DESC LIMIT 1", &[])?;
+    }
+    let (prev_seq, prev_sha) = match prev.first() {
+        Some(r) => (r[0].int()?, r[1].text()?),
+        None => (0, String::new()),
+    };
+    let chain = chain_value(seq, prev_seq, &prev_sha, &run, &piece, &digest);
+    tx.execute(
+        "INSERT INTO ledger (seq, run_id, piece, row_sha256, prev_seq, prev_sha256, chain_sha256) \
+         VALUES ($1, $2, $3, $4, $5, $6, $7)",
+        &[seq.into(), run.into(), piece.into(), digest.into(), prev_seq.into(), prev_sha.into(), chain.into()],
+    )?;
+    Ok(())
+}
+
+/// Rows written before the ledger existed (a version-1 database) get their entries, once: every
+/// run in the order it started, each run's rows in the order a station writes them.
+pub fn seal_legacy(tx: &mut Tx<'_>) -> Result<usize, DbError> {
+    if tx.query("SELECT COUNT(*) FROM ledger", &[])?[0][0].int()? > 0 {
+        return Ok(0);
+    }
+    let runs = tx.query("SELECT run_id FROM run ORDER BY started_unix_s, run_id", &[])?;
+    let mut n = 0;
+    for r in runs {
+        let id = r[0].text()?;
+        for t in TABLES.iter().filter(|t| t.name != "relabel") {
+            for row in rows_of(tx, t, &id)? {
+                append(tx, t, &row)?;
+                n += 1;
+            }
+        }
+    }
+    Ok(n)
+}
+
+/// The rows of `table` of run `run` (verifications: as found, then as left).
+fn rows_of(tx: &mut Tx<'_>, table: &Table, run: &str) -> Result<Vec<Vec<Val>>, DbError> {
+    let order = if table.name == "verification" { " ORDER BY phase DESC" } else { "" };
+    tx.query(
+        &format!("SELECT {} FROM {} WHERE run_id = $1{order}", table.columns.join(", "), table.name),
+        &[run.to_string().into()],
+    )
+}
+
+/// A ledger entry as read.
+#[derive(Clone, Debug)]
+struct Entry {
+    seq: i64,
+    run: String,
+    piece: String,
+    row: String,
+    prev_seq: i64,
+    prev: String,
+    chain: String,
+}
+
+fn entries(tx: &mut Tx<'_>, run: Option<&str>) -> Result<Vec<Entry>, DbError> {
+    let cols = "seq, run_id, piece, row_sha256, prev_seq, prev_sha256, chain_sha256";
+    let rows = match run {
+        Some(r) => {
+            tx.query(&format!("SELECT {cols} FROM ledger WHERE run_id = $1 ORDER BY seq"), &[r.to_string().into()])?
+        }
+        None => tx.query(&format!("SELECT {cols} FROM ledger ORDER BY seq"), &[])?,
+    };
+    rows.iter()
+        .map(|r| {
+            Ok(Entry {
+                seq: r[0].int()?,
+                run: r[1].text()?,
+                piece: r[2].text()?,
+                row: r[3].text()?,
+                prev_seq: r[4].int()?,
+                prev: r[5].text()?,
+                chain: r[6].text()?,
+            })
+        })
+        .collect()
+}
+
+/// A row or entry that does not match.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Mismatch {
+    /// The ledger entry's number (the first entry it breaks), 0 for a row without an entry.
+    pub seq: i64,
+    /// The run (`''` for a relabel).
+    pub run_id: String,
+    /// The row: its table, with the verification's phase or the relabel's id.
+    pub piece: String,
+    /// What does not match.
+    pub what: String,
+}
+
+impl std::fmt::Display for Mismatch {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let run = if self.run_id.is_empty() { String::new() } else { format!(" of run {}", self.run_id) };
+        let at = if self.seq > 0 { format!(" (ledger entry {})", self.seq) } else { String::new() };
+        write!(f, "the {} row{run}{at}: {}", self.piece, self.what)
+    }
+}
+
+/// What [`verify_all`] found.
+#[derive(Clone, Debug, Serialize)]
+pub struct ChainReport {
+    /// Ledger entries checked.
+    pub entries: usize,
+    /// Rows checked.
+    pub rows: usize,
+    /// Runs checked.
+    pub runs: usize,
+    /// Everything that does not match, the first first.
+    pub mismatches: Vec<Mismatch>,
+}
+
+/// The chain value of a run's last entry: what a certificate and a journal keep of it.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct RunSeal {
+    /// The run's last ledger entry.
+    pub seq: i64,
+    /// Its chain value.
+    pub chain_sha256: String,
+}
+
+/// Checks the chain links and values of `list` (sorted by seq); `prev_of` finds the chain value
+/// of an entry outside the list.
+fn check_entries(
+    list: &[Entry],
+    all: Option<&std::collections::HashMap<i64, String>>,
+    tx: &mut Tx<'_>,
+    out: &mut Vec<Mismatch>,
+) -> Result<(), DbError> {
+    let bad = |e: &Entry, what: String| Mismatch { seq: e.seq, run_id: e.run.clone(), piece: e.piece.clone(), what };
+    for (i, e) in list.iter().enumerate() {
+        if chain_value(e.seq, e.prev_seq, &e.prev, &e.run, &e.piece, &e.row) != e.chain {
+            out.push(bad(e, "its ledger entry's chain value is not the hash of the entry".into()));
+            continue;
+        }
+        if e.prev_seq >= e.seq || (e.prev_seq == 0) != e.prev.is_empty() {
+            out.push(bad(e, format!("its ledger entry points forward, to entry {}", e.prev_seq)));
+            continue;
+        }
+        if e.prev_seq == 0 {
+            continue;
+        }
+        // Within a run, an entry follows the run's previous one.
+        let in_run_prev = if e.run.is_empty() || e.piece == "run" { None } else { i.checked_sub(1).map(|j| &list[j]) };
+        let prev_chain = match (in_run_prev, all) {
+            (Some(p), _) if all.is_none() || p.run == e.run => {
+                if p.seq != e.prev_seq {
+                    out.push(bad(e, format!("it follows ledger entry {}, not its run's previous row (entry {})", e.prev_seq, p.seq)));
+                    continue;
+                }
+                Some(p.chain.clone())
+            }
+            (_, Some(map)) => map.get(&e.prev_seq).cloned(),
+            (_, None) => tx
+                .query("SELECT chain_sha256 FROM ledger WHERE seq = $1", &[e.prev_seq.into()])?
+                .first()
+                .map(|r| r[0].text())
+                .transpose()?,
+        };
+        match prev_chain {
+            Some(c) if c == e.prev => {}
+            Some(_) => out.push(bad(e, format!("the entry it follows (ledger entry {}) was changed", e.prev_seq))),
+            None => out.push(bad(e, format!("the entry it follows (ledger entry {}) is gone", e.prev_seq))),
+        }
+    }
+    Ok(())
+}
+
+/// Checks the rows of run `run` (or the relabels, `run` empty) against their entries.
+fn check_rows(
+    tx: &mut Tx<'_>,
+    run: &str,
+    by_piece: &std::collections::HashMap<String, Entry>,
+    out: &mut Vec<Mismatch>,
+) -> Result<usize, DbError> {
+    let mut seen = std::collections::HashSet::new();
+    let mut n = 0;
+    let tables: Vec<&Table> =
+        TABLES.iter().filter(|t| (t.name == "relabel") == run.is_empty()).collect();
+    for t in tables {
+        let rows = if run.is_empty() {
+            tx.query(&format!("SELECT {} FROM relabel ORDER BY relabel_id", t.columns.join(", ")), &[])?
+        } else {
+            rows_of(tx, t, run)?
+        };
+        for row in rows {
+            n += 1;
+            let piece = piece_key(t.name, &row)?;
+            let m = |seq: i64, what: String| Mismatch { seq, run_id: run.to_string(), piece: piece.clone(), what };
+            let Some(e) = by_piece.get(&piece) else {
+                out.push(m(0, "it has no ledger entry (written behind accelcal's back)".into()));
+                continue;
+            };
+            seen.insert(piece.clone());
+            if row_digest(t, &row) != e.row {
+                out.push(m(e.seq, "it is not the row that was stored (its digest differs from its ledger entry's)".into()));
+            } else if let Some(why) = content_mismatch(t, &row)? {
+                out.push(m(e.seq, why));
+            }
+        }
+    }
+    for (piece, e) in by_piece {
+        if !seen.contains(piece) {
+            out.push(Mismatch {
+                seq: e.seq,
+                run_id: run.to_string(),
+                piece: piece.clone(),
+                what: "its row is gone".into(),
+            });
+        }
+    }
+    Ok(n)
+}
+
+/// Why a row's `content_sha256` is not the hash of what it holds, if it is not.
+fn content_mismatch(t: &Table, row: &[Val]) -> Result<Option<String>, DbError> {
+    let col = |name: &str| -> &Val {
+        &row[t.columns.iter().position(|c| *c == name).expect("a column of the table")]
+    };
+    let stored = col("content_sha256").text()?;
+    let content = match t.name {
+        "run" => {
+            let s = super::run_start(row)?;
+            serde_json::to_string(&s).expect("a run start serialises")
+        }
+        .into_bytes(),
+        "campaign" => {
+            let mut plain = Vec::new();
+            let gz = col("gzip").bytes()?;
+            if std::io::Read::read_to_end(&mut flate2::read::GzDecoder::new(gz.as_slice()), &mut plain).is_err() {
+                return Ok(Some("its campaign does not decompress".into()));
+            }
+            if super::sha256_hex(&plain) != col("campaign_sha256").text()? {
+                return Ok(Some("its campaign is not the one its campaign_sha256 names".into()));
+            }
+            plain
+        }
+        "fit" => col("fit_json").text()?.into_bytes(),
+        "cal_record" => {
+            let b = col("bytes").bytes()?;
+            if b.len() < 4 || i64::from(super::record_crc(&b)) != col("crc32").int()? {
+                return Ok(Some("its crc32 is not the record's own".into()));
+            }
+            b
+        }
+        "flash" => u32::try_from(col("crc32").int()?).unwrap_or_default().to_le_bytes().to_vec(),
+        "verification" => col("report_json").text()?.into_bytes(),
+        "certificate" => col("html").text()?.into_bytes(),
+        "run_end" => format!("{}\n{}", col("outcome").text()?, col("reason").text()?).into_bytes(),
+        "void" => col("reason").text()?.into_bytes(),
+        "relabel" => relabel_content(
+            &col("device_id").text()?,
+            &col("old_serial").text()?,
+            &col("new_serial").text()?,
+            &col("reason").text()?,
+        )
+        .into_bytes(),
+        other => unreachable!("table {other} is in TABLES"),
+    };
+    Ok((super::sha256_hex(&content) != stored).then(|| "its content_sha256 is not the hash of what it holds".into()))
+}
+
+/// What a relabel row's `content_sha256` hashes.
+pub fn relabel_content(device: &str, old: &str, new: &str, reason: &str) -> String {
+    format!("{device}\n{old}\n{new}\n{reason}")
+}
+
+/// Checks the whole ledger and every row.
+pub fn verify_all(tx: &mut Tx<'_>) -> Result<ChainReport, DbError> {
+    let list = entries(tx, None)?;
+    let mut out = Vec::new();
+    for (i, e) in list.iter().enumerate() {
+        if e.seq != i as i64 + 1 {
+            out.push(Mismatch {
+                seq: e.seq,
+                run_id: e.run.clone(),
+                piece: e.piece.clone(),
+                what: format!("ledger entries before it are missing (entry {} expected)", i + 1),
+            });
+            break;
+        }
+    }
+    let map: std::collections::HashMap<i64, String> = list.iter().map(|e| (e.seq, e.chain.clone())).collect();
+    // Links: each run's entries in order, then the relabels.
+    let mut by_run: std::collections::BTreeMap<String, Vec<Entry>> = Default::default();
+    for e in &list {
+        by_run.entry(e.run.clone()).or_default().push(e.clone());
+    }
+    let mut rows = 0;
+    let run_ids: Vec<String> =
+        tx.query("SELECT run_id FROM run ORDER BY run_id", &[])?.iter().map(|r| r[0].text()).collect::<Result<_, _>>()?;
+    let mut all_runs: std::collections::BTreeSet<String> = run_ids.iter().cloned().collect();
+    all_runs.insert(String::new());
+    all_runs.extend(by_run.keys().cloned());
+    for run in &all_runs {
+        let es = by_run.remove(run).unwrap_or_default();
+        check_entries(&es, Some(&map), tx, &mut out)?;
+        let by_piece = es.into_iter().map(|e| (e.piece.clone(), e)).collect();
+        rows += check_rows(tx, run, &by_piece, &mut out)?;
+    }
+    out.sort_by_key(|m| (if m.seq == 0 { i64::MAX } else { m.seq }, m.piece.clone()));
+    Ok(ChainReport { entries: list.len(), rows, runs: run_ids.len(), mismatches: out })
+}
+
+/// Checks one run's rows and entries; its seal when they match.
+pub fn verify_run(tx: &mut Tx<'_>, run: &str) -> Result<Result<RunSeal, Vec<Mismatch>>, DbError> {
+    let list = entries(tx, Some(run))?;
+    let mut out = Vec::new();
+    check_entries(&list, None, tx, &mut out)?;
+    let last = list.last().map(|e| RunSeal { seq: e.seq, chain_sha256: e.chain.clone() });
+    let by_piece = list.into_iter().map(|e| (e.piece.clone(), e)).collect();
+    check_rows(tx, run, &by_piece, &mut out)?;
+    out.sort_by_key(|m| (if m.seq == 0 { i64::MAX } else { m.seq }, m.piece.clone()));
+    Ok(match (out.is_empty(), last) {
+        (true, Some(seal)) => Ok(seal),
+        (true, None) => Err(vec![Mismatch {
+            seq: 0,
+            run_id: run.into(),
+            piece: "run".into(),
+            what: "the run has no ledger entries".into(),
+        }]),
+        (false, _) => Err(out),
+    })
+}
+
+/// A run start's content hash (what `begin_run` stores).
+pub fn run_content(s: &RunStart) -> String {
+    super::sha256_hex(serde_json::to_string(s).expect("a run start serialises").as_bytes())
+}
