@@ -81,7 +81,9 @@ fn tables(sql: &str) -> Vec<(String, Vec<String>)> {
             let cols = body
                 .lines()
                 .map(|l| l.trim())
-                .filter(|l| !l.is_empty() && !l.starts_with("PRIMARY KEY") && !l.starts_with("--"))
+                .filter(|l| {
+                    !l.is_empty() && !l.starts_with("PRIMARY KEY") && !l.starts_with("UNIQUE") && !l.starts_with("--")
+                })
                 .map(|l| l.split_whitespace().next().unwrap().to_string())
                 .collect();
             (name.to_string(), cols)
@@ -105,7 +107,8 @@ fn both_engines_have_the_same_tables_and_columns() {
         let s = tables(&std::fs::read_to_string(dir.join("sqlite").join(&v)).unwrap());
         let p = tables(&std::fs::read_to_string(dir.join("postgres").join(&v)).unwrap());
         assert_eq!(s, p, "{v}");
-        assert_eq!(s.len(), 8, "{v}: {s:?}");
+        let want = if v.starts_with("V1__") { 8 } else { 3 };
+        assert_eq!(s.len(), want, "{v}: {s:?}");
     }
 }
 
@@ -202,7 +205,8 @@ fn history_refuses_what_it_cannot_read() {
         (
             vec!["history", "SN-0042"],
             2,
-            "no calibration database: give --db FILE|URL or set ACCELCAL_DB".into(),
+            "no calibration database: give --db FILE|URL, set ACCELCAL_DB, or run where the station's calibration.sqlite is"
+                .into(),
         ),
         (vec!["history", "SN-9", "--db", &spec], 2, format!("no unit `SN-9` in the database {spec}")),
         (
@@ -324,20 +328,93 @@ fn commands_given_db_store_their_pieces_and_an_unreachable_database_stops_them_f
     ]);
     assert_eq!(code, Some(3), "{e}");
     assert!(e.contains(&format!("database {gone} cannot be reached")) && !e.contains("step"), "{e}");
-    // The certificate: stored once; a second is refused.
+    // The certificate: not of a run without its as-left verification (issue 28 item 8; the
+    // whole manual line to a certificate is in tests/line.rs).
     let report = ["report", "--campaign", &c, "--record", &r, "--fit", &f, "--out", &cert, "--db", &spec];
     let mut a = report.to_vec();
     a.extend(["--run-id", &run]);
-    let out = ok(&a);
-    assert!(out.contains(&format!("db: run {run}: certificate stored")), "{out}");
-    assert_eq!(count("certificate"), 1);
-    let html = std::fs::read_to_string(&cert).unwrap();
-    assert!(
-        html.contains("First calibration of this unit in the database: no drift yet."),
-        "no drift section"
-    );
     let e = bad(&a);
-    assert!(e.contains(&format!("run {run} holds its certificate already")), "{e}");
+    assert!(e.contains(&format!("report --db needs --verify: run {run}'s as-left verification")), "{e}");
+    assert_eq!(count("certificate"), 0);
+    assert!(!Path::new(&cert).exists(), "a certificate was written");
     let e = bad(&report);
     assert!(e.contains("report --db needs --run-id"), "{e}");
+}
+
+#[test]
+fn serials_stay_tied_to_their_devices_and_voided_runs_leave_history() {
+    let d = tempfile::tempdir().unwrap();
+    labels_and_voids(&db_file(&d));
+}
+
+#[test]
+fn a_row_replaced_behind_accelcal_s_back_is_named_and_never_flashed() {
+    let d = tempfile::tempdir().unwrap();
+    let spec = db_file(&d);
+    // SQLite's REPLACE deletes without firing the delete trigger (no recursive_triggers).
+    a_changed_row_breaks_the_chain(&spec, &|sql| rusqlite::Connection::open(&spec).unwrap().execute_batch(sql).unwrap());
+}
+
+/// Issue 28 item 3: 16 processes opening one new database at once all get a migrated schema.
+#[test]
+fn sixteen_first_opens_at_once_migrate_once() {
+    let d = tempfile::tempdir().unwrap();
+    let spec = db_file(&d);
+    let run = RunId::new().to_string();
+    let children: Vec<_> = (0..16)
+        .map(|_| {
+            std::process::Command::new(env!("CARGO_BIN_EXE_accelcal"))
+                .args(["void", &run, "--reason", "race", "--db", &spec])
+                .stdout(std::process::Stdio::null())
+                .stderr(std::process::Stdio::piped())
+                .spawn()
+                .unwrap()
+        })
+        .collect();
+    for c in children {
+        let out = c.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        // Each opened the migrated database and found no such run.
+        assert_eq!(out.status.code(), Some(2), "{err}");
+        assert!(err.contains(&format!("run {run}: not in the database")), "{err}");
+    }
+    assert_eq!(Db::open(&spec).unwrap().schema_versions().unwrap(), vec![1, 2]);
+}
+
+/// Issue 28 items 7 and 11: a database that cannot be written stops a writer first, naming the
+/// file; `history` reads it all the same (a read-only mount is the same for SQLite). Run as an
+/// unprivileged user when the tests run as root (root writes through file modes).
+#[test]
+fn a_read_only_database_stops_writers_first_and_serves_readers() {
+    use std::os::unix::fs::PermissionsExt;
+    let d = tempfile::tempdir().unwrap();
+    std::fs::set_permissions(d.path(), std::fs::Permissions::from_mode(0o755)).unwrap();
+    let spec = db_file(&d);
+    three_calibrations(&spec);
+    // Checkpointed and closed: the readers find no WAL to replay.
+    rusqlite::Connection::open(&spec).unwrap().execute_batch("PRAGMA wal_checkpoint(TRUNCATE);").unwrap();
+    std::fs::set_permissions(&spec, std::fs::Permissions::from_mode(0o444)).unwrap();
+    let as_user = |args: &[&str]| {
+        let mut c = if unsafe { libc::geteuid() } == 0 {
+            let mut c = std::process::Command::new("setpriv");
+            c.args(["--reuid=65534", "--regid=65534", "--clear-groups", env!("CARGO_BIN_EXE_accelcal")]);
+            c
+        } else {
+            std::process::Command::new(env!("CARGO_BIN_EXE_accelcal"))
+        };
+        let out = c.args(args).env_remove("ACCELCAL_DB").current_dir(d.path()).output().unwrap();
+        (out.status.code(), String::from_utf8_lossy(&out.stdout).into_owned(), String::from_utf8_lossy(&out.stderr).into_owned())
+    };
+    let (code, _, err) = as_user(&["void", &RunId::new().to_string(), "--reason", "r", "--db", &spec]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains(&format!("{spec}: the database is read-only")), "{err}");
+    let (code, out, err) = as_user(&["history", "SN-0042", "--db", &spec]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(out.contains("3 calibrations"), "{out}");
+    // And from the directory that holds the station's default file, without --db.
+    let default = d.path().join("calibration.sqlite");
+    std::fs::copy(&spec, &default).unwrap();
+    let (code, out, err) = as_user(&["history", "SN-0042"]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(out.contains("calibration.sqlite") && out.contains("3 calibrations"), "{out}");
 }

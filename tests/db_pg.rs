@@ -86,3 +86,35 @@ fn history_reads_the_server_and_matches_sqlite() {
     assert_eq!(on_pg.replace(&pg.url, "<db>"), on_sqlite.replace(&file, "<db>"));
     assert!(on_pg.contains("2 runs, 2 calibrations"), "{on_pg}");
 }
+
+#[test]
+fn serials_stay_tied_to_their_devices_and_voided_runs_leave_history() {
+    let pg = Cluster::start();
+    labels_and_voids(&pg.url);
+}
+
+#[test]
+fn a_row_changed_with_the_triggers_off_is_named_and_never_flashed() {
+    let pg = Cluster::start();
+    let url = pg.url.clone();
+    a_changed_row_breaks_the_chain(&pg.url, &|sql| {
+        let mut c = postgres::Client::connect(&url, postgres::NoTls).unwrap();
+        // A superuser can switch the append-only triggers off for its session.
+        c.batch_execute(&format!("SET session_replication_role = replica; {sql}")).unwrap();
+    });
+}
+
+/// Issue 28 item 7: the server's own words reach the user.
+#[test]
+fn postgresql_errors_keep_the_server_s_message() {
+    let pg = Cluster::start();
+    let (base, _) = pg.url.rsplit_once('/').unwrap();
+    let missing = format!("{base}/no_such_db");
+    let (code, _, err) = accelcal(&["history", "SN-1", "--db", &missing]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("database \"no_such_db\" does not exist"), "{err}");
+    let refused = "postgres://accelcal@127.0.0.1:1/accelcal";
+    let (code, _, err) = accelcal(&["history", "SN-1", "--db", refused]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("Connection refused"), "{err}");
+}

@@ -216,7 +216,7 @@ pub fn writer_child() -> bool {
     let run = RunId::parse(run).unwrap();
     let mut db = Db::open(spec).unwrap();
     let c = coefs(0.0, 0);
-    db.begin_run(&start(run, DEVICE, "SN-0009", "st-1", T0, None)).unwrap();
+    db.begin_run(&start(run, DEVICE, "SN-0009", "st-1", T0), None).unwrap();
     println!("begun");
     db.store_campaign(run, &campaign(20_000)).unwrap();
     println!("campaign");
@@ -347,4 +347,104 @@ impl Drop for Cluster {
     fn drop(&mut self) {
         let _ = std::process::Command::new("bash").arg(script()).arg("stop").arg(self.dir.path()).status();
     }
+}
+
+/// Another device of the line.
+pub const DEVICE_2: &str = "0123456789abcdef01234567";
+
+/// Issue 28 item 5: a serial tied to another device, or a device tied to another serial, is
+/// refused; `relabel` moves the serial (a row with the reason) and `history` follows it; a voided
+/// run is listed but counts neither as a calibration nor as a label.
+pub fn labels_and_voids(spec: &str) {
+    use accelcal_core::db::{LabelClash, Relabel};
+    let mut db = Db::open(spec).unwrap();
+    let a = calibrate(&mut db, &start(RunId::new(), DEVICE, "U-0045", "st-1", T0), &coefs(0.0, 0), None);
+    calibrate(&mut db, &start(RunId::new(), DEVICE_2, "U-0044", "st-1", T0 + 10), &coefs(0.0, 0), None);
+    // Device 1 (U-0045) brought in under U-0044's label: refused, nothing begun.
+    let mislabel = start(RunId::new(), DEVICE, "U-0044", "st-1", T0 + DAY);
+    let e = db.begin_run(&mislabel, None).unwrap_err();
+    assert!(matches!(e, DbError::Label(LabelClash::SerialOfAnother { .. })), "{e}");
+    let msg = e.to_string();
+    assert!(msg.contains(&format!("serial U-0044 is device {DEVICE_2}")) && msg.contains("--relabel REASON"), "{msg}");
+    assert!(matches!(db.progress(mislabel.run_id), Err(DbError::NoRun { .. })));
+    // A serial no device carries, on device 1: refused too (the device is U-0045).
+    let e = db.begin_run(&start(RunId::new(), DEVICE, "U-0099", "st-1", T0 + DAY), None).unwrap_err();
+    assert!(e.to_string().contains(&format!("device {DEVICE} is unit U-0045 in the database")), "{e}");
+    // A relabel where nothing clashes is refused.
+    let r = Relabel { reason: "the label was swapped with U-0044's".into(), operator: "ana".into() };
+    let e = db.begin_run(&start(RunId::new(), DEVICE, "U-0045", "st-1", T0 + DAY), Some(&r)).unwrap_err();
+    assert!(matches!(e, DbError::Label(LabelClash::NothingToRelabel { .. })), "{e}");
+    // On purpose: device 1 becomes U-0044, device 2 loses the serial.
+    let moved = start(RunId::new(), DEVICE, "U-0044", "st-1", T0 + 2 * DAY);
+    assert_eq!(db.begin_run(&moved, Some(&r)).unwrap(), Stored::New);
+    assert_eq!(db.begin_run(&moved, Some(&r)).unwrap(), Stored::Already, "a resumed run");
+    let l = db.label_of(DEVICE).unwrap().unwrap();
+    assert_eq!(l.serial, "U-0044");
+    assert_eq!(db.label_of(DEVICE_2).unwrap().unwrap().serial, "");
+    let runs = db.unit_runs("U-0044").unwrap();
+    assert_eq!(runs[0].start.device_id, DEVICE, "history follows the relabel");
+    assert_eq!(db.unit_runs("U-0045").unwrap()[0].start.device_id, DEVICE, "the old serial too");
+    // Void: listed as voided, not a calibration; again with the same reason a no-op; another refused.
+    assert_eq!(db.void_run(a, "measured on a head out of true", "ana").unwrap(), Stored::New);
+    assert_eq!(db.void_run(a, "measured on a head out of true", "ana").unwrap(), Stored::Already);
+    assert!(matches!(db.void_run(a, "another reason", "ana"), Err(DbError::Conflict { .. })));
+    let runs = db.unit_runs(DEVICE).unwrap();
+    let voided = runs.iter().find(|r| r.start.run_id == a).unwrap();
+    assert_eq!(voided.voided.as_ref().unwrap().0, "measured on a head out of true");
+    let h = accelcal_core::db::history::history(&runs, accelcal_core::db::history::DEFAULT_RULE);
+    assert_eq!(h.recalibration.calibrations, 0, "the voided run is no calibration");
+    // A voided run takes nothing more.
+    assert!(matches!(db.store_certificate(moved.run_id, "x"), Ok(Stored::New)));
+    db.void_run(moved.run_id, "mislabelled", "ana").unwrap();
+    let e = db.store_fit(moved.run_id, &fit_json(&coefs(0.0, 0))).unwrap_err();
+    assert!(e.to_string().contains("the run is voided (mislabelled)"), "{e}");
+    // Everything written is on the chain.
+    let r = db.verify_chain().unwrap();
+    assert!(r.mismatches.is_empty(), "{:?}", r.mismatches);
+    assert!(r.entries >= 20 && r.runs == 3, "{r:?}");
+}
+
+/// Issue 28 item 9: a row changed behind accelcal's back (`tamper` runs SQL on the database
+/// with the triggers out of the way) is found by `db verify`, named, and stops `flash --db`.
+pub fn a_changed_row_breaks_the_chain(spec: &str, tamper: &dyn Fn(&str)) {
+    let mut db = Db::open(spec).unwrap();
+    let s = start(RunId::new(), DEVICE, "SN-7", "st-1", T0);
+    let run = s.run_id;
+    db.begin_run(&s, None).unwrap();
+    db.store_campaign(run, &campaign(60)).unwrap();
+    db.store_fit(run, &fit_json(&coefs(0.0, 0))).unwrap();
+    let rec = record(DEVICE, &coefs(0.0, 0));
+    db.store_record(run, &rec).unwrap();
+    let other = calibrate(&mut db, &start(RunId::new(), DEVICE_2, "SN-8", "st-1", T0 + 5), &coefs(0.0, 1), None);
+    assert_eq!(db.verify_run(run).unwrap().seq, 4, "{run}");
+    let (code, out, err) = accelcal(&["db", "verify", "--db", spec]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    assert!(out.contains("every row matches its hash chain"), "{out}");
+    // Another unit's record forged into the run, its CRC and hash made to match.
+    let forged = record(DEVICE, &coefs(0.0, 3));
+    let crc = u32::from_le_bytes(forged[forged.len() - 4..].try_into().unwrap());
+    let hex: String = forged.iter().map(|b| format!("{b:02x}")).collect();
+    tamper(&format!(
+        "{} cal_record (run_id, bytes, crc32, stored_unix_s, content_sha256) VALUES ('{run}', {}, {crc}, {T0}, '{}')",
+        if spec.starts_with("postgres") { "DELETE FROM cal_record WHERE run_id = '".to_string() + &run.to_string() + "'; INSERT INTO" } else { "REPLACE INTO".into() },
+        if spec.starts_with("postgres") { format!("'\\x{hex}'::bytea") } else { format!("X'{hex}'") },
+        accelcal_core::db::sha256_hex(&forged)
+    ));
+    let (code, out, err) = accelcal(&["db", "verify", "--db", spec]);
+    assert_eq!(code, Some(1), "{out}{err}");
+    assert!(
+        out.contains(&format!("the first row that does not match is the cal_record row of run {run} (ledger entry 4)")),
+        "{out}"
+    );
+    assert!(err.contains("does not match its hash chain") && err.lines().count() == 1, "{err}");
+    // The forged record is never flashed.
+    let d = tempfile::tempdir().unwrap();
+    let f = d.path().join("forged.rec");
+    std::fs::write(&f, &forged).unwrap();
+    let (code, _, err) =
+        accelcal(&["flash", f.to_str().unwrap(), "--db", spec, "--run-id", &run.to_string(), "--gdb", "127.0.0.1:1"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains(&format!("run {run}: the database's rows do not match their hash chain: the cal_record row")), "{err}");
+    // The other run is untouched and still usable.
+    db.verify_run(other).unwrap();
 }
