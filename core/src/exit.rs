@@ -314,13 +314,22 @@ mod tests {
             (e(link()), Environment),
             (e(LinkError::Closed), Environment),
             (e(LinkError::Encode(FrameError::TooLong)), Environment),
+            (e(LinkError::Deadline), Environment),
             (e(qemu_spawn()), Environment),
             (e(QemuError::Exited { status: exit_status(), stderr: "m".into() }), Environment),
             (e(QemuError::Timeout(Duration::from_secs(3))), Environment),
             (e(QemuError::SlotSize { slot: 0, len: 5000 }), Environment),
             (e(QemuError::Io(io())), Environment),
             (e(SessionError::Link { port: "p".into(), cause: link() }), Environment),
-            (e(SessionError::Timeout { port: "p".into(), what: "answer", secs: 1.0 }), Environment),
+            (
+                e(SessionError::Timeout {
+                    port: "p".into(),
+                    what: "answer",
+                    secs: 1.0,
+                    heard: Default::default(),
+                }),
+                Environment,
+            ),
             (
                 e(SessionError::Refused {
                     port: "p".into(),

@@ -618,14 +618,15 @@ pub struct MonitorArgs {
     /// Baud rate of the node's USART1.
     #[arg(long, default_value_t = accelcal_core::node::monitor::NODE_BAUD)]
     pub baud: u32,
-    /// Stop after this many messages [default: run until interrupted].
+    /// Stop after this many messages; frames that do not decode are shown (`# bad frame: …`) and
+    /// not counted [default: run until interrupted].
     #[arg(long, value_name = "N")]
     pub count: Option<u64>,
     /// First set the node's sampling rate per channel, Hz (100..=4000).
     #[arg(long, alias = "rate", value_name = "HZ")]
     pub rate_hz: Option<u32>,
-    /// Seconds the node may stay silent (no frame) before the command fails (the node sends its
-    /// status every second).
+    /// Seconds the node may go without sending a message before the command fails, whatever else
+    /// arrives (bytes that make no frame, bad frames); the node sends its status every second.
     #[arg(long, default_value_t = 5.0, value_name = "S")]
     pub timeout_s: f64,
 }
@@ -640,7 +641,8 @@ pub struct PortArgs {
     /// Baud rate of the node's USART1 (a pty ignores it).
     #[arg(long, default_value_t = accelcal_core::node::monitor::NODE_BAUD)]
     pub baud: u32,
-    /// Seconds the node may stay silent (no answer to a request) before the command fails.
+    /// Seconds the node may take to answer a request (and, while it streams, between two sample
+    /// blocks) before the command fails, whatever else it sends meanwhile.
     #[arg(long, alias = "answer-timeout-s", default_value_t = 5.0, value_name = "S")]
     pub timeout_s: f64,
 }
@@ -739,7 +741,8 @@ pub struct AcquireArgs {
     /// Baud rate of the nodes' USART1 (a pty ignores it).
     #[arg(long, default_value_t = accelcal_core::node::monitor::NODE_BAUD)]
     pub baud: u32,
-    /// Seconds a node may stay silent (no answer to a request) before the command fails.
+    /// Seconds a node may take to answer a request (and, while it streams, between two sample
+    /// blocks) before the command fails, whatever else it sends meanwhile.
     #[arg(long, alias = "answer-timeout-s", default_value_t = 5.0, value_name = "S")]
     pub timeout_s: f64,
     /// The head: `manual` (the command shows each position's angles and what the unit should
