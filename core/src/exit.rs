@@ -302,6 +302,7 @@ mod tests {
             (e(GdbError::Closed { addr: addr() }), Environment),
             (e(HeadError::Io { addr: addr(), cause: io() }), Environment),
             (e(HeadError::Protocol { addr: addr(), message: "m".into() }), Environment),
+            (e(HeadError::Timeout { addr: addr(), request: "WHERE".into(), secs: 1.0 }), Environment),
             (e(HilError::Record(SlotError::BadLength)), BadInput),
             (e(HilError::Spawn { qemu: "q".into(), cause: io() }), Environment),
             (e(HilError::QemuExited { status: exit_status(), stderr: "m".into() }), Environment),

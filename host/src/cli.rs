@@ -749,6 +749,10 @@ pub struct AcquireArgs {
     /// read, and waits for Enter) or `sim:HOST:PORT` (the emulated head `accelcal emulate` prints).
     #[arg(long, value_name = "HEAD")]
     pub head: accelcal_core::node::head::HeadSpec,
+    /// Seconds an emulated head (`--head sim:…`) may take to answer a request before the command
+    /// fails; a move is answered once the head stands still, so this bounds the longest move.
+    #[arg(long, default_value_t = 120.0, value_name = "S")]
+    pub head_timeout_s: f64,
     /// Position plan: head (62 positions), six (the test-turn positions), random:N, or a plan
     /// file (CSV `alpha_deg,beta_deg`).
     #[arg(long, default_value = "head")]
@@ -812,6 +816,10 @@ pub struct VerifyArgs {
     /// The head: `manual` or `sim:HOST:PORT` (as for `acquire`).
     #[arg(long, value_name = "HEAD")]
     pub head: accelcal_core::node::head::HeadSpec,
+    /// Seconds an emulated head (`--head sim:…`) may take to answer a request before the command
+    /// fails; a move is answered once the head stands still, so this bounds the longest move.
+    #[arg(long, default_value_t = 120.0, value_name = "S")]
+    pub head_timeout_s: f64,
     /// Position plan: six (the test-turn positions), head, random:N, or a plan file.
     #[arg(long, default_value = "six")]
     pub plan: String,
