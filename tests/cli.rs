@@ -1064,6 +1064,14 @@ const REFUSED: &[(&str, &str)] = &[
         "--timeout-s must be a positive number of seconds, got 0",
     ),
     ("acquire --port P --head manual --out a.csv --rate-hz 50", "--rate-hz: RateOutOfRange"),
+    // Issue 28: an emulated head's replies are bounded by --head-timeout-s (it was a fixed 120 s).
+    ("acquire --port P --head sim:h:1 --out a.csv --head-timeout-s 0", "--head-timeout-s must be a positive number of seconds, got 0"),
+    ("verify --port P --head sim:h:1 --head-timeout-s inf", "--head-timeout-s must be a positive number of seconds, got inf"),
+    (
+        "acquire --port P --head manual --out a.csv --head-timeout-s 10",
+        "--head-timeout-s does not apply to --head manual (the operator turns the head)",
+    ),
+    ("verify --port P --head manual --head-timeout-s 10", "--head-timeout-s does not apply to --head manual"),
     ("monitor --port P --rate 50", "--rate-hz: RateOutOfRange"),
     // Issue 24: `--resume` continues with the campaign's samples, rate and g (`A`, as `acquire`
     // wrote it: 200 sets, 500 Hz, 9.81 m/s²), before the node is opened (`P` is no port).

@@ -324,8 +324,10 @@ fn overruns_are_reported_and_output_modes_switch() {
     let before = node.status().unwrap().overruns;
     let (mut jumps, mut next, mut blocks) = (0u64, None::<u32>, 0);
     let t0 = Instant::now();
+    let mut wait = node.block_wait();
     while t0.elapsed() < Duration::from_secs(2) {
-        if let Some(accelcal_core::node::session::Samples { first, data, .. }) = node.poll_samples().unwrap()
+        if let Some(accelcal_core::node::session::Samples { first, data, .. }) =
+            node.poll_samples(&mut wait).unwrap()
         {
             if let Some(n) = next {
                 jumps += first.wrapping_sub(n) as u64;
@@ -339,9 +341,14 @@ fn overruns_are_reported_and_output_modes_switch() {
     assert!(jumps > 0, "no sets lost at 30 times the node's rate");
     assert!((after - before) as u64 >= jumps, "status {} lost, stream jumps {jumps}", after - before);
     // No record: calibrated output is flagged uncalibrated; raw output is raw.
-    let kind = |node: &mut Session| loop {
-        if let Some(accelcal_core::node::session::Samples { data, .. }) = node.poll_samples().unwrap() {
-            break std::mem::discriminant(&data);
+    let kind = |node: &mut Session| {
+        let mut wait = node.block_wait();
+        loop {
+            if let Some(accelcal_core::node::session::Samples { data, .. }) =
+                node.poll_samples(&mut wait).unwrap()
+            {
+                break std::mem::discriminant(&data);
+            }
         }
     };
     drop(node);

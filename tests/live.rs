@@ -87,7 +87,9 @@ impl Bench {
         let mut rx = Receiver::new(link.try_clone().unwrap());
         let (tx, msgs) = mpsc::channel();
         std::thread::spawn(move || {
-            while let Ok(m) = rx.recv() {
+            // Until the link closes (the test's own timeouts bound its waits).
+            let end = Instant::now() + Duration::from_secs(24 * 3600);
+            while let Ok(m) = rx.recv(end) {
                 if tx.send(m.expect("a NodeMsg frame from the node")).is_err() {
                     break;
                 }
@@ -418,7 +420,8 @@ fn qemu_offers_the_link_on_a_pty_and_a_gdbstub() {
     let (tx, msgs) = mpsc::channel();
     let mut rx = Receiver::new(pty.try_clone().unwrap());
     std::thread::spawn(move || {
-        while let Ok(m) = rx.recv() {
+        let end = Instant::now() + Duration::from_secs(24 * 3600);
+        while let Ok(m) = rx.recv(end) {
             if tx.send(m).is_err() {
                 break;
             }

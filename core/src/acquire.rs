@@ -218,12 +218,13 @@ fn soak_nodes(
 ) -> anyhow::Result<bool> {
     head.chamber(setpoint_c)?;
     let t0 = Instant::now();
+    let mut waits: Vec<_> = nodes.iter().map(|n| n.block_wait()).collect();
     while t0.elapsed() < soak {
-        for node in nodes.iter_mut() {
+        for (node, wait) in nodes.iter_mut().zip(&mut waits) {
             if stop.load(Ordering::Relaxed) {
                 return Ok(false);
             }
-            node.poll_samples()?;
+            node.poll_samples(wait)?;
         }
     }
     Ok(true)
@@ -387,11 +388,13 @@ impl CampaignFile {
 }
 
 /// Whether the node's live blocks carry a temperature: the first block within 3 s says (false
-/// when none comes: the acquisition then fails at its first position, saying why).
+/// when none comes: the acquisition then fails at its first position, saying why; an error when
+/// none comes within the node's answer timeout, if that is shorter).
 fn reports_temperature(node: &mut Session) -> anyhow::Result<bool> {
     let t0 = Instant::now();
+    let mut wait = node.block_wait();
     while t0.elapsed() < Duration::from_secs(3) {
-        if let Some(s) = node.poll_samples()? {
+        if let Some(s) = node.poll_samples(&mut wait)? {
             return Ok(s.temp.is_some());
         }
     }
@@ -544,6 +547,7 @@ pub fn capture(
     // Blocks produced before the head stood still are dropped.
     node.flush_stream()?;
     let started = Instant::now();
+    let mut blocks = node.block_wait();
     let mut det = SettleDetector::new(rule);
     let mut settled_at: Option<u32> = None;
     let mut arrival: Option<u32> = None;
@@ -569,7 +573,7 @@ pub fn capture(
                 rule.z
             )));
         }
-        let Some(msg) = node.poll_samples()? else { continue };
+        let Some(msg) = node.poll_samples(&mut blocks)? else { continue };
         let vals = values(&msg.data).map_err(|e| bad(format!("{}: {e}", node.port())))?;
         arrival.get_or_insert(msg.first);
         if let (Some(exp), Some(_)) = (next_first, settled_at) {

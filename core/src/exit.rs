@@ -328,6 +328,7 @@ mod tests {
             (e(GdbError::Closed { addr: addr() }), Environment),
             (e(HeadError::Io { addr: addr(), cause: io() }), Environment),
             (e(HeadError::Protocol { addr: addr(), message: "m".into() }), Environment),
+            (e(HeadError::Timeout { addr: addr(), request: "WHERE".into(), secs: 1.0 }), Environment),
             (e(HilError::Record(SlotError::BadLength)), BadInput),
             (e(HilError::Spawn { qemu: "q".into(), cause: io() }), Environment),
             (e(HilError::QemuExited { status: exit_status(), stderr: "m".into() }), Environment),
@@ -340,13 +341,22 @@ mod tests {
             (e(link()), Environment),
             (e(LinkError::Closed), Environment),
             (e(LinkError::Encode(FrameError::TooLong)), Environment),
+            (e(LinkError::Deadline), Environment),
             (e(qemu_spawn()), Environment),
             (e(QemuError::Exited { status: exit_status(), stderr: "m".into() }), Environment),
             (e(QemuError::Timeout(Duration::from_secs(3))), Environment),
             (e(QemuError::SlotSize { slot: 0, len: 5000 }), Environment),
             (e(QemuError::Io(io())), Environment),
             (e(SessionError::Link { port: "p".into(), cause: link() }), Environment),
-            (e(SessionError::Timeout { port: "p".into(), what: "answer", secs: 1.0 }), Environment),
+            (
+                e(SessionError::Timeout {
+                    port: "p".into(),
+                    what: "answer",
+                    secs: 1.0,
+                    heard: Default::default(),
+                }),
+                Environment,
+            ),
             (
                 e(SessionError::Refused {
                     port: "p".into(),

@@ -672,14 +672,15 @@ pub struct MonitorArgs {
     /// Baud rate of the node's USART1.
     #[arg(long, default_value_t = accelcal_core::node::monitor::NODE_BAUD)]
     pub baud: u32,
-    /// Stop after this many messages [default: run until interrupted].
+    /// Stop after this many messages; frames that do not decode are shown (`# bad frame: …`) and
+    /// not counted [default: run until interrupted].
     #[arg(long, value_name = "N")]
     pub count: Option<u64>,
     /// First set the node's sampling rate per channel, Hz (100..=4000).
     #[arg(long, alias = "rate", value_name = "HZ")]
     pub rate_hz: Option<u32>,
-    /// Seconds the node may stay silent (no frame) before the command fails (the node sends its
-    /// status every second).
+    /// Seconds the node may go without sending a message before the command fails, whatever else
+    /// arrives (bytes that make no frame, bad frames); the node sends its status every second.
     #[arg(long, default_value_t = 5.0, value_name = "S")]
     pub timeout_s: f64,
 }
@@ -694,7 +695,8 @@ pub struct PortArgs {
     /// Baud rate of the node's USART1 (a pty ignores it).
     #[arg(long, default_value_t = accelcal_core::node::monitor::NODE_BAUD)]
     pub baud: u32,
-    /// Seconds the node may stay silent (no answer to a request) before the command fails.
+    /// Seconds the node may take to answer a request (and, while it streams, between two sample
+    /// blocks) before the command fails, whatever else it sends meanwhile.
     #[arg(long, alias = "answer-timeout-s", default_value_t = 5.0, value_name = "S")]
     pub timeout_s: f64,
 }
@@ -793,13 +795,18 @@ pub struct AcquireArgs {
     /// Baud rate of the nodes' USART1 (a pty ignores it).
     #[arg(long, default_value_t = accelcal_core::node::monitor::NODE_BAUD)]
     pub baud: u32,
-    /// Seconds a node may stay silent (no answer to a request) before the command fails.
+    /// Seconds a node may take to answer a request (and, while it streams, between two sample
+    /// blocks) before the command fails, whatever else it sends meanwhile.
     #[arg(long, alias = "answer-timeout-s", default_value_t = 5.0, value_name = "S")]
     pub timeout_s: f64,
     /// The head: `manual` (the command shows each position's angles and what the unit should
     /// read, and waits for Enter) or `sim:HOST:PORT` (the emulated head `accelcal emulate` prints).
     #[arg(long, value_name = "HEAD")]
     pub head: accelcal_core::node::head::HeadSpec,
+    /// Seconds an emulated head (`--head sim:…`) may take to answer a request before the command
+    /// fails; a move is answered once the head stands still, so this bounds the longest move.
+    #[arg(long, default_value_t = 120.0, value_name = "S")]
+    pub head_timeout_s: f64,
     /// Position plan: head (62 positions), six (the test-turn positions), random:N, or a plan
     /// file (CSV `alpha_deg,beta_deg`).
     #[arg(long, default_value = "head")]
@@ -863,6 +870,10 @@ pub struct VerifyArgs {
     /// The head: `manual` or `sim:HOST:PORT` (as for `acquire`).
     #[arg(long, value_name = "HEAD")]
     pub head: accelcal_core::node::head::HeadSpec,
+    /// Seconds an emulated head (`--head sim:…`) may take to answer a request before the command
+    /// fails; a move is answered once the head stands still, so this bounds the longest move.
+    #[arg(long, default_value_t = 120.0, value_name = "S")]
+    pub head_timeout_s: f64,
     /// Position plan: six (the test-turn positions), head, random:N, or a plan file.
     #[arg(long, default_value = "six")]
     pub plan: String,

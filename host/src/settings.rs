@@ -257,6 +257,7 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
             if let Some(g) = a.g {
                 crate::cmd::check_g(g)?;
             }
+            check_head_timeout(given, &a.head, a.head_timeout_s)?;
             positive_seconds("--timeout-s", a.timeout_s)
         }
         Command::Info(a) => {
@@ -298,6 +299,7 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
                 crate::cmd::check_g(g)?;
             }
             check_answer_timeout(&a.link)?;
+            check_head_timeout(given, &a.head, a.head_timeout_s)?;
             let fit: Vec<(&str, &Path)> = a.fit.iter().map(|p| ("--fit", p.as_path())).collect();
             distinct(&fit, &[("--json", a.json.as_deref())])
         }
@@ -440,6 +442,18 @@ fn once_each(option: &str, given: usize, n: usize, per: &str, optional: bool) ->
 
 fn check_answer_timeout(link: &crate::cli::PortArgs) -> anyhow::Result<()> {
     positive_seconds("--timeout-s", link.timeout_s)
+}
+
+/// `--head-timeout-s`: a positive number of seconds, for an emulated head only.
+fn check_head_timeout(
+    given: &Given,
+    head: &accelcal_core::node::head::HeadSpec,
+    s: f64,
+) -> anyhow::Result<()> {
+    if *head == accelcal_core::node::head::HeadSpec::Manual {
+        given.refuse(&["head_timeout_s"], "--head manual", " (the operator turns the head)")?;
+    }
+    positive_seconds("--head-timeout-s", s)
 }
 
 /// Refuses a number of seconds that is not positive and finite, naming its option.

@@ -272,16 +272,7 @@ pub fn read_ctl<R: Read>(
         let n = match reader.read(&mut buf) {
             Ok(0) => break,
             Ok(n) => n,
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    std::io::ErrorKind::WouldBlock
-                        | std::io::ErrorKind::TimedOut
-                        | std::io::ErrorKind::Interrupted
-                ) =>
-            {
-                continue
-            }
+            Err(e) if crate::node::read_again(&e) => continue,
             Err(e) => return Err(FrontendError::Read(e)),
         };
         dec.push(&buf[..n], |m: Result<FeCtl, _>| match m {

@@ -418,16 +418,7 @@ fn serve_connection(
         let n = match stream.read(&mut buf) {
             Ok(0) => return Ok(()),
             Ok(n) => n,
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    std::io::ErrorKind::WouldBlock
-                        | std::io::ErrorKind::TimedOut
-                        | std::io::ErrorKind::Interrupted
-                ) =>
-            {
-                continue
-            }
+            Err(e) if crate::node::read_again(&e) => continue,
             Err(e) => return Err(e),
         };
         pending.extend_from_slice(&buf[..n]);

@@ -17,7 +17,7 @@
 use crate::error::{Classify, Kind};
 use std::io::{BufRead, BufReader, Write};
 use std::net::TcpStream;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 /// Which head a command drives.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -209,6 +209,19 @@ pub enum HeadError {
         /// The cause.
         cause: std::io::Error,
     },
+    /// No reply within the head's timeout (a move is answered once the head stands still).
+    #[error(
+        "head {addr}: no reply to `{request}` within {secs} s (is the head stuck, or does a move take longer? \
+         --head-timeout-s sets the wait)"
+    )]
+    Timeout {
+        /// The head's address.
+        addr: String,
+        /// The request's line.
+        request: String,
+        /// The timeout, s.
+        secs: f64,
+    },
     /// The head answered something else than the protocol allows, or refused.
     #[error("head {addr}: {message}")]
     Protocol {
@@ -225,34 +238,72 @@ impl Classify for HeadError {
     }
 }
 
+/// The longest reply line a head may send, bytes (the protocol's are a few dozen).
+const MAX_REPLY: usize = 1024;
+
 /// A connection to an emulated head.
 pub struct SimHead {
     addr: String,
     reader: BufReader<TcpStream>,
     writer: TcpStream,
+    timeout: Duration,
 }
 
 impl SimHead {
-    /// Connects to the head at `addr` (`HOST:PORT`); a move may take up to `timeout`.
+    /// Connects to the head at `addr` (`HOST:PORT`); every request, a move included, must be
+    /// answered within `timeout` (> 0).
     pub fn connect(addr: &str, timeout: Duration) -> Result<SimHead, HeadError> {
         let io = |cause| HeadError::Io { addr: addr.to_string(), cause };
         let stream = TcpStream::connect(addr).map_err(io)?;
-        stream.set_read_timeout(Some(timeout)).map_err(io)?;
         stream.set_nodelay(true).map_err(io)?;
         let writer = stream.try_clone().map_err(io)?;
-        Ok(SimHead { addr: addr.to_string(), reader: BufReader::new(stream), writer })
+        Ok(SimHead { addr: addr.to_string(), reader: BufReader::new(stream), writer, timeout })
     }
 
-    /// Sends one request and reads its reply; `ERR` replies are errors.
+    /// Sends one request and reads its reply; `ERR` replies are errors. The reply must be
+    /// complete within the head's timeout, an absolute deadline checked on every read whatever
+    /// the head sends (a reply that trickles in byte by byte, or never ends its line).
     pub fn request(&mut self, req: Request) -> Result<Reply, HeadError> {
         let addr = self.addr.clone();
         let io = |cause| HeadError::Io { addr: addr.clone(), cause };
         writeln!(self.writer, "{}", req.line()).map_err(io)?;
-        let mut line = String::new();
-        if self.reader.read_line(&mut line).map_err(io)? == 0 {
-            return Err(HeadError::Protocol { addr, message: "connection closed".into() });
+        let deadline = Instant::now() + self.timeout;
+        let mut line = Vec::new();
+        loop {
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                return Err(HeadError::Timeout {
+                    addr,
+                    request: req.line(),
+                    secs: self.timeout.as_secs_f64(),
+                });
+            }
+            self.reader.get_ref().set_read_timeout(Some(left)).map_err(io)?;
+            let got = match self.reader.fill_buf() {
+                Ok(got) => got,
+                Err(e) if super::read_again(&e) => continue,
+                Err(e) => return Err(io(e)),
+            };
+            if got.is_empty() {
+                return Err(HeadError::Protocol { addr, message: "connection closed".into() });
+            }
+            let (take, end) = match got.iter().position(|&b| b == b'\n') {
+                Some(i) => (i + 1, true),
+                None => (got.len(), false),
+            };
+            line.extend_from_slice(&got[..take]);
+            self.reader.consume(take);
+            if end {
+                break;
+            }
+            if line.len() > MAX_REPLY {
+                return Err(HeadError::Protocol {
+                    addr,
+                    message: format!("a reply longer than {MAX_REPLY} bytes without a line end"),
+                });
+            }
         }
-        match Reply::parse(&line) {
+        match Reply::parse(&String::from_utf8_lossy(&line)) {
             Ok(Reply::Err(message)) => {
                 Err(HeadError::Protocol { addr, message: format!("refused: {message}") })
             }
@@ -319,5 +370,45 @@ mod tests {
         assert_eq!("sim:127.0.0.1:4000".parse::<HeadSpec>(), Ok(HeadSpec::Sim("127.0.0.1:4000".into())));
         assert!("sim:nowhere".parse::<HeadSpec>().is_err());
         assert!("auto".parse::<HeadSpec>().is_err());
+    }
+
+    /// A head that takes the connection and never answers, and one whose reply trickles in a byte
+    /// at a time and never ends its line: a move fails after the head's timeout, naming it.
+    #[test]
+    fn a_frozen_head_fails_after_its_timeout() {
+        for trickle in [false, true] {
+            let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+            let addr = listener.local_addr().unwrap().to_string();
+            let server = std::thread::spawn(move || {
+                // Reads the request and waits until the client goes (or 3 s), answering nothing
+                // or an endless "OOO…".
+                let (mut s, _) = listener.accept().unwrap();
+                s.set_read_timeout(Some(Duration::from_millis(20))).unwrap();
+                let t0 = Instant::now();
+                while t0.elapsed() < Duration::from_secs(3) {
+                    if trickle && s.write_all(b"O").is_err() {
+                        break;
+                    }
+                    if let Ok(0) = std::io::Read::read(&mut s, &mut [0u8; 64]) {
+                        break;
+                    }
+                }
+            });
+            let timeout = Duration::from_millis(300);
+            let mut head = SimHead::connect(&addr, timeout).unwrap();
+            let t0 = Instant::now();
+            let e = head.move_to(30.0, -90.0).unwrap_err();
+            let took = t0.elapsed();
+            assert!(took >= timeout && took < timeout + Duration::from_millis(200), "{took:?}");
+            assert!(matches!(e, HeadError::Timeout { .. }), "{e:?}");
+            let msg = e.to_string();
+            assert!(
+                msg.starts_with(&format!("head {addr}: no reply to `MOVE 30 -90` within 0.3 s")),
+                "{msg}"
+            );
+            assert_eq!(e.kind(), Kind::Environment);
+            drop(head);
+            server.join().unwrap();
+        }
     }
 }

@@ -228,16 +228,13 @@ impl QemuNode {
 
     /// The next status report the node sends (other messages are passed over), within the timeout.
     fn next_status(&mut self) -> Result<Status, HilError> {
-        let t0 = Instant::now();
+        let deadline = Instant::now() + self.timeout;
         loop {
-            match self.rx.recv() {
+            match self.rx.recv(deadline) {
                 Ok(Ok(NodeMsg::Status(s))) => return Ok(s),
                 Ok(_) => {}
-                Err(e) if is_timeout(&e) => {}
+                Err(LinkError::Deadline) => return Err(HilError::Timeout(self.timeout)),
                 Err(e) => return Err(self.explain(e)),
-            }
-            if t0.elapsed() > self.timeout {
-                return Err(HilError::Timeout(self.timeout));
             }
         }
     }
@@ -255,19 +252,16 @@ impl QemuNode {
         self.next_answer()
     }
 
-    /// The next message that is not a status report.
+    /// The next message that is not a status report; each status report (the node is alive and
+    /// working through the requests) gives it another timeout.
     fn next_answer(&mut self) -> Result<NodeMsg, HilError> {
-        let mut last = Instant::now();
+        let mut deadline = Instant::now() + self.timeout;
         loop {
-            match self.rx.recv() {
-                Ok(Ok(NodeMsg::Status(_))) => last = Instant::now(),
+            match self.rx.recv(deadline) {
+                Ok(Ok(NodeMsg::Status(_))) => deadline = Instant::now() + self.timeout,
                 Ok(Ok(m)) => return Ok(m),
                 Ok(Err(e)) => return Err(HilError::Protocol(format!("bad frame from the node: {e}"))),
-                Err(e) if is_timeout(&e) => {
-                    if last.elapsed() > self.timeout {
-                        return Err(HilError::Timeout(self.timeout));
-                    }
-                }
+                Err(LinkError::Deadline) => return Err(HilError::Timeout(self.timeout)),
                 Err(e) => return Err(self.explain(e)),
             }
         }
@@ -281,10 +275,6 @@ impl QemuNode {
             None => HilError::Link(e),
         }
     }
-}
-
-fn is_timeout(e: &LinkError) -> bool {
-    matches!(e, LinkError::Io(io) if matches!(io.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut))
 }
 
 /// Code sets to replay: one request's worth.

@@ -2,6 +2,7 @@
 //! byte stream (a QEMU socket, a serial port).
 
 use std::io::{self, Read, Write};
+use std::time::Instant;
 
 use crate::error::{Classify, Kind};
 use accelcal_shared::wire::{self, FrameDecoder, FrameError, HostMsg, NodeMsg, MAX_FRAME};
@@ -19,6 +20,10 @@ pub enum LinkError {
     /// A message could not be encoded.
     #[error("cannot encode message: {0}")]
     Encode(FrameError),
+    /// The deadline given to [`Receiver::recv`] passed before a frame was complete (the caller
+    /// says what it waited for, with the receiver's [`Traffic`]).
+    #[error("node link: no frame before the deadline")]
+    Deadline,
 }
 
 impl From<io::Error> for LinkError {
@@ -39,6 +44,64 @@ pub fn frame(msg: &HostMsg) -> Result<Vec<u8>, LinkError> {
     Ok(wire::encode(msg, &mut buf).map_err(LinkError::Encode)?.to_vec())
 }
 
+/// What a [`Receiver`] has read: bytes, how many of them were `0x00` (the frame delimiter), and
+/// the frames they made, good and bad. A wait that timed out says what came meanwhile
+/// ([`Traffic::since`]): nothing, bytes that made no frame (a line held low reads as endless
+/// `0x00`, empty frames the decoder skips; noise without a `0x00` is one frame that never ends),
+/// bad frames only, or messages that were not the awaited one.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Traffic {
+    /// Bytes read (those dropped before the first delimiter of a stream joined mid-frame too).
+    pub bytes: u64,
+    /// Of them, `0x00` bytes.
+    pub zeros: u64,
+    /// Frames that decoded to a message.
+    pub frames: u64,
+    /// Frames that did not (too long, or malformed).
+    pub bad_frames: u64,
+}
+
+impl Traffic {
+    /// What came after `earlier` (a snapshot of the same receiver).
+    pub fn since(self, earlier: Traffic) -> Traffic {
+        Traffic {
+            bytes: self.bytes.saturating_sub(earlier.bytes),
+            zeros: self.zeros.saturating_sub(earlier.zeros),
+            frames: self.frames.saturating_sub(earlier.frames),
+            bad_frames: self.bad_frames.saturating_sub(earlier.bad_frames),
+        }
+    }
+}
+
+impl std::fmt::Display for Traffic {
+    /// "it sent …", with what to check.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let Traffic { bytes, zeros, frames, bad_frames } = *self;
+        if bytes == 0 {
+            return f.write_str(
+                "it sent nothing (is the board powered and running the accelcal firmware, and is this its link port?)",
+            );
+        }
+        if frames > 0 {
+            return write!(f, "it sent {frames} other messages and {bad_frames} bad frames ({bytes} bytes)");
+        }
+        if bad_frames > 0 {
+            return write!(
+                f,
+                "it sent {bytes} bytes in {bad_frames} bad frames and no good one (is the baud rate the node's?)"
+            );
+        }
+        let why = if zeros == bytes {
+            "all 0x00: a line held low reads as 0x00 bytes"
+        } else if zeros == 0 {
+            "with no 0x00 frame delimiter: one frame that never ends, from noise or a wrong baud rate"
+        } else {
+            "a line held low sends 0x00 bytes; noise, a frame that never ends"
+        };
+        write!(f, "it sent {bytes} bytes of which none made a frame ({why})")
+    }
+}
+
 /// Reads node messages from a byte stream.
 pub struct Receiver<R> {
     inner: R,
@@ -46,6 +109,7 @@ pub struct Receiver<R> {
     pending: std::collections::VecDeque<Result<NodeMsg, FrameError>>,
     /// Bytes are dropped up to and including the next frame delimiter (a stream joined mid-frame).
     skip_to_delimiter: bool,
+    traffic: Traffic,
 }
 
 impl<R: Read> Receiver<R> {
@@ -56,6 +120,7 @@ impl<R: Read> Receiver<R> {
             decoder: Box::new(FrameDecoder::new()),
             pending: Default::default(),
             skip_to_delimiter: false,
+            traffic: Traffic::default(),
         }
     }
 
@@ -67,19 +132,37 @@ impl<R: Read> Receiver<R> {
         Receiver { skip_to_delimiter: true, ..Receiver::new(inner) }
     }
 
+    /// What it has read so far.
+    pub fn traffic(&self) -> Traffic {
+        self.traffic
+    }
+
     /// The next frame: a message, or why the frame was bad (the caller decides whether that is
-    /// fatal). Blocks until one arrives or the stream's read timeout expires.
-    pub fn recv(&mut self) -> Result<Result<NodeMsg, FrameError>, LinkError> {
+    /// fatal), or [`LinkError::Deadline`] once `deadline` has passed. The deadline is checked
+    /// before every read, whatever the stream delivers: a stream that keeps sending bytes that
+    /// never complete a frame (endless `0x00`, empty frames the decoder skips, or endless bytes
+    /// without a delimiter) cannot hold the caller past it. A read that times out (the stream's
+    /// own read timeout, which bounds how far past the deadline a silent stream may block) is
+    /// read again; a read cut by a signal is returned as [`LinkError::Io`] (`Interrupted`), so
+    /// that the caller can check a stop flag.
+    pub fn recv(&mut self, deadline: Instant) -> Result<Result<NodeMsg, FrameError>, LinkError> {
         let mut buf = [0u8; 512];
         loop {
             if let Some(m) = self.pending.pop_front() {
                 return Ok(m);
             }
-            let n = self.inner.read(&mut buf)?;
-            if n == 0 {
-                return Err(LinkError::Closed);
+            if Instant::now() >= deadline {
+                return Err(LinkError::Deadline);
             }
+            let n = match self.inner.read(&mut buf) {
+                Ok(0) => return Err(LinkError::Closed),
+                Ok(n) => n,
+                Err(e) if matches!(e.kind(), io::ErrorKind::TimedOut | io::ErrorKind::WouldBlock) => continue,
+                Err(e) => return Err(e.into()),
+            };
             let mut bytes = &buf[..n];
+            self.traffic.bytes += n as u64;
+            self.traffic.zeros += bytes.iter().filter(|&&b| b == 0).count() as u64;
             if self.skip_to_delimiter {
                 match bytes.iter().position(|&b| b == 0) {
                     Some(end) => {
@@ -89,8 +172,14 @@ impl<R: Read> Receiver<R> {
                     None => continue,
                 }
             }
-            let pending = &mut self.pending;
-            self.decoder.push(bytes, |m| pending.push_back(m));
+            let (pending, traffic) = (&mut self.pending, &mut self.traffic);
+            self.decoder.push(bytes, |m: Result<NodeMsg, FrameError>| {
+                match m {
+                    Ok(_) => traffic.frames += 1,
+                    Err(_) => traffic.bad_frames += 1,
+                }
+                pending.push_back(m)
+            });
         }
     }
 }
@@ -111,9 +200,10 @@ pub fn send(w: &mut impl Write, msg: &HostMsg) -> Result<(), LinkError> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use accelcal_shared::wire::{Block, MAX_BLOCK};
+    use std::time::Duration;
 
     /// A block of raw codes, as a node streams them.
     fn samples() -> NodeMsg {
@@ -147,7 +237,8 @@ mod tests {
     }
 
     fn all<R: Read>(mut rx: Receiver<R>) -> Vec<Result<NodeMsg, FrameError>> {
-        std::iter::from_fn(|| rx.recv().ok()).collect()
+        let deadline = Instant::now() + Duration::from_secs(60);
+        std::iter::from_fn(|| rx.recv(deadline).ok()).collect()
     }
 
     #[test]
@@ -167,5 +258,54 @@ mod tests {
         let mut bytes = samples_frame();
         bytes.extend_from_slice(&samples_frame());
         assert_eq!(all(Receiver::mid_stream(Chunks(bytes, 0))).len(), 1);
+    }
+
+    /// A peer that never stops sending `pattern` over and over, a few bytes per read, each read
+    /// answered at once (no read timeout ever fires); after 5 s it closes the stream, so that a
+    /// receiver that ignores its deadline ends with `Closed` rather than hanging the test.
+    pub(crate) struct Endless {
+        pattern: Vec<u8>,
+        at: usize,
+        until: Instant,
+    }
+    impl Endless {
+        pub(crate) fn new(pattern: &[u8]) -> Endless {
+            Endless { pattern: pattern.to_vec(), at: 0, until: Instant::now() + Duration::from_secs(5) }
+        }
+    }
+    impl Read for Endless {
+        fn read(&mut self, out: &mut [u8]) -> io::Result<usize> {
+            if Instant::now() > self.until {
+                return Ok(0);
+            }
+            let n = out.len().min(5);
+            for b in &mut out[..n] {
+                *b = self.pattern[self.at];
+                self.at = (self.at + 1) % self.pattern.len();
+            }
+            std::thread::sleep(Duration::from_micros(50));
+            Ok(n)
+        }
+    }
+
+    /// The deadline holds whatever the peer sends: endless `0x00` (a UART line held low: endless
+    /// empty frames) and endless `0x41` (one frame that never ends, too long for any buffer).
+    #[test]
+    fn the_deadline_holds_while_bytes_keep_arriving() {
+        for (byte, why) in [(0x00, "all 0x00: a line held low"), (0x41, "with no 0x00 frame delimiter")] {
+            for mid_stream in [false, true] {
+                let endless = Endless::new(&[byte]);
+                let mut rx = if mid_stream { Receiver::mid_stream(endless) } else { Receiver::new(endless) };
+                let t0 = Instant::now();
+                let got = rx.recv(t0 + Duration::from_millis(200));
+                let took = t0.elapsed();
+                assert!(matches!(got, Err(LinkError::Deadline)), "{byte:#04x}: {got:?} after {took:?}");
+                assert!(took < Duration::from_millis(400), "{byte:#04x}: returned after {took:?}");
+                let heard = rx.traffic();
+                assert!(heard.bytes > 100 && heard.frames == 0 && heard.bad_frames == 0, "{heard:?}");
+                let text = heard.to_string();
+                assert!(text.contains("bytes of which none made a frame") && text.contains(why), "{text}");
+            }
+        }
     }
 }

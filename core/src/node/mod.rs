@@ -22,6 +22,16 @@ pub const RECORD_SLOTS: [u64; 2] = [contract::SLOT_ADDRS[0] as u64, contract::SL
 /// through `accelcal hil` must carry it.
 pub use accelcal_shared::contract::QEMU_DEVICE_ID;
 
+/// Whether a read that failed with `e` found nothing yet and may be tried again: its timeout
+/// expired (`TimedOut`, or `WouldBlock` as a socket reports it) or a signal cut it
+/// (`Interrupted`). A loop that reads again checks its own deadline or stop flag first.
+pub fn read_again(e: &std::io::Error) -> bool {
+    matches!(
+        e.kind(),
+        std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut | std::io::ErrorKind::Interrupted
+    )
+}
+
 /// Address of the STM32L4's 96-bit unique device id (`accelcal_shared::contract::UID_ADDR`).
 pub const UID_ADDR: u64 = contract::UID_ADDR as u64;
 

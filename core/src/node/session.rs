@@ -4,15 +4,17 @@
 //! commands after them.
 //!
 //! The node sends status reports every second and live blocks all the time; a request's answer is
-//! found among them by its kind. Every wait is bounded by the session's `answer` timeout, so a
-//! node that does not answer is an error that says what to check, never a hang.
+//! found among them by its kind. Every wait is bounded by the session's `answer` timeout, an
+//! absolute deadline checked on every read whatever the node sends (bytes that make no frame, bad
+//! frames, other messages), so a node that does not answer is an error that says what came
+//! instead and what to check, never a hang.
 
 use std::io::{self, Read, Write};
 use std::time::{Duration, Instant};
 
 use accelcal_shared::wire::{self, Block, HostMsg, Info, NodeMsg, Output, Status};
 
-use super::link::{self, LinkError, Receiver};
+use super::link::{self, LinkError, Receiver, Traffic};
 use crate::error::{Classify, Kind};
 
 /// Why a conversation with the node failed (a failure of the environment: exit code 1).
@@ -34,11 +36,8 @@ pub enum SessionError {
         /// The cause.
         cause: LinkError,
     },
-    /// No answer in time.
-    #[error(
-        "{port}: no {what} from the node within {secs} s (is the board powered and running the accelcal firmware, \
-         and is this its link port?)"
-    )]
+    /// No answer in time: what was awaited, for how long, and what the node sent meanwhile.
+    #[error("{port}: no {what} from the node within {secs} s: {heard}")]
     Timeout {
         /// The port.
         port: String,
@@ -46,6 +45,8 @@ pub enum SessionError {
         what: &'static str,
         /// The timeout, s.
         secs: f64,
+        /// What the link delivered during the wait.
+        heard: Traffic,
     },
     /// The node refused a request.
     #[error("{port}: the node refused the request: {refusal}")]
@@ -73,8 +74,9 @@ impl Classify for SessionError {
     }
 }
 
-/// How often a blocking read gives control back (to check a stop flag or a deadline).
-const POLL: Duration = Duration::from_millis(100);
+/// How often a blocking read gives control back (to check a stop flag or a deadline): the serial
+/// port's read timeout, and the longest [`Session::poll`] waits.
+pub const POLL: Duration = Duration::from_millis(100);
 /// How long a request waits for its answer before it is sent again.
 const RESEND: Duration = Duration::from_millis(1000);
 
@@ -85,6 +87,16 @@ pub struct Session {
     rx: Receiver<Box<dyn Read + Send>>,
     answer: Duration,
 }
+
+/// A bounded wait: what it awaits, when it ends, and the link's traffic when it began.
+struct Wait {
+    what: &'static str,
+    deadline: Instant,
+    heard: Traffic,
+}
+
+/// A wait for live sample blocks ([`Session::block_wait`]).
+pub struct BlockWait(Wait);
 
 /// A block of live samples: the node's sample counter of its first set, and the sets.
 #[derive(Clone, Debug, PartialEq)]
@@ -139,24 +151,38 @@ impl Session {
         link::send(&mut self.tx, msg).map_err(|e| self.link(e))
     }
 
-    /// The next message, or `None` when nothing arrived within the poll interval. Frames that do
-    /// not decode are skipped (the node's stream resynchronises at the next frame). A read cut by
-    /// a signal (EINTR: the serial port waits in `ppoll`, which a signal always interrupts, e.g.
-    /// the Ctrl-C that sets a caller's stop flag) is `None` too: the caller checks its flag and
-    /// polls again, and the receiver keeps the bytes it already had.
-    pub fn poll(&mut self) -> Result<Option<NodeMsg>, SessionError> {
-        match self.rx.recv() {
+    /// The next message, or `None` when none arrived within the poll interval ([`POLL`], or less
+    /// up to `until`), however many bytes came. Frames that do not decode are skipped (the
+    /// node's stream resynchronises at the next frame). A read cut by a signal (EINTR: the
+    /// serial port waits in `ppoll`, which a signal always interrupts, e.g. the Ctrl-C that sets
+    /// a caller's stop flag) is `None` too: the caller checks its flag and polls again, and the
+    /// receiver keeps the bytes it already had.
+    fn poll_until(&mut self, until: Instant) -> Result<Option<NodeMsg>, SessionError> {
+        match self.rx.recv(until.min(Instant::now() + POLL)) {
             Ok(Ok(m)) => Ok(Some(m)),
-            Ok(Err(_)) => Ok(None),
-            Err(LinkError::Io(e))
-                if matches!(
-                    e.kind(),
-                    io::ErrorKind::TimedOut | io::ErrorKind::WouldBlock | io::ErrorKind::Interrupted
-                ) =>
-            {
-                Ok(None)
-            }
+            Ok(Err(_)) | Err(LinkError::Deadline) => Ok(None),
+            Err(LinkError::Io(e)) if e.kind() == io::ErrorKind::Interrupted => Ok(None),
             Err(e) => Err(self.link(e)),
+        }
+    }
+
+    /// The next message, or `None` when none arrived within [`POLL`] (see `poll_until`).
+    pub fn poll(&mut self) -> Result<Option<NodeMsg>, SessionError> {
+        self.poll_until(Instant::now() + POLL)
+    }
+
+    /// A wait for `what` that ends `answer` from now.
+    fn wait(&self, what: &'static str) -> Wait {
+        Wait { what, deadline: Instant::now() + self.answer, heard: self.rx.traffic() }
+    }
+
+    /// The timeout error of `w`, with what the link delivered since it began.
+    fn timed_out(&self, w: &Wait) -> SessionError {
+        SessionError::Timeout {
+            port: self.port.clone(),
+            what: w.what,
+            secs: self.answer.as_secs_f64(),
+            heard: self.rx.traffic().since(w.heard),
         }
     }
 
@@ -171,16 +197,16 @@ impl Session {
         what: &'static str,
         mut pick: impl FnMut(NodeMsg) -> Option<T>,
     ) -> Result<T, SessionError> {
-        let deadline = Instant::now() + self.answer;
+        let wait = self.wait(what);
         let mut next_send = Instant::now();
-        while Instant::now() < deadline {
+        while Instant::now() < wait.deadline {
             if let Some(r) = request {
                 if Instant::now() >= next_send {
                     self.send(r)?;
                     next_send = Instant::now() + RESEND;
                 }
             }
-            match self.poll()? {
+            match self.poll_until(wait.deadline)? {
                 Some(NodeMsg::Refused(refusal)) => {
                     return Err(SessionError::Refused { port: self.port.clone(), refusal })
                 }
@@ -192,7 +218,7 @@ impl Session {
                 None => {}
             }
         }
-        Err(SessionError::Timeout { port: self.port.clone(), what, secs: self.answer.as_secs_f64() })
+        Err(self.timed_out(&wait))
     }
 
     fn check_protocol(&self, node: u8) -> Result<(), SessionError> {
@@ -240,13 +266,25 @@ impl Session {
         })
     }
 
+    /// Starts a wait for live sample blocks ([`Session::poll_samples`]): each block must come
+    /// within the answer timeout of the wait's start or of the block before it.
+    pub fn block_wait(&self) -> BlockWait {
+        BlockWait(self.wait("live sample block"))
+    }
+
     /// The next message if it is a block of live samples; `None` when nothing arrived within the
-    /// poll interval or the message was another one (a caller loops, checking its own deadline).
-    pub fn poll_samples(&mut self) -> Result<Option<Samples>, SessionError> {
-        Ok(match self.poll()? {
-            Some(NodeMsg::Samples { seq, first, data, temp }) => Some(Samples { seq, first, data, temp }),
-            _ => None,
-        })
+    /// poll interval or the message was another one (a caller loops, checking its own deadline
+    /// too). A block restarts `wait`; once it has passed without one, whatever else the node
+    /// sent, the wait times out ([`SessionError::Timeout`]).
+    pub fn poll_samples(&mut self, wait: &mut BlockWait) -> Result<Option<Samples>, SessionError> {
+        match self.poll_until(wait.0.deadline)? {
+            Some(NodeMsg::Samples { seq, first, data, temp }) => {
+                *wait = self.block_wait();
+                Ok(Some(Samples { seq, first, data, temp }))
+            }
+            _ if Instant::now() >= wait.0.deadline => Err(self.timed_out(&wait.0)),
+            _ => Ok(None),
+        }
     }
 
     /// Discards every block produced before this call: asks who the node is and drops what comes
@@ -295,6 +333,9 @@ mod tests {
         fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
             let mut q = self.0.lock().unwrap();
             if q.is_empty() {
+                // A read timeout blocks a while first (a short one: the receiver reads again).
+                drop(q);
+                std::thread::sleep(Duration::from_millis(1));
                 return Err(io::Error::new(io::ErrorKind::TimedOut, "timed out"));
             }
             let n = buf.len().min(q.len());
@@ -393,5 +434,90 @@ mod tests {
         let (mut s, _) = session(&[NodeMsg::Info(info(2))]);
         let e = s.info().unwrap_err().to_string();
         assert!(e.contains("protocol 2"), "{e}");
+    }
+
+    /// A node whose line is held low (endless 0x00) or that sends endless bytes without a
+    /// delimiter, each read answered at once: `info` fails after its answer timeout, saying what
+    /// came, and so does a wait for live blocks.
+    #[test]
+    fn bytes_that_make_no_frame_time_out_and_say_so() {
+        use crate::node::link::tests::Endless;
+        let answer = Duration::from_millis(300);
+        for (byte, why) in [(0x00, "all 0x00: a line held low"), (0x41, "with no 0x00 frame delimiter")] {
+            let mut s =
+                Session::from_streams("test", Box::new(io::sink()), Box::new(Endless::new(&[byte])), answer);
+            let t0 = Instant::now();
+            let e = s.info().unwrap_err();
+            let took = t0.elapsed();
+            assert!(took < answer + Duration::from_millis(200), "{byte:#04x}: {took:?}");
+            assert!(matches!(e, SessionError::Timeout { .. }), "{e:?}");
+            let msg = e.to_string();
+            assert!(
+                msg.starts_with("test: no answer to GetInfo from the node within 0.3 s: it sent "),
+                "{msg}"
+            );
+            assert!(msg.contains("bytes of which none made a frame") && msg.contains(why), "{msg}");
+            assert_eq!(e.kind(), Kind::Environment);
+            let mut wait = s.block_wait();
+            let t0 = Instant::now();
+            let e = loop {
+                match s.poll_samples(&mut wait) {
+                    Ok(_) => assert!(t0.elapsed() < Duration::from_secs(2), "{byte:#04x}: no timeout"),
+                    Err(e) => break e.to_string(),
+                }
+            };
+            assert!(t0.elapsed() < answer + Duration::from_millis(200), "{byte:#04x}: {:?}", t0.elapsed());
+            assert!(e.starts_with("test: no live sample block from the node within 0.3 s: it sent "), "{e}");
+        }
+    }
+
+    /// Status reports keep coming, but no block: a wait for blocks times out all the same, and a
+    /// block restarts it.
+    #[test]
+    fn a_wait_for_blocks_ends_whatever_else_comes() {
+        use std::sync::atomic::{AtomicBool, Ordering};
+        let status = frame(&NodeMsg::Status(Status {
+            protocol: wire::PROTOCOL_VERSION,
+            record: RecordStatus::InUse { slot: 0, sequence: 1, created_unix_s: 2, crc: 3 },
+            overruns: 0,
+            sample_sets: 0,
+            rate_hz: 1000,
+            bad_frames: 0,
+            reset_cause: ResetCause::PowerOn,
+            trigger_mismatch: false,
+            output: Output::Calibrated,
+        }));
+        let script = Script::default();
+        let block = NodeMsg::Samples { seq: 1, first: 0, data: Block::Raw(Default::default()), temp: None };
+        script.0.lock().unwrap().extend(frame(&block));
+        let answer = Duration::from_millis(300);
+        let mut s = Session::from_streams("test", Box::new(io::sink()), Box::new(script.clone()), answer);
+        let stop = Arc::new(AtomicBool::new(false));
+        let feeder = {
+            let (feed, stop) = (script.0.clone(), stop.clone());
+            std::thread::spawn(move || {
+                while !stop.load(Ordering::Relaxed) {
+                    feed.lock().unwrap().extend(&status);
+                    std::thread::sleep(Duration::from_millis(20));
+                }
+            })
+        };
+        let mut wait = s.block_wait();
+        let t0 = Instant::now();
+        let mut blocks = 0;
+        let e = loop {
+            match s.poll_samples(&mut wait) {
+                Ok(b) => blocks += usize::from(b.is_some()),
+                Err(e) => break e.to_string(),
+            }
+            assert!(t0.elapsed() < Duration::from_secs(2), "no timeout");
+        };
+        let took = t0.elapsed();
+        stop.store(true, Ordering::Relaxed);
+        feeder.join().unwrap();
+        assert_eq!(blocks, 1);
+        assert!(took < answer + Duration::from_millis(200), "{took:?}");
+        assert!(e.starts_with("test: no live sample block from the node within 0.3 s: it sent "), "{e}");
+        assert!(e.contains("other messages and 0 bad frames"), "{e}");
     }
 }

@@ -268,10 +268,16 @@ pub fn stop_flag() -> anyhow::Result<Arc<AtomicBool>> {
     Ok(stop)
 }
 
-fn connect_head(spec: &HeadSpec, stop: &Arc<AtomicBool>) -> anyhow::Result<Box<dyn Positioner>> {
+/// The head `spec` names; an emulated one must answer every request within `timeout_s`
+/// (`--head-timeout-s`), an operator takes the time they need.
+fn connect_head(
+    spec: &HeadSpec,
+    timeout_s: f64,
+    stop: &Arc<AtomicBool>,
+) -> anyhow::Result<Box<dyn Positioner>> {
     Ok(match spec {
         HeadSpec::Manual => Box::new(ManualHead::new(stop.clone())),
-        HeadSpec::Sim(addr) => Box::new(SimHead::connect(addr, Duration::from_secs(120))?),
+        HeadSpec::Sim(addr) => Box::new(SimHead::connect(addr, Duration::from_secs_f64(timeout_s))?),
     })
 }
 
@@ -366,7 +372,7 @@ pub fn run_acquire(a: &AcquireArgs) -> anyhow::Result<()> {
     for port in &a.port {
         nodes.push(Session::open(port, a.baud, answer)?);
     }
-    let mut head = connect_head(&a.head, &stop)?;
+    let mut head = connect_head(&a.head, a.head_timeout_s, &stop)?;
     let cfg = AcquireConfig {
         out: a.out[0].clone(),
         plan,
@@ -473,7 +479,7 @@ pub fn run_verify(a: &VerifyArgs) -> anyhow::Result<()> {
     let mut db = super::store::open(&a.run)?;
     let stop = stop_flag()?;
     let mut node = open(&a.link)?;
-    let mut head = connect_head(&a.head, &stop)?;
+    let mut head = connect_head(&a.head, a.head_timeout_s, &stop)?;
     let serial = fit.as_ref().and_then(|(_, id)| id.serial.clone()).unwrap_or_default();
     let cfg = VerifyConfig {
         plan,
