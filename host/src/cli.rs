@@ -1116,6 +1116,11 @@ pub struct StationArgs {
     /// Who runs the station, for the database [default: the USER environment variable].
     #[arg(long, value_name = "NAME")]
     pub operator: Option<String>,
+    /// Seconds an emulated head (`--head sim:…`) may take to answer a request before a step
+    /// fails (passed to acquire and the verifications); a move is answered once the head
+    /// stands still, so this bounds the longest move.
+    #[arg(long, default_value_t = 120.0, value_name = "S")]
+    pub head_timeout_s: f64,
     /// Begin the run even though the database ties this --serial to another device, or the
     /// node's device to another serial: the serial moves to this device, stored as a relabel row
     /// with REASON (with several --port, it applies to each unit whose label clashes).

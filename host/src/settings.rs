@@ -353,6 +353,10 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
             positive_seconds("--timeout-s", a.timeout_s)
         }
         Command::Station(a) => {
+            if a.head == "manual" {
+                given.refuse(&["head_timeout_s"], "--head manual", " (the operator turns the head)")?;
+            }
+            positive_seconds("--head-timeout-s", a.head_timeout_s)?;
             if !a.gdb.is_empty() {
                 given.refuse(&["chip", "probe"], "station --gdb", " (they select a probe-rs probe)")?;
             }

@@ -138,6 +138,7 @@ impl Station<'_> {
         let mut v = vec!["verify".into()];
         v.extend(self.link());
         v.extend(["--head".into(), self.a.head.clone(), "--plan".into(), VERIFY_PLAN.into()]);
+        v.extend(head_timeout(self.a));
         v.extend(["--samples".into(), self.a.samples.to_string(), "--json".into(), self.p(json)]);
         if let Some(f) = fit {
             v.extend(["--fit".into(), f]);
@@ -616,6 +617,15 @@ impl Station<'_> {
     }
 }
 
+/// `--head-timeout-s S` for an emulated head (a manual head has none).
+fn head_timeout(a: &StationArgs) -> Vec<String> {
+    if a.head == "manual" {
+        vec![]
+    } else {
+        vec!["--head-timeout-s".into(), a.head_timeout_s.to_string()]
+    }
+}
+
 /// `--port P1 [--port P2 ...] --baud B --timeout-s T`.
 fn link_args(a: &StationArgs, ports: &[String]) -> Vec<String> {
     let mut v = Vec::new();
@@ -641,6 +651,7 @@ fn acquire_together(units: &mut [&mut Station<'_>]) -> anyhow::Result<()> {
         let mut args = vec!["acquire".to_string()];
         args.extend(link_args(a, &ports));
         args.extend(["--head".into(), a.head.clone(), "--plan".into(), a.plan.clone()]);
+        args.extend(head_timeout(a));
         args.extend(["--samples".into(), a.samples.to_string()]);
         for &i in &todo {
             args.extend(["--serial".into(), units[i].u.serial.clone(), "--out".into(), units[i].p(CAMPAIGN)]);
