@@ -7,6 +7,9 @@
 
 mod common;
 mod dbkit;
+/// The station killed at every journal/database boundary, the manual line, mistakes (issue 28).
+#[path = "line/crash.rs"]
+mod crash;
 /// Several nodes on one head (issue 23).
 #[path = "line/multi.rs"]
 mod multi;
@@ -842,8 +845,9 @@ fn the_station_runs_the_line_journals_it_and_resumes_after_ctrl_c() {
 
     // A second unit on the same node, stopped by Ctrl-C mid-campaign, then resumed.
     let b = dir.path().join("unit-b");
-    // The as-found tolerance from the fit of the record in force, which the database finds.
-    let extra: [&str; 0] = [];
+    // The as-found tolerance from the fit of the record in force, which the database finds. The
+    // node is the device of unit A-1 in the database: a new serial on it is a relabel (issue 28).
+    let extra = ["--relabel", "the node is reused for unit B-2"];
     let mut child = Command::new(env!("CARGO_BIN_EXE_accelcal"))
         .args(station_args(&em, "B-2", &b, &extra))
         .process_group(0)
@@ -919,9 +923,12 @@ fn two_stations_store_into_one_postgresql_server_at_once() {
     let _one = one_bench();
     let pg = dbkit::Cluster::start();
     let dir = tempfile::tempdir().unwrap();
-    let benches: Vec<Emulator> = [31u64, 32]
+    // Two benches of one line: distinct devices (a serial is one device's, issue 28).
+    let benches: Vec<Emulator> = [(31u64, "1"), (32, "2")]
         .iter()
-        .map(|&seed| Emulator::start(&unit(dir.path(), &format!("u{seed}"), seed, 10).0, &[]))
+        .map(|&(seed, n)| {
+            Emulator::start(&unit(dir.path(), &format!("u{seed}"), seed, 10).0, &["--first-node", n])
+        })
         .collect();
     let outs: Vec<PathBuf> = (1..=2).map(|i| dir.path().join(format!("st-{i}"))).collect();
     let names = ["st-1", "st-2"];

@@ -740,6 +740,10 @@ pub struct EmulateArgs {
     /// TCP port of the emulated head on 127.0.0.1 [default: a free one].
     #[arg(long, value_name = "PORT")]
     pub head_port: Option<u16>,
+    /// The number of this bench's first node on the line (1..=99): node N reports the device
+    /// id QEMU-NODE-NN (node 1 QEMU-B-L475E), so two benches of one line report distinct devices.
+    #[arg(long, default_value_t = 1, value_name = "N", value_parser = clap::value_parser!(u8).range(1..=99))]
+    pub first_node: u8,
     /// Temperature of the thermal chamber around the head at start, °C (the sensor is soaked
     /// there); `CHAMBER <temp_c>` on the head's protocol (`acquire --chamber`, `verify
     /// --chamber`) changes it. The unit's `temperature` effect and the front end's temperature

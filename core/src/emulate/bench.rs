@@ -54,6 +54,10 @@ pub struct BenchOptions {
     pub gdb_port: u16,
     /// Port of the head (0: a free one).
     pub head_port: u16,
+    /// The first node's number among the line's emulated nodes, from 0: node `i` reports the
+    /// device id `contract::qemu_node_id(first_node + i)`, so that two benches of one line
+    /// report distinct devices.
+    pub first_node: usize,
 }
 
 /// Where to reach one emulated node.
@@ -142,8 +146,9 @@ impl Bench {
                     .checked_add(i as u16)
                     .ok_or_else(|| bad(format!("--gdb-port {p}: no port for node {}", i + 1)))?,
             };
-            let id = qemu_node_id(i)
-                .ok_or_else(|| bad(format!("the emulated bench runs at most 99 nodes, not {}", i + 1)))?;
+            let id = qemu_node_id(opts.first_node + i).ok_or_else(|| {
+                bad(format!("the emulated line has at most 99 nodes, not {}", opts.first_node + i + 1))
+            })?;
             let (qemu, ends, counters) =
                 start_node(&opts, node, i, id, gdb_port, &head, &stop, &mut bench.threads)?;
             bench.qemus.push(qemu);
@@ -204,7 +209,7 @@ fn start_node(
     q.gdb_port = Some(gdb_port);
     q.blank = BlankSlot::Erased;
     // Node 0 reports the fixed id without a block, as before several nodes existed.
-    q.device_id = (i > 0).then_some(id);
+    q.device_id = (opts.first_node + i > 0).then_some(id);
     q.spin_main_loop = std::env::var_os("ACCELCAL_EMULATE_SPIN").is_some();
     if let Some(rec) = &node.record {
         let image = SlotImage::build(rec, 1).map_err(|e| bad(format!("--record: {e}")))?;

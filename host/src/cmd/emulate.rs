@@ -49,6 +49,7 @@ pub fn run(a: &EmulateArgs) -> anyhow::Result<()> {
         pace: PaceOptions { rate_factor: a.rate_factor, ..PaceOptions::default() },
         gdb_port: a.gdb_port.unwrap_or(0),
         head_port: a.head_port.unwrap_or(0),
+        first_node: usize::from(a.first_node) - 1,
     };
     let stop = super::live::stop_flag()?;
     let mut bench = Bench::start(opts)?;
