@@ -1155,6 +1155,43 @@ const REFUSED: &[(&str, &str)] = &[
         "--max-interval-days must be a positive number, got 0",
     ),
     ("history U-1 --db cal.sqlite --json cal.sqlite", "cal.sqlite is the database: refusing to overwrite it"),
+    // Issue 28.4: a value that is not one line of text would add lines to the files it is written
+    // into (`\n`, `\r`, `\t`, `\xHH` in a word stand for those characters); the message shows it
+    // escaped.
+    (
+        r"acquire --port P --head manual --out a.csv --serial A\n#\x20device_id:\x20000000000000000000000000",
+        r#"--serial: "A\n# device_id: 000000000000000000000000" holds a control character (U+000A) at character 2"#,
+    ),
+    (
+        r"simulate --out a.csv --serial A\n#\x20g_m_s2:\x209",
+        r#"--serial: "A\n# g_m_s2: 9" holds a control character (U+000A) at character 2"#,
+    ),
+    (
+        r"simulate --out a.csv --serial \x20U-1",
+        r#"--serial: " U-1" begins or ends with white space, which a campaign's `# key: value` line does not keep"#,
+    ),
+    (
+        r"station --port P --head manual --serial S\r1 --out u1",
+        r#"--serial: "S\r1" holds a control character (U+000D) at character 2"#,
+    ),
+    (
+        r"station --port P --head manual --serial S-1 --out u1 --operator Bob\x1b[2J",
+        r#"--operator: "Bob\u{1b}[2J" holds a control character (U+001B) at character 4"#,
+    ),
+    (
+        r"station --port P --head manual --serial S-1 --out u1 --station line\t2",
+        r#"--station: "line\t2" holds a control character (U+0009) at character 5"#,
+    ),
+    (
+        r"station --port P --head sim:a\x1bb:1 --serial S-1 --out u1",
+        r#"--head: "sim:a\u{1b}b:1" holds a control character (U+001B) at character 6"#,
+    ),
+    (
+        r"acquire --port P --head manual --out a.csv --plan six\n#\x20g_m_s2:\x209",
+        r#"--plan: "six\n# g_m_s2: 9" holds a control character (U+000A) at character 4"#,
+    ),
+    (r"simulate --out a\nb.csv", r#"\nb.csv" holds a control character (U+000A) at character"#),
+    (r"history U\x7f1 --db cal.sqlite", r#"SERIAL|DEVICE: "U\u{7f}1" holds a control character (U+007F) at character 2"#),
 ];
 
 /// An acquired campaign's header (`A` of the table): 200 sets per position at 500 Hz, g 9.81.
@@ -1262,12 +1299,55 @@ fn verification_json(crc: &str, g: f64) -> Value {
     })
 }
 
-/// The arguments of a table line, run in `d`: `C`, `V`, `R` and output names become paths there.
+/// The arguments of a table line, run in `d`: `C`, `V`, `R` and output names become paths there;
+/// `\n`, `\r`, `\t` and `\xHH` in a word become the characters they stand for.
 fn table_args(d: &Dir, line: &str) -> Vec<String> {
     let is_path = |w: &str| {
         ["C", "V", "D", "R", "A", "U", "d", "p"].contains(&w) || w.contains('.') && w.parse::<f64>().is_err()
     };
-    line.split_whitespace().map(|w| if is_path(w) { d.s(w) } else { w.to_string() }).collect()
+    line.split_whitespace().map(|w| unescape(&if is_path(w) { d.s(w) } else { w.to_string() })).collect()
+}
+
+/// `w` with `\n`, `\r`, `\t` and `\xHH` replaced by the characters they stand for.
+fn unescape(w: &str) -> String {
+    let mut out = String::new();
+    let mut rest = w;
+    while let Some(at) = rest.find('\\') {
+        out.push_str(&rest[..at]);
+        let (c, len) = match rest.as_bytes().get(at + 1) {
+            Some(b'n') => ('\n', 2),
+            Some(b'r') => ('\r', 2),
+            Some(b't') => ('\t', 2),
+            Some(b'x') => (char::from(u8::from_str_radix(&rest[at + 2..at + 4], 16).unwrap()), 4),
+            _ => ('\\', 1),
+        };
+        out.push(c);
+        rest = &rest[at + len..];
+    }
+    out + rest
+}
+
+/// `simulate --serial $'A\n# g_m_s2: 9.0'` (issue 28.4: the campaign would say g = 9.0 and `fit`
+/// use it) is refused before anything is simulated: exit code 2, one line showing the value
+/// escaped, no campaign and no truth file; the serial alone is accepted and read back as given.
+#[test]
+fn a_serial_that_would_forge_a_header_line_is_refused_and_nothing_is_written() {
+    let d = Dir::new();
+    let out = d.s("c.csv");
+    for hostile in ["A\n# g_m_s2: 9.0", "A\r\n# device_id: 000000000000000000000000", "A\u{1b}[2J"] {
+        let e = bad(&["simulate", "--out", &out, "--samples", "4", "--serial", hostile]);
+        assert!(
+            e.starts_with(&format!("error: --serial: {hostile:?} holds a control character (U+00")),
+            "{e}"
+        );
+        assert!(!e.contains('\u{1b}'), "the escape sequence reached the terminal: {e:?}");
+        assert_eq!(std::fs::read_dir(d.0.path()).unwrap().count(), 0, "{hostile:?}: a file was written");
+    }
+    ok(&["simulate", "--out", &out, "--samples", "4", "--serial", "A # g_m_s2: 9.0"]);
+    let header = accelcal_core::campaign::header(&d.p("c.csv")).unwrap();
+    let get =
+        |k: &str| header.iter().filter(|(key, _)| key == k).map(|(_, v)| v.as_str()).collect::<Vec<_>>();
+    assert_eq!((get("serial"), get("g_m_s2")), (vec!["A # g_m_s2: 9.0"], vec!["9.81"]));
 }
 
 #[test]

@@ -33,6 +33,7 @@ use crate::error::{bad, environment};
 use crate::node::head::SimHead;
 use crate::node::session::Session;
 use crate::sim::Plan;
+use crate::text::TextError;
 
 mod motion;
 mod resume;
@@ -343,32 +344,43 @@ pub struct AcquireSummary {
     pub device_id: String,
 }
 
-/// The header of an acquired campaign: `# key: value` lines before the CSV header.
-fn header(cfg: &AcquireConfig, device_id: &str, firmware: &str, rate_hz: u32, with_temp: bool) -> String {
+/// The header of an acquired campaign: `# key: value` lines before the CSV header, each written
+/// by [`crate::campaign::header_line`], so that a value (the serial, the plan's name, the node's
+/// firmware string) that is not one line of text is refused instead of adding lines.
+fn header(
+    cfg: &AcquireConfig,
+    device_id: &str,
+    firmware: &str,
+    rate_hz: u32,
+    with_temp: bool,
+) -> Result<String, TextError> {
     let mut h = String::new();
-    let mut line = |k: &str, v: &str| h.push_str(&format!("# {k}: {v}\n"));
-    line("acquired_by", &format!("accelcal {} acquire", cfg.tool_version));
+    let mut line = |k: &str, v: &str| -> Result<(), TextError> {
+        h.push_str(&crate::campaign::header_line(k, v)?);
+        Ok(())
+    };
+    line("acquired_by", &format!("accelcal {} acquire", cfg.tool_version))?;
     use crate::campaign::identity::{DEVICE_ID_KEY, G_KEY, G_SOURCE_KEY, SERIAL_KEY};
-    line(DEVICE_ID_KEY, device_id);
-    line(SERIAL_KEY, cfg.serial.as_deref().unwrap_or("-"));
-    line("firmware", firmware);
-    line(G_KEY, &format!("{}", cfg.g));
-    line(G_SOURCE_KEY, &cfg.g_source);
-    line("plan", &cfg.plan_words());
+    line(DEVICE_ID_KEY, device_id)?;
+    line(SERIAL_KEY, cfg.serial.as_deref().unwrap_or("-"))?;
+    line("firmware", firmware)?;
+    line(G_KEY, &format!("{}", cfg.g))?;
+    line(G_SOURCE_KEY, &cfg.g_source)?;
+    line("plan", &cfg.plan_words())?;
     if let Some(c) = &cfg.chamber {
-        line("chamber", &c.describe());
+        line("chamber", &c.describe())?;
     }
-    line("samples", &cfg.samples.to_string());
-    line("rate_hz", &rate_hz.to_string());
-    line("static_rule", &cfg.rule.describe());
-    line("date", &cfg.date);
-    h.push_str(&format!("# {} unsigned16\n", crate::campaign::CODES_COMMENT));
+    line("samples", &cfg.samples.to_string())?;
+    line("rate_hz", &rate_hz.to_string())?;
+    line("static_rule", &cfg.rule.describe())?;
+    line("date", &cfg.date)?;
+    line(crate::campaign::CODES_KEY, crate::campaign::CodeRange::Unsigned16.name())?;
     h.push_str(if with_temp {
         "t_s,alpha_deg,beta_deg,temp_c,x,y,z\n"
     } else {
         "t_s,alpha_deg,beta_deg,x,y,z\n"
     });
-    h
+    Ok(h)
 }
 
 /// Writes whole positions to the campaign file, each made durable before the next begins.

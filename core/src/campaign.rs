@@ -27,8 +27,9 @@ use crate::input::Input;
 mod codes;
 pub mod identity;
 use crate::error::{Classify, Kind};
+use crate::text::TextError;
 use codes::{header_comments, HeaderComments};
-pub use codes::{CodeRange, CODES_COMMENT};
+pub use codes::{CodeRange, CODES_COMMENT, CODES_KEY};
 
 /// Why a campaign file was refused. Every variant names the file and, where there is one, the
 /// line and the column (1-based, counting fields).
@@ -238,17 +239,25 @@ impl Campaign {
 
     /// Writes the campaign as CSV (a `# serial:` line when it has one, a `# g_m_s2:` line when it
     /// states its g, a `# codes:` line unless the codes are `unsigned16`, the header, then one row
-    /// per sample set).
-    pub fn write<W: Write>(&self, mut w: W) -> Result<(), csv::Error> {
+    /// per sample set). A serial that cannot be a header line's value ([`header_line`]) is
+    /// refused before anything is written.
+    pub fn write<W: Write>(&self, mut w: W) -> Result<(), WriteError> {
+        let mut head = String::new();
         if let Some(s) = &self.serial {
-            writeln!(w, "# {}: {s}", identity::SERIAL_KEY)?;
+            head += &header_line(identity::SERIAL_KEY, s)?;
         }
         if let Some(g) = self.g_m_s2 {
-            writeln!(w, "# {}: {g}", identity::G_KEY)?;
+            head += &header_line(identity::G_KEY, &g.to_string())?;
         }
         if self.codes != CodeRange::default() {
-            writeln!(w, "# {CODES_COMMENT} {}", self.codes)?;
+            head += &header_line(CODES_KEY, self.codes.name())?;
         }
+        w.write_all(head.as_bytes()).map_err(|e| WriteError::Csv { cause: e.into() })?;
+        self.write_rows(w).map_err(|cause| WriteError::Csv { cause })
+    }
+
+    /// The CSV part of [`Campaign::write`]: the header row and the rows.
+    fn write_rows<W: Write>(&self, w: W) -> Result<(), csv::Error> {
         let mut wr = csv::Writer::from_writer(w);
         let mut head = vec!["t_s".to_string(), "alpha_deg".into(), "beta_deg".into()];
         if self.temp_c.is_some() {
@@ -273,6 +282,57 @@ impl Campaign {
         wr.flush()?;
         Ok(())
     }
+}
+
+/// Why [`Campaign::write`] failed.
+#[derive(Debug, thiserror::Error)]
+pub enum WriteError {
+    /// A header value that would not be one `# key: value` line ([`header_line`]).
+    #[error(transparent)]
+    Header(#[from] TextError),
+    /// The writer failed.
+    #[error("{cause}")]
+    Csv {
+        /// The cause, in the message.
+        cause: csv::Error,
+    },
+}
+
+impl Classify for WriteError {
+    fn kind(&self) -> Kind {
+        match self {
+            WriteError::Header(e) => e.kind(),
+            WriteError::Csv { .. } => Kind::Environment,
+        }
+    }
+}
+
+/// The keys accelcal writes into a campaign's header (`simulate`, `acquire`) and reads back from
+/// it; a header may state each of them once (a second line with one of them is refused by every
+/// reader: a forged or spliced header). Other `# key: value` comments are free text and may repeat.
+pub const HEADER_KEYS: &[&str] = &[
+    "acquired_by",
+    identity::DEVICE_ID_KEY,
+    identity::SERIAL_KEY,
+    "firmware",
+    identity::G_KEY,
+    identity::G_SOURCE_KEY,
+    "plan",
+    "chamber",
+    "samples",
+    "rate_hz",
+    "static_rule",
+    "date",
+    CODES_KEY,
+];
+
+/// One `# key: value` header line, with its line feed: the one writer of a campaign's header
+/// lines. A value that is not one line of text, or that the reader would not read back as it is
+/// (white space at either end), is refused ([`crate::text::header_value`]), so that no value can
+/// add a header line of its own.
+pub fn header_line(key: &str, value: &str) -> Result<String, TextError> {
+    crate::text::header_value(key, value)?;
+    Ok(format!("# {key}: {value}\n"))
 }
 
 /// The campaign readers' warnings (excluded samples, single-sample dwells), collected while a
@@ -683,6 +743,63 @@ mod tests {
             e.ends_with("c.csv:1: `# codes:`: unknown code range `twelve` (expected unsigned16 or signed16)"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn a_header_that_states_one_of_its_keys_twice_is_refused_by_every_reader() {
+        let body = "t_s,alpha_deg,beta_deg,x\n0,0,0,100\n0.1,0,0,101\n";
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("c.csv");
+        for (head, want) in [
+            (
+                "# device_id: 51454d552d422d4c34373545\n# serial: A\n# device_id: 000000000000000000000000\n",
+                "c.csv:3: a second `# device_id:` line (the first is line 1)",
+            ),
+            (
+                "# rig A\n# g_m_s2: 9.0\n\n#g_m_s2 :9.81\n",
+                "c.csv:4: a second `# g_m_s2:` line (the first is line 2)",
+            ),
+            ("# serial: A\n# serial: A\n", "c.csv:2: a second `# serial:` line (the first is line 1)"),
+        ] {
+            std::fs::write(&p, format!("{head}{body}")).unwrap();
+            let e = header(&p).unwrap_err().to_string();
+            assert!(e.ends_with(want), "{e}");
+            assert!(matches!(header(&p), Err(CampaignError::Line { .. })));
+            assert_eq!(parse(&format!("{head}{body}")).unwrap_err().to_string(), want);
+            let e = identity::CampaignId::read(&p).unwrap_err();
+            assert_eq!(e.kind(), Kind::BadInput, "{e}");
+            assert!(e.to_string().ends_with(want), "{e}");
+        }
+        // Free comments may repeat, even with a colon; after the header row nothing is a header line.
+        let text = format!("# note: rig A\n# note: moved\n# g_m_s2: 9.81\n{body}# g_m_s2: 9.0\n1,90,0,300\n");
+        std::fs::write(&p, &text).unwrap();
+        let values = header(&p).unwrap();
+        assert_eq!(values.iter().filter(|(k, _)| k == "g_m_s2").count(), 1);
+        assert_eq!(parse(&text).unwrap().len(), 3);
+    }
+
+    #[test]
+    fn the_writer_refuses_a_serial_that_would_add_a_header_line() {
+        let mut c = parse("t_s,alpha_deg,beta_deg,x\n0,0,0,100\n").unwrap();
+        c.g_m_s2 = Some(9.81);
+        for (serial, want) in [
+            (
+                "A\n# g_m_s2: 9.0",
+                "serial: \"A\\n# g_m_s2: 9.0\" holds a control character (U+000A) at character 2",
+            ),
+            ("A\r# device_id: 000000000000000000000000", "(U+000D) at character 2"),
+            ("U-1 ", "serial: \"U-1 \" begins or ends with white space"),
+        ] {
+            c.serial = Some(serial.into());
+            let mut buf = Vec::new();
+            let e = c.write(&mut buf).unwrap_err();
+            assert!(matches!(e, WriteError::Header(_)), "{e:?}");
+            assert_eq!(e.kind(), Kind::BadInput);
+            assert!(e.to_string().contains(want), "{e}");
+            assert!(buf.is_empty(), "{serial:?}: the writer wrote {buf:?}");
+        }
+        assert_eq!(header_line("serial", "U-1"), Ok("# serial: U-1\n".to_string()));
+        assert!(header_line("plan", "six\n# codes: signed16").is_err());
     }
 
     #[test]

@@ -49,6 +49,8 @@ registry!(
     crate::error::Interrupted,
     crate::verify::Failed,
     crate::campaign::CampaignError,
+    crate::campaign::WriteError,
+    crate::text::TextError,
     crate::campaign::identity::IdentityError,
     crate::campaign::identity::Mismatch,
     crate::db::DbError,
@@ -168,6 +170,7 @@ mod tests {
         let link = || LinkError::Io(io());
         let unit_read = || UnitError::Read { path: "t.json".into(), cause: io() };
         let json_err = serde_json::from_str::<u8>("x").unwrap_err();
+        let text_err = || crate::text::single_line("--serial", "A\nB").unwrap_err();
         let qemu_spawn = || QemuError::Spawn { qemu: "qemu-system-arm".into(), cause: io() };
         vec![
             (bad("x.csv:3:1: expected a number"), BadInput),
@@ -216,6 +219,10 @@ mod tests {
             (e(CampaignError::Line { path: p(), line: 1, msg: "m".into() }), BadInput),
             (e(CampaignError::File { path: p(), msg: "m".into() }), BadInput),
             (e(CampaignError::Field { path: p(), line: 1, column: 1, msg: "m".into() }), BadInput),
+            (e(crate::campaign::WriteError::Header(text_err())), BadInput),
+            (e(crate::campaign::WriteError::Csv { cause: io().into() }), Environment),
+            (e(text_err()), BadInput),
+            (e(crate::text::TextError::Padded { field: "serial".into(), value: " U-1".into() }), BadInput),
             (
                 e(IdentityError::Mismatch(Box::new(crate::campaign::identity::Mismatch {
                     a: "f.json".into(),

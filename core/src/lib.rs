@@ -33,4 +33,5 @@ pub mod reduce;
 pub mod sim;
 pub mod station;
 pub mod testturn;
+pub mod text;
 pub mod verify;

@@ -9,6 +9,11 @@
 //! - an output path equal to an input path, or to another output, is refused (`fit c.csv --record
 //!   c.csv` would overwrite the campaign).
 //!
+//! - a value that is not one line of text (a control character, a line separator:
+//!   [`accelcal_core::text::single_line`]) is refused, whatever the option ([`check_text`]): the
+//!   values end up in files (a campaign's header, the station's journal of command lines, the
+//!   certificate) and in the database, and one would otherwise add lines of its own there.
+//!
 //! Every error here is bad input (exit code 2) and names the option.
 
 use std::path::{Path, PathBuf};
@@ -43,6 +48,50 @@ impl<'a> Given<'a> {
         }
         Ok(())
     }
+}
+
+/// Refuses a value of the command line that is not one line of text
+/// ([`accelcal_core::text::single_line`]), naming its option (or, for an argument, its value
+/// name) and showing it escaped; a `--serial`, which a campaign's `# serial:` line holds, must also
+/// read back from there as given ([`accelcal_core::text::header_value`]: no white space at
+/// either end).
+///
+/// Every option of every command is checked, not only those known to reach a file or the
+/// database today: the station journals each step's whole command line, and a value that is
+/// refused costs nothing while one let through can forge a header line. This is done here and
+/// not by clap value parsers because clap's message for a refused value prints the value raw
+/// (its line feeds and escape sequences reach the terminal) over several lines, where the rule
+/// is one line and exit code 2.
+pub fn check_text(matches: &ArgMatches, command: &Command) -> anyhow::Result<()> {
+    use accelcal_core::text::{header_value, single_line};
+    use clap::CommandFactory;
+    let root = crate::cli::Cli::command();
+    let (mut cmd, mut m) = (&root, matches);
+    while let Some((name, sub)) = m.subcommand() {
+        let Some(c) = cmd.find_subcommand(name) else { break };
+        (cmd, m) = (c, sub);
+        for arg in cmd.get_arguments() {
+            let Ok(Some(values)) = m.try_get_raw(arg.get_id().as_str()) else { continue };
+            let field = match (arg.get_long(), arg.get_value_names().and_then(|v| v.first())) {
+                (Some(long), _) => format!("--{long}"),
+                (None, Some(name)) => name.to_string(),
+                (None, None) => arg.get_id().to_string(),
+            };
+            for v in values {
+                single_line(&field, &v.to_string_lossy())?;
+            }
+        }
+    }
+    let serials: &[String] = match command {
+        Command::Simulate(a) => a.serial.as_slice(),
+        Command::Acquire(a) => &a.serial,
+        Command::Station(a) => &a.serials,
+        _ => &[],
+    };
+    for s in serials {
+        header_value("--serial", s)?;
+    }
+    Ok(())
 }
 
 /// `--run-id` goes with `--db`; `flash` and `report` store into an existing run, so they need it;

@@ -168,6 +168,7 @@ mod tests {
     use super::*;
     use crate::acquire::StaticRule;
     use crate::sim::Plan;
+    use crate::text::TextError;
     use std::path::PathBuf;
     use std::time::Duration;
 
@@ -195,7 +196,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("c.csv");
         let c = cfg(path.clone(), 3);
-        let mut text = header(&c, "51454d552d422d4c34373545", "0.1.0", 1000, false);
+        let mut text = header(&c, "51454d552d422d4c34373545", "0.1.0", 1000, false).unwrap();
         for (p, (a, b)) in Plan::six().positions.iter().take(2).enumerate() {
             for i in 0..3 {
                 text.push_str(&format!("{},{a},{b},1,2,3\n", (p * 3 + i) as f64 / 1000.0));
@@ -219,5 +220,29 @@ mod tests {
         other.plan_name = "head".into();
         let e = open_resumed(&other, "51454d552d422d4c34373545").err().unwrap().to_string();
         assert!(e.contains("plan is `six (6 positions)`"), "{e}");
+    }
+
+    #[test]
+    fn the_header_refuses_a_value_that_would_add_a_line() {
+        let id = "51454d552d422d4c34373545";
+        let mut c = cfg(PathBuf::from("c.csv"), 3);
+        let text = header(&c, id, "0.1.0", 1000, false).unwrap();
+        // Every key it writes is one a reader refuses twice.
+        let keys: Vec<&str> =
+            text.lines().filter_map(|l| l.strip_prefix("# ")?.split_once(':').map(|(k, _)| k)).collect();
+        assert_eq!(keys.len(), 12, "{text}");
+        for k in &keys {
+            assert!(crate::campaign::HEADER_KEYS.contains(k), "`{k}` is not in HEADER_KEYS");
+        }
+        c.serial = Some("A\n# device_id: 000000000000000000000000\n# g_m_s2: 9.0".into());
+        let e = header(&c, id, "0.1.0", 1000, false).unwrap_err();
+        assert!(matches!(&e, TextError::Control { field, at: 2, .. } if field == "serial"), "{e:?}");
+        c.serial = Some("S1".into());
+        // The node's own words too: its firmware string comes over the link.
+        let e = header(&c, id, "0.1.0\r# g_m_s2: 9.0", 1000, false).unwrap_err();
+        assert!(matches!(&e, TextError::Control { field, ch: '\r', .. } if field == "firmware"), "{e:?}");
+        c.plan_name = "plan\n.csv".into();
+        let e = header(&c, id, "0.1.0", 1000, false).unwrap_err();
+        assert!(matches!(&e, TextError::Control { field, .. } if field == "plan"), "{e:?}");
     }
 }

@@ -192,6 +192,8 @@ fn open_node(r: &mut NodeRun, info: &accelcal_shared::wire::Info) -> anyhow::Res
     } else {
         // The campaign records the node's temperature when its blocks carry one.
         let with_temp = reports_temperature(node)?;
+        // The header first: a value it refuses leaves no file behind.
+        let text = header(cfg, &device_id, &firmware_version(info.firmware), rate_hz, with_temp)?;
         let d = cfg.out.display();
         let file = OpenOptions::new().write(true).create_new(true).open(&cfg.out).map_err(|e| {
             if e.kind() == std::io::ErrorKind::AlreadyExists {
@@ -201,8 +203,7 @@ fn open_node(r: &mut NodeRun, info: &accelcal_shared::wire::Info) -> anyhow::Res
             }
         })?;
         let mut f = CampaignFile { file, path: cfg.out.clone() };
-        let firmware = firmware_version(info.firmware);
-        f.append(&header(cfg, &device_id, &firmware, rate_hz, with_temp))?;
+        f.append(&text)?;
         (f, 0, with_temp, f64::NEG_INFINITY)
     };
     if cfg.chamber.is_some() && !with_temp {

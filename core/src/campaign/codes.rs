@@ -72,6 +72,8 @@ impl std::str::FromStr for CodeRange {
 
 /// The comment line that states a campaign's code range: `# codes: signed16`.
 pub const CODES_COMMENT: &str = "codes:";
+/// The header key of that line.
+pub const CODES_KEY: &str = "codes";
 
 /// The code range a `# codes:` line states, and the line.
 pub(super) type Stated = Option<(u64, CodeRange)>;
@@ -91,13 +93,17 @@ pub(super) struct HeaderComments {
 
 /// Reads the comment and blank lines before the header row: the one reader of a campaign's
 /// header comments, used by the row reader and by [`super::header`]. Nothing past them is
-/// consumed.
+/// consumed. A second line with one of accelcal's keys ([`super::HEADER_KEYS`]: two `# device_id:`
+/// or two `# g_m_s2:` lines) is refused, naming both lines: which of them the file means cannot be
+/// told, and a header with both was forged or spliced.
 pub(super) fn header_comments<R: Read>(
     reader: &mut BufReader<R>,
     path: &Path,
 ) -> Result<HeaderComments, CampaignError> {
     let io = |cause| CampaignError::Io { path: path.to_owned(), cause };
     let mut out = HeaderComments::default();
+    // accelcal's keys seen so far, with their lines.
+    let mut lines: Vec<(String, u64)> = Vec::new();
     let mut line = 0u64;
     loop {
         match reader.fill_buf().map_err(io)?.first() {
@@ -112,15 +118,18 @@ pub(super) fn header_comments<R: Read>(
             continue;
         };
         let (key, value) = (key.trim(), value.trim());
+        let at = |msg| CampaignError::Line { path: path.to_owned(), line, msg };
+        if super::HEADER_KEYS.contains(&key) {
+            if let Some(first) = lines.iter().find(|(k, _)| *k == key).map(|(_, l)| *l) {
+                return Err(at(format!("a second `# {key}:` line (the first is line {first})")));
+            }
+            lines.push((key.to_string(), line));
+        }
         out.values.push((key.to_string(), value.to_string()));
-        if key != CODES_COMMENT.trim_end_matches(':') {
+        if key != CODES_KEY {
             continue;
         }
-        let at = |msg| CampaignError::Line { path: path.to_owned(), line, msg };
         let codes: CodeRange = value.parse().map_err(|e| at(format!("`# {CODES_COMMENT}`: {e}")))?;
-        if let Some((first, _)) = out.stated {
-            return Err(at(format!("a second `# {CODES_COMMENT}` line (the first is line {first})")));
-        }
         out.stated = Some((line, codes));
     }
 }

@@ -1,0 +1,142 @@
+//! Text values that are written into a line of a file or into the database (a serial number, an
+//! operator, a station's name, a head, a path): what "a single-line text value" is, defined once.
+//!
+//! A value is one line of text when it holds no control character (`char::is_control`: NUL, tab,
+//! line feed, carriage return, ESC, DEL, the C1 range with NEL) and no Unicode line or paragraph
+//! separator (U+2028, U+2029). Such a value cannot end the line it is written into, so it cannot
+//! add a line of its own (`--serial $'A\n# g_m_s2: 9.0'` would otherwise write a second
+//! `# g_m_s2:` line into a campaign's header), nor send a terminal escape sequence when a message
+//! or a table prints it.
+//!
+//! [`single_line`] is the check for any such value; [`header_value`] is the stricter one for the
+//! value of a campaign's `# key: value` header line, which also refuses white space at either
+//! end: the header reader trims the value (`#serial:U-1`, `# serial:  U-1 ` both say `U-1`), so a
+//! padded value would not read back as written and `U-1 ` and `U-1` would be two units in the
+//! database but one in the campaign. Every writer of such a value calls one of them (the command
+//! line's values in `accelcal`'s settings, the campaign header writers
+//! [`crate::campaign::header_line`], the database's run fields), and so must a reader of a
+//! station configuration file.
+
+use crate::error::{Classify, Kind};
+
+/// A text value that cannot be written where it was meant to go. The message names the field,
+/// shows the value escaped (`"A\n# g_m_s2: 9.0"`) and where the offending character is.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum TextError {
+    /// The value holds a control character or a line separator.
+    #[error(
+        "{field}: {value:?} holds a control character (U+{code:04X}) at character {at}: a text value must be \
+         one line without control characters",
+        code = u32::from(*ch)
+    )]
+    Control {
+        /// The field (an option as it is spelled, a header key, a column).
+        field: String,
+        /// The whole value.
+        value: String,
+        /// The offending character.
+        ch: char,
+        /// Its position, in characters from 1.
+        at: usize,
+    },
+    /// A header value with white space at one end, which the header reader would not keep.
+    #[error(
+        "{field}: {value:?} begins or ends with white space, which a campaign's `# key: value` line does not \
+         keep (it would read back as {trimmed:?})",
+        trimmed = value.trim()
+    )]
+    Padded {
+        /// The field.
+        field: String,
+        /// The whole value.
+        value: String,
+    },
+}
+
+impl Classify for TextError {
+    fn kind(&self) -> Kind {
+        Kind::BadInput
+    }
+}
+
+/// Whether `c` would end or break a line: a control character or a line/paragraph separator.
+fn breaks_line(c: char) -> bool {
+    c.is_control() || c == '\u{2028}' || c == '\u{2029}'
+}
+
+/// `value`, when it is one line of text (no control character, no line separator); otherwise a
+/// [`TextError::Control`] naming `field`, the value escaped and the first offending character.
+pub fn single_line<'v>(field: &str, value: &'v str) -> Result<&'v str, TextError> {
+    match value.chars().enumerate().find(|&(_, c)| breaks_line(c)) {
+        None => Ok(value),
+        Some((i, ch)) => {
+            Err(TextError::Control { field: field.to_string(), value: value.to_string(), ch, at: i + 1 })
+        }
+    }
+}
+
+/// `value`, when it can be the value of a campaign's `# key: value` header line: [`single_line`]
+/// and no white space at either end (the reader trims it; see the module's documentation).
+pub fn header_value<'v>(field: &str, value: &'v str) -> Result<&'v str, TextError> {
+    single_line(field, value)?;
+    if value.trim() != value {
+        return Err(TextError::Padded { field: field.to_string(), value: value.to_string() });
+    }
+    Ok(value)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn one_line_of_text_is_accepted_as_it_is() {
+        for v in ["U-1", "", "Müller & Söhne: rig 2", "/tmp/a b/c.csv", "  padded  ", "名前"] {
+            assert_eq!(single_line("--serial", v), Ok(v));
+        }
+        assert_eq!(header_value("serial", "U 1: A"), Ok("U 1: A"));
+    }
+
+    #[test]
+    fn control_characters_and_line_separators_are_refused_naming_field_value_and_place() {
+        let cases: &[(&str, char, usize)] = &[
+            ("A\n# g_m_s2: 9.0", '\n', 2),
+            ("A\r", '\r', 2),
+            ("\tA", '\t', 1),
+            ("A\0", '\0', 2),
+            ("ab\u{1b}[31m", '\u{1b}', 3),
+            ("A\u{7f}", '\u{7f}', 2),
+            ("A\u{85}B", '\u{85}', 2),
+            ("A\u{9b}B", '\u{9b}', 2),
+            ("A\u{2028}B", '\u{2028}', 2),
+            ("A\u{2029}B", '\u{2029}', 2),
+        ];
+        for &(v, ch, at) in cases {
+            let e = single_line("--serial", v).unwrap_err();
+            assert_eq!(e, TextError::Control { field: "--serial".into(), value: v.into(), ch, at });
+            assert_eq!(header_value("--serial", v).unwrap_err(), e);
+            assert_eq!(e.kind(), Kind::BadInput);
+        }
+        let e = single_line("--serial", "A\n# g_m_s2: 9.0").unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "--serial: \"A\\n# g_m_s2: 9.0\" holds a control character (U+000A) at character 2: a text value \
+             must be one line without control characters"
+        );
+        assert_eq!(e.lines().count(), 1);
+        // An escape sequence is shown escaped, never sent to the terminal.
+        let e = single_line("--operator", "\u{1b}]0;x\u{7}").unwrap_err().to_string();
+        assert!(e.contains(r#""\u{1b}]0;x\u{7}""#) && !e.contains('\u{1b}'), "{e}");
+        let e = single_line("--station", "a\u{2028}b").unwrap_err().to_string();
+        assert!(e.contains(r#""a\u{2028}b""#) && e.contains("U+2028"), "{e}");
+    }
+
+    #[test]
+    fn a_header_value_must_read_back_as_written() {
+        for v in [" U-1", "U-1 ", "\u{a0}U-1"] {
+            let e = header_value("serial", v).unwrap_err();
+            assert_eq!(e, TextError::Padded { field: "serial".into(), value: v.into() });
+            assert!(e.to_string().contains(r#"it would read back as "U-1""#), "{e}");
+        }
+    }
+}
