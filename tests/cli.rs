@@ -138,6 +138,7 @@ const UNITS: &[(&str, &str)] = &[
     ("--threshold", "codes²"),
     ("--created", "seconds since the Unix epoch"),
     ("--timeout-s", "Seconds"),
+    ("--head-timeout-s", "Seconds"),
     ("--baud", "Baud rate"),
     ("--magnitude", "in units of the per-position noise"),
     ("--latitude", "degrees"),
@@ -149,6 +150,7 @@ const UNITS: &[(&str, &str)] = &[
 
 /// Numeric options without a physical unit (counts, seeds, ratios).
 const DIMENSIONLESS: &[&str] = &[
+    "--first-node",
     "--seed",
     "--samples",
     "--scale-sd", // relative
@@ -1192,6 +1194,34 @@ const REFUSED: &[(&str, &str)] = &[
     ),
     (r"simulate --out a\nb.csv", r#"\nb.csv" holds a control character (U+000A) at character"#),
     (r"history U\x7f1 --db cal.sqlite", r#"SERIAL|DEVICE: "U\u{7f}1" holds a control character (U+007F) at character 2"#),
+    // Issue 28: the line's mistakes.
+    (
+        "history U-1 --db postgress://line@dbhost/accelcal",
+        "`postgress://` is not a database this build opens: PostgreSQL is postgres:// or postgresql://",
+    ),
+    (
+        "history U-1 --db cal.sqlite --max-interval-days 1e18",
+        "--max-interval-days 1000000000000000000 is not an interval: give a positive number of days, at most 36525",
+    ),
+    ("flash x.rec --relabel swapped --gdb 127.0.0.1:1", "--relabel does not apply to a command without --db"),
+    (
+        "flash x.rec --db cal.sqlite --run-id 7c9e6679-7425-40de-944b-e07fc1f90ae7 --relabel swapped --gdb 127.0.0.1:1",
+        "--relabel does not apply to flash (it begins no run",
+    ),
+    ("void 12345 --reason mislabelled --db cal.sqlite", "the run id cannot be stored"),
+    (r"void 7c9e6679-7425-40de-944b-e07fc1f90ae7 --reason \x20 --db cal.sqlite", "--reason is empty"),
+    (
+        r"void 7c9e6679-7425-40de-944b-e07fc1f90ae7 --reason a\nb --db cal.sqlite",
+        r#"--reason: "a\nb" holds a control character (U+000A)"#,
+    ),
+    (
+        "station --port P --head manual --serial S-1 --out u1 --head-timeout-s 5",
+        "--head-timeout-s does not apply to --head manual (the operator turns the head)",
+    ),
+    (
+        r"station --port P --head manual --serial S-1 --out u1 --relabel a\tb",
+        r#"--relabel: "a\tb" holds a control character (U+0009)"#,
+    ),
 ];
 
 /// An acquired campaign's header (`A` of the table): 200 sets per position at 500 Hz, g 9.81.

@@ -112,7 +112,7 @@ pub struct HistoryArgs {
     pub coverage: f64,
     /// The longest recommended interval between calibrations, days (also the interval after a
     /// single calibration; at most 36525, a century).
-    #[arg(long, value_name = "DAYS", default_value_t = accelcal_core::db::history::DEFAULT_RULE.max_interval_days, value_parser = parse_interval_days)]
+    #[arg(long, value_name = "DAYS", default_value_t = accelcal_core::db::history::DEFAULT_RULE.max_interval_days)]
     pub max_interval_days: f64,
     /// Write the history as JSON to this file.
     #[arg(long, value_name = "FILE")]
@@ -1130,16 +1130,6 @@ pub struct StationArgs {
     /// with REASON (with several --port, it applies to each unit whose label clashes).
     #[arg(long, value_name = "REASON")]
     pub relabel: Option<String>,
-}
-
-/// `history --max-interval-days`: a positive number of days, at most a century.
-fn parse_interval_days(s: &str) -> Result<f64, String> {
-    let v: f64 = s.trim().parse().map_err(|e| format!("`{s}` is not a number of days: {e}"))?;
-    if v.is_finite() && v > 0.0 && v <= 36_525.0 {
-        Ok(v)
-    } else {
-        Err(format!("{v} days is not an interval: give a positive number of days, at most 36525 (a century)"))
-    }
 }
 
 /// `verify --phase`.

@@ -481,6 +481,33 @@ impl Db {
             });
         }
         let s = RunStart { device_id, ..s.clone() };
+        // What goes into the database is one line each (an operator or station name from the
+        // environment too): no forged line in a certificate, a journal or a header made from it.
+        let text = |field: &'static str, v: &str| {
+            crate::text::single_line(field, v).map(drop).map_err(|e| DbError::BadPiece {
+                run_id: s.run_id.to_string(),
+                piece: "run",
+                cause: e.to_string(),
+            })
+        };
+        crate::text::header_value("serial", &s.serial).map_err(|e| DbError::BadPiece {
+            run_id: s.run_id.to_string(),
+            piece: "run",
+            cause: e.to_string(),
+        })?;
+        for (field, v) in [
+            ("station", &s.station),
+            ("head", &s.head),
+            ("operator", &s.operator),
+            ("firmware version", &s.firmware_version),
+            ("g source", &s.g_source),
+        ] {
+            text(field, v)?;
+        }
+        if let Some(r) = relabel {
+            text("relabel reason", &r.reason)?;
+            text("operator", &r.operator)?;
+        }
         let sha = chain::run_content(&s);
         let row: Vec<Val> = vec![
             s.run_id.to_string().into(),
@@ -531,6 +558,13 @@ impl Db {
     /// intervals: an appended row with the reason (the run's rows all stay). Voiding it again
     /// with the same reason is a no-op; with another, refused.
     pub fn void_run(&mut self, run: RunId, reason: &str, operator: &str) -> Result<Stored, DbError> {
+        for (field, v) in [("void reason", reason), ("operator", operator)] {
+            crate::text::single_line(field, v).map_err(|e| DbError::BadPiece {
+                run_id: run.to_string(),
+                piece: "void",
+                cause: e.to_string(),
+            })?;
+        }
         let sha = sha256_hex(reason.as_bytes());
         let row: Vec<Val> =
             vec![run.to_string().into(), reason.into(), operator.into(), now_unix_s().into(), sha.clone().into()];

@@ -28,6 +28,12 @@ pub fn check(a: &HistoryArgs) -> anyhow::Result<()> {
     positive("--tolerance-m-s2", a.tolerance_m_s2)?;
     positive("--coverage", a.coverage)?;
     positive("--max-interval-days", a.max_interval_days)?;
+    if a.max_interval_days > 36_525.0 {
+        return Err(bad(format!(
+            "--max-interval-days {} is not an interval: give a positive number of days, at most 36525 (a century)",
+            a.max_interval_days
+        )));
+    }
     if a.unit.trim().is_empty() {
         return Err(bad("SERIAL|DEVICE is empty"));
     }
