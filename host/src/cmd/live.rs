@@ -17,7 +17,7 @@ use accelcal_core::output::write_json;
 use accelcal_core::sim::Plan;
 use accelcal_core::verify::{
     calibrated_rule, uncertainty_from_fit_json, verify, Failed, PositionCheck, Tolerance, VerifyConfig,
-    DEFAULT_COVERAGE,
+    DEFAULT_COVERAGE, VerifyReport,
 };
 use accelcal_shared::wire::{Info, Output, RecordStatus};
 use serde_json::json;
@@ -505,7 +505,12 @@ pub fn run_verify(a: &VerifyArgs) -> anyhow::Result<()> {
             g: (g, g_source.clone()),
         })?;
         let phase = super::store::phase(a.phase);
-        rdb.db.store_verification(run, phase, &report)?;
+        // The stored report is the file's, as `report --verify` and the station read it back.
+        let stored = match &a.json {
+            Some(p) => VerifyReport::read(p)?,
+            None => report.clone(),
+        };
+        rdb.db.store_verification(run, phase, &stored)?;
         println!(
             "db: run {run}: {} verification stored in {}",
             super::store::phase_name(phase),
