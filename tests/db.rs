@@ -82,7 +82,10 @@ fn tables(sql: &str) -> Vec<(String, Vec<String>)> {
                 .lines()
                 .map(|l| l.trim())
                 .filter(|l| {
-                    !l.is_empty() && !l.starts_with("PRIMARY KEY") && !l.starts_with("UNIQUE") && !l.starts_with("--")
+                    !l.is_empty()
+                        && !l.starts_with("PRIMARY KEY")
+                        && !l.starts_with("UNIQUE")
+                        && !l.starts_with("--")
                 })
                 .map(|l| l.split_whitespace().next().unwrap().to_string())
                 .collect();
@@ -352,7 +355,9 @@ fn a_row_replaced_behind_accelcal_s_back_is_named_and_never_flashed() {
     let d = tempfile::tempdir().unwrap();
     let spec = db_file(&d);
     // SQLite's REPLACE deletes without firing the delete trigger (no recursive_triggers).
-    a_changed_row_breaks_the_chain(&spec, &|sql| rusqlite::Connection::open(&spec).unwrap().execute_batch(sql).unwrap());
+    a_changed_row_breaks_the_chain(&spec, false, &|sql| {
+        rusqlite::Connection::open(&spec).unwrap().execute_batch(sql).unwrap()
+    });
 }
 
 /// Issue 28 item 3: 16 processes opening one new database at once all get a migrated schema.
@@ -403,7 +408,11 @@ fn a_read_only_database_stops_writers_first_and_serves_readers() {
             std::process::Command::new(env!("CARGO_BIN_EXE_accelcal"))
         };
         let out = c.args(args).env_remove("ACCELCAL_DB").current_dir(d.path()).output().unwrap();
-        (out.status.code(), String::from_utf8_lossy(&out.stdout).into_owned(), String::from_utf8_lossy(&out.stderr).into_owned())
+        (
+            out.status.code(),
+            String::from_utf8_lossy(&out.stdout).into_owned(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
     };
     let (code, _, err) = as_user(&["void", &RunId::new().to_string(), "--reason", "r", "--db", &spec]);
     assert_eq!(code, Some(2), "{err}");
@@ -417,4 +426,30 @@ fn a_read_only_database_stops_writers_first_and_serves_readers() {
     let (code, out, err) = as_user(&["history", "SN-0042"]);
     assert_eq!(code, Some(0), "{err}");
     assert!(out.contains("calibration.sqlite") && out.contains("3 calibrations"), "{out}");
+}
+
+#[test]
+fn writers_racing_on_one_run_id_store_each_row_once() {
+    let d = tempfile::tempdir().unwrap();
+    writers_racing_on_one_run(&db_file(&d));
+}
+
+/// Two connections of one process (a station with two nodes) and other processes opening and
+/// closing the file between their writes: every write stays visible (opening a database must
+/// never close a descriptor of it, which would drop the first connection's locks and let the
+/// last closer delete the WAL under it).
+#[test]
+fn two_connections_in_one_process_keep_every_write_visible() {
+    let d = tempfile::tempdir().unwrap();
+    let spec = db_file(&d);
+    let mut a = Db::open(&spec).unwrap();
+    let _b = Db::open(&spec).unwrap();
+    let s = start(RunId::new(), DEVICE, "SN-5", "st-1", T0);
+    a.begin_run(&s, None).unwrap();
+    let (code, out, err) = accelcal(&["db", "verify", "--db", &spec]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    a.store_fit(s.run_id, &fit_json(&coefs(0.0, 0))).unwrap();
+    let (code, out, err) = accelcal(&["db", "verify", "--db", &spec]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(out.contains("1 runs, 2 rows, 2 ledger entries"), "{out}");
 }

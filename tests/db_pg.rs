@@ -97,7 +97,7 @@ fn serials_stay_tied_to_their_devices_and_voided_runs_leave_history() {
 fn a_row_changed_with_the_triggers_off_is_named_and_never_flashed() {
     let pg = Cluster::start();
     let url = pg.url.clone();
-    a_changed_row_breaks_the_chain(&pg.url, &|sql| {
+    a_changed_row_breaks_the_chain(&pg.url, true, &|sql| {
         let mut c = postgres::Client::connect(&url, postgres::NoTls).unwrap();
         // A superuser can switch the append-only triggers off for its session.
         c.batch_execute(&format!("SET session_replication_role = replica; {sql}")).unwrap();
@@ -108,8 +108,14 @@ fn a_row_changed_with_the_triggers_off_is_named_and_never_flashed() {
 #[test]
 fn postgresql_errors_keep_the_server_s_message() {
     let pg = Cluster::start();
-    let (base, _) = pg.url.rsplit_once('/').unwrap();
-    let missing = format!("{base}/no_such_db");
+    // The cluster's libpq words, another database named.
+    let missing: Vec<String> = pg
+        .url
+        .split_whitespace()
+        .map(|w| if w.starts_with("dbname=") { "dbname=no_such_db".to_string() } else { w.to_string() })
+        .collect();
+    let missing = missing.join(" ");
+    assert!(missing.contains("dbname=no_such_db"), "{}", pg.url);
     let (code, _, err) = accelcal(&["history", "SN-1", "--db", &missing]);
     assert_eq!(code, Some(1), "{err}");
     assert!(err.contains("database \"no_such_db\" does not exist"), "{err}");
@@ -117,4 +123,10 @@ fn postgresql_errors_keep_the_server_s_message() {
     let (code, _, err) = accelcal(&["history", "SN-1", "--db", refused]);
     assert_eq!(code, Some(1), "{err}");
     assert!(err.contains("Connection refused"), "{err}");
+}
+
+#[test]
+fn writers_racing_on_one_run_id_store_each_row_once() {
+    let pg = Cluster::start();
+    writers_racing_on_one_run(&pg.url);
 }

@@ -6,10 +6,10 @@
 //! builds it); the certificate check needs `chromium` (`scripts/setup-chromium.sh`).
 
 mod common;
-mod dbkit;
 /// The station killed at every journal/database boundary, the manual line, mistakes (issue 28).
 #[path = "line/crash.rs"]
 mod crash;
+mod dbkit;
 /// Several nodes on one head (issue 23).
 #[path = "line/multi.rs"]
 mod multi;

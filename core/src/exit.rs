@@ -266,7 +266,12 @@ mod tests {
             (
                 e(DbError::Tampered {
                     run_id: "r".into(),
-                    first: crate::db::Mismatch { seq: 1, run_id: "r".into(), piece: "fit".into(), what: "m".into() },
+                    first: crate::db::Mismatch {
+                        seq: 1,
+                        run_id: "r".into(),
+                        piece: "fit".into(),
+                        what: "m".into(),
+                    },
                     more: 0,
                 }),
                 BadInput,

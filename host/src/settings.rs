@@ -109,7 +109,11 @@ fn check_run(command: &Command, given: &Given) -> anyhow::Result<()> {
         return given.refuse(&["run_id"], "a command without --db", " (it names the run stored into)");
     }
     if let Command::Flash(_) | Command::Report(_) = command {
-        given.refuse(&["relabel"], name, " (it begins no run: relabel where the run begins, `fit --db`, `verify --db` or `station`)")?;
+        given.refuse(
+            &["relabel"],
+            name,
+            " (it begins no run: relabel where the run begins, `fit --db`, `verify --db` or `station`)",
+        )?;
     }
     if let Some(id) = &run.run_id {
         accelcal_core::db::RunId::parse(id)?;

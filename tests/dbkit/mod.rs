@@ -365,7 +365,10 @@ pub fn labels_and_voids(spec: &str) {
     let e = db.begin_run(&mislabel, None).unwrap_err();
     assert!(matches!(e, DbError::Label(LabelClash::SerialOfAnother { .. })), "{e}");
     let msg = e.to_string();
-    assert!(msg.contains(&format!("serial U-0044 is device {DEVICE_2}")) && msg.contains("--relabel REASON"), "{msg}");
+    assert!(
+        msg.contains(&format!("serial U-0044 is device {DEVICE_2}")) && msg.contains("--relabel REASON"),
+        "{msg}"
+    );
     assert!(matches!(db.progress(mislabel.run_id), Err(DbError::NoRun { .. })));
     // A serial no device carries, on device 1: refused too (the device is U-0045).
     let e = db.begin_run(&start(RunId::new(), DEVICE, "U-0099", "st-1", T0 + DAY), None).unwrap_err();
@@ -406,7 +409,7 @@ pub fn labels_and_voids(spec: &str) {
 
 /// Issue 28 item 9: a row changed behind accelcal's back (`tamper` runs SQL on the database
 /// with the triggers out of the way) is found by `db verify`, named, and stops `flash --db`.
-pub fn a_changed_row_breaks_the_chain(spec: &str, tamper: &dyn Fn(&str)) {
+pub fn a_changed_row_breaks_the_chain(spec: &str, postgres: bool, tamper: &dyn Fn(&str)) {
     let mut db = Db::open(spec).unwrap();
     let s = start(RunId::new(), DEVICE, "SN-7", "st-1", T0);
     let run = s.run_id;
@@ -415,7 +418,8 @@ pub fn a_changed_row_breaks_the_chain(spec: &str, tamper: &dyn Fn(&str)) {
     db.store_fit(run, &fit_json(&coefs(0.0, 0))).unwrap();
     let rec = record(DEVICE, &coefs(0.0, 0));
     db.store_record(run, &rec).unwrap();
-    let other = calibrate(&mut db, &start(RunId::new(), DEVICE_2, "SN-8", "st-1", T0 + 5), &coefs(0.0, 1), None);
+    let other =
+        calibrate(&mut db, &start(RunId::new(), DEVICE_2, "SN-8", "st-1", T0 + 5), &coefs(0.0, 1), None);
     assert_eq!(db.verify_run(run).unwrap().seq, 4, "{run}");
     let (code, out, err) = accelcal(&["db", "verify", "--db", spec]);
     assert_eq!(code, Some(0), "{out}{err}");
@@ -426,14 +430,16 @@ pub fn a_changed_row_breaks_the_chain(spec: &str, tamper: &dyn Fn(&str)) {
     let hex: String = forged.iter().map(|b| format!("{b:02x}")).collect();
     tamper(&format!(
         "{} cal_record (run_id, bytes, crc32, stored_unix_s, content_sha256) VALUES ('{run}', {}, {crc}, {T0}, '{}')",
-        if spec.starts_with("postgres") { "DELETE FROM cal_record WHERE run_id = '".to_string() + &run.to_string() + "'; INSERT INTO" } else { "REPLACE INTO".into() },
-        if spec.starts_with("postgres") { format!("'\\x{hex}'::bytea") } else { format!("X'{hex}'") },
+        if postgres { "DELETE FROM cal_record WHERE run_id = '".to_string() + &run.to_string() + "'; INSERT INTO" } else { "REPLACE INTO".into() },
+        if postgres { format!("'\\x{hex}'::bytea") } else { format!("X'{hex}'") },
         accelcal_core::db::sha256_hex(&forged)
     ));
     let (code, out, err) = accelcal(&["db", "verify", "--db", spec]);
     assert_eq!(code, Some(1), "{out}{err}");
     assert!(
-        out.contains(&format!("the first row that does not match is the cal_record row of run {run} (ledger entry 4)")),
+        out.contains(&format!(
+            "the first row that does not match is the cal_record row of run {run} (ledger entry 4)"
+        )),
         "{out}"
     );
     assert!(err.contains("does not match its hash chain") && err.lines().count() == 1, "{err}");
@@ -441,10 +447,48 @@ pub fn a_changed_row_breaks_the_chain(spec: &str, tamper: &dyn Fn(&str)) {
     let d = tempfile::tempdir().unwrap();
     let f = d.path().join("forged.rec");
     std::fs::write(&f, &forged).unwrap();
-    let (code, _, err) =
-        accelcal(&["flash", f.to_str().unwrap(), "--db", spec, "--run-id", &run.to_string(), "--gdb", "127.0.0.1:1"]);
+    let (code, _, err) = accelcal(&[
+        "flash",
+        f.to_str().unwrap(),
+        "--db",
+        spec,
+        "--run-id",
+        &run.to_string(),
+        "--gdb",
+        "127.0.0.1:1",
+    ]);
     assert_eq!(code, Some(2), "{err}");
-    assert!(err.contains(&format!("run {run}: the database's rows do not match their hash chain: the cal_record row")), "{err}");
+    assert!(
+        err.contains(&format!(
+            "run {run}: the database's rows do not match their hash chain: the cal_record row"
+        )),
+        "{err}"
+    );
     // The other run is untouched and still usable.
     db.verify_run(other).unwrap();
+}
+
+/// Issue 28 item 11: writers racing to begin and store into one run id: one writes each row, the
+/// others find it there (`Already`), none fails.
+pub fn writers_racing_on_one_run(spec: &str) {
+    let s = start(RunId::new(), DEVICE, "SN-R", "st-1", T0);
+    let results: Vec<(Stored, Stored)> = std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..8)
+            .map(|_| {
+                let s = s.clone();
+                scope.spawn(move || {
+                    let mut db = Db::open(spec).unwrap();
+                    let begun = db.begin_run(&s, None).unwrap();
+                    let fit = db.store_fit(s.run_id, &fit_json(&coefs(0.0, 0))).unwrap();
+                    (begun, fit)
+                })
+            })
+            .collect();
+        handles.into_iter().map(|h| h.join().unwrap()).collect()
+    });
+    for pick in [|r: &(Stored, Stored)| r.0, |r: &(Stored, Stored)| r.1] {
+        assert_eq!(results.iter().map(pick).filter(|s| *s == Stored::New).count(), 1, "{results:?}");
+    }
+    let r = Db::open(spec).unwrap().verify_chain().unwrap();
+    assert!(r.mismatches.is_empty() && r.entries == 2, "{r:?}");
 }

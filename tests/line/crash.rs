@@ -77,7 +77,10 @@ fn killed_at_every_boundary(db: &str, count: &dyn Fn(&str, &str) -> i64) {
         if point.is_empty() {
             assert_eq!(code, Some(0), "the run after every kill: {err}");
         } else {
-            assert_eq!(code, None, "not killed at {point} (the point was passed before, or never reached): {err}");
+            assert_eq!(
+                code, None,
+                "not killed at {point} (the point was passed before, or never reached): {err}"
+            );
             assert!(err.contains(&format!("crash point {point}: killed")), "{point}: {err}");
         }
     }
@@ -150,15 +153,35 @@ fn the_manual_line_ends_its_run_and_mistakes_are_said_plainly() {
     succeed(&acquire_args(&em, "random:24", "200", &campaign, &["--rate-hz", "1000", "--serial", "M-1"]));
     let (rec, fit) = (p("m.rec"), p("m.json"));
     let out = accelcal(&[
-        "fit", s(&campaign), "--record", s(&rec), "--json", s(&fit), "--device-id", device, "--db", &db,
+        "fit",
+        s(&campaign),
+        "--record",
+        s(&rec),
+        "--json",
+        s(&fit),
+        "--device-id",
+        device,
+        "--db",
+        &db,
     ]);
     assert_eq!(out.status.code(), Some(0), "{out:?}");
     let run = run_id_in(&String::from_utf8_lossy(&out.stderr));
     succeed(&["flash", s(&rec), "--db", &db, "--run-id", &run, "--gdb", &em.gdb, "--port", &em.port]);
     let cert = p("m.html");
     let report = [
-        "report", "--campaign", s(&campaign), "--record", s(&rec), "--fit", s(&fit), "--out", s(&cert), "--db", &db,
-        "--run-id", &run,
+        "report",
+        "--campaign",
+        s(&campaign),
+        "--record",
+        s(&rec),
+        "--fit",
+        s(&fit),
+        "--out",
+        s(&cert),
+        "--db",
+        &db,
+        "--run-id",
+        &run,
     ];
     // A verification that is not the stored as-left one: nothing certified.
     let as_left = p("m-left.json");
@@ -180,7 +203,10 @@ fn the_manual_line_ends_its_run_and_mistakes_are_said_plainly() {
     let out = accelcal(&station_args(&em, "W-9", &w, &["--db", &db]));
     let e = String::from_utf8_lossy(&out.stderr).to_string();
     assert_eq!(out.status.code(), Some(2), "{e}");
-    assert!(e.contains(&format!("device {device} is unit M-1 in the database")) && e.contains("--relabel"), "{e}");
+    assert!(
+        e.contains(&format!("device {device} is unit M-1 in the database")) && e.contains("--relabel"),
+        "{e}"
+    );
     let h = String::from_utf8_lossy(&succeed(&["history", device, "--db", &db]).stdout).to_string();
     assert!(h.contains("1 run,"), "a run was begun: {h}");
 
@@ -207,7 +233,8 @@ fn the_manual_line_ends_its_run_and_mistakes_are_said_plainly() {
         .spawn()
         .unwrap();
     let mut lines = BufReader::new(child.stderr.take().unwrap()).lines();
-    let warned = lines.by_ref().map_while(Result::ok).find(|l| l.contains("WARNING") || l.contains("step 3/8"));
+    let warned =
+        lines.by_ref().map_while(Result::ok).find(|l| l.contains("WARNING") || l.contains("step 3/8"));
     let _ = child.kill();
     let _ = child.wait();
     let warned = warned.unwrap_or_default();

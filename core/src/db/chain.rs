@@ -44,7 +44,10 @@ pub const TABLES: [Table; 10] = [
             "content_sha256",
         ],
     },
-    Table { name: "campaign", columns: &["run_id", "campaign_sha256", "gzip", "stored_unix_s", "content_sha256"] },
+    Table {
+        name: "campaign",
+        columns: &["run_id", "campaign_sha256", "gzip", "stored_unix_s", "content_sha256"],
+    },
     Table { name: "fit", columns: &["run_id", "fit_json", "stored_unix_s", "content_sha256"] },
     Table { name: "cal_record", columns: &["run_id", "bytes", "crc32", "stored_unix_s", "content_sha256"] },
     Table { name: "flash", columns: &["run_id", "crc32", "flashed_unix_s", "content_sha256"] },
@@ -154,7 +157,15 @@ pub fn append(tx: &mut Tx<'_>, table: &Table, row: &[Val]) -> Result<(), DbError
     tx.execute(
         "INSERT INTO ledger (seq, run_id, piece, row_sha256, prev_seq, prev_sha256, chain_sha256) \
          VALUES ($1, $2, $3, $4, $5, $6, $7)",
-        &[seq.into(), run.into(), piece.into(), digest.into(), prev_seq.into(), prev_sha.into(), chain.into()],
+        &[
+            seq.into(),
+            run.into(),
+            piece.into(),
+            digest.into(),
+            prev_seq.into(),
+            prev_sha.into(),
+            chain.into(),
+        ],
     )?;
     Ok(())
 }
@@ -203,9 +214,10 @@ struct Entry {
 fn entries(tx: &mut Tx<'_>, run: Option<&str>) -> Result<Vec<Entry>, DbError> {
     let cols = "seq, run_id, piece, row_sha256, prev_seq, prev_sha256, chain_sha256";
     let rows = match run {
-        Some(r) => {
-            tx.query(&format!("SELECT {cols} FROM ledger WHERE run_id = $1 ORDER BY seq"), &[r.to_string().into()])?
-        }
+        Some(r) => tx.query(
+            &format!("SELECT {cols} FROM ledger WHERE run_id = $1 ORDER BY seq"),
+            &[r.to_string().into()],
+        )?,
         None => tx.query(&format!("SELECT {cols} FROM ledger ORDER BY seq"), &[])?,
     };
     rows.iter()
@@ -274,7 +286,12 @@ fn check_entries(
     tx: &mut Tx<'_>,
     out: &mut Vec<Mismatch>,
 ) -> Result<(), DbError> {
-    let bad = |e: &Entry, what: String| Mismatch { seq: e.seq, run_id: e.run.clone(), piece: e.piece.clone(), what };
+    let bad = |e: &Entry, what: String| Mismatch {
+        seq: e.seq,
+        run_id: e.run.clone(),
+        piece: e.piece.clone(),
+        what,
+    };
     for (i, e) in list.iter().enumerate() {
         if chain_value(e.seq, e.prev_seq, &e.prev, &e.run, &e.piece, &e.row) != e.chain {
             out.push(bad(e, "its ledger entry's chain value is not the hash of the entry".into()));
@@ -288,11 +305,18 @@ fn check_entries(
             continue;
         }
         // Within a run, an entry follows the run's previous one.
-        let in_run_prev = if e.run.is_empty() || e.piece == "run" { None } else { i.checked_sub(1).map(|j| &list[j]) };
+        let in_run_prev =
+            if e.run.is_empty() || e.piece == "run" { None } else { i.checked_sub(1).map(|j| &list[j]) };
         let prev_chain = match (in_run_prev, all) {
             (Some(p), _) if all.is_none() || p.run == e.run => {
                 if p.seq != e.prev_seq {
-                    out.push(bad(e, format!("it follows ledger entry {}, not its run's previous row (entry {})", e.prev_seq, p.seq)));
+                    out.push(bad(
+                        e,
+                        format!(
+                            "it follows ledger entry {}, not its run's previous row (entry {})",
+                            e.prev_seq, p.seq
+                        ),
+                    ));
                     continue;
                 }
                 Some(p.chain.clone())
@@ -306,7 +330,9 @@ fn check_entries(
         };
         match prev_chain {
             Some(c) if c == e.prev => {}
-            Some(_) => out.push(bad(e, format!("the entry it follows (ledger entry {}) was changed", e.prev_seq))),
+            Some(_) => {
+                out.push(bad(e, format!("the entry it follows (ledger entry {}) was changed", e.prev_seq)))
+            }
             None => out.push(bad(e, format!("the entry it follows (ledger entry {}) is gone", e.prev_seq))),
         }
     }
@@ -322,8 +348,7 @@ fn check_rows(
 ) -> Result<usize, DbError> {
     let mut seen = std::collections::HashSet::new();
     let mut n = 0;
-    let tables: Vec<&Table> =
-        TABLES.iter().filter(|t| (t.name == "relabel") == run.is_empty()).collect();
+    let tables: Vec<&Table> = TABLES.iter().filter(|t| (t.name == "relabel") == run.is_empty()).collect();
     for t in tables {
         let rows = if run.is_empty() {
             tx.query(&format!("SELECT {} FROM relabel ORDER BY relabel_id", t.columns.join(", ")), &[])?
@@ -333,14 +358,22 @@ fn check_rows(
         for row in rows {
             n += 1;
             let piece = piece_key(t.name, &row)?;
-            let m = |seq: i64, what: String| Mismatch { seq, run_id: run.to_string(), piece: piece.clone(), what };
+            let m = |seq: i64, what: String| Mismatch {
+                seq,
+                run_id: run.to_string(),
+                piece: piece.clone(),
+                what,
+            };
             let Some(e) = by_piece.get(&piece) else {
                 out.push(m(0, "it has no ledger entry (written behind accelcal's back)".into()));
                 continue;
             };
             seen.insert(piece.clone());
             if row_digest(t, &row) != e.row {
-                out.push(m(e.seq, "it is not the row that was stored (its digest differs from its ledger entry's)".into()));
+                out.push(m(
+                    e.seq,
+                    "it is not the row that was stored (its digest differs from its ledger entry's)".into(),
+                ));
             } else if let Some(why) = content_mismatch(t, &row)? {
                 out.push(m(e.seq, why));
             }
@@ -374,7 +407,9 @@ fn content_mismatch(t: &Table, row: &[Val]) -> Result<Option<String>, DbError> {
         "campaign" => {
             let mut plain = Vec::new();
             let gz = col("gzip").bytes()?;
-            if std::io::Read::read_to_end(&mut flate2::read::GzDecoder::new(gz.as_slice()), &mut plain).is_err() {
+            if std::io::Read::read_to_end(&mut flate2::read::GzDecoder::new(gz.as_slice()), &mut plain)
+                .is_err()
+            {
                 return Ok(Some("its campaign does not decompress".into()));
             }
             if super::sha256_hex(&plain) != col("campaign_sha256").text()? {
@@ -404,7 +439,8 @@ fn content_mismatch(t: &Table, row: &[Val]) -> Result<Option<String>, DbError> {
         .into_bytes(),
         other => unreachable!("table {other} is in TABLES"),
     };
-    Ok((super::sha256_hex(&content) != stored).then(|| "its content_sha256 is not the hash of what it holds".into()))
+    Ok((super::sha256_hex(&content) != stored)
+        .then(|| "its content_sha256 is not the hash of what it holds".into()))
 }
 
 /// What a relabel row's `content_sha256` hashes.
@@ -434,8 +470,11 @@ pub fn verify_all(tx: &mut Tx<'_>) -> Result<ChainReport, DbError> {
         by_run.entry(e.run.clone()).or_default().push(e.clone());
     }
     let mut rows = 0;
-    let run_ids: Vec<String> =
-        tx.query("SELECT run_id FROM run ORDER BY run_id", &[])?.iter().map(|r| r[0].text()).collect::<Result<_, _>>()?;
+    let run_ids: Vec<String> = tx
+        .query("SELECT run_id FROM run ORDER BY run_id", &[])?
+        .iter()
+        .map(|r| r[0].text())
+        .collect::<Result<_, _>>()?;
     let mut all_runs: std::collections::BTreeSet<String> = run_ids.iter().cloned().collect();
     all_runs.insert(String::new());
     all_runs.extend(by_run.keys().cloned());

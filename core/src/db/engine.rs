@@ -282,11 +282,14 @@ impl Conn {
                 let client = config
                     .connect(postgres::NoTls)
                     .map_err(|e| DbError::Unreachable { target: redact(spec), cause: pg_cause(&e) })?;
-                let mut conn = Conn { link: Link::Postgres(Box::new(client)), target: redact(spec), read_only: false };
+                let mut conn =
+                    Conn { link: Link::Postgres(Box::new(client)), target: redact(spec), read_only: false };
                 // Under an advisory lock, so that stations starting together migrate once.
                 conn.pg_locked(|c| {
                     let Link::Postgres(client) = &mut c.link else { unreachable!("a PostgreSQL connection") };
-                    embedded::postgres::migrations::runner().run(client.as_mut()).map_err(migration_failed)?;
+                    embedded::postgres::migrations::runner()
+                        .run(client.as_mut())
+                        .map_err(migration_failed)?;
                     after(c)
                 })?;
                 Ok(conn)
@@ -341,9 +344,7 @@ impl Conn {
         };
         match &mut self.link {
             Link::Sqlite(c) => {
-                let tx = c
-                    .transaction_with_behavior(behavior)
-                    .map_err(DbError::sqlite)?;
+                let tx = c.transaction_with_behavior(behavior).map_err(DbError::sqlite)?;
                 let mut tx = Tx::Sqlite(tx);
                 let out = f(&mut tx)?;
                 match tx {
@@ -385,16 +386,17 @@ fn migration_failed(e: refinery::Error) -> DbError {
 }
 
 /// Whether `path` (an existing file) and its directory take writes (SQLite writes its `-wal` and
-/// `-shm` files beside the database).
+/// `-shm` files beside the database). By access(2), never by opening the file: closing another
+/// descriptor of a database drops every fcntl(2) lock this process's connections hold on it.
 fn writable(path: &Path) -> bool {
-    let file_ok = std::fs::OpenOptions::new().append(true).open(path).is_ok();
     let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    // access(2) W_OK: a read-only mount or a directory without write permission says no.
-    let dir_ok = std::ffi::CString::new(dir.as_os_str().as_encoded_bytes())
-        // SAFETY: access(2) reads the NUL-terminated path and nothing else.
-        .map(|c| unsafe { libc::access(c.as_ptr(), libc::W_OK) } == 0)
-        .unwrap_or(false);
-    file_ok && dir_ok
+    let ok = |p: &Path| {
+        std::ffi::CString::new(p.as_os_str().as_encoded_bytes())
+            // SAFETY: access(2) reads the NUL-terminated path and nothing else.
+            .map(|c| unsafe { libc::access(c.as_ptr(), libc::W_OK) } == 0)
+            .unwrap_or(false)
+    };
+    ok(path) && ok(dir)
 }
 
 fn open_sqlite(
@@ -431,7 +433,8 @@ fn open_sqlite(
     if exists && !writable(path) {
         return Err(DbError::ReadOnly { path: path.to_path_buf() });
     }
-    let flags = OpenFlags::SQLITE_OPEN_READ_WRITE | OpenFlags::SQLITE_OPEN_CREATE | OpenFlags::SQLITE_OPEN_NO_MUTEX;
+    let flags =
+        OpenFlags::SQLITE_OPEN_READ_WRITE | OpenFlags::SQLITE_OPEN_CREATE | OpenFlags::SQLITE_OPEN_NO_MUTEX;
     let c = rusqlite::Connection::open_with_flags(path, flags).map_err(failed)?;
     if c.is_readonly(rusqlite::MAIN_DB).map_err(failed)? {
         return Err(DbError::ReadOnly { path: path.to_path_buf() });
@@ -447,8 +450,10 @@ fn open_sqlite(
     // an exclusive flock(2) on the database's directory. Not on the database file itself: closing
     // any other descriptor of it would drop this process's fcntl(2) locks, SQLite's own.
     let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let lock = std::fs::File::open(dir)
-        .map_err(|e| DbError::Unreachable { target: shown.clone(), cause: format!("opening its directory: {e}") })?;
+    let lock = std::fs::File::open(dir).map_err(|e| DbError::Unreachable {
+        target: shown.clone(),
+        cause: format!("opening its directory: {e}"),
+    })?;
     lock.lock().map_err(|e| DbError::Unreachable {
         target: shown.clone(),
         cause: format!("locking its directory to migrate: {e}"),
@@ -573,6 +578,64 @@ fn pg_val(r: &postgres::Row, i: usize) -> Result<Val, DbError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A version-1 database (no ledger) opened by this build: migrated, and its rows sealed
+    /// into the chain once, in the order they were written.
+    #[test]
+    fn a_version_1_database_is_sealed_into_the_chain_once() {
+        use crate::db::{chain, Db, RunId, RunStart};
+        let d = tempfile::tempdir().unwrap();
+        let path = d.path().join("v1.sqlite");
+        let mut c = rusqlite::Connection::open(&path).unwrap();
+        embedded::sqlite::migrations::runner().set_target(refinery::Target::Version(1)).run(&mut c).unwrap();
+        let s = RunStart {
+            run_id: RunId::new(),
+            device_id: "51454d552d422d4c34373545".into(),
+            serial: "U-1".into(),
+            station: "st".into(),
+            head: "manual".into(),
+            operator: "ana".into(),
+            started_unix_s: 1_767_225_600,
+            software_version: "0.1.0".into(),
+            firmware_version: String::new(),
+            g_m_s2: 9.80665,
+            g_source: "--g".into(),
+        };
+        let id = s.run_id.to_string();
+        c.execute(
+            "INSERT INTO run VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12)",
+            rusqlite::params![
+                id,
+                s.device_id,
+                s.serial,
+                s.station,
+                s.head,
+                s.operator,
+                s.started_unix_s,
+                s.software_version,
+                s.firmware_version,
+                s.g_m_s2,
+                s.g_source,
+                chain::run_content(&s)
+            ],
+        )
+        .unwrap();
+        let fit = r#"{"channels":[]}"#;
+        c.execute(
+            "INSERT INTO fit VALUES (?1, ?2, 1767225700, ?3)",
+            rusqlite::params![id, fit, crate::db::sha256_hex(fit.as_bytes())],
+        )
+        .unwrap();
+        drop(c);
+        let spec = path.display().to_string();
+        let r = Db::open(&spec).unwrap().verify_chain().unwrap();
+        assert!(r.mismatches.is_empty(), "{:?}", r.mismatches);
+        assert_eq!((r.entries, r.rows, r.runs), (2, 2, 1));
+        let mut db = Db::open(&spec).unwrap();
+        assert_eq!(db.verify_chain().unwrap().entries, 2, "sealed once");
+        assert_eq!(db.schema_versions().unwrap(), vec![1, 2]);
+        db.verify_run(s.run_id).unwrap();
+    }
 
     #[test]
     fn targets_are_told_apart_and_passwords_never_shown() {

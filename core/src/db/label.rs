@@ -101,7 +101,12 @@ pub fn current(tx: &mut Tx<'_>, device: &str) -> Result<Option<Label>, DbError> 
         std::slice::from_ref(&d),
     )?;
     let run = run.first().map(|r| -> Result<Label, DbError> {
-        Ok(Label { device_id: device.into(), serial: r[0].text()?, since_unix_s: r[1].int()?, by: format!("run {}", r[2].text()?) })
+        Ok(Label {
+            device_id: device.into(),
+            serial: r[0].text()?,
+            since_unix_s: r[1].int()?,
+            by: format!("run {}", r[2].text()?),
+        })
     });
     let relabel = relabel.first().map(|r| -> Result<Label, DbError> {
         Ok(Label {
@@ -168,7 +173,8 @@ pub fn check_new_run(
         return Ok(());
     }
     let own = current(tx, device)?.filter(|l| l.serial != serial && !l.serial.is_empty());
-    let others: Vec<Label> = devices_labelled(tx, serial)?.into_iter().filter(|l| l.device_id != device).collect();
+    let others: Vec<Label> =
+        devices_labelled(tx, serial)?.into_iter().filter(|l| l.device_id != device).collect();
     let Some(r) = relabel else {
         if let Some(o) = others.into_iter().next() {
             return Err(DbError::Label(LabelClash::SerialOfAnother {
@@ -188,7 +194,10 @@ pub fn check_new_run(
         return Ok(());
     };
     if own.is_none() && others.is_empty() {
-        return Err(DbError::Label(LabelClash::NothingToRelabel { device: device.into(), serial: serial.into() }));
+        return Err(DbError::Label(LabelClash::NothingToRelabel {
+            device: device.into(),
+            serial: serial.into(),
+        }));
     }
     let old = current(tx, device)?.map(|l| l.serial).unwrap_or_default();
     insert(tx, device, &old, serial, r)?;
@@ -212,6 +221,9 @@ fn insert(tx: &mut Tx<'_>, device: &str, old: &str, new: &str, r: &Relabel) -> R
     ];
     let t = chain::table("relabel");
     let placeholders: Vec<String> = (1..=row.len()).map(|i| format!("${i}")).collect();
-    tx.execute(&format!("INSERT INTO relabel ({}) VALUES ({})", t.columns.join(", "), placeholders.join(", ")), &row)?;
+    tx.execute(
+        &format!("INSERT INTO relabel ({}) VALUES ({})", t.columns.join(", "), placeholders.join(", ")),
+        &row,
+    )?;
     chain::append(tx, t, &row)
 }

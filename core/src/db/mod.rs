@@ -185,9 +185,7 @@ impl DbError {
     fn sqlite(e: rusqlite::Error) -> DbError {
         let cause = e.to_string();
         match e.sqlite_error_code() {
-            Some(rusqlite::ErrorCode::ConstraintViolation)
-                if cause.contains("UNIQUE constraint") =>
-            {
+            Some(rusqlite::ErrorCode::ConstraintViolation) if cause.contains("UNIQUE constraint") => {
                 DbError::Raced { cause }
             }
             _ => DbError::Engine { cause },
@@ -566,16 +564,25 @@ impl Db {
             })?;
         }
         let sha = sha256_hex(reason.as_bytes());
-        let row: Vec<Val> =
-            vec![run.to_string().into(), reason.into(), operator.into(), now_unix_s().into(), sha.clone().into()];
+        let row: Vec<Val> = vec![
+            run.to_string().into(),
+            reason.into(),
+            operator.into(),
+            now_unix_s().into(),
+            sha.clone().into(),
+        ];
         self.retried(|conn| {
             conn.transaction(|tx| {
                 let id = Val::from(run.to_string());
                 if tx.query("SELECT 1 FROM run WHERE run_id = $1", std::slice::from_ref(&id))?.is_empty() {
                     return Err(DbError::NoRun { run_id: run.to_string() });
                 }
-                if let Some(r) =
-                    tx.query("SELECT content_sha256, reason FROM void WHERE run_id = $1", std::slice::from_ref(&id))?.first()
+                if let Some(r) = tx
+                    .query(
+                        "SELECT content_sha256, reason FROM void WHERE run_id = $1",
+                        std::slice::from_ref(&id),
+                    )?
+                    .first()
                 {
                     return if r[0].text()? == sha {
                         Ok(Stored::Already)
@@ -636,7 +643,11 @@ impl Db {
 
     /// The latest flash of a record into `device_id` (voided runs left out), other than run
     /// `except`'s: the run, the record's CRC-32, when, and how the run ended.
-    pub fn last_flash(&mut self, device_id: &str, except: Option<RunId>) -> Result<Option<LastFlash>, DbError> {
+    pub fn last_flash(
+        &mut self,
+        device_id: &str,
+        except: Option<RunId>,
+    ) -> Result<Option<LastFlash>, DbError> {
         let params = [
             Val::from(device_id.trim().to_ascii_lowercase()),
             Val::from(except.map(|r| r.to_string()).unwrap_or_default()),
@@ -893,7 +904,8 @@ impl Db {
             let device = if is_device {
                 lower
             } else {
-                let now: Vec<String> = label::devices_labelled(tx, key)?.into_iter().map(|l| l.device_id).collect();
+                let now: Vec<String> =
+                    label::devices_labelled(tx, key)?.into_iter().map(|l| l.device_id).collect();
                 let candidates = if now.is_empty() { label::devices_ever(tx, key)? } else { now };
                 match candidates.as_slice() {
                     [] => return Err(DbError::NoUnit { key: key.into(), target }),
@@ -902,7 +914,9 @@ impl Db {
                 }
             };
             let rows = tx.query(
-                &format!("SELECT {RUN_COLUMNS} FROM run WHERE device_id = $1 ORDER BY started_unix_s, run_id"),
+                &format!(
+                    "SELECT {RUN_COLUMNS} FROM run WHERE device_id = $1 ORDER BY started_unix_s, run_id"
+                ),
                 &[device.into()],
             )?;
             let starts: Vec<RunStart> = rows.iter().map(|r| run_start(r)).collect::<Result<_, _>>()?;
@@ -947,10 +961,16 @@ impl Db {
                 if tx.query("SELECT 1 FROM run WHERE run_id = $1", std::slice::from_ref(&id))?.is_empty() {
                     return Err(DbError::NoRun { run_id: run_s.clone() });
                 }
-                if let Some(r) = tx.query("SELECT reason FROM void WHERE run_id = $1", std::slice::from_ref(&id))?.first() {
+                if let Some(r) =
+                    tx.query("SELECT reason FROM void WHERE run_id = $1", std::slice::from_ref(&id))?.first()
+                {
                     return Err(DbError::Conflict {
                         run_id: run_s.clone(),
-                        what: format!("the run is voided ({}): its {} cannot be stored", r[0].text()?, p.what),
+                        what: format!(
+                            "the run is voided ({}): its {} cannot be stored",
+                            r[0].text()?,
+                            p.what
+                        ),
                     });
                 }
                 if p.table != "run_end" {
@@ -974,14 +994,18 @@ impl Db {
                     key.push(phase.sql().into());
                     key_sql.push_str(" AND phase = $2");
                 }
-                let found = tx.query(&format!("SELECT content_sha256 FROM {} WHERE {key_sql}", p.table), &key)?;
+                let found =
+                    tx.query(&format!("SELECT content_sha256 FROM {} WHERE {key_sql}", p.table), &key)?;
                 if let Some(r) = found.first() {
                     return if r[0].text()? == p.sha {
                         Ok(Stored::Already)
                     } else {
                         Err(DbError::Conflict {
                             run_id: run_s.clone(),
-                            what: format!("it holds another {} already (a run stores each piece once)", p.what),
+                            what: format!(
+                                "it holds another {} already (a run stores each piece once)",
+                                p.what
+                            ),
                         })
                     };
                 }
@@ -996,7 +1020,12 @@ impl Db {
 fn insert_row(tx: &mut Tx<'_>, table: &chain::Table, row: &[Val]) -> Result<(), DbError> {
     let placeholders: Vec<String> = (1..=row.len()).map(|i| format!("${i}")).collect();
     tx.execute(
-        &format!("INSERT INTO {} ({}) VALUES ({})", table.name, table.columns.join(", "), placeholders.join(", ")),
+        &format!(
+            "INSERT INTO {} ({}) VALUES ({})",
+            table.name,
+            table.columns.join(", "),
+            placeholders.join(", ")
+        ),
         row,
     )?;
     chain::append(tx, table, row)
@@ -1079,5 +1108,15 @@ fn summary(tx: &mut Tx<'_>, start: RunStart) -> Result<RunSummary, DbError> {
         Some(r) => Some((r[0].text()?, r[1].int()?)),
         None => None,
     };
-    Ok(RunSummary { start, campaign_sha256, fit_json, record_crc32, flashed_unix_s, as_found, as_left, end, voided })
+    Ok(RunSummary {
+        start,
+        campaign_sha256,
+        fit_json,
+        record_crc32,
+        flashed_unix_s,
+        as_found,
+        as_left,
+        end,
+        voided,
+    })
 }

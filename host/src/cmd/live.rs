@@ -17,7 +17,7 @@ use accelcal_core::output::write_json;
 use accelcal_core::sim::Plan;
 use accelcal_core::verify::{
     calibrated_rule, uncertainty_from_fit_json, verify, Failed, PositionCheck, Tolerance, VerifyConfig,
-    DEFAULT_COVERAGE, VerifyReport,
+    VerifyReport, DEFAULT_COVERAGE,
 };
 use accelcal_shared::wire::{Info, Output, RecordStatus};
 use serde_json::json;

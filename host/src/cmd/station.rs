@@ -342,7 +342,8 @@ impl Station<'_> {
             write_json(&self.path(JOURNAL), &self.journal)?;
             crash_point("journal:run");
         }
-        let relabel = self.a.relabel.clone().map(|reason| Relabel { reason, operator: start.operator.clone() });
+        let relabel =
+            self.a.relabel.clone().map(|reason| Relabel { reason, operator: start.operator.clone() });
         let new = self.db.begin_run(&start, relabel.as_ref())? == accelcal_core::db::Stored::New;
         crash_point("db:run");
         let p = self.db.progress(run)?;

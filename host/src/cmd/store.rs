@@ -8,7 +8,9 @@
 
 use std::path::Path;
 
-use accelcal_core::db::{Db, Outcome, Phase, Progress, Relabel, RunId, RunStart, Stored, StoredRecord, DB_ENV};
+use accelcal_core::db::{
+    Db, Outcome, Phase, Progress, Relabel, RunId, RunStart, Stored, StoredRecord, DB_ENV,
+};
 use accelcal_core::error::bad;
 use accelcal_core::verify::VerifyReport;
 
