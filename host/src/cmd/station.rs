@@ -295,6 +295,13 @@ impl Station<'_> {
     /// database wrote (another unit's record flashed since, or a record written by hand).
     fn warn_replaced(&mut self) -> anyhow::Result<()> {
         let (Some(device), Some(run)) = (self.journal.device_id.clone(), self.run) else { return Ok(()) };
+        // A resumed run whose own record the node runs (flashed before the stop, noted or not).
+        let p = self.db.progress(run)?;
+        if let Some(rec) = &p.record {
+            if self.crc_in_force().as_deref() == Some(format!("{:08x}", rec.crc32()).as_str()) {
+                return Ok(());
+            }
+        }
         let Some(last) = self.db.last_flash(&device, Some(run))? else { return Ok(()) };
         let last_crc = format!("{:08x}", last.crc32);
         if self.crc_in_force().as_deref() != Some(last_crc.as_str()) {
