@@ -266,17 +266,17 @@ mod tests {
             (
                 e(DbError::Tampered {
                     run_id: "r".into(),
-                    first: crate::db::Mismatch {
+                    first: Box::new(crate::db::Mismatch {
                         seq: 1,
                         run_id: "r".into(),
                         piece: "fit".into(),
                         what: "m".into(),
-                    },
+                    }),
                     more: 0,
                 }),
                 BadInput,
             ),
-            (e(DbError::Label(label_clash())), BadInput),
+            (e(DbError::Label(Box::new(label_clash()))), BadInput),
             (e(label_clash()), BadInput),
             (e(GmdhError::EmptyPart('A', 3)), BadInput),
             (e(GmdhError::NoTemperature), BadInput),

@@ -84,6 +84,24 @@ pub fn finite(v: f64) -> Option<f64> {
     v.is_finite().then_some(v)
 }
 
+/// A Unix time as `YYYY-MM-DDTHH:MM:SSZ` (proleptic Gregorian calendar, days to civil date after
+/// H. Hinnant's `civil_from_days`); times before the epoch are shown as the epoch.
+pub fn utc_date_time(unix_s: i64) -> String {
+    let unix_s = unix_s.max(0);
+    let days = unix_s / 86_400;
+    let secs = unix_s % 86_400;
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let day = doy - (153 * mp + 2) / 5 + 1;
+    let month = if mp < 10 { mp + 3 } else { mp - 9 };
+    let year = yoe + era * 400 + i64::from(month <= 2);
+    format!("{year:04}-{month:02}-{day:02}T{:02}:{:02}:{:02}Z", secs / 3600, secs / 60 % 60, secs % 60)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -105,22 +123,4 @@ mod tests {
         write_atomic(&f, b"2").unwrap();
         assert_eq!(std::fs::read(&f).unwrap(), b"2");
     }
-}
-
-/// A Unix time as `YYYY-MM-DDTHH:MM:SSZ` (proleptic Gregorian calendar, days to civil date after
-/// H. Hinnant's `civil_from_days`); times before the epoch are shown as the epoch.
-pub fn utc_date_time(unix_s: i64) -> String {
-    let unix_s = unix_s.max(0);
-    let days = unix_s / 86_400;
-    let secs = unix_s % 86_400;
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z - era * 146_097;
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let day = doy - (153 * mp + 2) / 5 + 1;
-    let month = if mp < 10 { mp + 3 } else { mp - 9 };
-    let year = yoe + era * 400 + i64::from(month <= 2);
-    format!("{year:04}-{month:02}-{day:02}T{:02}:{:02}:{:02}Z", secs / 3600, secs / 60 % 60, secs % 60)
 }

@@ -363,7 +363,7 @@ pub fn labels_and_voids(spec: &str) {
     // Device 1 (U-0045) brought in under U-0044's label: refused, nothing begun.
     let mislabel = start(RunId::new(), DEVICE, "U-0044", "st-1", T0 + DAY);
     let e = db.begin_run(&mislabel, None).unwrap_err();
-    assert!(matches!(e, DbError::Label(LabelClash::SerialOfAnother { .. })), "{e}");
+    assert!(matches!(&e, DbError::Label(c) if matches!(**c, LabelClash::SerialOfAnother { .. })), "{e}");
     let msg = e.to_string();
     assert!(
         msg.contains(&format!("serial U-0044 is device {DEVICE_2}")) && msg.contains("--relabel REASON"),
@@ -376,7 +376,7 @@ pub fn labels_and_voids(spec: &str) {
     // A relabel where nothing clashes is refused.
     let r = Relabel { reason: "the label was swapped with U-0044's".into(), operator: "ana".into() };
     let e = db.begin_run(&start(RunId::new(), DEVICE, "U-0045", "st-1", T0 + DAY), Some(&r)).unwrap_err();
-    assert!(matches!(e, DbError::Label(LabelClash::NothingToRelabel { .. })), "{e}");
+    assert!(matches!(&e, DbError::Label(c) if matches!(**c, LabelClash::NothingToRelabel { .. })), "{e}");
     // On purpose: device 1 becomes U-0044, device 2 loses the serial.
     let moved = start(RunId::new(), DEVICE, "U-0044", "st-1", T0 + 2 * DAY);
     assert_eq!(db.begin_run(&moved, Some(&r)).unwrap(), Stored::New);

@@ -177,27 +177,27 @@ pub fn check_new_run(
         devices_labelled(tx, serial)?.into_iter().filter(|l| l.device_id != device).collect();
     let Some(r) = relabel else {
         if let Some(o) = others.into_iter().next() {
-            return Err(DbError::Label(LabelClash::SerialOfAnother {
+            return Err(DbError::Label(Box::new(LabelClash::SerialOfAnother {
                 serial: serial.into(),
                 device: device.into(),
                 other: o.device_id.clone(),
                 other_label: o,
-            }));
+            })));
         }
         if let Some(l) = own {
-            return Err(DbError::Label(LabelClash::DeviceIsAnother {
+            return Err(DbError::Label(Box::new(LabelClash::DeviceIsAnother {
                 device: device.into(),
                 serial: serial.into(),
                 label: l,
-            }));
+            })));
         }
         return Ok(());
     };
     if own.is_none() && others.is_empty() {
-        return Err(DbError::Label(LabelClash::NothingToRelabel {
+        return Err(DbError::Label(Box::new(LabelClash::NothingToRelabel {
             device: device.into(),
             serial: serial.into(),
-        }));
+        })));
     }
     let old = current(tx, device)?.map(|l| l.serial).unwrap_or_default();
     insert(tx, device, &old, serial, r)?;

@@ -92,13 +92,13 @@ pub enum DbError {
         /// The run.
         run_id: String,
         /// The first row that does not match.
-        first: Mismatch,
+        first: Box<Mismatch>,
         /// How many more.
         more: usize,
     },
     /// The serial or device of a new run contradicts the labels the database holds.
     #[error("{0}")]
-    Label(LabelClash),
+    Label(Box<LabelClash>),
     /// A value read back is not what the schema says.
     #[error("database schema mismatch: {what}")]
     Schema {
@@ -636,7 +636,7 @@ impl Db {
             Ok(seal) => Ok(seal),
             Err(mut m) => {
                 let first = m.remove(0);
-                Err(DbError::Tampered { run_id: id, first, more: m.len() })
+                Err(DbError::Tampered { run_id: id, first: Box::new(first), more: m.len() })
             }
         }
     }
