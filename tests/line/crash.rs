@@ -9,8 +9,10 @@ use super::*;
 
 /// The kill points in the order one station run passes them (`store::crash_point` in the
 /// binary): each journal write after a step, and each store into the database (`db:flash` is in
-/// the flash step's process, `db:certificate` in the report step's).
-const POINTS: [&str; 19] = [
+/// the flash step's process, `db:certificate` and `db:end-report` in the report step's). The
+/// last three are [`TAIL`] on SQLite; on PostgreSQL the report step is killed after it ended
+/// the run ([`TAIL_REPORT_ENDED`]), which the station must then journal.
+const POINTS: [&str; 15] = [
     "journal:info",
     "journal:run",
     "db:run",
@@ -26,12 +28,15 @@ const POINTS: [&str; 19] = [
     "journal:flash",
     "journal:as-left",
     "db:as-left",
-    "db:certificate",
-    "journal:certificate",
-    "db:end",
-    // The last run: none.
-    "",
 ];
+
+/// The end of a line killed after the certificate was stored, after the station journalled it,
+/// and after the station ended the run; the last run: none.
+const TAIL: [&str; 4] = ["db:certificate", "journal:certificate", "db:end", ""];
+
+/// The end of a line whose report step is killed after it stored the certificate and ended the
+/// run, before the station journalled the step.
+const TAIL_REPORT_ENDED: [&str; 2] = ["db:end-report", ""];
 
 /// Runs the station with `ACCELCAL_CRASH_AT=point` in its own process group; its exit code
 /// (`None`: killed) and stderr.
@@ -63,7 +68,7 @@ const TABLES: [(&str, i64); 9] = [
 
 /// A first unit's whole line, then a second unit on the same node (a record in force, so its
 /// as-found verification runs) killed at every point in turn.
-fn killed_at_every_boundary(db: &str, count: &dyn Fn(&str, &str) -> i64) {
+fn killed_at_every_boundary(db: &str, tail: &[&str], count: &dyn Fn(&str, &str) -> i64) {
     let _one = one_bench();
     let dir = tempfile::tempdir().unwrap();
     let (truth, _) = unit(dir.path(), "u", 23, 10);
@@ -72,7 +77,7 @@ fn killed_at_every_boundary(db: &str, count: &dyn Fn(&str, &str) -> i64) {
     succeed(&station_args(&em, "K-1", &a, &["--db", db]));
     let b = dir.path().join("unit-b");
     let args = station_args(&em, "K-2", &b, &["--db", db, "--relabel", "node reused for K-2"]);
-    for point in POINTS {
+    for &point in POINTS.iter().chain(tail) {
         let (code, err) = station_crashing_at(&args, point);
         if point.is_empty() {
             assert_eq!(code, Some(0), "the run after every kill: {err}");
@@ -113,7 +118,7 @@ fn a_station_killed_at_every_boundary_finishes_on_sqlite() {
         let c = rusqlite::Connection::open(&db).unwrap();
         c.query_row(&format!("SELECT count(*) FROM {table} WHERE run_id = ?1"), [run], |r| r.get(0)).unwrap()
     };
-    killed_at_every_boundary(&db, &count);
+    killed_at_every_boundary(&db, &TAIL, &count);
 }
 
 #[test]
@@ -124,7 +129,7 @@ fn a_station_killed_at_every_boundary_finishes_on_postgresql() {
         let mut c = postgres::Client::connect(&url, postgres::NoTls).unwrap();
         c.query_one(&format!("SELECT count(*) FROM {table} WHERE run_id = $1"), &[&run]).unwrap().get(0)
     };
-    killed_at_every_boundary(&pg.url, &count);
+    killed_at_every_boundary(&pg.url, &TAIL_REPORT_ENDED, &count);
 }
 
 /// The run id a command printed (`db: run <uuid> begun in ...`).

@@ -618,6 +618,14 @@ impl Db {
             .transpose()
     }
 
+    /// The SHA-256 of run `run`'s stored certificate (its HTML), if it has one.
+    pub fn certificate_sha256(&mut self, run: RunId) -> Result<Option<String>, DbError> {
+        let rows = self.conn.transaction(|tx| {
+            tx.query("SELECT content_sha256 FROM certificate WHERE run_id = $1", &[run.to_string().into()])
+        })?;
+        rows.first().map(|r| r[0].text()).transpose()
+    }
+
     /// The label (current serial) of a device, if it has one.
     pub fn label_of(&mut self, device_id: &str) -> Result<Option<Label>, DbError> {
         let d = device_id.trim().to_ascii_lowercase();

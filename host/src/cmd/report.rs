@@ -307,7 +307,7 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
         super::store::crash_point("db:certificate");
         // The run is complete: it ends as the station ends it.
         rdb.db.finish_run(*run, accelcal_core::db::Outcome::Pass, super::store::PASS_REASON)?;
-        super::store::crash_point("db:end");
+        super::store::crash_point("db:end-report");
         println!("db: run {run}: certificate stored in {}; the run ended pass", rdb.db.target());
     }
     Ok(())

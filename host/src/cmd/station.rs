@@ -722,6 +722,20 @@ impl Station<'_> {
                 .into());
             }
         }
+        // `report --db` ended the run before the station journalled its step (a crash between
+        // the two): the certificate on disk is the stored one, journalled now.
+        if self.journal.done(self.dir, Step::Certificate)?.is_none() {
+            let on_disk =
+                std::fs::read(self.path(CERTIFICATE)).ok().map(|b| accelcal_core::db::sha256_hex(&b));
+            if on_disk.is_some() && on_disk == self.db.certificate_sha256(run)? {
+                self.finish(
+                    Step::Certificate,
+                    vec![],
+                    "written (stored, and the run ended, before the stop)".into(),
+                    &[CERTIFICATE],
+                )?;
+            }
+        }
         for step in Step::ALL.into_iter().skip(1) {
             if !self.done(step)? {
                 return Err(bad(format!(
