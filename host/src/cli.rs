@@ -139,20 +139,28 @@ pub struct RunArgs {
     pub relabel: Option<String>,
 }
 
-/// `accelcal void`.
+/// The database a command that only reads it (or appends one row) names.
 #[derive(Debug, Args)]
-pub struct VoidArgs {
-    /// The run to void (a UUID, as `station`, `fit --db` and `history` print it).
-    #[arg(value_name = "RUN_ID")]
-    pub run_id: String,
-    /// Why the run is voided (stored with it; `history` shows it).
-    #[arg(long, value_name = "TEXT", required = true)]
-    pub reason: String,
+pub struct ReaderDb {
     /// The calibration database: a SQLite file, or postgres://USER@HOST[:PORT]/DB [default: the
     /// ACCELCAL_DB environment variable, else calibration.sqlite in the current directory when
     /// there is one].
     #[arg(long, value_name = "FILE|URL")]
     pub db: Option<String>,
+}
+
+/// `accelcal void`.
+#[derive(Debug, Args)]
+pub struct VoidArgs {
+    /// The run to void (a UUID, as `station` and `fit --db` print it and `history --json` lists
+    /// it under `runs`).
+    #[arg(value_name = "RUN_ID")]
+    pub run_id: String,
+    /// Why the run is voided (stored with it; `history` shows it).
+    #[arg(long, value_name = "TEXT", required = true)]
+    pub reason: String,
+    #[command(flatten)]
+    pub reader: ReaderDb,
     /// Who voids it [default: the account running the command].
     #[arg(long, value_name = "NAME")]
     pub operator: Option<String>,
@@ -170,11 +178,8 @@ pub enum DbCommand {
 /// `accelcal db verify`.
 #[derive(Debug, Args)]
 pub struct DbVerifyArgs {
-    /// The calibration database: a SQLite file, or postgres://USER@HOST[:PORT]/DB [default: the
-    /// ACCELCAL_DB environment variable, else calibration.sqlite in the current directory when
-    /// there is one].
-    #[arg(long, value_name = "FILE|URL")]
-    pub db: Option<String>,
+    #[command(flatten)]
+    pub reader: ReaderDb,
     /// Write what was checked and every row that does not match as JSON to this file.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,

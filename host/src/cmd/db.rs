@@ -21,7 +21,7 @@ pub fn check_void(a: &VoidArgs) -> anyhow::Result<()> {
 /// Runs `accelcal void`.
 pub fn run_void(a: &VoidArgs) -> anyhow::Result<()> {
     let run = RunId::parse(&a.run_id)?;
-    let mut db = Db::open(&reader_spec(a.db.as_deref())?)?;
+    let mut db = Db::open(&reader_spec(a.reader.db.as_deref())?)?;
     let operator = a.operator.clone().unwrap_or_else(user_name);
     let stored = db.void_run(run, a.reason.trim(), &operator)?;
     let p = db.progress(run)?;
@@ -38,7 +38,7 @@ pub fn run_void(a: &VoidArgs) -> anyhow::Result<()> {
 
 /// Runs `accelcal db verify`: exit code 1 when a row does not match.
 pub fn run_verify(a: &DbVerifyArgs) -> anyhow::Result<()> {
-    let mut db = Db::open_existing(&reader_spec(a.db.as_deref())?)?;
+    let mut db = Db::open_existing(&reader_spec(a.reader.db.as_deref())?)?;
     let r = db.verify_chain()?;
     if let Some(j) = &a.json {
         write_json(j, &r)?;
