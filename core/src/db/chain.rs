@@ -119,11 +119,7 @@ pub fn row_digest(table: &Table, row: &[Val]) -> String {
             Val::Bytes(b) => bytes(&mut h, b"b", b),
         }
     }
-    hex(&h.finalize())
-}
-
-fn hex(d: &[u8]) -> String {
-    d.iter().map(|b| format!("{b:02x}")).collect()
+    super::hex(&h.finalize())
 }
 
 /// An entry's chain value.

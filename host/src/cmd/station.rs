@@ -286,6 +286,11 @@ impl Station<'_> {
         self.info["record"]["crc"].as_str().map(|c| c.to_ascii_lowercase())
     }
 
+    /// Whether the node runs the record with CRC-32 `crc` (step info says).
+    fn runs_record(&self, crc: u32) -> bool {
+        self.crc_in_force().as_deref() == Some(format!("{crc:08x}").as_str())
+    }
+
     /// What the node runs, in words.
     fn in_force_words(&self) -> String {
         self.crc_in_force().map_or("no record".into(), |c| format!("record CRC {c}"))
@@ -297,14 +302,12 @@ impl Station<'_> {
         let (Some(device), Some(run)) = (self.journal.device_id.clone(), self.run) else { return Ok(()) };
         // A resumed run whose own record the node runs (flashed before the stop, noted or not).
         let p = self.db.progress(run)?;
-        if let Some(rec) = &p.record {
-            if self.crc_in_force().as_deref() == Some(format!("{:08x}", rec.crc32()).as_str()) {
-                return Ok(());
-            }
+        if p.record.is_some_and(|rec| self.runs_record(rec.crc32())) {
+            return Ok(());
         }
         let Some(last) = self.db.last_flash(&device, Some(run))? else { return Ok(()) };
-        let last_crc = format!("{:08x}", last.crc32);
-        if self.crc_in_force().as_deref() != Some(last_crc.as_str()) {
+        if !self.runs_record(last.crc32) {
+            let last_crc = format!("{:08x}", last.crc32);
             let what = match last.outcome {
                 Some(Outcome::Pass) => "its certified record",
                 _ => "the record its last run flashed",
@@ -532,7 +535,7 @@ impl Station<'_> {
         // Flashed and noted before a stop, and the node runs it: nothing to write again.
         let p = self.db.progress(self.run_id()?)?;
         if let (true, Some(rec)) = (p.flashed, &p.record) {
-            if self.crc_in_force().as_deref() == Some(format!("{:08x}", rec.crc32()).as_str()) {
+            if self.runs_record(rec.crc32()) {
                 return self.finish(
                     Step::Flash,
                     vec![],
@@ -711,12 +714,11 @@ impl Station<'_> {
     fn passed_before(&mut self) -> anyhow::Result<()> {
         let run = self.run_id()?;
         if let Some(rec) = self.db.progress(run)?.record {
-            let certified = format!("{:08x}", rec.crc32());
-            if self.crc_in_force().as_deref() != Some(certified.as_str()) {
+            if !self.runs_record(rec.crc32()) {
                 return Err(StationError::RecordReplaced {
                     serial: self.u.serial.clone(),
                     node: self.in_force_words(),
-                    certified,
+                    certified: format!("{:08x}", rec.crc32()),
                     run_id: run.to_string(),
                 }
                 .into());
