@@ -444,6 +444,11 @@ pub fn relabel_content(device: &str, old: &str, new: &str, reason: &str) -> Stri
     format!("{device}\n{old}\n{new}\n{reason}")
 }
 
+/// Orders mismatches by the ledger entry they break (rows without one last): the first first.
+fn first_first(out: &mut [Mismatch]) {
+    out.sort_by_key(|m| (if m.seq == 0 { i64::MAX } else { m.seq }, m.piece.clone()));
+}
+
 /// Checks the whole ledger and every row.
 pub fn verify_all(tx: &mut Tx<'_>) -> Result<ChainReport, DbError> {
     let list = entries(tx, None)?;
@@ -480,7 +485,7 @@ pub fn verify_all(tx: &mut Tx<'_>) -> Result<ChainReport, DbError> {
         let by_piece = es.into_iter().map(|e| (e.piece.clone(), e)).collect();
         rows += check_rows(tx, run, &by_piece, &mut out)?;
     }
-    out.sort_by_key(|m| (if m.seq == 0 { i64::MAX } else { m.seq }, m.piece.clone()));
+    first_first(&mut out);
     Ok(ChainReport { entries: list.len(), rows, runs: run_ids.len(), mismatches: out })
 }
 
@@ -492,7 +497,7 @@ pub fn verify_run(tx: &mut Tx<'_>, run: &str) -> Result<Result<RunSeal, Vec<Mism
     let last = list.last().map(|e| RunSeal { seq: e.seq, chain_sha256: e.chain.clone() });
     let by_piece = list.into_iter().map(|e| (e.piece.clone(), e)).collect();
     check_rows(tx, run, &by_piece, &mut out)?;
-    out.sort_by_key(|m| (if m.seq == 0 { i64::MAX } else { m.seq }, m.piece.clone()));
+    first_first(&mut out);
     Ok(match (out.is_empty(), last) {
         (true, Some(seal)) => Ok(seal),
         (true, None) => Err(vec![Mismatch {

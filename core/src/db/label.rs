@@ -172,7 +172,8 @@ pub fn check_new_run(
     if serial.is_empty() {
         return Ok(());
     }
-    let own = current(tx, device)?.filter(|l| l.serial != serial && !l.serial.is_empty());
+    let label = current(tx, device)?;
+    let own = label.clone().filter(|l| l.serial != serial && !l.serial.is_empty());
     let others: Vec<Label> =
         devices_labelled(tx, serial)?.into_iter().filter(|l| l.device_id != device).collect();
     let Some(r) = relabel else {
@@ -199,7 +200,7 @@ pub fn check_new_run(
             serial: serial.into(),
         })));
     }
-    let old = current(tx, device)?.map(|l| l.serial).unwrap_or_default();
+    let old = label.map(|l| l.serial).unwrap_or_default();
     insert(tx, device, &old, serial, r)?;
     for o in others {
         insert(tx, &o.device_id, serial, "", r)?;
@@ -219,11 +220,5 @@ fn insert(tx: &mut Tx<'_>, device: &str, old: &str, new: &str, r: &Relabel) -> R
         now_unix_s().into(),
         sha256_hex(relabel_content(device, old, new, &r.reason).as_bytes()).into(),
     ];
-    let t = chain::table("relabel");
-    let placeholders: Vec<String> = (1..=row.len()).map(|i| format!("${i}")).collect();
-    tx.execute(
-        &format!("INSERT INTO relabel ({}) VALUES ({})", t.columns.join(", "), placeholders.join(", ")),
-        &row,
-    )?;
-    chain::append(tx, t, &row)
+    super::insert_row(tx, chain::table("relabel"), &row)
 }

@@ -128,18 +128,7 @@ impl Db {
         let s = RunStart { device_id, ..s.clone() };
         // What goes into the database is one line each (an operator or station name from the
         // environment too): no forged line in a certificate, a journal or a header made from it.
-        let text = |field: &'static str, v: &str| {
-            crate::text::single_line(field, v).map(drop).map_err(|e| DbError::BadPiece {
-                run_id: s.run_id.to_string(),
-                piece: "run",
-                cause: e.to_string(),
-            })
-        };
-        crate::text::header_value("serial", &s.serial).map_err(|e| DbError::BadPiece {
-            run_id: s.run_id.to_string(),
-            piece: "run",
-            cause: e.to_string(),
-        })?;
+        one_line(s.run_id, "run", crate::text::header_value("serial", &s.serial))?;
         for (field, v) in [
             ("station", &s.station),
             ("head", &s.head),
@@ -147,11 +136,11 @@ impl Db {
             ("firmware version", &s.firmware_version),
             ("g source", &s.g_source),
         ] {
-            text(field, v)?;
+            one_line(s.run_id, "run", crate::text::single_line(field, v))?;
         }
         if let Some(r) = relabel {
-            text("relabel reason", &r.reason)?;
-            text("operator", &r.operator)?;
+            one_line(s.run_id, "run", crate::text::single_line("relabel reason", &r.reason))?;
+            one_line(s.run_id, "run", crate::text::single_line("operator", &r.operator))?;
         }
         let sha = chain::run_content(&s);
         let row: Vec<Val> = vec![
@@ -204,11 +193,7 @@ impl Db {
     /// with the same reason is a no-op; with another, refused.
     pub fn void_run(&mut self, run: RunId, reason: &str, operator: &str) -> Result<Stored, DbError> {
         for (field, v) in [("void reason", reason), ("operator", operator)] {
-            crate::text::single_line(field, v).map_err(|e| DbError::BadPiece {
-                run_id: run.to_string(),
-                piece: "void",
-                cause: e.to_string(),
-            })?;
+            one_line(run, "void", crate::text::single_line(field, v))?;
         }
         let sha = sha256_hex(reason.as_bytes());
         let row: Vec<Val> = vec![
@@ -669,6 +654,15 @@ impl Db {
             })
         })
     }
+}
+
+/// A text field's check ([`crate::text`]) as the refusal of the piece it would go into.
+fn one_line(
+    run: RunId,
+    piece: &'static str,
+    checked: Result<&str, crate::text::TextError>,
+) -> Result<(), DbError> {
+    checked.map(drop).map_err(|e| DbError::BadPiece { run_id: run.to_string(), piece, cause: e.to_string() })
 }
 
 /// Inserts a row of `table` (a value per column, in its order) and its ledger entry.

@@ -11,11 +11,6 @@ use super::record::utc;
 use crate::cli::HistoryArgs;
 use crate::report::sig;
 
-/// The database `--db` names, else `ACCELCAL_DB`, else the station's default file here.
-pub fn db_spec(given: Option<&str>) -> anyhow::Result<String> {
-    super::store::reader_spec(given)
-}
-
 /// Checks the command line before anything is opened.
 pub fn check(a: &HistoryArgs) -> anyhow::Result<()> {
     let positive = |name: &str, v: f64| {
@@ -37,7 +32,7 @@ pub fn check(a: &HistoryArgs) -> anyhow::Result<()> {
     if a.unit.trim().is_empty() {
         return Err(bad("SERIAL|DEVICE is empty"));
     }
-    let spec = db_spec(a.db.as_deref())?;
+    let spec = super::store::reader_spec(a.db.as_deref())?;
     if let (Some(j), Target::Sqlite(f)) = (&a.json, Target::parse(&spec)?) {
         if j == &f {
             return Err(bad(format!("--json {} is the database: refusing to overwrite it", j.display())));
@@ -48,7 +43,7 @@ pub fn check(a: &HistoryArgs) -> anyhow::Result<()> {
 
 /// Runs `accelcal history`.
 pub fn run(a: &HistoryArgs) -> anyhow::Result<()> {
-    let spec = db_spec(a.db.as_deref())?;
+    let spec = super::store::reader_spec(a.db.as_deref())?;
     let mut db = Db::open_existing(&spec)?;
     let runs = db.unit_runs(&a.unit)?;
     let rule = RecalRule {

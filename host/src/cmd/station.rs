@@ -14,7 +14,7 @@ use std::process::Command;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
-use accelcal_core::db::{Db, Outcome, Phase, Relabel, RunId, RunStart, DB_ENV};
+use accelcal_core::db::{Db, Outcome, Phase, Relabel, RunId, RunStart};
 use accelcal_core::error::{bad, environment, Interrupted};
 use accelcal_core::output::write_json;
 use accelcal_core::station::{deployable, sha256_file, Journal, StationError, Step, StepRecord, JOURNAL};
@@ -83,10 +83,7 @@ struct Station<'a> {
 /// The station's database: `--db`, else `ACCELCAL_DB`, else `calibration.sqlite` beside the
 /// unit's directory (every unit of a line in one file).
 pub fn db_spec(a: &StationArgs) -> String {
-    if let Some(s) = &a.db {
-        return s.clone();
-    }
-    if let Some(s) = std::env::var(DB_ENV).ok().filter(|s| !s.trim().is_empty()) {
+    if let Some(s) = super::store::named_db(a.db.as_deref()) {
         return s;
     }
     let first = a.outs.first().map(PathBuf::as_path).unwrap_or(Path::new("."));

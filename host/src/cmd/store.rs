@@ -27,10 +27,7 @@ pub const PASS_REASON: &str = "as-left verification passed; certificate issued";
 /// The database a reader (`history`, `void`, `db verify`) uses: `--db`, else `ACCELCAL_DB`, else
 /// the station's default file in the current directory when it is there.
 pub fn reader_spec(given: Option<&str>) -> anyhow::Result<String> {
-    if let Some(s) = given {
-        return Ok(s.to_string());
-    }
-    if let Some(s) = std::env::var(DB_ENV).ok().filter(|s| !s.trim().is_empty()) {
+    if let Some(s) = named_db(given) {
         return Ok(s);
     }
     if Path::new(DEFAULT_DB).is_file() {
@@ -39,6 +36,11 @@ pub fn reader_spec(given: Option<&str>) -> anyhow::Result<String> {
     Err(bad(format!(
         "no calibration database: give --db FILE|URL, set {DB_ENV}, or run where the station's {DEFAULT_DB} is"
     )))
+}
+
+/// The database `--db` names, else `ACCELCAL_DB` (when set and not empty).
+pub fn named_db(given: Option<&str>) -> Option<String> {
+    given.map(str::to_string).or_else(|| std::env::var(DB_ENV).ok().filter(|s| !s.trim().is_empty()))
 }
 
 /// Fault injection for the crash tests: when the environment variable `ACCELCAL_CRASH_AT`
