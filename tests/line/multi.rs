@@ -109,7 +109,17 @@ fn the_station_calibrates_two_nodes_on_one_head() {
     let em = Emulator::start_units(&[&t1, &t2], &[]);
     let outs = [dir.path().join("M-1"), dir.path().join("M-2")];
     let mut args = vec!["station", "--head", &em.head, "--plan", "random:24", "--samples", "200"];
-    args.extend_from_slice(&["--rate-hz", "1000", "--g", "9.81", "--select-tolerance", "5"]);
+    // K = 5: see `station_args`.
+    args.extend_from_slice(&[
+        "--rate-hz",
+        "1000",
+        "--g",
+        "9.81",
+        "--select-tolerance",
+        "5",
+        "--coverage",
+        "5",
+    ]);
     for (i, n) in em.nodes.iter().enumerate() {
         args.extend_from_slice(&[
             "--port",

@@ -79,27 +79,34 @@ pub fn run_flash(a: &FlashArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Asks the rebooted node which record it runs; it must be the one just written.
+/// Asks the rebooted node which record it runs; it must be the one just written. The node is
+/// asked until it says so or 20 s have passed: the reset that the flash requested takes effect a
+/// moment later (QEMU's main loop, a real board's debug probe), and an answer the node gave
+/// before it (the record in force before) is not the verdict. The last answer is.
 fn confirm(port: &str, baud: u32, slot: u8, sequence: u32, crc: u32) -> anyhow::Result<()> {
     let mut s = Session::open(port, baud, std::time::Duration::from_secs(10))?;
-    // The node reboots: wait for its first answer.
     let deadline = std::time::Instant::now() + std::time::Duration::from_secs(20);
-    let info = loop {
+    let last = loop {
+        let late = std::time::Instant::now() > deadline;
         match s.info() {
-            Ok(i) => break i,
-            Err(e) if std::time::Instant::now() > deadline => return Err(e.into()),
+            Ok(i) => match i.record {
+                RecordStatus::InUse { slot: s2, sequence: q, crc: c, .. }
+                    if (s2, q, c) == (slot, sequence, crc) =>
+                {
+                    println!("flash: confirmed over {port}: the node runs the new record (slot {slot}, sequence {sequence}, CRC {crc:08x})");
+                    return Ok(());
+                }
+                other if late => break other,
+                _ => std::thread::sleep(std::time::Duration::from_millis(200)),
+            },
+            // The node reboots: no answer for a while.
+            Err(e) if late => return Err(e.into()),
             Err(_) => {}
         }
     };
-    match info.record {
-        RecordStatus::InUse { slot: s2, sequence: q, crc: c, .. } if (s2, q, c) == (slot, sequence, crc) => {
-            println!("flash: confirmed over {port}: the node runs the new record (slot {slot}, sequence {sequence}, CRC {crc:08x})");
-            Ok(())
-        }
-        other => Err(anyhow::Error::new(flash::FlashError::Verify(slot)).context(format!(
-            "{port}: after the reset the node reports {other:?}, not the new record (slot {slot}, sequence {sequence}, CRC {crc:08x})"
-        ))),
-    }
+    Err(anyhow::Error::new(flash::FlashError::Verify(slot)).context(format!(
+        "{port}: 20 s after the reset the node reports {last:?}, not the new record (slot {slot}, sequence {sequence}, CRC {crc:08x})"
+    )))
 }
 
 /// Runs `accelcal monitor`.
