@@ -34,13 +34,13 @@ use support::{node_elf, record_bytes, thermal_model};
 /// Hex of the QEMU node's device id, "QEMU-B-L475E" (`accelcal_shared::contract::QEMU_DEVICE_ID`).
 const QEMU_ID_HEX: &str = "51454d552d422d4c34373545";
 
-/// The fixed-point QEMU build (`cargo xtask test` builds it into firmware/target/fixed-point).
+/// The fixed-point QEMU build (`cargo xtask firmware` builds it).
 fn node_fixed_elf() -> PathBuf {
     node_elf(); // checks QEMU too
     support::firmware_elf(
         "ACCELCAL_NODE_QEMU_FIXED_ELF",
-        "target/fixed-point/thumbv7em-none-eabihf/release/node-qemu",
-        "cargo build --release --features board-qemu,fixed-point --bin node-qemu --target-dir target/fixed-point",
+        "target/thumbv7em-none-eabihf/release/node-qemu-fixed",
+        "cargo build --release --features board-qemu,fixed-point --bin node-qemu-fixed",
     )
 }
 

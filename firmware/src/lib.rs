@@ -15,3 +15,18 @@ pub mod app;
 pub mod board;
 pub mod executor;
 pub mod tasks;
+
+/// The node's `main`, the same for every board and build: start the watchdog, initialise the
+/// board, load the record, spawn the tasks; the executor's loop feeds the watchdog while the
+/// sampler and the link make progress. Called once, from the binary's entry point.
+pub fn run() -> ! {
+    // The watchdog runs from here on: a hang in the board's bring-up or the record check resets.
+    let watchdog = board::start_watchdog();
+    let board = board::init();
+    let (cal, record) = app::calib::load(&board.storage, board::TEMP_INPUTS);
+    let device_id = app::ports::RecordStorage::device_id(&board.storage);
+    let node = app::node::Node::new(cal, record, board.reset_cause, device_id, &board.clock);
+    let executor =
+        cortex_m::singleton!(: executor::Executor = executor::Executor::new()).expect("main runs once");
+    executor.run(|spawner| tasks::spawn_all(spawner, board, node), watchdog)
+}

@@ -19,6 +19,8 @@ use accelcal_shared::wire::{
 use anyhow::{bail, ensure, Context};
 use object::{Object, ObjectSection, ObjectSymbol, SectionKind};
 
+use crate::run_cmd as run;
+
 /// Flash of the STM32L475VG (the node contract, checked against memory.x): where text, rodata and
 /// the initial values of data live.
 const FLASH: std::ops::Range<u64> =
@@ -47,31 +49,6 @@ fn fw_dir() -> PathBuf {
 
 pub fn elf(bin: &str) -> PathBuf {
     fw_dir().join("target/thumbv7em-none-eabihf/release").join(bin)
-}
-
-/// Prints and runs a command; fails unless it succeeds.
-fn run(cmd: &mut Command) -> anyhow::Result<()> {
-    let dir = cmd.get_current_dir().map(|d| format!("(cd {} && ", d.display())).unwrap_or_default();
-    let args: Vec<String> = cmd.get_args().map(|a| a.to_string_lossy().into_owned()).collect();
-    let envs: Vec<String> = cmd
-        .get_envs()
-        .filter_map(|(k, v)| Some(format!("{}={} ", k.to_string_lossy(), shell_quote(&v?.to_string_lossy()))))
-        .collect();
-    let close = if dir.is_empty() { "" } else { ")" };
-    println!("$ {dir}{}{} {}{close}", envs.concat(), cmd.get_program().to_string_lossy(), args.join(" "));
-    let status = cmd.status().with_context(|| format!("cannot run {:?}", cmd.get_program()))?;
-    ensure!(status.success(), "{:?} failed: {status}", cmd.get_program());
-    Ok(())
-}
-
-/// `v` as one shell word: quoted when it holds a space or a shell metacharacter (so that a printed
-/// command can be pasted as it is).
-fn shell_quote(v: &str) -> String {
-    if v.chars().all(|c| c.is_ascii_alphanumeric() || "-_=./,:@%+".contains(c)) {
-        v.to_string()
-    } else {
-        format!("'{}'", v.replace('\'', r"'\''"))
-    }
 }
 
 /// A cargo command for the firmware workspace (its own .cargo/config.toml picks the target).
@@ -182,11 +159,9 @@ pub fn build_qemu() -> anyhow::Result<()> {
     run(&mut fw_cargo(&["build", "--release", "--locked", "--features", "board-qemu", "--bin", "node-qemu"]))
 }
 
-/// Target directory of the fixed-point QEMU build (same binary name, other features).
-const FIXED_TARGET_DIR: &str = "target/fixed-point";
-
+/// The fixed-point QEMU build: its own binary in the same target directory.
 fn fixed_elf() -> PathBuf {
-    fw_dir().join(FIXED_TARGET_DIR).join("thumbv7em-none-eabihf/release/node-qemu")
+    elf("node-qemu-fixed")
 }
 
 fn build_qemu_fixed() -> anyhow::Result<()> {
@@ -197,9 +172,7 @@ fn build_qemu_fixed() -> anyhow::Result<()> {
         "--features",
         "board-qemu,fixed-point",
         "--bin",
-        "node-qemu",
-        "--target-dir",
-        FIXED_TARGET_DIR,
+        "node-qemu-fixed",
     ]))
 }
 
@@ -217,8 +190,9 @@ pub fn build() -> anyhow::Result<()> {
     Ok(())
 }
 
-/// `cargo xtask test` (firmware part): installs QEMU when missing, builds the real firmware and
-/// the QEMU builds (f32 and fixed point), and runs the QEMU tests.
+/// `cargo xtask test` (firmware part): installs QEMU when missing and builds the real firmware
+/// and the QEMU builds (f32 and fixed point) where the QEMU tests (`tests/hil.rs`, run with the
+/// workspace's tests) look for them.
 pub fn test() -> anyhow::Result<()> {
     prepare()?;
     setup_qemu()?;
@@ -229,12 +203,7 @@ pub fn test() -> anyhow::Result<()> {
         check_no_machine_paths(&p)?;
     }
     println!("firmware images: no path of the build machine in flash");
-    let mut t = Command::new(std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into()));
-    t.current_dir(root())
-        .args(["test", "-p", "accelcal", "--test", "hil"])
-        .env("ACCELCAL_NODE_QEMU_ELF", elf("node-qemu"))
-        .env("ACCELCAL_NODE_QEMU_FIXED_ELF", fixed_elf());
-    run(&mut t)
+    Ok(())
 }
 
 /// `cargo xtask lint` (firmware part): rustfmt and clippy (warnings are errors) on the firmware

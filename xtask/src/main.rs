@@ -23,23 +23,67 @@ fn root() -> PathBuf {
 
 /// Runs a command in `dir`, echoing it first; fails on a non-zero exit.
 pub fn run(dir: &Path, program: &str, args: &[&str]) -> anyhow::Result<()> {
-    let shown = dir.strip_prefix(root()).ok().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    eprintln!("$ (cd {}) {program} {}", shown.display(), args.join(" "));
-    let status = Command::new(program)
-        .args(args)
-        .current_dir(dir)
-        .status()
-        .with_context(|| format!("starting {program}"))?;
+    let mut cmd = Command::new(program);
+    cmd.args(args).current_dir(dir);
+    run_cmd(&mut cmd)
+}
+
+/// Every command `run_cmd` ran, with its wall time, for `test`'s summary.
+static TIMES: std::sync::Mutex<Vec<(String, f64)>> = std::sync::Mutex::new(Vec::new());
+
+/// Prints `cmd` as a line that can be pasted into a shell (its directory and environment
+/// included), runs it, prints its wall time, and fails unless it succeeds.
+pub fn run_cmd(cmd: &mut Command) -> anyhow::Result<()> {
+    let dir = cmd
+        .get_current_dir()
+        .map(|d| d.strip_prefix(root()).unwrap_or(d).to_path_buf())
+        .filter(|d| !d.as_os_str().is_empty())
+        .map(|d| format!("(cd {} && ", d.display()))
+        .unwrap_or_default();
+    let args: Vec<String> = cmd.get_args().map(|a| shell_quote(&a.to_string_lossy())).collect();
+    let envs: Vec<String> = cmd
+        .get_envs()
+        .filter_map(|(k, v)| Some(format!("{}={} ", k.to_string_lossy(), shell_quote(&v?.to_string_lossy()))))
+        .collect();
+    let close = if dir.is_empty() { "" } else { ")" };
+    let shown =
+        format!("{dir}{}{} {}{close}", envs.concat(), cmd.get_program().to_string_lossy(), args.join(" "));
+    eprintln!("$ {shown}");
+    let start = std::time::Instant::now();
+    let status = cmd.status().with_context(|| format!("cannot run {:?}", cmd.get_program()))?;
+    let secs = start.elapsed().as_secs_f64();
+    eprintln!("[xtask] {secs:.1} s: {shown}");
+    TIMES.lock().unwrap_or_else(|e| e.into_inner()).push((shown.clone(), secs));
     if !status.success() {
-        bail!("`{program} {}` failed with {status}", args.join(" "));
+        bail!("`{shown}` failed with {status}");
     }
     Ok(())
 }
 
+/// `v` as one shell word: quoted when it holds a space or a shell metacharacter (so that a printed
+/// command can be pasted as it is).
+pub fn shell_quote(v: &str) -> String {
+    if !v.is_empty() && v.chars().all(|c| c.is_ascii_alphanumeric() || "-_=./,:@%+".contains(c)) {
+        v.to_string()
+    } else {
+        format!("'{}'", v.replace('\'', r"'\''"))
+    }
+}
+
+/// The wall time of each step run so far, and their sum.
+fn print_times(task: &str) {
+    let times = TIMES.lock().unwrap_or_else(|e| e.into_inner());
+    eprintln!("[xtask] {task}: the time of each step");
+    for (cmd, secs) in times.iter() {
+        eprintln!("[xtask] {secs:>7.1} s  {cmd}");
+    }
+    eprintln!("[xtask] {:>7.1} s  in all", times.iter().map(|t| t.1).sum::<f64>());
+}
+
 fn test() -> anyhow::Result<()> {
     let r = root();
-    // First: QEMU, both firmware builds and the QEMU tests (the workspace tests below include
-    // tests/hil.rs, which needs the QEMU build).
+    // First: QEMU and the firmware builds (the workspace's tests include the QEMU tests of
+    // tests/hil.rs, tests/live.rs and tests/line.rs, which run the QEMU builds).
     firmware::test()?;
     // The certificate test (tests/line.rs) prints a page with headless Chromium.
     run(&r, "bash", &["scripts/setup-chromium.sh"])?;
@@ -131,8 +175,8 @@ fn bench(only: Option<&str>) -> anyhow::Result<()> {
 fn main() -> anyhow::Result<()> {
     let task = std::env::args().nth(1).unwrap_or_default();
     match task.as_str() {
-        "test" => test(),
-        "lint" => lint(),
+        "test" => test().inspect(|()| print_times("test")),
+        "lint" => lint().inspect(|()| print_times("lint")),
         "bench" => bench(std::env::args().nth(2).as_deref()),
         "fuzz" => fuzz(&std::env::args().skip(2).collect::<Vec<_>>()),
         "firmware" => firmware::build(),
