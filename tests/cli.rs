@@ -1,8 +1,8 @@
 //! CLI tests on the `accelcal` binary: every command end to end on simulated files, the JSON
 //! shapes the issues specify, bad input turned into exit code 2 with one line naming the file,
 //! options that do not apply to their mode refused before any I/O, every command's help, and
-//! snapshots of what users read (the demo's tables and a diagnosis report, checked against the
-//! README, whose examples they are; `insta` snapshots under `tests/snapshots/`).
+//! snapshots of what users read (a certificate, a diagnosis JSON; `insta` snapshots under
+//! `tests/snapshots/`). The examples of the README and the guide: `tests/docs.rs`.
 
 mod common;
 
@@ -731,91 +731,7 @@ fn a_closed_pipe_ends_the_output_quietly() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Snapshots of what users read, and the README examples that show them.
-
-/// The README, read from the repository.
-fn readme() -> String {
-    std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../README.md")).unwrap()
-}
-
-/// The lines of the first fenced block of the README after the line `after` (a heading or a line
-/// inside a block), up to its closing fence, each ending in a newline.
-fn readme_block(after: &str) -> String {
-    let text = readme();
-    let mut lines = text.lines().skip_while(|l| *l != after);
-    assert!(lines.next().is_some(), "README has no line `{after}`");
-    let inside_a_block = !after.starts_with('#');
-    if !inside_a_block {
-        lines.find(|l| l.starts_with("```")).expect("a fenced block after the heading");
-    }
-    let block: String = lines.take_while(|l| !l.starts_with("```")).map(|l| format!("{l}\n")).collect();
-    assert!(!block.is_empty(), "empty README block after `{after}`");
-    block
-}
-
-/// A README session: the `$ accelcal ...` lines of the block that holds `last` (the last command,
-/// whose output the block shows after it), run in order in a fresh directory; returns (the
-/// README's output of the last command, the binary's).
-fn readme_session(last: &str) -> (String, String) {
-    let text = readme();
-    let lines: Vec<&str> = text.lines().collect();
-    let at = lines.iter().position(|l| *l == last).unwrap_or_else(|| panic!("README has no `{last}`"));
-    let start = lines[..at].iter().rposition(|l| l.starts_with("```")).unwrap() + 1;
-    let d = Dir::new();
-    let mut stdout = String::new();
-    for cmd in &lines[start..=at] {
-        let args: Vec<&str> =
-            cmd.strip_prefix("$ accelcal ").expect("a command line").split_whitespace().collect();
-        let out = Command::new(env!("CARGO_BIN_EXE_accelcal"))
-            .args(&args)
-            .current_dir(d.0.path())
-            .output()
-            .unwrap();
-        assert!(out.status.success(), "{cmd}: {}", String::from_utf8_lossy(&out.stderr));
-        stdout = String::from_utf8(out.stdout).unwrap();
-    }
-    (readme_block(last), stdout)
-}
-
-/// `accelcal demo --out DIR` with DIR a temporary directory, its stdout with DIR written as the
-/// README writes it (`accelcal-demo`, the default).
-fn demo_stdout() -> String {
-    let d = Dir::new();
-    let out = ok(&["demo", "--out", &d.s("accelcal-demo")]);
-    let dir = d.0.path().to_str().unwrap();
-    assert!(out.contains(dir), "the output names the directory: {out}");
-    out.replace(&format!("{dir}/"), "")
-}
-
-#[test]
-fn demo_tables_are_the_readme_s() {
-    let out = demo_stdout();
-    // Table 1 for the three channels, the coefficient table, Table 2.
-    for want in [
-        "channel x: regularity",
-        "channel y: regularity",
-        "channel z: regularity",
-        "Model 4 coefficients",
-        "Table 2.",
-    ] {
-        assert_eq!(out.matches(want).count(), 1, "{want}: {out}");
-    }
-    insta::assert_snapshot!("demo_stdout", out);
-    // The README shows the same run, digit for digit ("What the demo prints").
-    assert_eq!(readme_block("## What the demo prints"), out, "README's demo output is stale");
-}
-
-/// A report with a known effect (the README's diagnosis example: seed 42, settling).
-const DIAGNOSE_EXAMPLE: &str = "$ accelcal diagnose c.csv --json d.json";
-
-#[test]
-fn diagnosis_report_is_the_readme_s() {
-    let (readme, out) = readme_session(DIAGNOSE_EXAMPLE);
-    assert!(out.contains("\n  -> settling\n"), "{out}");
-    assert!(out.contains("effect settling on x,y,z"), "{out}");
-    insta::assert_snapshot!("diagnose_settling_stdout", out);
-    assert_eq!(readme, out, "README's diagnosis example is stale");
-}
+// Snapshots of what users read (the demo's and a diagnosis's output: `tests/docs.rs`).
 
 /// The text of an HTML page as a reader sees it, one table row or paragraph a line, cells
 /// separated by ` | `; plots and style left out.
@@ -1421,69 +1337,6 @@ fn options_that_do_not_apply_and_outputs_that_are_inputs_are_refused_before_any_
             assert!(d.p(o).is_file(), "`{line}` did not write {o}");
         }
     }
-}
-
-/// README examples whose inputs the README does not make: files edited by hand, described in the
-/// text around them, and the database `tests/db.rs` builds (`history`'s example).
-const README_HAND_MADE: &[&str] = &["three-sat.csv", "half.csv", "cal.sqlite"];
-
-/// Copies the directory `from` into `to`.
-fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for e in std::fs::read_dir(from).unwrap().flatten() {
-        if e.path().is_dir() {
-            copy_dir(&e.path(), &to.join(e.file_name()));
-        } else {
-            std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
-        }
-    }
-}
-
-#[test]
-fn every_readme_example_prints_what_the_readme_shows() {
-    // Run from a directory that holds the repository's test data at the README's paths.
-    let d = Dir::new();
-    copy_dir(Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/data")), &d.p("tests/data"));
-    let text = readme();
-    let lines: Vec<&str> = text.lines().collect();
-    let mut checked = 0;
-    for (i, line) in lines.iter().enumerate() {
-        let Some(cmd) = line.strip_prefix("$ accelcal ") else { continue };
-        if README_HAND_MADE.iter().any(|f| cmd.contains(f)) {
-            continue;
-        }
-        // Through the shell, as a reader would type it (some examples pipe into `head`), with
-        // this build's `accelcal` first on the PATH.
-        let bin_dir = Path::new(env!("CARGO_BIN_EXE_accelcal")).parent().unwrap();
-        let path = format!("{}:{}", bin_dir.display(), std::env::var("PATH").unwrap_or_default());
-        let out = Command::new("bash")
-            .arg("-c")
-            .arg(format!("accelcal {cmd}"))
-            .env("PATH", path)
-            .current_dir(d.0.path())
-            .output()
-            .unwrap();
-        let got = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
-        // What the README shows: the lines up to the next command or the end of the block; a
-        // line `...` elides the middle of the output.
-        let shown: Vec<&str> = lines[i + 1..]
-            .iter()
-            .take_while(|l| !l.starts_with("$ ") && !l.starts_with("```"))
-            .copied()
-            .collect();
-        let got: Vec<&str> = got.lines().collect();
-        match shown.iter().position(|l| l.trim() == "...") {
-            None if shown.is_empty() => assert!(out.status.success(), "{line}: {got:?}"),
-            None => assert_eq!(shown, got, "README line {}: {line}", i + 1),
-            Some(k) => {
-                let tail = &shown[k + 1..];
-                assert_eq!(shown[..k], got[..k.min(got.len())], "README line {}: {line}", i + 1);
-                assert_eq!(tail, &got[got.len() - tail.len()..], "README line {}: {line}", i + 1);
-            }
-        }
-        checked += 1;
-    }
-    assert!(checked >= 12, "{checked} README examples checked");
 }
 
 /// A campaign that states its g (`# g_m_s2:`, as `acquire` writes it) is fitted at that g unless

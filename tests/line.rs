@@ -667,7 +667,7 @@ fn verify_summary(p: &Path) -> (f64, bool, f64) {
 /// --chamber` at the three temperatures. The model-4 record leaves an error that grows with the
 /// distance from the campaign's middle temperature and fails at the ends; the thermal record
 /// passes everywhere, its worst error a fraction of the model-4 record's. Prints the table the
-/// README quotes.
+/// guide quotes (docs/src/thermal.md).
 #[test]
 fn thermal_record_removes_the_temperature_error_in_verify() {
     let _bench = one_bench();

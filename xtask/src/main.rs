@@ -4,15 +4,19 @@
 //! - `test`: host and shared tests, the no_std build of `shared` for the MCU target, the
 //!   firmware builds and the QEMU tests.
 //! - `lint`: rustfmt and clippy (warnings are errors).
-//! - `bench`: the benchmarks the README quotes (GMDH against the PyPI `gmdh` package).
+//! - `bench`: the benchmarks the guide quotes (GMDH against the PyPI `gmdh` package).
 //! - `fuzz`: the mutation fuzzer of the record parser, the record slots and the frame decoder, for
 //!   a bounded time.
+//! - `docs`: the guide's command reference (`docs/src/reference/commands.md`) from the built
+//!   binary's help.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use anyhow::{bail, Context};
 
+mod commands_md;
+mod docs;
 mod firmware;
 mod gmdh;
 mod live;
@@ -180,8 +184,9 @@ fn main() -> anyhow::Result<()> {
         "bench" => bench(std::env::args().nth(2).as_deref()),
         "fuzz" => fuzz(&std::env::args().skip(2).collect::<Vec<_>>()),
         "firmware" => firmware::build(),
+        "docs" => docs::run(),
         _ => {
-            eprintln!("usage: cargo xtask <test|lint|bench|fuzz|firmware>\n  test   every test: host, shared (desktop and no_std target), firmware builds, QEMU\n  lint   rustfmt --check and clippy -D warnings\n  bench  [firmware|live]: the benchmarks quoted in the README (a part: only that one)\n  fuzz   [--seconds N] [--target record|slots|frame|all] [--seed S]: the parsers' mutation fuzzer\n  firmware  the node images (real board, QEMU f32, QEMU fixed point), as the tests build them");
+            eprintln!("usage: cargo xtask <test|lint|bench|fuzz|firmware|docs>\n  test   every test: host, shared (desktop and no_std target), firmware builds, QEMU\n  lint   rustfmt --check and clippy -D warnings\n  bench  [firmware|live]: the benchmarks quoted in the guide (a part: only that one)\n  fuzz   [--seconds N] [--target record|slots|frame|all] [--seed S]: the parsers' mutation fuzzer\n  firmware  the node images (real board, QEMU f32, QEMU fixed point), as the tests build them\n  docs   the guide's command reference (docs/src/reference/commands.md) from the built binary's help");
             std::process::exit(2)
         }
     }

@@ -14,7 +14,7 @@ use serde::Serialize;
 use super::{Outcome, RunSummary};
 use crate::verify::VerifyReport;
 
-/// The recommended recalibration date's method, as `history --help` and the README state it.
+/// The recommended recalibration date's method, as `history --help` and the guide (docs/src/line/database.md) state it.
 pub const METHOD: &str = "Recalibration date: each of the 12 model-4 coefficients (bias and 3 \
 sensitivities of channels x, y, z), expressed as the acceleration error it makes at 1 g (m/s²), is fitted \
 against time over the unit's calibrations by weighted least squares (weights 1/σ² from the fits' covariances; \
