@@ -1,0 +1,459 @@
+//! The commands of the line that talk to a node, a head or a probe: flash, record, monitor,
+//! emulate, info, output, acquire, verify, report, station.
+
+use std::path::PathBuf;
+
+use clap::{Args, Subcommand, ValueEnum};
+
+use super::{LocalGravity, RunArgs};
+
+/// `accelcal flash`: write a calibration record into a node through a debug probe.
+#[derive(Debug, Args)]
+pub struct FlashArgs {
+    /// The calibration record file (from `accelcal fit --record`).
+    #[arg(value_name = "RECORD")]
+    pub record: PathBuf,
+    /// probe-rs target name of the node's MCU.
+    #[arg(long, default_value = "STM32L475VGTx")]
+    pub chip: String,
+    /// Debug probe to use, as VID:PID or VID:PID:SERIAL [default: the first one found].
+    #[arg(long, value_name = "SELECTOR")]
+    pub probe: Option<String>,
+    /// Write through a GDB server instead of probe-rs: Black Magic Probe, OpenOCD, or the
+    /// `gdb` address that `accelcal emulate` prints.
+    #[arg(long, value_name = "HOST:PORT")]
+    pub gdb: Option<String>,
+    /// The node's serial port: after the write and the reset, the node is asked which record it
+    /// runs (the write is confirmed only if it is the new one); with --gdb, also where the
+    /// device id comes from when the server cannot read the MCU's unique id (QEMU).
+    #[arg(long, value_name = "DEV")]
+    pub port: Option<String>,
+    /// Baud rate of the node's USART1 (with --port; a pty ignores it).
+    #[arg(long, default_value_t = accelcal_core::node::monitor::NODE_BAUD)]
+    pub baud: u32,
+    /// Fault injection for tests of the torn-write safety (with --gdb): erase the target slot,
+    /// write only this many bytes of its page, then reset the MCU. The old record stays in force.
+    #[arg(long, value_name = "BYTES")]
+    pub cut_after: Option<usize>,
+    /// The calibration database.
+    #[command(flatten)]
+    pub run: RunArgs,
+}
+
+/// `accelcal record`: the calibration record files.
+#[derive(Debug, Subcommand)]
+pub enum RecordCommand {
+    /// Print a calibration record (device id, terms, coefficients, created, CRC, length) and
+    /// whether a node would accept it, with the node's reason when not.
+    Show(RecordShowArgs),
+}
+
+/// `accelcal record show`.
+#[derive(Debug, Args)]
+pub struct RecordShowArgs {
+    /// The calibration record file (from `accelcal fit --record`).
+    #[arg(value_name = "FILE")]
+    pub file: PathBuf,
+    /// Write the same as machine-readable JSON to this file.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+}
+
+/// `accelcal monitor`: show a node's live stream.
+#[derive(Debug, Args)]
+pub struct MonitorArgs {
+    /// Serial port of the node (the board's ST-LINK virtual COM port, e.g. /dev/ttyACM0).
+    #[arg(long, value_name = "DEV")]
+    pub port: String,
+    /// Baud rate of the node's USART1.
+    #[arg(long, default_value_t = accelcal_core::node::monitor::NODE_BAUD)]
+    pub baud: u32,
+    /// Stop after this many messages; frames that do not decode are shown (`# bad frame: …`) and
+    /// not counted [default: run until interrupted].
+    #[arg(long, value_name = "N")]
+    pub count: Option<u64>,
+    /// First set the node's sampling rate per channel, Hz (100..=4000).
+    #[arg(long, alias = "rate", value_name = "HZ")]
+    pub rate_hz: Option<u32>,
+    /// Seconds the node may go without sending a message before the command fails, whatever else
+    /// arrives (bytes that make no frame, bad frames); the node sends its status every second.
+    #[arg(long, default_value_t = 5.0, value_name = "S")]
+    pub timeout_s: f64,
+}
+
+/// The node's serial link, shared by the commands that talk to a running node.
+#[derive(Debug, Args, Clone)]
+pub struct PortArgs {
+    /// Serial port of the node: the board's ST-LINK virtual COM port (e.g. /dev/ttyACM0) or the
+    /// `port` that `accelcal emulate` prints.
+    #[arg(long, value_name = "DEV")]
+    pub port: String,
+    /// Baud rate of the node's USART1 (a pty ignores it).
+    #[arg(long, default_value_t = accelcal_core::node::monitor::NODE_BAUD)]
+    pub baud: u32,
+    /// Seconds the node may take to answer a request (and, while it streams, between two sample
+    /// blocks) before the command fails, whatever else it sends meanwhile.
+    #[arg(long, alias = "answer-timeout-s", default_value_t = 5.0, value_name = "S")]
+    pub timeout_s: f64,
+}
+
+/// `accelcal emulate`: the emulated bench.
+#[derive(Debug, Args)]
+pub struct EmulateArgs {
+    /// The node's QEMU build (firmware/target/thumbv7em-none-eabihf/release/node-qemu).
+    #[arg(long = "qemu", value_name = "ELF")]
+    pub elf: PathBuf,
+    /// The unit on the head: a truth file of `accelcal simulate --truth` (triad x, y, z; its bias,
+    /// sensitivities, misalignment, noise and effects are what the front end produces). Repeat it
+    /// for several nodes on the one head: one QEMU node per unit, each with its own front end,
+    /// link and gdbstub (`nodes` of the printed line, in this order).
+    #[arg(long, value_name = "UNIT_JSON", required = true)]
+    pub unit: Vec<PathBuf>,
+    /// Seed of the front end's noise [default: the unit's seed]; with several --unit, once per
+    /// unit in the same order, or not at all.
+    #[arg(long)]
+    pub seed: Vec<u64>,
+    /// A record to put into slot 0 before boot, as if it had been flashed earlier; with several
+    /// --unit, once per unit in the same order, or not at all. The first node's device id is
+    /// 51454d552d422d4c34373545 (`QEMU-B-L475E`), node N's (N >= 2) `QEMU-NODE-NN` (N in two digits) in
+    /// hex (the `device_id` of `nodes` in the printed line).
+    #[arg(long, value_name = "RECORD")]
+    pub record: Vec<PathBuf>,
+    /// The QEMU executable (QEMU >= 9 with the b-l475e-iot01a machine).
+    #[arg(long, default_value = "qemu-system-arm", value_name = "PATH")]
+    pub qemu_bin: PathBuf,
+    /// Angular speed of the head's two axes, degrees per second (each move also takes 0.1 s).
+    #[arg(long, default_value_t = 60.0, value_name = "DEG_S")]
+    pub head_speed: f64,
+    /// The front end converts at this factor times the rate the node asks for (above 1: faster
+    /// than the node can take, to provoke overruns).
+    #[arg(long, default_value_t = 1.0, value_name = "F")]
+    pub rate_factor: f64,
+    /// TCP port of QEMU's gdbstub on 127.0.0.1 [default: a free one]; with several --unit, the
+    /// first node's, node N's is PORT + N - 1.
+    #[arg(long, value_name = "PORT")]
+    pub gdb_port: Option<u16>,
+    /// TCP port of the emulated head on 127.0.0.1 [default: a free one].
+    #[arg(long, value_name = "PORT")]
+    pub head_port: Option<u16>,
+    /// The number of this bench's first node on the line (1..=99): node N reports the device
+    /// id QEMU-NODE-NN (node 1 QEMU-B-L475E), so two benches of one line report distinct devices.
+    #[arg(long, default_value_t = 1, value_name = "N", value_parser = clap::value_parser!(u8).range(1..=99))]
+    pub first_node: u8,
+    /// Temperature of the thermal chamber around the head at start, °C (the sensor is soaked
+    /// there); `CHAMBER <temp_c>` on the head's protocol (`acquire --chamber`, `verify
+    /// --chamber`) changes it. The unit's `temperature` effect and the front end's temperature
+    /// channel follow the sensor's temperature.
+    #[arg(long, alias = "temp-c", default_value_t = 25.0, value_name = "DEG_C", allow_hyphen_values = true)]
+    pub chamber: f64,
+    /// Thermal time constant between the chamber and the sensor, seconds (first-order lag).
+    #[arg(long, default_value_t = 30.0, value_name = "S")]
+    pub thermal_lag_s: f64,
+}
+
+/// `accelcal info`: who the node is.
+#[derive(Debug, Args)]
+pub struct InfoArgs {
+    /// The node's link.
+    #[command(flatten)]
+    pub link: PortArgs,
+    /// Write the answer as JSON to this file: `{"device_id", "firmware", "record": {"slot",
+    /// "sequence", "created_unix_s", "crc"} or null, "rate_hz", "overruns", "reset_cause"}`.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+}
+
+/// What a node streams.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum OutputArg {
+    /// Calibrated acceleration, m/s² (raw codes flagged uncalibrated when the node has no record).
+    Calibrated,
+    /// Raw ADC codes, whatever the record (what a recalibration records).
+    Raw,
+}
+
+/// `accelcal output`: switch a node's live stream.
+#[derive(Debug, Args)]
+pub struct OutputArgs {
+    /// The node's link.
+    #[command(flatten)]
+    pub link: PortArgs,
+    /// What the node streams from now on (until it resets: it boots calibrated).
+    #[arg(value_enum, value_name = "MODE")]
+    pub mode: OutputArg,
+}
+
+/// `accelcal acquire`: record a campaign from a node on a dividing head.
+#[derive(Debug, Args)]
+pub struct AcquireArgs {
+    /// Serial port of the node: the board's ST-LINK virtual COM port (e.g. /dev/ttyACM0) or a
+    /// `port` that `accelcal emulate` prints. Repeat it for several nodes on the one head (one unit
+    /// each, acquired together: one head move per position, every node captured there), each with
+    /// its --out and --serial given in the same order.
+    #[arg(long, value_name = "DEV", required = true)]
+    pub port: Vec<String>,
+    /// Baud rate of the nodes' USART1 (a pty ignores it).
+    #[arg(long, default_value_t = accelcal_core::node::monitor::NODE_BAUD)]
+    pub baud: u32,
+    /// Seconds a node may take to answer a request (and, while it streams, between two sample
+    /// blocks) before the command fails, whatever else it sends meanwhile.
+    #[arg(long, alias = "answer-timeout-s", default_value_t = 5.0, value_name = "S")]
+    pub timeout_s: f64,
+    /// The head: `manual` (the command shows each position's angles and what the unit should
+    /// read, and waits for Enter) or `sim:HOST:PORT` (the emulated head `accelcal emulate` prints).
+    #[arg(long, value_name = "HEAD")]
+    pub head: accelcal_core::node::head::HeadSpec,
+    /// Seconds an emulated head (`--head sim:…`) may take to answer a request before the command
+    /// fails; a move is answered once the head stands still, so this bounds the longest move.
+    #[arg(long, default_value_t = 120.0, value_name = "S")]
+    pub head_timeout_s: f64,
+    /// Position plan: head (62 positions), six (the test-turn positions), random:N, or a plan
+    /// file (CSV `alpha_deg,beta_deg`).
+    #[arg(long, default_value = "head")]
+    pub plan: String,
+    /// Campaign CSV to write (raw codes, and `temp_c` when the node reports its temperature, as
+    /// protocol 4 nodes do; the header comments carry device id, serial, firmware, g, plan, date,
+    /// tool version). Must not exist, unless --resume. Once per --port, in the same order: each
+    /// node's own campaign.
+    #[arg(long, short, value_name = "CAMPAIGN", required = true)]
+    pub out: Vec<PathBuf>,
+    /// Sample sets recorded per position, after the stream is static [default: 400; with
+    /// --resume, the campaign's].
+    #[arg(long, value_name = "N")]
+    pub samples: Option<usize>,
+    /// The unit's serial number, written into the campaign; with several --port, once per port in
+    /// the same order, or not at all.
+    #[arg(long, value_name = "S")]
+    pub serial: Vec<String>,
+    /// Gravity at the rig, m/s² [default: 9.81, announced; better --latitude/--height].
+    #[arg(long, value_name = "M_S2")]
+    pub g: Option<f64>,
+    /// Local gravity instead of --g.
+    #[command(flatten)]
+    pub local: LocalGravity,
+    /// Continue an interrupted acquisition in --out (same node and plan): keep its complete
+    /// positions and record the rest, with the campaign's samples, rate and g (an option that
+    /// contradicts them is refused). With several --port each campaign continues from its own
+    /// complete positions (the head revisits a position while a node lacks it; the campaigns must
+    /// agree on samples, rate and g).
+    #[arg(long)]
+    pub resume: bool,
+    /// Set the node's sampling rate per channel first, Hz (100..=4000) [default: the node's; with
+    /// --resume, the campaign's]; held for every position (set again after a node reset).
+    #[arg(long, alias = "rate", value_name = "HZ")]
+    pub rate_hz: Option<u32>,
+    /// Seconds a position may take to become static before it is refused.
+    #[arg(long, default_value_t = 30.0, value_name = "S")]
+    pub settle_timeout_s: f64,
+    /// Static test: sets per window (two consecutive windows are compared).
+    #[arg(long, default_value_t = 64, value_name = "N")]
+    pub static_window: usize,
+    /// Static test: largest change of the window means, in standard errors.
+    #[arg(long, default_value_t = 3.0, value_name = "Z")]
+    pub static_z: f64,
+    /// A thermal campaign: run the plan at each of these chamber setpoints (°C, comma-separated),
+    /// each after --soak-s (the node must report its temperature, recorded as `temp_c`).
+    #[arg(long, value_name = "T1,T2,…", value_delimiter = ',', allow_hyphen_values = true)]
+    pub chamber: Vec<f64>,
+    /// Seconds to wait after each change of the chamber setpoint before the first position
+    /// [with --chamber].
+    #[arg(long, value_name = "S")]
+    pub soak_s: Option<f64>,
+}
+
+/// `accelcal verify`: check a calibrated node on the head.
+#[derive(Debug, Args)]
+pub struct VerifyArgs {
+    /// The node's link.
+    #[command(flatten)]
+    pub link: PortArgs,
+    /// The head: `manual` or `sim:HOST:PORT` (as for `acquire`).
+    #[arg(long, value_name = "HEAD")]
+    pub head: accelcal_core::node::head::HeadSpec,
+    /// Seconds an emulated head (`--head sim:…`) may take to answer a request before the command
+    /// fails; a move is answered once the head stands still, so this bounds the longest move.
+    #[arg(long, default_value_t = 120.0, value_name = "S")]
+    pub head_timeout_s: f64,
+    /// Position plan: six (the test-turn positions), head, random:N, or a plan file.
+    #[arg(long, default_value = "six")]
+    pub plan: String,
+    /// Sample sets averaged per position, after the stream is static.
+    #[arg(long, default_value_t = 400, value_name = "N")]
+    pub samples: usize,
+    /// Pass bound on every component's error, m/s² [default: derived per position, K·sqrt(σ_cal² +
+    /// σ_mean²), σ_cal from --fit's covariance, σ_mean from the measured scatter, K = --coverage].
+    #[arg(long, value_name = "M_S2")]
+    pub tolerance: Option<f64>,
+    /// Coverage factor K of the derived tolerance (>= 1). With Gaussian errors a good node fails a
+    /// six-position verification (18 components) about once in 900 runs at K = 4, once in 10⁵ at
+    /// K = 5 [default: 4; not with --tolerance].
+    #[arg(long, value_name = "K")]
+    pub coverage: Option<f64>,
+    /// The `fit --json` output of the record's fit: its covariance matrix enters the derived
+    /// tolerance (a thermal fit's terms in t too, at each position's temperature) [not with
+    /// --tolerance].
+    #[arg(long, value_name = "FIT_JSON")]
+    pub fit: Option<PathBuf>,
+    /// Gravity at the rig, m/s² [default: 9.81, announced; better --latitude/--height].
+    #[arg(long, value_name = "M_S2")]
+    pub g: Option<f64>,
+    /// Local gravity instead of --g.
+    #[command(flatten)]
+    pub local: LocalGravity,
+    /// Seconds a position may take to become static before it is refused.
+    #[arg(long, default_value_t = 30.0, value_name = "S")]
+    pub settle_timeout_s: f64,
+    /// Write the verification table as JSON to this file.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+    /// Verify at this chamber setpoint, °C, after --soak-s.
+    #[arg(long, value_name = "DEG_C", allow_hyphen_values = true)]
+    pub chamber: Option<f64>,
+    /// Seconds to wait after setting the chamber before the first position [with --chamber].
+    #[arg(long, value_name = "S")]
+    pub soak_s: Option<f64>,
+    /// The calibration database.
+    #[command(flatten)]
+    pub run: RunArgs,
+    /// Which verification this is, for --db: `as-found` (with the record the unit came in with,
+    /// before it is changed) or `as-left` (with the new record, after flashing).
+    #[arg(long, value_enum, default_value = "as-left", requires = "db")]
+    pub phase: PhaseArg,
+}
+
+/// `accelcal report`: a unit's calibration certificate.
+#[derive(Debug, Args)]
+pub struct ReportArgs {
+    /// The unit's campaign (from `accelcal acquire`: its header names serial, device, firmware, g).
+    #[arg(long, value_name = "CAMPAIGN")]
+    pub campaign: PathBuf,
+    /// The record written to the node (from `fit --record`).
+    #[arg(long, value_name = "RECORD")]
+    pub record: PathBuf,
+    /// The fit JSON written with the record (`fit --record R --json F`): it ties the record to
+    /// the campaign (its SHA-256) and gives the method, g and the standard errors.
+    #[arg(long, value_name = "FIT_JSON")]
+    pub fit: PathBuf,
+    /// The verification after flashing (`verify --json`); without it the page says "not verified".
+    #[arg(long, value_name = "VERIFY_JSON")]
+    pub verify: Option<PathBuf>,
+    /// Gravity at the rig, m/s² [default: the fit's; given, it must be the fit's].
+    #[arg(long, value_name = "M_S2")]
+    pub g: Option<f64>,
+    /// The certificate to write (HTML).
+    #[arg(long, short, value_name = "FILE")]
+    pub out: PathBuf,
+    /// The calibration database.
+    #[command(flatten)]
+    pub run: RunArgs,
+    /// The as-found verification (`verify --json` with the record the unit came in with): the
+    /// certificate shows it next to the as-left one.
+    #[arg(long, value_name = "VERIFY_JSON")]
+    pub as_found: Option<PathBuf>,
+}
+
+/// `accelcal station`.
+#[derive(Debug, Args)]
+pub struct StationArgs {
+    /// Serial port of a node on the head (the board's ST-LINK virtual COM port, or a `port` that
+    /// `accelcal emulate` prints). Repeat it for several nodes on one head, one unit each: they
+    /// are acquired together, and --serial, --out (and --gdb or --probe when given) are given
+    /// once per --port, in the same order.
+    #[arg(long = "port", value_name = "DEV", required = true)]
+    pub ports: Vec<String>,
+    /// Baud rate of the nodes' USART1 (a pty ignores it).
+    #[arg(long, default_value_t = accelcal_core::node::monitor::NODE_BAUD)]
+    pub baud: u32,
+    /// Seconds a node may stay silent (no answer to a request) before a step fails.
+    #[arg(long, alias = "answer-timeout-s", default_value_t = 5.0, value_name = "S")]
+    pub timeout_s: f64,
+    /// The head: `manual` (the operator turns it; each step prompts) or `sim:HOST:PORT` (as for
+    /// `acquire`).
+    #[arg(long, value_name = "HEAD", value_parser = parse_head_text)]
+    pub head: String,
+    /// The unit's serial number (written into the campaign and the certificate; the unit's
+    /// directory is its own); one per --port.
+    #[arg(long = "serial", value_name = "S", required = true)]
+    pub serials: Vec<String>,
+    /// The unit's directory: the journal `station.json` and every file of the line (info.json,
+    /// as-found-fit.json, as-found.json, campaign.csv, select.json, fit.json, record.rec, as-left.json,
+    /// certificate.html). Created if missing; the same directory again resumes the unit. One per
+    /// --port.
+    #[arg(long = "out", short, value_name = "DIR", required = true)]
+    pub outs: Vec<PathBuf>,
+    /// Position plan of the campaign (head, six, random:N, or a plan file; see `acquire`).
+    #[arg(long, default_value = "head")]
+    pub plan: String,
+    /// Sample sets recorded per position, in the campaign and in each verification.
+    #[arg(long, default_value_t = 400, value_name = "N")]
+    pub samples: usize,
+    /// Set the node's sampling rate per channel for the campaign, Hz (100..=4000) [default: the
+    /// node's].
+    #[arg(long, value_name = "HZ")]
+    pub rate_hz: Option<u32>,
+    /// Gravity at the rig, m/s² [default: 9.81, announced; better --latitude/--height].
+    #[arg(long, value_name = "M_S2")]
+    pub g: Option<f64>,
+    /// Local gravity instead of --g.
+    #[command(flatten)]
+    pub local: LocalGravity,
+    /// The selection's tolerance, ADC codes: `select --tolerance` (the simplest model within it of
+    /// the best is selected; the paper's rule is one code).
+    #[arg(long, default_value_t = 1.0, value_name = "CODES")]
+    pub select_tolerance: f64,
+    /// Coverage factor K of the verifications' derived tolerance (>= 1) [default: verify's, 4].
+    #[arg(long, value_name = "K")]
+    pub coverage: Option<f64>,
+    /// The `fit --json` of the record in force, for the as-found verification's tolerance
+    /// [default: the database's fit of that record (its CRC), else the tolerance from the
+    /// measured scatter alone].
+    #[arg(long, value_name = "FIT_JSON")]
+    pub as_found_fit: Option<PathBuf>,
+    /// Flash through a GDB server (Black Magic Probe, OpenOCD, or `emulate`'s `gdb` address)
+    /// instead of probe-rs; one per --port.
+    #[arg(long, value_name = "HOST:PORT")]
+    pub gdb: Vec<String>,
+    /// probe-rs target name of the node's MCU [without --gdb].
+    #[arg(long, default_value = "STM32L475VGTx")]
+    pub chip: String,
+    /// Debug probe, as VID:PID or VID:PID:SERIAL [without --gdb; one per --port; default with
+    /// one node: the first one found].
+    #[arg(long, value_name = "SELECTOR")]
+    pub probe: Vec<String>,
+    /// The calibration database every piece of the run is stored in (the record is flashed
+    /// only once it is stored): a SQLite file, or postgres://USER@HOST[:PORT]/DB for a line of
+    /// several stations [default: the ACCELCAL_DB environment variable, else calibration.sqlite
+    /// in the directory that holds --out].
+    #[arg(long, value_name = "FILE|URL")]
+    pub db: Option<String>,
+    /// The station's name in the database [default: the host name].
+    #[arg(long = "station", value_name = "NAME")]
+    pub station_name: Option<String>,
+    /// Who runs the station, for the database [default: the USER environment variable].
+    #[arg(long, value_name = "NAME")]
+    pub operator: Option<String>,
+    /// Seconds an emulated head (`--head sim:…`) may take to answer a request before a step
+    /// fails (passed to acquire and the verifications); a move is answered once the head
+    /// stands still, so this bounds the longest move.
+    #[arg(long, default_value_t = 120.0, value_name = "S")]
+    pub head_timeout_s: f64,
+    /// Begin the run even though the database ties this --serial to another device, or the
+    /// node's device to another serial: the serial moves to this device, stored as a relabel row
+    /// with REASON (with several --port, it applies to each unit whose label clashes).
+    #[arg(long, value_name = "REASON")]
+    pub relabel: Option<String>,
+}
+
+/// `verify --phase`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum PhaseArg {
+    /// Before the unit is changed, with the record it came in with.
+    AsFound,
+    /// After the new record was flashed.
+    AsLeft,
+}
+
+/// A `--head` value, checked and kept as written (the station passes it on to each step).
+fn parse_head_text(s: &str) -> Result<String, String> {
+    s.parse::<accelcal_core::node::head::HeadSpec>().map(|_| s.to_string())
+}

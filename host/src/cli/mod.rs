@@ -1,0 +1,178 @@
+//! The command line: clap definitions of every subcommand and its options.
+
+use std::path::PathBuf;
+
+use clap::{Args, Parser, Subcommand};
+
+use accelcal_core::campaign::CodeRange;
+
+mod campaign;
+mod db;
+mod line;
+
+pub use campaign::*;
+pub use db::*;
+pub use line::*;
+
+/// Production calibration of analog MEMS accelerometer blocks (MS9002.D class) on a dividing
+/// head: GMDH model-structure selection, least-squares and test-turn fits, and their comparison.
+///
+/// Every command prints human tables to stdout and, with --json FILE, machine output. Exit code
+/// 0 on success, 2 on bad input (the message names file, line and column), 1 otherwise.
+#[derive(Debug, Parser)]
+#[command(name = "accelcal", version, propagate_version = true)]
+pub struct Cli {
+    /// The command to run.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Simulate a calibration campaign on the dividing head (campaign CSV + truth JSON).
+    Simulate(SimulateArgs),
+    /// Select each channel's model structure by combinatorial GMDH.
+    Select(SelectArgs),
+    /// Print a position plan: the head angles and what each axis should read there (m/s², g).
+    Plan(PlanArgs),
+    /// Fit model coefficients by least squares or test turns; optionally write a calibration record.
+    Fit(FitArgs),
+    /// Compare LSQ and test turns by the error of the calibrated acceleration (the paper's Table 2).
+    Compare(CompareArgs),
+    /// Run the whole job on built-in simulated data: simulate, select, fit, compare, plot.
+    Demo(DemoArgs),
+    /// Write a calibration record into a sensor node's flash through a debug probe (the inactive
+    /// record slot; the firmware is never erased, the old record stays in force until the new
+    /// one is complete).
+    Flash(FlashArgs),
+    /// Inspect calibration record files.
+    #[command(subcommand)]
+    Record(RecordCommand),
+    /// Show a sensor node's live stream (calibrated samples and status) from its serial port.
+    Monitor(MonitorArgs),
+    /// Replay a campaign through the node firmware running in QEMU and write what it computed.
+    Hil(HilArgs),
+    /// Run the emulated bench: the node's QEMU build fed live by a simulated unit on an emulated
+    /// dividing head. Prints one JSON line `{"port", "gdb", "head"}` and runs until Ctrl-C.
+    Emulate(EmulateArgs),
+    /// Ask a node who it is: device id (what `fit --record --device-id` needs), firmware, record
+    /// in force, sampling rate, overruns, last reset.
+    Info(InfoArgs),
+    /// Switch a node's live stream between calibrated acceleration and raw ADC codes.
+    Output(OutputArgs),
+    /// Record a campaign from a node on a dividing head: set each position of a plan (operator
+    /// or emulated head), wait for a static stream, record raw code sets.
+    Acquire(AcquireArgs),
+    /// Check a calibrated node on the head: at each position compare its mean calibrated
+    /// acceleration with g times the head's kinematics. Exit code 0 when every position passes,
+    /// 1 when one fails.
+    Verify(VerifyArgs),
+    /// Write a unit's calibration certificate: one self-contained HTML page (prints on one A4
+    /// page) with identification, g, record CRC, model selection, coefficients ± standard
+    /// errors, Table 2 and the verification.
+    Report(ReportArgs),
+    /// Diagnose the gap between a campaign and its linear-sensor simulation, and attribute it to
+    /// effects checked on withheld data.
+    Diagnose(DiagnoseArgs),
+    /// Blind benchmark of `diagnose` on simulated campaigns with withheld effects.
+    BenchDiagnose(BenchDiagnoseArgs),
+    /// The whole line for one unit on the head: info, as-found verify (when a record is in
+    /// force), acquire, select (model 4 or the unit is rejected), fit, flash, as-left verify,
+    /// certificate; each step is the command of that name, run and journalled in the unit's
+    /// directory, so that running the same command again after Ctrl-C or a crash goes on where it
+    /// stopped. Exit code: 0 the unit passed, 1 it was rejected, 2 bad input, 3 the environment
+    /// failed (port, probe, head, file system), 130 stopped.
+    Station(StationArgs),
+    /// A unit's history from the calibration database: every run, the coefficient drift between
+    /// consecutive calibrations with its uncertainty, the as-found and as-left verifications, and
+    /// the recommended recalibration date.
+    #[command(after_long_help = accelcal_core::db::history::METHOD)]
+    History(HistoryArgs),
+    /// Take a calibration run out of the unit's history, the fleet's statistics and the
+    /// recalibration intervals (a mislabelled or mistaken run): an appended row with the reason;
+    /// nothing is deleted, and `history` lists the run as voided.
+    Void(VoidArgs),
+    /// The calibration database: `db verify` checks every row against its hash chain.
+    #[command(subcommand)]
+    Db(DbCommand),
+}
+
+/// Storing a command's result in the calibration database (`fit`, `verify`, `flash`, `report`).
+#[derive(Debug, Args, Clone, Default)]
+pub struct RunArgs {
+    /// Store this command's result in the calibration database: a SQLite file (created when
+    /// missing) or postgres://USER@HOST[:PORT]/DB. Opened before anything else is done, so an
+    /// unreachable database stops the command before it touches the node.
+    #[arg(long, value_name = "FILE|URL")]
+    pub db: Option<String>,
+    /// The calibration run the result belongs to (a UUID, as `fit --db` or `station` print it)
+    /// [with --db; `fit` and `verify` begin a run under this id when the database has none, or
+    /// under a new one when it is not given; `flash` and `report` need an existing run].
+    #[arg(long, value_name = "UUID")]
+    pub run_id: Option<String>,
+    /// Begin the run even though the database ties this serial to another device, or this
+    /// device to another serial: the serial moves to this device, stored as a relabel row with
+    /// REASON [with --db, for `fit` and `verify` when they begin a run].
+    #[arg(long, value_name = "REASON")]
+    pub relabel: Option<String>,
+}
+
+/// The database a command that only reads it (or appends one row) names.
+#[derive(Debug, Args)]
+pub struct ReaderDb {
+    /// The calibration database: a SQLite file, or postgres://USER@HOST[:PORT]/DB [default: the
+    /// ACCELCAL_DB environment variable, else calibration.sqlite in the current directory when
+    /// there is one].
+    #[arg(long, value_name = "FILE|URL")]
+    pub db: Option<String>,
+}
+
+/// Local gravity from the site instead of `--g`: WGS84 normal gravity with the free-air
+/// correction (`accelcal_shared::normal_gravity`).
+#[derive(Debug, Args, Clone, Default)]
+pub struct LocalGravity {
+    /// Geodetic latitude of the rig, degrees (-90..=90): g becomes WGS84 normal gravity there
+    /// (Somigliana) with the free-air correction for --height, instead of --g.
+    #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
+    pub latitude: Option<f64>,
+    /// Height of the rig above the WGS84 ellipsoid, m (with --latitude; 0 when not given).
+    #[arg(long, value_name = "M", allow_negative_numbers = true)]
+    pub height: Option<f64>,
+}
+
+/// Options shared by the commands that read a campaign.
+#[derive(Debug, Args, Clone)]
+pub struct CommonArgs {
+    /// Gravity at the rig, m/s² [default: the campaign's `# g_m_s2:` line (written by `acquire`),
+    /// else 9.81].
+    #[arg(long, default_value_t = accelcal_shared::G_STANDARD, hide_default_value = true)]
+    pub g: f64,
+    /// Whether --g or --latitude gave g (set by `settings::resolve_gravity`, not a flag).
+    #[arg(skip)]
+    pub g_given: bool,
+    /// Local gravity instead of --g.
+    #[command(flatten)]
+    pub local: LocalGravity,
+    /// Write machine-readable results to this JSON file.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+    /// Range of the campaign's raw codes (help: `CODES_HELP`, `CODES_LONG_HELP`).
+    #[arg(long, value_name = "RANGE", value_parser = parse_codes, help = CODES_HELP, long_help = CODES_LONG_HELP)]
+    pub codes: Option<CodeRange>,
+}
+
+/// The short help of `--codes`.
+const CODES_HELP: &str = "Range of the raw codes: unsigned16 or signed16 [default: the campaign's `# codes:` line, else unsigned16]";
+
+/// The long help of `--codes` (`--help`).
+const CODES_LONG_HELP: &str = "Range of the campaign's raw codes: `unsigned16` (0..=65535, a 16-bit \
+ADC; 0 and 65535 are saturation) or `signed16` (-32768..=32767, the two's-complement counts of a \
+digital MEMS; -32768 and 32767 are saturation). Rows with a code at a rail or outside the range are \
+excluded with a warning. A campaign states its range with a comment line `# codes: signed16` (or \
+`unsigned16`) before its header row; a --codes that contradicts it is an error. Without either, \
+unsigned16.";
+
+fn parse_codes(s: &str) -> Result<CodeRange, String> {
+    s.parse()
+}
