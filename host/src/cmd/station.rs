@@ -24,6 +24,8 @@ use anyhow::Context;
 use super::store::{crash_point, DEFAULT_DB, PASS_REASON};
 use crate::cli::StationArgs;
 
+mod finish;
+
 /// File names in the unit's directory.
 const INFO: &str = "info.json";
 const AS_FOUND: &str = "as-found.json";
@@ -682,79 +684,6 @@ fn acquire_together(units: &mut [&mut Station<'_>]) -> anyhow::Result<()> {
         s.store_campaign()?;
     }
     Ok(())
-}
-
-impl Station<'_> {
-    /// The unit's steps after the campaign; its run ends `pass`.
-    fn after_acquire(&mut self) -> anyhow::Result<()> {
-        self.select()?;
-        self.fit()?;
-        self.flash()?;
-        self.as_left()?;
-        self.certificate()?;
-        let run = self.run_id()?;
-        self.db.finish_run(run, Outcome::Pass, PASS_REASON)?;
-        crash_point("db:end");
-        println!(
-            "station: unit {} (device {}) PASS; certificate {}; journal {}; run {run} stored in {}",
-            self.u.serial,
-            self.journal.device_id.as_deref().unwrap_or("?"),
-            self.p(CERTIFICATE),
-            self.p(JOURNAL),
-            self.db.target()
-        );
-        Ok(())
-    }
-
-    /// A unit that passed, run again: its files must still be as the steps wrote them, and the
-    /// node must still run the record the run certified.
-    fn passed_before(&mut self) -> anyhow::Result<()> {
-        let run = self.run_id()?;
-        if let Some(rec) = self.db.progress(run)?.record {
-            if !self.runs_record(rec.crc32()) {
-                return Err(StationError::RecordReplaced {
-                    serial: self.u.serial.clone(),
-                    node: self.in_force_words(),
-                    certified: format!("{:08x}", rec.crc32()),
-                    run_id: run.to_string(),
-                }
-                .into());
-            }
-        }
-        // `report --db` ended the run before the station journalled its step (a crash between
-        // the two): the certificate on disk is the stored one, journalled now.
-        if self.journal.done(self.dir, Step::Certificate)?.is_none() {
-            let on_disk =
-                std::fs::read(self.path(CERTIFICATE)).ok().map(|b| accelcal_core::db::sha256_hex(&b));
-            if on_disk.is_some() && on_disk == self.db.certificate_sha256(run)? {
-                self.finish(
-                    Step::Certificate,
-                    vec![],
-                    "written (stored, and the run ended, before the stop)".into(),
-                    &[CERTIFICATE],
-                )?;
-            }
-        }
-        for step in Step::ALL.into_iter().skip(1) {
-            if !self.done(step)? {
-                return Err(bad(format!(
-                    "run {} ended pass in {}, but {} has no step {}: the journal does not match the database",
-                    self.run_id()?,
-                    self.db.target(),
-                    self.p(JOURNAL),
-                    step.name()
-                )));
-            }
-        }
-        println!(
-            "station: unit {} (device {}) PASS, finished before (run {} in {}); nothing to do",
-            self.u.serial,
-            self.journal.device_id.as_deref().unwrap_or("?"),
-            self.run_id()?,
-            self.db.target()
-        );
-        Ok(())
-    }
 }
 
 /// Runs `accelcal station`: every unit's `info` and as-found verification, one node after the
