@@ -1,0 +1,181 @@
+//! The station: the line for one unit journalled and resumed after Ctrl-C, and two stations
+//! storing into one PostgreSQL server at once.
+
+use super::*;
+
+/// Issue 23: `station` runs the line for a unit (info → acquire → select → fit → flash → as-left
+/// verify → certificate), journalled; the same command again keeps every step; another unit's
+/// directory is refused; a second unit on the node (the record now in force) is verified as found
+/// first; Ctrl-C to the station's process group (as a terminal sends it) stops it with 130 during
+/// the acquisition, and the same command again resumes the campaign and finishes.
+#[test]
+fn the_station_runs_the_line_journals_it_and_resumes_after_ctrl_c() {
+    use std::os::unix::process::CommandExt;
+    let _one = one_bench();
+    let dir = tempfile::tempdir().unwrap();
+    let (truth, _) = unit(dir.path(), "u", 21, 10);
+    let em = Emulator::start(&truth, &[]);
+    let a = dir.path().join("unit-a");
+    let out = succeed(&station_args(&em, "A-1", &a, &[]));
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("station: unit A-1 (device 51454d552d422d4c34373545) PASS"), "{text}");
+    let steps: Vec<String> = journal(&a).into_iter().map(|(s, _)| s).collect();
+    assert_eq!(steps, ["info", "as-found", "acquire", "select", "fit", "flash", "as-left", "certificate"]);
+    assert_eq!(journal(&a)[1].1, "skipped: no record in force");
+    assert!(a.join("certificate.html").is_file());
+    let crc = json(&a.join("as-left.json"))["record"]["crc"].as_str().unwrap().to_string();
+    assert_runs_record(&em, &a.join("info.json"), &crc);
+
+    // The run is in the database beside the units' directories.
+    let db = dir.path().join("calibration.sqlite");
+    let run_a = json(&a.join("station.json"))["run_id"].as_str().unwrap().to_string();
+    assert!(text.contains(&format!("run {run_a} stored in {}", db.display())), "{text}");
+
+    // Again: nothing is repeated but `info` (the node must still be the unit's).
+    let again = succeed(&station_args(&em, "A-1", &a, &[]));
+    assert!(String::from_utf8_lossy(&again.stdout).contains("finished before"), "{again:?}");
+    let err = String::from_utf8_lossy(&again.stderr).to_string();
+    assert_eq!(err.matches(", kept").count(), 7, "{err}");
+    assert!(!err.contains("step 3/8"), "{err}");
+    // Another serial in that directory: refused before anything runs.
+    let e = common::bad(&station_args(&em, "B-2", &a, &[]));
+    assert!(e.contains("holds the line of unit A-1, not of --serial B-2"), "{e}");
+
+    // A second unit on the same node, stopped by Ctrl-C mid-campaign, then resumed.
+    let b = dir.path().join("unit-b");
+    // The as-found tolerance from the fit of the record in force, which the database finds. The
+    // node is the device of unit A-1 in the database: a new serial on it is a relabel (issue 28).
+    let extra = ["--relabel", "the node is reused for unit B-2"];
+    let mut child = Command::new(env!("CARGO_BIN_EXE_accelcal"))
+        .args(station_args(&em, "B-2", &b, &extra))
+        .process_group(0)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let t0 = Instant::now();
+    while dwells(&b.join("campaign.csv")).iter().filter(|d| d.2 == 200).count() < 2 {
+        assert!(t0.elapsed() < Duration::from_secs(120), "no progress");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    // To the station's process group, as a terminal's Ctrl-C (the station and its step).
+    let pgid = i32::try_from(child.id()).unwrap();
+    assert!(pgid > 1);
+    // SAFETY: kill(2) with a negative pid signals that process group only.
+    assert_eq!(unsafe { libc::kill(-pgid, libc::SIGINT) }, 0);
+    let status = child.wait().unwrap();
+    let mut err = String::new();
+    std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
+    assert_eq!(status.code(), Some(130), "{err}");
+    assert!(err.contains("stopped at step acquire: run the same command again"), "{err}");
+    assert!(err.contains("station: as-found PASS (6 positions)"), "{err}");
+    assert!(err.contains(&format!("station: the fit of the record in force (CRC {crc}) from ")), "{err}");
+    let out = succeed(&station_args(&em, "B-2", &b, &extra));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("as-found done at") && err.contains("--resume"), "{err}");
+    assert!(err.contains("resume: ") && err.contains("complete positions kept"), "{err}");
+    assert_eq!(dwells(&b.join("campaign.csv")).len(), 24);
+    assert_eq!(journal(&b).len(), 8);
+
+    // The database: each piece of each run once, none half-written, B's certificate with its
+    // as-found verification and the drift since A's calibration (the same node).
+    let run_b = json(&b.join("station.json"))["run_id"].as_str().unwrap().to_string();
+    let c = rusqlite::Connection::open(&db).unwrap();
+    let count = |table: &str, run: &str| -> i64 {
+        c.query_row(&format!("SELECT count(*) FROM {table} WHERE run_id = ?1"), [run], |r| r.get(0)).unwrap()
+    };
+    for (table, a_rows, b_rows) in [
+        ("run", 1, 1),
+        ("campaign", 1, 1),
+        ("fit", 1, 1),
+        ("cal_record", 1, 1),
+        ("flash", 1, 1),
+        ("verification", 1, 2),
+        ("certificate", 1, 1),
+        ("run_end", 1, 1),
+    ] {
+        assert_eq!((count(table, &run_a), count(table, &run_b)), (a_rows, b_rows), "{table}");
+    }
+    let stored: String = c
+        .query_row("SELECT campaign_sha256 FROM campaign WHERE run_id = ?1", [&run_b], |r| r.get(0))
+        .unwrap();
+    let file = std::fs::read(b.join("campaign.csv")).unwrap();
+    assert_eq!(stored, accelcal_core::db::sha256_hex(&file));
+    let html = std::fs::read_to_string(b.join("certificate.html")).unwrap();
+    assert!(
+        html.contains("As found (before recalibration)")
+            && html.contains("Drift since the last calibration (")
+    );
+    let h =
+        String::from_utf8_lossy(&succeed(&["history", "51454d552d422d4c34373545", "--db", s(&db)]).stdout)
+            .to_string();
+    assert!(h.contains("2 runs, 2 calibrations"), "{h}");
+}
+
+/// Issue 23: two stations (two benches, one unit each) calibrate at the same time into one
+/// PostgreSQL server (a throwaway cluster, `scripts/postgres-cluster.sh`): both pass and the
+/// server holds both runs whole, each piece once, with the station that ran it.
+#[test]
+fn two_stations_store_into_one_postgresql_server_at_once() {
+    use std::os::unix::process::CommandExt;
+    let _one = one_bench();
+    let pg = dbkit::Cluster::start();
+    let dir = tempfile::tempdir().unwrap();
+    // Two benches of one line: distinct devices (a serial is one device's, issue 28).
+    let benches: Vec<Emulator> = [(31u64, "1"), (32, "2")]
+        .iter()
+        .map(|&(seed, n)| {
+            Emulator::start(&unit(dir.path(), &format!("u{seed}"), seed, 10).0, &["--first-node", n])
+        })
+        .collect();
+    let outs: Vec<PathBuf> = (1..=2).map(|i| dir.path().join(format!("st-{i}"))).collect();
+    let names = ["st-1", "st-2"];
+    let serials = ["P-1", "P-2"];
+    let children: Vec<Child> = (0..2)
+        .map(|i| {
+            let extra = ["--db", pg.url.as_str(), "--station", names[i]];
+            Command::new(env!("CARGO_BIN_EXE_accelcal"))
+                .args(station_args(&benches[i], serials[i], &outs[i], &extra))
+                .process_group(0)
+                .stdout(Stdio::piped())
+                .stderr(Stdio::piped())
+                .spawn()
+                .unwrap()
+        })
+        .collect();
+    for (i, c) in children.into_iter().enumerate() {
+        let out = c.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            out.status.success(),
+            "station {}: {err}\n{}",
+            names[i],
+            String::from_utf8_lossy(&out.stdout)
+        );
+        assert!(!err.contains("password"), "{err}");
+    }
+    let mut client = postgres::Client::connect(&pg.url, postgres::NoTls).unwrap();
+    for (i, out) in outs.iter().enumerate() {
+        let run = json(&out.join("station.json"))["run_id"].as_str().unwrap().to_string();
+        let station: String =
+            client.query_one("SELECT station FROM run WHERE run_id = $1", &[&run]).unwrap().get(0);
+        assert_eq!(station, names[i]);
+        for (table, rows) in [
+            ("campaign", 1i64),
+            ("fit", 1),
+            ("cal_record", 1),
+            ("flash", 1),
+            ("verification", 1),
+            ("certificate", 1),
+            ("run_end", 1),
+        ] {
+            let n: i64 = client
+                .query_one(&format!("SELECT count(*) FROM {table} WHERE run_id = $1"), &[&run])
+                .unwrap()
+                .get(0);
+            assert_eq!(n, rows, "{table} of {}", names[i]);
+        }
+    }
+    let h = String::from_utf8_lossy(&succeed(&["history", "P-2", "--db", &pg.url]).stdout).to_string();
+    assert!(h.contains("1 run, 1 calibration") && h.contains("st-2"), "{h}");
+}
