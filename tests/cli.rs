@@ -405,13 +405,13 @@ fn latitude_and_height_give_local_gravity() {
 }
 
 /// Issue 24: `acquire`'s check that the head moved as the plan says
-/// (`accelcal_core::acquire::MotionCheck`) accepts every position, in acquisition order, of the
+/// (`accelcal_line::acquire::MotionCheck`) accepts every position, in acquisition order, of the
 /// real Xsens recording's holds (their angles from the calibrated gravity direction) and of
 /// simulated campaigns with each effect, and refuses the unturned head's second position.
 #[test]
 fn the_motion_check_accepts_real_and_simulated_positions() {
-    use accelcal_core::acquire::MotionCheck;
     use accelcal_core::campaign::Campaign;
+    use accelcal_line::acquire::MotionCheck;
     let check = |path: &Path, g: f64| -> Result<usize, String> {
         let c = Campaign::read(path).unwrap();
         let mut m = MotionCheck::new(g);

@@ -6,7 +6,7 @@ mod dbkit;
 
 use std::path::Path;
 
-use accelcal_core::db::{Db, Outcome, RunId};
+use accelcal_db::{Db, Outcome, RunId};
 use dbkit::*;
 
 fn db_file(d: &tempfile::TempDir) -> String {
@@ -96,7 +96,7 @@ fn tables(sql: &str) -> Vec<(String, Vec<String>)> {
 
 #[test]
 fn both_engines_have_the_same_tables_and_columns() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../core/migrations");
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../db/migrations");
     let versions = |engine: &str| -> Vec<String> {
         let mut v: Vec<String> = std::fs::read_dir(dir.join(engine))
             .unwrap()

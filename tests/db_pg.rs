@@ -5,7 +5,7 @@
 
 mod dbkit;
 
-use accelcal_core::db::{Db, RunId};
+use accelcal_db::{Db, RunId};
 use dbkit::*;
 
 #[test]

@@ -308,7 +308,7 @@ fn cli_writes_the_equivalent_model4_record() {
     // hash, the record's CRC (the one `record show` prints).
     let bytes = std::fs::read(&rec).unwrap();
     let crc = format!("{:08x}", accelcal_shared::record::crc32(&bytes[..bytes.len() - 4]));
-    let sha = accelcal_core::db::sha256_hex(&std::fs::read(&data).unwrap());
+    let sha = accelcal_db::sha256_hex(&std::fs::read(&data).unwrap());
     assert_eq!(
         (&j["device_id"], &j["serial"], &j["g_m_s2"], &j["campaign_sha256"], &j["record_crc"]),
         (

@@ -18,8 +18,8 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use accelcal_core::campaign::Campaign;
-use accelcal_core::node::hil::{replay_blocks, replay_with_temps, CampaignCodes, HilOptions, QemuNode};
-use accelcal_core::node::monitor::format_status;
+use accelcal_line::node::hil::{replay_blocks, replay_with_temps, CampaignCodes, HilOptions, QemuNode};
+use accelcal_line::node::monitor::format_status;
 use accelcal_shared::contract::QEMU_DEVICE_ID;
 use accelcal_shared::kinematics::gravity;
 use accelcal_shared::record::{crc32, Record, RecordError};
@@ -549,7 +549,7 @@ fn fixed_point_node_matches_host_fixed_arithmetic() {
         CampaignCodes::open(&camp_path).unwrap().flat_map(|b| b.unwrap().0).take(600).collect();
     let codes = &codes[..];
     let record = std::fs::read(&rec_path).unwrap();
-    let run = accelcal_core::node::hil::replay(&HilOptions::new(elf), &record, codes).unwrap();
+    let run = accelcal_line::node::hil::replay(&HilOptions::new(elf), &record, codes).unwrap();
     let cal = Record::parse(&record).unwrap().model4().unwrap().invert().unwrap();
     let fixed = cal.to_fixed().unwrap();
     let bound = fixed.error_bound(&cal);

@@ -10,7 +10,7 @@ mod support;
 
 use std::time::Instant;
 
-use accelcal_core::node::hil::{replay, HilOptions};
+use accelcal_line::node::hil::{replay, HilOptions};
 use accelcal_shared::linear::Model4;
 use accelcal_shared::record::Record;
 use accelcal_shared::wire::MAX_BLOCK;

@@ -27,7 +27,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use accelcal_core::node::session::Session;
+use accelcal_line::node::session::Session;
 use accelcal_shared::wire::Block;
 use common::{accelcal, ok, succeed};
 
@@ -335,7 +335,7 @@ fn overruns_are_reported_and_output_modes_switch() {
     let t0 = Instant::now();
     let mut wait = node.block_wait();
     while t0.elapsed() < Duration::from_secs(2) {
-        if let Some(accelcal_core::node::session::Samples { first, data, .. }) =
+        if let Some(accelcal_line::node::session::Samples { first, data, .. }) =
             node.poll_samples(&mut wait).unwrap()
         {
             if let Some(n) = next {
@@ -353,7 +353,7 @@ fn overruns_are_reported_and_output_modes_switch() {
     let kind = |node: &mut Session| {
         let mut wait = node.block_wait();
         loop {
-            if let Some(accelcal_core::node::session::Samples { data, .. }) =
+            if let Some(accelcal_line::node::session::Samples { data, .. }) =
                 node.poll_samples(&mut wait).unwrap()
             {
                 break std::mem::discriminant(&data);

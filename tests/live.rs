@@ -17,8 +17,8 @@ use std::sync::mpsc;
 use std::sync::{Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
-use accelcal_core::node::link::{self, Receiver};
-use accelcal_core::node::qemu::{BlankSlot, Link, LinkChannel, Qemu, QemuOptions};
+use accelcal_line::node::link::{self, Receiver};
+use accelcal_line::node::qemu::{BlankSlot, Link, LinkChannel, Qemu, QemuOptions};
 use accelcal_shared::contract::QEMU_DEVICE_ID;
 use accelcal_shared::frontend::{FeCtl, FeSet, FE_MAX_FRAME};
 use accelcal_shared::linear::{LinearCalF32, Model4};

@@ -393,7 +393,7 @@ pub(crate) fn open(path: &Path) -> Result<Input, CampaignError> {
 
 /// One checked row whose codes are all usable.
 #[derive(Clone, Debug, Default)]
-pub(crate) struct Row {
+pub struct Row {
     /// Time, s.
     pub t: f64,
     /// Commanded α, degrees.
@@ -440,7 +440,7 @@ impl Tally {
 ///
 /// Rows with a channel code saturated or outside the code range are skipped (and counted per
 /// channel for a warning); a dwell that loses every row is refused.
-pub(crate) struct RowReader<R: Read> {
+pub struct RowReader<R: Read> {
     rdr: csv::Reader<Chain<Cursor<Vec<u8>>, BufReader<R>>>,
     path: PathBuf,
     codes: CodeRange,

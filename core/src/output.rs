@@ -111,7 +111,7 @@ mod tests {
         let d = tempfile::tempdir().unwrap();
         let e = write_atomic(d.path(), b"x").unwrap_err();
         assert!(e.to_string().contains("is not a regular file"), "{e}");
-        assert!(crate::exit::is_bad_input(&e));
+        assert!(e.downcast_ref::<crate::error::BadInput>().is_some(), "bad input: {e:#}");
         #[cfg(unix)]
         {
             let e = write_atomic(Path::new("/dev/null"), b"x").unwrap_err();

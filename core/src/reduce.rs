@@ -138,7 +138,7 @@ impl Campaign {
 /// The rows of a campaign file, read one at a time with every check of [`RowReader`], each with
 /// the index of its dwell (consecutive kept rows with the same angles, as [`Campaign::dwells`]
 /// counts them). Keeps only the current row.
-pub(crate) struct DwellRows<R: Read> {
+pub struct DwellRows<R: Read> {
     rows: RowReader<R>,
     row: Row,
     dwell: Option<usize>,

@@ -5,6 +5,7 @@
 
 mod cli;
 mod cmd;
+mod exit;
 mod report;
 mod settings;
 
@@ -26,8 +27,8 @@ fn main() {
     let mut warnings = cmd::Warnings::default();
     // The station tells a rejected unit (1) from a failed environment (3).
     let code = match cli.command {
-        cli::Command::Station(_) => accelcal_core::exit::station_code,
-        _ => accelcal_core::exit::code,
+        cli::Command::Station(_) => crate::exit::station_code,
+        _ => crate::exit::code,
     };
     match cmd::run(cli, &mut warnings) {
         Ok(()) => cmd::print_warnings(&warnings),

@@ -116,7 +116,7 @@ fn check_run(command: &Command, given: &Given) -> anyhow::Result<()> {
         )?;
     }
     if let Some(id) = &run.run_id {
-        accelcal_core::db::RunId::parse(id)?;
+        accelcal_db::RunId::parse(id)?;
     }
     match command {
         Command::Fit(a) if a.method == crate::cli::MethodArg::GravityNorm => given.refuse(
@@ -504,10 +504,10 @@ fn check_answer_timeout(link: &crate::cli::PortArgs) -> anyhow::Result<()> {
 /// `--head-timeout-s`: a positive number of seconds, for an emulated head only.
 fn check_head_timeout(
     given: &Given,
-    head: &accelcal_core::node::head::HeadSpec,
+    head: &accelcal_line::node::head::HeadSpec,
     s: f64,
 ) -> anyhow::Result<()> {
-    if *head == accelcal_core::node::head::HeadSpec::Manual {
+    if *head == accelcal_line::node::head::HeadSpec::Manual {
         given.refuse(&["head_timeout_s"], "--head manual", " (the operator turns the head)")?;
     }
     positive_seconds("--head-timeout-s", s)

@@ -5,8 +5,8 @@
 use std::io::{BufRead, BufReader};
 use std::process::{Command, Stdio};
 
-use accelcal_core::db::{Db, DbError, Outcome, Phase, RunId, RunStart, Stored};
-use accelcal_core::verify::{PositionCheck, VerifyReport};
+use accelcal_db::{Db, DbError, Outcome, Phase, RunId, RunStart, Stored};
+use accelcal_line::verify::{PositionCheck, VerifyReport};
 use accelcal_shared::record::{Record, MAX_CHANNELS, MAX_RECORD_LEN};
 use accelcal_shared::terms::MODEL_4;
 use accelcal_shared::N_BASIS;
@@ -356,7 +356,7 @@ pub const DEVICE_2: &str = "0123456789abcdef01234567";
 /// refused; `relabel` moves the serial (a row with the reason) and `history` follows it; a voided
 /// run is listed but counts neither as a calibration nor as a label.
 pub fn labels_and_voids(spec: &str) {
-    use accelcal_core::db::{LabelClash, Relabel};
+    use accelcal_db::{LabelClash, Relabel};
     let mut db = Db::open(spec).unwrap();
     let a = calibrate(&mut db, &start(RunId::new(), DEVICE, "U-0045", "st-1", T0), &coefs(0.0, 0), None);
     calibrate(&mut db, &start(RunId::new(), DEVICE_2, "U-0044", "st-1", T0 + 10), &coefs(0.0, 0), None);
@@ -394,7 +394,7 @@ pub fn labels_and_voids(spec: &str) {
     let runs = db.unit_runs(DEVICE).unwrap();
     let voided = runs.iter().find(|r| r.start.run_id == a).unwrap();
     assert_eq!(voided.voided.as_ref().unwrap().0, "measured on a head out of true");
-    let h = accelcal_core::db::history::history(&runs, accelcal_core::db::history::DEFAULT_RULE);
+    let h = accelcal_db::history::history(&runs, accelcal_db::history::DEFAULT_RULE);
     assert_eq!(h.recalibration.calibrations, 0, "the voided run is no calibration");
     // A voided run takes nothing more.
     assert!(matches!(db.store_certificate(moved.run_id, "x"), Ok(Stored::New)));
@@ -432,7 +432,7 @@ pub fn a_changed_row_breaks_the_chain(spec: &str, postgres: bool, tamper: &dyn F
         "{} cal_record (run_id, bytes, crc32, stored_unix_s, content_sha256) VALUES ('{run}', {}, {crc}, {T0}, '{}')",
         if postgres { "DELETE FROM cal_record WHERE run_id = '".to_string() + &run.to_string() + "'; INSERT INTO" } else { "REPLACE INTO".into() },
         if postgres { format!("'\\x{hex}'::bytea") } else { format!("X'{hex}'") },
-        accelcal_core::db::sha256_hex(&forged)
+        accelcal_db::sha256_hex(&forged)
     ));
     let (code, out, err) = accelcal(&["db", "verify", "--db", spec]);
     assert_eq!(code, Some(1), "{out}{err}");

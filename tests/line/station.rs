@@ -100,7 +100,7 @@ fn the_station_runs_the_line_journals_it_and_resumes_after_ctrl_c() {
         .query_row("SELECT campaign_sha256 FROM campaign WHERE run_id = ?1", [&run_b], |r| r.get(0))
         .unwrap();
     let file = std::fs::read(b.join("campaign.csv")).unwrap();
-    assert_eq!(stored, accelcal_core::db::sha256_hex(&file));
+    assert_eq!(stored, accelcal_db::sha256_hex(&file));
     let html = std::fs::read_to_string(b.join("certificate.html")).unwrap();
     assert!(
         html.contains("As found (before recalibration)")

@@ -113,7 +113,7 @@ pub fn content_sha256(path: &Path) -> Result<String, CampaignError> {
             Err(e) => return Err(io(e)),
         }
     }
-    Ok(hasher.finalize().iter().map(|b| format!("{b:02x}")).collect())
+    Ok(crate::digest::hex(&hasher.finalize()))
 }
 
 /// The unit a fit belongs to, written by `fit --json` next to its channels (these field names are

@@ -19,14 +19,14 @@ pub struct HistoryArgs {
     pub db: Option<String>,
     /// The tolerance T the drift of a coefficient may reach before the unit is recalibrated,
     /// as an acceleration error at 1 g, m/s².
-    #[arg(long = "tolerance-m-s2", value_name = "M_S2", default_value_t = accelcal_core::db::history::DEFAULT_RULE.tolerance_m_s2)]
+    #[arg(long = "tolerance-m-s2", value_name = "M_S2", default_value_t = accelcal_db::history::DEFAULT_RULE.tolerance_m_s2)]
     pub tolerance_m_s2: f64,
     /// Coverage factor k on the drift rate's standard error.
-    #[arg(long, value_name = "K", default_value_t = accelcal_core::db::history::DEFAULT_RULE.coverage)]
+    #[arg(long, value_name = "K", default_value_t = accelcal_db::history::DEFAULT_RULE.coverage)]
     pub coverage: f64,
     /// The longest recommended interval between calibrations, days (also the interval after a
     /// single calibration; at most 36525, a century).
-    #[arg(long, value_name = "DAYS", default_value_t = accelcal_core::db::history::DEFAULT_RULE.max_interval_days)]
+    #[arg(long, value_name = "DAYS", default_value_t = accelcal_db::history::DEFAULT_RULE.max_interval_days)]
     pub max_interval_days: f64,
     /// Write the history as JSON to this file.
     #[arg(long, value_name = "FILE")]

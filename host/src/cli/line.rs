@@ -29,7 +29,7 @@ pub struct FlashArgs {
     #[arg(long, value_name = "DEV")]
     pub port: Option<String>,
     /// Baud rate of the node's USART1 (with --port; a pty ignores it).
-    #[arg(long, default_value_t = accelcal_core::node::monitor::NODE_BAUD)]
+    #[arg(long, default_value_t = accelcal_line::node::monitor::NODE_BAUD)]
     pub baud: u32,
     /// Fault injection for tests of the torn-write safety (with --gdb): erase the target slot,
     /// write only this many bytes of its page, then reset the MCU. The old record stays in force.
@@ -66,7 +66,7 @@ pub struct MonitorArgs {
     #[arg(long, value_name = "DEV")]
     pub port: String,
     /// Baud rate of the node's USART1.
-    #[arg(long, default_value_t = accelcal_core::node::monitor::NODE_BAUD)]
+    #[arg(long, default_value_t = accelcal_line::node::monitor::NODE_BAUD)]
     pub baud: u32,
     /// Stop after this many messages; frames that do not decode are shown (`# bad frame: …`) and
     /// not counted [default: run until interrupted].
@@ -89,7 +89,7 @@ pub struct PortArgs {
     #[arg(long, value_name = "DEV")]
     pub port: String,
     /// Baud rate of the node's USART1 (a pty ignores it).
-    #[arg(long, default_value_t = accelcal_core::node::monitor::NODE_BAUD)]
+    #[arg(long, default_value_t = accelcal_line::node::monitor::NODE_BAUD)]
     pub baud: u32,
     /// Seconds the node may take to answer a request (and, while it streams, between two sample
     /// blocks) before the command fails, whatever else it sends meanwhile.
@@ -193,7 +193,7 @@ pub struct AcquireArgs {
     #[arg(long, value_name = "DEV", required = true)]
     pub port: Vec<String>,
     /// Baud rate of the nodes' USART1 (a pty ignores it).
-    #[arg(long, default_value_t = accelcal_core::node::monitor::NODE_BAUD)]
+    #[arg(long, default_value_t = accelcal_line::node::monitor::NODE_BAUD)]
     pub baud: u32,
     /// Seconds a node may take to answer a request (and, while it streams, between two sample
     /// blocks) before the command fails, whatever else it sends meanwhile.
@@ -202,7 +202,7 @@ pub struct AcquireArgs {
     /// The head: `manual` (the command shows each position's angles and what the unit should
     /// read, and waits for Enter) or `sim:HOST:PORT` (the emulated head `accelcal emulate` prints).
     #[arg(long, value_name = "HEAD")]
-    pub head: accelcal_core::node::head::HeadSpec,
+    pub head: accelcal_line::node::head::HeadSpec,
     /// Seconds an emulated head (`--head sim:…`) may take to answer a request before the command
     /// fails; a move is answered once the head stands still, so this bounds the longest move.
     #[arg(long, default_value_t = 120.0, value_name = "S")]
@@ -269,7 +269,7 @@ pub struct VerifyArgs {
     pub link: PortArgs,
     /// The head: `manual` or `sim:HOST:PORT` (as for `acquire`).
     #[arg(long, value_name = "HEAD")]
-    pub head: accelcal_core::node::head::HeadSpec,
+    pub head: accelcal_line::node::head::HeadSpec,
     /// Seconds an emulated head (`--head sim:…`) may take to answer a request before the command
     /// fails; a move is answered once the head stands still, so this bounds the longest move.
     #[arg(long, default_value_t = 120.0, value_name = "S")]
@@ -362,7 +362,7 @@ pub struct StationArgs {
     #[arg(long = "port", value_name = "DEV", required = true)]
     pub ports: Vec<String>,
     /// Baud rate of the nodes' USART1 (a pty ignores it).
-    #[arg(long, default_value_t = accelcal_core::node::monitor::NODE_BAUD)]
+    #[arg(long, default_value_t = accelcal_line::node::monitor::NODE_BAUD)]
     pub baud: u32,
     /// Seconds a node may stay silent (no answer to a request) before a step fails.
     #[arg(long, alias = "answer-timeout-s", default_value_t = 5.0, value_name = "S")]
@@ -455,5 +455,5 @@ pub enum PhaseArg {
 
 /// A `--head` value, checked and kept as written (the station passes it on to each step).
 fn parse_head_text(s: &str) -> Result<String, String> {
-    s.parse::<accelcal_core::node::head::HeadSpec>().map(|_| s.to_string())
+    s.parse::<accelcal_line::node::head::HeadSpec>().map(|_| s.to_string())
 }

@@ -87,7 +87,7 @@ pub enum Command {
     /// A unit's history from the calibration database: every run, the coefficient drift between
     /// consecutive calibrations with its uncertainty, the as-found and as-left verifications, and
     /// the recommended recalibration date.
-    #[command(after_long_help = accelcal_core::db::history::METHOD)]
+    #[command(after_long_help = accelcal_db::history::METHOD)]
     History(HistoryArgs),
     /// Take a calibration run out of the unit's history, the fleet's statistics and the
     /// recalibration intervals (a mislabelled or mistaken run): an appended row with the reason;

@@ -1,10 +1,10 @@
 //! `accelcal void` (a run taken out of history, never deleted) and `accelcal db verify` (every
 //! row against the hash chain, `core::db::chain`).
 
-use accelcal_core::db::{Db, RunId, Stored};
 use accelcal_core::error::bad;
 use accelcal_core::output::write_json;
-use accelcal_core::verify::Failed;
+use accelcal_db::{Db, RunId, Stored};
+use accelcal_line::verify::Failed;
 
 use super::store::{reader_spec, user_name};
 use crate::cli::{DbVerifyArgs, VoidArgs};

@@ -6,7 +6,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use accelcal_core::calibrate::{fit_all, gate, record, record_bytes, record_crc_hex, Method};
 use accelcal_core::campaign::identity::{content_sha256, Identity};
-use accelcal_core::node::session::device_id_hex;
+use accelcal_line::node::session::device_id_hex;
 
 use crate::cli::DemoArgs;
 use accelcal_core::gmdh::Split;

@@ -4,17 +4,17 @@
 use std::io::Write;
 use std::sync::atomic::Ordering;
 
-use accelcal_core::emulate::bench::{Bench, BenchOptions, NodeOptions};
-use accelcal_core::emulate::head::SensorTemp;
-use accelcal_core::emulate::{Motion, PaceOptions};
 use accelcal_core::error::bad;
 use accelcal_core::sim::Unit;
+use accelcal_line::emulate::bench::{Bench, BenchOptions, NodeOptions};
+use accelcal_line::emulate::head::SensorTemp;
+use accelcal_line::emulate::{Motion, PaceOptions};
 
 use crate::cli::EmulateArgs;
 
 /// Runs `accelcal emulate`.
 pub fn run(a: &EmulateArgs) -> anyhow::Result<()> {
-    if !accelcal_core::node::head::CHAMBER_RANGE_C.contains(&a.chamber) {
+    if !accelcal_line::node::head::CHAMBER_RANGE_C.contains(&a.chamber) {
         return Err(bad(format!("--chamber must be a temperature in -60..=150 °C, got {}", a.chamber)));
     }
     if !(a.thermal_lag_s.is_finite() && a.thermal_lag_s >= 0.0) {

@@ -6,8 +6,8 @@ use accelcal_core::calibrate::{
 use accelcal_core::campaign::identity::{CampaignId, Identity};
 use accelcal_core::error::bad;
 use accelcal_core::lsq::{self, LsqFit};
-use accelcal_core::node::session::device_id_hex;
 use accelcal_core::output::{finite, write_atomic, write_json};
+use accelcal_line::node::session::device_id_hex;
 use anyhow::Context;
 use serde::Serialize;
 

@@ -11,8 +11,8 @@ use accelcal_core::gravity::{
     self, fit::GravityStructure, fit::TriadModel, holds::DetectorConfig, holds::ThresholdSource,
 };
 use accelcal_core::gravity::{imutk, Calibration, StructureChoice};
-use accelcal_core::node::session::device_id_hex;
 use accelcal_core::output::{write_atomic, write_atomic_with, write_json};
+use accelcal_line::node::session::device_id_hex;
 use accelcal_shared::record::Record;
 use anyhow::Context;
 use serde::Serialize;

@@ -1,10 +1,10 @@
 //! `accelcal history SERIAL|DEVICE`: a unit's runs from the calibration database, the drift
 //! between its calibrations and the recommended recalibration date (`core::db::history`).
 
-use accelcal_core::db::history::{history, History, RecalRule, VerifySummary};
-use accelcal_core::db::{Db, Outcome, Target};
 use accelcal_core::error::bad;
 use accelcal_core::output::write_json;
+use accelcal_db::history::{history, History, RecalRule, VerifySummary};
+use accelcal_db::{Db, Outcome, Target};
 use anyhow::Context;
 
 use super::record::utc;

@@ -6,16 +6,16 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{mpsc, Arc};
 use std::time::Duration;
 
-use accelcal_core::acquire::{
-    self, AcquireConfig, NodeRun, PositionReport, Positioner, Progress, StaticRule,
-};
 use accelcal_core::campaign::identity::{Identity, G_SOURCE_ASSUMED, G_SOURCE_NORMAL};
 use accelcal_core::error::{bad, Interrupted};
-use accelcal_core::node::head::{HeadSpec, SimHead};
-use accelcal_core::node::session::{device_id_hex, firmware_version, record_json, Session};
 use accelcal_core::output::write_json;
 use accelcal_core::sim::Plan;
-use accelcal_core::verify::{
+use accelcal_line::acquire::{
+    self, AcquireConfig, NodeRun, PositionReport, Positioner, Progress, StaticRule,
+};
+use accelcal_line::node::head::{HeadSpec, SimHead};
+use accelcal_line::node::session::{device_id_hex, firmware_version, record_json, Session};
+use accelcal_line::verify::{
     calibrated_rule, uncertainty_from_fit_json, verify, Failed, PositionCheck, Tolerance, VerifyConfig,
     VerifyReport, DEFAULT_COVERAGE,
 };
@@ -179,7 +179,7 @@ fn soak_of(setpoints: &[f64], soak_s: Option<f64>) -> anyhow::Result<Option<Dura
         }
         (false, Some(s)) => {
             if let Some(t) =
-                setpoints.iter().find(|t| !accelcal_core::node::head::CHAMBER_RANGE_C.contains(*t))
+                setpoints.iter().find(|t| !accelcal_line::node::head::CHAMBER_RANGE_C.contains(*t))
             {
                 return Err(bad(format!("--chamber {t}: a setpoint must be in -60..=150 °C")));
             }
@@ -518,9 +518,9 @@ pub fn run_verify(a: &VerifyArgs) -> anyhow::Result<()> {
         );
         // A failed as-left verification rejects the unit, as at the station.
         let failed = report.positions.iter().filter(|p| !p.pass).count();
-        if phase == accelcal_core::db::Phase::AsLeft && failed > 0 {
+        if phase == accelcal_db::Phase::AsLeft && failed > 0 {
             let why = format!("as-left verification: {}", Failed { failed, total: report.positions.len() });
-            rdb.db.finish_run(run, accelcal_core::db::Outcome::Rejected, &why)?;
+            rdb.db.finish_run(run, accelcal_db::Outcome::Rejected, &why)?;
             println!("db: run {run} ended rejected ({why})");
         }
     }

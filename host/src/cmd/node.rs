@@ -4,8 +4,8 @@ use std::io::Write;
 use std::path::PathBuf;
 
 use accelcal_core::error::bad;
-use accelcal_core::node::session::Session;
-use accelcal_core::node::{flash, hil, monitor};
+use accelcal_line::node::session::Session;
+use accelcal_line::node::{flash, hil, monitor};
 use accelcal_shared::wire::RecordStatus;
 use anyhow::Context;
 

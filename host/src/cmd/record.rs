@@ -52,7 +52,7 @@ pub fn describe(bytes: &[u8], rec: &Record) -> RecordJson {
         length: n,
         format_version: FORMAT_VERSION,
         crc32: format!("{:#010x}", u32::from_le_bytes(crc)),
-        device_id: accelcal_core::node::session::device_id_hex(&rec.device_id),
+        device_id: accelcal_line::node::session::device_id_hex(&rec.device_id),
         created_unix_s: rec.created_unix_s,
         created_utc: utc(rec.created_unix_s),
         terms: rec.structure.terms().map(|t| t.to_string()).collect(),

@@ -16,10 +16,10 @@ use accelcal_core::campaign::identity::{
 };
 use accelcal_core::campaign::Campaign;
 use accelcal_core::error::bad;
-use accelcal_core::node::session::device_id_hex;
 use accelcal_core::output::write_atomic;
 use accelcal_core::positions::Positions;
-use accelcal_core::verify::VerifyReport;
+use accelcal_line::node::session::device_id_hex;
+use accelcal_line::verify::VerifyReport;
 use accelcal_shared::record::Record;
 
 use crate::cli::ReportArgs;
@@ -306,7 +306,7 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
         rdb.db.store_certificate(*run, &h)?;
         super::store::crash_point("db:certificate");
         // The run is complete: it ends as the station ends it.
-        rdb.db.finish_run(*run, accelcal_core::db::Outcome::Pass, super::store::PASS_REASON)?;
+        rdb.db.finish_run(*run, accelcal_db::Outcome::Pass, super::store::PASS_REASON)?;
         super::store::crash_point("db:end-report");
         println!("db: run {run}: certificate stored in {}; the run ended pass", rdb.db.target());
     }
@@ -315,14 +315,14 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
 
 /// The unit's history with run `run` counted as its latest calibration.
 fn since_last_calibration(
-    runs: &mut [accelcal_core::db::RunSummary],
-    run: accelcal_core::db::RunId,
-) -> accelcal_core::db::history::History {
-    use accelcal_core::db::Outcome;
+    runs: &mut [accelcal_db::RunSummary],
+    run: accelcal_db::RunId,
+) -> accelcal_db::history::History {
+    use accelcal_db::Outcome;
     for r in runs.iter_mut().filter(|r| r.start.run_id == run && r.end.is_none()) {
-        r.end = Some((Outcome::Pass, "this certificate".into(), accelcal_core::db::now_unix_s()));
+        r.end = Some((Outcome::Pass, "this certificate".into(), accelcal_db::now_unix_s()));
     }
-    accelcal_core::db::history::history(runs, accelcal_core::db::history::DEFAULT_RULE)
+    accelcal_db::history::history(runs, accelcal_db::history::DEFAULT_RULE)
 }
 
 /// The as-found verification in brief: the record the unit came in with, passed or not.
@@ -351,7 +351,7 @@ fn as_found(v: &VerifyReport) -> String {
 
 /// The drift of the coefficients since the unit's last calibration, and the recommended
 /// recalibration date.
-fn drift_since_last(h: &accelcal_core::db::history::History) -> String {
+fn drift_since_last(h: &accelcal_db::history::History) -> String {
     let mut s = String::new();
     let last = h.drifts.last().filter(|d| Some(d.to) == h.runs.iter().filter_map(|r| r.calibration).max());
     match last {

@@ -1,7 +1,7 @@
 //! `accelcal station`: the line for one unit, each step the command of its name run as a child
 //! process (`accelcal info ...`, its stdin, stdout and stderr the station's, so a manual head's
 //! prompts reach the operator), journalled in the unit's directory
-//! ([`accelcal_core::station::Journal`]) so that the same command again goes on where a Ctrl-C or
+//! ([`accelcal_line::station::Journal`]) so that the same command again goes on where a Ctrl-C or
 //! a crash stopped it.
 //!
 //! A child's exit code says what happened: 0 done, 2 its input was refused, 130 stopped; 1 is a
@@ -14,11 +14,11 @@ use std::process::Command;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
-use accelcal_core::db::{Db, Outcome, Phase, Relabel, RunId, RunStart};
 use accelcal_core::error::{bad, environment, Interrupted};
 use accelcal_core::output::write_json;
-use accelcal_core::station::{deployable, sha256_file, Journal, StationError, Step, StepRecord, JOURNAL};
-use accelcal_core::verify::{Failed, VerifyReport};
+use accelcal_db::{Db, Outcome, Phase, Relabel, RunId, RunStart};
+use accelcal_line::station::{deployable, sha256_file, Journal, StationError, Step, StepRecord, JOURNAL};
+use accelcal_line::verify::{Failed, VerifyReport};
 use anyhow::Context;
 
 use super::store::{crash_point, DEFAULT_DB, PASS_REASON};
@@ -329,7 +329,7 @@ impl Station<'_> {
             Some(r) => RunId::parse(r)?,
             None => RunId::new(),
         };
-        let started = *self.journal.started_unix_s.get_or_insert_with(accelcal_core::db::now_unix_s);
+        let started = *self.journal.started_unix_s.get_or_insert_with(accelcal_db::now_unix_s);
         let (g, g_source, _) = super::live::g_and_source(self.a.g, &self.a.local);
         let start = RunStart {
             run_id: run,
@@ -353,7 +353,7 @@ impl Station<'_> {
         }
         let relabel =
             self.a.relabel.clone().map(|reason| Relabel { reason, operator: start.operator.clone() });
-        let new = self.db.begin_run(&start, relabel.as_ref())? == accelcal_core::db::Stored::New;
+        let new = self.db.begin_run(&start, relabel.as_ref())? == accelcal_db::Stored::New;
         crash_point("db:run");
         let p = self.db.progress(run)?;
         if p.outcome == Some(Outcome::Rejected) {
@@ -751,5 +751,5 @@ pub fn run(a: &StationArgs) -> anyhow::Result<()> {
 
 /// Whether `e` rejects the unit (rather than failing the environment).
 fn is_rejection(e: &anyhow::Error) -> bool {
-    accelcal_core::exit::kind(e) == accelcal_core::error::Kind::Rejected
+    crate::exit::kind(e) == accelcal_core::error::Kind::Rejected
 }

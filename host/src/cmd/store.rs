@@ -8,11 +8,9 @@
 
 use std::path::Path;
 
-use accelcal_core::db::{
-    Db, Outcome, Phase, Progress, Relabel, RunId, RunStart, Stored, StoredRecord, DB_ENV,
-};
 use accelcal_core::error::bad;
-use accelcal_core::verify::VerifyReport;
+use accelcal_db::{Db, Outcome, Phase, Progress, Relabel, RunId, RunStart, Stored, StoredRecord, DB_ENV};
+use accelcal_line::verify::VerifyReport;
 
 use crate::cli::{PhaseArg, RunArgs};
 
@@ -123,7 +121,7 @@ impl RunDb {
             station: host_name(),
             head: b.head,
             operator: user_name(),
-            started_unix_s: accelcal_core::db::now_unix_s(),
+            started_unix_s: accelcal_db::now_unix_s(),
             software_version: env!("CARGO_PKG_VERSION").into(),
             firmware_version: b.firmware_version,
             g_m_s2: b.g.0,
@@ -152,7 +150,7 @@ impl RunDb {
     fn progress_if_any(&mut self, run: RunId) -> anyhow::Result<Option<Progress>> {
         match self.db.progress(run) {
             Ok(p) => Ok(Some(p)),
-            Err(accelcal_core::db::DbError::NoRun { .. }) => Ok(None),
+            Err(accelcal_db::DbError::NoRun { .. }) => Ok(None),
             Err(e) => Err(e.into()),
         }
     }
@@ -175,10 +173,10 @@ pub fn phase_name(p: Phase) -> &'static str {
 }
 
 /// A head as the command line names it.
-pub fn head_text(h: &accelcal_core::node::head::HeadSpec) -> String {
+pub fn head_text(h: &accelcal_line::node::head::HeadSpec) -> String {
     match h {
-        accelcal_core::node::head::HeadSpec::Manual => "manual".into(),
-        accelcal_core::node::head::HeadSpec::Sim(addr) => format!("sim:{addr}"),
+        accelcal_line::node::head::HeadSpec::Manual => "manual".into(),
+        accelcal_line::node::head::HeadSpec::Sim(addr) => format!("sim:{addr}"),
     }
 }
 

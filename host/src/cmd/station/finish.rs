@@ -42,8 +42,7 @@ impl Station<'_> {
         // `report --db` ended the run before the station journalled its step (a crash between
         // the two): the certificate on disk is the stored one, journalled now.
         if self.journal.done(self.dir, Step::Certificate)?.is_none() {
-            let on_disk =
-                std::fs::read(self.path(CERTIFICATE)).ok().map(|b| accelcal_core::db::sha256_hex(&b));
+            let on_disk = std::fs::read(self.path(CERTIFICATE)).ok().map(|b| accelcal_db::sha256_hex(&b));
             if on_disk.is_some() && on_disk == self.db.certificate_sha256(run)? {
                 self.finish(
                     Step::Certificate,

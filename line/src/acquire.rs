@@ -29,11 +29,11 @@ use std::time::{Duration, Instant};
 
 use accelcal_shared::wire::{Block, Codes, Output};
 
-use crate::error::{bad, environment};
 use crate::node::head::SimHead;
 use crate::node::session::Session;
-use crate::sim::Plan;
-use crate::text::TextError;
+use accelcal_core::error::{bad, environment};
+use accelcal_core::sim::Plan;
+use accelcal_core::text::TextError;
 
 mod motion;
 mod resume;
@@ -345,7 +345,7 @@ pub struct AcquireSummary {
 }
 
 /// The header of an acquired campaign: `# key: value` lines before the CSV header, each written
-/// by [`crate::campaign::header_line`], so that a value (the serial, the plan's name, the node's
+/// by [`accelcal_core::campaign::header_line`], so that a value (the serial, the plan's name, the node's
 /// firmware string) that is not one line of text is refused instead of adding lines.
 fn header(
     cfg: &AcquireConfig,
@@ -356,11 +356,11 @@ fn header(
 ) -> Result<String, TextError> {
     let mut h = String::new();
     let mut line = |k: &str, v: &str| -> Result<(), TextError> {
-        h.push_str(&crate::campaign::header_line(k, v)?);
+        h.push_str(&accelcal_core::campaign::header_line(k, v)?);
         Ok(())
     };
     line("acquired_by", &format!("accelcal {} acquire", cfg.tool_version))?;
-    use crate::campaign::identity::{DEVICE_ID_KEY, G_KEY, G_SOURCE_KEY, SERIAL_KEY};
+    use accelcal_core::campaign::identity::{DEVICE_ID_KEY, G_KEY, G_SOURCE_KEY, SERIAL_KEY};
     line(DEVICE_ID_KEY, device_id)?;
     line(SERIAL_KEY, cfg.serial.as_deref().unwrap_or("-"))?;
     line("firmware", firmware)?;
@@ -374,7 +374,7 @@ fn header(
     line("rate_hz", &rate_hz.to_string())?;
     line("static_rule", &cfg.rule.describe())?;
     line("date", &cfg.date)?;
-    line(crate::campaign::CODES_KEY, crate::campaign::CodeRange::Unsigned16.name())?;
+    line(accelcal_core::campaign::CODES_KEY, accelcal_core::campaign::CodeRange::Unsigned16.name())?;
     h.push_str(if with_temp {
         "t_s,alpha_deg,beta_deg,temp_c,x,y,z\n"
     } else {

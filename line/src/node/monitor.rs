@@ -73,13 +73,13 @@ pub fn monitor(
     out: &mut impl Write,
 ) -> anyhow::Result<()> {
     if let Some(hz) = rate {
-        wire::check_rate(hz).map_err(|r| crate::error::bad(format!("--rate-hz: {r}")))?;
+        wire::check_rate(hz).map_err(|r| accelcal_core::error::bad(format!("--rate-hz: {r}")))?;
     }
     // Reads time out every POLL: the receiver checks its deadline between them.
     let port = serialport::new(port_name, baud)
         .timeout(super::session::POLL)
         .open()
-        .map_err(|e| crate::error::bad(format!("{port_name}: cannot open serial port: {e}")))?;
+        .map_err(|e| accelcal_core::error::bad(format!("{port_name}: cannot open serial port: {e}")))?;
     let rx: Receiver<Box<dyn std::io::Read + Send>> = match rate {
         Some(hz) => {
             // Through a session: the request is resent until the node answers (a pty that QEMU

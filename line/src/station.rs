@@ -19,7 +19,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::error::{Classify, Kind};
+use accelcal_core::error::{Classify, Kind};
 
 /// The journal's file name in a unit's directory.
 pub const JOURNAL: &str = "station.json";
@@ -273,9 +273,9 @@ impl Journal {
     }
 }
 
-/// SHA-256 of a file's bytes, hex ([`crate::db::sha256_hex`]); `None` when it cannot be read.
+/// SHA-256 of a file's bytes, hex ([`accelcal_core::digest::sha256_hex`]); `None` when it cannot be read.
 pub fn sha256_file(path: &Path) -> Option<String> {
-    std::fs::read(path).ok().map(|bytes| crate::db::sha256_hex(&bytes))
+    std::fs::read(path).ok().map(|bytes| accelcal_core::digest::sha256_hex(&bytes))
 }
 
 /// The terms a node applies: model 4 (`1, ax, ay, az`), the only structure of the node's

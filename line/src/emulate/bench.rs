@@ -20,10 +20,10 @@ use accelcal_shared::slots::SlotImage;
 
 use super::frontend::{read_ctl, run_frontend, FeCounters, FrontEnd, PaceOptions};
 use super::head::{bind_head, spawn_head_server, Clock, Head, Motion, SensorTemp};
-use crate::error::bad;
 use crate::node::qemu::{BlankSlot, Link, LinkChannel, Qemu, QemuOptions};
 use crate::node::session::device_id_hex;
-use crate::sim::Unit;
+use accelcal_core::error::bad;
+use accelcal_core::sim::Unit;
 
 /// One emulated node on the head: its unit, its front end's noise, its record.
 pub struct NodeOptions {

@@ -7,7 +7,7 @@
 //! earlier position of the same pass (a chamber setpoint changes the offsets) whose commanded
 //! gravity differs by at least [`MIN_CHANGE_G`] g, the ratio `|Δm| / |Δa|` (codes per m/s²) must
 //! be
-//! - at least the smallest plausible sensitivity ([`crate::calibrate::sensitivity_range`], the
+//! - at least the smallest plausible sensitivity ([`accelcal_core::calibrate::sensitivity_range`], the
 //!   bound `fit --record` holds a record to): a head that was not turned moves the means by the
 //!   noise only, tens of times less (issue 24: about 0.8 codes/(m/s²) against 3.3);
 //! - within a factor [`RATIO_FACTOR`] of the median ratio of the pairs accepted before (once
@@ -97,7 +97,7 @@ impl MotionCheck {
 
     /// The sizes of the changes (see the module's documentation).
     fn check_sizes(&self, a: [f64; 3], m: [f64; 3]) -> Result<(), String> {
-        let floor = *crate::calibrate::sensitivity_range(self.g).start();
+        let floor = *accelcal_core::calibrate::sensitivity_range(self.g).start();
         let median = self.median_ratio();
         for (i, da, r) in self.pairs(a, m) {
             let moved = r * da;
@@ -138,7 +138,7 @@ impl MotionCheck {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::Plan;
+    use accelcal_core::sim::Plan;
 
     fn unit(a: [f64; 3]) -> [f64; 3] {
         let k = [[1671.2, 8.5, -3.25], [-4.0, 1650.75, 6.5], [2.5, -7.75, 1689.0]];

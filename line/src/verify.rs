@@ -27,11 +27,11 @@ use accelcal_shared::wire::{Block, Output, RecordStatus};
 use serde::Serialize;
 
 use crate::acquire::{block_kind, capture, Captured, Positioner, StaticRule};
-use crate::campaign::identity::{self, Identity};
-use crate::error::bad;
-use crate::error::{Classify, Kind};
 use crate::node::session::{device_id_hex, record_json, Session};
-use crate::sim::Plan;
+use accelcal_core::campaign::identity::{self, Identity};
+use accelcal_core::error::bad;
+use accelcal_core::error::{Classify, Kind};
+use accelcal_core::sim::Plan;
 
 /// Coverage factor of the derived tolerance when `--coverage` is not given.
 pub const DEFAULT_COVERAGE: f64 = 4.0;
@@ -528,7 +528,10 @@ mod tests {
             "f.json has device id 51454d552d422d4c34373545 but the node on /dev/pts/3 has 0123456789abcdef01234567: \
              not the same unit"
         );
-        assert_eq!(crate::exit::code(&e), 2);
+        assert_eq!(
+            e.downcast_ref::<accelcal_core::campaign::identity::IdentityError>().map(Classify::kind),
+            Some(accelcal_core::error::Kind::BadInput)
+        );
         let e = check(&id, "51454d552d422d4c34373545", 0x1617f971).unwrap_err().to_string();
         assert!(
             e.starts_with("f.json has record CRC b1fe3d0c but the node on /dev/pts/3 has 1617f971"),

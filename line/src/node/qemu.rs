@@ -23,7 +23,7 @@ use accelcal_shared::contract::{qemu_id_block, QEMU_ID_ADDR};
 use accelcal_shared::slots::SLOT_SIZE;
 
 use super::RECORD_SLOTS;
-use crate::error::{Classify, Kind};
+use accelcal_core::error::{Classify, Kind};
 
 /// A serial port on USART3, which the node never enables, reading `/dev/zero`.
 ///

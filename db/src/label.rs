@@ -76,15 +76,15 @@ pub enum LabelClash {
     },
 }
 
-impl crate::error::Classify for LabelClash {
-    fn kind(&self) -> crate::error::Kind {
-        crate::error::Kind::BadInput
+impl accelcal_core::error::Classify for LabelClash {
+    fn kind(&self) -> accelcal_core::error::Kind {
+        accelcal_core::error::Kind::BadInput
     }
 }
 
 /// A time for messages, UTC.
 fn utc(unix_s: i64) -> String {
-    crate::output::utc_date_time(unix_s)
+    accelcal_core::output::utc_date_time(unix_s)
 }
 
 /// The label of `device`, if it ever had one.

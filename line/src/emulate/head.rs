@@ -26,8 +26,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
-use crate::error::{Classify, Kind};
 use crate::node::head::{Reply, Request};
+use accelcal_core::error::{Classify, Kind};
 
 /// How often blocking loops look at their stop flag.
 pub const POLL: Duration = Duration::from_millis(20);
@@ -224,7 +224,7 @@ impl SensorTemp {
     pub fn at(&mut self, t_s: f64) -> f64 {
         // The same lag as `simulate --thermal`'s.
         self.sensor_c =
-            crate::sim::lag(self.sensor_c, self.chamber_c, (t_s - self.at_s).max(0.0), self.tau_s);
+            accelcal_core::sim::lag(self.sensor_c, self.chamber_c, (t_s - self.at_s).max(0.0), self.tau_s);
         self.at_s = self.at_s.max(t_s);
         self.sensor_c
     }

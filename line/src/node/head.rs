@@ -14,7 +14,7 @@
 //! Any request the head cannot carry out is answered `ERR <reason>`. Angles are degrees in the
 //! paper's convention (α about the spindle, β the tilt; `accelcal_shared::kinematics`).
 
-use crate::error::{Classify, Kind};
+use accelcal_core::error::{Classify, Kind};
 use std::io::{BufRead, BufReader, Write};
 use std::net::TcpStream;
 use std::time::{Duration, Instant};

@@ -1,4 +1,5 @@
-//! The exit code of a failure, read off the error: every error type of the core states what its
+//! The exit code of a failure, read off the error: the policy is the binary's, the facts are the
+//! libraries'. Every error type of the library crates (core, line, db) states what its
 //! failures are ([`Classify`], implemented next to each type's definition, variant by variant
 //! where they differ), and this module only finds the first classified error in the chain.
 //!
@@ -10,10 +11,10 @@
 //!
 //! The outermost classified error decides: a context that says "writing out.json" over a file
 //! system error is the environment whatever the error below it says. Every error type of the
-//! core is in [`registry!`]'s list; a test reads the core's sources and fails on a
+//! libraries is in [`registry!`]'s list; a test reads their sources and fails on a
 //! `thiserror::Error` type missing from it.
 
-use crate::error::{Classify, Kind};
+use accelcal_core::error::{Classify, Kind};
 
 /// Lists the core's error types: [`kind_of`] tries each, the tests check the list is complete.
 macro_rules! registry {
@@ -44,49 +45,50 @@ macro_rules! registry {
 }
 
 registry!(
-    crate::error::BadInput,
-    crate::error::Environment,
-    crate::error::Interrupted,
-    crate::verify::Failed,
-    crate::campaign::CampaignError,
-    crate::campaign::WriteError,
-    crate::text::TextError,
-    crate::campaign::identity::IdentityError,
-    crate::campaign::identity::Mismatch,
-    crate::db::DbError,
-    crate::db::LabelClash,
-    crate::gmdh::GmdhError,
-    crate::lsq::LsqError,
-    crate::testturn::TestTurnError,
-    crate::diagnose::DiagnoseError,
-    crate::gravity::GravityError,
-    crate::gravity::fit::FitError,
-    crate::gravity::holds::HoldError,
-    crate::gravity::imutk::ImuTkError,
-    crate::gravity::imutk::RowProblem,
-    crate::sim::unit::UnitError,
-    crate::emulate::head::HeadServerError,
-    crate::emulate::frontend::FrontendError,
-    crate::node::flash::FlashError,
-    crate::node::gdb::GdbError,
-    crate::node::head::HeadError,
-    crate::node::hil::HilError,
-    crate::node::link::LinkError,
-    crate::node::qemu::QemuError,
-    crate::node::session::SessionError,
-    crate::station::StationError,
+    accelcal_core::error::BadInput,
+    accelcal_core::error::Environment,
+    accelcal_core::error::Interrupted,
+    accelcal_line::verify::Failed,
+    accelcal_core::campaign::CampaignError,
+    accelcal_core::campaign::WriteError,
+    accelcal_core::text::TextError,
+    accelcal_core::campaign::identity::IdentityError,
+    accelcal_core::campaign::identity::Mismatch,
+    accelcal_db::DbError,
+    accelcal_db::LabelClash,
+    accelcal_core::gmdh::GmdhError,
+    accelcal_core::lsq::LsqError,
+    accelcal_core::testturn::TestTurnError,
+    accelcal_core::diagnose::DiagnoseError,
+    accelcal_core::gravity::GravityError,
+    accelcal_core::gravity::fit::FitError,
+    accelcal_core::gravity::holds::HoldError,
+    accelcal_core::gravity::imutk::ImuTkError,
+    accelcal_core::gravity::imutk::RowProblem,
+    accelcal_core::sim::unit::UnitError,
+    accelcal_line::emulate::head::HeadServerError,
+    accelcal_line::emulate::frontend::FrontendError,
+    accelcal_line::node::flash::FlashError,
+    accelcal_line::node::gdb::GdbError,
+    accelcal_line::node::head::HeadError,
+    accelcal_line::node::hil::HilError,
+    accelcal_line::node::link::LinkError,
+    accelcal_line::node::qemu::QemuError,
+    accelcal_line::node::session::SessionError,
+    accelcal_line::station::StationError,
 );
 
 /// What the failure `e` is: [`Kind::Interrupted`] when the user stopped the command, else the
 /// kind of the outermost classified error of the chain, else [`Kind::Environment`].
 pub fn kind(e: &anyhow::Error) -> Kind {
-    if e.chain().any(|c| c.is::<crate::error::Interrupted>()) {
+    if e.chain().any(|c| c.is::<accelcal_core::error::Interrupted>()) {
         return Kind::Interrupted;
     }
     e.chain().find_map(kind_of).unwrap_or(Kind::Environment)
 }
 
 /// Whether an error is the user's input to fix.
+#[cfg(test)]
 pub fn is_bad_input(e: &anyhow::Error) -> bool {
     kind(e) == Kind::BadInput
 }
@@ -118,7 +120,7 @@ mod tests {
     use std::time::Duration;
 
     use super::*;
-    use crate::error::{bad, environment};
+    use accelcal_core::error::{bad, environment};
 
     fn io() -> std::io::Error {
         std::io::Error::new(std::io::ErrorKind::AddrInUse, "Address already in use (os error 98)")
@@ -129,32 +131,32 @@ mod tests {
         std::process::ExitStatus::from_raw(1 << 8)
     }
 
-    fn label_clash() -> crate::db::LabelClash {
-        crate::db::LabelClash::NothingToRelabel { device: "d".into(), serial: "s".into() }
+    fn label_clash() -> accelcal_db::LabelClash {
+        accelcal_db::LabelClash::NothingToRelabel { device: "d".into(), serial: "s".into() }
     }
 
     /// One error of every variant of every registered type, with the kind it must have.
     fn every_variant() -> Vec<(anyhow::Error, Kind)> {
-        use crate::campaign::identity::IdentityError;
-        use crate::campaign::CampaignError;
-        use crate::db::DbError;
-        use crate::diagnose::DiagnoseError;
-        use crate::emulate::frontend::FrontendError;
-        use crate::emulate::head::HeadServerError;
-        use crate::gmdh::GmdhError;
-        use crate::gravity::fit::FitError;
-        use crate::gravity::holds::HoldError;
-        use crate::gravity::imutk::{ImuTkError, RowProblem};
-        use crate::gravity::GravityError;
-        use crate::lsq::LsqError;
-        use crate::node::flash::FlashError;
-        use crate::node::gdb::GdbError;
-        use crate::node::head::HeadError;
-        use crate::node::hil::HilError;
-        use crate::node::link::LinkError;
-        use crate::node::qemu::QemuError;
-        use crate::node::session::SessionError;
-        use crate::sim::unit::UnitError;
+        use accelcal_core::campaign::identity::IdentityError;
+        use accelcal_core::campaign::CampaignError;
+        use accelcal_core::diagnose::DiagnoseError;
+        use accelcal_core::gmdh::GmdhError;
+        use accelcal_core::gravity::fit::FitError;
+        use accelcal_core::gravity::holds::HoldError;
+        use accelcal_core::gravity::imutk::{ImuTkError, RowProblem};
+        use accelcal_core::gravity::GravityError;
+        use accelcal_core::lsq::LsqError;
+        use accelcal_core::sim::unit::UnitError;
+        use accelcal_db::DbError;
+        use accelcal_line::emulate::frontend::FrontendError;
+        use accelcal_line::emulate::head::HeadServerError;
+        use accelcal_line::node::flash::FlashError;
+        use accelcal_line::node::gdb::GdbError;
+        use accelcal_line::node::head::HeadError;
+        use accelcal_line::node::hil::HilError;
+        use accelcal_line::node::link::LinkError;
+        use accelcal_line::node::qemu::QemuError;
+        use accelcal_line::node::session::SessionError;
         use accelcal_shared::boot::BootError;
         use accelcal_shared::record::RecordError;
         use accelcal_shared::slots::SlotError;
@@ -170,26 +172,26 @@ mod tests {
         let link = || LinkError::Io(io());
         let unit_read = || UnitError::Read { path: "t.json".into(), cause: io() };
         let json_err = serde_json::from_str::<u8>("x").unwrap_err();
-        let text_err = || crate::text::single_line("--serial", "A\nB").unwrap_err();
+        let text_err = || accelcal_core::text::single_line("--serial", "A\nB").unwrap_err();
         let qemu_spawn = || QemuError::Spawn { qemu: "qemu-system-arm".into(), cause: io() };
         vec![
             (bad("x.csv:3:1: expected a number"), BadInput),
             (environment("writing out.json", io()), Environment),
-            (e(crate::error::Interrupted("stopped".into())), Interrupted),
-            (e(crate::verify::Failed { failed: 1, total: 6 }), Rejected),
-            (e(crate::station::StationError::NotDeployable("m".into())), Rejected),
-            (e(crate::station::StationError::Rejected { units: "a".into(), total: 2 }), Rejected),
+            (e(accelcal_core::error::Interrupted("stopped".into())), Interrupted),
+            (e(accelcal_line::verify::Failed { failed: 1, total: 6 }), Rejected),
+            (e(accelcal_line::station::StationError::NotDeployable("m".into())), Rejected),
+            (e(accelcal_line::station::StationError::Rejected { units: "a".into(), total: 2 }), Rejected),
             (
-                e(crate::station::StationError::RejectedBefore {
+                e(accelcal_line::station::StationError::RejectedBefore {
                     serial: "s".into(),
                     run_id: "r".into(),
                     dir: p(),
                 }),
                 Rejected,
             ),
-            (e(crate::station::StationError::BadJournal { path: p(), reason: "m".into() }), BadInput),
+            (e(accelcal_line::station::StationError::BadJournal { path: p(), reason: "m".into() }), BadInput),
             (
-                e(crate::station::StationError::OtherUnit {
+                e(accelcal_line::station::StationError::OtherUnit {
                     dir: p(),
                     journal: "a".into(),
                     given: "b".into(),
@@ -197,7 +199,7 @@ mod tests {
                 BadInput,
             ),
             (
-                e(crate::station::StationError::OtherDevice {
+                e(accelcal_line::station::StationError::OtherDevice {
                     dir: p(),
                     journal: "a".into(),
                     node: "b".into(),
@@ -205,9 +207,9 @@ mod tests {
                 }),
                 BadInput,
             ),
-            (e(crate::station::StationError::Changed { file: p(), step: "info" }), BadInput),
+            (e(accelcal_line::station::StationError::Changed { file: p(), step: "info" }), BadInput),
             (
-                e(crate::station::StationError::RecordReplaced {
+                e(accelcal_line::station::StationError::RecordReplaced {
                     serial: "U".into(),
                     node: "record CRC 00000001".into(),
                     certified: "00000002".into(),
@@ -219,12 +221,15 @@ mod tests {
             (e(CampaignError::Line { path: p(), line: 1, msg: "m".into() }), BadInput),
             (e(CampaignError::File { path: p(), msg: "m".into() }), BadInput),
             (e(CampaignError::Field { path: p(), line: 1, column: 1, msg: "m".into() }), BadInput),
-            (e(crate::campaign::WriteError::Header(text_err())), BadInput),
-            (e(crate::campaign::WriteError::Csv { cause: io().into() }), Environment),
+            (e(accelcal_core::campaign::WriteError::Header(text_err())), BadInput),
+            (e(accelcal_core::campaign::WriteError::Csv { cause: io().into() }), Environment),
             (e(text_err()), BadInput),
-            (e(crate::text::TextError::Padded { field: "serial".into(), value: " U-1".into() }), BadInput),
             (
-                e(IdentityError::Mismatch(Box::new(crate::campaign::identity::Mismatch {
+                e(accelcal_core::text::TextError::Padded { field: "serial".into(), value: " U-1".into() }),
+                BadInput,
+            ),
+            (
+                e(IdentityError::Mismatch(Box::new(accelcal_core::campaign::identity::Mismatch {
                     a: "f.json".into(),
                     field: "serial",
                     a_value: "1".into(),
@@ -235,7 +240,7 @@ mod tests {
                 BadInput,
             ),
             (
-                e(crate::campaign::identity::Mismatch {
+                e(accelcal_core::campaign::identity::Mismatch {
                     a: "f.json".into(),
                     field: "g",
                     a_value: "9.81 m/s²".into(),
@@ -266,7 +271,7 @@ mod tests {
             (
                 e(DbError::Tampered {
                     run_id: "r".into(),
-                    first: Box::new(crate::db::Mismatch {
+                    first: Box::new(accelcal_db::Mismatch {
                         seq: 1,
                         run_id: "r".into(),
                         piece: "fit".into(),
@@ -283,7 +288,7 @@ mod tests {
             (e(GmdhError::NothingIdentifiable), BadInput),
             (e(GmdhError::Refit(LsqError::Unidentifiable { terms: vec!["ax".into()] })), BadInput),
             (e(LsqError::TooFewPositions { model: "m".into(), terms: 4, positions: 3 }), BadInput),
-            (e(crate::testturn::TestTurnError::NoPairs), BadInput),
+            (e(accelcal_core::testturn::TestTurnError::NoPairs), BadInput),
             (e(DiagnoseError::TooFewPositions { positions: 6, need: 8 }), BadInput),
             (e(DiagnoseError::NoNoiseEstimate), BadInput),
             (e(DiagnoseError::Unfittable), BadInput),
@@ -408,9 +413,11 @@ mod tests {
 
     #[test]
     fn every_error_type_of_the_core_is_registered_and_exercised() {
-        // Every `thiserror::Error` type defined in the core's sources.
+        // Every `thiserror::Error` type defined in the library crates' sources.
         let mut defined = Vec::new();
-        let mut stack = vec![PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("src")];
+        let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+        let mut stack: Vec<PathBuf> =
+            ["core", "line", "db"].iter().map(|c| root.join("..").join(c).join("src")).collect();
         while let Some(d) = stack.pop() {
             for entry in std::fs::read_dir(&d).unwrap() {
                 let path = entry.unwrap().path();

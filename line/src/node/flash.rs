@@ -21,7 +21,7 @@
 //! it relies on is tested with a power-cut simulation in the probe's programming order in
 //! `accelcal_shared::slots`.
 
-use crate::error::{Classify, Kind};
+use accelcal_core::error::{Classify, Kind};
 use accelcal_shared::contract::{N_SLOTS, SLOT_ADDRS, UID_ADDR};
 use accelcal_shared::flash_ecc::{nmi_action, rearm, NmiAction, ECCC, ECCD, FLASH_ECCR_ADDR};
 use accelcal_shared::record::Record;
@@ -38,7 +38,7 @@ pub enum FlashError {
     #[error("invalid calibration record: {0}")]
     Record(accelcal_shared::record::RecordError),
     /// A node would refuse the record ([`accelcal_shared::boot::gate`]).
-    #[error("{}", crate::calibrate::refusal(*.0))]
+    #[error("{}", accelcal_core::calibrate::refusal(*.0))]
     Refused(accelcal_shared::boot::BootError),
     /// No probe is connected (or none matches the selector).
     #[error("no debug probe found{0}")]

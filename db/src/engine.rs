@@ -583,7 +583,7 @@ mod tests {
     /// into the chain once, in the order they were written.
     #[test]
     fn a_version_1_database_is_sealed_into_the_chain_once() {
-        use crate::db::{chain, Db, RunId, RunStart};
+        use crate::{chain, Db, RunId, RunStart};
         let d = tempfile::tempdir().unwrap();
         let path = d.path().join("v1.sqlite");
         let mut c = rusqlite::Connection::open(&path).unwrap();
@@ -623,7 +623,7 @@ mod tests {
         let fit = r#"{"channels":[]}"#;
         c.execute(
             "INSERT INTO fit VALUES (?1, ?2, 1767225700, ?3)",
-            rusqlite::params![id, fit, crate::db::sha256_hex(fit.as_bytes())],
+            rusqlite::params![id, fit, crate::sha256_hex(fit.as_bytes())],
         )
         .unwrap();
         drop(c);

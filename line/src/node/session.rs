@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 use accelcal_shared::wire::{self, Block, HostMsg, Info, NodeMsg, Output, Status};
 
 use super::link::{self, LinkError, Receiver, Traffic};
-use crate::error::{Classify, Kind};
+use accelcal_core::error::{Classify, Kind};
 
 /// Why a conversation with the node failed (a failure of the environment: exit code 1).
 #[derive(Debug, thiserror::Error)]

@@ -4,7 +4,7 @@
 use std::io::{self, Read, Write};
 use std::time::Instant;
 
-use crate::error::{Classify, Kind};
+use accelcal_core::error::{Classify, Kind};
 use accelcal_shared::wire::{self, FrameDecoder, FrameError, HostMsg, NodeMsg, MAX_FRAME};
 
 /// Why a message could not be exchanged.

@@ -4,7 +4,7 @@
 //! contract is `accelcal_shared::frontend`.
 //!
 //! Invariants:
-//! - A code set is computed by [`crate::sim::unit::sample_set`], the function `simulate` uses:
+//! - A code set is computed by [`accelcal_core::sim::unit::sample_set`], the function `simulate` uses:
 //!   standing at position p (p = moves completed), the block sees
 //!   [`Unit::standing_accel`]`(p, angles)` exactly as `simulate` at plan position p, with
 //!   `t_in_dwell_s` the time since the head stopped, `prev_accel` the acceleration at position
@@ -15,7 +15,7 @@
 //!   and the kinematic effects' angles are interpolated between those of position p and of
 //!   position p + 1 (continuous at both ends). Effects of the step (settling, hysteresis) keep
 //!   seeing the step of the completed move p − 1 → p: `prev_accel` is shifted with the
-//!   orientation so that [`crate::sim::SampleCtx::step`] stays that step.
+//!   orientation so that [`accelcal_core::sim::SampleCtx::step`] stays that step.
 //! - Set `n` is the `n`-th sampling period since the loop started (across rate changes, each
 //!   period at the rate in force), sent with index `n mod 2¹⁶`. The loop never sends a set ahead
 //!   of its time; when it falls behind by more than [`PaceOptions::backlog_s`] (a writer that
@@ -35,9 +35,9 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::Normal;
 
 use super::head::{Head, HeadPose, POLL};
-use crate::error::{Classify, Kind};
-use crate::sim::effects::Kinematics;
-use crate::sim::unit::{SetCtx, Unit, UnitError};
+use accelcal_core::error::{Classify, Kind};
+use accelcal_core::sim::effects::Kinematics;
+use accelcal_core::sim::unit::{SetCtx, Unit, UnitError};
 
 /// The emulated front end of one unit: computes the code set of a sampling period.
 pub struct FrontEnd {
@@ -291,7 +291,7 @@ pub fn read_ctl<R: Read>(
 mod tests {
     use super::*;
     use crate::emulate::head::{Clock, HeadState, Motion};
-    use crate::sim::{effects, simulate, Plan, SimConfig};
+    use accelcal_core::sim::{effects, simulate, Plan, SimConfig};
     use accelcal_shared::frontend::lost_between;
     use std::sync::Arc;
     use std::time::Instant;

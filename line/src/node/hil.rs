@@ -26,11 +26,11 @@ use anyhow::Context;
 
 use super::link::{self, LinkError, Receiver};
 use super::qemu::{Link, LinkChannel, Qemu, QemuError, QemuOptions};
-use crate::campaign::{CodeRange, Row};
-use crate::error::bad;
-use crate::error::{Classify, Kind};
-use crate::input::Input;
-use crate::reduce::DwellRows;
+use accelcal_core::campaign::{CodeRange, Row};
+use accelcal_core::error::bad;
+use accelcal_core::error::{Classify, Kind};
+use accelcal_core::input::Input;
+use accelcal_core::reduce::DwellRows;
 
 pub use super::qemu::SPIN_CHARDEV;
 
@@ -624,7 +624,7 @@ pub fn write_rows(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::campaign::Campaign;
+    use accelcal_core::campaign::Campaign;
 
     fn blocks(text: &str) -> anyhow::Result<Vec<(CodeBlock, RowsBlock)>> {
         CampaignCodes::new(text.as_bytes(), Path::new("c.csv"))?.collect()
@@ -676,7 +676,7 @@ mod tests {
         };
         assert_eq!(read(&gz), read(&plain));
         let e = CampaignCodes::open_with(&plain, Some(CodeRange::Signed16)).err().unwrap();
-        assert!(e.is::<crate::error::BadInput>(), "{e:?}");
+        assert!(e.is::<accelcal_core::error::BadInput>(), "{e:?}");
         assert!(e.to_string().contains("signed16 codes cannot be replayed"), "{e}");
         std::fs::write(&plain, format!("# codes: signed16\n{text}")).unwrap();
         let e = CampaignCodes::open(&plain).err().unwrap();
@@ -713,7 +713,7 @@ mod tests {
         let mut frac = triad(40);
         frac += "4,90,0,25,30000.5,31000,32000\n";
         let e = blocks(&frac).unwrap_err();
-        assert!(e.is::<crate::error::BadInput>(), "{e:?}");
+        assert!(e.is::<accelcal_core::error::BadInput>(), "{e:?}");
         assert_eq!(
             e.to_string(),
             "c.csv:42:5: channel x: code 30000.5 is not a whole number in 0..=65535 (simulate without --ideal-adc)"

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use super::engine;
 use super::label::LabelClash;
 use super::Mismatch;
-use crate::error::{Classify, Kind};
+use accelcal_core::error::{Classify, Kind};
 
 /// A failure of the calibration database.
 #[derive(Debug, thiserror::Error)]

@@ -19,8 +19,8 @@ use super::{
     ensure_node, header, open_resumed, record_position, reports_temperature, set_rate, soak_nodes,
     AcquireConfig, AcquireSummary, CampaignFile, Clock, MotionCheck, Positioner, Progress, Recorded,
 };
-use crate::error::{bad, environment};
 use crate::node::session::{device_id_hex, firmware_version, Session};
+use accelcal_core::error::{bad, environment};
 
 /// One node of an acquisition: its session, its settings (its own `out` and `serial`; the rest
 /// must be the other nodes'), and where its progress goes.

@@ -5,7 +5,7 @@ use std::fs::{File, OpenOptions};
 use std::io::{Seek, SeekFrom};
 
 use super::{AcquireConfig, Chamber};
-use crate::error::{bad, environment};
+use accelcal_core::error::{bad, environment};
 
 /// What [`open_resumed`] found in a campaign to continue.
 pub(super) struct Resumed {
@@ -40,7 +40,7 @@ pub fn resume_settings(path: &std::path::Path) -> anyhow::Result<ResumeSettings>
     if !path.exists() {
         return Err(bad(format!("{d}: no campaign to resume (--resume continues an existing --out)")));
     }
-    let values = crate::campaign::header(path)?;
+    let values = accelcal_core::campaign::header(path)?;
     let get = |k: &str| values.iter().find(|(key, _)| key == k).map(|(_, v)| v.as_str());
     if get("acquired_by").is_none() {
         return Err(bad(format!(
@@ -66,7 +66,7 @@ pub(super) fn open_resumed(cfg: &AcquireConfig, device_id: &str) -> anyhow::Resu
     let d = path.display();
     let text = std::fs::read_to_string(path)
         .map_err(|e| bad(format!("{d}: cannot read the campaign to resume: {e}")))?;
-    let values = crate::campaign::header(path)?;
+    let values = accelcal_core::campaign::header(path)?;
     let get = |k: &str| values.iter().find(|(key, _)| key == k).map(|(_, v)| v.as_str());
     if get("acquired_by").is_none() {
         return Err(bad(format!(
@@ -167,8 +167,8 @@ mod tests {
     use super::super::header;
     use super::*;
     use crate::acquire::StaticRule;
-    use crate::sim::Plan;
-    use crate::text::TextError;
+    use accelcal_core::sim::Plan;
+    use accelcal_core::text::TextError;
     use std::path::PathBuf;
     use std::time::Duration;
 
@@ -211,7 +211,7 @@ mod tests {
         drop(r);
         assert_eq!(std::fs::read_to_string(&path).unwrap(), text[..whole]);
         // The file reads as a campaign of two dwells.
-        let camp = crate::campaign::Campaign::read(&path).unwrap();
+        let camp = accelcal_core::campaign::Campaign::read(&path).unwrap();
         assert_eq!(camp.dwells().len(), 2);
         let e = open_resumed(&c, "000000000000000000000000").err().unwrap().to_string();
         assert!(e.contains("device_id is `51454d552d422d4c34373545`"), "{e}");
@@ -232,7 +232,7 @@ mod tests {
             text.lines().filter_map(|l| l.strip_prefix("# ")?.split_once(':').map(|(k, _)| k)).collect();
         assert_eq!(keys.len(), 12, "{text}");
         for k in &keys {
-            assert!(crate::campaign::HEADER_KEYS.contains(k), "`{k}` is not in HEADER_KEYS");
+            assert!(accelcal_core::campaign::HEADER_KEYS.contains(k), "`{k}` is not in HEADER_KEYS");
         }
         c.serial = Some("A\n# device_id: 000000000000000000000000\n# g_m_s2: 9.0".into());
         let e = header(&c, id, "0.1.0", 1000, false).unwrap_err();

@@ -9,7 +9,7 @@
 //! (The crates.io RSP crates are servers (`gdbstub`) or an unmaintained parser; a client of five
 //! packets is smaller than adapting either.)
 
-use crate::error::{Classify, Kind};
+use accelcal_core::error::{Classify, Kind};
 use std::io::{BufReader, Read, Write};
 use std::net::TcpStream;
 use std::time::Duration;

@@ -1,5 +1,5 @@
 //! The calibration database: every calibration run of every unit, kept for its history and for
-//! recalibration. One schema (`core/migrations/<engine>/`, versioned, applied by refinery on
+//! recalibration. One schema (`db/migrations/<engine>/`, versioned, applied by refinery on
 //! open) for an embedded SQLite file (one station, nothing to start) and a PostgreSQL server
 //! (several stations).
 //!
@@ -22,8 +22,6 @@ mod types;
 
 use std::io::Read;
 
-use sha2::{Digest, Sha256};
-
 pub use chain::{ChainReport, Mismatch, RunSeal};
 pub use engine::{schema_version, Access, Target};
 use engine::{Conn, Tx, Val};
@@ -31,7 +29,7 @@ pub use error::DbError;
 pub use label::{Label, LabelClash, Relabel};
 pub use types::{LastFlash, Outcome, Phase, Progress, RunId, RunStart, RunSummary, Stored, StoredRecord};
 
-use crate::verify::VerifyReport;
+use accelcal_line::verify::VerifyReport;
 
 /// The environment variable that names the database when `--db` is not given.
 pub const DB_ENV: &str = "ACCELCAL_DB";
@@ -42,15 +40,9 @@ pub struct Db {
     target: Target,
 }
 
-/// Hex SHA-256.
-pub fn sha256_hex(bytes: &[u8]) -> String {
-    hex(&Sha256::digest(bytes))
-}
-
-/// Bytes as lower-case hex digits.
-fn hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
-}
+use accelcal_core::digest::hex;
+/// Hex SHA-256 (the core's one definition, re-exported: the database's content hashes).
+pub use accelcal_core::digest::sha256_hex;
 
 /// Seconds since the Unix epoch (0 before it), as the database stores times.
 pub fn now_unix_s() -> i64 {
@@ -128,7 +120,7 @@ impl Db {
         let s = RunStart { device_id, ..s.clone() };
         // What goes into the database is one line each (an operator or station name from the
         // environment too): no forged line in a certificate, a journal or a header made from it.
-        one_line(s.run_id, "run", crate::text::header_value("serial", &s.serial))?;
+        one_line(s.run_id, "run", accelcal_core::text::header_value("serial", &s.serial))?;
         for (field, v) in [
             ("station", &s.station),
             ("head", &s.head),
@@ -136,11 +128,11 @@ impl Db {
             ("firmware version", &s.firmware_version),
             ("g source", &s.g_source),
         ] {
-            one_line(s.run_id, "run", crate::text::single_line(field, v))?;
+            one_line(s.run_id, "run", accelcal_core::text::single_line(field, v))?;
         }
         if let Some(r) = relabel {
-            one_line(s.run_id, "run", crate::text::single_line("relabel reason", &r.reason))?;
-            one_line(s.run_id, "run", crate::text::single_line("operator", &r.operator))?;
+            one_line(s.run_id, "run", accelcal_core::text::single_line("relabel reason", &r.reason))?;
+            one_line(s.run_id, "run", accelcal_core::text::single_line("operator", &r.operator))?;
         }
         let sha = chain::run_content(&s);
         let row: Vec<Val> = vec![
@@ -193,7 +185,7 @@ impl Db {
     /// with the same reason is a no-op; with another, refused.
     pub fn void_run(&mut self, run: RunId, reason: &str, operator: &str) -> Result<Stored, DbError> {
         for (field, v) in [("void reason", reason), ("operator", operator)] {
-            one_line(run, "void", crate::text::single_line(field, v))?;
+            one_line(run, "void", accelcal_core::text::single_line(field, v))?;
         }
         let sha = sha256_hex(reason.as_bytes());
         let row: Vec<Val> = vec![
@@ -391,7 +383,7 @@ impl Db {
             cause: e.to_string(),
         })?;
         let start = self.start_of(run)?;
-        let id = crate::node::session::device_id_hex(&rec.device_id);
+        let id = accelcal_line::node::session::device_id_hex(&rec.device_id);
         self.check_same(run, "the record's device id", &id, "the run's", &start.device_id)?;
         let crc32 = record_crc(bytes);
         self.store(
@@ -656,11 +648,11 @@ impl Db {
     }
 }
 
-/// A text field's check ([`crate::text`]) as the refusal of the piece it would go into.
+/// A text field's check ([`accelcal_core::text`]) as the refusal of the piece it would go into.
 fn one_line(
     run: RunId,
     piece: &'static str,
-    checked: Result<&str, crate::text::TextError>,
+    checked: Result<&str, accelcal_core::text::TextError>,
 ) -> Result<(), DbError> {
     checked.map(drop).map_err(|e| DbError::BadPiece { run_id: run.to_string(), piece, cause: e.to_string() })
 }
