@@ -32,3 +32,4 @@ pub mod reduce;
 pub mod sim;
 pub mod testturn;
 pub mod text;
+pub mod uncertainty;

@@ -58,6 +58,7 @@ registry!(
     accelcal_db::LabelClash,
     accelcal_core::gmdh::GmdhError,
     accelcal_core::lsq::LsqError,
+    accelcal_core::uncertainty::UncertaintyError,
     accelcal_core::testturn::TestTurnError,
     accelcal_core::diagnose::DiagnoseError,
     accelcal_core::gravity::GravityError,

@@ -477,7 +477,9 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
             }
             Ok(())
         }
-        Command::BenchDiagnose(_) | Command::Demo(_) | Command::Plan(_) => Ok(()),
+        Command::BenchDiagnose(_) | Command::UncertaintyCheck(_) | Command::Demo(_) | Command::Plan(_) => {
+            Ok(())
+        }
         Command::History(a) => crate::cmd::history::check(a),
         Command::Void(a) => crate::cmd::db::check_void(a),
         Command::Db(_) => Ok(()),
@@ -522,21 +524,48 @@ fn positive_seconds(option: &str, s: f64) -> anyhow::Result<()> {
     }
 }
 
+/// The options of `fit` that state the head's uncertainties (lsq, model 4).
+const HEAD_U: [&str; 2] = ["head_angle_u", "head_orthogonality_u"];
+
 /// The options of `fit` that belong to one method only.
 const GRAVITY_ONLY: [&str; 7] =
     ["format", "plot", "min_hold_s", "threshold", "window_s", "structure", "campaign_out"];
 
 fn check_fit(a: &FitArgs, given: &Given) -> anyhow::Result<()> {
     match a.method {
-        MethodArg::GravityNorm => given.refuse(
-            &["terms"],
-            "fit --method gravity-norm",
-            " (it applies to --method lsq and test-turns, which fit a campaign; gravity-norm picks --structure)",
-        )?,
-        MethodArg::Lsq | MethodArg::TestTurns => {
-            let mode =
-                format!("fit --method {}", if a.method == MethodArg::Lsq { "lsq" } else { "test-turns" });
-            given.refuse(&GRAVITY_ONLY, &mode, " (it applies to --method gravity-norm)")?;
+        MethodArg::GravityNorm => {
+            given.refuse(
+                &["terms"],
+                "fit --method gravity-norm",
+                " (it applies to --method lsq and test-turns, which fit a campaign; gravity-norm picks --structure)",
+            )?;
+            given.refuse(
+                &HEAD_U,
+                "fit --method gravity-norm",
+                " (it enters the uncertainty budget of an lsq fit of model 4)",
+            )?
+        }
+        MethodArg::TestTurns => {
+            given.refuse(
+                &HEAD_U,
+                "fit --method test-turns",
+                " (it enters the uncertainty budget of an lsq fit of model 4)",
+            )?;
+            given.refuse(
+                &GRAVITY_ONLY,
+                "fit --method test-turns",
+                " (it applies to --method gravity-norm)",
+            )?;
+        }
+        MethodArg::Lsq => {
+            if accelcal_core::lsq::parse_terms(&a.terms).is_ok_and(|s| s != accelcal_shared::terms::MODEL_4) {
+                given.refuse(
+                    &HEAD_U,
+                    &format!("fit --terms {}", a.terms),
+                    " (the uncertainty budget is made for model 4, --terms ax,ay,az)",
+                )?;
+            }
+            given.refuse(&GRAVITY_ONLY, "fit --method lsq", " (it applies to --method gravity-norm)")?;
         }
     }
     if a.thermal.t_ref.is_some() {

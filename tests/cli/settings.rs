@@ -29,6 +29,14 @@ fn files(dir: &Path) -> std::collections::BTreeMap<PathBuf, Vec<u8>> {
 /// error line must say.
 const REFUSED: &[(&str, &str)] = &[
     (
+        "fit C --method test-turns --head-angle-u 3",
+        "--head-angle-u does not apply to fit --method test-turns (it enters the uncertainty budget of an lsq fit of model 4)",
+    ),
+    (
+        "fit C --terms ax,ay,az,ax^2 --head-orthogonality-u 3",
+        "--head-orthogonality-u does not apply to fit --terms ax,ay,az,ax^2 (the uncertainty budget is made for model 4, --terms ax,ay,az)",
+    ),
+    (
         "fit C --run-id 7c9e6679-7425-40de-944b-e07fc1f90ae7",
         "--run-id does not apply to a command without --db (it names the run stored into)",
     ),

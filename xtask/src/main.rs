@@ -4,7 +4,8 @@
 //! - `test`: host and shared tests, the no_std build of `shared` for the MCU target, the
 //!   firmware builds and the QEMU tests.
 //! - `lint`: rustfmt and clippy (warnings are errors).
-//! - `bench`: the benchmarks the guide quotes (GMDH against the PyPI `gmdh` package).
+//! - `bench`: the benchmarks the guide quotes (GMDH against the PyPI `gmdh` package, the Monte
+//!   Carlo check of the uncertainty budget, the firmware, the live path).
 //! - `fuzz`: the mutation fuzzer of the record parser, the record slots and the frame decoder, for
 //!   a bounded time.
 //! - `docs`: the guide's command reference (`docs/src/reference/commands.md`) from the built
@@ -167,13 +168,33 @@ fn bench(only: Option<&str>) -> anyhow::Result<()> {
     match only {
         None => {
             gmdh::bench(&root())?;
+            uncertainty_bench()?;
             firmware::bench()?;
             live::bench()
         }
+        Some("uncertainty") => uncertainty_bench(),
         Some("firmware") => firmware::bench(),
         Some("live") => live::bench(),
-        Some(other) => anyhow::bail!("bench: unknown part `{other}` (the parts: firmware, live)"),
+        Some(other) => {
+            anyhow::bail!("bench: unknown part `{other}` (the parts: uncertainty, firmware, live)")
+        }
     }
+}
+
+/// The Monte Carlo check of the uncertainty budget (JCGM 101) at three seeds, 1,000 units per
+/// scenario each, on the release build.
+fn uncertainty_bench() -> anyhow::Result<()> {
+    let r = root();
+    run(&r, "cargo", &["build", "--release", "-p", "accelcal", "--locked"])?;
+    let bin = r.join("target/release/accelcal");
+    for seed in ["1", "2", "3"] {
+        run(
+            &r,
+            bin.to_str().expect("utf-8 path"),
+            &["uncertainty-check", "--units", "1000", "--seed", seed],
+        )?;
+    }
+    Ok(())
 }
 
 fn main() -> anyhow::Result<()> {
@@ -186,7 +207,7 @@ fn main() -> anyhow::Result<()> {
         "firmware" => firmware::build(),
         "docs" => docs::run(),
         _ => {
-            eprintln!("usage: cargo xtask <test|lint|bench|fuzz|firmware|docs>\n  test   every test: host, shared (desktop and no_std target), firmware builds, QEMU\n  lint   rustfmt --check and clippy -D warnings\n  bench  [firmware|live]: the benchmarks quoted in the guide (a part: only that one)\n  fuzz   [--seconds N] [--target record|slots|frame|all] [--seed S]: the parsers' mutation fuzzer\n  firmware  the node images (real board, QEMU f32, QEMU fixed point), as the tests build them\n  docs   the guide's command reference (docs/src/reference/commands.md) from the built binary's help");
+            eprintln!("usage: cargo xtask <test|lint|bench|fuzz|firmware|docs>\n  test   every test: host, shared (desktop and no_std target), firmware builds, QEMU\n  lint   rustfmt --check and clippy -D warnings\n  bench  [uncertainty|firmware|live]: the benchmarks quoted in the guide (a part: only that one)\n  fuzz   [--seconds N] [--target record|slots|frame|all] [--seed S]: the parsers' mutation fuzzer\n  firmware  the node images (real board, QEMU f32, QEMU fixed point), as the tests build them\n  docs   the guide's command reference (docs/src/reference/commands.md) from the built binary's help");
             std::process::exit(2)
         }
     }

@@ -57,11 +57,12 @@ pub fn run(a: &DemoArgs) -> anyhow::Result<()> {
         record_crc,
     };
     let t_ref = accelcal_core::positions::T_REF_DEFAULT_C;
-    let lsq_json = super::fit::to_json(Method::Lsq, &lsq, t_ref, unit(Some(record_crc_hex(&rec_bytes))));
+    let lsq_json =
+        super::fit::to_json(Method::Lsq, &lsq, t_ref, unit(Some(record_crc_hex(&rec_bytes))), None);
     write_json(&out.join("fit-lsq.json"), &lsq_json)?;
     write_json(
         &out.join("fit-test-turns.json"),
-        &super::fit::to_json(Method::TestTurns, &tt, t_ref, unit(None)),
+        &super::fit::to_json(Method::TestTurns, &tt, t_ref, unit(None), None),
     )?;
     write_atomic(&rec_path, &rec_bytes)?;
     steps.inc(1);

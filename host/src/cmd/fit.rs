@@ -11,6 +11,9 @@ use accelcal_line::node::session::device_id_hex;
 use anyhow::Context;
 use serde::Serialize;
 
+use accelcal_core::positions::{ChannelStats, Positions};
+use accelcal_core::uncertainty::{self, Budget, References, UncertaintyJson, ARCSEC};
+
 use crate::cli::{FitArgs, MethodArg};
 
 /// JSON of one channel's fit.
@@ -38,11 +41,20 @@ pub struct FitJson {
     #[serde(skip_serializing_if = "Option::is_none")]
     t_ref_c: Option<f64>,
     channels: Vec<FitChannelJson>,
+    /// The uncertainty budget of a model-4 triad fitted by least squares.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    uncertainty: Option<UncertaintyJson>,
 }
 
 /// The JSON document of a set of fits of the unit `identity`; `t_ref_c` (°C) is stated when a
 /// fit has a term in `t`.
-pub fn to_json(method: Method, fits: &[(String, LsqFit)], t_ref_c: f64, identity: Identity) -> FitJson {
+pub fn to_json(
+    method: Method,
+    fits: &[(String, LsqFit)],
+    t_ref_c: f64,
+    identity: Identity,
+    uncertainty: Option<&Budget>,
+) -> FitJson {
     let thermal = fits.iter().any(|(_, f)| f.structure.is_thermal());
     FitJson {
         method: method.name(),
@@ -60,6 +72,7 @@ pub fn to_json(method: Method, fits: &[(String, LsqFit)], t_ref_c: f64, identity
                 rms_codes: finite(f.rms),
             })
             .collect(),
+        uncertainty: uncertainty.map(UncertaintyJson::from),
     }
 }
 
@@ -145,6 +158,12 @@ pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
         None => None,
     };
     print_table(method, &fits);
+    let header = accelcal_core::campaign::header(&a.campaign)?;
+    let get = |k: &str| header.iter().find(|(key, _)| key == k).map(|(_, v)| v.clone()).unwrap_or_default();
+    let budget = fit_budget(a, method, &pos, &r.channel_stats(), &fits, &get("g_source"))?;
+    if let Some(b) = &budget {
+        super::uncertainty::print_budget(b);
+    }
     let identity = Identity {
         device_id: device_id.map(|d| device_id_hex(&d)).or(unit.device_id),
         serial: unit.serial,
@@ -152,7 +171,7 @@ pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
         campaign_sha256: unit.sha256,
         record_crc: rec.as_ref().map(|(_, bytes, _)| record_crc_hex(bytes)),
     };
-    let doc = to_json(method, &fits, a.thermal.t_ref_c(), identity.clone());
+    let doc = to_json(method, &fits, a.thermal.t_ref_c(), identity.clone(), budget.as_ref());
     if let Some(j) = &a.common.json {
         write_json(j, &doc)?;
     }
@@ -169,9 +188,6 @@ pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
         );
     }
     if let Some(rdb) = &mut db {
-        let header = accelcal_core::campaign::header(&a.campaign)?;
-        let get =
-            |k: &str| header.iter().find(|(key, _)| key == k).map(|(_, v)| v.clone()).unwrap_or_default();
         let g_source = if a.common.g_given {
             "--g / --latitude".to_string()
         } else {
@@ -200,6 +216,50 @@ pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// The uncertainty budget of an lsq fit of a model-4 triad (`None` for another fit, which the
+/// settings let through only without `--head-angle-u`/`--head-orthogonality-u`, or a campaign
+/// whose channels are not a triad: then those options are refused here). The standard uncertainty
+/// of g is its source's bound taken as rectangular (bound/√3); `g_source` is the campaign's
+/// `# g_source:` line.
+fn fit_budget(
+    a: &FitArgs,
+    method: Method,
+    pos: &Positions,
+    stats: &[ChannelStats],
+    fits: &[(String, LsqFit)],
+    g_source: &str,
+) -> anyhow::Result<Option<Budget>> {
+    use accelcal_core::campaign::identity::{g_uncertainty, G_SOURCE_NORMAL};
+    if method != Method::Lsq || fits.iter().any(|(_, f)| f.structure != accelcal_shared::terms::MODEL_4) {
+        return Ok(None);
+    }
+    let stated = a.head_angle_u.is_some() || a.head_orthogonality_u.is_some();
+    let source = if a.common.local.latitude.is_some() {
+        Some(G_SOURCE_NORMAL)
+    } else if a.common.g_given {
+        Some("--g")
+    } else {
+        Some(g_source).filter(|s| !s.is_empty())
+    };
+    let (bound, why) = g_uncertainty(a.common.g, source);
+    let refs = References {
+        head_angle_rad: a.head_angle_u.unwrap_or(0.0) * ARCSEC,
+        head_orthogonality_rad: a.head_orthogonality_u.unwrap_or(0.0) * ARCSEC,
+        g_m_s2: bound / 3f64.sqrt(),
+    };
+    let only: Vec<&LsqFit> = fits.iter().map(|(_, f)| f).collect();
+    match uncertainty::budget(pos, stats, &only, refs) {
+        Ok(mut b) => {
+            if let Some(c) = b.contributors.iter_mut().find(|c| c.name == "gravity") {
+                c.source = format!("g {why}; bound {bound:.1e} m/s², rectangular: u = bound/√3");
+            }
+            Ok(Some(b))
+        }
+        Err(uncertainty::UncertaintyError::NotATriad(_)) if !stated => Ok(None),
+        Err(e) => Err(anyhow::Error::new(e).context(a.campaign.display().to_string())),
+    }
 }
 
 /// The device id of `fit --record`: the campaign's `# device_id:` line, which `--device-id` may

@@ -18,6 +18,7 @@ pub mod select;
 pub mod simulate;
 pub mod station;
 pub mod store;
+pub mod uncertainty;
 
 use crate::cli::{Cli, Command};
 
@@ -54,6 +55,7 @@ pub fn run(cli: Cli, warnings: &mut Warnings) -> anyhow::Result<()> {
             diagnose::run(&a, warnings)
         }
         Command::BenchDiagnose(a) => bench_diagnose::run(&a),
+        Command::UncertaintyCheck(a) => uncertainty::run_check(&a),
         Command::Station(a) => station::run(&a),
         Command::History(a) => history::run(&a),
         Command::Void(a) => db::run_void(&a),

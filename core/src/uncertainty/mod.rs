@@ -1,0 +1,585 @@
+//! The uncertainty budget of a model-4 triad calibration (GUM, JCGM 100:2008): every contributor
+//! propagated to the twelve coefficients and from them to the calibrated acceleration.
+//!
+//! The coefficients of each channel are a linear function of its dwell means: `c = A·y` with
+//! `A = (XᵀWX)⁻¹XᵀW` (X the rows `[1, ax, ay, az]` of the head's nominal accelerations, W the
+//! dwells' row counts). Each contributor is a perturbation of the dwell means (or, for g, of the
+//! regressors), so its covariance of the coefficients follows through `A` exactly to first order:
+//!
+//! - **dwell scatter** (Type A): the scatter of the dwell means about the fit, at the level of the
+//!   dwells (n − 4 degrees of freedom), not of the samples: the samples of one dwell share its
+//!   head angle error, so they are not independent. The channels' residuals are correlated (the
+//!   head's errors are common to them), and the 3 × 3 residual covariance carries that. What the
+//!   stated references account for in these residuals (below) is taken out of it, so nothing is
+//!   counted twice; when they account for all of it, the stated values stand alone.
+//! - **head angle** (Type B, the head's register entry or `fit --head-angle-u`): each angle of
+//!   each position set with an independent error of one sigma `u_θ`, as the simulator's
+//!   `angle_error` draws it; common to all channels.
+//! - **head orthogonality** (Type B, `--head-orthogonality-u`): the three rotations between the
+//!   α and β stages (the simulator's `head_misalignment`), one sigma each; common to every
+//!   position and channel. What the fit cannot absorb of this head's rotation stays in the
+//!   residuals with a shape of its own; that part (the residuals' projection on those shapes) is
+//!   this head's rotation as realised, not scatter, and is taken out of the dwell scatter.
+//! - **gravity** (Type B): the bound on g from its source
+//!   ([`crate::campaign::identity::g_uncertainty`]), a rectangular distribution (u = bound/√3): a
+//!   relative error of g is a relative error of every sensitivity.
+//! - **quantisation** (Type B): each sample rounded to a whole code, 1/12 code² per sample.
+//!
+//! The calibrated acceleration `â = K⁻¹(u − u0)` then has, at a true acceleration `a`, the
+//! covariance `G·Σ·Gᵀ` with `∂â/∂u0_c = −K⁻¹e_c` and `∂â/∂k_c = −K⁻¹e_c·aᵀ`; the expanded
+//! uncertainty `U = k·√diag` (k = 2) depends on the orientation, and per axis its maximum over
+//! the orientations at 1 g is what the certificate states. [`montecarlo`] checks the whole by
+//! simulation (JCGM 101:2008).
+
+pub mod montecarlo;
+
+use accelcal_shared::terms::MODEL_4;
+use nalgebra::{DMatrix, DVector, Matrix3, SMatrix, Vector3};
+use serde::Serialize;
+
+use crate::error::{Classify, Kind};
+use crate::lsq::LsqFit;
+use crate::positions::{ChannelStats, Positions};
+use crate::sim::effects::{rotation, Kinematics};
+
+/// The coverage factor of the expanded uncertainty.
+pub const K_COVERAGE: f64 = 2.0;
+
+/// One arcsecond, rad.
+pub const ARCSEC: f64 = std::f64::consts::PI / 648_000.0;
+
+/// The number of coefficients: channels x, y, z × terms 1, ax, ay, az.
+pub const N_COEF: usize = 12;
+
+/// The 12 × 12 covariance of the coefficients.
+pub type Cov12 = SMatrix<f64, N_COEF, N_COEF>;
+
+/// The stated uncertainties of the references (one sigma each).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct References {
+    /// Setting error of each head angle at each position, rad.
+    pub head_angle_rad: f64,
+    /// Each of the three rotations between the head's stages, rad.
+    pub head_orthogonality_rad: f64,
+    /// Standard uncertainty of g, m/s².
+    pub g_m_s2: f64,
+}
+
+/// Why no budget was made.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum UncertaintyError {
+    /// The fits are not a model-4 triad.
+    #[error("the uncertainty budget is made for a triad (three channels, sensitive axes x, y, z) fitted with model 4 (1,ax,ay,az); {0}")]
+    NotATriad(String),
+    /// Too few positions to estimate the dwell scatter.
+    #[error("{positions} positions leave no degrees of freedom for the dwell scatter of a 4-term model (at least 6 are needed)")]
+    TooFewPositions {
+        /// Positions in the campaign.
+        positions: usize,
+    },
+    /// A stated uncertainty is not a number ≥ 0.
+    #[error("a stated uncertainty must be a finite number ≥ 0, got {0}")]
+    BadStated(f64),
+    /// The fitted sensitivity matrix cannot be inverted.
+    #[error("the fitted sensitivity matrix is singular")]
+    Singular,
+}
+
+impl Classify for UncertaintyError {
+    fn kind(&self) -> Kind {
+        Kind::BadInput
+    }
+}
+
+/// One contributor to the budget.
+#[derive(Clone, Debug, Serialize)]
+pub struct Contributor {
+    /// Its name: `dwell_scatter`, `head_angle`, `head_orthogonality`, `gravity`, `quantisation`.
+    pub name: &'static str,
+    /// Its standard uncertainty of the calibrated acceleration, m/s²: the largest over the axes
+    /// and the orientations at 1 g.
+    pub u_m_s2: f64,
+    /// Its share of the combined variance (summed over the axes, averaged over the orientations
+    /// at 1 g); the shares add up to 1.
+    pub share: f64,
+    /// GUM type: `A` (from the data) or `B` (from a stated value).
+    #[serde(rename = "type")]
+    pub kind: &'static str,
+    /// Where its value comes from.
+    pub source: String,
+    /// Its covariance of the coefficients.
+    #[serde(skip)]
+    pub covariance: Cov12,
+}
+
+/// The budget of one calibration.
+#[derive(Clone, Debug)]
+pub struct Budget {
+    /// Channel index (in the fits given) of the x, y and z rows.
+    pub order: [usize; 3],
+    /// The fitted coefficients `[u0, kx, ky, kz]` per axis.
+    pub coefficients: [[f64; 4]; 3],
+    /// The combined covariance of the 12 coefficients (codes, codes/(m/s²)).
+    pub covariance: Cov12,
+    /// The contributors.
+    pub contributors: Vec<Contributor>,
+    /// What the budget leaves out, in words.
+    pub not_included: Vec<String>,
+    /// Gravity of the fit, m/s².
+    pub g: f64,
+    /// `K⁻¹`.
+    kinv: Matrix3<f64>,
+}
+
+/// The design row of model 4 at an acceleration.
+fn row(a: [f64; 3]) -> [f64; 4] {
+    [1.0, a[0], a[1], a[2]]
+}
+
+/// The acceleration of the nominal head at a position with a rotation `w` (rad) between its
+/// stages and angle offsets (rad): the simulator's kinematics.
+fn head_accel(alpha_deg: f64, beta_deg: f64, d_alpha: f64, d_beta: f64, w: [f64; 3], g: f64) -> [f64; 3] {
+    let k = Kinematics {
+        position: 0,
+        seed: 0,
+        alpha_rad: alpha_deg.to_radians() + d_alpha,
+        beta_rad: beta_deg.to_radians() + d_beta,
+        r: rotation(w),
+        changed: true,
+    };
+    k.accel(g)
+}
+
+/// ∂a/∂θ at a position for the five head parameters (δα, δβ, ωx, ωy, ωz), central differences.
+fn head_partials(alpha_deg: f64, beta_deg: f64, g: f64) -> [[f64; 3]; 5] {
+    const H: f64 = 1e-6;
+    let mut out = [[0.0; 3]; 5];
+    for (p, o) in out.iter_mut().enumerate() {
+        let mut plus = [0.0; 5];
+        plus[p] = H;
+        let minus = plus.map(|v| -v);
+        let f = |v: [f64; 5]| head_accel(alpha_deg, beta_deg, v[0], v[1], [v[2], v[3], v[4]], g);
+        let (ap, am) = (f(plus), f(minus));
+        *o = [0, 1, 2].map(|i| (ap[i] - am[i]) / (2.0 * H));
+    }
+    out
+}
+
+fn dot3(a: &[f64], b: &[f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// Which fit is the x, y and z row of the triad: each channel's largest sensitivity.
+fn triad_order(fits: &[&LsqFit]) -> Result<[usize; 3], UncertaintyError> {
+    if fits.len() != 3 {
+        return Err(UncertaintyError::NotATriad(format!("the campaign has {} channels", fits.len())));
+    }
+    if let Some(f) = fits.iter().find(|f| f.structure != MODEL_4) {
+        return Err(UncertaintyError::NotATriad(format!("a channel was fitted with {}", f.structure)));
+    }
+    let mut order = [usize::MAX; 3];
+    for (ci, f) in fits.iter().enumerate() {
+        let axis = crate::compare::own_axis(f);
+        if order[axis] != usize::MAX {
+            return Err(UncertaintyError::NotATriad("two channels have the same sensitive axis".into()));
+        }
+        order[axis] = ci;
+    }
+    Ok(order)
+}
+
+/// Adds `scale · u·vᵀ` to the (a, b) block of `cov` (4 × 4 blocks, one per pair of axes).
+fn add_block(cov: &mut Cov12, a: usize, b: usize, u: &[f64; 4], v: &[f64; 4], scale: f64) {
+    for i in 0..4 {
+        for j in 0..4 {
+            cov[(4 * a + i, 4 * b + j)] += scale * u[i] * v[j];
+        }
+    }
+}
+
+/// Points spread evenly on the unit sphere (a Fibonacci lattice).
+pub fn sphere(n: usize) -> Vec<[f64; 3]> {
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    (0..n)
+        .map(|i| {
+            let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let phi = golden * i as f64;
+            [r * phi.cos(), r * phi.sin(), z]
+        })
+        .collect()
+}
+
+/// The orientations the budget's maxima are taken over.
+const SPHERE_POINTS: usize = 600;
+
+/// Makes the budget of a model-4 triad fitted by least squares on `pos` (`fits` in the order of
+/// `stats`), with the references' stated uncertainties.
+pub fn budget(
+    pos: &Positions,
+    stats: &[ChannelStats],
+    fits: &[&LsqFit],
+    refs: References,
+) -> Result<Budget, UncertaintyError> {
+    for v in [refs.head_angle_rad, refs.head_orthogonality_rad, refs.g_m_s2] {
+        if !(v.is_finite() && v >= 0.0) {
+            return Err(UncertaintyError::BadStated(v));
+        }
+    }
+    let order = triad_order(fits)?;
+    let n = pos.len();
+    if n < 6 {
+        return Err(UncertaintyError::TooFewPositions { positions: n });
+    }
+    let g = pos.g;
+    let coefficients: [[f64; 4]; 3] = order.map(|ci| std::array::from_fn(|t| fits[ci].coefficients[t]));
+    let k = Matrix3::from_fn(|r, c| coefficients[r][1 + c]);
+    let kinv = k.try_inverse().ok_or(UncertaintyError::Singular)?;
+
+    // A = (XᵀWX)⁻¹XᵀW, 4 × n; R = I − X·A, the residual maker.
+    let x = DMatrix::from_fn(n, 4, |i, t| row(pos.accel[i])[t]);
+    let w = DVector::from_fn(n, |i, _| pos.weight[i]);
+    let xtw = DMatrix::from_fn(4, n, |t, i| x[(i, t)] * w[i]);
+    let a = (&xtw * &x).try_inverse().ok_or(UncertaintyError::Singular)? * &xtw;
+    let resid_maker = DMatrix::identity(n, n) - &x * &a;
+    let col = |i: usize| -> [f64; 4] { std::array::from_fn(|t| a[(t, i)]) };
+    let rcol_ss: Vec<f64> = (0..n).map(|i| resid_maker.column(i).norm_squared()).collect();
+    let apply_a = |d: &DVector<f64>| -> [f64; 4] {
+        let v = &a * d;
+        std::array::from_fn(|t| v[t])
+    };
+
+    // Residuals of the dwell means, per axis row.
+    let resid: Vec<DVector<f64>> = order
+        .iter()
+        .map(|&ci| {
+            let c = &fits[ci].coefficients;
+            DVector::from_fn(n, |i, _| {
+                let r = row(pos.accel[i]);
+                stats[ci].mean[i] - (0..4).map(|t| c[t] * r[t]).sum::<f64>()
+            })
+        })
+        .collect();
+    let dof = (n - 4) as f64;
+    let partials: Vec<[[f64; 3]; 5]> =
+        pos.dwells.iter().map(|d| head_partials(d.alpha_deg, d.beta_deg, g)).collect();
+    let kvec =
+        |axis: usize| -> [f64; 3] { [coefficients[axis][1], coefficients[axis][2], coefficients[axis][3]] };
+
+    let mut contributors = Vec::new();
+    // What the stated contributors explain of the residual sum of squares (all channels).
+    let mut explained = 0.0;
+
+    // Head angle setting errors: independent per position and angle.
+    let mut angle = Cov12::zeros();
+    let ua2 = refs.head_angle_rad * refs.head_angle_rad;
+    if ua2 > 0.0 {
+        for i in 0..n {
+            let ai = col(i);
+            let d: [[f64; 2]; 3] =
+                [0, 1, 2].map(|ax| [dot3(&kvec(ax), &partials[i][0]), dot3(&kvec(ax), &partials[i][1])]);
+            for p in 0..3 {
+                for q in 0..3 {
+                    let s = d[p][0] * d[q][0] + d[p][1] * d[q][1];
+                    add_block(&mut angle, p, q, &ai, &ai, ua2 * s);
+                }
+                explained += ua2 * rcol_ss[i] * (d[p][0] * d[p][0] + d[p][1] * d[p][1]);
+            }
+        }
+    }
+
+    // Head orthogonality: three rotations common to every position.
+    let mut ortho = Cov12::zeros();
+    let uo2 = refs.head_orthogonality_rad * refs.head_orthogonality_rad;
+    // What the fit does not absorb of a rotation stays in the residuals, with a shape of its
+    // own (the three channels' residuals stacked): the part of the residuals of those shapes is
+    // this head's rotation as realised, not scatter, and is taken out of the dwell scatter. The
+    // stated value is not subtracted: a stated error that is not there must not shrink the budget.
+    let mut shapes = vec![DVector::zeros(3 * n); 3];
+    if uo2 > 0.0 {
+        for j in 0..3 {
+            let dc: Vec<[f64; 4]> = (0..3)
+                .map(|ax| {
+                    let d = DVector::from_fn(n, |i, _| dot3(&kvec(ax), &partials[i][2 + j]));
+                    shapes[j].rows_mut(ax * n, n).copy_from(&(&resid_maker * &d));
+                    apply_a(&d)
+                })
+                .collect();
+            for p in 0..3 {
+                for q in 0..3 {
+                    add_block(&mut ortho, p, q, &dc[p], &dc[q], uo2);
+                }
+            }
+        }
+    }
+
+    if uo2 > 0.0 {
+        let r = DVector::from_fn(3 * n, |k, _| resid[k / n][k % n]);
+        let v = DMatrix::from_fn(3 * n, 3, |k, j| shapes[j][k]);
+        let vtv = v.transpose() * &v;
+        if let Some(inv) = vtv.try_inverse() {
+            let vtr = v.transpose() * &r;
+            explained += vtr.dot(&(inv * &vtr));
+        }
+    }
+
+    // Gravity: a relative error of g scales every sensitivity.
+    let mut grav = Cov12::zeros();
+    let rel = refs.g_m_s2 / g;
+    let dk: [[f64; 4]; 3] = [0, 1, 2].map(|ax| [0.0, kvec(ax)[0], kvec(ax)[1], kvec(ax)[2]]);
+    for p in 0..3 {
+        for q in 0..3 {
+            add_block(&mut grav, p, q, &dk[p], &dk[q], rel * rel);
+        }
+    }
+
+    // Quantisation: 1/12 code² per sample, independent per channel.
+    let mut quant = Cov12::zeros();
+    for i in 0..n {
+        let ai = col(i);
+        let v = 1.0 / (12.0 * pos.weight[i].max(1.0));
+        for p in 0..3 {
+            add_block(&mut quant, p, p, &ai, &ai, v);
+        }
+        explained += 3.0 * v * rcol_ss[i];
+    }
+
+    // Dwell scatter: the residual covariance of the channels over the scatter matrix A·Aᵀ, less
+    // the part the stated contributors explain.
+    let observed: f64 = resid.iter().map(|r| r.norm_squared()).sum();
+    let kept = if observed > 0.0 { (1.0 - explained / observed).max(0.0) } else { 0.0 };
+    let aat = &a * a.transpose();
+    let mut scatter = Cov12::zeros();
+    for p in 0..3 {
+        for q in 0..3 {
+            let s = resid[p].dot(&resid[q]) / dof * kept;
+            for i in 0..4 {
+                for j in 0..4 {
+                    scatter[(4 * p + i, 4 * q + j)] = s * aat[(i, j)];
+                }
+            }
+        }
+    }
+
+    let stated = |rad: f64, what: &str| {
+        if rad > 0.0 {
+            format!("{:.2} arcsec {what}, stated", rad / ARCSEC)
+        } else {
+            "not stated".to_string()
+        }
+    };
+    let parts: [(&'static str, &'static str, String, Cov12); 5] = [
+        (
+            "dwell_scatter",
+            "A",
+            format!(
+                "the dwell means' scatter about the fit ({n} positions, {dof} degrees of freedom), {:.0} % of it left once the stated references are taken out",
+                kept * 100.0
+            ),
+            scatter,
+        ),
+        ("head_angle", "B", stated(refs.head_angle_rad, "per angle and position"), angle),
+        ("head_orthogonality", "B", stated(refs.head_orthogonality_rad, "per rotation between the stages"), ortho),
+        ("gravity", "B", format!("u(g) = {:.3e} m/s²", refs.g_m_s2), grav),
+        ("quantisation", "B", "1/12 code² per sample".to_string(), quant),
+    ];
+    let covariance = parts.iter().fold(Cov12::zeros(), |acc, p| acc + p.3);
+    let mut budget = Budget {
+        order,
+        coefficients,
+        covariance,
+        contributors: Vec::new(),
+        not_included: Vec::new(),
+        g,
+        kinv,
+    };
+    let points = sphere(SPHERE_POINTS);
+    let total_var: f64 =
+        points.iter().map(|&d| budget.variance_at(&covariance, d.map(|v| v * g)).sum()).sum();
+    for (name, kind, source, cov) in parts {
+        let vars: Vec<Vector3<f64>> =
+            points.iter().map(|&d| budget.variance_at(&cov, d.map(|v| v * g))).collect();
+        let u = vars.iter().map(|v| v.max()).fold(0.0f64, f64::max).sqrt();
+        let share = if total_var > 0.0 { vars.iter().map(|v| v.sum()).sum::<f64>() / total_var } else { 0.0 };
+        contributors.push(Contributor { name, u_m_s2: u, share, kind, source, covariance: cov });
+    }
+    budget.contributors = contributors;
+    if refs.head_angle_rad == 0.0 {
+        budget.not_included.push(
+            "the head's angle setting errors as stated by its certificate (none given: they count only as far as the dwell scatter shows them)".into(),
+        );
+    }
+    if refs.head_orthogonality_rad == 0.0 {
+        budget.not_included.push("the head's axis orthogonality (none given)".into());
+    }
+    if pos.temp_c.is_some() {
+        budget.not_included.push(
+            "the temperature during calibration against the reference temperature (no temperature coefficient stated)".into(),
+        );
+    }
+    budget
+        .not_included
+        .push("model 4's lack of fit beyond what the dwell scatter of the plan's positions shows".into());
+    Ok(budget)
+}
+
+impl Budget {
+    /// The 3 × 12 sensitivity of the calibrated acceleration to the coefficients at `a`.
+    fn jacobian(&self, a: [f64; 3]) -> SMatrix<f64, 3, N_COEF> {
+        let mut jac = SMatrix::<f64, 3, N_COEF>::zeros();
+        let r = row(a);
+        for c in 0..3 {
+            for i in 0..3 {
+                for t in 0..4 {
+                    jac[(i, 4 * c + t)] = -self.kinv[(i, c)] * r[t];
+                }
+            }
+        }
+        jac
+    }
+
+    /// Per axis, the variance of the calibrated acceleration at the true acceleration `a` (m/s²)
+    /// under the coefficients' covariance `cov`, (m/s²)².
+    pub fn variance_at(&self, cov: &Cov12, a: [f64; 3]) -> Vector3<f64> {
+        let j = self.jacobian(a);
+        (j * cov * j.transpose()).diagonal()
+    }
+
+    /// Per axis, the expanded uncertainty (k = 2) of the calibrated acceleration at `a`, m/s².
+    pub fn expanded_at(&self, a: [f64; 3]) -> [f64; 3] {
+        let v = self.variance_at(&self.covariance, a);
+        [0, 1, 2].map(|i| K_COVERAGE * v[i].max(0.0).sqrt())
+    }
+
+    /// Per axis, the largest expanded uncertainty over the orientations at 1 g, m/s².
+    pub fn expanded_max(&self) -> [f64; 3] {
+        let mut out = [0.0f64; 3];
+        for d in sphere(SPHERE_POINTS) {
+            let u = self.expanded_at(d.map(|v| v * self.g));
+            for i in 0..3 {
+                out[i] = out[i].max(u[i]);
+            }
+        }
+        out
+    }
+
+    /// The calibrated acceleration of raw codes `u` (one per axis row), m/s².
+    pub fn calibrate(&self, u: [f64; 3]) -> [f64; 3] {
+        let v = Vector3::from_fn(|i, _| u[i] - self.coefficients[i][0]);
+        let a = self.kinv * v;
+        [a[0], a[1], a[2]]
+    }
+
+    /// The names of the 12 coefficients in the covariance's order (`x:1`, `x:ax`, …).
+    pub fn coefficient_names() -> Vec<String> {
+        let mut out = Vec::new();
+        for ch in ["x", "y", "z"] {
+            for t in ["1", "ax", "ay", "az"] {
+                out.push(format!("{ch}:{t}"));
+            }
+        }
+        out
+    }
+}
+
+/// The JSON form of a budget (`fit --json`'s `uncertainty`).
+#[derive(Clone, Debug, Serialize)]
+pub struct UncertaintyJson {
+    /// The coverage factor.
+    pub k: f64,
+    /// Per axis x, y, z, the expanded uncertainty of the calibrated acceleration, its maximum
+    /// over the orientations at 1 g, m/s².
+    #[serde(rename = "U_m_s2")]
+    pub u_m_s2: [f64; 3],
+    /// The coefficients' names in the covariance's order.
+    pub coefficients: Vec<String>,
+    /// The combined 12 × 12 covariance (codes², codes²/(m/s²), codes²/(m/s²)²).
+    pub covariance: Vec<Vec<f64>>,
+    /// The contributors.
+    pub contributors: Vec<Contributor>,
+    /// What the budget leaves out.
+    pub not_included: Vec<String>,
+}
+
+impl From<&Budget> for UncertaintyJson {
+    fn from(b: &Budget) -> UncertaintyJson {
+        UncertaintyJson {
+            k: K_COVERAGE,
+            u_m_s2: b.expanded_max(),
+            coefficients: Budget::coefficient_names(),
+            covariance: (0..N_COEF).map(|i| (0..N_COEF).map(|j| b.covariance[(i, j)]).collect()).collect(),
+            contributors: b.contributors.clone(),
+            not_included: b.not_included.clone(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::calibrate::{fit_all, Method};
+    use crate::sim::{simulate, SimConfig};
+
+    #[test]
+    fn the_head_kinematics_without_errors_are_the_campaigns() {
+        for (al, be) in [(0.0, 0.0), (30.0, -60.0), (120.0, 90.0), (-45.0, 30.0)] {
+            let a = head_accel(al, be, 0.0, 0.0, [0.0; 3], 9.81);
+            let b = accelcal_shared::gravity(al, be, 9.81);
+            for i in 0..3 {
+                assert!((a[i] - b[i]).abs() < 1e-12, "{al} {be}: {a:?} {b:?}");
+            }
+        }
+    }
+
+    fn unit(noise: f64) -> (Positions, Vec<ChannelStats>, Vec<LsqFit>) {
+        let cfg = SimConfig { samples: 50, noise, ..SimConfig::default() };
+        let (c, _) = simulate(&cfg);
+        let pos = Positions::new(&c, cfg.g);
+        let stats = pos.channel_stats(&c);
+        let fits = fit_all(&c, cfg.g, Method::Lsq, MODEL_4).unwrap().into_iter().map(|(_, f)| f).collect();
+        (pos, stats, fits)
+    }
+
+    #[test]
+    fn each_stated_reference_adds_its_contributor_and_the_shares_add_up() {
+        let (pos, stats, fits) = unit(80.0);
+        let refs = |a: f64, o: f64, g: f64| References {
+            head_angle_rad: a * ARCSEC,
+            head_orthogonality_rad: o * ARCSEC,
+            g_m_s2: g,
+        };
+        let fits: Vec<&LsqFit> = fits.iter().collect();
+        let none = budget(&pos, &stats, &fits, refs(0.0, 0.0, 0.0)).unwrap();
+        let all = budget(&pos, &stats, &fits, refs(20.0, 30.0, 1e-3)).unwrap();
+        let share: f64 = all.contributors.iter().map(|c| c.share).sum();
+        assert!((share - 1.0).abs() < 1e-9, "{share}");
+        let u = |b: &Budget, name: &str| b.contributors.iter().find(|c| c.name == name).unwrap().u_m_s2;
+        assert_eq!(u(&none, "head_orthogonality"), 0.0);
+        assert!(u(&all, "head_orthogonality") > 0.0 && u(&all, "gravity") > 0.0);
+        // g's relative error scales the acceleration: at 1 g, u = g·u(g)/g = u(g).
+        assert!((u(&all, "gravity") - 1e-3).abs() < 2e-5, "{}", u(&all, "gravity"));
+        let (un, ua) = (none.expanded_max(), all.expanded_max());
+        assert!((0..3).all(|i| ua[i] > un[i] && un[i] > 0.0), "{un:?} {ua:?}");
+        assert_eq!(none.not_included.len(), 3);
+        // A calibrated acceleration of the fitted model's own codes is the acceleration.
+        let a = [1.0, -2.0, 9.0];
+        let codes = [0, 1, 2].map(|r| {
+            let c = all.coefficients[r];
+            c[0] + c[1] * a[0] + c[2] * a[1] + c[3] * a[2]
+        });
+        let back = all.calibrate(codes);
+        assert!((0..3).all(|i| (back[i] - a[i]).abs() < 1e-9), "{back:?}");
+    }
+
+    #[test]
+    fn what_is_not_a_model_4_triad_is_refused() {
+        let (pos, stats, fits) = unit(80.0);
+        let two: Vec<&LsqFit> = fits.iter().take(2).collect();
+        let e = budget(&pos, &stats, &two, References::default()).unwrap_err();
+        assert!(e.to_string().contains("triad"), "{e}");
+        let all: Vec<&LsqFit> = fits.iter().collect();
+        let e =
+            budget(&pos, &stats, &all, References { g_m_s2: f64::NAN, ..References::default() }).unwrap_err();
+        assert!(matches!(e, UncertaintyError::BadStated(v) if v.is_nan()), "{e}");
+    }
+}

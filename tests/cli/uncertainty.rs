@@ -1,0 +1,108 @@
+//! The uncertainty budget of `fit` (the `uncertainty` object of its JSON) and its Monte Carlo
+//! check (`uncertainty-check`).
+
+use super::*;
+
+#[test]
+fn fit_states_the_expanded_uncertainty_its_covariance_and_contributors() {
+    let d = Dir::new();
+    let c = simulate(&d, "c.csv", &["--samples", "40", "--effect", "angle_error=sd_mrad:0.1"]);
+    let (plain, head) = (d.s("plain.json"), d.s("head.json"));
+    let out = ok(&["fit", &c, "--json", &plain]);
+    assert!(out.contains("expanded uncertainty of the calibrated acceleration (k = 2"), "{out}");
+    assert!(out.contains("not included: the head's axis orthogonality (none given)"), "{out}");
+    ok(&["fit", &c, "--head-angle-u", "20", "--head-orthogonality-u", "30", "--json", &head]);
+    let (p, h) = (json(Path::new(&plain)), json(Path::new(&head)));
+    let u = &h["uncertainty"];
+    assert_eq!(u["k"], 2.0);
+    let names: Vec<&str> =
+        u["coefficients"].as_array().unwrap().iter().map(|v| v.as_str().unwrap()).collect();
+    assert_eq!(names[..5], ["x:1", "x:ax", "x:ay", "x:az", "y:1"]);
+    let cov = u["covariance"].as_array().unwrap();
+    assert_eq!(cov.len(), 12);
+    for (i, row) in cov.iter().enumerate() {
+        let row = row.as_array().unwrap();
+        assert_eq!(row.len(), 12);
+        assert!(row[i].as_f64().unwrap() > 0.0);
+        for (j, v) in row.iter().enumerate() {
+            // Symmetric.
+            let w = cov[j][i].as_f64().unwrap();
+            let scale = (row[i].as_f64().unwrap() * cov[j][j].as_f64().unwrap()).sqrt();
+            assert!((v.as_f64().unwrap() - w).abs() <= 1e-9 * scale, "{i} {j}: {v} {w}");
+        }
+    }
+    let shares: f64 =
+        u["contributors"].as_array().unwrap().iter().map(|c| c["share"].as_f64().unwrap()).sum();
+    assert!((shares - 1.0).abs() < 1e-9, "{shares}");
+    let names: Vec<&str> =
+        u["contributors"].as_array().unwrap().iter().map(|c| c["name"].as_str().unwrap()).collect();
+    assert_eq!(names, ["dwell_scatter", "head_angle", "head_orthogonality", "gravity", "quantisation"]);
+    // A head stated but without errors changes U by little (the scatter it would explain is
+    // taken out, its own covariance put in) ...
+    let ux = |v: &Value, i: usize| v["uncertainty"]["U_m_s2"][i].as_f64().unwrap();
+    for i in 0..3 {
+        let (a, b) = (ux(&p, i), ux(&h, i));
+        assert!(a > 0.0 && a < 0.05 && (b / a - 1.0).abs() < 0.1, "axis {i}: {a} {b}");
+    }
+    // A head whose stages are out of square: without a stated orthogonality only the part of
+    // the rotation the fit cannot absorb shows, as dwell scatter; stated, the rotation is its own
+    // contributor, the larger share, and the scatter it explains is taken out of the Type A.
+    let m = simulate(
+        &d,
+        "m.csv",
+        &[
+            "--samples",
+            "40",
+            "--noise",
+            "2",
+            "--effect",
+            "head_misalignment=rx_mrad:0.3,ry_mrad:-0.3,rz_mrad:0.3",
+        ],
+    );
+    let (mp, mh) = (d.s("mp.json"), d.s("mh.json"));
+    ok(&["fit", &m, "--json", &mp]);
+    ok(&["fit", &m, "--head-orthogonality-u", "60", "--json", &mh]);
+    let (mp, mh) = (json(Path::new(&mp)), json(Path::new(&mh)));
+    let field = |v: &Value, name: &str, key: &str| {
+        let c = v["uncertainty"]["contributors"].as_array().unwrap();
+        c.iter().find(|c| c["name"] == name).unwrap()[key].as_f64().unwrap()
+    };
+    assert!(field(&mh, "head_orthogonality", "share") > 0.5, "{mh}");
+    let scatter = |v: &Value| field(v, "dwell_scatter", "u_m_s2");
+    assert!(scatter(&mh) < 0.2 * scatter(&mp), "{} {}", scatter(&mp), scatter(&mh));
+    for i in 0..3 {
+        assert!((ux(&mh, i) / ux(&mp, i) - 1.0).abs() < 0.25, "axis {i}: {} {}", ux(&mp, i), ux(&mh, i));
+    }
+    // No budget for test turns, nor for a block that is not a triad.
+    let tt = d.s("tt.json");
+    ok(&["fit", &c, "--method", "test-turns", "--json", &tt]);
+    assert!(json(Path::new(&tt)).get("uncertainty").is_none());
+    let b = simulate(&d, "b.csv", &["--samples", "20", "--layout", "block:2"]);
+    let bj = d.s("b.json");
+    ok(&["fit", &b, "--json", &bj]);
+    assert!(json(Path::new(&bj)).get("uncertainty").is_none());
+    let e = bad(&["fit", &b, "--head-angle-u", "20"]);
+    assert!(e.contains("triad"), "{e}");
+}
+
+#[test]
+fn the_monte_carlo_check_passes_for_the_budget_and_writes_its_table() {
+    let d = Dir::new();
+    let j = d.s("mc.json");
+    let out =
+        ok(&["uncertainty-check", "--units", "300", "--samples", "20", "--orientations", "10", "--json", &j]);
+    assert!(out.contains("the budget holds"), "{out}");
+    let v = json(Path::new(&j));
+    assert_eq!(v["passed"], true);
+    let names: Vec<&str> =
+        v["scenarios"].as_array().unwrap().iter().map(|s| s["scenario"]["name"].as_str().unwrap()).collect();
+    assert_eq!(names, ["all", "dwell_scatter", "head_angle", "head_orthogonality", "gravity"]);
+    for s in v["scenarios"].as_array().unwrap() {
+        assert_eq!(s["checks"], 300 * 10 * 3);
+        let c = s["coverage"].as_f64().unwrap();
+        assert!((0.92..=0.98).contains(&c), "{s}");
+    }
+    let out = accelcal(&["uncertainty-check", "--units", "10"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--units"));
+}
