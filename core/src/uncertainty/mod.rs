@@ -33,8 +33,9 @@
 
 pub mod montecarlo;
 
+use accelcal_shared::linear::{LinearCal, Model4};
 use accelcal_shared::terms::MODEL_4;
-use nalgebra::{DMatrix, DVector, Matrix3, SMatrix, Vector3};
+use nalgebra::{DMatrix, DVector, SMatrix, Vector3};
 use serde::Serialize;
 
 use crate::error::{Classify, Kind};
@@ -117,18 +118,18 @@ pub struct Contributor {
 pub struct Budget {
     /// Channel index (in the fits given) of the x, y and z rows.
     pub order: [usize; 3],
-    /// The fitted coefficients `[u0, kx, ky, kz]` per axis.
-    pub coefficients: [[f64; 4]; 3],
+    /// The fitted model 4, rows x, y, z.
+    pub model: Model4,
+    /// Its inversion, the calibration the node applies (`â = K⁻¹(u − u0)`).
+    pub cal: LinearCal,
     /// The combined covariance of the 12 coefficients (codes, codes/(m/s²)).
     pub covariance: Cov12,
     /// The contributors.
     pub contributors: Vec<Contributor>,
     /// What the budget leaves out, in words.
     pub not_included: Vec<String>,
-    /// Gravity of the fit, m/s².
-    pub g: f64,
-    /// `K⁻¹`.
-    kinv: Matrix3<f64>,
+    /// Per axis, the largest expanded uncertainty over the orientations at 1 g, m/s².
+    pub expanded_max: [f64; 3],
 }
 
 /// The design row of model 4 at an acceleration.
@@ -232,9 +233,9 @@ pub fn budget(
         return Err(UncertaintyError::TooFewPositions { positions: n });
     }
     let g = pos.g;
-    let coefficients: [[f64; 4]; 3] = order.map(|ci| std::array::from_fn(|t| fits[ci].coefficients[t]));
-    let k = Matrix3::from_fn(|r, c| coefficients[r][1 + c]);
-    let kinv = k.try_inverse().ok_or(UncertaintyError::Singular)?;
+    let c = |ci: usize, t: usize| fits[ci].coefficients[t];
+    let model = Model4 { u0: order.map(|ci| c(ci, 0)), k: order.map(|ci| [c(ci, 1), c(ci, 2), c(ci, 3)]) };
+    let cal = model.invert().map_err(|_| UncertaintyError::Singular)?;
 
     // A = (XᵀWX)⁻¹XᵀW, 4 × n; R = I − X·A, the residual maker.
     let x = DMatrix::from_fn(n, 4, |i, t| row(pos.accel[i])[t]);
@@ -263,8 +264,7 @@ pub fn budget(
     let dof = (n - 4) as f64;
     let partials: Vec<[[f64; 3]; 5]> =
         pos.dwells.iter().map(|d| head_partials(d.alpha_deg, d.beta_deg, g)).collect();
-    let kvec =
-        |axis: usize| -> [f64; 3] { [coefficients[axis][1], coefficients[axis][2], coefficients[axis][3]] };
+    let kvec = |axis: usize| -> [f64; 3] { model.k[axis] };
 
     let mut contributors = Vec::new();
     // What the stated contributors explain of the residual sum of squares (all channels).
@@ -386,19 +386,20 @@ pub fn budget(
     let covariance = parts.iter().fold(Cov12::zeros(), |acc, p| acc + p.3);
     let mut budget = Budget {
         order,
-        coefficients,
+        model,
+        cal,
         covariance,
         contributors: Vec::new(),
         not_included: Vec::new(),
-        g,
-        kinv,
+        expanded_max: [0.0; 3],
     };
-    let points = sphere(SPHERE_POINTS);
-    let total_var: f64 =
-        points.iter().map(|&d| budget.variance_at(&covariance, d.map(|v| v * g)).sum()).sum();
+    let points: Vec<[f64; 3]> = sphere(SPHERE_POINTS).into_iter().map(|d| d.map(|v| v * g)).collect();
+    let combined: Vec<Vector3<f64>> = points.iter().map(|&a| budget.variance_at(&covariance, a)).collect();
+    let total_var: f64 = combined.iter().map(|v| v.sum()).sum();
+    budget.expanded_max =
+        [0, 1, 2].map(|i| K_COVERAGE * combined.iter().map(|v| v[i]).fold(0.0f64, f64::max).sqrt());
     for (name, kind, source, cov) in parts {
-        let vars: Vec<Vector3<f64>> =
-            points.iter().map(|&d| budget.variance_at(&cov, d.map(|v| v * g))).collect();
+        let vars: Vec<Vector3<f64>> = points.iter().map(|&a| budget.variance_at(&cov, a)).collect();
         let u = vars.iter().map(|v| v.max()).fold(0.0f64, f64::max).sqrt();
         let share = if total_var > 0.0 { vars.iter().map(|v| v.sum()).sum::<f64>() / total_var } else { 0.0 };
         contributors.push(Contributor { name, u_m_s2: u, share, kind, source, covariance: cov });
@@ -431,7 +432,7 @@ impl Budget {
         for c in 0..3 {
             for i in 0..3 {
                 for t in 0..4 {
-                    jac[(i, 4 * c + t)] = -self.kinv[(i, c)] * r[t];
+                    jac[(i, 4 * c + t)] = -self.cal.m[i][c] * r[t];
                 }
             }
         }
@@ -449,25 +450,6 @@ impl Budget {
     pub fn expanded_at(&self, a: [f64; 3]) -> [f64; 3] {
         let v = self.variance_at(&self.covariance, a);
         [0, 1, 2].map(|i| K_COVERAGE * v[i].max(0.0).sqrt())
-    }
-
-    /// Per axis, the largest expanded uncertainty over the orientations at 1 g, m/s².
-    pub fn expanded_max(&self) -> [f64; 3] {
-        let mut out = [0.0f64; 3];
-        for d in sphere(SPHERE_POINTS) {
-            let u = self.expanded_at(d.map(|v| v * self.g));
-            for i in 0..3 {
-                out[i] = out[i].max(u[i]);
-            }
-        }
-        out
-    }
-
-    /// The calibrated acceleration of raw codes `u` (one per axis row), m/s².
-    pub fn calibrate(&self, u: [f64; 3]) -> [f64; 3] {
-        let v = Vector3::from_fn(|i, _| u[i] - self.coefficients[i][0]);
-        let a = self.kinv * v;
-        [a[0], a[1], a[2]]
     }
 
     /// The names of the 12 coefficients in the covariance's order (`x:1`, `x:ax`, …).
@@ -505,7 +487,7 @@ impl From<&Budget> for UncertaintyJson {
     fn from(b: &Budget) -> UncertaintyJson {
         UncertaintyJson {
             k: K_COVERAGE,
-            u_m_s2: b.expanded_max(),
+            u_m_s2: b.expanded_max,
             coefficients: Budget::coefficient_names(),
             covariance: (0..N_COEF).map(|i| (0..N_COEF).map(|j| b.covariance[(i, j)]).collect()).collect(),
             contributors: b.contributors.clone(),
@@ -558,16 +540,16 @@ mod tests {
         assert!(u(&all, "head_orthogonality") > 0.0 && u(&all, "gravity") > 0.0);
         // g's relative error scales the acceleration: at 1 g, u = g·u(g)/g = u(g).
         assert!((u(&all, "gravity") - 1e-3).abs() < 2e-5, "{}", u(&all, "gravity"));
-        let (un, ua) = (none.expanded_max(), all.expanded_max());
+        let (un, ua) = (none.expanded_max, all.expanded_max);
         assert!((0..3).all(|i| ua[i] > un[i] && un[i] > 0.0), "{un:?} {ua:?}");
         assert_eq!(none.not_included.len(), 3);
         // A calibrated acceleration of the fitted model's own codes is the acceleration.
         let a = [1.0, -2.0, 9.0];
         let codes = [0, 1, 2].map(|r| {
-            let c = all.coefficients[r];
-            c[0] + c[1] * a[0] + c[2] * a[1] + c[3] * a[2]
+            let m = &all.model;
+            m.u0[r] + (0..3).map(|j| m.k[r][j] * a[j]).sum::<f64>()
         });
-        let back = all.calibrate(codes);
+        let back = all.cal.apply(codes);
         assert!((0..3).all(|i| (back[i] - a[i]).abs() < 1e-9), "{back:?}");
     }
 

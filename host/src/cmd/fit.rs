@@ -130,8 +130,9 @@ pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
     let r = super::reduce_campaign(&a.campaign, a.common.codes, warnings)?;
     let mut pos = r.positions(a.common.g);
     pos.t_ref_c = a.thermal.t_ref_c();
-    let fits = fit_positions(&pos, &r.channel_stats(), method, structure)
-        .with_context(|| a.campaign.display().to_string())?;
+    let stats = r.channel_stats();
+    let fits =
+        fit_positions(&pos, &stats, method, structure).with_context(|| a.campaign.display().to_string())?;
     // The record is built and checked first: a record a node would refuse writes nothing.
     let rec = match &a.record {
         Some(path) => {
@@ -160,7 +161,7 @@ pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
     print_table(method, &fits);
     let header = accelcal_core::campaign::header(&a.campaign)?;
     let get = |k: &str| header.iter().find(|(key, _)| key == k).map(|(_, v)| v.clone()).unwrap_or_default();
-    let budget = fit_budget(a, method, &pos, &r.channel_stats(), &fits, &get("g_source"))?;
+    let budget = fit_budget(a, method, &pos, &stats, &fits, &get("g_source"))?;
     if let Some(b) = &budget {
         super::uncertainty::print_budget(b);
     }

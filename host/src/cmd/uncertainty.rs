@@ -9,15 +9,6 @@ use serde::Serialize;
 
 use crate::cli::UncertaintyCheckArgs;
 
-/// The coverage a scenario must reach: 95 ± 1.5 % with every contributor on, 93–97 % alone.
-fn range_of(s: &Scenario) -> (f64, f64) {
-    if s.name == "all" {
-        (0.935, 0.965)
-    } else {
-        (0.93, 0.97)
-    }
-}
-
 /// The JSON of `uncertainty-check`.
 #[derive(Serialize)]
 struct CheckJson<'a> {
@@ -70,7 +61,7 @@ pub fn run_check(a: &UncertaintyCheckArgs) -> anyhow::Result<()> {
     let mut failed = Vec::new();
     for o in &outcomes {
         let s = &o.scenario;
-        let (lo, hi) = range_of(s);
+        let (lo, hi) = s.range;
         let passed = (lo..=hi).contains(&o.coverage);
         if !passed {
             failed.push(format!("{} {:.1} %", s.name, 100.0 * o.coverage));
@@ -113,7 +104,7 @@ pub fn run_check(a: &UncertaintyCheckArgs) -> anyhow::Result<()> {
 
 /// Prints a budget: the expanded uncertainty per axis and each contributor.
 pub fn print_budget(b: &Budget) {
-    let u = b.expanded_max();
+    let u = b.expanded_max;
     println!(
         "expanded uncertainty of the calibrated acceleration (k = 2, the largest over the orientations at 1 g): x {:.2e}, y {:.2e}, z {:.2e} m/s²",
         u[0], u[1], u[2]
