@@ -19,9 +19,9 @@ fn pieces_are_stored_once_and_a_finished_run_takes_nothing_more() {
 fn calibration_rows_are_never_updated_deleted_or_truncated() {
     let pg = Cluster::start();
     let mut db = Db::open(&pg.url).unwrap();
-    calibrate(&mut db, &start(RunId::new(), DEVICE, "SN-1", "st-1", T0), &coefs(0.0, 0), Some(0.01));
+    with_head_asset(&mut db);
     let mut c = postgres::Client::connect(&pg.url, postgres::NoTls).unwrap();
-    for table in ["run", "campaign", "fit", "cal_record", "flash", "verification", "certificate", "run_end"] {
+    for table in APPEND_ONLY {
         for (sql, verb) in [
             (format!("UPDATE {table} SET content_sha256 = 'x'"), "updated"),
             (format!("DELETE FROM {table}"), "deleted"),
@@ -34,6 +34,29 @@ fn calibration_rows_are_never_updated_deleted_or_truncated() {
     }
     let n: i64 = c.query_one("SELECT count(*) FROM run", &[]).unwrap().get(0);
     assert_eq!(n, 1);
+}
+
+#[test]
+fn assets_are_registered_once_refused_when_overdue_and_traced_to_their_runs() {
+    let pg = Cluster::start();
+    assets_register_and_trace(&pg.url);
+}
+
+#[test]
+fn every_column_of_the_migrated_database_is_in_the_chain_in_order() {
+    let pg = Cluster::start();
+    drop(Db::open(&pg.url).unwrap());
+    let mut c = postgres::Client::connect(&pg.url, postgres::NoTls).unwrap();
+    columns_are_the_chain_s(&mut |t| {
+        c.query(
+            "SELECT column_name::text FROM information_schema.columns WHERE table_name = $1 ORDER BY ordinal_position",
+            &[&t],
+        )
+        .unwrap()
+        .iter()
+        .map(|r| r.get(0))
+        .collect()
+    });
 }
 
 #[test]

@@ -26,7 +26,7 @@ pub struct Table {
 }
 
 /// Every table of the calibration, as the chain sees it.
-pub const TABLES: [Table; 10] = [
+pub const TABLES: [Table; 12] = [
     Table {
         name: "run",
         columns: &[
@@ -71,7 +71,33 @@ pub const TABLES: [Table; 10] = [
             "content_sha256",
         ],
     },
+    Table {
+        name: "asset",
+        columns: &[
+            "asset_id",
+            "certificate",
+            "kind",
+            "due_date",
+            "angle_u_arcsec",
+            "orthogonality_u_arcsec",
+            "operator",
+            "registered_unix_s",
+            "content_sha256",
+        ],
+    },
+    Table {
+        name: "run_asset",
+        columns: &["run_id", "kind", "asset_id", "certificate", "stored_unix_s", "content_sha256"],
+    },
 ];
+
+impl Table {
+    /// Whether its rows belong to no run (a relabel, an asset): their ledger entries have
+    /// `run_id` `''` and chain to the ledger's latest entry.
+    pub fn is_global(&self) -> bool {
+        matches!(self.name, "relabel" | "asset")
+    }
+}
 
 /// The table `name`.
 pub fn table(name: &str) -> &'static Table {
@@ -83,13 +109,15 @@ pub fn piece_key(table: &str, row: &[Val]) -> Result<String, DbError> {
     Ok(match table {
         "verification" => format!("verification:{}", row[1].text()?),
         "relabel" => format!("relabel:{}", row[0].text()?),
+        "asset" => format!("asset:{}:{}", row[0].text()?, row[1].text()?),
+        "run_asset" => format!("run_asset:{}", row[1].text()?),
         t => t.to_string(),
     })
 }
 
-/// The run a row belongs to (`''` for a relabel).
-fn run_of(table: &str, row: &[Val]) -> Result<String, DbError> {
-    if table == "relabel" {
+/// The run a row belongs to (`''` for a relabel or an asset).
+fn run_of(table: &Table, row: &[Val]) -> Result<String, DbError> {
+    if table.is_global() {
         Ok(String::new())
     } else {
         row[0].text()
@@ -129,7 +157,7 @@ fn chain_value(seq: i64, prev_seq: i64, prev: &str, run: &str, piece: &str, row:
 
 /// Appends the ledger entry of a row just inserted (in the same transaction).
 pub fn append(tx: &mut Tx<'_>, table: &Table, row: &[Val]) -> Result<(), DbError> {
-    let run = run_of(table.name, row)?;
+    let run = run_of(table, row)?;
     let piece = piece_key(table.name, row)?;
     let digest = row_digest(table, row);
     let seq = tx.query("SELECT COALESCE(MAX(seq), 0) FROM ledger", &[])?[0][0].int()? + 1;
@@ -176,7 +204,7 @@ pub fn seal_legacy(tx: &mut Tx<'_>) -> Result<usize, DbError> {
     let mut n = 0;
     for r in runs {
         let id = r[0].text()?;
-        for t in TABLES.iter().filter(|t| t.name != "relabel") {
+        for t in TABLES.iter().filter(|t| !t.is_global()) {
             for row in rows_of(tx, t, &id)? {
                 append(tx, t, &row)?;
                 n += 1;
@@ -188,7 +216,11 @@ pub fn seal_legacy(tx: &mut Tx<'_>) -> Result<usize, DbError> {
 
 /// The rows of `table` of run `run` (verifications: as found, then as left).
 fn rows_of(tx: &mut Tx<'_>, table: &Table, run: &str) -> Result<Vec<Vec<Val>>, DbError> {
-    let order = if table.name == "verification" { " ORDER BY phase DESC" } else { "" };
+    let order = match table.name {
+        "verification" => " ORDER BY phase DESC",
+        "run_asset" => " ORDER BY kind",
+        _ => "",
+    };
     tx.query(
         &format!("SELECT {} FROM {} WHERE run_id = $1{order}", table.columns.join(", "), table.name),
         &[run.to_string().into()],
@@ -335,7 +367,7 @@ fn check_entries(
     Ok(())
 }
 
-/// Checks the rows of run `run` (or the relabels, `run` empty) against their entries.
+/// Checks the rows of run `run` (or the relabels and assets, `run` empty) against their entries.
 fn check_rows(
     tx: &mut Tx<'_>,
     run: &str,
@@ -344,10 +376,13 @@ fn check_rows(
 ) -> Result<usize, DbError> {
     let mut seen = std::collections::HashSet::new();
     let mut n = 0;
-    let tables: Vec<&Table> = TABLES.iter().filter(|t| (t.name == "relabel") == run.is_empty()).collect();
+    let tables: Vec<&Table> = TABLES.iter().filter(|t| t.is_global() == run.is_empty()).collect();
     for t in tables {
         let rows = if run.is_empty() {
-            tx.query(&format!("SELECT {} FROM relabel ORDER BY relabel_id", t.columns.join(", ")), &[])?
+            tx.query(
+                &format!("SELECT {} FROM {} ORDER BY {}", t.columns.join(", "), t.name, t.columns[0]),
+                &[],
+            )?
         } else {
             rows_of(tx, t, run)?
         };
@@ -431,6 +466,13 @@ fn content_mismatch(t: &Table, row: &[Val]) -> Result<Option<String>, DbError> {
             &col("old_serial").text()?,
             &col("new_serial").text()?,
             &col("reason").text()?,
+        )
+        .into_bytes(),
+        "asset" => super::asset::asset_content(row)?.into_bytes(),
+        "run_asset" => super::asset::run_asset_content(
+            &col("kind").text()?,
+            &col("asset_id").text()?,
+            &col("certificate").text()?,
         )
         .into_bytes(),
         other => unreachable!("table {other} is in TABLES"),

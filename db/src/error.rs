@@ -71,6 +71,9 @@ pub enum DbError {
     /// The serial or device of a new run contradicts the labels the database holds.
     #[error("{0}")]
     Label(Box<LabelClash>),
+    /// A registered asset the command cannot use, or an asset the register refuses.
+    #[error(transparent)]
+    Asset(super::AssetError),
     /// A value read back is not what the schema says.
     #[error("database schema mismatch: {what}")]
     Schema {
@@ -144,6 +147,7 @@ impl Classify for DbError {
             | DbError::Tampered { .. }
             | DbError::Label(_)
             | DbError::Ambiguous { .. } => Kind::BadInput,
+            DbError::Asset(e) => e.kind(),
             DbError::Raced { .. } => Kind::Environment,
             DbError::Unreachable { .. }
             | DbError::Migration { .. }

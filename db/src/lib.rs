@@ -15,6 +15,7 @@
 
 // Index loops mirror the math (channels × terms), as in the core.
 #![allow(clippy::needless_range_loop)]
+pub mod asset;
 pub mod chain;
 mod engine;
 mod error;
@@ -24,6 +25,7 @@ mod types;
 
 use std::io::Read;
 
+pub use asset::{AffectedRun, Asset, AssetError, AssetKind};
 pub use chain::{ChainReport, Mismatch, RunSeal};
 pub use engine::{schema_version, Access, Target};
 use engine::{Conn, Tx, Val};
@@ -62,9 +64,9 @@ struct Piece {
     table: &'static str,
     /// Its name in messages.
     what: &'static str,
-    /// The verification's phase (the second key column).
-    phase: Option<Phase>,
-    /// The values of the columns after `run_id` (and `phase`), without `content_sha256`, in the
+    /// The second key column and its value: a verification's `phase`, a run asset's `kind`.
+    second: Option<(&'static str, &'static str)>,
+    /// The values of the columns after `run_id` (and the second key), without `content_sha256`, in the
     /// order of [`chain::TABLES`].
     values: Vec<Val>,
     sha: String,
@@ -333,7 +335,7 @@ impl Db {
             Piece {
                 table: "campaign",
                 what: "campaign",
-                phase: None,
+                second: None,
                 values: vec![sha.clone().into(), gzip.into(), now_unix_s().into()],
                 sha,
             },
@@ -369,7 +371,7 @@ impl Db {
             Piece {
                 table: "fit",
                 what: "fit",
-                phase: None,
+                second: None,
                 values: vec![fit_json.into(), now_unix_s().into()],
                 sha: sha256_hex(fit_json.as_bytes()),
             },
@@ -393,7 +395,7 @@ impl Db {
             Piece {
                 table: "cal_record",
                 what: "record",
-                phase: None,
+                second: None,
                 values: vec![bytes.to_vec().into(), i64::from(crc32).into(), now_unix_s().into()],
                 sha: sha256_hex(bytes),
             },
@@ -409,7 +411,7 @@ impl Db {
             Piece {
                 table: "flash",
                 what: "flash",
-                phase: None,
+                second: None,
                 values: vec![i64::from(rec.crc32).into(), now_unix_s().into()],
                 sha: sha256_hex(&rec.crc32.to_le_bytes()),
             },
@@ -441,7 +443,7 @@ impl Db {
                     Phase::AsFound => "as-found verification",
                     Phase::AsLeft => "as-left verification",
                 },
-                phase: Some(phase),
+                second: Some(("phase", phase.sql())),
                 values: vec![report.pass.into(), json.clone().into(), now_unix_s().into()],
                 sha: sha256_hex(json.as_bytes()),
             },
@@ -455,7 +457,7 @@ impl Db {
             Piece {
                 table: "certificate",
                 what: "certificate",
-                phase: None,
+                second: None,
                 values: vec![html.into(), now_unix_s().into()],
                 sha: sha256_hex(html.as_bytes()),
             },
@@ -470,7 +472,7 @@ impl Db {
             Piece {
                 table: "run_end",
                 what: "end",
-                phase: None,
+                second: None,
                 values: vec![outcome.sql().into(), reason.into(), now_unix_s().into()],
                 sha,
             },
@@ -583,8 +585,8 @@ impl Db {
         let run_s = run.to_string();
         let table = chain::table(p.table);
         let mut row = vec![Val::from(run_s.clone())];
-        if let Some(phase) = p.phase {
-            row.push(phase.sql().into());
+        if let Some((_, v)) = p.second {
+            row.push(v.into());
         }
         row.extend(p.values);
         row.push(p.sha.clone().into());
@@ -624,9 +626,9 @@ impl Db {
                 }
                 let mut key = vec![id];
                 let mut key_sql = "run_id = $1".to_string();
-                if let Some(phase) = p.phase {
-                    key.push(phase.sql().into());
-                    key_sql.push_str(" AND phase = $2");
+                if let Some((col, v)) = p.second {
+                    key.push(v.into());
+                    key_sql.push_str(&format!(" AND {col} = $2"));
                 }
                 let found =
                     tx.query(&format!("SELECT content_sha256 FROM {} WHERE {key_sql}", p.table), &key)?;

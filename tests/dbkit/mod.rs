@@ -5,7 +5,7 @@
 use std::io::{BufRead, BufReader};
 use std::process::{Command, Stdio};
 
-use accelcal_db::{Db, DbError, Outcome, Phase, RunId, RunStart, Stored};
+use accelcal_db::{Asset, AssetKind, Db, DbError, Outcome, Phase, RunId, RunStart, Stored};
 use accelcal_line::verify::{PositionCheck, VerifyReport};
 use accelcal_shared::record::{Record, MAX_CHANNELS, MAX_RECORD_LEN};
 use accelcal_shared::terms::MODEL_4;
@@ -199,10 +199,10 @@ pub fn pieces_are_stored_once(spec: &str) {
     assert!(matches!(e, DbError::NoRun { .. }), "{e}");
     let p = db.progress(run).unwrap();
     assert!(p.flashed && p.as_left && !p.as_found && !p.certificate && p.outcome == Some(Outcome::Pass));
-    assert_eq!(db.schema_versions().unwrap(), vec![1, 2]);
+    assert_eq!(db.schema_versions().unwrap(), vec![1, 2, 3]);
     // Opening again migrates nothing.
     drop(db);
-    assert_eq!(Db::open(spec).unwrap().schema_versions().unwrap(), vec![1, 2]);
+    assert_eq!(Db::open(spec).unwrap().schema_versions().unwrap(), vec![1, 2, 3]);
 }
 
 /// The environment variable that turns a test process into the writer that is killed.
@@ -491,4 +491,156 @@ pub fn writers_racing_on_one_run(spec: &str) {
     }
     let r = Db::open(spec).unwrap().verify_chain().unwrap();
     assert!(r.mismatches.is_empty() && r.entries == 2, "{r:?}");
+}
+
+/// A head asset's certificate.
+pub fn head_asset(id: &str, certificate: &str, due: &str, angle_u: f64, registered: i64) -> Asset {
+    Asset {
+        asset_id: id.into(),
+        kind: AssetKind::Head,
+        certificate: certificate.into(),
+        due_date: accelcal_db::asset::parse_date(due).unwrap(),
+        angle_u_arcsec: angle_u,
+        orthogonality_u_arcsec: 2.0 * angle_u,
+        operator: "ana".into(),
+        registered_unix_s: registered,
+    }
+}
+
+fn date(s: &str) -> accelcal_db::asset::Date {
+    accelcal_db::asset::parse_date(s).unwrap()
+}
+
+fn asset_refusal(e: DbError) -> String {
+    match e {
+        DbError::Asset(a) => a.to_string(),
+        other => panic!("not an asset refusal: {other}"),
+    }
+}
+
+/// Assets: a certificate registered once (again: a no-op; changed: refused), a recalibration's
+/// new certificate in force, an overdue, unknown or other-kind asset refused, one head per run,
+/// and `affected` naming the runs since a date; the hash chain covers it all.
+pub fn assets_register_and_trace(spec: &str) {
+    let mut db = Db::open(spec).unwrap();
+    assert_eq!(
+        db.add_asset(&head_asset("HEAD-1", "DKD-17-001", "2026-03-31", 3.0, T0)).unwrap(),
+        Stored::New
+    );
+    let recal = head_asset("HEAD-1", "DKD-17-002", "2027-03-31", 2.5, T0 + 80 * DAY);
+    assert_eq!(db.add_asset(&recal).unwrap(), Stored::New);
+    assert_eq!(db.add_asset(&recal).unwrap(), Stored::Already, "the same certificate again");
+    let changed = head_asset("HEAD-1", "DKD-17-002", "2028-03-31", 2.5, T0 + 90 * DAY);
+    let e = asset_refusal(db.add_asset(&changed).unwrap_err());
+    assert!(e.contains("registered already with other statements"), "{e}");
+    let mut thermo = head_asset("HEAD-1", "T-1", "2027-01-01", 0.0, T0);
+    thermo.kind = AssetKind::Thermometer;
+    thermo.orthogonality_u_arcsec = 0.0;
+    let e = asset_refusal(db.add_asset(&thermo).unwrap_err());
+    assert!(e.contains("registered as a head, not a thermometer"), "{e}");
+    thermo.asset_id = "PT100-7".into();
+    assert_eq!(db.add_asset(&thermo).unwrap(), Stored::New);
+    let mut stated = thermo.clone();
+    stated.angle_u_arcsec = 1.0;
+    stated.certificate = "T-2".into();
+    let e = asset_refusal(db.add_asset(&stated).unwrap_err());
+    assert!(e.contains("a thermometer states no angle uncertainty"), "{e}");
+    let e = asset_refusal(db.add_asset(&head_asset("HEAD 1", "C", "2027-01-01", 1.0, T0)).unwrap_err());
+    assert!(e.contains("letters, digits"), "{e}");
+
+    let listed = db.assets().unwrap();
+    let ids: Vec<(&str, &str)> =
+        listed.iter().map(|a| (a.asset_id.as_str(), a.certificate.as_str())).collect();
+    assert_eq!(ids, [("HEAD-1", "DKD-17-002"), ("PT100-7", "T-1")], "the certificate in force of each");
+    assert_eq!(db.asset_certificates("HEAD-1").unwrap().len(), 2);
+
+    let in_force = db.asset_in_force("HEAD-1", AssetKind::Head, date("2027-03-31")).unwrap();
+    assert_eq!((in_force.certificate.as_str(), in_force.angle_u_arcsec), ("DKD-17-002", 2.5));
+    for (id, kind, day, want) in [
+        (
+            "HEAD-1",
+            AssetKind::Head,
+            "2027-04-01",
+            "is overdue: its certificate DKD-17-002 was due 2027-03-31",
+        ),
+        ("HEAD-9", AssetKind::Head, "2026-06-01", "asset `HEAD-9` is not registered"),
+        ("PT100-7", AssetKind::Head, "2026-06-01", "asset `PT100-7` is a thermometer, not a head"),
+    ] {
+        let e = db.asset_in_force(id, kind, date(day)).unwrap_err();
+        assert_eq!(accelcal_core::error::Classify::kind(&e), accelcal_core::error::Kind::Environment, "{e}");
+        let e = asset_refusal(e);
+        assert!(e.contains(want), "{e}");
+    }
+
+    // Two runs with the head (under each certificate), one without.
+    let old = start(RunId::new(), DEVICE, "SN-0100", "st-1", T0 + 10 * DAY);
+    db.begin_run(&old, None).unwrap();
+    let first = db.asset_certificates("HEAD-1").unwrap().remove(0);
+    assert_eq!(db.store_run_asset(old.run_id, &first).unwrap(), Stored::New);
+    calibrate(&mut db, &old, &coefs(0.0, 0), None);
+    let new = start(RunId::new(), DEVICE_2, "SN-0101", "st-2", T0 + 100 * DAY);
+    db.begin_run(&new, None).unwrap();
+    assert_eq!(db.store_run_asset(new.run_id, &in_force).unwrap(), Stored::New);
+    assert_eq!(db.store_run_asset(new.run_id, &in_force).unwrap(), Stored::Already);
+    let e = db.store_run_asset(new.run_id, &first).unwrap_err().to_string();
+    assert!(e.contains("holds another head asset already"), "{e}");
+    assert_eq!(db.store_run_asset(new.run_id, &thermo).unwrap(), Stored::New, "one asset per kind");
+    let without = start(RunId::new(), "00112233445566778899aabb", "SN-0102", "st-1", T0 + 120 * DAY);
+    calibrate(&mut db, &without, &coefs(0.0, 0), None);
+    let e = db.store_run_asset(without.run_id, &in_force).unwrap_err().to_string();
+    assert!(e.contains("the run is finished"), "{e}");
+
+    let all = db.affected("HEAD-1", 0).unwrap();
+    let got: Vec<(String, &str, bool, Option<Outcome>)> =
+        all.iter().map(|r| (r.run_id.clone(), r.certificate.as_str(), r.certified, r.outcome)).collect();
+    assert_eq!(
+        got,
+        [
+            (old.run_id.to_string(), "DKD-17-001", true, Some(Outcome::Pass)),
+            (new.run_id.to_string(), "DKD-17-002", false, None),
+        ]
+    );
+    assert_eq!(all[1].serial, "SN-0101");
+    let since = db.affected("HEAD-1", T0 + 50 * DAY).unwrap();
+    assert_eq!(since.iter().map(|r| r.run_id.clone()).collect::<Vec<_>>(), [new.run_id.to_string()]);
+    assert!(db.affected("HEAD-1", T0 + 400 * DAY).unwrap().is_empty());
+    assert!(asset_refusal(db.affected("HEAD-9", 0).unwrap_err()).contains("not registered"));
+    let kinds: Vec<AssetKind> = db.run_assets(new.run_id).unwrap().into_iter().map(|(k, _, _)| k).collect();
+    assert_eq!(kinds, [AssetKind::Head, AssetKind::Thermometer]);
+
+    let report = db.verify_chain().unwrap();
+    assert!(report.mismatches.is_empty(), "{:?}", report.mismatches);
+    db.verify_run(new.run_id).unwrap();
+}
+
+/// Every table's columns, as the engine reports them, are the chain's (each row's digest takes
+/// every column, in order).
+pub fn columns_are_the_chain_s(columns_of: &mut dyn FnMut(&str) -> Vec<String>) {
+    for t in accelcal_db::chain::TABLES.iter() {
+        assert_eq!(columns_of(t.name), t.columns, "table {}", t.name);
+    }
+}
+
+/// The tables whose rows the engines' triggers keep (each holds a row after [`with_head_asset`]).
+pub const APPEND_ONLY: [&str; 10] = [
+    "run",
+    "campaign",
+    "fit",
+    "cal_record",
+    "flash",
+    "verification",
+    "certificate",
+    "run_end",
+    "asset",
+    "run_asset",
+];
+
+/// One whole run calibrated with a registered head.
+pub fn with_head_asset(db: &mut Db) -> RunId {
+    let head = head_asset("HEAD-1", "DKD-17-001", "2099-12-31", 3.0, T0);
+    db.add_asset(&head).unwrap();
+    let s = start(RunId::new(), DEVICE, "SN-1", "st-1", T0);
+    db.begin_run(&s, None).unwrap();
+    db.store_run_asset(s.run_id, &head).unwrap();
+    calibrate(db, &s, &coefs(0.0, 0), Some(0.01))
 }
