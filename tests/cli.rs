@@ -6,6 +6,8 @@
 
 mod common;
 
+#[path = "cli/assets.rs"]
+mod assets;
 #[path = "cli/help.rs"]
 mod help;
 #[path = "cli/records.rs"]

@@ -56,6 +56,7 @@ registry!(
     accelcal_core::campaign::identity::Mismatch,
     accelcal_db::DbError,
     accelcal_db::LabelClash,
+    accelcal_db::AssetError,
     accelcal_core::gmdh::GmdhError,
     accelcal_core::lsq::LsqError,
     accelcal_core::uncertainty::UncertaintyError,
@@ -130,6 +131,10 @@ mod tests {
     fn exit_status() -> std::process::ExitStatus {
         use std::os::unix::process::ExitStatusExt;
         std::process::ExitStatus::from_raw(1 << 8)
+    }
+
+    fn asset_error() -> accelcal_db::AssetError {
+        accelcal_db::AssetError::Unknown { asset_id: "h".into(), target: "t".into() }
     }
 
     fn label_clash() -> accelcal_db::LabelClash {
@@ -284,6 +289,26 @@ mod tests {
             ),
             (e(DbError::Label(Box::new(label_clash()))), BadInput),
             (e(label_clash()), BadInput),
+            (e(DbError::Asset(asset_error())), Environment),
+            (e(asset_error()), Environment),
+            (
+                e(accelcal_db::AssetError::Overdue {
+                    asset_id: "h".into(),
+                    certificate: "c".into(),
+                    due_date: accelcal_db::asset::parse_date("2020-01-31").unwrap(),
+                    today: accelcal_db::asset::parse_date("2020-02-01").unwrap(),
+                }),
+                Environment,
+            ),
+            (
+                e(accelcal_db::AssetError::WrongKind {
+                    asset_id: "h".into(),
+                    is: "thermometer",
+                    wanted: "head",
+                }),
+                Environment,
+            ),
+            (e(accelcal_db::AssetError::Bad { asset_id: "h".into(), why: "m".into() }), BadInput),
             (e(GmdhError::EmptyPart('A', 3)), BadInput),
             (e(GmdhError::NoTemperature), BadInput),
             (e(GmdhError::NothingIdentifiable), BadInput),

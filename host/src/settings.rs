@@ -106,6 +106,11 @@ fn check_run(command: &Command, given: &Given) -> anyhow::Result<()> {
     };
     if run.db.is_none() {
         given.refuse(&["relabel"], "a command without --db", " (it is stored with the run begun)")?;
+        given.refuse(
+            &["head_asset"],
+            "a command without --db",
+            " (the asset is read from the database's register; without one, give --head-angle-u and --head-orthogonality-u)",
+        )?;
         return given.refuse(&["run_id"], "a command without --db", " (it names the run stored into)");
     }
     if let Command::Flash(_) | Command::Report(_) = command {
@@ -483,6 +488,8 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
         Command::History(a) => crate::cmd::history::check(a),
         Command::Void(a) => crate::cmd::db::check_void(a),
         Command::Db(_) => Ok(()),
+        Command::Asset(a) => crate::cmd::asset::check(a),
+        Command::Affected(a) => crate::cmd::asset::check_affected(a),
     }
 }
 
@@ -525,7 +532,7 @@ fn positive_seconds(option: &str, s: f64) -> anyhow::Result<()> {
 }
 
 /// The options of `fit` that state the head's uncertainties (lsq, model 4).
-const HEAD_U: [&str; 2] = ["head_angle_u", "head_orthogonality_u"];
+const HEAD_U: [&str; 3] = ["head_angle_u", "head_orthogonality_u", "head_asset"];
 
 /// The options of `fit` that belong to one method only.
 const GRAVITY_ONLY: [&str; 7] =

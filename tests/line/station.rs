@@ -16,7 +16,40 @@ fn the_station_runs_the_line_journals_it_and_resumes_after_ctrl_c() {
     let (truth, _) = unit(dir.path(), "u", 21, 10);
     let em = Emulator::start(&truth, &[]);
     let a = dir.path().join("unit-a");
-    let out = succeed(&station_args(&em, "A-1", &a, &[]));
+    // The head, registered (issue 30): an overdue or unknown one stops the station before it
+    // touches the node (exit code 3, nothing done); the one in force is stored with the run.
+    let db = dir.path().join("calibration.sqlite");
+    let unknown = accelcal(&station_args(&em, "A-1", &a, &["--head-asset", "HEAD-SIM"]));
+    assert_eq!(unknown.status.code(), Some(3), "{unknown:?}");
+    assert!(!a.exists() && !db.exists(), "nothing done");
+    for (id, cert, due) in
+        [("HEAD-OLD", "DKD-K-0001", "2020-01-31"), ("HEAD-SIM", "DKD-K-0002", "2099-12-31")]
+    {
+        succeed(&[
+            "asset",
+            "add",
+            id,
+            "--kind",
+            "head",
+            "--certificate",
+            cert,
+            "--due",
+            due,
+            "--angle-u",
+            "3",
+            "--orthogonality-u",
+            "5",
+            "--db",
+            s(&db),
+        ]);
+    }
+    let overdue = accelcal(&station_args(&em, "A-1", &a, &["--head-asset", "HEAD-OLD"]));
+    assert_eq!(overdue.status.code(), Some(3), "{overdue:?}");
+    let e = String::from_utf8_lossy(&overdue.stderr);
+    assert!(e.contains("asset `HEAD-OLD` is overdue: its certificate DKD-K-0001 was due 2020-01-31"), "{e}");
+    assert!(!a.exists(), "nothing done");
+    let head = ["--head-asset", "HEAD-SIM"];
+    let out = succeed(&station_args(&em, "A-1", &a, &head));
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(text.contains("station: unit A-1 (device 51454d552d422d4c34373545) PASS"), "{text}");
     let steps: Vec<String> = journal(&a).into_iter().map(|(s, _)| s).collect();
@@ -26,13 +59,29 @@ fn the_station_runs_the_line_journals_it_and_resumes_after_ctrl_c() {
     let crc = json(&a.join("as-left.json"))["record"]["crc"].as_str().unwrap().to_string();
     assert_runs_record(&em, &a.join("info.json"), &crc);
 
-    // The run is in the database beside the units' directories.
-    let db = dir.path().join("calibration.sqlite");
+    // The run is in the database beside the units' directories, with its head, whose stated
+    // uncertainties are in the fit's budget.
     let run_a = json(&a.join("station.json"))["run_id"].as_str().unwrap().to_string();
     assert!(text.contains(&format!("run {run_a} stored in {}", db.display())), "{text}");
+    let budget = &json(&a.join("fit.json"))["uncertainty"]["contributors"];
+    let angle = budget.as_array().unwrap().iter().find(|c| c["name"] == "head_angle").unwrap();
+    assert!(
+        angle["source"].as_str().unwrap().starts_with("3.00 arcsec per angle and position, stated"),
+        "{angle}"
+    );
+    let c = rusqlite::Connection::open(&db).unwrap();
+    let used: (String, String) = c
+        .query_row(
+            "SELECT asset_id, certificate FROM run_asset WHERE run_id = ?1 AND kind = 'head'",
+            [&run_a],
+            |r| Ok((r.get(0)?, r.get(1)?)),
+        )
+        .unwrap();
+    assert_eq!(used, ("HEAD-SIM".to_string(), "DKD-K-0002".to_string()));
+    drop(c);
 
     // Again: nothing is repeated but `info` (the node must still be the unit's).
-    let again = succeed(&station_args(&em, "A-1", &a, &[]));
+    let again = succeed(&station_args(&em, "A-1", &a, &head));
     assert!(String::from_utf8_lossy(&again.stdout).contains("finished before"), "{again:?}");
     let err = String::from_utf8_lossy(&again.stderr).to_string();
     assert_eq!(err.matches(", kept").count(), 7, "{err}");
@@ -93,6 +142,7 @@ fn the_station_runs_the_line_journals_it_and_resumes_after_ctrl_c() {
         ("verification", 1, 2),
         ("certificate", 1, 1),
         ("run_end", 1, 1),
+        ("run_asset", 1, 0),
     ] {
         assert_eq!((count(table, &run_a), count(table, &run_b)), (a_rows, b_rows), "{table}");
     }
@@ -110,6 +160,19 @@ fn the_station_runs_the_line_journals_it_and_resumes_after_ctrl_c() {
         String::from_utf8_lossy(&succeed(&["history", "51454d552d422d4c34373545", "--db", s(&db)]).stdout)
             .to_string();
     assert!(h.contains("2 runs, 2 calibrations"), "{h}");
+    // Reverse traceability: the head's runs since a date.
+    let f = String::from_utf8_lossy(
+        &succeed(&["affected", "HEAD-SIM", "--since", "2026-01-01", "--db", s(&db)]).stdout,
+    )
+    .to_string();
+    assert!(
+        f.contains("affected: asset HEAD-SIM since 2026-01-01 (UTC)") && f.contains(": 1 runs of 1 units"),
+        "{f}"
+    );
+    assert!(
+        f.contains(&run_a) && f.contains("A-1") && f.contains("DKD-K-0002") && !f.contains(&run_b),
+        "{f}"
+    );
 }
 
 /// Issue 23: two stations (two benches, one unit each) calibrate at the same time into one

@@ -118,7 +118,7 @@ pub struct SimulateArgs {
 }
 
 /// A stated uncertainty of an angle: arcsec, finite, 0..=3600.
-fn parse_arcsec(s: &str) -> Result<f64, String> {
+pub(crate) fn parse_arcsec(s: &str) -> Result<f64, String> {
     match s.trim().parse::<f64>() {
         Ok(v) if v.is_finite() && (0.0..=3600.0).contains(&v) => Ok(v),
         _ => Err("expected a number of arcseconds in 0..=3600".into()),
@@ -341,6 +341,12 @@ pub struct FitArgs {
     /// default: not stated, and named on the budget as not included].
     #[arg(long, value_name = "ARCSEC", value_parser = parse_arcsec)]
     pub head_orthogonality_u: Option<f64>,
+    /// The dividing head as a registered asset (`accelcal asset add ID --kind head`): its
+    /// certificate in force states the angle and orthogonality uncertainties of the budget, and
+    /// the run stores which head and certificate it used [with --db; instead of --head-angle-u
+    /// and --head-orthogonality-u; an overdue, unknown or non-head asset is refused].
+    #[arg(long, value_name = "ID", conflicts_with_all = ["head_angle_u", "head_orthogonality_u"])]
+    pub head_asset: Option<String>,
     #[command(flatten)]
     pub common: CommonArgs,
     /// Options of --method gravity-norm.

@@ -68,3 +68,127 @@ pub struct DbVerifyArgs {
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
 }
+
+/// `accelcal asset`: the line's registered reference equipment.
+#[derive(Debug, Subcommand)]
+pub enum AssetCommand {
+    /// Register a calibration certificate of a reference: a new asset, or one recalibrated (its
+    /// new certificate is then the one in force). Registering the same certificate again is a
+    /// no-op; a certificate is never changed once registered.
+    Add(AssetAddArgs),
+    /// Every registered asset: its certificate in force, its due date and whether it is overdue.
+    List(AssetListArgs),
+    /// One asset: every certificate registered for it, and how many runs used each.
+    Show(AssetShowArgs),
+}
+
+/// `asset --kind`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum AssetKindArg {
+    /// A dividing head (states --angle-u and --orthogonality-u).
+    Head,
+    /// A thermometer.
+    Thermometer,
+    /// A gravity value (a survey of the site).
+    Gravity,
+}
+
+impl From<AssetKindArg> for accelcal_db::AssetKind {
+    fn from(k: AssetKindArg) -> accelcal_db::AssetKind {
+        match k {
+            AssetKindArg::Head => accelcal_db::AssetKind::Head,
+            AssetKindArg::Thermometer => accelcal_db::AssetKind::Thermometer,
+            AssetKindArg::Gravity => accelcal_db::AssetKind::Gravity,
+        }
+    }
+}
+
+fn parse_date(s: &str) -> Result<accelcal_db::asset::Date, String> {
+    accelcal_db::asset::parse_date(s)
+}
+
+/// The database an asset command writes or reads.
+#[derive(Debug, Args)]
+pub struct AssetDb {
+    /// The calibration database: a SQLite file (`asset add` creates it when missing), or
+    /// postgres://USER@HOST[:PORT]/DB [default: the ACCELCAL_DB environment variable, else
+    /// calibration.sqlite in the current directory].
+    #[arg(long, value_name = "FILE|URL")]
+    pub db: Option<String>,
+}
+
+/// `accelcal asset add`.
+#[derive(Debug, Args)]
+pub struct AssetAddArgs {
+    /// The asset's id, as the line names it (`--head-asset`): 1 to 64 letters, digits, `.`,
+    /// `_` or `-`.
+    #[arg(value_name = "ID")]
+    pub id: String,
+    /// What the asset is.
+    #[arg(long, value_enum)]
+    pub kind: AssetKindArg,
+    /// The number of the asset's own calibration certificate (its traceability).
+    #[arg(long, value_name = "NUMBER")]
+    pub certificate: String,
+    /// The last day (UTC) the asset may be used under this certificate, YYYY-MM-DD: a station run
+    /// after it is refused.
+    #[arg(long, value_name = "YYYY-MM-DD", value_parser = parse_date)]
+    pub due: accelcal_db::asset::Date,
+    /// A head's angle setting uncertainty, arcsec: one sigma of the error of each head angle at
+    /// each position, from the head's certificate (`fit --head-angle-u`) [required for a head;
+    /// refused for other kinds].
+    #[arg(long, value_name = "ARCSEC", value_parser = super::campaign::parse_arcsec)]
+    pub angle_u: Option<f64>,
+    /// A head's orthogonality uncertainty, arcsec: one sigma of each of the three rotations
+    /// between its stages (`fit --head-orthogonality-u`) [required for a head; refused for other
+    /// kinds].
+    #[arg(long, value_name = "ARCSEC", value_parser = super::campaign::parse_arcsec)]
+    pub orthogonality_u: Option<f64>,
+    #[command(flatten)]
+    pub store: AssetDb,
+    /// Who registers it [default: the account running the command].
+    #[arg(long, value_name = "NAME")]
+    pub operator: Option<String>,
+}
+
+/// `accelcal asset list`.
+#[derive(Debug, Args)]
+pub struct AssetListArgs {
+    #[command(flatten)]
+    pub store: AssetDb,
+    /// Write the assets (each one's certificate in force, `overdue` true or false) as JSON to
+    /// this file.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+}
+
+/// `accelcal asset show`.
+#[derive(Debug, Args)]
+pub struct AssetShowArgs {
+    /// The asset's id.
+    #[arg(value_name = "ID")]
+    pub id: String,
+    #[command(flatten)]
+    pub store: AssetDb,
+    /// Write the asset's certificates and its runs as JSON to this file.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+}
+
+/// `accelcal affected`.
+#[derive(Debug, Args)]
+pub struct AffectedArgs {
+    /// The asset found out of tolerance (its id, as `asset list` shows it).
+    #[arg(value_name = "ASSET")]
+    pub asset: String,
+    /// The first day (UTC, YYYY-MM-DD) of the runs to list: typically the date of the asset's
+    /// last calibration that found it in tolerance.
+    #[arg(long, value_name = "YYYY-MM-DD", value_parser = parse_date)]
+    pub since: accelcal_db::asset::Date,
+    #[command(flatten)]
+    pub store: AssetDb,
+    /// Write the runs (run id, device, serial, station, start, the asset's certificate, outcome,
+    /// certified, voided) as JSON to this file.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+}

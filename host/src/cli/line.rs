@@ -426,6 +426,13 @@ pub struct StationArgs {
     /// in the directory that holds --out].
     #[arg(long, value_name = "FILE|URL")]
     pub db: Option<String>,
+    /// The dividing head as a registered asset (`accelcal asset add ID --kind head`): the run
+    /// stores it, and the fit's uncertainty budget takes the head's stated uncertainties from its
+    /// certificate in force. An overdue, unknown or non-head asset stops the station before it
+    /// touches a node (exit code 3, nothing done) [default: the head is not a registered asset,
+    /// and the budget names its uncertainties as not stated].
+    #[arg(long, value_name = "ID")]
+    pub head_asset: Option<String>,
     /// The station's name in the database [default: the host name].
     #[arg(long = "station", value_name = "NAME")]
     pub station_name: Option<String>,

@@ -102,6 +102,15 @@ pub enum Command {
     /// The calibration database: `db verify` checks every row against its hash chain.
     #[command(subcommand)]
     Db(DbCommand),
+    /// The line's registered reference equipment (the dividing head, a thermometer, a gravity
+    /// value): each one's calibration certificate and due date, and a head's stated
+    /// uncertainties, which `fit --head-asset` and `station --head-asset` take; a station refuses
+    /// an overdue or unknown asset before it touches the node.
+    #[command(subcommand)]
+    Asset(AssetCommand),
+    /// Reverse traceability: every run, and its unit, calibrated with an asset since a date (an
+    /// asset found out of tolerance at its own recalibration).
+    Affected(AffectedArgs),
 }
 
 /// Storing a command's result in the calibration database (`fit`, `verify`, `flash`, `report`).

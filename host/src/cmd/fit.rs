@@ -126,6 +126,22 @@ pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
     let unit = CampaignId::read(&a.campaign)?;
     let device_id = record_device_id(a, given_id, &unit)?;
     let mut db = super::store::open(&a.run)?;
+    // The head's register entry, checked before anything is computed or written.
+    let head = match (&a.head_asset, &mut db) {
+        (Some(id), Some(rdb)) => {
+            Some(rdb.db.asset_in_force(id, accelcal_db::AssetKind::Head, accelcal_db::asset::today_utc())?)
+        }
+        (Some(_), None) => return Err(bad("--head-asset needs --db: the asset is read from its register")),
+        (None, _) => None,
+    };
+    let head_u = match &head {
+        Some(h) => HeadU {
+            angle: Some(h.angle_u_arcsec),
+            orthogonality: Some(h.orthogonality_u_arcsec),
+            asset: Some(h),
+        },
+        None => HeadU { angle: a.head_angle_u, orthogonality: a.head_orthogonality_u, asset: None },
+    };
     // Streamed: the fits need the dwell statistics only, so memory does not grow with the rows.
     let r = super::reduce_campaign(&a.campaign, a.common.codes, warnings)?;
     let mut pos = r.positions(a.common.g);
@@ -161,7 +177,7 @@ pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
     print_table(method, &fits);
     let header = accelcal_core::campaign::header(&a.campaign)?;
     let get = |k: &str| header.iter().find(|(key, _)| key == k).map(|(_, v)| v.clone()).unwrap_or_default();
-    let budget = fit_budget(a, method, &pos, &stats, &fits, &get("g_source"))?;
+    let budget = fit_budget(a, head_u, method, &pos, &stats, &fits, &get("g_source"))?;
     if let Some(b) = &budget {
         super::uncertainty::print_budget(b);
     }
@@ -207,6 +223,13 @@ pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
             firmware_version: get("firmware"),
             g: (a.common.g, g_source),
         })?;
+        if let Some(h) = &head {
+            rdb.db.store_run_asset(run, h)?;
+            println!(
+                "db: run {run}: head {} (certificate {}, due {}) stored",
+                h.asset_id, h.certificate, h.due_date
+            );
+        }
         let json = serde_json::to_string_pretty(&doc).context("serialising the fit")?;
         let bytes = rec.as_ref().map(|(_, b, _)| b.as_slice());
         super::store::fit_pieces(&mut rdb.db, run, &a.campaign, &json, bytes)?;
@@ -219,13 +242,23 @@ pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The head's stated uncertainties, arcsec (one sigma): `--head-angle-u` and
+/// `--head-orthogonality-u`, or the register entry of `--head-asset`.
+struct HeadU<'a> {
+    angle: Option<f64>,
+    orthogonality: Option<f64>,
+    /// The register entry they come from.
+    asset: Option<&'a accelcal_db::Asset>,
+}
+
 /// The uncertainty budget of an lsq fit of a model-4 triad (`None` for another fit, which the
-/// settings let through only without `--head-angle-u`/`--head-orthogonality-u`, or a campaign
+/// settings let through only without the head's stated uncertainties, or a campaign
 /// whose channels are not a triad: then those options are refused here). The standard uncertainty
 /// of g is its source's bound taken as rectangular (bound/√3); `g_source` is the campaign's
 /// `# g_source:` line.
 fn fit_budget(
     a: &FitArgs,
+    head: HeadU<'_>,
     method: Method,
     pos: &Positions,
     stats: &[ChannelStats],
@@ -236,7 +269,7 @@ fn fit_budget(
     if method != Method::Lsq || fits.iter().any(|(_, f)| f.structure != accelcal_shared::terms::MODEL_4) {
         return Ok(None);
     }
-    let stated = a.head_angle_u.is_some() || a.head_orthogonality_u.is_some();
+    let stated = head.angle.is_some() || head.orthogonality.is_some();
     let source = if a.common.local.latitude.is_some() {
         Some(G_SOURCE_NORMAL)
     } else if a.common.g_given {
@@ -246,8 +279,8 @@ fn fit_budget(
     };
     let (bound, why) = g_uncertainty(a.common.g, source);
     let refs = References {
-        head_angle_rad: a.head_angle_u.unwrap_or(0.0) * ARCSEC,
-        head_orthogonality_rad: a.head_orthogonality_u.unwrap_or(0.0) * ARCSEC,
+        head_angle_rad: head.angle.unwrap_or(0.0) * ARCSEC,
+        head_orthogonality_rad: head.orthogonality.unwrap_or(0.0) * ARCSEC,
         g_m_s2: bound / 3f64.sqrt(),
     };
     let only: Vec<&LsqFit> = fits.iter().map(|(_, f)| f).collect();
@@ -255,6 +288,14 @@ fn fit_budget(
         Ok(mut b) => {
             if let Some(c) = b.contributors.iter_mut().find(|c| c.name == "gravity") {
                 c.source = format!("g {why}; bound {bound:.1e} m/s², rectangular: u = bound/√3");
+            }
+            if let Some(h) = head.asset {
+                for c in b.contributors.iter_mut().filter(|c| c.name.starts_with("head_")) {
+                    c.source = format!(
+                        "{} by head asset {}, certificate {} (due {})",
+                        c.source, h.asset_id, h.certificate, h.due_date
+                    );
+                }
             }
             Ok(Some(b))
         }

@@ -1,5 +1,6 @@
 //! One module per subcommand; [`run`] dispatches.
 
+pub mod asset;
 pub mod bench_diagnose;
 pub mod compare;
 pub mod db;
@@ -60,6 +61,8 @@ pub fn run(cli: Cli, warnings: &mut Warnings) -> anyhow::Result<()> {
         Command::History(a) => history::run(&a),
         Command::Void(a) => db::run_void(&a),
         Command::Db(crate::cli::DbCommand::Verify(a)) => db::run_verify(&a),
+        Command::Asset(a) => asset::run(&a),
+        Command::Affected(a) => asset::run_affected(&a),
     }
 }
 

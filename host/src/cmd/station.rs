@@ -16,7 +16,7 @@ use std::sync::Arc;
 
 use accelcal_core::error::{bad, environment, Interrupted};
 use accelcal_core::output::write_json;
-use accelcal_db::{Db, Outcome, Phase, Relabel, RunId, RunStart};
+use accelcal_db::{Asset, AssetError, AssetKind, Db, DbError, Outcome, Phase, Relabel, RunId, RunStart};
 use accelcal_line::station::{deployable, sha256_file, Journal, StationError, Step, StepRecord, JOURNAL};
 use accelcal_line::verify::{Failed, VerifyReport};
 use anyhow::Context;
@@ -80,6 +80,8 @@ struct Station<'a> {
     tag: String,
     /// What step info found on the node (`info --json`).
     info: serde_json::Value,
+    /// `--head-asset`'s certificate in force (checked before any node is touched).
+    head_asset: Option<&'a Asset>,
 }
 
 /// The station's database: `--db`, else `ACCELCAL_DB`, else `calibration.sqlite` beside the
@@ -372,6 +374,10 @@ impl Station<'_> {
             )));
         }
         self.ended = p.outcome.is_some();
+        if let (Some(h), false) = (self.head_asset, self.ended) {
+            self.db.store_run_asset(run, h)?;
+            crash_point("db:run_asset");
+        }
         self.run = Some(run);
         eprintln!(
             "station: {}run {run} {} in {}",
@@ -521,6 +527,15 @@ impl Station<'_> {
             "--device-id".into(),
             device,
         ];
+        let mut args = args;
+        if let Some(h) = self.head_asset {
+            args.extend([
+                "--head-angle-u".into(),
+                h.angle_u_arcsec.to_string(),
+                "--head-orthogonality-u".into(),
+                h.orthogonality_u_arcsec.to_string(),
+            ]);
+        }
         if let Exit::Failed = self.run(Step::Fit, &args)? {
             return Err(anyhow::anyhow!("step fit failed (its error is above)"));
         }
@@ -696,6 +711,8 @@ pub fn run(a: &StationArgs) -> anyhow::Result<()> {
     let mut stations = Vec::with_capacity(specs.len());
     // Ctrl-C goes to the step (same process group); the station waits for it to stop cleanly.
     let stop = super::live::stop_flag()?;
+    // The head's register entry first: an overdue or unknown head stops the station here.
+    let head_asset = a.head_asset.as_deref().map(|id| head_in_force(&db_spec, id)).transpose()?;
     for u in &specs {
         let journal = Journal::open(&u.dir, &u.serial)?;
         std::fs::create_dir_all(&u.dir)
@@ -713,6 +730,7 @@ pub fn run(a: &StationArgs) -> anyhow::Result<()> {
             run: None,
             ended: false,
             info: serde_json::Value::Null,
+            head_asset: head_asset.as_ref(),
             tag: if specs.len() > 1 { format!("{}: ", u.serial) } else { String::new() },
         });
     }
@@ -747,6 +765,27 @@ pub fn run(a: &StationArgs) -> anyhow::Result<()> {
     } else {
         Err(StationError::Rejected { units: rejected.join(", "), total: specs.len() }.into())
     }
+}
+
+/// `--head-asset`'s certificate in force, read from the database without creating it (a missing
+/// database holds no asset).
+fn head_in_force(db_spec: &str, id: &str) -> anyhow::Result<Asset> {
+    let mut db = match Db::open_existing(db_spec) {
+        Err(DbError::NoDatabase { path }) => {
+            return Err(DbError::Asset(AssetError::Unknown {
+                asset_id: id.into(),
+                target: format!("{} (no database there yet)", path.display()),
+            })
+            .into())
+        }
+        r => r?,
+    };
+    let h = db.asset_in_force(id, AssetKind::Head, accelcal_db::asset::today_utc())?;
+    eprintln!(
+        "station: head {} (certificate {}, due {}; angle u {} arcsec, orthogonality u {} arcsec)",
+        h.asset_id, h.certificate, h.due_date, h.angle_u_arcsec, h.orthogonality_u_arcsec
+    );
+    Ok(h)
 }
 
 /// Whether `e` rejects the unit (rather than failing the environment).

@@ -1,0 +1,301 @@
+//! `accelcal asset add|list|show` (the register of the line's reference equipment,
+//! [`accelcal_db::asset`]) and `accelcal affected` (the runs an asset calibrated since a date).
+
+use accelcal_core::error::bad;
+use accelcal_core::output::{utc_date_time, write_json};
+use accelcal_db::asset::{start_of_day_unix_s, today_utc, Date};
+use accelcal_db::{AffectedRun, Asset, AssetKind, Db, Outcome, Stored, Target};
+use anyhow::Context;
+use serde::Serialize;
+
+use super::store::{named_db, reader_spec, user_name, DEFAULT_DB};
+use crate::cli::{AffectedArgs, AssetAddArgs, AssetCommand, AssetDb, AssetListArgs, AssetShowArgs};
+
+/// Checks an asset command's line before anything is opened.
+pub fn check(c: &AssetCommand) -> anyhow::Result<()> {
+    match c {
+        AssetCommand::Add(a) => {
+            let kind = AssetKind::from(a.kind);
+            if kind == AssetKind::Head {
+                for (given, option) in [(a.angle_u, "--angle-u"), (a.orthogonality_u, "--orthogonality-u")] {
+                    if given.is_none() {
+                        return Err(bad(format!(
+                            "asset add --kind head needs {option} ARCSEC: the head's certificate states it, and the \
+                             uncertainty budget of every unit calibrated on the head takes it (give 0 if the \
+                             certificate states it as negligible)"
+                        )));
+                    }
+                }
+            } else if let Some(option) = [(a.angle_u, "--angle-u"), (a.orthogonality_u, "--orthogonality-u")]
+                .into_iter()
+                .find_map(|(v, o)| v.map(|_| o))
+            {
+                return Err(bad(format!(
+                    "{option} does not apply to asset add --kind {} (a dividing head states it)",
+                    kind.name()
+                )));
+            }
+            Ok(())
+        }
+        AssetCommand::List(a) => json_is_not_the_db(&a.store, a.json.as_deref()),
+        AssetCommand::Show(a) => json_is_not_the_db(&a.store, a.json.as_deref()),
+    }
+}
+
+/// Checks `affected`'s line before anything is opened.
+pub fn check_affected(a: &AffectedArgs) -> anyhow::Result<()> {
+    json_is_not_the_db(&a.store, a.json.as_deref())
+}
+
+fn json_is_not_the_db(store: &AssetDb, json: Option<&std::path::Path>) -> anyhow::Result<()> {
+    let Some(j) = json else { return Ok(()) };
+    let spec = named_db(store.db.as_deref()).unwrap_or_else(|| DEFAULT_DB.into());
+    if let Target::Sqlite(f) = Target::parse(&spec)? {
+        if j == f {
+            return Err(bad(format!("--json {} is the database: refusing to overwrite it", j.display())));
+        }
+    }
+    Ok(())
+}
+
+/// Runs `accelcal asset …`.
+pub fn run(c: &AssetCommand) -> anyhow::Result<()> {
+    match c {
+        AssetCommand::Add(a) => add(a),
+        AssetCommand::List(a) => list(a),
+        AssetCommand::Show(a) => show(a),
+    }
+}
+
+fn add(a: &AssetAddArgs) -> anyhow::Result<()> {
+    let spec = named_db(a.store.db.as_deref()).unwrap_or_else(|| DEFAULT_DB.into());
+    let mut db = Db::open(&spec)?;
+    let asset = Asset {
+        asset_id: a.id.clone(),
+        kind: a.kind.into(),
+        certificate: a.certificate.trim().to_string(),
+        due_date: a.due,
+        angle_u_arcsec: a.angle_u.unwrap_or(0.0),
+        orthogonality_u_arcsec: a.orthogonality_u.unwrap_or(0.0),
+        operator: a.operator.clone().unwrap_or_else(user_name),
+        registered_unix_s: accelcal_db::now_unix_s(),
+    };
+    let stored = db.add_asset(&asset)?;
+    println!(
+        "asset: {} ({}) certificate {}, due {}{}: {} in {}",
+        asset.asset_id,
+        asset.kind.name(),
+        asset.certificate,
+        asset.due_date,
+        stated(&asset),
+        if stored == Stored::New { "registered" } else { "was registered already" },
+        db.target()
+    );
+    let in_force = db.asset_certificates(&asset.asset_id)?.pop().expect("the asset just registered");
+    if in_force.certificate != asset.certificate {
+        println!(
+            "asset: {}'s certificate in force is {} (registered later)",
+            asset.asset_id, in_force.certificate
+        );
+    }
+    let today = today_utc();
+    if today > in_force.due_date {
+        eprintln!(
+            "warning: {} is overdue (due {}, today {today} UTC): a station refuses it until a new certificate is registered",
+            asset.asset_id, in_force.due_date
+        );
+    }
+    Ok(())
+}
+
+/// A head's stated uncertainties, for a line of output.
+fn stated(a: &Asset) -> String {
+    match a.kind {
+        AssetKind::Head => format!(
+            ", angle u {} arcsec, orthogonality u {} arcsec (one sigma)",
+            a.angle_u_arcsec, a.orthogonality_u_arcsec
+        ),
+        _ => String::new(),
+    }
+}
+
+/// Whether an asset may be used today, in words.
+fn status(due: Date, today: Date) -> String {
+    match today.until(due).map(|s| s.get_days()).unwrap_or(0) {
+        d if d < 0 => format!("OVERDUE ({} days)", -d),
+        0 => "due today".into(),
+        d => format!("in force ({d} days left)"),
+    }
+}
+
+/// `asset list --json`.
+#[derive(Serialize)]
+struct ListJson {
+    /// Today, UTC.
+    today: Date,
+    assets: Vec<AssetJson>,
+}
+
+#[derive(Serialize)]
+struct AssetJson {
+    #[serde(flatten)]
+    asset: Asset,
+    overdue: bool,
+}
+
+fn list(a: &AssetListArgs) -> anyhow::Result<()> {
+    let mut db = Db::open_existing(&reader_spec(a.store.db.as_deref())?)?;
+    let assets = db.assets()?;
+    let today = today_utc();
+    println!("assets in {} (today {today}, UTC): {}", db.target(), assets.len());
+    if !assets.is_empty() {
+        println!(
+            "  {:<16} {:<12} {:<20} {:<11} {:<26} {:>9} {:>9}",
+            "id", "kind", "certificate", "due", "status", "angle u\"", "orth. u\""
+        );
+    }
+    for x in &assets {
+        let head = x.kind == AssetKind::Head;
+        let u = |v: f64| if head { format!("{v}") } else { "-".into() };
+        println!(
+            "  {:<16} {:<12} {:<20} {:<11} {:<26} {:>9} {:>9}",
+            x.asset_id,
+            x.kind.name(),
+            x.certificate,
+            x.due_date.to_string(),
+            status(x.due_date, today),
+            u(x.angle_u_arcsec),
+            u(x.orthogonality_u_arcsec)
+        );
+    }
+    if let Some(j) = &a.json {
+        let doc = ListJson {
+            today,
+            assets: assets
+                .into_iter()
+                .map(|asset| AssetJson { overdue: today > asset.due_date, asset })
+                .collect(),
+        };
+        write_json(j, &doc).with_context(|| format!("writing {}", j.display()))?;
+        println!("wrote {}", j.display());
+    }
+    Ok(())
+}
+
+/// `asset show --json`.
+#[derive(Serialize)]
+struct ShowJson {
+    asset_id: String,
+    today: Date,
+    overdue: bool,
+    /// Every certificate, oldest first; the last is in force.
+    certificates: Vec<Asset>,
+    /// Every run that used the asset, oldest first.
+    runs: Vec<AffectedRun>,
+}
+
+fn show(a: &AssetShowArgs) -> anyhow::Result<()> {
+    let mut db = Db::open_existing(&reader_spec(a.store.db.as_deref())?)?;
+    let certificates = db.asset_certificates(&a.id)?;
+    let runs = db.affected(&a.id, i64::MIN)?;
+    let today = today_utc();
+    let last = certificates.last().expect("an asset has a certificate");
+    println!(
+        "asset {} ({}) in {}: certificate {} in force, due {}: {}{}",
+        a.id,
+        last.kind.name(),
+        db.target(),
+        last.certificate,
+        last.due_date,
+        status(last.due_date, today),
+        stated(last)
+    );
+    println!("  {:<20} {:<11} {:<21} {:<12} {:>5}", "certificate", "due", "registered (UTC)", "by", "runs");
+    for c in &certificates {
+        println!(
+            "  {:<20} {:<11} {:<21} {:<12} {:>5}",
+            c.certificate,
+            c.due_date.to_string(),
+            utc_date_time(c.registered_unix_s),
+            c.operator,
+            runs.iter().filter(|r| r.certificate == c.certificate).count()
+        );
+    }
+    if let Some(j) = &a.json {
+        let doc = ShowJson {
+            asset_id: a.id.clone(),
+            today,
+            overdue: today > last.due_date,
+            certificates: certificates.clone(),
+            runs,
+        };
+        write_json(j, &doc).with_context(|| format!("writing {}", j.display()))?;
+        println!("wrote {}", j.display());
+    }
+    Ok(())
+}
+
+/// `affected --json`.
+#[derive(Serialize)]
+struct AffectedJson {
+    asset_id: String,
+    since: Date,
+    /// Distinct devices among the runs.
+    units: usize,
+    runs: Vec<AffectedRun>,
+}
+
+/// Runs `accelcal affected`.
+pub fn run_affected(a: &AffectedArgs) -> anyhow::Result<()> {
+    let mut db = Db::open_existing(&reader_spec(a.store.db.as_deref())?)?;
+    let runs = db.affected(&a.asset, start_of_day_unix_s(a.since))?;
+    let mut devices: Vec<&str> = runs.iter().map(|r| r.device_id.as_str()).collect();
+    devices.sort_unstable();
+    devices.dedup();
+    println!(
+        "affected: asset {} since {} (UTC) in {}: {} runs of {} units",
+        a.asset,
+        a.since,
+        db.target(),
+        runs.len(),
+        devices.len()
+    );
+    if !runs.is_empty() {
+        println!(
+            "  {:<36} {:<20} {:<12} {:<24} {:<10} {:<16} {:<9} certified",
+            "run", "started (UTC)", "serial", "device", "station", "certificate", "outcome"
+        );
+    }
+    for r in &runs {
+        let outcome = match (&r.voided, r.outcome) {
+            (Some(_), _) => "voided",
+            (None, Some(Outcome::Pass)) => "pass",
+            (None, Some(Outcome::Rejected)) => "rejected",
+            (None, None) => "open",
+        };
+        println!(
+            "  {:<36} {:<20} {:<12} {:<24} {:<10} {:<16} {:<9} {}",
+            r.run_id,
+            utc_date_time(r.started_unix_s),
+            if r.serial.is_empty() { "-" } else { &r.serial },
+            r.device_id,
+            r.station,
+            r.certificate,
+            outcome,
+            if r.certified { "yes" } else { "no" }
+        );
+    }
+    if runs.iter().any(|r| r.certified && r.voided.is_none()) {
+        println!(
+            "affected: if {} was found out of tolerance, assess each certified unit above (recall it, or \
+             verify it as found on another reference)",
+            a.asset
+        );
+    }
+    if let Some(j) = &a.json {
+        let doc = AffectedJson { asset_id: a.asset.clone(), since: a.since, units: devices.len(), runs };
+        write_json(j, &doc).with_context(|| format!("writing {}", j.display()))?;
+        println!("wrote {}", j.display());
+    }
+    Ok(())
+}
