@@ -8,6 +8,8 @@ mod common;
 
 #[path = "cli/assets.rs"]
 mod assets;
+#[path = "cli/conformity.rs"]
+mod conformity;
 #[path = "cli/help.rs"]
 mod help;
 #[path = "cli/records.rs"]

@@ -207,6 +207,44 @@ fn verify_args<'a>(
     a
 }
 
+/// `verify` as [`verify_args`] has it, with a specification instead of the coverage factor.
+fn spec_verify_args<'a>(
+    em: &'a Emulator,
+    fit_json: &'a Path,
+    json_out: &'a Path,
+    extra: &[&'a str],
+) -> Vec<&'a str> {
+    let mut a = verify_args(em, fit_json, json_out, extra);
+    let at = a.iter().position(|w| *w == "--coverage").unwrap();
+    a.drain(at..at + 2);
+    a
+}
+
+/// Each component's decision in a `verify --spec` report (guard-band, w = U) is what its error,
+/// its U and the limit `t` give, and a position passes when all three are a pass.
+fn decisions_follow_the_rule(v: &serde_json::Value, t: f64) {
+    for p in v["positions"].as_array().unwrap() {
+        let mut all = true;
+        for i in 0..3 {
+            let e = p["error_m_s2"][i].as_f64().unwrap().abs();
+            let u = p["U_m_s2"][i].as_f64().unwrap();
+            assert!(u > 0.0 && u < t, "{p}");
+            let want = if e <= t - u {
+                "pass"
+            } else if e <= t {
+                "conditional pass"
+            } else if e <= t + u {
+                "conditional fail"
+            } else {
+                "fail"
+            };
+            assert_eq!(p["decisions"][i], want, "{p}");
+            all &= want == "pass";
+        }
+        assert_eq!(p["pass"].as_bool().unwrap(), all, "{p}");
+    }
+}
+
 /// (alpha, beta, rows) of each dwell of a campaign, in order.
 fn dwells(campaign: &Path) -> Vec<(String, String, usize)> {
     let text = std::fs::read_to_string(campaign).unwrap_or_default();
@@ -437,6 +475,26 @@ fn the_production_line_in_emulation() {
     );
     assert!(json(&p("verify.json"))["pass"].as_bool().unwrap());
 
+    // Issue 30.4: against a specification, each component is decided with the U of its measured
+    // error (the decisions follow from the reported error, U and T), and the report says so.
+    let spec = p("spec.toml");
+    std::fs::write(
+        &spec,
+        "unit_type = \"MS9002.D triad\"\nacceleration_error_m_s2 = 0.05\nrule = \"guard-band\"\n",
+    )
+    .unwrap();
+    let extra = ["--spec", s(&spec), "--head-angle-u", "20", "--head-orthogonality-u", "20"];
+    let out = ok(&spec_verify_args(&em, &p("fit.json"), &p("verify-spec.json"), &extra));
+    assert!(
+        out.contains("specification MS9002.D triad: |error| of each component at most T = 0.05 m/s²"),
+        "{out}"
+    );
+    assert!(out.contains("verify: PASS (every component accepted by the decision rule)"), "{out}");
+    let v = json(&p("verify-spec.json"));
+    assert_eq!(v["decision"], "pass");
+    assert_eq!(v["specification"]["rule"], "guard-band");
+    decisions_follow_the_rule(&v, 0.05);
+
     // The certificate, one A4 page.
     let cert = p("cert.html");
     ok(&[
@@ -478,6 +536,13 @@ fn the_production_line_in_emulation() {
     let v = accelcal(&verify_args(&em, &p("fit-wrong.json"), &p("verify-wrong.json"), &[]));
     assert_eq!(v.status.code(), Some(1), "{}", String::from_utf8_lossy(&v.stderr));
     assert!(!json(&p("verify-wrong.json"))["pass"].as_bool().unwrap());
+    let v = accelcal(&spec_verify_args(&em, &p("fit-wrong.json"), &p("verify-wrong-spec.json"), &extra[..2]));
+    assert_eq!(v.status.code(), Some(1), "{}", String::from_utf8_lossy(&v.stderr));
+    let err = String::from_utf8_lossy(&v.stderr);
+    assert!(err.contains("the decision rule does not accept the unit"), "{err}");
+    let w = json(&p("verify-wrong-spec.json"));
+    assert!(w["decision"] == "fail" || w["decision"] == "conditional fail", "{}", w["decision"]);
+    decisions_follow_the_rule(&w, 0.05);
     // The certificate refuses the campaign of one unit with the record of another.
     let e = common::bad(&[
         "report",

@@ -18,6 +18,7 @@
 pub mod calibrate;
 pub mod campaign;
 pub mod compare;
+pub mod conformity;
 pub mod diagnose;
 pub mod digest;
 pub mod effects;

@@ -29,6 +29,7 @@ use serde::Serialize;
 use crate::acquire::{block_kind, capture, Captured, Positioner, StaticRule};
 use crate::node::session::{device_id_hex, record_json, Session};
 use accelcal_core::campaign::identity::{self, Identity};
+use accelcal_core::conformity::{measured_error_u, Decision, Specification, VerifyReferences};
 use accelcal_core::error::bad;
 use accelcal_core::error::{Classify, Kind};
 use accelcal_core::sim::Plan;
@@ -276,6 +277,10 @@ pub struct VerifyConfig {
     /// The fit whose uncertainty sets the tolerance (`--fit`): its name and whose it is. The node
     /// must be its unit and run its record.
     pub fit: Option<(String, Identity)>,
+    /// The product specification and its decision rule (`--spec`), with the references'
+    /// uncertainties the measured errors' U takes: each position passes when the rule accepts
+    /// every component (instead of the consistency bound `tolerance`).
+    pub spec: Option<(Specification, VerifyReferences)>,
 }
 
 /// One position's check.
@@ -303,8 +308,16 @@ pub struct PositionCheck {
     pub temp_c: Option<f64>,
     /// A thermal record was applied outside its calibrated temperature range in a recorded set.
     pub out_of_range: bool,
-    /// Every component within its bound.
+    /// Every component within its bound (with a specification: every component accepted by its
+    /// decision rule).
     pub pass: bool,
+    /// With a specification: the expanded uncertainty (k = 2) of each component's measured error,
+    /// m/s².
+    #[serde(default, rename = "U_m_s2", skip_serializing_if = "Option::is_none")]
+    pub u_expanded_m_s2: Option<[f64; 3]>,
+    /// With a specification: the decision on each component.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub decisions: Option<[Decision; 3]>,
 }
 
 /// A verification's result.
@@ -331,6 +344,12 @@ pub struct VerifyReport {
     /// Whose fit the tolerance came from (`--fit`), as its JSON states it (`null`: no fit given).
     #[serde(default)]
     pub fit: Option<Identity>,
+    /// The specification and decision rule applied (`--spec`), when one was.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub specification: Option<Specification>,
+    /// The worst decision over every position and component, when a specification was applied.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub decision: Option<Decision>,
 }
 
 impl VerifyReport {
@@ -422,12 +441,18 @@ pub fn verify(
         pass: false,
         interrupted: false,
         fit: cfg.fit.as_ref().map(|(_, id)| id.clone()),
+        specification: cfg.spec.as_ref().map(|(s, _)| s.clone()),
+        decision: None,
     };
+    if let Some((spec, _)) = &cfg.spec {
+        report.tolerance_rule = spec.describe();
+    }
     let result = run(node, head, cfg, on_position, stop, &mut report);
     let restored = if before != Output::Calibrated { node.set_output(before).map(|_| ()) } else { Ok(()) };
     result?;
     restored?;
     report.pass = !report.interrupted && report.positions.iter().all(|p| p.pass);
+    report.decision = report.positions.iter().filter_map(|p| p.decisions).flatten().max();
     Ok(report)
 }
 
@@ -471,6 +496,14 @@ fn run(
         let error = [0, 1, 2].map(|i| measured[i] - expected[i]);
         let temp_c = cap.mean_temp_c();
         let bound = cfg.tolerance.bounds(expected, temp_c, sd_mean);
+        let judged = cfg.spec.as_ref().map(|(spec, refs)| {
+            let u = measured_error_u(a, b, cfg.g, sd_mean, *refs);
+            (u, [0, 1, 2].map(|i| spec.decide(error[i], u[i])))
+        });
+        let pass = match judged {
+            Some((_, d)) => d.iter().all(|d| d.accepted()),
+            None => (0..3).all(|i| error[i].abs() <= bound[i]),
+        };
         let check = PositionCheck {
             position: k + 1,
             alpha_deg: a,
@@ -483,7 +516,9 @@ fn run(
             lost: cap.lost,
             temp_c,
             out_of_range: cap.out_of_range,
-            pass: (0..3).all(|i| error[i].abs() <= bound[i]),
+            pass,
+            u_expanded_m_s2: judged.map(|j| j.0),
+            decisions: judged.map(|j| j.1),
         };
         on_position(&check, n);
         report.positions.push(check);

@@ -115,6 +115,8 @@ pub fn verification(device: &str, max_err: f64, tol: f64) -> VerifyReport {
                 temp_c: None,
                 out_of_range: false,
                 pass: e.abs() <= tol,
+                u_expanded_m_s2: None,
+                decisions: None,
             }
         })
         .collect::<Vec<_>>();
@@ -129,6 +131,8 @@ pub fn verification(device: &str, max_err: f64, tol: f64) -> VerifyReport {
         positions,
         interrupted: false,
         fit: None,
+        specification: None,
+        decision: None,
     }
 }
 

@@ -242,3 +242,83 @@ fn two_stations_store_into_one_postgresql_server_at_once() {
     let h = String::from_utf8_lossy(&succeed(&["history", "P-2", "--db", &pg.url]).stdout).to_string();
     assert!(h.contains("1 run, 1 calibration") && h.contains("st-2"), "{h}");
 }
+
+/// Issue 30.4: against a specification (T = 0.05 m/s², guard band U), an as-found bias shift
+/// of 0.035 m/s² on x (inside T: it failed 6/6 against the 4σ consistency bound) is a pass, and
+/// a shift of 0.09 m/s² (outside) is out of tolerance: on the station's last line, in the
+/// journal and on the certificate's headline, while the recalibrated unit passes as left.
+#[test]
+fn an_as_found_drift_is_decided_against_the_specification() {
+    let _one = one_bench();
+    let dir = tempfile::tempdir().unwrap();
+    let spec = dir.path().join("spec.toml");
+    std::fs::write(
+        &spec,
+        "unit_type = \"MS9002.D triad\"\nacceleration_error_m_s2 = 0.05\nrule = \"guard-band\"\n",
+    )
+    .unwrap();
+    let with_spec = |em: &Emulator, d: &Path| -> Vec<String> {
+        let mut v: Vec<String> = station_args(em, "A-1", d, &[]).iter().map(|w| w.to_string()).collect();
+        let at = v.iter().position(|w| w == "--coverage").unwrap();
+        v.drain(at..at + 2);
+        v.extend(["--spec".to_string(), s(&spec).to_string()]);
+        v
+    };
+    let run = |args: &[String]| succeed(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    let (truth, _) = unit(dir.path(), "u", 21, 10);
+    let first = dir.path().join("first");
+    {
+        let em = Emulator::start(&truth, &[]);
+        run(&with_spec(&em, &first));
+    }
+    let record = first.join("record.rec");
+    for (name, shift_m_s2, out_of_tolerance) in [("drift-in", 0.035, false), ("drift-out", 0.09, true)] {
+        // The same unit, its x bias moved (codes = m/s² × its sensitivity), with the record of
+        // its first calibration in force.
+        let mut t = json(&truth);
+        let k = t["channels"][0]["k"][0].as_f64().unwrap();
+        let bias = t["channels"][0]["bias"].as_f64().unwrap();
+        t["channels"][0]["bias"] = serde_json::json!(bias + shift_m_s2 * k);
+        let moved = dir.path().join(format!("{name}.json"));
+        std::fs::write(&moved, t.to_string()).unwrap();
+        let em = Emulator::start(&moved, &["--record", s(&record)]);
+        let d = dir.path().join(name);
+        let out = run(&with_spec(&em, &d));
+        let text = String::from_utf8_lossy(&out.stdout);
+        let last = text.lines().last().unwrap_or_default();
+        let found = json(&d.join("as-found.json"));
+        let x_errors: Vec<f64> = found["positions"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|p| p["error_m_s2"][0].as_f64().unwrap())
+            .collect();
+        assert!(x_errors.iter().all(|e| (e - shift_m_s2).abs() < 0.01), "{x_errors:?}");
+        let cert = std::fs::read_to_string(d.join("certificate.html")).unwrap();
+        let as_found_step = &journal(&d)[1].1;
+        if out_of_tolerance {
+            assert_eq!(found["decision"], "fail");
+            assert!(
+                last.contains(
+                    "PASS as left, but AS FOUND OUT OF TOLERANCE (fail: 6 of 6 positions not accepted)"
+                ),
+                "{last}"
+            );
+            assert!(
+                as_found_step.starts_with("FAIL (6 positions, decision rule guard-band)"),
+                "{as_found_step}"
+            );
+            assert!(cert.contains("AS FOUND OUT OF TOLERANCE (fail)"));
+        } else {
+            assert_eq!(found["decision"], "pass", "{found}");
+            assert!(last.contains("(device 51454d552d422d4c34373545) PASS; certificate"), "{last}");
+            assert!(
+                as_found_step.starts_with("PASS (6 positions, decision rule guard-band)"),
+                "{as_found_step}"
+            );
+            assert!(!cert.contains("OUT OF TOLERANCE"));
+        }
+        assert!(cert.contains("CONFORMS: every position accepted by the decision rule (guard-band)"));
+        assert_eq!(json(&d.join("as-left.json"))["decision"], "pass");
+    }
+}

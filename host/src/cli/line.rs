@@ -319,6 +319,22 @@ pub struct VerifyArgs {
     /// before it is changed) or `as-left` (with the new record, after flashing).
     #[arg(long, value_enum, default_value = "as-left", requires = "db")]
     pub phase: PhaseArg,
+    /// The product specification of the unit type and its decision rule, a TOML file
+    /// (`unit_type`, `acceleration_error_m_s2` = the limit T on each component's error, m/s²,
+    /// `rule` = `simple` or `guard-band`, optional `guard_band_m_s2`): each position's components
+    /// are decided pass, conditional pass, conditional fail or fail against T with the expanded
+    /// uncertainty U (k = 2) of each measured error, and a position passes when every component
+    /// is a pass [default: the consistency check against the fit's --coverage bound].
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["tolerance", "coverage"])]
+    pub spec: Option<PathBuf>,
+    /// The head's angle setting uncertainty, arcsec (one sigma, from its certificate): it enters
+    /// U of each measured error [with --spec; default: not stated, named as not included].
+    #[arg(long, value_name = "ARCSEC", value_parser = super::campaign::parse_arcsec, requires = "spec")]
+    pub head_angle_u: Option<f64>,
+    /// The head's orthogonality uncertainty, arcsec (one sigma of each rotation between its
+    /// stages): it enters U of each measured error [with --spec; default: not stated].
+    #[arg(long, value_name = "ARCSEC", value_parser = super::campaign::parse_arcsec, requires = "spec")]
+    pub head_orthogonality_u: Option<f64>,
 }
 
 /// `accelcal report`: a unit's calibration certificate.
@@ -433,6 +449,12 @@ pub struct StationArgs {
     /// and the budget names its uncertainties as not stated].
     #[arg(long, value_name = "ID")]
     pub head_asset: Option<String>,
+    /// The product specification of the unit type and its decision rule, a TOML file (as for
+    /// `verify --spec`): both verifications decide each component against it (with the head
+    /// asset's stated uncertainties in U when --head-asset is given), and an as-found result out
+    /// of tolerance is named on the station's last line [default: the consistency check].
+    #[arg(long, value_name = "FILE", conflicts_with = "coverage")]
+    pub spec: Option<PathBuf>,
     /// The station's name in the database [default: the host name].
     #[arg(long = "station", value_name = "NAME")]
     pub station_name: Option<String>,

@@ -435,19 +435,30 @@ fn check_line(c: &PositionCheck, n: usize) -> String {
         (Some(t), true) => format!(", {t:.1} °C OUTSIDE the record's range"),
         (None, _) => String::new(),
     };
-    format!(
-        "position {}/{n} (alpha {} deg, beta {} deg{temp}): error {:+.5} {:+.5} {:+.5} m/s², tolerance {:.5} {:.5} {:.5} m/s²: {}",
-        c.position,
-        c.alpha_deg,
-        c.beta_deg,
-        e[0],
-        e[1],
-        e[2],
-        t[0],
-        t[1],
-        t[2],
-        if c.pass { "pass" } else { "FAIL" }
-    )
+    let head = format!(
+        "position {}/{n} (alpha {} deg, beta {} deg{temp}): error {:+.5} {:+.5} {:+.5} m/s²",
+        c.position, c.alpha_deg, c.beta_deg, e[0], e[1], e[2]
+    );
+    match (c.u_expanded_m_s2, c.decisions) {
+        (Some(u), Some(d)) => {
+            let worst = d.iter().max().copied().unwrap_or(accelcal_core::conformity::Decision::Pass);
+            format!(
+                "{head}, U {:.5} {:.5} {:.5} m/s²: {} ({})",
+                u[0],
+                u[1],
+                u[2],
+                if worst.accepted() { "pass".to_string() } else { worst.name().to_uppercase() },
+                d.map(|d| d.name()).join(", ")
+            )
+        }
+        _ => format!(
+            "{head}, tolerance {:.5} {:.5} {:.5} m/s²: {}",
+            t[0],
+            t[1],
+            t[2],
+            if c.pass { "pass" } else { "FAIL" }
+        ),
+    }
 }
 
 /// Runs `accelcal verify`.
@@ -476,6 +487,8 @@ pub fn run_verify(a: &VerifyArgs) -> anyhow::Result<()> {
         (None, Some((what, id))) => (id.g_m_s2, format!("the fit's, {what}")),
         _ => g_source(a.g, &a.local),
     };
+    let spec = a.spec.as_deref().map(super::spec::read).transpose()?;
+    let (refs, not_included) = super::spec::references(g, &g_source, a.head_angle_u, a.head_orthogonality_u);
     let mut db = super::store::open(&a.run)?;
     let stop = stop_flag()?;
     let mut node = open(&a.link)?;
@@ -490,8 +503,17 @@ pub fn run_verify(a: &VerifyArgs) -> anyhow::Result<()> {
         tolerance,
         chamber: a.chamber.zip(soak),
         fit,
+        spec: spec.map(|s| (s, refs)),
     };
-    println!("verify: g = {g} m/s² ({g_source}); pass rule: {}", cfg.tolerance.describe());
+    match &cfg.spec {
+        Some((s, _)) => {
+            println!("verify: g = {g} m/s² ({g_source}); specification {}", s.describe());
+            if !not_included.is_empty() {
+                println!("verify: U of each measured error does not include {}", not_included.join(", nor "));
+            }
+        }
+        None => println!("verify: g = {g} m/s² ({g_source}); pass rule: {}", cfg.tolerance.describe()),
+    }
     let report = verify(&mut node, head.as_mut(), &cfg, &mut |c, n| println!("{}", check_line(c, n)), &stop)?;
     if let Some(p) = &a.json {
         write_json(p, &report)?;
@@ -533,10 +555,19 @@ pub fn run_verify(a: &VerifyArgs) -> anyhow::Result<()> {
     }
     let failed = report.positions.iter().filter(|p| !p.pass).count();
     if failed > 0 {
-        return Err(anyhow::Error::new(Failed { failed, total: report.positions.len() }));
+        let e = anyhow::Error::new(Failed { failed, total: report.positions.len() });
+        return Err(match report.decision {
+            Some(d) => e.context(format!(
+                "{}: the decision rule does not accept the unit ({})",
+                d.name().to_uppercase(),
+                report.tolerance_rule
+            )),
+            None => e,
+        });
     }
     println!(
-        "verify: PASS, {} positions of device {} (record {})",
+        "verify: {}, {} positions of device {} (record {})",
+        report.decision.map_or("PASS", |_| "PASS (every component accepted by the decision rule)"),
         report.positions.len(),
         report.device_id,
         report.record["crc"].as_str().map(|c| format!("CRC {c}")).unwrap_or_default()

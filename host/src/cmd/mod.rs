@@ -17,6 +17,7 @@ pub mod record;
 pub mod report;
 pub mod select;
 pub mod simulate;
+pub mod spec;
 pub mod station;
 pub mod store;
 pub mod uncertainty;

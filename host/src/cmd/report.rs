@@ -221,6 +221,11 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
     let _ = write!(h, "<h1>Calibration certificate &mdash; accelerometer triad {}</h1>", esc(&serial));
     let temp = u.verify.as_ref().map(verification_temperature);
     let verdict = match &u.verify {
+        Some(v) if v.pass && v.decision.is_some() => format!(
+            "<span class=\"pass\">CONFORMS: every position accepted by the decision rule ({}), {}</span>",
+            esc(v.specification.as_ref().map_or("", |s| s.rule.name())),
+            esc(temp.as_deref().unwrap_or_default())
+        ),
         Some(v) if v.pass => format!(
             "<span class=\"pass\">VERIFIED: every position within its tolerance on every axis, {}</span>",
             esc(temp.as_deref().unwrap_or_default())
@@ -232,7 +237,13 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
         ),
         None => "<span class=\"fail\">not verified (no verification given)</span>".into(),
     };
-    let _ = write!(h, "<p class=\"verdict\">{verdict}</p><table class=\"id\">");
+    let found = match u.as_found.as_ref().and_then(|v| v.decision) {
+        Some(d) if d.out_of_tolerance() => {
+            format!(" <span class=\"fail\">AS FOUND OUT OF TOLERANCE ({})</span>", d.name())
+        }
+        _ => String::new(),
+    };
+    let _ = write!(h, "<p class=\"verdict\">{verdict}{found}</p><table class=\"id\">");
     let rows = [
         ("Unit serial", serial.clone()),
         ("Device id (MCU)", device_id.clone()),
@@ -325,24 +336,34 @@ fn since_last_calibration(
     accelcal_db::history::history(runs, accelcal_db::history::DEFAULT_RULE)
 }
 
-/// The as-found verification in brief: the record the unit came in with, passed or not.
+/// The as-found verification: the record the unit came in with, its decision (against a
+/// specification: out of tolerance stands out) and, against a specification, each position.
 fn as_found(v: &VerifyReport) -> String {
     let failed = v.positions.iter().filter(|p| !p.pass).count();
     let max = v.positions.iter().flat_map(|p| p.error_m_s2).fold(0.0f64, |m, e| m.max(e.abs()));
     let crc = v.record["crc"].as_str().unwrap_or("(none)");
-    let verdict = if v.pass {
-        format!(
-            "<span class=\"pass\">PASS</span>: every one of {} positions within its tolerance",
-            v.positions.len()
-        )
-    } else {
-        format!(
-            "<span class=\"fail\">FAIL</span>: {failed} of {} positions outside tolerance",
-            v.positions.len()
-        )
+    let n = v.positions.len();
+    let verdict = match v.decision {
+        Some(d) if d.accepted() => {
+            format!("<span class=\"pass\">PASS</span>: every one of {n} positions accepted by the decision rule")
+        }
+        Some(d) if d.out_of_tolerance() => format!(
+            "<span class=\"fail\">OUT OF TOLERANCE ({})</span>: {failed} of {n} positions not accepted",
+            d.name()
+        ),
+        Some(d) => format!(
+            "<span class=\"fail\">{}</span>: {failed} of {n} positions within the limit but not by the guard band",
+            d.name().to_uppercase()
+        ),
+        None if v.pass => {
+            format!("<span class=\"pass\">PASS</span>: every one of {n} positions within its tolerance")
+        }
+        None => format!("<span class=\"fail\">FAIL</span>: {failed} of {n} positions outside tolerance"),
     };
+    let rule = if v.specification.is_some() { "specification" } else { "pass" };
+    let table = if v.specification.is_some() { position_table(v) } else { String::new() };
     format!(
-        "<h2>As found (before recalibration), with the record in force then (CRC {})</h2><p>{verdict}; largest error {:.5} m/s²; pass: {}</p>",
+        "<h2>As found (before recalibration), with the record in force then (CRC {})</h2><p>{verdict}; largest error {:.5} m/s²; {rule}: {}</p>{table}",
         esc(crc),
         max,
         esc(&v.tolerance_rule)
@@ -423,14 +444,44 @@ fn verification_temperature(v: &VerifyReport) -> String {
 /// The verification: each position's error and tolerance per axis, and the plot.
 fn verification(v: &VerifyReport, temp: &str) -> anyhow::Result<String> {
     let mut h = String::new();
+    let rule = if v.specification.is_some() { "Specification" } else { "Pass" };
     let _ = write!(
         h,
-        "<h2>As left: verification on the head after flashing, {}: error of the calibrated output, m/s²</h2><p class=\"small\">Pass: {}</p><div class=\"cols\"><div class=\"wide\"><table><tr><th>pos.</th><th>&alpha;, &beta; (deg)</th><th>error x</th><th>error y</th><th>error z</th><th>tol. x</th><th>tol. y</th><th>tol. z</th><th></th></tr>",
+        "<h2>As left: verification on the head after flashing, {}: error of the calibrated output, m/s²</h2><p class=\"small\">{rule}: {}</p><div class=\"cols\"><div class=\"wide\">",
         esc(temp),
         esc(&v.tolerance_rule)
     );
+    h.push_str(&position_table(v));
+    h.push_str("</div><div>");
+    let series: Vec<(String, Vec<(f64, f64)>)> = ["x", "y", "z"]
+        .iter()
+        .enumerate()
+        .map(|(i, n)| {
+            (format!("error {n}"), v.positions.iter().map(|p| (p.position as f64, p.error_m_s2[i])).collect())
+        })
+        .collect();
+    h.push_str(&lines_svg("Verification error per position", "position", "m/s²", &series, (640, 330))?);
+    h.push_str("</div></div>");
+    Ok(h)
+}
+
+/// A verification's positions: error per axis and, against a specification, the expanded
+/// uncertainty U of each and the decision; else the consistency bound.
+fn position_table(v: &VerifyReport) -> String {
+    let judged = v.specification.is_some();
+    let bound = if judged { "U" } else { "tol." };
+    let mut h = format!(
+        "<table><tr><th>pos.</th><th>&alpha;, &beta; (deg)</th><th>error x</th><th>error y</th><th>error z</th><th>{bound} x</th><th>{bound} y</th><th>{bound} z</th><th></th></tr>"
+    );
     for p in &v.positions {
-        let (e, t) = (p.error_m_s2, p.tolerance_m_s2);
+        let e = p.error_m_s2;
+        let t = p.u_expanded_m_s2.unwrap_or(p.tolerance_m_s2);
+        let word = match p.decisions.and_then(|d| d.into_iter().max()) {
+            Some(d) if d.accepted() => d.name().to_string(),
+            Some(d) => d.name().to_uppercase(),
+            None if p.pass => "pass".into(),
+            None => "FAIL".into(),
+        };
         let _ = write!(
             h,
             "<tr><td>{}</td><td>{}, {}</td><td>{:+.5}</td><td>{:+.5}</td><td>{:+.5}</td><td>{:.5}</td><td>{:.5}</td><td>{:.5}</td><td class=\"{}\">{}</td></tr>",
@@ -444,20 +495,11 @@ fn verification(v: &VerifyReport, temp: &str) -> anyhow::Result<String> {
             t[1],
             t[2],
             if p.pass { "pass" } else { "fail" },
-            if p.pass { "pass" } else { "FAIL" }
+            word
         );
     }
-    h.push_str("</table></div><div>");
-    let series: Vec<(String, Vec<(f64, f64)>)> = ["x", "y", "z"]
-        .iter()
-        .enumerate()
-        .map(|(i, n)| {
-            (format!("error {n}"), v.positions.iter().map(|p| (p.position as f64, p.error_m_s2[i])).collect())
-        })
-        .collect();
-    h.push_str(&lines_svg("Verification error per position", "position", "m/s²", &series, (640, 330))?);
-    h.push_str("</div></div>");
-    Ok(h)
+    h.push_str("</table>");
+    h
 }
 
 /// The record's coefficients with the standard errors of the fit that made them (the fit JSON).

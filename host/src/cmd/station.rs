@@ -147,8 +147,26 @@ impl Station<'_> {
         if let Some(k) = self.a.coverage {
             v.extend(["--coverage".into(), k.to_string()]);
         }
+        if let Some(spec) = &self.a.spec {
+            v.extend(["--spec".into(), spec.display().to_string()]);
+            v.extend(self.head_u_args());
+        }
         v.extend(self.gravity());
         v
+    }
+
+    /// The head asset's stated uncertainties as `fit` and `verify` take them (none without
+    /// `--head-asset`).
+    fn head_u_args(&self) -> Vec<String> {
+        match self.head_asset {
+            Some(h) => vec![
+                "--head-angle-u".into(),
+                h.angle_u_arcsec.to_string(),
+                "--head-orthogonality-u".into(),
+                h.orthogonality_u_arcsec.to_string(),
+            ],
+            None => Vec::new(),
+        }
     }
 
     /// `--db SPEC --run-id R` for a step that stores its own piece.
@@ -434,9 +452,17 @@ impl Station<'_> {
         };
         let args = self.verify_args(AS_FOUND, fit);
         self.run(Step::AsFound, &args)?;
-        let outcome = match self.verdict(AS_FOUND)?.1 {
-            Ok(n) => format!("PASS ({n} positions)"),
-            Err(f) => format!("FAIL ({f})"),
+        let outcome = match self.verdict(AS_FOUND)? {
+            (v, verdict) if v.decision.is_some() => {
+                format!(
+                    "{} ({} positions, decision rule {})",
+                    v.decision.map_or("", |d| d.name()).to_uppercase(),
+                    v.positions.len(),
+                    v.specification.as_ref().map_or("", |s| s.rule.name())
+                ) + &verdict.err().map(|f| format!(": {f}")).unwrap_or_default()
+            }
+            (_, Ok(n)) => format!("PASS ({n} positions)"),
+            (_, Err(f)) => format!("FAIL ({f})"),
         };
         self.finish(Step::AsFound, args, outcome, &[AS_FOUND])
     }
@@ -528,14 +554,7 @@ impl Station<'_> {
             device,
         ];
         let mut args = args;
-        if let Some(h) = self.head_asset {
-            args.extend([
-                "--head-angle-u".into(),
-                h.angle_u_arcsec.to_string(),
-                "--head-orthogonality-u".into(),
-                h.orthogonality_u_arcsec.to_string(),
-            ]);
-        }
+        args.extend(self.head_u_args());
         if let Exit::Failed = self.run(Step::Fit, &args)? {
             return Err(anyhow::anyhow!("step fit failed (its error is above)"));
         }
@@ -713,6 +732,10 @@ pub fn run(a: &StationArgs) -> anyhow::Result<()> {
     let stop = super::live::stop_flag()?;
     // The head's register entry first: an overdue or unknown head stops the station here.
     let head_asset = a.head_asset.as_deref().map(|id| head_in_force(&db_spec, id)).transpose()?;
+    if let Some(p) = &a.spec {
+        let s = super::spec::read(p)?;
+        eprintln!("station: specification {}", s.describe());
+    }
     for u in &specs {
         let journal = Journal::open(&u.dir, &u.serial)?;
         std::fs::create_dir_all(&u.dir)

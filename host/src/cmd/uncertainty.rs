@@ -17,7 +17,76 @@ struct CheckJson<'a> {
     orientations: u32,
     seed: u64,
     scenarios: Vec<ScenarioJson<'a>>,
+    /// The decision rules at the limit and half a U either side of it.
+    decision_rules: Vec<RuleRow>,
     passed: bool,
+}
+
+/// One row of the decision-rule check: a rule, a unit's true error, and the share of each
+/// decision over the draws of the measured error.
+#[derive(Serialize)]
+struct RuleRow {
+    rule: &'static str,
+    true_error_m_s2: f64,
+    #[serde(rename = "U_m_s2")]
+    u_expanded_m_s2: f64,
+    /// pass, conditional pass, conditional fail, fail.
+    shares: [f64; 4],
+}
+
+/// The limit of the decision-rule check, m/s² (the tolerance `history` uses).
+const CHECK_LIMIT_M_S2: f64 = 0.05;
+/// Measured errors drawn per row of the decision-rule check.
+const RULE_DRAWS: usize = 200_000;
+
+/// The decision rules against a limit T with the U of the budget's first scenario (every
+/// contributor on): the shares of each decision for units whose true error is T − U/2, T and
+/// T + U/2, and the guard-band rule's false-accept rate at T (it must be at most 2.5 %).
+fn decision_rules(u_expanded: f64, seed: u64) -> (Vec<RuleRow>, Option<String>) {
+    use accelcal_core::conformity::{outcome_rates, RuleKind, Specification, K};
+    let t = CHECK_LIMIT_M_S2;
+    println!(
+        "decision rules (ILAC-G8) against T = {t} m/s², U = {u_expanded:.3e} m/s² (the budget's, every contributor on); {RULE_DRAWS} measurements per row"
+    );
+    println!(
+        "{:<11} {:>14} {:>9} {:>11} {:>11} {:>9}",
+        "rule", "true error", "pass", "cond. pass", "cond. fail", "fail"
+    );
+    let mut rows = Vec::new();
+    let mut far = None;
+    for rule in [RuleKind::GuardBand, RuleKind::Simple] {
+        let spec = Specification {
+            unit_type: "check".into(),
+            acceleration_error_m_s2: t,
+            rule,
+            guard_band_m_s2: None,
+        };
+        for (i, (label, e)) in
+            [("T - U/2", t - u_expanded / 2.0), ("T", t), ("T + U/2", t + u_expanded / 2.0)]
+                .into_iter()
+                .enumerate()
+        {
+            let shares = outcome_rates(&spec, e, u_expanded / K, RULE_DRAWS, seed + i as u64);
+            let pct = |x: f64| format!("{:.2}%", 100.0 * x);
+            println!(
+                "{:<11} {:>14} {:>9} {:>11} {:>11} {:>9}",
+                rule.name(),
+                label,
+                pct(shares[0]),
+                pct(shares[1]),
+                pct(shares[2]),
+                pct(shares[3])
+            );
+            if rule == RuleKind::GuardBand && label == "T" {
+                far = Some(shares[0]);
+            }
+            rows.push(RuleRow { rule: rule.name(), true_error_m_s2: e, u_expanded_m_s2: u_expanded, shares });
+        }
+    }
+    let far = far.expect("the guard-band row at T");
+    println!("guard-band false-accept rate at the limit: {:.2} % (at most 2.5 %)", 100.0 * far);
+    let missed = (far > 0.025).then(|| format!("guard-band false-accept rate {:.2} % > 2.5 %", 100.0 * far));
+    (rows, missed)
 }
 
 #[derive(Serialize)]
@@ -81,6 +150,9 @@ pub fn run_check(a: &UncertaintyCheckArgs) -> anyhow::Result<()> {
         );
         rows.push(ScenarioJson { outcome: o, range: (lo, hi), passed });
     }
+    let u_all = outcomes.first().map_or(0.0, |o| o.mean_u_m_s2);
+    let (decision_rules, missed) = decision_rules(u_all, a.seed);
+    failed.extend(missed);
     if let Some(j) = &a.json {
         write_json(
             j,
@@ -91,11 +163,14 @@ pub fn run_check(a: &UncertaintyCheckArgs) -> anyhow::Result<()> {
                 seed: a.seed,
                 passed: failed.is_empty(),
                 scenarios: rows,
+                decision_rules,
             },
         )?;
     }
     if failed.is_empty() {
-        println!("the budget holds: every scenario's coverage is in its range");
+        println!(
+            "the budget holds: every scenario's coverage is in its range, and the guard band keeps its risk"
+        );
         Ok(())
     } else {
         Err(anyhow::anyhow!("the budget's coverage is out of its range: {}", failed.join(", ")))

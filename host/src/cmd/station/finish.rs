@@ -14,14 +14,43 @@ impl Station<'_> {
         self.db.finish_run(run, Outcome::Pass, PASS_REASON)?;
         crash_point("db:end");
         println!(
-            "station: unit {} (device {}) PASS; certificate {}; journal {}; run {run} stored in {}",
+            "station: unit {} (device {}) PASS{}; certificate {}; journal {}; run {run} stored in {}",
             self.u.serial,
             self.journal.device_id.as_deref().unwrap_or("?"),
+            self.as_found_words()?,
             self.p(CERTIFICATE),
             self.p(JOURNAL),
             self.db.target()
         );
         Ok(())
+    }
+
+    /// What the station's last line says of the as-found result when it did not pass: out of
+    /// tolerance (a conditional fail or a fail under the specification), not shown to conform
+    /// (a conditional pass), or failed against the consistency bound (no specification).
+    fn as_found_words(&self) -> anyhow::Result<String> {
+        if !self.path(AS_FOUND).is_file() {
+            return Ok(String::new());
+        }
+        let v = VerifyReport::read(&self.path(AS_FOUND))?;
+        let failed = v.positions.iter().filter(|p| !p.pass).count();
+        Ok(match v.decision {
+            Some(d) if d.out_of_tolerance() => format!(
+                " as left, but AS FOUND OUT OF TOLERANCE ({}: {failed} of {} positions not accepted)",
+                d.name(),
+                v.positions.len()
+            ),
+            Some(d) if !d.accepted() => format!(
+                " as left; as found a {} ({failed} of {} positions within the limit but not by the guard band)",
+                d.name().to_uppercase(),
+                v.positions.len()
+            ),
+            None if failed > 0 => format!(
+                " as left; as found FAIL {failed}/{} against the consistency bound (no --spec: not a tolerance decision)",
+                v.positions.len()
+            ),
+            _ => String::new(),
+        })
     }
 
     /// A unit that passed, run again: its files must still be as the steps wrote them, and the

@@ -1,0 +1,54 @@
+//! `--spec FILE`: a unit type's product specification and decision rule
+//! ([`accelcal_core::conformity`]), read from TOML, for `verify` and the station.
+
+use std::path::Path;
+
+use accelcal_core::conformity::{Specification, VerifyReferences};
+use accelcal_core::error::bad;
+use accelcal_core::uncertainty::ARCSEC;
+
+/// Reads and checks a specification file; an unknown key, a missing one or a bad value is
+/// refused naming the file, the line and the column.
+pub fn read(path: &Path) -> anyhow::Result<Specification> {
+    let name = path.display();
+    let text = std::fs::read_to_string(path).map_err(|e| bad(format!("{name}: cannot read: {e}")))?;
+    let spec: Specification = toml::from_str(&text).map_err(|e| {
+        let at = e
+            .span()
+            .map(|s| {
+                let before = &text[..s.start.min(text.len())];
+                let line = before.matches('\n').count() + 1;
+                let col = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
+                format!(":{line}:{col}")
+            })
+            .unwrap_or_default();
+        bad(format!("{name}{at}: {}", e.message()))
+    })?;
+    spec.check().map_err(|e| bad(format!("{name}: {e}")))?;
+    Ok(spec)
+}
+
+/// The references' standard uncertainties a verification's errors are measured against: the
+/// head's stated ones (arcsec, one sigma) and g's bound from its source taken as rectangular.
+/// Also what is not included, in words.
+pub fn references(
+    g: f64,
+    g_source: &str,
+    angle_u_arcsec: Option<f64>,
+    orthogonality_u_arcsec: Option<f64>,
+) -> (VerifyReferences, Vec<String>) {
+    let (bound, _) = accelcal_core::campaign::identity::g_uncertainty(g, Some(g_source));
+    let mut missing = Vec::new();
+    if angle_u_arcsec.is_none() {
+        missing.push("the head's angle setting error (not stated: --head-angle-u)".to_string());
+    }
+    if orthogonality_u_arcsec.is_none() {
+        missing.push("the head's axis orthogonality (not stated: --head-orthogonality-u)".to_string());
+    }
+    let r = VerifyReferences {
+        head_angle_rad: angle_u_arcsec.unwrap_or(0.0) * ARCSEC,
+        head_orthogonality_rad: orthogonality_u_arcsec.unwrap_or(0.0) * ARCSEC,
+        g_m_s2: bound / 3f64.sqrt(),
+    };
+    (r, missing)
+}
