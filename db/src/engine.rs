@@ -433,6 +433,20 @@ fn open_sqlite(
     if exists && !writable(path) {
         return Err(DbError::ReadOnly { path: path.to_path_buf() });
     }
+    // Processes opening a new file at once set it up one after the other: the switch to WAL
+    // (SQLite answers `database is locked` at once, without its busy handler, to a first open
+    // that meets another's) and the migration (refinery reads the applied versions before its
+    // transaction, so two first opens would both create the tables): an exclusive flock(2) on the database's directory. Not on the database file itself: closing
+    // any other descriptor of it would drop this process's fcntl(2) locks, SQLite's own.
+    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let lock = std::fs::File::open(dir).map_err(|e| DbError::Unreachable {
+        target: shown.clone(),
+        cause: format!("opening its directory: {e}"),
+    })?;
+    lock.lock().map_err(|e| DbError::Unreachable {
+        target: shown.clone(),
+        cause: format!("locking its directory to migrate: {e}"),
+    })?;
     let flags =
         OpenFlags::SQLITE_OPEN_READ_WRITE | OpenFlags::SQLITE_OPEN_CREATE | OpenFlags::SQLITE_OPEN_NO_MUTEX;
     let c = rusqlite::Connection::open_with_flags(path, flags).map_err(failed)?;
@@ -445,19 +459,6 @@ fn open_sqlite(
     c.pragma_update(None, "synchronous", "FULL").map_err(failed)?;
     c.pragma_update(None, "foreign_keys", "ON").map_err(failed)?;
     let mut conn = Conn { link: Link::Sqlite(c), target: shown.clone(), read_only: false };
-    // Processes opening a new file at once migrate one after the other (refinery reads the
-    // applied versions before its transaction, so two first opens would both create the tables):
-    // an exclusive flock(2) on the database's directory. Not on the database file itself: closing
-    // any other descriptor of it would drop this process's fcntl(2) locks, SQLite's own.
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let lock = std::fs::File::open(dir).map_err(|e| DbError::Unreachable {
-        target: shown.clone(),
-        cause: format!("opening its directory: {e}"),
-    })?;
-    lock.lock().map_err(|e| DbError::Unreachable {
-        target: shown.clone(),
-        cause: format!("locking its directory to migrate: {e}"),
-    })?;
     {
         let Link::Sqlite(c) = &mut conn.link else { unreachable!("a SQLite connection") };
         embedded::sqlite::migrations::runner().run(c).map_err(migration_failed)?;
