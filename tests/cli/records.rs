@@ -52,6 +52,84 @@ fn record_show_prints_what_fit_wrote() {
     assert!(e.contains("is the input FILE: refusing to overwrite it"), "{e}");
 }
 
+/// `record show --fit` prints the budget of the fit that wrote the record (U, k = 2, and each
+/// contributor) and puts it in its JSON; another record's fit, or a fit written without a record,
+/// is refused; a test-turn fit says it has no budget.
+#[test]
+fn record_show_with_its_fit_states_the_expanded_uncertainty() {
+    let d = Dir::new();
+    let c = simulate(&d, "c.csv", &["--seed", "4", "--samples", "20"]);
+    let id = "0102030405060708090a0b0c";
+    let (rec, fit) = (d.s("r.rec"), d.s("f.json"));
+    ok(&["fit", &c, "--record", &rec, "--device-id", id, "--head-angle-u", "15", "--json", &fit]);
+    let out = ok(&["record", "show", &rec, "--fit", &fit, "--json", &d.s("show.json")]);
+    let f = json(&d.p("f.json"));
+    let u: Vec<f64> = (0..3).map(|i| f["uncertainty"]["U_m_s2"][i].as_f64().unwrap()).collect();
+    let line = format!(
+        "expanded uncertainty of the calibrated acceleration (k = 2, the largest over the orientations at 1 g): x {:.2e}, y {:.2e}, z {:.2e} m/s²",
+        u[0], u[1], u[2]
+    );
+    assert!(out.contains(&line), "{out}");
+    assert!(
+        out.contains("head_angle") && out.contains("15.00 arcsec per angle and position, stated"),
+        "{out}"
+    );
+    let j = json(&d.p("show.json"));
+    // The fit's budget as it states it (serde_json's reader may be an ulp off).
+    let close = |a: &Value, b: &Value| {
+        (a.as_f64().unwrap() - b.as_f64().unwrap()).abs() <= 1e-12 * b.as_f64().unwrap().abs()
+    };
+    let (ju, fu) = (&j["uncertainty"], &f["uncertainty"]);
+    assert!((0..3).all(|i| close(&ju["U_m_s2"][i], &fu["U_m_s2"][i])), "{ju}");
+    for (a, b) in ju["contributors"].as_array().unwrap().iter().zip(fu["contributors"].as_array().unwrap()) {
+        assert_eq!((&a["name"], &a["source"]), (&b["name"], &b["source"]));
+        assert!(close(&a["u_m_s2"], &b["u_m_s2"]), "{a} {b}");
+    }
+    assert_eq!(ju["not_included"], fu["not_included"]);
+    // Without --fit, no budget and no `uncertainty` field.
+    ok(&["record", "show", &rec, "--json", &d.s("plain.json")]);
+    assert!(json(&d.p("plain.json")).get("uncertainty").is_none());
+    // The fit of another record (another device id gives another CRC) is refused.
+    let (other, other_fit) = (d.s("o.rec"), d.s("o.json"));
+    ok(&["fit", &c, "--record", &other, "--device-id", "0102030405060708090a0b0d", "--json", &other_fit]);
+    let e = bad(&["record", "show", &rec, "--fit", &other_fit]);
+    assert!(e.contains("record CRC") && e.contains("not the record of this fit"), "{e}");
+    ok(&["fit", &c, "--json", &d.s("norec.json")]);
+    let e = bad(&["record", "show", &rec, "--fit", &d.s("norec.json")]);
+    assert!(e.contains("written without a record (`fit --record`)"), "{e}");
+    // From the database: the fit stored with the record, the same budget; a record the
+    // database never stored is refused, and so is --db beside --fit.
+    let (drec, db) = (d.s("d.rec"), d.s("cal.sqlite"));
+    ok(&[
+        "fit",
+        &c,
+        "--record",
+        &drec,
+        "--device-id",
+        id,
+        "--created",
+        "1800000001",
+        "--head-angle-u",
+        "15",
+        "--db",
+        &db,
+    ]);
+    let out = ok(&["record", "show", &drec, "--db", &db]);
+    assert!(out.contains(&line), "{out}");
+    let e = bad(&["record", "show", &rec, "--db", &d.s("cal.sqlite")]);
+    assert!(e.contains("no run in") && e.contains("stored this record"), "{e}");
+    let o = accelcal(&["record", "show", &drec, "--db", &db, "--fit", &fit]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("cannot be used with"), "{o:?}");
+    // A test-turn fit has no budget: said, and `null` in the JSON.
+    let six = simulate(&d, "six.csv", &["--seed", "4", "--samples", "20", "--plan", "six"]);
+    let (tr, tf) = (d.s("t.rec"), d.s("t.json"));
+    ok(&["fit", &six, "--method", "test-turns", "--record", &tr, "--device-id", id, "--json", &tf]);
+    let out = ok(&["record", "show", &tr, "--fit", &tf, "--json", &d.s("tshow.json")]);
+    assert!(out.contains(&format!("uncertainty: {tf} states no budget")), "{out}");
+    assert_eq!(json(&d.p("tshow.json"))["uncertainty"], Value::Null);
+}
+
 /// A record that a node would refuse is refused by `fit --record` and by `flash` with the node's
 /// reason, exit code 2, one line, and nothing is written.
 #[test]

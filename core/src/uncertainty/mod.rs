@@ -36,7 +36,7 @@ pub mod montecarlo;
 use accelcal_shared::linear::{LinearCal, Model4};
 use accelcal_shared::terms::MODEL_4;
 use nalgebra::{DMatrix, DVector, SMatrix, Vector3};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::error::{Classify, Kind};
 use crate::lsq::LsqFit;
@@ -464,8 +464,9 @@ impl Budget {
     }
 }
 
-/// The JSON form of a budget (`fit --json`'s `uncertainty`).
-#[derive(Clone, Debug, Serialize)]
+/// The JSON form of a budget (`fit --json`'s `uncertainty`), written by `fit` and read back by
+/// `record show --fit` and the certificate.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct UncertaintyJson {
     /// The coverage factor.
     pub k: f64,
@@ -478,9 +479,38 @@ pub struct UncertaintyJson {
     /// The combined 12 × 12 covariance (codes², codes²/(m/s²), codes²/(m/s²)²).
     pub covariance: Vec<Vec<f64>>,
     /// The contributors.
-    pub contributors: Vec<Contributor>,
+    pub contributors: Vec<ContributorJson>,
     /// What the budget leaves out.
     pub not_included: Vec<String>,
+}
+
+/// One contributor as the fit JSON states it ([`Contributor`] without its covariance).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct ContributorJson {
+    /// Its name: `dwell_scatter`, `head_angle`, `head_orthogonality`, `gravity`, `quantisation`.
+    pub name: String,
+    /// Its standard uncertainty of the calibrated acceleration, m/s² (the largest over the axes
+    /// and the orientations at 1 g).
+    pub u_m_s2: f64,
+    /// Its share of the combined variance.
+    pub share: f64,
+    /// GUM type: `A` or `B`.
+    #[serde(rename = "type")]
+    pub kind: String,
+    /// Where its value comes from.
+    pub source: String,
+}
+
+impl UncertaintyJson {
+    /// The `uncertainty` of a fit JSON document: `Ok(None)` when the fit has none (test turns,
+    /// gravity-norm, another model than model 4, a campaign that is not a triad), an error when
+    /// it is there but not a budget.
+    pub fn of_fit_json(doc: &serde_json::Value) -> Result<Option<UncertaintyJson>, serde_json::Error> {
+        match doc.get("uncertainty") {
+            None | Some(serde_json::Value::Null) => Ok(None),
+            Some(v) => UncertaintyJson::deserialize(v).map(Some),
+        }
+    }
 }
 
 impl From<&Budget> for UncertaintyJson {
@@ -490,7 +520,17 @@ impl From<&Budget> for UncertaintyJson {
             u_m_s2: b.expanded_max,
             coefficients: Budget::coefficient_names(),
             covariance: (0..N_COEF).map(|i| (0..N_COEF).map(|j| b.covariance[(i, j)]).collect()).collect(),
-            contributors: b.contributors.clone(),
+            contributors: b
+                .contributors
+                .iter()
+                .map(|c| ContributorJson {
+                    name: c.name.to_string(),
+                    u_m_s2: c.u_m_s2,
+                    share: c.share,
+                    kind: c.kind.to_string(),
+                    source: c.source.clone(),
+                })
+                .collect(),
             not_included: b.not_included.clone(),
         }
     }

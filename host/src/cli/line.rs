@@ -54,6 +54,16 @@ pub struct RecordShowArgs {
     /// The calibration record file (from `accelcal fit --record`).
     #[arg(value_name = "FILE")]
     pub file: PathBuf,
+    /// The fit JSON written with this record (`accelcal fit CAMPAIGN --record FILE --json F`):
+    /// its uncertainty budget is printed, the expanded uncertainty U (k = 2) of the calibrated
+    /// acceleration per axis in m/s² and each contributor. Refused when it is another record's
+    /// fit (record CRC, device id).
+    #[arg(long, value_name = "FIT.json")]
+    pub fit: Option<PathBuf>,
+    /// Print the same budget from the fit the calibration database stored with this record
+    /// (a SQLite file, or postgres://USER@HOST[:PORT]/DB; opened read-only, never created).
+    #[arg(long, value_name = "FILE|URL", conflicts_with = "fit")]
+    pub db: Option<String>,
     /// Write the same as machine-readable JSON to this file.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,

@@ -179,7 +179,7 @@ pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
     let get = |k: &str| header.iter().find(|(key, _)| key == k).map(|(_, v)| v.clone()).unwrap_or_default();
     let budget = fit_budget(a, head_u, method, &pos, &stats, &fits, &get("g_source"))?;
     if let Some(b) = &budget {
-        super::uncertainty::print_budget(b);
+        super::uncertainty::print_budget(&UncertaintyJson::from(b));
     }
     let identity = Identity {
         device_id: device_id.map(|d| device_id_hex(&d)).or(unit.device_id),

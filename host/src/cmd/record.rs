@@ -2,9 +2,12 @@
 //! (the node's own check, `accelcal_shared::boot::gate`), and whether `fit --record` and `flash`
 //! would (`accelcal_core::calibrate::verdict`: also refuses sensitivities no unit has).
 
-use accelcal_core::calibrate::verdict;
+use accelcal_core::calibrate::{record_crc_hex, verdict};
+use accelcal_core::campaign::identity::{same, Identity};
 use accelcal_core::error::bad;
 use accelcal_core::output::write_json;
+use accelcal_core::uncertainty::UncertaintyJson;
+use accelcal_line::node::session::device_id_hex;
 use accelcal_shared::boot;
 use accelcal_shared::record::{Record, FORMAT_VERSION};
 use serde::Serialize;
@@ -39,6 +42,10 @@ pub struct RecordJson {
     /// Why accelcal refuses it: a node's refusal as the node reports it, or an implausible
     /// sensitivity that a node would accept (`null` when neither).
     pub refusal: Option<String>,
+    /// With `--fit`: the fit's uncertainty budget, as `fit --json` states it (`null` when that
+    /// fit has none, e.g. test turns); absent without `--fit`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub uncertainty: Option<Option<UncertaintyJson>>,
 }
 
 /// The record's description.
@@ -52,7 +59,7 @@ pub fn describe(bytes: &[u8], rec: &Record) -> RecordJson {
         length: n,
         format_version: FORMAT_VERSION,
         crc32: format!("{:#010x}", u32::from_le_bytes(crc)),
-        device_id: accelcal_line::node::session::device_id_hex(&rec.device_id),
+        device_id: device_id_hex(&rec.device_id),
         created_unix_s: rec.created_unix_s,
         created_utc: utc(rec.created_unix_s),
         terms: rec.structure.terms().map(|t| t.to_string()).collect(),
@@ -66,6 +73,61 @@ pub fn describe(bytes: &[u8], rec: &Record) -> RecordJson {
         }),
         node_accepts: node.is_ok(),
         refusal: verdict(rec).err(),
+        uncertainty: None,
+    }
+}
+
+/// The uncertainty budget of the fit JSON document `text` (`f_name` names it), once it is shown
+/// to be the fit that wrote this record: the same record CRC and device id.
+fn budget_of(
+    text: &str,
+    f_name: &str,
+    path: &str,
+    bytes: &[u8],
+    rec: &Record,
+) -> anyhow::Result<Option<UncertaintyJson>> {
+    let doc: serde_json::Value =
+        serde_json::from_str(text).map_err(|e| bad(format!("{f_name}: not a JSON document: {e}")))?;
+    let id = Identity::of_fit_json(&doc, f_name)?;
+    let crc = record_crc_hex(&bytes[..rec.len()]);
+    let Some(fit_crc) = &id.record_crc else {
+        return Err(bad(format!(
+            "{f_name}: written without a record (`fit --record`), so it cannot be matched to {path}"
+        )));
+    };
+    same("record CRC", (f_name, fit_crc), (path, &crc), "not the record of this fit")?;
+    if let Some(d) = &id.device_id {
+        same("device id", (f_name, d), (path, &device_id_hex(&rec.device_id)), "not the same unit")?;
+    }
+    UncertaintyJson::of_fit_json(&doc)
+        .map_err(|e| bad(format!("{f_name}: `uncertainty` is not a budget: {e}")))
+}
+
+/// The fit JSON `record show` reads the budget from: `--fit`'s file, or the one the database
+/// stored with this record; with its name for messages. `None` when neither is given.
+fn fit_text(
+    a: &RecordShowArgs,
+    path: &str,
+    bytes: &[u8],
+    rec: &Record,
+) -> anyhow::Result<Option<(String, String)>> {
+    if let Some(f) = &a.fit {
+        let name = f.display().to_string();
+        let text =
+            std::fs::read_to_string(f).map_err(|e| bad(format!("{name}: cannot read the fit JSON: {e}")))?;
+        return Ok(Some((text, name)));
+    }
+    let Some(spec) = &a.db else { return Ok(None) };
+    let mut db = accelcal_db::Db::open_existing(spec)?;
+    let device = device_id_hex(&rec.device_id);
+    let n = rec.len();
+    let crc = u32::from_le_bytes([bytes[n - 4], bytes[n - 3], bytes[n - 2], bytes[n - 1]]);
+    match db.fit_of_record(&device, crc)? {
+        Some(text) => Ok(Some((text, format!("the fit {} stored with record {crc:08x}", db.target())))),
+        None => Err(bad(format!(
+            "{path}: no run in {} stored this record (device {device}, CRC {crc:08x}), so it has no fit there",
+            db.target()
+        ))),
     }
 }
 
@@ -87,7 +149,11 @@ pub fn run_show(a: &RecordShowArgs) -> anyhow::Result<()> {
     let path = a.file.display();
     let bytes = std::fs::read(&a.file).map_err(|e| bad(format!("{path}: cannot read the record: {e}")))?;
     let rec = Record::parse(&bytes).map_err(|e| bad(format!("{path}: {e}")))?;
-    let j = describe(&bytes, &rec);
+    let mut j = describe(&bytes, &rec);
+    let fit = fit_text(a, &path.to_string(), &bytes, &rec)?;
+    if let Some((text, name)) = &fit {
+        j.uncertainty = Some(budget_of(text, name, &path.to_string(), &bytes, &rec)?);
+    }
     println!("record {path}: {} bytes, format version {}, CRC-32 {}", j.length, j.format_version, j.crc32);
     println!("device id: {}", j.device_id);
     println!("created: {} ({})", j.created_unix_s, j.created_utc);
@@ -116,6 +182,13 @@ pub fn run_show(a: &RecordShowArgs) -> anyhow::Result<()> {
         None => println!("node: accepts it (model 4 on three channels, invertible in f32 and fixed point)"),
         Some(r) if j.node_accepts => println!("node: would accept it, but accelcal refuses it: {r}"),
         Some(r) => println!("node: {r}"),
+    }
+    match (&fit, &j.uncertainty) {
+        (Some(_), Some(Some(b))) => super::uncertainty::print_budget(b),
+        (Some((_, name)), _) => println!(
+            "uncertainty: {name} states no budget (one is worked out for a model-4 triad fitted by least squares)"
+        ),
+        (None, _) => {}
     }
     if let Some(p) = &a.json {
         write_json(p, &j)?;

@@ -18,13 +18,14 @@ use accelcal_core::campaign::Campaign;
 use accelcal_core::error::bad;
 use accelcal_core::output::write_atomic;
 use accelcal_core::positions::Positions;
+use accelcal_core::uncertainty::UncertaintyJson;
 use accelcal_line::node::session::device_id_hex;
 use accelcal_line::verify::VerifyReport;
 use accelcal_shared::record::Record;
 
 use crate::cli::ReportArgs;
 use crate::report::plot::lines_svg;
-use crate::report::with_uncertainty;
+use crate::report::{sig, with_uncertainty};
 
 /// HTML-escapes text.
 fn esc(s: &str) -> String {
@@ -178,6 +179,12 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
         }
         _ => None,
     };
+    // The registered reference equipment the run used (`station --head-asset`, `fit --db
+    // --head-asset`): named on the certificate by asset id and certificate.
+    let assets = match (&mut db, &run) {
+        (Some(rdb), Some((run, _))) => rdb.db.run_assets(*run)?,
+        _ => Vec::new(),
+    };
     let (rec, device_id, crc) = (&u.rec, &u.device_id, &u.crc);
     let g = u.fit_id.g_m_s2;
     // The g's origin: the campaign's, when the fit used it, else the fit's own --g/--latitude.
@@ -290,7 +297,14 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
         ),
         ("Issued", format!("{now} by accelcal {}", env!("CARGO_PKG_VERSION"))),
     ];
-    for (k, v) in rows {
+    let traceability = (!assets.is_empty()).then(|| {
+        let named: Vec<String> = assets
+            .iter()
+            .map(|(kind, id, cert)| format!("{} {id}, calibration certificate {cert}", kind.name()))
+            .collect();
+        ("Reference equipment", named.join("; "))
+    });
+    for (k, v) in rows.into_iter().chain(traceability) {
         let v = if k == "Campaign" { v } else { esc(&v) };
         let _ = write!(h, "<tr><th class=\"l\">{k}</th><td class=\"l\">{v}</td></tr>");
     }
@@ -305,6 +319,7 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
         h.push_str(&drift_since_last(d));
     }
     h.push_str(&coefficients(rec, &u.fit, method)?);
+    h.push_str(&uncertainty_section(&u.fit, &a.fit.display().to_string())?);
     h.push_str(&structure(&sel, rec, &u.fit));
     h.push_str(&table2(cmp.as_ref(), method)?);
     h.push_str("</body></html>\n");
@@ -542,6 +557,44 @@ fn coefficients(rec: &Record, fit: &serde_json::Value, method: Method) -> anyhow
         let _ = write!(h, "<td>{rms}</td></tr>");
     }
     h.push_str("</table>");
+    Ok(h)
+}
+
+/// The fit's uncertainty budget: U (k = 2) of the calibrated acceleration per axis, each
+/// contributor, and what the budget leaves out; a fit without a budget is said to have none.
+fn uncertainty_section(fit: &serde_json::Value, f_name: &str) -> anyhow::Result<String> {
+    let budget = UncertaintyJson::of_fit_json(fit)
+        .map_err(|e| bad(format!("{f_name}: `uncertainty` is not a budget: {e}")))?;
+    let Some(b) = budget else {
+        return Ok("<h2>Measurement uncertainty</h2><p class=\"small\">Not evaluated: an uncertainty budget is worked out for a model-4 triad fitted by least squares, and this fit is not one. The standard errors above are the fit's noise only.</p>".into());
+    };
+    let mut h = String::new();
+    let _ = write!(
+        h,
+        "<h2>Measurement uncertainty (GUM): expanded uncertainty U of the calibrated acceleration, k = {}, coverage probability about 95 %</h2>\
+         <table><tr><th class=\"l\">axis</th><th>x</th><th>y</th><th>z</th></tr><tr><td class=\"l\">U in m/s², the largest over the orientations at 1 g</td>",
+        b.k
+    );
+    for v in b.u_m_s2 {
+        let _ = write!(h, "<td>{}</td>", sig(v, 2));
+    }
+    h.push_str("</tr></table><table><tr><th class=\"l\">contributor</th><th>type</th><th>standard uncertainty, m/s²</th><th>share of the variance</th><th class=\"l\">source</th></tr>");
+    // A reference stated as nothing contributes nothing: it is named below as not included.
+    for c in b.contributors.iter().filter(|c| c.u_m_s2 > 0.0) {
+        let _ = write!(
+            h,
+            "<tr><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{:.1} %</td><td class=\"l\">{}</td></tr>",
+            esc(&c.name.replace('_', " ")),
+            esc(&c.kind),
+            sig(c.u_m_s2, 2),
+            100.0 * c.share,
+            esc(&c.source)
+        );
+    }
+    h.push_str("</table>");
+    if !b.not_included.is_empty() {
+        let _ = write!(h, "<p class=\"small\">Not included in U: {}.</p>", esc(&b.not_included.join("; ")));
+    }
     Ok(h)
 }
 

@@ -3,7 +3,7 @@
 
 use accelcal_core::output::write_json;
 use accelcal_core::uncertainty::montecarlo::{self, Outcome, Scenario, Settings};
-use accelcal_core::uncertainty::Budget;
+use accelcal_core::uncertainty::UncertaintyJson;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
@@ -177,12 +177,13 @@ pub fn run_check(a: &UncertaintyCheckArgs) -> anyhow::Result<()> {
     }
 }
 
-/// Prints a budget: the expanded uncertainty per axis and each contributor.
-pub fn print_budget(b: &Budget) {
-    let u = b.expanded_max;
+/// Prints a budget (`fit`'s, or the one a fit JSON states): the expanded uncertainty per axis and
+/// each contributor.
+pub fn print_budget(b: &UncertaintyJson) {
+    let u = b.u_m_s2;
     println!(
-        "expanded uncertainty of the calibrated acceleration (k = 2, the largest over the orientations at 1 g): x {:.2e}, y {:.2e}, z {:.2e} m/s²",
-        u[0], u[1], u[2]
+        "expanded uncertainty of the calibrated acceleration (k = {}, the largest over the orientations at 1 g): x {:.2e}, y {:.2e}, z {:.2e} m/s²",
+        b.k, u[0], u[1], u[2]
     );
     println!("  {:<20} {:>4} {:>12} {:>7}  source", "contributor", "type", "u, m/s²", "share");
     for c in &b.contributors {
