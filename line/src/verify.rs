@@ -375,12 +375,7 @@ fn check_fit(
     if let Some(d) = &id.device_id {
         identity::same("device id", (what, d), (node, device_id), "not the same unit")?;
     }
-    let Some(crc) = &id.record_crc else {
-        return Err(bad(format!(
-            "{what}: written without a record (`fit --record`), so it cannot be matched to the record the node \
-             runs: write the fit JSON with the record, `accelcal fit CAMPAIGN --record R --json F`"
-        )));
-    };
+    let crc = id.written_record(what, "the record the node runs")?;
     if let RecordStatus::InUse { crc: running, .. } = record {
         identity::same(
             "record CRC",

@@ -147,6 +147,15 @@ impl Identity {
             .map_err(|e| IdentityError::BadIdentity { what: what.to_string(), msg: e.to_string() })
     }
 
+    /// The CRC of the record this fit was written with (`what` names the fit, `against` the
+    /// record it is to be matched to); [`IdentityError::NoRecord`] for a fit written without
+    /// one, which cannot be matched to any record.
+    pub fn written_record(&self, what: &str, against: &str) -> Result<&str, IdentityError> {
+        self.record_crc
+            .as_deref()
+            .ok_or_else(|| IdentityError::NoRecord { what: what.to_string(), against: against.to_string() })
+    }
+
     /// The serial for messages: the serial, or `(none)`.
     pub fn serial_words(&self) -> &str {
         self.serial.as_deref().unwrap_or("(none)")
@@ -200,6 +209,17 @@ pub enum IdentityError {
         /// What is wrong.
         msg: String,
     },
+    /// A fit JSON written without a record, to be matched to one.
+    #[error(
+        "{what}: written without a record (`fit --record`), so it cannot be matched to {against}: write the \
+         fit JSON with the record, `accelcal fit CAMPAIGN --record R --json F`"
+    )]
+    NoRecord {
+        /// The fit JSON.
+        what: String,
+        /// The record it was to be matched to.
+        against: String,
+    },
     /// A campaign's `# device_id:` line that is not a device id.
     #[error("{}: `# device_id: {value}` is not 24 hex digits (the MCU's 96-bit unique id)", path.display())]
     BadDeviceId {
@@ -220,6 +240,7 @@ impl Classify for IdentityError {
             IdentityError::Mismatch(_)
             | IdentityError::NoIdentity { .. }
             | IdentityError::BadIdentity { .. }
+            | IdentityError::NoRecord { .. }
             | IdentityError::BadDeviceId { .. } => Kind::BadInput,
         }
     }

@@ -90,11 +90,7 @@ fn budget_of(
         serde_json::from_str(text).map_err(|e| bad(format!("{f_name}: not a JSON document: {e}")))?;
     let id = Identity::of_fit_json(&doc, f_name)?;
     let crc = record_crc_hex(&bytes[..rec.len()]);
-    let Some(fit_crc) = &id.record_crc else {
-        return Err(bad(format!(
-            "{f_name}: written without a record (`fit --record`), so it cannot be matched to {path}"
-        )));
-    };
+    let fit_crc = id.written_record(f_name, path)?;
     same("record CRC", (f_name, fit_crc), (path, &crc), "not the record of this fit")?;
     if let Some(d) = &id.device_id {
         same("device id", (f_name, d), (path, &device_id_hex(&rec.device_id)), "not the same unit")?;

@@ -87,12 +87,7 @@ fn read_unit(a: &ReportArgs) -> anyhow::Result<Unit> {
         (&c_name, &campaign.sha256),
         "not the campaign of this fit",
     )?;
-    let Some(fit_crc) = &fit_id.record_crc else {
-        return Err(bad(format!(
-            "{f_name}: written without a record (`fit --record`), so it cannot be matched to {r_name}: write the \
-             fit JSON with the record, `accelcal fit CAMPAIGN --record R --json F`"
-        )));
-    };
+    let fit_crc = fit_id.written_record(&f_name, &r_name)?;
     same("record CRC", (&f_name, fit_crc), (&r_name, &crc), "not the record of this fit")?;
     if let Some(given) = a.g {
         same_g((&f_name, fit_id.g_m_s2), ("--g", given))?;
