@@ -18,14 +18,13 @@ use accelcal_core::campaign::Campaign;
 use accelcal_core::error::bad;
 use accelcal_core::output::write_atomic;
 use accelcal_core::positions::Positions;
-use accelcal_core::uncertainty::UncertaintyJson;
 use accelcal_line::node::session::device_id_hex;
 use accelcal_line::verify::VerifyReport;
 use accelcal_shared::record::Record;
 
 use crate::cli::ReportArgs;
 use crate::report::plot::lines_svg;
-use crate::report::{sig, with_uncertainty};
+use crate::report::with_uncertainty;
 
 /// HTML-escapes text.
 fn esc(s: &str) -> String {
@@ -314,7 +313,6 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
         h.push_str(&drift_since_last(d));
     }
     h.push_str(&coefficients(rec, &u.fit, method)?);
-    h.push_str(&uncertainty_section(&u.fit, &a.fit.display().to_string())?);
     h.push_str(&structure(&sel, rec, &u.fit));
     h.push_str(&table2(cmp.as_ref(), method)?);
     h.push_str("</body></html>\n");
@@ -552,44 +550,6 @@ fn coefficients(rec: &Record, fit: &serde_json::Value, method: Method) -> anyhow
         let _ = write!(h, "<td>{rms}</td></tr>");
     }
     h.push_str("</table>");
-    Ok(h)
-}
-
-/// The fit's uncertainty budget: U (k = 2) of the calibrated acceleration per axis, each
-/// contributor, and what the budget leaves out; a fit without a budget is said to have none.
-fn uncertainty_section(fit: &serde_json::Value, f_name: &str) -> anyhow::Result<String> {
-    let budget = UncertaintyJson::of_fit_json(fit)
-        .map_err(|e| bad(format!("{f_name}: `uncertainty` is not a budget: {e}")))?;
-    let Some(b) = budget else {
-        return Ok("<h2>Measurement uncertainty</h2><p class=\"small\">Not evaluated: an uncertainty budget is worked out for a model-4 triad fitted by least squares, and this fit is not one. The standard errors above are the fit's noise only.</p>".into());
-    };
-    let mut h = String::new();
-    let _ = write!(
-        h,
-        "<h2>Measurement uncertainty (GUM): expanded uncertainty U of the calibrated acceleration, k = {}, coverage probability about 95 %</h2>\
-         <table><tr><th class=\"l\">axis</th><th>x</th><th>y</th><th>z</th></tr><tr><td class=\"l\">U in m/s², the largest over the orientations at 1 g</td>",
-        b.k
-    );
-    for v in b.u_m_s2 {
-        let _ = write!(h, "<td>{}</td>", sig(v, 2));
-    }
-    h.push_str("</tr></table><table><tr><th class=\"l\">contributor</th><th>type</th><th>standard uncertainty, m/s²</th><th>share of the variance</th><th class=\"l\">source</th></tr>");
-    // A reference stated as nothing contributes nothing: it is named below as not included.
-    for c in b.contributors.iter().filter(|c| c.u_m_s2 > 0.0) {
-        let _ = write!(
-            h,
-            "<tr><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{:.1} %</td><td class=\"l\">{}</td></tr>",
-            esc(&c.name.replace('_', " ")),
-            esc(&c.kind),
-            sig(c.u_m_s2, 2),
-            100.0 * c.share,
-            esc(&c.source)
-        );
-    }
-    h.push_str("</table>");
-    if !b.not_included.is_empty() {
-        let _ = write!(h, "<p class=\"small\">Not included in U: {}.</p>", esc(&b.not_included.join("; ")));
-    }
     Ok(h)
 }
 
