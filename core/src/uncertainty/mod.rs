@@ -465,7 +465,7 @@ impl Budget {
 }
 
 /// The JSON form of a budget (`fit --json`'s `uncertainty`), written by `fit` and read back by
-/// `record show --fit` and the certificate.
+/// `record show --fit|--db`.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct UncertaintyJson {
     /// The coverage factor.

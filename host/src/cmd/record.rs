@@ -42,8 +42,8 @@ pub struct RecordJson {
     /// Why accelcal refuses it: a node's refusal as the node reports it, or an implausible
     /// sensitivity that a node would accept (`null` when neither).
     pub refusal: Option<String>,
-    /// With `--fit`: the fit's uncertainty budget, as `fit --json` states it (`null` when that
-    /// fit has none, e.g. test turns); absent without `--fit`.
+    /// With `--fit` or `--db`: the fit's uncertainty budget, as `fit --json` states it (`null`
+    /// when that fit has none, e.g. test turns); absent without them.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub uncertainty: Option<Option<UncertaintyJson>>,
 }
@@ -78,34 +78,33 @@ pub fn describe(bytes: &[u8], rec: &Record) -> RecordJson {
 }
 
 /// The uncertainty budget of the fit JSON document `text` (`f_name` names it), once it is shown
-/// to be the fit that wrote this record: the same record CRC and device id.
+/// to be the fit that wrote the record at `path`: the same record CRC (`crc`, as
+/// [`record_crc_hex`] gives it) and device id (`device`).
 fn budget_of(
     text: &str,
     f_name: &str,
     path: &str,
-    bytes: &[u8],
-    rec: &Record,
+    (crc, device): (&str, &str),
 ) -> anyhow::Result<Option<UncertaintyJson>> {
     let doc: serde_json::Value =
         serde_json::from_str(text).map_err(|e| bad(format!("{f_name}: not a JSON document: {e}")))?;
     let id = Identity::of_fit_json(&doc, f_name)?;
-    let crc = record_crc_hex(&bytes[..rec.len()]);
     let fit_crc = id.written_record(f_name, path)?;
-    same("record CRC", (f_name, fit_crc), (path, &crc), "not the record of this fit")?;
+    same("record CRC", (f_name, fit_crc), (path, crc), "not the record of this fit")?;
     if let Some(d) = &id.device_id {
-        same("device id", (f_name, d), (path, &device_id_hex(&rec.device_id)), "not the same unit")?;
+        same("device id", (f_name, d), (path, device), "not the same unit")?;
     }
     UncertaintyJson::of_fit_json(&doc)
         .map_err(|e| bad(format!("{f_name}: `uncertainty` is not a budget: {e}")))
 }
 
 /// The fit JSON `record show` reads the budget from: `--fit`'s file, or the one the database
-/// stored with this record; with its name for messages. `None` when neither is given.
+/// stored with the record (CRC `crc` of device `device`); with its name for messages. `None`
+/// when neither is given.
 fn fit_text(
     a: &RecordShowArgs,
     path: &str,
-    bytes: &[u8],
-    rec: &Record,
+    (crc, device): (&str, &str),
 ) -> anyhow::Result<Option<(String, String)>> {
     if let Some(f) = &a.fit {
         let name = f.display().to_string();
@@ -115,13 +114,11 @@ fn fit_text(
     }
     let Some(spec) = &a.db else { return Ok(None) };
     let mut db = accelcal_db::Db::open_existing(spec)?;
-    let device = device_id_hex(&rec.device_id);
-    let n = rec.len();
-    let crc = u32::from_le_bytes([bytes[n - 4], bytes[n - 3], bytes[n - 2], bytes[n - 1]]);
-    match db.fit_of_record(&device, crc)? {
-        Some(text) => Ok(Some((text, format!("the fit {} stored with record {crc:08x}", db.target())))),
+    let crc32 = u32::from_str_radix(crc, 16).map_err(|e| anyhow::anyhow!("record CRC {crc}: {e}"))?;
+    match db.fit_of_record(device, crc32)? {
+        Some(text) => Ok(Some((text, format!("the fit {} stored with record {crc}", db.target())))),
         None => Err(bad(format!(
-            "{path}: no run in {} stored this record (device {device}, CRC {crc:08x}), so it has no fit there",
+            "{path}: no run in {} stored this record (device {device}, CRC {crc}), so it has no fit there",
             db.target()
         ))),
     }
@@ -146,9 +143,10 @@ pub fn run_show(a: &RecordShowArgs) -> anyhow::Result<()> {
     let bytes = std::fs::read(&a.file).map_err(|e| bad(format!("{path}: cannot read the record: {e}")))?;
     let rec = Record::parse(&bytes).map_err(|e| bad(format!("{path}: {e}")))?;
     let mut j = describe(&bytes, &rec);
-    let fit = fit_text(a, &path.to_string(), &bytes, &rec)?;
-    if let Some((text, name)) = &fit {
-        j.uncertainty = Some(budget_of(text, name, &path.to_string(), &bytes, &rec)?);
+    let (name, crc) = (path.to_string(), record_crc_hex(&bytes[..rec.len()]));
+    let fit = fit_text(a, &name, (&crc, &j.device_id))?;
+    if let Some((text, f_name)) = &fit {
+        j.uncertainty = Some(budget_of(text, f_name, &name, (&crc, &j.device_id))?);
     }
     println!("record {path}: {} bytes, format version {}, CRC-32 {}", j.length, j.format_version, j.crc32);
     println!("device id: {}", j.device_id);
