@@ -16,6 +16,8 @@ mod help;
 mod records;
 #[path = "cli/settings.rs"]
 mod settings;
+#[path = "cli/station_config.rs"]
+mod station_config;
 #[path = "cli/uncertainty.rs"]
 mod uncertainty;
 use std::path::{Path, PathBuf};

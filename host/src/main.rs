@@ -16,8 +16,9 @@ fn main() {
     let matches = cli::Cli::command().get_matches();
     let mut cli = cli::Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     // The whole command line is checked before any file is opened.
-    let given = settings::Given::of(&matches).expect("clap requires a subcommand");
+    let mut given = settings::Given::of(&matches).expect("clap requires a subcommand");
     let checked = settings::check_text(&matches, &cli.command)
+        .and_then(|()| settings::apply_config(&mut cli.command, &mut given))
         .and_then(|()| settings::check(&cli.command, &given))
         .and_then(|()| settings::resolve_gravity(&mut cli.command, &given));
     if let Err(e) = checked {

@@ -24,26 +24,59 @@ use clap::ArgMatches;
 
 use crate::cli::{Algorithm, Command, CriterionArg, FitArgs, LocalGravity, MethodArg, RecordCommand};
 
-/// The options the user gave explicitly on the command line for one subcommand.
-pub struct Given<'a>(&'a ArgMatches);
+mod station_config;
+
+pub use station_config::apply as apply_config;
+
+/// The options the user gave for one subcommand: explicitly on the command line, or (`station
+/// --config`) in its settings file.
+pub struct Given<'a> {
+    matches: &'a ArgMatches,
+    /// The options the settings file gave: clap id, the file's key, and `FILE:LINE:COL`.
+    config: Vec<(&'static str, String, String)>,
+}
 
 impl<'a> Given<'a> {
     /// The given options of the subcommand in `matches` (the top-level matches).
     pub fn of(matches: &'a ArgMatches) -> Option<Given<'a>> {
-        matches.subcommand().map(|(_, sub)| Given(sub))
+        matches.subcommand().map(|(_, sub)| Given { matches: sub, config: Vec::new() })
     }
 
     /// Whether the option with clap id `id` (the field name) was given on the command line.
+    fn on_command_line(&self, id: &str) -> bool {
+        matches!(self.matches.try_get_raw(id), Ok(Some(_)))
+            && self.matches.value_source(id) == Some(ValueSource::CommandLine)
+    }
+
+    /// Whether the option with clap id `id` was given, on the command line or in the settings
+    /// file.
     fn has(&self, id: &str) -> bool {
-        matches!(self.0.try_get_raw(id), Ok(Some(_)))
-            && self.0.value_source(id) == Some(ValueSource::CommandLine)
+        self.on_command_line(id) || self.config.iter().any(|(k, _, _)| *k == id)
+    }
+
+    /// How a message names the option `id`: its flag, or the settings file's key and line when
+    /// the value came from there.
+    fn name(&self, id: &str) -> String {
+        match self.config.iter().find(|(k, _, _)| *k == id) {
+            Some((_, key, at)) if !self.on_command_line(id) => format!("`{key}` ({at})"),
+            _ => flag(id),
+        }
+    }
+
+    /// How a message names the option `id` set to `value`: `--head manual`, or `head =
+    /// "manual"` and the settings file's line.
+    fn setting(&self, id: &str, value: &str) -> String {
+        match self.config.iter().find(|(k, _, _)| *k == id) {
+            Some((_, key, at)) if !self.on_command_line(id) => format!("`{key} = {value:?}` ({at})"),
+            _ => format!("{} {value}", flag(id)),
+        }
     }
 
     /// Refuses each of `ids` that was given: it does not apply to `mode`.
     fn refuse(&self, ids: &[&str], mode: &str, hint: &str) -> anyhow::Result<()> {
         for id in ids {
             if self.has(id) {
-                return Err(bad(format!("{} does not apply to {mode}{hint}", flag(id))));
+                return Err(bad(format!("{} does not apply to {mode}{hint}", self.name(id))));
             }
         }
         Ok(())
@@ -379,6 +412,7 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
             if let Some(g) = a.g {
                 crate::cmd::check_g(g)?;
             }
+            check_issuer(&a.issuer)?;
             let mut inputs = vec![
                 ("--campaign", a.campaign.as_path()),
                 ("--record", a.record.as_path()),
@@ -411,20 +445,28 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
             positive_seconds("--timeout-s", a.timeout_s)
         }
         Command::Station(a) => {
-            if a.head == "manual" {
-                given.refuse(&["head_timeout_s"], "--head manual", " (the operator turns the head)")?;
+            if a.head.as_deref() == Some("manual") {
+                let head = given.setting("head", "manual");
+                given.refuse(&["head_timeout_s"], &head, " (the operator turns the head)")?;
             }
-            positive_seconds("--head-timeout-s", a.head_timeout_s)?;
+            positive_seconds(&given.name("head_timeout_s"), a.head_timeout_s)?;
             if !a.gdb.is_empty() {
-                given.refuse(&["chip", "probe"], "station --gdb", " (they select a probe-rs probe)")?;
+                let gdb = if given.on_command_line("gdb") {
+                    "station --gdb".to_string()
+                } else {
+                    given.name("gdb")
+                };
+                given.refuse(&["chip", "probe"], &gdb, " (they select a probe-rs probe)")?;
             }
             let n = a.ports.len();
+            // The nodes come from --port, or from the settings file's [[node]] tables.
+            let port = if given.on_command_line("ports") { "--port" } else { "[[node]]" };
             let per_port = |option: &str, count: usize, optional: bool| {
                 if count == n || (optional && count == 0) {
                     return Ok(());
                 }
                 Err(bad(format!(
-                    "{n} --port, {count} {option}: give {option} once per --port, in the same order{}",
+                    "{n} {port}, {count} {option}: give {option} once per {port}, in the same order{}",
                     if optional { " (or not at all)" } else { "" }
                 )))
             };
@@ -450,27 +492,38 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
             dup(a.ports.clone(), "--port")?;
             dup(a.serials.clone(), "--serial")?;
             dup(a.outs.iter().map(|p| resolve(p).display().to_string()).collect(), "--out")?;
-            positive_seconds("--timeout-s", a.timeout_s)?;
+            positive_seconds(&given.name("timeout_s"), a.timeout_s)?;
             if a.samples < 2 {
                 return Err(bad(format!(
-                    "--samples must be at least 2 sets per position, got {}",
+                    "{} must be at least 2 sets per position, got {}",
+                    given.name("samples"),
                     a.samples
                 )));
             }
             if let Some(hz) = a.rate_hz {
-                accelcal_shared::wire::check_rate(hz).map_err(|r| bad(format!("--rate-hz: {r}")))?;
+                accelcal_shared::wire::check_rate(hz)
+                    .map_err(|r| bad(format!("{}: {r}", given.name("rate_hz"))))?;
             }
             if !(a.select_tolerance.is_finite() && a.select_tolerance >= 0.0) {
                 return Err(bad(format!(
-                    "--select-tolerance must be a number of codes >= 0, got {}",
+                    "{} must be a number of codes >= 0, got {}",
+                    given.name("select_tolerance"),
                     a.select_tolerance
                 )));
             }
             if let Some(k) = a.coverage {
                 if !(k.is_finite() && k >= 1.0) {
-                    return Err(bad(format!("--coverage must be a number >= 1, got {k}")));
+                    return Err(bad(format!("{} must be a number >= 1, got {k}", given.name("coverage"))));
                 }
             }
+            if a.coverage.is_some() && a.spec.is_some() {
+                return Err(bad(format!(
+                    "{} and {} do not go together: the specification's decision rule decides, not a coverage factor",
+                    given.name("coverage"),
+                    given.name("spec")
+                )));
+            }
+            check_issuer(&a.issuer)?;
             if let Some(g) = a.g {
                 crate::cmd::check_g(g)?;
             }
@@ -520,6 +573,14 @@ fn check_head_timeout(
         given.refuse(&["head_timeout_s"], "--head manual", " (the operator turns the head)")?;
     }
     positive_seconds("--head-timeout-s", s)
+}
+
+/// `--laboratory-address` goes with `--laboratory`.
+fn check_issuer(i: &crate::cli::Issuer) -> anyhow::Result<()> {
+    if i.laboratory_address.is_some() && i.laboratory.is_none() {
+        return Err(bad("--laboratory-address needs --laboratory (the address is printed after its name)"));
+    }
+    Ok(())
 }
 
 /// Refuses a number of seconds that is not positive and finite, naming its option.

@@ -271,8 +271,45 @@ fn an_as_found_drift_is_decided_against_the_specification() {
     let (truth, _) = unit(dir.path(), "u", 21, 10);
     let first = dir.path().join("first");
     {
+        // The first calibration from a settings file (item 6): the same settings as
+        // `with_spec`'s options, and the laboratory and customer of the certificate.
         let em = Emulator::start(&truth, &[]);
-        run(&with_spec(&em, &first));
+        let config = dir.path().join("station.toml");
+        std::fs::write(
+            &config,
+            format!(
+                "station = \"line-1\"\nhead = \"{}\"\nplan = \"random:24\"\nsamples = 200\nrate_hz = 1000\ng = 9.81\nselect_tolerance = 5\nspec = \"spec.toml\"\ncustomer = \"Example Customer AG\"\n\n[laboratory]\nname = \"Example Calibration Laboratory\"\naddress = \"1 Sample Street, Neuchâtel\"\n\n[[node]]\nport = \"{}\"\ngdb = \"{}\"\n",
+                em.head, em.port, em.gdb
+            ),
+        )
+        .unwrap();
+        // Run from elsewhere: the file's spec is the one beside it.
+        let out = Command::new(env!("CARGO_BIN_EXE_accelcal"))
+            .args(["station", "--config", s(&config), "--serial", "A-1", "--out", s(&first)])
+            .current_dir(first.parent().unwrap().parent().unwrap())
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{err}");
+        assert!(
+            err.contains(&format!("station: settings {} (station, customer, laboratory.name", s(&config))),
+            "{err}"
+        );
+        let journal = std::fs::read_to_string(first.join("station.json")).unwrap();
+        for w in ["random:24", s(&spec), &em.gdb] {
+            assert!(journal.contains(w), "{w} not in the steps' command lines: {journal}");
+        }
+        let cert = first.join("certificate.html");
+        let html = std::fs::read_to_string(&cert).unwrap();
+        assert!(
+            html.contains("<th class=\"l\">Customer</th><td class=\"l\">Example Customer AG</td>"),
+            "{html}"
+        );
+        assert!(
+            html.contains("by Example Calibration Laboratory, 1 Sample Street, Neuchâtel with accelcal"),
+            "{html}"
+        );
+        assert_eq!(super::pdf_pages(&cert, &dir.path().join("first.pdf")), 1);
     }
     let record = first.join("record.rec");
     for (name, shift_m_s2, out_of_tolerance) in [("drift-in", 0.035, false), ("drift-out", 0.09, true)] {

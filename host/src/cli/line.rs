@@ -376,6 +376,9 @@ pub struct ReportArgs {
     /// certificate shows it next to the as-left one.
     #[arg(long, value_name = "VERIFY_JSON")]
     pub as_found: Option<PathBuf>,
+    /// The certificate's issuer.
+    #[command(flatten)]
+    pub issuer: Issuer,
 }
 
 /// `accelcal station`.
@@ -385,8 +388,24 @@ pub struct StationArgs {
     /// `accelcal emulate` prints). Repeat it for several nodes on one head, one unit each: they
     /// are acquired together, and --serial, --out (and --gdb or --probe when given) are given
     /// once per --port, in the same order.
-    #[arg(long = "port", value_name = "DEV", required = true)]
+    #[arg(long = "port", value_name = "DEV")]
     pub ports: Vec<String>,
+    /// The line's settings, a TOML file: each key is the option of the same name (`_` for `-`,
+    /// `station` for --station), the nodes are `[[node]]` tables with `port` and, optionally,
+    /// `gdb` or `probe`, and the laboratory is a `[laboratory]` table with `name` and
+    /// `address`. An option on the command line overrides its key; --port replaces every
+    /// `[[node]]` (their gdb and probe too); --g, --latitude or --height replace the file's
+    /// gravity. Relative paths in it (spec, a SQLite db) are relative to the file's directory,
+    /// and its db is used before the ACCELCAL_DB environment variable. An unknown key is refused
+    /// with its line.
+    #[arg(long, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+    /// The keys --config gave (set by `settings::apply_config`, not a flag).
+    #[arg(skip)]
+    pub from_config: Vec<String>,
+    /// The keys of --config the command line overrode (set by `settings::apply_config`).
+    #[arg(skip)]
+    pub overridden: Vec<String>,
     /// Baud rate of the nodes' USART1 (a pty ignores it).
     #[arg(long, default_value_t = accelcal_line::node::monitor::NODE_BAUD)]
     pub baud: u32,
@@ -396,7 +415,7 @@ pub struct StationArgs {
     /// The head: `manual` (the operator turns it; each step prompts) or `sim:HOST:PORT` (as for
     /// `acquire`).
     #[arg(long, value_name = "HEAD", value_parser = parse_head_text)]
-    pub head: String,
+    pub head: Option<String>,
     /// The unit's serial number (written into the campaign and the certificate; the unit's
     /// directory is its own); one per --port.
     #[arg(long = "serial", value_name = "S", required = true)]
@@ -481,6 +500,33 @@ pub struct StationArgs {
     /// with REASON (with several --port, it applies to each unit whose label clashes).
     #[arg(long, value_name = "REASON")]
     pub relabel: Option<String>,
+    /// The certificate's issuer.
+    #[command(flatten)]
+    pub issuer: Issuer,
+}
+
+impl StationArgs {
+    /// The head, from --head or the settings file (`settings::apply_config` refuses a station
+    /// without one).
+    pub fn head(&self) -> &str {
+        self.head.as_deref().expect("settings::apply_config refuses a station without a head")
+    }
+}
+
+/// The laboratory that issues a certificate, and its customer.
+#[derive(Debug, Args, Clone, Default)]
+pub struct Issuer {
+    /// The name of the calibration laboratory, printed on the certificate [default: none
+    /// printed].
+    #[arg(long, value_name = "NAME")]
+    pub laboratory: Option<String>,
+    /// The laboratory's address, printed after its name (with --laboratory).
+    #[arg(long, value_name = "TEXT")]
+    pub laboratory_address: Option<String>,
+    /// The customer the unit is calibrated for, printed on the certificate [default: none
+    /// printed].
+    #[arg(long, value_name = "NAME")]
+    pub customer: Option<String>,
 }
 
 /// `verify --phase`.

@@ -289,7 +289,17 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
                 &u.fit_id.campaign_sha256[..16]
             ),
         ),
-        ("Issued", format!("{now} by accelcal {}", env!("CARGO_PKG_VERSION"))),
+        (
+            "Issued",
+            match &a.issuer.laboratory {
+                Some(lab) => format!(
+                    "{now} by {lab}{} with accelcal {}",
+                    a.issuer.laboratory_address.as_deref().map(|s| format!(", {s}")).unwrap_or_default(),
+                    env!("CARGO_PKG_VERSION")
+                ),
+                None => format!("{now} by accelcal {}", env!("CARGO_PKG_VERSION")),
+            },
+        ),
     ];
     let traceability = (!assets.is_empty()).then(|| {
         let named: Vec<String> = assets
@@ -298,7 +308,8 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
             .collect();
         ("Reference equipment", named.join("; "))
     });
-    for (k, v) in rows.into_iter().chain(traceability) {
+    let customer = a.issuer.customer.clone().map(|c| ("Customer", c));
+    for (k, v) in customer.into_iter().chain(rows).chain(traceability) {
         let v = if k == "Campaign" { v } else { esc(&v) };
         let _ = write!(h, "<tr><th class=\"l\">{k}</th><td class=\"l\">{v}</td></tr>");
     }

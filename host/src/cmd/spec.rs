@@ -12,20 +12,24 @@ use accelcal_core::uncertainty::ARCSEC;
 pub fn read(path: &Path) -> anyhow::Result<Specification> {
     let name = path.display();
     let text = std::fs::read_to_string(path).map_err(|e| bad(format!("{name}: cannot read: {e}")))?;
-    let spec: Specification = toml::from_str(&text).map_err(|e| {
-        let at = e
-            .span()
-            .map(|s| {
-                let before = &text[..s.start.min(text.len())];
-                let line = before.matches('\n').count() + 1;
-                let col = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
-                format!(":{line}:{col}")
-            })
-            .unwrap_or_default();
-        bad(format!("{name}{at}: {}", e.message()))
-    })?;
+    let spec: Specification = toml::from_str(&text).map_err(|e| toml_error(&name, &text, &e))?;
     spec.check().map_err(|e| bad(format!("{name}: {e}")))?;
     Ok(spec)
+}
+
+/// A TOML file's error as one line of bad input: the file, the line and column of the key or
+/// value it is about (when the parser knows it), and the parser's message.
+pub fn toml_error(name: &dyn std::fmt::Display, text: &str, e: &toml::de::Error) -> anyhow::Error {
+    let at = e.span().map(|s| format!(":{}", line_col(text, s.start))).unwrap_or_default();
+    bad(format!("{name}{at}: {}", e.message().trim_end()))
+}
+
+/// `LINE:COLUMN` (from 1) of the byte `offset` of `text`.
+pub fn line_col(text: &str, offset: usize) -> String {
+    let before = &text[..text.floor_char_boundary(offset.min(text.len()))];
+    let line = before.matches('\n').count() + 1;
+    let col = before.chars().count() - before.rfind('\n').map_or(0, |i| before[..=i].chars().count()) + 1;
+    format!("{line}:{col}")
 }
 
 /// The references' standard uncertainties a verification's errors are measured against: the

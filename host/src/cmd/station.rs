@@ -138,7 +138,7 @@ impl Station<'_> {
     fn verify_args(&self, json: &str, fit: Option<String>) -> Vec<String> {
         let mut v = vec!["verify".into()];
         v.extend(self.link());
-        v.extend(["--head".into(), self.a.head.clone(), "--plan".into(), VERIFY_PLAN.into()]);
+        v.extend(["--head".into(), self.a.head().to_string(), "--plan".into(), VERIFY_PLAN.into()]);
         v.extend(head_timeout(self.a));
         v.extend(["--samples".into(), self.a.samples.to_string(), "--json".into(), self.p(json)]);
         if let Some(f) = fit {
@@ -356,7 +356,7 @@ impl Station<'_> {
             device_id: device.to_string(),
             serial: self.u.serial.clone(),
             station: self.a.station_name.clone().unwrap_or_else(super::store::host_name),
-            head: self.a.head.clone(),
+            head: self.a.head().to_string(),
             operator: self.a.operator.clone().unwrap_or_else(super::store::user_name),
             started_unix_s: started,
             software_version: env!("CARGO_PKG_VERSION").into(),
@@ -653,6 +653,16 @@ impl Station<'_> {
         if self.path(AS_FOUND).is_file() {
             args.extend(["--as-found".into(), self.p(AS_FOUND)]);
         }
+        let i = &self.a.issuer;
+        for (flag, v) in [
+            ("--laboratory", &i.laboratory),
+            ("--laboratory-address", &i.laboratory_address),
+            ("--customer", &i.customer),
+        ] {
+            if let Some(v) = v {
+                args.extend([flag.into(), v.clone()]);
+            }
+        }
         args.extend(self.db_args()?);
         if let Exit::Failed = self.run(Step::Certificate, &args)? {
             return Err(anyhow::anyhow!("step certificate failed (its error is above)"));
@@ -663,7 +673,7 @@ impl Station<'_> {
 
 /// `--head-timeout-s S` for an emulated head (a manual head has none).
 fn head_timeout(a: &StationArgs) -> Vec<String> {
-    if a.head == "manual" {
+    if a.head() == "manual" {
         vec![]
     } else {
         vec!["--head-timeout-s".into(), a.head_timeout_s.to_string()]
@@ -694,7 +704,7 @@ fn acquire_together(units: &mut [&mut Station<'_>]) -> anyhow::Result<()> {
         let ports: Vec<String> = todo.iter().map(|&i| units[i].u.port.clone()).collect();
         let mut args = vec!["acquire".to_string()];
         args.extend(link_args(a, &ports));
-        args.extend(["--head".into(), a.head.clone(), "--plan".into(), a.plan.clone()]);
+        args.extend(["--head".into(), a.head().to_string(), "--plan".into(), a.plan.clone()]);
         args.extend(head_timeout(a));
         args.extend(["--samples".into(), a.samples.to_string()]);
         for &i in &todo {
@@ -725,6 +735,13 @@ fn acquire_together(units: &mut [&mut Station<'_>]) -> anyhow::Result<()> {
 /// not stop the others (the station ends with exit code 1 after them); any other error stops the
 /// station.
 pub fn run(a: &StationArgs) -> anyhow::Result<()> {
+    if let Some(c) = &a.config {
+        let overridden = match a.overridden.as_slice() {
+            [] => String::new(),
+            keys => format!("; the command line overrides {}", keys.join(", ")),
+        };
+        eprintln!("station: settings {} ({}){overridden}", c.display(), a.from_config.join(", "));
+    }
     let specs = units(a);
     let db_spec = db_spec(a);
     let mut stations = Vec::with_capacity(specs.len());

@@ -1,0 +1,317 @@
+//! `station --config station.toml`: a line's settings in one reviewed file.
+//!
+//! Each key is the `station` option of the same name (`_` for `-`; `station` for `--station`),
+//! and the nodes are `[[node]]` tables (`port`, `gdb`, `probe`). An option given on the command
+//! line overrides its key; `--port` replaces every `[[node]]` (their `gdb` and `probe` too),
+//! and `--g`, `--latitude` or `--height` replace all three gravity keys. Relative paths (`spec`,
+//! a SQLite `db`) are relative to the file's directory, so the file means the same from any
+//! working directory.
+//!
+//! The file is read and checked here, before anything else is opened: an unknown key, a value of
+//! the wrong type, a key given twice, a text value that is not one line, and two keys that do not
+//! go together are refused with the file's line. The values then go through the same checks as
+//! the options they stand for (`settings::check`), whose messages name the key and its line
+//! ([`super::Given::name`]).
+
+use std::path::{Path, PathBuf};
+
+use accelcal_core::error::bad;
+use serde::Deserialize;
+use toml::Spanned;
+
+use super::Given;
+use crate::cli::{Command, StationArgs};
+
+/// The file, as written. Every key is optional; a missing one leaves the option's default.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct StationConfig {
+    /// The laboratory that issues the certificates.
+    laboratory: Option<Spanned<Laboratory>>,
+    customer: Option<Spanned<String>>,
+    station: Option<Spanned<String>>,
+    operator: Option<Spanned<String>>,
+    head: Option<Spanned<String>>,
+    head_asset: Option<Spanned<String>>,
+    head_timeout_s: Option<Spanned<f64>>,
+    #[serde(default)]
+    node: Vec<Spanned<Node>>,
+    plan: Option<Spanned<String>>,
+    samples: Option<Spanned<usize>>,
+    rate_hz: Option<Spanned<u32>>,
+    g: Option<Spanned<f64>>,
+    latitude: Option<Spanned<f64>>,
+    height: Option<Spanned<f64>>,
+    select_tolerance: Option<Spanned<f64>>,
+    coverage: Option<Spanned<f64>>,
+    spec: Option<Spanned<PathBuf>>,
+    db: Option<Spanned<String>>,
+    baud: Option<Spanned<u32>>,
+    timeout_s: Option<Spanned<f64>>,
+    chip: Option<Spanned<String>>,
+}
+
+/// `[laboratory]`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Laboratory {
+    name: String,
+    address: Option<String>,
+}
+
+/// One `[[node]]`: a node on the head.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Node {
+    port: String,
+    gdb: Option<String>,
+    probe: Option<String>,
+}
+
+/// Reads `station --config` and puts each of its keys into the options that were not given on
+/// the command line; `given` learns which options the file gave and where, so that the later
+/// checks count them as given and name them by their key. Other commands are left alone.
+pub fn apply(command: &mut Command, given: &mut Given) -> anyhow::Result<()> {
+    let Command::Station(a) = command else { return Ok(()) };
+    let Some(path) = a.config.clone() else {
+        if a.ports.is_empty() || a.head.is_none() {
+            return Err(bad("station needs --port and --head, or a --config file that gives them"));
+        }
+        return Ok(());
+    };
+    let name = path.display().to_string();
+    let text = std::fs::read_to_string(&path).map_err(|e| bad(format!("{name}: cannot read: {e}")))?;
+    let c: StationConfig =
+        toml::from_str(&text).map_err(|e| crate::cmd::spec::toml_error(&name, &text, &e))?;
+    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let mut f = File { name: &name, text: &text, given, overridden: Vec::new() };
+    f.text_value(&mut a.station_name, "station_name", "station", c.station)?;
+    f.text_value(&mut a.operator, "operator", "operator", c.operator)?;
+    f.text_value(&mut a.issuer.customer, "customer", "customer", c.customer)?;
+    if let Some(lab) = c.laboratory {
+        let at = f.at(&lab);
+        let lab = lab.into_inner();
+        for (key, v) in [("name", Some(&lab.name)), ("address", lab.address.as_ref())] {
+            if let Some(v) = v {
+                accelcal_core::text::single_line(&format!("{name}:{at}: laboratory.{key}"), v)?;
+            }
+        }
+        if f.given.on_command_line("laboratory") {
+            f.overridden.push("laboratory.name".into());
+        } else {
+            a.issuer.laboratory = Some(lab.name);
+            f.given.config.push(("laboratory", "laboratory.name".into(), format!("{name}:{at}")));
+        }
+        if f.given.on_command_line("laboratory_address") {
+            f.overridden.push("laboratory.address".into());
+        } else if lab.address.is_some() {
+            a.issuer.laboratory_address = lab.address;
+            f.given.config.push(("laboratory_address", "laboratory.address".into(), format!("{name}:{at}")));
+        }
+    }
+    if let Some(head) = &c.head {
+        let at = f.at(head);
+        head.get_ref()
+            .parse::<accelcal_line::node::head::HeadSpec>()
+            .map_err(|e| bad(format!("{name}:{at}: head: {e}")))?;
+    }
+    f.text_value(&mut a.head, "head", "head", c.head)?;
+    f.text_value(&mut a.head_asset, "head_asset", "head_asset", c.head_asset)?;
+    f.value(&mut a.head_timeout_s, "head_timeout_s", "head_timeout_s", c.head_timeout_s);
+    f.nodes(a, c.node)?;
+    f.text_value_plain(&mut a.plan, "plan", c.plan)?;
+    f.value(&mut a.samples, "samples", "samples", c.samples);
+    f.optional(&mut a.rate_hz, "rate_hz", "rate_hz", c.rate_hz);
+    f.gravity(a, c.g, c.latitude, c.height)?;
+    f.value(&mut a.select_tolerance, "select_tolerance", "select_tolerance", c.select_tolerance);
+    f.optional(&mut a.coverage, "coverage", "coverage", c.coverage);
+    let spec = c.spec.map(|s| {
+        let span = s.span();
+        let p = s.into_inner();
+        Spanned::new(span, if p.is_relative() { dir.join(p) } else { p })
+    });
+    f.optional(&mut a.spec, "spec", "spec", spec);
+    let db = c.db.map(|s| {
+        let span = s.span();
+        let v = s.into_inner();
+        let path = Path::new(&v);
+        let v =
+            if v.contains("://") || !path.is_relative() { v } else { dir.join(path).display().to_string() };
+        Spanned::new(span, v)
+    });
+    f.text_value(&mut a.db, "db", "db", db)?;
+    f.value(&mut a.baud, "baud", "baud", c.baud);
+    f.value(&mut a.timeout_s, "timeout_s", "timeout_s", c.timeout_s);
+    f.text_value_plain(&mut a.chip, "chip", c.chip)?;
+    a.from_config = f.given.config.iter().map(|(_, key, _)| key.clone()).collect();
+    a.from_config.dedup();
+    a.overridden = f.overridden;
+    if a.ports.is_empty() || a.head.is_none() {
+        let missing = if a.ports.is_empty() { "no [[node]] and no --port" } else { "no head and no --head" };
+        return Err(bad(format!("{name}: {missing}: the station needs its nodes and its head")));
+    }
+    Ok(())
+}
+
+/// The file being applied.
+struct File<'f, 'g, 'm> {
+    name: &'f str,
+    text: &'f str,
+    given: &'g mut Given<'m>,
+    /// The file's keys the command line overrode.
+    overridden: Vec<String>,
+}
+
+impl File<'_, '_, '_> {
+    /// `LINE:COL` of a key's value.
+    fn at<T>(&self, v: &Spanned<T>) -> String {
+        crate::cmd::spec::line_col(self.text, v.span().start)
+    }
+
+    /// Whether the option `id` takes the file's value (it was not given on the command line),
+    /// noting it as given by the file.
+    fn takes<T>(&mut self, id: &'static str, key: &str, v: &Spanned<T>) -> bool {
+        if self.given.on_command_line(id) {
+            self.overridden.push(key.to_string());
+            return false;
+        }
+        let at = format!("{}:{}", self.name, self.at(v));
+        self.given.config.push((id, key.to_string(), at));
+        true
+    }
+
+    /// An option with a default.
+    fn value<T>(&mut self, target: &mut T, id: &'static str, key: &str, v: Option<Spanned<T>>) {
+        if let Some(v) = v {
+            if self.takes(id, key, &v) {
+                *target = v.into_inner();
+            }
+        }
+    }
+
+    /// An option without a default.
+    fn optional<T>(&mut self, target: &mut Option<T>, id: &'static str, key: &str, v: Option<Spanned<T>>) {
+        if let Some(v) = v {
+            if self.takes(id, key, &v) {
+                *target = Some(v.into_inner());
+            }
+        }
+    }
+
+    /// An option of text, which must be one line (it reaches the journal, the database or the
+    /// certificate).
+    fn text_value(
+        &mut self,
+        target: &mut Option<String>,
+        id: &'static str,
+        key: &str,
+        v: Option<Spanned<String>>,
+    ) -> anyhow::Result<()> {
+        if let Some(v) = &v {
+            let field = format!("{}:{}: {key}", self.name, self.at(v));
+            accelcal_core::text::single_line(&field, v.get_ref())?;
+        }
+        self.optional(target, id, key, v);
+        Ok(())
+    }
+
+    /// An option of text with a default.
+    fn text_value_plain(
+        &mut self,
+        target: &mut String,
+        id: &'static str,
+        v: Option<Spanned<String>>,
+    ) -> anyhow::Result<()> {
+        let mut o = None;
+        self.text_value(&mut o, id, id, v)?;
+        if let Some(v) = o {
+            *target = v;
+        }
+        Ok(())
+    }
+
+    /// `[[node]]`: the ports, and the GDB servers or probes of all nodes or of none; not taken
+    /// when `--port` is given.
+    fn nodes(&mut self, a: &mut StationArgs, nodes: Vec<Spanned<Node>>) -> anyhow::Result<()> {
+        let Some(first) = nodes.first() else { return Ok(()) };
+        let at_first = self.at(first);
+        for n in &nodes {
+            let at = format!("{}:{}", self.name, self.at(n));
+            let n = n.get_ref();
+            for (key, v) in [("port", Some(&n.port)), ("gdb", n.gdb.as_ref()), ("probe", n.probe.as_ref())] {
+                if let Some(v) = v {
+                    accelcal_core::text::single_line(&format!("{at}: node.{key}"), v)?;
+                }
+            }
+        }
+        let all_or_none = |key: &str, count: usize| {
+            if count == 0 || count == nodes.len() {
+                return Ok(());
+            }
+            Err(bad(format!(
+                "{}:{at_first}: {count} of {} [[node]] give {key}: give it for every node or for none",
+                self.name,
+                nodes.len()
+            )))
+        };
+        all_or_none("gdb", nodes.iter().filter(|n| n.get_ref().gdb.is_some()).count())?;
+        all_or_none("probe", nodes.iter().filter(|n| n.get_ref().probe.is_some()).count())?;
+        if self.given.on_command_line("ports") {
+            self.overridden.push("[[node]]".into());
+            return Ok(());
+        }
+        let at = format!("{}:{at_first}", self.name);
+        let nodes: Vec<Node> = nodes.into_iter().map(Spanned::into_inner).collect();
+        self.given.config.push(("ports", "node.port".into(), at.clone()));
+        a.ports = nodes.iter().map(|n| n.port.clone()).collect();
+        let gdb: Vec<String> = nodes.iter().filter_map(|n| n.gdb.clone()).collect();
+        let probe: Vec<String> = nodes.iter().filter_map(|n| n.probe.clone()).collect();
+        for (id, key, values, target) in
+            [("gdb", "node.gdb", gdb, &mut a.gdb), ("probe", "node.probe", probe, &mut a.probe)]
+        {
+            if values.is_empty() {
+                continue;
+            }
+            if self.given.on_command_line(id) {
+                self.overridden.push(key.into());
+            } else {
+                self.given.config.push((id, key.into(), at.clone()));
+                *target = values;
+            }
+        }
+        Ok(())
+    }
+
+    /// `g`, or `latitude` (and `height`): not taken when the command line gives gravity.
+    fn gravity(
+        &mut self,
+        a: &mut StationArgs,
+        g: Option<Spanned<f64>>,
+        latitude: Option<Spanned<f64>>,
+        height: Option<Spanned<f64>>,
+    ) -> anyhow::Result<()> {
+        let name = self.name;
+        if let (Some(g), Some(l)) = (&g, &latitude) {
+            return Err(bad(format!(
+                "{name}:{}: g and latitude (at {}) both give gravity: keep one of them",
+                self.at(g),
+                self.at(l)
+            )));
+        }
+        if let (Some(h), None) = (&height, &latitude) {
+            return Err(bad(format!(
+                "{name}:{}: height needs latitude (it corrects the normal gravity there)",
+                self.at(h)
+            )));
+        }
+        if ["g", "latitude", "height"].iter().any(|id| self.given.on_command_line(id)) {
+            let keys = [("g", &g), ("latitude", &latitude), ("height", &height)];
+            self.overridden.extend(keys.iter().filter(|(_, v)| v.is_some()).map(|(k, _)| k.to_string()));
+            return Ok(());
+        }
+        self.optional(&mut a.g, "g", "g", g);
+        self.optional(&mut a.local.latitude, "latitude", "latitude", latitude);
+        self.optional(&mut a.local.height, "height", "height", height);
+        Ok(())
+    }
+}

@@ -1,0 +1,129 @@
+//! `station --config station.toml` (issue 30, item 6): the line's settings in one file, refused
+//! with the file's line when wrong, before anything is touched, and overridden by the command
+//! line. That a file's settings reach every step: `tests/line/station.rs`.
+
+use super::*;
+
+/// A settings file for one node at a port that does not exist, with `extra` lines after the
+/// top-level keys.
+fn config(dir: &Dir, name: &str, extra: &str) -> PathBuf {
+    let text = format!(
+        "# The station of line 1.\nstation = \"line-1\"\nhead = \"manual\"\nplan = \"six\"\n{extra}\n[laboratory]\nname = \"Example Calibration Laboratory\"\naddress = \"1 Sample Street, Neuchâtel\"\n\n[[node]]\nport = \"{}\"\n",
+        dir.p("no-such-port").display()
+    );
+    let p = dir.p(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+/// Each refusal names the file, the key's line and column, and what is wrong; nothing is
+/// created (the unit's directory stays missing).
+#[test]
+fn a_wrong_settings_file_is_refused_with_its_line_and_nothing_is_done() {
+    let d = Dir::new();
+    let cases: &[(&str, &str)] = &[
+        ("plann = \"head\"", "station.toml:5:1: unknown field `plann`, expected one of"),
+        ("samples = \"many\"", "station.toml:5:11: invalid type: string \"many\", expected usize"),
+        ("samples = 1", "`samples` (station.toml:5:11) must be at least 2 sets per position, got 1"),
+        (
+            "head_timeout_s = 30",
+            "`head_timeout_s` (station.toml:5:18) does not apply to `head = \"manual\"` (station.toml:3:8) (the operator turns the head)",
+        ),
+        ("operator = \"Bob\\u001b[2J\"", "station.toml:5:12: operator: \"Bob\\u{1b}[2J\" holds a control character (U+001B)"),
+        ("g = 9.8\nlatitude = 46.99", "station.toml:5:5: g and latitude (at 6:12) both give gravity: keep one of them"),
+        ("height = 400", "station.toml:5:10: height needs latitude (it corrects the normal gravity there)"),
+        ("rate_hz = 5", "`rate_hz` (station.toml:5:11): "),
+        ("plan = \"six\"", "station.toml:5:1: duplicate key"),
+        ("[[node]]\nport = \"b\"\ngdb = \"127.0.0.1:3333\"", "station.toml:5:1: 1 of 2 [[node]] give gdb: give it for every node or for none"),
+    ];
+    for (extra, want) in cases {
+        let c = config(&d, "station.toml", extra);
+        let unit = d.p("unit");
+        let e = bad(&[
+            "station",
+            "--config",
+            c.to_str().unwrap(),
+            "--serial",
+            "S-1",
+            "--out",
+            unit.to_str().unwrap(),
+        ]);
+        let e = e.replace(&format!("{}/", d.0.path().display()), "");
+        assert!(e.starts_with(&format!("error: {want}")), "{extra}:\n{e}\nwant: {want}");
+        assert!(!unit.exists(), "{extra}: nothing done");
+    }
+    // Without a file, the nodes and the head are options of their own.
+    let e = bad(&["station", "--serial", "S-1", "--out", "u"]);
+    assert_eq!(e, "error: station needs --port and --head, or a --config file that gives them");
+    let e =
+        bad(&["station", "--config", d.p("missing.toml").to_str().unwrap(), "--serial", "S-1", "--out", "u"]);
+    assert!(e.contains("missing.toml: cannot read: No such file"), "{e}");
+}
+
+/// An option on the command line overrides its key: the file's bad `samples` is not read once
+/// `--samples` is given, and `--head sim:…` lifts the refusal of the file's `head_timeout_s`
+/// (which a manual head has not). `--port` replaces the file's nodes, so their count no longer
+/// has to match the `--serial`s. Relative paths are the file's: its `spec` is found beside it
+/// from any working directory, and named there in the errors.
+#[test]
+fn the_command_line_overrides_the_file_and_its_paths_are_its_own() {
+    let d = Dir::new();
+    let c = config(&d, "station.toml", "samples = 1\nhead_timeout_s = 30\nspec = \"ms9002.toml\"");
+    let c = c.to_str().unwrap();
+    let unit = d.p("unit");
+    let u = unit.to_str().unwrap();
+    let e = bad(&["station", "--config", c, "--serial", "S-1", "--out", u, "--samples", "200"]);
+    assert!(e.contains("`head_timeout_s` (") && e.contains("does not apply to `head = \"manual\"`"), "{e}");
+    let with_head = ["--samples", "200", "--head", "sim:127.0.0.1:9", "--coverage", "5"];
+    let mut args = vec!["station", "--config", c, "--serial", "S-1", "--out", u];
+    args.extend(with_head);
+    let e = bad(&args);
+    let spec_at = format!("`spec` ({c}:");
+    assert!(e.starts_with("error: --coverage and ") && e.contains(&spec_at), "{e}");
+    // Without --coverage, the file's spec is read from beside the file, not from the working
+    // directory (the test's), and refused there: it does not exist.
+    args.truncate(args.len() - 2);
+    let out = accelcal(&args);
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{e}");
+    assert!(e.contains(&format!("{}: cannot read", d.p("ms9002.toml").display())), "{e}");
+    assert!(
+        e.contains("station: settings ") && e.contains("the command line overrides head, samples"),
+        "{e}"
+    );
+    assert!(!unit.exists(), "nothing done");
+    // --port replaces the file's one node: two --serial and two --out now match.
+    let mut args =
+        vec!["station", "--config", c, "--port", "P1", "--port", "P2", "--serial", "S-1", "--out", u];
+    args.extend(&with_head[..4]);
+    let e = bad(&args);
+    assert_eq!(e, "error: 2 --port, 1 --serial: give --serial once per --port, in the same order");
+}
+
+/// The guide's example file (`docs/src/line/station.md`) is accepted whole: the station gets as
+/// far as the register, where its head asset is not (exit code 3, nothing done).
+#[test]
+fn the_guides_settings_file_is_accepted() {
+    let page =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/src/line/station.md")).unwrap();
+    let section = &page[page.find("## The settings file").expect("the guide's section")..];
+    let start = section.find("```toml\n").expect("a toml block") + "```toml\n".len();
+    let example = &section[start..start + section[start..].find("```").unwrap()];
+    let d = Dir::new();
+    std::fs::write(d.p("station.toml"), example).unwrap();
+    let (c, unit, db) = (d.p("station.toml"), d.p("u0042"), d.p("calibration.sqlite"));
+    let args =
+        ["station", "--config", c.to_str().unwrap(), "--serial", "U-0042", "--out", unit.to_str().unwrap()];
+    let out = accelcal(&[&args[..], &["--db", db.to_str().unwrap()]].concat());
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(3), "{e}");
+    assert!(
+        e.contains(&format!(
+            "station: settings {} (station, customer, laboratory.name, laboratory.address, head, head_asset, node.port, node.probe, plan, samples, rate_hz, latitude, height, spec)",
+            c.display()
+        )),
+        "{e}"
+    );
+    assert!(e.contains("asset `HEAD-01`"), "{e}");
+    assert!(!unit.exists() && !db.exists(), "nothing done");
+}
