@@ -221,6 +221,58 @@ fn history_after_one_calibration_recommends_the_maximum_interval() {
     assert_eq!(runs[0].end.as_ref().map(|e| e.0), Some(Outcome::Pass));
 }
 
+/// ILAC-G24 method 1: an as-found result out of tolerance at the last calibration shortens the
+/// next interval to half the one the unit had served (here 200 days: 100), whatever the slow
+/// drift of its coefficients allows; within tolerance, the drift's date stands. With no
+/// calibration before it in the database, half of the maximum interval.
+#[test]
+fn an_as_found_out_of_tolerance_shortens_the_next_interval() {
+    let d = tempfile::tempdir().unwrap();
+    let spec = db_file(&d);
+    let mut db = Db::open(&spec).unwrap();
+    let unit = |db: &mut Db, serial: &str, device: &str, last_as_found: f64| {
+        for (i, days) in [0, 200].into_iter().enumerate() {
+            let s = start(RunId::new(), device, serial, "st-1", T0 + days * DAY);
+            calibrate(db, &s, &coefs(1.0, i), (i > 0).then_some(last_as_found));
+        }
+    };
+    unit(&mut db, "SN-IN", DEVICE, 0.03);
+    unit(&mut db, "SN-OUT", "00112233445566778899aabb", 0.09);
+    let first = start(RunId::new(), "0011223344556677889900cc", "SN-NEW", "st-1", T0);
+    calibrate(&mut db, &first, &coefs(0.0, 0), Some(0.2));
+    drop(db);
+    let history = |serial: &str| {
+        let json = d.path().join(format!("{serial}.json"));
+        let (code, out, err) =
+            accelcal(&["history", serial, "--db", &spec, "--json", json.to_str().unwrap()]);
+        assert_eq!(code, Some(0), "{err}");
+        let j: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        (out, j["recalibration"].clone())
+    };
+    let (out, rc) = history("SN-IN");
+    assert!(rc["as_found_out_of_tolerance"].is_null(), "{rc}");
+    assert_eq!(rc["due_unix_s"].as_i64(), Some(T0 + 565 * DAY), "{out}");
+    let (out, rc) = history("SN-OUT");
+    assert_eq!(rc["due_unix_s"].as_i64(), Some(T0 + 300 * DAY), "{out}");
+    let s = &rc["as_found_out_of_tolerance"];
+    assert_eq!((s["served_days"].as_f64(), s["interval_days"].as_f64()), (Some(200.0), Some(100.0)), "{s}");
+    assert!(
+        out.contains(
+            "recalibrate by 2026-10-28 (as found error 0.0900 m/s² beyond the tolerance 0.05 m/s²: half the 200 days it had served since the calibration before, ILAC-G24 method 1 (by the drift alone:"
+        ),
+        "{out}"
+    );
+    let (out, rc) = history("SN-NEW");
+    assert_eq!(rc["due_unix_s"].as_i64(), Some(T0 + 183 * DAY - DAY / 2), "{out}");
+    assert!(
+        out.contains("half of 365 days (--max-interval-days), no calibration before it in the database"),
+        "{out}"
+    );
+    let (code, help, _) = accelcal(&["history", "--help"]);
+    assert_eq!(code, Some(0));
+    assert!(help.contains("ILAC-G24 method 1"), "{help}");
+}
+
 #[test]
 fn history_refuses_what_it_cannot_read() {
     let d = tempfile::tempdir().unwrap();

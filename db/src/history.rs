@@ -24,7 +24,11 @@ drift rate r ± s_r. From the last calibration the drift reaches the tolerance T
 12, at most --max-interval-days. With one calibration no drift is known yet: the date is the calibration plus \
 --max-interval-days. Calibrations less than 1 day apart are repeats: the rate uses the latest of them. A \
 calibration is a run that ended `pass` with a stored model-4 fit; unfinished, rejected and voided runs are \
-listed but not used.";
+listed but not used. An as-found result out of tolerance shortens the interval (ILAC-G24 method 1, the \
+staircase): when the last calibration's as-found verification was out of tolerance (its decision rule's \
+conditional fail or fail, against a specification; otherwise an error beyond T on a component at one of its \
+positions), the recommended date is at most half the interval the unit had just served after it (the days \
+since the calibration before, at least 1 day; half of --max-interval-days when the database holds none).";
 
 /// Settings of the recalibration rule.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -169,6 +173,44 @@ pub struct Recalibration {
     pub limiting: Option<Limiting>,
     /// What set the date, in words.
     pub basis: String,
+    /// The last calibration's as-found result was out of tolerance (`null`: it was not, or
+    /// there was none): the interval it allows ([`METHOD`]).
+    pub as_found_out_of_tolerance: Option<AsFoundShortening>,
+}
+
+/// An as-found result out of tolerance, and the interval it allows (ILAC-G24 method 1).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct AsFoundShortening {
+    /// What was out of tolerance, in words.
+    pub finding: String,
+    /// The interval the unit had served: days from the calibration before to the last one
+    /// (`null`: the database holds no calibration before it).
+    pub served_days: Option<f64>,
+    /// The longest interval it allows, days: half of the served one (at least 1 day), else half
+    /// of the maximum interval.
+    pub interval_days: f64,
+}
+
+/// Why an as-found verification was out of tolerance, or `None`: its decision against a
+/// specification, else its largest error against the rule's tolerance `T`.
+fn out_of_tolerance(v: &VerifyReport, rule: RecalRule) -> Option<String> {
+    match (v.decision, &v.specification) {
+        (Some(d), Some(spec)) => d.out_of_tolerance().then(|| {
+            format!(
+                "as found {} against the specification of {} (decision rule {})",
+                d.name(),
+                spec.unit_type,
+                spec.rule.name()
+            )
+        }),
+        (Some(d), None) => d.out_of_tolerance().then(|| format!("as found {}", d.name())),
+        (None, _) => {
+            let max = v.positions.iter().flat_map(|p| p.error_m_s2).fold(0.0f64, |m, e| m.max(e.abs()));
+            (max > rule.tolerance_m_s2).then(|| {
+                format!("as found error {max:.4} m/s² beyond the tolerance {} m/s²", rule.tolerance_m_s2)
+            })
+        }
+    }
 }
 
 /// A unit's history.
@@ -355,15 +397,26 @@ pub fn history(runs: &[RunSummary], rule: RecalRule) -> History {
                 due_unix_s: None,
                 limiting: None,
                 basis: "no complete calibration: nothing to recalibrate from".into(),
+                as_found_out_of_tolerance: None,
             },
         ),
-        Some(&(_, t_last, g_last, ref last)) => {
+        Some(&(at, t_last, g_last, ref last)) => {
             let k_ref = [last.coef[0][1], last.coef[1][2], last.coef[2][3]];
             let scaled: Vec<Scaled> = cals
                 .iter()
                 .map(|(_, t, _, m)| scaled(m, (t - t_last) as f64 / SECONDS_PER_DAY, k_ref, g_last))
                 .collect();
-            (drifts_of(&scaled), recal(&scaled, t_last, rule))
+            let shortening =
+                runs[at].as_found.as_ref().and_then(|v| out_of_tolerance(v, rule)).map(|finding| {
+                    let served_days =
+                        cals.len().checked_sub(2).map(|i| (t_last - cals[i].1) as f64 / SECONDS_PER_DAY);
+                    let interval_days = match served_days {
+                        Some(d) => (d / 2.0).max(MIN_SPAN_DAYS),
+                        None => rule.max_interval_days / 2.0,
+                    };
+                    AsFoundShortening { finding, served_days, interval_days }
+                });
+            (drifts_of(&scaled), recal(&scaled, t_last, rule, shortening))
         }
     };
     History {
@@ -412,8 +465,45 @@ fn epochs(cals: &[Scaled]) -> Vec<&Scaled> {
     kept
 }
 
-fn recal(cals: &[Scaled], t_last: i64, rule: RecalRule) -> Recalibration {
-    let due = |days: f64| t_last + (days * SECONDS_PER_DAY).round() as i64;
+/// The recommended recalibration: the drift's ([`by_drift`]), shortened by an as-found result
+/// out of tolerance.
+fn recal(
+    cals: &[Scaled],
+    t_last: i64,
+    rule: RecalRule,
+    shortening: Option<AsFoundShortening>,
+) -> Recalibration {
+    let (calibrations, mut days, mut limiting, mut basis) = by_drift(cals, rule);
+    if let Some(s) = &shortening {
+        let served = match s.served_days {
+            Some(d) => format!("half the {d:.0} days it had served since the calibration before"),
+            None => format!(
+                "half of {} days (--max-interval-days), no calibration before it in the database",
+                rule.max_interval_days
+            ),
+        };
+        if s.interval_days < days {
+            basis = format!("{}: {served}, ILAC-G24 method 1 (by the drift alone: {basis})", s.finding);
+            days = s.interval_days;
+            limiting = None;
+        } else {
+            basis = format!("{basis}; {} allows {:.0} days ({served})", s.finding, s.interval_days);
+        }
+    }
+    Recalibration {
+        method: METHOD,
+        rule,
+        calibrations,
+        due_unix_s: Some(t_last + (days * SECONDS_PER_DAY).round() as i64),
+        limiting,
+        basis,
+        as_found_out_of_tolerance: shortening,
+    }
+}
+
+/// The interval the coefficients' drift allows: calibrations used, days, the limiting
+/// coefficient (`None`: the maximum interval), and the basis in words.
+fn by_drift(cals: &[Scaled], rule: RecalRule) -> (usize, f64, Option<Limiting>, String) {
     let max = rule.max_interval_days;
     let kept: Vec<Scaled> = epochs(cals).into_iter().cloned().collect();
     if kept.len() < 2 {
@@ -427,14 +517,7 @@ fn recal(cals: &[Scaled], t_last: i64, rule: RecalRule) -> Recalibration {
                 cals.len()
             )
         };
-        return Recalibration {
-            method: METHOD,
-            rule,
-            calibrations: cals.len(),
-            due_unix_s: Some(due(max)),
-            limiting: None,
-            basis,
-        };
+        return (cals.len(), max, None, basis);
     }
     let cals = kept.as_slice();
     let mut best: Option<Limiting> = None;
@@ -476,14 +559,7 @@ fn recal(cals: &[Scaled], t_last: i64, rule: RecalRule) -> Recalibration {
             format!("no coefficient's drift reaches the tolerance within {max} days (--max-interval-days)"),
         )
     };
-    Recalibration {
-        method: METHOD,
-        rule,
-        calibrations: cals.len(),
-        due_unix_s: Some(due(days)),
-        limiting,
-        basis,
-    }
+    (cals.len(), days, limiting, basis)
 }
 
 #[cfg(test)]
@@ -516,12 +592,12 @@ mod tests {
         };
         let rule = DEFAULT_RULE;
         // Minutes apart: no rate, the maximum interval.
-        let r = recal(&[at(-0.002, 0.0), at(0.0, 0.001)], 1_000_000, rule);
+        let r = recal(&[at(-0.002, 0.0), at(0.0, 0.001)], 1_000_000, rule, None);
         assert!(r.limiting.is_none() && r.basis.contains("repeats"), "{r:?}");
         assert_eq!(r.due_unix_s, Some(1_000_000 + 365 * 86_400));
         // A year apart, then a same-day repeat: the rate from the year (the repeat's earlier
         // calibration left out), 0.1 m/s² per year on x's bias.
-        let r = recal(&[at(-365.0, 0.0), at(-0.001, 0.5), at(0.0, 0.1)], 0, rule);
+        let r = recal(&[at(-365.0, 0.0), at(-0.001, 0.5), at(0.0, 0.1)], 0, rule, None);
         let l = r.limiting.expect("a rate");
         assert_eq!((l.channel, l.term), ("x", "1"));
         assert!((l.rate_m_s2_per_year - 0.1 * DAYS_PER_YEAR / 365.0).abs() < 1e-9, "{l:?}");
