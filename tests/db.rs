@@ -132,6 +132,7 @@ fn both_engines_have_the_same_tables_and_columns() {
         let want = match &v[..4] {
             "V1__" => 8,
             "V2__" => 3,
+            "V4__" => 1,
             _ => 2,
         };
         assert_eq!(s.len(), want, "{v}: {s:?}");
@@ -458,7 +459,7 @@ fn sixteen_first_opens_at_once_migrate_once() {
         assert_eq!(out.status.code(), Some(2), "{err}");
         assert!(err.contains(&format!("run {run}: not in the database")), "{err}");
     }
-    assert_eq!(Db::open(&spec).unwrap().schema_versions().unwrap(), vec![1, 2, 3]);
+    assert_eq!(Db::open(&spec).unwrap().schema_versions().unwrap(), vec![1, 2, 3, 4]);
 }
 
 /// Issue 28 items 7 and 11: a database that cannot be written stops a writer first, naming the
@@ -527,4 +528,10 @@ fn two_connections_in_one_process_keep_every_write_visible() {
     let (code, out, err) = accelcal(&["db", "verify", "--db", &spec]);
     assert_eq!(code, Some(0), "{err}");
     assert!(out.contains("1 runs, 2 rows, 2 ledger entries"), "{out}");
+}
+
+#[test]
+fn certificate_numbers_are_unique_stable_and_never_reused() {
+    let d = tempfile::tempdir().unwrap();
+    certificate_numbers_are_never_reused(&db_file(&d));
 }

@@ -153,3 +153,9 @@ fn writers_racing_on_one_run_id_store_each_row_once() {
     let pg = Cluster::start();
     writers_racing_on_one_run(&pg.url);
 }
+
+#[test]
+fn certificate_numbers_are_unique_stable_and_never_reused() {
+    let pg = Cluster::start();
+    certificate_numbers_are_never_reused(&pg.url);
+}

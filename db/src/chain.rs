@@ -26,7 +26,7 @@ pub struct Table {
 }
 
 /// Every table of the calibration, as the chain sees it.
-pub const TABLES: [Table; 12] = [
+pub const TABLES: [Table; 13] = [
     Table {
         name: "run",
         columns: &[
@@ -88,6 +88,10 @@ pub const TABLES: [Table; 12] = [
     Table {
         name: "run_asset",
         columns: &["run_id", "kind", "asset_id", "certificate", "stored_unix_s", "content_sha256"],
+    },
+    Table {
+        name: "certificate_number",
+        columns: &["run_id", "sequence", "number", "issued_unix_s", "content_sha256"],
     },
 ];
 
@@ -475,6 +479,9 @@ fn content_mismatch(t: &Table, row: &[Val]) -> Result<Option<String>, DbError> {
             &col("certificate").text()?,
         )
         .into_bytes(),
+        "certificate_number" => {
+            super::certificate_number_content(col("sequence").int()?, &col("number").text()?).into_bytes()
+        }
         other => unreachable!("table {other} is in TABLES"),
     };
     Ok((super::sha256_hex(&content) != stored)

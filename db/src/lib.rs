@@ -59,6 +59,22 @@ pub fn now_unix_s() -> i64 {
 /// The gzip magic number.
 const GZIP_MAGIC: [u8; 2] = [0x1f, 0x8b];
 
+/// A certificate's number ([`Db::certificate_number`]).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct CertificateNumber {
+    /// Its place among the database's certificates, from 1.
+    pub sequence: i64,
+    /// As printed: `YEAR-SEQUENCE` (`2026-000017`).
+    pub number: String,
+    /// When it was given, Unix seconds.
+    pub issued_unix_s: i64,
+}
+
+/// What a certificate_number row's `content_sha256` hashes.
+pub(crate) fn certificate_number_content(sequence: i64, number: &str) -> String {
+    format!("{sequence}\n{number}")
+}
+
 /// One piece of a run, ready to insert.
 struct Piece {
     table: &'static str,
@@ -462,6 +478,64 @@ impl Db {
                 sha: sha256_hex(html.as_bytes()),
             },
         )
+    }
+
+    /// The number of run `run`'s certificate: the one it was given, else the next one, stored
+    /// (`certificate_number`: the largest sequence plus one, `YEAR-SEQUENCE`). A number is
+    /// never given twice, and a run has one: printing its certificate again prints the same.
+    /// Refused for a voided run, and (a new number) for a finished one.
+    pub fn certificate_number(&mut self, run: RunId) -> Result<CertificateNumber, DbError> {
+        let run_s = run.to_string();
+        let table = chain::table("certificate_number");
+        self.retried(|conn| {
+            conn.transaction(|tx| {
+                let id = Val::from(run_s.clone());
+                if tx.query("SELECT 1 FROM run WHERE run_id = $1", std::slice::from_ref(&id))?.is_empty() {
+                    return Err(DbError::NoRun { run_id: run_s.clone() });
+                }
+                let refused = |tx: &mut Tx<'_>, sql: &str, state: &str| -> Result<(), DbError> {
+                    match tx.query(sql, std::slice::from_ref(&id))?.first() {
+                        Some(r) => Err(DbError::Conflict {
+                            run_id: run_s.clone(),
+                            what: format!(
+                                "the run is {state} ({}): its certificate cannot be numbered",
+                                r[0].text()?
+                            ),
+                        }),
+                        None => Ok(()),
+                    }
+                };
+                // A voided run's certificate is not printed again; a finished run's keeps its
+                // number, but gets none after its end.
+                refused(tx, "SELECT reason FROM void WHERE run_id = $1", "voided")?;
+                let given = tx.query(
+                    "SELECT sequence, number, issued_unix_s FROM certificate_number WHERE run_id = $1",
+                    std::slice::from_ref(&id),
+                )?;
+                if let Some(r) = given.first() {
+                    return Ok(CertificateNumber {
+                        sequence: r[0].int()?,
+                        number: r[1].text()?,
+                        issued_unix_s: r[2].int()?,
+                    });
+                }
+                refused(tx, "SELECT outcome FROM run_end WHERE run_id = $1", "finished")?;
+                let sequence = tx.query("SELECT COALESCE(MAX(sequence), 0) FROM certificate_number", &[])?[0]
+                    [0]
+                .int()?
+                    + 1;
+                let issued_unix_s = now_unix_s();
+                let year = jiff::Timestamp::from_second(issued_unix_s)
+                    .map(|t| t.to_zoned(jiff::tz::TimeZone::UTC).year())
+                    .unwrap_or(1970);
+                let number = format!("{year}-{sequence:06}");
+                let sha = sha256_hex(certificate_number_content(sequence, &number).as_bytes());
+                let row: Vec<Val> =
+                    vec![id, sequence.into(), number.clone().into(), issued_unix_s.into(), sha.into()];
+                insert_row(tx, table, &row)?;
+                Ok(CertificateNumber { sequence, number, issued_unix_s })
+            })
+        })
     }
 
     /// Ends the run; nothing more is stored under it afterwards.

@@ -203,10 +203,10 @@ pub fn pieces_are_stored_once(spec: &str) {
     assert!(matches!(e, DbError::NoRun { .. }), "{e}");
     let p = db.progress(run).unwrap();
     assert!(p.flashed && p.as_left && !p.as_found && !p.certificate && p.outcome == Some(Outcome::Pass));
-    assert_eq!(db.schema_versions().unwrap(), vec![1, 2, 3]);
+    assert_eq!(db.schema_versions().unwrap(), vec![1, 2, 3, 4]);
     // Opening again migrates nothing.
     drop(db);
-    assert_eq!(Db::open(spec).unwrap().schema_versions().unwrap(), vec![1, 2, 3]);
+    assert_eq!(Db::open(spec).unwrap().schema_versions().unwrap(), vec![1, 2, 3, 4]);
 }
 
 /// The environment variable that turns a test process into the writer that is killed.
@@ -647,4 +647,44 @@ pub fn with_head_asset(db: &mut Db) -> RunId {
     db.begin_run(&s, None).unwrap();
     db.store_run_asset(s.run_id, &head).unwrap();
     calibrate(db, &s, &coefs(0.0, 0), Some(0.01))
+}
+
+/// Certificate numbers (ISO/IEC 17025 §7.8.2.1): one per run, the same when the certificate is
+/// printed again, the next one for the next run, never given twice: not for a voided run's
+/// (refused, and its number stays used), nor for a finished run. Each is in the hash chain.
+pub fn certificate_numbers_are_never_reused(spec: &str) {
+    let mut db = Db::open(spec).unwrap();
+    let year = accelcal_db::asset::today_utc().year();
+    let begun = |db: &mut Db, serial: &str, t: i64| {
+        let s = start(RunId::new(), DEVICE, serial, "st-1", t);
+        db.begin_run(&s, None).unwrap();
+        s.run_id
+    };
+    let a = begun(&mut db, "SN-C1", T0);
+    let first = db.certificate_number(a).unwrap();
+    assert_eq!((first.sequence, first.number.clone()), (1, format!("{year}-000001")));
+    assert_eq!(db.certificate_number(a).unwrap(), first, "the same run, the same number");
+    let b = begun(&mut db, "SN-C1", T0 + DAY);
+    let second = db.certificate_number(b).unwrap();
+    assert_eq!(second.number, format!("{year}-000002"));
+    db.void_run(b, "the head was found out of true", "qa").unwrap();
+    let e = db.certificate_number(b).unwrap_err().to_string();
+    assert!(
+        e.contains("the run is voided (the head was found out of true): its certificate cannot be numbered"),
+        "{e}"
+    );
+    let c = begun(&mut db, "SN-C1", T0 + 2 * DAY);
+    assert_eq!(
+        db.certificate_number(c).unwrap().number,
+        format!("{year}-000003"),
+        "a voided run's number stays used"
+    );
+    db.finish_run(c, Outcome::Rejected, "selection beyond model 4").unwrap();
+    let d = begun(&mut db, "SN-C1", T0 + 3 * DAY);
+    db.finish_run(d, Outcome::Rejected, "selection beyond model 4").unwrap();
+    let e = db.certificate_number(d).unwrap_err().to_string();
+    assert!(e.contains("the run is finished (rejected): its certificate cannot be numbered"), "{e}");
+    assert!(matches!(db.certificate_number(RunId::new()), Err(DbError::NoRun { .. })));
+    let r = db.verify_chain().unwrap();
+    assert!(r.mismatches.is_empty(), "{:?}", r.mismatches);
 }
