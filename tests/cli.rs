@@ -461,6 +461,7 @@ fn page_text(html: &str) -> String {
         ("</tr>", "\n"),
         ("</p>", "\n"),
         ("</h1>", "\n"),
+        ("</div>", "\n"),
         ("</h2>", "\n"),
         ("</td>", " | "),
         ("</th>", " | "),
@@ -534,8 +535,12 @@ fn the_certificate_is_the_snapshot() {
         (Some("U-42"), Some("51454d552d422d4c34373545"))
     );
     let dir = d.0.path().to_str().unwrap();
-    let issued = text.lines().find(|l| l.starts_with("Issued")).unwrap().to_string();
-    let text = text.replace(dir, "DIR").replace(&issued, "Issued | (date) by accelcal (version) | ");
+    let dates = text.lines().find(|l| l.starts_with("Dates")).unwrap().to_string();
+    let issued = &dates[dates.find("issued ").unwrap()..];
+    let text = text
+        .replace(dir, "DIR")
+        .replace(issued, "issued (date) | ")
+        .replace(&format!("accelcal {}", env!("CARGO_PKG_VERSION")), "accelcal (version)");
     assert_eq!(text.matches(" m/s² (").count(), 1, "one g: {text}");
     assert!(text.contains("g (local gravity) | 9.810 ± 0.005 m/s²"), "{text}");
     assert!(text.contains("at 25.0 °C (the node's sensor, 24.9 to 25.1 °C over the positions)"), "{text}");

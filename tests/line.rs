@@ -495,7 +495,7 @@ fn the_production_line_in_emulation() {
     assert_eq!(v["specification"]["rule"], "guard-band");
     decisions_follow_the_rule(&v, 0.05);
 
-    // The certificate, one A4 page.
+    // The certificate, printed: each page numbered "Page i of n".
     let cert = p("cert.html");
     ok(&[
         "report",
@@ -514,7 +514,12 @@ fn the_production_line_in_emulation() {
     for want in ["U11", &id, &good_crc, "VERIFIED", "1,ax,ay,az", "<svg"] {
         assert!(html.contains(want), "certificate lacks {want}");
     }
-    assert_eq!(pdf_pages(&cert, &p("cert.pdf")), 1);
+    printed_certificate(
+        &cert,
+        &p("cert.pdf"),
+        "Calibration certificate draft, not numbered — accelerometer triad U11",
+        &["Results: expanded uncertainty U", "bias K0", "As left: verification", "Coefficients in force"],
+    );
 
     // Wrong coefficients (another unit's fit, this node's id): verified with the fit of this
     // unit's record, refused (the node runs another record); with its own fit, it fails with
@@ -674,8 +679,9 @@ fn gdb_proxy(target: &str, fault: Fault) -> String {
     addr
 }
 
-/// Prints `html` to PDF with headless Chromium and counts the pages.
-fn pdf_pages(html: &Path, pdf: &Path) -> usize {
+/// Prints `html` to PDF with headless Chromium (as a reader prints the certificate) and gives
+/// each page's text (poppler's `pdftotext -layout`).
+fn pdf_page_texts(html: &Path, pdf: &Path) -> Vec<String> {
     let out = Command::new("chromium")
         .args(["--headless", "--no-sandbox", "--disable-gpu", "--no-pdf-header-footer"])
         .arg(format!("--print-to-pdf={}", pdf.display()))
@@ -683,15 +689,39 @@ fn pdf_pages(html: &Path, pdf: &Path) -> usize {
         .output()
         .expect("chromium is installed (bash scripts/setup-chromium.sh)");
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let bytes = std::fs::read(pdf).unwrap();
-    let text = String::from_utf8_lossy(&bytes);
-    // The page tree's count: "/Count N" in the /Pages dictionary (uncompressed in Chromium's PDFs).
-    let n = text
-        .split("/Count ")
-        .nth(1)
-        .and_then(|r| r.split(|c: char| !c.is_ascii_digit()).next())
-        .and_then(|n| n.parse().ok());
-    n.expect("a /Count in the PDF")
+    let text = Command::new("pdftotext")
+        .args(["-layout", "-enc", "UTF-8"])
+        .arg(pdf)
+        .arg("-")
+        .output()
+        .expect("pdftotext is installed (bash scripts/setup-chromium.sh)");
+    assert!(text.status.success(), "{}", String::from_utf8_lossy(&text.stderr));
+    // pdftotext ends each page with a form feed.
+    let all = String::from_utf8(text.stdout).unwrap();
+    let mut pages: Vec<String> = all.split('\u{c}').map(str::to_string).collect();
+    if pages.last().is_some_and(|p| p.trim().is_empty()) {
+        pages.pop();
+    }
+    pages
+}
+
+/// The certificate as printed: every page says "Page i of n" and names the certificate (its
+/// number, or that it is a draft) and the unit, no page carries the tool's command-line wording
+/// (an `--option`), and each of `sections` is on some page. Gives the pages' text.
+fn printed_certificate(html: &Path, pdf: &Path, named: &str, sections: &[&str]) -> Vec<String> {
+    let pages = pdf_page_texts(html, pdf);
+    let n = pages.len();
+    assert!((1..=4).contains(&n), "{n} pages");
+    for (i, t) in pages.iter().enumerate() {
+        assert!(t.contains(&format!("Page {} of {n}", i + 1)), "page {}: {t}", i + 1);
+        assert!(t.contains(named), "page {} does not name {named}: {t}", i + 1);
+        let flag = t.find(" --").filter(|&at| t[at + 3..].starts_with(|c: char| c.is_ascii_lowercase()));
+        assert!(flag.is_none(), "command-line wording on page {}: {t}", i + 1);
+    }
+    for want in sections {
+        assert!(pages.iter().any(|p| p.contains(want)), "no page has {want}: {pages:?}");
+    }
+    pages
 }
 
 /// The worst |error| over the components and positions of a `verify --json` report, m/s², its

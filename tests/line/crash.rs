@@ -12,7 +12,7 @@ use super::*;
 /// the flash step's process, `db:certificate` and `db:end-report` in the report step's). The
 /// last three are [`TAIL`] on SQLite; on PostgreSQL the report step is killed after it ended
 /// the run ([`TAIL_REPORT_ENDED`]), which the station must then journal.
-const POINTS: [&str; 15] = [
+const POINTS: [&str; 16] = [
     "journal:info",
     "journal:run",
     "db:run",
@@ -28,6 +28,7 @@ const POINTS: [&str; 15] = [
     "journal:flash",
     "journal:as-left",
     "db:as-left",
+    "db:certificate-number",
 ];
 
 /// The end of a line killed after the certificate was stored, after the station journalled it,
@@ -54,16 +55,17 @@ fn station_crashing_at(args: &[&str], point: &str) -> (Option<i32>, String) {
 }
 
 /// The rows of each table of run `run`, through `count(table, run)`.
-const TABLES: [(&str, i64); 9] = [
+const TABLES: [(&str, i64); 10] = [
     ("run", 1),
     ("campaign", 1),
     ("fit", 1),
     ("cal_record", 1),
     ("flash", 1),
     ("verification", 2),
+    ("certificate_number", 1),
     ("certificate", 1),
     ("run_end", 1),
-    ("ledger", 9),
+    ("ledger", 10),
 ];
 
 /// A first unit's whole line, then a second unit on the same node (a record in force, so its

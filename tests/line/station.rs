@@ -278,7 +278,7 @@ fn an_as_found_drift_is_decided_against_the_specification() {
         std::fs::write(
             &config,
             format!(
-                "station = \"line-1\"\nhead = \"{}\"\nplan = \"random:24\"\nsamples = 200\nrate_hz = 1000\ng = 9.81\nselect_tolerance = 5\nspec = \"spec.toml\"\ncustomer = \"Example Customer AG\"\n\n[laboratory]\nname = \"Example Calibration Laboratory\"\naddress = \"1 Sample Street, Neuchâtel\"\n\n[[node]]\nport = \"{}\"\ngdb = \"{}\"\n",
+                "station = \"line-1\"\nhead = \"{}\"\nplan = \"random:24\"\nsamples = 200\nrate_hz = 1000\ng = 9.81\nselect_tolerance = 5\nspec = \"spec.toml\"\ncustomer = \"Example Customer AG\"\nauthorised_by = \"A. Reviewer\"\n\n[laboratory]\nname = \"Example Calibration Laboratory\"\naddress = \"1 Sample Street, Neuchâtel\"\n\n[[node]]\nport = \"{}\"\ngdb = \"{}\"\n",
                 em.head, em.port, em.gdb
             ),
         )
@@ -292,7 +292,10 @@ fn an_as_found_drift_is_decided_against_the_specification() {
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(out.status.success(), "{err}");
         assert!(
-            err.contains(&format!("station: settings {} (station, customer, laboratory.name", s(&config))),
+            err.contains(&format!(
+                "station: settings {} (station, customer, authorised_by, laboratory.name",
+                s(&config)
+            )),
             "{err}"
         );
         let journal = std::fs::read_to_string(first.join("station.json")).unwrap();
@@ -306,10 +309,19 @@ fn an_as_found_drift_is_decided_against_the_specification() {
             "{html}"
         );
         assert!(
-            html.contains("by Example Calibration Laboratory, 1 Sample Street, Neuchâtel with accelcal"),
+            html.contains("<b>Example Calibration Laboratory</b><br>1 Sample Street, Neuchâtel"),
             "{html}"
         );
-        assert_eq!(super::pdf_pages(&cert, &dir.path().join("first.pdf")), 1);
+        assert!(
+            html.contains("<th class=\"l\">Authorised by</th><td class=\"l\">A. Reviewer</td>"),
+            "{html}"
+        );
+        super::printed_certificate(
+            &cert,
+            &dir.path().join("first.pdf"),
+            "accelerometer triad A-1",
+            &["Example Customer AG", "Results: expanded uncertainty U"],
+        );
     }
     let record = first.join("record.rec");
     for (name, shift_m_s2, out_of_tolerance) in [("drift-in", 0.035, false), ("drift-out", 0.09, true)] {
@@ -359,6 +371,21 @@ fn an_as_found_drift_is_decided_against_the_specification() {
             assert!(!cert.contains("OUT OF TOLERANCE"));
         }
         assert!(cert.contains("CONFORMS: every position accepted by the decision rule (guard-band)"));
+        // Printed, with the database's sections: the as-found result and the drift since the
+        // first calibration, each page numbered and naming the certificate's number.
+        let title = "<h1>Calibration certificate No. ";
+        let at = cert.find(title).expect("a numbered certificate") + title.len();
+        let number = &cert[at..at + cert[at..].find('<').unwrap()];
+        super::printed_certificate(
+            &d.join("certificate.html"),
+            &d.join("certificate.pdf"),
+            &format!("Calibration certificate No. {number} — accelerometer triad A-1"),
+            &[
+                "As found (before recalibration)",
+                "Drift since the last calibration",
+                "Recommended recalibration by",
+            ],
+        );
         assert_eq!(json(&d.join("as-left.json"))["decision"], "pass");
     }
 }

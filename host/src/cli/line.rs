@@ -527,6 +527,10 @@ pub struct Issuer {
     /// printed].
     #[arg(long, value_name = "NAME")]
     pub customer: Option<String>,
+    /// The person who authorises the certificate, printed on it [default: none; the page then
+    /// says it is a draft].
+    #[arg(long, value_name = "NAME")]
+    pub authorised_by: Option<String>,
 }
 
 /// `verify --phase`.

@@ -68,9 +68,10 @@ pub enum Command {
     /// acceleration with g times the head's kinematics. Exit code 0 when every position passes,
     /// 1 when one fails.
     Verify(VerifyArgs),
-    /// Write a unit's calibration certificate: one self-contained HTML page (prints on one A4
-    /// page) with identification, g, record CRC, model selection, coefficients ± standard
-    /// errors, Table 2 and the verification.
+    /// Write a unit's calibration certificate (ISO/IEC 17025 §7.8): one self-contained HTML page,
+    /// printed on A4 pages numbered "Page i of n", with its number (from --db), the laboratory,
+    /// item, method, traceability, decision rule, U (k = 2) and the IEEE 1293 parameters, the
+    /// budget, the verifications, the coefficients, the model selection and Table 2.
     Report(ReportArgs),
     /// Diagnose the gap between a campaign and its linear-sensor simulation, and attribute it to
     /// effects checked on withheld data.
@@ -89,7 +90,7 @@ pub enum Command {
     /// directory, so that running the same command again after Ctrl-C or a crash goes on where it
     /// stopped. Exit code: 0 the unit passed, 1 it was rejected, 2 bad input, 3 the environment
     /// failed (port, probe, head, file system), 130 stopped.
-    Station(StationArgs),
+    Station(Box<StationArgs>),
     /// A unit's history from the calibration database: every run, the coefficient drift between
     /// consecutive calibrations with its uncertainty, the as-found and as-left verifications, and
     /// the recommended recalibration date.

@@ -1,5 +1,9 @@
 //! `accelcal report`: the calibration certificate of one unit, a self-contained HTML page (plots
-//! inline) that prints on one A4 page.
+//! inline) laid out as ISO/IEC 17025 §7.8 asks: its number (the run's, from the database), the
+//! laboratory, customer, item and condition on receipt, method, dates, traceability,
+//! environment, decision rule, who authorised it, then the results with U (`results`); every
+//! printed page ends with the number and "Page i of n" (CSS page margin boxes). No command-line
+//! wording reaches the page ([`plain`]).
 //!
 //! Everything on it is computed here from the unit's files, so that the page cannot disagree with
 //! them: the campaign (its `acquire` header: serial, device id, firmware, g, plan, date), the
@@ -23,6 +27,8 @@ use accelcal_line::verify::VerifyReport;
 use accelcal_shared::record::Record;
 
 use crate::cli::ReportArgs;
+
+mod results;
 use crate::report::plot::lines_svg;
 use crate::report::with_uncertainty;
 
@@ -179,6 +185,15 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
         (Some(rdb), Some((run, _))) => rdb.db.run_assets(*run)?,
         _ => Vec::new(),
     };
+    // The certificate's number: the run's, given once and never again to another.
+    let number = match (&mut db, &run) {
+        (Some(rdb), Some((run, _))) => {
+            let n = rdb.db.certificate_number(*run)?;
+            super::store::crash_point("db:certificate-number");
+            Some(n)
+        }
+        _ => None,
+    };
     let (rec, device_id, crc) = (&u.rec, &u.device_id, &u.crc);
     let g = u.fit_id.g_m_s2;
     // The g's origin: the campaign's, when the fit used it, else the fit's own --g/--latitude.
@@ -186,10 +201,15 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
     let (source, source_words) = match campaign_g {
         Some(cg) if (cg - g).abs() <= 1e-9 * g => {
             let s = u.get(G_SOURCE_KEY);
-            let words = s.clone().unwrap_or_else(|| format!("the campaign's `# {G_KEY}:`"));
+            // Acquire names a stated g by its option.
+            let words = match s.as_deref() {
+                Some("--g") => "the value the operator stated".to_string(),
+                Some(s) => plain(s),
+                None => "the value stated with the campaign".to_string(),
+            };
             (s, words)
         }
-        _ => (None, "the fit's --g or --latitude".to_string()),
+        _ => (None, "the value stated with the fit".to_string()),
     };
     let (g_bound, g_why) = g_uncertainty(g, source.as_deref());
     let method = match u.fit["method"].as_str() {
@@ -211,16 +231,35 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
     let sel = super::select::compute_on(&pos, &stats, &[], &settings)?;
     let cmp = accelcal_core::compare::compute(&campaign, None, g).ok();
 
-    let mut h = String::new();
     let serial = u.fit_id.serial.clone().unwrap_or_else(|| "-".into());
     let now = super::record::utc(super::created(None));
+    let temp = u.verify.as_ref().map(verification_temperature);
+    let budget = accelcal_core::uncertainty::UncertaintyJson::of_fit_json(&u.fit)
+        .map_err(|e| bad(format!("{}: its uncertainty is not a budget: {e}", a.fit.display())))?;
+    let numbered = number.as_ref().map(|n| n.number.clone());
+    let page_no = numbered.as_deref().map_or("draft, not numbered".to_string(), |n| format!("No. {n}"));
+    let mut h = String::new();
     let _ = write!(
         h,
-        "<!doctype html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>Calibration certificate {}</title><style>{CSS}</style></head><body>",
+        "<!doctype html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>Calibration certificate {}</title><style>{CSS}@page{{@bottom-left{{content:\"Calibration certificate {} \\2014  accelerometer triad {}\";{FOOT}}}@bottom-right{{content:\"Page \" counter(page) \" of \" counter(pages);{FOOT}}}}}</style></head><body>",
+        esc(&page_no),
+        css_text(&page_no),
+        css_text(&serial)
+    );
+    let lab = match &a.issuer.laboratory {
+        Some(l) => format!(
+            "<div class=\"lab\"><b>{}</b>{}</div>",
+            esc(l),
+            a.issuer.laboratory_address.as_deref().map(|s| format!("<br>{}", esc(s))).unwrap_or_default()
+        ),
+        None => String::new(),
+    };
+    let _ = write!(
+        h,
+        "<div class=\"top\"><div><h1>Calibration certificate {}</h1><div>Accelerometer triad {}</div></div>{lab}</div>",
+        esc(&page_no),
         esc(&serial)
     );
-    let _ = write!(h, "<h1>Calibration certificate &mdash; accelerometer triad {}</h1>", esc(&serial));
-    let temp = u.verify.as_ref().map(verification_temperature);
     let verdict = match &u.verify {
         Some(v) if v.pass && v.decision.is_some() => format!(
             "<span class=\"pass\">CONFORMS: every position accepted by the decision rule ({}), {}</span>",
@@ -236,7 +275,7 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
             v.positions.iter().filter(|p| !p.pass).count(),
             v.positions.len()
         ),
-        None => "<span class=\"fail\">not verified (no verification given)</span>".into(),
+        None => "<span class=\"fail\">not verified after calibration</span>".into(),
     };
     let found = match u.as_found.as_ref().and_then(|v| v.decision) {
         Some(d) if d.out_of_tolerance() => {
@@ -245,75 +284,114 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
         _ => String::new(),
     };
     let _ = write!(h, "<p class=\"verdict\">{verdict}{found}</p><table class=\"id\">");
-    let rows = [
-        ("Unit serial", serial.clone()),
-        ("Device id (MCU)", device_id.clone()),
-        ("Firmware", u.get("firmware").unwrap_or_else(|| "-".into())),
-        (
-            "Record",
-            format!(
-                "CRC {crc}, created {}, {}, fitted by {} ({} bytes, format {})",
-                super::record::utc(rec.created_unix_s),
-                match rec.thermal {
-                    Some(t) => format!(
-                        "model 4 with thermal terms {}, t = temp_c − {} °C, calibrated {} to {} °C, temperature from the {}",
-                        rec.structure,
-                        t.t_ref_c,
-                        t.t_min_c,
-                        t.t_max_c,
-                        t.source.name()
-                    ),
-                    None => format!("model 4 ({})", rec.structure),
-                },
-                method_words(method),
-                rec.len(),
-                rec.version()
-            ),
+    let plan = u.get("plan").unwrap_or_else(|| "-".into());
+    let mut rows: Vec<(&str, String)> = Vec::new();
+    if let Some(c) = &a.issuer.customer {
+        rows.push(("Customer", c.clone()));
+    }
+    rows.push((
+        "Item",
+        format!(
+            "accelerometer triad, serial {serial}; node device id (MCU) {device_id}, firmware {}",
+            u.get("firmware").unwrap_or_else(|| "-".into())
         ),
-        (
-            "g (local gravity)",
-            format!(
-                "{} m/s² ({}; {g_why})",
-                with_uncertainty(g, g_bound),
-                source_words
-            ),
+    ));
+    rows.push(("Condition on receipt", receipt(u.as_found.as_ref())));
+    rows.push((
+        "Method",
+        format!(
+            "static calibration in the Earth's gravity on a dividing head (the principle of ISO 16063-16), plan {plan}; \
+             output model 4 (u = u0 + k·a per channel) chosen by combinatorial GMDH (regularity criterion, the simplest model within one code of the best); coefficients by {}; accelcal {}",
+            method_words(method),
+            env!("CARGO_PKG_VERSION")
         ),
-        (
-            "Campaign",
-            format!(
-                "{} &mdash; plan {}, {} sets per position, acquired {}; SHA-256 {}",
-                esc(&a.campaign.display().to_string()),
-                esc(&u.get("plan").unwrap_or_else(|| "-".into())),
-                esc(&u.get("samples").unwrap_or_else(|| "-".into())),
-                esc(&u.get("date").unwrap_or_else(|| "-".into())),
-                &u.fit_id.campaign_sha256[..16]
-            ),
-        ),
-        (
-            "Issued",
-            match &a.issuer.laboratory {
-                Some(lab) => format!(
-                    "{now} by {lab}{} with accelcal {}",
-                    a.issuer.laboratory_address.as_deref().map(|s| format!(", {s}")).unwrap_or_default(),
-                    env!("CARGO_PKG_VERSION")
+    ));
+    rows.push((
+        "Record",
+        format!(
+            "CRC {crc}, created {}, {} ({} bytes, format {})",
+            super::record::utc(rec.created_unix_s),
+            match rec.thermal {
+                Some(t) => format!(
+                    "model 4 with thermal terms {}, t = temp_c − {} °C, calibrated {} to {} °C, temperature from the {}",
+                    rec.structure,
+                    t.t_ref_c,
+                    t.t_min_c,
+                    t.t_max_c,
+                    t.source.name()
                 ),
-                None => format!("{now} by accelcal {}", env!("CARGO_PKG_VERSION")),
+                None => format!("model 4 ({})", rec.structure),
             },
+            rec.len(),
+            rec.version()
         ),
-    ];
-    let traceability = (!assets.is_empty()).then(|| {
-        let named: Vec<String> = assets
-            .iter()
-            .map(|(kind, id, cert)| format!("{} {id}, calibration certificate {cert}", kind.name()))
-            .collect();
-        ("Reference equipment", named.join("; "))
-    });
-    let customer = a.issuer.customer.clone().map(|c| ("Customer", c));
-    for (k, v) in customer.into_iter().chain(rows).chain(traceability) {
+    ));
+    rows.push((
+        "Dates",
+        format!(
+            "calibrated {} (campaign acquired); issued {now}",
+            u.get("date").unwrap_or_else(|| "-".into())
+        ),
+    ));
+    rows.push((
+        "g (local gravity)",
+        format!("{} m/s² ({}; {g_why})", with_uncertainty(g, g_bound), plain(&source_words)),
+    ));
+    let head = match assets.iter().find(|(k, _, _)| *k == accelcal_db::asset::AssetKind::Head) {
+        Some((_, id, cert)) => format!("dividing head {id}, calibration certificate {cert}"),
+        None => "the dividing head is not a registered asset: its angles are traceable only as stated in the budget".into(),
+    };
+    let others: Vec<String> = assets
+        .iter()
+        .filter(|(k, _, _)| *k != accelcal_db::asset::AssetKind::Head)
+        .map(|(kind, id, cert)| format!("{} {id}, calibration certificate {cert}", kind.name()))
+        .collect();
+    rows.push((
+        "Traceability",
+        format!(
+            "g from {}; {head}{}",
+            plain(&source_words),
+            others.iter().map(|o| format!("; {o}")).collect::<String>()
+        ),
+    ));
+    rows.push((
+        "Environment",
+        temp.clone().map_or("temperature not measured (no verification after calibration)".into(), |t| {
+            format!("verified {t}")
+        }),
+    ));
+    rows.push(("Decision rule", decision_rule(u.verify.as_ref())));
+    rows.push((
+        "Campaign",
+        format!(
+            "{} &mdash; plan {}, {} sets per position; SHA-256 {}",
+            esc(&a.campaign.display().to_string()),
+            esc(&plan),
+            esc(&u.get("samples").unwrap_or_else(|| "-".into())),
+            &u.fit_id.campaign_sha256[..16]
+        ),
+    ));
+    if let Some((_, p)) = &run {
+        rows.push(("Calibrated by", p.start.operator.clone()));
+    }
+    rows.push((
+        "Authorised by",
+        a.issuer
+            .authorised_by
+            .clone()
+            .unwrap_or_else(|| "not authorised: a draft, not a certificate of calibration".into()),
+    ));
+    for (k, v) in rows {
         let v = if k == "Campaign" { v } else { esc(&v) };
         let _ = write!(h, "<tr><th class=\"l\">{k}</th><td class=\"l\">{v}</td></tr>");
     }
     h.push_str("</table>");
+    h.push_str(&results::section(rec, &u.fit, budget.as_ref()));
+    h.push_str(
+        "<p class=\"small\">The results relate only to the item calibrated. This certificate shall not be reproduced except in \
+         full without the laboratory's written approval. The expanded uncertainty is the standard uncertainty multiplied by the \
+         coverage factor k, evaluated after the GUM (JCGM 100:2008) by a method validated by Monte Carlo simulation after JCGM 101:2008.</p>",
+    );
     if let Some(v) = &u.as_found {
         h.push_str(&as_found(v));
     }
@@ -385,7 +463,7 @@ fn as_found(v: &VerifyReport) -> String {
         "<h2>As found (before recalibration), with the record in force then (CRC {})</h2><p>{verdict}; largest error {:.5} m/s²; {rule}: {}</p>{table}",
         esc(crc),
         max,
-        esc(&v.tolerance_rule)
+        esc(&plain(&v.tolerance_rule))
     )
 }
 
@@ -422,8 +500,8 @@ fn drift_since_last(h: &accelcal_db::history::History) -> String {
         rc.due_unix_s.map_or("-".to_string(), |t| super::record::utc(t.max(0) as u64)[..10].to_string());
     let _ = write!(
         s,
-        "<p>Recommended recalibration by <b>{due}</b>: {} (tolerance {} m/s² at 1 g, k = {}, at most {} days; method in <code>accelcal history --help</code>).</p>",
-        esc(&rc.basis),
+        "<p>Recommended recalibration by <b>{due}</b>: {} (tolerance {} m/s² at 1 g, k = {}, at most {} days; from the drift of each coefficient over the unit's calibrations, shortened after an as-found result out of tolerance as ILAC-G24 method 1).</p>",
+        esc(&plain(&rc.basis)),
         rc.rule.tolerance_m_s2,
         rc.rule.coverage,
         rc.rule.max_interval_days
@@ -436,6 +514,82 @@ fn label(m: Method) -> &'static str {
     match m {
         Method::Lsq => "LSQ",
         Method::TestTurns => "test turns",
+    }
+}
+
+/// The style of the page's footer (its margin boxes).
+const FOOT: &str = "font:7pt sans-serif;color:#444";
+
+/// Text as a CSS string's content: quotes and backslashes escaped, control characters left out.
+fn css_text(s: &str) -> String {
+    s.chars()
+        .filter(|c| !c.is_control())
+        .flat_map(|c| match c {
+            '"' | '\\' => vec!['\\', c],
+            c => vec![c],
+        })
+        .collect()
+}
+
+/// Text for the page without the tool's command-line wording: a parenthesis that names an
+/// option (`(not stated: --head-angle-u)`) is left out, and a remaining `--option` loses its
+/// dashes.
+pub(crate) fn plain(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    let mut rest = s;
+    while let Some(open) = rest.find('(') {
+        let Some(close) = rest[open..].find(')').map(|c| open + c) else { break };
+        let inner = &rest[open..=close];
+        out.push_str(&rest[..open]);
+        if !inner.contains("--") {
+            out.push_str(inner);
+        } else if out.ends_with(' ') {
+            out.pop();
+        }
+        rest = &rest[close + 1..];
+    }
+    out.push_str(rest);
+    out.replace(" --", " ").replace("`", "")
+}
+
+/// The unit's condition on receipt: its as-found verification.
+fn receipt(v: Option<&VerifyReport>) -> String {
+    let Some(v) = v else {
+        return "no calibration record in force, or not verified as found".into();
+    };
+    let crc = v.record["crc"].as_str().unwrap_or("(none)");
+    let max = v.positions.iter().flat_map(|p| p.error_m_s2).fold(0.0f64, |m, e| m.max(e.abs()));
+    let outcome = match v.decision {
+        Some(d) if d.out_of_tolerance() => format!("OUT OF TOLERANCE ({})", d.name()),
+        Some(d) => d.name().to_string(),
+        None if v.pass => "within the consistency bound".into(),
+        None => "outside the consistency bound".into(),
+    };
+    format!("verified as found with its record in force (CRC {crc}): {outcome}, largest error {max:.4} m/s²")
+}
+
+/// The decision rule and the statement of conformity it supports (ILAC-G8).
+fn decision_rule(v: Option<&VerifyReport>) -> String {
+    match v.and_then(|v| v.specification.as_ref().map(|s| (v, s))) {
+        Some((v, s)) => {
+            let w = match s.guard_band_m_s2 {
+                Some(w) => format!("guard band w = {w} m/s²"),
+                None => "guard band w = U of each result".into(),
+            };
+            let rule = match s.rule {
+                accelcal_core::conformity::RuleKind::Simple => "simple acceptance (ILAC-G8 §4.2.1): accepted when the error is within the limit".to_string(),
+                accelcal_core::conformity::RuleKind::GuardBand => {
+                    format!("guard band (ILAC-G8 §4.2.2): accepted when the error is within the limit less the guard band, {w}")
+                }
+            };
+            format!(
+                "specification of {}: |error| ≤ T = {} m/s² on each component at each position; {rule}; conformity: {}",
+                s.unit_type,
+                s.acceleration_error_m_s2,
+                v.decision.map_or("-", |d| d.name())
+            )
+        }
+        None => "no specification: the verification is a consistency check of the calibration, not a statement of conformity".into(),
     }
 }
 
@@ -468,7 +622,7 @@ fn verification(v: &VerifyReport, temp: &str) -> anyhow::Result<String> {
         h,
         "<h2>As left: verification on the head after flashing, {}: error of the calibrated output, m/s²</h2><p class=\"small\">{rule}: {}</p><div class=\"cols\"><div class=\"wide\">",
         esc(temp),
-        esc(&v.tolerance_rule)
+        esc(&plain(&v.tolerance_rule))
     );
     h.push_str(&position_table(v));
     h.push_str("</div><div>");
@@ -731,11 +885,11 @@ fn fit_plot(cmp: Option<&accelcal_core::compare::Comparison>) -> anyhow::Result<
     lines_svg("LSQ: error per held-out position", "held-out position", "m/s²", &series, (640, 330))
 }
 
-/// The page's style: one A4 page, compact tables, two columns of plots.
-const CSS: &str = "@page{size:A4;margin:9mm}body{font:8.5pt/1.25 sans-serif;margin:0;color:#111}\
+/// The page's style: A4 pages, compact tables, two columns of plots.
+const CSS: &str = "@page{size:A4;margin:9mm 9mm 11mm}.top{display:flex;justify-content:space-between;gap:6mm}.lab{text-align:right}body{font:8.5pt/1.25 sans-serif;margin:0;color:#111}\
 h1{font-size:13pt;margin:0 0 3px}h2{font-size:9.5pt;margin:7px 0 3px;border-bottom:1px solid #888}\
 table{border-collapse:collapse;width:100%}td,th{border:1px solid #ccc;padding:1px 4px;text-align:right;\
 font-variant-numeric:tabular-nums}th{background:#eee;font-weight:600}.l{text-align:left}.id th{width:24%}\
 .pass{color:#060}.fail{color:#b00;font-weight:bold}.verdict{font-size:10.5pt;margin:2px 0 5px}\
 .small{font-size:7.5pt;margin:1px 0 3px}.cols{display:flex;gap:5mm;align-items:flex-start}.cols>div{flex:1;min-width:0}\
-.cols>div.wide{flex:1.6}svg{width:100%;height:auto}";
+.cols>div.wide{flex:1.6}svg{width:100%;height:auto}.budget td:not(.l){white-space:nowrap}";

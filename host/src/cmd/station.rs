@@ -658,6 +658,7 @@ impl Station<'_> {
             ("--laboratory", &i.laboratory),
             ("--laboratory-address", &i.laboratory_address),
             ("--customer", &i.customer),
+            ("--authorised-by", &i.authorised_by),
         ] {
             if let Some(v) = v {
                 args.extend([flag.into(), v.clone()]);

@@ -29,6 +29,7 @@ struct StationConfig {
     /// The laboratory that issues the certificates.
     laboratory: Option<Spanned<Laboratory>>,
     customer: Option<Spanned<String>>,
+    authorised_by: Option<Spanned<String>>,
     station: Option<Spanned<String>>,
     operator: Option<Spanned<String>>,
     head: Option<Spanned<String>>,
@@ -88,6 +89,7 @@ pub fn apply(command: &mut Command, given: &mut Given) -> anyhow::Result<()> {
     f.text_value(&mut a.station_name, "station_name", "station", c.station)?;
     f.text_value(&mut a.operator, "operator", "operator", c.operator)?;
     f.text_value(&mut a.issuer.customer, "customer", "customer", c.customer)?;
+    f.text_value(&mut a.issuer.authorised_by, "authorised_by", "authorised_by", c.authorised_by)?;
     if let Some(lab) = c.laboratory {
         let at = f.at(&lab);
         let lab = lab.into_inner();
