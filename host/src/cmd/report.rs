@@ -520,15 +520,23 @@ fn label(m: Method) -> &'static str {
 /// The style of the page's footer (its margin boxes).
 const FOOT: &str = "font:7pt sans-serif;color:#444";
 
-/// Text as a CSS string's content: quotes and backslashes escaped, control characters left out.
+/// Text as a CSS string's content inside the page's `<style>`: quotes and backslashes escaped,
+/// `<` and `>` as CSS escapes (a `</style>` in a serial number must not end the element),
+/// control characters left out.
 fn css_text(s: &str) -> String {
-    s.chars()
-        .filter(|c| !c.is_control())
-        .flat_map(|c| match c {
-            '"' | '\\' => vec!['\\', c],
-            c => vec![c],
-        })
-        .collect()
+    let mut out = String::with_capacity(s.len());
+    for c in s.chars().filter(|c| !c.is_control()) {
+        match c {
+            '"' | '\\' => {
+                out.push('\\');
+                out.push(c);
+            }
+            '<' => out.push_str("\\3C "),
+            '>' => out.push_str("\\3E "),
+            c => out.push(c),
+        }
+    }
+    out
 }
 
 /// Text for the page without the tool's command-line wording: a parenthesis that names an
@@ -893,3 +901,27 @@ font-variant-numeric:tabular-nums}th{background:#eee;font-weight:600}.l{text-ali
 .pass{color:#060}.fail{color:#b00;font-weight:bold}.verdict{font-size:10.5pt;margin:2px 0 5px}\
 .small{font-size:7.5pt;margin:1px 0 3px}.cols{display:flex;gap:5mm;align-items:flex-start}.cols>div{flex:1;min-width:0}\
 .cols>div.wide{flex:1.6}svg{width:100%;height:auto}.budget td:not(.l){white-space:nowrap}";
+
+#[cfg(test)]
+mod tests {
+    use super::{css_text, plain};
+
+    #[test]
+    fn command_line_wording_is_kept_off_the_page() {
+        assert_eq!(plain("default 9.81 m/s² (no --g or --latitude given)"), "default 9.81 m/s²");
+        assert_eq!(
+            plain("the head's angle setting error (not stated: --head-angle-u); the rest (as stated)"),
+            "the head's angle setting error; the rest (as stated)"
+        );
+        assert_eq!(plain("at most 365 days (--max-interval-days), or less"), "at most 365 days, or less");
+        assert_eq!(plain("the campaign's `# g_m_s2:` line"), "the campaign's # g_m_s2: line");
+        assert_eq!(plain("an unclosed (paren"), "an unclosed (paren");
+    }
+
+    #[test]
+    fn text_in_a_css_string_cannot_end_it() {
+        assert_eq!(css_text(r#"U-42"; } body { x"#), r#"U-42\"; } body { x"#);
+        assert_eq!(css_text("a\\b\nc"), "a\\\\bc");
+        assert_eq!(css_text("</style><b>"), "\\3C /style\\3E \\3C b\\3E ");
+    }
+}
