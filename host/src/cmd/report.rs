@@ -900,7 +900,7 @@ table{border-collapse:collapse;width:100%}td,th{border:1px solid #ccc;padding:1p
 font-variant-numeric:tabular-nums}th{background:#eee;font-weight:600}.l{text-align:left}.id th{width:24%}\
 .pass{color:#060}.fail{color:#b00;font-weight:bold}.verdict{font-size:10.5pt;margin:2px 0 5px}\
 .small{font-size:7.5pt;margin:1px 0 3px}.cols{display:flex;gap:5mm;align-items:flex-start}.cols>div{flex:1;min-width:0}\
-.cols>div.wide{flex:1.6}svg{width:100%;height:auto}.budget td:not(.l){white-space:nowrap}";
+.cols>div.wide{flex:1.6}svg{width:100%;height:auto}.budget td:not(.l){white-space:nowrap}h2{break-after:avoid}tr,.small{break-inside:avoid}";
 
 #[cfg(test)]
 mod tests {
