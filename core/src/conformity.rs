@@ -55,6 +55,16 @@ pub struct Specification {
     /// each result].
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub guard_band_m_s2: Option<f64>,
+    /// The limit on each axis's bias error, mg (IEEE Std 1293's K0, as the verification's
+    /// ±axis positions measure it: [`parameters`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bias_mg: Option<f64>,
+    /// The limit on each axis's scale-factor error, ppm (K1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scale_factor_ppm: Option<f64>,
+    /// The limit on each input-axis misalignment, µrad (δ).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub misalignment_urad: Option<f64>,
 }
 
 /// A specification that cannot be applied.
@@ -91,6 +101,15 @@ impl Specification {
                 )));
             }
         }
+        for (key, v) in [
+            ("bias_mg", self.bias_mg),
+            ("scale_factor_ppm", self.scale_factor_ppm),
+            ("misalignment_urad", self.misalignment_urad),
+        ] {
+            if let Some(v) = v.filter(|v| !(v.is_finite() && *v > 0.0)) {
+                return Err(SpecError(format!("`{key}` must be a positive limit, got {v}")));
+            }
+        }
         if self.unit_type.trim().is_empty() || self.unit_type.contains(['\n', '\r']) {
             return Err(SpecError("`unit_type` must be one line of text".into()));
         }
@@ -115,14 +134,41 @@ impl Specification {
         }
     }
 
+    /// Whether it limits a parameter of the triad (bias, scale factor, misalignment), which a
+    /// verification must then measure at the six ±axis positions.
+    pub fn limits_parameters(&self) -> bool {
+        self.bias_mg.is_some() || self.scale_factor_ppm.is_some() || self.misalignment_urad.is_some()
+    }
+
+    /// The parameters' limits in words (empty without any).
+    pub fn describe_parameters(&self) -> String {
+        let mut parts = Vec::new();
+        if let Some(b) = self.bias_mg {
+            parts.push(format!("|bias error| ≤ {b} mg"));
+        }
+        if let Some(s) = self.scale_factor_ppm {
+            parts.push(format!("|scale-factor error| ≤ {s} ppm"));
+        }
+        if let Some(m) = self.misalignment_urad {
+            parts.push(format!("|misalignment| ≤ {m} µrad"));
+        }
+        parts.join(", ")
+    }
+
     /// The decision on a measured error `e` (m/s²) with expanded uncertainty `u_expanded`.
     pub fn decide(&self, e: f64, u_expanded: f64) -> Decision {
-        let (t, a) = (self.acceleration_error_m_s2, e.abs());
+        self.decide_against(self.acceleration_error_m_s2, self.guard_band_m_s2, e, u_expanded)
+    }
+
+    /// The decision on a result `e` with expanded uncertainty `u_expanded` against the limit
+    /// `t`, by the rule, with the guard band `w` (`None`: `U`).
+    fn decide_against(&self, t: f64, w: Option<f64>, e: f64, u_expanded: f64) -> Decision {
+        let a = e.abs();
         match self.rule {
             RuleKind::Simple if a <= t => Decision::Pass,
             RuleKind::Simple => Decision::Fail,
             RuleKind::GuardBand => {
-                let w = self.guard_band_m_s2.unwrap_or(u_expanded);
+                let w = w.unwrap_or(u_expanded);
                 if a <= t - w {
                     Decision::Pass
                 } else if a <= t {
@@ -216,6 +262,119 @@ pub fn measured_error_u(
     })
 }
 
+/// A parameter of the triad measured by a verification and decided against its limit.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ParameterCheck {
+    /// `bias`, `scale_factor` or `misalignment`.
+    pub parameter: String,
+    /// The channel (`x`), or the channel and the axis it leans toward (`x→y`).
+    pub axis: String,
+    /// The measured error, in `unit`.
+    pub value: f64,
+    /// Its expanded uncertainty (k = 2), in `unit`.
+    #[serde(rename = "U")]
+    pub u_expanded: f64,
+    /// The limit, in `unit`.
+    pub limit: f64,
+    /// `mg`, `ppm` or `µrad`.
+    pub unit: String,
+    /// The decision (the guard band, for a guard-band rule, is `U`).
+    pub decision: Decision,
+}
+
+/// One position of a verification as [`parameters`] reads it: what the head imposed, m/s², the
+/// error of each component and its expanded uncertainty, m/s².
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Measured {
+    /// What the head imposes.
+    pub expected_m_s2: [f64; 3],
+    /// The error of each component.
+    pub error_m_s2: [f64; 3],
+    /// Its expanded uncertainty.
+    pub u_expanded_m_s2: [f64; 3],
+}
+
+/// Standard gravity g_n, m/s²: the unit of "mg".
+const G_N: f64 = 9.80665;
+
+/// The triad's parameter errors that a verification's ±axis positions measure, decided against
+/// the specification's limits. At the position imposing +g along axis j and the one imposing
+/// −g (each within 2 % of g, the other axes within 2 % of g of 0), channel c's errors are e⁺ and
+/// e⁻: its bias error is (e⁺ + e⁻)/2 at j = c, its scale-factor error (e⁺ − e⁻)/(2g) at j = c,
+/// its misalignment toward j (e⁺ − e⁻)/(2g) at j ≠ c; U combines the two positions' U in
+/// quadrature (their measurements are independent: a position's scatter and its head setting).
+/// Empty without parameter limits; an error naming the axis when the positions lack a ±axis
+/// pair a limit needs.
+pub fn parameters(
+    spec: &Specification,
+    g: f64,
+    positions: &[Measured],
+) -> Result<Vec<ParameterCheck>, SpecError> {
+    if !spec.limits_parameters() {
+        return Ok(Vec::new());
+    }
+    const AXES: [&str; 3] = ["x", "y", "z"];
+    let along = |j: usize, sign: f64| {
+        positions.iter().find(|p| {
+            (0..3).all(|i| {
+                let want = if i == j { sign * g } else { 0.0 };
+                (p.expected_m_s2[i] - want).abs() <= 0.02 * g
+            })
+        })
+    };
+    let mut pairs = Vec::with_capacity(3);
+    for j in 0..3 {
+        match (along(j, 1.0), along(j, -1.0)) {
+            (Some(p), Some(m)) => pairs.push((p, m)),
+            _ => {
+                return Err(SpecError(format!(
+                    "limits bias, scale factor or misalignment, which need a position imposing +g and one imposing −g along each axis: the plan has none along {} (verify with the six-position plan `six`)",
+                    AXES[j]
+                )))
+            }
+        }
+    }
+    let mut out = Vec::new();
+    let mut check = |parameter: &str, axis: String, value: f64, u: f64, limit: f64, unit: &str| {
+        out.push(ParameterCheck {
+            parameter: parameter.into(),
+            axis,
+            value,
+            u_expanded: u,
+            limit,
+            unit: unit.into(),
+            decision: spec.decide_against(limit, None, value, u),
+        });
+    };
+    for c in 0..3 {
+        let (p, m) = pairs[c];
+        let (ep, em) = (p.error_m_s2[c], m.error_m_s2[c]);
+        let u = p.u_expanded_m_s2[c].hypot(m.u_expanded_m_s2[c]);
+        if let Some(t) = spec.bias_mg {
+            check("bias", AXES[c].into(), (ep + em) / 2.0 / G_N * 1e3, u / 2.0 / G_N * 1e3, t, "mg");
+        }
+        if let Some(t) = spec.scale_factor_ppm {
+            check("scale_factor", AXES[c].into(), (ep - em) / (2.0 * g) * 1e6, u / (2.0 * g) * 1e6, t, "ppm");
+        }
+        if let Some(t) = spec.misalignment_urad {
+            for j in (0..3).filter(|&j| j != c) {
+                let (p, m) = pairs[j];
+                let (ep, em) = (p.error_m_s2[c], m.error_m_s2[c]);
+                let u = p.u_expanded_m_s2[c].hypot(m.u_expanded_m_s2[c]);
+                check(
+                    "misalignment",
+                    format!("{}→{}", AXES[c], AXES[j]),
+                    (ep - em) / (2.0 * g) * 1e6,
+                    u / (2.0 * g) * 1e6,
+                    t,
+                    "µrad",
+                );
+            }
+        }
+    }
+    Ok(out)
+}
+
 /// The share of each decision (pass, conditional pass, conditional fail, fail) when the true
 /// error is `true_error` and each measurement of it errs by a normal deviate of standard
 /// deviation `u` (m/s², so U = [`K`]·u): `n` draws from `seed`.
@@ -247,7 +406,68 @@ mod tests {
             acceleration_error_m_s2: 0.05,
             rule,
             guard_band_m_s2: w,
+            bias_mg: None,
+            scale_factor_ppm: None,
+            misalignment_urad: None,
         }
+    }
+
+    /// Errors made by a bias b and a scale/misalignment matrix S (e = b + S·a) at the six ±axis
+    /// positions (and one tilted position, which is not read) come back as b, the diagonal and
+    /// the off-diagonal of S, decided against their limits; a plan without a ±axis pair is
+    /// refused when a parameter is limited.
+    #[test]
+    fn the_six_axis_positions_give_bias_scale_factor_and_misalignment() {
+        let g = 9.81;
+        let b = [0.01, 0.0, -0.02];
+        let mut sm = [[0.0; 3]; 3];
+        sm[0][0] = 100e-6;
+        sm[0][1] = 50e-6;
+        sm[2][1] = -400e-6;
+        let at = |a: [f64; 3]| Measured {
+            expected_m_s2: a,
+            error_m_s2: [0, 1, 2].map(|c| b[c] + (0..3).map(|j| sm[c][j] * a[j]).sum::<f64>()),
+            u_expanded_m_s2: [0.0002; 3],
+        };
+        let mut six: Vec<Measured> = (0..3)
+            .flat_map(|j| {
+                [1.0, -1.0].map(|s| {
+                    let mut a = [0.0; 3];
+                    a[j] = s * g;
+                    at(a)
+                })
+            })
+            .collect();
+        six.insert(2, at([g / 2f64.sqrt(), g / 2f64.sqrt(), 0.0]));
+        let limited = Specification {
+            bias_mg: Some(1.03),
+            scale_factor_ppm: Some(200.0),
+            misalignment_urad: Some(390.0),
+            ..spec(RuleKind::GuardBand, None)
+        };
+        assert!(limited.check().is_ok());
+        let r = parameters(&limited, g, &six).unwrap();
+        let find =
+            |p: &str, axis: &str| r.iter().find(|c| c.parameter == p && c.axis == axis).unwrap().clone();
+        let bx = find("bias", "x");
+        assert!((bx.value - 0.01 / G_N * 1e3).abs() < 1e-9, "{bx:?}");
+        assert!((bx.u_expanded - 0.0002 * 2f64.sqrt() / 2.0 / G_N * 1e3).abs() < 1e-9);
+        assert_eq!(bx.decision, Decision::ConditionalPass, "1.020 mg, U 0.014 mg, T 1.03 mg: {bx:?}");
+        assert_eq!(find("bias", "z").decision, Decision::Fail, "2.04 mg");
+        let sx = find("scale_factor", "x");
+        assert!((sx.value - 100.0).abs() < 1e-6 && sx.unit == "ppm", "{sx:?}");
+        assert_eq!(sx.decision, Decision::Pass, "100 ppm, U 14 ppm, T 200 ppm: {sx:?}");
+        let mxy = find("misalignment", "x→y");
+        assert!((mxy.value - 50.0).abs() < 1e-6, "{mxy:?}");
+        assert!((find("misalignment", "z→y").value + 400.0).abs() < 1e-6);
+        assert_eq!(find("misalignment", "z→y").decision, Decision::ConditionalFail, "400 µrad, U 14, T 390");
+        assert_eq!(r.len(), 3 + 3 + 6);
+        // No parameter limited: nothing to measure, whatever the plan.
+        assert!(parameters(&spec(RuleKind::Simple, None), g, &six[..2]).unwrap().is_empty());
+        let e = parameters(&limited, g, &six[..4]).unwrap_err().to_string();
+        assert!(e.contains("the plan has none along y"), "{e}");
+        let bad = Specification { bias_mg: Some(-1.0), ..limited };
+        assert!(bad.check().unwrap_err().to_string().contains("`bias_mg` must be a positive limit, got -1"));
     }
 
     #[test]

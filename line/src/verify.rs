@@ -29,7 +29,9 @@ use serde::Serialize;
 use crate::acquire::{block_kind, capture, Captured, Positioner, StaticRule};
 use crate::node::session::{device_id_hex, record_json, Session};
 use accelcal_core::campaign::identity::{self, Identity};
-use accelcal_core::conformity::{measured_error_u, Decision, Specification, VerifyReferences};
+use accelcal_core::conformity::{
+    measured_error_u, parameters, Decision, Measured, ParameterCheck, Specification, VerifyReferences,
+};
 use accelcal_core::error::bad;
 use accelcal_core::error::{Classify, Kind};
 use accelcal_core::sim::Plan;
@@ -241,14 +243,26 @@ pub fn uncertainty_from_fit_json(text: &str, what: &str) -> anyhow::Result<CalUn
     Ok(CalUncertainty { channels, t_ref_c })
 }
 
-/// A verification in which a position failed (exit code 1: the node, not the input, is wrong).
+/// A verification in which a position failed, or a parameter the specification limits was not
+/// accepted (exit code 1: the node, not the input, is wrong).
 #[derive(Debug, thiserror::Error)]
-#[error("verification failed: {failed} of {total} positions outside the tolerance")]
+#[error("verification failed: {}", failed_words(.failed, .total, .parameters))]
 pub struct Failed {
     /// Positions that failed.
     pub failed: usize,
     /// Positions checked.
     pub total: usize,
+    /// The parameters the decision rule did not accept, in words (`bias x +2.04 mg (fail)`).
+    pub parameters: Vec<String>,
+}
+
+fn failed_words(failed: &usize, total: &usize, parameters: &[String]) -> String {
+    let params = format!("the decision rule does not accept {}", parameters.join(", "));
+    match (failed, parameters.is_empty()) {
+        (0, false) => params,
+        (_, true) => format!("{failed} of {total} positions outside the tolerance"),
+        (_, false) => format!("{failed} of {total} positions outside the tolerance; {params}"),
+    }
 }
 
 impl Classify for Failed {
@@ -347,12 +361,41 @@ pub struct VerifyReport {
     /// The specification and decision rule applied (`--spec`), when one was.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub specification: Option<Specification>,
-    /// The worst decision over every position and component, when a specification was applied.
+    /// The worst decision over every position and component (and parameter), when a
+    /// specification was applied.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub decision: Option<Decision>,
+    /// With a specification that limits them: the bias, scale-factor and misalignment errors the
+    /// ±axis positions measure, each decided ([`accelcal_core::conformity::parameters`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub parameters: Option<Vec<ParameterCheck>>,
 }
 
 impl VerifyReport {
+    /// Why the verification did not pass, or `None` when it passed: the positions outside
+    /// their tolerance and the parameters not accepted.
+    pub fn failure(&self) -> Option<Failed> {
+        let failed = self.positions.iter().filter(|p| !p.pass).count();
+        let parameters: Vec<String> = self
+            .parameters
+            .iter()
+            .flatten()
+            .filter(|c| !c.decision.accepted())
+            .map(|c| {
+                format!(
+                    "{} {} {:+.4} {} ({})",
+                    c.parameter.replace('_', " "),
+                    c.axis,
+                    c.value,
+                    c.unit,
+                    c.decision.name()
+                )
+            })
+            .collect();
+        let total = self.positions.len();
+        (failed > 0 || !parameters.is_empty() || total == 0).then_some(Failed { failed, total, parameters })
+    }
+
     /// Reads a report that `verify --json` wrote.
     pub fn read(path: &std::path::Path) -> anyhow::Result<VerifyReport> {
         let name = path.display();
@@ -404,6 +447,24 @@ fn calibrated_values(b: &Block) -> Result<Vec<[f64; 3]>, String> {
     }
 }
 
+/// Refuses a plan (head angles α, β in degrees) without the ±axis positions that measure the
+/// parameters `spec` limits (bad input: checked before the node is touched).
+pub fn plan_measures_parameters(
+    spec: &Specification,
+    positions: &[(f64, f64)],
+    g: f64,
+) -> anyhow::Result<()> {
+    let planned: Vec<Measured> = positions
+        .iter()
+        .map(|&(a, b)| Measured {
+            expected_m_s2: accelcal_shared::gravity(a, b, g),
+            error_m_s2: [0.0; 3],
+            u_expanded_m_s2: [0.0; 3],
+        })
+        .collect();
+    parameters(spec, g, &planned).map(|_| ()).map_err(|e| bad(e.to_string()))
+}
+
 /// Runs a verification; `on_position` sees each check as it is made.
 pub fn verify(
     node: &mut Session,
@@ -412,6 +473,9 @@ pub fn verify(
     on_position: &mut dyn FnMut(&PositionCheck, usize),
     stop: &AtomicBool,
 ) -> anyhow::Result<VerifyReport> {
+    if let Some((spec, _)) = &cfg.spec {
+        plan_measures_parameters(spec, &cfg.plan.positions, cfg.g)?;
+    }
     let info = node.info()?;
     if let RecordStatus::Missing(f) = info.record {
         return Err(bad(format!(
@@ -438,16 +502,43 @@ pub fn verify(
         fit: cfg.fit.as_ref().map(|(_, id)| id.clone()),
         specification: cfg.spec.as_ref().map(|(s, _)| s.clone()),
         decision: None,
+        parameters: None,
     };
     if let Some((spec, _)) = &cfg.spec {
         report.tolerance_rule = spec.describe();
+        if spec.limits_parameters() {
+            report.tolerance_rule.push_str(&format!("; {}", spec.describe_parameters()));
+        }
     }
     let result = run(node, head, cfg, on_position, stop, &mut report);
     let restored = if before != Output::Calibrated { node.set_output(before).map(|_| ()) } else { Ok(()) };
     result?;
     restored?;
-    report.pass = !report.interrupted && report.positions.iter().all(|p| p.pass);
-    report.decision = report.positions.iter().filter_map(|p| p.decisions).flatten().max();
+    if let Some((spec, _)) = cfg.spec.as_ref().filter(|(s, _)| s.limits_parameters() && !report.interrupted) {
+        let measured: Vec<Measured> = report
+            .positions
+            .iter()
+            .filter_map(|p| {
+                Some(Measured {
+                    expected_m_s2: p.expected_m_s2,
+                    error_m_s2: p.error_m_s2,
+                    u_expanded_m_s2: p.u_expanded_m_s2?,
+                })
+            })
+            .collect();
+        report.parameters = Some(parameters(spec, cfg.g, &measured).map_err(|e| bad(e.to_string()))?);
+    }
+    let params = report.parameters.as_deref().unwrap_or_default();
+    report.pass = !report.interrupted
+        && report.positions.iter().all(|p| p.pass)
+        && params.iter().all(|c| c.decision.accepted());
+    report.decision = report
+        .positions
+        .iter()
+        .filter_map(|p| p.decisions)
+        .flatten()
+        .chain(params.iter().map(|c| c.decision))
+        .max();
     Ok(report)
 }
 

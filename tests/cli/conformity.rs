@@ -29,6 +29,10 @@ fn a_specification_file_is_checked_before_the_node_is_touched() {
             "unit_type = \"T\"\nacceleration_error_m_s2 = 0\nrule = \"simple\"\n",
             "must be a positive number of m/s²",
         ),
+        (
+            "unit_type = \"T\"\nacceleration_error_m_s2 = 0.05\nrule = \"simple\"\nbias_mg = -1\n",
+            "`bias_mg` must be a positive limit, got -1",
+        ),
     ] {
         let f = d.p("spec.toml");
         std::fs::write(&f, text).unwrap();
@@ -44,6 +48,20 @@ fn a_specification_file_is_checked_before_the_node_is_touched() {
         assert_eq!(o.status.code(), Some(2), "{opt}");
         assert!(String::from_utf8_lossy(&o.stderr).contains("cannot be used with"), "{o:?}");
     }
+    // A bias limit is measured at the ±axis positions: a plan without them is refused before
+    // the port is opened (bad input, not the environment's exit code 3).
+    std::fs::write(
+        d.p("spec.toml"),
+        "unit_type = \"T\"\nacceleration_error_m_s2 = 0.05\nrule = \"guard-band\"\nbias_mg = 3\n",
+    )
+    .unwrap();
+    let mut args = verify(&d.s("spec.toml"));
+    args.extend(["--plan".to_string(), "random:8".to_string()]);
+    let e = common::bad(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(
+        e.contains("a position imposing +g and one imposing −g along each axis: the plan has none along x"),
+        "{e}"
+    );
     let o = accelcal(&["verify", "--port", "/dev/null/none", "--head", "manual", "--head-angle-u", "3"]);
     assert_eq!(o.status.code(), Some(2), "--head-angle-u needs --spec");
 }

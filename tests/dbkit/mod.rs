@@ -133,6 +133,7 @@ pub fn verification(device: &str, max_err: f64, tol: f64) -> VerifyReport {
         fit: None,
         specification: None,
         decision: None,
+        parameters: None,
     }
 }
 

@@ -249,7 +249,8 @@ fn two_stations_store_into_one_postgresql_server_at_once() {
 /// Issue 30.4: against a specification (T = 0.05 m/s², guard band U), an as-found bias shift
 /// of 0.035 m/s² on x (inside T: it failed 6/6 against the 4σ consistency bound) is a pass, and
 /// a shift of 0.09 m/s² (outside) is out of tolerance: on the station's last line, in the
-/// journal and on the certificate's headline, while the recalibrated unit passes as left.
+/// journal and on the certificate's headline, while the recalibrated unit passes as left. With a
+/// bias limit of 3 mg, the 0.035 m/s² shift (3.6 mg) is out of tolerance by its bias alone.
 #[test]
 fn an_as_found_drift_is_decided_against_the_specification() {
     let _one = one_bench();
@@ -260,11 +261,15 @@ fn an_as_found_drift_is_decided_against_the_specification() {
         "unit_type = \"MS9002.D triad\"\nacceleration_error_m_s2 = 0.05\nrule = \"guard-band\"\n",
     )
     .unwrap();
-    let with_spec = |em: &Emulator, d: &Path| -> Vec<String> {
+    // The same, and a bias limit of 3 mg (0.029 m/s²) on each axis, which the verification's
+    // ±axis positions measure.
+    let spec_bias = dir.path().join("spec-bias.toml");
+    std::fs::write(&spec_bias, format!("{}bias_mg = 3\n", std::fs::read_to_string(&spec).unwrap())).unwrap();
+    let with_spec = |em: &Emulator, d: &Path, spec: &Path| -> Vec<String> {
         let mut v: Vec<String> = station_args(em, "A-1", d, &[]).iter().map(|w| w.to_string()).collect();
         let at = v.iter().position(|w| w == "--coverage").unwrap();
         v.drain(at..at + 2);
-        v.extend(["--spec".to_string(), s(&spec).to_string()]);
+        v.extend(["--spec".to_string(), s(spec).to_string()]);
         v
     };
     let run = |args: &[String]| succeed(&args.iter().map(String::as_str).collect::<Vec<_>>());
@@ -324,7 +329,14 @@ fn an_as_found_drift_is_decided_against_the_specification() {
         );
     }
     let record = first.join("record.rec");
-    for (name, shift_m_s2, out_of_tolerance) in [("drift-in", 0.035, false), ("drift-out", 0.09, true)] {
+    // Inside T; beyond T; inside T but beyond the bias limit (every position accepted, the
+    // bias not).
+    let cases = [
+        ("drift-in", 0.035, &spec, None),
+        ("drift-out", 0.09, &spec, Some("fail: 6 of 6 positions not accepted)")),
+        ("drift-bias", 0.035, &spec_bias, Some("fail: 0 of 6 positions not accepted; bias x +3.")),
+    ];
+    for (name, shift_m_s2, spec, out_of_tolerance) in cases {
         // The same unit, its x bias moved (codes = m/s² × its sensitivity), with the record of
         // its first calibration in force.
         let mut t = json(&truth);
@@ -335,7 +347,7 @@ fn an_as_found_drift_is_decided_against_the_specification() {
         std::fs::write(&moved, t.to_string()).unwrap();
         let em = Emulator::start(&moved, &["--record", s(&record)]);
         let d = dir.path().join(name);
-        let out = run(&with_spec(&em, &d));
+        let out = run(&with_spec(&em, &d, spec));
         let text = String::from_utf8_lossy(&out.stdout);
         let last = text.lines().last().unwrap_or_default();
         let found = json(&d.join("as-found.json"));
@@ -348,14 +360,9 @@ fn an_as_found_drift_is_decided_against_the_specification() {
         assert!(x_errors.iter().all(|e| (e - shift_m_s2).abs() < 0.01), "{x_errors:?}");
         let cert = std::fs::read_to_string(d.join("certificate.html")).unwrap();
         let as_found_step = &journal(&d)[1].1;
-        if out_of_tolerance {
+        if let Some(why) = out_of_tolerance {
             assert_eq!(found["decision"], "fail");
-            assert!(
-                last.contains(
-                    "PASS as left, but AS FOUND OUT OF TOLERANCE (fail: 6 of 6 positions not accepted)"
-                ),
-                "{last}"
-            );
+            assert!(last.contains(&format!("PASS as left, but AS FOUND OUT OF TOLERANCE ({why}")), "{last}");
             assert!(
                 as_found_step.starts_with("FAIL (6 positions, decision rule guard-band)"),
                 "{as_found_step}"
@@ -387,5 +394,25 @@ fn an_as_found_drift_is_decided_against_the_specification() {
             ],
         );
         assert_eq!(json(&d.join("as-left.json"))["decision"], "pass");
+        if name == "drift-bias" {
+            let bias_x = found["parameters"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .find(|c| c["parameter"] == "bias" && c["axis"] == "x")
+                .unwrap()
+                .clone();
+            let mg = shift_m_s2 / 9.80665 * 1e3;
+            assert!(
+                (bias_x["value"].as_f64().unwrap() - mg).abs() < 0.5 && bias_x["unit"] == "mg",
+                "{bias_x}"
+            );
+            assert_eq!(bias_x["decision"], "fail", "{bias_x}");
+            assert!(found["positions"].as_array().unwrap().iter().all(|p| p["pass"] == true), "{found}");
+            assert!(
+                cert.contains("parameter (from the ±axis positions)"),
+                "the certificate shows the parameters"
+            );
+        }
     }
 }

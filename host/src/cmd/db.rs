@@ -60,8 +60,12 @@ pub fn run_verify(a: &DbVerifyArgs) -> anyhow::Result<()> {
             for m in r.mismatches.iter().skip(1) {
                 println!("  also: {m}");
             }
-            Err(anyhow::Error::new(Failed { failed: r.mismatches.len(), total: r.rows.max(r.entries) })
-                .context(format!("{} does not match its hash chain: {first}", db.target())))
+            Err(anyhow::Error::new(Failed {
+                failed: r.mismatches.len(),
+                total: r.rows.max(r.entries),
+                parameters: Vec::new(),
+            })
+            .context(format!("{} does not match its hash chain: {first}", db.target())))
         }
     }
 }

@@ -16,8 +16,8 @@ use accelcal_line::acquire::{
 use accelcal_line::node::head::{HeadSpec, SimHead};
 use accelcal_line::node::session::{device_id_hex, firmware_version, record_json, Session};
 use accelcal_line::verify::{
-    calibrated_rule, uncertainty_from_fit_json, verify, Failed, PositionCheck, Tolerance, VerifyConfig,
-    VerifyReport, DEFAULT_COVERAGE,
+    calibrated_rule, uncertainty_from_fit_json, verify, PositionCheck, Tolerance, VerifyConfig, VerifyReport,
+    DEFAULT_COVERAGE,
 };
 use accelcal_shared::wire::{Info, Output, RecordStatus};
 use serde_json::json;
@@ -488,6 +488,9 @@ pub fn run_verify(a: &VerifyArgs) -> anyhow::Result<()> {
         _ => g_source(a.g, &a.local),
     };
     let spec = a.spec.as_deref().map(super::spec::read).transpose()?;
+    if let Some(s) = &spec {
+        accelcal_line::verify::plan_measures_parameters(s, &plan.positions, g)?;
+    }
     let (refs, not_included) = super::spec::references(g, &g_source, a.head_angle_u, a.head_orthogonality_u);
     let mut db = super::store::open(&a.run)?;
     let stop = stop_flag()?;
@@ -539,12 +542,26 @@ pub fn run_verify(a: &VerifyArgs) -> anyhow::Result<()> {
             rdb.db.target()
         );
         // A failed as-left verification rejects the unit, as at the station.
-        let failed = report.positions.iter().filter(|p| !p.pass).count();
-        if phase == accelcal_db::Phase::AsLeft && failed > 0 {
-            let why = format!("as-left verification: {}", Failed { failed, total: report.positions.len() });
+        if let (accelcal_db::Phase::AsLeft, Some(f)) =
+            (phase, report.failure().filter(|_| !report.interrupted))
+        {
+            let why = format!("as-left verification: {f}");
             rdb.db.finish_run(run, accelcal_db::Outcome::Rejected, &why)?;
             println!("db: run {run} ended rejected ({why})");
         }
+    }
+    for c in report.parameters.iter().flatten() {
+        println!(
+            "verify: {} {}: {:+.4} {} ± {:.4} (limit {} {}): {}",
+            c.parameter.replace('_', " "),
+            c.axis,
+            c.value,
+            c.unit,
+            c.u_expanded,
+            c.limit,
+            c.unit,
+            c.decision.name()
+        );
     }
     if report.interrupted {
         return Err(anyhow::Error::new(Interrupted(format!(
@@ -553,9 +570,8 @@ pub fn run_verify(a: &VerifyArgs) -> anyhow::Result<()> {
             cfg.plan.positions.len()
         ))));
     }
-    let failed = report.positions.iter().filter(|p| !p.pass).count();
-    if failed > 0 {
-        let e = anyhow::Error::new(Failed { failed, total: report.positions.len() });
+    if let Some(f) = report.failure() {
+        let e = anyhow::Error::new(f);
         return Err(match report.decision {
             Some(d) => e.context(format!(
                 "{}: the decision rule does not accept the unit ({})",

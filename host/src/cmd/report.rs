@@ -590,8 +590,12 @@ fn decision_rule(v: Option<&VerifyReport>) -> String {
                     format!("guard band (ILAC-G8 §4.2.2): accepted when the error is within the limit less the guard band, {w}")
                 }
             };
+            let params = match s.describe_parameters() {
+                p if p.is_empty() => String::new(),
+                p => format!(" and {p} (from the ±axis positions; the guard band for these is U)"),
+            };
             format!(
-                "specification of {}: |error| ≤ T = {} m/s² on each component at each position; {rule}; conformity: {}",
+                "specification of {}: |error| ≤ T = {} m/s² on each component at each position{params}; {rule}; conformity: {}",
                 s.unit_type,
                 s.acceleration_error_m_s2,
                 v.decision.map_or("-", |d| d.name())
@@ -677,6 +681,36 @@ fn position_table(v: &VerifyReport) -> String {
             t[2],
             if p.pass { "pass" } else { "fail" },
             word
+        );
+    }
+    h.push_str("</table>");
+    h.push_str(&parameter_table(v));
+    h
+}
+
+/// The triad's parameters a verification measured against the specification's limits, when it
+/// limits them.
+fn parameter_table(v: &VerifyReport) -> String {
+    let Some(params) = v.parameters.as_ref().filter(|p| !p.is_empty()) else { return String::new() };
+    let mut h = String::from(
+        "<table><tr><th class=\"l\">parameter (from the ±axis positions)</th><th>axis</th><th>error</th><th>U</th><th>limit</th><th></th></tr>",
+    );
+    for c in params {
+        let word = if c.decision.accepted() {
+            c.decision.name().to_string()
+        } else {
+            c.decision.name().to_uppercase()
+        };
+        let _ = write!(
+            h,
+            "<tr><td class=\"l\">{}</td><td>{}</td><td>{:+.4} {}</td><td>{:.4}</td><td>{}</td><td class=\"{}\">{word}</td></tr>",
+            esc(&c.parameter.replace('_', " ")),
+            esc(&c.axis),
+            c.value,
+            esc(&c.unit),
+            c.u_expanded,
+            c.limit,
+            if c.decision.accepted() { "pass" } else { "fail" }
         );
     }
     h.push_str("</table>");

@@ -272,9 +272,10 @@ impl Station<'_> {
             return Err(environment(format!("the verification wrote no {}", self.p(json)), e));
         }
         let v = VerifyReport::read(&self.path(json))?;
-        let total = v.positions.len();
-        let failed = v.positions.iter().filter(|p| !p.pass).count();
-        let verdict = if failed == 0 && total > 0 { Ok(total) } else { Err(Failed { failed, total }) };
+        let verdict = match v.failure() {
+            None => Ok(v.positions.len()),
+            Some(f) => Err(f),
+        };
         Ok((v, verdict))
     }
 

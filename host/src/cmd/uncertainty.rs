@@ -60,6 +60,9 @@ fn decision_rules(u_expanded: f64, seed: u64) -> (Vec<RuleRow>, Option<String>) 
             acceleration_error_m_s2: t,
             rule,
             guard_band_m_s2: None,
+            bias_mg: None,
+            scale_factor_ppm: None,
+            misalignment_urad: None,
         };
         for (i, (label, e)) in
             [("T - U/2", t - u_expanded / 2.0), ("T", t), ("T + U/2", t + u_expanded / 2.0)]

@@ -34,14 +34,20 @@ impl Station<'_> {
         }
         let v = VerifyReport::read(&self.path(AS_FOUND))?;
         let failed = v.positions.iter().filter(|p| !p.pass).count();
+        // The parameters the rule did not accept, after the positions.
+        let params = v
+            .failure()
+            .filter(|f| !f.parameters.is_empty())
+            .map(|f| format!("; {}", f.parameters.join(", ")))
+            .unwrap_or_default();
         Ok(match v.decision {
             Some(d) if d.out_of_tolerance() => format!(
-                " as left, but AS FOUND OUT OF TOLERANCE ({}: {failed} of {} positions not accepted)",
+                " as left, but AS FOUND OUT OF TOLERANCE ({}: {failed} of {} positions not accepted{params})",
                 d.name(),
                 v.positions.len()
             ),
             Some(d) if !d.accepted() => format!(
-                " as left; as found a {} ({failed} of {} positions within the limit but not by the guard band)",
+                " as left; as found a {} ({failed} of {} positions within the limit but not by the guard band{params})",
                 d.name().to_uppercase(),
                 v.positions.len()
             ),
