@@ -34,6 +34,7 @@ fn a_wrong_settings_file_is_refused_with_its_line_and_nothing_is_done() {
         ("height = 400", "station.toml:5:10: height needs latitude (it corrects the normal gravity there)"),
         ("rate_hz = 5", "`rate_hz` (station.toml:5:11): "),
         ("plan = \"six\"", "station.toml:5:1: duplicate key"),
+        ("spec = \"a\\nb.toml\"", "station.toml:5:8: spec: \"a\\nb.toml\" holds a control character (U+000A)"),
         ("[[node]]\nport = \"b\"\ngdb = \"127.0.0.1:3333\"", "station.toml:5:1: 1 of 2 [[node]] give gdb: give it for every node or for none"),
     ];
     for (extra, want) in cases {

@@ -127,6 +127,13 @@ pub fn apply(command: &mut Command, given: &mut Given) -> anyhow::Result<()> {
     f.gravity(a, c.g, c.latitude, c.height)?;
     f.value(&mut a.select_tolerance, "select_tolerance", "select_tolerance", c.select_tolerance);
     f.optional(&mut a.coverage, "coverage", "coverage", c.coverage);
+    if let Some(s) = &c.spec {
+        // The path reaches the steps' command lines and the journal: one line, as a key's text.
+        accelcal_core::text::single_line(
+            &format!("{name}:{}: spec", f.at(s)),
+            &s.get_ref().to_string_lossy(),
+        )?;
+    }
     let spec = c.spec.map(|s| {
         let span = s.span();
         let p = s.into_inner();
