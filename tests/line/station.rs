@@ -250,7 +250,7 @@ fn two_stations_store_into_one_postgresql_server_at_once() {
 /// of 0.035 m/s² on x (inside T: it failed 6/6 against the 4σ consistency bound) is a pass, and
 /// a shift of 0.09 m/s² (outside) is out of tolerance: on the station's last line, in the
 /// journal and on the certificate's headline, while the recalibrated unit passes as left. With a
-/// bias limit of 3 mg, the 0.035 m/s² shift (3.6 mg) is out of tolerance by its bias alone.
+/// bias limit of 2 mg, the 0.035 m/s² shift (3.6 mg) is out of tolerance by its bias alone.
 #[test]
 fn an_as_found_drift_is_decided_against_the_specification() {
     let _one = one_bench();
@@ -261,10 +261,12 @@ fn an_as_found_drift_is_decided_against_the_specification() {
         "unit_type = \"MS9002.D triad\"\nacceleration_error_m_s2 = 0.05\nrule = \"guard-band\"\n",
     )
     .unwrap();
-    // The same, and a bias limit of 3 mg (0.029 m/s²) on each axis, which the verification's
-    // ±axis positions measure.
+    // The same, and a bias limit of 2 mg (0.020 m/s²) on each axis, which the verification's
+    // ±axis positions measure. The shift below is 3.6 mg, well beyond 2 mg + U: a fail. (Against
+    // 3 mg the margin over 3 mg + U was within the measurement's scatter: one CI run of three
+    // measured a conditional fail.)
     let spec_bias = dir.path().join("spec-bias.toml");
-    std::fs::write(&spec_bias, format!("{}bias_mg = 3\n", std::fs::read_to_string(&spec).unwrap())).unwrap();
+    std::fs::write(&spec_bias, format!("{}bias_mg = 2\n", std::fs::read_to_string(&spec).unwrap())).unwrap();
     let with_spec = |em: &Emulator, d: &Path, spec: &Path| -> Vec<String> {
         let mut v: Vec<String> = station_args(em, "A-1", d, &[]).iter().map(|w| w.to_string()).collect();
         let at = v.iter().position(|w| w == "--coverage").unwrap();
