@@ -64,11 +64,7 @@ impl VerifySummary {
             pass: r.pass,
             positions: r.positions.len(),
             failed: r.positions.iter().filter(|p| !p.pass).count(),
-            max_abs_error_m_s2: r
-                .positions
-                .iter()
-                .flat_map(|p| p.error_m_s2)
-                .fold(0.0, |m, e| m.max(e.abs())),
+            max_abs_error_m_s2: r.max_abs_error_m_s2(),
         }
     }
 }
@@ -205,7 +201,7 @@ fn out_of_tolerance(v: &VerifyReport, rule: RecalRule) -> Option<String> {
         }),
         (Some(d), None) => d.out_of_tolerance().then(|| format!("as found {}", d.name())),
         (None, _) => {
-            let max = v.positions.iter().flat_map(|p| p.error_m_s2).fold(0.0f64, |m, e| m.max(e.abs()));
+            let max = v.max_abs_error_m_s2();
             (max > rule.tolerance_m_s2).then(|| {
                 format!("as found error {max:.4} m/s² beyond the tolerance {} m/s²", rule.tolerance_m_s2)
             })

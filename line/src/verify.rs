@@ -372,6 +372,11 @@ pub struct VerifyReport {
 }
 
 impl VerifyReport {
+    /// The largest |error| of a component over the positions, m/s² (0 without a position).
+    pub fn max_abs_error_m_s2(&self) -> f64 {
+        self.positions.iter().flat_map(|p| p.error_m_s2).fold(0.0, |m, e| m.max(e.abs()))
+    }
+
     /// Why the verification did not pass, or `None` when it passed: the positions outside
     /// their tolerance and the parameters not accepted.
     pub fn failure(&self) -> Option<Failed> {

@@ -437,7 +437,7 @@ fn since_last_calibration(
 /// specification: out of tolerance stands out) and, against a specification, each position.
 fn as_found(v: &VerifyReport) -> String {
     let failed = v.positions.iter().filter(|p| !p.pass).count();
-    let max = v.positions.iter().flat_map(|p| p.error_m_s2).fold(0.0f64, |m, e| m.max(e.abs()));
+    let max = v.max_abs_error_m_s2();
     let crc = v.record["crc"].as_str().unwrap_or("(none)");
     let n = v.positions.len();
     let verdict = match v.decision {
@@ -566,7 +566,7 @@ fn receipt(v: Option<&VerifyReport>) -> String {
         return "no calibration record in force, or not verified as found".into();
     };
     let crc = v.record["crc"].as_str().unwrap_or("(none)");
-    let max = v.positions.iter().flat_map(|p| p.error_m_s2).fold(0.0f64, |m, e| m.max(e.abs()));
+    let max = v.max_abs_error_m_s2();
     let outcome = match v.decision {
         Some(d) if d.out_of_tolerance() => format!("OUT OF TOLERANCE ({})", d.name()),
         Some(d) => d.name().to_string(),
