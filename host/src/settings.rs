@@ -592,8 +592,16 @@ fn positive_seconds(option: &str, s: f64) -> anyhow::Result<()> {
     }
 }
 
-/// The options of `fit` that state the head's uncertainties (lsq, model 4).
-const HEAD_U: [&str; 3] = ["head_angle_u", "head_orthogonality_u", "head_asset"];
+/// The options of `fit` that state the budget's references: the head's uncertainties, the unit
+/// type's temperature coefficients (lsq, model 4).
+const HEAD_U: [&str; 6] = [
+    "head_angle_u",
+    "head_orthogonality_u",
+    "head_asset",
+    "bias_tempco_u",
+    "scale_tempco_u",
+    "thermometer_u",
+];
 
 /// The options of `fit` that belong to one method only.
 const GRAVITY_ONLY: [&str; 7] =

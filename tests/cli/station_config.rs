@@ -35,6 +35,11 @@ fn a_wrong_settings_file_is_refused_with_its_line_and_nothing_is_done() {
         ("rate_hz = 5", "`rate_hz` (station.toml:5:11): "),
         ("plan = \"six\"", "station.toml:5:1: duplicate key"),
         ("spec = \"a\\nb.toml\"", "station.toml:5:8: spec: \"a\\nb.toml\" holds a control character (U+000A)"),
+        ("bias_tempco_u = -0.1", "station.toml:5:17: bias_tempco_u must be a finite number ≥ 0, got -0.1"),
+        (
+            "bias_tempco_u = 0.1\nscale_tempco_u = 50",
+            "station.toml: bias_tempco_u, scale_tempco_u and thermometer_u go together",
+        ),
         ("[[node]]\nport = \"b\"\ngdb = \"127.0.0.1:3333\"", "station.toml:5:1: 1 of 2 [[node]] give gdb: give it for every node or for none"),
     ];
     for (extra, want) in cases {

@@ -36,7 +36,15 @@ fn fit_states_the_expanded_uncertainty_its_covariance_and_contributors() {
     assert!((shares - 1.0).abs() < 1e-9, "{shares}");
     let names: Vec<&str> =
         u["contributors"].as_array().unwrap().iter().map(|c| c["name"].as_str().unwrap()).collect();
-    assert_eq!(names, ["dwell_scatter", "head_angle", "head_orthogonality", "gravity", "quantisation"]);
+    assert_eq!(
+        names,
+        ["dwell_scatter", "head_angle", "head_orthogonality", "gravity", "quantisation", "temperature"]
+    );
+    let said: Vec<&str> = u["not_included"].as_array().unwrap().iter().map(|v| v.as_str().unwrap()).collect();
+    assert!(
+        said.iter().any(|n| n.starts_with("model 4's lack of fit: GMDH measures a criterion gap")),
+        "{said:?}"
+    );
     // A head stated but without errors changes U by little (the scatter it would explain is
     // taken out, its own covariance put in) ...
     let ux = |v: &Value, i: usize| v["uncertainty"]["U_m_s2"][i].as_f64().unwrap();
@@ -86,6 +94,62 @@ fn fit_states_the_expanded_uncertainty_its_covariance_and_contributors() {
 }
 
 #[test]
+fn stated_temperature_coefficients_count_the_calibration_temperature_against_the_reference() {
+    let d = Dir::new();
+    // Calibrated at 31 °C for the reference 25 °C (`--t-ref` default).
+    let c = simulate(&d, "t.csv", &["--samples", "20", "--noise", "2", "--temp-profile", "31:0:0"]);
+    let j = d.s("t.json");
+    let out = ok(&[
+        "fit",
+        &c,
+        "--bias-tempco-u",
+        "0.1",
+        "--scale-tempco-u",
+        "0",
+        "--thermometer-u",
+        "0",
+        "--json",
+        &j,
+    ]);
+    assert!(out.contains("calibrated at 31.0 °C"), "{out}");
+    assert!(!out.contains("not included: the temperature"), "{out}");
+    let v = json(Path::new(&j));
+    let t = v["uncertainty"]["contributors"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["name"] == "temperature")
+        .unwrap()
+        .clone();
+    // 0.1 mg/°C × 6 °C = 0.6 mg on each axis.
+    let u = t["u_m_s2"].as_f64().unwrap();
+    assert!((u - 0.6e-3 * 9.80665).abs() < 1e-5, "{t}");
+    assert_eq!(t["type"], "B");
+    // The three go together; without the campaign's temperatures there is nothing to count from.
+    let out = accelcal(&["fit", &c, "--bias-tempco-u", "0.1"]);
+    assert_eq!(out.status.code(), Some(2));
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(e.contains("--scale-tempco-u") && e.contains("--thermometer-u"), "{e}");
+    let plain = simulate(&d, "p.csv", &["--samples", "20"]);
+    let e =
+        bad(&["fit", &plain, "--bias-tempco-u", "0.1", "--scale-tempco-u", "50", "--thermometer-u", "0.2"]);
+    assert!(e.contains("no `temp_c` column"), "{e}");
+    let e = bad(&[
+        "fit",
+        &c,
+        "--method",
+        "test-turns",
+        "--bias-tempco-u",
+        "0.1",
+        "--scale-tempco-u",
+        "50",
+        "--thermometer-u",
+        "0.2",
+    ]);
+    assert!(e.contains("--bias-tempco-u"), "{e}");
+}
+
+#[test]
 fn the_monte_carlo_check_passes_for_the_budget_and_writes_its_table() {
     let d = Dir::new();
     let j = d.s("mc.json");
@@ -96,7 +160,7 @@ fn the_monte_carlo_check_passes_for_the_budget_and_writes_its_table() {
     assert_eq!(v["passed"], true);
     let names: Vec<&str> =
         v["scenarios"].as_array().unwrap().iter().map(|s| s["scenario"]["name"].as_str().unwrap()).collect();
-    assert_eq!(names, ["all", "dwell_scatter", "head_angle", "head_orthogonality", "gravity"]);
+    assert_eq!(names, ["all", "dwell_scatter", "head_angle", "head_orthogonality", "gravity", "temperature"]);
     for s in v["scenarios"].as_array().unwrap() {
         assert_eq!(s["checks"], 300 * 10 * 3);
         let c = s["coverage"].as_f64().unwrap();

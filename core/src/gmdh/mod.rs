@@ -290,6 +290,20 @@ pub struct Settings {
     pub max_terms: usize,
 }
 
+impl Settings {
+    /// The paper's selection: its 11 models, the regularity criterion, the alternate split, a
+    /// 1-code tolerance (what `demo`, the certificate and the uncertainty budget run).
+    pub fn paper() -> Settings {
+        Settings {
+            basis: accelcal_shared::Basis::Paper,
+            criterion: Criterion::Regularity,
+            split: Split::Alternate,
+            tolerance: 1.0,
+            max_terms: accelcal_shared::N_BASIS,
+        }
+    }
+}
+
 /// The scaled, centred problem of one channel: regressors over the basis columns scaled to unit
 /// weighted RMS, the dwell means centred on their weighted mean (the intercept is in every model,
 /// so centring changes no residual), and the statistics of A, B and A∪B.

@@ -6,7 +6,10 @@
 //! Each simulated unit: a triad with the simulator's spread of biases, sensitivities and
 //! misalignments; the head's three stage rotations drawn from the stated orthogonality (the
 //! simulator's `head_misalignment`), its angle setting errors from the stated angle uncertainty
-//! (`angle_error`), the true g drawn from the stated u(g) while the fit uses the stated g. The
+//! (`angle_error`), the true g drawn from the stated u(g) while the fit uses the stated g, a
+//! and the temperature: the block calibrated 5 °C above the reference temperature, the unit's bias and
+//! scale-factor coefficients drawn from the stated ones (`temperature`, common to the channels)
+//! and the thermometer's reading off the true temperature by a draw of its stated u(T). The
 //! unit is fitted with model 4 by least squares, its budget made from the same stated values, and
 //! at random orientations the calibrated acceleration of the noise-free codes is compared with the
 //! truth: the fraction of axis values within `U` is the coverage, 95 % for a budget that is right.
@@ -19,11 +22,14 @@ use rand_distr::{Distribution, Normal, StandardNormal};
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::{budget, References, ARCSEC};
+use super::{budget, References, TempCoefficients, ARCSEC};
 use crate::calibrate::{fit_positions, Method};
-use crate::positions::Positions;
-use crate::sim::effects::{AngleError, Effect, HeadMisalignment};
-use crate::sim::{simulate, SimConfig};
+use crate::positions::{Positions, T_REF_DEFAULT_C};
+use crate::sim::effects::{AngleError, Effect, HeadMisalignment, Temperature};
+use crate::sim::{simulate, SimConfig, TempProfile, NOMINAL_CODES_PER_G};
+
+/// How far above the reference temperature a scenario with temperature coefficients is run, °C.
+const CALIBRATED_ABOVE_REF_C: f64 = 5.0;
 
 /// One setting of the check: which contributors are on, and how large.
 #[derive(Clone, Debug, Serialize)]
@@ -38,6 +44,10 @@ pub struct Scenario {
     pub head_orthogonality_arcsec: f64,
     /// Stated (and simulated) standard uncertainty of g, m/s².
     pub g_u_m_s2: f64,
+    /// Stated (and simulated) temperature coefficients, one sigma; the campaign is run 5 °C above
+    /// the reference temperature. `None`: at the reference temperature, none stated.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub temperature: Option<TempCoefficients>,
     /// The coverage a budget that is right reaches, (lowest, highest).
     #[serde(skip)]
     pub range: (f64, f64),
@@ -56,14 +66,20 @@ impl Scenario {
             head_angle_arcsec: angle,
             head_orthogonality_arcsec: ortho,
             g_u_m_s2: g,
+            temperature: None,
             range,
         };
+        let temp = TempCoefficients { bias_mg_per_c: 0.1, scale_ppm_per_c: 100.0, thermometer_c: 0.5 };
         vec![
-            s("all", ALL, 80.0, 20.0, 30.0, 1e-3),
+            Scenario {
+                temperature: Some(TempCoefficients { bias_mg_per_c: 0.05, ..temp }),
+                ..s("all", ALL, 80.0, 20.0, 30.0, 1e-3)
+            },
             s("dwell_scatter", ALONE, 80.0, 0.0, 0.0, 0.0),
             s("head_angle", ALONE, 2.0, 60.0, 0.0, 0.0),
             s("head_orthogonality", ALONE, 2.0, 0.0, 60.0, 0.0),
             s("gravity", ALONE, 2.0, 0.0, 0.0, 5e-3),
+            Scenario { temperature: Some(temp), ..s("temperature", ALONE, 2.0, 0.0, 0.0, 0.0) },
         ]
     }
 }
@@ -120,15 +136,33 @@ fn one_unit(
         let n = Normal::new(0.0, s.head_orthogonality_arcsec * ARCSEC * 1e3).map_err(|e| e.to_string())?;
         effects.push(Box::new(HeadMisalignment { r_mrad: [0, 1, 2].map(|_| n.sample(&mut rng)) }));
     }
+    // The thermometer reads `read_c`; the block is at `read_c` less the reading's error.
+    let read_c = T_REF_DEFAULT_C + CALIBRATED_ABOVE_REF_C;
+    let mut temp = None;
+    if let Some(t) = s.temperature {
+        let z = |rng: &mut ChaCha8Rng| rng.sample::<f64, _>(StandardNormal);
+        let codes_per_mg = 1e-3 * accelcal_shared::G_STANDARD * NOMINAL_CODES_PER_G / g_true;
+        effects.push(Box::new(Temperature {
+            bias: t.bias_mg_per_c * codes_per_mg * z(&mut rng),
+            scale: t.scale_ppm_per_c * z(&mut rng),
+            t_ref: T_REF_DEFAULT_C,
+        }));
+        let true_c = read_c - t.thermometer_c * z(&mut rng);
+        temp = Some(TempProfile { base_c: true_c, amp_c: 0.0, cycles: 0.0, phase: 0.0 });
+    }
     let cfg = SimConfig {
         seed,
         samples: set.samples,
         noise: s.noise_codes,
         g: g_true,
         effects,
+        temp,
         ..SimConfig::default()
     };
-    let (campaign, truth) = simulate(&cfg);
+    let (mut campaign, truth) = simulate(&cfg);
+    if let Some(t) = campaign.temp_c.as_mut() {
+        t.iter_mut().for_each(|v| *v = read_c);
+    }
     let pos = Positions::new(&campaign, g_stated);
     let stats = pos.channel_stats(&campaign);
     let fits = fit_positions(&pos, &stats, Method::Lsq, MODEL_4).map_err(|e| e.to_string())?;
@@ -136,6 +170,8 @@ fn one_unit(
         head_angle_rad: s.head_angle_arcsec * ARCSEC,
         head_orthogonality_rad: s.head_orthogonality_arcsec * ARCSEC,
         g_m_s2: s.g_u_m_s2,
+        lack_of_fit_codes: None,
+        temperature: s.temperature,
     });
     let fit_refs: Vec<_> = fits.iter().map(|(_, f)| f).collect();
     let b = budget(&pos, &stats, &fit_refs, refs).map_err(|e| e.to_string())?;
@@ -194,6 +230,7 @@ mod tests {
             head_angle_arcsec: 60.0,
             head_orthogonality_arcsec: 60.0,
             g_u_m_s2: 0.0,
+            temperature: None,
             range: (0.93, 0.97),
         };
         let out = run(&s, &set, &|_| {}).unwrap();

@@ -125,6 +125,46 @@ pub(crate) fn parse_arcsec(s: &str) -> Result<f64, String> {
     }
 }
 
+/// A stated one-sigma uncertainty: a finite number ≥ 0.
+fn parse_sigma(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
+        _ => Err("expected a finite number ≥ 0".into()),
+    }
+}
+
+/// The unit type's temperature sensitivity and the thermometer, for the uncertainty budget.
+#[derive(Args, Debug, Clone, Default)]
+pub struct TempcoArgs {
+    /// The unit type's bias temperature coefficient, mg/°C: one sigma of each channel's
+    /// coefficient (from its data sheet). With --scale-tempco-u and --thermometer-u, the
+    /// budget's `temperature` contributor: the coefficients are measured at the campaign's mean
+    /// temperature T̄ and stated at the reference --t-ref, so each channel's bias is uncertain by
+    /// this × √((T̄ − t_ref)² + u(T)²) [--method lsq, model 4, a campaign with `temp_c`; default:
+    /// named on the budget as not included].
+    #[arg(long, value_name = "MG_PER_C", value_parser = parse_sigma, requires_all = ["scale_tempco_u", "thermometer_u"])]
+    pub bias_tempco_u: Option<f64>,
+    /// The unit type's scale-factor temperature coefficient, ppm/°C, one sigma (see
+    /// --bias-tempco-u).
+    #[arg(long, value_name = "PPM_PER_C", value_parser = parse_sigma, requires_all = ["bias_tempco_u", "thermometer_u"])]
+    pub scale_tempco_u: Option<f64>,
+    /// The standard uncertainty of the campaign's temperature reading (`temp_c`), °C (see
+    /// --bias-tempco-u).
+    #[arg(long, value_name = "C", value_parser = parse_sigma, requires_all = ["bias_tempco_u", "scale_tempco_u"])]
+    pub thermometer_u: Option<f64>,
+}
+
+impl TempcoArgs {
+    /// The stated coefficients, when given.
+    pub fn coefficients(&self) -> Option<accelcal_core::uncertainty::TempCoefficients> {
+        Some(accelcal_core::uncertainty::TempCoefficients {
+            bias_mg_per_c: self.bias_tempco_u?,
+            scale_ppm_per_c: self.scale_tempco_u?,
+            thermometer_c: self.thermometer_u?,
+        })
+    }
+}
+
 fn parse_layout(s: &str) -> Result<Layout, String> {
     s.parse()
 }
@@ -347,6 +387,8 @@ pub struct FitArgs {
     /// and --head-orthogonality-u; an overdue, unknown or non-head asset is refused].
     #[arg(long, value_name = "ID", conflicts_with_all = ["head_angle_u", "head_orthogonality_u"])]
     pub head_asset: Option<String>,
+    #[command(flatten)]
+    pub tempco: TempcoArgs,
     #[command(flatten)]
     pub common: CommonArgs,
     /// Options of --method gravity-norm.

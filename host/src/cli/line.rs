@@ -478,6 +478,9 @@ pub struct StationArgs {
     /// and the budget names its uncertainties as not stated].
     #[arg(long, value_name = "ID")]
     pub head_asset: Option<String>,
+    /// The unit type's temperature coefficients for the fit's uncertainty budget (as for `fit`).
+    #[command(flatten)]
+    pub tempco: crate::cli::campaign::TempcoArgs,
     /// The product specification of the unit type and its decision rule, a TOML file (as for
     /// `verify --spec`): both verifications decide each component against it (with the head
     /// asset's stated uncertainties in U when --head-asset is given), and an as-found result out

@@ -269,7 +269,7 @@ fn fit_budget(
     if method != Method::Lsq || fits.iter().any(|(_, f)| f.structure != accelcal_shared::terms::MODEL_4) {
         return Ok(None);
     }
-    let stated = head.angle.is_some() || head.orthogonality.is_some();
+    let stated = head.angle.is_some() || head.orthogonality.is_some() || a.tempco.coefficients().is_some();
     let source = if a.common.local.latitude.is_some() {
         Some(G_SOURCE_NORMAL)
     } else if a.common.g_given {
@@ -282,6 +282,8 @@ fn fit_budget(
         head_angle_rad: head.angle.unwrap_or(0.0) * ARCSEC,
         head_orthogonality_rad: head.orthogonality.unwrap_or(0.0) * ARCSEC,
         g_m_s2: bound / 3f64.sqrt(),
+        lack_of_fit_codes: if stats.len() == 3 { Some(lack_of_fit_codes(pos, stats)?) } else { None },
+        temperature: a.tempco.coefficients(),
     };
     let only: Vec<&LsqFit> = fits.iter().map(|(_, f)| f).collect();
     match uncertainty::budget(pos, stats, &only, refs) {
@@ -302,6 +304,13 @@ fn fit_budget(
         Err(uncertainty::UncertaintyError::NotATriad(_)) if !stated => Ok(None),
         Err(e) => Err(anyhow::Error::new(e).context(a.campaign.display().to_string())),
     }
+}
+
+/// Model 4's lack of fit per channel, codes (the GMDH criterion gap, in the order of `stats`).
+fn lack_of_fit_codes(pos: &Positions, stats: &[ChannelStats]) -> anyhow::Result<[f64; 3]> {
+    let gaps = uncertainty::lack_of_fit(pos, stats).context("measuring model 4's lack of fit by GMDH")?;
+    gaps.try_into()
+        .map_err(|g: Vec<f64>| anyhow::anyhow!("a triad has three channels, the campaign {}", g.len()))
 }
 
 /// The device id of `fit --record`: the campaign's `# device_id:` line, which `--device-id` may

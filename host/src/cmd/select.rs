@@ -62,13 +62,7 @@ fn names(s: Structure) -> Vec<String> {
 /// The paper's selection: its 11 models, the regularity criterion, the alternate split, a 1-code
 /// tolerance (what `demo` and the certificate run).
 pub fn paper_settings() -> Settings {
-    Settings {
-        basis: accelcal_shared::Basis::Paper,
-        criterion: gmdh::Criterion::Regularity,
-        split: gmdh::Split::Alternate,
-        tolerance: 1.0,
-        max_terms: accelcal_shared::N_BASIS,
-    }
+    Settings::paper()
 }
 
 /// Runs exhaustive GMDH on the chosen channels of a campaign, with a progress bar for large bases.

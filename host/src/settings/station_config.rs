@@ -45,6 +45,9 @@ struct StationConfig {
     height: Option<Spanned<f64>>,
     select_tolerance: Option<Spanned<f64>>,
     coverage: Option<Spanned<f64>>,
+    bias_tempco_u: Option<Spanned<f64>>,
+    scale_tempco_u: Option<Spanned<f64>>,
+    thermometer_u: Option<Spanned<f64>>,
     spec: Option<Spanned<PathBuf>>,
     db: Option<Spanned<String>>,
     baud: Option<Spanned<u32>>,
@@ -127,6 +130,29 @@ pub fn apply(command: &mut Command, given: &mut Given) -> anyhow::Result<()> {
     f.gravity(a, c.g, c.latitude, c.height)?;
     f.value(&mut a.select_tolerance, "select_tolerance", "select_tolerance", c.select_tolerance);
     f.optional(&mut a.coverage, "coverage", "coverage", c.coverage);
+    let tempco = [
+        ("bias_tempco_u", &c.bias_tempco_u),
+        ("scale_tempco_u", &c.scale_tempco_u),
+        ("thermometer_u", &c.thermometer_u),
+    ];
+    for (key, v) in tempco {
+        if let Some(v) = v {
+            let x = *v.get_ref();
+            if !(x.is_finite() && x >= 0.0) {
+                return Err(bad(format!("{name}:{}: {key} must be a finite number ≥ 0, got {x}", f.at(v))));
+            }
+        }
+    }
+    f.optional(&mut a.tempco.bias_tempco_u, "bias_tempco_u", "bias_tempco_u", c.bias_tempco_u);
+    f.optional(&mut a.tempco.scale_tempco_u, "scale_tempco_u", "scale_tempco_u", c.scale_tempco_u);
+    f.optional(&mut a.tempco.thermometer_u, "thermometer_u", "thermometer_u", c.thermometer_u);
+    let t = &a.tempco;
+    let set = [t.bias_tempco_u, t.scale_tempco_u, t.thermometer_u].iter().filter(|v| v.is_some()).count();
+    if set != 0 && set != 3 {
+        return Err(bad(format!(
+            "{name}: bias_tempco_u, scale_tempco_u and thermometer_u go together (the budget's temperature needs all three)"
+        )));
+    }
     if let Some(s) = &c.spec {
         // The path reaches the steps' command lines and the journal: one line, as a key's text.
         accelcal_core::text::single_line(

@@ -178,6 +178,7 @@ fn contributor_words(name: &str) -> String {
         "head_orthogonality" => "dividing head: axis orthogonality".into(),
         "gravity" => "local gravity g".into(),
         "quantisation" => "ADC quantisation".into(),
+        "temperature" => "temperature against the reference temperature".into(),
         other => other.replace('_', " "),
     }
 }
