@@ -390,6 +390,59 @@ pub fn outcome_rates(spec: &Specification, true_error: f64, u: f64, n: usize, se
     counts.map(|c| c as f64 / n.max(1) as f64)
 }
 
+/// The share of each decision (as [`outcome_rates`]) of one parameter that [`parameters`]
+/// measures from the six ±axis positions, when its true value is `true_value` (in its unit:
+/// `bias` of x in mg, `scale_factor` of x in ppm, `misalignment` x→y in µrad) and every
+/// component of every position errs by a normal deviate of standard deviation `u` (m/s²,
+/// stated as U = [`K`]·u): the check of the quadrature that gives the parameter's U.
+pub fn parameter_outcome_rates(
+    spec: &Specification,
+    g: f64,
+    parameter: &str,
+    true_value: f64,
+    u: f64,
+    n: usize,
+    seed: u64,
+) -> Result<[f64; 4], SpecError> {
+    use rand::SeedableRng;
+    use rand_distr::Distribution;
+    let (axis, effect): (&str, Box<dyn Fn([f64; 3]) -> f64>) = match parameter {
+        "bias" => ("x", Box::new(move |_| true_value * 1e-3 * G_N)),
+        "scale_factor" => ("x", Box::new(move |a: [f64; 3]| true_value * 1e-6 * a[0])),
+        "misalignment" => ("x→y", Box::new(move |a: [f64; 3]| true_value * 1e-6 * a[1])),
+        other => return Err(SpecError(format!("has no parameter `{other}`"))),
+    };
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let mut counts = [0usize; 4];
+    let imposed: Vec<[f64; 3]> = (0..6)
+        .map(|k| {
+            let mut a = [0.0; 3];
+            a[k / 2] = if k % 2 == 0 { g } else { -g };
+            a
+        })
+        .collect();
+    for _ in 0..n {
+        let positions: Vec<Measured> = imposed
+            .iter()
+            .map(|&a| {
+                let mut e = [0.0; 3];
+                for (i, v) in e.iter_mut().enumerate() {
+                    let z: f64 = rand_distr::StandardNormal.sample(&mut rng);
+                    *v = u * z + if i == 0 { effect(a) } else { 0.0 };
+                }
+                Measured { expected_m_s2: a, error_m_s2: e, u_expanded_m_s2: [K * u; 3] }
+            })
+            .collect();
+        let checks = parameters(spec, g, &positions)?;
+        let c = checks
+            .iter()
+            .find(|c| c.parameter == parameter && c.axis == axis)
+            .ok_or_else(|| SpecError(format!("limits no {parameter}")))?;
+        counts[c.decision as usize] += 1;
+    }
+    Ok(counts.map(|c| c as f64 / n.max(1) as f64))
+}
+
 /// The share of results accepted (see [`outcome_rates`]): at the limit, the false-accept rate
 /// (ILAC-G8's specific risk).
 pub fn accept_rate(spec: &Specification, true_error: f64, u: f64, n: usize, seed: u64) -> f64 {
@@ -487,6 +540,26 @@ mod tests {
         assert!(Pass.accepted() && !ConditionalPass.accepted());
         assert!(ConditionalFail.out_of_tolerance() && !ConditionalPass.out_of_tolerance());
         assert_eq!(serde_json::to_string(&ConditionalPass).unwrap(), "\"conditional pass\"");
+    }
+
+    #[test]
+    fn each_parameters_u_is_its_scatter_so_the_guard_band_keeps_its_false_accepts_at_the_limit() {
+        let s = Specification {
+            bias_mg: Some(2.0),
+            scale_factor_ppm: Some(2000.0),
+            misalignment_urad: Some(2000.0),
+            ..spec(RuleKind::GuardBand, None)
+        };
+        let u = 0.004;
+        for (p, t) in [("bias", 2.0), ("scale_factor", 2000.0), ("misalignment", 2000.0)] {
+            let r = parameter_outcome_rates(&s, 9.80665, p, t, u, 100_000, 11).unwrap();
+            // A U from the quadrature that matched the scatter gives 2.3 % at the limit; a U
+            // √2 too wide would give 0.3 %, one √2 too narrow 7.9 %.
+            assert!((0.018..=0.025).contains(&r[0]), "{p}: {r:?}");
+            let inside = parameter_outcome_rates(&s, 9.80665, p, 0.0, u, 20_000, 12).unwrap();
+            assert!(inside[0] > 0.99, "{p}: {inside:?}");
+        }
+        assert!(parameter_outcome_rates(&s, 9.80665, "offset", 0.0, u, 10, 1).is_err());
     }
 
     #[test]

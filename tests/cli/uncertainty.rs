@@ -158,6 +158,13 @@ fn the_monte_carlo_check_passes_for_the_budget_and_writes_its_table() {
     assert!(out.contains("the budget holds"), "{out}");
     let v = json(Path::new(&j));
     assert_eq!(v["passed"], true);
+    let params: Vec<&str> =
+        v["parameter_rules"].as_array().unwrap().iter().map(|r| r["parameter"].as_str().unwrap()).collect();
+    assert_eq!(params, ["bias", "scale_factor", "misalignment"]);
+    for r in v["parameter_rules"].as_array().unwrap() {
+        let far = r["shares"][0].as_f64().unwrap();
+        assert!((0.015..=0.025).contains(&far), "{r}");
+    }
     let names: Vec<&str> =
         v["scenarios"].as_array().unwrap().iter().map(|s| s["scenario"]["name"].as_str().unwrap()).collect();
     assert_eq!(names, ["all", "dwell_scatter", "head_angle", "head_orthogonality", "gravity", "temperature"]);

@@ -19,7 +19,88 @@ struct CheckJson<'a> {
     scenarios: Vec<ScenarioJson<'a>>,
     /// The decision rules at the limit and half a U either side of it.
     decision_rules: Vec<RuleRow>,
+    /// The guard-band rule on the parameters the six ±axis positions measure, at their limits.
+    parameter_rules: Vec<ParameterRow>,
     passed: bool,
+}
+
+/// One parameter at its limit under the guard-band rule: the share of each decision.
+#[derive(Serialize)]
+struct ParameterRow {
+    parameter: &'static str,
+    axis: &'static str,
+    /// The true value, at the limit, in `unit`.
+    true_value: f64,
+    unit: &'static str,
+    /// Each component's U at each position, m/s².
+    #[serde(rename = "U_m_s2")]
+    u_expanded_m_s2: f64,
+    /// pass, conditional pass, conditional fail, fail.
+    shares: [f64; 4],
+}
+
+/// The parameters' limits of the check: (parameter, axis, limit, unit).
+const PARAMETER_LIMITS: [(&str, &str, f64, &str); 3] =
+    [("bias", "x", 2.0, "mg"), ("scale_factor", "x", 2000.0, "ppm"), ("misalignment", "x→y", 2000.0, "µrad")];
+
+/// The guard-band rule on each parameter the six ±axis positions measure (bias, scale factor,
+/// misalignment), each at its limit, every component measured with the budget's U: its
+/// false-accept rate must be at most 2.5 % too (it checks the quadrature that gives each
+/// parameter's U).
+fn parameter_rules(u_expanded: f64, seed: u64) -> anyhow::Result<(Vec<ParameterRow>, Vec<String>)> {
+    use accelcal_core::conformity::{parameter_outcome_rates, RuleKind, Specification, K};
+    let spec = Specification {
+        unit_type: "check".into(),
+        acceleration_error_m_s2: CHECK_LIMIT_M_S2,
+        rule: RuleKind::GuardBand,
+        guard_band_m_s2: None,
+        bias_mg: Some(PARAMETER_LIMITS[0].2),
+        scale_factor_ppm: Some(PARAMETER_LIMITS[1].2),
+        misalignment_urad: Some(PARAMETER_LIMITS[2].2),
+    };
+    let draws = RULE_DRAWS;
+    println!(
+        "parameters at their limits, guard-band rule (the six ±axis positions, each component with U = {u_expanded:.3e} m/s²); {draws} verifications per row"
+    );
+    println!(
+        "{:<14} {:>6} {:>12} {:>9} {:>11} {:>11} {:>9}",
+        "parameter", "axis", "true value", "pass", "cond. pass", "cond. fail", "fail"
+    );
+    let (mut rows, mut missed) = (Vec::new(), Vec::new());
+    for (i, (parameter, axis, limit, unit)) in PARAMETER_LIMITS.into_iter().enumerate() {
+        let shares = parameter_outcome_rates(
+            &spec,
+            accelcal_shared::G_STANDARD,
+            parameter,
+            limit,
+            u_expanded / K,
+            draws,
+            seed + 10 + i as u64,
+        )?;
+        let pct = |x: f64| format!("{:.2}%", 100.0 * x);
+        println!(
+            "{:<14} {:>6} {:>12} {:>9} {:>11} {:>11} {:>9}",
+            parameter,
+            axis,
+            format!("{limit} {unit}"),
+            pct(shares[0]),
+            pct(shares[1]),
+            pct(shares[2]),
+            pct(shares[3])
+        );
+        if shares[0] > 0.025 {
+            missed.push(format!("{parameter} false-accept rate {:.2} % > 2.5 %", 100.0 * shares[0]));
+        }
+        rows.push(ParameterRow {
+            parameter,
+            axis,
+            true_value: limit,
+            unit,
+            u_expanded_m_s2: u_expanded,
+            shares,
+        });
+    }
+    Ok((rows, missed))
 }
 
 /// One row of the decision-rule check: a rule, a unit's true error, and the share of each
@@ -163,6 +244,8 @@ pub fn run_check(a: &UncertaintyCheckArgs) -> anyhow::Result<()> {
     let u_all = outcomes.first().map_or(0.0, |o| o.mean_u_m_s2);
     let (decision_rules, missed) = decision_rules(u_all, a.seed);
     failed.extend(missed);
+    let (parameter_rules, missed) = parameter_rules(u_all, a.seed)?;
+    failed.extend(missed);
     if let Some(j) = &a.json {
         write_json(
             j,
@@ -174,6 +257,7 @@ pub fn run_check(a: &UncertaintyCheckArgs) -> anyhow::Result<()> {
                 passed: failed.is_empty(),
                 scenarios: rows,
                 decision_rules,
+                parameter_rules,
             },
         )?;
     }
