@@ -406,11 +406,16 @@ pub fn parameter_outcome_rates(
 ) -> Result<[f64; 4], SpecError> {
     use rand::SeedableRng;
     use rand_distr::Distribution;
-    let (axis, effect): (&str, Box<dyn Fn([f64; 3]) -> f64>) = match parameter {
-        "bias" => ("x", Box::new(move |_| true_value * 1e-3 * G_N)),
-        "scale_factor" => ("x", Box::new(move |a: [f64; 3]| true_value * 1e-6 * a[0])),
-        "misalignment" => ("x→y", Box::new(move |a: [f64; 3]| true_value * 1e-6 * a[1])),
+    // The axis its check names, and the error it leaves on channel x at an acceleration a.
+    let axis = match parameter {
+        "bias" | "scale_factor" => "x",
+        "misalignment" => "x→y",
         other => return Err(SpecError(format!("has no parameter `{other}`"))),
+    };
+    let effect = |a: [f64; 3]| match parameter {
+        "bias" => true_value * 1e-3 * G_N,
+        "scale_factor" => true_value * 1e-6 * a[0],
+        _ => true_value * 1e-6 * a[1],
     };
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let mut counts = [0usize; 4];
