@@ -81,6 +81,13 @@ fn fit_states_the_expanded_uncertainty_its_covariance_and_contributors() {
     for i in 0..3 {
         assert!((ux(&mh, i) / ux(&mp, i) - 1.0).abs() < 0.25, "axis {i}: {} {}", ux(&mp, i), ux(&mh, i));
     }
+    // On the six-position plan GMDH's split identifies no candidate: the fit has its budget, and
+    // says the lack of fit is not measured.
+    let six = simulate(&d, "six.csv", &["--samples", "20", "--plan", "six"]);
+    let sj = d.s("six.json");
+    ok(&["fit", &six, "--json", &sj]);
+    let said = json(Path::new(&sj))["uncertainty"]["not_included"].to_string();
+    assert!(said.contains("not measured: GMDH identifies no candidate"), "{said}");
     // No budget for test turns, nor for a block that is not a triad.
     let tt = d.s("tt.json");
     ok(&["fit", &c, "--method", "test-turns", "--json", &tt]);

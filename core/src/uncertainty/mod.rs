@@ -499,7 +499,9 @@ pub fn budget(
                  beyond the positions the error is larger, so the gap is not a standard uncertainty of every orientation"
             )
         }
-        None => "model 4's lack of fit beyond what the dwell scatter of the plan's positions shows".into(),
+        None => "model 4's lack of fit beyond what the dwell scatter of the plan's positions shows (not measured: GMDH \
+                 identifies no candidate on this plan's split)"
+            .into(),
     });
     Ok(budget)
 }

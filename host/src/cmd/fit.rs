@@ -282,7 +282,9 @@ fn fit_budget(
         head_angle_rad: head.angle.unwrap_or(0.0) * ARCSEC,
         head_orthogonality_rad: head.orthogonality.unwrap_or(0.0) * ARCSEC,
         g_m_s2: bound / 3f64.sqrt(),
-        lack_of_fit_codes: if stats.len() == 3 { Some(lack_of_fit_codes(pos, stats)?) } else { None },
+        // GMDH needs a plan whose split identifies its candidates; on fewer positions the lack of
+        // fit is not measured, and the budget says so.
+        lack_of_fit_codes: lack_of_fit_codes(pos, stats),
         temperature: a.tempco.coefficients(),
     };
     let only: Vec<&LsqFit> = fits.iter().map(|(_, f)| f).collect();
@@ -306,11 +308,10 @@ fn fit_budget(
     }
 }
 
-/// Model 4's lack of fit per channel, codes (the GMDH criterion gap, in the order of `stats`).
-fn lack_of_fit_codes(pos: &Positions, stats: &[ChannelStats]) -> anyhow::Result<[f64; 3]> {
-    let gaps = uncertainty::lack_of_fit(pos, stats).context("measuring model 4's lack of fit by GMDH")?;
-    gaps.try_into()
-        .map_err(|g: Vec<f64>| anyhow::anyhow!("a triad has three channels, the campaign {}", g.len()))
+/// Model 4's lack of fit per channel, codes (the GMDH criterion gap, in the order of `stats`):
+/// `None` for a campaign that is not a triad or a plan on which GMDH identifies no candidate.
+fn lack_of_fit_codes(pos: &Positions, stats: &[ChannelStats]) -> Option<[f64; 3]> {
+    uncertainty::lack_of_fit(pos, stats).ok()?.try_into().ok()
 }
 
 /// The device id of `fit --record`: the campaign's `# device_id:` line, which `--device-id` may
