@@ -91,7 +91,7 @@ pub struct TempCoefficients {
     pub bias_mg_per_c: f64,
     /// Each channel's scale-factor temperature coefficient, ppm/°C.
     pub scale_ppm_per_c: f64,
-    /// The campaign's temperature reading, °C.
+    /// The standard uncertainty of the campaign's temperature reading, °C.
     pub thermometer_c: f64,
 }
 
@@ -410,7 +410,8 @@ pub fn budget(
             add_block(&mut thermal, p, p, &dk, &dk, rel * rel * spread);
         }
         thermal_source = format!(
-            "{} mg/°C bias and {} ppm/°C scale factor per channel (stated, one sigma), calibrated at {mean:.1} °C              (mean of the campaign's readings) for the reference {:.1} °C, thermometer u(T) = {} °C",
+            "{} mg/°C bias and {} ppm/°C scale factor per channel (stated, one sigma), calibrated at {mean:.1} °C \
+             (mean of the campaign's readings) for the reference {:.1} °C, thermometer u(T) = {} °C",
             t.bias_mg_per_c, t.scale_ppm_per_c, pos.t_ref_c, t.thermometer_c
         );
     }

@@ -6,7 +6,7 @@
 //! Each simulated unit: a triad with the simulator's spread of biases, sensitivities and
 //! misalignments; the head's three stage rotations drawn from the stated orthogonality (the
 //! simulator's `head_misalignment`), its angle setting errors from the stated angle uncertainty
-//! (`angle_error`), the true g drawn from the stated u(g) while the fit uses the stated g, a
+//! (`angle_error`), the true g drawn from the stated u(g) while the fit uses the stated g,
 //! and the temperature: the block calibrated 5 °C above the reference temperature, the unit's bias and
 //! scale-factor coefficients drawn from the stated ones (`temperature`, common to the channels)
 //! and the thermometer's reading off the true temperature by a draw of its stated u(T). The

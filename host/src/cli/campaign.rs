@@ -125,10 +125,15 @@ pub(crate) fn parse_arcsec(s: &str) -> Result<f64, String> {
     }
 }
 
-/// A stated one-sigma uncertainty: a finite number ≥ 0.
+/// Whether `v` can be a stated one-sigma uncertainty: a finite number ≥ 0.
+pub fn is_sigma(v: f64) -> bool {
+    v.is_finite() && v >= 0.0
+}
+
+/// A stated one-sigma uncertainty ([`is_sigma`]).
 fn parse_sigma(s: &str) -> Result<f64, String> {
     match s.trim().parse::<f64>() {
-        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
+        Ok(v) if is_sigma(v) => Ok(v),
         _ => Err("expected a finite number ≥ 0".into()),
     }
 }
@@ -162,6 +167,19 @@ impl TempcoArgs {
             scale_ppm_per_c: self.scale_tempco_u?,
             thermometer_c: self.thermometer_u?,
         })
+    }
+
+    /// The options as a command line gives them (what the station passes to its fit step).
+    pub fn to_args(&self) -> Vec<String> {
+        [
+            ("--bias-tempco-u", self.bias_tempco_u),
+            ("--scale-tempco-u", self.scale_tempco_u),
+            ("--thermometer-u", self.thermometer_u),
+        ]
+        .into_iter()
+        .filter_map(|(option, v)| Some([option.to_string(), v?.to_string()]))
+        .flatten()
+        .collect()
     }
 }
 

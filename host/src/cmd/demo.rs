@@ -30,7 +30,7 @@ pub fn run(a: &DemoArgs) -> anyhow::Result<()> {
     steps.inc(1);
 
     steps.set_message("GMDH over the paper's 11 models (regularity criterion, alternate split)");
-    let settings = super::select::paper_settings();
+    let settings = accelcal_core::gmdh::Settings::paper();
     let sel = super::select::compute(&campaign, g, &[], &settings)?;
     write_json(
         &out.join("select.json"),

@@ -224,7 +224,7 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
         pos.t_ref_c = t.t_ref_c as f64;
     }
     let stats = pos.channel_stats(&campaign);
-    let mut settings = super::select::paper_settings();
+    let mut settings = accelcal_core::gmdh::Settings::paper();
     if rec.structure.is_thermal() {
         settings.basis = accelcal_shared::Basis::LinearThermal;
     }

@@ -59,12 +59,6 @@ fn names(s: Structure) -> Vec<String> {
     s.terms().map(|t| t.to_string()).collect()
 }
 
-/// The paper's selection: its 11 models, the regularity criterion, the alternate split, a 1-code
-/// tolerance (what `demo` and the certificate run).
-pub fn paper_settings() -> Settings {
-    Settings::paper()
-}
-
 /// Runs exhaustive GMDH on the chosen channels of a campaign, with a progress bar for large bases.
 pub fn compute(
     c: &Campaign,

@@ -556,16 +556,7 @@ impl Station<'_> {
         ];
         let mut args = args;
         args.extend(self.head_u_args());
-        let t = &self.a.tempco;
-        for (option, v) in [
-            ("--bias-tempco-u", t.bias_tempco_u),
-            ("--scale-tempco-u", t.scale_tempco_u),
-            ("--thermometer-u", t.thermometer_u),
-        ] {
-            if let Some(v) = v {
-                args.extend([option.to_string(), v.to_string()]);
-            }
-        }
+        args.extend(self.a.tempco.to_args());
         if let Exit::Failed = self.run(Step::Fit, &args)? {
             return Err(anyhow::anyhow!("step fit failed (its error is above)"));
         }

@@ -138,7 +138,7 @@ pub fn apply(command: &mut Command, given: &mut Given) -> anyhow::Result<()> {
     for (key, v) in tempco {
         if let Some(v) = v {
             let x = *v.get_ref();
-            if !(x.is_finite() && x >= 0.0) {
+            if !crate::cli::is_sigma(x) {
                 return Err(bad(format!("{name}:{}: {key} must be a finite number ≥ 0, got {x}", f.at(v))));
             }
         }
