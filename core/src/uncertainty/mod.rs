@@ -24,12 +24,14 @@
 //!   ([`crate::campaign::identity::g_uncertainty`]), a rectangular distribution (u = bound/√3): a
 //!   relative error of g is a relative error of every sensitivity.
 //! - **quantisation** (Type B): each sample rounded to a whole code, 1/12 code² per sample.
-//! - **model 4's lack of fit** is measured ([`lack_of_fit`]: GMDH's gap between model 4's
-//!   regularity criterion and the best of the paper's 11 models, RMS codes on the check part, per
-//!   channel) and stated, but not included in U: taken as each channel's standard uncertainty at
-//!   any orientation, it covered 81 % instead of 95 % of the error that random quadratic terms of
-//!   4 codes leave (Monte Carlo, 1,000 units): the gap sees the lack of fit at the plan's check
-//!   positions, and model 4's error between and beyond them is larger.
+//! - **model 4's lack of fit** (Type A, [`lack_of_fit`]): each channel's dwell means fitted with
+//!   the quadratic model on the sphere (every one of the paper's 11 models is inside it), and the
+//!   RMS over the sphere of what model 4, fitted on the same positions, leaves of its quadratic
+//!   part, less what the dwell scatter puts there; an output error at an orientation nobody
+//!   chose, so it sits on each channel's bias term (the same at every orientation). What it
+//!   explains of the residuals at the positions is taken out of the dwell scatter. GMDH's
+//!   criterion gap to the best of the 11 models is stated beside it. Terms above the second
+//!   degree are not measured, and the budget says so.
 //! - **temperature** (Type B, stated by the unit type's data sheet: `fit --bias-tempco-u`,
 //!   `--scale-tempco-u`, `--thermometer-u`): the coefficients are the unit's at the campaign's
 //!   mean temperature T̄, the result is stated at the reference temperature T_ref; each
@@ -43,6 +45,7 @@
 //! the orientations at 1 g is what the certificate states. [`montecarlo`] checks the whole by
 //! simulation (JCGM 101:2008).
 
+pub mod lack_of_fit;
 pub mod montecarlo;
 
 use accelcal_shared::linear::{LinearCal, Model4};
@@ -76,8 +79,9 @@ pub struct References {
     pub head_orthogonality_rad: f64,
     /// Standard uncertainty of g, m/s².
     pub g_m_s2: f64,
-    /// Model 4's lack of fit per channel (in the order of the fits given), codes: the GMDH
-    /// criterion gap ([`lack_of_fit`]), stated with what is not included; `None`: not measured.
+    /// GMDH's criterion gap of model 4 per channel (in the order of the fits given), codes
+    /// ([`lack_of_fit::criterion_gap`]), stated beside the measured lack of fit; `None`: GMDH
+    /// identifies no candidate on the plan.
     pub lack_of_fit_codes: Option<[f64; 3]>,
     /// The unit type's stated temperature coefficients; `None`: named as not included.
     pub temperature: Option<TempCoefficients>,
@@ -128,7 +132,7 @@ impl Classify for UncertaintyError {
 #[derive(Clone, Debug, Serialize)]
 pub struct Contributor {
     /// Its name: `dwell_scatter`, `head_angle`, `head_orthogonality`, `gravity`, `quantisation`,
-    /// `temperature`.
+    /// `temperature`, `lack_of_fit`.
     pub name: &'static str,
     /// Its standard uncertainty of the calibrated acceleration, m/s²: the largest over the axes
     /// and the orientations at 1 g.
@@ -416,6 +420,44 @@ pub fn budget(
         );
     }
 
+    // Model 4's lack of fit: each channel's RMS error over the sphere, on its bias term.
+    let points: Vec<[f64; 3]> = sphere(SPHERE_POINTS).into_iter().map(|d| d.map(|v| v * g)).collect();
+    let mut lof_cov = Cov12::zeros();
+    // The head's stated rotation leaves outputs of its own, which a linear unit shows too.
+    let head_outputs: Vec<DMatrix<f64>> = (0..stats.len())
+        .map(|ci| match order.iter().position(|&o| o == ci) {
+            Some(p) if uo2 > 0.0 => {
+                let uo = refs.head_orthogonality_rad;
+                DMatrix::from_fn(n, 3, |i, j| uo * dot3(&kvec(p), &partials[i][2 + j]))
+            }
+            _ => DMatrix::zeros(n, 0),
+        })
+        .collect();
+    let measured = lack_of_fit::measure(pos, stats, &a, &resid_maker, &points, &head_outputs);
+    let lof_source = match &measured {
+        Ok(m) => {
+            for (p, &ci) in order.iter().enumerate() {
+                lof_cov[(4 * p, 4 * p)] = m.u_codes[ci] * m.u_codes[ci];
+                explained += m.explained_ss[ci];
+            }
+            let [x, y, z] = order.map(|ci| m.rms_codes[ci]);
+            let [fx, fy, fz] = order.map(|ci| m.floor_codes[ci]);
+            let gap = match refs.lack_of_fit_codes {
+                Some(_) => {
+                    let [gx, gy, gz] = order.map(|ci| lof[ci]);
+                    format!("; GMDH's criterion gap to the best of the paper's 11 models x {gx:.2}, y {gy:.2}, z {gz:.2} codes")
+                }
+                None => String::new(),
+            };
+            format!(
+                "model 4's error against the quadratic model, RMS over the sphere less the dwell scatter's share: \
+                 x {x:.2}, y {y:.2}, z {z:.2} codes (this plan resolves x {fx:.2}, y {fy:.2}, z {fz:.2}); u is half its \
+                 95th percentile{gap}"
+            )
+        }
+        Err(_) => "not measured".to_string(),
+    };
+
     // Dwell scatter: the residual covariance of the channels over the scatter matrix A·Aᵀ, less
     // the part the stated contributors explain.
     let observed: f64 = resid.iter().map(|r| r.norm_squared()).sum();
@@ -440,7 +482,7 @@ pub fn budget(
             "not stated".to_string()
         }
     };
-    let parts: [(&'static str, &'static str, String, Cov12); 6] = [
+    let parts: [(&'static str, &'static str, String, Cov12); 7] = [
         (
             "dwell_scatter",
             "A",
@@ -455,6 +497,7 @@ pub fn budget(
         ("gravity", "B", format!("u(g) = {:.3e} m/s²", refs.g_m_s2), grav),
         ("quantisation", "B", "1/12 code² per sample".to_string(), quant),
         ("temperature", "B", thermal_source, thermal),
+        ("lack_of_fit", "A", lof_source, lof_cov),
     ];
     let covariance = parts.iter().fold(Cov12::zeros(), |acc, p| acc + p.3);
     let mut budget = Budget {
@@ -466,7 +509,6 @@ pub fn budget(
         not_included: Vec::new(),
         expanded_max: [0.0; 3],
     };
-    let points: Vec<[f64; 3]> = sphere(SPHERE_POINTS).into_iter().map(|d| d.map(|v| v * g)).collect();
     let combined: Vec<Vector3<f64>> = points.iter().map(|&a| budget.variance_at(&covariance, a)).collect();
     let total_var: f64 = combined.iter().map(|v| v.sum()).sum();
     budget.expanded_max =
@@ -491,41 +533,17 @@ pub fn budget(
             "the temperature during calibration against the reference temperature (no temperature coefficient stated)".into(),
         );
     }
-    budget.not_included.push(match refs.lack_of_fit_codes {
-        Some(_) => {
-            let [x, y, z] = order.map(|ci| lof[ci]);
-            format!(
-                "model 4's lack of fit: GMDH measures a criterion gap to the best of the paper's 11 models of x {x:.2}, \
-                 y {y:.2}, z {z:.2} codes at the plan's check positions (model 4 is selected within 1 code); between and \
-                 beyond the positions the error is larger, so the gap is not a standard uncertainty of every orientation"
-            )
+    budget.not_included.push(match measured {
+        Ok(_) => {
+            "terms of the output above the second degree in acceleration (model 4's lack of fit is measured \
+                  against the quadratic model)"
+                .into()
         }
-        None => "model 4's lack of fit beyond what the dwell scatter of the plan's positions shows (not measured: GMDH \
-                 identifies no candidate on this plan's split)"
-            .into(),
+        Err(why) => {
+            format!("model 4's lack of fit beyond what the dwell scatter shows (not measured: {why})")
+        }
     });
     Ok(budget)
-}
-
-/// Model 4's lack of fit on each channel (in the order of `stats`), codes: its regularity
-/// criterion less the best of the paper's 11 models' (GMDH, [`crate::gmdh::Settings::paper`]),
-/// 0 when model 4 is the best. A channel on which model 4 is not identifiable is refused.
-pub fn lack_of_fit(pos: &Positions, stats: &[ChannelStats]) -> Result<Vec<f64>, crate::gmdh::GmdhError> {
-    let settings = crate::gmdh::Settings::paper();
-    stats
-        .iter()
-        .map(|ch| {
-            let prepared = crate::gmdh::Prepared::new(pos, ch, &settings)?;
-            let candidates = prepared.score(settings.basis, settings.max_terms, &|_| {});
-            let best = candidates.iter().filter_map(|c| c.criterion).fold(f64::INFINITY, f64::min);
-            let own = candidates
-                .iter()
-                .find(|c| c.structure == MODEL_4)
-                .and_then(|c| c.criterion)
-                .ok_or(crate::gmdh::GmdhError::NothingIdentifiable)?;
-            Ok((own - best).max(0.0))
-        })
-        .collect()
 }
 
 impl Budget {
@@ -592,7 +610,7 @@ pub struct UncertaintyJson {
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct ContributorJson {
     /// Its name: `dwell_scatter`, `head_angle`, `head_orthogonality`, `gravity`, `quantisation`,
-    /// `temperature`.
+    /// `temperature`, `lack_of_fit`.
     pub name: String,
     /// Its standard uncertainty of the calibrated acceleration, m/s² (the largest over the axes
     /// and the orientations at 1 g).
@@ -681,8 +699,14 @@ mod tests {
         assert!(u(&all, "head_orthogonality") > 0.0 && u(&all, "gravity") > 0.0);
         // g's relative error scales the acceleration: at 1 g, u = g·u(g)/g = u(g).
         assert!((u(&all, "gravity") - 1e-3).abs() < 2e-5, "{}", u(&all, "gravity"));
-        let (un, ua) = (none.expanded_max, all.expanded_max);
-        assert!((0..3).all(|i| ua[i] > un[i] && un[i] > 0.0), "{un:?} {ua:?}");
+        // Every stated reference adds variance (the lack of fit, measured from the same data
+        // either way, aside: a head's stated rotation raises the floor it is seen above).
+        let lof = |b: &Budget| b.contributors.iter().find(|c| c.name == "lack_of_fit").unwrap().covariance;
+        for a in sphere(20).into_iter().map(|d| d.map(|v| v * 9.80665)) {
+            let un = none.variance_at(&(none.covariance - lof(&none)), a);
+            let ua = all.variance_at(&(all.covariance - lof(&all)), a);
+            assert!((0..3).all(|i| ua[i] > un[i] && un[i] > 0.0), "{un:?} {ua:?}");
+        }
         assert_eq!(none.not_included.len(), 4, "{:?}", none.not_included);
         // A calibrated acceleration of the fitted model's own codes is the acceleration.
         let a = [1.0, -2.0, 9.0];
@@ -703,12 +727,17 @@ mod tests {
     }
 
     #[test]
-    fn gmdh_measures_the_lack_of_fit_that_a_quadratic_term_leaves_and_the_budget_states_it() {
+    fn the_lack_of_fit_a_quadratic_term_leaves_is_measured_and_in_u_and_a_linear_unit_has_none() {
         use crate::sim::effects::Nonlinearity;
+        let lof = |b: &Budget| b.contributors.iter().find(|c| c.name == "lack_of_fit").unwrap().u_m_s2;
         let plain = SimConfig { samples: 100, noise: 2.0, ..SimConfig::default() };
-        let (pos, stats, _) = simulated(plain);
-        let small = lack_of_fit(&pos, &stats).unwrap();
-        assert!(small.iter().all(|&v| (0.0..0.2).contains(&v)), "{small:?}");
+        let (pos, stats, fits) = simulated(plain);
+        let gaps = lack_of_fit::criterion_gap(&pos, &stats).unwrap();
+        assert!(gaps.iter().all(|&v| (0.0..0.2).contains(&v)), "{gaps:?}");
+        let fits: Vec<&LsqFit> = fits.iter().collect();
+        let linear = budget(&pos, &stats, &fits, References::default()).unwrap();
+        // A linear unit: at most what the scatter leaves above its threshold (0.1 code = 6e-5 m/s²).
+        assert!(lof(&linear) < 6e-5, "{}", lof(&linear));
         let k2 = 6.0 / (9.80665f64 * 9.80665);
         let bent = SimConfig {
             samples: 100,
@@ -717,18 +746,31 @@ mod tests {
             ..SimConfig::default()
         };
         let (pos, stats, fits) = simulated(bent);
-        let gaps = lack_of_fit(&pos, &stats).unwrap();
-        // 6 codes of a_own²/g² leave about 6·√(4/45) ≈ 1.8 codes RMS about model 4.
+        let gaps = lack_of_fit::criterion_gap(&pos, &stats).unwrap();
         assert!(gaps.iter().all(|&v| (0.8..3.0).contains(&v)), "{gaps:?}");
         let fits: Vec<&LsqFit> = fits.iter().collect();
         let with =
             References { lack_of_fit_codes: Some([gaps[0], gaps[1], gaps[2]]), ..References::default() };
         let b = budget(&pos, &stats, &fits, with).unwrap();
-        let without = budget(&pos, &stats, &fits, References::default()).unwrap();
-        // Stated, not in U.
-        assert_eq!(b.expanded_max, without.expanded_max);
-        let said = b.not_included.iter().find(|n| n.contains("lack of fit")).unwrap();
-        assert!(said.contains(&format!("x {:.2}", gaps[b.order[0]])), "{said}");
+        // 6 codes of a_own²/g² leave 6·√(4/45) ≈ 1.8 codes RMS about its projection on the
+        // linear functions over the sphere; 1.8 codes at 16384 codes/g is 1.07e-3 m/s².
+        let u = lof(&b);
+        assert!((0.9e-3..1.3e-3).contains(&u), "{u}");
+        assert!((0..3).all(|i| b.expanded_max[i] > linear.expanded_max[i]), "{:?}", b.expanded_max);
+        let source = &b.contributors.iter().find(|c| c.name == "lack_of_fit").unwrap().source;
+        assert!(source.contains(&format!("x {:.2}", gaps[b.order[0]])), "{source}");
+        assert!(b.not_included.iter().any(|n| n.contains("above the second degree")), "{:?}", b.not_included);
+        // Six positions do not determine the quadratic model: not measured, and said so.
+        let six = SimConfig { plan: crate::sim::Plan::six(), samples: 20, ..SimConfig::default() };
+        let (pos, stats, fits) = simulated(six);
+        let fits: Vec<&LsqFit> = fits.iter().collect();
+        let b = budget(&pos, &stats, &fits, References::default()).unwrap();
+        assert_eq!(lof(&b), 0.0);
+        assert!(
+            b.not_included.iter().any(|n| n.contains("not measured: the plan's 6 positions")),
+            "{:?}",
+            b.not_included
+        );
     }
 
     #[test]

@@ -311,7 +311,7 @@ fn fit_budget(
 /// Model 4's lack of fit per channel, codes (the GMDH criterion gap, in the order of `stats`):
 /// `None` for a campaign that is not a triad or a plan on which GMDH identifies no candidate.
 fn lack_of_fit_codes(pos: &Positions, stats: &[ChannelStats]) -> Option<[f64; 3]> {
-    uncertainty::lack_of_fit(pos, stats).ok()?.try_into().ok()
+    uncertainty::lack_of_fit::criterion_gap(pos, stats).ok()?.try_into().ok()
 }
 
 /// The device id of `fit --record`: the campaign's `# device_id:` line, which `--device-id` may

@@ -206,12 +206,12 @@ pub fn run_check(a: &UncertaintyCheckArgs) -> anyhow::Result<()> {
         set.units, set.samples, set.orientations, set.seed
     );
     println!(
-        "{:<20} {:>7} {:>7} {:>9} {:>8} {:>15} {:>10} {:>13}  mean max U",
-        "scenario", "noise", "angle", "orthog.", "u(g)", "temperature", "coverage", "range"
+        "{:<20} {:>7} {:>7} {:>9} {:>8} {:>15} {:>10} {:>10} {:>13}  mean max U",
+        "scenario", "noise", "angle", "orthog.", "u(g)", "temperature", "quadratic", "coverage", "range"
     );
     println!(
-        "{:<20} {:>7} {:>7} {:>9} {:>8} {:>15}",
-        "", "codes", "arcsec", "arcsec", "m/s²", "mg/ppm/°C, °C"
+        "{:<20} {:>7} {:>7} {:>9} {:>8} {:>15} {:>10}",
+        "", "codes", "arcsec", "arcsec", "m/s²", "mg/ppm/°C, °C", "codes"
     );
     let mut rows = Vec::new();
     let mut failed = Vec::new();
@@ -226,13 +226,14 @@ pub fn run_check(a: &UncertaintyCheckArgs) -> anyhow::Result<()> {
             format!("{}/{}/{}", t.bias_mg_per_c, t.scale_ppm_per_c, t.thermometer_c)
         });
         println!(
-            "{:<20} {:>7} {:>7} {:>9} {:>8} {:>15} {:>9.2}% {:>5.1}–{:.1} %  {:.3e} m/s²  {}",
+            "{:<20} {:>7} {:>7} {:>9} {:>8} {:>15} {:>10} {:>9.2}% {:>5.1}–{:.1} %  {:.3e} m/s²  {}",
             s.name,
             s.noise_codes,
             s.head_angle_arcsec,
             s.head_orthogonality_arcsec,
             s.g_u_m_s2,
             temp,
+            s.quadratic_codes,
             100.0 * o.coverage,
             100.0 * lo,
             100.0 * hi,

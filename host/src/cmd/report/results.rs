@@ -179,6 +179,7 @@ fn contributor_words(name: &str) -> String {
         "gravity" => "local gravity g".into(),
         "quantisation" => "ADC quantisation".into(),
         "temperature" => "temperature against the reference temperature".into(),
+        "lack_of_fit" => "model 4's lack of fit (against the quadratic model)".into(),
         other => other.replace('_', " "),
     }
 }

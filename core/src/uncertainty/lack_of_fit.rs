@@ -1,0 +1,190 @@
+//! Model 4's lack of fit: what the linear model leaves of a channel's output at every
+//! orientation, measured from the campaign, and GMDH's criterion gap that the paper's selection
+//! tolerates.
+//!
+//! The measure: each channel's dwell means fitted with the quadratic model on the sphere (the
+//! nine functions `1, ux, uy, uz, ux², uy², ux·uy, ux·uz, uy·uz` of `u = a/g`; on the sphere
+//! `uz² = 1 − ux² − uy²`, so these span every polynomial of degree ≤ 2 and every one of the
+//! paper's 11 models). Model 4, fitted on the same positions, absorbs part of the quadratic part
+//! `q` (its projection through the plan's `A`); what it leaves at an orientation `a` is
+//! `e(a) = ψ(a)·β` with `ψ(a) = q(a) − (A·Q)ᵀ·row(a)`, linear in the quadratic coefficients β.
+//! Its mean square over the sphere is `βᵀMβ` with `M` the sphere's mean of `ψψᵀ`.
+//!
+//! The estimate `β̂` carries the dwell scatter: `E[β̂ᵀMβ̂] = βᵀMβ + tr(MΣ)`, Σ the covariance of
+//! β̂ from the quadratic fit's own residuals. Noise alone makes `β̂ᵀMβ̂` a weighted χ² with mean
+//! `tr(MΣ)` and standard deviation `√(2·tr((MΣ)²))`; the lack of fit stated is what is left above
+//! that mean and twice that spread, so that a linear unit's scatter is not counted a second
+//! time (the dwell scatter already carries it); the estimate of β is shrunk by the same factor.
+//! The error at an orientation nobody chose is then known as a distribution over the sphere, and
+//! the standard uncertainty taken is half its 95th percentile (a bounded quadratic form: twice
+//! its RMS would cover more than 95 %). A lack of fit below the floor that the plan's scatter
+//! sets is not seen, and the budget states that floor.
+
+use accelcal_shared::terms::MODEL_4;
+use nalgebra::{DMatrix, DVector, SMatrix, SVector};
+
+use crate::positions::{ChannelStats, Positions};
+
+/// The quadratic functions on the sphere.
+pub const QUADRATIC_TERMS: usize = 9;
+
+/// How many standard deviations of the noise-only statistic, above its mean, are taken out of
+/// the measured mean square as the dwell scatter's share.
+pub const SPREADS: f64 = 2.0;
+
+/// Positions the measure needs: the quadratic model and three degrees of freedom for the scatter.
+pub const MIN_POSITIONS: usize = QUADRATIC_TERMS + 3;
+
+type Mat9 = SMatrix<f64, QUADRATIC_TERMS, QUADRATIC_TERMS>;
+type Vec9 = SVector<f64, QUADRATIC_TERMS>;
+
+/// The quadratic model's regressors at an acceleration (m/s²) on a sphere of radius `g`.
+fn quadratic(a: [f64; 3], g: f64) -> Vec9 {
+    let [x, y, z] = a.map(|v| v / g);
+    Vec9::from([1.0, x, y, z, x * x, y * y, x * y, x * z, y * z])
+}
+
+/// Model 4's lack of fit on each channel of a triad, as measured from its campaign.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Measured {
+    /// Per channel (in the order of the stats given), the standard uncertainty the budget takes,
+    /// codes: half the 95th percentile of |model 4's error| over the sphere. Its error is a
+    /// fixed quadratic form, bounded, not Gaussian: twice its RMS would cover more than 95 % of
+    /// the orientations (all of them for `ux·uy`), half its 95th percentile makes U's k = 2
+    /// cover 95 % where it dominates.
+    pub u_codes: Vec<f64>,
+    /// Per channel, the RMS over the sphere of model 4's error, codes (0 where the quadratic part
+    /// is within the scatter).
+    pub rms_codes: Vec<f64>,
+    /// Per channel, the RMS a lack of fit must exceed to be seen on this plan with this scatter,
+    /// codes: `√(tr(MΣ) + SPREADS·√(2·tr((MΣ)²)))`.
+    pub floor_codes: Vec<f64>,
+    /// Per channel, the part of model 4's residuals at the positions that the stated lack of fit
+    /// explains (sum of squares, codes²): taken out of the dwell scatter.
+    pub explained_ss: Vec<f64>,
+}
+
+/// Why the lack of fit could not be measured.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NotMeasured {
+    /// Too few positions for the quadratic model and its scatter.
+    TooFewPositions(usize),
+    /// The positions do not determine the quadratic model (too few distinct orientations).
+    Undetermined,
+}
+
+impl std::fmt::Display for NotMeasured {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            NotMeasured::TooFewPositions(n) => write!(
+                f,
+                "the plan's {n} positions are too few for the quadratic model on the sphere, which needs {MIN_POSITIONS}"
+            ),
+            NotMeasured::Undetermined => {
+                f.write_str("the plan's orientations do not determine the quadratic model on the sphere")
+            }
+        }
+    }
+}
+
+/// Measures model 4's lack of fit on every channel of `stats` at the positions `pos`, with `a4`
+/// model 4's fit operator `(XᵀWX)⁻¹XᵀW` (4 × n) and `resid_maker` its `I − X·A` on the same
+/// positions; `sphere` are the orientations (m/s², radius g) the error is taken over.
+/// `stated[c]` are the outputs (n × k codes, k ≥ 0) that one sigma of each independent error
+/// stated for the head (its stage rotations) leaves on channel `c`: the head's, not the unit's,
+/// counted by their own contributor, so what they put into the quadratic terms is expected of a
+/// linear unit too and taken out with the scatter's share.
+pub fn measure(
+    pos: &Positions,
+    stats: &[ChannelStats],
+    a4: &DMatrix<f64>,
+    resid_maker: &DMatrix<f64>,
+    sphere: &[[f64; 3]],
+    stated: &[DMatrix<f64>],
+) -> Result<Measured, NotMeasured> {
+    let n = pos.len();
+    if n < MIN_POSITIONS {
+        return Err(NotMeasured::TooFewPositions(n));
+    }
+    let g = pos.g;
+    let xq = DMatrix::from_fn(n, QUADRATIC_TERMS, |i, t| quadratic(pos.accel[i], g)[t]);
+    let xtw = DMatrix::from_fn(QUADRATIC_TERMS, n, |t, i| xq[(i, t)] * pos.weight[i]);
+    let normal = &xtw * &xq;
+    // Scaled regressors are of order 1: a tiny singular value is a plan that does not fix them.
+    let sv = normal.clone().svd(false, false).singular_values;
+    let (lo, hi) = sv.iter().fold((f64::INFINITY, 0.0f64), |(l, h), &s| (l.min(s), h.max(s)));
+    if !(lo > hi * 1e-10) {
+        return Err(NotMeasured::Undetermined);
+    }
+    let aq = normal.try_inverse().ok_or(NotMeasured::Undetermined)? * &xtw;
+    // What model 4 absorbs of each quadratic function at the plan's positions, and what it
+    // leaves of each at the orientations of the sphere.
+    let absorbed = a4 * &xq;
+    let psi: Vec<Vec9> = sphere
+        .iter()
+        .map(|&a| {
+            let r4 = nalgebra::Vector4::new(1.0, a[0], a[1], a[2]);
+            quadratic(a, g) - Vec9::from_iterator((absorbed.transpose() * r4).iter().copied())
+        })
+        .collect();
+    let m = psi.iter().fold(Mat9::zeros(), |acc, p| acc + p * p.transpose()) / sphere.len().max(1) as f64;
+    let cov_shape = Mat9::from_iterator((&aq * aq.transpose()).iter().copied());
+    let dof = (n - QUADRATIC_TERMS) as f64;
+    let mut out = Measured {
+        u_codes: Vec::new(),
+        rms_codes: Vec::new(),
+        floor_codes: Vec::new(),
+        explained_ss: Vec::new(),
+    };
+    for (c, ch) in stats.iter().enumerate() {
+        let y = DVector::from_column_slice(&ch.mean);
+        let beta_d = &aq * &y;
+        let beta = Vec9::from_iterator(beta_d.iter().copied());
+        let s2 = (&y - &xq * &beta_d).norm_squared() / dof;
+        let mut cov = cov_shape * s2;
+        if let Some(h) = stated.get(c) {
+            for col in h.column_iter() {
+                let b = Vec9::from_iterator((&aq * col).iter().copied());
+                cov += b * b.transpose();
+            }
+        }
+        let ms = (beta.transpose() * m * beta)[(0, 0)];
+        let m_sigma = m * cov;
+        let noise = m_sigma.trace();
+        let spread = (2.0 * (m_sigma * m_sigma).trace()).max(0.0).sqrt();
+        let lof2 = (ms - noise - SPREADS * spread).max(0.0);
+        let shrink = if ms > 0.0 { (lof2 / ms).sqrt() } else { 0.0 };
+        // The equivalent standard uncertainty: half the 95th percentile of |e| over the sphere.
+        let mut abs: Vec<f64> = psi.iter().map(|p| (shrink * p.dot(&beta)).abs()).collect();
+        abs.sort_by(f64::total_cmp);
+        let q95 =
+            abs.get(((abs.len() as f64 * 0.95).ceil() as usize).saturating_sub(1)).copied().unwrap_or(0.0);
+        let at_positions = (resid_maker * (&xq * &beta_d)).norm_squared();
+        out.u_codes.push(q95 / 2.0);
+        out.rms_codes.push(lof2.sqrt());
+        out.floor_codes.push((noise + SPREADS * spread).max(0.0).sqrt());
+        out.explained_ss.push(if ms > 0.0 { at_positions * lof2 / ms } else { 0.0 });
+    }
+    Ok(out)
+}
+
+/// Model 4's lack of fit on each channel (in the order of `stats`), codes: its regularity
+/// criterion less the best of the paper's 11 models' (GMDH, [`crate::gmdh::Settings::paper`]),
+/// 0 when model 4 is the best. A channel on which model 4 is not identifiable is refused.
+pub fn criterion_gap(pos: &Positions, stats: &[ChannelStats]) -> Result<Vec<f64>, crate::gmdh::GmdhError> {
+    let settings = crate::gmdh::Settings::paper();
+    stats
+        .iter()
+        .map(|ch| {
+            let prepared = crate::gmdh::Prepared::new(pos, ch, &settings)?;
+            let candidates = prepared.score(settings.basis, settings.max_terms, &|_| {});
+            let best = candidates.iter().filter_map(|c| c.criterion).fold(f64::INFINITY, f64::min);
+            let own = candidates
+                .iter()
+                .find(|c| c.structure == MODEL_4)
+                .and_then(|c| c.criterion)
+                .ok_or(crate::gmdh::GmdhError::NothingIdentifiable)?;
+            Ok((own - best).max(0.0))
+        })
+        .collect()
+}
