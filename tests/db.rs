@@ -132,7 +132,7 @@ fn both_engines_have_the_same_tables_and_columns() {
         let want = match &v[..4] {
             "V1__" => 8,
             "V2__" => 3,
-            "V4__" => 1,
+            "V4__" | "V5__" => 1,
             _ => 2,
         };
         assert_eq!(s.len(), want, "{v}: {s:?}");
@@ -459,7 +459,7 @@ fn sixteen_first_opens_at_once_migrate_once() {
         assert_eq!(out.status.code(), Some(2), "{err}");
         assert!(err.contains(&format!("run {run}: not in the database")), "{err}");
     }
-    assert_eq!(Db::open(&spec).unwrap().schema_versions().unwrap(), vec![1, 2, 3, 4]);
+    assert_eq!(Db::open(&spec).unwrap().schema_versions().unwrap(), vec![1, 2, 3, 4, 5]);
 }
 
 /// Issue 28 items 7 and 11: a database that cannot be written stops a writer first, naming the
@@ -534,4 +534,15 @@ fn two_connections_in_one_process_keep_every_write_visible() {
 fn certificate_numbers_are_unique_stable_and_never_reused() {
     let d = tempfile::tempdir().unwrap();
     certificate_numbers_are_never_reused(&db_file(&d));
+}
+
+#[test]
+fn the_recalibration_date_is_stored_with_the_number_and_decisions_are_columns() {
+    let d = tempfile::tempdir().unwrap();
+    let spec = db_file(&d);
+    recalibration_dates_and_decisions_are_stored(&spec, &mut || {
+        let c = rusqlite::Connection::open(&spec).unwrap();
+        let mut s = c.prepare("SELECT run_id, decision, rule FROM verification_decision").unwrap();
+        s.query_map([], |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?))).unwrap().map(|r| r.unwrap()).collect()
+    });
 }

@@ -159,3 +159,17 @@ fn certificate_numbers_are_unique_stable_and_never_reused() {
     let pg = Cluster::start();
     certificate_numbers_are_never_reused(&pg.url);
 }
+
+#[test]
+fn the_recalibration_date_is_stored_with_the_number_and_decisions_are_columns() {
+    let pg = Cluster::start();
+    let url = pg.url.clone();
+    recalibration_dates_and_decisions_are_stored(&pg.url, &mut || {
+        let mut c = postgres::Client::connect(&url, postgres::NoTls).unwrap();
+        c.query("SELECT run_id, decision, rule FROM verification_decision", &[])
+            .unwrap()
+            .iter()
+            .map(|r| (r.get(0), r.get(1), r.get(2)))
+            .collect()
+    });
+}

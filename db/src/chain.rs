@@ -26,7 +26,7 @@ pub struct Table {
 }
 
 /// Every table of the calibration, as the chain sees it.
-pub const TABLES: [Table; 13] = [
+pub const TABLES: [Table; 14] = [
     Table {
         name: "run",
         columns: &[
@@ -92,6 +92,10 @@ pub const TABLES: [Table; 13] = [
     Table {
         name: "certificate_number",
         columns: &["run_id", "sequence", "number", "issued_unix_s", "content_sha256"],
+    },
+    Table {
+        name: "recalibration_due",
+        columns: &["run_id", "due_unix_s", "basis", "stored_unix_s", "content_sha256"],
     },
 ];
 
@@ -481,6 +485,9 @@ fn content_mismatch(t: &Table, row: &[Val]) -> Result<Option<String>, DbError> {
         .into_bytes(),
         "certificate_number" => {
             super::certificate_number_content(col("sequence").int()?, &col("number").text()?).into_bytes()
+        }
+        "recalibration_due" => {
+            super::recalibration_due_content(col("due_unix_s").int()?, &col("basis").text()?).into_bytes()
         }
         other => unreachable!("table {other} is in TABLES"),
     };

@@ -204,10 +204,10 @@ pub fn pieces_are_stored_once(spec: &str) {
     assert!(matches!(e, DbError::NoRun { .. }), "{e}");
     let p = db.progress(run).unwrap();
     assert!(p.flashed && p.as_left && !p.as_found && !p.certificate && p.outcome == Some(Outcome::Pass));
-    assert_eq!(db.schema_versions().unwrap(), vec![1, 2, 3, 4]);
+    assert_eq!(db.schema_versions().unwrap(), vec![1, 2, 3, 4, 5]);
     // Opening again migrates nothing.
     drop(db);
-    assert_eq!(Db::open(spec).unwrap().schema_versions().unwrap(), vec![1, 2, 3, 4]);
+    assert_eq!(Db::open(spec).unwrap().schema_versions().unwrap(), vec![1, 2, 3, 4, 5]);
 }
 
 /// The environment variable that turns a test process into the writer that is killed.
@@ -686,6 +686,59 @@ pub fn certificate_numbers_are_never_reused(spec: &str) {
     let e = db.certificate_number(d).unwrap_err().to_string();
     assert!(e.contains("the run is finished (rejected): its certificate cannot be numbered"), "{e}");
     assert!(matches!(db.certificate_number(RunId::new()), Err(DbError::NoRun { .. })));
+    let r = db.verify_chain().unwrap();
+    assert!(r.mismatches.is_empty(), "{:?}", r.mismatches);
+}
+
+/// Schema 5: the recalibration date a certificate states is stored with its number, and printing
+/// it again states the date first stored, whatever the drift says by then; a run numbered without
+/// a date keeps none. The view `verification_decision` gives each verification's decision and
+/// rule as columns (`decisions` runs `SELECT run_id, decision, rule FROM verification_decision`
+/// on the engine). Every row is in the hash chain.
+pub fn recalibration_dates_and_decisions_are_stored(
+    spec: &str,
+    decisions: &mut dyn FnMut() -> Vec<(String, Option<String>, Option<String>)>,
+) {
+    use accelcal_core::conformity::{Decision, RuleKind, Specification};
+    use accelcal_db::RecalibrationDue;
+    let mut db = Db::open(spec).unwrap();
+    let begun = |db: &mut Db, serial: &str, t: i64| {
+        let s = start(RunId::new(), DEVICE, serial, "st-1", t);
+        db.begin_run(&s, None).unwrap();
+        s.run_id
+    };
+    let a = begun(&mut db, "SN-D1", T0);
+    let due = RecalibrationDue { due_unix_s: T0 + 365 * DAY, basis: "the maximum interval".into() };
+    let (n, stored) = db.certificate_number_with_due(a, &due).unwrap();
+    assert_eq!(stored.as_ref(), Some(&due));
+    let later = RecalibrationDue { due_unix_s: T0 + 100 * DAY, basis: "the drift of x's bias".into() };
+    assert_eq!(db.certificate_number_with_due(a, &later).unwrap(), (n.clone(), Some(due.clone())));
+    assert_eq!(db.certificate_number(a).unwrap(), n);
+    let b = begun(&mut db, "SN-D1", T0 + DAY);
+    let nb = db.certificate_number(b).unwrap();
+    assert_eq!(db.certificate_number_with_due(b, &later).unwrap(), (nb, None));
+
+    let mut found = verification(DEVICE, 0.09, 0.05);
+    found.specification = Some(Specification {
+        unit_type: "MS9002.D".into(),
+        acceleration_error_m_s2: 0.05,
+        rule: RuleKind::GuardBand,
+        guard_band_m_s2: None,
+        bias_mg: None,
+        scale_factor_ppm: None,
+        misalignment_urad: None,
+    });
+    found.decision = Some(Decision::ConditionalFail);
+    db.store_verification(a, Phase::AsFound, &found).unwrap();
+    db.store_verification(b, Phase::AsFound, &verification(DEVICE, 0.001, 0.05)).unwrap();
+    let mut rows = decisions();
+    rows.sort();
+    let mut want = vec![
+        (a.to_string(), Some("conditional fail".to_string()), Some("guard-band".to_string())),
+        (b.to_string(), None, None),
+    ];
+    want.sort();
+    assert_eq!(rows, want);
     let r = db.verify_chain().unwrap();
     assert!(r.mismatches.is_empty(), "{:?}", r.mismatches);
 }

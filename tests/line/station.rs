@@ -82,6 +82,13 @@ fn the_station_runs_the_line_journals_it_and_resumes_after_ctrl_c() {
     // The certificate names the head by its asset.
     let cert = std::fs::read_to_string(a.join("certificate.html")).unwrap();
     assert!(cert.contains("head HEAD-SIM, calibration certificate DKD-K-0002"), "{cert}");
+    // So do the budget's head rows, whose values the fit step took from the asset.
+    assert!(
+        cert.contains(
+            "3.00 arcsec per angle and position, stated by head asset HEAD-SIM, certificate DKD-K-0002"
+        ),
+        "{cert}"
+    );
 
     // Again: nothing is repeated but `info` (the node must still be the unit's).
     let again = succeed(&station_args(&em, "A-1", &a, &head));

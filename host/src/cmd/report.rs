@@ -169,7 +169,7 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
     }
     // The unit's calibrations before this run, and this run as the next one (it ends `pass`
     // when its certificate is issued): the drift since the last calibration.
-    let since_last = match (&mut db, &run) {
+    let mut since_last = match (&mut db, &run) {
         (Some(rdb), Some((run, _))) => {
             let mut runs = rdb.db.unit_runs(&u.device_id)?;
             if u.as_found.is_none() {
@@ -186,9 +186,26 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
         _ => Vec::new(),
     };
     // The certificate's number: the run's, given once and never again to another.
+    // The recalibration date it states is stored with it, and a certificate printed again
+    // states the date stored first.
     let number = match (&mut db, &run) {
         (Some(rdb), Some((run, _))) => {
-            let n = rdb.db.certificate_number(*run)?;
+            let due = since_last.as_ref().and_then(|h| {
+                let rc = &h.recalibration;
+                rc.due_unix_s
+                    .map(|due_unix_s| accelcal_db::RecalibrationDue { due_unix_s, basis: rc.basis.clone() })
+            });
+            let n = match due {
+                Some(due) => {
+                    let (n, stored) = rdb.db.certificate_number_with_due(*run, &due)?;
+                    if let (Some(h), Some(d)) = (&mut since_last, stored) {
+                        h.recalibration.due_unix_s = Some(d.due_unix_s);
+                        h.recalibration.basis = d.basis;
+                    }
+                    n
+                }
+                None => rdb.db.certificate_number(*run)?,
+            };
             super::store::crash_point("db:certificate-number");
             Some(n)
         }
@@ -234,8 +251,13 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
     let serial = u.fit_id.serial.clone().unwrap_or_else(|| "-".into());
     let now = super::record::utc(super::created(None));
     let temp = u.verify.as_ref().map(verification_temperature);
-    let budget = accelcal_core::uncertainty::UncertaintyJson::of_fit_json(&u.fit)
+    let mut budget = accelcal_core::uncertainty::UncertaintyJson::of_fit_json(&u.fit)
         .map_err(|e| bad(format!("{}: its uncertainty is not a budget: {e}", a.fit.display())))?;
+    if let (Some(b), Some((_, id, cert))) =
+        (&mut budget, assets.iter().find(|(k, _, _)| *k == accelcal_db::asset::AssetKind::Head))
+    {
+        name_head_asset(b, id, cert);
+    }
     let numbered = number.as_ref().map(|n| n.number.clone());
     let page_no = numbered.as_deref().map_or("draft, not numbered".to_string(), |n| format!("No. {n}"));
     let mut h = String::new();
@@ -935,6 +957,17 @@ font-variant-numeric:tabular-nums}th{background:#eee;font-weight:600}.l{text-ali
 .pass{color:#060}.fail{color:#b00;font-weight:bold}.verdict{font-size:10.5pt;margin:2px 0 5px}\
 .small{font-size:7.5pt;margin:1px 0 3px}.cols{display:flex;gap:5mm;align-items:flex-start}.cols>div{flex:1;min-width:0}\
 .cols>div.wide{flex:1.6}svg{width:100%;height:auto}.budget td:not(.l){white-space:nowrap}h2{break-after:avoid}tr,.small{break-inside:avoid}";
+
+/// The head rows of a budget whose values the run's registered head stated (the station passes
+/// the asset's values to its fit step, which knows no register): named by the asset, as a fit
+/// with `--db --head-asset` names them itself.
+fn name_head_asset(b: &mut accelcal_core::uncertainty::UncertaintyJson, id: &str, cert: &str) {
+    for c in b.contributors.iter_mut().filter(|c| c.name.starts_with("head_")) {
+        if c.source.ends_with(", stated") {
+            c.source = format!("{} by head asset {id}, certificate {cert}", c.source);
+        }
+    }
+}
 
 #[cfg(test)]
 mod tests {
