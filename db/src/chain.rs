@@ -484,10 +484,12 @@ fn content_mismatch(t: &Table, row: &[Val]) -> Result<Option<String>, DbError> {
         )
         .into_bytes(),
         "certificate_number" => {
-            super::certificate_number_content(col("sequence").int()?, &col("number").text()?).into_bytes()
+            super::certificate::certificate_number_content(col("sequence").int()?, &col("number").text()?)
+                .into_bytes()
         }
         "recalibration_due" => {
-            super::recalibration_due_content(col("due_unix_s").int()?, &col("basis").text()?).into_bytes()
+            super::certificate::recalibration_due_content(col("due_unix_s").int()?, &col("basis").text()?)
+                .into_bytes()
         }
         other => unreachable!("table {other} is in TABLES"),
     };

@@ -16,6 +16,7 @@
 // Index loops mirror the math (channels × terms), as in the core.
 #![allow(clippy::needless_range_loop)]
 pub mod asset;
+mod certificate;
 pub mod chain;
 mod engine;
 mod error;
@@ -26,6 +27,7 @@ mod types;
 use std::io::Read;
 
 pub use asset::{AffectedRun, Asset, AssetError, AssetKind};
+pub use certificate::{CertificateNumber, RecalibrationDue};
 pub use chain::{ChainReport, Mismatch, RunSeal};
 pub use engine::{schema_version, Access, Target};
 use engine::{Conn, Tx, Val};
@@ -58,36 +60,6 @@ pub fn now_unix_s() -> i64 {
 
 /// The gzip magic number.
 const GZIP_MAGIC: [u8; 2] = [0x1f, 0x8b];
-
-/// A certificate's number ([`Db::certificate_number`]).
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct CertificateNumber {
-    /// Its place among the database's certificates, from 1.
-    pub sequence: i64,
-    /// As printed: `YEAR-SEQUENCE` (`2026-000017`).
-    pub number: String,
-    /// When it was given, Unix seconds.
-    pub issued_unix_s: i64,
-}
-
-/// The recalibration date a certificate states ([`Db::certificate_number_with_due`]).
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct RecalibrationDue {
-    /// The date, Unix seconds.
-    pub due_unix_s: i64,
-    /// What set it, in words.
-    pub basis: String,
-}
-
-/// What a recalibration_due row's `content_sha256` hashes.
-pub(crate) fn recalibration_due_content(due_unix_s: i64, basis: &str) -> String {
-    format!("{due_unix_s}\n{basis}")
-}
-
-/// What a certificate_number row's `content_sha256` hashes.
-pub(crate) fn certificate_number_content(sequence: i64, number: &str) -> String {
-    format!("{sequence}\n{number}")
-}
 
 /// One piece of a run, ready to insert.
 struct Piece {
@@ -492,115 +464,6 @@ impl Db {
                 sha: sha256_hex(html.as_bytes()),
             },
         )
-    }
-
-    /// The number of run `run`'s certificate: the one it was given, else the next one, stored
-    /// (`certificate_number`: the largest sequence plus one, `YEAR-SEQUENCE`). A number is
-    /// never given twice, and a run has one: printing its certificate again prints the same.
-    /// Refused for a voided run, and (a new number) for a finished one.
-    pub fn certificate_number(&mut self, run: RunId) -> Result<CertificateNumber, DbError> {
-        self.number(run, None).map(|(n, _)| n)
-    }
-
-    /// [`Db::certificate_number`], and the recalibration date the certificate states
-    /// (`recalibration_due`), stored in the same transaction when the number is given: the
-    /// stored date when the run has one (printing again states the date first stated), else
-    /// `due`. A run numbered without a date keeps none.
-    pub fn certificate_number_with_due(
-        &mut self,
-        run: RunId,
-        due: &RecalibrationDue,
-    ) -> Result<(CertificateNumber, Option<RecalibrationDue>), DbError> {
-        self.number(run, Some(due))
-    }
-
-    fn number(
-        &mut self,
-        run: RunId,
-        due: Option<&RecalibrationDue>,
-    ) -> Result<(CertificateNumber, Option<RecalibrationDue>), DbError> {
-        let run_s = run.to_string();
-        let table = chain::table("certificate_number");
-        let due_table = chain::table("recalibration_due");
-        self.retried(|conn| {
-            conn.transaction(|tx| {
-                let id = Val::from(run_s.clone());
-                if tx.query("SELECT 1 FROM run WHERE run_id = $1", std::slice::from_ref(&id))?.is_empty() {
-                    return Err(DbError::NoRun { run_id: run_s.clone() });
-                }
-                let refused = |tx: &mut Tx<'_>, sql: &str, state: &str| -> Result<(), DbError> {
-                    match tx.query(sql, std::slice::from_ref(&id))?.first() {
-                        Some(r) => Err(DbError::Conflict {
-                            run_id: run_s.clone(),
-                            what: format!(
-                                "the run is {state} ({}): its certificate cannot be numbered",
-                                r[0].text()?
-                            ),
-                        }),
-                        None => Ok(()),
-                    }
-                };
-                // A voided run's certificate is not printed again; a finished run's keeps its
-                // number, but gets none after its end.
-                refused(tx, "SELECT reason FROM void WHERE run_id = $1", "voided")?;
-                let given = tx.query(
-                    "SELECT sequence, number, issued_unix_s FROM certificate_number WHERE run_id = $1",
-                    std::slice::from_ref(&id),
-                )?;
-                if let Some(r) = given.first() {
-                    let stored = tx
-                        .query(
-                            "SELECT due_unix_s, basis FROM recalibration_due WHERE run_id = $1",
-                            std::slice::from_ref(&id),
-                        )?
-                        .first()
-                        .map(|d| {
-                            Ok::<_, DbError>(RecalibrationDue {
-                                due_unix_s: d[0].int()?,
-                                basis: d[1].text()?,
-                            })
-                        })
-                        .transpose()?;
-                    let number = CertificateNumber {
-                        sequence: r[0].int()?,
-                        number: r[1].text()?,
-                        issued_unix_s: r[2].int()?,
-                    };
-                    return Ok((number, stored));
-                }
-                refused(tx, "SELECT outcome FROM run_end WHERE run_id = $1", "finished")?;
-                let sequence = tx.query("SELECT COALESCE(MAX(sequence), 0) FROM certificate_number", &[])?[0]
-                    [0]
-                .int()?
-                    + 1;
-                let issued_unix_s = now_unix_s();
-                let year = jiff::Timestamp::from_second(issued_unix_s)
-                    .map(|t| t.to_zoned(jiff::tz::TimeZone::UTC).year())
-                    .unwrap_or(1970);
-                let number = format!("{year}-{sequence:06}");
-                let sha = sha256_hex(certificate_number_content(sequence, &number).as_bytes());
-                let row: Vec<Val> = vec![
-                    id.clone(),
-                    sequence.into(),
-                    number.clone().into(),
-                    issued_unix_s.into(),
-                    sha.into(),
-                ];
-                insert_row(tx, table, &row)?;
-                if let Some(d) = due {
-                    let sha = sha256_hex(recalibration_due_content(d.due_unix_s, &d.basis).as_bytes());
-                    let row: Vec<Val> = vec![
-                        id,
-                        d.due_unix_s.into(),
-                        d.basis.clone().into(),
-                        issued_unix_s.into(),
-                        sha.into(),
-                    ];
-                    insert_row(tx, due_table, &row)?;
-                }
-                Ok((CertificateNumber { sequence, number, issued_unix_s }, due.cloned()))
-            })
-        })
     }
 
     /// Ends the run; nothing more is stored under it afterwards.
