@@ -546,3 +546,64 @@ fn the_recalibration_date_is_stored_with_the_number_and_decisions_are_columns() 
         s.query_map([], |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?))).unwrap().map(|r| r.unwrap()).collect()
     });
 }
+
+#[test]
+fn the_fleet_is_counted_by_the_database_and_printed() {
+    let d = tempfile::tempdir().unwrap();
+    let spec = db_file(&d);
+    dbkit::fleet::the_fleet_is_counted_by_the_database(&spec);
+    let (json, csv) = (d.path().join("f.json"), d.path().join("f.csv"));
+    let (code, out, err) = accelcal(&[
+        "fleet",
+        "--db",
+        &spec,
+        "--since",
+        "2026-01-01",
+        "--until",
+        "2026-01-31",
+        "--json",
+        json.to_str().unwrap(),
+        "--csv",
+        csv.to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(out.contains(": 6 runs of 5 units"), "{out}");
+    assert!(out.contains("runs: 3 pass, 1 rejected, 1 unfinished, 1 voided"), "{out}");
+    assert!(out.contains("yield: first pass 2/3 units (66.7 %), final 3/3 (100.0 %)"), "{out}");
+    assert!(out.contains("rejected 1×: selection beyond model 4"), "{out}");
+    assert!(out.contains("as found out of tolerance: SN-C1 (aabbccddeeff001122334455)"), "{out}");
+    assert!(out.contains("HEAD-1 (head) certificate DKD-17-001, due 2026-01-20"), "{out}");
+    let j: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(j["counts"]["first_pass_units"], 2);
+    assert_eq!(j["runs"].as_array().unwrap().len(), 6);
+    assert_eq!(j["as_found_out_of_tolerance"][0]["serial"], "SN-C1");
+    let mut rows = csv::Reader::from_path(&csv).unwrap();
+    let header = rows.headers().unwrap().clone();
+    assert_eq!(&header[0], "run_id");
+    assert_eq!(&header[header.len() - 1], "U_z_m_s2");
+    let rows: Vec<csv::StringRecord> = rows.records().map(|r| r.unwrap()).collect();
+    assert_eq!(rows.len(), 6);
+    assert_eq!(&rows[0][1], "SN-A1");
+    assert_eq!(&rows[0][4], "HEAD-1");
+    assert!(rows[0][12].parse::<f64>().is_ok(), "{:?}", rows[0]);
+    // The units due within the default 30 days of --until: unit B, due T0 + 20 days.
+    assert!(out.contains("SN-B1") && out.contains("due 2026-01-21"), "{out}");
+    // A stored certificate, printed again as issued; a run without one is refused.
+    let run = j["runs"][3]["run_id"].as_str().unwrap().to_string();
+    let html = d.path().join("c.html");
+    let (code, _, err) = accelcal(&["certificate", &run, "--db", &spec, "-o", html.to_str().unwrap()]);
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(std::fs::read_to_string(&html).unwrap(), "<html>certificate of SN-C1</html>");
+    let open = j["runs"][4]["run_id"].as_str().unwrap().to_string();
+    let (code, _, err) = accelcal(&["certificate", &open, "--db", &spec, "-o", html.to_str().unwrap()]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("has no certificate"), "{err}");
+    // Refused before anything is opened: an empty period, the database as an output.
+    let (code, _, err) =
+        accelcal(&["fleet", "--db", &spec, "--since", "2026-02-01", "--until", "2026-01-31"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("--since 2026-02-01 is after --until 2026-01-31"), "{err}");
+    let (code, _, err) = accelcal(&["fleet", "--db", &spec, "--csv", &spec]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("is the database: refusing to overwrite it"), "{err}");
+}

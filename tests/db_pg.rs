@@ -173,3 +173,9 @@ fn the_recalibration_date_is_stored_with_the_number_and_decisions_are_columns() 
             .collect()
     });
 }
+
+#[test]
+fn the_fleet_is_counted_by_the_database() {
+    let pg = Cluster::start();
+    dbkit::fleet::the_fleet_is_counted_by_the_database(&pg.url);
+}

@@ -144,3 +144,16 @@ impl Db {
         })
     }
 }
+
+impl Db {
+    /// The certificate stored for run `run` (`report`'s page, as issued), `None` when it has none.
+    pub fn certificate_html(&mut self, run: RunId) -> Result<Option<String>, DbError> {
+        let id = Val::from(run.to_string());
+        self.conn.transaction(|tx| {
+            tx.query("SELECT html FROM certificate WHERE run_id = $1", std::slice::from_ref(&id))?
+                .first()
+                .map(|r| r[0].text())
+                .transpose()
+        })
+    }
+}

@@ -231,8 +231,8 @@ const DAYS_PER_YEAR: f64 = 365.25;
 
 /// One calibration's model-4 coefficients and their variances, `[channel][term]`.
 #[derive(Clone, Debug, PartialEq)]
-struct Model4 {
-    coef: [[f64; 4]; 3],
+pub(crate) struct Model4 {
+    pub(crate) coef: [[f64; 4]; 3],
     var: [[f64; 4]; 3],
 }
 
@@ -254,7 +254,7 @@ struct FitChannel {
 }
 
 /// The model-4 part of a stored fit, or why there is none.
-fn model4(fit_json: &str) -> Result<Model4, String> {
+pub(crate) fn model4(fit_json: &str) -> Result<Model4, String> {
     let doc: FitDoc =
         serde_json::from_str(fit_json).map_err(|e| format!("its fit is not `fit --json` output: {e}"))?;
     let mut m = Model4 { coef: [[0.0; 4]; 3], var: [[0.0; 4]; 3] };

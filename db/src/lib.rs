@@ -20,6 +20,7 @@ mod certificate;
 pub mod chain;
 mod engine;
 mod error;
+pub mod fleet;
 pub mod history;
 mod label;
 mod types;

@@ -543,6 +543,8 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
         Command::Db(_) => Ok(()),
         Command::Asset(a) => crate::cmd::asset::check(a),
         Command::Affected(a) => crate::cmd::asset::check_affected(a),
+        Command::Fleet(a) => crate::cmd::fleet::check(a),
+        Command::Certificate(a) => crate::cmd::fleet::check_certificate(a),
     }
 }
 

@@ -5,6 +5,8 @@
 use std::io::{BufRead, BufReader};
 use std::process::{Command, Stdio};
 
+pub mod fleet;
+
 use accelcal_db::{Asset, AssetKind, Db, DbError, Outcome, Phase, RunId, RunStart, Stored};
 use accelcal_line::verify::{PositionCheck, VerifyReport};
 use accelcal_shared::record::{Record, MAX_CHANNELS, MAX_RECORD_LEN};

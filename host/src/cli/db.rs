@@ -192,3 +192,50 @@ pub struct AffectedArgs {
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
 }
+
+/// `accelcal fleet`.
+#[derive(Debug, Args)]
+pub struct FleetArgs {
+    #[command(flatten)]
+    pub reader: ReaderDb,
+    /// The first day (UTC) of the period [default: 30 days before --until].
+    #[arg(long, value_name = "YYYY-MM-DD", value_parser = parse_date)]
+    pub since: Option<accelcal_db::asset::Date>,
+    /// The last day (UTC) of the period, included [default: today].
+    #[arg(long, value_name = "YYYY-MM-DD", value_parser = parse_date)]
+    pub until: Option<accelcal_db::asset::Date>,
+    /// Only the runs of this station (its name, as `station --station` stores it).
+    #[arg(long, value_name = "NAME")]
+    pub station: Option<String>,
+    /// Only the runs on this head (its asset id, as `station --head-asset` stores it).
+    #[arg(long, value_name = "ID")]
+    pub head_asset: Option<String>,
+    /// Only the units whose serial starts so.
+    #[arg(long, value_name = "TEXT")]
+    pub serial_prefix: Option<String>,
+    /// The units and assets due within this many days of --until are listed (overdue ones too).
+    #[arg(long, value_name = "DAYS", default_value_t = 30, value_parser = clap::value_parser!(u32).range(0..=3660))]
+    pub due_days: u32,
+    /// Write the summary, the runs and the populations as JSON to this file.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+    /// Write one row per run as CSV to this file (the columns an MES takes: run, serial, device
+    /// id, station, head, operator, start and end (UTC), state, reason, decisions, model-4
+    /// coefficients, U per axis).
+    #[arg(long, value_name = "FILE")]
+    pub csv: Option<PathBuf>,
+}
+
+/// `accelcal certificate`.
+#[derive(Debug, Args)]
+pub struct CertificateArgs {
+    /// The run whose certificate to print again (a UUID, as `station` prints it and `fleet`
+    /// lists it).
+    #[arg(value_name = "RUN_ID")]
+    pub run_id: String,
+    /// Write the stored certificate (an HTML page, as issued) to this file.
+    #[arg(long, short = 'o', value_name = "FILE", required = true)]
+    pub out: PathBuf,
+    #[command(flatten)]
+    pub reader: ReaderDb,
+}

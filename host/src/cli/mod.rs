@@ -112,6 +112,14 @@ pub enum Command {
     /// Reverse traceability: every run, and its unit, calibrated with an asset since a date (an
     /// asset found out of tolerance at its own recalibration).
     Affected(AffectedArgs),
+    /// The line across units over a period: runs and units, first-pass and final yield,
+    /// rejections by reason, the units found out of tolerance as found, the populations of the
+    /// coefficients (mean, spread) and of the as-left parameters with their Cpk against the
+    /// specification's limits, and the units and assets due.
+    #[command(after_long_help = accelcal_db::fleet::METHOD)]
+    Fleet(FleetArgs),
+    /// Print a stored certificate again, from the calibration database, as it was issued.
+    Certificate(CertificateArgs),
 }
 
 /// Storing a command's result in the calibration database (`fit`, `verify`, `flash`, `report`).

@@ -8,6 +8,7 @@ pub mod demo;
 pub mod diagnose;
 pub mod emulate;
 pub mod fit;
+pub mod fleet;
 pub mod gravity;
 pub mod history;
 pub mod live;
@@ -64,6 +65,8 @@ pub fn run(cli: Cli, warnings: &mut Warnings) -> anyhow::Result<()> {
         Command::Db(crate::cli::DbCommand::Verify(a)) => db::run_verify(&a),
         Command::Asset(a) => asset::run(&a),
         Command::Affected(a) => asset::run_affected(&a),
+        Command::Fleet(a) => fleet::run(&a),
+        Command::Certificate(a) => fleet::run_certificate(&a),
     }
 }
 

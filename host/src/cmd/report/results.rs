@@ -14,12 +14,7 @@ use accelcal_shared::record::Record;
 
 use super::esc;
 
-/// The ADC code of zero input: the node's 16-bit converter at mid-scale, where the bias K0 is
-/// measured from.
-const MID_SCALE_CODES: f64 = 32768.0;
-
-/// Standard gravity g_n (the CGPM's 9.80665 m/s²): K0 in mg and K1 per g, IEEE Std 1293's units.
-const G_N: f64 = 9.80665;
+use accelcal_core::ieee1293::{Parameters, G_N, MID_SCALE_CODES};
 
 const AXES: [&str; 3] = ["x", "y", "z"];
 
@@ -106,9 +101,9 @@ pub fn section(rec: &Record, fit: &serde_json::Value, budget: Option<&Uncertaint
         let (u0, kc) = (row[0], row[c + 1]);
         let (i0, ik) = (4 * c, 4 * c + c + 1);
         let b = u0 - MID_SCALE_CODES;
-        let k0_mg = b / kc / G_N * 1e3;
+        let p = Parameters::of(c, [row[0], row[1], row[2], row[3]]);
+        let (k0_mg, k1) = (p.k0_mg, p.k1_codes_per_g);
         let u_k0 = cov.expanded(&[(i0, 1.0 / kc), (ik, -b / (kc * kc))]) / G_N * 1e3;
-        let k1 = kc * G_N;
         let u_k1 = cov.expanded(&[(ik, G_N)]);
         let _ = write!(
             h,
@@ -121,7 +116,7 @@ pub fn section(rec: &Record, fit: &serde_json::Value, budget: Option<&Uncertaint
         );
         for j in (0..3).filter(|&j| j != c) {
             let kj = row[j + 1];
-            let d = kj / kc * 1e6;
+            let d = p.delta_urad[j];
             let u_d = cov.expanded(&[(4 * c + j + 1, 1.0 / kc), (ik, -kj / (kc * kc))]) * 1e6;
             let _ = write!(h, "<td>toward {}: {:+.0} &plusmn; {:.0}</td>", AXES[j], d, u_d);
         }

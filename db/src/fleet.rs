@@ -1,0 +1,389 @@
+//! The line's view across units (`accelcal fleet`): the runs of a period, counted by the
+//! database (states, units, first-pass and final yield, rejections by reason), each run with
+//! what an MES takes of it, and the units whose certificate's recalibration date falls before a
+//! day. Every query is one SQL statement on either engine; the filters are parameters.
+
+use serde::Serialize;
+
+use super::engine::Val;
+
+/// What `fleet` counts and how, as `fleet --help` states it.
+pub const METHOD: &str = "Method: the runs are those started in the period (UTC days, --until included) that pass every \
+filter. A run is `pass` or `rejected` by its end, `unfinished` without one, `voided` when voided (voided runs count in \
+no yield or population). First-pass yield: of the units with a finished run in the period, the share whose first finished \
+run passed; final yield: the share whose last finished run passed. The populations are over the runs that passed: each \
+channel's model-4 coefficients under IEEE Std 1293's names (bias K0 mg, scale factor K1 codes/g, misalignment δ µrad), and \
+the as-left verification's measured parameters against the specification's limit ±L, with the sample standard deviation s \
+(n − 1) and the process capability Cpk = min(L − mean, mean + L) / (3·s) (Montgomery, Introduction to Statistical Quality \
+Control, the index with the specification limits −L and +L; > 1.33 is the usual aim). The counts and yields are computed \
+by the database (SQL); the populations from the period's stored fits and verifications. Units due: each unit's latest \
+certificate (not voided) whose recalibration date (stored with its number, schema 5) falls within --due-days of --until, \
+or before.";
+use super::{Db, DbError};
+
+/// Which runs a fleet query takes: started in `[since, until)`, and each filter that is set.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Filter {
+    /// First second, Unix seconds.
+    pub since_unix_s: i64,
+    /// End (exclusive), Unix seconds.
+    pub until_unix_s: i64,
+    /// The station's name.
+    pub station: Option<String>,
+    /// The head's asset id (`run_asset`).
+    pub head_asset: Option<String>,
+    /// The start of the serial number.
+    pub serial_prefix: Option<String>,
+}
+
+/// The condition on `run r` of a [`Filter`], with its parameters `$1`…`$5`.
+const WHERE: &str = "r.started_unix_s >= $1 AND r.started_unix_s < $2 AND ($3 = '' OR r.station = $3) \
+     AND substr(r.serial, 1, length($4)) = $4 AND ($5 = '' OR EXISTS (SELECT 1 FROM run_asset ha \
+     WHERE ha.run_id = r.run_id AND ha.kind = 'head' AND ha.asset_id = $5))";
+
+/// A run's state: `voided` before its end, `unfinished` without one, else its outcome.
+const STATE: &str =
+    "CASE WHEN v.run_id IS NOT NULL THEN 'voided' WHEN e.outcome IS NULL THEN 'unfinished' ELSE e.outcome END";
+
+/// The selected runs with their state, as a common table expression `sel`.
+fn selected() -> String {
+    format!(
+        "WITH sel AS (SELECT r.run_id, r.device_id, r.started_unix_s, {STATE} AS state, e.reason FROM run r \
+         LEFT JOIN run_end e ON e.run_id = r.run_id LEFT JOIN void v ON v.run_id = r.run_id WHERE {WHERE})"
+    )
+}
+
+impl Filter {
+    fn params(&self) -> Vec<Val> {
+        let text = |v: &Option<String>| Val::from(v.clone().unwrap_or_default());
+        vec![
+            self.since_unix_s.into(),
+            self.until_unix_s.into(),
+            text(&self.station),
+            text(&self.serial_prefix),
+            text(&self.head_asset),
+        ]
+    }
+}
+
+/// What the database counts of a period's runs.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Counts {
+    /// Runs started in the period.
+    pub runs: i64,
+    /// Of them: ended `pass`, ended `rejected`, not ended, voided.
+    pub passed: i64,
+    /// Ended `rejected`.
+    pub rejected: i64,
+    /// Not ended (stopped, or still on the line).
+    pub unfinished: i64,
+    /// Voided (taken out of the statistics).
+    pub voided: i64,
+    /// Units (device ids) with a run in the period.
+    pub units: i64,
+    /// Units with a finished, not voided run in the period: the yields' denominator.
+    pub units_finished: i64,
+    /// Of them, units whose first finished run in the period passed.
+    pub first_pass_units: i64,
+    /// Of them, units whose last finished run in the period passed.
+    pub final_pass_units: i64,
+    /// Rejected runs by reason, most frequent first.
+    pub rejections: Vec<(String, i64)>,
+}
+
+/// One run of the period, as the fleet's table and its CSV show it.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FleetRun {
+    /// The run.
+    pub run_id: String,
+    /// The unit's device id.
+    pub device_id: String,
+    /// Its serial.
+    pub serial: String,
+    /// The station.
+    pub station: String,
+    /// The head's asset id (`null`: no registered head).
+    pub head_asset: Option<String>,
+    /// Who ran it.
+    pub operator: String,
+    /// Start, Unix seconds.
+    pub started_unix_s: i64,
+    /// End, Unix seconds (`null`: not ended).
+    pub ended_unix_s: Option<i64>,
+    /// `pass`, `rejected`, `unfinished` or `voided`.
+    pub state: String,
+    /// Why it ended (or was voided) so.
+    pub reason: Option<String>,
+    /// The as-found verification's decision against a specification (`null`: none, or none
+    /// decided).
+    pub as_found_decision: Option<String>,
+    /// The as-left verification's decision (`null`: none, or none decided).
+    pub as_left_decision: Option<String>,
+    /// The stored fit (`fit --json`), when there is one.
+    #[serde(skip)]
+    pub fit_json: Option<String>,
+    /// The stored as-left verification (`verify --json`), when there is one.
+    #[serde(skip)]
+    pub as_left_json: Option<String>,
+}
+
+impl FleetRun {
+    /// Its stored fit's model-4 coefficients, `[channel x, y, z][term 1, ax, ay, az]`, when it
+    /// has a model-4 fit.
+    pub fn model4(&self) -> Option<[[f64; 4]; 3]> {
+        super::history::model4(self.fit_json.as_deref()?).ok().map(|m| m.coef)
+    }
+
+    /// Its stored fit's expanded uncertainty per axis, m/s² (k = 2), when it has a budget.
+    pub fn u_m_s2(&self) -> Option<[f64; 3]> {
+        let doc: serde_json::Value = serde_json::from_str(self.fit_json.as_deref()?).ok()?;
+        accelcal_core::uncertainty::UncertaintyJson::of_fit_json(&doc).ok().flatten().map(|u| u.u_m_s2)
+    }
+}
+
+/// A unit whose latest certificate's recalibration date falls before a day.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct DueUnit {
+    /// The unit's device id.
+    pub device_id: String,
+    /// Its serial.
+    pub serial: String,
+    /// The run of that certificate.
+    pub run_id: String,
+    /// The date, Unix seconds.
+    pub due_unix_s: i64,
+}
+
+fn opt_text(v: &Val) -> Result<Option<String>, DbError> {
+    match v {
+        Val::Null => Ok(None),
+        v => v.text().map(Some),
+    }
+}
+
+fn opt_int(v: &Val) -> Result<Option<i64>, DbError> {
+    match v {
+        Val::Null => Ok(None),
+        v => v.int().map(Some),
+    }
+}
+
+impl Db {
+    /// The period's runs counted by state, its units, the yields and the rejections by reason.
+    pub fn fleet_counts(&mut self, f: &Filter) -> Result<Counts, DbError> {
+        let sel = selected();
+        let p = f.params();
+        self.conn.transaction(|tx| {
+            let mut c = Counts::default();
+            for r in tx.query(&format!("{sel} SELECT state, COUNT(*) FROM sel GROUP BY state"), &p)? {
+                let n = r[1].int()?;
+                c.runs += n;
+                match r[0].text()?.as_str() {
+                    "pass" => c.passed = n,
+                    "rejected" => c.rejected = n,
+                    "unfinished" => c.unfinished = n,
+                    _ => c.voided = n,
+                }
+            }
+            c.units = tx.query(&format!("{sel} SELECT COUNT(DISTINCT device_id) FROM sel"), &p)?[0][0].int()?;
+            let y = &tx.query(
+                &format!(
+                    "{sel}, fin AS (SELECT device_id, state, \
+                     ROW_NUMBER() OVER (PARTITION BY device_id ORDER BY started_unix_s, run_id) AS first_n, \
+                     ROW_NUMBER() OVER (PARTITION BY device_id ORDER BY started_unix_s DESC, run_id DESC) AS last_n \
+                     FROM sel WHERE state IN ('pass', 'rejected')) \
+                     SELECT COUNT(DISTINCT device_id), \
+                     COALESCE(SUM(CASE WHEN first_n = 1 AND state = 'pass' THEN 1 ELSE 0 END), 0), \
+                     COALESCE(SUM(CASE WHEN last_n = 1 AND state = 'pass' THEN 1 ELSE 0 END), 0) FROM fin"
+                ),
+                &p,
+            )?[0];
+            (c.units_finished, c.first_pass_units, c.final_pass_units) = (y[0].int()?, y[1].int()?, y[2].int()?);
+            c.rejections = tx
+                .query(
+                    &format!(
+                        "{sel} SELECT reason, COUNT(*) AS n FROM sel WHERE state = 'rejected' \
+                         GROUP BY reason ORDER BY n DESC, reason"
+                    ),
+                    &p,
+                )?
+                .iter()
+                .map(|r| Ok((r[0].text()?, r[1].int()?)))
+                .collect::<Result<_, DbError>>()?;
+            Ok(c)
+        })
+    }
+
+    /// The period's runs, oldest first, with their head, outcome, decisions, fit and as-left
+    /// verification.
+    pub fn fleet_runs(&mut self, f: &Filter) -> Result<Vec<FleetRun>, DbError> {
+        let p = f.params();
+        let rows = self.conn.transaction(|tx| {
+            tx.query(
+                &format!(
+                    "SELECT r.run_id, r.device_id, r.serial, r.station, ra.asset_id, r.operator, r.started_unix_s, \
+                     e.ended_unix_s, {STATE}, COALESCE(v.reason, e.reason), af.decision, al.decision, f.fit_json, \
+                     vl.report_json FROM run r LEFT JOIN run_end e ON e.run_id = r.run_id \
+                     LEFT JOIN void v ON v.run_id = r.run_id \
+                     LEFT JOIN run_asset ra ON ra.run_id = r.run_id AND ra.kind = 'head' \
+                     LEFT JOIN verification_decision af ON af.run_id = r.run_id AND af.phase = 'as_found' \
+                     LEFT JOIN verification_decision al ON al.run_id = r.run_id AND al.phase = 'as_left' \
+                     LEFT JOIN fit f ON f.run_id = r.run_id \
+                     LEFT JOIN verification vl ON vl.run_id = r.run_id AND vl.phase = 'as_left' \
+                     WHERE {WHERE} ORDER BY r.started_unix_s, r.run_id"
+                ),
+                &p,
+            )
+        })?;
+        rows.iter()
+            .map(|r| {
+                Ok(FleetRun {
+                    run_id: r[0].text()?,
+                    device_id: r[1].text()?,
+                    serial: r[2].text()?,
+                    station: r[3].text()?,
+                    head_asset: opt_text(&r[4])?,
+                    operator: r[5].text()?,
+                    started_unix_s: r[6].int()?,
+                    ended_unix_s: opt_int(&r[7])?,
+                    state: r[8].text()?,
+                    reason: opt_text(&r[9])?,
+                    as_found_decision: opt_text(&r[10])?,
+                    as_left_decision: opt_text(&r[11])?,
+                    fit_json: opt_text(&r[12])?,
+                    as_left_json: opt_text(&r[13])?,
+                })
+            })
+            .collect()
+    }
+
+    /// The units whose latest certificate (of a run not voided) states a recalibration date
+    /// before `before_unix_s` (overdue ones too), soonest first; `serial_prefix` limits them.
+    pub fn units_due(
+        &mut self,
+        before_unix_s: i64,
+        serial_prefix: Option<&str>,
+    ) -> Result<Vec<DueUnit>, DbError> {
+        let rows = self.conn.transaction(|tx| {
+            tx.query(
+                "WITH cert AS (SELECT r.device_id, r.serial, d.run_id, d.due_unix_s, \
+                 ROW_NUMBER() OVER (PARTITION BY r.device_id ORDER BY r.started_unix_s DESC, r.run_id DESC) AS n \
+                 FROM recalibration_due d JOIN run r ON r.run_id = d.run_id \
+                 WHERE NOT EXISTS (SELECT 1 FROM void v WHERE v.run_id = d.run_id)) \
+                 SELECT device_id, serial, run_id, due_unix_s FROM cert \
+                 WHERE n = 1 AND due_unix_s < $1 AND substr(serial, 1, length($2)) = $2 \
+                 ORDER BY due_unix_s, serial",
+                &[before_unix_s.into(), serial_prefix.unwrap_or("").into()],
+            )
+        })?;
+        rows.iter()
+            .map(|r| {
+                Ok(DueUnit {
+                    device_id: r[0].text()?,
+                    serial: r[1].text()?,
+                    run_id: r[2].text()?,
+                    due_unix_s: r[3].int()?,
+                })
+            })
+            .collect()
+    }
+}
+
+/// A population over the period's calibrated units: its mean, sample standard deviation and,
+/// against a two-sided limit ±L, the process capability `Cpk = min(L − mean, mean + L) / (3·sd)`
+/// (the textbook index with the specification limits −L and +L).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Population {
+    /// What it is: `K0 x` (bias), `K1 x` (scale factor), `δ x→y` (misalignment), `as-left bias
+    /// x`, ….
+    pub name: String,
+    /// Its unit.
+    pub unit: &'static str,
+    /// Units in it.
+    pub n: usize,
+    /// Mean.
+    pub mean: f64,
+    /// Sample standard deviation (n − 1; 0 with one unit).
+    pub sd: f64,
+    /// The specification's limit L, when it limits this.
+    pub limit: Option<f64>,
+    /// `Cpk`, with a limit and at least two units that scatter.
+    pub cpk: Option<f64>,
+}
+
+impl Population {
+    fn of(name: String, unit: &'static str, values: &[f64], limit: Option<f64>) -> Population {
+        let n = values.len();
+        let mean = values.iter().sum::<f64>() / n.max(1) as f64;
+        let sd = if n > 1 {
+            (values.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / (n - 1) as f64).sqrt()
+        } else {
+            0.0
+        };
+        let cpk = limit.filter(|_| sd > 0.0).map(|l| (l - mean).min(mean + l) / (3.0 * sd));
+        Population { name, unit, n, mean, sd, limit, cpk }
+    }
+}
+
+const AXES: [&str; 3] = ["x", "y", "z"];
+
+/// The populations of the runs that passed (not voided): each channel's model-4 coefficients
+/// under IEEE 1293's names (K0 mg, K1 codes/g, δ µrad; no limit: the specification limits the
+/// calibrated unit, not the sensor), and each parameter the as-left verification measured against
+/// the specification's limit (bias mg, scale factor ppm, misalignment µrad) with its Cpk. A run
+/// whose fit is not model 4 is left out of the coefficients.
+pub fn populations(runs: &[FleetRun]) -> Vec<Population> {
+    use accelcal_core::ieee1293::Parameters;
+    let passed: Vec<&FleetRun> = runs.iter().filter(|r| r.state == "pass").collect();
+    let params: Vec<[Parameters; 3]> = passed
+        .iter()
+        .filter_map(|r| r.model4())
+        .map(|m| std::array::from_fn(|c| Parameters::of(c, m[c])))
+        .collect();
+    let mut out = Vec::new();
+    let column = |f: &dyn Fn(&[Parameters; 3]) -> f64| -> Vec<f64> { params.iter().map(f).collect() };
+    for c in 0..3 {
+        out.push(Population::of(format!("K0 {}", AXES[c]), "mg", &column(&|p| p[c].k0_mg), None));
+    }
+    for c in 0..3 {
+        out.push(Population::of(
+            format!("K1 {}", AXES[c]),
+            "codes/g",
+            &column(&|p| p[c].k1_codes_per_g),
+            None,
+        ));
+    }
+    for c in 0..3 {
+        for j in (0..3).filter(|&j| j != c) {
+            let name = format!("δ {}→{}", AXES[c], AXES[j]);
+            out.push(Population::of(name, "µrad", &column(&|p| p[c].delta_urad[j]), None));
+        }
+    }
+    // The as-left parameters, by (parameter, axis) in the order first met.
+    let mut measured: Vec<(String, &'static str, f64, Vec<f64>)> = Vec::new();
+    for r in &passed {
+        let Some(v) = r.as_left_json.as_deref() else { continue };
+        let Ok(report) = serde_json::from_str::<accelcal_line::verify::VerifyReport>(v) else { continue };
+        for p in report.parameters.unwrap_or_default() {
+            let name = format!("as-left {} {}", p.parameter.replace('_', " "), p.axis);
+            let unit = match p.unit.as_str() {
+                "mg" => "mg",
+                "ppm" => "ppm",
+                _ => "µrad",
+            };
+            match measured.iter_mut().find(|m| m.0 == name) {
+                Some(m) => {
+                    m.3.push(p.value);
+                    m.2 = m.2.min(p.limit);
+                }
+                None => measured.push((name, unit, p.limit, vec![p.value])),
+            }
+        }
+    }
+    out.extend(
+        measured
+            .into_iter()
+            .map(|(name, unit, limit, values)| Population::of(name, unit, &values, Some(limit))),
+    );
+    out
+}

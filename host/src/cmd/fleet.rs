@@ -1,0 +1,306 @@
+//! `accelcal fleet` (the line across units over a period, [`accelcal_db::fleet`]) and
+//! `accelcal certificate` (a stored certificate printed again).
+
+use accelcal_core::error::bad;
+use accelcal_core::output::{utc_date_time, write_atomic, write_json};
+use accelcal_db::asset::{start_of_day_unix_s, today_utc, Asset, Date};
+use accelcal_db::fleet::{populations, Counts, DueUnit, Filter, FleetRun, Population};
+use accelcal_db::{Db, RunId, Target};
+use anyhow::Context;
+use serde::Serialize;
+
+use super::store::reader_spec;
+use crate::cli::{CertificateArgs, FleetArgs};
+
+/// Seconds in a day.
+const DAY_S: i64 = 86_400;
+
+/// The period of `fleet`: (first day, last day), UTC.
+fn period(a: &FleetArgs) -> anyhow::Result<(Date, Date)> {
+    let until = a.until.unwrap_or_else(today_utc);
+    let since = match a.since {
+        Some(s) => s,
+        None => until
+            .checked_sub(std::time::Duration::from_secs(30 * DAY_S as u64))
+            .context("--until is too early")?,
+    };
+    if since > until {
+        return Err(bad(format!("--since {since} is after --until {until}: the period is empty")));
+    }
+    Ok((since, until))
+}
+
+/// An output file that would overwrite the database (a SQLite file) is refused.
+fn not_the_db(db: Option<&str>, out: &std::path::Path, what: &str) -> anyhow::Result<()> {
+    if let Ok(spec) = reader_spec(db) {
+        if let Ok(Target::Sqlite(f)) = Target::parse(&spec) {
+            if f == out {
+                return Err(bad(format!(
+                    "{what} {} is the database: refusing to overwrite it",
+                    out.display()
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Checks `fleet`'s line before anything is opened.
+pub fn check(a: &FleetArgs) -> anyhow::Result<()> {
+    period(a)?;
+    if let (Some(j), Some(c)) = (&a.json, &a.csv) {
+        if j == c {
+            return Err(bad(format!("--json and --csv are the same file {}", j.display())));
+        }
+    }
+    for (what, out) in [("--json", &a.json), ("--csv", &a.csv)] {
+        if let Some(out) = out {
+            not_the_db(a.reader.db.as_deref(), out, what)?;
+        }
+    }
+    Ok(())
+}
+
+/// `fleet --json`.
+#[derive(Serialize)]
+struct FleetJson<'a> {
+    database: String,
+    since: Date,
+    until: Date,
+    station: Option<&'a str>,
+    head_asset: Option<&'a str>,
+    serial_prefix: Option<&'a str>,
+    counts: &'a Counts,
+    /// The runs whose as-found verification was decided out of tolerance (conditional fail or
+    /// fail): their units' users must be told.
+    as_found_out_of_tolerance: Vec<&'a FleetRun>,
+    populations: &'a [Population],
+    due_by: Date,
+    units_due: &'a [DueUnit],
+    assets_due: Vec<&'a Asset>,
+    runs: &'a [FleetRun],
+}
+
+fn pct(n: i64, of: i64) -> String {
+    if of == 0 {
+        "-".into()
+    } else {
+        format!("{:.1} %", 100.0 * n as f64 / of as f64)
+    }
+}
+
+/// Whether a decision is out of tolerance.
+fn out_of_tolerance(decision: Option<&str>) -> bool {
+    matches!(decision, Some("conditional fail" | "fail"))
+}
+
+/// Runs `accelcal fleet`.
+pub fn run(a: &FleetArgs) -> anyhow::Result<()> {
+    let (since, until) = period(a)?;
+    let filter = Filter {
+        since_unix_s: start_of_day_unix_s(since),
+        until_unix_s: start_of_day_unix_s(until) + DAY_S,
+        station: a.station.clone(),
+        head_asset: a.head_asset.clone(),
+        serial_prefix: a.serial_prefix.clone(),
+    };
+    let mut db = Db::open_existing(&reader_spec(a.reader.db.as_deref())?)?;
+    let counts = db.fleet_counts(&filter)?;
+    let runs = db.fleet_runs(&filter)?;
+    let due_by = until
+        .checked_add(std::time::Duration::from_secs(u64::from(a.due_days) * DAY_S as u64))
+        .context("--due-days")?;
+    let units_due = db.units_due(start_of_day_unix_s(due_by) + DAY_S, a.serial_prefix.as_deref())?;
+    let assets = db.assets()?;
+    let assets_due: Vec<&Asset> = assets.iter().filter(|x| x.due_date <= due_by).collect();
+    let pops = populations(&runs);
+    let found_out: Vec<&FleetRun> = runs
+        .iter()
+        .filter(|r| r.state != "voided" && out_of_tolerance(r.as_found_decision.as_deref()))
+        .collect();
+
+    let filters: Vec<String> =
+        [("station", &a.station), ("head", &a.head_asset), ("serials", &a.serial_prefix)]
+            .iter()
+            .filter_map(|(k, v)| v.as_ref().map(|v| format!("{k} {v}")))
+            .collect();
+    println!(
+        "fleet: {since} to {until} (UTC) in {}{}: {} runs of {} units",
+        db.target(),
+        if filters.is_empty() { String::new() } else { format!(" ({})", filters.join(", ")) },
+        counts.runs,
+        counts.units
+    );
+    println!(
+        "  runs: {} pass, {} rejected, {} unfinished, {} voided",
+        counts.passed, counts.rejected, counts.unfinished, counts.voided
+    );
+    println!(
+        "  yield: first pass {}/{} units ({}), final {}/{} ({})",
+        counts.first_pass_units,
+        counts.units_finished,
+        pct(counts.first_pass_units, counts.units_finished),
+        counts.final_pass_units,
+        counts.units_finished,
+        pct(counts.final_pass_units, counts.units_finished)
+    );
+    for (reason, n) in &counts.rejections {
+        println!("  rejected {n}×: {reason}");
+    }
+    if found_out.is_empty() {
+        println!("  as found out of tolerance: none");
+    }
+    for r in &found_out {
+        println!(
+            "  as found out of tolerance: {} ({}) run {} {}: {}",
+            if r.serial.is_empty() { "-" } else { &r.serial },
+            r.device_id,
+            r.run_id,
+            utc_date_time(r.started_unix_s),
+            r.as_found_decision.as_deref().unwrap_or("-")
+        );
+    }
+    let calibrated = pops.first().map_or(0, |p| p.n);
+    println!(
+        "  populations of the {calibrated} units that passed (Cpk = min(L − mean, mean + L)/(3·s) against the specification's ±L):"
+    );
+    println!(
+        "    {:<30} {:>8} {:>4} {:>14} {:>12} {:>10} {:>6}",
+        "", "unit", "n", "mean", "s", "limit", "Cpk"
+    );
+    for p in &pops {
+        println!(
+            "    {:<30} {:>8} {:>4} {:>14} {:>12} {:>10} {:>6}",
+            p.name,
+            p.unit,
+            p.n,
+            format!("{:+.4}", p.mean),
+            format!("{:.4}", p.sd),
+            p.limit.map_or("-".into(), |l| format!("±{l}")),
+            p.cpk.map_or("-".into(), |c| format!("{c:.2}"))
+        );
+    }
+    println!(
+        "  units due for recalibration by {due_by} ({} days after {until}, overdue included):",
+        a.due_days
+    );
+    if units_due.is_empty() {
+        println!("    none");
+    }
+    for u in &units_due {
+        println!(
+            "    {:<16} {}  due {}  (certificate of run {})",
+            if u.serial.is_empty() { "-" } else { &u.serial },
+            u.device_id,
+            &utc_date_time(u.due_unix_s)[..10],
+            u.run_id
+        );
+    }
+    println!("  assets due by {due_by}:");
+    if assets_due.is_empty() {
+        println!("    none");
+    }
+    for x in &assets_due {
+        println!("    {} ({}) certificate {}, due {}", x.asset_id, x.kind.name(), x.certificate, x.due_date);
+    }
+    if let Some(c) = &a.csv {
+        write_atomic(c, csv_of(&runs)?.as_bytes())?;
+        println!("wrote {} ({} runs)", c.display(), runs.len());
+    }
+    if let Some(j) = &a.json {
+        write_json(
+            j,
+            &FleetJson {
+                database: db.target(),
+                since,
+                until,
+                station: a.station.as_deref(),
+                head_asset: a.head_asset.as_deref(),
+                serial_prefix: a.serial_prefix.as_deref(),
+                counts: &counts,
+                as_found_out_of_tolerance: found_out,
+                populations: &pops,
+                due_by,
+                units_due: &units_due,
+                assets_due,
+                runs: &runs,
+            },
+        )?;
+        println!("wrote {}", j.display());
+    }
+    Ok(())
+}
+
+/// One row per run: the columns an MES takes.
+fn csv_of(runs: &[FleetRun]) -> anyhow::Result<String> {
+    let mut w = csv::Writer::from_writer(Vec::new());
+    let mut header: Vec<String> = [
+        "run_id",
+        "serial",
+        "device_id",
+        "station",
+        "head_asset",
+        "operator",
+        "started_utc",
+        "ended_utc",
+        "state",
+        "reason",
+        "as_found_decision",
+        "as_left_decision",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    for ch in ["x", "y", "z"] {
+        for t in ["1", "ax", "ay", "az"] {
+            header.push(format!("{ch}_{t}"));
+        }
+    }
+    header.extend(["U_x_m_s2", "U_y_m_s2", "U_z_m_s2"].map(String::from));
+    w.write_record(&header)?;
+    for r in runs {
+        let mut row = vec![
+            r.run_id.clone(),
+            r.serial.clone(),
+            r.device_id.clone(),
+            r.station.clone(),
+            r.head_asset.clone().unwrap_or_default(),
+            r.operator.clone(),
+            utc_date_time(r.started_unix_s),
+            r.ended_unix_s.map(utc_date_time).unwrap_or_default(),
+            r.state.clone(),
+            r.reason.clone().unwrap_or_default(),
+            r.as_found_decision.clone().unwrap_or_default(),
+            r.as_left_decision.clone().unwrap_or_default(),
+        ];
+        match r.model4() {
+            Some(m) => row.extend(m.iter().flatten().map(|v| format!("{v}"))),
+            None => row.extend(std::iter::repeat_n(String::new(), 12)),
+        }
+        match r.u_m_s2() {
+            Some(u) => row.extend(u.iter().map(|v| format!("{v}"))),
+            None => row.extend(std::iter::repeat_n(String::new(), 3)),
+        }
+        w.write_record(&row)?;
+    }
+    let bytes = w.into_inner().map_err(|e| anyhow::anyhow!("writing the CSV: {e}"))?;
+    String::from_utf8(bytes).context("the CSV is UTF-8")
+}
+
+/// Checks `certificate`'s line before anything is opened.
+pub fn check_certificate(a: &CertificateArgs) -> anyhow::Result<()> {
+    RunId::parse(&a.run_id)?;
+    not_the_db(a.reader.db.as_deref(), &a.out, "--out")
+}
+
+/// Runs `accelcal certificate`.
+pub fn run_certificate(a: &CertificateArgs) -> anyhow::Result<()> {
+    let run = RunId::parse(&a.run_id)?;
+    let mut db = Db::open_existing(&reader_spec(a.reader.db.as_deref())?)?;
+    let Some(html) = db.certificate_html(run)? else {
+        return Err(bad(format!("run {run} has no certificate in {}", db.target())));
+    };
+    write_atomic(&a.out, html.as_bytes())?;
+    println!("certificate: run {run}'s certificate, as issued, written to {}", a.out.display());
+    Ok(())
+}

@@ -1,0 +1,181 @@
+//! A line of six units for `fleet` (issue 31): runs passed, rejected, unfinished and voided on
+//! two stations, one head asset, an as-found out of tolerance, certificates numbered with their
+//! recalibration dates.
+
+use accelcal_core::conformity::{Decision, ParameterCheck, RuleKind, Specification};
+use accelcal_db::fleet::Filter;
+use accelcal_db::{Db, Outcome, Phase, RecalibrationDue, RunId};
+use accelcal_line::verify::VerifyReport;
+
+use super::*;
+
+/// The runs of [`line_of_units`].
+pub struct Line {
+    /// Unit A's passed run (head HEAD-1, due T0 + 200 days).
+    pub a: RunId,
+    /// Unit B's rejected run, then its passed one (due T0 + 20 days).
+    pub b: [RunId; 2],
+    /// Unit C's run, found out of tolerance (due T0 + 365 days).
+    pub c: RunId,
+    /// Unit D's unfinished run.
+    pub d: RunId,
+    /// Unit E's voided run.
+    pub e: RunId,
+    /// Unit F's run, 40 days after T0.
+    pub f: RunId,
+}
+
+/// An as-left verification that measured channel x's bias error (mg, limit ±2 mg).
+fn as_left(device: &str, bias_mg: f64) -> VerifyReport {
+    let mut v = verification(device, 0.002, 0.05);
+    v.parameters = Some(vec![ParameterCheck {
+        parameter: "bias".into(),
+        axis: "x".into(),
+        value: bias_mg,
+        u_expanded: 0.2,
+        limit: 2.0,
+        unit: "mg".into(),
+        decision: Decision::Pass,
+    }]);
+    v
+}
+
+fn calibrated(db: &mut Db, device: &str, serial: &str, station: &str, t: i64, due: Option<i64>) -> RunId {
+    let s = start(RunId::new(), device, serial, station, t);
+    let run = s.run_id;
+    db.begin_run(&s, None).unwrap();
+    let c = coefs(10.0, 1);
+    db.store_campaign(run, &campaign(600)).unwrap();
+    db.store_fit(run, &fit_json(&c)).unwrap();
+    let rec = db.store_record(run, &record(device, &c)).unwrap();
+    db.record_flashed(&rec).unwrap();
+    db.store_verification(run, Phase::AsLeft, &as_left(device, 1.0)).unwrap();
+    if let Some(d) = due {
+        db.certificate_number_with_due(run, &RecalibrationDue { due_unix_s: d, basis: "test".into() })
+            .unwrap();
+    }
+    db.store_certificate(run, &format!("<html>certificate of {serial}</html>")).unwrap();
+    db.finish_run(run, Outcome::Pass, "verified").unwrap();
+    run
+}
+
+/// Six units between T0 and T0 + 40 days.
+pub fn line_of_units(db: &mut Db) -> Line {
+    let head = head_asset("HEAD-1", "DKD-17-001", "2026-01-20", 3.0, T0 - DAY);
+    db.add_asset(&head).unwrap();
+    let a = {
+        let s = start(RunId::new(), DEVICE, "SN-A1", "st-1", T0 + DAY);
+        db.begin_run(&s, None).unwrap();
+        db.store_run_asset(s.run_id, &head).unwrap();
+        let c = coefs(0.0, 0);
+        db.store_campaign(s.run_id, &campaign(600)).unwrap();
+        db.store_fit(s.run_id, &fit_json(&c)).unwrap();
+        let rec = db.store_record(s.run_id, &record(DEVICE, &c)).unwrap();
+        db.record_flashed(&rec).unwrap();
+        db.store_verification(s.run_id, Phase::AsLeft, &as_left(DEVICE, 0.5)).unwrap();
+        let due = RecalibrationDue { due_unix_s: T0 + 200 * DAY, basis: "test".into() };
+        db.certificate_number_with_due(s.run_id, &due).unwrap();
+        db.store_certificate(s.run_id, "<html>certificate of SN-A1</html>").unwrap();
+        db.finish_run(s.run_id, Outcome::Pass, "verified").unwrap();
+        s.run_id
+    };
+    let b0 = {
+        let s = start(RunId::new(), DEVICE_2, "SN-B1", "st-1", T0 + 2 * DAY);
+        db.begin_run(&s, None).unwrap();
+        db.store_campaign(s.run_id, &campaign(600)).unwrap();
+        db.finish_run(s.run_id, Outcome::Rejected, "selection beyond model 4").unwrap();
+        s.run_id
+    };
+    let b1 = calibrated(db, DEVICE_2, "SN-B1", "st-1", T0 + 3 * DAY, Some(T0 + 20 * DAY));
+    let c = {
+        let dev = "aabbccddeeff001122334455";
+        let s = start(RunId::new(), dev, "SN-C1", "st-2", T0 + 4 * DAY);
+        db.begin_run(&s, None).unwrap();
+        let mut found = verification(dev, 0.09, 0.05);
+        found.specification = Some(Specification {
+            unit_type: "MS9002.D".into(),
+            acceleration_error_m_s2: 0.05,
+            rule: RuleKind::GuardBand,
+            guard_band_m_s2: None,
+            bias_mg: None,
+            scale_factor_ppm: None,
+            misalignment_urad: None,
+        });
+        found.decision = Some(Decision::Fail);
+        db.store_verification(s.run_id, Phase::AsFound, &found).unwrap();
+        let c = coefs(0.0, 0);
+        db.store_campaign(s.run_id, &campaign(600)).unwrap();
+        db.store_fit(s.run_id, &fit_json(&c)).unwrap();
+        let rec = db.store_record(s.run_id, &record(dev, &c)).unwrap();
+        db.record_flashed(&rec).unwrap();
+        db.store_verification(s.run_id, Phase::AsLeft, &as_left(dev, 1.5)).unwrap();
+        let due = RecalibrationDue { due_unix_s: T0 + 365 * DAY, basis: "test".into() };
+        db.certificate_number_with_due(s.run_id, &due).unwrap();
+        db.store_certificate(s.run_id, "<html>certificate of SN-C1</html>").unwrap();
+        db.finish_run(s.run_id, Outcome::Pass, "verified").unwrap();
+        s.run_id
+    };
+    let d = {
+        let s = start(RunId::new(), "bbccddeeff00112233445566", "SN-D1", "st-2", T0 + 5 * DAY);
+        db.begin_run(&s, None).unwrap();
+        db.store_campaign(s.run_id, &campaign(600)).unwrap();
+        s.run_id
+    };
+    let e = calibrated(db, "ccddeeff0011223344556677", "SN-E1", "st-1", T0 + 6 * DAY, None);
+    db.void_run(e, "mislabelled", "qa").unwrap();
+    let f = calibrated(db, "ddeeff001122334455667788", "XX-F1", "st-1", T0 + 40 * DAY, Some(T0 + 400 * DAY));
+    Line { a, b: [b0, b1], c, d, e, f }
+}
+
+/// The period T0 .. T0 + 31 days.
+pub fn january() -> Filter {
+    Filter { since_unix_s: T0, until_unix_s: T0 + 31 * DAY, ..Filter::default() }
+}
+
+/// What the database counts of [`line_of_units`], by period and filter, and the units due.
+pub fn the_fleet_is_counted_by_the_database(spec: &str) {
+    let mut db = Db::open(spec).unwrap();
+    let line = line_of_units(&mut db);
+    let c = db.fleet_counts(&january()).unwrap();
+    assert_eq!((c.runs, c.passed, c.rejected, c.unfinished, c.voided, c.units), (6, 3, 1, 1, 1, 5), "{c:?}");
+    assert_eq!((c.units_finished, c.first_pass_units, c.final_pass_units), (3, 2, 3), "{c:?}");
+    assert_eq!(c.rejections, [("selection beyond model 4".to_string(), 1)]);
+    let st2 = db.fleet_counts(&Filter { station: Some("st-2".into()), ..january() }).unwrap();
+    assert_eq!((st2.runs, st2.units, st2.passed, st2.unfinished), (2, 2, 1, 1), "{st2:?}");
+    let b = db.fleet_counts(&Filter { serial_prefix: Some("SN-B".into()), ..january() }).unwrap();
+    assert_eq!((b.runs, b.first_pass_units, b.final_pass_units), (2, 0, 1), "{b:?}");
+    let h = db.fleet_counts(&Filter { head_asset: Some("HEAD-1".into()), ..january() }).unwrap();
+    assert_eq!((h.runs, h.units), (1, 1), "{h:?}");
+    // A serial prefix with LIKE's wildcards in it is a prefix, not a pattern.
+    let none = db.fleet_counts(&Filter { serial_prefix: Some("SN_%".into()), ..january() }).unwrap();
+    assert_eq!(none.runs, 0);
+
+    let runs = db.fleet_runs(&january()).unwrap();
+    let ids: Vec<String> = runs.iter().map(|r| r.run_id.clone()).collect();
+    let want: Vec<String> =
+        [line.a, line.b[0], line.b[1], line.c, line.d, line.e].map(|r| r.to_string()).into();
+    assert_eq!(ids, want);
+    assert_eq!(runs[0].head_asset.as_deref(), Some("HEAD-1"));
+    assert_eq!(runs[3].as_found_decision.as_deref(), Some("fail"));
+    assert_eq!(runs[5].state, "voided");
+    assert_eq!(runs[5].reason.as_deref(), Some("mislabelled"));
+    assert!(runs[0].model4().is_some() && runs[4].model4().is_none());
+    let pops = accelcal_db::fleet::populations(&runs);
+    assert_eq!(pops[0].name, "K0 x");
+    assert_eq!(pops[0].n, 3, "the three runs that passed: {pops:?}");
+    // The as-left bias of x: 0.5, 1.0 and 1.5 mg against ±2 mg: mean 1, s 0.5, Cpk (2 − 1)/1.5.
+    let bias = pops.iter().find(|p| p.name == "as-left bias x").unwrap();
+    assert_eq!((bias.n, bias.unit, bias.limit), (3, "mg", Some(2.0)));
+    assert!((bias.mean - 1.0).abs() < 1e-12 && (bias.sd - 0.5).abs() < 1e-12, "{bias:?}");
+    assert!((bias.cpk.unwrap() - 1.0 / 1.5).abs() < 1e-12, "{bias:?}");
+
+    let due: Vec<String> = db.units_due(T0 + 30 * DAY, None).unwrap().into_iter().map(|u| u.serial).collect();
+    assert_eq!(due, ["SN-B1"]);
+    let due: Vec<String> =
+        db.units_due(T0 + 500 * DAY, None).unwrap().into_iter().map(|u| u.serial).collect();
+    assert_eq!(due, ["SN-B1", "SN-A1", "SN-C1", "XX-F1"]);
+    let due = db.units_due(T0 + 500 * DAY, Some("XX")).unwrap();
+    assert_eq!(due.iter().map(|u| u.run_id.clone()).collect::<Vec<_>>(), [line.f.to_string()]);
+    assert_eq!(db.certificate_html(line.c).unwrap().as_deref(), Some("<html>certificate of SN-C1</html>"));
+    assert_eq!(db.certificate_html(line.d).unwrap(), None);
+}
