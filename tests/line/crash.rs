@@ -55,7 +55,7 @@ fn station_crashing_at(args: &[&str], point: &str) -> (Option<i32>, String) {
 }
 
 /// The rows of each table of run `run`, through `count(table, run)`.
-const TABLES: [(&str, i64); 10] = [
+const TABLES: [(&str, i64); 11] = [
     ("run", 1),
     ("campaign", 1),
     ("fit", 1),
@@ -63,9 +63,10 @@ const TABLES: [(&str, i64); 10] = [
     ("flash", 1),
     ("verification", 2),
     ("certificate_number", 1),
+    ("recalibration_due", 1),
     ("certificate", 1),
     ("run_end", 1),
-    ("ledger", 10),
+    ("ledger", 11),
 ];
 
 /// A first unit's whole line, then a second unit on the same node (a record in force, so its
