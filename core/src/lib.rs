@@ -25,6 +25,7 @@ pub mod effects;
 pub mod error;
 pub mod gmdh;
 pub mod gravity;
+pub mod headsig;
 pub mod ieee1293;
 pub mod input;
 pub mod lsq;

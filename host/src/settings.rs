@@ -535,9 +535,11 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
             }
             Ok(())
         }
-        Command::BenchDiagnose(_) | Command::UncertaintyCheck(_) | Command::Demo(_) | Command::Plan(_) => {
-            Ok(())
-        }
+        Command::BenchDiagnose(_)
+        | Command::BenchSignature(_)
+        | Command::UncertaintyCheck(_)
+        | Command::Demo(_)
+        | Command::Plan(_) => Ok(()),
         Command::History(a) => crate::cmd::history::check(a),
         Command::Void(a) => crate::cmd::db::check_void(a),
         Command::Db(_) => Ok(()),

@@ -131,6 +131,8 @@ const DIMENSIONLESS: &[&str] = &[
     "--top",
     "--count",
     "--campaigns",
+    "--fleets",
+    "--change-at", // a unit's place in the fleet
     "--units",
     "--orientations",
     "--rate-factor",

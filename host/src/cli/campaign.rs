@@ -478,6 +478,25 @@ pub struct BenchDiagnoseArgs {
     pub json: Option<PathBuf>,
 }
 
+/// `accelcal bench-signature`.
+#[derive(Debug, Args)]
+pub struct BenchSignatureArgs {
+    /// Fleets simulated per case (each with its own seed).
+    #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub fleets: u32,
+    /// Units per fleet, in time order (the 62-position plan, 100 sample sets per position, 80
+    /// codes of noise, 2 mrad of misalignment spread).
+    #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u32).range(60..=5000))]
+    pub units: u32,
+    /// The unit at which the head changes (0-based; the tracking's baseline is its first 50
+    /// units).
+    #[arg(long, default_value_t = 100)]
+    pub change_at: u32,
+    /// Write the cases as JSON to this file.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+}
+
 /// `accelcal uncertainty-check`.
 #[derive(Debug, Args)]
 pub struct UncertaintyCheckArgs {

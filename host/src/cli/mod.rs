@@ -78,6 +78,12 @@ pub enum Command {
     Diagnose(DiagnoseArgs),
     /// Blind benchmark of `diagnose` on simulated campaigns with withheld effects.
     BenchDiagnose(BenchDiagnoseArgs),
+    /// Benchmark of the head's signature across units: simulated fleets on a head that is
+    /// knocked out of true at a unit the tracking is not told (one position's α off by 0.5 mrad,
+    /// at β = 0° and at β = −60°; the mount rotated by 1 mrad), and on a true head: how many
+    /// fleets are flagged, how many units after the change, how near the estimate, and the false
+    /// alarms before it.
+    BenchSignature(BenchSignatureArgs),
     /// Check the uncertainty budget by Monte Carlo (JCGM 101): simulate units on heads whose
     /// errors are drawn from their stated uncertainties, calibrate each, and count how often the
     /// true error of the calibrated acceleration lies within the expanded uncertainty (k = 2) its

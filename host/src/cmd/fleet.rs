@@ -304,3 +304,82 @@ pub fn run_certificate(a: &CertificateArgs) -> anyhow::Result<()> {
     println!("certificate: run {run}'s certificate, as issued, written to {}", a.out.display());
     Ok(())
 }
+
+/// Runs `accelcal bench-signature`.
+pub fn run_bench_signature(a: &crate::cli::BenchSignatureArgs) -> anyhow::Result<()> {
+    use accelcal_core::headsig::{study, HeadChange, Settings};
+    if a.change_at >= a.units {
+        return Err(bad(format!("--change-at {} is not before --units {}", a.change_at, a.units)));
+    }
+    let s = Settings::default();
+    if (a.change_at as usize) < s.baseline {
+        return Err(bad(format!(
+            "--change-at {} is inside the tracking's baseline of {} units",
+            a.change_at, s.baseline
+        )));
+    }
+    let changes = [
+        HeadChange::None,
+        HeadChange::Offset { position: 26, mrad: 0.5 },
+        HeadChange::Offset { position: 7, mrad: 0.5 },
+        HeadChange::Mount { mrad: 1.0 },
+    ];
+    let rows = study(&changes, a.fleets as usize, a.units as usize, a.change_at as usize, s);
+    println!(
+        "head signature: {} fleets of {} units per case, the head changed at unit {} (not told); baseline {} units, CUSUM k = {}, h = {}",
+        a.fleets, a.units, a.change_at, s.baseline, s.k, s.h
+    );
+    println!(
+        "{:<34} {:>9} {:>14} {:>10} {:>16} {:>14}",
+        "change", "flagged", "median delay", "max delay", "mean estimate", "false alarms"
+    );
+    let after = a.units - a.change_at;
+    for r in &rows {
+        let mut d: Vec<usize> = r.delays.iter().flatten().copied().collect();
+        d.sort_unstable();
+        let (case, unit) = match r.change {
+            HeadChange::None => ("none (a true head)".to_string(), ""),
+            HeadChange::Offset { position, mrad } => {
+                let (al, be) = accelcal_core::sim::Plan::head().positions[position];
+                (format!("α of position {} (α {al}°, β {be}°) +{mrad} mrad", position + 1), "arcsec")
+            }
+            HeadChange::Mount { mrad } => (format!("mount rotated {mrad} mrad about z"), "µrad"),
+        };
+        let mean = r.estimates.iter().sum::<f64>() / r.estimates.len().max(1) as f64;
+        // A true head: every flag is a false alarm, after the change point as before it.
+        let false_alarms = match r.change {
+            HeadChange::None => {
+                format!("{} in {} units", r.false_alarms + d.len(), r.fleets * a.units as usize)
+            }
+            _ => format!("{} in {} units", r.false_alarms, r.fleets * a.change_at as usize),
+        };
+        println!(
+            "{:<34} {:>9} {:>14} {:>10} {:>16} {:>14}",
+            case,
+            match r.change {
+                HeadChange::None => "-".to_string(),
+                _ => format!("{}/{}", d.len(), r.fleets),
+            },
+            match (r.change, d.get(d.len() / 2)) {
+                (HeadChange::None, _) | (_, None) => "-".to_string(),
+                (_, Some(m)) => format!("{m} units"),
+            },
+            match (r.change, d.last()) {
+                (HeadChange::None, _) | (_, None) => "-".to_string(),
+                (_, Some(m)) => format!("{m}"),
+            },
+            match r.change {
+                HeadChange::None => "-".to_string(),
+                _ if r.estimates.is_empty() => "-".to_string(),
+                _ => format!("{mean:.0} {unit}"),
+            },
+            false_alarms
+        );
+    }
+    println!("a flag more than {after} units after the change is none: the fleet ended");
+    if let Some(j) = &a.json {
+        write_json(j, &rows)?;
+        println!("wrote {}", j.display());
+    }
+    Ok(())
+}

@@ -58,6 +58,7 @@ pub fn run(cli: Cli, warnings: &mut Warnings) -> anyhow::Result<()> {
             diagnose::run(&a, warnings)
         }
         Command::BenchDiagnose(a) => bench_diagnose::run(&a),
+        Command::BenchSignature(a) => fleet::run_bench_signature(&a),
         Command::UncertaintyCheck(a) => uncertainty::run_check(&a),
         Command::Station(a) => station::run(&a),
         Command::History(a) => history::run(&a),

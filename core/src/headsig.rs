@@ -1,0 +1,500 @@
+//! The dividing head's signature across units (the line-level sim-to-real diagnosis): a head
+//! error is the same for every unit calibrated on it, so it leaves the same pattern in every
+//! unit's model-4 residuals (the part of a position's angle error that the linear model cannot
+//! absorb), and a rotation of the mount, which model 4 absorbs, shifts the population of the
+//! cross terms. Each single unit's verification on that head passes; the population does not.
+//!
+//! Per unit ([`observe`]): at each position the residual of the dwell means about the unit's
+//! model-4 fit, as an acceleration (`K⁻¹·r`, m/s²), and its six misalignments δ (µrad). Across
+//! units in time order ([`track`]): each position's residual read along `∂a/∂α` and `∂a/∂β`
+//! (the head-angle errors model 4 left), and each misalignment, is standardised by the first
+//! `baseline` units' mean (per statistic) and standard deviation (pooled over the angle
+//! statistics, and over the misalignments) and followed by a two-sided CUSUM (Page 1954;
+//! reference value `k`, decision interval `h`, in standard deviations); the first unit whose
+//! CUSUM passes `h` is a change point, with the statistic that passed and the estimated shift
+//! (the mean since its CUSUM last left zero less the baseline's: arcsec of head angle at a
+//! position, µrad of a misalignment). The CUSUMs then start again with a new baseline. [`Signature`] is the mean residual pattern of the units since the
+//! last change point, with its standard error, per position.
+
+use accelcal_shared::terms::MODEL_4;
+use serde::Serialize;
+
+use crate::calibrate::{fit_positions, Method};
+use crate::compare::own_axis;
+use crate::positions::{ChannelStats, Positions};
+
+/// One arcsecond, rad.
+const ARCSEC: f64 = std::f64::consts::PI / 648_000.0;
+
+/// The misalignments' names, in [`UnitObs::misalign_urad`]'s order.
+pub const CROSS_TERMS: [&str; 6] = ["x→y", "x→z", "y→x", "y→z", "z→x", "z→y"];
+
+/// What one unit's calibration shows of the head.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct UnitObs {
+    /// The unit's serial.
+    pub serial: String,
+    /// Its run.
+    pub run_id: String,
+    /// When the run started, Unix seconds.
+    pub started_unix_s: i64,
+    /// The commanded positions `(α, β)`, degrees.
+    pub positions: Vec<(f64, f64)>,
+    /// At each position, the model-4 residual as an acceleration, m/s² (x, y, z).
+    pub resid_m_s2: Vec<[f64; 3]>,
+    /// The misalignments δ (µrad) in [`CROSS_TERMS`]' order.
+    pub misalign_urad: [f64; 6],
+}
+
+/// The observation of one unit from its campaign's dwell statistics (its serial, run and start
+/// left for the caller): `None` unless the campaign is a triad that model 4 fits by least
+/// squares with an invertible sensitivity.
+pub fn observe(pos: &Positions, stats: &[ChannelStats]) -> Option<UnitObs> {
+    if stats.len() != 3 {
+        return None;
+    }
+    let fits = fit_positions(pos, stats, Method::Lsq, MODEL_4).ok()?;
+    let mut order = [usize::MAX; 3];
+    for (ci, (_, f)) in fits.iter().enumerate() {
+        let axis = own_axis(f);
+        if order[axis] != usize::MAX {
+            return None;
+        }
+        order[axis] = ci;
+    }
+    let row = |axis: usize| -> [f64; 4] {
+        let c = &fits[order[axis]].1.coefficients;
+        [c[0], c[1], c[2], c[3]]
+    };
+    let k = nalgebra::Matrix3::from_fn(|i, j| row(i)[j + 1]);
+    let kinv = k.try_inverse()?;
+    let resid = (0..pos.len())
+        .map(|p| {
+            let a = pos.accel[p];
+            let r = nalgebra::Vector3::from_fn(|i, _| {
+                let c = row(i);
+                stats[order[i]].mean[p] - (c[0] + c[1] * a[0] + c[2] * a[1] + c[3] * a[2])
+            });
+            let ra = kinv * r;
+            [ra[0], ra[1], ra[2]]
+        })
+        .collect();
+    let mut cross = [0.0; 6];
+    let mut n = 0;
+    for c in 0..3 {
+        for j in (0..3).filter(|&j| j != c) {
+            cross[n] = row(c)[j + 1] / row(c)[c + 1] * 1e6;
+            n += 1;
+        }
+    }
+    Some(UnitObs {
+        serial: String::new(),
+        run_id: String::new(),
+        started_unix_s: 0,
+        positions: pos.dwells.iter().map(|d| (d.alpha_deg, d.beta_deg)).collect(),
+        resid_m_s2: resid,
+        misalign_urad: cross,
+    })
+}
+
+/// The tracking's settings.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Settings {
+    /// Units that set each baseline.
+    pub baseline: usize,
+    /// CUSUM reference value, standard deviations.
+    pub k: f64,
+    /// CUSUM decision interval, standard deviations.
+    pub h: f64,
+}
+
+impl Default for Settings {
+    /// 50 units of baseline, k = 0.5, h = 12 (`accelcal bench-signature` measures the false
+    /// alarms and the delays it gives).
+    fn default() -> Settings {
+        Settings { baseline: 50, k: 0.5, h: 12.0 }
+    }
+}
+
+/// A unit at which the head changed.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ChangePoint {
+    /// The unit whose run triggered the flag.
+    pub serial: String,
+    /// Its run.
+    pub run_id: String,
+    /// When it started, Unix seconds.
+    pub started_unix_s: i64,
+    /// Its place among the head's units, from 0.
+    pub index: usize,
+    /// The rule: the CUSUM and the statistic that passed h.
+    pub rule: String,
+    /// The estimated shift: arcsec of head angle at a position, µrad of a misalignment.
+    pub estimate: f64,
+    /// The estimate's unit.
+    pub unit: &'static str,
+}
+
+/// The head's residual pattern at one position.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PositionSignature {
+    /// Commanded α, degrees.
+    pub alpha_deg: f64,
+    /// Commanded β, degrees.
+    pub beta_deg: f64,
+    /// Mean residual over the units, m/s².
+    pub mean_m_s2: [f64; 3],
+    /// Its standard error, m/s².
+    pub se_m_s2: [f64; 3],
+    /// `|mean|/g` as a head angle, arcsec.
+    pub arcsec: f64,
+}
+
+/// The head's signature and its change points.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Signature {
+    /// Units tracked (those on the first unit's plan).
+    pub units: usize,
+    /// Units left out: another plan than the first unit's.
+    pub other_plan: usize,
+    /// Units the signature is the mean of: those since the last change point.
+    pub since_last_change: usize,
+    /// Per position.
+    pub positions: Vec<PositionSignature>,
+    /// The mean misalignments over the same units, µrad, in [`CROSS_TERMS`]' order.
+    pub misalign_urad: [f64; 6],
+    /// The change points, oldest first.
+    pub change_points: Vec<ChangePoint>,
+    /// The settings.
+    pub settings: Settings,
+}
+
+fn mean_sd(v: &[f64]) -> (f64, f64) {
+    let n = v.len().max(1) as f64;
+    let m = v.iter().sum::<f64>() / n;
+    let sd =
+        if v.len() > 1 { (v.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / (n - 1.0)).sqrt() } else { 0.0 };
+    (m, sd)
+}
+
+/// The statistics of a unit: at every position, its residual along `∂a/∂α` and along `∂a/∂β`
+/// (m/s²: the part of a head angle error model 4 did not absorb, times `|∂a/∂θ|`), then the six
+/// misalignments (µrad); and for each statistic the factor to arcsec of head angle (1/|∂a/∂θ|;
+/// 1 for a misalignment, which is in µrad).
+fn statistics(u: &UnitObs, g: f64) -> (Vec<f64>, Vec<f64>) {
+    const H: f64 = 1e-6;
+    let n = 2 * u.positions.len() + 6;
+    let (mut out, mut to_unit) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    for (&(al, be), r) in u.positions.iter().zip(&u.resid_m_s2) {
+        for (da, db) in [(H, 0.0), (0.0, H)] {
+            let plus = accelcal_shared::gravity(al + da.to_degrees(), be + db.to_degrees(), g);
+            let minus = accelcal_shared::gravity(al - da.to_degrees(), be - db.to_degrees(), g);
+            let d: [f64; 3] = std::array::from_fn(|j| (plus[j] - minus[j]) / (2.0 * H));
+            let norm = d.iter().map(|x| x * x).sum::<f64>().sqrt();
+            // |∂a/∂α| = g·|cos β|: nothing to see of α at β = ±90°.
+            if norm > 1e-6 * g {
+                out.push((0..3).map(|j| d[j] * r[j]).sum::<f64>() / norm);
+                to_unit.push(1.0 / norm / ARCSEC);
+            } else {
+                out.push(0.0);
+                to_unit.push(0.0);
+            }
+        }
+    }
+    out.extend(u.misalign_urad);
+    to_unit.extend([1.0; 6]);
+    (out, to_unit)
+}
+
+/// Tracks the units of one head in time order (the caller's), at gravity `g` (m/s²).
+pub fn track(units: &[UnitObs], g: f64, s: Settings) -> Signature {
+    let plan = units.first().map(|u| u.positions.clone()).unwrap_or_default();
+    let same = |u: &&UnitObs| {
+        u.positions.len() == plan.len()
+            && u.positions
+                .iter()
+                .zip(&plan)
+                .all(|(a, b)| (a.0 - b.0).abs() < 1e-6 && (a.1 - b.1).abs() < 1e-6)
+    };
+    let on: Vec<&UnitObs> = units.iter().filter(same).collect();
+    let n_pos = plan.len();
+    let n_stat = 2 * n_pos + 6;
+    let mut change_points = Vec::new();
+    let mut start = 0;
+    let stats: Vec<Vec<f64>> = on.iter().map(|u| statistics(u, g).0).collect();
+    let to_unit = on.first().map(|u| statistics(u, g).1).unwrap_or_default();
+    // Self-starting: each unit is standardised by the units before it since the last change
+    // point (their mean per statistic; one standard deviation pooled over the angle statistics,
+    // one over the misalignments), so the baseline grows as the head stays in control; the
+    // CUSUMs run from the `baseline`-th unit on. Up and down, with the index each last left 0.
+    let mut up = vec![(0.0, 0usize); n_stat];
+    let mut down = vec![(0.0, 0usize); n_stat];
+    let n_angle = 2 * n_pos;
+    for i in 0..on.len() {
+        if i < start + s.baseline.max(2) {
+            continue;
+        }
+        let window = &stats[start..start + s.baseline.max(2)];
+        let n = window.len() as f64;
+        let means: Vec<f64> = (0..n_stat).map(|q| window.iter().map(|v| v[q]).sum::<f64>() / n).collect();
+        let pooled = |qs: std::ops::Range<usize>| -> f64 {
+            let (mut ss, mut dof) = (0.0, 0.0);
+            for q in qs {
+                if to_unit[q] == 0.0 {
+                    continue;
+                }
+                ss += window.iter().map(|v| (v[q] - means[q]).powi(2)).sum::<f64>();
+                dof += n - 1.0;
+            }
+            (ss / dof.max(1.0)).sqrt()
+        };
+        let (sd_angle, sd_cross) = (pooled(0..n_angle), pooled(n_angle..n_stat));
+        // A new unit about a mean of n: its variance is σ²·(1 + 1/n).
+        let inflate = (1.0 + 1.0 / n).sqrt();
+        let b: Vec<(f64, f64)> = (0..n_stat)
+            .map(|q| (means[q], inflate * if q < n_angle { sd_angle } else { sd_cross }))
+            .collect();
+        let mut flag: Option<(usize, bool)> = None;
+        for q in 0..n_stat {
+            let (m, sd) = b[q];
+            if sd <= 0.0 || to_unit[q] == 0.0 {
+                continue;
+            }
+            let z = (stats[i][q] - m) / sd;
+            for (c, dir) in [(&mut up[q], 1.0), (&mut down[q], -1.0)] {
+                if c.0 == 0.0 {
+                    c.1 = i;
+                }
+                c.0 = (c.0 + dir * z - s.k).max(0.0);
+            }
+            for (c, is_up) in [(up[q], true), (down[q], false)] {
+                let worst = flag.map_or(0.0, |(f, u)| if u { up[f].0 } else { down[f].0 });
+                if c.0 > s.h && c.0 > worst {
+                    flag = Some((q, is_up));
+                }
+            }
+        }
+        if let Some((q, is_up)) = flag {
+            let from = if is_up { up[q].1 } else { down[q].1 };
+            let v: Vec<f64> = stats[from..=i].iter().map(|v| v[q]).collect();
+            let estimate = (mean_sd(&v).0 - b[q].0) * to_unit[q];
+            let dir = if is_up { "up" } else { "down" };
+            let (rule, unit) = if q < 2 * n_pos {
+                let p = q / 2;
+                let angle = if q % 2 == 0 { "α" } else { "β" };
+                (
+                    format!(
+                        "CUSUM {dir} of the {angle} error at position {} (α {}°, β {}°)",
+                        p + 1,
+                        plan[p].0,
+                        plan[p].1
+                    ),
+                    "arcsec",
+                )
+            } else {
+                (format!("CUSUM {dir} of the misalignment {}", CROSS_TERMS[q - 2 * n_pos]), "µrad")
+            };
+            let u = on[i];
+            change_points.push(ChangePoint {
+                serial: u.serial.clone(),
+                run_id: u.run_id.clone(),
+                started_unix_s: u.started_unix_s,
+                index: i,
+                rule,
+                estimate,
+                unit,
+            });
+            start = i;
+            up.iter_mut().chain(down.iter_mut()).for_each(|c| *c = (0.0, i));
+        }
+    }
+    let recent = &stats[start.min(stats.len())..];
+    let recent_units = &on[start.min(on.len())..];
+    let positions = (0..n_pos)
+        .map(|p| {
+            let ms: [(f64, f64); 3] = std::array::from_fn(|j| {
+                mean_sd(&recent_units.iter().map(|u| u.resid_m_s2[p][j]).collect::<Vec<_>>())
+            });
+            let n = recent.len().max(1) as f64;
+            let mean = ms.map(|x| x.0);
+            PositionSignature {
+                alpha_deg: plan[p].0,
+                beta_deg: plan[p].1,
+                mean_m_s2: mean,
+                se_m_s2: ms.map(|x| x.1 / n.sqrt()),
+                arcsec: mean.iter().map(|x| x * x).sum::<f64>().sqrt() / g / ARCSEC,
+            }
+        })
+        .collect();
+    let misalign_urad =
+        std::array::from_fn(|m| mean_sd(&recent.iter().map(|v| v[2 * n_pos + m]).collect::<Vec<_>>()).0);
+    Signature {
+        units: on.len(),
+        other_plan: units.len() - on.len(),
+        since_last_change: recent.len(),
+        positions,
+        misalign_urad,
+        change_points,
+        settings: s,
+    }
+}
+
+/// A change of the head introduced into a simulated fleet.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case", tag = "kind")]
+pub enum HeadChange {
+    /// None: every unit on a true head.
+    None,
+    /// One position's α off by `mrad` (the head reaches α + offset, the campaign says α).
+    Offset {
+        /// The position's index in the plan.
+        position: usize,
+        /// The offset, mrad.
+        mrad: f64,
+    },
+    /// The block's mount rotated by `mrad` about z: every unit sees `R·a` for `a`.
+    Mount {
+        /// The rotation, mrad.
+        mrad: f64,
+    },
+}
+
+/// A simulated fleet on one head: `units` triads (the simulator's spread of biases, scale
+/// factors and misalignments, `misalign_sd` rad, white noise `noise` codes, `samples` sets per
+/// position of the 62-position plan), the head changed by `change` from unit `change_at` on.
+pub fn simulate_fleet(
+    units: usize,
+    change_at: usize,
+    change: HeadChange,
+    seed: u64,
+    noise: f64,
+    samples: usize,
+    misalign_sd: f64,
+) -> Vec<UnitObs> {
+    use crate::sim::{simulate, Plan, SimConfig};
+    let g = accelcal_shared::G_STANDARD;
+    (0..units)
+        .map(|u| {
+            let changed = u >= change_at;
+            let nominal = Plan::head();
+            let mut plan = nominal.clone();
+            if let (true, HeadChange::Offset { position, mrad }) = (changed, change) {
+                plan.positions[position].0 += (mrad * 1e-3).to_degrees();
+            }
+            let cfg = SimConfig {
+                seed: seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ (u as u64 + 1),
+                plan,
+                samples,
+                noise,
+                misalign_sd,
+                g,
+                ..SimConfig::default()
+            };
+            let (mut c, truth) = simulate(&cfg);
+            // The campaign states the commanded angles (the simulator writes `samples` rows per
+            // position, in the plan's order).
+            for (row, (a, b)) in c.alpha_deg.iter_mut().zip(c.beta_deg.iter_mut()).enumerate() {
+                (*a, *b) = nominal.positions[row / samples];
+            }
+            if let (true, HeadChange::Mount { mrad }) = (changed, change) {
+                // u = bias + K·R·a: each row gains K·(R − I)·a, R a rotation about z.
+                let psi = mrad * 1e-3;
+                for row in 0..c.alpha_deg.len() {
+                    let a = accelcal_shared::gravity(c.alpha_deg[row], c.beta_deg[row], g);
+                    let ra = [a[0] * psi.cos() - a[1] * psi.sin(), a[0] * psi.sin() + a[1] * psi.cos(), a[2]];
+                    for (ch, t) in c.channels.iter_mut().zip(&truth.channels) {
+                        let d: f64 = (0..3).map(|j| t.k[j] * (ra[j] - a[j])).sum();
+                        ch.codes[row] = (ch.codes[row] + d).round();
+                    }
+                }
+            }
+            let pos = Positions::new(&c, g);
+            let stats = pos.channel_stats(&c);
+            UnitObs {
+                serial: format!("SIM-{u:05}"),
+                run_id: format!("sim-{u}"),
+                started_unix_s: u as i64 * 3600,
+                ..observe(&pos, &stats).expect("a simulated triad")
+            }
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_position_knocked_off_is_flagged_after_the_change_and_a_true_head_is_not() {
+        let g = accelcal_shared::G_STANDARD;
+        let s = Settings::default();
+        let quiet = simulate_fleet(120, 0, HeadChange::None, 3, 80.0, 100, 0.002);
+        let q = track(&quiet, g, s);
+        assert!(q.change_points.is_empty(), "{:?}", q.change_points);
+        assert_eq!((q.units, q.since_last_change, q.positions.len()), (120, 120, 62));
+        let off =
+            simulate_fleet(120, 60, HeadChange::Offset { position: 26, mrad: 1.0 }, 3, 80.0, 100, 0.002);
+        let sig = track(&off, g, s);
+        let first = sig.change_points.first().expect("flagged");
+        assert!((60..80).contains(&first.index), "{first:?}");
+        assert!(first.rule.contains("α error at position 27 (α 60°, β 0°)"), "{first:?}");
+        // 1 mrad is 206 arcsec; model 4 absorbs a part of it.
+        assert!((120.0..260.0).contains(&first.estimate), "{first:?}");
+        // The signature since the change shows it at that position and nowhere near as much
+        // elsewhere.
+        let at = sig.positions[26].arcsec;
+        let others = sig.positions.iter().enumerate().filter(|(p, _)| *p != 26).map(|(_, x)| x.arcsec);
+        assert!(at > 120.0 && others.fold(0.0, f64::max) < at / 2.0, "{at}");
+    }
+}
+
+/// One case of [`study`]: how often, how soon and how near a change is flagged.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct StudyRow {
+    /// The change.
+    pub change: HeadChange,
+    /// Fleets simulated.
+    pub fleets: usize,
+    /// Per fleet, units after the change until the first flag at or after it (`None`: none in
+    /// the fleet's remaining units).
+    pub delays: Vec<Option<usize>>,
+    /// Per flagged fleet, the estimate of that flag (arcsec or µrad).
+    pub estimates: Vec<f64>,
+    /// Flags before the change (false alarms), over the fleets.
+    pub false_alarms: usize,
+}
+
+/// Simulates `fleets` fleets of `units` units for each change, introduced at unit `change_at`
+/// (the tracking is not told), and tracks each: the measure of [`track`]'s power and false alarms.
+pub fn study(
+    changes: &[HeadChange],
+    fleets: usize,
+    units: usize,
+    change_at: usize,
+    s: Settings,
+) -> Vec<StudyRow> {
+    use rayon::prelude::*;
+    let g = accelcal_shared::G_STANDARD;
+    changes
+        .iter()
+        .map(|&change| {
+            let tracked: Vec<Signature> = (0..fleets)
+                .into_par_iter()
+                .map(|f| {
+                    track(&simulate_fleet(units, change_at, change, f as u64 + 1, 80.0, 100, 0.002), g, s)
+                })
+                .collect();
+            let first = |sig: &Signature| sig.change_points.iter().find(|c| c.index >= change_at).cloned();
+            StudyRow {
+                change,
+                fleets,
+                delays: tracked.iter().map(|t| first(t).map(|c| c.index - change_at)).collect(),
+                estimates: tracked.iter().filter_map(|t| first(t).map(|c| c.estimate)).collect(),
+                false_alarms: tracked
+                    .iter()
+                    .map(|t| t.change_points.iter().filter(|c| c.index < change_at).count())
+                    .sum(),
+            }
+        })
+        .collect()
+}
