@@ -2,7 +2,7 @@
 //! two stations, one head asset, an as-found out of tolerance, certificates numbered with their
 //! recalibration dates.
 
-use accelcal_core::conformity::{Decision, ParameterCheck, RuleKind, Specification};
+use accelcal_core::conformity::{Decision, ParameterCheck};
 use accelcal_db::fleet::Filter;
 use accelcal_db::{Db, Outcome, Phase, RecalibrationDue, RunId};
 use accelcal_line::verify::VerifyReport;
@@ -40,21 +40,42 @@ fn as_left(device: &str, bias_mg: f64) -> VerifyReport {
     v
 }
 
-fn calibrated(db: &mut Db, device: &str, serial: &str, station: &str, t: i64, due: Option<i64>) -> RunId {
-    let s = start(RunId::new(), device, serial, station, t);
+/// A unit's whole run that passes: as found (when given), campaign, fit, record flashed, as
+/// left with x's bias error `bias_mg`, the certificate numbered with its recalibration date (when
+/// given), on a registered head (when given).
+struct Unit<'a> {
+    device: &'a str,
+    serial: &'a str,
+    station: &'a str,
+    t: i64,
+    bias_mg: f64,
+    due: Option<i64>,
+    head: Option<&'a accelcal_db::Asset>,
+    as_found: Option<VerifyReport>,
+    coefs: Coefs,
+}
+
+fn calibrated(db: &mut Db, u: Unit<'_>) -> RunId {
+    let s = start(RunId::new(), u.device, u.serial, u.station, u.t);
     let run = s.run_id;
     db.begin_run(&s, None).unwrap();
-    let c = coefs(10.0, 1);
+    if let Some(h) = u.head {
+        db.store_run_asset(run, h).unwrap();
+    }
+    if let Some(v) = &u.as_found {
+        db.store_verification(run, Phase::AsFound, v).unwrap();
+    }
+    let c = u.coefs;
     db.store_campaign(run, &campaign(600)).unwrap();
     db.store_fit(run, &fit_json(&c)).unwrap();
-    let rec = db.store_record(run, &record(device, &c)).unwrap();
+    let rec = db.store_record(run, &record(u.device, &c)).unwrap();
     db.record_flashed(&rec).unwrap();
-    db.store_verification(run, Phase::AsLeft, &as_left(device, 1.0)).unwrap();
-    if let Some(d) = due {
+    db.store_verification(run, Phase::AsLeft, &as_left(u.device, u.bias_mg)).unwrap();
+    if let Some(d) = u.due {
         db.certificate_number_with_due(run, &RecalibrationDue { due_unix_s: d, basis: "test".into() })
             .unwrap();
     }
-    db.store_certificate(run, &format!("<html>certificate of {serial}</html>")).unwrap();
+    db.store_certificate(run, &format!("<html>certificate of {}</html>", u.serial)).unwrap();
     db.finish_run(run, Outcome::Pass, "verified").unwrap();
     run
 }
@@ -63,22 +84,22 @@ fn calibrated(db: &mut Db, device: &str, serial: &str, station: &str, t: i64, du
 pub fn line_of_units(db: &mut Db) -> Line {
     let head = head_asset("HEAD-1", "DKD-17-001", "2026-01-20", 3.0, T0 - DAY);
     db.add_asset(&head).unwrap();
-    let a = {
-        let s = start(RunId::new(), DEVICE, "SN-A1", "st-1", T0 + DAY);
-        db.begin_run(&s, None).unwrap();
-        db.store_run_asset(s.run_id, &head).unwrap();
-        let c = coefs(0.0, 0);
-        db.store_campaign(s.run_id, &campaign(600)).unwrap();
-        db.store_fit(s.run_id, &fit_json(&c)).unwrap();
-        let rec = db.store_record(s.run_id, &record(DEVICE, &c)).unwrap();
-        db.record_flashed(&rec).unwrap();
-        db.store_verification(s.run_id, Phase::AsLeft, &as_left(DEVICE, 0.5)).unwrap();
-        let due = RecalibrationDue { due_unix_s: T0 + 200 * DAY, basis: "test".into() };
-        db.certificate_number_with_due(s.run_id, &due).unwrap();
-        db.store_certificate(s.run_id, "<html>certificate of SN-A1</html>").unwrap();
-        db.finish_run(s.run_id, Outcome::Pass, "verified").unwrap();
-        s.run_id
+    let unit = |device, serial, station, t, bias_mg, due| Unit {
+        device,
+        serial,
+        station,
+        t,
+        bias_mg,
+        due,
+        head: None,
+        as_found: None,
+        coefs: coefs(0.0, 0),
     };
+    let later = |u: Unit<'static>| Unit { coefs: coefs(10.0, 1), ..u };
+    let a = calibrated(
+        db,
+        Unit { head: Some(&head), ..unit(DEVICE, "SN-A1", "st-1", T0 + DAY, 0.5, Some(T0 + 200 * DAY)) },
+    );
     let b0 = {
         let s = start(RunId::new(), DEVICE_2, "SN-B1", "st-1", T0 + 2 * DAY);
         db.begin_run(&s, None).unwrap();
@@ -86,44 +107,27 @@ pub fn line_of_units(db: &mut Db) -> Line {
         db.finish_run(s.run_id, Outcome::Rejected, "selection beyond model 4").unwrap();
         s.run_id
     };
-    let b1 = calibrated(db, DEVICE_2, "SN-B1", "st-1", T0 + 3 * DAY, Some(T0 + 20 * DAY));
-    let c = {
-        let dev = "aabbccddeeff001122334455";
-        let s = start(RunId::new(), dev, "SN-C1", "st-2", T0 + 4 * DAY);
-        db.begin_run(&s, None).unwrap();
-        let mut found = verification(dev, 0.09, 0.05);
-        found.specification = Some(Specification {
-            unit_type: "MS9002.D".into(),
-            acceleration_error_m_s2: 0.05,
-            rule: RuleKind::GuardBand,
-            guard_band_m_s2: None,
-            bias_mg: None,
-            scale_factor_ppm: None,
-            misalignment_urad: None,
-        });
-        found.decision = Some(Decision::Fail);
-        db.store_verification(s.run_id, Phase::AsFound, &found).unwrap();
-        let c = coefs(0.0, 0);
-        db.store_campaign(s.run_id, &campaign(600)).unwrap();
-        db.store_fit(s.run_id, &fit_json(&c)).unwrap();
-        let rec = db.store_record(s.run_id, &record(dev, &c)).unwrap();
-        db.record_flashed(&rec).unwrap();
-        db.store_verification(s.run_id, Phase::AsLeft, &as_left(dev, 1.5)).unwrap();
-        let due = RecalibrationDue { due_unix_s: T0 + 365 * DAY, basis: "test".into() };
-        db.certificate_number_with_due(s.run_id, &due).unwrap();
-        db.store_certificate(s.run_id, "<html>certificate of SN-C1</html>").unwrap();
-        db.finish_run(s.run_id, Outcome::Pass, "verified").unwrap();
-        s.run_id
-    };
+    let b1 = calibrated(db, later(unit(DEVICE_2, "SN-B1", "st-1", T0 + 3 * DAY, 1.0, Some(T0 + 20 * DAY))));
+    let c_dev = "aabbccddeeff001122334455";
+    let c = calibrated(
+        db,
+        Unit {
+            as_found: Some(decided_as_found(c_dev, Decision::Fail)),
+            ..unit(c_dev, "SN-C1", "st-2", T0 + 4 * DAY, 1.5, Some(T0 + 365 * DAY))
+        },
+    );
     let d = {
         let s = start(RunId::new(), "bbccddeeff00112233445566", "SN-D1", "st-2", T0 + 5 * DAY);
         db.begin_run(&s, None).unwrap();
         db.store_campaign(s.run_id, &campaign(600)).unwrap();
         s.run_id
     };
-    let e = calibrated(db, "ccddeeff0011223344556677", "SN-E1", "st-1", T0 + 6 * DAY, None);
+    let e = calibrated(db, later(unit("ccddeeff0011223344556677", "SN-E1", "st-1", T0 + 6 * DAY, 1.0, None)));
     db.void_run(e, "mislabelled", "qa").unwrap();
-    let f = calibrated(db, "ddeeff001122334455667788", "XX-F1", "st-1", T0 + 40 * DAY, Some(T0 + 400 * DAY));
+    let f = calibrated(
+        db,
+        later(unit("ddeeff001122334455667788", "XX-F1", "st-1", T0 + 40 * DAY, 1.0, Some(T0 + 400 * DAY))),
+    );
     Line { a, b: [b0, b1], c, d, e, f }
 }
 

@@ -701,7 +701,7 @@ pub fn recalibration_dates_and_decisions_are_stored(
     spec: &str,
     decisions: &mut dyn FnMut() -> Vec<(String, Option<String>, Option<String>)>,
 ) {
-    use accelcal_core::conformity::{Decision, RuleKind, Specification};
+    use accelcal_core::conformity::Decision;
     use accelcal_db::RecalibrationDue;
     let mut db = Db::open(spec).unwrap();
     let begun = |db: &mut Db, serial: &str, t: i64| {
@@ -720,17 +720,7 @@ pub fn recalibration_dates_and_decisions_are_stored(
     let nb = db.certificate_number(b).unwrap();
     assert_eq!(db.certificate_number_with_due(b, &later).unwrap(), (nb, None));
 
-    let mut found = verification(DEVICE, 0.09, 0.05);
-    found.specification = Some(Specification {
-        unit_type: "MS9002.D".into(),
-        acceleration_error_m_s2: 0.05,
-        rule: RuleKind::GuardBand,
-        guard_band_m_s2: None,
-        bias_mg: None,
-        scale_factor_ppm: None,
-        misalignment_urad: None,
-    });
-    found.decision = Some(Decision::ConditionalFail);
+    let found = decided_as_found(DEVICE, Decision::ConditionalFail);
     db.store_verification(a, Phase::AsFound, &found).unwrap();
     db.store_verification(b, Phase::AsFound, &verification(DEVICE, 0.001, 0.05)).unwrap();
     let mut rows = decisions();
@@ -743,4 +733,22 @@ pub fn recalibration_dates_and_decisions_are_stored(
     assert_eq!(rows, want);
     let r = db.verify_chain().unwrap();
     assert!(r.mismatches.is_empty(), "{:?}", r.mismatches);
+}
+
+/// An as-found verification with an error of 0.09 m/s², decided `decision` by the guard-band rule
+/// against T = 0.05 m/s².
+pub fn decided_as_found(device: &str, decision: accelcal_core::conformity::Decision) -> VerifyReport {
+    use accelcal_core::conformity::{RuleKind, Specification};
+    let mut found = verification(device, 0.09, 0.05);
+    found.specification = Some(Specification {
+        unit_type: "MS9002.D".into(),
+        acceleration_error_m_s2: 0.05,
+        rule: RuleKind::GuardBand,
+        guard_band_m_s2: None,
+        bias_mg: None,
+        scale_factor_ppm: None,
+        misalignment_urad: None,
+    });
+    found.decision = Some(decision);
+    found
 }
