@@ -573,6 +573,14 @@ fn the_fleet_is_counted_by_the_database_and_printed() {
     assert!(out.contains("rejected 1×: selection beyond model 4"), "{out}");
     assert!(out.contains("as found out of tolerance: SN-C1 (aabbccddeeff001122334455)"), "{out}");
     assert!(out.contains("HEAD-1 (head) certificate DKD-17-001, due 2026-01-20"), "{out}");
+    // The fixture's campaigns have no time column: the head's signature leaves them out, said.
+    assert!(out.contains("head HEAD-1: 0 units, no change point"), "{out}");
+    assert!(
+        err.contains("warning: head HEAD-1: run ")
+            && err.contains("'s stored campaign: missing required column `t_s`")
+            && err.contains("left out of the head's signature"),
+        "{err}"
+    );
     let j: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     assert_eq!(j["counts"]["first_pass_units"], 2);
     assert_eq!(j["runs"].as_array().unwrap().len(), 6);
@@ -606,4 +614,73 @@ fn the_fleet_is_counted_by_the_database_and_printed() {
     let (code, _, err) = accelcal(&["fleet", "--db", &spec, "--csv", &spec]);
     assert_eq!(code, Some(2), "{err}");
     assert!(err.contains("is the database: refusing to overwrite it"), "{err}");
+}
+
+/// Issue 31 item 3 end to end: 70 units on one registered head, their simulated campaigns
+/// stored; from the 56th unit on, the head reaches position 27's α 2 mrad off what it says.
+/// `fleet --json` names the head, flags a change point at a unit after the change, at that
+/// position, and the signature since shows it there.
+#[test]
+fn fleet_flags_a_head_knocked_out_of_true_from_the_units_campaigns() {
+    use accelcal_core::sim::{simulate, Plan, SimConfig};
+    let d = tempfile::tempdir().unwrap();
+    let spec = db_file(&d);
+    let mut db = Db::open(&spec).unwrap();
+    let head = head_asset("HEAD-2", "DKD-17-009", "2099-12-31", 3.0, T0 - DAY);
+    db.add_asset(&head).unwrap();
+    let nominal = Plan::head();
+    for u in 0..70usize {
+        let mut plan = nominal.clone();
+        if u >= 55 {
+            plan.positions[26].0 += (2e-3f64).to_degrees();
+        }
+        let cfg =
+            SimConfig { seed: 100 + u as u64, plan, samples: 30, misalign_sd: 0.002, ..SimConfig::default() };
+        let (mut c, _) = simulate(&cfg);
+        for (row, (a, b)) in c.alpha_deg.iter_mut().zip(c.beta_deg.iter_mut()).enumerate() {
+            (*a, *b) = nominal.positions[row / 30];
+        }
+        let mut bytes = Vec::new();
+        c.write(&mut bytes).unwrap();
+        let device = format!("{:024x}", 0xa000 + u);
+        let s = accelcal_db::RunStart {
+            g_m_s2: cfg.g,
+            ..start(RunId::new(), &device, &format!("SN-H{u:03}"), "st-1", T0 + u as i64 * 3600)
+        };
+        db.begin_run(&s, None).unwrap();
+        db.store_run_asset(s.run_id, &head).unwrap();
+        db.store_campaign(s.run_id, &bytes).unwrap();
+        db.finish_run(s.run_id, Outcome::Pass, "verified").unwrap();
+    }
+    drop(db);
+    let json = d.path().join("f.json");
+    let (code, out, err) = accelcal(&[
+        "fleet",
+        "--db",
+        &spec,
+        "--since",
+        "2026-01-01",
+        "--until",
+        "2026-01-31",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(out.contains("head HEAD-2: 70 units, 1 change point, the last at unit SN-H"), "{out}");
+    let j: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let h = &j["heads"][0];
+    assert_eq!(h["asset"], "HEAD-2");
+    assert_eq!(h["units"], 70);
+    let cp = &h["change_points"][0];
+    let at: usize = cp["serial"].as_str().unwrap()["SN-H".len()..].parse().unwrap();
+    assert!((55..70).contains(&at), "{cp}");
+    assert!(cp["rule"].as_str().unwrap().contains("position 27 (α 60°, β 0°)"), "{cp}");
+    // 2 mrad is 413 arcsec; model 4 absorbs a part, and the estimate averages from where the
+    // CUSUM left zero.
+    let est = cp["estimate"].as_f64().unwrap();
+    assert!((200.0..500.0).contains(&est), "{cp}");
+    assert_eq!(cp["run_id"].as_str().unwrap().len(), 36);
+    assert!(cp["started_unix_s"].as_i64().unwrap() >= T0 + 55 * 3600);
+    let arcsec = |p: usize| h["signature"]["positions"][p]["arcsec"].as_f64().unwrap();
+    assert!(arcsec(26) > 200.0, "{}", h["signature"]);
 }

@@ -150,11 +150,9 @@ pub struct PositionSignature {
     pub arcsec: f64,
 }
 
-/// The head's signature and its change points.
+/// The head's residual pattern.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Signature {
-    /// Units tracked (those on the first unit's plan).
-    pub units: usize,
     /// Units left out: another plan than the first unit's.
     pub other_plan: usize,
     /// Units the signature is the mean of: those since the last change point.
@@ -163,10 +161,37 @@ pub struct Signature {
     pub positions: Vec<PositionSignature>,
     /// The mean misalignments over the same units, µrad, in [`CROSS_TERMS`]' order.
     pub misalign_urad: [f64; 6],
+    /// The tracking's settings.
+    pub settings: Settings,
+}
+
+impl Head {
+    /// The tracking's settings in words, and what it needs before it can flag.
+    pub fn settings_line(&self) -> String {
+        let s = self.signature.settings;
+        if self.units <= s.baseline {
+            format!(
+                "tracked from unit {}: a baseline of {} units, CUSUM k = {}, h = {}",
+                s.baseline + 1,
+                s.baseline,
+                s.k,
+                s.h
+            )
+        } else {
+            format!("baseline {} units, CUSUM k = {}, h = {}", s.baseline, s.k, s.h)
+        }
+    }
+}
+
+/// One head's units tracked: how many, its signature, its change points (oldest first).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Head {
+    /// Units tracked (those on the first unit's plan).
+    pub units: usize,
+    /// The signature.
+    pub signature: Signature,
     /// The change points, oldest first.
     pub change_points: Vec<ChangePoint>,
-    /// The settings.
-    pub settings: Settings,
 }
 
 fn mean_sd(v: &[f64]) -> (f64, f64) {
@@ -207,7 +232,7 @@ fn statistics(u: &UnitObs, g: f64) -> (Vec<f64>, Vec<f64>) {
 }
 
 /// Tracks the units of one head in time order (the caller's), at gravity `g` (m/s²).
-pub fn track(units: &[UnitObs], g: f64, s: Settings) -> Signature {
+pub fn track(units: &[UnitObs], g: f64, s: Settings) -> Head {
     let plan = units.first().map(|u| u.positions.clone()).unwrap_or_default();
     let same = |u: &&UnitObs| {
         u.positions.len() == plan.len()
@@ -328,14 +353,16 @@ pub fn track(units: &[UnitObs], g: f64, s: Settings) -> Signature {
         .collect();
     let misalign_urad =
         std::array::from_fn(|m| mean_sd(&recent.iter().map(|v| v[2 * n_pos + m]).collect::<Vec<_>>()).0);
-    Signature {
+    Head {
         units: on.len(),
-        other_plan: units.len() - on.len(),
-        since_last_change: recent.len(),
-        positions,
-        misalign_urad,
+        signature: Signature {
+            other_plan: units.len() - on.len(),
+            since_last_change: recent.len(),
+            positions,
+            misalign_urad,
+            settings: s,
+        },
         change_points,
-        settings: s,
     }
 }
 
@@ -431,7 +458,7 @@ mod tests {
         let quiet = simulate_fleet(120, 0, HeadChange::None, 3, 80.0, 100, 0.002);
         let q = track(&quiet, g, s);
         assert!(q.change_points.is_empty(), "{:?}", q.change_points);
-        assert_eq!((q.units, q.since_last_change, q.positions.len()), (120, 120, 62));
+        assert_eq!((q.units, q.signature.since_last_change, q.signature.positions.len()), (120, 120, 62));
         let off =
             simulate_fleet(120, 60, HeadChange::Offset { position: 26, mrad: 1.0 }, 3, 80.0, 100, 0.002);
         let sig = track(&off, g, s);
@@ -442,8 +469,9 @@ mod tests {
         assert!((120.0..260.0).contains(&first.estimate), "{first:?}");
         // The signature since the change shows it at that position and nowhere near as much
         // elsewhere.
-        let at = sig.positions[26].arcsec;
-        let others = sig.positions.iter().enumerate().filter(|(p, _)| *p != 26).map(|(_, x)| x.arcsec);
+        let at = sig.signature.positions[26].arcsec;
+        let others =
+            sig.signature.positions.iter().enumerate().filter(|(p, _)| *p != 26).map(|(_, x)| x.arcsec);
         assert!(at > 120.0 && others.fold(0.0, f64::max) < at / 2.0, "{at}");
     }
 }
@@ -478,13 +506,13 @@ pub fn study(
     changes
         .iter()
         .map(|&change| {
-            let tracked: Vec<Signature> = (0..fleets)
+            let tracked: Vec<Head> = (0..fleets)
                 .into_par_iter()
                 .map(|f| {
                     track(&simulate_fleet(units, change_at, change, f as u64 + 1, 80.0, 100, 0.002), g, s)
                 })
                 .collect();
-            let first = |sig: &Signature| sig.change_points.iter().find(|c| c.index >= change_at).cloned();
+            let first = |sig: &Head| sig.change_points.iter().find(|c| c.index >= change_at).cloned();
             StudyRow {
                 change,
                 fleets,

@@ -108,6 +108,8 @@ pub struct FleetRun {
     pub operator: String,
     /// Start, Unix seconds.
     pub started_unix_s: i64,
+    /// The g the run used, m/s².
+    pub g_m_s2: f64,
     /// End, Unix seconds (`null`: not ended).
     pub ended_unix_s: Option<i64>,
     /// `pass`, `rejected`, `unfinished` or `voided`.
@@ -169,6 +171,30 @@ fn opt_int(v: &Val) -> Result<Option<i64>, DbError> {
 }
 
 impl Db {
+    /// Run `run`'s stored campaign file, uncompressed (`None`: none stored).
+    pub fn campaign_bytes(&mut self, run: &str) -> Result<Option<Vec<u8>>, DbError> {
+        use std::io::Read;
+        let id = Val::from(run.to_string());
+        let gz = self.conn.transaction(|tx| {
+            tx.query("SELECT gzip FROM campaign WHERE run_id = $1", std::slice::from_ref(&id))?
+                .first()
+                .map(|r| r[0].bytes())
+                .transpose()
+        })?;
+        gz.map(|gz| {
+            let mut plain = Vec::new();
+            flate2::read::GzDecoder::new(gz.as_slice()).read_to_end(&mut plain).map_err(|e| {
+                DbError::BadPiece {
+                    run_id: run.to_string(),
+                    piece: "campaign",
+                    cause: format!("its stored gzip does not decompress: {e}"),
+                }
+            })?;
+            Ok(plain)
+        })
+        .transpose()
+    }
+
     /// The period's runs counted by state, its units, the yields and the rejections by reason.
     pub fn fleet_counts(&mut self, f: &Filter) -> Result<Counts, DbError> {
         let sel = selected();
@@ -223,7 +249,7 @@ impl Db {
                 &format!(
                     "SELECT r.run_id, r.device_id, r.serial, r.station, ra.asset_id, r.operator, r.started_unix_s, \
                      e.ended_unix_s, {STATE}, COALESCE(v.reason, e.reason), af.decision, al.decision, f.fit_json, \
-                     vl.report_json FROM run r LEFT JOIN run_end e ON e.run_id = r.run_id \
+                     vl.report_json, r.g_m_s2 FROM run r LEFT JOIN run_end e ON e.run_id = r.run_id \
                      LEFT JOIN void v ON v.run_id = r.run_id \
                      LEFT JOIN run_asset ra ON ra.run_id = r.run_id AND ra.kind = 'head' \
                      LEFT JOIN verification_decision af ON af.run_id = r.run_id AND af.phase = 'as_found' \
@@ -245,6 +271,7 @@ impl Db {
                     head_asset: opt_text(&r[4])?,
                     operator: r[5].text()?,
                     started_unix_s: r[6].int()?,
+                    g_m_s2: r[14].real()?,
                     ended_unix_s: opt_int(&r[7])?,
                     state: r[8].text()?,
                     reason: opt_text(&r[9])?,

@@ -78,7 +78,56 @@ struct FleetJson<'a> {
     due_by: Date,
     units_due: &'a [DueUnit],
     assets_due: Vec<&'a Asset>,
+    /// Per head asset, its units' signature and change points (`accelcal_core::headsig`).
+    heads: &'a [HeadJson],
     runs: &'a [FleetRun],
+}
+
+/// One head asset's units tracked.
+#[derive(Serialize)]
+struct HeadJson {
+    asset: String,
+    #[serde(flatten)]
+    head: accelcal_core::headsig::Head,
+}
+
+/// The head signature of every head asset over the period's runs that passed (not voided), each
+/// unit observed from its stored campaign, in the order the runs started; a campaign that cannot
+/// be read is left out with a warning.
+fn heads(db: &mut Db, runs: &[FleetRun]) -> anyhow::Result<Vec<HeadJson>> {
+    use accelcal_core::campaign::Campaign;
+    use accelcal_core::headsig::{observe, track, Settings, UnitObs};
+    let mut assets: Vec<&str> = runs.iter().filter_map(|r| r.head_asset.as_deref()).collect();
+    assets.sort_unstable();
+    assets.dedup();
+    let mut out = Vec::new();
+    for asset in assets {
+        let mut units: Vec<UnitObs> = Vec::new();
+        let mut g = accelcal_shared::G_STANDARD;
+        for r in runs.iter().filter(|r| r.state == "pass" && r.head_asset.as_deref() == Some(asset)) {
+            let Some(bytes) = db.campaign_bytes(&r.run_id)? else { continue };
+            let name = format!("run {}'s stored campaign", r.run_id);
+            let reduced = match Campaign::reduce_reader(bytes.as_slice(), std::path::Path::new(&name)) {
+                Ok(reduced) => reduced,
+                Err(e) => {
+                    eprintln!("warning: head {asset}: {e}: left out of the head's signature");
+                    continue;
+                }
+            };
+            let pos = reduced.positions(r.g_m_s2);
+            if let Some(u) = observe(&pos, &reduced.channel_stats()) {
+                g = r.g_m_s2;
+                units.push(UnitObs {
+                    serial: r.serial.clone(),
+                    run_id: r.run_id.clone(),
+                    started_unix_s: r.started_unix_s,
+                    ..u
+                });
+            }
+        }
+        out.push(HeadJson { asset: asset.to_string(), head: track(&units, g, Settings::default()) });
+    }
+    Ok(out)
 }
 
 fn pct(n: i64, of: i64) -> String {
@@ -114,6 +163,7 @@ pub fn run(a: &FleetArgs) -> anyhow::Result<()> {
     let assets = db.assets()?;
     let assets_due: Vec<&Asset> = assets.iter().filter(|x| x.due_date <= due_by).collect();
     let pops = populations(&runs);
+    let heads = heads(&mut db, &runs)?;
     let found_out: Vec<&FleetRun> = runs
         .iter()
         .filter(|r| r.state != "voided" && out_of_tolerance(r.as_found_decision.as_deref()))
@@ -180,6 +230,25 @@ pub fn run(a: &FleetArgs) -> anyhow::Result<()> {
             p.cpk.map_or("-".into(), |c| format!("{c:.2}"))
         );
     }
+    for h in &heads {
+        let s = h.head.settings_line();
+        match h.head.change_points.last() {
+            None => println!("  head {}: {} units, no change point ({s})", h.asset, h.head.units),
+            Some(c) => println!(
+                "  head {}: {} units, {} change point{}, the last at unit {} (run {}, {}): {}, {:.0} {}",
+                h.asset,
+                h.head.units,
+                h.head.change_points.len(),
+                if h.head.change_points.len() == 1 { "" } else { "s" },
+                if c.serial.is_empty() { "-" } else { &c.serial },
+                c.run_id,
+                utc_date_time(c.started_unix_s),
+                c.rule,
+                c.estimate,
+                c.unit
+            ),
+        }
+    }
     println!(
         "  units due for recalibration by {due_by} ({} days after {until}, overdue included):",
         a.due_days
@@ -223,6 +292,7 @@ pub fn run(a: &FleetArgs) -> anyhow::Result<()> {
                 due_by,
                 units_due: &units_due,
                 assets_due,
+                heads: &heads,
                 runs: &runs,
             },
         )?;
