@@ -650,6 +650,17 @@ fn fleet_flags_a_head_knocked_out_of_true_from_the_units_campaigns() {
         db.begin_run(&s, None).unwrap();
         db.store_run_asset(s.run_id, &head).unwrap();
         db.store_campaign(s.run_id, &bytes).unwrap();
+        // Its model-4 fit, for the control charts.
+        let pos = accelcal_core::positions::Positions::new(&c, cfg.g);
+        let fits = accelcal_core::calibrate::fit_positions(
+            &pos,
+            &pos.channel_stats(&c),
+            accelcal_core::calibrate::Method::Lsq,
+            accelcal_shared::terms::MODEL_4,
+        )
+        .unwrap();
+        let coefs: Coefs = std::array::from_fn(|i| std::array::from_fn(|t| fits[i].1.coefficients[t]));
+        db.store_fit(s.run_id, &fit_json(&coefs)).unwrap();
         db.finish_run(s.run_id, Outcome::Pass, "verified").unwrap();
     }
     drop(db);
@@ -683,4 +694,21 @@ fn fleet_flags_a_head_knocked_out_of_true_from_the_units_campaigns() {
     assert!(cp["started_unix_s"].as_i64().unwrap() >= T0 + 55 * 3600);
     let arcsec = |p: usize| h["signature"]["positions"][p]["arcsec"].as_f64().unwrap();
     assert!(arcsec(26) > 200.0, "{}", h["signature"]);
+    // The control charts of the head's 70 units: the 12 coefficients, each with the I-MR lines
+    // of its points (the as-left error is not stored here).
+    let charts = j["charts"].as_array().unwrap();
+    assert_eq!(charts.len(), 12, "{charts:?}");
+    let k0 = charts.iter().find(|c| c["group"] == "head HEAD-2" && c["quantity"] == "K0 x").unwrap();
+    let values: Vec<f64> =
+        k0["points"].as_array().unwrap().iter().map(|p| p["value"].as_f64().unwrap()).collect();
+    assert_eq!(values.len(), 70);
+    let want = accelcal_core::spc::ImrLimits::of(&values).unwrap();
+    assert!((k0["limits"]["ucl"].as_f64().unwrap() - want.ucl).abs() < 1e-9 * want.ucl.abs().max(1.0));
+    assert_eq!(k0["limits"]["mr_bar"].as_f64().unwrap(), want.mr_bar);
+    assert!(
+        out.contains(
+            "control charts (I-MR, Western Electric rules, limits from the points charted): 12 charts"
+        ),
+        "{out}"
+    );
 }

@@ -33,6 +33,7 @@ pub mod output;
 pub mod positions;
 pub mod reduce;
 pub mod sim;
+pub mod spc;
 pub mod testturn;
 pub mod text;
 pub mod uncertainty;

@@ -18,7 +18,15 @@ the as-left verification's measured parameters against the specification's limit
 Control, the index with the specification limits −L and +L; > 1.33 is the usual aim). The counts and yields are computed \
 by the database (SQL); the populations from the period's stored fits and verifications. Units due: each unit's latest \
 certificate (not voided) whose recalibration date (stored with its number, schema 5) falls within --due-days of --until, \
-or before.";
+or before. Control charts, per head asset (or station, for runs without one) and per quantity (each model-4 \
+coefficient, the as-left largest |error|) over the runs that passed, in start order: individuals and moving range \
+(Montgomery §6.4): centre x̄, σ̂ = MR̄/d2 with d2 = 1.128, limits x̄ ± 3σ̂, the moving range's limit D4·MR̄ with D4 = 3.267, \
+the limits those of the points charted; the Western Electric rules: 1 a point beyond 3σ̂, 2 two of three beyond 2σ̂ on one \
+side, 3 four of five beyond 1σ̂ on one side, 4 eight in a row on one side of the centre line (5: a moving range beyond \
+D4·MR̄). With all four rules, a chart of many in-control points often breaks one by chance: a violation is a place to look. \
+Head signature: per head asset, each unit's model-4 residuals read as head-angle errors at every position and its \
+misalignments, standardised by the head's first 50 units, two-sided CUSUMs (k = 0.5, h = 12 standard deviations); the \
+first unit past h is a change point.";
 use super::{Db, DbError};
 
 /// Which runs a fleet query takes: started in `[since, until)`, and each filter that is set.
@@ -412,5 +420,109 @@ pub fn populations(runs: &[FleetRun]) -> Vec<Population> {
             .into_iter()
             .map(|(name, unit, limit, values)| Population::of(name, unit, &values, Some(limit))),
     );
+    out
+}
+
+/// One point of a control chart.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ChartPoint {
+    /// The unit.
+    pub serial: String,
+    /// Its run.
+    pub run_id: String,
+    /// When it started, Unix seconds.
+    pub started_unix_s: i64,
+    /// The value charted.
+    pub value: f64,
+}
+
+/// An individuals and moving-range chart of one quantity of one head (or station).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Chart {
+    /// `head ID`, or `station NAME` for runs without a registered head.
+    pub group: String,
+    /// What is charted (`K0 x`, `δ x→y`, `as-left max |error|`, …).
+    pub quantity: String,
+    /// Its unit.
+    pub unit: &'static str,
+    /// Its lines.
+    pub limits: accelcal_core::spc::ImrLimits,
+    /// The points, in time order.
+    pub points: Vec<ChartPoint>,
+    /// The points that break a rule.
+    pub violations: Vec<(accelcal_core::spc::Violation, ChartPoint)>,
+}
+
+/// The control charts of the runs that passed (not voided), by head asset (or station), in the
+/// order they started: each IEEE 1293 coefficient and the as-left verification's largest
+/// |error| ([`accelcal_core::spc`]: I-MR, the Western Electric rules). A group needs two points.
+pub fn charts(runs: &[FleetRun]) -> Vec<Chart> {
+    use accelcal_core::ieee1293::Parameters;
+    use accelcal_core::spc::ImrLimits;
+    let group_of = |r: &FleetRun| match &r.head_asset {
+        Some(h) => format!("head {h}"),
+        None => format!("station {}", r.station),
+    };
+    let mut groups: Vec<String> = runs.iter().filter(|r| r.state == "pass").map(group_of).collect();
+    groups.sort();
+    groups.dedup();
+    let mut out = Vec::new();
+    for group in groups {
+        let members: Vec<&FleetRun> =
+            runs.iter().filter(|r| r.state == "pass" && group_of(r) == group).collect();
+        // (quantity, unit, the value of a run when it has one)
+        type Of = Box<dyn Fn(&FleetRun) -> Option<f64>>;
+        let mut quantities: Vec<(String, &'static str, Of)> = Vec::new();
+        for c in 0..3 {
+            quantities.push((
+                format!("K0 {}", AXES[c]),
+                "mg",
+                Box::new(move |r: &FleetRun| r.model4().map(|m| Parameters::of(c, m[c]).k0_mg)),
+            ));
+            quantities.push((
+                format!("K1 {}", AXES[c]),
+                "codes/g",
+                Box::new(move |r: &FleetRun| r.model4().map(|m| Parameters::of(c, m[c]).k1_codes_per_g)),
+            ));
+            for j in (0..3).filter(|&j| j != c) {
+                quantities.push((
+                    format!("δ {}→{}", AXES[c], AXES[j]),
+                    "µrad",
+                    Box::new(move |r: &FleetRun| r.model4().map(|m| Parameters::of(c, m[c]).delta_urad[j])),
+                ));
+            }
+        }
+        quantities.push((
+            "as-left max |error|".into(),
+            "m/s²",
+            Box::new(|r: &FleetRun| {
+                let v =
+                    serde_json::from_str::<accelcal_line::verify::VerifyReport>(r.as_left_json.as_deref()?)
+                        .ok()?;
+                Some(v.max_abs_error_m_s2())
+            }),
+        ));
+        for (quantity, unit, of) in quantities {
+            let points: Vec<ChartPoint> = members
+                .iter()
+                .filter_map(|r| {
+                    of(r).map(|value| ChartPoint {
+                        serial: r.serial.clone(),
+                        run_id: r.run_id.clone(),
+                        started_unix_s: r.started_unix_s,
+                        value,
+                    })
+                })
+                .collect();
+            let values: Vec<f64> = points.iter().map(|p| p.value).collect();
+            let Some(limits) = ImrLimits::of(&values) else { continue };
+            let violations = limits
+                .violations(&values)
+                .into_iter()
+                .map(|v| (v.clone(), points[v.index].clone()))
+                .collect();
+            out.push(Chart { group: group.clone(), quantity, unit, limits, points, violations });
+        }
+    }
     out
 }

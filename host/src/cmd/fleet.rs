@@ -4,7 +4,7 @@
 use accelcal_core::error::bad;
 use accelcal_core::output::{utc_date_time, write_atomic, write_json};
 use accelcal_db::asset::{start_of_day_unix_s, today_utc, Asset, Date};
-use accelcal_db::fleet::{populations, Counts, DueUnit, Filter, FleetRun, Population};
+use accelcal_db::fleet::{charts, populations, Chart, Counts, DueUnit, Filter, FleetRun, Population};
 use accelcal_db::{Db, RunId, Target};
 use anyhow::Context;
 use serde::Serialize;
@@ -80,6 +80,8 @@ struct FleetJson<'a> {
     assets_due: Vec<&'a Asset>,
     /// Per head asset, its units' signature and change points (`accelcal_core::headsig`).
     heads: &'a [HeadJson],
+    /// The control charts by head (or station) and quantity (`accelcal_core::spc`).
+    charts: &'a [Chart],
     runs: &'a [FleetRun],
 }
 
@@ -164,6 +166,7 @@ pub fn run(a: &FleetArgs) -> anyhow::Result<()> {
     let assets_due: Vec<&Asset> = assets.iter().filter(|x| x.due_date <= due_by).collect();
     let pops = populations(&runs);
     let heads = heads(&mut db, &runs)?;
+    let charts = charts(&runs);
     let found_out: Vec<&FleetRun> = runs
         .iter()
         .filter(|r| r.state != "voided" && out_of_tolerance(r.as_found_decision.as_deref()))
@@ -230,6 +233,32 @@ pub fn run(a: &FleetArgs) -> anyhow::Result<()> {
             p.cpk.map_or("-".into(), |c| format!("{c:.2}"))
         );
     }
+    let broken: Vec<&Chart> = charts.iter().filter(|c| !c.violations.is_empty()).collect();
+    println!(
+        "  control charts (I-MR, Western Electric rules, limits from the points charted): {} charts, {} out of control",
+        charts.len(),
+        broken.len()
+    );
+    for c in broken {
+        let (v, p) = c.violations.last().expect("a violation");
+        println!(
+            "    {}, {} ({}): {} violation{}, the last rule {} ({}) at {} (run {}, {}): {:.6}, centre {:.6}, limits {:.6} .. {:.6}",
+            c.group,
+            c.quantity,
+            c.unit,
+            c.violations.len(),
+            if c.violations.len() == 1 { "" } else { "s" },
+            v.rule,
+            v.what,
+            if p.serial.is_empty() { "-" } else { &p.serial },
+            p.run_id,
+            utc_date_time(p.started_unix_s),
+            p.value,
+            c.limits.center,
+            c.limits.lcl,
+            c.limits.ucl
+        );
+    }
     for h in &heads {
         let s = h.head.settings_line();
         match h.head.change_points.last() {
@@ -293,6 +322,7 @@ pub fn run(a: &FleetArgs) -> anyhow::Result<()> {
                 units_due: &units_due,
                 assets_due,
                 heads: &heads,
+                charts: &charts,
                 runs: &runs,
             },
         )?;
