@@ -1,0 +1,253 @@
+//! A unit's steps on the head: as found, the campaign's storing, select, fit, flash, as left and
+//! the certificate, each run as the command of that name and journalled.
+
+use super::*;
+
+impl Station<'_> {
+    /// Step `as-found`: the record in force, verified before anything changes. Its failure is
+    /// the as-found result, not the station's.
+    pub(super) fn as_found(&mut self, info: &serde_json::Value) -> anyhow::Result<()> {
+        self.as_found_step(info)?;
+        if self.path(AS_FOUND).is_file() {
+            let run = self.run_id()?;
+            let path = self.path(AS_FOUND);
+            crate::cmd::store::verification(&mut self.db, run, Phase::AsFound, &path)?;
+            crash_point("db:as-found");
+        }
+        Ok(())
+    }
+
+    pub(super) fn as_found_step(&mut self, info: &serde_json::Value) -> anyhow::Result<()> {
+        if self.done(Step::AsFound)? {
+            return Ok(());
+        }
+        if info["record"].is_null() {
+            return self.finish(Step::AsFound, vec![], "skipped: no record in force".into(), &[]);
+        }
+        let _ = std::fs::remove_file(self.path(AS_FOUND));
+        let fit = match &self.a.as_found_fit {
+            Some(p) => Some(p.display().to_string()),
+            None => self.stored_fit_of(info)?,
+        };
+        let args = self.verify_args(AS_FOUND, fit);
+        self.run(Step::AsFound, &args)?;
+        let outcome = match self.verdict(AS_FOUND)? {
+            (v, verdict) if v.decision.is_some() => {
+                format!(
+                    "{} ({} positions, decision rule {})",
+                    v.decision.map_or("", |d| d.name()).to_uppercase(),
+                    v.positions.len(),
+                    v.specification.as_ref().map_or("", |s| s.rule.name())
+                ) + &verdict.err().map(|f| format!(": {f}")).unwrap_or_default()
+            }
+            (_, Ok(n)) => format!("PASS ({n} positions)"),
+            (_, Err(f)) => format!("FAIL ({f})"),
+        };
+        self.finish(Step::AsFound, args, outcome, &[AS_FOUND])
+    }
+
+    /// The fit of the record in force, from the database (written to the unit's directory for
+    /// the as-found verification's tolerance), when a run stored it.
+    pub(super) fn stored_fit_of(&mut self, info: &serde_json::Value) -> anyhow::Result<Option<String>> {
+        let (Some(device), Some(crc)) = (self.journal.device_id.clone(), info["record"]["crc"].as_str())
+        else {
+            return Ok(None);
+        };
+        let Ok(crc) = u32::from_str_radix(crc, 16) else { return Ok(None) };
+        let Some(json) = self.db.fit_of_record(&device, crc)? else {
+            eprintln!(
+                "station: {}the record in force (CRC {crc:08x}) is not in {}: the as-found tolerance comes from the measured scatter alone",
+                self.tag,
+                self.db.target()
+            );
+            return Ok(None);
+        };
+        let path = self.path(AS_FOUND_FIT);
+        accelcal_core::output::write_atomic(&path, json.as_bytes())?;
+        eprintln!(
+            "station: {}the fit of the record in force (CRC {crc:08x}) from {}: {}",
+            self.tag,
+            self.db.target(),
+            path.display()
+        );
+        Ok(Some(path.display().to_string()))
+    }
+
+    /// Stores the campaign of the finished step `acquire`.
+    pub(super) fn store_campaign(&mut self) -> anyhow::Result<()> {
+        let bytes = std::fs::read(self.path(CAMPAIGN)).with_context(|| self.p(CAMPAIGN))?;
+        self.db.store_campaign(self.run_id()?, &bytes)?;
+        crash_point("db:campaign");
+        Ok(())
+    }
+
+    pub(super) fn select(&mut self) -> anyhow::Result<()> {
+        if self.done(Step::Select)? {
+            return Ok(());
+        }
+        let args: Vec<String> = vec![
+            "select".into(),
+            self.p(CAMPAIGN),
+            "--json".into(),
+            self.p(SELECT),
+            "--tolerance".into(),
+            self.a.select_tolerance.to_string(),
+        ];
+        if let Exit::Failed = self.run(Step::Select, &args)? {
+            return Err(anyhow::anyhow!("step select failed (its error is above)"));
+        }
+        let text = std::fs::read_to_string(self.path(SELECT)).with_context(|| self.p(SELECT))?;
+        let doc: serde_json::Value = serde_json::from_str(&text).with_context(|| self.p(SELECT))?;
+        // Not journalled when rejected: the run ends rejected.
+        if let Err(e) = deployable(&doc) {
+            return Err(self.reject(e.into()));
+        }
+        self.finish(Step::Select, args, "model 4 deployable on every channel".into(), &[SELECT])
+    }
+
+    pub(super) fn fit(&mut self) -> anyhow::Result<()> {
+        self.fit_step()?;
+        let fit = std::fs::read_to_string(self.path(FIT)).with_context(|| self.p(FIT))?;
+        let record = std::fs::read(self.path(RECORD)).with_context(|| self.p(RECORD))?;
+        let run = self.run_id()?;
+        self.db.store_fit(run, &fit)?;
+        crash_point("db:fit");
+        self.db.store_record(run, &record)?;
+        crash_point("db:record");
+        Ok(())
+    }
+
+    pub(super) fn fit_step(&mut self) -> anyhow::Result<()> {
+        if self.done(Step::Fit)? {
+            return Ok(());
+        }
+        let device = self.journal.device_id.clone().context("no device id: step info has not run")?;
+        let args: Vec<String> = vec![
+            "fit".into(),
+            self.p(CAMPAIGN),
+            "--record".into(),
+            self.p(RECORD),
+            "--json".into(),
+            self.p(FIT),
+            "--device-id".into(),
+            device,
+        ];
+        let mut args = args;
+        args.extend(self.head_u_args());
+        args.extend(self.a.tempco.to_args());
+        if let Exit::Failed = self.run(Step::Fit, &args)? {
+            return Err(anyhow::anyhow!("step fit failed (its error is above)"));
+        }
+        self.finish(Step::Fit, args, "record written".into(), &[FIT, RECORD])
+    }
+
+    pub(super) fn flash(&mut self) -> anyhow::Result<()> {
+        if self.done(Step::Flash)? {
+            return Ok(());
+        }
+        // Flashed and noted before a stop, and the node runs it: nothing to write again.
+        let p = self.db.progress(self.run_id()?)?;
+        if let (true, Some(rec)) = (p.flashed, &p.record) {
+            if self.runs_record(rec.crc32()) {
+                return self.finish(
+                    Step::Flash,
+                    vec![],
+                    "the node runs the new record (flashed before the stop)".into(),
+                    &[],
+                );
+            }
+        }
+        // Given the database, the flash step writes the record the run stored (step fit stored
+        // it; a file that is not it is refused) and notes the flash there.
+        let a = self.a;
+        let mut args = vec!["flash".to_string(), self.p(RECORD)];
+        args.extend(self.db_args()?);
+        match &self.u.gdb {
+            Some(g) => args.extend(["--gdb".into(), g.clone()]),
+            None => {
+                args.extend(["--chip".into(), a.chip.clone()]);
+                if let Some(p) = &self.u.probe {
+                    args.extend(["--probe".into(), p.clone()]);
+                }
+            }
+        }
+        args.extend(["--port".into(), self.u.port.clone(), "--baud".into(), a.baud.to_string()]);
+        if let Exit::Failed = self.run(Step::Flash, &args)? {
+            // What the node runs is what the step said (a cut write keeps the old record; a
+            // confirmed write whose note failed runs the new one).
+            return Err(anyhow::anyhow!("step flash failed (its error above says what the node runs)"));
+        }
+        self.finish(Step::Flash, args, "the node runs the new record".into(), &[])
+    }
+
+    /// Step `as-left`; its failure rejects the unit. Journalled first, pass or fail, then
+    /// stored: a crash between the two stores it on the next run (never a second measurement).
+    pub(super) fn as_left(&mut self) -> anyhow::Result<()> {
+        if !self.done(Step::AsLeft)? {
+            let _ = std::fs::remove_file(self.path(AS_LEFT));
+            let args = self.verify_args(AS_LEFT, Some(self.p(FIT)));
+            self.run(Step::AsLeft, &args)?;
+            let outcome = match self.verdict(AS_LEFT)?.1 {
+                Ok(n) => format!("PASS ({n} positions)"),
+                Err(f) => format!("FAIL ({f})"),
+            };
+            self.finish(Step::AsLeft, args, outcome, &[AS_LEFT])?;
+        }
+        let (report, verdict) = self.verdict(AS_LEFT)?;
+        let run = self.run_id()?;
+        self.db.store_verification(run, Phase::AsLeft, &report)?;
+        crash_point("db:as-left");
+        match verdict {
+            Ok(_) => Ok(()),
+            Err(f) => Err(self.reject(anyhow::Error::new(f).context("as-left verification"))),
+        }
+    }
+
+    pub(super) fn certificate(&mut self) -> anyhow::Result<()> {
+        if self.done(Step::Certificate)? {
+            return Ok(());
+        }
+        let run = self.run_id()?;
+        if self.db.progress(run)?.certificate {
+            // Stored by the report step before a crash (it writes the file first).
+            return self.finish(
+                Step::Certificate,
+                vec![],
+                "written (stored before the stop)".into(),
+                &[CERTIFICATE],
+            );
+        }
+        let mut args: Vec<String> = vec![
+            "report".into(),
+            "--campaign".into(),
+            self.p(CAMPAIGN),
+            "--record".into(),
+            self.p(RECORD),
+            "--fit".into(),
+            self.p(FIT),
+            "--verify".into(),
+            self.p(AS_LEFT),
+            "--out".into(),
+            self.p(CERTIFICATE),
+        ];
+        if self.path(AS_FOUND).is_file() {
+            args.extend(["--as-found".into(), self.p(AS_FOUND)]);
+        }
+        let i = &self.a.issuer;
+        for (flag, v) in [
+            ("--laboratory", &i.laboratory),
+            ("--laboratory-address", &i.laboratory_address),
+            ("--customer", &i.customer),
+            ("--authorised-by", &i.authorised_by),
+        ] {
+            if let Some(v) = v {
+                args.extend([flag.into(), v.clone()]);
+            }
+        }
+        args.extend(self.db_args()?);
+        if let Exit::Failed = self.run(Step::Certificate, &args)? {
+            return Err(anyhow::anyhow!("step certificate failed (its error is above)"));
+        }
+        self.finish(Step::Certificate, args, "written".into(), &[CERTIFICATE])
+    }
+}
