@@ -547,25 +547,21 @@ fn the_recalibration_date_is_stored_with_the_number_and_decisions_are_columns() 
     });
 }
 
+/// `accelcal fleet --db SPEC` over January 2026, with `extra` options.
+fn fleet_in_january(spec: &str, extra: &[&str]) -> (Option<i32>, String, String) {
+    let mut args = vec!["fleet", "--db", spec, "--since", "2026-01-01", "--until", "2026-01-31"];
+    args.extend_from_slice(extra);
+    accelcal(&args)
+}
+
 #[test]
 fn the_fleet_is_counted_by_the_database_and_printed() {
     let d = tempfile::tempdir().unwrap();
     let spec = db_file(&d);
     dbkit::fleet::the_fleet_is_counted_by_the_database(&spec);
     let (json, csv) = (d.path().join("f.json"), d.path().join("f.csv"));
-    let (code, out, err) = accelcal(&[
-        "fleet",
-        "--db",
-        &spec,
-        "--since",
-        "2026-01-01",
-        "--until",
-        "2026-01-31",
-        "--json",
-        json.to_str().unwrap(),
-        "--csv",
-        csv.to_str().unwrap(),
-    ]);
+    let (code, out, err) =
+        fleet_in_january(&spec, &["--json", json.to_str().unwrap(), "--csv", csv.to_str().unwrap()]);
     assert_eq!(code, Some(0), "{err}");
     assert!(out.contains(": 6 runs of 5 units"), "{out}");
     assert!(out.contains("runs: 3 pass, 1 rejected, 1 unfinished, 1 voided"), "{out}");
@@ -665,17 +661,7 @@ fn fleet_flags_a_head_knocked_out_of_true_from_the_units_campaigns() {
     }
     drop(db);
     let json = d.path().join("f.json");
-    let (code, out, err) = accelcal(&[
-        "fleet",
-        "--db",
-        &spec,
-        "--since",
-        "2026-01-01",
-        "--until",
-        "2026-01-31",
-        "--json",
-        json.to_str().unwrap(),
-    ]);
+    let (code, out, err) = fleet_in_january(&spec, &["--json", json.to_str().unwrap()]);
     assert_eq!(code, Some(0), "{err}");
     assert!(out.contains("head HEAD-2: 70 units, 1 change point, the last at unit SN-H"), "{out}");
     let j: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
