@@ -42,12 +42,14 @@ pub struct Filter {
     pub head_asset: Option<String>,
     /// The start of the serial number.
     pub serial_prefix: Option<String>,
+    /// Who ran it.
+    pub operator: Option<String>,
 }
 
-/// The condition on `run r` of a [`Filter`], with its parameters `$1`…`$5`.
+/// The condition on `run r` of a [`Filter`], with its parameters `$1`…`$6`.
 const WHERE: &str = "r.started_unix_s >= $1 AND r.started_unix_s < $2 AND ($3 = '' OR r.station = $3) \
      AND substr(r.serial, 1, length($4)) = $4 AND ($5 = '' OR EXISTS (SELECT 1 FROM run_asset ha \
-     WHERE ha.run_id = r.run_id AND ha.kind = 'head' AND ha.asset_id = $5))";
+     WHERE ha.run_id = r.run_id AND ha.kind = 'head' AND ha.asset_id = $5)) AND ($6 = '' OR r.operator = $6)";
 
 /// A run's state: `voided` before its end, `unfinished` without one, else its outcome.
 const STATE: &str =
@@ -70,6 +72,7 @@ impl Filter {
             text(&self.station),
             text(&self.serial_prefix),
             text(&self.head_asset),
+            text(&self.operator),
         ]
     }
 }

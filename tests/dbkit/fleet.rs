@@ -148,6 +148,10 @@ pub fn the_fleet_is_counted_by_the_database(spec: &str) {
     assert_eq!((st2.runs, st2.units, st2.passed, st2.unfinished), (2, 2, 1, 1), "{st2:?}");
     let b = db.fleet_counts(&Filter { serial_prefix: Some("SN-B".into()), ..january() }).unwrap();
     assert_eq!((b.runs, b.first_pass_units, b.final_pass_units), (2, 0, 1), "{b:?}");
+    let nobody = db.fleet_counts(&Filter { operator: Some("bo".into()), ..january() }).unwrap();
+    assert_eq!((nobody.runs, nobody.units), (0, 0));
+    let ana = db.fleet_counts(&Filter { operator: Some("ana".into()), ..january() }).unwrap();
+    assert_eq!(ana.runs, 6);
     let h = db.fleet_counts(&Filter { head_asset: Some("HEAD-1".into()), ..january() }).unwrap();
     assert_eq!((h.runs, h.units), (1, 1), "{h:?}");
     // A serial prefix with LIKE's wildcards in it is a prefix, not a pattern.

@@ -213,6 +213,9 @@ pub struct FleetArgs {
     /// Only the units whose serial starts so.
     #[arg(long, value_name = "TEXT")]
     pub serial_prefix: Option<String>,
+    /// Only the runs of this operator (as `station --operator` stores it).
+    #[arg(long, value_name = "NAME")]
+    pub operator: Option<String>,
     /// The units and assets due within this many days of --until are listed (overdue ones too).
     #[arg(long, value_name = "DAYS", default_value_t = 30, value_parser = clap::value_parser!(u32).range(0..=3660))]
     pub due_days: u32,

@@ -70,6 +70,7 @@ struct FleetJson<'a> {
     station: Option<&'a str>,
     head_asset: Option<&'a str>,
     serial_prefix: Option<&'a str>,
+    operator: Option<&'a str>,
     counts: &'a Counts,
     /// The runs whose as-found verification was decided out of tolerance (conditional fail or
     /// fail): their units' users must be told.
@@ -154,6 +155,7 @@ pub fn run(a: &FleetArgs) -> anyhow::Result<()> {
         station: a.station.clone(),
         head_asset: a.head_asset.clone(),
         serial_prefix: a.serial_prefix.clone(),
+        operator: a.operator.clone(),
     };
     let mut db = Db::open_existing(&reader_spec(a.reader.db.as_deref())?)?;
     let counts = db.fleet_counts(&filter)?;
@@ -172,11 +174,15 @@ pub fn run(a: &FleetArgs) -> anyhow::Result<()> {
         .filter(|r| r.state != "voided" && out_of_tolerance(r.as_found_decision.as_deref()))
         .collect();
 
-    let filters: Vec<String> =
-        [("station", &a.station), ("head", &a.head_asset), ("serials", &a.serial_prefix)]
-            .iter()
-            .filter_map(|(k, v)| v.as_ref().map(|v| format!("{k} {v}")))
-            .collect();
+    let filters: Vec<String> = [
+        ("station", &a.station),
+        ("head", &a.head_asset),
+        ("serials", &a.serial_prefix),
+        ("operator", &a.operator),
+    ]
+    .iter()
+    .filter_map(|(k, v)| v.as_ref().map(|v| format!("{k} {v}")))
+    .collect();
     println!(
         "fleet: {since} to {until} (UTC) in {}{}: {} runs of {} units",
         db.target(),
@@ -315,6 +321,7 @@ pub fn run(a: &FleetArgs) -> anyhow::Result<()> {
                 station: a.station.as_deref(),
                 head_asset: a.head_asset.as_deref(),
                 serial_prefix: a.serial_prefix.as_deref(),
+                operator: a.operator.as_deref(),
                 counts: &counts,
                 as_found_out_of_tolerance: found_out,
                 populations: &pops,
