@@ -9,7 +9,7 @@ use accelcal_shared::terms::MODEL_4;
 use accelcal_shared::{Structure, N_BASIS};
 
 use crate::campaign::{Campaign, CodeRange};
-use crate::error::bad;
+use crate::error::{bad, Classify, Kind, Plain, Setting, Worded, Wording};
 use crate::lsq::{self, LsqFit};
 use crate::output::write_atomic;
 use crate::positions::{ChannelStats, Positions};
@@ -75,14 +75,82 @@ pub fn fit_positions(
 }
 
 /// Refuses a gravity a record cannot state ([`accelcal_shared::record::G_RANGE`]).
-pub fn check_record_g(g: f64) -> anyhow::Result<()> {
+pub fn check_record_g(g: f64) -> Result<(), RecordError> {
     if !accelcal_shared::record::G_RANGE.contains(&g) {
-        return Err(bad(format!(
-            "a record states the local gravity its fit used, 9.7 to 9.9 m/s² on the Earth's surface; \
-             the fit used {g} m/s² (--g)"
-        )));
+        return Err(RecordError::G { g });
     }
     Ok(())
+}
+
+/// Why a record cannot be made, or why a node (or a plausible unit) would refuse one.
+#[derive(Debug, thiserror::Error)]
+pub enum RecordError {
+    /// A gravity outside what a record states.
+    #[error("{}", self.worded(&Plain).unwrap_or_default())]
+    G {
+        /// The fit's gravity, m/s².
+        g: f64,
+    },
+    /// A thermal structure without a temperature input, or an input without one.
+    #[error("{}", self.worded(&Plain).unwrap_or_default())]
+    TempInput {
+        /// The structure (thermal when the input is missing).
+        structure: Structure,
+    },
+    /// A device id that is not 24 hex digits.
+    #[error("{}", self.worded(&Plain).unwrap_or_default())]
+    DeviceId {
+        /// What was given.
+        value: String,
+    },
+    /// Sensitivities that no unit has ([`implausible`]).
+    #[error("{0}")]
+    Implausible(String),
+    /// What a node's own check says ([`boot::gate`]).
+    #[error("{}", self.worded(&Plain).unwrap_or_default())]
+    Refused(BootError),
+    /// A record's refusal, with the record file's path.
+    #[error("{}: {}", path.display(), why)]
+    File {
+        /// The record file.
+        path: std::path::PathBuf,
+        /// Why.
+        why: Box<RecordError>,
+    },
+}
+
+impl Worded for RecordError {
+    fn worded(&self, w: &dyn Wording) -> Option<String> {
+        Some(match self {
+            RecordError::G { g } => format!(
+                "a record states the local gravity its fit used, 9.7 to 9.9 m/s² on the Earth's surface; \
+                 the fit used {g} m/s² ({})",
+                w.name(Setting::G)
+            ),
+            RecordError::TempInput { structure } if structure.is_thermal() => format!(
+                "the terms `{structure}` hold the temperature: the record needs {} (mcu or front-end)",
+                w.name(Setting::TempInput)
+            ),
+            RecordError::TempInput { .. } => {
+                format!("{} applies to a record with terms in t only", w.name(Setting::TempInput))
+            }
+            RecordError::DeviceId { value } => format!(
+                "{} must be 24 hex digits (the MCU's 96-bit unique id), got `{value}`",
+                w.name(Setting::DeviceId)
+            ),
+            RecordError::Implausible(_) => return None,
+            RecordError::Refused(e) => refusal(*e, w),
+            RecordError::File { path, why } => {
+                format!("{}: {}", path.display(), why.worded(w).unwrap_or_else(|| why.to_string()))
+            }
+        })
+    }
+}
+
+impl Classify for RecordError {
+    fn kind(&self) -> Kind {
+        Kind::BadInput
+    }
 }
 
 /// Builds the record of a set of fits (all with the same structure), fitted with gravity `g`
@@ -103,11 +171,7 @@ pub fn record(
     check_record_g(g)?;
     let structure = fits[0].1.structure;
     if structure.is_thermal() != thermal.is_some() {
-        return Err(bad(if structure.is_thermal() {
-            format!("the terms `{structure}` hold the temperature: the record needs --temp-input (mcu or front-end)")
-        } else {
-            "--temp-input applies to a record with terms in t only".to_string()
-        }));
+        return Err(RecordError::TempInput { structure }.into());
     }
     let mut rec = Record {
         device_id,
@@ -128,15 +192,15 @@ pub fn record(
 /// sensitivities no unit has ([`implausible`]): bad input naming `path` (the record file, read or
 /// about to be written), with the node's reason as the node reports it, or the implausible one.
 pub fn gate(path: &Path, rec: &Record) -> anyhow::Result<()> {
-    verdict(rec).map_err(|why| bad(format!("{}: {why}", path.display())))
+    verdict(rec).map_err(|why| RecordError::File { path: path.to_owned(), why: Box::new(why) }.into())
 }
 
 /// Why `fit`, `flash` and `record show` refuse a record: an implausible sensitivity
 /// ([`implausible`]) first (it says what went wrong: the sensitivities of a head that was never
 /// turned are also a matrix the node cannot invert), then the node's refusal ([`refusal`]).
-pub fn verdict(rec: &Record) -> Result<(), String> {
-    implausible(rec).map_or(Ok(()), Err)?;
-    boot::gate(rec).map_err(refusal)
+pub fn verdict(rec: &Record) -> Result<(), RecordError> {
+    implausible(rec).map_or(Ok(()), |why| Err(RecordError::Implausible(why)))?;
+    boot::gate(rec).map_err(RecordError::Refused)
 }
 
 /// The widest full scale a plausible unit has, in g: a record whose sensitivity says more (one g
@@ -180,18 +244,19 @@ pub fn implausible(rec: &Record) -> Option<String> {
 
 /// Why a node would refuse a record, as the node reports it (the fault's name first), with what
 /// to do about it.
-pub fn refusal(e: BootError) -> String {
+pub fn refusal(e: BootError, w: &dyn Wording) -> String {
     let reason = match e {
         // The node reports a record for no device like one for another device; say which.
         BootError::NoDeviceId => format!("WrongDevice: {e}"),
         _ => e.fault().to_string(),
     };
     let hint = match e {
-        BootError::NoDeviceId => " (give the MCU's unique id: `fit --device-id HEX`)",
-        BootError::NotModel4 => {
-            " (fit it with `--terms ax,ay,az`, the default, optionally with t, t^2, ax*t, ay*t, az*t)"
-        }
-        _ => "",
+        BootError::NoDeviceId => format!(" (give the MCU's unique id: {})", w.name(Setting::FitDeviceId)),
+        BootError::NotModel4 => format!(
+            " (fit it with {}, the default, optionally with t, t^2, ax*t, ay*t, az*t)",
+            w.name(Setting::Model4Terms)
+        ),
+        _ => String::new(),
     };
     format!("a node would refuse this record: {reason}{hint}")
 }
@@ -216,12 +281,10 @@ pub fn write_record(path: &Path, rec: &Record) -> anyhow::Result<()> {
 }
 
 /// Parses 24 hex digits into a 96-bit device id (as `accelcal fit --device-id` takes it).
-pub fn parse_device_id(s: &str) -> anyhow::Result<[u8; 12]> {
+pub fn parse_device_id(s: &str) -> Result<[u8; 12], RecordError> {
     let s = s.trim();
     if s.len() != 24 || !s.bytes().all(|b| b.is_ascii_hexdigit()) {
-        return Err(bad(format!(
-            "--device-id must be 24 hex digits (the MCU's 96-bit unique id), got `{s}`"
-        )));
+        return Err(RecordError::DeviceId { value: s.to_string() });
     }
     let mut id = [0u8; 12];
     for (i, b) in id.iter_mut().enumerate() {
@@ -255,11 +318,11 @@ mod tests {
         };
         // The simulated unit (~1670), the real Xsens unit (~414): plausible.
         for k in [1670.0, 414.4, 3.4, 3339.0] {
-            assert_eq!(verdict(&rec(k)), Ok(()), "{k}");
+            assert!(verdict(&rec(k)).is_ok(), "{k}");
         }
         // The unturned head of issue 24, a sign flip, a unit whose ±1 g exceeds the code range.
         for k in [-0.8, 0.8, -1670.0, 3341.0] {
-            let e = verdict(&rec(k)).unwrap_err();
+            let e = verdict(&rec(k)).unwrap_err().to_string();
             assert!(e.starts_with("implausible sensitivity: channel 1's coefficient of ay is"), "{e}");
             assert!(e.contains("3.34 to 3340 codes/(m/s²) at g = 9.81 m/s²"), "{e}");
         }

@@ -26,7 +26,7 @@ use crate::input::Input;
 
 mod codes;
 pub mod identity;
-use crate::error::{Classify, Kind};
+use crate::error::{Classify, Kind, Plain, Setting, Worded, Wording};
 use crate::text::TextError;
 use codes::{header_comments, HeaderComments};
 pub use codes::{CodeRange, CODES_COMMENT, CODES_KEY};
@@ -66,6 +66,18 @@ pub enum CampaignError {
         /// What was expected.
         msg: String,
     },
+    /// A `# codes:` line that contradicts the code range the user stated.
+    #[error("{}", self.worded(&Plain).unwrap_or_default())]
+    CodesContradict {
+        /// The file.
+        path: PathBuf,
+        /// The line.
+        line: u64,
+        /// The range the file states.
+        file: CodeRange,
+        /// The range the user stated.
+        user: CodeRange,
+    },
     /// A problem with one line as a whole (a header comment).
     #[error("{path}:{line}: {msg}")]
     Line {
@@ -84,6 +96,19 @@ pub enum CampaignError {
         /// What was expected.
         msg: String,
     },
+}
+
+impl Worded for CampaignError {
+    fn worded(&self, w: &dyn Wording) -> Option<String> {
+        match self {
+            CampaignError::CodesContradict { path, line, file, user } => Some(format!(
+                "{}:{line}: `# {CODES_COMMENT} {file}` contradicts {} {user}",
+                path.display(),
+                w.name(Setting::Codes)
+            )),
+            _ => None,
+        }
+    }
 }
 
 impl Classify for CampaignError {
@@ -465,11 +490,7 @@ impl<R: Read> RowReader<R> {
         let HeaderComments { prefix, stated, .. } = header_comments(&mut reader, path)?;
         let codes = match (stated, declared) {
             (Some((line, file)), Some(user)) if file != user => {
-                return Err(CampaignError::Line {
-                    path: p(),
-                    line,
-                    msg: format!("`# {CODES_COMMENT} {file}` contradicts --codes {user}"),
-                })
+                return Err(CampaignError::CodesContradict { path: p(), line, file, user })
             }
             (Some((_, file)), _) => file,
             (None, user) => user.unwrap_or_default(),

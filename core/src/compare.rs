@@ -16,7 +16,7 @@ use anyhow::Context;
 use serde::Serialize;
 
 use crate::campaign::{Campaign, CodeRange, Row, Warnings};
-use crate::error::bad;
+use crate::error::{bad, Classify, Kind, Plain, Setting, Worded, Wording};
 use crate::lsq::{self, LsqFit};
 use crate::positions::{ChannelStats, DwellAcc, Positions};
 use crate::reduce::Reread;
@@ -205,6 +205,44 @@ struct Plan {
     held: Option<Vec<Option<usize>>>,
 }
 
+/// Why two campaigns cannot be compared as asked.
+#[derive(Debug, thiserror::Error)]
+pub enum CompareError {
+    /// A plan whose positions are all test-turn ones, with no validation campaign.
+    #[error("{}", self.worded(&Plain).unwrap_or_default())]
+    NothingToValidate,
+    /// The validation campaign's code range is not the campaign's.
+    #[error("{}", self.worded(&Plain).unwrap_or_default())]
+    CodesDiffer {
+        /// The campaign's range.
+        codes: CodeRange,
+        /// The validation campaign's.
+        vcodes: CodeRange,
+    },
+}
+
+impl Worded for CompareError {
+    fn worded(&self, w: &dyn Wording) -> Option<String> {
+        Some(match self {
+            CompareError::NothingToValidate => format!(
+                "the plan has no positions besides the test-turn ones to validate on; give {}",
+                w.name(Setting::Validate)
+            ),
+            CompareError::CodesDiffer { codes, vcodes } => format!(
+                "the validation campaign's codes are {vcodes}, the campaign's {codes} (state the range with a \
+                 `# codes:` line or {})",
+                w.name(Setting::Codes)
+            ),
+        })
+    }
+}
+
+impl Classify for CompareError {
+    fn kind(&self) -> Kind {
+        Kind::BadInput
+    }
+}
+
 impl Plan {
     /// Fits both methods on the dwell statistics. Without `validate`, the validation positions
     /// are every other position outside the test-turn positions, and the LSQ fit uses the rest.
@@ -217,7 +255,7 @@ impl Plan {
             let others: Vec<usize> = (0..pos.len()).filter(|i| !used.contains(i)).collect();
             let held: Vec<usize> = others.iter().copied().skip(1).step_by(2).collect();
             if held.is_empty() {
-                return Err(bad("the plan has no positions besides the test-turn ones to validate on; give --validate CAMPAIGN2"));
+                return Err(CompareError::NothingToValidate.into());
             }
             let fit_idx = (0..pos.len()).filter(|i| !held.contains(i)).collect();
             (fit_idx, Some((0..pos.len()).map(|i| held.iter().position(|&h| h == i)).collect()))
@@ -247,9 +285,7 @@ impl Plan {
     /// range are meaningless on codes of the other.
     fn check_codes(codes: CodeRange, vcodes: CodeRange) -> anyhow::Result<()> {
         if codes != vcodes {
-            return Err(bad(format!(
-                "the validation campaign's codes are {vcodes}, the campaign's {codes} (state the range with a `# codes:` line or --codes)"
-            )));
+            return Err(CompareError::CodesDiffer { codes, vcodes }.into());
         }
         Ok(())
     }

@@ -74,7 +74,7 @@ pub const REGISTRY: [EffectSpec; 7] = [
         kind: EffectKind::Temperature,
         name: "temperature",
         short: "temp",
-        summary: "bias and scale factor depending on temp_c (needs a temperature column or --temp-profile)",
+        summary: "bias and scale factor depending on temp_c (needs a temperature column, or the simulator's temperature profile)",
         params: &[
             p("bias", "codes/°C", 0.0, "bias coefficient"),
             p("scale", "ppm/°C", 0.0, "scale-factor coefficient, of the linear signal"),

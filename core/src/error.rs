@@ -75,3 +75,76 @@ impl Classify for Interrupted {
         Kind::Interrupted
     }
 }
+
+/// A setting of the command that ran, as a library message refers to it: the library says which
+/// setting (and what to do) in words of its own ([`Plain`]); the binary says how its user gives
+/// it, a flag or a command line, through its own [`Wording`]. So no message of the library spells
+/// a flag of one program.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Setting {
+    /// The local gravity the fit used.
+    G,
+    /// The code range the user stated for the campaign.
+    Codes,
+    /// GMDH's split of the positions into parts A and B.
+    Split,
+    /// GMDH's split by temperature.
+    SplitTemp,
+    /// GMDH's leave-one-out criterion.
+    CriterionLoo,
+    /// The source of the temperature a thermal record reads on the node.
+    TempInput,
+    /// A second campaign to validate on.
+    Validate,
+    /// A fit written with its record.
+    FitRecord,
+    /// What writes a fit JSON again, with this version's identity fields.
+    RefitJson,
+    /// What writes a fit JSON together with its record.
+    RefitWithRecord,
+    /// A simulated unit written with signed codes.
+    SimulateSigned,
+    /// The MCU's unique id, as a fit is given it.
+    DeviceId,
+    /// What gives a fit the MCU's unique id.
+    FitDeviceId,
+    /// Model 4's terms, as a fit is given them.
+    Model4Terms,
+}
+
+/// How a message names each [`Setting`].
+pub trait Wording {
+    /// The words for `s`.
+    fn name(&self, s: Setting) -> &'static str;
+}
+
+/// The library's own words for its settings (what [`std::fmt::Display`] of its errors says).
+pub struct Plain;
+
+impl Wording for Plain {
+    fn name(&self, s: Setting) -> &'static str {
+        match s {
+            Setting::G => "the fit's gravity",
+            Setting::Codes => "the stated code range",
+            Setting::Split => "the split",
+            Setting::SplitTemp => "a split by temperature",
+            Setting::CriterionLoo => "the leave-one-out criterion",
+            Setting::TempInput => "a temperature input",
+            Setting::Validate => "a validation campaign",
+            Setting::FitRecord => "with its record",
+            Setting::RefitJson => "fit the campaign again with this version",
+            Setting::RefitWithRecord => "fit the campaign again with a record",
+            Setting::SimulateSigned => "a simulation in signed codes",
+            Setting::DeviceId => "a device id",
+            Setting::FitDeviceId => "fit with the device id",
+            Setting::Model4Terms => "the terms ax,ay,az",
+        }
+    }
+}
+
+/// An error whose message names settings ([`Setting`]): its `Display` is
+/// `worded(&Plain)`, and a binary words it with its flags.
+pub trait Worded {
+    /// The message, each setting named by `w`.
+    fn worded(&self, w: &dyn Wording) -> Option<String>;
+}

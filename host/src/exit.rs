@@ -58,6 +58,8 @@ registry!(
     accelcal_db::LabelClash,
     accelcal_db::AssetError,
     accelcal_core::gmdh::GmdhError,
+    accelcal_core::compare::CompareError,
+    accelcal_core::calibrate::RecordError,
     accelcal_core::lsq::LsqError,
     accelcal_core::uncertainty::UncertaintyError,
     accelcal_core::conformity::SpecError,
@@ -313,6 +315,24 @@ mod tests {
             (e(GmdhError::EmptyPart('A', 3)), BadInput),
             (e(GmdhError::NoTemperature), BadInput),
             (e(GmdhError::NothingIdentifiable), BadInput),
+            (e(accelcal_core::compare::CompareError::NothingToValidate), BadInput),
+            (
+                e(accelcal_core::compare::CompareError::CodesDiffer {
+                    codes: accelcal_core::campaign::CodeRange::Signed16,
+                    vcodes: accelcal_core::campaign::CodeRange::Unsigned16,
+                }),
+                BadInput,
+            ),
+            (e(accelcal_core::calibrate::RecordError::G { g: 1.0 }), BadInput),
+            (
+                e(accelcal_core::calibrate::RecordError::File {
+                    path: "r.rec".into(),
+                    why: Box::new(accelcal_core::calibrate::RecordError::Refused(
+                        accelcal_shared::boot::BootError::NotModel4,
+                    )),
+                }),
+                BadInput,
+            ),
             (e(GmdhError::Refit(LsqError::Unidentifiable { terms: vec!["ax".into()] })), BadInput),
             (e(LsqError::TooFewPositions { model: "m".into(), terms: 4, positions: 3 }), BadInput),
             (e(accelcal_core::uncertainty::UncertaintyError::TooFewPositions { positions: 5 }), BadInput),

@@ -8,6 +8,7 @@ mod cmd;
 mod exit;
 mod report;
 mod settings;
+mod words;
 
 use clap::{CommandFactory, FromArgMatches};
 
@@ -22,7 +23,7 @@ fn main() {
         .and_then(|()| settings::check(&cli.command, &given))
         .and_then(|()| settings::resolve_gravity(&mut cli.command, &given));
     if let Err(e) = checked {
-        eprintln!("error: {e:#}");
+        eprintln!("error: {}", words::line(&e));
         std::process::exit(2);
     }
     let mut warnings = cmd::Warnings::default();

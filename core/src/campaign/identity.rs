@@ -16,7 +16,7 @@ use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
 use super::{open, CampaignError};
-use crate::error::{Classify, Kind};
+use crate::error::{Classify, Kind, Plain, Setting, Worded, Wording};
 
 /// The header key of the unit's device id (the MCU's 96-bit unique id as 24 hex digits).
 pub const DEVICE_ID_KEY: &str = "device_id";
@@ -193,10 +193,7 @@ pub enum IdentityError {
     #[error(transparent)]
     Mismatch(Box<Mismatch>),
     /// A fit JSON without the unit's identity (written before fits carried one).
-    #[error(
-        "{what}: the fit JSON does not say whose fit it is (no `device_id`, `serial`, `g_m_s2`, \
-         `campaign_sha256`: written by an older accelcal): run `accelcal fit ... --json` again"
-    )]
+    #[error("{}", self.worded(&Plain).unwrap_or_default())]
     NoIdentity {
         /// The document.
         what: String,
@@ -210,10 +207,7 @@ pub enum IdentityError {
         msg: String,
     },
     /// A fit JSON written without a record, to be matched to one.
-    #[error(
-        "{what}: written without a record (`fit --record`), so it cannot be matched to {against}: write the \
-         fit JSON with the record, `accelcal fit CAMPAIGN --record R --json F`"
-    )]
+    #[error("{}", self.worded(&Plain).unwrap_or_default())]
     NoRecord {
         /// The fit JSON.
         what: String,
@@ -231,6 +225,26 @@ pub enum IdentityError {
     /// The campaign could not be read.
     #[error(transparent)]
     Campaign(#[from] CampaignError),
+}
+
+impl Worded for IdentityError {
+    fn worded(&self, w: &dyn Wording) -> Option<String> {
+        match self {
+            IdentityError::NoIdentity { what } => Some(format!(
+                "{what}: the fit JSON does not say whose fit it is (no `device_id`, `serial`, `g_m_s2`, \
+                 `campaign_sha256`: written by an older accelcal): {}",
+                w.name(Setting::RefitJson)
+            )),
+            IdentityError::NoRecord { what, against } => Some(format!(
+                "{what}: written without a record ({}), so it cannot be matched to {against}: write the \
+                 fit JSON with the record, {}",
+                w.name(Setting::FitRecord),
+                w.name(Setting::RefitWithRecord)
+            )),
+            IdentityError::Campaign(e) => e.worded(w),
+            _ => None,
+        }
+    }
 }
 
 impl Classify for IdentityError {
@@ -336,7 +350,7 @@ mod tests {
         let e = Identity::of_fit_json(&old, "f.json").unwrap_err().to_string();
         assert!(
             e.starts_with("f.json: the fit JSON does not say whose fit it is")
-                && e.contains("run `accelcal fit"),
+                && e.ends_with("fit the campaign again with this version"),
             "{e}"
         );
         let id = Identity {

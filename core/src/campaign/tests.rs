@@ -151,7 +151,10 @@ fn the_code_range_comes_from_the_comment_line_or_the_user() {
     let c = parse_as(&format!("# codes: unsigned16\n{body}").replace('-', ""), None).unwrap();
     assert_eq!(c.codes, CodeRange::Unsigned16);
     let e = parse_as(&format!("# rig A\n# codes: signed16\n{body}"), Some(CodeRange::Unsigned16));
-    assert_eq!(e.unwrap_err().to_string(), "c.csv:2: `# codes: signed16` contradicts --codes unsigned16");
+    assert_eq!(
+        e.unwrap_err().to_string(),
+        "c.csv:2: `# codes: signed16` contradicts the stated code range unsigned16"
+    );
     let e = parse(&format!("# codes: signed8\n{body}")).unwrap_err().to_string();
     assert_eq!(e, "c.csv:1: `# codes:`: unknown code range `signed8` (expected unsigned16 or signed16)");
     let e = parse(&format!("# codes: signed16\n# codes: signed16\n{body}")).unwrap_err().to_string();

@@ -90,6 +90,7 @@ fn blind(
 ) -> GmdhError {
     let settings = &prep.settings;
     let (k, n) = (with.len(), prep.problem.rows.w.len());
+    let mut split = None;
     let why = match settings.criterion {
         Criterion::Loo => format!(
             "leaving one of the {n} positions out leaves too few (or too alike) to identify {with} \
@@ -100,7 +101,8 @@ fn blind(
             let a_fails = !engine::identifiable(&prep.problem.a, prep.problem.m, &prep.columns(with));
             let (part, have) = if a_fails { ('A', prep.parts[0]) } else { ('B', prep.parts[1]) };
             let both = criterion == Criterion::Symmetric;
-            let lead = format!("--split {} leaves part {part} {have} of the {n} positions", settings.split);
+            split = Some(settings.split.to_string());
+            let lead = format!("leaves part {part} {have} of the {n} positions");
             if have < k {
                 let campaign = min_positions(settings.split, k, both)
                     .map(|t| format!(", a campaign of at least {t} with this split"))
@@ -112,14 +114,8 @@ fn blind(
             }
         }
     };
-    let remedy = match settings.criterion {
-        Criterion::Loo => "add positions".to_string(),
-        _ => format!(
-            "use --criterion loo (leave-one-out: no split, {} positions or more), or more positions",
-            k + 1
-        ),
-    };
-    GmdhError::Blind { channel: ch.name.clone(), why, selected, dropped: dropped(added, own), remedy }
+    let loo_min = (settings.criterion != Criterion::Loo).then_some(k + 1);
+    GmdhError::Blind { channel: ch.name.clone(), split, why, selected, dropped: dropped(added, own), loo_min }
 }
 
 /// "its own axis term `ax`", "the axis terms `ax`, `ay`", …

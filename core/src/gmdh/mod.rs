@@ -30,7 +30,7 @@ use accelcal_shared::terms::PAPER_MODELS;
 use accelcal_shared::{Basis, Structure};
 use rayon::prelude::*;
 
-use crate::error::{Classify, Kind};
+use crate::error::{Classify, Kind, Plain, Setting, Worded, Wording};
 use crate::lsq::{self, LsqFit};
 use crate::positions::{ChannelStats, Positions};
 
@@ -179,25 +179,29 @@ pub enum GmdhError {
     #[error("the split leaves part {0} without positions ({1} positions in all)")]
     EmptyPart(char, usize),
     /// A thermal basis or a temperature split on a campaign without temperatures.
-    #[error("the campaign has no `temp_c` column: the thermal bases and --split temp need the temperature")]
+    #[error("{}", self.worded(&Plain).unwrap_or_default())]
     NoTemperature,
     /// No candidate is identifiable on this plan and split.
     #[error("no candidate model is identifiable on this plan and split")]
     NothingIdentifiable,
     /// The selection lacks axis terms only because the criterion cannot identify the model with
     /// them, although all the positions do ([`guard`]).
-    #[error("channel {channel}: {why}, so the selection {selected} would drop {dropped}: {remedy}")]
+    #[error("{}", self.worded(&Plain).unwrap_or_default())]
     Blind {
         /// Channel name.
         channel: String,
-        /// Where the criterion cannot identify which model.
+        /// The split whose part is blind (its value, as `Split` prints it); `None` for
+        /// leave-one-out.
+        split: Option<String>,
+        /// Where the criterion cannot identify which model (after the split, if any).
         why: String,
         /// The selection.
         selected: Structure,
         /// The axis terms it lacks, in words ("its own axis term `ax`", "the axis terms …").
         dropped: String,
-        /// What to do instead.
-        remedy: String,
+        /// The fewest positions leave-one-out needs to identify the model with them, when it
+        /// is the remedy (`None`: more positions are).
+        loo_min: Option<usize>,
     },
     /// No position varies the channel's own axis.
     #[error(
@@ -234,6 +238,30 @@ pub enum GmdhError {
     /// The refit of the selected model failed.
     #[error(transparent)]
     Refit(#[from] lsq::LsqError),
+}
+
+impl Worded for GmdhError {
+    fn worded(&self, w: &dyn Wording) -> Option<String> {
+        match self {
+            GmdhError::NoTemperature => Some(format!(
+                "the campaign has no `temp_c` column: the thermal bases and {} need the temperature",
+                w.name(Setting::SplitTemp)
+            )),
+            GmdhError::Blind { channel, split, why, selected, dropped, loo_min } => {
+                let lead =
+                    split.as_ref().map(|s| format!("{} {s} ", w.name(Setting::Split))).unwrap_or_default();
+                let remedy = match loo_min {
+                    None => "add positions".to_string(),
+                    Some(m) => format!(
+                        "use {} (leave-one-out: no split, {m} positions or more), or more positions",
+                        w.name(Setting::CriterionLoo)
+                    ),
+                };
+                Some(format!("channel {channel}: {lead}{why}, so the selection {selected} would drop {dropped}: {remedy}"))
+            }
+            _ => None,
+        }
+    }
 }
 
 impl Classify for GmdhError {

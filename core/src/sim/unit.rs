@@ -21,7 +21,7 @@ use serde::Serialize;
 
 use super::effects::{self, Effect, Kinematics, SampleCtx};
 use crate::campaign::CodeRange;
-use crate::error::{Classify, Kind};
+use crate::error::{Classify, Kind, Plain, Setting, Worded, Wording};
 
 /// The truth behind a simulated campaign, written beside it as JSON.
 #[derive(Clone, Debug, Serialize, serde::Deserialize)]
@@ -173,6 +173,14 @@ pub enum UnitError {
     /// A value of the truth is out of range.
     #[error("{0}")]
     Invalid(String),
+    /// A bias outside the node's unsigned 16-bit codes.
+    #[error("{}", self.worded(&Plain).unwrap_or_default())]
+    SignedBias {
+        /// The channel.
+        channel: String,
+        /// Its bias, codes.
+        bias: f64,
+    },
     /// What is wrong with a truth file.
     #[error("{path}: {cause}")]
     InFile {
@@ -192,6 +200,21 @@ pub enum UnitError {
     /// The unit is not a triad `x`, `y`, `z` along axes 0, 1, 2 (what the emulated node samples).
     #[error("the emulated node samples a triad: expected channels x, y, z along axes 0, 1, 2, got {0}")]
     NotATriad(String),
+}
+
+impl Worded for UnitError {
+    fn worded(&self, w: &dyn Wording) -> Option<String> {
+        match self {
+            UnitError::SignedBias { channel, bias } => Some(format!(
+                "channel `{channel}`: bias {bias} is outside the node's unsigned 16-bit codes 0..=65535 (a truth of {}?)",
+                w.name(Setting::SimulateSigned)
+            )),
+            UnitError::InFile { path, cause } => {
+                Some(format!("{path}: {}", cause.worded(w).unwrap_or_else(|| cause.to_string())))
+            }
+            _ => None,
+        }
+    }
 }
 
 impl Classify for UnitError {
@@ -269,10 +292,7 @@ impl Unit {
         u.check_triad()?;
         let (lo, hi) = CodeRange::Unsigned16.rails();
         if let Some(c) = u.channels.iter().find(|c| !(lo..=hi).contains(&c.bias)) {
-            return Err(UnitError::Invalid(format!(
-                "channel `{}`: bias {} is outside the node's unsigned 16-bit codes 0..=65535 (a truth of `simulate --codes signed16`?)",
-                c.name, c.bias
-            )));
+            return Err(UnitError::SignedBias { channel: c.name.clone(), bias: c.bias });
         }
         Ok(u)
     }

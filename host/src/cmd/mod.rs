@@ -88,7 +88,7 @@ pub fn print_warnings(w: &Warnings) {
 /// The one line (without the `error: ` prefix) that reports the failure `e`, with the readers'
 /// warnings folded in (they may explain it).
 pub fn error_line(w: &Warnings, e: &anyhow::Error) -> String {
-    let line = format!("{e:#}");
+    let line = crate::words::line(e);
     if w.lines().is_empty() {
         line
     } else {

@@ -72,7 +72,9 @@ pub fn describe(bytes: &[u8], rec: &Record) -> RecordJson {
             input: t.source.name(),
         }),
         node_accepts: node.is_ok(),
-        refusal: verdict(rec).err(),
+        refusal: verdict(rec).err().map(|r| {
+            accelcal_core::error::Worded::worded(&r, &crate::words::Flags).unwrap_or_else(|| r.to_string())
+        }),
         uncertainty: None,
     }
 }

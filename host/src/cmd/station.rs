@@ -418,12 +418,14 @@ impl Station<'_> {
             Ok(r) => r,
             Err(e2) => return e2,
         };
-        match self.db.finish_run(run, Outcome::Rejected, &format!("{e:#}")) {
+        match self.db.finish_run(run, Outcome::Rejected, &crate::words::line(&e)) {
             Ok(_) => {
                 crash_point("db:rejected");
                 e
             }
-            Err(db) => anyhow::Error::new(db).context(format!("storing the rejection ({e:#})")),
+            Err(db) => {
+                anyhow::Error::new(db).context(format!("storing the rejection ({})", crate::words::line(&e)))
+            }
         }
     }
 }
@@ -551,7 +553,7 @@ pub fn run(a: &StationArgs) -> anyhow::Result<()> {
         match s.after_acquire() {
             Ok(()) => {}
             Err(e) if specs.len() > 1 && is_rejection(&e) => {
-                eprintln!("station: unit {} REJECTED: {e:#}", s.u.serial);
+                eprintln!("station: unit {} REJECTED: {}", s.u.serial, crate::words::line(&e));
                 rejected.push(s.u.serial.clone());
             }
             Err(e) => return Err(e),

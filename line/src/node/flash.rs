@@ -38,7 +38,7 @@ pub enum FlashError {
     #[error("invalid calibration record: {0}")]
     Record(accelcal_shared::record::RecordError),
     /// A node would refuse the record ([`accelcal_shared::boot::gate`]).
-    #[error("{}", accelcal_core::calibrate::refusal(*.0))]
+    #[error("{}", accelcal_core::calibrate::refusal(*.0, &accelcal_core::error::Plain))]
     Refused(accelcal_shared::boot::BootError),
     /// No probe is connected (or none matches the selector).
     #[error("no debug probe found{0}")]
@@ -81,6 +81,15 @@ pub enum FlashError {
     /// in force before.
     #[error("{0}; the MCU was reset and runs the record in force before")]
     Released(Box<FlashError>),
+}
+
+impl accelcal_core::error::Worded for FlashError {
+    fn worded(&self, w: &dyn accelcal_core::error::Wording) -> Option<String> {
+        match self {
+            FlashError::Refused(e) => Some(accelcal_core::calibrate::refusal(*e, w)),
+            _ => None,
+        }
+    }
 }
 
 impl Classify for FlashError {
