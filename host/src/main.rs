@@ -18,21 +18,26 @@ fn main() {
     let mut cli = cli::Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     // The whole command line is checked before any file is opened.
     let mut given = settings::Given::of(&matches).expect("clap requires a subcommand");
-    let checked = settings::check_text(&matches, &cli.command)
-        .and_then(|()| settings::apply_config(&mut cli.command, &mut given))
-        .and_then(|()| settings::check(&cli.command, &given))
-        .and_then(|()| settings::resolve_gravity(&mut cli.command, &given));
-    if let Err(e) = checked {
-        eprintln!("error: {}", words::line(&e));
-        std::process::exit(2);
-    }
+    let checked = settings::check_text(&matches, &cli.command).and_then(|()| {
+        let config = settings::apply_config(&mut cli.command, &mut given)?;
+        settings::check(&cli.command, &given)?;
+        let g_stated = settings::resolve_gravity(&mut cli.command, &given)?;
+        Ok(settings::Resolved { g_stated, config })
+    });
+    let resolved = match checked {
+        Ok(r) => r,
+        Err(e) => {
+            eprintln!("error: {}", words::line(&e));
+            std::process::exit(2);
+        }
+    };
     let mut warnings = cmd::Warnings::default();
     // The station tells a rejected unit (1) from a failed environment (3).
     let code = match cli.command {
         cli::Command::Station(_) => crate::exit::station_code,
         _ => crate::exit::code,
     };
-    match cmd::run(cli, &mut warnings) {
+    match cmd::run(cli, &resolved, &mut warnings) {
         Ok(()) => cmd::print_warnings(&warnings),
         Err(e) => {
             // One line: the error, with the campaign's warnings folded in.

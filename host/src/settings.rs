@@ -26,7 +26,18 @@ use crate::cli::{Algorithm, Command, CriterionArg, FitArgs, LocalGravity, Method
 
 mod station_config;
 
-pub use station_config::apply as apply_config;
+pub use station_config::{apply as apply_config, ConfigUse};
+
+/// What the settings' checks resolved besides the parsed command line: whether the user stated
+/// g (`--g`, `--latitude`: a campaign's `# g_m_s2:` line then does not apply), and what a
+/// station's settings file gave.
+#[derive(Debug, Default)]
+pub struct Resolved {
+    /// `--g` or `--latitude` was given.
+    pub g_stated: bool,
+    /// `station --config`: the file's keys, and those the command line overrode.
+    pub config: Option<ConfigUse>,
+}
 
 /// The options the user gave for one subcommand: explicitly on the command line, or (`station
 /// --config`) in its settings file.
@@ -192,7 +203,7 @@ fn gravity_of(command: &mut Command) -> Option<(&mut f64, &LocalGravity)> {
 
 /// Checks `--latitude`/`--height` and puts the local gravity they give into the command's `g`:
 /// `--g` and `--latitude` together are refused, as is `--height` without `--latitude`.
-pub fn resolve_gravity(command: &mut Command, given: &Given) -> anyhow::Result<()> {
+pub fn resolve_gravity(command: &mut Command, given: &Given) -> anyhow::Result<bool> {
     let optional = match command {
         Command::Acquire(a) => Some((&mut a.g, &a.local)),
         Command::Verify(a) => Some((&mut a.g, &a.local)),
@@ -203,21 +214,14 @@ pub fn resolve_gravity(command: &mut Command, given: &Given) -> anyhow::Result<(
         if let Some(v) = local_gravity(given, local)? {
             *g = Some(v);
         }
-        return Ok(());
+        return Ok(false);
     }
     let stated = given.has("g") || given.has("latitude");
-    match command {
-        Command::Fit(a) => a.common.g_given = stated,
-        Command::Select(a) => a.common.g_given = stated,
-        Command::Compare(a) => a.common.g_given = stated,
-        Command::Diagnose(a) => a.common.g_given = stated,
-        _ => {}
-    }
-    let Some((g, local)) = gravity_of(command) else { return Ok(()) };
+    let Some((g, local)) = gravity_of(command) else { return Ok(false) };
     if let Some(v) = local_gravity(given, local)? {
         *g = v;
     }
-    Ok(())
+    Ok(stated)
 }
 
 /// The gravity `--latitude`/`--height` give, after checking them against `--g`.

@@ -254,10 +254,15 @@ fn two_stations_store_into_one_postgresql_server_at_once() {
 }
 
 /// Issue 30.4: against a specification (T = 0.05 m/s², guard band U), an as-found bias shift
-/// of 0.035 m/s² on x (inside T: it failed 6/6 against the 4σ consistency bound) is a pass, and
-/// a shift of 0.09 m/s² (outside) is out of tolerance: on the station's last line, in the
-/// journal and on the certificate's headline, while the recalibrated unit passes as left. With a
-/// bias limit of 2 mg, the 0.035 m/s² shift (3.6 mg) is out of tolerance by its bias alone.
+/// of 0.025 m/s² on x (inside T − U, and beyond the consistency bound of about 0.014 m/s²) is a
+/// pass, and a shift of 0.09 m/s² (outside) is out of tolerance: on the station's last line, in
+/// the journal and on the certificate's headline, while the recalibrated unit passes as left.
+/// Against T = 0.08 m/s² and a bias limit of 2 mg, a shift of 0.035 m/s² (3.6 mg) is out of
+/// tolerance by its bias alone.
+///
+/// The in-tolerance shift leaves a margin to T − U (U is 0.006 to 0.009 m/s² per axis) of about
+/// four standard deviations of a position's error: at 0.035 m/s² one CI run in five measured
+/// 0.0415 at one position against T − U = 0.0411, a conditional pass.
 #[test]
 fn an_as_found_drift_is_decided_against_the_specification() {
     let _one = one_bench();
@@ -268,12 +273,18 @@ fn an_as_found_drift_is_decided_against_the_specification() {
         "unit_type = \"MS9002.D triad\"\nacceleration_error_m_s2 = 0.05\nrule = \"guard-band\"\n",
     )
     .unwrap();
-    // The same, and a bias limit of 2 mg (0.020 m/s²) on each axis, which the verification's
-    // ±axis positions measure. The shift below is 3.6 mg, well beyond 2 mg + U: a fail. (Against
-    // 3 mg the margin over 3 mg + U was within the measurement's scatter: one CI run of three
-    // measured a conditional fail.)
+    // T = 0.08 m/s², so that every position of a 0.035 m/s² shift is accepted with a wide
+    // margin, and a bias limit of 2 mg (0.020 m/s²) on each axis, which the verification's ±axis
+    // positions measure (U about 0.5 mg). The shift is 3.6 mg, beyond 2 mg + U by about five
+    // standard deviations of the measured bias: a fail. (With a limit of 3 mg the margin over
+    // 3 mg + U was within the measurement's scatter: one CI run of three measured a conditional
+    // fail.)
     let spec_bias = dir.path().join("spec-bias.toml");
-    std::fs::write(&spec_bias, format!("{}bias_mg = 2\n", std::fs::read_to_string(&spec).unwrap())).unwrap();
+    std::fs::write(
+        &spec_bias,
+        "unit_type = \"MS9002.D triad\"\nacceleration_error_m_s2 = 0.08\nrule = \"guard-band\"\nbias_mg = 2\n",
+    )
+    .unwrap();
     let with_spec = |em: &Emulator, d: &Path, spec: &Path| -> Vec<String> {
         let mut v: Vec<String> = station_args(em, "A-1", d, &[]).iter().map(|w| w.to_string()).collect();
         let at = v.iter().position(|w| w == "--coverage").unwrap();
@@ -341,9 +352,9 @@ fn an_as_found_drift_is_decided_against_the_specification() {
     // Inside T; beyond T; inside T but beyond the bias limit (every position accepted, the
     // bias not).
     let cases = [
-        ("drift-in", 0.035, &spec, None),
+        ("drift-in", 0.025, &spec, None),
         ("drift-out", 0.09, &spec, Some("fail: 6 of 6 positions not accepted)")),
-        ("drift-bias", 0.035, &spec_bias, Some("fail: 0 of 6 positions not accepted; bias x +3.")),
+        ("drift-bias", 0.035, &spec_bias, Some("fail: 0 of 6 positions not accepted; bias x +")),
     ];
     for (name, shift_m_s2, spec, out_of_tolerance) in cases {
         // The same unit, its x bias moved (codes = m/s² × its sensitivity), with the record of

@@ -94,7 +94,17 @@ fn test() -> anyhow::Result<()> {
     run(&r, "bash", &["scripts/setup-chromium.sh"])?;
     // The PostgreSQL tests (tests/db_pg.rs) start throwaway clusters of Debian's server.
     run(&r, "bash", &["scripts/setup-postgres.sh"])?;
-    run(&r, "cargo", &["test", "--workspace", "--locked"])?;
+    if nextest_present() {
+        // Every test binary's tests in one pool, two at a time, the emulated benches one at a
+        // time (`.config/nextest.toml`); nextest runs no doctests, so `cargo test --doc` does.
+        run(&r, "cargo", &["nextest", "run", "--workspace", "--locked", "--no-tests", "fail"])?;
+        run(&r, "cargo", &["test", "--workspace", "--locked", "--doc"])?;
+    } else {
+        eprintln!(
+            "[xtask] cargo-nextest is not installed: `cargo test` runs the test binaries one after the other"
+        );
+        run(&r, "cargo", &["test", "--workspace", "--locked"])?;
+    }
     // A short fuzzing run (test profile: overflow checks on, artifacts shared with the tests).
     run(&r, "cargo", &fuzz_args("test", TEST_FUZZ_SECONDS, "all"))?;
     run(
@@ -111,6 +121,16 @@ fn test() -> anyhow::Result<()> {
         ],
     )?;
     Ok(())
+}
+
+/// Whether `cargo nextest` runs here (it is not a dependency: `cargo install cargo-nextest`).
+fn nextest_present() -> bool {
+    Command::new("cargo")
+        .args(["nextest", "--version"])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success())
 }
 
 /// Seconds of fuzzing in `cargo xtask test` (shared between the three targets).

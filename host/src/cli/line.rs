@@ -400,12 +400,6 @@ pub struct StationArgs {
     /// with its line.
     #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,
-    /// The keys --config gave (set by `settings::apply_config`, not a flag).
-    #[arg(skip)]
-    pub from_config: Vec<String>,
-    /// The keys of --config the command line overrode (set by `settings::apply_config`).
-    #[arg(skip)]
-    pub overridden: Vec<String>,
     /// Baud rate of the nodes' USART1 (a pty ignores it).
     #[arg(long, default_value_t = accelcal_line::node::monitor::NODE_BAUD)]
     pub baud: u32,

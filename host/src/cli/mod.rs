@@ -178,9 +178,6 @@ pub struct CommonArgs {
     /// else 9.81].
     #[arg(long, default_value_t = accelcal_shared::G_STANDARD, hide_default_value = true)]
     pub g: f64,
-    /// Whether --g or --latitude gave g (set by `settings::resolve_gravity`, not a flag).
-    #[arg(skip)]
-    pub g_given: bool,
     /// Local gravity instead of --g.
     #[command(flatten)]
     pub local: LocalGravity,

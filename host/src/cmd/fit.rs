@@ -98,7 +98,8 @@ pub fn print_table(method: Method, fits: &[(String, LsqFit)]) {
 }
 
 /// Runs `accelcal fit`.
-pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
+/// `g_stated`: `--g` or `--latitude` gave g (the campaign's `# g_m_s2:` did not).
+pub fn run(a: &FitArgs, g_stated: bool, warnings: &mut super::Warnings) -> anyhow::Result<()> {
     let method = match a.method {
         MethodArg::Lsq => Method::Lsq,
         MethodArg::TestTurns => Method::TestTurns,
@@ -177,7 +178,16 @@ pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
     print_table(method, &fits);
     let header = accelcal_core::campaign::header(&a.campaign)?;
     let get = |k: &str| header.iter().find(|(key, _)| key == k).map(|(_, v)| v.clone()).unwrap_or_default();
-    let budget = fit_budget(a, head_u, method, &pos, &stats, &fits, &get("g_source"))?;
+    // Where g came from, for its uncertainty: normal gravity from the site, a value the user
+    // gave, or the campaign's `# g_source:` line.
+    let g_source = if a.common.local.latitude.is_some() {
+        Some(accelcal_core::campaign::identity::G_SOURCE_NORMAL.to_string())
+    } else if g_stated {
+        Some("--g".to_string())
+    } else {
+        Some(get("g_source")).filter(|s| !s.is_empty())
+    };
+    let budget = fit_budget(a, head_u, method, &pos, &stats, &fits, g_source.as_deref())?;
     if let Some(b) = &budget {
         super::uncertainty::print_budget(&UncertaintyJson::from(b));
     }
@@ -205,7 +215,7 @@ pub fn run(a: &FitArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
         );
     }
     if let Some(rdb) = &mut db {
-        let g_source = if a.common.g_given {
+        let g_source = if g_stated {
             "--g / --latitude".to_string()
         } else {
             format!("the campaign's `# g_m_s2:` ({})", get("g_source"))
@@ -263,21 +273,14 @@ fn fit_budget(
     pos: &Positions,
     stats: &[ChannelStats],
     fits: &[(String, LsqFit)],
-    g_source: &str,
+    g_source: Option<&str>,
 ) -> anyhow::Result<Option<Budget>> {
-    use accelcal_core::campaign::identity::{g_uncertainty, G_SOURCE_NORMAL};
+    use accelcal_core::campaign::identity::g_uncertainty;
     if method != Method::Lsq || fits.iter().any(|(_, f)| f.structure != accelcal_shared::terms::MODEL_4) {
         return Ok(None);
     }
     let stated = head.angle.is_some() || head.orthogonality.is_some() || a.tempco.coefficients().is_some();
-    let source = if a.common.local.latitude.is_some() {
-        Some(G_SOURCE_NORMAL)
-    } else if a.common.g_given {
-        Some("--g")
-    } else {
-        Some(g_source).filter(|s| !s.is_empty())
-    };
-    let (bound, why) = g_uncertainty(a.common.g, source);
+    let (bound, why) = g_uncertainty(a.common.g, g_source);
     let refs = References {
         head_angle_rad: head.angle.unwrap_or(0.0) * ARCSEC,
         head_orthogonality_rad: head.orthogonality.unwrap_or(0.0) * ARCSEC,

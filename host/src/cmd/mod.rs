@@ -26,20 +26,21 @@ pub mod uncertainty;
 use crate::cli::{Cli, Command};
 
 /// Runs a parsed command line; the campaign readers' warnings go to `warnings`.
-pub fn run(cli: Cli, warnings: &mut Warnings) -> anyhow::Result<()> {
+pub fn run(cli: Cli, resolved: &crate::settings::Resolved, warnings: &mut Warnings) -> anyhow::Result<()> {
+    let g_stated = resolved.g_stated;
     match cli.command {
         Command::Simulate(a) => simulate::run(&a),
         Command::Select(mut a) => {
-            campaign_g(&mut a.common, &a.campaign, warnings)?;
+            campaign_g(&mut a.common, g_stated, &a.campaign, warnings)?;
             select::run(&a, warnings)
         }
         Command::Plan(a) => plan::run(&a),
         Command::Fit(mut a) => {
-            campaign_g(&mut a.common, &a.campaign, warnings)?;
-            fit::run(&a, warnings)
+            campaign_g(&mut a.common, g_stated, &a.campaign, warnings)?;
+            fit::run(&a, g_stated, warnings)
         }
         Command::Compare(mut a) => {
-            campaign_g(&mut a.common, &a.campaign, warnings)?;
+            campaign_g(&mut a.common, g_stated, &a.campaign, warnings)?;
             compare::run(&a, warnings)
         }
         Command::Demo(a) => demo::run(&a),
@@ -54,13 +55,13 @@ pub fn run(cli: Cli, warnings: &mut Warnings) -> anyhow::Result<()> {
         Command::Verify(a) => live::run_verify(&a),
         Command::Report(a) => report::run(&a),
         Command::Diagnose(mut a) => {
-            campaign_g(&mut a.common, &a.campaign, warnings)?;
+            campaign_g(&mut a.common, g_stated, &a.campaign, warnings)?;
             diagnose::run(&a, warnings)
         }
         Command::BenchDiagnose(a) => bench_diagnose::run(&a),
         Command::BenchSignature(a) => fleet::run_bench_signature(&a),
         Command::UncertaintyCheck(a) => uncertainty::run_check(&a),
-        Command::Station(a) => station::run(&a),
+        Command::Station(a) => station::run(&a, resolved.config.as_ref()),
         Command::History(a) => history::run(&a),
         Command::Void(a) => db::run_void(&a),
         Command::Db(crate::cli::DbCommand::Verify(a)) => db::run_verify(&a),
@@ -101,10 +102,11 @@ pub fn error_line(w: &Warnings, e: &anyhow::Error) -> String {
 /// at 9.81, and a warning says so (once).
 fn campaign_g(
     common: &mut crate::cli::CommonArgs,
+    g_stated: bool,
     campaign: &std::path::Path,
     warnings: &mut Warnings,
 ) -> anyhow::Result<()> {
-    if common.g_given || !campaign.is_file() {
+    if g_stated || !campaign.is_file() {
         return Ok(());
     }
     let header = accelcal_core::campaign::header(campaign)?;

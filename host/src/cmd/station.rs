@@ -493,13 +493,13 @@ fn acquire_together(units: &mut [&mut Station<'_>]) -> anyhow::Result<()> {
 /// other; the campaigns together; then each unit's line to its certificate. A rejected unit does
 /// not stop the others (the station ends with exit code 1 after them); any other error stops the
 /// station.
-pub fn run(a: &StationArgs) -> anyhow::Result<()> {
-    if let Some(c) = &a.config {
-        let overridden = match a.overridden.as_slice() {
+pub fn run(a: &StationArgs, config: Option<&crate::settings::ConfigUse>) -> anyhow::Result<()> {
+    if let Some(c) = config {
+        let overridden = match c.overridden.as_slice() {
             [] => String::new(),
             keys => format!("; the command line overrides {}", keys.join(", ")),
         };
-        eprintln!("station: settings {} ({}){overridden}", c.display(), a.from_config.join(", "));
+        eprintln!("station: settings {} ({}){overridden}", c.path.display(), c.keys.join(", "));
     }
     let specs = units(a);
     let db_spec = db_spec(a);

@@ -75,13 +75,13 @@ struct Node {
 /// Reads `station --config` and puts each of its keys into the options that were not given on
 /// the command line; `given` learns which options the file gave and where, so that the later
 /// checks count them as given and name them by their key. Other commands are left alone.
-pub fn apply(command: &mut Command, given: &mut Given) -> anyhow::Result<()> {
-    let Command::Station(a) = command else { return Ok(()) };
+pub fn apply(command: &mut Command, given: &mut Given) -> anyhow::Result<Option<ConfigUse>> {
+    let Command::Station(a) = command else { return Ok(None) };
     let Some(path) = a.config.clone() else {
         if a.ports.is_empty() || a.head.is_none() {
             return Err(bad("station needs --port and --head, or a --config file that gives them"));
         }
-        return Ok(());
+        return Ok(None);
     };
     let name = path.display().to_string();
     let text = std::fs::read_to_string(&path).map_err(|e| bad(format!("{name}: cannot read: {e}")))?;
@@ -178,14 +178,25 @@ pub fn apply(command: &mut Command, given: &mut Given) -> anyhow::Result<()> {
     f.value(&mut a.baud, "baud", "baud", c.baud);
     f.value(&mut a.timeout_s, "timeout_s", "timeout_s", c.timeout_s);
     f.text_value_plain(&mut a.chip, "chip", c.chip)?;
-    a.from_config = f.given.config.iter().map(|(_, key, _)| key.clone()).collect();
-    a.from_config.dedup();
-    a.overridden = f.overridden;
+    let mut keys: Vec<String> = f.given.config.iter().map(|(_, key, _)| key.clone()).collect();
+    keys.dedup();
+    let overridden = f.overridden;
     if a.ports.is_empty() || a.head.is_none() {
         let missing = if a.ports.is_empty() { "no [[node]] and no --port" } else { "no head and no --head" };
         return Err(bad(format!("{name}: {missing}: the station needs its nodes and its head")));
     }
-    Ok(())
+    Ok(Some(ConfigUse { path, keys, overridden }))
+}
+
+/// What a station's settings file gave, for the station's first line.
+#[derive(Debug, Default)]
+pub struct ConfigUse {
+    /// The file.
+    pub path: std::path::PathBuf,
+    /// The keys it gave, in the file's order.
+    pub keys: Vec<String>,
+    /// Its keys the command line overrode.
+    pub overridden: Vec<String>,
 }
 
 /// The file being applied.
