@@ -21,6 +21,7 @@ pub mod compare;
 pub mod conformity;
 pub mod diagnose;
 pub mod digest;
+pub mod document;
 pub mod effects;
 pub mod error;
 pub mod gmdh;

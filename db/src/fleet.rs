@@ -3,6 +3,7 @@
 //! what an MES takes of it, and the units whose certificate's recalibration date falls before a
 //! day. Every query is one SQL statement on either engine; the filters are parameters.
 
+use accelcal_core::document::FitDoc;
 use serde::Serialize;
 
 use super::engine::Val;
@@ -132,9 +133,10 @@ pub struct FleetRun {
     pub as_found_decision: Option<String>,
     /// The as-left verification's decision (`null`: none, or none decided).
     pub as_left_decision: Option<String>,
-    /// The stored fit (`fit --json`), when there is one.
+    /// The stored fit (`fit --json`), parsed once when the run is read; `None` when there is
+    /// none (or it does not parse).
     #[serde(skip)]
-    pub fit_json: Option<String>,
+    pub fit: Option<FitDoc>,
     /// The stored as-left verification (`verify --json`), when there is one.
     #[serde(skip)]
     pub as_left_json: Option<String>,
@@ -144,13 +146,12 @@ impl FleetRun {
     /// Its stored fit's model-4 coefficients, `[channel x, y, z][term 1, ax, ay, az]`, when it
     /// has a model-4 fit.
     pub fn model4(&self) -> Option<[[f64; 4]; 3]> {
-        super::history::model4(self.fit_json.as_deref()?).ok().map(|m| m.coef)
+        super::history::model4_of(self.fit.as_ref()?).ok().map(|m| m.coef)
     }
 
     /// Its stored fit's expanded uncertainty per axis, m/s² (k = 2), when it has a budget.
     pub fn u_m_s2(&self) -> Option<[f64; 3]> {
-        let doc: serde_json::Value = serde_json::from_str(self.fit_json.as_deref()?).ok()?;
-        accelcal_core::uncertainty::UncertaintyJson::of_fit_json(&doc).ok().flatten().map(|u| u.u_m_s2)
+        self.fit.as_ref()?.uncertainty.as_ref().map(|u| u.u_m_s2)
     }
 }
 
@@ -288,7 +289,7 @@ impl Db {
                     reason: opt_text(&r[9])?,
                     as_found_decision: opt_text(&r[10])?,
                     as_left_decision: opt_text(&r[11])?,
-                    fit_json: opt_text(&r[12])?,
+                    fit: opt_text(&r[12])?.and_then(|t| FitDoc::parse(&t).ok()),
                     as_left_json: opt_text(&r[13])?,
                 })
             })

@@ -12,6 +12,7 @@
 use serde::Serialize;
 
 use super::{Outcome, RunSummary};
+use accelcal_core::document::FitDoc;
 use accelcal_line::verify::VerifyReport;
 
 /// The recommended recalibration date's method, as `history --help` and the guide (docs/src/line/database.md) state it.
@@ -236,34 +237,17 @@ pub(crate) struct Model4 {
     var: [[f64; 4]; 3],
 }
 
-/// `fit --json` as far as the history reads it.
-#[derive(serde::Deserialize)]
-struct FitDoc {
-    channels: Vec<FitChannel>,
-}
-
-#[derive(serde::Deserialize)]
-struct FitChannel {
-    channel: String,
-    terms: Vec<String>,
-    coefficients: Vec<f64>,
-    #[serde(default)]
-    std_errors: Vec<Option<f64>>,
-    #[serde(default)]
-    covariance: Option<Vec<Vec<Option<f64>>>>,
-}
-
 /// The model-4 part of a stored fit, or why there is none.
 pub(crate) fn model4(fit_json: &str) -> Result<Model4, String> {
-    let doc: FitDoc =
-        serde_json::from_str(fit_json).map_err(|e| format!("its fit is not `fit --json` output: {e}"))?;
+    let doc = FitDoc::parse(fit_json).map_err(|e| format!("its fit is not `fit --json` output: {e}"))?;
+    model4_of(&doc)
+}
+
+/// The model-4 part of a fit document, or why there is none.
+pub(crate) fn model4_of(doc: &FitDoc) -> Result<Model4, String> {
     let mut m = Model4 { coef: [[0.0; 4]; 3], var: [[0.0; 4]; 3] };
     for (c, name) in CHANNELS.iter().enumerate() {
-        let ch = doc
-            .channels
-            .iter()
-            .find(|ch| ch.channel == *name)
-            .ok_or(format!("its fit has no channel {name}"))?;
+        let ch = doc.channel(name).ok_or(format!("its fit has no channel {name}"))?;
         for (t, term) in TERMS.iter().enumerate() {
             let at = ch
                 .terms
@@ -272,7 +256,7 @@ pub(crate) fn model4(fit_json: &str) -> Result<Model4, String> {
                 .ok_or(format!("its fit's channel {name} has no term `{term}` (model 4 is needed)"))?;
             m.coef[c][t] =
                 *ch.coefficients.get(at).ok_or(format!("its fit's channel {name} lacks coefficients"))?;
-            let from_cov = ch.covariance.as_ref().and_then(|cv| cv.get(at)?.get(at).copied().flatten());
+            let from_cov = ch.covariance.get(at).and_then(|row| row.get(at).copied().flatten());
             let from_se = ch.std_errors.get(at).copied().flatten().map(|s| s * s);
             m.var[c][t] = from_cov.or(from_se).filter(|v| v.is_finite() && *v >= 0.0).unwrap_or(0.0);
         }

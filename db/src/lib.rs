@@ -349,19 +349,18 @@ impl Db {
     /// document that names a device id, serial or g refuses to go with a run of another.
     pub fn store_fit(&mut self, run: RunId, fit_json: &str) -> Result<Stored, DbError> {
         let bad = |cause: String| DbError::BadPiece { run_id: run.to_string(), piece: "fit", cause };
-        let v: serde_json::Value =
-            serde_json::from_str(fit_json).map_err(|e| bad(format!("not a JSON document: {e}")))?;
-        if !v["channels"].is_array() {
-            return Err(bad("no `channels` (is it `fit --json` output?)".into()));
-        }
+        let doc = accelcal_core::document::FitDoc::parse(fit_json)
+            .map_err(|e| bad(format!("not `fit --json` output: {e}")))?;
         let start = self.start_of(run)?;
-        if let Some(id) = v["device_id"].as_str() {
+        if let Some(id) = doc.identity.as_ref().and_then(|i| i.device_id.as_deref()) {
             self.check_same(run, "the fit's device id", id, "the run's", &start.device_id)?;
         }
-        if let (Some(serial), false) = (v["serial"].as_str(), start.serial.is_empty()) {
+        if let (Some(serial), false) =
+            (doc.identity.as_ref().and_then(|i| i.serial.as_deref()), start.serial.is_empty())
+        {
             self.check_same(run, "the fit's serial", serial, "the run's", &start.serial)?;
         }
-        if let Some(g) = v["g_m_s2"].as_f64() {
+        if let Some(g) = doc.identity.as_ref().map(|i| i.g_m_s2) {
             if (g - start.g_m_s2).abs() > 1e-9 * start.g_m_s2.abs() {
                 return Err(DbError::Mismatch {
                     run_id: run.to_string(),

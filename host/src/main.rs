@@ -7,6 +7,7 @@ mod cli;
 mod cmd;
 mod exit;
 mod report;
+mod resolved;
 mod settings;
 mod words;
 
@@ -22,7 +23,7 @@ fn main() {
         let config = settings::apply_config(&mut cli.command, &mut given)?;
         settings::check(&cli.command, &given)?;
         let g_stated = settings::resolve_gravity(&mut cli.command, &given)?;
-        Ok(settings::Resolved { g_stated, config })
+        Ok(resolved::Resolved { g_stated, config })
     });
     let resolved = match checked {
         Ok(r) => r,

@@ -26,18 +26,7 @@ use crate::cli::{Algorithm, Command, CriterionArg, FitArgs, LocalGravity, Method
 
 mod station_config;
 
-pub use station_config::{apply as apply_config, ConfigUse};
-
-/// What the settings' checks resolved besides the parsed command line: whether the user stated
-/// g (`--g`, `--latitude`: a campaign's `# g_m_s2:` line then does not apply), and what a
-/// station's settings file gave.
-#[derive(Debug, Default)]
-pub struct Resolved {
-    /// `--g` or `--latitude` was given.
-    pub g_stated: bool,
-    /// `station --config`: the file's keys, and those the command line overrode.
-    pub config: Option<ConfigUse>,
-}
+pub use station_config::apply as apply_config;
 
 /// The options the user gave for one subcommand: explicitly on the command line, or (`station
 /// --config`) in its settings file.

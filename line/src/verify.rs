@@ -32,6 +32,7 @@ use accelcal_core::campaign::identity::{self, Identity};
 use accelcal_core::conformity::{
     measured_error_u, parameters, Decision, Measured, ParameterCheck, Specification, VerifyReferences,
 };
+use accelcal_core::document::FitDoc;
 use accelcal_core::error::bad;
 use accelcal_core::error::{Classify, Kind};
 use accelcal_core::sim::Plan;
@@ -154,16 +155,16 @@ impl Tolerance {
 
 /// A channel's `covariance` from a fit JSON: `n` rows of `n` finite numbers, symmetric, with a
 /// non-negative diagonal.
-fn covariance_of(c: &serde_json::Value, n: usize) -> Result<Vec<Vec<f64>>, String> {
-    let rows =
-        c.as_array().filter(|r| r.len() == n).ok_or_else(|| format!("`covariance` is not {n} rows"))?;
+fn covariance_of(rows: &[Vec<Option<f64>>], n: usize) -> Result<Vec<Vec<f64>>, String> {
+    if rows.len() != n {
+        return Err(format!("`covariance` is not {n} rows"));
+    }
     let mut m = Vec::with_capacity(n);
     for (i, r) in rows.iter().enumerate() {
-        let r = r
-            .as_array()
-            .filter(|r| r.len() == n)
-            .ok_or_else(|| format!("`covariance` row {i} is not {n} numbers"))?;
-        let row: Option<Vec<f64>> = r.iter().map(|v| v.as_f64().filter(|v| v.is_finite())).collect();
+        if r.len() != n {
+            return Err(format!("`covariance` row {i} is not {n} numbers"));
+        }
+        let row: Option<Vec<f64>> = r.iter().map(|v| v.filter(|v| v.is_finite())).collect();
         m.push(row.ok_or_else(|| format!("`covariance` row {i} has a value that is not a finite number"))?);
     }
     for i in 0..n {
@@ -182,24 +183,18 @@ fn covariance_of(c: &serde_json::Value, n: usize) -> Result<Vec<Vec<f64>>, Strin
 /// Reads the calibration's uncertainty from `fit --json` output: model 4 of channels x, y, z,
 /// with or without terms in `t` (then the document's `t_ref_c` is needed).
 pub fn uncertainty_from_fit_json(text: &str, what: &str) -> anyhow::Result<CalUncertainty> {
-    let v: serde_json::Value =
-        serde_json::from_str(text).map_err(|e| bad(format!("{what}: not a JSON document: {e}")))?;
-    let chans = v["channels"]
-        .as_array()
-        .ok_or_else(|| bad(format!("{what}: no `channels` (is it `fit --json` output?)")))?;
+    let doc = FitDoc::parse(text).map_err(|e| bad(format!("{what}: not `fit --json` output: {e}")))?;
     let mut out = Vec::with_capacity(3);
     let mut thermal = false;
     for (i, name) in ["x", "y", "z"].iter().enumerate() {
-        let ch = chans
-            .iter()
-            .find(|c| c["channel"] == *name)
-            .ok_or_else(|| bad(format!("{what}: no channel `{name}`")))?;
-        let names: Vec<&str> =
-            ch["terms"].as_array().into_iter().flatten().filter_map(|t| t.as_str()).collect();
+        let ch = doc.channel(name).ok_or_else(|| bad(format!("{what}: no channel `{name}`")))?;
+        let names: Vec<&str> = ch.terms.iter().map(String::as_str).collect();
         let num = |key: &str, at: usize, term: &str| -> anyhow::Result<f64> {
-            ch[key][at]
-                .as_f64()
-                .filter(|v| v.is_finite())
+            let v = match key {
+                "coefficients" => ch.coefficients.get(at).copied(),
+                _ => ch.std_errors.get(at).copied().flatten(),
+            };
+            v.filter(|v| v.is_finite())
                 .ok_or_else(|| bad(format!("{what}: channel {name}: no finite {key} for `{term}`")))
         };
         let mut terms = Vec::with_capacity(names.len());
@@ -223,8 +218,8 @@ pub fn uncertainty_from_fit_json(text: &str, what: &str) -> anyhow::Result<CalUn
         if k_own == 0.0 {
             return Err(bad(format!("{what}: channel {name} has a zero own-axis sensitivity")));
         }
-        let covariance = match &ch["covariance"] {
-            serde_json::Value::Null => None,
+        let covariance = match ch.covariance.as_slice() {
+            [] => None,
             c => {
                 Some(covariance_of(c, names.len()).map_err(|e| bad(format!("{what}: channel {name}: {e}")))?)
             }
@@ -232,7 +227,7 @@ pub fn uncertainty_from_fit_json(text: &str, what: &str) -> anyhow::Result<CalUn
         out.push(ChannelUncertainty { terms, covariance, k_own, k_own_t: coefficient(&format!("{own}*t"))? });
     }
     let t_ref_c = if thermal {
-        Some(v["t_ref_c"].as_f64().filter(|t| t.is_finite()).ok_or_else(|| {
+        Some(doc.t_ref_c.filter(|t| t.is_finite()).ok_or_else(|| {
             bad(format!("{what}: the fit has terms in t but no `t_ref_c` (write it again with `fit --json`)"))
         })?)
     } else {

@@ -4,47 +4,17 @@ use accelcal_core::calibrate::{
     fit_positions, gate, parse_device_id, record, record_bytes, record_crc_hex, Method,
 };
 use accelcal_core::campaign::identity::{CampaignId, Identity};
+use accelcal_core::document::{FitChannelDoc, FitDoc};
 use accelcal_core::error::bad;
 use accelcal_core::lsq::{self, LsqFit};
 use accelcal_core::output::{finite, write_atomic, write_json};
 use accelcal_line::node::session::device_id_hex;
 use anyhow::Context;
-use serde::Serialize;
 
 use accelcal_core::positions::{ChannelStats, Positions};
 use accelcal_core::uncertainty::{self, Budget, References, UncertaintyJson, ARCSEC};
 
 use crate::cli::{FitArgs, MethodArg};
-
-/// JSON of one channel's fit.
-#[derive(Serialize)]
-pub struct FitChannelJson {
-    channel: String,
-    terms: Vec<String>,
-    coefficients: Vec<f64>,
-    std_errors: Vec<Option<f64>>,
-    /// The coefficients' covariance matrix, row by row in term order (codes² per units of the two
-    /// terms); `verify --fit` propagates it.
-    covariance: Vec<Vec<Option<f64>>>,
-    condition: Option<f64>,
-    rms_codes: Option<f64>,
-}
-
-/// The JSON document of `fit`.
-#[derive(Serialize)]
-pub struct FitJson {
-    method: &'static str,
-    /// Whose fit it is: device id, serial, g, the campaign's hash, the record's CRC.
-    #[serde(flatten)]
-    identity: Identity,
-    /// The reference temperature of the terms in `t` (°C), when a fit has one.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    t_ref_c: Option<f64>,
-    channels: Vec<FitChannelJson>,
-    /// The uncertainty budget of a model-4 triad fitted by least squares.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    uncertainty: Option<UncertaintyJson>,
-}
 
 /// The JSON document of a set of fits of the unit `identity`; `t_ref_c` (°C) is stated when a
 /// fit has a term in `t`.
@@ -54,15 +24,15 @@ pub fn to_json(
     t_ref_c: f64,
     identity: Identity,
     uncertainty: Option<&Budget>,
-) -> FitJson {
+) -> FitDoc {
     let thermal = fits.iter().any(|(_, f)| f.structure.is_thermal());
-    FitJson {
-        method: method.name(),
-        identity,
+    FitDoc {
+        method: method.name().to_string(),
+        identity: Some(identity),
         t_ref_c: thermal.then_some(t_ref_c),
         channels: fits
             .iter()
-            .map(|(name, f)| FitChannelJson {
+            .map(|(name, f)| FitChannelDoc {
                 channel: name.clone(),
                 terms: f.structure.terms().map(|t| t.to_string()).collect(),
                 coefficients: f.coefficients.clone(),

@@ -26,7 +26,7 @@ pub mod uncertainty;
 use crate::cli::{Cli, Command};
 
 /// Runs a parsed command line; the campaign readers' warnings go to `warnings`.
-pub fn run(cli: Cli, resolved: &crate::settings::Resolved, warnings: &mut Warnings) -> anyhow::Result<()> {
+pub fn run(cli: Cli, resolved: &crate::resolved::Resolved, warnings: &mut Warnings) -> anyhow::Result<()> {
     let g_stated = resolved.g_stated;
     match cli.command {
         Command::Simulate(a) => simulate::run(&a),

@@ -20,12 +20,14 @@ use accelcal_core::campaign::identity::{
     g_uncertainty, same, CampaignId, Identity, IdentityError, Mismatch, G_KEY, G_SOURCE_KEY,
 };
 use accelcal_core::campaign::Campaign;
+use accelcal_core::document::FitDoc;
 use accelcal_core::error::bad;
 use accelcal_core::output::write_atomic;
 use accelcal_core::positions::Positions;
 use accelcal_line::node::session::device_id_hex;
 use accelcal_line::verify::VerifyReport;
 use accelcal_shared::record::Record;
+use serde::Deserialize as _;
 
 use crate::cli::ReportArgs;
 
@@ -52,7 +54,7 @@ struct Unit {
     /// Its device id (hex).
     device_id: String,
     /// The fit JSON.
-    fit: serde_json::Value,
+    fit: FitDoc,
     /// Whose fit it is.
     fit_id: Identity,
     /// The verification, when given.
@@ -90,6 +92,8 @@ fn read_unit(a: &ReportArgs) -> anyhow::Result<Unit> {
     let fit: serde_json::Value =
         serde_json::from_str(&text).map_err(|e| bad(format!("{f_name}: not a JSON document: {e}")))?;
     let fit_id = Identity::of_fit_json(&fit, &f_name)?;
+    let fit =
+        FitDoc::deserialize(&fit).map_err(|e| bad(format!("{f_name}: not `fit --json` output: {e}")))?;
     same(
         "campaign SHA-256",
         (&f_name, &fit_id.campaign_sha256),
@@ -233,8 +237,8 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
         _ => (None, "the value stated with the fit".to_string()),
     };
     let (g_bound, g_why) = g_uncertainty(g, source.as_deref());
-    let method = match u.fit["method"].as_str() {
-        Some("test-turns") => Method::TestTurns,
+    let method = match u.fit.method.as_str() {
+        "test-turns" => Method::TestTurns,
         _ => Method::Lsq,
     };
     let campaign = Campaign::read(&a.campaign)?;
@@ -255,8 +259,7 @@ pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
     let serial = u.fit_id.serial.clone().unwrap_or_else(|| "-".into());
     let now = super::record::utc(super::created(None));
     let temp = u.verify.as_ref().map(verification_temperature);
-    let mut budget = accelcal_core::uncertainty::UncertaintyJson::of_fit_json(&u.fit)
-        .map_err(|e| bad(format!("{}: its uncertainty is not a budget: {e}", a.fit.display())))?;
+    let mut budget = u.fit.uncertainty.clone();
     if let (Some(b), Some((_, id, cert))) =
         (&mut budget, assets.iter().find(|(k, _, _)| *k == accelcal_db::asset::AssetKind::Head))
     {

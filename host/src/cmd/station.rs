@@ -493,7 +493,7 @@ fn acquire_together(units: &mut [&mut Station<'_>]) -> anyhow::Result<()> {
 /// other; the campaigns together; then each unit's line to its certificate. A rejected unit does
 /// not stop the others (the station ends with exit code 1 after them); any other error stops the
 /// station.
-pub fn run(a: &StationArgs, config: Option<&crate::settings::ConfigUse>) -> anyhow::Result<()> {
+pub fn run(a: &StationArgs, config: Option<&crate::resolved::ConfigUse>) -> anyhow::Result<()> {
     if let Some(c) = config {
         let overridden = match c.overridden.as_slice() {
             [] => String::new(),

@@ -75,7 +75,7 @@ struct Node {
 /// Reads `station --config` and puts each of its keys into the options that were not given on
 /// the command line; `given` learns which options the file gave and where, so that the later
 /// checks count them as given and name them by their key. Other commands are left alone.
-pub fn apply(command: &mut Command, given: &mut Given) -> anyhow::Result<Option<ConfigUse>> {
+pub fn apply(command: &mut Command, given: &mut Given) -> anyhow::Result<Option<crate::resolved::ConfigUse>> {
     let Command::Station(a) = command else { return Ok(None) };
     let Some(path) = a.config.clone() else {
         if a.ports.is_empty() || a.head.is_none() {
@@ -185,18 +185,7 @@ pub fn apply(command: &mut Command, given: &mut Given) -> anyhow::Result<Option<
         let missing = if a.ports.is_empty() { "no [[node]] and no --port" } else { "no head and no --head" };
         return Err(bad(format!("{name}: {missing}: the station needs its nodes and its head")));
     }
-    Ok(Some(ConfigUse { path, keys, overridden }))
-}
-
-/// What a station's settings file gave, for the station's first line.
-#[derive(Debug, Default)]
-pub struct ConfigUse {
-    /// The file.
-    pub path: std::path::PathBuf,
-    /// The keys it gave, in the file's order.
-    pub keys: Vec<String>,
-    /// Its keys the command line overrode.
-    pub overridden: Vec<String>,
+    Ok(Some(crate::resolved::ConfigUse { path, keys, overridden }))
 }
 
 /// The file being applied.

@@ -4,13 +4,14 @@
 use std::fmt::Write as _;
 
 use accelcal_core::calibrate::Method;
+use accelcal_core::document::FitDoc;
 use accelcal_shared::record::Record;
 
 use super::{esc, label};
 use crate::report::plot::lines_svg;
 
 /// The record's coefficients with the standard errors of the fit that made them (the fit JSON).
-pub(super) fn coefficients(rec: &Record, fit: &serde_json::Value, method: Method) -> anyhow::Result<String> {
+pub(super) fn coefficients(rec: &Record, fit: &FitDoc, method: Method) -> anyhow::Result<String> {
     let mut h = String::new();
     let _ = write!(
         h,
@@ -31,21 +32,17 @@ pub(super) fn coefficients(rec: &Record, fit: &serde_json::Value, method: Method
         let _ = write!(h, "<th>{}</th>", esc(&head));
     }
     h.push_str("<th>residual RMS, codes</th></tr>");
-    let channels = fit["channels"].as_array().map(Vec::as_slice).unwrap_or_default();
     for (c, row) in rec.coefficients.iter().take(rec.n_channels as usize).enumerate() {
-        let ch = channels.get(c);
-        let name = ch.and_then(|ch| ch["channel"].as_str()).unwrap_or("?");
+        let ch = fit.channels.get(c);
+        let name = ch.map_or("?", |ch| ch.channel.as_str());
         let _ = write!(h, "<tr><td class=\"l\">{}</td>", esc(name));
         for (i, t) in terms.iter().enumerate() {
             let se = ch
-                .and_then(|ch| {
-                    let at = ch["terms"].as_array()?.iter().position(|n| n.as_str() == Some(t))?;
-                    ch["std_errors"][at].as_f64()
-                })
+                .and_then(|ch| ch.std_errors.get(ch.term_index(t)?).copied().flatten())
                 .map_or("-".to_string(), |s| format!("{s:.4}"));
             let _ = write!(h, "<td>{:.4} &plusmn; {se}</td>", row[i]);
         }
-        let rms = ch.and_then(|ch| ch["rms_codes"].as_f64()).map_or("-".to_string(), |r| format!("{r:.2}"));
+        let rms = ch.and_then(|ch| ch.rms_codes).map_or("-".to_string(), |r| format!("{r:.2}"));
         let _ = write!(h, "<td>{rms}</td></tr>");
     }
     h.push_str("</table>");
@@ -53,24 +50,17 @@ pub(super) fn coefficients(rec: &Record, fit: &serde_json::Value, method: Method
 }
 
 /// A record coefficient of channel `c` and its standard error in the fit JSON (by term name).
-fn coefficient(rec: &Record, fit: &serde_json::Value, c: usize, term: &str) -> (f64, Option<f64>) {
+fn coefficient(rec: &Record, fit: &FitDoc, c: usize, term: &str) -> (f64, Option<f64>) {
     let at = rec.structure.terms().position(|t| t.to_string() == term);
     let v = at.map_or(f64::NAN, |i| rec.coefficients[c][i]);
-    let se = fit["channels"][c]["terms"]
-        .as_array()
-        .and_then(|ts| ts.iter().position(|n| n.as_str() == Some(term)))
-        .and_then(|i| fit["channels"][c]["std_errors"][i].as_f64());
+    let se = fit.channels.get(c).and_then(|ch| ch.std_errors.get(ch.term_index(term)?).copied().flatten());
     (v, se)
 }
 
 /// GMDH's choice per channel next to the record's structure, and why the record holds its terms
 /// where GMDH chose others: the terms GMDH leaves out with their fitted values in standard errors,
 /// the terms it adds that the node cannot apply.
-pub(super) fn structure(
-    sel: &[accelcal_core::gmdh::Selection],
-    rec: &Record,
-    fit: &serde_json::Value,
-) -> String {
+pub(super) fn structure(sel: &[accelcal_core::gmdh::Selection], rec: &Record, fit: &FitDoc) -> String {
     let mut h = String::new();
     h.push_str("<h2>Model structure: GMDH (paper's 11 models, regularity criterion, 1-code tolerance) and the record</h2><table><tr><th class=\"l\">channel</th><th class=\"l\">GMDH selects</th><th>criterion, codes</th><th>best, codes</th><th class=\"l\">why</th><th>record's terms: criterion, codes</th></tr>");
     let mut notes = Vec::new();

@@ -9,6 +9,7 @@
 
 use std::fmt::Write as _;
 
+use accelcal_core::document::FitDoc;
 use accelcal_core::uncertainty::UncertaintyJson;
 use accelcal_shared::record::Record;
 
@@ -27,7 +28,7 @@ struct Cov {
 }
 
 impl Cov {
-    fn of(fit: &serde_json::Value, budget: Option<&UncertaintyJson>) -> Cov {
+    fn of(fit: &FitDoc, budget: Option<&UncertaintyJson>) -> Cov {
         let mut m = [[0.0; 12]; 12];
         if let Some(b) =
             budget.filter(|b| b.covariance.len() == 12 && b.covariance.iter().all(|r| r.len() == 12))
@@ -38,11 +39,10 @@ impl Cov {
             return Cov { m, k: b.k, from_budget: true };
         }
         for c in 0..3 {
-            let ch = &fit["channels"][c];
+            let ch = fit.channels.get(c);
             for (t, term) in ["1", "ax", "ay", "az"].iter().enumerate() {
-                let at =
-                    ch["terms"].as_array().and_then(|ts| ts.iter().position(|n| n.as_str() == Some(term)));
-                let se = at.and_then(|i| ch["std_errors"][i].as_f64()).unwrap_or(f64::NAN);
+                let at = ch.and_then(|ch| ch.term_index(term));
+                let se = at.and_then(|i| ch?.std_errors.get(i).copied().flatten()).unwrap_or(f64::NAN);
                 m[4 * c + t][4 * c + t] = se * se;
             }
         }
@@ -63,7 +63,7 @@ impl Cov {
 }
 
 /// The results section: U per axis, the IEEE 1293 parameters with their U, the budget.
-pub fn section(rec: &Record, fit: &serde_json::Value, budget: Option<&UncertaintyJson>) -> String {
+pub fn section(rec: &Record, fit: &FitDoc, budget: Option<&UncertaintyJson>) -> String {
     let cov = Cov::of(fit, budget);
     let mut h = String::new();
     let k = cov.k;

@@ -1,0 +1,145 @@
+//! The documents the tool writes and reads back, typed once: each is a serde type that its writer
+//! fills and every reader parses, so a field's name and meaning are stated in one place.
+//!
+//! - [`FitDoc`]: `fit --json`, read by `verify --fit`, `report --fit`, `record show --fit`, the
+//!   database's `store_fit`, `history` and `fleet`.
+//!
+//! A reader is lenient where older writers were: a field a reader does not need may be missing
+//! (serde defaults), and a fit written before fits carried the unit's identity reads with
+//! `identity: None` ([`FitDoc::identity`]; [`crate::campaign::identity::Identity::of_fit_json`]
+//! refuses it where the identity is needed).
+
+use serde::{Deserialize, Serialize};
+
+use crate::campaign::identity::Identity;
+use crate::uncertainty::UncertaintyJson;
+
+/// One channel of a fit: its terms, their coefficients and the coefficients' statistics.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FitChannelDoc {
+    /// The channel's name (the campaign's column).
+    pub channel: String,
+    /// The terms of its model, in order (`1`, `ax`, …, `t`).
+    pub terms: Vec<String>,
+    /// The coefficient of each term (codes per the term's unit).
+    pub coefficients: Vec<f64>,
+    /// The standard error of each coefficient (`null`: not finite).
+    #[serde(default)]
+    pub std_errors: Vec<Option<f64>>,
+    /// The coefficients' covariance matrix, row by row in term order (codes² per units of the two
+    /// terms); `verify --fit` propagates it.
+    #[serde(default)]
+    pub covariance: Vec<Vec<Option<f64>>>,
+    /// The condition number of the least-squares problem (`null` for test turns).
+    #[serde(default)]
+    pub condition: Option<f64>,
+    /// The residual RMS of the dwell means, codes.
+    #[serde(default)]
+    pub rms_codes: Option<f64>,
+}
+
+impl FitChannelDoc {
+    /// The index of `term` among the channel's terms.
+    pub fn term_index(&self, term: &str) -> Option<usize> {
+        self.terms.iter().position(|t| t == term)
+    }
+
+    /// The coefficient of `term`.
+    pub fn coefficient(&self, term: &str) -> Option<f64> {
+        self.coefficients.get(self.term_index(term)?).copied()
+    }
+
+    /// The standard error of `term`'s coefficient, when finite.
+    pub fn std_error(&self, term: &str) -> Option<f64> {
+        self.std_errors.get(self.term_index(term)?).copied().flatten().filter(|v| v.is_finite())
+    }
+
+    /// The variance of `term`'s coefficient from the covariance's diagonal, when stated.
+    pub fn variance(&self, term: &str) -> Option<f64> {
+        let i = self.term_index(term)?;
+        self.covariance.get(i)?.get(i).copied().flatten()
+    }
+}
+
+/// `fit --json`: the method, the unit's identity, each channel's fit and, for a model-4 triad
+/// fitted by least squares, the uncertainty budget. The field order is the document's.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FitDoc {
+    /// `lsq` or `test-turns`.
+    pub method: String,
+    /// Whose fit it is: device id, serial, g, the campaign's hash, the record's CRC (`None` in a
+    /// fit written before fits carried it).
+    #[serde(flatten)]
+    pub identity: Option<Identity>,
+    /// The reference temperature of the terms in `t` (°C), when a fit has one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub t_ref_c: Option<f64>,
+    /// Each channel's fit.
+    pub channels: Vec<FitChannelDoc>,
+    /// The uncertainty budget of a model-4 triad fitted by least squares.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub uncertainty: Option<UncertaintyJson>,
+}
+
+impl FitDoc {
+    /// Parses a fit document; the error is serde's, which names the field and its place.
+    pub fn parse(text: &str) -> Result<FitDoc, serde_json::Error> {
+        serde_json::from_str(text)
+    }
+
+    /// The channel named `name`.
+    pub fn channel(&self, name: &str) -> Option<&FitChannelDoc> {
+        self.channels.iter().find(|c| c.channel == name)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn doc() -> serde_json::Value {
+        serde_json::json!({
+            "method": "lsq",
+            "device_id": "51454d552d422d4c34373545",
+            "serial": "A-1",
+            "g_m_s2": 9.81,
+            "campaign_sha256": "ab",
+            "record_crc": null,
+            "channels": [{
+                "channel": "x",
+                "terms": ["1", "ax", "ay", "az"],
+                "coefficients": [32768.0, 1670.0, 1.0, -2.0],
+                "std_errors": [0.5, null, 0.1, 0.1],
+                "covariance": [[0.25, 0.0, 0.0, 0.0], [0.0, null, 0.0, 0.0], [0.0, 0.0, 0.01, 0.0], [0.0, 0.0, 0.0, 0.01]],
+                "condition": 1.5,
+                "rms_codes": 2.0
+            }]
+        })
+    }
+
+    #[test]
+    fn a_fit_document_reads_and_writes_back_the_same() {
+        let v = doc();
+        let d = FitDoc::parse(&v.to_string()).unwrap();
+        assert_eq!(d.identity.as_ref().unwrap().serial.as_deref(), Some("A-1"));
+        let x = d.channel("x").unwrap();
+        assert_eq!(x.coefficient("ax"), Some(1670.0));
+        assert_eq!(x.std_error("1"), Some(0.5));
+        assert_eq!(x.std_error("ax"), None);
+        assert_eq!(x.variance("ay"), Some(0.01));
+        assert_eq!(x.variance("ax"), None);
+        assert_eq!(serde_json::to_value(&d).unwrap(), v);
+    }
+
+    #[test]
+    fn a_fit_without_identity_reads_and_one_without_channels_does_not() {
+        let mut v = doc();
+        for k in ["device_id", "serial", "g_m_s2", "campaign_sha256", "record_crc"] {
+            v.as_object_mut().unwrap().remove(k);
+        }
+        assert_eq!(FitDoc::parse(&v.to_string()).unwrap().identity, None);
+        v.as_object_mut().unwrap().remove("channels");
+        let e = FitDoc::parse(&v.to_string()).unwrap_err().to_string();
+        assert!(e.contains("missing field `channels`"), "{e}");
+    }
+}
