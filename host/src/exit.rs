@@ -464,34 +464,19 @@ mod tests {
     fn every_error_type_of_the_core_is_registered_and_exercised() {
         // Every `thiserror::Error` type defined in the library crates' sources.
         let mut defined = Vec::new();
-        let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-        let mut stack: Vec<PathBuf> =
-            ["core", "line", "db"].iter().map(|c| root.join("..").join(c).join("src")).collect();
-        while let Some(d) = stack.pop() {
-            for entry in std::fs::read_dir(&d).unwrap() {
-                let path = entry.unwrap().path();
-                if path.is_dir() {
-                    stack.push(path);
+        for (_, text) in crate::sources::library_sources(&["core", "line", "db"]) {
+            let mut lines = text.lines();
+            while let Some(l) = lines.next() {
+                if !(l.trim_start().starts_with("#[derive(") && l.contains("thiserror::Error")) {
                     continue;
                 }
-                let text = std::fs::read_to_string(&path).unwrap();
-                let mut lines = text.lines();
-                while let Some(l) = lines.next() {
-                    if !(l.trim_start().starts_with("#[derive(") && l.contains("thiserror::Error")) {
-                        continue;
-                    }
-                    let decl =
-                        lines.by_ref().find(|l| l.contains(" enum ") || l.contains(" struct ")).unwrap();
-                    if decl.starts_with("        ") {
-                        continue; // a type local to a test
-                    }
-                    let name = decl
-                        .split_whitespace()
-                        .skip_while(|w| *w != "enum" && *w != "struct")
-                        .nth(1)
-                        .unwrap();
-                    defined.push(name.split(['{', '(', ';']).next().unwrap().to_string());
+                let decl = lines.by_ref().find(|l| l.contains(" enum ") || l.contains(" struct ")).unwrap();
+                if decl.starts_with("        ") {
+                    continue; // a type local to a test
                 }
+                let name =
+                    decl.split_whitespace().skip_while(|w| *w != "enum" && *w != "struct").nth(1).unwrap();
+                defined.push(name.split(['{', '(', ';']).next().unwrap().to_string());
             }
         }
         defined.sort();

@@ -9,6 +9,8 @@ mod exit;
 mod report;
 mod resolved;
 mod settings;
+#[cfg(test)]
+mod sources;
 mod words;
 
 use clap::{CommandFactory, FromArgMatches};

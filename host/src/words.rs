@@ -62,8 +62,6 @@ pub fn line(e: &anyhow::Error) -> String {
 
 #[cfg(test)]
 mod tests {
-    use std::path::PathBuf;
-
     use super::*;
 
     /// The pure library (`core`) spells no flag of this binary: a message names a setting
@@ -71,34 +69,24 @@ mod tests {
     /// tests is read for a `--name`.
     #[test]
     fn the_core_spells_no_flag() {
-        let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../core/src");
-        let mut stack = vec![root];
         let mut found = Vec::new();
-        while let Some(d) = stack.pop() {
-            for entry in std::fs::read_dir(&d).unwrap() {
-                let path = entry.unwrap().path();
-                if path.is_dir() {
-                    stack.push(path);
+        for (path, text) in crate::sources::library_sources(&["core"]) {
+            if path.ends_with("tests.rs") {
+                continue;
+            }
+            // Unit tests sit at the end of a file, after `#[cfg(test)]`.
+            let code = text.split("#[cfg(test)]").next().unwrap();
+            for (i, l) in code.lines().enumerate() {
+                let t = l.trim_start();
+                if t.starts_with("//") {
                     continue;
                 }
-                if path.extension().is_none_or(|x| x != "rs") || path.ends_with("tests.rs") {
-                    continue;
-                }
-                let text = std::fs::read_to_string(&path).unwrap();
-                // Unit tests sit at the end of a file, after `#[cfg(test)]`.
-                let code = text.split("#[cfg(test)]").next().unwrap();
-                for (i, l) in code.lines().enumerate() {
-                    let t = l.trim_start();
-                    if t.starts_with("//") {
-                        continue;
-                    }
-                    let flag = t.match_indices("--").any(|(at, _)| {
-                        t[at + 2..].starts_with(|c: char| c.is_ascii_lowercase())
-                            && !t[..at].ends_with(|c: char| c.is_ascii_alphanumeric())
-                    });
-                    if flag {
-                        found.push(format!("{}:{}: {t}", path.display(), i + 1));
-                    }
+                let flag = t.match_indices("--").any(|(at, _)| {
+                    t[at + 2..].starts_with(|c: char| c.is_ascii_lowercase())
+                        && !t[..at].ends_with(|c: char| c.is_ascii_alphanumeric())
+                });
+                if flag {
+                    found.push(format!("{}:{}: {t}", path.display(), i + 1));
                 }
             }
         }
