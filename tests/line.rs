@@ -5,6 +5,9 @@
 //! Needs `qemu-system-arm` (`scripts/setup-qemu.sh`) and the node's QEMU build (`cargo xtask test`
 //! builds it); the certificate check needs `chromium` (`scripts/setup-chromium.sh`).
 
+/// The station's check standard (issue 31 item 2).
+#[path = "line/check.rs"]
+mod check;
 mod common;
 /// The station killed at every journal/database boundary, the manual line, mistakes (issue 28).
 #[path = "line/crash.rs"]

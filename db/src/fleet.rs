@@ -168,7 +168,7 @@ pub struct DueUnit {
     pub due_unix_s: i64,
 }
 
-fn opt_text(v: &Val) -> Result<Option<String>, DbError> {
+pub(crate) fn opt_text(v: &Val) -> Result<Option<String>, DbError> {
     match v {
         Val::Null => Ok(None),
         v => v.text().map(Some),

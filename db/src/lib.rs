@@ -18,6 +18,7 @@
 pub mod asset;
 mod certificate;
 pub mod chain;
+pub mod check;
 mod engine;
 mod error;
 pub mod fleet;

@@ -431,6 +431,14 @@ mod tests {
                 Environment,
             ),
             (e(SessionError::Protocol { port: "p".into(), node: 3, host: 4 }), Environment),
+            (
+                e(accelcal_line::station::StationError::OutOfControl {
+                    station: "line-1".into(),
+                    serial: "GOLD-1".into(),
+                    why: "mean error x: rule 1".into(),
+                }),
+                Environment,
+            ),
         ]
     }
 

@@ -124,6 +124,11 @@ pub fn check_text(matches: &ArgMatches, command: &Command) -> anyhow::Result<()>
     for s in serials {
         header_value("--serial", s)?;
     }
+    if let Command::Station(a) = command {
+        if let Some(s) = &a.check_standard {
+            header_value("--check-standard", s)?;
+        }
+    }
     Ok(())
 }
 
@@ -454,6 +459,18 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
             let n = a.ports.len();
             // The nodes come from --port, or from the settings file's [[node]] tables.
             let port = if given.on_command_line("ports") { "--port" } else { "[[node]]" };
+            if let Some(s) = &a.check_standard {
+                let hint = " (the check standard is the unit, with the record in force)";
+                if given.has("serials") {
+                    return Err(bad(format!("--serial does not apply to station --check-standard{hint}")));
+                }
+                given.refuse(&["relabel"], "station --check-standard", hint)?;
+                if n != 1 {
+                    return Err(bad(format!(
+                        "station --check-standard {s} checks one unit: give one {port}, not {n}"
+                    )));
+                }
+            }
             let per_port = |option: &str, count: usize, optional: bool| {
                 if count == n || (optional && count == 0) {
                     return Ok(());
@@ -463,7 +480,9 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
                     if optional { " (or not at all)" } else { "" }
                 )))
             };
-            per_port("--serial", a.serials.len(), false)?;
+            if a.check_standard.is_none() {
+                per_port("--serial", a.serials.len(), false)?;
+            }
             per_port("--out", a.outs.len(), false)?;
             per_port("--gdb", a.gdb.len(), true)?;
             if n > 1 || a.probe.len() > 1 {

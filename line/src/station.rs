@@ -79,6 +79,20 @@ impl Step {
 /// What the station refuses or finds.
 #[derive(Debug, thiserror::Error)]
 pub enum StationError {
+    /// The station's check standard is out of control: production runs are refused until a
+    /// check is in control again (the station, not a unit, is in question: exit code 3).
+    #[error(
+        "station {station}: its check standard {serial} is out of control ({why}): production runs are \
+         refused until a check of it is in control again (station --check-standard {serial})"
+    )]
+    OutOfControl {
+        /// The station.
+        station: String,
+        /// The check standard's serial.
+        serial: String,
+        /// The rule broken, at which check, with the value and the limits.
+        why: String,
+    },
     /// The journal cannot be read or is not one.
     #[error("{path}: not a station journal: {reason}")]
     BadJournal {
@@ -161,6 +175,7 @@ impl Classify for StationError {
             | StationError::RecordReplaced { .. }
             | StationError::RejectedBefore { .. }
             | StationError::Rejected { .. } => Kind::Rejected,
+            StationError::OutOfControl { .. } => Kind::Environment,
             _ => Kind::BadInput,
         }
     }

@@ -412,8 +412,17 @@ pub struct StationArgs {
     pub head: Option<String>,
     /// The unit's serial number (written into the campaign and the certificate; the unit's
     /// directory is its own); one per --port.
-    #[arg(long = "serial", value_name = "S", required = true)]
+    #[arg(long = "serial", value_name = "S", required_unless_present = "check_standard")]
     pub serials: Vec<String>,
+    /// Check the station with its check standard, the unit of serial S (a known unit whose record
+    /// is in force; one --port): its as-found verification only, nothing recalibrated. The
+    /// check's value per axis, the mean error of that component over the verification's
+    /// positions (m/s²), goes on the station's individuals chart (limits x̄ ± 3σ̂, σ̂ = MR̄/1.128,
+    /// from its first 20 checks, at least 5; Western Electric rules 1 to 4). A check out of
+    /// control ends with exit code 3 naming the rule and the check, and the station then refuses
+    /// production runs (exit code 3) until a check is in control again. Needs a database.
+    #[arg(long, value_name = "S")]
+    pub check_standard: Option<String>,
     /// The unit's directory: the journal `station.json` and every file of the line (info.json,
     /// as-found-fit.json, as-found.json, campaign.csv, select.json, fit.json, record.rec, as-left.json,
     /// certificate.html). Created if missing; the same directory again resumes the unit. One per

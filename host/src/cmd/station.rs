@@ -24,6 +24,7 @@ use anyhow::Context;
 use super::store::{crash_point, DEFAULT_DB, PASS_REASON};
 use crate::cli::StationArgs;
 
+mod check;
 mod finish;
 mod steps;
 
@@ -55,7 +56,7 @@ fn units(a: &StationArgs) -> Vec<UnitSpec> {
     (0..a.ports.len())
         .map(|i| UnitSpec {
             port: a.ports[i].clone(),
-            serial: a.serials[i].clone(),
+            serial: a.check_standard.clone().unwrap_or_else(|| a.serials[i].clone()),
             dir: a.outs[i].clone(),
             gdb: a.gdb.get(i).cloned(),
             probe: a.probe.get(i).cloned(),
@@ -508,6 +509,11 @@ pub fn run(a: &StationArgs, config: Option<&crate::resolved::ConfigUse>) -> anyh
     let stop = super::live::stop_flag()?;
     // The head's register entry first: an overdue or unknown head stops the station here.
     let head_asset = a.head_asset.as_deref().map(|id| head_in_force(&db_spec, id)).transpose()?;
+    // A station whose check standard is out of control makes no calibration.
+    let station_name = a.station_name.clone().unwrap_or_else(super::store::host_name);
+    if a.check_standard.is_none() {
+        check::refuse_out_of_control(&db_spec, &station_name)?;
+    }
     if let Some(p) = &a.spec {
         let s = super::spec::read(p)?;
         eprintln!("station: specification {}", s.describe());
@@ -532,6 +538,9 @@ pub fn run(a: &StationArgs, config: Option<&crate::resolved::ConfigUse>) -> anyh
             head_asset: head_asset.as_ref(),
             tag: if specs.len() > 1 { format!("{}: ", u.serial) } else { String::new() },
         });
+    }
+    if a.check_standard.is_some() {
+        return stations[0].check_standard(&station_name);
     }
     let mut open: Vec<&mut Station<'_>> = Vec::new();
     for s in stations.iter_mut() {

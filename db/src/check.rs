@@ -1,0 +1,200 @@
+//! The check standard (issue 31 item 2): a known unit whose record is in force, measured on a
+//! station at the start of a shift (`station --check-standard SERIAL`: its as-found verification
+//! only, nothing recalibrated). Each check is a run of that unit, ended with a reason that begins
+//! with [`CHECK_REASON`] (the `run_end` row, in the hash chain): `pass` when the check is in
+//! control, `rejected` (with the rule and the point) when not.
+//!
+//! The chart: per axis x, y, z, the mean over the verification's positions of the error of that
+//! component, m/s² (on a plan of ±axis positions this is the unit's bias on the station; the
+//! scale-factor errors cancel between + and −). Phase II of an individuals chart (Montgomery
+//! §6.4): the limits ([`ImrLimits`]) are those of the first [`BASELINE`] checks (or of every
+//! check before the latest, when there are fewer), at least [`MIN_BASELINE`] of them; the
+//! Western Electric rules run over every check with those limits. A check is out of control when
+//! a rule is broken at its own point. A station refuses production while its latest check is out
+//! of control, until a check is in control again.
+
+use accelcal_core::spc::{ImrLimits, Violation};
+use accelcal_line::verify::VerifyReport;
+use serde::Serialize;
+
+use super::fleet::opt_text;
+use super::{Db, DbError};
+
+/// How the reason of a check run's end begins.
+pub const CHECK_REASON: &str = "check standard";
+
+/// The checks whose limits the chart uses.
+pub const BASELINE: usize = 20;
+
+/// The fewest earlier checks that set limits; before that, a check is recorded and not judged.
+pub const MIN_BASELINE: usize = 5;
+
+/// One check of a station's check standard.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct CheckRun {
+    /// The run.
+    pub run_id: String,
+    /// The check standard's serial.
+    pub serial: String,
+    /// Start, Unix seconds.
+    pub started_unix_s: i64,
+    /// `pass` (in control), `rejected` (out of control) or `null` (not ended).
+    pub outcome: Option<String>,
+    /// Why it ended so (begins with [`CHECK_REASON`]).
+    pub reason: String,
+    /// Per axis x, y, z, the mean error of that component over the positions, m/s² (`null`: no
+    /// as-found verification stored, or one without positions).
+    pub mean_error_m_s2: Option<[f64; 3]>,
+}
+
+/// The mean over `report`'s positions of each error component, m/s².
+pub fn mean_errors(report: &VerifyReport) -> Option<[f64; 3]> {
+    let n = report.positions.len();
+    (n > 0).then(|| {
+        std::array::from_fn(|c| report.positions.iter().map(|p| p.error_m_s2[c]).sum::<f64>() / n as f64)
+    })
+}
+
+/// A check standard's chart of one axis.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct CheckChart {
+    /// `mean error x` (y, z).
+    pub quantity: String,
+    /// m/s².
+    pub unit: &'static str,
+    /// The checks' values in time order, with their runs.
+    pub points: Vec<(String, f64)>,
+    /// The limits of the baseline (`null`: fewer than [`MIN_BASELINE`] checks before the latest).
+    pub limits: Option<ImrLimits>,
+    /// The points that break a rule.
+    pub violations: Vec<Violation>,
+}
+
+/// The three charts of `checks` (in time order; checks without values are left out).
+pub fn check_charts(checks: &[CheckRun]) -> Vec<CheckChart> {
+    let with: Vec<(&CheckRun, [f64; 3])> =
+        checks.iter().filter_map(|c| c.mean_error_m_s2.map(|m| (c, m))).collect();
+    ["x", "y", "z"]
+        .iter()
+        .enumerate()
+        .map(|(axis, name)| {
+            let x: Vec<f64> = with.iter().map(|(_, m)| m[axis]).collect();
+            let base = BASELINE.min(x.len().saturating_sub(1));
+            let limits = (base >= MIN_BASELINE).then(|| ImrLimits::of(&x[..base])).flatten();
+            let violations = limits.map(|l| l.violations(&x)).unwrap_or_default();
+            CheckChart {
+                quantity: format!("mean error {name}"),
+                unit: "m/s²",
+                points: with.iter().map(|(c, m)| (c.run_id.clone(), m[axis])).collect(),
+                limits,
+                violations,
+            }
+        })
+        .collect()
+}
+
+/// Why the latest check of `charts` is out of control: the first of rules 1 to 4 broken at its point, in
+/// words (the quantity, the rule, the check's place and value, the limits); `None` when it is in
+/// control or the charts have no limits yet.
+pub fn out_of_control(charts: &[CheckChart]) -> Option<String> {
+    charts.iter().find_map(|c| {
+        let last = c.points.len().checked_sub(1)?;
+        let l = c.limits?;
+        // Rules 1 to 4 of the individuals decide; a moving range beyond its limit (rule 5) is
+        // charted, not decisive: the check that returns from a bad one breaks it too.
+        let v = c.violations.iter().find(|v| v.index == last && v.rule <= 4)?;
+        let (run, value) = &c.points[last];
+        Some(format!(
+            "{}: rule {} ({}) at check {} of {} (run {run}): {value:+.5} {} against centre {:+.5}, limits {:+.5} to {:+.5}",
+            c.quantity,
+            v.rule,
+            v.what,
+            last + 1,
+            c.points.len(),
+            c.unit,
+            l.center,
+            l.lcl,
+            l.ucl
+        ))
+    })
+}
+
+impl Db {
+    /// The checks of `station` (every serial), oldest first, not voided.
+    pub fn check_runs(&mut self, station: &str) -> Result<Vec<CheckRun>, DbError> {
+        let rows = self.conn.transaction(|tx| {
+            tx.query(
+                "SELECT r.run_id, r.serial, r.started_unix_s, e.outcome, v.report_json, e.reason \
+                 FROM run r JOIN run_end e ON e.run_id = r.run_id \
+                 LEFT JOIN verification v ON v.run_id = r.run_id AND v.phase = 'as_found' \
+                 WHERE r.station = $1 AND substr(e.reason, 1, length($2)) = $2 \
+                 AND NOT EXISTS (SELECT 1 FROM void x WHERE x.run_id = r.run_id) \
+                 ORDER BY r.started_unix_s, r.run_id",
+                &[station.into(), CHECK_REASON.into()],
+            )
+        })?;
+        rows.iter()
+            .map(|r| {
+                let report = opt_text(&r[4])?;
+                Ok(CheckRun {
+                    run_id: r[0].text()?,
+                    serial: r[1].text()?,
+                    started_unix_s: r[2].int()?,
+                    outcome: opt_text(&r[3])?,
+                    reason: r[5].text()?,
+                    mean_error_m_s2: report
+                        .and_then(|t| serde_json::from_str::<VerifyReport>(&t).ok())
+                        .and_then(|v| mean_errors(&v)),
+                })
+            })
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn check(i: usize, m: [f64; 3]) -> CheckRun {
+        CheckRun {
+            run_id: format!("r{i}"),
+            serial: "GOLD-1".into(),
+            started_unix_s: i as i64,
+            outcome: Some("pass".into()),
+            reason: CHECK_REASON.into(),
+            mean_error_m_s2: Some(m),
+        }
+    }
+
+    #[test]
+    fn a_check_beyond_the_baseline_s_limits_is_out_of_control_and_one_within_is_not() {
+        // Ten checks scattering by ±0.001 m/s² about 0.002 on x.
+        let mut checks: Vec<CheckRun> =
+            (0..10).map(|i| check(i, [0.002 + if i % 2 == 0 { 0.001 } else { -0.001 }, 0.0, 0.0])).collect();
+        assert_eq!(out_of_control(&check_charts(&checks)), None);
+        // The head knocked: x reads 0.02 m/s² more.
+        checks.push(check(10, [0.022, 0.0, 0.0]));
+        let why = out_of_control(&check_charts(&checks)).expect("out of control");
+        assert!(
+            why.starts_with(
+                "mean error x: rule 1 (a point beyond 3σ) at check 11 of 11 (run r10): +0.02200 m/s²"
+            ),
+            "{why}"
+        );
+        // The next check back where it was: in control again.
+        checks.push(check(11, [0.002, 0.0, 0.0]));
+        assert_eq!(out_of_control(&check_charts(&checks)), None);
+    }
+
+    #[test]
+    fn too_few_checks_set_no_limits() {
+        let checks: Vec<CheckRun> = (0..MIN_BASELINE).map(|i| check(i, [i as f64, 0.0, 0.0])).collect();
+        let charts = check_charts(&checks);
+        assert!(charts.iter().all(|c| c.limits.is_none()));
+        assert_eq!(out_of_control(&charts), None);
+        // One more: the first five are the baseline.
+        let mut more = checks;
+        more.push(check(MIN_BASELINE, [100.0, 0.0, 0.0]));
+        assert!(out_of_control(&check_charts(&more)).is_some());
+    }
+}

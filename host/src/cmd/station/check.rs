@@ -1,0 +1,94 @@
+//! `station --check-standard SERIAL`: the station checked with a known unit (its as-found
+//! verification against the record in force, nothing recalibrated), the check put on the
+//! station's chart ([`accelcal_db::check`]), and production refused while the latest check is out
+//! of control.
+
+use accelcal_db::check::{check_charts, mean_errors, out_of_control, CheckRun, CHECK_REASON, MIN_BASELINE};
+
+use super::*;
+
+/// Refuses production on `station` while its latest check is out of control (exit code 3); a
+/// station without checks, or without a database yet, is not refused.
+pub(super) fn refuse_out_of_control(db_spec: &str, station: &str) -> anyhow::Result<()> {
+    let mut db = match Db::open_existing(db_spec) {
+        Err(DbError::NoDatabase { .. }) => return Ok(()),
+        r => r?,
+    };
+    let checks = db.check_runs(station)?;
+    let Some(last) = checks.last() else { return Ok(()) };
+    if last.outcome.as_deref() != Some("rejected") {
+        return Ok(());
+    }
+    let why = last.reason.strip_prefix(CHECK_REASON).unwrap_or(&last.reason);
+    let why = why.trim_start_matches([':', ' ']).trim_start_matches("out of control: ");
+    Err(StationError::OutOfControl {
+        station: station.to_string(),
+        serial: last.serial.clone(),
+        why: format!("run {}: {why}", last.run_id),
+    }
+    .into())
+}
+
+impl Station<'_> {
+    /// The check: info, the as-found verification (stored), then the run ended in control
+    /// (`pass`) or out of control (`rejected`, exit code 3), its reason saying which rule broke
+    /// at which check.
+    pub(super) fn check_standard(&mut self, station: &str) -> anyhow::Result<()> {
+        let serial = self.u.serial.clone();
+        let info = self.info()?;
+        if self.ended {
+            println!(
+                "station: check standard {serial}: finished before (run {} in {}); nothing to do",
+                self.run_id()?,
+                self.db.target()
+            );
+            return Ok(());
+        }
+        if info["record"].is_null() {
+            return Err(bad(format!(
+                "the check standard {serial} has no record in force: calibrate it with a production run first"
+            )));
+        }
+        self.as_found(&info)?;
+        let run = self.run_id()?;
+        let report = VerifyReport::read(&self.path(AS_FOUND))?;
+        let mut checks = self.db.check_runs(station)?;
+        checks.retain(|c| c.run_id != run.to_string());
+        checks.push(CheckRun {
+            run_id: run.to_string(),
+            serial: serial.clone(),
+            started_unix_s: self.journal.started_unix_s.unwrap_or_default(),
+            outcome: None,
+            reason: String::new(),
+            mean_error_m_s2: mean_errors(&report),
+        });
+        let charts = check_charts(&checks);
+        let n = checks.len();
+        let values = mean_errors(&report)
+            .map(|m| format!("mean error x {:+.5}, y {:+.5}, z {:+.5} m/s²", m[0], m[1], m[2]))
+            .unwrap_or_else(|| "no position measured".into());
+        if let Some(why) = out_of_control(&charts) {
+            self.db.finish_run(run, Outcome::Rejected, &format!("{CHECK_REASON}: out of control: {why}"))?;
+            crash_point("db:end");
+            println!("station: check standard {serial} on {station}: OUT OF CONTROL ({values})");
+            return Err(StationError::OutOfControl {
+                station: station.to_string(),
+                serial,
+                why: format!("run {run}: {why}"),
+            }
+            .into());
+        }
+        let state = if charts.iter().any(|c| c.limits.is_some()) {
+            format!("in control ({n} checks)")
+        } else {
+            format!("recorded, not judged: {} of the {MIN_BASELINE} earlier checks the limits need", n - 1)
+        };
+        self.db.finish_run(run, Outcome::Pass, &format!("{CHECK_REASON}: {state}"))?;
+        crash_point("db:end");
+        println!(
+            "station: check standard {serial} on {station}: {state} ({values}); run {run} in {}",
+            self.db.target()
+        );
+        Ok(())
+    }
+}
