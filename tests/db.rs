@@ -698,3 +698,9 @@ fn fleet_flags_a_head_knocked_out_of_true_from_the_units_campaigns() {
         "{out}"
     );
 }
+
+#[test]
+fn check_runs_are_the_station_s_checks_on_this_engine() {
+    let d = tempfile::tempdir().unwrap();
+    check_runs_are_the_station_s_checks(&db_file(&d));
+}

@@ -179,3 +179,9 @@ fn the_fleet_is_counted_by_the_database() {
     let pg = Cluster::start();
     dbkit::fleet::the_fleet_is_counted_by_the_database(&pg.url);
 }
+
+#[test]
+fn check_runs_are_the_station_s_checks_on_this_engine() {
+    let pg = dbkit::Cluster::start();
+    check_runs_are_the_station_s_checks(&pg.url);
+}
