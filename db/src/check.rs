@@ -20,7 +20,8 @@ use serde::Serialize;
 use super::fleet::opt_text;
 use super::{Db, DbError};
 
-/// How the reason of a check run's end begins.
+/// How the reason of a check run's end begins (`fleet`'s SQL leaves these runs out by it:
+/// `super::fleet`'s `WHERE`, whose 14 is this text's length).
 pub const CHECK_REASON: &str = "check standard";
 
 /// The checks whose limits the chart uses.
@@ -119,7 +120,58 @@ pub fn out_of_control(charts: &[CheckChart]) -> Option<String> {
     })
 }
 
+/// A station's check standard as `fleet` reports it.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct CheckStandard {
+    /// The station.
+    pub station: String,
+    /// The serial of its latest check.
+    pub serial: String,
+    /// Its checks, every one (the limits need the first 20).
+    pub checks: usize,
+    /// `in control`, `out of control` or `not judged` (too few checks for limits).
+    pub state: &'static str,
+    /// Why the latest check is out of control (`null` otherwise).
+    pub why: Option<String>,
+    /// The three charts.
+    pub charts: Vec<CheckChart>,
+}
+
 impl Db {
+    /// The check standard of every station that has checks (`station`: only that one), by
+    /// station name.
+    pub fn check_standards(&mut self, station: Option<&str>) -> Result<Vec<CheckStandard>, DbError> {
+        let rows = self.conn.transaction(|tx| {
+            tx.query(
+                "SELECT DISTINCT r.station FROM run r JOIN run_end e ON e.run_id = r.run_id \
+                 WHERE substr(e.reason, 1, length($1)) = $1 AND ($2 = '' OR r.station = $2) ORDER BY r.station",
+                &[CHECK_REASON.into(), station.unwrap_or("").into()],
+            )
+        })?;
+        let mut out = Vec::new();
+        for r in rows {
+            let station = r[0].text()?;
+            let checks = self.check_runs(&station)?;
+            let Some(last) = checks.last() else { continue };
+            let charts = check_charts(&checks);
+            let why = out_of_control(&charts);
+            let state = match (&why, charts.iter().any(|c| c.limits.is_some())) {
+                (Some(_), _) => "out of control",
+                (None, true) => "in control",
+                (None, false) => "not judged",
+            };
+            out.push(CheckStandard {
+                serial: last.serial.clone(),
+                checks: checks.len(),
+                station,
+                state,
+                why,
+                charts,
+            });
+        }
+        Ok(out)
+    }
+
     /// The checks of `station` (every serial), oldest first, not voided.
     pub fn check_runs(&mut self, station: &str) -> Result<Vec<CheckRun>, DbError> {
         let rows = self.conn.transaction(|tx| {
@@ -184,6 +236,12 @@ mod tests {
         // The next check back where it was: in control again.
         checks.push(check(11, [0.002, 0.0, 0.0]));
         assert_eq!(out_of_control(&check_charts(&checks)), None);
+    }
+
+    #[test]
+    fn fleet_leaves_out_the_runs_that_end_so() {
+        assert_eq!(CHECK_REASON.len(), 14);
+        assert!(super::super::fleet::WHERE.contains(&format!("substr(ce.reason, 1, 14) = '{CHECK_REASON}'")));
     }
 
     #[test]

@@ -27,7 +27,9 @@ side, 3 four of five beyond 1σ̂ on one side, 4 eight in a row on one side of t
 D4·MR̄). With all four rules, a chart of many in-control points often breaks one by chance: a violation is a place to look. \
 Head signature: per head asset, each unit's model-4 residuals read as head-angle errors at every position and its \
 misalignments, standardised by the head's first 50 units, two-sided CUSUMs (k = 0.5, h = 12 standard deviations); the \
-first unit past h is a change point.";
+first unit past h is a change point. Check standards: a station's checks (station --check-standard) are not runs of the \
+line (no count, yield or population takes them); each station's check standard is shown over all its checks, its state \
+that of its latest check (station --help says how it is judged).";
 use super::{Db, DbError};
 
 /// Which runs a fleet query takes: started in `[since, until)`, and each filter that is set.
@@ -47,10 +49,14 @@ pub struct Filter {
     pub operator: Option<String>,
 }
 
-/// The condition on `run r` of a [`Filter`], with its parameters `$1`…`$6`.
-const WHERE: &str = "r.started_unix_s >= $1 AND r.started_unix_s < $2 AND ($3 = '' OR r.station = $3) \
+/// The condition on `run r` of a [`Filter`], with its parameters `$1`…`$6`. A check of a
+/// station's check standard ([`super::check`]) is not a calibration: it is left out.
+pub(crate) const WHERE: &str =
+    "r.started_unix_s >= $1 AND r.started_unix_s < $2 AND ($3 = '' OR r.station = $3) \
      AND substr(r.serial, 1, length($4)) = $4 AND ($5 = '' OR EXISTS (SELECT 1 FROM run_asset ha \
-     WHERE ha.run_id = r.run_id AND ha.kind = 'head' AND ha.asset_id = $5)) AND ($6 = '' OR r.operator = $6)";
+     WHERE ha.run_id = r.run_id AND ha.kind = 'head' AND ha.asset_id = $5)) AND ($6 = '' OR r.operator = $6) \
+     AND NOT EXISTS (SELECT 1 FROM run_end ce WHERE ce.run_id = r.run_id \
+     AND substr(ce.reason, 1, 14) = 'check standard')";
 
 /// A run's state: `voided` before its end, `unfinished` without one, else its outcome.
 const STATE: &str =

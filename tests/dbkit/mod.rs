@@ -797,4 +797,14 @@ pub fn check_runs_are_the_station_s_checks(spec: &str) {
     let why = out_of_control(&check_charts(&checks)).expect("the last check is far out");
     assert!(why.starts_with("mean error x: rule 1"), "{why}");
     assert!(db.check_runs("line-3").unwrap().is_empty());
+    // `fleet` counts the calibration, not the checks, and shows each station's check standard.
+    let all = accelcal_db::fleet::Filter { since_unix_s: 0, until_unix_s: i64::MAX, ..Default::default() };
+    let c = db.fleet_counts(&all).unwrap();
+    assert_eq!((c.runs, c.rejected), (1, 0), "{c:?}");
+    assert_eq!(db.fleet_runs(&all).unwrap().len(), 1);
+    let cs = db.check_standards(None).unwrap();
+    let states: Vec<(&str, &str, usize)> =
+        cs.iter().map(|c| (c.station.as_str(), c.state, c.checks)).collect();
+    assert_eq!(states, [("line-1", "out of control", 7), ("line-2", "not judged", 1)]);
+    assert_eq!(db.check_standards(Some("line-2")).unwrap().len(), 1);
 }

@@ -111,6 +111,15 @@ fn a_check_standard_out_of_control_stops_production_until_a_check_is_in_control(
     let checks = Db::open(&db).unwrap().check_runs("line-1").unwrap();
     let outcomes: Vec<&str> = checks.iter().map(|c| c.outcome.as_deref().unwrap()).collect();
     assert_eq!(outcomes, ["pass", "pass", "pass", "pass", "pass", "pass", "rejected", "pass"]);
+    // `fleet` shows the station's check standard, and counts the calibration, not the checks.
+    let f = dir.path().join("fleet.json");
+    let out = succeed(&["fleet", "--db", &db, "--since", "2000-01-01", "--json", s(&f)]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("  check standard of line-1: GOLD-1, 8 checks, IN CONTROL"), "{text}");
+    let fleet = json(&f);
+    assert_eq!(fleet["counts"]["runs"], 1, "{}", fleet["counts"]);
+    assert_eq!(fleet["check_standards"][0]["state"], "in control");
+    assert_eq!(fleet["check_standards"][0]["charts"][0]["points"].as_array().unwrap().len(), 8);
     // The option that does not apply is refused.
     let mut with_serial = args.clone();
     with_serial.extend(["--serial".into(), "X".into()]);

@@ -121,7 +121,8 @@ pub enum Command {
     /// The line across units over a period: runs and units, first-pass and final yield,
     /// rejections by reason, the units found out of tolerance as found, the populations of the
     /// coefficients (mean, spread) and of the as-left parameters with their Cpk against the
-    /// specification's limits, and the units and assets due.
+    /// specification's limits, the units and assets due, and each station's check standard (its
+    /// checks are not calibrations: they are left out of the counts).
     #[command(after_long_help = accelcal_db::fleet::METHOD)]
     Fleet(FleetArgs),
     /// Print a stored certificate again, from the calibration database, as it was issued.

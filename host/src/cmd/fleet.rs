@@ -83,6 +83,9 @@ struct FleetJson<'a> {
     heads: &'a [HeadJson],
     /// The control charts by head (or station) and quantity (`accelcal_core::spc`).
     charts: &'a [Chart],
+    /// Each station's check standard (`station --check-standard`): its state and charts, over
+    /// all its checks (the limits need the first 20), whatever the period.
+    check_standards: &'a [accelcal_db::check::CheckStandard],
     runs: &'a [FleetRun],
 }
 
@@ -169,6 +172,7 @@ pub fn run(a: &FleetArgs) -> anyhow::Result<()> {
     let pops = populations(&runs);
     let heads = heads(&mut db, &runs)?;
     let charts = charts(&runs);
+    let check_standards = db.check_standards(a.station.as_deref())?;
     let found_out: Vec<&FleetRun> = runs
         .iter()
         .filter(|r| r.state != "voided" && out_of_tolerance(r.as_found_decision.as_deref()))
@@ -265,6 +269,16 @@ pub fn run(a: &FleetArgs) -> anyhow::Result<()> {
             c.limits.ucl
         );
     }
+    for c in &check_standards {
+        println!(
+            "  check standard of {}: {}, {} checks, {}{}",
+            c.station,
+            c.serial,
+            c.checks,
+            c.state.to_uppercase(),
+            c.why.as_ref().map(|w| format!(" ({w})")).unwrap_or_default()
+        );
+    }
     for h in &heads {
         let s = h.head.settings_line();
         match h.head.change_points.last() {
@@ -330,6 +344,7 @@ pub fn run(a: &FleetArgs) -> anyhow::Result<()> {
                 assets_due,
                 heads: &heads,
                 charts: &charts,
+                check_standards: &check_standards,
                 runs: &runs,
             },
         )?;
