@@ -3,6 +3,8 @@
 //!
 //! - [`FitDoc`]: `fit --json`, read by `verify --fit`, `report --fit`, `record show --fit`, the
 //!   database's `store_fit`, `history` and `fleet`.
+//! - [`SelectDoc`]: `select --json`, read by the station (whether the node can apply the
+//!   selection).
 //!
 //! A reader is lenient where older writers were: a field a reader does not need may be missing
 //! (serde defaults), and a fit written before fits carried the unit's identity reads with
@@ -91,6 +93,65 @@ impl FitDoc {
     pub fn channel(&self, name: &str) -> Option<&FitChannelDoc> {
         self.channels.iter().find(|c| c.channel == name)
     }
+}
+
+/// One candidate model of a selection.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CandidateDoc {
+    /// Its terms.
+    pub terms: Vec<String>,
+    /// Its criterion, codes (`null`: not identifiable, or not finite).
+    pub criterion: Option<f64>,
+    /// Whether the plan and split identify it.
+    pub identifiable: bool,
+}
+
+/// The model a selection chose.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SelectedDoc {
+    /// Its terms.
+    pub terms: Vec<String>,
+    /// Its coefficients fitted on all positions.
+    pub coefficients: Vec<f64>,
+    /// Its criterion, codes.
+    pub criterion: f64,
+}
+
+/// One channel's selection.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SelectChannelDoc {
+    /// The channel.
+    pub channel: String,
+    /// The model chosen.
+    pub selected: SelectedDoc,
+    /// The best criterion of any candidate, codes.
+    pub best_criterion: f64,
+    /// How many candidates were searched.
+    pub candidates_total: usize,
+    /// How long the search took, s.
+    pub search_seconds: f64,
+    /// Candidates per second.
+    pub models_per_second: f64,
+    /// How many candidates the plan and split do not identify.
+    pub unidentifiable: usize,
+    /// The candidates listed (all, or the best `--top`).
+    pub candidates: Vec<CandidateDoc>,
+}
+
+/// `select --json`: the basis, criterion, split and tolerance of the selection, and each
+/// channel's.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SelectDoc {
+    /// The candidate basis (`paper`, `linear`, …).
+    pub basis: String,
+    /// The external criterion.
+    pub criterion: crate::gmdh::Criterion,
+    /// The split (`null` for leave-one-out, which has none).
+    pub split: Option<String>,
+    /// The tolerance of "simplest within", codes.
+    pub tolerance: f64,
+    /// Each channel's selection.
+    pub channels: Vec<SelectChannelDoc>,
 }
 
 #[cfg(test)]

@@ -19,6 +19,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use accelcal_core::document::SelectDoc;
 use accelcal_core::error::{Classify, Kind};
 
 /// The journal's file name in a unit's directory.
@@ -303,35 +304,28 @@ pub const DEPLOYABLE_TERMS: [&str; 4] = ["1", "ax", "ay", "az"];
 /// same: the extra coefficients come out near zero). Refused with the channels and terms that are
 /// not, and the reason: the unit's output is not linear enough for the node's model within the
 /// selection's tolerance.
-pub fn deployable(select_json: &serde_json::Value) -> Result<(), StationError> {
+pub fn deployable(select: &SelectDoc) -> Result<(), StationError> {
     let bad_doc =
         || StationError::NotDeployable("the select JSON has no channels with selected terms".into());
-    let channels = select_json["channels"].as_array().filter(|c| !c.is_empty()).ok_or_else(bad_doc)?;
-    let tolerance = select_json["tolerance"].as_f64().unwrap_or(f64::NAN);
-    let terms_of = |v: &serde_json::Value| -> Vec<String> {
-        v.as_array()
-            .map(|a| a.iter().filter_map(|t| t.as_str().map(String::from)).collect())
-            .unwrap_or_default()
-    };
+    if select.channels.is_empty() {
+        return Err(bad_doc());
+    }
+    let tolerance = select.tolerance;
     let mut refused = Vec::new();
-    for c in channels {
-        let name = c["channel"].as_str().ok_or_else(bad_doc)?;
-        let terms = terms_of(&c["selected"]["terms"]);
+    for c in &select.channels {
+        let name = &c.channel;
+        let terms = &c.selected.terms;
         if terms.is_empty() {
             return Err(bad_doc());
         }
         let extra: Vec<&str> =
             terms.iter().map(String::as_str).filter(|t| !DEPLOYABLE_TERMS.contains(t)).collect();
         if !extra.is_empty() {
-            let model4 = c["candidates"].as_array().and_then(|cs| {
-                cs.iter()
-                    .find(|k| terms_of(&k["terms"]) == DEPLOYABLE_TERMS)
-                    .and_then(|k| k["criterion"].as_f64())
-            });
+            let model4 = c.candidates.iter().find(|k| k.terms == DEPLOYABLE_TERMS).and_then(|k| k.criterion);
             refused.push(format!(
                 "channel {name} selects {} (criterion {:.2} codes; model 4: {}): {} beyond model 4",
                 terms.join(","),
-                c["selected"]["criterion"].as_f64().unwrap_or(f64::NAN),
+                c.selected.criterion,
                 model4.map_or("not scored".into(), |m| format!("{m:.2} codes")),
                 extra.join(",")
             ));
@@ -406,12 +400,26 @@ mod tests {
 
     #[test]
     fn only_model_4_terms_are_deployable() {
+        let channel = |name: &str, x: &[&str], criterion: f64, candidates: serde_json::Value| {
+            json!({"channel": name, "selected": {"terms": x, "coefficients": [], "criterion": criterion},
+                   "best_criterion": 3.0, "candidates_total": 2, "search_seconds": 0.0,
+                   "models_per_second": 0.0, "unidentifiable": 0, "candidates": candidates})
+        };
+        let select = |channels: Vec<serde_json::Value>| -> SelectDoc {
+            serde_json::from_value(json!({"basis": "paper", "criterion": "regularity", "split": "alternate",
+                                          "tolerance": 1.0, "channels": channels}))
+            .unwrap()
+        };
         let doc = |x: &[&str]| {
-            json!({"tolerance": 1.0, "channels": [
-                {"channel": "x", "selected": {"terms": x, "criterion": 3.5},
-                 "candidates": [{"terms": ["1", "ax", "ay", "az"], "criterion": 5.25}]},
-                {"channel": "y", "selected": {"terms": ["1", "ax", "ay", "az"], "criterion": 3.4}},
-            ]})
+            select(vec![
+                channel(
+                    "x",
+                    x,
+                    3.5,
+                    json!([{"terms": ["1", "ax", "ay", "az"], "criterion": 5.25, "identifiable": true}]),
+                ),
+                channel("y", &["1", "ax", "ay", "az"], 3.4, json!([])),
+            ])
         };
         deployable(&doc(&["1", "ax", "ay", "az"])).unwrap();
         deployable(&doc(&["1", "ax"])).unwrap();
@@ -425,6 +433,6 @@ mod tests {
             "{msg}"
         );
         assert!(!msg.contains("channel y"), "{msg}");
-        assert!(deployable(&json!({"channels": []})).is_err());
+        assert!(deployable(&select(vec![])).is_err());
     }
 }

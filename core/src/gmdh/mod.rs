@@ -37,7 +37,7 @@ use crate::positions::{ChannelStats, Positions};
 pub use engine::PIVOT_TOL;
 
 /// The external criterion.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Criterion {
     /// Error on B of the model fitted on A (the paper's choice).

@@ -6,54 +6,14 @@ use accelcal_shared::terms::PAPER_MODELS;
 use accelcal_shared::{Basis, Structure};
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
-use serde::Serialize;
 
 use crate::cli::{Algorithm, SelectArgs};
 use accelcal_core::campaign::Campaign;
+use accelcal_core::document::{CandidateDoc, SelectChannelDoc, SelectDoc, SelectedDoc};
 use accelcal_core::error::bad;
 use accelcal_core::gmdh::{self, Selection, Settings};
 use accelcal_core::output::{finite, write_json};
 use accelcal_core::positions::{ChannelStats, Positions};
-
-/// JSON of one candidate.
-#[derive(Serialize)]
-pub struct CandidateJson {
-    terms: Vec<String>,
-    criterion: Option<f64>,
-    identifiable: bool,
-}
-
-/// JSON of the selected model.
-#[derive(Serialize)]
-pub struct SelectedJson {
-    terms: Vec<String>,
-    coefficients: Vec<f64>,
-    criterion: f64,
-}
-
-/// JSON of one channel.
-#[derive(Serialize)]
-pub struct ChannelJson {
-    channel: String,
-    selected: SelectedJson,
-    best_criterion: f64,
-    candidates_total: usize,
-    search_seconds: f64,
-    models_per_second: f64,
-    unidentifiable: usize,
-    candidates: Vec<CandidateJson>,
-}
-
-/// The whole JSON document.
-#[derive(Serialize)]
-pub struct SelectJson {
-    basis: String,
-    criterion: gmdh::Criterion,
-    /// `null` for leave-one-out, which has no split.
-    split: Option<String>,
-    tolerance: f64,
-    channels: Vec<ChannelJson>,
-}
 
 fn names(s: Structure) -> Vec<String> {
     s.terms().map(|t| t.to_string()).collect()
@@ -222,7 +182,7 @@ pub fn print_tables(sel: &[Selection], settings: &Settings) {
 }
 
 /// Builds the JSON document.
-pub fn to_json(sel: &[Selection], settings: &Settings, split: &str, top: Option<usize>) -> SelectJson {
+pub fn to_json(sel: &[Selection], settings: &Settings, split: &str, top: Option<usize>) -> SelectDoc {
     let channels = sel
         .iter()
         .map(|s| {
@@ -232,9 +192,9 @@ pub fn to_json(sel: &[Selection], settings: &Settings, split: &str, top: Option<
             if top > 0 && top < n {
                 best_first(&mut idx, top, |i| s.candidates[i].criterion);
             }
-            ChannelJson {
+            SelectChannelDoc {
                 channel: s.channel.clone(),
-                selected: SelectedJson {
+                selected: SelectedDoc {
                     terms: names(s.selected().structure),
                     coefficients: s.fit.coefficients.clone(),
                     criterion: s.selected().criterion.expect("selected is identifiable"),
@@ -248,7 +208,7 @@ pub fn to_json(sel: &[Selection], settings: &Settings, split: &str, top: Option<
                     .into_iter()
                     .map(|i| {
                         let c = &s.candidates[i];
-                        CandidateJson {
+                        CandidateDoc {
                             terms: names(c.structure),
                             criterion: c.criterion.and_then(finite),
                             identifiable: c.criterion.is_some(),
@@ -258,7 +218,7 @@ pub fn to_json(sel: &[Selection], settings: &Settings, split: &str, top: Option<
             }
         })
         .collect();
-    SelectJson {
+    SelectDoc {
         basis: format!("{:?}", settings.basis).to_lowercase(),
         criterion: settings.criterion,
         split: (settings.criterion != gmdh::Criterion::Loo).then(|| split.to_string()),
