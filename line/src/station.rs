@@ -195,6 +195,10 @@ pub struct StepRecord {
     pub outcome: String,
     /// SHA-256 (hex) of each file it wrote, by name in the unit's directory.
     pub outputs: BTreeMap<String, String>,
+    /// The wall time of its command, s (`null`: the step ran no command, or a journal written
+    /// before steps were timed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub seconds: Option<f64>,
 }
 
 /// A unit's journal.
@@ -353,6 +357,7 @@ mod tests {
             finished: "2026-12-02T00:00:00Z".into(),
             outcome: "ok".into(),
             outputs: outputs.iter().map(|(n, h)| (n.to_string(), h.to_string())).collect(),
+            seconds: None,
         }
     }
 

@@ -55,6 +55,21 @@ fn the_station_runs_the_line_journals_it_and_resumes_after_ctrl_c() {
     let steps: Vec<String> = journal(&a).into_iter().map(|(s, _)| s).collect();
     assert_eq!(steps, ["info", "as-found", "acquire", "select", "fit", "flash", "as-left", "certificate"]);
     assert_eq!(journal(&a)[1].1, "skipped: no record in force");
+    // Each step that ran a command states its time; the station says how its time was spent
+    // (issue 32 item 3).
+    let seconds: Vec<Option<f64>> = json(&a.join("station.json"))["steps"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["seconds"].as_f64())
+        .collect();
+    assert!(
+        seconds[1].is_none() && seconds.iter().enumerate().all(|(i, t)| i == 1 || t.is_some_and(|t| t > 0.0)),
+        "{seconds:?}"
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    let time = err.lines().find(|l| l.starts_with("station: time ")).unwrap_or_else(|| panic!("{err}"));
+    assert!(time.contains(", acquire ") && time.contains("% of the run)"), "{time}");
     assert!(a.join("certificate.html").is_file());
     let crc = json(&a.join("as-left.json"))["record"]["crc"].as_str().unwrap().to_string();
     assert_runs_record(&em, &a.join("info.json"), &crc);

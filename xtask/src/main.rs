@@ -21,6 +21,7 @@ mod docs;
 mod firmware;
 mod gmdh;
 mod live;
+mod station;
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("xtask sits in the workspace").to_path_buf()
@@ -190,13 +191,15 @@ fn bench(only: Option<&str>) -> anyhow::Result<()> {
             gmdh::bench(&root())?;
             uncertainty_bench()?;
             firmware::bench()?;
-            live::bench()
+            live::bench()?;
+            station::bench()
         }
         Some("uncertainty") => uncertainty_bench(),
         Some("firmware") => firmware::bench(),
         Some("live") => live::bench(),
+        Some("station") => station::bench(),
         Some(other) => {
-            anyhow::bail!("bench: unknown part `{other}` (the parts: uncertainty, firmware, live)")
+            anyhow::bail!("bench: unknown part `{other}` (the parts: uncertainty, firmware, live, station)")
         }
     }
 }

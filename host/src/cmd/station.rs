@@ -84,6 +84,8 @@ struct Station<'a> {
     info: serde_json::Value,
     /// `--head-asset`'s certificate in force (checked before any node is touched).
     head_asset: Option<&'a Asset>,
+    /// When the command of the step being run started (`run`), for the journal's `seconds`.
+    step_start: std::cell::Cell<Option<std::time::Instant>>,
 }
 
 /// The station's database: `--db`, else `ACCELCAL_DB`, else `calibration.sqlite` beside the
@@ -205,6 +207,7 @@ impl Station<'_> {
             self.journalled(args).join(" ")
         );
         let exe = std::env::current_exe().context("finding the accelcal executable")?;
+        self.step_start.set(Some(std::time::Instant::now()));
         let status = Command::new(exe)
             .args(args)
             .status()
@@ -243,7 +246,8 @@ impl Station<'_> {
         let finished = super::record::utc(super::created(None));
         eprintln!("station: {}{} {outcome}", self.tag, step.name());
         let command = self.journalled(&command);
-        self.journal.finish(StepRecord { step, command, finished, outcome, outputs });
+        let seconds = self.step_start.take().map(|t| t.elapsed().as_secs_f64());
+        self.journal.finish(StepRecord { step, command, finished, outcome, outputs, seconds });
         write_json(&self.path(JOURNAL), &self.journal)?;
         crash_point(&format!("journal:{}", step.name()));
         Ok(())
@@ -480,7 +484,10 @@ fn acquire_together(units: &mut [&mut Station<'_>]) -> anyhow::Result<()> {
         if let Exit::Failed = units[first].run(Step::Acquire, &args)? {
             return Err(anyhow::anyhow!("step acquire failed (its error is above)"));
         }
+        // One campaign for every unit on the head: each journal states its time.
+        let started = units[first].step_start.get();
         for &i in &todo {
+            units[i].step_start.set(started);
             units[i].finish(Step::Acquire, args.clone(), "campaign recorded".into(), &[CAMPAIGN])?;
         }
     }
@@ -502,6 +509,7 @@ pub fn run(a: &StationArgs, config: Option<&crate::resolved::ConfigUse>) -> anyh
         };
         eprintln!("station: settings {} ({}){overridden}", c.path.display(), c.keys.join(", "));
     }
+    let t0 = std::time::Instant::now();
     let specs = units(a);
     let db_spec = db_spec(a);
     let mut stations = Vec::with_capacity(specs.len());
@@ -536,6 +544,7 @@ pub fn run(a: &StationArgs, config: Option<&crate::resolved::ConfigUse>) -> anyh
             ended: false,
             info: serde_json::Value::Null,
             head_asset: head_asset.as_ref(),
+            step_start: std::cell::Cell::new(None),
             tag: if specs.len() > 1 { format!("{}: ", u.serial) } else { String::new() },
         });
     }
@@ -558,21 +567,61 @@ pub fn run(a: &StationArgs, config: Option<&crate::resolved::ConfigUse>) -> anyh
     }
     acquire_together(&mut open)?;
     let mut rejected = Vec::new();
+    let result = after_acquire_all(open, specs.len(), &mut rejected);
+    eprintln!("station: {}", time_summary(&stations, t0.elapsed().as_secs_f64()));
+    result?;
+    if rejected.is_empty() {
+        Ok(())
+    } else {
+        Err(StationError::Rejected { units: rejected.join(", "), total: specs.len() }.into())
+    }
+}
+
+/// Each unit's steps after the campaign; a rejected unit among several is named in `rejected`
+/// and does not stop the others.
+fn after_acquire_all(
+    open: Vec<&mut Station<'_>>,
+    units: usize,
+    rejected: &mut Vec<String>,
+) -> anyhow::Result<()> {
     for s in open {
         match s.after_acquire() {
             Ok(()) => {}
-            Err(e) if specs.len() > 1 && is_rejection(&e) => {
+            Err(e) if units > 1 && is_rejection(&e) => {
                 eprintln!("station: unit {} REJECTED: {}", s.u.serial, crate::words::line(&e));
                 rejected.push(s.u.serial.clone());
             }
             Err(e) => return Err(e),
         }
     }
-    if rejected.is_empty() {
-        Ok(())
-    } else {
-        Err(StationError::Rejected { units: rejected.join(", "), total: specs.len() }.into())
-    }
+    Ok(())
+}
+
+/// How the station's `wall` seconds were spent, from the units' journals: each step's command
+/// time summed over the units (the campaign, one for every unit on the head, once), and the
+/// share of the run during which the head was neither moving nor dwelling (the steps that use
+/// the head are the as-found verifications, the campaign and the as-left verifications; the
+/// rest of the time the head waits).
+fn time_summary(stations: &[Station<'_>], wall: f64) -> String {
+    let mut busy = 0.0;
+    let steps: Vec<String> = Step::ALL
+        .iter()
+        .map(|&step| {
+            let times =
+                stations.iter().filter_map(|s| s.journal.steps.iter().find(|r| r.step == step)?.seconds);
+            let t = if step == Step::Acquire { times.fold(0.0, f64::max) } else { times.sum() };
+            if matches!(step, Step::AsFound | Step::Acquire | Step::AsLeft) {
+                busy += t;
+            }
+            format!("{} {t:.1} s", step.name())
+        })
+        .collect();
+    let idle = (wall - busy).max(0.0);
+    format!(
+        "time {wall:.1} s: {}; the head moving or dwelling {busy:.1} s, waiting {idle:.1} s ({:.0} % of the run)",
+        steps.join(", "),
+        100.0 * idle / wall.max(1e-9)
+    )
 }
 
 /// `--head-asset`'s certificate in force, read from the database without creating it (a missing
