@@ -609,7 +609,8 @@ fn time_summary(stations: &[Station<'_>], wall: f64) -> String {
         .map(|&step| {
             let times =
                 stations.iter().filter_map(|s| s.journal.steps.iter().find(|r| r.step == step)?.seconds);
-            let t = if step == Step::Acquire { times.fold(0.0, f64::max) } else { times.sum() };
+            // (+ 0.0: an empty sum of f64 is −0.0.)
+            let t = if step == Step::Acquire { times.fold(0.0, f64::max) } else { times.sum::<f64>() + 0.0 };
             if matches!(step, Step::AsFound | Step::Acquire | Step::AsLeft) {
                 busy += t;
             }
