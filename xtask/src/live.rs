@@ -17,14 +17,19 @@ const SECONDS: u64 = 30;
 /// Rates measured, Hz.
 const RATES: [u32; 6] = [100, 250, 500, 750, 1000, 2000];
 
-pub fn bench() -> anyhow::Result<()> {
+/// What an emulated bench needs: QEMU, the node's QEMU build and the release `accelcal`; the
+/// paths of the binary and of the node's image.
+pub fn emulated_bench() -> anyhow::Result<(std::path::PathBuf, std::path::PathBuf)> {
     let r = root();
     crate::firmware::prepare()?;
     crate::firmware::setup_qemu()?;
     crate::firmware::build_qemu()?;
     run(&r, "cargo", &["build", "--release", "--locked", "-p", "accelcal"])?;
-    let exe = r.join("target/release/accelcal");
-    let elf = crate::firmware::elf("node-qemu");
+    Ok((r.join("target/release/accelcal"), crate::firmware::elf("node-qemu")))
+}
+
+pub fn bench() -> anyhow::Result<()> {
+    let (exe, elf) = emulated_bench()?;
     let dir = std::env::temp_dir().join(format!("accelcal-live-bench-{}", std::process::id()));
     std::fs::create_dir_all(&dir)?;
     let unit = dir.join("unit.json");

@@ -10,19 +10,11 @@ use std::process::{Command, Stdio};
 
 use anyhow::Context;
 
-use crate::{root, run};
-
 /// Node counts measured.
 const NODES: [usize; 2] = [1, 4];
 
 pub fn bench() -> anyhow::Result<()> {
-    let r = root();
-    crate::firmware::prepare()?;
-    crate::firmware::setup_qemu()?;
-    crate::firmware::build_qemu()?;
-    run(&r, "cargo", &["build", "--release", "--locked", "-p", "accelcal"])?;
-    let exe = r.join("target/release/accelcal");
-    let elf = crate::firmware::elf("node-qemu");
+    let (exe, elf) = crate::live::emulated_bench()?;
     let mut lines = Vec::new();
     for n in NODES {
         lines.push((n, station(&exe, &elf, n)?));
