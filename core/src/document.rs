@@ -5,6 +5,8 @@
 //!   database's `store_fit`, `history` and `fleet`.
 //! - [`SelectDoc`]: `select --json`, read by the station (whether the node can apply the
 //!   selection).
+//! - [`InfoDoc`]: `info --json`, read by the station (the node's device, firmware and record in
+//!   force).
 //!
 //! A reader is lenient where older writers were: a field a reader does not need may be missing
 //! (serde defaults), and a fit written before fits carried the unit's identity reads with
@@ -152,6 +154,50 @@ pub struct SelectDoc {
     pub tolerance: f64,
     /// Each channel's selection.
     pub channels: Vec<SelectChannelDoc>,
+}
+
+/// The record a node runs, as `info --json` (and a verification's `record`) states it (the fields
+/// in the order of their names).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RecordInForceDoc {
+    /// The record's creation time, seconds since the Unix epoch.
+    pub created_unix_s: u64,
+    /// Its CRC-32, 8 lower-case hex digits.
+    pub crc: String,
+    /// The slot's write sequence number.
+    pub sequence: u32,
+    /// The record slot it was read from (0 or 1).
+    pub slot: u8,
+}
+
+impl RecordInForceDoc {
+    /// The record `r` a node reports, or `None` when it runs none.
+    pub fn of(r: accelcal_shared::wire::RecordStatus) -> Option<RecordInForceDoc> {
+        match r {
+            accelcal_shared::wire::RecordStatus::InUse { slot, sequence, created_unix_s, crc } => {
+                Some(RecordInForceDoc { slot, sequence, created_unix_s, crc: format!("{crc:08x}") })
+            }
+            accelcal_shared::wire::RecordStatus::Missing(_) => None,
+        }
+    }
+}
+
+/// `info --json`: who the node is and what it runs (the field names are an interface; the
+/// fields in the order of their names, as the document has always been written).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct InfoDoc {
+    /// The MCU's unique id, 24 lower-case hex digits.
+    pub device_id: String,
+    /// The firmware's version, `major.minor.patch`.
+    pub firmware: String,
+    /// Sample sets lost since boot.
+    pub overruns: u32,
+    /// The sampling rate, Hz per channel.
+    pub rate_hz: u32,
+    /// The record in force (`null`: none).
+    pub record: Option<RecordInForceDoc>,
+    /// The cause of the last reset (`PowerOn`, `IndependentWatchdog`, …).
+    pub reset_cause: String,
 }
 
 #[cfg(test)]

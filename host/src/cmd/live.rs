@@ -14,13 +14,12 @@ use accelcal_line::acquire::{
     self, AcquireConfig, NodeRun, PositionReport, Positioner, Progress, StaticRule,
 };
 use accelcal_line::node::head::{HeadSpec, SimHead};
-use accelcal_line::node::session::{device_id_hex, firmware_version, record_json, Session};
+use accelcal_line::node::session::{device_id_hex, firmware_version, Session};
 use accelcal_line::verify::{
     calibrated_rule, uncertainty_from_fit_json, verify, PositionCheck, Tolerance, VerifyConfig, VerifyReport,
     DEFAULT_COVERAGE,
 };
 use accelcal_shared::wire::{Info, Output, RecordStatus};
-use serde_json::json;
 
 use crate::cli::{AcquireArgs, InfoArgs, OutputArg, OutputArgs, PortArgs, VerifyArgs};
 
@@ -34,15 +33,15 @@ fn reset_name(i: &Info) -> String {
 }
 
 /// `accelcal info`'s JSON document (the field names are an interface).
-pub fn info_json(i: &Info) -> serde_json::Value {
-    json!({
-        "device_id": device_id_hex(&i.device_id),
-        "firmware": firmware_version(i.firmware),
-        "record": record_json(i.record),
-        "rate_hz": i.rate_hz,
-        "overruns": i.overruns,
-        "reset_cause": reset_name(i),
-    })
+pub fn info_json(i: &Info) -> accelcal_core::document::InfoDoc {
+    accelcal_core::document::InfoDoc {
+        device_id: device_id_hex(&i.device_id),
+        firmware: firmware_version(i.firmware),
+        record: accelcal_core::document::RecordInForceDoc::of(i.record),
+        rate_hz: i.rate_hz,
+        overruns: i.overruns,
+        reset_cause: reset_name(i),
+    }
 }
 
 /// What `accelcal info` prints.

@@ -14,6 +14,7 @@ use std::process::Command;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
+use accelcal_core::document::InfoDoc;
 use accelcal_core::error::{bad, environment, Interrupted};
 use accelcal_core::output::write_json;
 use accelcal_db::{Asset, AssetError, AssetKind, Db, DbError, Outcome, Phase, Relabel, RunId, RunStart};
@@ -80,8 +81,8 @@ struct Station<'a> {
     ended: bool,
     /// `SERIAL: ` before the unit's progress lines when the head carries several units.
     tag: String,
-    /// What step info found on the node (`info --json`).
-    info: serde_json::Value,
+    /// What step info found on the node (`info --json`), once it has run.
+    info: Option<InfoDoc>,
     /// `--head-asset`'s certificate in force (checked before any node is touched).
     head_asset: Option<&'a Asset>,
     /// When the command of the step being run started (`run`), for the journal's `seconds`.
@@ -286,7 +287,7 @@ impl Station<'_> {
     }
 
     /// Step `info`, run every time: the node on the port must be the journal's device.
-    fn info(&mut self) -> anyhow::Result<serde_json::Value> {
+    fn info(&mut self) -> anyhow::Result<InfoDoc> {
         let mut args = vec!["info".to_string()];
         args.extend(self.link());
         args.extend(["--json".into(), self.p(INFO)]);
@@ -294,22 +295,22 @@ impl Station<'_> {
             return Err(anyhow::anyhow!("step info failed (its error is above)"));
         }
         let text = std::fs::read_to_string(self.path(INFO)).with_context(|| self.p(INFO))?;
-        let info: serde_json::Value = serde_json::from_str(&text).with_context(|| self.p(INFO))?;
-        let device = info["device_id"].as_str().context("info.json has no device_id")?.to_string();
+        let info: InfoDoc = serde_json::from_str(&text).with_context(|| self.p(INFO))?;
+        let device = info.device_id.clone();
         self.journal.set_device(self.dir, &device)?;
-        let record = match info["record"]["crc"].as_str() {
-            Some(crc) => format!("record CRC {crc} in force"),
+        let record = match &info.record {
+            Some(r) => format!("record CRC {} in force", r.crc),
             None => "no record in force".into(),
         };
         self.finish(Step::Info, args, format!("device {device}, {record}"), &[INFO])?;
-        self.info = info.clone();
+        self.info = Some(info.clone());
         self.begin(&info, &device)?;
         Ok(info)
     }
 
     /// The CRC (8 hex digits) of the record the node runs, from step info.
     fn crc_in_force(&self) -> Option<String> {
-        self.info["record"]["crc"].as_str().map(|c| c.to_ascii_lowercase())
+        self.info.as_ref()?.record.as_ref().map(|r| r.crc.to_ascii_lowercase())
     }
 
     /// Whether the node runs the record with CRC-32 `crc` (step info says).
@@ -351,7 +352,7 @@ impl Station<'_> {
 
     /// Begins the run in the database (the journal keeps its id and time: the same run on a
     /// resume), or refuses one that has ended.
-    fn begin(&mut self, info: &serde_json::Value, device: &str) -> anyhow::Result<()> {
+    fn begin(&mut self, info: &InfoDoc, device: &str) -> anyhow::Result<()> {
         let run = match &self.journal.run_id {
             Some(r) => RunId::parse(r)?,
             None => RunId::new(),
@@ -367,7 +368,7 @@ impl Station<'_> {
             operator: self.a.operator.clone().unwrap_or_else(super::store::user_name),
             started_unix_s: started,
             software_version: env!("CARGO_PKG_VERSION").into(),
-            firmware_version: info["firmware"].as_str().unwrap_or_default().to_string(),
+            firmware_version: info.firmware.clone(),
             g_m_s2: g,
             g_source,
         };
@@ -542,7 +543,7 @@ pub fn run(a: &StationArgs, config: Option<&crate::resolved::ConfigUse>) -> anyh
             db_spec: db_spec.clone(),
             run: None,
             ended: false,
-            info: serde_json::Value::Null,
+            info: None,
             head_asset: head_asset.as_ref(),
             step_start: std::cell::Cell::new(None),
             tag: if specs.len() > 1 { format!("{}: ", u.serial) } else { String::new() },

@@ -299,14 +299,8 @@ impl Session {
 /// The record in force as JSON, as `info --json` and `verify --json` write it: `{"slot",
 /// "sequence", "created_unix_s", "crc"}` (CRC as 8 hex digits), or null when there is none.
 pub fn record_json(r: accelcal_shared::wire::RecordStatus) -> serde_json::Value {
-    match r {
-        accelcal_shared::wire::RecordStatus::InUse { slot, sequence, created_unix_s, crc } => {
-            serde_json::json!({
-                "slot": slot, "sequence": sequence, "created_unix_s": created_unix_s, "crc": format!("{crc:08x}")
-            })
-        }
-        accelcal_shared::wire::RecordStatus::Missing(_) => serde_json::Value::Null,
-    }
+    serde_json::to_value(accelcal_core::document::RecordInForceDoc::of(r))
+        .expect("a record in force serialises")
 }
 
 /// A device id as `fit --device-id` takes it: 24 lower-case hex digits.

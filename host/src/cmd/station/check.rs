@@ -44,7 +44,7 @@ impl Station<'_> {
             );
             return Ok(());
         }
-        if info["record"].is_null() {
+        if info.record.is_none() {
             return Err(bad(format!(
                 "the check standard {serial} has no record in force: calibrate it with a production run first"
             )));

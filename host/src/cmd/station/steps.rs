@@ -6,7 +6,7 @@ use super::*;
 impl Station<'_> {
     /// Step `as-found`: the record in force, verified before anything changes. Its failure is
     /// the as-found result, not the station's.
-    pub(super) fn as_found(&mut self, info: &serde_json::Value) -> anyhow::Result<()> {
+    pub(super) fn as_found(&mut self, info: &InfoDoc) -> anyhow::Result<()> {
         self.as_found_step(info)?;
         if self.path(AS_FOUND).is_file() {
             let run = self.run_id()?;
@@ -17,11 +17,11 @@ impl Station<'_> {
         Ok(())
     }
 
-    pub(super) fn as_found_step(&mut self, info: &serde_json::Value) -> anyhow::Result<()> {
+    pub(super) fn as_found_step(&mut self, info: &InfoDoc) -> anyhow::Result<()> {
         if self.done(Step::AsFound)? {
             return Ok(());
         }
-        if info["record"].is_null() {
+        if info.record.is_none() {
             return self.finish(Step::AsFound, vec![], "skipped: no record in force".into(), &[]);
         }
         let _ = std::fs::remove_file(self.path(AS_FOUND));
@@ -48,8 +48,9 @@ impl Station<'_> {
 
     /// The fit of the record in force, from the database (written to the unit's directory for
     /// the as-found verification's tolerance), when a run stored it.
-    pub(super) fn stored_fit_of(&mut self, info: &serde_json::Value) -> anyhow::Result<Option<String>> {
-        let (Some(device), Some(crc)) = (self.journal.device_id.clone(), info["record"]["crc"].as_str())
+    pub(super) fn stored_fit_of(&mut self, info: &InfoDoc) -> anyhow::Result<Option<String>> {
+        let (Some(device), Some(crc)) =
+            (self.journal.device_id.clone(), info.record.as_ref().map(|r| r.crc.as_str()))
         else {
             return Ok(None);
         };
