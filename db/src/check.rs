@@ -120,6 +120,68 @@ pub fn out_of_control(charts: &[CheckChart]) -> Option<String> {
     })
 }
 
+/// The latest check of a chart, judged.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Judgement {
+    /// A rule of 1 to 4 broke at its point ([`out_of_control`]'s words).
+    OutOfControl(String),
+    /// The chart has limits and no rule broke at its point.
+    InControl,
+    /// Too few earlier checks for limits.
+    NotJudged,
+}
+
+/// The latest check of `charts`, judged.
+pub fn judge(charts: &[CheckChart]) -> Judgement {
+    match out_of_control(charts) {
+        Some(why) => Judgement::OutOfControl(why),
+        None if charts.iter().any(|c| c.limits.is_some()) => Judgement::InControl,
+        None => Judgement::NotJudged,
+    }
+}
+
+/// How the reason of a check that ended out of control begins, after [`CHECK_REASON`].
+const OUT_OF_CONTROL: &str = "out of control: ";
+
+impl Judgement {
+    /// `in control`, `out of control` or `not judged`.
+    pub fn state(&self) -> &'static str {
+        match self {
+            Judgement::OutOfControl(_) => "out of control",
+            Judgement::InControl => "in control",
+            Judgement::NotJudged => "not judged",
+        }
+    }
+
+    /// What the check of `checks` checks in all (this one included) found, in words.
+    pub fn words(&self, checks: usize) -> String {
+        match self {
+            Judgement::OutOfControl(why) => format!("{OUT_OF_CONTROL}{why}"),
+            Judgement::InControl => format!("in control ({checks} checks)"),
+            Judgement::NotJudged => format!(
+                "recorded, not judged: {} of the {MIN_BASELINE} earlier checks the limits need",
+                checks.saturating_sub(1)
+            ),
+        }
+    }
+
+    /// The reason its run ends with: [`CHECK_REASON`], then [`Judgement::words`]
+    /// ([`why_out_of_control`] reads it back).
+    pub fn reason(&self, checks: usize) -> String {
+        format!("{CHECK_REASON}: {}", self.words(checks))
+    }
+}
+
+/// Why a check ended out of control, read from the reason [`Judgement::reason`] wrote (the whole
+/// reason, for one written otherwise).
+pub fn why_out_of_control(reason: &str) -> &str {
+    reason
+        .strip_prefix(CHECK_REASON)
+        .and_then(|r| r.strip_prefix(": "))
+        .and_then(|r| r.strip_prefix(OUT_OF_CONTROL))
+        .unwrap_or(reason)
+}
+
 /// A station's check standard as `fleet` reports it.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct CheckStandard {
@@ -154,11 +216,11 @@ impl Db {
             let checks = self.check_runs(&station)?;
             let Some(last) = checks.last() else { continue };
             let charts = check_charts(&checks);
-            let why = out_of_control(&charts);
-            let state = match (&why, charts.iter().any(|c| c.limits.is_some())) {
-                (Some(_), _) => "out of control",
-                (None, true) => "in control",
-                (None, false) => "not judged",
+            let judgement = judge(&charts);
+            let state = judgement.state();
+            let why = match judgement {
+                Judgement::OutOfControl(why) => Some(why),
+                _ => None,
             };
             out.push(CheckStandard {
                 serial: last.serial.clone(),
@@ -233,9 +295,14 @@ mod tests {
             ),
             "{why}"
         );
+        // The reason its run ends with, read back.
+        let j = judge(&check_charts(&checks));
+        assert_eq!(j, Judgement::OutOfControl(why.clone()));
+        assert_eq!(why_out_of_control(&j.reason(11)), why);
         // The next check back where it was: in control again.
         checks.push(check(11, [0.002, 0.0, 0.0]));
         assert_eq!(out_of_control(&check_charts(&checks)), None);
+        assert_eq!(judge(&check_charts(&checks)).reason(12), "check standard: in control (12 checks)");
     }
 
     #[test]
@@ -250,6 +317,7 @@ mod tests {
         let charts = check_charts(&checks);
         assert!(charts.iter().all(|c| c.limits.is_none()));
         assert_eq!(out_of_control(&charts), None);
+        assert_eq!(judge(&charts).state(), "not judged");
         // One more: the first five are the baseline.
         let mut more = checks;
         more.push(check(MIN_BASELINE, [100.0, 0.0, 0.0]));

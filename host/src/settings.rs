@@ -196,7 +196,9 @@ fn gravity_of(command: &mut Command) -> Option<(&mut f64, &LocalGravity)> {
 }
 
 /// Checks `--latitude`/`--height` and puts the local gravity they give into the command's `g`:
-/// `--g` and `--latitude` together are refused, as is `--height` without `--latitude`.
+/// `--g` and `--latitude` together are refused, as is `--height` without `--latitude`. Returns
+/// whether the user stated g (`--g` or `--latitude`) to a command that reads a campaign (its
+/// `# g_m_s2:` line then does not apply); `false` for the others.
 pub fn resolve_gravity(command: &mut Command, given: &Given) -> anyhow::Result<bool> {
     let optional = match command {
         Command::Acquire(a) => Some((&mut a.g, &a.local)),

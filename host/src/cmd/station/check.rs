@@ -3,7 +3,7 @@
 //! station's chart ([`accelcal_db::check`]), and production refused while the latest check is out
 //! of control.
 
-use accelcal_db::check::{check_charts, mean_errors, out_of_control, CheckRun, CHECK_REASON, MIN_BASELINE};
+use accelcal_db::check::{check_charts, judge, mean_errors, why_out_of_control, CheckRun, Judgement};
 
 use super::*;
 
@@ -19,12 +19,10 @@ pub(super) fn refuse_out_of_control(db_spec: &str, station: &str) -> anyhow::Res
     if last.outcome.as_deref() != Some("rejected") {
         return Ok(());
     }
-    let why = last.reason.strip_prefix(CHECK_REASON).unwrap_or(&last.reason);
-    let why = why.trim_start_matches([':', ' ']).trim_start_matches("out of control: ");
     Err(StationError::OutOfControl {
         station: station.to_string(),
         serial: last.serial.clone(),
-        why: format!("run {}: {why}", last.run_id),
+        why: format!("run {}: {}", last.run_id, why_out_of_control(&last.reason)),
     }
     .into())
 }
@@ -52,6 +50,7 @@ impl Station<'_> {
         self.as_found(&info)?;
         let run = self.run_id()?;
         let report = VerifyReport::read(&self.path(AS_FOUND))?;
+        let mean = mean_errors(&report);
         let mut checks = self.db.check_runs(station)?;
         checks.retain(|c| c.run_id != run.to_string());
         checks.push(CheckRun {
@@ -60,16 +59,18 @@ impl Station<'_> {
             started_unix_s: self.journal.started_unix_s.unwrap_or_default(),
             outcome: None,
             reason: String::new(),
-            mean_error_m_s2: mean_errors(&report),
+            mean_error_m_s2: mean,
         });
-        let charts = check_charts(&checks);
         let n = checks.len();
-        let values = mean_errors(&report)
+        let judgement = judge(&check_charts(&checks));
+        let values = mean
             .map(|m| format!("mean error x {:+.5}, y {:+.5}, z {:+.5} m/s²", m[0], m[1], m[2]))
             .unwrap_or_else(|| "no position measured".into());
-        if let Some(why) = out_of_control(&charts) {
-            self.db.finish_run(run, Outcome::Rejected, &format!("{CHECK_REASON}: out of control: {why}"))?;
-            crash_point("db:end");
+        let outcome =
+            if let Judgement::OutOfControl(_) = judgement { Outcome::Rejected } else { Outcome::Pass };
+        self.db.finish_run(run, outcome, &judgement.reason(n))?;
+        crash_point("db:end");
+        if let Judgement::OutOfControl(why) = judgement {
             println!("station: check standard {serial} on {station}: OUT OF CONTROL ({values})");
             return Err(StationError::OutOfControl {
                 station: station.to_string(),
@@ -78,13 +79,7 @@ impl Station<'_> {
             }
             .into());
         }
-        let state = if charts.iter().any(|c| c.limits.is_some()) {
-            format!("in control ({n} checks)")
-        } else {
-            format!("recorded, not judged: {} of the {MIN_BASELINE} earlier checks the limits need", n - 1)
-        };
-        self.db.finish_run(run, Outcome::Pass, &format!("{CHECK_REASON}: {state}"))?;
-        crash_point("db:end");
+        let state = judgement.words(n);
         println!(
             "station: check standard {serial} on {station}: {state} ({values}); run {run} in {}",
             self.db.target()
