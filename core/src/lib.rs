@@ -19,6 +19,7 @@ pub mod calibrate;
 pub mod campaign;
 pub mod compare;
 pub mod conformity;
+pub mod design;
 pub mod diagnose;
 pub mod digest;
 pub mod document;

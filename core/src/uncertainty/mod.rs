@@ -189,7 +189,7 @@ fn head_accel(alpha_deg: f64, beta_deg: f64, d_alpha: f64, d_beta: f64, w: [f64;
 }
 
 /// ∂a/∂θ at a position for the five head parameters (δα, δβ, ωx, ωy, ωz), central differences.
-fn head_partials(alpha_deg: f64, beta_deg: f64, g: f64) -> [[f64; 3]; 5] {
+pub(crate) fn head_partials(alpha_deg: f64, beta_deg: f64, g: f64) -> [[f64; 3]; 5] {
     const H: f64 = 1e-6;
     let mut out = [[0.0; 3]; 5];
     for (p, o) in out.iter_mut().enumerate() {
@@ -208,7 +208,7 @@ fn dot3(a: &[f64], b: &[f64; 3]) -> f64 {
 }
 
 /// Which fit is the x, y and z row of the triad: each channel's largest sensitivity.
-fn triad_order(fits: &[&LsqFit]) -> Result<[usize; 3], UncertaintyError> {
+pub(crate) fn triad_order(fits: &[&LsqFit]) -> Result<[usize; 3], UncertaintyError> {
     if fits.len() != 3 {
         return Err(UncertaintyError::NotATriad(format!("the campaign has {} channels", fits.len())));
     }

@@ -1,0 +1,120 @@
+use super::search::{design, design_auto, AutoTarget, Head, MIN_POSITIONS};
+use super::*;
+use crate::sim::effects::AngleError;
+use crate::sim::{simulate, Plan, SimConfig};
+use crate::uncertainty::{budget, References, ARCSEC};
+
+const G: f64 = accelcal_shared::G_STANDARD;
+
+fn head() -> Head {
+    Head { alpha_step_deg: 15.0, beta_step_deg: 15.0, beta_max_deg: 90.0 }
+}
+
+fn stated() -> Stated {
+    Stated { head_angle_rad: 20.0 * ARCSEC, g_m_s2: 1e-4 }
+}
+
+/// A simulated campaign: 80 codes of noise, the head's angles off by 20″ (one sigma).
+fn campaign(plan: Plan, samples: usize, seed: u64) -> Campaign {
+    let cfg = SimConfig {
+        seed,
+        plan,
+        samples,
+        noise: 80.0,
+        effects: vec![Box::new(AngleError { sd_mrad: 20.0 * ARCSEC * 1e3 })],
+        ..SimConfig::default()
+    };
+    simulate(&cfg).0
+}
+
+#[test]
+fn the_head_reaches_every_alpha_at_each_beta_and_each_pole_once() {
+    let r = head().reachable().unwrap();
+    assert_eq!(r.len(), 24 * 11 + 2);
+    assert_eq!(r.iter().filter(|p| p.1 == 90.0).count(), 1);
+    let limited = Head { beta_max_deg: 60.0, ..head() }.reachable().unwrap();
+    assert_eq!(limited.len(), 24 * 9);
+    assert!(Head { alpha_step_deg: 0.0, ..head() }.reachable().is_err());
+}
+
+#[test]
+fn an_earlier_campaign_gives_the_unit_s_noise_and_sensitivities() {
+    let c = campaign(Plan::head(), 200, 3);
+    let p = Prior::from_campaign(&c, G, "like.csv").unwrap();
+    for ax in 0..3 {
+        assert!((p.noise_codes[ax] / 80.0 - 1.0).abs() < 0.03, "{:?}", p.noise_codes);
+        let own = p.model.k[ax][ax] * G / crate::sim::NOMINAL_CODES_PER_G;
+        assert!((own - 1.0).abs() < 0.05, "{own}");
+    }
+}
+
+/// The prediction is the budget's, before the campaign: over simulated units on the paper's
+/// plan, the budgets' mean U (from their own dwell scatter) is the predicted U.
+#[test]
+fn the_prediction_is_what_the_budgets_state_after_the_campaign() {
+    let samples = 100;
+    let prior = Prior::from_campaign(&campaign(Plan::head(), samples, 100), G, "like").unwrap();
+    let predicted = predict(&Plan::head().positions, samples, &prior, &stated(), G).unwrap();
+    let mut sum = 0.0;
+    let units = 12;
+    for seed in 0..units {
+        let c = campaign(Plan::head(), samples, seed);
+        let pos = Positions::new(&c, G);
+        let stats = pos.channel_stats(&c);
+        let fits = fit_positions(&pos, &stats, Method::Lsq, MODEL_4).unwrap();
+        let refs: Vec<_> = fits.iter().map(|(_, f)| f).collect();
+        let r = References { head_angle_rad: stated().head_angle_rad, g_m_s2: stated().g_m_s2, ..References::default() };
+        let b = budget(&pos, &stats, &refs, r).unwrap();
+        sum += b.expanded_max.into_iter().fold(0.0, f64::max);
+    }
+    let mean = sum / units as f64;
+    let ratio = predicted.worst_m_s2 / mean;
+    assert!((0.93..1.07).contains(&ratio), "predicted {:.4e}, budgets' mean {mean:.4e}", predicted.worst_m_s2);
+    // Noise dominates at 1 s of dwell; the head's angle errors are there too.
+    let part = |n: &str| predicted.parts.iter().find(|p| p.name == n).unwrap().u_m_s2;
+    assert!(part("noise") > part("head_angle") && part("head_angle") > 0.0, "{predicted:?}");
+}
+
+#[test]
+fn a_designed_plan_beats_the_paper_s_and_a_random_one_of_its_size() {
+    let prior = Prior::nominal(80.0, G).unwrap();
+    let d = design(24, 400, &prior, &stated(), G, &head(), 1).unwrap();
+    assert_eq!(d.positions.len(), 24);
+    assert_eq!(d.selection, order::Selection::Alternate);
+    let random = predict(&Plan::random(24, 1).positions, 400, &prior, &stated(), G).unwrap();
+    assert!(d.prediction.worst_m_s2 < random.worst_m_s2, "{} vs {}", d.prediction.worst_m_s2, random.worst_m_s2);
+    // Per position, better than the paper's plan: U²·N is what a position buys.
+    let paper = predict(&Plan::head().positions, 400, &prior, &stated(), G).unwrap();
+    let per = |p: &Prediction, n: f64| p.worst_m_s2.powi(2) * n;
+    assert!(per(&d.prediction, 24.0) < per(&paper, 62.0), "{d:?} {paper:?}");
+    // The same seed, the same plan.
+    let again = design(24, 400, &prior, &stated(), G, &head(), 1).unwrap();
+    assert_eq!(again.positions, d.positions);
+    // Every position is one the head reaches.
+    let reach = head().reachable().unwrap();
+    assert!(d.positions.iter().all(|p| p.1.abs() == 90.0 || reach.contains(p)));
+}
+
+#[test]
+fn auto_reaches_the_target_in_less_head_time_than_the_paper_s_plan() {
+    let prior = Prior::nominal(80.0, G).unwrap();
+    let paper = predict(&Plan::head().positions, 400, &prior, &stated(), G).unwrap();
+    let target = AutoTarget { u_m_s2: paper.worst_m_s2, rate_hz: 100.0, move_s: 10.0 };
+    let d = design_auto(&target, &prior, &stated(), G, &head(), 1, &|_| {}).unwrap();
+    assert!(d.prediction.worst_m_s2 <= target.u_m_s2, "{d:?}");
+    let t = head_time_s(d.positions.len(), d.samples, 100.0, 10.0);
+    let t_paper = head_time_s(62, 400, 100.0, 10.0);
+    assert!(t < 0.75 * t_paper, "{t} s against {t_paper} s: {} positions of {} samples", d.positions.len(), d.samples);
+}
+
+#[test]
+fn too_few_or_too_many_positions_are_refused() {
+    let prior = Prior::nominal(80.0, G).unwrap();
+    let few = design(MIN_POSITIONS - 1, 100, &prior, &stated(), G, &head(), 1).unwrap_err();
+    assert!(matches!(few, DesignError::TooFew { n: 7, min: 8 }), "{few}");
+    let many = design(300, 100, &prior, &stated(), G, &head(), 1).unwrap_err();
+    assert!(matches!(many, DesignError::TooMany { n: 300, reachable: 266 }), "{many}");
+    let unreachable = AutoTarget { u_m_s2: 1e-9, rate_hz: 100.0, move_s: 10.0 };
+    let e = design_auto(&unreachable, &prior, &stated(), G, &head(), 1, &|_| {}).unwrap_err();
+    assert!(matches!(e, DesignError::Unreachable { .. }), "{e}");
+}
