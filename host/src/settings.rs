@@ -552,8 +552,8 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
         Command::BenchDiagnose(_)
         | Command::BenchSignature(_)
         | Command::UncertaintyCheck(_)
-        | Command::Demo(_)
-        | Command::Plan(_) => Ok(()),
+        | Command::Demo(_) => Ok(()),
+        Command::Plan(a) => crate::cmd::design::check(a),
         Command::History(a) => crate::cmd::history::check(a),
         Command::Void(a) => crate::cmd::db::check_void(a),
         Command::Db(_) => Ok(()),

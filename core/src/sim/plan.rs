@@ -33,6 +33,23 @@ impl Plan {
         }
     }
 
+    /// A 24-position multipoint tumble (IEEE Std 1293-2018, the multipoint tumble test) for a
+    /// triad: the block turned through a full circle in 45° steps in each of the three planes
+    /// through two of its axes, 8 positions per circle; each ±axis orientation lies on two
+    /// circles, so it is visited twice.
+    pub fn tumble24() -> Plan {
+        let mut positions = Vec::new();
+        // The x–z plane: β = 0, α all round.
+        positions.extend((0..8).map(|i| (i as f64 * 45.0, 0.0)));
+        // The y–z plane: α = 0 and 180, β across.
+        positions.extend([-90.0, -45.0, 0.0, 45.0, 90.0].map(|b| (0.0, b)));
+        positions.extend([45.0, 0.0, -45.0].map(|b| (180.0, b)));
+        // The x–y plane: α = 90 and 270, β across.
+        positions.extend([-90.0, -45.0, 0.0, 45.0, 90.0].map(|b| (90.0, b)));
+        positions.extend([45.0, 0.0, -45.0].map(|b| (270.0, b)));
+        Plan { positions }
+    }
+
     /// `n` orientations drawn uniformly on the sphere (angles rounded to 0.01°), seeded.
     pub fn random(n: usize, seed: u64) -> Plan {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x706c_616e);
@@ -46,12 +63,13 @@ impl Plan {
         Plan { positions }
     }
 
-    /// Parses a plan spec: `head`, `six`, `random:N`, or the path of a plan file (CSV with the
+    /// Parses a plan spec: `head`, `six`, `tumble24`, `random:N`, or the path of a plan file (CSV with the
     /// columns `alpha_deg,beta_deg`, `#` comments allowed).
     pub fn from_spec(spec: &str, seed: u64) -> Result<Plan, String> {
         match spec {
             "head" => Ok(Plan::head()),
             "six" => Ok(Plan::six()),
+            "tumble24" => Ok(Plan::tumble24()),
             _ => {
                 if let Some(n) = spec.strip_prefix("random:") {
                     return match n.parse::<usize>() {

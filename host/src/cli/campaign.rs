@@ -14,11 +14,13 @@ use super::{parse_codes, CommonArgs, LocalGravity, RunArgs};
 /// `accelcal plan`.
 #[derive(Debug, Args)]
 pub struct PlanArgs {
-    /// Position plan: `head` (62 positions), `six` (the six test-turn positions), `random:N`, or a
+    /// Position plan: `head` (62 positions), `six` (the six test-turn positions), `tumble24` (a
+    /// 24-position multipoint tumble, three circles in 45° steps), `random:N`, or a
     /// plan file (CSV with columns alpha_deg,beta_deg), as in `simulate --plan`.
     #[arg(long, default_value = "head", value_name = "PLAN")]
     pub plan: String,
-    /// Seed of `random:N`.
+    /// Seed of `random:N`, and of the design's random starts with --design (the same seed, the
+    /// same plan).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Gravity at the rig, m/s².
@@ -27,9 +29,103 @@ pub struct PlanArgs {
     /// Local gravity instead of --g.
     #[command(flatten)]
     pub local: LocalGravity,
-    /// Write the positions and their accelerations (m/s²) as JSON.
+    /// Write the positions and their accelerations (m/s²) as JSON; with --design, the designed
+    /// plan: `positions` (how many), `samples_per_position`, `head_time_s`, the predicted
+    /// `U_m_s2` (worst axis at its worst orientation at 1 g), its criteria and the plans compared.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
+    #[command(flatten)]
+    pub design: DesignArgs,
+}
+
+/// The options of `accelcal plan --design`.
+#[derive(Debug, Args)]
+pub struct DesignArgs {
+    /// Design a plan instead of printing one: `N` positions chosen among those the head reaches
+    /// (--alpha-step-deg, --beta-step-deg, --beta-max-deg), each dwelling --samples sample sets,
+    /// that minimise the predicted expanded uncertainty (k = 2) of the calibrated acceleration
+    /// (model 4, worst axis, worst orientation at 1 g); or `auto`: the number of positions and the
+    /// dwell too, for the least head time (positions × (--move-s + dwell)) that reaches
+    /// --target-U. The positions are ordered for short moves, and so that both parts of GMDH's
+    /// default alternate split identify every model of the paper a head plan can (else
+    /// leave-one-out; the output says which). At least 8 positions.
+    #[arg(long, value_name = "N|auto", value_parser = parse_design, conflicts_with = "plan")]
+    pub design: Option<DesignSize>,
+    /// The designed plan file to write: CSV `alpha_deg,beta_deg`, as simulate, acquire, verify
+    /// and station read it [required with --design].
+    #[arg(long, short, value_name = "FILE", requires = "design")]
+    pub out: Option<PathBuf>,
+    /// An earlier campaign of the same kind of unit (campaign CSV): its sensitivities (model 4 by
+    /// least squares) and its noise per sample (the scatter within its dwells) are the unit
+    /// type's [with --design; or --noise].
+    #[arg(long, value_name = "CAMPAIGN", requires = "design", conflicts_with = "noise")]
+    pub like: Option<PathBuf>,
+    /// Without --like: the nominal triad (16384 codes per g) with this white noise per sample,
+    /// ADC codes (one sigma) [with --design].
+    #[arg(long, value_name = "CODES", requires = "design", value_parser = parse_sigma)]
+    pub noise: Option<f64>,
+    /// The dividing head's angle setting uncertainty, arcsec: one sigma of each angle at each
+    /// position, from its certificate (as `fit --head-angle-u`) [with --design; default 0].
+    #[arg(long, value_name = "ARCSEC", value_parser = parse_arcsec, requires = "design")]
+    pub head_angle_u: Option<f64>,
+    /// Move plus settling time per position, s [with --design; default 10].
+    #[arg(long, value_name = "S", requires = "design", value_parser = parse_sigma)]
+    pub move_s: Option<f64>,
+    /// Sample rate, Hz [with --design; default 100].
+    #[arg(long, value_name = "HZ", requires = "design", value_parser = parse_positive)]
+    pub rate_hz: Option<f64>,
+    /// Sample sets per position: the designed plan's dwell with --design N, and the dwell of the
+    /// plans it is compared with (the paper's 62 positions, tumble24, six) [with --design;
+    /// default 400].
+    #[arg(long, value_name = "N", requires = "design", value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
+    pub samples: Option<u32>,
+    /// The expanded uncertainty to reach with --design auto, m/s² (worst axis, worst orientation
+    /// at 1 g, k = 2) [default: the paper's 62-position plan's, at --samples].
+    #[arg(long = "target-U", value_name = "M_S2", requires = "design", value_parser = parse_positive)]
+    pub target_u: Option<f64>,
+    /// The head's α step, degrees (α all round) [with --design; default 15].
+    #[arg(long, value_name = "DEG", requires = "design", value_parser = parse_positive)]
+    pub alpha_step_deg: Option<f64>,
+    /// The head's β step, degrees [with --design; default 15].
+    #[arg(long, value_name = "DEG", requires = "design", value_parser = parse_positive)]
+    pub beta_step_deg: Option<f64>,
+    /// The head's β limit either side of 0, degrees (at most 90) [with --design; default 90].
+    #[arg(long, value_name = "DEG", requires = "design", value_parser = parse_sigma)]
+    pub beta_max_deg: Option<f64>,
+    /// Check the prediction by simulation (JCGM 101): this many simulated units calibrated on
+    /// each plan compared (the paper's, tumble24, six, the designed one) with the unit type's
+    /// noise and the head's angle errors, their budgets' U, its coverage of the true error at
+    /// orientations none of the plans chose (95 % when right) and that error's RMS [with --design].
+    #[arg(long, value_name = "UNITS", requires = "design", value_parser = clap::value_parser!(u32).range(10..=100_000))]
+    pub montecarlo: Option<u32>,
+}
+
+/// What `--design` asks for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DesignSize {
+    /// This many positions.
+    Positions(usize),
+    /// The number of positions and the dwell too.
+    Auto,
+}
+
+/// `N` or `auto`.
+fn parse_design(s: &str) -> Result<DesignSize, String> {
+    match s.trim() {
+        "auto" => Ok(DesignSize::Auto),
+        n => match n.parse::<usize>() {
+            Ok(n) if n > 0 => Ok(DesignSize::Positions(n)),
+            _ => Err("expected a number of positions or `auto`".into()),
+        },
+    }
+}
+
+/// A finite number > 0.
+fn parse_positive(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err("expected a finite number > 0".into()),
+    }
 }
 
 /// `accelcal simulate`.
@@ -45,7 +141,8 @@ pub struct SimulateArgs {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Position plan: `head` (62 positions: beta -60..60 step 30 x alpha every 30 deg, plus beta
-    /// +-90), `six` (the six test-turn positions), `random:N` (N orientations uniform on the
+    /// +-90), `six` (the six test-turn positions), `tumble24` (IEEE 1293's multipoint tumble for a
+    /// triad: a circle in 45° steps in each plane of two axes, 24 positions), `random:N` (N orientations uniform on the
     /// sphere), or a plan file (CSV with columns alpha_deg,beta_deg).
     #[arg(long, default_value = "head", value_name = "PLAN")]
     pub plan: String,

@@ -217,7 +217,7 @@ pub struct AcquireArgs {
     /// fails; a move is answered once the head stands still, so this bounds the longest move.
     #[arg(long, default_value_t = 120.0, value_name = "S")]
     pub head_timeout_s: f64,
-    /// Position plan: head (62 positions), six (the test-turn positions), random:N, or a plan
+    /// Position plan: head (62 positions), six (the test-turn positions), tumble24, random:N, or a plan
     /// file (CSV `alpha_deg,beta_deg`).
     #[arg(long, default_value = "head")]
     pub plan: String,
@@ -284,7 +284,7 @@ pub struct VerifyArgs {
     /// fails; a move is answered once the head stands still, so this bounds the longest move.
     #[arg(long, default_value_t = 120.0, value_name = "S")]
     pub head_timeout_s: f64,
-    /// Position plan: six (the test-turn positions), head, random:N, or a plan file.
+    /// Position plan: six (the test-turn positions), head, tumble24, random:N, or a plan file.
     #[arg(long, default_value = "six")]
     pub plan: String,
     /// Sample sets averaged per position, after the stream is static.
@@ -429,7 +429,7 @@ pub struct StationArgs {
     /// --port.
     #[arg(long = "out", short, value_name = "DIR", required = true)]
     pub outs: Vec<PathBuf>,
-    /// Position plan of the campaign (head, six, random:N, or a plan file; see `acquire`).
+    /// Position plan of the campaign (head, six, tumble24, random:N, or a plan file; see `acquire`).
     #[arg(long, default_value = "head")]
     pub plan: String,
     /// Sample sets recorded per position, in the campaign and in each verification.

@@ -5,6 +5,7 @@ pub mod bench_diagnose;
 pub mod compare;
 pub mod db;
 pub mod demo;
+pub mod design;
 pub mod diagnose;
 pub mod emulate;
 pub mod fit;

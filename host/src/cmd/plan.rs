@@ -33,6 +33,9 @@ fn positions(plan: &Plan, g: f64) -> Vec<PositionJson> {
 
 /// Runs `accelcal plan`.
 pub fn run(a: &PlanArgs) -> anyhow::Result<()> {
+    if let Some(size) = a.design.design {
+        return super::design::run(a, size);
+    }
     super::check_g(a.g)?;
     let plan = Plan::from_spec(&a.plan, a.seed).map_err(|e| bad(format!("--plan {e}")))?;
     let rows = positions(&plan, a.g);

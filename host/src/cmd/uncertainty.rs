@@ -185,6 +185,7 @@ struct ScenarioJson<'a> {
 pub fn run_check(a: &UncertaintyCheckArgs) -> anyhow::Result<()> {
     let set = Settings {
         units: a.units as usize,
+        plan: accelcal_core::sim::Plan::head(),
         samples: a.samples as usize,
         orientations: a.orientations as usize,
         seed: a.seed,

@@ -1,0 +1,378 @@
+//! `accelcal plan --design N|auto`: a plan designed for its uncertainty and head time
+//! (`accelcal_core::design`), compared with the paper's plan, the 24-position tumble and the six
+//! positions, and, with `--montecarlo`, checked by simulation.
+
+use std::path::Path;
+
+use accelcal_core::campaign::identity::{g_uncertainty, G_SOURCE_NORMAL};
+use accelcal_core::campaign::Campaign;
+use accelcal_core::design::search::{design, design_auto, AutoTarget, Designed, Head};
+use accelcal_core::design::{head_time_s, predict, Part, Prediction, Prior, Stated};
+use accelcal_core::error::bad;
+use accelcal_core::output::{write_atomic, write_json};
+use accelcal_core::sim::Plan;
+use accelcal_core::uncertainty::montecarlo::{self, Scenario, Settings};
+use accelcal_core::uncertainty::ARCSEC;
+use anyhow::Context;
+use indicatif::{ProgressBar, ProgressStyle};
+use serde::Serialize;
+
+use crate::cli::{DesignSize, PlanArgs};
+
+/// The defaults of the design's options.
+const MOVE_S: f64 = 10.0;
+const RATE_HZ: f64 = 100.0;
+const SAMPLES: u32 = 400;
+const STEP_DEG: f64 = 15.0;
+const BETA_MAX_DEG: f64 = 90.0;
+/// Orientations each Monte Carlo unit is judged at.
+const MC_ORIENTATIONS: usize = 10;
+
+/// Checks the design's options before any I/O: what does not apply to the size asked for is
+/// refused.
+pub fn check(a: &PlanArgs) -> anyhow::Result<()> {
+    let d = &a.design;
+    let Some(size) = d.design else { return Ok(()) };
+    if d.out.is_none() {
+        return Err(bad("--design needs --out FILE: where to write the designed plan"));
+    }
+    if d.like.is_none() && d.noise.is_none() {
+        return Err(bad(
+            "--design needs the unit type: --like CAMPAIGN (an earlier campaign of the same kind of unit) or --noise CODES (the nominal triad with that noise per sample)",
+        ));
+    }
+    if d.target_u.is_some() && size != DesignSize::Auto {
+        return Err(bad("--target-U applies to --design auto only (with --design N the number of positions is yours)"));
+    }
+    head(a).reachable().map_err(|e| bad(format!("--alpha-step-deg/--beta-step-deg/--beta-max-deg: {e}")))?;
+    super::check_g(a.g)
+}
+
+fn head(a: &PlanArgs) -> Head {
+    let d = &a.design;
+    Head {
+        alpha_step_deg: d.alpha_step_deg.unwrap_or(STEP_DEG),
+        beta_step_deg: d.beta_step_deg.unwrap_or(STEP_DEG),
+        beta_max_deg: d.beta_max_deg.unwrap_or(BETA_MAX_DEG),
+    }
+}
+
+/// One plan of the comparison.
+#[derive(Serialize)]
+struct Compared {
+    plan: String,
+    positions: usize,
+    samples_per_position: usize,
+    head_time_s: f64,
+    #[serde(rename = "U_m_s2")]
+    u_m_s2: f64,
+    #[serde(rename = "U_axes_m_s2")]
+    u_axes_m_s2: [f64; 3],
+    criteria: Criteria,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    montecarlo: Option<MonteCarlo>,
+}
+
+/// The D-, A- and worst-case criteria of a plan.
+#[derive(Serialize)]
+struct Criteria {
+    #[serde(rename = "D_codes")]
+    d_codes: f64,
+    #[serde(rename = "A_codes")]
+    a_codes: f64,
+    #[serde(rename = "worst_U_m_s2")]
+    worst_u_m_s2: f64,
+}
+
+/// A plan checked by simulation.
+#[derive(Serialize)]
+struct MonteCarlo {
+    units: usize,
+    /// The mean over the units of their budgets' U (worst axis), m/s².
+    #[serde(rename = "stated_U_m_s2")]
+    stated_u_m_s2: f64,
+    /// The worst axis of the RMS over the units of each axis' U, m/s²: the budgets' expectation,
+    /// comparable with the prediction.
+    #[serde(rename = "rms_stated_U_m_s2")]
+    rms_stated_u_m_s2: f64,
+    /// The share of axis values within the budget's U.
+    coverage: f64,
+    /// The RMS of the calibrated acceleration's error at orientations none of the plans chose.
+    rms_error_m_s2: f64,
+}
+
+/// The JSON document of `plan --design`.
+#[derive(Serialize)]
+struct DesignJson<'a> {
+    /// `auto` or the number asked for.
+    design: String,
+    positions: usize,
+    samples_per_position: usize,
+    dwell_s: f64,
+    rate_hz: f64,
+    move_s: f64,
+    head_time_s: f64,
+    #[serde(rename = "U_m_s2")]
+    u_m_s2: f64,
+    #[serde(rename = "U_axes_m_s2")]
+    u_axes_m_s2: [f64; 3],
+    #[serde(rename = "target_U_m_s2", skip_serializing_if = "Option::is_none")]
+    target_u_m_s2: Option<f64>,
+    criteria: Criteria,
+    contributors: &'a [Part],
+    not_included: &'a [&'static str],
+    /// How GMDH ranks the paper's models on the plan: `alternate` or `leave-one-out`.
+    selection: accelcal_core::design::order::Selection,
+    travel_deg: f64,
+    unit_type: &'a str,
+    head: Head,
+    head_angle_u_arcsec: f64,
+    #[serde(rename = "g_u_m_s2")]
+    g_u_m_s2: f64,
+    angles: Vec<Angles>,
+    compared: Vec<Compared>,
+}
+
+#[derive(Serialize)]
+struct Angles {
+    alpha_deg: f64,
+    beta_deg: f64,
+}
+
+fn criteria(p: &Prediction) -> Criteria {
+    Criteria { d_codes: p.d_codes, a_codes: p.a_codes, worst_u_m_s2: p.worst_m_s2 }
+}
+
+/// The unit type: from `--like` or the nominal triad.
+fn prior(a: &PlanArgs) -> anyhow::Result<Prior> {
+    let d = &a.design;
+    Ok(match (&d.like, d.noise) {
+        (Some(path), _) => {
+            let c = Campaign::read(path).with_context(|| format!("--like {}", path.display()))?;
+            Prior::from_campaign(&c, a.g, &path.display().to_string())
+                .with_context(|| format!("--like {}", path.display()))?
+        }
+        (None, Some(noise)) => Prior::nominal(noise, a.g)?,
+        (None, None) => unreachable!("checked: --like or --noise"),
+    })
+}
+
+/// Writes a plan file.
+fn write_plan(path: &Path, d: &Designed, header: &str) -> anyhow::Result<()> {
+    let mut s = String::new();
+    for line in header.lines() {
+        s.push_str("# ");
+        s.push_str(line);
+        s.push('\n');
+    }
+    s.push_str("alpha_deg,beta_deg\n");
+    for (al, be) in &d.positions {
+        s.push_str(&format!("{al},{be}\n"));
+    }
+    write_atomic(path, s.as_bytes())
+}
+
+/// Runs `accelcal plan --design`.
+pub fn run(a: &PlanArgs, size: DesignSize) -> anyhow::Result<()> {
+    let d = &a.design;
+    let out = d.out.as_deref().expect("checked: --out");
+    let prior = prior(a)?;
+    let source = a.local.latitude.map(|_| G_SOURCE_NORMAL);
+    let (bound, _) = g_uncertainty(a.g, source);
+    let angle_u = d.head_angle_u.unwrap_or(0.0);
+    let stated = Stated { head_angle_rad: angle_u * ARCSEC, g_m_s2: bound / 3f64.sqrt() };
+    let move_s = d.move_s.unwrap_or(MOVE_S);
+    let rate_hz = d.rate_hz.unwrap_or(RATE_HZ);
+    let samples = d.samples.unwrap_or(SAMPLES) as usize;
+    let head = head(a);
+    let paper = predict(&Plan::head().positions, samples, &prior, &stated, a.g)?;
+    let (designed, target) = match size {
+        DesignSize::Positions(n) => (design(n, samples, &prior, &stated, a.g, &head, a.seed)?, None),
+        DesignSize::Auto => {
+            let target = d.target_u.unwrap_or(paper.worst_m_s2);
+            let t = AutoTarget { u_m_s2: target, rate_hz, move_s };
+            let n = accelcal_core::design::search::AUTO_DWELLS_S.len() as u64;
+            let pb = bar(n, "dwells tried");
+            let r = design_auto(&t, &prior, &stated, a.g, &head, a.seed, &|_| pb.inc(1));
+            pb.finish_and_clear();
+            (r?, Some(target))
+        }
+    };
+    let p = &designed.prediction;
+    let n = designed.positions.len();
+    let time = head_time_s(n, designed.samples, rate_hz, move_s);
+    let dwell = designed.samples as f64 / rate_hz;
+    let selection = match designed.selection {
+        accelcal_core::design::order::Selection::Alternate => "the alternate split (select's default): both its parts identify model 10, the largest of the paper's models a head plan identifies",
+        accelcal_core::design::order::Selection::LeaveOneOut => "leave-one-out only (select --criterion loo): no order of these positions lets both parts of the alternate split identify model 10",
+    };
+    let header = format!(
+        "designed by accelcal plan --design {}: {n} positions x {} sample sets ({dwell} s at {rate_hz} Hz), head time {time:.0} s with {move_s} s per move\npredicted U = {:.4e} m/s^2 (k = 2, worst axis and orientation at 1 g); unit type: {}; head angle u {angle_u} arcsec\nGMDH: {selection}",
+        size_word(size),
+        designed.samples,
+        p.worst_m_s2,
+        prior.source
+    );
+    write_plan(out, &designed, &header)?;
+
+    println!(
+        "plan design: {n} positions x {} sample sets ({dwell} s at {rate_hz} Hz), head time {time:.0} s with {move_s} s per move and settling",
+        designed.samples
+    );
+    println!("  unit type: {}", prior.source);
+    println!(
+        "  head: α every {}°, β every {}° within ±{}° ({} positions); angle u {angle_u}″ per angle and position; u(g) = {:.2e} m/s²",
+        head.alpha_step_deg,
+        head.beta_step_deg,
+        head.beta_max_deg,
+        head.reachable()?.len(),
+        stated.g_m_s2
+    );
+    if let Some(t) = target {
+        let whence = if d.target_u.is_some() { "--target-U" } else { "the paper's plan's, at --samples" };
+        println!("  target U = {t:.4e} m/s² ({whence}); the least head time among the dwells tried reaches it");
+    }
+    println!("  GMDH ranks the paper's models on it by {selection}");
+    println!("  order: {:.0}° of travel from α = β = 0 (the larger stage per move)", designed.travel_deg);
+    println!("  written: {}", out.display());
+
+    let mut rows: Vec<(String, Vec<(f64, f64)>, usize, Prediction)> = vec![
+        ("head (paper)".into(), Plan::head().positions, samples, paper),
+        ("tumble24".into(), Plan::tumble24().positions, samples, predict(&Plan::tumble24().positions, samples, &prior, &stated, a.g)?),
+        ("six".into(), Plan::six().positions, samples, predict(&Plan::six().positions, samples, &prior, &stated, a.g)?),
+    ];
+    rows.push(("designed".into(), designed.positions.clone(), designed.samples, designed.prediction.clone()));
+    let mut compared: Vec<Compared> = rows
+        .iter()
+        .map(|(name, pos, s, p)| Compared {
+            plan: name.clone(),
+            positions: pos.len(),
+            samples_per_position: *s,
+            head_time_s: head_time_s(pos.len(), *s, rate_hz, move_s),
+            u_m_s2: p.worst_m_s2,
+            u_axes_m_s2: p.expanded_m_s2,
+            criteria: criteria(p),
+            montecarlo: None,
+        })
+        .collect();
+    if let Some(units) = d.montecarlo {
+        let noise = prior.noise_codes.into_iter().fold(0.0, f64::max);
+        let scenario = Scenario {
+            name: "plan".into(),
+            noise_codes: noise,
+            head_angle_arcsec: angle_u,
+            head_orthogonality_arcsec: 0.0,
+            g_u_m_s2: stated.g_m_s2,
+            temperature: None,
+            quadratic_codes: 0.0,
+            range: (0.93, 0.97),
+        };
+        let pb = bar(units as u64 * rows.len() as u64, "simulated units");
+        for ((_, pos, s, _), c) in rows.iter().zip(compared.iter_mut()) {
+            let set = Settings {
+                units: units as usize,
+                plan: Plan { positions: pos.clone() },
+                samples: *s,
+                orientations: MC_ORIENTATIONS,
+                seed: a.seed,
+            };
+            let o = montecarlo::run(&scenario, &set, &|_| pb.inc(1)).map_err(anyhow::Error::msg)?;
+            c.montecarlo = Some(MonteCarlo {
+                units: o.units,
+                stated_u_m_s2: o.mean_u_m_s2,
+                rms_stated_u_m_s2: o.rms_u_m_s2,
+                coverage: o.coverage,
+                rms_error_m_s2: o.rms_error_m_s2,
+            });
+        }
+        pb.finish_and_clear();
+    }
+    print_table(&compared, d.montecarlo.is_some(), noise_words(&prior));
+    let parts: Vec<String> = p.parts.iter().map(|x| format!("{} {:.3e}", x.name, x.u_m_s2)).collect();
+    println!("the designed plan's contributors (standard uncertainty, m/s²): {}", parts.join(", "));
+    println!("not predicted (add them from the fit's budget): {}", p.not_included.join("; "));
+    if let Some(j) = &a.json {
+        let doc = DesignJson {
+            design: size_word(size),
+            positions: n,
+            samples_per_position: designed.samples,
+            dwell_s: dwell,
+            rate_hz,
+            move_s,
+            head_time_s: time,
+            u_m_s2: p.worst_m_s2,
+            u_axes_m_s2: p.expanded_m_s2,
+            target_u_m_s2: target,
+            criteria: criteria(p),
+            contributors: &p.parts,
+            not_included: &p.not_included,
+            selection: designed.selection,
+            travel_deg: designed.travel_deg,
+            unit_type: &prior.source,
+            head,
+            head_angle_u_arcsec: angle_u,
+            g_u_m_s2: stated.g_m_s2,
+            angles: designed.positions.iter().map(|&(alpha_deg, beta_deg)| Angles { alpha_deg, beta_deg }).collect(),
+            compared,
+        };
+        write_json(j, &doc)?;
+    }
+    Ok(())
+}
+
+fn noise_words(p: &Prior) -> String {
+    let [x, y, z] = p.noise_codes;
+    format!("noise x {x:.1}, y {y:.1}, z {z:.1} codes per sample")
+}
+
+fn size_word(size: DesignSize) -> String {
+    match size {
+        DesignSize::Positions(n) => n.to_string(),
+        DesignSize::Auto => "auto".into(),
+    }
+}
+
+fn bar(len: u64, what: &str) -> ProgressBar {
+    let pb = ProgressBar::new(len);
+    pb.set_style(
+        ProgressStyle::with_template(&format!("{{bar:40}} {{pos}}/{{len}} {what}, {{elapsed}} elapsed, eta {{eta}}"))
+            .expect("valid template"),
+    );
+    pb
+}
+
+fn print_table(rows: &[Compared], mc: bool, noise: String) {
+    println!();
+    println!("predicted expanded uncertainty (k = 2) of the calibrated acceleration at its worst orientation at 1 g; {noise}");
+    print!(
+        "  {:<13} {:>9} {:>7} {:>11} {:>10} {:>10} {:>10} {:>8} {:>8}",
+        "plan", "positions", "samples", "head time s", "U_x m/s²", "U_y m/s²", "U_z m/s²", "D codes", "A codes"
+    );
+    if mc {
+        print!(" {:>11} {:>11} {:>8} {:>11}", "MC mean U", "MC RMS U", "coverage", "RMS error");
+    }
+    println!();
+    for r in rows {
+        let [x, y, z] = r.u_axes_m_s2;
+        print!(
+            "  {:<13} {:>9} {:>7} {:>11.0} {:>10.3e} {:>10.3e} {:>10.3e} {:>8.3} {:>8.3}",
+            r.plan, r.positions, r.samples_per_position, r.head_time_s, x, y, z, r.criteria.d_codes, r.criteria.a_codes
+        );
+        if let Some(m) = &r.montecarlo {
+            print!(
+                " {:>11.3e} {:>11.3e} {:>7.1}% {:>11.3e}",
+                m.stated_u_m_s2,
+                m.rms_stated_u_m_s2,
+                100.0 * m.coverage,
+                m.rms_error_m_s2
+            );
+        }
+        println!();
+    }
+    if mc {
+        let units = rows.first().and_then(|r| r.montecarlo.as_ref()).map_or(0, |m| m.units);
+        println!(
+            "  MC: {units} simulated units per plan (the simulator's spread of units, the noise above, the head's angle errors drawn), each fitted with model 4 by least squares and judged at {MC_ORIENTATIONS} random orientations: the mean of the budgets' U (worst axis of each: a mean of maxima, above the expectation when the budget has few degrees of freedom), the RMS of each axis' U (worst axis; the prediction's like), the share of true errors within U (95 % when right), and their RMS, m/s²"
+        );
+    }
+}
