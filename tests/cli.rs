@@ -10,6 +10,8 @@ mod common;
 mod assets;
 #[path = "cli/conformity.rs"]
 mod conformity;
+#[path = "cli/design.rs"]
+mod design;
 #[path = "cli/help.rs"]
 mod help;
 #[path = "cli/records.rs"]

@@ -62,6 +62,7 @@ registry!(
     accelcal_core::calibrate::RecordError,
     accelcal_core::lsq::LsqError,
     accelcal_core::uncertainty::UncertaintyError,
+    accelcal_core::design::DesignError,
     accelcal_core::conformity::SpecError,
     accelcal_core::testturn::TestTurnError,
     accelcal_core::diagnose::DiagnoseError,

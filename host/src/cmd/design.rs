@@ -6,8 +6,8 @@ use std::path::Path;
 
 use accelcal_core::campaign::identity::{g_uncertainty, G_SOURCE_NORMAL};
 use accelcal_core::campaign::Campaign;
-use accelcal_core::design::search::{design, design_auto, AutoTarget, Designed, Head};
-use accelcal_core::design::{head_time_s, predict, Part, Prediction, Prior, Stated};
+use accelcal_core::design::search::{design, design_auto, AutoTarget, Designed, Head, MIN_POSITIONS};
+use accelcal_core::design::{head_time_s, predict, DesignError, Part, Prediction, Prior, Stated};
 use accelcal_core::error::bad;
 use accelcal_core::output::{write_atomic, write_json};
 use accelcal_core::sim::Plan;
@@ -40,6 +40,11 @@ pub fn check(a: &PlanArgs) -> anyhow::Result<()> {
         return Err(bad(
             "--design needs the unit type: --like CAMPAIGN (an earlier campaign of the same kind of unit) or --noise CODES (the nominal triad with that noise per sample)",
         ));
+    }
+    if let DesignSize::Positions(n) = size {
+        if n < MIN_POSITIONS {
+            return Err(DesignError::TooFew { n, min: MIN_POSITIONS }.into());
+        }
     }
     if d.target_u.is_some() && size != DesignSize::Auto {
         return Err(bad("--target-U applies to --design auto only (with --design N the number of positions is yours)"));

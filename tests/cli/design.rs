@@ -1,0 +1,104 @@
+//! `plan --design N|auto`: a designed plan that the other commands read, its JSON, its
+//! comparison with the paper's plan, and the options that do not apply refused.
+
+use super::*;
+
+#[test]
+fn a_designed_plan_is_a_plan_file_that_simulate_and_select_read() {
+    let d = Dir::new();
+    let like = simulate(&d, "like.csv", &["--samples", "40", "--effect", "angle_error=sd_mrad:0.1"]);
+    let (plan, doc) = (d.s("designed.csv"), d.s("designed.json"));
+    let out = ok(&["plan", "--design", "16", "--like", &like, "--head-angle-u", "20", "--out", &plan, "--json", &doc]);
+    assert!(out.contains("plan design: 16 positions x 400 sample sets (4 s at 100 Hz), head time 224 s"), "{out}");
+    assert!(out.contains("by the alternate split"), "{out}");
+    let j = json(Path::new(&doc));
+    assert_eq!(j["positions"], 16);
+    assert_eq!(j["samples_per_position"], 400);
+    assert_eq!(j["head_time_s"], 224.0);
+    assert_eq!(j["selection"], "alternate");
+    assert_eq!(j["angles"].as_array().unwrap().len(), 16);
+    let u = j["U_m_s2"].as_f64().unwrap();
+    let axes: Vec<f64> = j["U_axes_m_s2"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    assert_eq!(axes.iter().copied().fold(0.0, f64::max), u);
+    assert_eq!(j["criteria"]["worst_U_m_s2"].as_f64().unwrap(), u);
+    // The unit type is the earlier campaign's: its noise (80 codes) read from its dwells.
+    assert!(j["unit_type"].as_str().unwrap().contains("noise per sample x 8"), "{}", j["unit_type"]);
+    let plans: Vec<&str> = j["compared"].as_array().unwrap().iter().map(|c| c["plan"].as_str().unwrap()).collect();
+    assert_eq!(plans, ["head (paper)", "tumble24", "six", "designed"]);
+    // The paper's plan, at the same dwell, with 62 positions is better in U and costs more time.
+    let paper = &j["compared"][0];
+    assert_eq!(paper["positions"], 62);
+    assert_eq!(paper["head_time_s"], 868.0);
+    assert!(paper["U_m_s2"].as_f64().unwrap() < u);
+    // simulate, plan and select read it; GMDH's default split ranks the paper's models on it.
+    let c = simulate(&d, "c.csv", &["--plan", &plan, "--samples", "50"]);
+    let listed = ok(&["plan", "--plan", &plan]);
+    assert!(listed.contains("16 positions"), "{listed}");
+    let sel = ok(&["select", &c]);
+    assert!(sel.contains("model 4") || sel.contains("1,ax,ay,az"), "{sel}");
+    // The same seed, the same plan.
+    let again = d.s("again.csv");
+    ok(&["plan", "--design", "16", "--like", &like, "--head-angle-u", "20", "--out", &again]);
+    assert_eq!(std::fs::read_to_string(&plan).unwrap(), std::fs::read_to_string(&again).unwrap());
+}
+
+#[test]
+fn auto_reaches_the_paper_plan_s_u_in_less_head_time() {
+    let d = Dir::new();
+    let doc = d.s("auto.json");
+    let common = ["--noise", "80", "--head-angle-u", "20", "--g", "9.80665", "--out"];
+    let mut args = vec!["plan", "--design", "auto"];
+    args.extend_from_slice(&common);
+    let plan = d.s("auto.csv");
+    args.extend_from_slice(&[&plan, "--json", &doc]);
+    let out = ok(&args);
+    assert!(out.contains("target U = "), "{out}");
+    let j = json(Path::new(&doc));
+    let paper = &j["compared"][0];
+    assert_eq!(j["target_U_m_s2"], paper["U_m_s2"]);
+    assert!(j["U_m_s2"].as_f64().unwrap() <= j["target_U_m_s2"].as_f64().unwrap());
+    let (t, t_paper) = (j["head_time_s"].as_f64().unwrap(), paper["head_time_s"].as_f64().unwrap());
+    assert!(t < 0.75 * t_paper, "{t} s against the paper's {t_paper} s");
+    let n = j["positions"].as_u64().unwrap() as f64;
+    let s = j["samples_per_position"].as_u64().unwrap() as f64;
+    assert_eq!(t, n * (10.0 + s / 100.0));
+}
+
+#[test]
+fn the_design_s_options_are_refused_where_they_do_not_apply() {
+    let d = Dir::new();
+    let out = d.s("p.csv");
+    let e = bad(&["plan", "--design", "24", "--noise", "80"]);
+    assert!(e.contains("--design needs --out FILE"), "{e}");
+    let e = bad(&["plan", "--design", "24", "--out", &out]);
+    assert!(e.contains("--like CAMPAIGN") && e.contains("--noise CODES"), "{e}");
+    let e = bad(&["plan", "--design", "24", "--noise", "80", "--target-U", "1e-3", "--out", &out]);
+    assert!(e.contains("--target-U applies to --design auto only"), "{e}");
+    let e = bad(&["plan", "--design", "5", "--noise", "80", "--out", &out]);
+    assert!(e.contains("5 positions are too few"), "{e}");
+    let e = bad(&["plan", "--design", "auto", "--noise", "80", "--target-U", "1e-9", "--out", &out]);
+    assert!(e.contains("no plan reaches U = 1.000e-9 m/s²"), "{e}");
+    let e = bad(&["plan", "--design", "24", "--noise", "80", "--beta-step-deg", "100", "--out", &out]);
+    assert!(e.contains("β step"), "{e}");
+    let e = bad(&["plan", "--design", "24", "--like", &d.s("missing.csv"), "--out", &out]);
+    assert!(e.contains("--like") && e.contains("missing.csv"), "{e}");
+    assert!(!Path::new(&out).exists(), "nothing is written on bad input");
+    // Options of the design without --design, and a plan with it, are refused by the parser.
+    for args in [
+        &["plan", "--noise", "80"][..],
+        &["plan", "--design", "24", "--plan", "six", "--noise", "80", "--out", &out][..],
+        &["plan", "--design", "24", "--like", &out, "--noise", "80", "--out", &out][..],
+    ] {
+        let o = accelcal(args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}");
+    }
+}
+
+#[test]
+fn the_design_s_report_is_what_users_read() {
+    let d = Dir::new();
+    let plan = d.s("d.csv");
+    let out = ok(&["plan", "--design", "12", "--noise", "80", "--head-angle-u", "20", "--g", "9.80665", "--out", &plan]);
+    let text = out.replace(d.0.path().to_str().unwrap(), "[dir]");
+    insta::assert_snapshot!("plan_design_text", text);
+}
