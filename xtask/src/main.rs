@@ -190,16 +190,18 @@ fn bench(only: Option<&str>) -> anyhow::Result<()> {
         None => {
             gmdh::bench(&root())?;
             uncertainty_bench()?;
+            design_bench()?;
             firmware::bench()?;
             live::bench()?;
             station::bench()
         }
         Some("uncertainty") => uncertainty_bench(),
+        Some("design") => design_bench(),
         Some("firmware") => firmware::bench(),
         Some("live") => live::bench(),
         Some("station") => station::bench(),
         Some(other) => {
-            anyhow::bail!("bench: unknown part `{other}` (the parts: uncertainty, firmware, live, station)")
+            anyhow::bail!("bench: unknown part `{other}` (the parts: uncertainty, design, firmware, live, station)")
         }
     }
 }
@@ -220,6 +222,34 @@ fn uncertainty_bench() -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Issue 32's plans side by side: with 10 s per move, 80 codes of noise and 20″ of head angle
+/// error, the plan `plan --design auto` designs for the paper's plan's U at its 4 s dwell, then
+/// for 10 % above it, each checked by 1,000 simulated units per plan.
+fn design_bench() -> anyhow::Result<()> {
+    let r = root();
+    run(&r, "cargo", &["build", "--release", "-p", "accelcal", "--locked"])?;
+    let bin = r.join("target/release/accelcal");
+    let bin = bin.to_str().expect("utf-8 path");
+    let dir = r.join("target/bench-design");
+    std::fs::create_dir_all(&dir)?;
+    let path = |n: &str| dir.join(n).to_str().expect("utf-8 path").to_string();
+    let common = ["--noise", "80", "--head-angle-u", "20", "--move-s", "10", "--samples", "400", "--g", "9.80665"];
+    let (same, same_json) = (path("same-u.csv"), path("same-u.json"));
+    let mut args = vec!["plan", "--design", "auto"];
+    args.extend_from_slice(&common);
+    args.extend_from_slice(&["--montecarlo", "1000", "--out", &same, "--json", &same_json]);
+    run(&r, bin, &args)?;
+    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&same_json)?)?;
+    let paper = doc["compared"][0]["U_m_s2"].as_f64().context("the paper plan's U in the JSON")?;
+    let target = format!("{:.4e}", 1.1 * paper);
+    let (within, within_json) = (path("within-10.csv"), path("within-10.json"));
+    let mut args = vec!["plan", "--design", "auto"];
+    args.extend_from_slice(&common);
+    args.extend_from_slice(&["--target-U", &target, "--montecarlo", "1000", "--out", &within, "--json", &within_json]);
+    run(&r, bin, &args)?;
+    Ok(())
+}
+
 fn main() -> anyhow::Result<()> {
     let task = std::env::args().nth(1).unwrap_or_default();
     match task.as_str() {
@@ -230,7 +260,7 @@ fn main() -> anyhow::Result<()> {
         "firmware" => firmware::build(),
         "docs" => docs::run(),
         _ => {
-            eprintln!("usage: cargo xtask <test|lint|bench|fuzz|firmware|docs>\n  test   every test: host, shared (desktop and no_std target), firmware builds, QEMU\n  lint   rustfmt --check and clippy -D warnings\n  bench  [uncertainty|firmware|live]: the benchmarks quoted in the guide (a part: only that one)\n  fuzz   [--seconds N] [--target record|slots|frame|all] [--seed S]: the parsers' mutation fuzzer\n  firmware  the node images (real board, QEMU f32, QEMU fixed point), as the tests build them\n  docs   the guide's command reference (docs/src/reference/commands.md) from the built binary's help");
+            eprintln!("usage: cargo xtask <test|lint|bench|fuzz|firmware|docs>\n  test   every test: host, shared (desktop and no_std target), firmware builds, QEMU\n  lint   rustfmt --check and clippy -D warnings\n  bench  [uncertainty|design|firmware|live|station]: the benchmarks quoted in the guide (a part: only that one)\n  fuzz   [--seconds N] [--target record|slots|frame|all] [--seed S]: the parsers' mutation fuzzer\n  firmware  the node images (real board, QEMU f32, QEMU fixed point), as the tests build them\n  docs   the guide's command reference (docs/src/reference/commands.md) from the built binary's help");
             std::process::exit(2)
         }
     }
