@@ -337,6 +337,7 @@ mod tests {
             (e(GmdhError::Refit(LsqError::Unidentifiable { terms: vec!["ax".into()] })), BadInput),
             (e(LsqError::TooFewPositions { model: "m".into(), terms: 4, positions: 3 }), BadInput),
             (e(accelcal_core::uncertainty::UncertaintyError::TooFewPositions { positions: 5 }), BadInput),
+            (e(accelcal_core::design::DesignError::TooFew { n: 5, min: 8 }), BadInput),
             (e(accelcal_core::conformity::SpecError("m".into())), BadInput),
             (e(accelcal_core::testturn::TestTurnError::NoPairs), BadInput),
             (e(DiagnoseError::TooFewPositions { positions: 6, need: 8 }), BadInput),

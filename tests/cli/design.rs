@@ -8,8 +8,23 @@ fn a_designed_plan_is_a_plan_file_that_simulate_and_select_read() {
     let d = Dir::new();
     let like = simulate(&d, "like.csv", &["--samples", "40", "--effect", "angle_error=sd_mrad:0.1"]);
     let (plan, doc) = (d.s("designed.csv"), d.s("designed.json"));
-    let out = ok(&["plan", "--design", "16", "--like", &like, "--head-angle-u", "20", "--out", &plan, "--json", &doc]);
-    assert!(out.contains("plan design: 16 positions x 400 sample sets (4 s at 100 Hz), head time 224 s"), "{out}");
+    let out = ok(&[
+        "plan",
+        "--design",
+        "16",
+        "--like",
+        &like,
+        "--head-angle-u",
+        "20",
+        "--out",
+        &plan,
+        "--json",
+        &doc,
+    ]);
+    assert!(
+        out.contains("plan design: 16 positions x 400 sample sets (4 s at 100 Hz), head time 224 s"),
+        "{out}"
+    );
     assert!(out.contains("by the alternate split"), "{out}");
     let j = json(Path::new(&doc));
     assert_eq!(j["positions"], 16);
@@ -23,7 +38,8 @@ fn a_designed_plan_is_a_plan_file_that_simulate_and_select_read() {
     assert_eq!(j["criteria"]["worst_U_m_s2"].as_f64().unwrap(), u);
     // The unit type is the earlier campaign's: its noise (80 codes) read from its dwells.
     assert!(j["unit_type"].as_str().unwrap().contains("noise per sample x 8"), "{}", j["unit_type"]);
-    let plans: Vec<&str> = j["compared"].as_array().unwrap().iter().map(|c| c["plan"].as_str().unwrap()).collect();
+    let plans: Vec<&str> =
+        j["compared"].as_array().unwrap().iter().map(|c| c["plan"].as_str().unwrap()).collect();
     assert_eq!(plans, ["head (paper)", "tumble24", "six", "designed"]);
     // The paper's plan, at the same dwell, with 62 positions is better in U and costs more time.
     let paper = &j["compared"][0];
@@ -98,7 +114,19 @@ fn the_design_s_options_are_refused_where_they_do_not_apply() {
 fn the_design_s_report_is_what_users_read() {
     let d = Dir::new();
     let plan = d.s("d.csv");
-    let out = ok(&["plan", "--design", "12", "--noise", "80", "--head-angle-u", "20", "--g", "9.80665", "--out", &plan]);
+    let out = ok(&[
+        "plan",
+        "--design",
+        "12",
+        "--noise",
+        "80",
+        "--head-angle-u",
+        "20",
+        "--g",
+        "9.80665",
+        "--out",
+        &plan,
+    ]);
     let text = out.replace(d.0.path().to_str().unwrap(), "[dir]");
     insta::assert_snapshot!("plan_design_text", text);
 }

@@ -201,7 +201,9 @@ fn bench(only: Option<&str>) -> anyhow::Result<()> {
         Some("live") => live::bench(),
         Some("station") => station::bench(),
         Some(other) => {
-            anyhow::bail!("bench: unknown part `{other}` (the parts: uncertainty, design, firmware, live, station)")
+            anyhow::bail!(
+                "bench: unknown part `{other}` (the parts: uncertainty, design, firmware, live, station)"
+            )
         }
     }
 }
@@ -233,7 +235,8 @@ fn design_bench() -> anyhow::Result<()> {
     let dir = r.join("target/bench-design");
     std::fs::create_dir_all(&dir)?;
     let path = |n: &str| dir.join(n).to_str().expect("utf-8 path").to_string();
-    let common = ["--noise", "80", "--head-angle-u", "20", "--move-s", "10", "--samples", "400", "--g", "9.80665"];
+    let common =
+        ["--noise", "80", "--head-angle-u", "20", "--move-s", "10", "--samples", "400", "--g", "9.80665"];
     let (same, same_json) = (path("same-u.csv"), path("same-u.json"));
     let mut args = vec!["plan", "--design", "auto"];
     args.extend_from_slice(&common);
@@ -245,7 +248,16 @@ fn design_bench() -> anyhow::Result<()> {
     let (within, within_json) = (path("within-10.csv"), path("within-10.json"));
     let mut args = vec!["plan", "--design", "auto"];
     args.extend_from_slice(&common);
-    args.extend_from_slice(&["--target-U", &target, "--montecarlo", "1000", "--out", &within, "--json", &within_json]);
+    args.extend_from_slice(&[
+        "--target-U",
+        &target,
+        "--montecarlo",
+        "1000",
+        "--out",
+        &within,
+        "--json",
+        &within_json,
+    ]);
     run(&r, bin, &args)?;
     Ok(())
 }

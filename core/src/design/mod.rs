@@ -60,7 +60,9 @@ impl Prior {
     /// with `noise_codes` of white noise per sample.
     pub fn nominal(noise_codes: f64, g: f64) -> Result<Prior, DesignError> {
         if !(noise_codes.is_finite() && noise_codes >= 0.0) {
-            return Err(DesignError::Prior(format!("the noise must be a number of codes ≥ 0, got {noise_codes}")));
+            return Err(DesignError::Prior(format!(
+                "the noise must be a number of codes ≥ 0, got {noise_codes}"
+            )));
         }
         let s = NOMINAL_CODES_PER_G / g;
         Ok(Prior {
@@ -95,7 +97,8 @@ impl Prior {
             ));
         }
         let c4 = |ci: usize| &refs[ci].coefficients;
-        let model = Model4 { u0: order.map(|ci| c4(ci)[0]), k: order.map(|ci| [c4(ci)[1], c4(ci)[2], c4(ci)[3]]) };
+        let model =
+            Model4 { u0: order.map(|ci| c4(ci)[0]), k: order.map(|ci| [c4(ci)[1], c4(ci)[2], c4(ci)[3]]) };
         let [nx, ny, nz] = noise;
         Ok(Prior {
             model,
@@ -280,7 +283,12 @@ pub(crate) struct Evaluator {
 }
 
 impl Evaluator {
-    pub(crate) fn new(prior: &Prior, stated: &Stated, g: f64, samples: usize) -> Result<Evaluator, DesignError> {
+    pub(crate) fn new(
+        prior: &Prior,
+        stated: &Stated,
+        g: f64,
+        samples: usize,
+    ) -> Result<Evaluator, DesignError> {
         for (what, value) in [("g", g), ("the samples per position", samples as f64)] {
             if !(value.is_finite() && value > 0.0) {
                 return Err(DesignError::NotPositive { what, value });
@@ -288,10 +296,15 @@ impl Evaluator {
         }
         for v in [stated.head_angle_rad, stated.g_m_s2] {
             if !(v.is_finite() && v >= 0.0) {
-                return Err(DesignError::Prior(format!("a stated uncertainty must be a number ≥ 0, got {v}")));
+                return Err(DesignError::Prior(format!(
+                    "a stated uncertainty must be a number ≥ 0, got {v}"
+                )));
             }
         }
-        let cal = prior.model.invert().map_err(|_| DesignError::Prior("its sensitivity matrix is singular".into()))?;
+        let cal = prior
+            .model
+            .invert()
+            .map_err(|_| DesignError::Prior("its sensitivity matrix is singular".into()))?;
         let n = samples as f64;
         let rel = stated.g_m_s2 / g;
         let k = prior.model.k;
@@ -313,7 +326,9 @@ impl Evaluator {
         let a = accelcal_shared::gravity(alpha_deg, beta_deg, self.g);
         let d = head_partials(alpha_deg, beta_deg, self.g);
         let resp = |p: usize, angle: usize| (0..3).map(|j| self.k[p][j] * d[angle][j]).sum::<f64>();
-        let s = std::array::from_fn(|p| std::array::from_fn(|q| resp(p, 0) * resp(q, 0) + resp(p, 1) * resp(q, 1)));
+        let s = std::array::from_fn(|p| {
+            std::array::from_fn(|q| resp(p, 0) * resp(q, 0) + resp(p, 1) * resp(q, 1))
+        });
         Point { x: Vector4::new(1.0, a[0], a[1], a[2]), s }
     }
 

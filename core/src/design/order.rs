@@ -74,8 +74,10 @@ fn short_path(mut left: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
         for i in 0..n {
             for j in i + 1..n {
                 // Reversing i..=j replaces the moves (i−1 → i) and (j → j+1).
-                let before = step(prev(&path, i), path[i]) + if j + 1 < n { step(path[j], path[j + 1]) } else { 0.0 };
-                let after = step(prev(&path, i), path[j]) + if j + 1 < n { step(path[i], path[j + 1]) } else { 0.0 };
+                let before =
+                    step(prev(&path, i), path[i]) + if j + 1 < n { step(path[j], path[j + 1]) } else { 0.0 };
+                let after =
+                    step(prev(&path, i), path[j]) + if j + 1 < n { step(path[i], path[j + 1]) } else { 0.0 };
                 if after < before - 1e-9 {
                     path[i..=j].reverse();
                     better = true;
@@ -97,7 +99,9 @@ fn identifies(path: &[(f64, f64)], idx: &[usize], g: f64) -> bool {
         .iter()
         .flat_map(|&(a, b)| {
             let acc = accelcal_shared::gravity(a, b, g).map(|v| v / g);
-            cols.iter().map(move |&t| accelcal_shared::BASIS[t].eval([acc[0], acc[1], acc[2], 0.0])).collect::<Vec<_>>()
+            cols.iter()
+                .map(move |&t| accelcal_shared::BASIS[t].eval([acc[0], acc[1], acc[2], 0.0]))
+                .collect::<Vec<_>>()
         })
         .collect();
     let zeros = vec![0.0; path.len()];
@@ -129,9 +133,11 @@ fn settle_poles(path: &mut [(f64, f64)]) {
     }
 }
 
-/// Orders the positions of a design for short moves, keeping GMDH's selection meaningful:
-/// the order, how selection can rank on it, and its travel (degrees).
-pub fn arrange(positions: Vec<(f64, f64)>, g: f64) -> Result<(Vec<(f64, f64)>, Selection, f64), DesignError> {
+/// A plan in the head's order, how GMDH's selection can rank on it, and its travel (degrees).
+pub type Arranged = (Vec<(f64, f64)>, Selection, f64);
+
+/// Orders the positions of a design for short moves, keeping GMDH's selection meaningful.
+pub fn arrange(positions: Vec<(f64, f64)>, g: f64) -> Result<Arranged, DesignError> {
     let n = positions.len();
     let path = short_path(positions);
     let mut best: Option<(Vec<(f64, f64)>, f64)> = None;

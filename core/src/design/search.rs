@@ -184,7 +184,8 @@ pub struct AutoTarget {
 }
 
 /// The dwells `auto` tries, s.
-pub const AUTO_DWELLS_S: [f64; 14] = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 8.0, 10.0, 12.0, 15.0, 20.0, 30.0, 45.0, 60.0];
+pub const AUTO_DWELLS_S: [f64; 14] =
+    [1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 8.0, 10.0, 12.0, 15.0, 20.0, 30.0, 45.0, 60.0];
 
 /// The most positions `auto` considers.
 const AUTO_MAX_POSITIONS: usize = 400;
@@ -231,7 +232,8 @@ pub fn design_auto(
         }
     }
     let time = |&(n, s): &(usize, usize)| head_time_s(n, s, target.rate_hz, target.move_s);
-    let Some(&(mut n, samples)) = reachable.iter().min_by(|a, b| time(a).total_cmp(&time(b)).then(a.0.cmp(&b.0)))
+    let Some(&(mut n, samples)) =
+        reachable.iter().min_by(|a, b| time(a).total_cmp(&time(b)).then(a.0.cmp(&b.0)))
     else {
         return Err(DesignError::Unreachable {
             target: target.u_m_s2,

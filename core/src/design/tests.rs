@@ -63,13 +63,21 @@ fn the_prediction_is_what_the_budgets_state_after_the_campaign() {
         let stats = pos.channel_stats(&c);
         let fits = fit_positions(&pos, &stats, Method::Lsq, MODEL_4).unwrap();
         let refs: Vec<_> = fits.iter().map(|(_, f)| f).collect();
-        let r = References { head_angle_rad: stated().head_angle_rad, g_m_s2: stated().g_m_s2, ..References::default() };
+        let r = References {
+            head_angle_rad: stated().head_angle_rad,
+            g_m_s2: stated().g_m_s2,
+            ..References::default()
+        };
         let b = budget(&pos, &stats, &refs, r).unwrap();
         sum += b.expanded_max.into_iter().fold(0.0, f64::max);
     }
     let mean = sum / units as f64;
     let ratio = predicted.worst_m_s2 / mean;
-    assert!((0.93..1.07).contains(&ratio), "predicted {:.4e}, budgets' mean {mean:.4e}", predicted.worst_m_s2);
+    assert!(
+        (0.93..1.07).contains(&ratio),
+        "predicted {:.4e}, budgets' mean {mean:.4e}",
+        predicted.worst_m_s2
+    );
     // Noise dominates at 1 s of dwell; the head's angle errors are there too.
     let part = |n: &str| predicted.parts.iter().find(|p| p.name == n).unwrap().u_m_s2;
     assert!(part("noise") > part("head_angle") && part("head_angle") > 0.0, "{predicted:?}");
@@ -82,7 +90,12 @@ fn a_designed_plan_beats_the_paper_s_and_a_random_one_of_its_size() {
     assert_eq!(d.positions.len(), 24);
     assert_eq!(d.selection, order::Selection::Alternate);
     let random = predict(&Plan::random(24, 1).positions, 400, &prior, &stated(), G).unwrap();
-    assert!(d.prediction.worst_m_s2 < random.worst_m_s2, "{} vs {}", d.prediction.worst_m_s2, random.worst_m_s2);
+    assert!(
+        d.prediction.worst_m_s2 < random.worst_m_s2,
+        "{} vs {}",
+        d.prediction.worst_m_s2,
+        random.worst_m_s2
+    );
     // Per position, better than the paper's plan: U²·N is what a position buys.
     let paper = predict(&Plan::head().positions, 400, &prior, &stated(), G).unwrap();
     let per = |p: &Prediction, n: f64| p.worst_m_s2.powi(2) * n;
@@ -104,7 +117,12 @@ fn auto_reaches_the_target_in_less_head_time_than_the_paper_s_plan() {
     assert!(d.prediction.worst_m_s2 <= target.u_m_s2, "{d:?}");
     let t = head_time_s(d.positions.len(), d.samples, 100.0, 10.0);
     let t_paper = head_time_s(62, 400, 100.0, 10.0);
-    assert!(t < 0.75 * t_paper, "{t} s against {t_paper} s: {} positions of {} samples", d.positions.len(), d.samples);
+    assert!(
+        t < 0.75 * t_paper,
+        "{t} s against {t_paper} s: {} positions of {} samples",
+        d.positions.len(),
+        d.samples
+    );
 }
 
 #[test]

@@ -259,7 +259,9 @@ pub fn run(s: &Scenario, set: &Settings, progress: &(dyn Fn(usize) + Sync)) -> R
         coverage: within as f64 / checks.max(1) as f64,
         mean_u_m_s2: results.iter().map(|r| r.u_max).sum::<f64>() / set.units.max(1) as f64,
         rms_u_m_s2: (0..3)
-            .map(|i| (results.iter().map(|r| r.u_axes[i].powi(2)).sum::<f64>() / set.units.max(1) as f64).sqrt())
+            .map(|i| {
+                (results.iter().map(|r| r.u_axes[i].powi(2)).sum::<f64>() / set.units.max(1) as f64).sqrt()
+            })
             .fold(0.0, f64::max),
         rms_error_m_s2: (results.iter().map(|r| r.error_ss).sum::<f64>() / checks.max(1) as f64).sqrt(),
     })

@@ -47,7 +47,9 @@ pub fn check(a: &PlanArgs) -> anyhow::Result<()> {
         }
     }
     if d.target_u.is_some() && size != DesignSize::Auto {
-        return Err(bad("--target-U applies to --design auto only (with --design N the number of positions is yours)"));
+        return Err(bad(
+            "--target-U applies to --design auto only (with --design N the number of positions is yours)",
+        ));
     }
     head(a).reachable().map_err(|e| bad(format!("--alpha-step-deg/--beta-step-deg/--beta-max-deg: {e}")))?;
     super::check_g(a.g)
@@ -60,6 +62,14 @@ fn head(a: &PlanArgs) -> Head {
         beta_step_deg: d.beta_step_deg.unwrap_or(STEP_DEG),
         beta_max_deg: d.beta_max_deg.unwrap_or(BETA_MAX_DEG),
     }
+}
+
+/// A plan of the comparison with its prediction.
+struct Row {
+    name: &'static str,
+    positions: Vec<(f64, f64)>,
+    samples: usize,
+    prediction: Prediction,
 }
 
 /// One plan of the comparison.
@@ -235,28 +245,39 @@ pub fn run(a: &PlanArgs, size: DesignSize) -> anyhow::Result<()> {
     );
     if let Some(t) = target {
         let whence = if d.target_u.is_some() { "--target-U" } else { "the paper's plan's, at --samples" };
-        println!("  target U = {t:.4e} m/s² ({whence}); the least head time among the dwells tried reaches it");
+        println!(
+            "  target U = {t:.4e} m/s² ({whence}); the least head time among the dwells tried reaches it"
+        );
     }
     println!("  GMDH ranks the paper's models on it by {selection}");
     println!("  order: {:.0}° of travel from α = β = 0 (the larger stage per move)", designed.travel_deg);
     println!("  written: {}", out.display());
 
-    let mut rows: Vec<(String, Vec<(f64, f64)>, usize, Prediction)> = vec![
-        ("head (paper)".into(), Plan::head().positions, samples, paper),
-        ("tumble24".into(), Plan::tumble24().positions, samples, predict(&Plan::tumble24().positions, samples, &prior, &stated, a.g)?),
-        ("six".into(), Plan::six().positions, samples, predict(&Plan::six().positions, samples, &prior, &stated, a.g)?),
+    let reference = |name: &'static str, plan: Plan| -> anyhow::Result<Row> {
+        let prediction = predict(&plan.positions, samples, &prior, &stated, a.g)?;
+        Ok(Row { name, positions: plan.positions, samples, prediction })
+    };
+    let rows = [
+        Row { name: "head (paper)", positions: Plan::head().positions, samples, prediction: paper },
+        reference("tumble24", Plan::tumble24())?,
+        reference("six", Plan::six())?,
+        Row {
+            name: "designed",
+            positions: designed.positions.clone(),
+            samples: designed.samples,
+            prediction: designed.prediction.clone(),
+        },
     ];
-    rows.push(("designed".into(), designed.positions.clone(), designed.samples, designed.prediction.clone()));
     let mut compared: Vec<Compared> = rows
         .iter()
-        .map(|(name, pos, s, p)| Compared {
-            plan: name.clone(),
-            positions: pos.len(),
-            samples_per_position: *s,
-            head_time_s: head_time_s(pos.len(), *s, rate_hz, move_s),
-            u_m_s2: p.worst_m_s2,
-            u_axes_m_s2: p.expanded_m_s2,
-            criteria: criteria(p),
+        .map(|r| Compared {
+            plan: r.name.to_string(),
+            positions: r.positions.len(),
+            samples_per_position: r.samples,
+            head_time_s: head_time_s(r.positions.len(), r.samples, rate_hz, move_s),
+            u_m_s2: r.prediction.worst_m_s2,
+            u_axes_m_s2: r.prediction.expanded_m_s2,
+            criteria: criteria(&r.prediction),
             montecarlo: None,
         })
         .collect();
@@ -273,11 +294,11 @@ pub fn run(a: &PlanArgs, size: DesignSize) -> anyhow::Result<()> {
             range: (0.93, 0.97),
         };
         let pb = bar(units as u64 * rows.len() as u64, "simulated units");
-        for ((_, pos, s, _), c) in rows.iter().zip(compared.iter_mut()) {
+        for (r, c) in rows.iter().zip(compared.iter_mut()) {
             let set = Settings {
                 units: units as usize,
-                plan: Plan { positions: pos.clone() },
-                samples: *s,
+                plan: Plan { positions: r.positions.clone() },
+                samples: r.samples,
                 orientations: MC_ORIENTATIONS,
                 seed: a.seed,
             };
@@ -317,7 +338,11 @@ pub fn run(a: &PlanArgs, size: DesignSize) -> anyhow::Result<()> {
             head,
             head_angle_u_arcsec: angle_u,
             g_u_m_s2: stated.g_m_s2,
-            angles: designed.positions.iter().map(|&(alpha_deg, beta_deg)| Angles { alpha_deg, beta_deg }).collect(),
+            angles: designed
+                .positions
+                .iter()
+                .map(|&(alpha_deg, beta_deg)| Angles { alpha_deg, beta_deg })
+                .collect(),
             compared,
         };
         write_json(j, &doc)?;
@@ -340,8 +365,10 @@ fn size_word(size: DesignSize) -> String {
 fn bar(len: u64, what: &str) -> ProgressBar {
     let pb = ProgressBar::new(len);
     pb.set_style(
-        ProgressStyle::with_template(&format!("{{bar:40}} {{pos}}/{{len}} {what}, {{elapsed}} elapsed, eta {{eta}}"))
-            .expect("valid template"),
+        ProgressStyle::with_template(&format!(
+            "{{bar:40}} {{pos}}/{{len}} {what}, {{elapsed}} elapsed, eta {{eta}}"
+        ))
+        .expect("valid template"),
     );
     pb
 }
@@ -351,7 +378,15 @@ fn print_table(rows: &[Compared], mc: bool, noise: String) {
     println!("predicted expanded uncertainty (k = 2) of the calibrated acceleration at its worst orientation at 1 g; {noise}");
     print!(
         "  {:<13} {:>9} {:>7} {:>11} {:>10} {:>10} {:>10} {:>8} {:>8}",
-        "plan", "positions", "samples", "head time s", "U_x m/s²", "U_y m/s²", "U_z m/s²", "D codes", "A codes"
+        "plan",
+        "positions",
+        "samples",
+        "head time s",
+        "U_x m/s²",
+        "U_y m/s²",
+        "U_z m/s²",
+        "D codes",
+        "A codes"
     );
     if mc {
         print!(" {:>11} {:>11} {:>8} {:>11}", "MC mean U", "MC RMS U", "coverage", "RMS error");
@@ -361,7 +396,15 @@ fn print_table(rows: &[Compared], mc: bool, noise: String) {
         let [x, y, z] = r.u_axes_m_s2;
         print!(
             "  {:<13} {:>9} {:>7} {:>11.0} {:>10.3e} {:>10.3e} {:>10.3e} {:>8.3} {:>8.3}",
-            r.plan, r.positions, r.samples_per_position, r.head_time_s, x, y, z, r.criteria.d_codes, r.criteria.a_codes
+            r.plan,
+            r.positions,
+            r.samples_per_position,
+            r.head_time_s,
+            x,
+            y,
+            z,
+            r.criteria.d_codes,
+            r.criteria.a_codes
         );
         if let Some(m) = &r.montecarlo {
             print!(
