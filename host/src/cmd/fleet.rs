@@ -91,10 +91,10 @@ struct FleetJson<'a> {
 
 /// One head asset's units tracked.
 #[derive(Serialize)]
-struct HeadJson {
-    asset: String,
+pub(crate) struct HeadJson {
+    pub asset: String,
     #[serde(flatten)]
-    head: accelcal_core::headsig::Head,
+    pub head: accelcal_core::headsig::Head,
 }
 
 /// The head signature of every head asset over the period's runs that passed (not voided), each
@@ -149,34 +149,90 @@ fn out_of_tolerance(decision: Option<&str>) -> bool {
     matches!(decision, Some("conditional fail" | "fail"))
 }
 
+/// What `fleet` and `serve` show of a period: every number computed from the stored pieces.
+pub(crate) struct FleetData {
+    pub counts: Counts,
+    pub runs: Vec<FleetRun>,
+    pub due_by: Date,
+    pub units_due: Vec<DueUnit>,
+    pub assets: Vec<Asset>,
+    pub pops: Vec<Population>,
+    pub heads: Vec<HeadJson>,
+    pub charts: Vec<Chart>,
+    pub check_standards: Vec<accelcal_db::check::CheckStandard>,
+}
+
+impl FleetData {
+    /// The assets due by `due_by` (overdue included).
+    pub fn assets_due(&self) -> Vec<&Asset> {
+        self.assets.iter().filter(|x| x.due_date <= self.due_by).collect()
+    }
+
+    /// The runs whose as-found verification was out of tolerance (not voided).
+    pub fn found_out(&self) -> Vec<&FleetRun> {
+        self.runs
+            .iter()
+            .filter(|r| r.state != "voided" && out_of_tolerance(r.as_found_decision.as_deref()))
+            .collect()
+    }
+}
+
+/// The filter of a period of whole UTC days.
+pub(crate) fn filter_of(
+    since: Date,
+    until: Date,
+    station: Option<String>,
+    head_asset: Option<String>,
+    serial_prefix: Option<String>,
+    operator: Option<String>,
+) -> Filter {
+    Filter {
+        since_unix_s: start_of_day_unix_s(since),
+        until_unix_s: start_of_day_unix_s(until) + DAY_S,
+        station,
+        head_asset,
+        serial_prefix,
+        operator,
+    }
+}
+
+/// Gathers a period's fleet from the database; `due_by`: the last day of the units and assets due.
+pub(crate) fn gather(db: &mut Db, filter: &Filter, due_by: Date) -> anyhow::Result<FleetData> {
+    let counts = db.fleet_counts(filter)?;
+    let runs = db.fleet_runs(filter)?;
+    let units_due = db.units_due(start_of_day_unix_s(due_by) + DAY_S, filter.serial_prefix.as_deref())?;
+    let assets = db.assets()?;
+    let pops = populations(&runs);
+    let heads = heads(db, &runs)?;
+    let charts = charts(&runs);
+    let check_standards = db.check_standards(filter.station.as_deref())?;
+    Ok(FleetData { counts, runs, due_by, units_due, assets, pops, heads, charts, check_standards })
+}
+
+/// The last day of the units due: `days` after `until`.
+pub(crate) fn due_by(until: Date, days: u32) -> anyhow::Result<Date> {
+    until.checked_add(std::time::Duration::from_secs(u64::from(days) * DAY_S as u64)).context("--due-days")
+}
+
 /// Runs `accelcal fleet`.
 pub fn run(a: &FleetArgs) -> anyhow::Result<()> {
     let (since, until) = period(a)?;
-    let filter = Filter {
-        since_unix_s: start_of_day_unix_s(since),
-        until_unix_s: start_of_day_unix_s(until) + DAY_S,
-        station: a.station.clone(),
-        head_asset: a.head_asset.clone(),
-        serial_prefix: a.serial_prefix.clone(),
-        operator: a.operator.clone(),
-    };
+    let filter = filter_of(
+        since,
+        until,
+        a.station.clone(),
+        a.head_asset.clone(),
+        a.serial_prefix.clone(),
+        a.operator.clone(),
+    );
     let mut db = Db::open_existing(&reader_spec(a.reader.db.as_deref())?)?;
-    let counts = db.fleet_counts(&filter)?;
-    let runs = db.fleet_runs(&filter)?;
-    let due_by = until
-        .checked_add(std::time::Duration::from_secs(u64::from(a.due_days) * DAY_S as u64))
-        .context("--due-days")?;
-    let units_due = db.units_due(start_of_day_unix_s(due_by) + DAY_S, a.serial_prefix.as_deref())?;
-    let assets = db.assets()?;
-    let assets_due: Vec<&Asset> = assets.iter().filter(|x| x.due_date <= due_by).collect();
-    let pops = populations(&runs);
-    let heads = heads(&mut db, &runs)?;
-    let charts = charts(&runs);
-    let check_standards = db.check_standards(a.station.as_deref())?;
-    let found_out: Vec<&FleetRun> = runs
-        .iter()
-        .filter(|r| r.state != "voided" && out_of_tolerance(r.as_found_decision.as_deref()))
-        .collect();
+    let data = gather(&mut db, &filter, due_by(until, a.due_days)?)?;
+    let FleetData { counts, runs, due_by, units_due, pops, heads, charts, check_standards, .. } = &data;
+    let (runs, due_by) = (runs.as_slice(), *due_by);
+    let (pops, heads, charts) = (pops.as_slice(), heads.as_slice(), charts.as_slice());
+    let (units_due, check_standards) = (units_due.as_slice(), check_standards.as_slice());
+    let assets_due = data.assets_due();
+    let found_out = data.found_out();
 
     let filters: Vec<String> = [
         ("station", &a.station),
@@ -231,7 +287,7 @@ pub fn run(a: &FleetArgs) -> anyhow::Result<()> {
         "    {:<30} {:>8} {:>4} {:>14} {:>12} {:>10} {:>6}",
         "", "unit", "n", "mean", "s", "limit", "Cpk"
     );
-    for p in &pops {
+    for p in pops {
         println!(
             "    {:<30} {:>8} {:>4} {:>14} {:>12} {:>10} {:>6}",
             p.name,
@@ -269,7 +325,7 @@ pub fn run(a: &FleetArgs) -> anyhow::Result<()> {
             c.limits.ucl
         );
     }
-    for c in &check_standards {
+    for c in check_standards {
         println!(
             "  check standard of {}: {}, {} checks, {}{}",
             c.station,
@@ -279,7 +335,7 @@ pub fn run(a: &FleetArgs) -> anyhow::Result<()> {
             c.why.as_ref().map(|w| format!(" ({w})")).unwrap_or_default()
         );
     }
-    for h in &heads {
+    for h in heads {
         let s = h.head.settings_line();
         match h.head.change_points.last() {
             None => println!("  head {}: {} units, no change point ({s})", h.asset, h.head.units),
@@ -305,7 +361,7 @@ pub fn run(a: &FleetArgs) -> anyhow::Result<()> {
     if units_due.is_empty() {
         println!("    none");
     }
-    for u in &units_due {
+    for u in units_due {
         println!(
             "    {:<16} {}  due {}  (certificate of run {})",
             if u.serial.is_empty() { "-" } else { &u.serial },
@@ -322,7 +378,7 @@ pub fn run(a: &FleetArgs) -> anyhow::Result<()> {
         println!("    {} ({}) certificate {}, due {}", x.asset_id, x.kind.name(), x.certificate, x.due_date);
     }
     if let Some(c) = &a.csv {
-        write_atomic(c, csv_of(&runs)?.as_bytes())?;
+        write_atomic(c, csv_of(runs)?.as_bytes())?;
         println!("wrote {} ({} runs)", c.display(), runs.len());
     }
     if let Some(j) = &a.json {
@@ -336,16 +392,16 @@ pub fn run(a: &FleetArgs) -> anyhow::Result<()> {
                 head_asset: a.head_asset.as_deref(),
                 serial_prefix: a.serial_prefix.as_deref(),
                 operator: a.operator.as_deref(),
-                counts: &counts,
+                counts: counts,
                 as_found_out_of_tolerance: found_out,
-                populations: &pops,
+                populations: pops,
                 due_by,
-                units_due: &units_due,
+                units_due: units_due,
                 assets_due,
-                heads: &heads,
-                charts: &charts,
-                check_standards: &check_standards,
-                runs: &runs,
+                heads: heads,
+                charts: charts,
+                check_standards: check_standards,
+                runs: runs,
             },
         )?;
         println!("wrote {}", j.display());
@@ -354,7 +410,7 @@ pub fn run(a: &FleetArgs) -> anyhow::Result<()> {
 }
 
 /// One row per run: the columns an MES takes.
-fn csv_of(runs: &[FleetRun]) -> anyhow::Result<String> {
+pub(crate) fn csv_of(runs: &[FleetRun]) -> anyhow::Result<String> {
     let mut w = csv::Writer::from_writer(Vec::new());
     let mut header: Vec<String> = [
         "run_id",
