@@ -3,6 +3,8 @@
 //! `accelcal history` end to end (its output a snapshot).
 
 mod dbkit;
+#[path = "db/serve.rs"]
+mod serve;
 
 use std::path::Path;
 
@@ -618,47 +620,10 @@ fn the_fleet_is_counted_by_the_database_and_printed() {
 /// position, and the signature since shows it there.
 #[test]
 fn fleet_flags_a_head_knocked_out_of_true_from_the_units_campaigns() {
-    use accelcal_core::sim::{simulate, Plan, SimConfig};
     let d = tempfile::tempdir().unwrap();
     let spec = db_file(&d);
     let mut db = Db::open(&spec).unwrap();
-    let head = head_asset("HEAD-2", "DKD-17-009", "2099-12-31", 3.0, T0 - DAY);
-    db.add_asset(&head).unwrap();
-    let nominal = Plan::head();
-    for u in 0..70usize {
-        let mut plan = nominal.clone();
-        if u >= 55 {
-            plan.positions[26].0 += (2e-3f64).to_degrees();
-        }
-        let cfg =
-            SimConfig { seed: 100 + u as u64, plan, samples: 30, misalign_sd: 0.002, ..SimConfig::default() };
-        let (mut c, _) = simulate(&cfg);
-        for (row, (a, b)) in c.alpha_deg.iter_mut().zip(c.beta_deg.iter_mut()).enumerate() {
-            (*a, *b) = nominal.positions[row / 30];
-        }
-        let mut bytes = Vec::new();
-        c.write(&mut bytes).unwrap();
-        let device = format!("{:024x}", 0xa000 + u);
-        let s = accelcal_db::RunStart {
-            g_m_s2: cfg.g,
-            ..start(RunId::new(), &device, &format!("SN-H{u:03}"), "st-1", T0 + u as i64 * 3600)
-        };
-        db.begin_run(&s, None).unwrap();
-        db.store_run_asset(s.run_id, &head).unwrap();
-        db.store_campaign(s.run_id, &bytes).unwrap();
-        // Its model-4 fit, for the control charts.
-        let pos = accelcal_core::positions::Positions::new(&c, cfg.g);
-        let fits = accelcal_core::calibrate::fit_positions(
-            &pos,
-            &pos.channel_stats(&c),
-            accelcal_core::calibrate::Method::Lsq,
-            accelcal_shared::terms::MODEL_4,
-        )
-        .unwrap();
-        let coefs: Coefs = std::array::from_fn(|i| std::array::from_fn(|t| fits[i].1.coefficients[t]));
-        db.store_fit(s.run_id, &fit_json(&coefs)).unwrap();
-        db.finish_run(s.run_id, Outcome::Pass, "verified").unwrap();
-    }
+    dbkit::fleet::head_knocked_out(&mut db);
     drop(db);
     let json = d.path().join("f.json");
     let (code, out, err) = fleet_in_january(&spec, &["--json", json.to_str().unwrap()]);

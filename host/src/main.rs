@@ -8,6 +8,7 @@ mod cmd;
 mod exit;
 mod report;
 mod resolved;
+mod serve;
 mod settings;
 #[cfg(test)]
 mod sources;

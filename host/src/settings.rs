@@ -561,6 +561,7 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
         Command::Affected(a) => crate::cmd::asset::check_affected(a),
         Command::Fleet(a) => crate::cmd::fleet::check(a),
         Command::Certificate(a) => crate::cmd::fleet::check_certificate(a),
+        Command::Serve(_) => Ok(()),
     }
 }
 

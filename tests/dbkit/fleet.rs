@@ -187,3 +187,69 @@ pub fn the_fleet_is_counted_by_the_database(spec: &str) {
     assert_eq!(db.certificate_html(line.c).unwrap().as_deref(), Some("<html>certificate of SN-C1</html>"));
     assert_eq!(db.certificate_html(line.d).unwrap(), None);
 }
+
+/// A serial that is HTML: a unit calibrated on station `st-1` at `t` whose serial (and so its
+/// stored certificate, `<html>certificate of SERIAL</html>`) carries a script.
+pub const HOSTILE_SERIAL: &str = "<script>document.write('PWNED')</script>";
+
+/// Calibrates the unit of [`HOSTILE_SERIAL`].
+pub fn hostile_unit(db: &mut Db, t: i64) -> RunId {
+    calibrated(
+        db,
+        Unit {
+            device: "eeff00112233445566778899",
+            serial: HOSTILE_SERIAL,
+            station: "st-1",
+            t,
+            bias_mg: 0.8,
+            due: Some(t + 100 * DAY),
+            head: None,
+            as_found: None,
+            coefs: coefs(5.0, 2),
+        },
+    )
+}
+
+/// Issue 31 item 3's line: 70 units on the registered head HEAD-2 on station `st-1`, an hour
+/// apart from T0, their simulated campaigns and model-4 fits stored; from the 56th unit on, the
+/// head reaches position 27's α 2 mrad off what it says.
+pub fn head_knocked_out(db: &mut Db) {
+    use accelcal_core::sim::{simulate, Plan, SimConfig};
+    let head = head_asset("HEAD-2", "DKD-17-009", "2099-12-31", 3.0, T0 - DAY);
+    db.add_asset(&head).unwrap();
+    let nominal = Plan::head();
+    for u in 0..70usize {
+        let mut plan = nominal.clone();
+        if u >= 55 {
+            plan.positions[26].0 += (2e-3f64).to_degrees();
+        }
+        let cfg =
+            SimConfig { seed: 100 + u as u64, plan, samples: 30, misalign_sd: 0.002, ..SimConfig::default() };
+        let (mut c, _) = simulate(&cfg);
+        for (row, (a, b)) in c.alpha_deg.iter_mut().zip(c.beta_deg.iter_mut()).enumerate() {
+            (*a, *b) = nominal.positions[row / 30];
+        }
+        let mut bytes = Vec::new();
+        c.write(&mut bytes).unwrap();
+        let device = format!("{:024x}", 0xa000 + u);
+        let s = accelcal_db::RunStart {
+            g_m_s2: cfg.g,
+            ..start(RunId::new(), &device, &format!("SN-H{u:03}"), "st-1", T0 + u as i64 * 3600)
+        };
+        db.begin_run(&s, None).unwrap();
+        db.store_run_asset(s.run_id, &head).unwrap();
+        db.store_campaign(s.run_id, &bytes).unwrap();
+        // Its model-4 fit, for the control charts.
+        let pos = accelcal_core::positions::Positions::new(&c, cfg.g);
+        let fits = accelcal_core::calibrate::fit_positions(
+            &pos,
+            &pos.channel_stats(&c),
+            accelcal_core::calibrate::Method::Lsq,
+            accelcal_shared::terms::MODEL_4,
+        )
+        .unwrap();
+        let coefs: Coefs = std::array::from_fn(|i| std::array::from_fn(|t| fits[i].1.coefficients[t]));
+        db.store_fit(s.run_id, &fit_json(&coefs)).unwrap();
+        db.finish_run(s.run_id, Outcome::Pass, "verified").unwrap();
+    }
+}

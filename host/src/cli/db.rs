@@ -229,6 +229,21 @@ pub struct FleetArgs {
     pub csv: Option<PathBuf>,
 }
 
+/// `accelcal serve`.
+#[derive(Debug, Args)]
+pub struct ServeArgs {
+    #[command(flatten)]
+    pub reader: ReaderDb,
+    /// The address to listen on (`IP:PORT`; port 0 takes a free port, and the line printed at the
+    /// start says which). The view has no login: keep it on a trusted network.
+    #[arg(long, value_name = "IP:PORT", default_value = "127.0.0.1:8080")]
+    pub bind: std::net::SocketAddr,
+    /// The units and assets due within this many days of today are listed on the overview
+    /// (overdue ones too).
+    #[arg(long, value_name = "DAYS", default_value_t = 30, value_parser = clap::value_parser!(u32).range(0..=3660))]
+    pub due_days: u32,
+}
+
 /// `accelcal certificate`.
 #[derive(Debug, Args)]
 pub struct CertificateArgs {

@@ -127,6 +127,12 @@ pub enum Command {
     Fleet(FleetArgs),
     /// Print a stored certificate again, from the calibration database, as it was issued.
     Certificate(CertificateArgs),
+    /// A read-only web view of the calibration database for the line: the overview (today's
+    /// units, yield, stations, assets and units due), each unit's page (runs, as found and as
+    /// left, drift, stored certificates), the control charts and the heads' signatures, and the
+    /// fleet table with `fleet`'s filters and a CSV download. Server-side HTML, no JavaScript, no
+    /// write endpoint (GET only); stops on Ctrl-C.
+    Serve(ServeArgs),
 }
 
 /// Storing a command's result in the calibration database (`fit`, `verify`, `flash`, `report`).

@@ -70,6 +70,7 @@ pub fn run(cli: Cli, resolved: &crate::resolved::Resolved, warnings: &mut Warnin
         Command::Affected(a) => asset::run_affected(&a),
         Command::Fleet(a) => fleet::run(&a),
         Command::Certificate(a) => fleet::run_certificate(&a),
+        Command::Serve(a) => crate::serve::run(&a),
     }
 }
 

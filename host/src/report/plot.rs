@@ -8,7 +8,7 @@ use accelcal_core::output::write_atomic;
 use anyhow::anyhow;
 use plotters::prelude::*;
 
-const COLORS: [RGBColor; 8] = [
+pub(crate) const COLORS: [RGBColor; 8] = [
     RGBColor(31, 119, 180),
     RGBColor(255, 127, 14),
     RGBColor(44, 160, 44),
@@ -30,7 +30,7 @@ fn svg_file(
 }
 
 /// Renders an SVG of `size` pixels on a white background with `draw`, into a string.
-fn svg_string(
+pub(crate) fn svg_string(
     size: (u32, u32),
     draw: impl FnOnce(&DrawingArea<SVGBackend, plotters::coord::Shift>) -> anyhow::Result<()>,
 ) -> anyhow::Result<String> {
@@ -44,7 +44,7 @@ fn svg_string(
     Ok(svg)
 }
 
-fn span(vals: impl Iterator<Item = f64>) -> (f64, f64) {
+pub(crate) fn span(vals: impl Iterator<Item = f64>) -> (f64, f64) {
     let (lo, hi) = vals
         .filter(|v| v.is_finite())
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));

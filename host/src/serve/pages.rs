@@ -1,0 +1,637 @@
+//! The pages of `accelcal serve`: what each shows, gathered from the database with the functions
+//! `fleet`, `history` and `certificate` use, formatted into the askama templates of
+//! `host/templates/serve/` (which escape every value).
+
+use accelcal_core::output::utc_date_time;
+use accelcal_db::asset::{parse_date, today_utc, Date};
+use accelcal_db::fleet::{Counts, FleetRun};
+use accelcal_db::history::{history, VerifySummary, DEFAULT_RULE};
+use accelcal_db::{Db, Outcome, RunId};
+use askama::Template;
+use axum::http::StatusCode;
+
+use super::svg::{control_chart, drift_chart, signature_chart, Lines};
+use super::{App, PageError};
+use crate::cmd::fleet::{csv_of, due_by, filter_of, gather, FleetData};
+use crate::report::sig;
+
+const VERSION: &str = env!("CARGO_PKG_VERSION");
+
+/// The filters of the fleet and charts pages, as the form sends them (`fleet`'s options).
+#[derive(Debug, Default, serde::Deserialize)]
+struct Filters {
+    since: Option<String>,
+    until: Option<String>,
+    station: Option<String>,
+    head_asset: Option<String>,
+    serial_prefix: Option<String>,
+    operator: Option<String>,
+}
+
+/// A field of the form: an empty one is no filter.
+fn given(s: &Option<String>) -> Option<String> {
+    s.as_ref().map(|v| v.trim().to_string()).filter(|v| !v.is_empty())
+}
+
+impl Filters {
+    fn parse(q: &str) -> Result<Filters, PageError> {
+        serde_urlencoded::from_str(q).map_err(|e| PageError::bad(format!("the query `{q}`: {e}")))
+    }
+
+    /// The period: `until` (default today), `since` (default 30 days before it).
+    fn period(&self) -> Result<(Date, Date), PageError> {
+        let day = |name: &str, v: &Option<String>| -> Result<Option<Date>, PageError> {
+            given(v).map(|s| parse_date(&s).map_err(|e| PageError::bad(format!("{name}: {e}")))).transpose()
+        };
+        let until = day("until", &self.until)?.unwrap_or_else(today_utc);
+        let since = match day("since", &self.since)? {
+            Some(s) => s,
+            None => until
+                .checked_sub(std::time::Duration::from_secs(30 * 86_400))
+                .map_err(|_| PageError::bad("until is too early"))?,
+        };
+        if since > until {
+            return Err(PageError::bad(format!("since {since} is after until {until}: the period is empty")));
+        }
+        Ok((since, until))
+    }
+
+    fn gather(&self, db: &mut Db, due_days: u32) -> Result<(FleetData, Date, Date), PageError> {
+        let (since, until) = self.period()?;
+        let f = filter_of(
+            since,
+            until,
+            given(&self.station),
+            given(&self.head_asset),
+            given(&self.serial_prefix),
+            given(&self.operator),
+        );
+        let due = due_by(until, due_days).map_err(PageError::internal)?;
+        let data = gather(db, &f, due).map_err(PageError::internal)?;
+        Ok((data, since, until))
+    }
+
+    /// The form's fields as the page shows them again.
+    fn form(&self, since: Date, until: Date) -> Form {
+        Form {
+            since: since.to_string(),
+            until: until.to_string(),
+            station: given(&self.station).unwrap_or_default(),
+            head_asset: given(&self.head_asset).unwrap_or_default(),
+            serial_prefix: given(&self.serial_prefix).unwrap_or_default(),
+            operator: given(&self.operator).unwrap_or_default(),
+        }
+    }
+}
+
+/// The filter form's values.
+struct Form {
+    since: String,
+    until: String,
+    station: String,
+    head_asset: String,
+    serial_prefix: String,
+    operator: String,
+}
+
+/// A period's counts as the pages show them.
+struct CountsView {
+    runs: i64,
+    units: i64,
+    passed: i64,
+    rejected: i64,
+    unfinished: i64,
+    voided: i64,
+    first_pass: String,
+    final_pass: String,
+    rejections: Vec<(String, i64)>,
+}
+
+fn pct(n: i64, of: i64) -> String {
+    if of == 0 {
+        "-".into()
+    } else {
+        format!("{n}/{of} ({:.1} %)", 100.0 * n as f64 / of as f64)
+    }
+}
+
+impl From<&Counts> for CountsView {
+    fn from(c: &Counts) -> CountsView {
+        CountsView {
+            runs: c.runs,
+            units: c.units,
+            passed: c.passed,
+            rejected: c.rejected,
+            unfinished: c.unfinished,
+            voided: c.voided,
+            first_pass: pct(c.first_pass_units, c.units_finished),
+            final_pass: pct(c.final_pass_units, c.units_finished),
+            rejections: c.rejections.clone(),
+        }
+    }
+}
+
+/// One run in a table.
+struct RunRow {
+    run_id: String,
+    serial: String,
+    device_id: String,
+    /// What the unit's page is found by: the serial, else the device id.
+    unit_key: String,
+    station: String,
+    head: String,
+    operator: String,
+    started: String,
+    state: String,
+    reason: String,
+    as_found: String,
+    as_left: String,
+    /// The largest U of the fit, m/s² (empty: none).
+    u_max: String,
+    /// The model-4 coefficients, `x:1 … z:az` (empty: none).
+    coefficients: Vec<String>,
+}
+
+impl From<&FleetRun> for RunRow {
+    fn from(r: &FleetRun) -> RunRow {
+        RunRow {
+            run_id: r.run_id.clone(),
+            serial: r.serial.clone(),
+            device_id: r.device_id.clone(),
+            unit_key: if r.serial.is_empty() { r.device_id.clone() } else { r.serial.clone() },
+            station: r.station.clone(),
+            head: r.head_asset.clone().unwrap_or_default(),
+            operator: r.operator.clone(),
+            started: utc_date_time(r.started_unix_s),
+            state: r.state.clone(),
+            reason: r.reason.clone().unwrap_or_default(),
+            as_found: r.as_found_decision.clone().unwrap_or_default(),
+            as_left: r.as_left_decision.clone().unwrap_or_default(),
+            u_max: r
+                .u_m_s2()
+                .map(|u| format!("{:.3e}", u.into_iter().fold(0.0, f64::max)))
+                .unwrap_or_default(),
+            coefficients: r
+                .model4()
+                .map(|m| m.iter().flatten().map(|v| sig(*v, 5)).collect())
+                .unwrap_or_default(),
+        }
+    }
+}
+
+struct StationRow {
+    name: String,
+    runs: usize,
+    passed: usize,
+    check: String,
+}
+
+struct AssetRow {
+    id: String,
+    kind: &'static str,
+    certificate: String,
+    due: String,
+    state: &'static str,
+}
+
+struct DueRow {
+    serial: String,
+    device_id: String,
+    unit_key: String,
+    due: String,
+    run_id: String,
+}
+
+#[derive(Template)]
+#[template(path = "serve/overview.html")]
+struct OverviewPage<'a> {
+    db: &'a str,
+    version: &'a str,
+    today: String,
+    day: CountsView,
+    month: CountsView,
+    month_since: String,
+    stations: Vec<StationRow>,
+    assets: Vec<AssetRow>,
+    due_by: String,
+    due: Vec<DueRow>,
+    today_runs: Vec<RunRow>,
+}
+
+/// `/`: today's units, the last 30 days' yield, stations, assets and units due.
+pub(super) fn overview(db: &mut Db, app: &App) -> Result<String, PageError> {
+    let today = today_utc();
+    let month = Filters::default();
+    let (data, since, _) = month.gather(db, app.due_days)?;
+    let day_filter = filter_of(today, today, None, None, None, None);
+    let day_counts = db.fleet_counts(&day_filter).map_err(PageError::internal)?;
+    let day_runs = db.fleet_runs(&day_filter).map_err(PageError::internal)?;
+    let mut names: Vec<&str> = data.runs.iter().map(|r| r.station.as_str()).collect();
+    names.extend(data.check_standards.iter().map(|c| c.station.as_str()));
+    names.sort_unstable();
+    names.dedup();
+    let stations = names
+        .iter()
+        .map(|&n| {
+            let of: Vec<&FleetRun> = data.runs.iter().filter(|r| r.station == n).collect();
+            let check = data
+                .check_standards
+                .iter()
+                .find(|c| c.station == n)
+                .map(|c| format!("{} ({}, {} checks)", c.state, c.serial, c.checks))
+                .unwrap_or_else(|| "no check standard".into());
+            StationRow {
+                name: n.to_string(),
+                runs: of.len(),
+                passed: of.iter().filter(|r| r.state == "pass").count(),
+                check,
+            }
+        })
+        .collect();
+    let assets = data
+        .assets
+        .iter()
+        .map(|a| AssetRow {
+            id: a.asset_id.clone(),
+            kind: a.kind.name(),
+            certificate: a.certificate.clone(),
+            due: a.due_date.to_string(),
+            state: if a.due_date < today {
+                "overdue"
+            } else if a.due_date <= data.due_by {
+                "due soon"
+            } else {
+                "in force"
+            },
+        })
+        .collect();
+    let due = data
+        .units_due
+        .iter()
+        .map(|u| DueRow {
+            serial: u.serial.clone(),
+            device_id: u.device_id.clone(),
+            unit_key: if u.serial.is_empty() { u.device_id.clone() } else { u.serial.clone() },
+            due: utc_date_time(u.due_unix_s)[..10].to_string(),
+            run_id: u.run_id.clone(),
+        })
+        .collect();
+    let page = OverviewPage {
+        db: &app.target,
+        version: VERSION,
+        today: today.to_string(),
+        day: (&day_counts).into(),
+        month: (&data.counts).into(),
+        month_since: since.to_string(),
+        stations,
+        assets,
+        due_by: data.due_by.to_string(),
+        due,
+        today_runs: day_runs.iter().map(RunRow::from).collect(),
+    };
+    page.render().map_err(PageError::internal)
+}
+
+struct PopulationRow {
+    name: String,
+    unit: &'static str,
+    n: usize,
+    mean: String,
+    sd: String,
+    limit: String,
+    cpk: String,
+}
+
+#[derive(Template)]
+#[template(path = "serve/fleet.html")]
+struct FleetPage<'a> {
+    db: &'a str,
+    version: &'a str,
+    form: Form,
+    query: &'a str,
+    counts: CountsView,
+    found_out: Vec<RunRow>,
+    populations: Vec<PopulationRow>,
+    runs: Vec<RunRow>,
+    names: Vec<String>,
+}
+
+/// `/fleet`: `fleet`'s table over the filters, and a CSV download of the same rows.
+pub(super) fn fleet(db: &mut Db, app: &App, q: &str) -> Result<String, PageError> {
+    let f = Filters::parse(q)?;
+    let (data, since, until) = f.gather(db, app.due_days)?;
+    let populations = data
+        .pops
+        .iter()
+        .map(|p| PopulationRow {
+            name: p.name.clone(),
+            unit: p.unit,
+            n: p.n,
+            mean: format!("{:+.4}", p.mean),
+            sd: format!("{:.4}", p.sd),
+            limit: p.limit.map_or("-".into(), |l| format!("±{l}")),
+            cpk: p.cpk.map_or("-".into(), |c| format!("{c:.2}")),
+        })
+        .collect();
+    let mut names = Vec::new();
+    for ch in ["x", "y", "z"] {
+        for t in ["1", "ax", "ay", "az"] {
+            names.push(format!("{ch}:{t}"));
+        }
+    }
+    let page = FleetPage {
+        db: &app.target,
+        version: VERSION,
+        form: f.form(since, until),
+        query: q,
+        counts: (&data.counts).into(),
+        found_out: data.found_out().into_iter().map(RunRow::from).collect(),
+        populations,
+        runs: data.runs.iter().map(RunRow::from).collect(),
+        names,
+    };
+    page.render().map_err(PageError::internal)
+}
+
+/// `/fleet.csv`: `fleet --csv`'s rows over the filters.
+pub(super) fn fleet_csv(db: &mut Db, app: &App, q: &str) -> Result<String, PageError> {
+    let f = Filters::parse(q)?;
+    let (data, _, _) = f.gather(db, app.due_days)?;
+    csv_of(&data.runs).map_err(PageError::internal)
+}
+
+struct ChartView {
+    title: String,
+    svg: String,
+    violations: Vec<String>,
+}
+
+struct HeadView {
+    asset: String,
+    units: usize,
+    settings: String,
+    change_points: Vec<String>,
+    svg: String,
+}
+
+#[derive(Template)]
+#[template(path = "serve/charts.html")]
+struct ChartsPage<'a> {
+    db: &'a str,
+    version: &'a str,
+    form: Form,
+    charts: Vec<ChartView>,
+    checks: Vec<(String, Vec<ChartView>)>,
+    heads: Vec<HeadView>,
+}
+
+/// `/charts`: the control charts by head (or station), each station's check standard, and each
+/// head's signature.
+pub(super) fn charts(db: &mut Db, app: &App, q: &str) -> Result<String, PageError> {
+    let f = Filters::parse(q)?;
+    let (data, since, until) = f.gather(db, app.due_days)?;
+    let mut charts = Vec::new();
+    for c in &data.charts {
+        let values: Vec<f64> = c.points.iter().map(|p| p.value).collect();
+        let broken: Vec<usize> = c.violations.iter().map(|(v, _)| v.index).collect();
+        let l = Lines { center: c.limits.center, lcl: c.limits.lcl, ucl: c.limits.ucl };
+        charts.push(ChartView {
+            title: format!("{}, {} ({})", c.group, c.quantity, c.unit),
+            svg: control_chart(c.unit, &values, Some(&l), &broken).map_err(PageError::internal)?,
+            violations: c
+                .violations
+                .iter()
+                .map(|(v, p)| {
+                    format!(
+                        "rule {} ({}) at {} (run {}, {}): {:.6}",
+                        v.rule,
+                        v.what,
+                        if p.serial.is_empty() { "-" } else { &p.serial },
+                        p.run_id,
+                        utc_date_time(p.started_unix_s),
+                        p.value
+                    )
+                })
+                .collect(),
+        });
+    }
+    let mut checks = Vec::new();
+    for s in &data.check_standards {
+        let mut views = Vec::new();
+        for c in &s.charts {
+            let values: Vec<f64> = c.points.iter().map(|p| p.1).collect();
+            let broken: Vec<usize> = c.violations.iter().map(|v| v.index).collect();
+            let l = c.limits.as_ref().map(|l| Lines { center: l.center, lcl: l.lcl, ucl: l.ucl });
+            views.push(ChartView {
+                title: format!("{} ({})", c.quantity, c.unit),
+                svg: control_chart(c.unit, &values, l.as_ref(), &broken).map_err(PageError::internal)?,
+                violations: c
+                    .violations
+                    .iter()
+                    .map(|v| format!("rule {} ({}) at check {}", v.rule, v.what, v.index + 1))
+                    .collect(),
+            });
+        }
+        let state = format!(
+            "station {}: {} ({}, {} checks){}",
+            s.station,
+            s.state,
+            s.serial,
+            s.checks,
+            s.why.as_ref().map(|w| format!(": {w}")).unwrap_or_default()
+        );
+        checks.push((state, views));
+    }
+    let mut heads = Vec::new();
+    for h in &data.heads {
+        let arcsec: Vec<f64> = h.head.signature.positions.iter().map(|p| p.arcsec).collect();
+        heads.push(HeadView {
+            asset: h.asset.clone(),
+            units: h.head.units,
+            settings: h.head.settings_line(),
+            change_points: h
+                .head
+                .change_points
+                .iter()
+                .map(|c| {
+                    format!(
+                        "unit {} (run {}, {}): {}, {:.0} {}",
+                        if c.serial.is_empty() { "-" } else { &c.serial },
+                        c.run_id,
+                        utc_date_time(c.started_unix_s),
+                        c.rule,
+                        c.estimate,
+                        c.unit
+                    )
+                })
+                .collect(),
+            svg: if arcsec.is_empty() {
+                String::new()
+            } else {
+                signature_chart(&arcsec).map_err(PageError::internal)?
+            },
+        });
+    }
+    let page =
+        ChartsPage { db: &app.target, version: VERSION, form: f.form(since, until), charts, checks, heads };
+    page.render().map_err(PageError::internal)
+}
+
+struct UnitRun {
+    run_id: String,
+    calibration: String,
+    started: String,
+    station: String,
+    operator: String,
+    outcome: String,
+    record: String,
+    as_found: String,
+    as_left: String,
+    note: String,
+    certificate: bool,
+}
+
+#[derive(Template)]
+#[template(path = "serve/unit.html")]
+struct UnitPage<'a> {
+    db: &'a str,
+    version: &'a str,
+    key: &'a str,
+    device_id: String,
+    serials: String,
+    runs: Vec<UnitRun>,
+    drift_svg: String,
+    drifts: Vec<String>,
+    recalibration: String,
+}
+
+fn verification(v: &Option<VerifySummary>) -> String {
+    match v {
+        None => "-".into(),
+        Some(v) => format!(
+            "{} {}/{}, max {} m/s²",
+            if v.pass { "pass" } else { "FAIL" },
+            v.positions - v.failed,
+            v.positions,
+            sig(v.max_abs_error_m_s2, 2)
+        ),
+    }
+}
+
+/// `/unit/KEY` (a serial or a device id): `history`'s runs, drift and recalibration date, with
+/// links to the stored certificates.
+pub(super) fn unit(db: &mut Db, app: &App, key: &str) -> Result<String, PageError> {
+    let runs = db.unit_runs(key).map_err(|e| PageError::not_found(e.to_string()))?;
+    if runs.is_empty() {
+        return Err(PageError::not_found(format!("no unit `{key}` in the database")));
+    }
+    let h = history(&runs, DEFAULT_RULE);
+    let mut rows = Vec::new();
+    for r in &h.runs {
+        let outcome = match (r.outcome, &r.voided) {
+            (_, Some(_)) => "voided",
+            (Some(Outcome::Pass), None) => "pass",
+            (Some(Outcome::Rejected), None) => "rejected",
+            (None, None) => "unfinished",
+        };
+        let certificate = match RunId::parse(&r.run_id) {
+            Ok(id) => db.certificate_html(id).map_err(PageError::internal)?.is_some(),
+            Err(_) => false,
+        };
+        let note = match (&r.voided, &r.not_a_calibration, r.outcome) {
+            (Some(why), _, _) => format!("voided: {why}"),
+            (None, Some(why), _) => format!("not a calibration: {why}"),
+            (None, None, Some(Outcome::Rejected)) => format!("rejected: {}", r.reason),
+            _ => String::new(),
+        };
+        rows.push(UnitRun {
+            run_id: r.run_id.clone(),
+            calibration: r.calibration.map_or("-".into(), |n| n.to_string()),
+            started: utc_date_time(r.started_unix_s),
+            station: r.station.clone(),
+            operator: r.operator.clone(),
+            outcome: outcome.into(),
+            record: r.record_crc32.clone().unwrap_or_else(|| "-".into()),
+            as_found: verification(&r.as_found),
+            as_left: verification(&r.as_left),
+            note,
+            certificate,
+        });
+    }
+    let pairs: Vec<[(f64, f64); 3]> = h
+        .drifts
+        .iter()
+        .map(|d| {
+            std::array::from_fn(|c| {
+                let ch = ["x", "y", "z"][c];
+                d.terms
+                    .iter()
+                    .find(|t| t.channel == ch && t.term == "1")
+                    .map_or((0.0, 0.0), |t| (t.delta_m_s2, t.sigma_m_s2))
+            })
+        })
+        .collect();
+    let drift_svg =
+        if pairs.is_empty() { String::new() } else { drift_chart(&pairs).map_err(PageError::internal)? };
+    let drifts = h
+        .drifts
+        .iter()
+        .map(|d| {
+            let largest = d
+                .terms
+                .iter()
+                .max_by(|a, b| (a.delta_m_s2.abs()).total_cmp(&b.delta_m_s2.abs()))
+                .map(|t| {
+                    format!(
+                        "largest {}:{} {} ± {} m/s²",
+                        t.channel,
+                        t.term,
+                        sig(t.delta_m_s2, 3),
+                        sig(t.sigma_m_s2, 2)
+                    )
+                })
+                .unwrap_or_default();
+            format!("calibration {} → {} ({:.1} days): {largest}", d.from, d.to, d.days)
+        })
+        .collect();
+    let rc = &h.recalibration;
+    let recalibration = match rc.due_unix_s {
+        Some(t) => format!("recalibrate by {} ({})", &utc_date_time(t)[..10], rc.basis),
+        None => format!("recalibration: {}", rc.basis),
+    };
+    let page = UnitPage {
+        db: &app.target,
+        version: VERSION,
+        key,
+        device_id: h.device_id.clone(),
+        serials: if h.serials.is_empty() { "no serial number".into() } else { h.serials.join(", ") },
+        runs: rows,
+        drift_svg,
+        drifts,
+        recalibration,
+    };
+    page.render().map_err(PageError::internal)
+}
+
+/// `/run/ID/certificate`: the stored certificate, as issued.
+pub(super) fn certificate(db: &mut Db, id: &str) -> Result<String, PageError> {
+    let run = RunId::parse(id).map_err(|e| PageError::bad(e.to_string()))?;
+    db.certificate_html(run)
+        .map_err(PageError::internal)?
+        .ok_or_else(|| PageError::not_found(format!("run {run} has no certificate")))
+}
+
+#[derive(Template)]
+#[template(path = "serve/error.html")]
+struct ErrorPage<'a> {
+    db: &'a str,
+    version: &'a str,
+    status: String,
+    message: &'a str,
+}
+
+/// The page of an error.
+pub(super) fn error(target: &str, status: StatusCode, message: &str) -> String {
+    let page = ErrorPage { db: target, version: VERSION, status: status.to_string(), message };
+    page.render().unwrap_or_else(|_| format!("{status}"))
+}

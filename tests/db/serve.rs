@@ -1,0 +1,272 @@
+//! `accelcal serve`: the read-only web view, over HTTP and in headless Chromium (`--dump-dom`):
+//! the pages load, their tables hold the database's numbers (those `fleet --json` gives), a chart
+//! is drawn, a hostile serial is shown as text, a stored certificate's script does not run, and
+//! nothing but GET is answered.
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpStream;
+use std::process::{Child, Command, Stdio};
+
+use accelcal_db::Db;
+
+use super::dbkit::fleet::{hostile_unit, line_of_units, HOSTILE_SERIAL};
+use super::dbkit::{accelcal, DAY, T0};
+
+/// A running `accelcal serve`, stopped when dropped.
+struct Server {
+    child: Child,
+    base: String,
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Starts `accelcal serve --db SPEC --bind 127.0.0.1:0` and reads its address off its first line.
+fn serve(spec: &str) -> Server {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_accelcal"))
+        .args(["serve", "--db", spec, "--bind", "127.0.0.1:0"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+    let at = line.find("http://").unwrap_or_else(|| panic!("no address in `{line}`"));
+    let base = line[at..].split_whitespace().next().unwrap().trim_end_matches('/').to_string();
+    assert!(line.starts_with("serving ") && line.contains("read-only"), "{line}");
+    Server { child, base }
+}
+
+/// One HTTP/1.1 request: (status, headers, body).
+fn request(base: &str, method: &str, path: &str) -> (u16, String, String) {
+    let host = base.trim_start_matches("http://");
+    let mut s = TcpStream::connect(host).unwrap();
+    write!(s, "{method} {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\nContent-Length: 0\r\n\r\n")
+        .unwrap();
+    let mut raw = Vec::new();
+    s.read_to_end(&mut raw).unwrap();
+    let raw = String::from_utf8_lossy(&raw).into_owned();
+    let (head, body) = raw.split_once("\r\n\r\n").unwrap();
+    let status = head.split_whitespace().nth(1).unwrap().parse().unwrap();
+    // A chunked body: join the chunks.
+    let body = if head.to_ascii_lowercase().contains("transfer-encoding: chunked") {
+        let mut out = String::new();
+        let mut rest = body;
+        while let Some((size, after)) = rest.split_once("\r\n") {
+            let n = usize::from_str_radix(size.trim(), 16).unwrap();
+            if n == 0 {
+                break;
+            }
+            out.push_str(&after[..n]);
+            rest = &after[n + 2..];
+        }
+        out
+    } else {
+        body.to_string()
+    };
+    (status, head.to_string(), body)
+}
+
+/// The DOM headless Chromium builds of `url`, after its scripts (if any were allowed) ran.
+fn dom(url: &str) -> String {
+    let profile = tempfile::tempdir().unwrap();
+    let out = Command::new("chromium")
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-quic",
+            "--no-first-run",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+        ])
+        .arg(format!("--user-data-dir={}", profile.path().display()))
+        .args(["--dump-dom", url])
+        .output()
+        .expect("chromium is installed (bash scripts/setup-chromium.sh)");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8(out.stdout).unwrap()
+}
+
+/// A database with the fleet fixture's line of units and a unit whose serial is a script.
+fn line_db(d: &tempfile::TempDir) -> (String, String) {
+    let spec = d.path().join("cal.sqlite").display().to_string();
+    let mut db = Db::open(&spec).unwrap();
+    line_of_units(&mut db);
+    let run = hostile_unit(&mut db, T0 + 10 * DAY);
+    (spec, run.to_string())
+}
+
+const JANUARY: &str = "since=2026-01-01&until=2026-01-31";
+
+#[test]
+fn the_pages_hold_the_database_s_numbers_in_chromium() {
+    let d = tempfile::tempdir().unwrap();
+    let (spec, _) = line_db(&d);
+    let json = d.path().join("f.json");
+    let (code, _, err) = accelcal(&[
+        "fleet",
+        "--db",
+        &spec,
+        "--since",
+        "2026-01-01",
+        "--until",
+        "2026-01-31",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    let f: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let c = &f["counts"];
+    let server = serve(&spec);
+
+    let fleet = dom(&format!("{}/fleet?{JANUARY}", server.base));
+    let counts = format!(
+        "{} runs of {} units: {} pass, {} rejected, {} unfinished, {} voided",
+        c["runs"], c["units"], c["passed"], c["rejected"], c["unfinished"], c["voided"]
+    );
+    assert!(fleet.contains(&counts), "{counts} not in {fleet}");
+    let yields = format!(
+        "first-pass yield {}/{} ({:.1} %)",
+        c["first_pass_units"],
+        c["units_finished"],
+        100.0 * c["first_pass_units"].as_f64().unwrap() / c["units_finished"].as_f64().unwrap()
+    );
+    assert!(fleet.contains(&yields), "{yields} not in the page");
+    // Every run of the period is a row, and every population with its Cpk.
+    for r in f["runs"].as_array().unwrap() {
+        assert!(fleet.contains(r["device_id"].as_str().unwrap()), "{r}");
+    }
+    let bias = f["populations"].as_array().unwrap().iter().find(|p| p["name"] == "as-left bias x").unwrap();
+    let row = format!(
+        "<td>as-left bias x</td><td>mg</td><td class=\"num\">{}</td><td class=\"num\">{:+.4}</td>",
+        bias["n"],
+        bias["mean"].as_f64().unwrap()
+    );
+    assert!(fleet.contains(&row), "{row} not in the page");
+    assert!(fleet.contains(&format!("{:.2}", bias["cpk"].as_f64().unwrap())));
+    // The CSV download is `fleet --csv`'s rows.
+    let (status, head, csv) = request(&server.base, "GET", &format!("/fleet.csv?{JANUARY}"));
+    assert_eq!(status, 200, "{head}");
+    assert!(head.to_ascii_lowercase().contains("content-type: text/csv"), "{head}");
+    assert_eq!(csv.lines().count(), 1 + f["runs"].as_array().unwrap().len(), "{csv}");
+
+    // A chart is drawn: SVG with its points, and the head's row on the overview.
+    let charts = dom(&format!("{}/charts?{JANUARY}", server.base));
+    assert!(charts.contains("<svg") && charts.contains("<circle"), "no chart drawn");
+    assert!(charts.contains("station st-1, K0 x"), "no chart of st-1's K0 x");
+    let overview = dom(&format!("{}/", server.base));
+    assert!(overview.contains("HEAD-1") && overview.contains("DKD-17-001") && overview.contains("overdue"));
+    // A unit's page: its runs and its drift between calibrations.
+    let unit = dom(&format!("{}/unit/SN-B1", server.base));
+    assert!(unit.contains("rejected: selection beyond model 4"), "{unit}");
+    assert!(unit.contains("/certificate\">certificate</a>"), "{unit}");
+}
+
+#[test]
+fn a_hostile_serial_is_text_and_a_stored_script_does_not_run() {
+    let d = tempfile::tempdir().unwrap();
+    let (spec, run) = line_db(&d);
+    let server = serve(&spec);
+    let fleet = dom(&format!("{}/fleet?{JANUARY}", server.base));
+    assert!(
+        fleet.contains("&lt;script&gt;document.write('PWNED')&lt;/script&gt;"),
+        "the serial is not shown as text"
+    );
+    assert!(!fleet.contains("<script"), "a script element in the fleet page");
+    assert!(!fleet.contains("PWNED</"), "the serial's script ran");
+    // Its unit page, through the link the table gives (the serial percent-encoded).
+    let link = fleet.split("href=\"/unit/").find(|s| s.starts_with("%3Cscript")).unwrap();
+    let path = &link[..link.find('"').unwrap()];
+    let unit = dom(&format!("{}/unit/{path}", server.base));
+    assert!(unit.contains("&lt;script&gt;document.write"), "{unit}");
+    assert!(!unit.contains("<script"), "{unit}");
+    // The stored certificate is served as issued, script and all, but no script may run.
+    let (status, head, body) = request(&server.base, "GET", &format!("/run/{run}/certificate"));
+    assert_eq!(status, 200);
+    assert!(body.contains(HOSTILE_SERIAL));
+    assert!(head.to_ascii_lowercase().contains("content-security-policy: default-src 'none'"), "{head}");
+    let cert = dom(&format!("{}/run/{run}/certificate", server.base));
+    assert_eq!(cert.matches("PWNED").count(), 1, "the certificate's script ran: {cert}");
+}
+
+#[test]
+fn only_get_is_answered_and_bad_requests_say_why() {
+    let d = tempfile::tempdir().unwrap();
+    let (spec, _) = line_db(&d);
+    let server = serve(&spec);
+    for path in ["/", "/fleet", "/charts", "/unit/SN-A1"] {
+        let (status, _, body) = request(&server.base, "GET", path);
+        assert_eq!(status, 200, "{path}: {body}");
+        for method in ["POST", "PUT", "DELETE", "PATCH"] {
+            let (status, _, _) = request(&server.base, method, path);
+            assert_eq!(status, 405, "{method} {path}");
+        }
+    }
+    let (status, _, body) = request(&server.base, "GET", "/fleet?since=2026-13-01");
+    assert_eq!(status, 400);
+    assert!(body.contains("since: `2026-13-01` is not a date YYYY-MM-DD"), "{body}");
+    let (status, _, body) = request(&server.base, "GET", "/fleet?since=2026-02-01&until=2026-01-01");
+    assert_eq!(status, 400);
+    assert!(body.contains("the period is empty"), "{body}");
+    let (status, _, body) = request(&server.base, "GET", "/unit/NOBODY");
+    assert_eq!(status, 404);
+    assert!(body.contains("no unit `NOBODY` in the database"), "{body}");
+    let (status, _, _) = request(&server.base, "GET", "/run/not-a-uuid/certificate");
+    assert_eq!(status, 400);
+    let (status, _, _) = request(&server.base, "GET", "/admin");
+    assert_eq!(status, 404);
+    // The database file is the same bytes after all of it: nothing was written.
+    drop(server);
+    let before = std::fs::read(&spec).unwrap();
+    let server = serve(&spec);
+    let _ = request(&server.base, "GET", &format!("/fleet?{JANUARY}"));
+    drop(server);
+    assert_eq!(std::fs::read(&spec).unwrap(), before);
+    // A database that is not there is refused before listening.
+    let (code, _, err) = accelcal(&["serve", "--db", d.path().join("none.sqlite").to_str().unwrap()]);
+    assert_eq!(code, Some(2), "{err}");
+}
+
+/// The pages as a reader sees them, in headless Chromium's screenshots (the README's pictures
+/// are copies of these, from `target/tmp/serve-screenshots/`): the line of units and the 70
+/// units of a head knocked out of true.
+#[test]
+fn the_pages_render_to_screenshots() {
+    let d = tempfile::tempdir().unwrap();
+    let spec = d.path().join("cal.sqlite").display().to_string();
+    let mut db = Db::open(&spec).unwrap();
+    line_of_units(&mut db);
+    super::dbkit::fleet::head_knocked_out(&mut db);
+    drop(db);
+    let server = serve(&spec);
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("serve-screenshots");
+    std::fs::create_dir_all(&dir).unwrap();
+    for (name, path, height) in [
+        ("overview", "/".to_string(), 1000),
+        ("fleet", format!("/fleet?{JANUARY}"), 1500),
+        ("charts", format!("/charts?{JANUARY}&head_asset=HEAD-2"), 1400),
+        ("unit", "/unit/SN-B1".to_string(), 800),
+    ] {
+        let png = dir.join(format!("{name}.png"));
+        let _ = std::fs::remove_file(&png);
+        let profile = tempfile::tempdir().unwrap();
+        let out = Command::new("chromium")
+            .args(["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run"])
+            .args(["--disable-background-networking", "--disable-component-update", "--disable-sync"])
+            .arg(format!("--user-data-dir={}", profile.path().display()))
+            .arg(format!("--window-size=1280,{height}"))
+            .arg(format!("--screenshot={}", png.display()))
+            .arg(format!("{}{path}", server.base))
+            .output()
+            .expect("chromium is installed (bash scripts/setup-chromium.sh)");
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let bytes = std::fs::read(&png).unwrap();
+        assert!(bytes.starts_with(b"\x89PNG") && bytes.len() > 20_000, "{name}: {} bytes", bytes.len());
+    }
+}
