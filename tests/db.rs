@@ -3,8 +3,6 @@
 //! `accelcal history` end to end (its output a snapshot).
 
 mod dbkit;
-#[path = "db/serve.rs"]
-mod serve;
 
 use std::path::Path;
 
@@ -668,4 +666,29 @@ fn fleet_flags_a_head_knocked_out_of_true_from_the_units_campaigns() {
 fn check_runs_are_the_station_s_checks_on_this_engine() {
     let d = tempfile::tempdir().unwrap();
     check_runs_are_the_station_s_checks(&db_file(&d));
+}
+
+#[test]
+fn serve_s_pages_hold_the_database_s_numbers_in_chromium() {
+    let d = tempfile::tempdir().unwrap();
+    dbkit::serve::the_pages_hold_the_database_s_numbers(&db_file(&d));
+}
+
+#[test]
+fn serve_shows_a_hostile_serial_as_text_and_runs_no_stored_script() {
+    let d = tempfile::tempdir().unwrap();
+    dbkit::serve::a_hostile_serial_is_text_and_a_stored_script_does_not_run(&db_file(&d));
+}
+
+#[test]
+fn serve_answers_only_get_and_says_why_a_request_is_bad() {
+    let d = tempfile::tempdir().unwrap();
+    dbkit::serve::only_get_is_answered_and_bad_requests_say_why(&db_file(&d));
+}
+
+/// The pages in Chromium's screenshots, in `target/tmp/serve-screenshots/` (the guide's pictures).
+#[test]
+fn serve_s_pages_render_to_screenshots() {
+    let d = tempfile::tempdir().unwrap();
+    dbkit::serve::the_pages_render_to_screenshots(&db_file(&d));
 }

@@ -185,3 +185,13 @@ fn check_runs_are_the_station_s_checks_on_this_engine() {
     let pg = dbkit::Cluster::start();
     check_runs_are_the_station_s_checks(&pg.url);
 }
+
+#[test]
+fn serve_reads_the_server_s_numbers_and_shows_a_hostile_serial_as_text() {
+    let pg = Cluster::start();
+    dbkit::serve::the_pages_hold_the_database_s_numbers(&pg.url);
+    let pg = Cluster::start();
+    dbkit::serve::a_hostile_serial_is_text_and_a_stored_script_does_not_run(&pg.url);
+    let pg = Cluster::start();
+    dbkit::serve::only_get_is_answered_and_bad_requests_say_why(&pg.url);
+}

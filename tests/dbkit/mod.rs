@@ -6,6 +6,7 @@ use std::io::{BufRead, BufReader};
 use std::process::{Command, Stdio};
 
 pub mod fleet;
+pub mod serve;
 
 use accelcal_db::{Asset, AssetKind, Db, DbError, Outcome, Phase, RunId, RunStart, Stored};
 use accelcal_line::verify::{PositionCheck, VerifyReport};
