@@ -18,8 +18,9 @@
 //!
 //! The calibrated acceleration `â = K⁻¹(u − u0)` then has at a true acceleration `a` the variance
 //! `Σ_pq m_ip m_iq rᵀ B_pq r` per axis `i` (`r = [1, a]`, `m = K⁻¹`), and the criterion is the
-//! budget's: the largest expanded uncertainty (k = 2) over the axes and over the orientations at
-//! 1 g. It is what [`crate::uncertainty::budget`] states after the campaign when its dwell scatter
+//! budget's: the largest expanded uncertainty over the axes and over the orientations at 1 g,
+//! with the budget's coverage factor (2, or Student's t for the noise's n − 4 degrees of freedom,
+//! [`crate::uncertainty::coverage_factor`]). It is what [`crate::uncertainty::budget`] states after the campaign when its dwell scatter
 //! is the noise assumed here; the head's orthogonality, the temperature and model 4's lack of fit
 //! are not predicted (they depend on the head and the unit, not on the plan's noise), and
 //! [`Prediction::not_included`] says so.
@@ -42,7 +43,7 @@ use crate::campaign::Campaign;
 use crate::error::{Classify, Kind};
 use crate::positions::Positions;
 use crate::sim::NOMINAL_CODES_PER_G;
-use crate::uncertainty::{head_partials, sphere, triad_order, K_COVERAGE};
+use crate::uncertainty::{coverage_factor, head_partials, sphere, triad_order, K_COVERAGE};
 
 /// What the unit type is assumed to be: its sensitivities and its sample noise.
 #[derive(Clone, Debug, PartialEq)]
@@ -191,9 +192,13 @@ pub struct Part {
 /// What a plan with a dwell is predicted to give.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct Prediction {
-    /// Per axis x, y, z, the largest expanded uncertainty (k = 2) over the orientations at 1 g,
-    /// m/s².
+    /// Per axis x, y, z, the largest expanded uncertainty over the orientations at 1 g, m/s².
     pub expanded_m_s2: [f64; 3],
+    /// Its coverage factor: the budget's ([`coverage_factor`]: 2, or Student's t when the noise,
+    /// estimated from n − 4 degrees of freedom, leaves few).
+    pub k: f64,
+    /// The effective degrees of freedom that give `k`.
+    pub nu_eff: Option<f64>,
     /// The largest of them: the worst axis at its worst orientation, m/s² (the worst-case
     /// criterion).
     pub worst_m_s2: f64,
@@ -400,23 +405,48 @@ impl Evaluator {
         sphere(n).into_iter().map(|d| d.map(|v| v * self.g)).collect()
     }
 
+    /// Per point of `points` and axis, the variance of the calibrated acceleration under `b`.
+    fn variances(&self, b: &Blocks, points: &[[f64; 3]]) -> Vec<[f64; 3]> {
+        points.iter().map(|p| self.worst(b, std::slice::from_ref(p))).collect()
+    }
+
     /// The full prediction of the sums.
     fn predict(&self, sums: &Sums) -> Result<Prediction, DesignError> {
         let points = self.sphere(PREDICT_POINTS);
         let all = self.blocks(sums, Only::All).ok_or(DesignError::Singular)?;
-        let var = self.worst(&all, &points);
-        let expanded_m_s2 = var.map(|v| K_COVERAGE * v.max(0.0).sqrt());
-        let parts = [
-            ("noise", Only::Noise),
-            ("quantisation", Only::Quantisation),
-            ("head_angle", Only::HeadAngle),
-            ("gravity", Only::Gravity),
-        ]
-        .map(|(name, only)| {
-            let v = self.blocks(sums, only).map_or([f64::NAN; 3], |b| self.worst(&b, &points));
-            Part { name, u_m_s2: v[0].max(v[1]).max(v[2]).max(0.0).sqrt() }
-        })
-        .to_vec();
+        let combined = self.variances(&all, &points);
+        // The budget estimates the noise (with the quantisation) from the dwell scatter, on
+        // n − 4 degrees of freedom: its coverage factor is the budget's (`coverage_factor`).
+        let n = sums.m[(0, 0)].round();
+        let parts_of = [
+            ("noise", Only::Noise, n - 4.0),
+            ("quantisation", Only::Quantisation, n - 4.0),
+            ("head_angle", Only::HeadAngle, f64::INFINITY),
+            ("gravity", Only::Gravity, f64::INFINITY),
+        ];
+        let part_vars: Vec<Vec<[f64; 3]>> = parts_of
+            .iter()
+            .map(|&(_, only, _)| self.blocks(sums, only).map_or(vec![[f64::NAN; 3]; points.len()], |b| self.variances(&b, &points)))
+            .collect();
+        let (mut k, mut nu_eff) = (K_COVERAGE, f64::INFINITY);
+        for i in 0..3 {
+            let worst = (0..points.len()).max_by(|&a, &b| combined[a][i].total_cmp(&combined[b][i])).unwrap_or(0);
+            let at: Vec<(f64, f64)> = parts_of.iter().zip(&part_vars).map(|(p, v)| (v[worst][i], p.2)).collect();
+            let (ki, nu) = coverage_factor(&at);
+            if ki > k || (ki == k && nu < nu_eff) {
+                (k, nu_eff) = (ki, nu);
+            }
+        }
+        let var: [f64; 3] = std::array::from_fn(|i| combined.iter().map(|v| v[i]).fold(0.0f64, f64::max));
+        let expanded_m_s2 = var.map(|v| k * v.max(0.0).sqrt());
+        let parts = parts_of
+            .iter()
+            .zip(&part_vars)
+            .map(|(&(name, _, _), v)| Part {
+                name,
+                u_m_s2: v.iter().map(|x| x[0].max(x[1]).max(x[2])).fold(0.0f64, f64::max).max(0.0).sqrt(),
+            })
+            .collect();
         // The coefficients with the sensitivities at 1 g: all in codes.
         let scale = |t: usize| if t == 0 { 1.0 } else { self.g };
         let cov = SMatrix::<f64, 12, 12>::from_fn(|i, j| {
@@ -427,6 +457,8 @@ impl Evaluator {
         Ok(Prediction {
             worst_m_s2: expanded_m_s2[0].max(expanded_m_s2[1]).max(expanded_m_s2[2]),
             expanded_m_s2,
+            k,
+            nu_eff: nu_eff.is_finite().then_some(nu_eff),
             d_codes,
             a_codes,
             parts,

@@ -58,8 +58,32 @@ use crate::lsq::LsqFit;
 use crate::positions::{ChannelStats, Positions};
 use crate::sim::effects::{rotation, Kinematics};
 
-/// The coverage factor of the expanded uncertainty.
+/// The coverage factor of the expanded uncertainty when its degrees of freedom are many (the
+/// conventional 2); with few, Student's t is larger ([`coverage_factor`]).
 pub const K_COVERAGE: f64 = 2.0;
+
+/// The coverage factor for about 95 % of a combined standard uncertainty made of parts given as
+/// (variance, degrees of freedom; infinite for Type B): the effective degrees of freedom by
+/// Welch–Satterthwaite (JCGM 100:2008 G.4.1), `ν_eff = u_c⁴ / Σ uᵢ⁴/νᵢ`, and Student's t at
+/// 97.5 % for them (JCGM 100 G.3), never below [`K_COVERAGE`]. Gives (k, ν_eff).
+pub fn coverage_factor(parts: &[(f64, f64)]) -> (f64, f64) {
+    let uc2: f64 = parts.iter().map(|p| p.0.max(0.0)).sum();
+    let denom: f64 = parts.iter().filter(|p| p.1.is_finite() && p.1 > 0.0).map(|p| p.0.max(0.0).powi(2) / p.1).sum();
+    if !(denom > 0.0) || !(uc2 > 0.0) {
+        return (K_COVERAGE, f64::INFINITY);
+    }
+    let nu = uc2 * uc2 / denom;
+    // From 61 degrees of freedom on, t is below 2 (t(60) = 2.0003, t(61) = 1.9996): the
+    // conventional 2 stands, and the quantile (whose iteration is slow for large ν) is not
+    // needed.
+    if !(nu < 61.0) {
+        return (K_COVERAGE, nu);
+    }
+    let t = statrs::distribution::StudentsT::new(0.0, 1.0, nu.max(1.0))
+        .map(|d| statrs::distribution::ContinuousCDF::inverse_cdf(&d, 0.975))
+        .unwrap_or(f64::NAN);
+    (if t.is_finite() { t.max(K_COVERAGE) } else { K_COVERAGE }, nu)
+}
 
 /// One arcsecond, rad.
 pub const ARCSEC: f64 = std::f64::consts::PI / 648_000.0;
@@ -167,6 +191,11 @@ pub struct Budget {
     pub not_included: Vec<String>,
     /// Per axis, the largest expanded uncertainty over the orientations at 1 g, m/s².
     pub expanded_max: [f64; 3],
+    /// The coverage factor ([`coverage_factor`]: 2, or Student's t when the Type A parts leave
+    /// few effective degrees of freedom), the largest over the axes at their worst orientation.
+    pub k: f64,
+    /// The effective degrees of freedom that give `k` (infinite when every part is Type B).
+    pub nu_eff: f64,
 }
 
 /// The design row of model 4 at an acceleration.
@@ -508,13 +537,31 @@ pub fn budget(
         contributors: Vec::new(),
         not_included: Vec::new(),
         expanded_max: [0.0; 3],
+        k: K_COVERAGE,
+        nu_eff: f64::INFINITY,
     };
     let combined: Vec<Vector3<f64>> = points.iter().map(|&a| budget.variance_at(&covariance, a)).collect();
     let total_var: f64 = combined.iter().map(|v| v.sum()).sum();
+    let part_vars: Vec<Vec<Vector3<f64>>> =
+        parts.iter().map(|p| points.iter().map(|&a| budget.variance_at(&p.3, a)).collect()).collect();
+    // The Type A parts' degrees of freedom: the dwell scatter's n − 4, the lack of fit's the
+    // quadratic model's n − 9; Type B, infinite.
+    let dof = |name: &str| match name {
+        "dwell_scatter" => dof,
+        "lack_of_fit" => n.saturating_sub(lack_of_fit::QUADRATIC_TERMS).max(1) as f64,
+        _ => f64::INFINITY,
+    };
+    for i in 0..3 {
+        let worst = (0..points.len()).max_by(|&a, &b| combined[a][i].total_cmp(&combined[b][i])).unwrap_or(0);
+        let at: Vec<(f64, f64)> = parts.iter().zip(&part_vars).map(|(p, v)| (v[worst][i], dof(p.0))).collect();
+        let (k, nu) = coverage_factor(&at);
+        if k > budget.k || (k == budget.k && nu < budget.nu_eff) {
+            (budget.k, budget.nu_eff) = (k, nu);
+        }
+    }
     budget.expanded_max =
-        [0, 1, 2].map(|i| K_COVERAGE * combined.iter().map(|v| v[i]).fold(0.0f64, f64::max).sqrt());
-    for (name, kind, source, cov) in parts {
-        let vars: Vec<Vector3<f64>> = points.iter().map(|&a| budget.variance_at(&cov, a)).collect();
+        [0, 1, 2].map(|i| budget.k * combined.iter().map(|v| v[i]).fold(0.0f64, f64::max).sqrt());
+    for ((name, kind, source, cov), vars) in parts.into_iter().zip(part_vars) {
         let u = vars.iter().map(|v| v.max()).fold(0.0f64, f64::max).sqrt();
         let share = if total_var > 0.0 { vars.iter().map(|v| v.sum()).sum::<f64>() / total_var } else { 0.0 };
         contributors.push(Contributor { name, u_m_s2: u, share, kind, source, covariance: cov });
@@ -568,10 +615,11 @@ impl Budget {
         (j * cov * j.transpose()).diagonal()
     }
 
-    /// Per axis, the expanded uncertainty (k = 2) of the calibrated acceleration at `a`, m/s².
+    /// Per axis, the expanded uncertainty (coverage factor [`Budget::k`]) of the calibrated
+    /// acceleration at `a`, m/s².
     pub fn expanded_at(&self, a: [f64; 3]) -> [f64; 3] {
         let v = self.variance_at(&self.covariance, a);
-        [0, 1, 2].map(|i| K_COVERAGE * v[i].max(0.0).sqrt())
+        [0, 1, 2].map(|i| self.k * v[i].max(0.0).sqrt())
     }
 
     /// The names of the 12 coefficients in the covariance's order (`x:1`, `x:ax`, …).
@@ -590,8 +638,13 @@ impl Budget {
 /// `record show --fit|--db`.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct UncertaintyJson {
-    /// The coverage factor.
+    /// The coverage factor: 2, or Student's t for the effective degrees of freedom when they are
+    /// few ([`coverage_factor`]).
     pub k: f64,
+    /// The effective degrees of freedom (Welch–Satterthwaite) that give `k`; absent when every
+    /// contributor is Type B, or in a fit JSON written before it was stated.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub nu_eff: Option<f64>,
     /// Per axis x, y, z, the expanded uncertainty of the calibrated acceleration, its maximum
     /// over the orientations at 1 g, m/s².
     #[serde(rename = "U_m_s2")]
@@ -639,7 +692,8 @@ impl UncertaintyJson {
 impl From<&Budget> for UncertaintyJson {
     fn from(b: &Budget) -> UncertaintyJson {
         UncertaintyJson {
-            k: K_COVERAGE,
+            k: b.k,
+            nu_eff: b.nu_eff.is_finite().then_some(b.nu_eff),
             u_m_s2: b.expanded_max,
             coefficients: Budget::coefficient_names(),
             covariance: (0..N_COEF).map(|i| (0..N_COEF).map(|j| b.covariance[(i, j)]).collect()).collect(),

@@ -156,3 +156,20 @@ fn what_is_not_a_model_4_triad_is_refused() {
     let e = budget(&pos, &stats, &all, References { g_m_s2: f64::NAN, ..References::default() }).unwrap_err();
     assert!(matches!(e, UncertaintyError::BadStated(v) if v.is_nan()), "{e}");
 }
+
+#[test]
+fn the_coverage_factor_is_student_s_t_for_few_degrees_of_freedom_and_2_for_many() {
+    let k = |nu: f64| coverage_factor(&[(1.0, nu)]).0;
+    assert!((k(2.0) - 4.3027).abs() < 1e-3, "{}", k(2.0));
+    assert!((k(10.0) - 2.2281).abs() < 1e-3, "{}", k(10.0));
+    assert!((k(58.0) - 2.0017).abs() < 1e-3, "{}", k(58.0));
+    assert_eq!(k(61.0), K_COVERAGE);
+    assert_eq!(k(1e12), K_COVERAGE);
+    assert_eq!(k(f64::INFINITY), K_COVERAGE);
+    // Welch–Satterthwaite: a Type A part of 2 degrees of freedom beside an equal Type B part
+    // has ν_eff = (1 + 1)² / (1²/2) = 8.
+    let (k8, nu) = coverage_factor(&[(1.0, 2.0), (1.0, f64::INFINITY)]);
+    assert!((nu - 8.0).abs() < 1e-12 && (k8 - 2.3060).abs() < 1e-3, "{k8} {nu}");
+    // Nothing of Type A: 2.
+    assert_eq!(coverage_factor(&[(1.0, f64::INFINITY), (0.0, 3.0)]), (K_COVERAGE, f64::INFINITY));
+}

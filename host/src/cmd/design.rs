@@ -83,6 +83,8 @@ struct Compared {
     u_m_s2: f64,
     #[serde(rename = "U_axes_m_s2")]
     u_axes_m_s2: [f64; 3],
+    /// The coverage factor of `U_m_s2`.
+    k: f64,
     criteria: Criteria,
     #[serde(skip_serializing_if = "Option::is_none")]
     montecarlo: Option<MonteCarlo>,
@@ -131,6 +133,9 @@ struct DesignJson<'a> {
     u_m_s2: f64,
     #[serde(rename = "U_axes_m_s2")]
     u_axes_m_s2: [f64; 3],
+    /// The coverage factor of `U_m_s2` and its effective degrees of freedom.
+    k: f64,
+    nu_eff: Option<f64>,
     #[serde(rename = "target_U_m_s2", skip_serializing_if = "Option::is_none")]
     target_u_m_s2: Option<f64>,
     criteria: Criteria,
@@ -222,10 +227,11 @@ pub fn run(a: &PlanArgs, size: DesignSize) -> anyhow::Result<()> {
         accelcal_core::design::order::Selection::LeaveOneOut => "leave-one-out only (select --criterion loo): no order of these positions lets both parts of the alternate split identify model 10",
     };
     let header = format!(
-        "designed by accelcal plan --design {}: {n} positions x {} sample sets ({dwell} s at {rate_hz} Hz), head time {time:.0} s with {move_s} s per move\npredicted U = {:.4e} m/s^2 (k = 2, worst axis and orientation at 1 g); unit type: {}; head angle u {angle_u} arcsec\nGMDH: {selection}",
+        "designed by accelcal plan --design {}: {n} positions x {} sample sets ({dwell} s at {rate_hz} Hz), head time {time:.0} s with {move_s} s per move\npredicted U = {:.4e} m/s^2 (k = {:.2}, worst axis and orientation at 1 g); unit type: {}; head angle u {angle_u} arcsec\nGMDH: {selection}",
         size_word(size),
         designed.samples,
         p.worst_m_s2,
+        p.k,
         prior.source
     );
     write_plan(out, &designed, &header)?;
@@ -277,6 +283,7 @@ pub fn run(a: &PlanArgs, size: DesignSize) -> anyhow::Result<()> {
             head_time_s: head_time_s(r.positions.len(), r.samples, rate_hz, move_s),
             u_m_s2: r.prediction.worst_m_s2,
             u_axes_m_s2: r.prediction.expanded_m_s2,
+            k: r.prediction.k,
             criteria: criteria(&r.prediction),
             montecarlo: None,
         })
@@ -328,6 +335,8 @@ pub fn run(a: &PlanArgs, size: DesignSize) -> anyhow::Result<()> {
             head_time_s: time,
             u_m_s2: p.worst_m_s2,
             u_axes_m_s2: p.expanded_m_s2,
+            k: p.k,
+            nu_eff: p.nu_eff,
             target_u_m_s2: target,
             criteria: criteria(p),
             contributors: &p.parts,
@@ -375,9 +384,11 @@ fn bar(len: u64, what: &str) -> ProgressBar {
 
 fn print_table(rows: &[Compared], mc: bool, noise: String) {
     println!();
-    println!("predicted expanded uncertainty (k = 2) of the calibrated acceleration at its worst orientation at 1 g; {noise}");
+    println!(
+        "predicted expanded uncertainty of the calibrated acceleration at its worst orientation at 1 g (k = 2, or Student's t for the noise's n - 4 degrees of freedom where that is more); {noise}"
+    );
     print!(
-        "  {:<13} {:>9} {:>7} {:>11} {:>10} {:>10} {:>10} {:>8} {:>8}",
+        "  {:<13} {:>9} {:>7} {:>11} {:>10} {:>10} {:>10} {:>5} {:>8} {:>8}",
         "plan",
         "positions",
         "samples",
@@ -385,6 +396,7 @@ fn print_table(rows: &[Compared], mc: bool, noise: String) {
         "U_x m/s²",
         "U_y m/s²",
         "U_z m/s²",
+        "k",
         "D codes",
         "A codes"
     );
@@ -395,7 +407,7 @@ fn print_table(rows: &[Compared], mc: bool, noise: String) {
     for r in rows {
         let [x, y, z] = r.u_axes_m_s2;
         print!(
-            "  {:<13} {:>9} {:>7} {:>11.0} {:>10.3e} {:>10.3e} {:>10.3e} {:>8.3} {:>8.3}",
+            "  {:<13} {:>9} {:>7} {:>11.0} {:>10.3e} {:>10.3e} {:>10.3e} {:>5.2} {:>8.3} {:>8.3}",
             r.plan,
             r.positions,
             r.samples_per_position,
@@ -403,6 +415,7 @@ fn print_table(rows: &[Compared], mc: bool, noise: String) {
             x,
             y,
             z,
+            r.k,
             r.criteria.d_codes,
             r.criteria.a_codes
         );
