@@ -426,12 +426,17 @@ impl Evaluator {
         ];
         let part_vars: Vec<Vec<[f64; 3]>> = parts_of
             .iter()
-            .map(|&(_, only, _)| self.blocks(sums, only).map_or(vec![[f64::NAN; 3]; points.len()], |b| self.variances(&b, &points)))
+            .map(|&(_, only, _)| {
+                self.blocks(sums, only)
+                    .map_or(vec![[f64::NAN; 3]; points.len()], |b| self.variances(&b, &points))
+            })
             .collect();
         let (mut k, mut nu_eff) = (K_COVERAGE, f64::INFINITY);
         for i in 0..3 {
-            let worst = (0..points.len()).max_by(|&a, &b| combined[a][i].total_cmp(&combined[b][i])).unwrap_or(0);
-            let at: Vec<(f64, f64)> = parts_of.iter().zip(&part_vars).map(|(p, v)| (v[worst][i], p.2)).collect();
+            let worst =
+                (0..points.len()).max_by(|&a, &b| combined[a][i].total_cmp(&combined[b][i])).unwrap_or(0);
+            let at: Vec<(f64, f64)> =
+                parts_of.iter().zip(&part_vars).map(|(p, v)| (v[worst][i], p.2)).collect();
             let (ki, nu) = coverage_factor(&at);
             if ki > k || (ki == k && nu < nu_eff) {
                 (k, nu_eff) = (ki, nu);

@@ -183,9 +183,11 @@ pub struct AutoTarget {
     pub move_s: f64,
 }
 
-/// The dwells `auto` tries, s.
-pub const AUTO_DWELLS_S: [f64; 14] =
-    [1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 8.0, 10.0, 12.0, 15.0, 20.0, 30.0, 45.0, 60.0];
+/// The dwells `auto` tries, s: every second to 20 s, then coarser to a minute.
+pub const AUTO_DWELLS_S: [f64; 25] = [
+    1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 10.0, 11.0, 12.0, 13.0, 14.0, 15.0, 16.0, 17.0, 18.0, 19.0,
+    20.0, 25.0, 30.0, 40.0, 50.0, 60.0,
+];
 
 /// The most positions `auto` considers.
 const AUTO_MAX_POSITIONS: usize = 400;
@@ -265,10 +267,12 @@ fn fewest(
     seed: u64,
     max_n: usize,
 ) -> Result<usize, DesignError> {
-    let u_of = |n: usize| design_with(n, samples, prior, stated, g, head, seed, 1).map(|d| d.prediction);
+    let u_of = |n: usize, starts: usize| {
+        design_with(n, samples, prior, stated, g, head, seed, starts).map(|d| d.prediction)
+    };
     let gravity = |p: &Prediction| p.parts.iter().find(|x| x.name == "gravity").map_or(0.0, |x| x.u_m_s2);
     let probe_n = 24.min(max_n).max(MIN_POSITIONS);
-    let probe = u_of(probe_n)?;
+    let probe = u_of(probe_n, 1)?;
     // U² = k²(V_g + V_plan/N): the gravity's share does not fall with N.
     let vg = (super::K_COVERAGE * gravity(&probe)).powi(2);
     let t2 = target * target;
@@ -277,7 +281,8 @@ fn fewest(
     }
     let estimate = (probe_n as f64 * (probe.worst_m_s2.powi(2) - vg) / (t2 - vg)).ceil().max(1.0) as usize;
     let mut n = estimate.clamp(MIN_POSITIONS, max_n);
-    let meets = |n: usize| u_of(n).map(|p| p.worst_m_s2 <= target);
+    // Whether `n` positions reach the target, decided on the design `design` itself would give.
+    let meets = |n: usize| u_of(n, STARTS).map(|p| p.worst_m_s2 <= target);
     if meets(n)? {
         for _ in 0..6 {
             if n == MIN_POSITIONS || !meets(n - 1)? {

@@ -68,7 +68,8 @@ pub const K_COVERAGE: f64 = 2.0;
 /// 97.5 % for them (JCGM 100 G.3), never below [`K_COVERAGE`]. Gives (k, ν_eff).
 pub fn coverage_factor(parts: &[(f64, f64)]) -> (f64, f64) {
     let uc2: f64 = parts.iter().map(|p| p.0.max(0.0)).sum();
-    let denom: f64 = parts.iter().filter(|p| p.1.is_finite() && p.1 > 0.0).map(|p| p.0.max(0.0).powi(2) / p.1).sum();
+    let denom: f64 =
+        parts.iter().filter(|p| p.1.is_finite() && p.1 > 0.0).map(|p| p.0.max(0.0).powi(2) / p.1).sum();
     if !(denom > 0.0) || !(uc2 > 0.0) {
         return (K_COVERAGE, f64::INFINITY);
     }
@@ -553,7 +554,8 @@ pub fn budget(
     };
     for i in 0..3 {
         let worst = (0..points.len()).max_by(|&a, &b| combined[a][i].total_cmp(&combined[b][i])).unwrap_or(0);
-        let at: Vec<(f64, f64)> = parts.iter().zip(&part_vars).map(|(p, v)| (v[worst][i], dof(p.0))).collect();
+        let at: Vec<(f64, f64)> =
+            parts.iter().zip(&part_vars).map(|(p, v)| (v[worst][i], dof(p.0))).collect();
         let (k, nu) = coverage_factor(&at);
         if k > budget.k || (k == budget.k && nu < budget.nu_eff) {
             (budget.k, budget.nu_eff) = (k, nu);
