@@ -136,6 +136,19 @@ fn heads(db: &mut Db, runs: &[FleetRun]) -> anyhow::Result<Vec<HeadJson>> {
     Ok(out)
 }
 
+/// A change point of a head's signature in words: its unit, run, time, rule and estimate.
+pub(crate) fn change_point(c: &accelcal_core::headsig::ChangePoint) -> String {
+    format!(
+        "unit {} (run {}, {}): {}, {:.0} {}",
+        if c.serial.is_empty() { "-" } else { &c.serial },
+        c.run_id,
+        utc_date_time(c.started_unix_s),
+        c.rule,
+        c.estimate,
+        c.unit
+    )
+}
+
 fn pct(n: i64, of: i64) -> String {
     if of == 0 {
         "-".into()
@@ -340,17 +353,12 @@ pub fn run(a: &FleetArgs) -> anyhow::Result<()> {
         match h.head.change_points.last() {
             None => println!("  head {}: {} units, no change point ({s})", h.asset, h.head.units),
             Some(c) => println!(
-                "  head {}: {} units, {} change point{}, the last at unit {} (run {}, {}): {}, {:.0} {}",
+                "  head {}: {} units, {} change point{}, the last at {}",
                 h.asset,
                 h.head.units,
                 h.head.change_points.len(),
                 if h.head.change_points.len() == 1 { "" } else { "s" },
-                if c.serial.is_empty() { "-" } else { &c.serial },
-                c.run_id,
-                utc_date_time(c.started_unix_s),
-                c.rule,
-                c.estimate,
-                c.unit
+                change_point(c)
             ),
         }
     }

@@ -60,8 +60,18 @@ pub fn run(a: &HistoryArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// A run's outcome in one word: `voided`, `pass`, `rejected` or `unfinished`.
+pub(crate) fn outcome(r: &accelcal_db::history::RunLine) -> &'static str {
+    match (r.outcome, &r.voided) {
+        (_, Some(_)) => "voided",
+        (Some(Outcome::Pass), None) => "pass",
+        (Some(Outcome::Rejected), None) => "rejected",
+        (None, None) => "unfinished",
+    }
+}
+
 /// A verification in one cell.
-fn verification(v: &Option<VerifySummary>) -> String {
+pub(crate) fn verification(v: &Option<VerifySummary>) -> String {
     match v {
         None => "-".into(),
         Some(v) => format!(
@@ -89,12 +99,7 @@ fn print(h: &History, target: &str) {
         "cal", "started (UTC)", "station", "operator", "outcome", "record", "as found", "as left"
     );
     for r in &h.runs {
-        let outcome = match (r.outcome, &r.voided) {
-            (_, Some(_)) => "voided",
-            (Some(Outcome::Pass), None) => "pass",
-            (Some(Outcome::Rejected), None) => "rejected",
-            (None, None) => "unfinished",
-        };
+        let outcome = outcome(r);
         println!(
             "{:>3}  {:<20}  {:<10}  {:<10}  {:<9}  {:<8}  {:<24}  {:<24}",
             r.calibration.map_or("-".to_string(), |n| n.to_string()),

@@ -5,14 +5,15 @@
 use accelcal_core::output::utc_date_time;
 use accelcal_db::asset::{parse_date, today_utc, Date};
 use accelcal_db::fleet::{Counts, FleetRun};
-use accelcal_db::history::{history, VerifySummary, DEFAULT_RULE};
+use accelcal_db::history::{history, DEFAULT_RULE};
 use accelcal_db::{Db, Outcome, RunId};
 use askama::Template;
 use axum::http::StatusCode;
 
 use super::svg::{control_chart, drift_chart, signature_chart, Lines};
 use super::{App, PageError};
-use crate::cmd::fleet::{csv_of, due_by, filter_of, gather, FleetData};
+use crate::cmd::fleet::{change_point, csv_of, due_by, filter_of, gather, FleetData};
+use crate::cmd::history::{outcome, verification};
 use crate::report::sig;
 
 const VERSION: &str = env!("CARGO_PKG_VERSION");
@@ -449,22 +450,7 @@ pub(super) fn charts(db: &mut Db, app: &App, q: &str) -> Result<String, PageErro
             asset: h.asset.clone(),
             units: h.head.units,
             settings: h.head.settings_line(),
-            change_points: h
-                .head
-                .change_points
-                .iter()
-                .map(|c| {
-                    format!(
-                        "unit {} (run {}, {}): {}, {:.0} {}",
-                        if c.serial.is_empty() { "-" } else { &c.serial },
-                        c.run_id,
-                        utc_date_time(c.started_unix_s),
-                        c.rule,
-                        c.estimate,
-                        c.unit
-                    )
-                })
-                .collect(),
+            change_points: h.head.change_points.iter().map(change_point).collect(),
             svg: if arcsec.is_empty() {
                 String::new()
             } else {
@@ -505,19 +491,6 @@ struct UnitPage<'a> {
     recalibration: String,
 }
 
-fn verification(v: &Option<VerifySummary>) -> String {
-    match v {
-        None => "-".into(),
-        Some(v) => format!(
-            "{} {}/{}, max {} m/s²",
-            if v.pass { "pass" } else { "FAIL" },
-            v.positions - v.failed,
-            v.positions,
-            sig(v.max_abs_error_m_s2, 2)
-        ),
-    }
-}
-
 /// `/unit/KEY` (a serial or a device id): `history`'s runs, drift and recalibration date, with
 /// links to the stored certificates.
 pub(super) fn unit(db: &mut Db, app: &App, key: &str) -> Result<String, PageError> {
@@ -528,12 +501,7 @@ pub(super) fn unit(db: &mut Db, app: &App, key: &str) -> Result<String, PageErro
     let h = history(&runs, DEFAULT_RULE);
     let mut rows = Vec::new();
     for r in &h.runs {
-        let outcome = match (r.outcome, &r.voided) {
-            (_, Some(_)) => "voided",
-            (Some(Outcome::Pass), None) => "pass",
-            (Some(Outcome::Rejected), None) => "rejected",
-            (None, None) => "unfinished",
-        };
+        let outcome = outcome(r);
         let certificate = match RunId::parse(&r.run_id) {
             Ok(id) => db.certificate_html(id).map_err(PageError::internal)?.is_some(),
             Err(_) => false,

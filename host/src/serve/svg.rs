@@ -2,9 +2,36 @@
 //! a unit's drift between calibrations, a head's signature.
 
 use anyhow::anyhow;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 use crate::report::plot::{span, svg_string, COLORS};
+
+type Chart<'a, 'b> = ChartContext<'a, SVGBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+/// The axes of a chart over `x` and `y`, with their descriptions and the y labels' format.
+fn frame<'a, 'b>(
+    root: &'a DrawingArea<SVGBackend<'b>, plotters::coord::Shift>,
+    (x, y): (std::ops::Range<f64>, std::ops::Range<f64>),
+    (xdesc, ydesc): (&str, &str),
+    yfmt: &dyn Fn(&f64) -> String,
+) -> anyhow::Result<Chart<'a, 'b>> {
+    let mut chart = ChartBuilder::on(root)
+        .margin(8)
+        .x_label_area_size(30)
+        .y_label_area_size(70)
+        .build_cartesian_2d(x, y)
+        .map_err(|e| anyhow!("{e}"))?;
+    chart
+        .configure_mesh()
+        .x_desc(xdesc)
+        .y_desc(ydesc)
+        .x_label_formatter(&|v| format!("{v:.0}"))
+        .y_label_formatter(yfmt)
+        .draw()
+        .map_err(|e| anyhow!("{e}"))?;
+    Ok(chart)
+}
 
 /// What a chart's points are drawn against.
 pub struct Lines {
@@ -25,20 +52,8 @@ pub fn control_chart(
     let ys = values.iter().copied().chain(lines.iter().flat_map(|l| [l.lcl, l.ucl, l.center]));
     let (lo, hi) = span(ys);
     svg_string((600, 230), |root| {
-        let mut chart = ChartBuilder::on(root)
-            .margin(8)
-            .x_label_area_size(30)
-            .y_label_area_size(70)
-            .build_cartesian_2d(0.5..n + 0.5, lo..hi)
-            .map_err(|e| anyhow!("{e}"))?;
-        chart
-            .configure_mesh()
-            .x_desc("point, in time order")
-            .y_desc(ylabel)
-            .x_label_formatter(&|v| format!("{v:.0}"))
-            .y_label_formatter(&|v| format!("{v:.3e}"))
-            .draw()
-            .map_err(|e| anyhow!("{e}"))?;
+        let mut chart =
+            frame(root, (0.5..n + 0.5, lo..hi), ("point, in time order", ylabel), &|v| format!("{v:.3e}"))?;
         if let Some(l) = lines {
             for (y, color) in [(l.center, RGBColor(44, 160, 44)), (l.lcl, RED), (l.ucl, RED)] {
                 chart
@@ -66,20 +81,10 @@ pub fn drift_chart(pairs: &[[(f64, f64); 3]]) -> anyhow::Result<String> {
     let n = pairs.len().max(1) as f64;
     let (lo, hi) = span(pairs.iter().flatten().flat_map(|&(d, s)| [d - 2.0 * s, d + 2.0 * s, 0.0]));
     svg_string((600, 250), |root| {
-        let mut chart = ChartBuilder::on(root)
-            .margin(8)
-            .x_label_area_size(30)
-            .y_label_area_size(70)
-            .build_cartesian_2d(0.5..n + 0.5, lo..hi)
-            .map_err(|e| anyhow!("{e}"))?;
-        chart
-            .configure_mesh()
-            .x_desc("recalibration")
-            .y_desc("bias change at 1 g, m/s²")
-            .x_label_formatter(&|v| format!("{v:.0}"))
-            .y_label_formatter(&|v| format!("{v:.2e}"))
-            .draw()
-            .map_err(|e| anyhow!("{e}"))?;
+        let mut chart =
+            frame(root, (0.5..n + 0.5, lo..hi), ("recalibration", "bias change at 1 g, m/s²"), &|v| {
+                format!("{v:.2e}")
+            })?;
         chart
             .draw_series(LineSeries::new([(0.5, 0.0), (n + 0.5, 0.0)], BLACK))
             .map_err(|e| anyhow!("{e}"))?;
@@ -120,19 +125,12 @@ pub fn signature_chart(arcsec: &[f64]) -> anyhow::Result<String> {
     let n = arcsec.len().max(1) as f64;
     let (_, hi) = span(arcsec.iter().copied().chain([0.0]));
     svg_string((600, 230), |root| {
-        let mut chart = ChartBuilder::on(root)
-            .margin(8)
-            .x_label_area_size(30)
-            .y_label_area_size(60)
-            .build_cartesian_2d(0.5..n + 0.5, 0.0..hi.max(1e-9))
-            .map_err(|e| anyhow!("{e}"))?;
-        chart
-            .configure_mesh()
-            .x_desc("position of the plan")
-            .y_desc("common residual, arcsec")
-            .x_label_formatter(&|v| format!("{v:.0}"))
-            .draw()
-            .map_err(|e| anyhow!("{e}"))?;
+        let mut chart = frame(
+            root,
+            (0.5..n + 0.5, 0.0..hi.max(1e-9)),
+            ("position of the plan", "common residual, arcsec"),
+            &|v| format!("{v:.0}"),
+        )?;
         chart
             .draw_series(arcsec.iter().enumerate().map(|(i, &a)| {
                 let x = i as f64 + 1.0;
