@@ -98,6 +98,15 @@ fn the_design_s_options_are_refused_where_they_do_not_apply() {
     assert!(e.contains("β step"), "{e}");
     let e = bad(&["plan", "--design", "24", "--like", &d.s("missing.csv"), "--out", &out]);
     assert!(e.contains("--like") && e.contains("missing.csv"), "{e}");
+    let like = simulate(&d, "like.csv", &["--samples", "20"]);
+    let before = std::fs::read(&like).unwrap();
+    let e = bad(&["plan", "--design", "12", "--like", &like, "--out", &like]);
+    assert!(e.contains("is also --like: the designed plan would overwrite it"), "{e}");
+    let e = bad(&["plan", "--design", "12", "--like", &like, "--out", &out, "--json", &like]);
+    assert!(e.contains("--json is also --like"), "{e}");
+    let e = bad(&["plan", "--design", "12", "--noise", "80", "--out", &out, "--json", &out]);
+    assert!(e.contains("is also --json"), "{e}");
+    assert_eq!(std::fs::read(&like).unwrap(), before, "the campaign is untouched");
     assert!(!Path::new(&out).exists(), "nothing is written on bad input");
     // Options of the design without --design, and a plan with it, are refused by the parser.
     for args in [

@@ -41,6 +41,17 @@ pub fn check(a: &PlanArgs) -> anyhow::Result<()> {
             "--design needs the unit type: --like CAMPAIGN (an earlier campaign of the same kind of unit) or --noise CODES (the nominal triad with that noise per sample)",
         ));
     }
+    let out = d.out.as_deref();
+    if out.is_some() && (out == d.like.as_deref() || out == a.json.as_deref()) {
+        return Err(bad(format!(
+            "--out {} is also {}: the designed plan would overwrite it",
+            out.map(|p| p.display().to_string()).unwrap_or_default(),
+            if out == d.like.as_deref() { "--like" } else { "--json" }
+        )));
+    }
+    if a.json.is_some() && a.json.as_deref() == d.like.as_deref() {
+        return Err(bad("--json is also --like: the design's JSON would overwrite the campaign"));
+    }
     if let DesignSize::Positions(n) = size {
         if n < MIN_POSITIONS {
             return Err(DesignError::TooFew { n, min: MIN_POSITIONS }.into());
