@@ -580,22 +580,81 @@ pub fn run(a: &StationArgs, config: Option<&crate::resolved::ConfigUse>) -> anyh
 
 /// Each unit's steps after the campaign; a rejected unit among several is named in `rejected`
 /// and does not stop the others.
+///
+/// With several units the steps run in two lanes, so that the head waits only for the first
+/// unit's flash: this thread prepares the units one after the other (select, fit, flash), and a
+/// second thread takes each prepared unit in turn to the head (as-left verification) and to its
+/// certificate. While the head verifies one unit the next one is being flashed. A lane's error
+/// that is not a rejection ends it: the other lane finishes the unit it is on (and the head lane
+/// the units already prepared, each journalled), then the station stops with the error.
 fn after_acquire_all(
     open: Vec<&mut Station<'_>>,
     units: usize,
     rejected: &mut Vec<String>,
 ) -> anyhow::Result<()> {
-    for s in open {
-        match s.after_acquire() {
-            Ok(()) => {}
-            Err(e) if units > 1 && is_rejection(&e) => {
-                eprintln!("station: unit {} REJECTED: {}", s.u.serial, crate::words::line(&e));
-                rejected.push(s.u.serial.clone());
-            }
-            Err(e) => return Err(e),
+    // A rejection among several units is noted; anything else is returned.
+    let note = |s: &Station<'_>, r: anyhow::Result<()>, rejected: &mut Vec<String>| match r {
+        Err(e) if units > 1 && is_rejection(&e) => {
+            eprintln!("station: unit {} REJECTED: {}", s.u.serial, crate::words::line(&e));
+            rejected.push(s.u.serial.clone());
+            Ok(())
         }
+        r => r,
+    };
+    if open.len() < 2 {
+        for s in open {
+            let r = s.after_acquire();
+            note(s, r, rejected)?;
+        }
+        return Ok(());
     }
-    Ok(())
+    std::thread::scope(|scope| {
+        let (ready, prepared) = std::sync::mpsc::channel::<&mut Station<'_>>();
+        let head = scope.spawn(move || {
+            let mut rejected = Vec::new();
+            for s in prepared {
+                let r = s.conclude();
+                note(s, r, &mut rejected)?;
+            }
+            Ok::<_, anyhow::Error>(rejected)
+        });
+        let mut prep = Ok(());
+        for s in open {
+            match s.prepare() {
+                // A send fails when the head lane has ended (its error follows): this unit
+                // waits, flashed and journalled, for the next run.
+                Ok(()) => {
+                    if ready.send(s).is_err() {
+                        break;
+                    }
+                }
+                // A rejected unit is not for the head.
+                Err(e) => {
+                    if let Err(e) = note(s, Err(e), rejected) {
+                        prep = Err(e);
+                        break;
+                    }
+                }
+            }
+        }
+        drop(ready);
+        let head = head.join().unwrap_or_else(|p| std::panic::resume_unwind(p));
+        match (prep, head) {
+            (Ok(()), Ok(r)) => {
+                rejected.extend(r);
+                Ok(())
+            }
+            (Err(e), Ok(r)) => {
+                rejected.extend(r);
+                Err(e)
+            }
+            (Ok(()), Err(e)) => Err(e),
+            (Err(p), Err(h)) => {
+                eprintln!("station: {}", crate::words::line(&p));
+                Err(h)
+            }
+        }
+    })
 }
 
 /// How the station's `wall` seconds were spent, from the units' journals: each step's command

@@ -20,6 +20,7 @@ use accelcal_shared::slots::SlotImage;
 
 use super::frontend::{read_ctl, run_frontend, FeCounters, FrontEnd, PaceOptions};
 use super::head::{bind_head, spawn_head_server, Clock, Head, Motion, SensorTemp};
+use super::pty::Pty;
 use crate::node::qemu::{BlankSlot, Link, LinkChannel, Qemu, QemuOptions};
 use crate::node::session::device_id_hex;
 use accelcal_core::error::bad;
@@ -204,7 +205,9 @@ fn start_node(
     let mut fe = FrontEnd::new(node.unit, node.seed)?;
     let mut q = QemuOptions::new(&opts.elf);
     q.qemu = opts.qemu.clone();
-    q.link = LinkChannel::Pty;
+    // USART1 on a socket, bridged to a terminal of this process's (see `pty`: QEMU's own pty
+    // notices a program opening it only once a second).
+    q.link = LinkChannel::Socket;
     q.frontend = true;
     q.gdb_port = Some(gdb_port);
     q.blank = BlankSlot::Erased;
@@ -217,8 +220,13 @@ fn start_node(
     }
     let mut qemu = Qemu::start(&q)?;
     let port = match qemu.take_link() {
-        Some(Link::Pty(p)) => p.display().to_string(),
-        _ => anyhow::bail!("QEMU did not give the link a pseudo-terminal"),
+        Some(Link::Socket(sock)) => {
+            let pty = Pty::open().map_err(|e| anyhow::anyhow!("opening the node's pseudo-terminal: {e}"))?;
+            let port = pty.path.display().to_string();
+            threads.extend(pty.bridge(sock, stop)?);
+            port
+        }
+        _ => anyhow::bail!("QEMU did not connect the link's socket"),
     };
     let fe_sock = qemu.take_frontend().ok_or_else(|| anyhow::anyhow!("QEMU did not open the front end"))?;
     // A converter has no queue: sets the node has not taken must not pile up in the socket

@@ -12,6 +12,7 @@
 pub mod bench;
 pub mod frontend;
 pub mod head;
+pub mod pty;
 
 pub use frontend::{
     read_ctl, run_frontend, CtlStats, FeCounters, FeStats, FrontEnd, FrontendError, PaceOptions,

@@ -5,9 +5,19 @@ use super::*;
 impl Station<'_> {
     /// The unit's steps after the campaign; its run ends `pass`.
     pub(super) fn after_acquire(&mut self) -> anyhow::Result<()> {
+        self.prepare()?;
+        self.conclude()
+    }
+
+    /// The steps after the campaign that do not use the head: select, fit, flash.
+    pub(super) fn prepare(&mut self) -> anyhow::Result<()> {
         self.select()?;
         self.fit()?;
-        self.flash()?;
+        self.flash()
+    }
+
+    /// The as-left verification (on the head), the certificate, and the run's end `pass`.
+    pub(super) fn conclude(&mut self) -> anyhow::Result<()> {
         self.as_left()?;
         self.certificate()?;
         let run = self.run_id()?;
