@@ -146,6 +146,16 @@ fn the_station_calibrates_two_nodes_on_one_head() {
         ok(&["info", "--port", &n.0, "--json", s(&info)]);
         assert_eq!(json(&info)["record"]["crc"].as_str(), Some(crc.as_str()), "{serial}");
     }
+    // Two lanes: M-2 is flashed while the head verifies M-1 (one after the other, M-2's flash
+    // would end after M-1's certificate). The journal's times are whole seconds; the as-left
+    // verification takes about 5.
+    let finished = |dir: &Path, step: &str| {
+        let j = json(&dir.join("station.json"));
+        let r = j["steps"].as_array().unwrap().iter().find(|r| r["step"] == step).cloned();
+        r.and_then(|r| r["finished"].as_str().map(str::to_string)).unwrap_or_else(|| panic!("{step}: {j}"))
+    };
+    let (flash_2, as_left_1) = (finished(&outs[1], "flash"), finished(&outs[0], "as-left"));
+    assert!(flash_2 < as_left_1, "M-2 flashed at {flash_2}, M-1 verified at {as_left_1}");
     let db = dir.path().join("calibration.sqlite");
     for (i, n) in em.nodes.iter().enumerate() {
         let h = String::from_utf8_lossy(&succeed(&["history", &n.2, "--db", s(&db)]).stdout).to_string();
