@@ -25,6 +25,17 @@
 //! are not predicted (they depend on the head and the unit, not on the plan's noise), and
 //! [`Prediction::not_included`] says so.
 //!
+//! **In a thermal chamber** ([`Chamber`]: the plan run once at each setpoint, the linear thermal
+//! model `1, ax, ay, az, t, ax·t, ay·t, az·t` fitted), each channel's rows are `x ⊗ [1, t]`, so
+//! `M = M₄ ⊗ M_T` with `M_T = Σ_j [1, t_j][1, t_j]ᵀ` over the setpoints, and the head's angles,
+//! set anew at every pass, give `H ⊗ M_T` alike. The model-4 coefficients in force at a
+//! temperature `t` are `(I ⊗ [1, t])` of the thermal ones, with the covariance of model 4's
+//! noise, quantisation and head-angle parts times `f(t) = [1, t] M_T⁻¹ [1, t]ᵀ = 1/J + (t − t̄)²/S_tt`
+//! (`J` setpoints, `S_tt` their sum of squares about their mean `t̄`), largest at an end of the
+//! calibrated range. The criterion is then taken at that worst temperature, and the noise is
+//! estimated on `J·n − 8` degrees of freedom. The positions that minimise it are model 4's up
+//! to the gravity part, which the factor does not scale.
+//!
 //! [`search`] chooses the positions among those the head reaches (an exchange algorithm on the
 //! criterion), and with [`search::design_auto`] the number of positions and the dwell too, for the
 //! least head time that reaches a target; [`order`] orders them for short moves and keeps GMDH's
@@ -113,12 +124,73 @@ impl Prior {
 }
 
 /// The references' stated uncertainties (one sigma each).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct Stated {
     /// Setting error of each head angle at each position, rad.
     pub head_angle_rad: f64,
     /// Standard uncertainty of g, m/s².
     pub g_m_s2: f64,
+    /// The thermal chamber the plan is run in, at each of its setpoints (`None`: one pass, model 4).
+    pub chamber: Option<Chamber>,
+}
+
+/// A thermal campaign's chamber: the plan is run once at each setpoint, after a soak, and the
+/// linear thermal model is fitted (see the module's documentation).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Chamber {
+    /// The setpoints, °C, in the order they are run.
+    pub setpoints_c: Vec<f64>,
+    /// Seconds the chamber holds each setpoint before its pass (head time spent waiting).
+    pub soak_s: f64,
+}
+
+impl Chamber {
+    /// A chamber with at least two distinct, finite setpoints and a soak of ≥ 0 s.
+    pub fn new(setpoints_c: Vec<f64>, soak_s: f64) -> Result<Chamber, DesignError> {
+        if let Some(&t) = setpoints_c.iter().find(|t| !t.is_finite()) {
+            return Err(DesignError::Chamber(format!("a setpoint must be a number of °C, got {t}")));
+        }
+        let (lo, hi) = range(&setpoints_c);
+        if setpoints_c.len() < 2 || hi <= lo {
+            return Err(DesignError::Chamber(
+                "the thermal model's t terms need at least two different setpoints".into(),
+            ));
+        }
+        if !(soak_s.is_finite() && soak_s >= 0.0) {
+            return Err(DesignError::Chamber(format!("the soak must be a number of seconds ≥ 0, got {soak_s}")));
+        }
+        Ok(Chamber { setpoints_c, soak_s })
+    }
+
+    /// The passes of the plan: one per setpoint.
+    pub fn passes(&self) -> usize {
+        self.setpoints_c.len()
+    }
+
+    /// The calibrated range, °C (lowest and highest setpoint).
+    pub fn range_c(&self) -> (f64, f64) {
+        range(&self.setpoints_c)
+    }
+
+    /// `f(t) = [1, t] M_T⁻¹ [1, t]ᵀ` at the end of the calibrated range where it is largest: the
+    /// factor on the variances of model 4's coefficients in force there.
+    pub fn factor(&self) -> f64 {
+        let j = self.setpoints_c.len() as f64;
+        let mean = self.setpoints_c.iter().sum::<f64>() / j;
+        let stt: f64 = self.setpoints_c.iter().map(|t| (t - mean) * (t - mean)).sum();
+        let (lo, hi) = self.range_c();
+        let d = (mean - lo).max(hi - mean);
+        1.0 / j + d * d / stt
+    }
+
+    /// The head time of a plan whose single pass takes `one_pass_s`: every pass and its soak, s.
+    pub fn head_time_s(&self, one_pass_s: f64) -> f64 {
+        self.passes() as f64 * (one_pass_s + self.soak_s)
+    }
+}
+
+fn range(v: &[f64]) -> (f64, f64) {
+    v.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &t| (lo.min(t), hi.max(t)))
 }
 
 /// Why no plan was designed or predicted.
@@ -127,6 +199,9 @@ pub enum DesignError {
     /// The unit type cannot be taken from what was given.
     #[error("the unit type cannot be taken from the earlier campaign: {0}")]
     Prior(String),
+    /// The chamber's setpoints or soak are not usable.
+    #[error("the chamber: {0}")]
+    Chamber(String),
     /// The head's reach is not a usable description.
     #[error("the head's reach: {0}")]
     Head(String),
@@ -221,6 +296,14 @@ pub const NOT_INCLUDED: [&str; 3] = [
     "model 4's lack of fit (measured on the campaign, not known before it)",
 ];
 
+/// What a prediction in a chamber leaves out, in words.
+pub const NOT_INCLUDED_CHAMBER: [&str; 4] = [
+    "the head's orthogonality (a rotation common to every position)",
+    "the thermometer's uncertainty, and the sensor lagging the chamber (each soak assumed long enough)",
+    "terms of the temperature above the first degree (the linear thermal model is assumed)",
+    "model 4's lack of fit (measured on the campaign, not known before it)",
+];
+
 /// The orientations at 1 g over which a design is searched (fewer than a prediction's, for speed).
 pub(crate) const SEARCH_POINTS: usize = 150;
 
@@ -285,6 +368,9 @@ pub(crate) struct Evaluator {
     /// Head angle variance, rad².
     ua2: f64,
     grav: Blocks,
+    /// In a chamber, its passes (one without); the noise, quantisation and head-angle variances
+    /// above hold its factor ([`Chamber::factor`]).
+    passes: usize,
 }
 
 impl Evaluator {
@@ -315,14 +401,16 @@ impl Evaluator {
         let k = prior.model.k;
         let dk = |p: usize| Vector4::new(0.0, k[p][0], k[p][1], k[p][2]);
         let grav = std::array::from_fn(|p| std::array::from_fn(|q| dk(p) * dk(q).transpose() * (rel * rel)));
+        let (passes, thermal) = stated.chamber.as_ref().map_or((1, 1.0), |c| (c.passes(), c.factor()));
         Ok(Evaluator {
             cal: cal.m,
             k,
             g,
-            noise: prior.noise_codes.map(|s| s * s / n),
-            quant: 1.0 / (12.0 * n),
-            ua2: stated.head_angle_rad * stated.head_angle_rad,
+            noise: prior.noise_codes.map(|s| s * s / n * thermal),
+            quant: thermal / (12.0 * n),
+            ua2: stated.head_angle_rad * stated.head_angle_rad * thermal,
             grav,
+            passes,
         })
     }
 
@@ -416,11 +504,13 @@ impl Evaluator {
         let all = self.blocks(sums, Only::All).ok_or(DesignError::Singular)?;
         let combined = self.variances(&all, &points);
         // The budget estimates the noise (with the quantisation) from the dwell scatter, on
-        // n − 4 degrees of freedom: its coverage factor is the budget's (`coverage_factor`).
+        // n − 4 degrees of freedom (J·n − 8 for the thermal model over J passes): its coverage
+        // factor is the budget's (`coverage_factor`).
         let n = sums.m[(0, 0)].round();
+        let dof = if self.passes > 1 { self.passes as f64 * n - 8.0 } else { n - 4.0 };
         let parts_of = [
-            ("noise", Only::Noise, n - 4.0),
-            ("quantisation", Only::Quantisation, n - 4.0),
+            ("noise", Only::Noise, dof),
+            ("quantisation", Only::Quantisation, dof),
             ("head_angle", Only::HeadAngle, f64::INFINITY),
             ("gravity", Only::Gravity, f64::INFINITY),
         ];
@@ -467,7 +557,7 @@ impl Evaluator {
             d_codes,
             a_codes,
             parts,
-            not_included: NOT_INCLUDED.to_vec(),
+            not_included: if self.passes == 1 { NOT_INCLUDED.to_vec() } else { NOT_INCLUDED_CHAMBER.to_vec() },
         })
     }
 }

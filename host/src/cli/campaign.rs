@@ -98,6 +98,17 @@ pub struct DesignArgs {
     /// orientations none of the plans chose (95 % when right) and that error's RMS [with --design].
     #[arg(long, value_name = "UNITS", requires = "design", value_parser = clap::value_parser!(u32).range(10..=100_000))]
     pub montecarlo: Option<u32>,
+    /// A thermal campaign: the plan is run once at each of these chamber setpoints (°C,
+    /// comma-separated, as `acquire --chamber` runs it) and the linear thermal model (`1, ax, ay,
+    /// az, t, ax*t, ay*t, az*t`) is fitted. U is then predicted at the worst temperature of the
+    /// calibrated range (an end of it), and the head time counts every pass and its soak [with
+    /// --design; not with --montecarlo].
+    #[arg(long = "chamber", value_name = "T1,T2,…", value_delimiter = ',', allow_hyphen_values = true, requires = "design")]
+    pub chamber: Vec<f64>,
+    /// Seconds the chamber holds each setpoint before its pass, counted in the head time [with
+    /// --chamber; default: 900, as simulate's].
+    #[arg(long = "soak-s", value_name = "S", requires = "chamber", value_parser = parse_sigma)]
+    pub soak_s: Option<f64>,
 }
 
 /// What `--design` asks for.

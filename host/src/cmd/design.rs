@@ -7,7 +7,7 @@ use std::path::Path;
 use accelcal_core::campaign::identity::{g_uncertainty, G_SOURCE_NORMAL};
 use accelcal_core::campaign::Campaign;
 use accelcal_core::design::search::{design, design_auto, AutoTarget, Designed, Head, MIN_POSITIONS};
-use accelcal_core::design::{head_time_s, predict, DesignError, Part, Prediction, Prior, Stated};
+use accelcal_core::design::{head_time_s, predict, Chamber, DesignError, Part, Prediction, Prior, Stated};
 use accelcal_core::error::bad;
 use accelcal_core::output::{write_atomic, write_json};
 use accelcal_core::sim::Plan;
@@ -57,6 +57,14 @@ pub fn check(a: &PlanArgs) -> anyhow::Result<()> {
             return Err(DesignError::TooFew { n, min: MIN_POSITIONS }.into());
         }
     }
+    if !d.chamber.is_empty() {
+        chamber(a).map_err(|e| bad(format!("--chamber: {e}")))?;
+        if d.montecarlo.is_some() {
+            return Err(bad(
+                "--montecarlo does not apply with --chamber: the simulation calibrates model 4 on one pass (the thermal model's check by simulation is not built)",
+            ));
+        }
+    }
     if d.target_u.is_some() && size != DesignSize::Auto {
         return Err(bad(
             "--target-U applies to --design auto only (with --design N the number of positions is yours)",
@@ -64,6 +72,18 @@ pub fn check(a: &PlanArgs) -> anyhow::Result<()> {
     }
     head(a).reachable().map_err(|e| bad(format!("--alpha-step-deg/--beta-step-deg/--beta-max-deg: {e}")))?;
     super::check_g(a.g)
+}
+
+/// Seconds a chamber holds each setpoint when --soak-s is not given (simulate's default).
+const SOAK_S: f64 = 900.0;
+
+/// `--chamber` and `--soak-s`, or `None` without a chamber.
+fn chamber(a: &PlanArgs) -> Result<Option<Chamber>, DesignError> {
+    let d = &a.design;
+    if d.chamber.is_empty() {
+        return Ok(None);
+    }
+    Chamber::new(d.chamber.clone(), d.soak_s.unwrap_or(SOAK_S)).map(Some)
 }
 
 fn head(a: &PlanArgs) -> Head {
@@ -160,8 +180,22 @@ struct DesignJson<'a> {
     head_angle_u_arcsec: f64,
     #[serde(rename = "g_u_m_s2")]
     g_u_m_s2: f64,
+    /// The chamber the plan is run in (absent: one pass, model 4).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    chamber: Option<ChamberJson>,
     angles: Vec<Angles>,
     compared: Vec<Compared>,
+}
+
+/// `--chamber` as the design took it.
+#[derive(Serialize)]
+struct ChamberJson {
+    setpoints_c: Vec<f64>,
+    soak_s: f64,
+    passes: usize,
+    /// `f(t)` at the worst end of the calibrated range: the factor on the noise, quantisation and
+    /// head-angle variances.
+    variance_factor: f64,
 }
 
 #[derive(Serialize)]
@@ -211,9 +245,15 @@ pub fn run(a: &PlanArgs, size: DesignSize) -> anyhow::Result<()> {
     let source = a.local.latitude.map(|_| G_SOURCE_NORMAL);
     let (bound, _) = g_uncertainty(a.g, source);
     let angle_u = d.head_angle_u.unwrap_or(0.0);
-    let stated = Stated { head_angle_rad: angle_u * ARCSEC, g_m_s2: bound / 3f64.sqrt() };
+    let chamber = chamber(a)?;
+    let stated = Stated { head_angle_rad: angle_u * ARCSEC, g_m_s2: bound / 3f64.sqrt(), chamber: chamber.clone() };
     let move_s = d.move_s.unwrap_or(MOVE_S);
     let rate_hz = d.rate_hz.unwrap_or(RATE_HZ);
+    // A plan's head time: one pass, or in a chamber every pass and its soak.
+    let time_of = |positions: usize, samples: usize| {
+        let one = head_time_s(positions, samples, rate_hz, move_s);
+        chamber.as_ref().map_or(one, |c| c.head_time_s(one))
+    };
     let samples = d.samples.unwrap_or(SAMPLES) as usize;
     let head = head(a);
     let paper = predict(&Plan::head().positions, samples, &prior, &stated, a.g)?;
@@ -231,18 +271,28 @@ pub fn run(a: &PlanArgs, size: DesignSize) -> anyhow::Result<()> {
     };
     let p = &designed.prediction;
     let n = designed.positions.len();
-    let time = head_time_s(n, designed.samples, rate_hz, move_s);
+    let time = time_of(n, designed.samples);
     let dwell = designed.samples as f64 / rate_hz;
     let selection = match designed.selection {
         accelcal_core::design::order::Selection::Alternate => "the alternate split (select's default): both its parts identify model 10, the largest of the paper's models a head plan identifies",
         accelcal_core::design::order::Selection::LeaveOneOut => "leave-one-out only (select --criterion loo): no order of these positions lets both parts of the alternate split identify model 10",
     };
+    let in_chamber = chamber.as_ref().map(|c| {
+        let (lo, hi) = c.range_c();
+        let list: Vec<String> = c.setpoints_c.iter().map(|t| t.to_string()).collect();
+        (
+            format!("run at each chamber setpoint (acquire --chamber={}): {} passes, {} s of soak each", list.join(","), c.passes(), c.soak_s),
+            format!("the linear thermal model at the worst temperature of {lo}..{hi} °C (variance factor {:.3})", c.factor()),
+        )
+    });
     let header = format!(
-        "designed by accelcal plan --design {}: {n} positions x {} sample sets ({dwell} s at {rate_hz} Hz), head time {time:.0} s with {move_s} s per move\npredicted U = {:.4e} m/s^2 (k = {:.2}, worst axis and orientation at 1 g); unit type: {}; head angle u {angle_u} arcsec\nGMDH: {selection}",
+        "designed by accelcal plan --design {}: {n} positions x {} sample sets ({dwell} s at {rate_hz} Hz), head time {time:.0} s with {move_s} s per move{}\npredicted U = {:.4e} m/s^2 (k = {:.2}, worst axis and orientation at 1 g{}); unit type: {}; head angle u {angle_u} arcsec\nGMDH: {selection}",
         size_word(size),
         designed.samples,
+        in_chamber.as_ref().map_or(String::new(), |(run, _)| format!("\n{run}")),
         p.worst_m_s2,
         p.k,
+        in_chamber.as_ref().map_or(String::new(), |(_, model)| format!(", {model}")),
         prior.source
     );
     write_plan(out, &designed, &header)?;
@@ -251,6 +301,9 @@ pub fn run(a: &PlanArgs, size: DesignSize) -> anyhow::Result<()> {
         "plan design: {n} positions x {} sample sets ({dwell} s at {rate_hz} Hz), head time {time:.0} s with {move_s} s per move and settling",
         designed.samples
     );
+    if let Some((run, model)) = &in_chamber {
+        println!("  {run}; U of {model}");
+    }
     println!("  unit type: {}", prior.source);
     println!(
         "  head: α every {}°, β every {}° within ±{}° ({} positions); angle u {angle_u}″ per angle and position; u(g) = {:.2e} m/s²",
@@ -291,7 +344,7 @@ pub fn run(a: &PlanArgs, size: DesignSize) -> anyhow::Result<()> {
             plan: r.name.to_string(),
             positions: r.positions.len(),
             samples_per_position: r.samples,
-            head_time_s: head_time_s(r.positions.len(), r.samples, rate_hz, move_s),
+            head_time_s: time_of(r.positions.len(), r.samples),
             u_m_s2: r.prediction.worst_m_s2,
             u_axes_m_s2: r.prediction.expanded_m_s2,
             k: r.prediction.k,
@@ -358,6 +411,12 @@ pub fn run(a: &PlanArgs, size: DesignSize) -> anyhow::Result<()> {
             head,
             head_angle_u_arcsec: angle_u,
             g_u_m_s2: stated.g_m_s2,
+            chamber: chamber.as_ref().map(|c| ChamberJson {
+                setpoints_c: c.setpoints_c.clone(),
+                soak_s: c.soak_s,
+                passes: c.passes(),
+                variance_factor: c.factor(),
+            }),
             angles: designed
                 .positions
                 .iter()
@@ -396,7 +455,7 @@ fn bar(len: u64, what: &str) -> ProgressBar {
 fn print_table(rows: &[Compared], mc: bool, noise: String) {
     println!();
     println!(
-        "predicted expanded uncertainty of the calibrated acceleration at its worst orientation at 1 g (k = 2, or Student's t for the noise's n - 4 degrees of freedom where that is more); {noise}"
+        "predicted expanded uncertainty of the calibrated acceleration at its worst orientation at 1 g (k = 2, or Student's t for the noise's n - 4 degrees of freedom, J·n - 8 over J chamber passes, where that is more); {noise}"
     );
     print!(
         "  {:<13} {:>9} {:>7} {:>11} {:>10} {:>10} {:>10} {:>5} {:>8} {:>8}",
