@@ -80,6 +80,53 @@ fn auto_reaches_the_paper_plan_s_u_in_less_head_time() {
     assert_eq!(t, n * (10.0 + s / 100.0));
 }
 
+/// In a chamber: the plan is the positions, run at each setpoint; U is predicted for the linear
+/// thermal model at the worst end of the calibrated range (the factor 1/3 + 30²/1800 on the
+/// noise and head-angle variances), and the head time counts every pass and its soak.
+#[test]
+fn a_chamber_plan_states_its_passes_soaks_and_u_at_the_worst_temperature() {
+    let d = Dir::new();
+    let (plan, doc, one, one_plan) = (d.s("t.csv"), d.s("t.json"), d.s("one.json"), d.s("one.csv"));
+    let common = ["plan", "--design", "16", "--noise", "80", "--head-angle-u", "20", "--g", "9.80665"];
+    let mut args = common.to_vec();
+    args.extend_from_slice(&["--chamber=-10,20,50", "--soak-s", "600", "--out", &plan, "--json", &doc]);
+    let out = ok(&args);
+    assert!(out.contains("run at each chamber setpoint (acquire --chamber=-10,20,50): 3 passes, 600 s of soak each"), "{out}");
+    assert!(out.contains("the worst temperature of -10..50 °C (variance factor 0.833)"), "{out}");
+    assert!(out.contains("the thermometer's uncertainty"), "{out}");
+    let j = json(Path::new(&doc));
+    assert_eq!(j["chamber"]["setpoints_c"], serde_json::json!([-10.0, 20.0, 50.0]));
+    assert_eq!(j["chamber"]["passes"], 3);
+    assert!((j["chamber"]["variance_factor"].as_f64().unwrap() - 5.0 / 6.0).abs() < 1e-12);
+    // 3 passes of 16 × (10 s + 4 s), each after 600 s of soak.
+    assert_eq!(j["head_time_s"], 3.0 * (16.0 * 14.0 + 600.0));
+    assert_eq!(j["compared"][0]["head_time_s"], 3.0 * (62.0 * 14.0 + 600.0));
+    // 48 dwells, 8 coefficients: the noise on 40 degrees of freedom, the head's angles (Type B)
+    // beside it, so k is Student's t a little above 2 (t(40) = 2.021); the same plan in one pass
+    // states more.
+    let (k, nu) = (j["k"].as_f64().unwrap(), j["nu_eff"].as_f64().unwrap());
+    assert!(nu > 40.0 && nu < 61.0 && k > 2.0 && k < 2.021, "k {k}, nu_eff {nu}");
+    let mut args = common.to_vec();
+    args.extend_from_slice(&["--out", &one_plan, "--json", &one]);
+    ok(&args);
+    let (u, u1) = (j["U_m_s2"].as_f64().unwrap(), json(Path::new(&one))["U_m_s2"].as_f64().unwrap());
+    assert!(u < u1, "{u} in the chamber, {u1} in one pass");
+    // The plan file is an ordinary plan: simulate runs it in the chamber.
+    simulate(&d, "c.csv", &["--plan", &plan, "--samples", "20", "--chamber=-10,50", "--soak-s", "10"]);
+    // What does not apply, or is not a chamber, is refused.
+    let mut args = common.to_vec();
+    args.extend_from_slice(&["--chamber", "20,20", "--out", &plan]);
+    let e = bad(&args);
+    assert!(e.contains("--chamber") && e.contains("two different setpoints"), "{e}");
+    let mut args = common.to_vec();
+    args.extend_from_slice(&["--chamber=-10,50", "--montecarlo", "20", "--out", &plan]);
+    let e = bad(&args);
+    assert!(e.contains("--montecarlo does not apply with --chamber"), "{e}");
+    let mut args = common.to_vec();
+    args.extend_from_slice(&["--soak-s", "600", "--out", &plan]);
+    assert_eq!(accelcal(&args).status.code(), Some(2), "--soak-s without --chamber");
+}
+
 #[test]
 fn the_design_s_options_are_refused_where_they_do_not_apply() {
     let d = Dir::new();

@@ -154,8 +154,10 @@ fn the_chamber_factor_is_the_linear_fits_variance_at_the_range_end() {
 /// The prediction in a chamber is what the linear thermal model, fitted by least squares on the
 /// plan run at each setpoint with the noise and the head's angle errors drawn anew at every
 /// dwell, gives at the worst end of the calibrated range: the variance of the calibrated
-/// acceleration at its worst orientation, estimated over 1,500 such campaigns, is the predicted
-/// one within 8 % (the estimate's own standard error is 3.7 %).
+/// acceleration at its worst orientation, estimated over 6,000 such campaigns, is the predicted
+/// one within 8 % (measured: 5.4 % above it; each point's estimate has a standard error of 1.8 %,
+/// and the largest of 200 such estimates runs high by a few of them). With the factor left out
+/// (`1/J` alone) the ratio is 2.7.
 #[test]
 fn a_chamber_prediction_is_the_thermal_fits_variance_at_the_worst_temperature() {
     use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
@@ -184,7 +186,7 @@ fn a_chamber_prediction_is_the_thermal_fits_variance_at_the_worst_temperature() 
     let noise = Normal::new(0.0, sigma / (samples as f64).sqrt()).unwrap();
     let angle = Normal::new(0.0, stated.head_angle_rad).unwrap();
     let rows = plan.len() * setpoints.len();
-    let trials = 1500;
+    let trials = 6000;
     let mut sum2 = vec![[0.0f64; 3]; points.len()];
     for _ in 0..trials {
         let mut x = DMatrix::<f64>::zeros(rows, 8);
@@ -230,6 +232,5 @@ fn a_chamber_prediction_is_the_thermal_fits_variance_at_the_worst_temperature() 
     }
     let empirical = sum2.iter().flat_map(|v| v.iter()).fold(0.0f64, |m, &v| m.max(v / trials as f64));
     let ratio = empirical / predicted;
-    eprintln!("chamber prediction: empirical {empirical:.4e}, predicted {predicted:.4e}, ratio {ratio:.3}");
     assert!((ratio - 1.0).abs() < 0.08, "empirical {empirical:.4e}, predicted {predicted:.4e} (m/s²)², ratio {ratio:.3}");
 }
