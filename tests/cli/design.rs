@@ -91,7 +91,12 @@ fn a_chamber_plan_states_its_passes_soaks_and_u_at_the_worst_temperature() {
     let mut args = common.to_vec();
     args.extend_from_slice(&["--chamber=-10,20,50", "--soak-s", "600", "--out", &plan, "--json", &doc]);
     let out = ok(&args);
-    assert!(out.contains("run at each chamber setpoint (acquire --chamber=-10,20,50): 3 passes, 600 s of soak each"), "{out}");
+    assert!(
+        out.contains(
+            "run at each chamber setpoint (acquire --chamber=-10,20,50): 3 passes, 600 s of soak each"
+        ),
+        "{out}"
+    );
     assert!(out.contains("the worst temperature of -10..50 °C (variance factor 0.833)"), "{out}");
     assert!(out.contains("the thermometer's uncertainty"), "{out}");
     let j = json(Path::new(&doc));

@@ -157,7 +157,9 @@ impl Chamber {
             ));
         }
         if !(soak_s.is_finite() && soak_s >= 0.0) {
-            return Err(DesignError::Chamber(format!("the soak must be a number of seconds ≥ 0, got {soak_s}")));
+            return Err(DesignError::Chamber(format!(
+                "the soak must be a number of seconds ≥ 0, got {soak_s}"
+            )));
         }
         Ok(Chamber { setpoints_c, soak_s })
     }
@@ -557,7 +559,11 @@ impl Evaluator {
             d_codes,
             a_codes,
             parts,
-            not_included: if self.passes == 1 { NOT_INCLUDED.to_vec() } else { NOT_INCLUDED_CHAMBER.to_vec() },
+            not_included: if self.passes == 1 {
+                NOT_INCLUDED.to_vec()
+            } else {
+                NOT_INCLUDED_CHAMBER.to_vec()
+            },
         })
     }
 }

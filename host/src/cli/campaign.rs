@@ -103,7 +103,13 @@ pub struct DesignArgs {
     /// az, t, ax*t, ay*t, az*t`) is fitted. U is then predicted at the worst temperature of the
     /// calibrated range (an end of it), and the head time counts every pass and its soak [with
     /// --design; not with --montecarlo].
-    #[arg(long = "chamber", value_name = "T1,T2,…", value_delimiter = ',', allow_hyphen_values = true, requires = "design")]
+    #[arg(
+        long = "chamber",
+        value_name = "T1,T2,…",
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        requires = "design"
+    )]
     pub chamber: Vec<f64>,
     /// Seconds the chamber holds each setpoint before its pass, counted in the head time [with
     /// --chamber; default: 900, as simulate's].

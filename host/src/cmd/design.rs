@@ -246,7 +246,8 @@ pub fn run(a: &PlanArgs, size: DesignSize) -> anyhow::Result<()> {
     let (bound, _) = g_uncertainty(a.g, source);
     let angle_u = d.head_angle_u.unwrap_or(0.0);
     let chamber = chamber(a)?;
-    let stated = Stated { head_angle_rad: angle_u * ARCSEC, g_m_s2: bound / 3f64.sqrt(), chamber: chamber.clone() };
+    let stated =
+        Stated { head_angle_rad: angle_u * ARCSEC, g_m_s2: bound / 3f64.sqrt(), chamber: chamber.clone() };
     let move_s = d.move_s.unwrap_or(MOVE_S);
     let rate_hz = d.rate_hz.unwrap_or(RATE_HZ);
     // A plan's head time: one pass, or in a chamber every pass and its soak.
@@ -281,8 +282,16 @@ pub fn run(a: &PlanArgs, size: DesignSize) -> anyhow::Result<()> {
         let (lo, hi) = c.range_c();
         let list: Vec<String> = c.setpoints_c.iter().map(|t| t.to_string()).collect();
         (
-            format!("run at each chamber setpoint (acquire --chamber={}): {} passes, {} s of soak each", list.join(","), c.passes(), c.soak_s),
-            format!("the linear thermal model at the worst temperature of {lo}..{hi} °C (variance factor {:.3})", c.factor()),
+            format!(
+                "run at each chamber setpoint (acquire --chamber={}): {} passes, {} s of soak each",
+                list.join(","),
+                c.passes(),
+                c.soak_s
+            ),
+            format!(
+                "the linear thermal model at the worst temperature of {lo}..{hi} °C (variance factor {:.3})",
+                c.factor()
+            ),
         )
     });
     let header = format!(
