@@ -608,7 +608,9 @@ fn after_acquire_all(
         }
         return Ok(());
     }
-    std::thread::scope(|scope| {
+    // The lanes note their rejections apart: the station names them in the units' order.
+    let order: Vec<String> = open.iter().map(|s| s.u.serial.clone()).collect();
+    let result = std::thread::scope(|scope| {
         let (ready, prepared) = std::sync::mpsc::channel::<&mut Station<'_>>();
         let head = scope.spawn(move || {
             let mut rejected = Vec::new();
@@ -654,7 +656,9 @@ fn after_acquire_all(
                 Err(h)
             }
         }
-    })
+    });
+    rejected.sort_by_key(|r| order.iter().position(|o| o == r));
+    result
 }
 
 /// How the station's `wall` seconds were spent, from the units' journals: each step's command
