@@ -80,7 +80,8 @@ pub enum Command {
     BenchDiagnose(BenchDiagnoseArgs),
     /// Benchmark of the head's signature across units: simulated fleets on a head that is
     /// knocked out of true at a unit the tracking is not told (one position's α off by 0.5 mrad,
-    /// at β = 0° and at β = −60°; the mount rotated by 1 mrad), and on a true head: how many
+    /// at β = 0° and at β = −60°, and by 0.25 and 0.1 mrad at β = 0°; the mount rotated by 1 and
+    /// by 0.5 mrad), and on a true head: how many
     /// fleets are flagged, how many units after the change, how near the estimate, and the false
     /// alarms before it.
     BenchSignature(BenchSignatureArgs),

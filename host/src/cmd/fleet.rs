@@ -521,7 +521,11 @@ pub fn run_bench_signature(a: &crate::cli::BenchSignatureArgs) -> anyhow::Result
         HeadChange::None,
         HeadChange::Offset { position: 26, mrad: 0.5 },
         HeadChange::Offset { position: 7, mrad: 0.5 },
+        // Weaker: how small an error the tracking still finds, and how late.
+        HeadChange::Offset { position: 26, mrad: 0.25 },
+        HeadChange::Offset { position: 26, mrad: 0.1 },
         HeadChange::Mount { mrad: 1.0 },
+        HeadChange::Mount { mrad: 0.5 },
     ];
     let rows = study(&changes, a.fleets as usize, a.units as usize, a.change_at as usize, s);
     println!(
