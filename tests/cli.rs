@@ -18,6 +18,8 @@ mod help;
 mod records;
 #[path = "cli/settings.rs"]
 mod settings;
+#[path = "cli/signature.rs"]
+mod signature;
 #[path = "cli/station_config.rs"]
 mod station_config;
 #[path = "cli/uncertainty.rs"]
