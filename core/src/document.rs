@@ -18,6 +18,28 @@ use serde::{Deserialize, Serialize};
 use crate::campaign::identity::Identity;
 use crate::uncertainty::UncertaintyJson;
 
+/// The version of `fit --json` this build writes. Every document carries its `version`; a reader
+/// takes each version up to the one it writes (0: a document written before documents carried
+/// one) and refuses a later one, which a newer accelcal wrote.
+pub const FIT_VERSION: u32 = 1;
+/// The version of `select --json` this build writes (see [`FIT_VERSION`]).
+pub const SELECT_VERSION: u32 = 1;
+/// The version of `info --json` this build writes (see [`FIT_VERSION`]).
+pub const INFO_VERSION: u32 = 1;
+/// The version of `verify --json` this build writes (see [`FIT_VERSION`];
+/// `accelcal_line::verify::VerifyReport`).
+pub const VERIFY_VERSION: u32 = 1;
+
+/// Refuses a document of a later version than this build reads.
+pub fn check_version(what: &str, version: u32, known: u32) -> Result<(), serde_json::Error> {
+    if version > known {
+        return Err(<serde_json::Error as serde::de::Error>::custom(format!(
+            "{what}'s JSON document is version {version}, written by a newer accelcal (this one reads versions up to {known})"
+        )));
+    }
+    Ok(())
+}
+
 /// One channel of a fit: its terms, their coefficients and the coefficients' statistics.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct FitChannelDoc {
@@ -69,6 +91,9 @@ impl FitChannelDoc {
 /// fitted by least squares, the uncertainty budget. The field order is the document's.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct FitDoc {
+    /// [`FIT_VERSION`] (0: written before documents carried a version).
+    #[serde(default)]
+    pub version: u32,
     /// `lsq` or `test-turns`.
     pub method: String,
     /// Whose fit it is: device id, serial, g, the campaign's hash, the record's CRC (`None` in a
@@ -88,7 +113,9 @@ pub struct FitDoc {
 impl FitDoc {
     /// Parses a fit document; the error is serde's, which names the field and its place.
     pub fn parse(text: &str) -> Result<FitDoc, serde_json::Error> {
-        serde_json::from_str(text)
+        let doc: FitDoc = serde_json::from_str(text)?;
+        check_version("fit", doc.version, FIT_VERSION)?;
+        Ok(doc)
     }
 
     /// The channel named `name`.
@@ -144,6 +171,9 @@ pub struct SelectChannelDoc {
 /// channel's.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SelectDoc {
+    /// [`SELECT_VERSION`] (0: written before documents carried a version).
+    #[serde(default)]
+    pub version: u32,
     /// The candidate basis (`paper`, `linear`, …).
     pub basis: String,
     /// The external criterion.
@@ -186,6 +216,9 @@ impl RecordInForceDoc {
 /// fields in the order of their names, as the document has always been written).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct InfoDoc {
+    /// [`INFO_VERSION`] (0: written before documents carried a version).
+    #[serde(default)]
+    pub version: u32,
     /// The MCU's unique id, 24 lower-case hex digits.
     pub device_id: String,
     /// The firmware's version, `major.minor.patch`.
@@ -200,12 +233,31 @@ pub struct InfoDoc {
     pub reset_cause: String,
 }
 
+impl SelectDoc {
+    /// Parses a selection document (see [`FitDoc::parse`]).
+    pub fn parse(text: &str) -> Result<SelectDoc, serde_json::Error> {
+        let doc: SelectDoc = serde_json::from_str(text)?;
+        check_version("select", doc.version, SELECT_VERSION)?;
+        Ok(doc)
+    }
+}
+
+impl InfoDoc {
+    /// Parses a node's `info --json` (see [`FitDoc::parse`]).
+    pub fn parse(text: &str) -> Result<InfoDoc, serde_json::Error> {
+        let doc: InfoDoc = serde_json::from_str(text)?;
+        check_version("info", doc.version, INFO_VERSION)?;
+        Ok(doc)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
     fn doc() -> serde_json::Value {
         serde_json::json!({
+            "version": 1,
             "method": "lsq",
             "device_id": "51454d552d422d4c34373545",
             "serial": "A-1",
@@ -248,5 +300,34 @@ mod tests {
         v.as_object_mut().unwrap().remove("channels");
         let e = FitDoc::parse(&v.to_string()).unwrap_err().to_string();
         assert!(e.contains("missing field `channels`"), "{e}");
+    }
+
+    /// A document without a version was written before documents carried one: it reads as 0. A
+    /// later version than this build writes is refused, by each document's reader.
+    #[test]
+    fn a_document_of_a_later_version_is_refused_and_one_without_reads() {
+        let mut v = doc();
+        v.as_object_mut().unwrap().remove("version");
+        assert_eq!(FitDoc::parse(&v.to_string()).unwrap().version, 0);
+        v["version"] = (FIT_VERSION + 1).into();
+        let e = FitDoc::parse(&v.to_string()).unwrap_err().to_string();
+        assert!(
+            e.contains(
+                "fit's JSON document is version 2, written by a newer accelcal (this one reads versions up to 1)"
+            ),
+            "{e}"
+        );
+        let select = serde_json::json!({
+            "version": SELECT_VERSION + 1, "basis": "paper", "criterion": "regularity",
+            "split": "alternate", "tolerance": 1.0, "channels": []
+        });
+        let e = SelectDoc::parse(&select.to_string()).unwrap_err().to_string();
+        assert!(e.contains("select's JSON document is version 2"), "{e}");
+        let info = serde_json::json!({
+            "version": INFO_VERSION + 1, "device_id": "51454d552d422d4c34373545", "firmware": "0.1.0",
+            "overruns": 0, "rate_hz": 1000, "record": null, "reset_cause": "power-on"
+        });
+        let e = InfoDoc::parse(&info.to_string()).unwrap_err().to_string();
+        assert!(e.contains("info's JSON document is version 2"), "{e}");
     }
 }

@@ -257,7 +257,7 @@ impl Db {
                     outcome: opt_text(&r[3])?,
                     reason: r[5].text()?,
                     mean_error_m_s2: report
-                        .and_then(|t| serde_json::from_str::<VerifyReport>(&t).ok())
+                        .and_then(|t| VerifyReport::parse(&t).ok())
                         .and_then(|v| mean_errors(&v)),
                 })
             })

@@ -332,6 +332,10 @@ pub struct PositionCheck {
 /// A verification's result.
 #[derive(Clone, Debug, Serialize, serde::Deserialize)]
 pub struct VerifyReport {
+    /// `accelcal_core::document::VERIFY_VERSION` (0: written before documents carried a
+    /// version).
+    #[serde(default)]
+    pub version: u32,
     /// The node's device id (hex).
     pub device_id: String,
     /// The record in force: slot, sequence, created, CRC (hex).
@@ -396,11 +400,20 @@ impl VerifyReport {
         (failed > 0 || !parameters.is_empty() || total == 0).then_some(Failed { failed, total, parameters })
     }
 
+    /// Parses a report that `verify --json` wrote; a later version than this build writes is
+    /// refused (`accelcal_core::document::check_version`).
+    pub fn parse(text: &str) -> Result<VerifyReport, serde_json::Error> {
+        use accelcal_core::document::{check_version, VERIFY_VERSION};
+        let report: VerifyReport = serde_json::from_str(text)?;
+        check_version("verify", report.version, VERIFY_VERSION)?;
+        Ok(report)
+    }
+
     /// Reads a report that `verify --json` wrote.
     pub fn read(path: &std::path::Path) -> anyhow::Result<VerifyReport> {
         let name = path.display();
         let text = std::fs::read_to_string(path).map_err(|e| bad(format!("{name}: cannot read: {e}")))?;
-        serde_json::from_str(&text)
+        VerifyReport::parse(&text)
             .map_err(|e| bad(format!("{name}: not `accelcal verify --json` output: {e}")))
     }
 }
@@ -490,6 +503,7 @@ pub fn verify(
     let before = info.output;
     node.set_output(Output::Calibrated)?;
     let mut report = VerifyReport {
+        version: accelcal_core::document::VERIFY_VERSION,
         device_id: device_id_hex(&info.device_id),
         record: record_json(info.record),
         g_m_s2: cfg.g,

@@ -124,6 +124,7 @@ pub fn verification(device: &str, max_err: f64, tol: f64) -> VerifyReport {
         })
         .collect::<Vec<_>>();
     VerifyReport {
+        version: accelcal_core::document::VERIFY_VERSION,
         device_id: device.into(),
         record: serde_json::json!({"slot": 0, "sequence": 1, "created_unix_s": 1_800_000_000, "crc": "00000000"}),
         g_m_s2: G,

@@ -27,6 +27,7 @@ pub fn to_json(
 ) -> FitDoc {
     let thermal = fits.iter().any(|(_, f)| f.structure.is_thermal());
     FitDoc {
+        version: accelcal_core::document::FIT_VERSION,
         method: method.name().to_string(),
         identity: Some(identity),
         t_ref_c: thermal.then_some(t_ref_c),

@@ -35,6 +35,7 @@ fn reset_name(i: &Info) -> String {
 /// `accelcal info`'s JSON document (the field names are an interface).
 pub fn info_json(i: &Info) -> accelcal_core::document::InfoDoc {
     accelcal_core::document::InfoDoc {
+        version: accelcal_core::document::INFO_VERSION,
         device_id: device_id_hex(&i.device_id),
         firmware: firmware_version(i.firmware),
         record: accelcal_core::document::RecordInForceDoc::of(i.record),

@@ -219,6 +219,7 @@ pub fn to_json(sel: &[Selection], settings: &Settings, split: &str, top: Option<
         })
         .collect();
     SelectDoc {
+        version: accelcal_core::document::SELECT_VERSION,
         basis: format!("{:?}", settings.basis).to_lowercase(),
         criterion: settings.criterion,
         split: (settings.criterion != gmdh::Criterion::Loo).then(|| split.to_string()),

@@ -295,7 +295,7 @@ impl Station<'_> {
             return Err(anyhow::anyhow!("step info failed (its error is above)"));
         }
         let text = std::fs::read_to_string(self.path(INFO)).with_context(|| self.p(INFO))?;
-        let info: InfoDoc = serde_json::from_str(&text).with_context(|| self.p(INFO))?;
+        let info = InfoDoc::parse(&text).with_context(|| self.p(INFO))?;
         let device = info.device_id.clone();
         self.journal.set_device(self.dir, &device)?;
         let record = match &info.record {

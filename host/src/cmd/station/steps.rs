@@ -98,8 +98,7 @@ impl Station<'_> {
             return Err(anyhow::anyhow!("step select failed (its error is above)"));
         }
         let text = std::fs::read_to_string(self.path(SELECT)).with_context(|| self.p(SELECT))?;
-        let doc: accelcal_core::document::SelectDoc =
-            serde_json::from_str(&text).with_context(|| self.p(SELECT))?;
+        let doc = accelcal_core::document::SelectDoc::parse(&text).with_context(|| self.p(SELECT))?;
         // Not journalled when rejected: the run ends rejected.
         if let Err(e) = deployable(&doc) {
             return Err(self.reject(e.into()));
