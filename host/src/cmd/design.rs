@@ -74,16 +74,13 @@ pub fn check(a: &PlanArgs) -> anyhow::Result<()> {
     super::check_g(a.g)
 }
 
-/// Seconds a chamber holds each setpoint when --soak-s is not given (simulate's default).
-const SOAK_S: f64 = 900.0;
-
 /// `--chamber` and `--soak-s`, or `None` without a chamber.
 fn chamber(a: &PlanArgs) -> Result<Option<Chamber>, DesignError> {
     let d = &a.design;
     if d.chamber.is_empty() {
         return Ok(None);
     }
-    Chamber::new(d.chamber.clone(), d.soak_s.unwrap_or(SOAK_S)).map(Some)
+    Chamber::new(d.chamber.clone(), d.soak_s.unwrap_or(super::simulate::SOAK_DEFAULT_S)).map(Some)
 }
 
 fn head(a: &PlanArgs) -> Head {

@@ -10,7 +10,7 @@ use accelcal_core::output::{write_atomic_with, write_json};
 use accelcal_core::sim::{self, Plan, SimConfig};
 
 /// Soak at each chamber setpoint when --soak-s is not given, s.
-const SOAK_DEFAULT_S: f64 = 900.0;
+pub(crate) const SOAK_DEFAULT_S: f64 = 900.0;
 /// Chamber-to-sensor lag when --thermal-lag-s is not given, s (`emulate`'s default).
 const THERMAL_LAG_DEFAULT_S: f64 = 30.0;
 
