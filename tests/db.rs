@@ -133,6 +133,7 @@ fn both_engines_have_the_same_tables_and_columns() {
             "V1__" => 8,
             "V2__" => 3,
             "V4__" | "V5__" => 1,
+            "V6__" => 5,
             _ => 2,
         };
         assert_eq!(s.len(), want, "{v}: {s:?}");
@@ -459,7 +460,7 @@ fn sixteen_first_opens_at_once_migrate_once() {
         assert_eq!(out.status.code(), Some(2), "{err}");
         assert!(err.contains(&format!("run {run}: not in the database")), "{err}");
     }
-    assert_eq!(Db::open(&spec).unwrap().schema_versions().unwrap(), vec![1, 2, 3, 4, 5]);
+    assert_eq!(Db::open(&spec).unwrap().schema_versions().unwrap(), vec![1, 2, 3, 4, 5, 6]);
 }
 
 /// Issue 28 items 7 and 11: a database that cannot be written stops a writer first, naming the
@@ -691,4 +692,68 @@ fn serve_answers_only_get_and_says_why_a_request_is_bad() {
 fn serve_s_pages_render_to_screenshots() {
     let d = tempfile::tempdir().unwrap();
     dbkit::serve::the_pages_render_to_screenshots(&db_file(&d));
+}
+
+/// Issue 31 item 5: the rows derived from the pieces (schema 6) are written with them, derived
+/// again for a database that lacks them when it is next opened (a database of version 5), and
+/// `db verify` names a derived row changed behind accelcal's back.
+#[test]
+fn derived_rows_are_backfilled_on_open_and_checked_by_db_verify() {
+    let d = tempfile::tempdir().unwrap();
+    let spec = db_file(&d);
+    dbkit::fleet::the_fleet_is_counted_by_the_database(&spec);
+    const DERIVED: [&str; 5] = [
+        "fit_summary",
+        "fit_parameter",
+        "verification_summary",
+        "verification_parameter",
+        "head_observation",
+    ];
+    let dump = || -> Vec<Vec<String>> {
+        let c = rusqlite::Connection::open(&spec).unwrap();
+        DERIVED
+            .iter()
+            .map(|t| {
+                let mut s = c.prepare(&format!("SELECT * FROM {t} ORDER BY 1, 2")).unwrap();
+                let n = s.column_count();
+                s.query_map([], |r| {
+                    Ok((0..n).map(|i| format!("{:?}", r.get_ref(i).unwrap())).collect::<Vec<_>>().join("|"))
+                })
+                .unwrap()
+                .map(|r| r.unwrap())
+                .collect()
+            })
+            .collect()
+    };
+    let stored = dump();
+    assert!(stored.iter().all(|rows| !rows.is_empty()), "every derived table holds rows: {stored:?}");
+    // As a database of version 5 would be: no derived rows.
+    let c = rusqlite::Connection::open(&spec).unwrap();
+    for t in DERIVED {
+        c.execute_batch(&format!("DROP TRIGGER {t}_no_delete; DELETE FROM {t};")).unwrap();
+    }
+    drop(c);
+    assert!(dump().iter().all(|rows| rows.is_empty()));
+    let mut db = Db::open(&spec).unwrap();
+    assert_eq!(dump(), stored, "the backfill derives what the store path derived");
+    assert!(db.verify_chain().unwrap().mismatches.is_empty());
+    drop(db);
+    rusqlite::Connection::open(&spec)
+        .unwrap()
+        .execute_batch(
+            "DROP TRIGGER fit_parameter_no_update; UPDATE fit_parameter SET value = value + 1 WHERE ord = 0;",
+        )
+        .unwrap();
+    let r = Db::open(&spec).unwrap().verify_chain().unwrap();
+    assert!(
+        !r.mismatches.is_empty() && r.mismatches.iter().all(|m| m.piece == "fit_summary/fit_parameter"),
+        "{:?}",
+        r.mismatches
+    );
+    let (code, out, _) = accelcal(&["db", "verify", "--db", &spec]);
+    assert_eq!(code, Some(1), "{out}");
+    assert!(
+        out.contains("the fit_summary/fit_parameter row of run") && out.contains("not what its fit derives"),
+        "{out}"
+    );
 }

@@ -228,8 +228,30 @@ pub struct Conn {
 enum Link {
     /// SQLite.
     Sqlite(rusqlite::Connection),
-    /// PostgreSQL.
-    Postgres(Box<postgres::Client>),
+    /// PostgreSQL, with the statements it has prepared.
+    Postgres(Box<postgres::Client>, Statements),
+}
+
+/// A PostgreSQL connection's prepared statements by their text: a statement is parsed and
+/// planned once per connection, and each later use is one round trip instead of two. The line's
+/// statements are a fixed set; the cache is emptied should it ever pass [`Statements::MAX`].
+#[derive(Default)]
+pub struct Statements(std::collections::HashMap<String, postgres::Statement>);
+
+impl Statements {
+    const MAX: usize = 512;
+
+    fn get(&mut self, t: &mut postgres::Transaction<'_>, sql: &str) -> Result<postgres::Statement, DbError> {
+        if let Some(st) = self.0.get(sql) {
+            return Ok(st.clone());
+        }
+        let st = t.prepare(sql).map_err(DbError::pg)?;
+        if self.0.len() >= Self::MAX {
+            self.0.clear();
+        }
+        self.0.insert(sql.to_string(), st.clone());
+        Ok(st)
+    }
 }
 
 /// How a database is opened.
@@ -247,8 +269,8 @@ pub enum Access {
 pub enum Tx<'a> {
     /// SQLite (begun `IMMEDIATE`: the write lock is taken at the start).
     Sqlite(rusqlite::Transaction<'a>),
-    /// PostgreSQL.
-    Postgres(postgres::Transaction<'a>),
+    /// PostgreSQL, with its connection's prepared statements.
+    Postgres(postgres::Transaction<'a>, &'a mut Statements),
 }
 
 /// The newest schema version this build has (the migrations' last `V<n>`).
@@ -282,11 +304,16 @@ impl Conn {
                 let client = config
                     .connect(postgres::NoTls)
                     .map_err(|e| DbError::Unreachable { target: redact(spec), cause: pg_cause(&e) })?;
-                let mut conn =
-                    Conn { link: Link::Postgres(Box::new(client)), target: redact(spec), read_only: false };
+                let mut conn = Conn {
+                    link: Link::Postgres(Box::new(client), Statements::default()),
+                    target: redact(spec),
+                    read_only: false,
+                };
                 // Under an advisory lock, so that stations starting together migrate once.
                 conn.pg_locked(|c| {
-                    let Link::Postgres(client) = &mut c.link else { unreachable!("a PostgreSQL connection") };
+                    let Link::Postgres(client, _) = &mut c.link else {
+                        unreachable!("a PostgreSQL connection")
+                    };
                     embedded::postgres::migrations::runner()
                         .run(client.as_mut())
                         .map_err(migration_failed)?;
@@ -300,7 +327,7 @@ impl Conn {
     /// Runs `f` holding the migration's advisory lock (PostgreSQL).
     fn pg_locked(&mut self, f: impl FnOnce(&mut Conn) -> Result<(), DbError>) -> Result<(), DbError> {
         let lock = |c: &mut Conn, sql: &str| -> Result<(), DbError> {
-            let Link::Postgres(client) = &mut c.link else { unreachable!("a PostgreSQL connection") };
+            let Link::Postgres(client, _) = &mut c.link else { unreachable!("a PostgreSQL connection") };
             client.execute(sql, &[&MIGRATION_LOCK]).map(drop).map_err(DbError::pg)
         };
         lock(self, "SELECT pg_advisory_lock($1)")?;
@@ -349,17 +376,17 @@ impl Conn {
                 let out = f(&mut tx)?;
                 match tx {
                     Tx::Sqlite(t) => t.commit().map_err(DbError::sqlite)?,
-                    Tx::Postgres(_) => unreachable!("a SQLite connection gives SQLite transactions"),
+                    Tx::Postgres(..) => unreachable!("a SQLite connection gives SQLite transactions"),
                 }
                 Ok(out)
             }
-            Link::Postgres(c) => {
-                let mut tx = Tx::Postgres(c.transaction().map_err(DbError::pg)?);
+            Link::Postgres(c, statements) => {
+                let mut tx = Tx::Postgres(c.transaction().map_err(DbError::pg)?, statements);
                 // One writer at a time appends to the ledger (SQLite: `BEGIN IMMEDIATE` does it).
                 tx.execute("SELECT pg_advisory_xact_lock($1)", &[Val::Int(LEDGER_LOCK)])?;
                 let out = f(&mut tx)?;
                 match tx {
-                    Tx::Postgres(t) => t.commit().map_err(DbError::pg)?,
+                    Tx::Postgres(t, _) => t.commit().map_err(DbError::pg)?,
                     Tx::Sqlite(_) => unreachable!("a PostgreSQL connection gives PostgreSQL transactions"),
                 }
                 Ok(out)
@@ -371,7 +398,7 @@ impl Conn {
     pub fn engine(&self) -> &'static str {
         match self.link {
             Link::Sqlite(_) => "sqlite",
-            Link::Postgres(_) => "postgres",
+            Link::Postgres(..) => "postgres",
         }
     }
 }
@@ -509,13 +536,15 @@ impl Tx<'_> {
     pub fn execute(&mut self, sql: &str, params: &[Val]) -> Result<u64, DbError> {
         match self {
             Tx::Sqlite(t) => t
-                .execute(sql, rusqlite::params_from_iter(params.iter()))
+                .prepare_cached(sql)
+                .and_then(|mut st| st.execute(rusqlite::params_from_iter(params.iter())))
                 .map(|n| n as u64)
                 .map_err(DbError::sqlite),
-            Tx::Postgres(t) => {
+            Tx::Postgres(t, statements) => {
                 let p: Vec<&(dyn PgToSql + Sync)> =
                     params.iter().map(|v| v as &(dyn PgToSql + Sync)).collect();
-                t.execute(sql, &p).map_err(DbError::pg)
+                let st = statements.get(t, sql)?;
+                t.execute(&st, &p).map_err(DbError::pg)
             }
         }
     }
@@ -524,7 +553,7 @@ impl Tx<'_> {
     pub fn query(&mut self, sql: &str, params: &[Val]) -> Result<Vec<Vec<Val>>, DbError> {
         match self {
             Tx::Sqlite(t) => {
-                let mut st = t.prepare(sql).map_err(DbError::sqlite)?;
+                let mut st = t.prepare_cached(sql).map_err(DbError::sqlite)?;
                 let n = st.column_count();
                 let mut rows =
                     st.query(rusqlite::params_from_iter(params.iter())).map_err(DbError::sqlite)?;
@@ -534,10 +563,11 @@ impl Tx<'_> {
                 }
                 Ok(out)
             }
-            Tx::Postgres(t) => {
+            Tx::Postgres(t, statements) => {
                 let p: Vec<&(dyn PgToSql + Sync)> =
                     params.iter().map(|v| v as &(dyn PgToSql + Sync)).collect();
-                let rows = t.query(sql, &p).map_err(DbError::pg)?;
+                let st = statements.get(t, sql)?;
+                let rows = t.query(&st, &p).map_err(DbError::pg)?;
                 rows.iter().map(|r| (0..r.len()).map(|i| pg_val(r, i)).collect()).collect()
             }
         }
@@ -634,7 +664,7 @@ mod tests {
         assert_eq!((r.entries, r.rows, r.runs), (2, 2, 1));
         let mut db = Db::open(&spec).unwrap();
         assert_eq!(db.verify_chain().unwrap().entries, 2, "sealed once");
-        assert_eq!(db.schema_versions().unwrap(), vec![1, 2, 3, 4, 5]);
+        assert_eq!(db.schema_versions().unwrap(), vec![1, 2, 3, 4, 5, 6]);
         db.verify_run(s.run_id).unwrap();
     }
 

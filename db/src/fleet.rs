@@ -3,7 +3,6 @@
 //! what an MES takes of it, and the units whose certificate's recalibration date falls before a
 //! day. Every query is one SQL statement on either engine; the filters are parameters.
 
-use accelcal_core::document::FitDoc;
 use serde::Serialize;
 
 use super::engine::Val;
@@ -139,25 +138,24 @@ pub struct FleetRun {
     pub as_found_decision: Option<String>,
     /// The as-left verification's decision (`null`: none, or none decided).
     pub as_left_decision: Option<String>,
-    /// The stored fit (`fit --json`), parsed once when the run is read; `None` when there is
-    /// none (or it does not parse).
+    /// Its stored fit's model-4 coefficients (`fit_summary`, [`super::derived`]).
     #[serde(skip)]
-    pub fit: Option<FitDoc>,
-    /// The stored as-left verification (`verify --json`), when there is one.
+    pub model4: Option<[[f64; 4]; 3]>,
+    /// Its stored fit's expanded uncertainty per axis (`fit_summary`).
     #[serde(skip)]
-    pub as_left_json: Option<String>,
+    pub u_m_s2: Option<[f64; 3]>,
 }
 
 impl FleetRun {
     /// Its stored fit's model-4 coefficients, `[channel x, y, z][term 1, ax, ay, az]`, when it
     /// has a model-4 fit.
     pub fn model4(&self) -> Option<[[f64; 4]; 3]> {
-        super::history::model4_of(self.fit.as_ref()?).ok().map(|m| m.coef)
+        self.model4
     }
 
     /// Its stored fit's expanded uncertainty per axis, m/s² (k = 2), when it has a budget.
     pub fn u_m_s2(&self) -> Option<[f64; 3]> {
-        self.fit.as_ref()?.uncertainty.as_ref().map(|u| u.u_m_s2)
+        self.u_m_s2
     }
 }
 
@@ -189,30 +187,6 @@ fn opt_int(v: &Val) -> Result<Option<i64>, DbError> {
 }
 
 impl Db {
-    /// Run `run`'s stored campaign file, uncompressed (`None`: none stored).
-    pub fn campaign_bytes(&mut self, run: &str) -> Result<Option<Vec<u8>>, DbError> {
-        use std::io::Read;
-        let id = Val::from(run.to_string());
-        let gz = self.conn.transaction(|tx| {
-            tx.query("SELECT gzip FROM campaign WHERE run_id = $1", std::slice::from_ref(&id))?
-                .first()
-                .map(|r| r[0].bytes())
-                .transpose()
-        })?;
-        gz.map(|gz| {
-            let mut plain = Vec::new();
-            flate2::read::GzDecoder::new(gz.as_slice()).read_to_end(&mut plain).map_err(|e| {
-                DbError::BadPiece {
-                    run_id: run.to_string(),
-                    piece: "campaign",
-                    cause: format!("its stored gzip does not decompress: {e}"),
-                }
-            })?;
-            Ok(plain)
-        })
-        .transpose()
-    }
-
     /// The period's runs counted by state, its units, the yields and the rejections by reason.
     pub fn fleet_counts(&mut self, f: &Filter) -> Result<Counts, DbError> {
         let sel = selected();
@@ -266,14 +240,13 @@ impl Db {
             tx.query(
                 &format!(
                     "SELECT r.run_id, r.device_id, r.serial, r.station, ra.asset_id, r.operator, r.started_unix_s, \
-                     e.ended_unix_s, {STATE}, COALESCE(v.reason, e.reason), af.decision, al.decision, f.fit_json, \
-                     vl.report_json, r.g_m_s2 FROM run r LEFT JOIN run_end e ON e.run_id = r.run_id \
+                     e.ended_unix_s, {STATE}, COALESCE(v.reason, e.reason), af.decision, al.decision, fs.model4_json, \
+                     fs.u_json, r.g_m_s2 FROM run r LEFT JOIN run_end e ON e.run_id = r.run_id \
                      LEFT JOIN void v ON v.run_id = r.run_id \
                      LEFT JOIN run_asset ra ON ra.run_id = r.run_id AND ra.kind = 'head' \
-                     LEFT JOIN verification_decision af ON af.run_id = r.run_id AND af.phase = 'as_found' \
-                     LEFT JOIN verification_decision al ON al.run_id = r.run_id AND al.phase = 'as_left' \
-                     LEFT JOIN fit f ON f.run_id = r.run_id \
-                     LEFT JOIN verification vl ON vl.run_id = r.run_id AND vl.phase = 'as_left' \
+                     LEFT JOIN verification_summary af ON af.run_id = r.run_id AND af.phase = 'as_found' \
+                     LEFT JOIN verification_summary al ON al.run_id = r.run_id AND al.phase = 'as_left' \
+                     LEFT JOIN fit_summary fs ON fs.run_id = r.run_id \
                      WHERE {WHERE} ORDER BY r.started_unix_s, r.run_id"
                 ),
                 &p,
@@ -295,8 +268,8 @@ impl Db {
                     reason: opt_text(&r[9])?,
                     as_found_decision: opt_text(&r[10])?,
                     as_left_decision: opt_text(&r[11])?,
-                    fit: opt_text(&r[12])?.and_then(|t| FitDoc::parse(&t).ok()),
-                    as_left_json: opt_text(&r[13])?,
+                    model4: opt_text(&r[12])?.and_then(|t| serde_json::from_str(&t).ok()),
+                    u_m_s2: opt_text(&r[13])?.and_then(|t| serde_json::from_str(&t).ok()),
                 })
             })
             .collect()
@@ -357,14 +330,9 @@ pub struct Population {
 }
 
 impl Population {
-    fn of(name: String, unit: &'static str, values: &[f64], limit: Option<f64>) -> Population {
-        let n = values.len();
-        let mean = values.iter().sum::<f64>() / n.max(1) as f64;
-        let sd = if n > 1 {
-            (values.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / (n - 1) as f64).sqrt()
-        } else {
-            0.0
-        };
+    /// The population of `n` values with mean `mean` and sum of squared deviations `ss`.
+    fn of(name: String, unit: &'static str, n: usize, mean: f64, ss: f64, limit: Option<f64>) -> Population {
+        let sd = if n > 1 { (ss / (n - 1) as f64).sqrt() } else { 0.0 };
         let cpk = limit.filter(|_| sd > 0.0).map(|l| (l - mean).min(mean + l) / (3.0 * sd));
         Population { name, unit, n, mean, sd, limit, cpk }
     }
@@ -372,65 +340,205 @@ impl Population {
 
 const AXES: [&str; 3] = ["x", "y", "z"];
 
-/// The populations of the runs that passed (not voided): each channel's model-4 coefficients
-/// under IEEE 1293's names (K0 mg, K1 codes/g, δ µrad; no limit: the specification limits the
-/// calibrated unit, not the sensor), and each parameter the as-left verification measured against
-/// the specification's limit (bias mg, scale factor ppm, misalignment µrad) with its Cpk. A run
-/// whose fit is not model 4 is left out of the coefficients.
-pub fn populations(runs: &[FleetRun]) -> Vec<Population> {
-    use accelcal_core::ieee1293::Parameters;
-    let passed: Vec<&FleetRun> = runs.iter().filter(|r| r.state == "pass").collect();
-    let params: Vec<[Parameters; 3]> = passed
-        .iter()
-        .filter_map(|r| r.model4())
-        .map(|m| std::array::from_fn(|c| Parameters::of(c, m[c])))
-        .collect();
-    let mut out = Vec::new();
-    let column = |f: &dyn Fn(&[Parameters; 3]) -> f64| -> Vec<f64> { params.iter().map(f).collect() };
-    for c in 0..3 {
-        out.push(Population::of(format!("K0 {}", AXES[c]), "mg", &column(&|p| p[c].k0_mg), None));
-    }
-    for c in 0..3 {
-        out.push(Population::of(
-            format!("K1 {}", AXES[c]),
-            "codes/g",
-            &column(&|p| p[c].k1_codes_per_g),
-            None,
-        ));
-    }
-    for c in 0..3 {
-        for j in (0..3).filter(|&j| j != c) {
-            let name = format!("δ {}→{}", AXES[c], AXES[j]);
-            out.push(Population::of(name, "µrad", &column(&|p| p[c].delta_urad[j]), None));
-        }
-    }
-    // The as-left parameters, by (parameter, axis) in the order first met.
-    let mut measured: Vec<(String, &'static str, f64, Vec<f64>)> = Vec::new();
-    for r in &passed {
-        let Some(v) = r.as_left_json.as_deref() else { continue };
-        let Ok(report) = serde_json::from_str::<accelcal_line::verify::VerifyReport>(v) else { continue };
-        for p in report.parameters.unwrap_or_default() {
-            let name = format!("as-left {} {}", p.parameter.replace('_', " "), p.axis);
-            let unit = match p.unit.as_str() {
-                "mg" => "mg",
-                "ppm" => "ppm",
-                _ => "µrad",
-            };
-            match measured.iter_mut().find(|m| m.0 == name) {
-                Some(m) => {
-                    m.3.push(p.value);
-                    m.2 = m.2.min(p.limit);
-                }
-                None => measured.push((name, unit, p.limit, vec![p.value])),
+/// A unit as the database names it (`mg`, `ppm`, `µrad`, `codes/g`, `m/s²`).
+fn unit_of(s: &str) -> &'static str {
+    ["mg", "ppm", "codes/g", "m/s²"].into_iter().find(|u| *u == s).unwrap_or("µrad")
+}
+
+impl Db {
+    /// The populations of the period's runs that passed (not voided), aggregated by the
+    /// database (mean, then the sum of squared deviations from it: two passes, no cancellation):
+    /// each channel's model-4 coefficients under IEEE 1293's names (K0 mg, K1 codes/g, δ µrad;
+    /// no limit: the specification limits the calibrated unit, not the sensor), then each
+    /// parameter the as-left verification measured against the specification's limit (bias mg,
+    /// scale factor ppm, misalignment µrad; the tightest limit stated) with its Cpk. A run whose
+    /// fit is not model 4 is left out of the coefficients.
+    pub fn populations(&mut self, f: &Filter) -> Result<Vec<Population>, DbError> {
+        let sel = selected();
+        let p = f.params();
+        let (coef, asleft) = self.conn.transaction(|tx| {
+            let coef = tx.query(
+                &format!(
+                    "{sel}, p AS (SELECT fp.ord, fp.name, fp.unit, fp.value FROM fit_parameter fp \
+                     JOIN sel ON sel.run_id = fp.run_id WHERE sel.state = 'pass'), \
+                     m AS (SELECT ord, name, unit, COUNT(*) AS n, AVG(value) AS mu FROM p GROUP BY ord, name, unit) \
+                     SELECT m.name, m.unit, m.n, m.mu, SUM((p.value - m.mu) * (p.value - m.mu)) FROM p \
+                     JOIN m ON m.ord = p.ord AND m.name = p.name \
+                     GROUP BY m.ord, m.name, m.unit, m.n, m.mu ORDER BY m.ord"
+                ),
+                &p,
+            )?;
+            let asleft = tx.query(
+                &format!(
+                    "{sel}, p AS (SELECT vp.ord, vp.name, vp.unit, vp.value, vp.limit_value FROM verification_parameter vp \
+                     JOIN sel ON sel.run_id = vp.run_id WHERE sel.state = 'pass' AND vp.phase = 'as_left'), \
+                     m AS (SELECT name, MIN(unit) AS unit, MIN(ord) AS ord, COUNT(*) AS n, AVG(value) AS mu, \
+                     MIN(limit_value) AS lim FROM p GROUP BY name) \
+                     SELECT m.name, m.unit, m.n, m.mu, SUM((p.value - m.mu) * (p.value - m.mu)), m.lim FROM p \
+                     JOIN m ON m.name = p.name GROUP BY m.name, m.unit, m.ord, m.n, m.mu, m.lim ORDER BY m.ord, m.name"
+                ),
+                &p,
+            )?;
+            Ok((coef, asleft))
+        })?;
+        let mut out = Vec::new();
+        if coef.is_empty() {
+            // No model-4 unit: the coefficients' populations are there, empty.
+            for (name, unit) in super::derived::fit_parameter_names() {
+                out.push(Population::of(name, unit, 0, 0.0, 0.0, None));
             }
         }
+        for r in &coef {
+            let n = r[2].int()? as usize;
+            out.push(Population::of(
+                r[0].text()?,
+                unit_of(&r[1].text()?),
+                n,
+                r[3].real()?,
+                r[4].real()?,
+                None,
+            ));
+        }
+        for r in &asleft {
+            let n = r[2].int()? as usize;
+            let name = format!("as-left {}", r[0].text()?);
+            out.push(Population::of(
+                name,
+                unit_of(&r[1].text()?),
+                n,
+                r[3].real()?,
+                r[4].real()?,
+                Some(r[5].real()?),
+            ));
+        }
+        Ok(out)
     }
-    out.extend(
-        measured
-            .into_iter()
-            .map(|(name, unit, limit, values)| Population::of(name, unit, &values, Some(limit))),
-    );
-    out
+
+    /// The control charts of the period's runs that passed (not voided), by head asset (or
+    /// station), in the order they started: each IEEE 1293 coefficient and the as-left
+    /// verification's largest |error| ([`accelcal_core::spc`]: I-MR, the Western Electric
+    /// rules), from the derived rows. A group needs two points.
+    pub fn charts(&mut self, f: &Filter) -> Result<Vec<Chart>, DbError> {
+        use accelcal_core::spc::ImrLimits;
+        use std::collections::{BTreeMap, HashMap};
+        let sel = selected();
+        let rows = self.conn.transaction(|tx| {
+            tx.query(
+                &format!(
+                    "{sel}, g AS (SELECT sel.run_id, r.serial, r.started_unix_s, \
+                     COALESCE('head ' || ra.asset_id, 'station ' || r.station) AS grp FROM sel \
+                     JOIN run r ON r.run_id = sel.run_id \
+                     LEFT JOIN run_asset ra ON ra.run_id = sel.run_id AND ra.kind = 'head' WHERE sel.state = 'pass') \
+                     SELECT g.grp, fp.name, g.serial, g.run_id, g.started_unix_s, fp.value FROM g \
+                     JOIN fit_parameter fp ON fp.run_id = g.run_id \
+                     UNION ALL SELECT g.grp, 'as-left max |error|', g.serial, g.run_id, g.started_unix_s, \
+                     vs.max_abs_error_m_s2 FROM g JOIN verification_summary vs ON vs.run_id = g.run_id \
+                     AND vs.phase = 'as_left' WHERE vs.max_abs_error_m_s2 IS NOT NULL \
+                     ORDER BY 5, 4"
+                ),
+                &f.params(),
+            )
+        })?;
+        let mut groups: BTreeMap<String, HashMap<String, Vec<ChartPoint>>> = BTreeMap::new();
+        for r in rows {
+            let point = ChartPoint {
+                serial: r[2].text()?,
+                run_id: r[3].text()?,
+                started_unix_s: r[4].int()?,
+                value: r[5].real()?,
+            };
+            groups.entry(r[0].text()?).or_default().entry(r[1].text()?).or_default().push(point);
+        }
+        // Each channel's K0, K1 and δ, then the as-left verification.
+        let mut quantities: Vec<(String, &'static str)> = Vec::new();
+        for c in 0..3 {
+            quantities.push((format!("K0 {}", AXES[c]), "mg"));
+            quantities.push((format!("K1 {}", AXES[c]), "codes/g"));
+            for j in (0..3).filter(|&j| j != c) {
+                quantities.push((format!("δ {}→{}", AXES[c], AXES[j]), "µrad"));
+            }
+        }
+        quantities.push(("as-left max |error|".into(), "m/s²"));
+        let mut out = Vec::new();
+        for (group, mut by) in groups {
+            for (quantity, unit) in &quantities {
+                let points = by.remove(quantity).unwrap_or_default();
+                let values: Vec<f64> = points.iter().map(|p| p.value).collect();
+                let Some(limits) = ImrLimits::of(&values) else { continue };
+                let violations = limits
+                    .violations(&values)
+                    .into_iter()
+                    .map(|v| (v.clone(), points[v.index].clone()))
+                    .collect();
+                out.push(Chart {
+                    group: group.clone(),
+                    quantity: quantity.clone(),
+                    unit,
+                    limits,
+                    points,
+                    violations,
+                });
+            }
+        }
+        Ok(out)
+    }
+
+    /// What each run of the period that passed (not voided) with a registered head shows of its
+    /// head (`head_observation`), by head asset, in the order the runs started.
+    pub fn head_observations(&mut self, f: &Filter) -> Result<Vec<HeadObservation>, DbError> {
+        let sel = selected();
+        let rows = self.conn.transaction(|tx| {
+            tx.query(
+                &format!(
+                    "{sel} SELECT ra.asset_id, r.serial, r.run_id, r.started_unix_s, r.g_m_s2, h.obs_json, h.why \
+                     FROM sel JOIN run r ON r.run_id = sel.run_id \
+                     JOIN run_asset ra ON ra.run_id = sel.run_id AND ra.kind = 'head' \
+                     JOIN head_observation h ON h.run_id = sel.run_id WHERE sel.state = 'pass' \
+                     ORDER BY r.started_unix_s, r.run_id"
+                ),
+                &f.params(),
+            )
+        })?;
+        let mut out = Vec::new();
+        for r in rows {
+            let run_id = r[2].text()?;
+            let seen = match (opt_text(&r[5])?, opt_text(&r[6])?) {
+                (_, Some(why)) => Err(why),
+                (None, None) => continue,
+                (Some(json), None) => Ok(serde_json::from_str(&json).map_err(|e| DbError::BadPiece {
+                    run_id: run_id.clone(),
+                    piece: "head observation",
+                    cause: e.to_string(),
+                })?),
+            };
+            out.push(HeadObservation {
+                asset: r[0].text()?,
+                serial: r[1].text()?,
+                run_id,
+                started_unix_s: r[3].int()?,
+                g_m_s2: r[4].real()?,
+                seen,
+            });
+        }
+        Ok(out)
+    }
+}
+
+/// One run's view of its head ([`Db::head_observations`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct HeadObservation {
+    /// The head's asset id.
+    pub asset: String,
+    /// The unit's serial.
+    pub serial: String,
+    /// The run.
+    pub run_id: String,
+    /// When it started, Unix seconds.
+    pub started_unix_s: i64,
+    /// The g the run used, m/s².
+    pub g_m_s2: f64,
+    /// What its campaign shows, or why its campaign does not read.
+    pub seen: Result<super::derived::Observation, String>,
 }
 
 /// One point of a control chart.
@@ -461,78 +569,4 @@ pub struct Chart {
     pub points: Vec<ChartPoint>,
     /// The points that break a rule.
     pub violations: Vec<(accelcal_core::spc::Violation, ChartPoint)>,
-}
-
-/// The control charts of the runs that passed (not voided), by head asset (or station), in the
-/// order they started: each IEEE 1293 coefficient and the as-left verification's largest
-/// |error| ([`accelcal_core::spc`]: I-MR, the Western Electric rules). A group needs two points.
-pub fn charts(runs: &[FleetRun]) -> Vec<Chart> {
-    use accelcal_core::ieee1293::Parameters;
-    use accelcal_core::spc::ImrLimits;
-    let group_of = |r: &FleetRun| match &r.head_asset {
-        Some(h) => format!("head {h}"),
-        None => format!("station {}", r.station),
-    };
-    let mut groups: Vec<String> = runs.iter().filter(|r| r.state == "pass").map(group_of).collect();
-    groups.sort();
-    groups.dedup();
-    let mut out = Vec::new();
-    for group in groups {
-        let members: Vec<&FleetRun> =
-            runs.iter().filter(|r| r.state == "pass" && group_of(r) == group).collect();
-        // (quantity, unit, the value of a run when it has one)
-        type Of = Box<dyn Fn(&FleetRun) -> Option<f64>>;
-        let mut quantities: Vec<(String, &'static str, Of)> = Vec::new();
-        for c in 0..3 {
-            quantities.push((
-                format!("K0 {}", AXES[c]),
-                "mg",
-                Box::new(move |r: &FleetRun| r.model4().map(|m| Parameters::of(c, m[c]).k0_mg)),
-            ));
-            quantities.push((
-                format!("K1 {}", AXES[c]),
-                "codes/g",
-                Box::new(move |r: &FleetRun| r.model4().map(|m| Parameters::of(c, m[c]).k1_codes_per_g)),
-            ));
-            for j in (0..3).filter(|&j| j != c) {
-                quantities.push((
-                    format!("δ {}→{}", AXES[c], AXES[j]),
-                    "µrad",
-                    Box::new(move |r: &FleetRun| r.model4().map(|m| Parameters::of(c, m[c]).delta_urad[j])),
-                ));
-            }
-        }
-        quantities.push((
-            "as-left max |error|".into(),
-            "m/s²",
-            Box::new(|r: &FleetRun| {
-                let v =
-                    serde_json::from_str::<accelcal_line::verify::VerifyReport>(r.as_left_json.as_deref()?)
-                        .ok()?;
-                Some(v.max_abs_error_m_s2())
-            }),
-        ));
-        for (quantity, unit, of) in quantities {
-            let points: Vec<ChartPoint> = members
-                .iter()
-                .filter_map(|r| {
-                    of(r).map(|value| ChartPoint {
-                        serial: r.serial.clone(),
-                        run_id: r.run_id.clone(),
-                        started_unix_s: r.started_unix_s,
-                        value,
-                    })
-                })
-                .collect();
-            let values: Vec<f64> = points.iter().map(|p| p.value).collect();
-            let Some(limits) = ImrLimits::of(&values) else { continue };
-            let violations = limits
-                .violations(&values)
-                .into_iter()
-                .map(|v| (v.clone(), points[v.index].clone()))
-                .collect();
-            out.push(Chart { group: group.clone(), quantity, unit, limits, points, violations });
-        }
-    }
-    out
 }

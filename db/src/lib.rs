@@ -19,6 +19,7 @@ pub mod asset;
 mod certificate;
 pub mod chain;
 pub mod check;
+pub mod derived;
 mod engine;
 mod error;
 pub mod fleet;
@@ -93,7 +94,11 @@ impl Db {
 
     fn open_target(target: Target, access: Access) -> Result<Db, DbError> {
         // Rows of a version-1 database get their chain entries once, under the migration's lock.
-        let conn = Conn::open(&target, access, |c| c.transaction(|tx| chain::seal_legacy(tx).map(drop)))?;
+        // Rows derived from pieces stored before schema 6 are derived then, under the same lock.
+        let conn = Conn::open(&target, access, |c| {
+            c.transaction(|tx| chain::seal_legacy(tx).map(drop))?;
+            derived::backfill(c).map(drop)
+        })?;
         Ok(Db { conn, target })
     }
 
@@ -264,9 +269,21 @@ impl Db {
         self.conn.transaction(|tx| label::current(tx, &d))
     }
 
-    /// Checks the whole database against its hash chain.
+    /// Checks the whole database against its hash chain, and the rows derived from the pieces
+    /// ([`derived`]) against the pieces.
     pub fn verify_chain(&mut self) -> Result<ChainReport, DbError> {
-        self.conn.transaction(chain::verify_all)
+        self.conn.transaction(|tx| {
+            let mut r = chain::verify_all(tx)?;
+            r.mismatches.extend(
+                derived::check(tx)?.into_iter().map(|(run_id, piece, what)| chain::Mismatch {
+                    seq: 0,
+                    run_id,
+                    piece: piece.into(),
+                    what,
+                }),
+            );
+            Ok(r)
+        })
     }
 
     /// Checks run `run`'s rows against their hash chain: its seal, or [`DbError::Tampered`].
@@ -334,7 +351,8 @@ impl Db {
             (file.to_vec(), z.finish().map_err(|e| bad(e.to_string()))?)
         };
         let sha = sha256_hex(&plain);
-        self.store(
+        let g = self.start_of(run)?.g_m_s2;
+        self.store_deriving(
             run,
             Piece {
                 table: "campaign",
@@ -343,6 +361,7 @@ impl Db {
                 values: vec![sha.clone().into(), gzip.into(), now_unix_s().into()],
                 sha,
             },
+            &|tx, run| derived::insert_observation(tx, run, &plain, g),
         )
     }
 
@@ -369,7 +388,7 @@ impl Db {
                 });
             }
         }
-        self.store(
+        self.store_deriving(
             run,
             Piece {
                 table: "fit",
@@ -378,6 +397,7 @@ impl Db {
                 values: vec![fit_json.into(), now_unix_s().into()],
                 sha: sha256_hex(fit_json.as_bytes()),
             },
+            &|tx, run| derived::insert_fit(tx, run, &doc),
         )
     }
 
@@ -438,7 +458,7 @@ impl Db {
             &start.device_id,
         )?;
         let json = serde_json::to_string(report).expect("a verification report serialises");
-        self.store(
+        self.store_deriving(
             run,
             Piece {
                 table: "verification",
@@ -450,6 +470,7 @@ impl Db {
                 values: vec![report.pass.into(), json.clone().into(), now_unix_s().into()],
                 sha: sha256_hex(json.as_bytes()),
             },
+            &|tx, run| derived::insert_verification(tx, run, phase.sql(), report),
         )
     }
 
@@ -585,6 +606,17 @@ impl Db {
     /// Inserts a piece in one transaction: after checking that the run exists, is not
     /// finished nor voided, and holds no other piece of the kind (the same one: [`Stored::Already`]).
     fn store(&mut self, run: RunId, p: Piece) -> Result<Stored, DbError> {
+        self.store_deriving(run, p, &|_, _| Ok(()))
+    }
+
+    /// [`Db::store`], and `derive` writes the piece's derived rows ([`derived`]) in the same
+    /// transaction when the piece is new.
+    fn store_deriving(
+        &mut self,
+        run: RunId,
+        p: Piece,
+        derive: &dyn Fn(&mut Tx<'_>, &str) -> Result<(), DbError>,
+    ) -> Result<Stored, DbError> {
         let run_s = run.to_string();
         let table = chain::table(p.table);
         let mut row = vec![Val::from(run_s.clone())];
@@ -649,6 +681,7 @@ impl Db {
                     };
                 }
                 insert_row(tx, table, &row)?;
+                derive(tx, &run_s)?;
                 Ok(Stored::New)
             })
         })

@@ -562,6 +562,7 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
         Command::Fleet(a) => crate::cmd::fleet::check(a),
         Command::Certificate(a) => crate::cmd::fleet::check_certificate(a),
         Command::Serve(_) => Ok(()),
+        Command::BenchFleet(a) => crate::cmd::fleet_bench::check(a),
     }
 }
 

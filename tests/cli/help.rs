@@ -139,6 +139,9 @@ const DIMENSIONLESS: &[&str] = &[
     "--gdb-port",
     "--head-port",
     "--static-window",
+    "--runs",
+    "--writers",
+    "--repeat",
 ];
 
 #[test]

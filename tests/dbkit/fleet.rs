@@ -168,9 +168,23 @@ pub fn the_fleet_is_counted_by_the_database(spec: &str) {
     assert_eq!(runs[5].state, "voided");
     assert_eq!(runs[5].reason.as_deref(), Some("mislabelled"));
     assert!(runs[0].model4().is_some() && runs[4].model4().is_none());
-    let pops = accelcal_db::fleet::populations(&runs);
+    let pops = db.populations(&january()).unwrap();
     assert_eq!(pops[0].name, "K0 x");
     assert_eq!(pops[0].n, 3, "the three runs that passed: {pops:?}");
+    // The database's aggregation is the textbook one over the runs' own coefficients.
+    let passed: Vec<[[f64; 4]; 3]> =
+        runs.iter().filter(|r| r.state == "pass").filter_map(|r| r.model4()).collect();
+    for (k, name) in ["K0 x", "K0 y", "K0 z"].iter().enumerate() {
+        let v: Vec<f64> =
+            passed.iter().map(|m| accelcal_core::ieee1293::Parameters::of(k, m[k]).k0_mg).collect();
+        let mean = v.iter().sum::<f64>() / v.len() as f64;
+        let sd = (v.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / (v.len() - 1) as f64).sqrt();
+        let p = pops.iter().find(|p| p.name == *name).unwrap();
+        assert!(
+            (p.mean - mean).abs() <= 1e-9 * mean.abs().max(1.0) && (p.sd - sd).abs() <= 1e-9 * sd.max(1e-12),
+            "{p:?}: {mean} {sd}"
+        );
+    }
     // The as-left bias of x: 0.5, 1.0 and 1.5 mg against ±2 mg: mean 1, s 0.5, Cpk (2 − 1)/1.5.
     let bias = pops.iter().find(|p| p.name == "as-left bias x").unwrap();
     assert_eq!((bias.n, bias.unit, bias.limit), (3, "mg", Some(2.0)));

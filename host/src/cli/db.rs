@@ -244,6 +244,35 @@ pub struct ServeArgs {
     pub due_days: u32,
 }
 
+/// `accelcal bench-fleet`.
+#[derive(Debug, Args)]
+pub struct BenchFleetArgs {
+    /// The database (`postgres://…`, `host=… dbname=…`, or a SQLite file); filled when it holds
+    /// no run, else timed as it is.
+    #[arg(long, value_name = "URL")]
+    pub db: String,
+    /// Units of the generated line (each with a serial `MS9-NNNNNN`).
+    #[arg(long, default_value_t = 100_000, value_parser = clap::value_parser!(u32).range(1..))]
+    pub units: u32,
+    /// Runs of the generated line, shared out among the units (one a year each; about 2 % are
+    /// rejected, 0.2 % never finish, 0.1 % are voided).
+    #[arg(long, default_value_t = 300_000, value_parser = clap::value_parser!(u32).range(1..))]
+    pub runs: u32,
+    /// Seed of the generated line: the same seed gives the same rows.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// The month `fleet` and the fleet page show (`YYYY-MM`; the generated line starts in
+    /// January 2024).
+    #[arg(long, value_name = "YYYY-MM", default_value = "2026-06")]
+    pub month: String,
+    /// Connections writing the generated line at once.
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(1..=16))]
+    pub writers: u32,
+    /// How often each command and page is timed.
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=100))]
+    pub repeat: u32,
+}
+
 /// `accelcal certificate`.
 #[derive(Debug, Args)]
 pub struct CertificateArgs {

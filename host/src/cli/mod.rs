@@ -134,6 +134,11 @@ pub enum Command {
     /// fleet table with `fleet`'s filters and a CSV download. Server-side HTML, no JavaScript, no
     /// write endpoint (GET only); stops on Ctrl-C.
     Serve(ServeArgs),
+    /// Benchmark of `fleet` and `serve` on a line-sized database: an empty one is first filled
+    /// with a simulated line's history through the normal store path (units calibrated once a
+    /// year on three stations, each with its head); then `fleet --json` for a month, the
+    /// overview, a unit's page and the fleet page are timed (median and largest of the repeats).
+    BenchFleet(BenchFleetArgs),
 }
 
 /// Storing a command's result in the calibration database (`fit`, `verify`, `flash`, `report`).

@@ -4,7 +4,7 @@
 use accelcal_core::error::bad;
 use accelcal_core::output::{utc_date_time, write_atomic, write_json};
 use accelcal_db::asset::{start_of_day_unix_s, today_utc, Asset, Date};
-use accelcal_db::fleet::{charts, populations, Chart, Counts, DueUnit, Filter, FleetRun, Population};
+use accelcal_db::fleet::{Chart, Counts, DueUnit, Filter, FleetRun, Population};
 use accelcal_db::{Db, RunId, Target};
 use anyhow::Context;
 use serde::Serialize;
@@ -98,37 +98,37 @@ pub(crate) struct HeadJson {
 }
 
 /// The head signature of every head asset over the period's runs that passed (not voided), each
-/// unit observed from its stored campaign, in the order the runs started; a campaign that cannot
-/// be read is left out with a warning.
-fn heads(db: &mut Db, runs: &[FleetRun]) -> anyhow::Result<Vec<HeadJson>> {
-    use accelcal_core::campaign::Campaign;
-    use accelcal_core::headsig::{observe, track, Settings, UnitObs};
-    let mut assets: Vec<&str> = runs.iter().filter_map(|r| r.head_asset.as_deref()).collect();
+/// unit observed from its stored campaign (the observation derived when it was stored), in the
+/// order the runs started; a campaign that cannot be read is left out with a warning.
+fn heads(db: &mut Db, filter: &Filter) -> anyhow::Result<Vec<HeadJson>> {
+    use accelcal_core::headsig::{track, Settings, UnitObs};
+    let seen = db.head_observations(filter)?;
+    let mut assets: Vec<&str> = seen.iter().map(|o| o.asset.as_str()).collect();
     assets.sort_unstable();
     assets.dedup();
     let mut out = Vec::new();
     for asset in assets {
         let mut units: Vec<UnitObs> = Vec::new();
         let mut g = accelcal_shared::G_STANDARD;
-        for r in runs.iter().filter(|r| r.state == "pass" && r.head_asset.as_deref() == Some(asset)) {
-            let Some(bytes) = db.campaign_bytes(&r.run_id)? else { continue };
-            let name = format!("run {}'s stored campaign", r.run_id);
-            let reduced = match Campaign::reduce_reader(bytes.as_slice(), std::path::Path::new(&name)) {
-                Ok(reduced) => reduced,
-                Err(e) => {
-                    eprintln!("warning: head {asset}: {e}: left out of the head's signature");
-                    continue;
+        for o in seen.iter().filter(|o| o.asset == asset) {
+            match &o.seen {
+                Err(why) => {
+                    eprintln!(
+                        "warning: head {asset}: run {}'s {why}: left out of the head's signature",
+                        o.run_id
+                    );
                 }
-            };
-            let pos = reduced.positions(r.g_m_s2);
-            if let Some(u) = observe(&pos, &reduced.channel_stats()) {
-                g = r.g_m_s2;
-                units.push(UnitObs {
-                    serial: r.serial.clone(),
-                    run_id: r.run_id.clone(),
-                    started_unix_s: r.started_unix_s,
-                    ..u
-                });
+                Ok(obs) => {
+                    g = o.g_m_s2;
+                    units.push(UnitObs {
+                        serial: o.serial.clone(),
+                        run_id: o.run_id.clone(),
+                        started_unix_s: o.started_unix_s,
+                        positions: obs.positions.clone(),
+                        resid_m_s2: obs.resid_m_s2.clone(),
+                        misalign_urad: obs.misalign_urad,
+                    });
+                }
             }
         }
         out.push(HeadJson { asset: asset.to_string(), head: track(&units, g, Settings::default()) });
@@ -228,9 +228,9 @@ pub(crate) fn gather(
     let runs = db.fleet_runs(filter)?;
     let units_due = db.units_due(start_of_day_unix_s(due_by) + DAY_S, filter.serial_prefix.as_deref())?;
     let assets = db.assets()?;
-    let pops = populations(&runs);
-    let heads = if sig == Signatures::Read { heads(db, &runs)? } else { Vec::new() };
-    let charts = charts(&runs);
+    let pops = db.populations(filter)?;
+    let heads = if sig == Signatures::Read { heads(db, filter)? } else { Vec::new() };
+    let charts = db.charts(filter)?;
     let check_standards = db.check_standards(filter.station.as_deref())?;
     Ok(FleetData { counts, runs, due_by, units_due, assets, pops, heads, charts, check_standards })
 }

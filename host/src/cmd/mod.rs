@@ -10,6 +10,7 @@ pub mod diagnose;
 pub mod emulate;
 pub mod fit;
 pub mod fleet;
+pub mod fleet_bench;
 pub mod gravity;
 pub mod history;
 pub mod live;
@@ -71,6 +72,7 @@ pub fn run(cli: Cli, resolved: &crate::resolved::Resolved, warnings: &mut Warnin
         Command::Fleet(a) => fleet::run(&a),
         Command::Certificate(a) => fleet::run_certificate(&a),
         Command::Serve(a) => crate::serve::run(&a),
+        Command::BenchFleet(a) => fleet_bench::run(&a),
     }
 }
 

@@ -1,0 +1,366 @@
+//! Rows derived from the stored pieces (schema 6): what the fleet's statistics read, as numbers
+//! SQL can aggregate, instead of every document of a period parsed in the process.
+//!
+//! Each is written in the transaction that stores its piece (a fit, a verification, a campaign),
+//! by the one function here that derives it; a database migrated from version 5 gets them for
+//! the pieces it holds when it is next opened ([`backfill`], under the migration's lock). They
+//! are not pieces: the ledger does not chain them; [`check`] derives them again from the
+//! chained pieces and compares (`db verify`).
+
+use serde::{Deserialize, Serialize};
+
+use super::engine::{Conn, Tx, Val};
+use super::DbError;
+use accelcal_core::document::FitDoc;
+use accelcal_line::verify::VerifyReport;
+
+const AXES: [&str; 3] = ["x", "y", "z"];
+
+/// A fit's derived rows: its model-4 coefficients and U (`fit_summary`), its IEEE 1293
+/// parameters (`fit_parameter`: name, unit, value, in `fleet`'s order).
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct FitRows {
+    pub model4: Option<[[f64; 4]; 3]>,
+    pub u_m_s2: Option<[f64; 3]>,
+    pub parameters: Vec<(String, &'static str, f64)>,
+}
+
+/// The names of a model-4 triad's IEEE 1293 parameters in `fleet`'s order, with their units:
+/// `K0 x…z` (mg), `K1 x…z` (codes/g), then `δ c→j` (µrad).
+pub fn fit_parameter_names() -> Vec<(String, &'static str)> {
+    let mut out: Vec<(String, &'static str)> = Vec::new();
+    out.extend(AXES.iter().map(|a| (format!("K0 {a}"), "mg")));
+    out.extend(AXES.iter().map(|a| (format!("K1 {a}"), "codes/g")));
+    for c in 0..3 {
+        for j in (0..3).filter(|&j| j != c) {
+            out.push((format!("δ {}→{}", AXES[c], AXES[j]), "µrad"));
+        }
+    }
+    out
+}
+
+pub(crate) fn fit_rows(doc: &FitDoc) -> FitRows {
+    use accelcal_core::ieee1293::Parameters;
+    let model4 = super::history::model4_of(doc).ok().map(|m| m.coef);
+    let mut parameters = Vec::new();
+    if let Some(m) = model4 {
+        let p: [Parameters; 3] = std::array::from_fn(|c| Parameters::of(c, m[c]));
+        let mut values: Vec<f64> = Vec::new();
+        values.extend(p.iter().map(|p| p.k0_mg));
+        values.extend(p.iter().map(|p| p.k1_codes_per_g));
+        for (c, pc) in p.iter().enumerate() {
+            values.extend((0..3).filter(|&j| j != c).map(|j| pc.delta_urad[j]));
+        }
+        parameters =
+            fit_parameter_names().into_iter().zip(values).map(|((name, unit), v)| (name, unit, v)).collect();
+    }
+    FitRows { model4, u_m_s2: doc.uncertainty.as_ref().map(|u| u.u_m_s2), parameters }
+}
+
+/// A verification's derived rows: decision and rule, largest |error|, and the parameters it
+/// measured (name, unit, value, limit).
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct VerificationRows {
+    pub decision: Option<String>,
+    pub rule: Option<String>,
+    pub max_abs_error_m_s2: f64,
+    pub parameters: Vec<(String, &'static str, f64, f64)>,
+}
+
+pub(crate) fn verification_rows(report: &VerifyReport) -> VerificationRows {
+    let json = serde_json::to_value(report).unwrap_or_default();
+    let text = |v: Option<&serde_json::Value>| v.and_then(|v| v.as_str()).map(str::to_string);
+    VerificationRows {
+        decision: text(json.get("decision")),
+        rule: text(json.get("specification").and_then(|s| s.get("rule"))),
+        max_abs_error_m_s2: report.max_abs_error_m_s2(),
+        parameters: report
+            .parameters
+            .iter()
+            .flatten()
+            .map(|p| {
+                let unit = match p.unit.as_str() {
+                    "mg" => "mg",
+                    "ppm" => "ppm",
+                    _ => "µrad",
+                };
+                (format!("{} {}", p.parameter.replace('_', " "), p.axis), unit, p.value, p.limit)
+            })
+            .collect(),
+    }
+}
+
+/// What a campaign shows of the head, as `head_observation` holds it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Observation {
+    /// The commanded positions `(α, β)`, degrees.
+    pub positions: Vec<(f64, f64)>,
+    /// The model-4 residual at each, m/s².
+    pub resid_m_s2: Vec<[f64; 3]>,
+    /// The misalignments, µrad ([`accelcal_core::headsig::CROSS_TERMS`]).
+    pub misalign_urad: [f64; 6],
+}
+
+/// The observation of a stored campaign (its plain bytes) at `g`: `Ok(None)` for a campaign
+/// that is not a triad model 4 fits with an invertible sensitivity (nothing to observe), `Err`
+/// for one that does not read.
+pub(crate) fn observation(plain: &[u8], g: f64) -> Result<Option<Observation>, String> {
+    use accelcal_core::campaign::Campaign;
+    let reduced =
+        Campaign::reduce_reader(plain, std::path::Path::new("stored campaign")).map_err(|e| e.to_string())?;
+    let pos = reduced.positions(g);
+    Ok(accelcal_core::headsig::observe(&pos, &reduced.channel_stats()).map(|o| Observation {
+        positions: o.positions,
+        resid_m_s2: o.resid_m_s2,
+        misalign_urad: o.misalign_urad,
+    }))
+}
+
+fn json<T: Serialize>(v: &T) -> Val {
+    Val::from(serde_json::to_string(v).expect("numbers serialise"))
+}
+
+pub(crate) fn insert_fit(tx: &mut Tx<'_>, run: &str, doc: &FitDoc) -> Result<(), DbError> {
+    let rows = fit_rows(doc);
+    let opt = |v: Option<Val>| v.unwrap_or(Val::Null);
+    tx.execute(
+        "INSERT INTO fit_summary (run_id, model4_json, u_json) VALUES ($1, $2, $3)",
+        &[run.to_string().into(), opt(rows.model4.as_ref().map(json)), opt(rows.u_m_s2.as_ref().map(json))],
+    )?;
+    for (ord, (name, unit, value)) in rows.parameters.into_iter().enumerate() {
+        tx.execute(
+            "INSERT INTO fit_parameter (run_id, ord, name, unit, value) VALUES ($1, $2, $3, $4, $5)",
+            &[
+                run.to_string().into(),
+                (ord as i64).into(),
+                name.into(),
+                unit.to_string().into(),
+                value.into(),
+            ],
+        )?;
+    }
+    Ok(())
+}
+
+pub(crate) fn insert_verification(
+    tx: &mut Tx<'_>,
+    run: &str,
+    phase: &str,
+    report: &VerifyReport,
+) -> Result<(), DbError> {
+    let rows = verification_rows(report);
+    let text = |v: Option<String>| v.map_or(Val::Null, Val::from);
+    tx.execute(
+        "INSERT INTO verification_summary (run_id, phase, decision, rule, max_abs_error_m_s2) \
+         VALUES ($1, $2, $3, $4, $5)",
+        &[
+            run.to_string().into(),
+            phase.to_string().into(),
+            text(rows.decision),
+            text(rows.rule),
+            rows.max_abs_error_m_s2.into(),
+        ],
+    )?;
+    for (ord, (name, unit, value, limit)) in rows.parameters.into_iter().enumerate() {
+        tx.execute(
+            "INSERT INTO verification_parameter (run_id, phase, ord, name, unit, value, limit_value) \
+             VALUES ($1, $2, $3, $4, $5, $6, $7)",
+            &[
+                run.to_string().into(),
+                phase.to_string().into(),
+                (ord as i64).into(),
+                name.into(),
+                unit.to_string().into(),
+                value.into(),
+                limit.into(),
+            ],
+        )?;
+    }
+    Ok(())
+}
+
+pub(crate) fn insert_observation(tx: &mut Tx<'_>, run: &str, plain: &[u8], g: f64) -> Result<(), DbError> {
+    let (obs, why) = match observation(plain, g) {
+        Ok(o) => (o.as_ref().map_or(Val::Null, json), Val::Null),
+        Err(why) => (Val::Null, Val::from(why)),
+    };
+    tx.execute(
+        "INSERT INTO head_observation (run_id, obs_json, why) VALUES ($1, $2, $3)",
+        &[run.to_string().into(), obs, why],
+    )?;
+    Ok(())
+}
+
+fn gunzip(run: &str, gz: &[u8]) -> Result<Vec<u8>, DbError> {
+    use std::io::Read;
+    let mut plain = Vec::new();
+    flate2::read::GzDecoder::new(gz).read_to_end(&mut plain).map_err(|e| DbError::BadPiece {
+        run_id: run.to_string(),
+        piece: "campaign",
+        cause: format!("its stored gzip does not decompress: {e}"),
+    })?;
+    Ok(plain)
+}
+
+/// Rows a batch of the backfill takes in one transaction.
+const BATCH: i64 = 500;
+
+/// Derives the rows of every stored piece that has none yet (a database written before schema
+/// 6), a batch at a time; how many pieces it derived.
+pub(crate) fn backfill(c: &mut Conn) -> Result<usize, DbError> {
+    let mut n = 0;
+    loop {
+        let done = c.transaction(|tx| {
+            let rows = tx.query(
+                &format!(
+                    "SELECT f.run_id, f.fit_json FROM fit f WHERE NOT EXISTS \
+                     (SELECT 1 FROM fit_summary s WHERE s.run_id = f.run_id) LIMIT {BATCH}"
+                ),
+                &[],
+            )?;
+            for r in &rows {
+                let run = r[0].text()?;
+                // A fit stored before documents were checked may not parse: it derives nothing
+                // but its summary row, so that it is not read again.
+                let doc = FitDoc::parse(&r[1].text()?).unwrap_or(FitDoc {
+                    version: 0,
+                    method: String::new(),
+                    identity: None,
+                    t_ref_c: None,
+                    channels: Vec::new(),
+                    uncertainty: None,
+                });
+                insert_fit(tx, &run, &doc)?;
+            }
+            let vs = tx.query(
+                &format!(
+                    "SELECT v.run_id, v.phase, v.report_json FROM verification v WHERE NOT EXISTS \
+                     (SELECT 1 FROM verification_summary s WHERE s.run_id = v.run_id AND s.phase = v.phase) \
+                     LIMIT {BATCH}"
+                ),
+                &[],
+            )?;
+            for r in &vs {
+                let (run, phase) = (r[0].text()?, r[1].text()?);
+                match serde_json::from_str::<VerifyReport>(&r[2].text()?) {
+                    Ok(report) => insert_verification(tx, &run, &phase, &report)?,
+                    Err(_) => {
+                        tx.execute(
+                            "INSERT INTO verification_summary (run_id, phase, decision, rule, max_abs_error_m_s2) \
+                             VALUES ($1, $2, NULL, NULL, NULL)",
+                            &[run.into(), phase.into()],
+                        )?;
+                    }
+                }
+            }
+            let cs = tx.query(
+                &format!(
+                    "SELECT c.run_id, c.gzip, r.g_m_s2 FROM campaign c JOIN run r ON r.run_id = c.run_id \
+                     WHERE NOT EXISTS (SELECT 1 FROM head_observation h WHERE h.run_id = c.run_id) LIMIT {BATCH}"
+                ),
+                &[],
+            )?;
+            for r in &cs {
+                let run = r[0].text()?;
+                let plain = gunzip(&run, &r[1].bytes()?)?;
+                insert_observation(tx, &run, &plain, r[2].real()?)?;
+            }
+            Ok(rows.len() + vs.len() + cs.len())
+        })?;
+        if done == 0 {
+            return Ok(n);
+        }
+        n += done;
+    }
+}
+
+/// Derives every piece's rows again and compares them with the stored ones: the runs whose
+/// derived rows differ (or are missing): run, tables, what.
+pub(crate) fn check(tx: &mut Tx<'_>) -> Result<Vec<(String, &'static str, String)>, DbError> {
+    let mut bad = Vec::new();
+    for r in tx.query(
+        "SELECT f.run_id, f.fit_json, s.model4_json, s.u_json FROM fit f \
+         LEFT JOIN fit_summary s ON s.run_id = f.run_id",
+        &[],
+    )? {
+        let run = r[0].text()?;
+        let Ok(doc) = FitDoc::parse(&r[1].text()?) else { continue };
+        let want = fit_rows(&doc);
+        let text = |v: &Val| -> Result<Option<String>, DbError> {
+            match v {
+                Val::Null => Ok(None),
+                v => v.text().map(Some),
+            }
+        };
+        let m4: Option<[[f64; 4]; 3]> = text(&r[2])?.and_then(|t| serde_json::from_str(&t).ok());
+        let u: Option<[f64; 3]> = text(&r[3])?.and_then(|t| serde_json::from_str(&t).ok());
+        let params: Vec<(String, f64)> = tx
+            .query(
+                "SELECT name, value FROM fit_parameter WHERE run_id = $1 ORDER BY ord",
+                &[run.clone().into()],
+            )?
+            .iter()
+            .map(|p| Ok((p[0].text()?, p[1].real()?)))
+            .collect::<Result<_, DbError>>()?;
+        let want_params: Vec<(String, f64)> =
+            want.parameters.iter().map(|(n, _, v)| (n.clone(), *v)).collect();
+        if m4 != want.model4 || u != want.u_m_s2 || params != want_params {
+            bad.push((run, "fit_summary/fit_parameter", "not what its fit derives".into()));
+        }
+    }
+    for r in tx.query(
+        "SELECT v.run_id, v.phase, v.report_json, s.decision, s.max_abs_error_m_s2 FROM verification v \
+         LEFT JOIN verification_summary s ON s.run_id = v.run_id AND s.phase = v.phase",
+        &[],
+    )? {
+        let (run, phase) = (r[0].text()?, r[1].text()?);
+        let Ok(report) = serde_json::from_str::<VerifyReport>(&r[2].text()?) else { continue };
+        let want = verification_rows(&report);
+        let decision = match &r[3] {
+            Val::Null => None,
+            v => Some(v.text()?),
+        };
+        let max = match &r[4] {
+            Val::Null => f64::NAN,
+            v => v.real()?,
+        };
+        let params: Vec<(String, f64, f64)> = tx
+            .query(
+                "SELECT name, value, limit_value FROM verification_parameter WHERE run_id = $1 AND phase = $2 \
+                 ORDER BY ord",
+                &[run.clone().into(), phase.clone().into()],
+            )?
+            .iter()
+            .map(|p| Ok((p[0].text()?, p[1].real()?, p[2].real()?)))
+            .collect::<Result<_, DbError>>()?;
+        let want_params: Vec<(String, f64, f64)> =
+            want.parameters.iter().map(|(n, _, v, l)| (n.clone(), *v, *l)).collect();
+        if decision != want.decision
+            || max.to_bits() != want.max_abs_error_m_s2.to_bits()
+            || params != want_params
+        {
+            bad.push((
+                run,
+                "verification_summary/verification_parameter",
+                format!("not what its {phase} verification derives"),
+            ));
+        }
+    }
+    for r in tx.query(
+        "SELECT c.run_id, c.gzip, r.g_m_s2, h.obs_json FROM campaign c JOIN run r ON r.run_id = c.run_id \
+         LEFT JOIN head_observation h ON h.run_id = c.run_id",
+        &[],
+    )? {
+        let run = r[0].text()?;
+        let Ok(plain) = gunzip(&run, &r[1].bytes()?) else { continue };
+        let want = observation(&plain, r[2].real()?).ok().flatten();
+        let stored: Option<Observation> = match &r[3] {
+            Val::Null => None,
+            v => serde_json::from_str(&v.text()?).ok(),
+        };
+        if stored != want {
+            bad.push((run, "head_observation", "not what its campaign derives".into()));
+        }
+    }
+    Ok(bad)
+}
