@@ -12,6 +12,8 @@ mod assets;
 mod conformity;
 #[path = "cli/design.rs"]
 mod design;
+#[path = "cli/fleet_bench.rs"]
+mod fleet_bench;
 #[path = "cli/help.rs"]
 mod help;
 #[path = "cli/records.rs"]

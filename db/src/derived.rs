@@ -208,6 +208,10 @@ const BATCH: i64 = 500;
 /// Derives the rows of every stored piece that has none yet (a database written before schema
 /// 6), a batch at a time; how many pieces it derived.
 pub(crate) fn backfill(c: &mut Conn) -> Result<usize, DbError> {
+    let pending = c.transaction(|tx| tx.query("SELECT pending FROM derived_backfill", &[]))?;
+    if !pending.iter().any(|r| matches!(r[0], Val::Int(p) if p != 0)) {
+        return Ok(0);
+    }
     let mut n = 0;
     loop {
         let done = c.transaction(|tx| {
@@ -268,6 +272,7 @@ pub(crate) fn backfill(c: &mut Conn) -> Result<usize, DbError> {
             Ok(rows.len() + vs.len() + cs.len())
         })?;
         if done == 0 {
+            c.transaction(|tx| tx.execute("UPDATE derived_backfill SET pending = 0", &[]))?;
             return Ok(n);
         }
         n += done;

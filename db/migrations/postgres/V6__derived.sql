@@ -77,3 +77,10 @@ DROP VIEW verification_decision;
 CREATE VIEW verification_decision AS
     SELECT v.run_id, v.phase, v.pass, s.decision, s.rule, v.stored_unix_s
     FROM verification v LEFT JOIN verification_summary s ON s.run_id = v.run_id AND s.phase = v.phase;
+
+-- Whether the pieces stored before this version still wait for their derived rows: one row, set
+-- to 0 once `accelcal_db::derived::backfill` has derived them (each open reads this row only).
+CREATE TABLE derived_backfill (
+    pending           BIGINT NOT NULL
+);
+INSERT INTO derived_backfill (pending) VALUES (1);
