@@ -5,7 +5,8 @@
 //!   firmware builds and the QEMU tests.
 //! - `lint`: rustfmt and clippy (warnings are errors).
 //! - `bench`: the benchmarks the guide quotes (GMDH against the PyPI `gmdh` package, the Monte
-//!   Carlo check of the uncertainty budget, the firmware, the live path).
+//!   Carlo check of the uncertainty budget, the firmware, the live path); `bench fleet`, only
+//!   when named, the fleet's commands and pages on a line-sized PostgreSQL database.
 //! - `fuzz`: the mutation fuzzer of the record parser, the record slots and the frame decoder, for
 //!   a bounded time.
 //! - `docs`: the guide's command reference (`docs/src/reference/commands.md`) from the built
@@ -200,12 +201,39 @@ fn bench(only: Option<&str>) -> anyhow::Result<()> {
         Some("firmware") => firmware::bench(),
         Some("live") => live::bench(),
         Some("station") => station::bench(),
+        Some("fleet") => fleet_bench(),
         Some(other) => {
             anyhow::bail!(
-                "bench: unknown part `{other}` (the parts: uncertainty, design, firmware, live, station)"
+                "bench: unknown part `{other}` (the parts: uncertainty, design, firmware, live, station, fleet)"
             )
         }
     }
+}
+
+/// Issue 31 item 5: `fleet` and `serve` on a PostgreSQL database of 100,000 units and 300,000
+/// runs, in a cluster of its own under `target/bench-fleet-pg` (PostgreSQL from
+/// `scripts/setup-postgres.sh`). The first run writes the line through the store path (about
+/// 45 minutes on 2 cores, 11 GB); the cluster is halted after, its data kept, and later runs time
+/// the same database. Not part of `bench` without a part.
+fn fleet_bench() -> anyhow::Result<()> {
+    let r = root();
+    run(&r, "cargo", &["build", "--release", "-p", "accelcal", "--locked"])?;
+    let bin = r.join("target/release/accelcal");
+    let dir = r.join("target/bench-fleet-pg");
+    let script = r.join("scripts/postgres-cluster.sh");
+    let cluster = |cmd: &str| -> anyhow::Result<String> {
+        let out = std::process::Command::new("bash").arg(&script).arg(cmd).arg(&dir).output()?;
+        anyhow::ensure!(
+            out.status.success(),
+            "postgres-cluster.sh {cmd}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        Ok(String::from_utf8(out.stdout)?.trim().to_string())
+    };
+    let url = cluster("resume")?;
+    let done = run(&r, bin.to_str().expect("utf-8 path"), &["bench-fleet", "--db", &url]);
+    cluster("halt")?;
+    done
 }
 
 /// The Monte Carlo check of the uncertainty budget (JCGM 101) at three seeds, 1,000 units per

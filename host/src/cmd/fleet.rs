@@ -209,28 +209,27 @@ pub(crate) fn filter_of(
     }
 }
 
-/// Whether [`gather`] works out the heads' signatures, which reads every stored campaign of the
-/// period: only what shows them needs to.
+/// What [`gather`] works out besides the counts, runs, populations and what is due: the control
+/// charts and the heads' signatures (every point of the period) only for what shows them.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) enum Signatures {
-    Read,
-    Skip,
+pub(crate) enum Parts {
+    /// With the charts and the heads' signatures.
+    Charts,
+    /// Without.
+    Table,
 }
 
 /// Gathers a period's fleet from the database; `due_by`: the last day of the units and assets due.
-pub(crate) fn gather(
-    db: &mut Db,
-    filter: &Filter,
-    due_by: Date,
-    sig: Signatures,
-) -> anyhow::Result<FleetData> {
+pub(crate) fn gather(db: &mut Db, filter: &Filter, due_by: Date, parts: Parts) -> anyhow::Result<FleetData> {
     let counts = db.fleet_counts(filter)?;
     let runs = db.fleet_runs(filter)?;
     let units_due = db.units_due(start_of_day_unix_s(due_by) + DAY_S, filter.serial_prefix.as_deref())?;
     let assets = db.assets()?;
     let pops = db.populations(filter)?;
-    let heads = if sig == Signatures::Read { heads(db, filter)? } else { Vec::new() };
-    let charts = db.charts(filter)?;
+    let (heads, charts) = match parts {
+        Parts::Charts => (heads(db, filter)?, db.charts(filter)?),
+        Parts::Table => (Vec::new(), Vec::new()),
+    };
     let check_standards = db.check_standards(filter.station.as_deref())?;
     Ok(FleetData { counts, runs, due_by, units_due, assets, pops, heads, charts, check_standards })
 }
@@ -252,7 +251,7 @@ pub fn run(a: &FleetArgs) -> anyhow::Result<()> {
         a.operator.clone(),
     );
     let mut db = Db::open_existing(&reader_spec(a.reader.db.as_deref())?)?;
-    let data = gather(&mut db, &filter, due_by(until, a.due_days)?, Signatures::Read)?;
+    let data = gather(&mut db, &filter, due_by(until, a.due_days)?, Parts::Charts)?;
     let FleetData { counts, runs, due_by, units_due, pops, heads, charts, check_standards, .. } = &data;
     let (runs, due_by) = (runs.as_slice(), *due_by);
     let (pops, heads, charts) = (pops.as_slice(), heads.as_slice(), charts.as_slice());

@@ -12,7 +12,7 @@ use axum::http::StatusCode;
 
 use super::svg::{control_chart, drift_chart, signature_chart, Lines};
 use super::{App, PageError};
-use crate::cmd::fleet::{change_point, csv_of, due_by, filter_of, gather, FleetData, Signatures};
+use crate::cmd::fleet::{change_point, csv_of, due_by, filter_of, gather, FleetData, Parts};
 use crate::cmd::history::{outcome, verification};
 use crate::report::sig;
 
@@ -57,12 +57,7 @@ impl Filters {
         Ok((since, until))
     }
 
-    fn gather(
-        &self,
-        db: &mut Db,
-        due_days: u32,
-        sig: Signatures,
-    ) -> Result<(FleetData, Date, Date), PageError> {
+    fn gather(&self, db: &mut Db, due_days: u32, parts: Parts) -> Result<(FleetData, Date, Date), PageError> {
         let (since, until) = self.period()?;
         let f = filter_of(
             since,
@@ -73,7 +68,7 @@ impl Filters {
             given(&self.operator),
         );
         let due = due_by(until, due_days).map_err(PageError::internal)?;
-        let data = gather(db, &f, due, sig).map_err(PageError::internal)?;
+        let data = gather(db, &f, due, parts).map_err(PageError::internal)?;
         Ok((data, since, until))
     }
 
@@ -228,7 +223,7 @@ struct OverviewPage<'a> {
 pub(super) fn overview(db: &mut Db, app: &App) -> Result<String, PageError> {
     let today = today_utc();
     let month = Filters::default();
-    let (data, since, _) = month.gather(db, app.due_days, Signatures::Skip)?;
+    let (data, since, _) = month.gather(db, app.due_days, Parts::Table)?;
     let day_filter = filter_of(today, today, None, None, None, None);
     let day_counts = db.fleet_counts(&day_filter).map_err(PageError::internal)?;
     let day_runs = db.fleet_runs(&day_filter).map_err(PageError::internal)?;
@@ -325,7 +320,7 @@ struct FleetPage<'a> {
 /// `/fleet`: `fleet`'s table over the filters, and a CSV download of the same rows.
 pub(super) fn fleet(db: &mut Db, app: &App, q: &str) -> Result<String, PageError> {
     let f = Filters::parse(q)?;
-    let (data, since, until) = f.gather(db, app.due_days, Signatures::Skip)?;
+    let (data, since, until) = f.gather(db, app.due_days, Parts::Table)?;
     let populations = data
         .pops
         .iter()
@@ -362,7 +357,7 @@ pub(super) fn fleet(db: &mut Db, app: &App, q: &str) -> Result<String, PageError
 /// `/fleet.csv`: `fleet --csv`'s rows over the filters.
 pub(super) fn fleet_csv(db: &mut Db, app: &App, q: &str) -> Result<String, PageError> {
     let f = Filters::parse(q)?;
-    let (data, _, _) = f.gather(db, app.due_days, Signatures::Skip)?;
+    let (data, _, _) = f.gather(db, app.due_days, Parts::Table)?;
     csv_of(&data.runs).map_err(PageError::internal)
 }
 
@@ -395,7 +390,7 @@ struct ChartsPage<'a> {
 /// head's signature.
 pub(super) fn charts(db: &mut Db, app: &App, q: &str) -> Result<String, PageError> {
     let f = Filters::parse(q)?;
-    let (data, since, until) = f.gather(db, app.due_days, Signatures::Read)?;
+    let (data, since, until) = f.gather(db, app.due_days, Parts::Charts)?;
     let mut charts = Vec::new();
     for c in &data.charts {
         let values: Vec<f64> = c.points.iter().map(|p| p.value).collect();
