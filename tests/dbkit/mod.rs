@@ -9,6 +9,7 @@ mod check;
 pub mod fleet;
 pub mod serve;
 
+#[allow(unused_imports)] // not every test binary that includes dbkit runs it
 pub use check::check_runs_are_the_station_s_checks;
 
 use accelcal_db::{Asset, AssetKind, Db, DbError, Outcome, Phase, RunId, RunStart, Stored};
