@@ -133,7 +133,7 @@ fn both_engines_have_the_same_tables_and_columns() {
             "V1__" => 8,
             "V2__" => 3,
             "V4__" | "V5__" => 1,
-            "V6__" => 6,
+            "V6__" => 7,
             _ => 2,
         };
         assert_eq!(s.len(), want, "{v}: {s:?}");
@@ -729,9 +729,10 @@ fn derived_rows_are_backfilled_on_open_and_checked_by_db_verify() {
     assert!(stored.iter().all(|rows| !rows.is_empty()), "every derived table holds rows: {stored:?}");
     // As a database of version 5 is once migrated: no derived rows, the backfill pending.
     let c = rusqlite::Connection::open(&spec).unwrap();
-    for t in DERIVED {
+    for t in &DERIVED[..5] {
         c.execute_batch(&format!("DROP TRIGGER {t}_no_delete; DELETE FROM {t};")).unwrap();
     }
+    c.execute_batch("DELETE FROM device_certificate").unwrap();
     drop(c);
     drop(Db::open(&spec).unwrap());
     assert!(dump().iter().all(|rows| rows.is_empty()), "an open reads the pending flag only");

@@ -138,6 +138,11 @@ impl Db {
                         sha.into(),
                     ];
                     insert_row(tx, due_table, &row)?;
+                    let device =
+                        tx.query("SELECT device_id FROM run WHERE run_id = $1", &[run_s.clone().into()])?;
+                    if let Some(d) = device.first() {
+                        super::derived::refresh_device_certificate(tx, &d[0].text()?)?;
+                    }
                 }
                 Ok((CertificateNumber { sequence, number, issued_unix_s }, due.cloned()))
             })

@@ -191,6 +191,25 @@ pub(crate) fn insert_observation(tx: &mut Tx<'_>, run: &str, plain: &[u8], g: f6
     Ok(())
 }
 
+/// The latest certified run of each device that is not voided, as `device_certificate` holds
+/// it: `(device_id, run_id, due_unix_s)`, from `device` only when given.
+const LATEST_CERTIFICATES: &str = "SELECT device_id, run_id, due_unix_s FROM (SELECT r.device_id, r.run_id, \
+     d.due_unix_s, ROW_NUMBER() OVER (PARTITION BY r.device_id ORDER BY r.started_unix_s DESC, r.run_id DESC) AS n \
+     FROM recalibration_due d JOIN run r ON r.run_id = d.run_id \
+     WHERE ($1 = '' OR r.device_id = $1) AND NOT EXISTS (SELECT 1 FROM void v WHERE v.run_id = d.run_id)) latest \
+     WHERE n = 1";
+
+/// Rewrites `device_certificate`'s row of `device` (after a certificate's date is stored, or a
+/// run of it voided).
+pub(crate) fn refresh_device_certificate(tx: &mut Tx<'_>, device: &str) -> Result<(), DbError> {
+    tx.execute("DELETE FROM device_certificate WHERE device_id = $1", &[device.into()])?;
+    tx.execute(
+        &format!("INSERT INTO device_certificate (device_id, run_id, due_unix_s) {LATEST_CERTIFICATES}"),
+        &[device.into()],
+    )?;
+    Ok(())
+}
+
 fn gunzip(run: &str, gz: &[u8]) -> Result<Vec<u8>, DbError> {
     use std::io::Read;
     let mut plain = Vec::new();
@@ -272,7 +291,14 @@ pub(crate) fn backfill(c: &mut Conn) -> Result<usize, DbError> {
             Ok(rows.len() + vs.len() + cs.len())
         })?;
         if done == 0 {
-            c.transaction(|tx| tx.execute("UPDATE derived_backfill SET pending = 0", &[]))?;
+            c.transaction(|tx| {
+                tx.execute("DELETE FROM device_certificate", &[])?;
+                tx.execute(
+                    &format!("INSERT INTO device_certificate (device_id, run_id, due_unix_s) {LATEST_CERTIFICATES}"),
+                    &["".into()],
+                )?;
+                tx.execute("UPDATE derived_backfill SET pending = 0", &[])
+            })?;
             return Ok(n);
         }
         n += done;
@@ -350,6 +376,26 @@ pub(crate) fn check(tx: &mut Tx<'_>) -> Result<Vec<(String, &'static str, String
                 format!("not what its {phase} verification derives"),
             ));
         }
+    }
+    let mut want: Vec<Vec<String>> = Vec::new();
+    for r in tx.query(LATEST_CERTIFICATES, &["".into()])? {
+        want.push(vec![r[0].text()?, r[1].text()?, r[2].int()?.to_string()]);
+    }
+    let mut held: Vec<Vec<String>> = Vec::new();
+    for r in tx.query("SELECT device_id, run_id, due_unix_s FROM device_certificate", &[])? {
+        held.push(vec![r[0].text()?, r[1].text()?, r[2].int()?.to_string()]);
+    }
+    want.sort();
+    held.sort();
+    if want != held {
+        let differ = want.iter().zip(&held).find(|(w, h)| w != h).map(|(w, _)| w.clone());
+        let device =
+            differ.or_else(|| want.last().cloned()).or_else(|| held.last().cloned()).unwrap_or_default();
+        bad.push((
+            device.get(1).cloned().unwrap_or_default(),
+            "device_certificate",
+            "not each unit's latest certified run".into(),
+        ));
     }
     for r in tx.query(
         "SELECT c.run_id, c.gzip, r.g_m_s2, h.obs_json FROM campaign c JOIN run r ON r.run_id = c.run_id \

@@ -284,13 +284,10 @@ impl Db {
     ) -> Result<Vec<DueUnit>, DbError> {
         let rows = self.conn.transaction(|tx| {
             tx.query(
-                "WITH cert AS (SELECT r.device_id, r.serial, d.run_id, d.due_unix_s, \
-                 ROW_NUMBER() OVER (PARTITION BY r.device_id ORDER BY r.started_unix_s DESC, r.run_id DESC) AS n \
-                 FROM recalibration_due d JOIN run r ON r.run_id = d.run_id \
-                 WHERE NOT EXISTS (SELECT 1 FROM void v WHERE v.run_id = d.run_id)) \
-                 SELECT device_id, serial, run_id, due_unix_s FROM cert \
-                 WHERE n = 1 AND due_unix_s < $1 AND substr(serial, 1, length($2)) = $2 \
-                 ORDER BY due_unix_s, serial",
+                "SELECT c.device_id, r.serial, c.run_id, c.due_unix_s FROM device_certificate c \
+                 JOIN run r ON r.run_id = c.run_id \
+                 WHERE c.due_unix_s < $1 AND substr(r.serial, 1, length($2)) = $2 \
+                 ORDER BY c.due_unix_s, r.serial",
                 &[before_unix_s.into(), serial_prefix.unwrap_or("").into()],
             )
         })?;

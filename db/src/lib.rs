@@ -231,6 +231,9 @@ impl Db {
                     };
                 }
                 insert_row(tx, chain::table("void"), &row)?;
+                let device =
+                    tx.query("SELECT device_id FROM run WHERE run_id = $1", std::slice::from_ref(&id))?;
+                derived::refresh_device_certificate(tx, &device[0][0].text()?)?;
                 Ok(Stored::New)
             })
         })

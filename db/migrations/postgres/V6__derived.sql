@@ -78,6 +78,17 @@ CREATE VIEW verification_decision AS
     SELECT v.run_id, v.phase, v.pass, s.decision, s.rule, v.stored_unix_s
     FROM verification v LEFT JOIN verification_summary s ON s.run_id = v.run_id AND s.phase = v.phase;
 
+-- `device_certificate`: each unit's latest certified run (a `recalibration_due` row) that is not
+-- voided, and the date it is due, kept in the transactions that number a certificate or void a
+-- run: the units due are read from it by the date's index, not found by ranking every certificate.
+-- A projection, not a record: rewritten for its device, never chained.
+CREATE TABLE device_certificate (
+    device_id         TEXT PRIMARY KEY NOT NULL,
+    run_id            TEXT NOT NULL REFERENCES recalibration_due (run_id),
+    due_unix_s        BIGINT NOT NULL
+);
+CREATE INDEX device_certificate_by_due ON device_certificate (due_unix_s);
+
 -- Whether the pieces stored before this version still wait for their derived rows: one row, set
 -- to 0 once `accelcal_db::derived::backfill` has derived them (each open reads this row only).
 CREATE TABLE derived_backfill (
