@@ -24,6 +24,12 @@ use super::{Db, DbError};
 /// `super::fleet`'s `WHERE`, whose 14 is this text's length).
 pub const CHECK_REASON: &str = "check standard";
 
+/// The SQL condition on `run_end e` that its run is a check: the expression of the partial index
+/// `run_end_check_standard` (schema 6), so that the database reads only the checks' rows.
+pub(crate) const IS_CHECK: &str = "substr(e.reason, 1, 14) = 'check standard'";
+
+const _: () = assert!(CHECK_REASON.len() == 14, "IS_CHECK and the index spell its 14 bytes");
+
 /// The checks whose limits the chart uses.
 pub const BASELINE: usize = 20;
 
@@ -205,9 +211,11 @@ impl Db {
     pub fn check_standards(&mut self, station: Option<&str>) -> Result<Vec<CheckStandard>, DbError> {
         let rows = self.conn.transaction(|tx| {
             tx.query(
-                "SELECT DISTINCT r.station FROM run r JOIN run_end e ON e.run_id = r.run_id \
-                 WHERE substr(e.reason, 1, length($1)) = $1 AND ($2 = '' OR r.station = $2) ORDER BY r.station",
-                &[CHECK_REASON.into(), station.unwrap_or("").into()],
+                &format!(
+                    "SELECT DISTINCT r.station FROM run_end e JOIN run r ON r.run_id = e.run_id \
+                     WHERE {IS_CHECK} AND ($1 = '' OR r.station = $1) ORDER BY r.station"
+                ),
+                &[station.unwrap_or("").into()],
             )
         })?;
         let mut out = Vec::new();
@@ -238,13 +246,15 @@ impl Db {
     pub fn check_runs(&mut self, station: &str) -> Result<Vec<CheckRun>, DbError> {
         let rows = self.conn.transaction(|tx| {
             tx.query(
-                "SELECT r.run_id, r.serial, r.started_unix_s, e.outcome, v.report_json, e.reason \
-                 FROM run r JOIN run_end e ON e.run_id = r.run_id \
-                 LEFT JOIN verification v ON v.run_id = r.run_id AND v.phase = 'as_found' \
-                 WHERE r.station = $1 AND substr(e.reason, 1, length($2)) = $2 \
-                 AND NOT EXISTS (SELECT 1 FROM void x WHERE x.run_id = r.run_id) \
-                 ORDER BY r.started_unix_s, r.run_id",
-                &[station.into(), CHECK_REASON.into()],
+                &format!(
+                    "SELECT r.run_id, r.serial, r.started_unix_s, e.outcome, v.report_json, e.reason \
+                     FROM run_end e JOIN run r ON r.run_id = e.run_id \
+                     LEFT JOIN verification v ON v.run_id = r.run_id AND v.phase = 'as_found' \
+                     WHERE r.station = $1 AND {IS_CHECK} \
+                     AND NOT EXISTS (SELECT 1 FROM void x WHERE x.run_id = r.run_id) \
+                     ORDER BY r.started_unix_s, r.run_id"
+                ),
+                &[station.into()],
             )
         })?;
         rows.iter()

@@ -62,6 +62,9 @@ CREATE TABLE head_observation (
 );
 
 CREATE INDEX run_by_start ON run (started_unix_s);
+-- The runs of the stations' check standards (`accelcal_db::check::IS_CHECK`), found without
+-- reading every run's end.
+CREATE INDEX run_end_check_standard ON run_end (run_id) WHERE substr(reason, 1, 14) = 'check standard';
 CREATE TRIGGER fit_summary_append_only BEFORE UPDATE OR DELETE ON fit_summary FOR EACH ROW EXECUTE FUNCTION accelcal_append_only();
 CREATE TRIGGER fit_summary_no_truncate BEFORE TRUNCATE ON fit_summary FOR EACH STATEMENT EXECUTE FUNCTION accelcal_append_only();
 CREATE TRIGGER fit_parameter_append_only BEFORE UPDATE OR DELETE ON fit_parameter FOR EACH ROW EXECUTE FUNCTION accelcal_append_only();

@@ -62,6 +62,9 @@ CREATE TABLE head_observation (
 );
 
 CREATE INDEX run_by_start ON run (started_unix_s);
+-- The runs of the stations' check standards (`accelcal_db::check::IS_CHECK`), found without
+-- reading every run's end.
+CREATE INDEX run_end_check_standard ON run_end (run_id) WHERE substr(reason, 1, 14) = 'check standard';
 CREATE TRIGGER fit_summary_no_update BEFORE UPDATE ON fit_summary BEGIN SELECT RAISE(ABORT, 'append-only: fit_summary rows are never updated'); END;
 CREATE TRIGGER fit_summary_no_delete BEFORE DELETE ON fit_summary BEGIN SELECT RAISE(ABORT, 'append-only: fit_summary rows are never deleted'); END;
 CREATE TRIGGER fit_parameter_no_update BEFORE UPDATE ON fit_parameter BEGIN SELECT RAISE(ABORT, 'append-only: fit_parameter rows are never updated'); END;
