@@ -702,6 +702,14 @@ fn derived_rows_are_backfilled_on_open_and_checked_by_db_verify() {
     let d = tempfile::tempdir().unwrap();
     let spec = db_file(&d);
     dbkit::fleet::the_fleet_is_counted_by_the_database(&spec);
+    // More pieces than one batch of the backfill takes (500 of each table).
+    let mut db = Db::open(&spec).unwrap();
+    for i in 0..260 {
+        let device = format!("{:024x}", 0xb0_0000 + i);
+        let s = start(RunId::new(), &device, &format!("BF-{i:03}"), "st-9", T0 + 40 * DAY + i as i64);
+        calibrate(&mut db, &s, &coefs(0.0, 0), Some(0.01));
+    }
+    drop(db);
     const DERIVED: [&str; 5] = [
         "fit_summary",
         "fit_parameter",

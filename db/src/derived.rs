@@ -232,14 +232,18 @@ pub(crate) fn backfill(c: &mut Conn) -> Result<usize, DbError> {
         return Ok(0);
     }
     let mut n = 0;
+    // Each table is walked once in key order (a batch starts after the last key of the one
+    // before), so that a batch does not scan again the rows the batches before it derived.
+    let (mut after_fit, mut after_v, mut after_c) =
+        (String::new(), (String::new(), String::new()), String::new());
     loop {
         let done = c.transaction(|tx| {
             let rows = tx.query(
                 &format!(
-                    "SELECT f.run_id, f.fit_json FROM fit f WHERE NOT EXISTS \
-                     (SELECT 1 FROM fit_summary s WHERE s.run_id = f.run_id) LIMIT {BATCH}"
+                    "SELECT f.run_id, f.fit_json FROM fit f WHERE f.run_id > $1 AND NOT EXISTS \
+                     (SELECT 1 FROM fit_summary s WHERE s.run_id = f.run_id) ORDER BY f.run_id LIMIT {BATCH}"
                 ),
-                &[],
+                &[after_fit.clone().into()],
             )?;
             for r in &rows {
                 let run = r[0].text()?;
@@ -254,17 +258,20 @@ pub(crate) fn backfill(c: &mut Conn) -> Result<usize, DbError> {
                     uncertainty: None,
                 });
                 insert_fit(tx, &run, &doc)?;
+                after_fit = run;
             }
             let vs = tx.query(
                 &format!(
-                    "SELECT v.run_id, v.phase, v.report_json FROM verification v WHERE NOT EXISTS \
+                    "SELECT v.run_id, v.phase, v.report_json FROM verification v \
+                     WHERE (v.run_id > $1 OR (v.run_id = $1 AND v.phase > $2)) AND NOT EXISTS \
                      (SELECT 1 FROM verification_summary s WHERE s.run_id = v.run_id AND s.phase = v.phase) \
-                     LIMIT {BATCH}"
+                     ORDER BY v.run_id, v.phase LIMIT {BATCH}"
                 ),
-                &[],
+                &[after_v.0.clone().into(), after_v.1.clone().into()],
             )?;
             for r in &vs {
                 let (run, phase) = (r[0].text()?, r[1].text()?);
+                after_v = (run.clone(), phase.clone());
                 match serde_json::from_str::<VerifyReport>(&r[2].text()?) {
                     Ok(report) => insert_verification(tx, &run, &phase, &report)?,
                     Err(_) => {
@@ -279,14 +286,16 @@ pub(crate) fn backfill(c: &mut Conn) -> Result<usize, DbError> {
             let cs = tx.query(
                 &format!(
                     "SELECT c.run_id, c.gzip, r.g_m_s2 FROM campaign c JOIN run r ON r.run_id = c.run_id \
-                     WHERE NOT EXISTS (SELECT 1 FROM head_observation h WHERE h.run_id = c.run_id) LIMIT {BATCH}"
+                     WHERE c.run_id > $1 AND NOT EXISTS (SELECT 1 FROM head_observation h WHERE h.run_id = c.run_id) \
+                     ORDER BY c.run_id LIMIT {BATCH}"
                 ),
-                &[],
+                &[after_c.clone().into()],
             )?;
             for r in &cs {
                 let run = r[0].text()?;
                 let plain = gunzip(&run, &r[1].bytes()?)?;
                 insert_observation(tx, &run, &plain, r[2].real()?)?;
+                after_c = run;
             }
             Ok(rows.len() + vs.len() + cs.len())
         })?;
