@@ -275,6 +275,26 @@ impl Db {
             .collect()
     }
 
+    /// Each station's runs in the period and those that passed, by station name.
+    pub fn station_counts(&mut self, f: &Filter) -> Result<Vec<(String, i64, i64)>, DbError> {
+        let sel = selected();
+        let rows = self.conn.transaction(|tx| {
+            tx.query(
+                &format!(
+                    "{sel} SELECT r.station, COUNT(*), SUM(CASE WHEN sel.state = 'pass' THEN 1 ELSE 0 END) \
+                     FROM sel JOIN run r ON r.run_id = sel.run_id GROUP BY r.station"
+                ),
+                &f.params(),
+            )
+        })?;
+        let mut out: Vec<(String, i64, i64)> = rows
+            .iter()
+            .map(|r| Ok((r[0].text()?, r[1].int()?, r[2].int()?)))
+            .collect::<Result<_, DbError>>()?;
+        out.sort();
+        Ok(out)
+    }
+
     /// The units whose latest certificate (of a run not voided) states a recalibration date
     /// before `before_unix_s` (overdue ones too), soonest first; `serial_prefix` limits them.
     pub fn units_due(
@@ -358,10 +378,11 @@ impl Db {
                 &format!(
                     "{sel}, p AS (SELECT fp.ord, fp.name, fp.unit, fp.value FROM fit_parameter fp \
                      JOIN sel ON sel.run_id = fp.run_id WHERE sel.state = 'pass'), \
-                     m AS (SELECT ord, name, unit, COUNT(*) AS n, AVG(value) AS mu FROM p GROUP BY ord, name, unit) \
-                     SELECT m.name, m.unit, m.n, m.mu, SUM((p.value - m.mu) * (p.value - m.mu)) FROM p \
-                     JOIN m ON m.ord = p.ord AND m.name = p.name \
-                     GROUP BY m.ord, m.name, m.unit, m.n, m.mu ORDER BY m.ord"
+                     m AS (SELECT ord, MIN(name) AS name, MIN(unit) AS unit, COUNT(*) AS n, AVG(value) AS mu \
+                     FROM p GROUP BY ord), \
+                     d AS (SELECT p.ord, SUM((p.value - m.mu) * (p.value - m.mu)) AS ss FROM p \
+                     JOIN m ON m.ord = p.ord GROUP BY p.ord) \
+                     SELECT m.name, m.unit, m.n, m.mu, d.ss FROM m JOIN d ON d.ord = m.ord ORDER BY m.ord"
                 ),
                 &p,
             )?;
@@ -370,9 +391,11 @@ impl Db {
                     "{sel}, p AS (SELECT vp.ord, vp.name, vp.unit, vp.value, vp.limit_value FROM verification_parameter vp \
                      JOIN sel ON sel.run_id = vp.run_id WHERE sel.state = 'pass' AND vp.phase = 'as_left'), \
                      m AS (SELECT name, MIN(unit) AS unit, MIN(ord) AS ord, COUNT(*) AS n, AVG(value) AS mu, \
-                     MIN(limit_value) AS lim FROM p GROUP BY name) \
-                     SELECT m.name, m.unit, m.n, m.mu, SUM((p.value - m.mu) * (p.value - m.mu)), m.lim FROM p \
-                     JOIN m ON m.name = p.name GROUP BY m.name, m.unit, m.ord, m.n, m.mu, m.lim ORDER BY m.ord, m.name"
+                     MIN(limit_value) AS lim FROM p GROUP BY name), \
+                     d AS (SELECT p.name, SUM((p.value - m.mu) * (p.value - m.mu)) AS ss FROM p \
+                     JOIN m ON m.name = p.name GROUP BY p.name) \
+                     SELECT m.name, m.unit, m.n, m.mu, d.ss, m.lim FROM m JOIN d ON d.name = m.name \
+                     ORDER BY m.ord, m.name"
                 ),
                 &p,
             )?;

@@ -92,6 +92,12 @@ impl Db {
         Db::open_target(Target::parse(spec)?, Access::Read)
     }
 
+    /// A second connection to the same database, for reading (a reader that queries on
+    /// several connections at once).
+    pub fn open_again(&self) -> Result<Db, DbError> {
+        Db::open_target(self.target.clone(), Access::Read)
+    }
+
     fn open_target(target: Target, access: Access) -> Result<Db, DbError> {
         // Rows of a version-1 database get their chain entries once, under the migration's lock.
         // Rows derived from pieces stored before schema 6 are derived then, under the same lock.

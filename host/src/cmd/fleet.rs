@@ -165,6 +165,8 @@ fn out_of_tolerance(decision: Option<&str>) -> bool {
 /// What `fleet` and `serve` show of a period: every number computed from the stored pieces.
 pub(crate) struct FleetData {
     pub counts: Counts,
+    /// Each station's runs and those that passed.
+    pub stations: Vec<(String, i64, i64)>,
     pub runs: Vec<FleetRun>,
     pub due_by: Date,
     pub units_due: Vec<DueUnit>,
@@ -209,29 +211,52 @@ pub(crate) fn filter_of(
     }
 }
 
-/// What [`gather`] works out besides the counts, runs, populations and what is due: the control
-/// charts and the heads' signatures (every point of the period) only for what shows them.
+/// What [`gather`] works out besides the counts, the stations and what is due: only what the
+/// caller shows.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum Parts {
-    /// With the charts and the heads' signatures.
+    /// The runs, the populations, the control charts and the heads' signatures (every point of
+    /// the period).
     Charts,
-    /// Without.
+    /// The runs and the populations.
     Table,
+    /// Neither: the overview's counts.
+    Overview,
 }
 
 /// Gathers a period's fleet from the database; `due_by`: the last day of the units and assets due.
 pub(crate) fn gather(db: &mut Db, filter: &Filter, due_by: Date, parts: Parts) -> anyhow::Result<FleetData> {
     let counts = db.fleet_counts(filter)?;
-    let runs = db.fleet_runs(filter)?;
+    let stations = db.station_counts(filter)?;
     let units_due = db.units_due(start_of_day_unix_s(due_by) + DAY_S, filter.serial_prefix.as_deref())?;
     let assets = db.assets()?;
-    let pops = db.populations(filter)?;
-    let (heads, charts) = match parts {
-        Parts::Charts => (heads(db, filter)?, db.charts(filter)?),
-        Parts::Table => (Vec::new(), Vec::new()),
-    };
+    // The charts and the heads' signatures read every point of the period: each on a connection
+    // of its own, while this one reads the runs and the populations.
+    let (runs, pops, heads, charts) = std::thread::scope(|s| -> anyhow::Result<_> {
+        let (h, c) = match parts {
+            Parts::Charts => {
+                let (mut dh, mut dc) = (db.open_again()?, db.open_again()?);
+                (Some(s.spawn(move || heads(&mut dh, filter))), Some(s.spawn(move || dc.charts(filter))))
+            }
+            Parts::Table | Parts::Overview => (None, None),
+        };
+        let (runs, pops) = match parts {
+            Parts::Charts | Parts::Table => (db.fleet_runs(filter)?, db.populations(filter)?),
+            Parts::Overview => (Vec::new(), Vec::new()),
+        };
+        let joined = |what: &str| anyhow::anyhow!("the thread reading {what} panicked");
+        let heads = match h {
+            Some(h) => h.join().map_err(|_| joined("the heads' signatures"))??,
+            None => Vec::new(),
+        };
+        let charts = match c {
+            Some(c) => c.join().map_err(|_| joined("the control charts"))??,
+            None => Vec::new(),
+        };
+        Ok((runs, pops, heads, charts))
+    })?;
     let check_standards = db.check_standards(filter.station.as_deref())?;
-    Ok(FleetData { counts, runs, due_by, units_due, assets, pops, heads, charts, check_standards })
+    Ok(FleetData { counts, stations, runs, due_by, units_due, assets, pops, heads, charts, check_standards })
 }
 
 /// The last day of the units due: `days` after `until`.

@@ -223,30 +223,26 @@ struct OverviewPage<'a> {
 pub(super) fn overview(db: &mut Db, app: &App) -> Result<String, PageError> {
     let today = today_utc();
     let month = Filters::default();
-    let (data, since, _) = month.gather(db, app.due_days, Parts::Table)?;
+    let (data, since, _) = month.gather(db, app.due_days, Parts::Overview)?;
     let day_filter = filter_of(today, today, None, None, None, None);
     let day_counts = db.fleet_counts(&day_filter).map_err(PageError::internal)?;
     let day_runs = db.fleet_runs(&day_filter).map_err(PageError::internal)?;
-    let mut names: Vec<&str> = data.runs.iter().map(|r| r.station.as_str()).collect();
+    let mut names: Vec<&str> = data.stations.iter().map(|s| s.0.as_str()).collect();
     names.extend(data.check_standards.iter().map(|c| c.station.as_str()));
     names.sort_unstable();
     names.dedup();
     let stations = names
         .iter()
         .map(|&n| {
-            let of: Vec<&FleetRun> = data.runs.iter().filter(|r| r.station == n).collect();
+            let (runs, passed) =
+                data.stations.iter().find(|s| s.0 == n).map_or((0, 0), |s| (s.1 as usize, s.2 as usize));
             let check = data
                 .check_standards
                 .iter()
                 .find(|c| c.station == n)
                 .map(|c| format!("{} ({}, {} checks)", c.state, c.serial, c.checks))
                 .unwrap_or_else(|| "no check standard".into());
-            StationRow {
-                name: n.to_string(),
-                runs: of.len(),
-                passed: of.iter().filter(|r| r.state == "pass").count(),
-                check,
-            }
+            StationRow { name: n.to_string(), runs, passed, check }
         })
         .collect();
     let assets = data
