@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 
 use accelcal_core::calibrate::{fit_positions, Method};
 use accelcal_core::campaign::identity::Identity;
-use accelcal_core::conformity::{Decision, ParameterCheck};
+use accelcal_core::conformity::{self, Decision, Measured, RuleKind, Specification};
 use accelcal_core::error::bad;
 use accelcal_core::positions::Positions;
 use accelcal_core::sim::{simulate, Plan, SimConfig};
@@ -19,9 +19,8 @@ use accelcal_db::asset::{Asset, AssetKind};
 use accelcal_db::RecalibrationDue;
 use accelcal_db::{Db, Outcome, Phase, RunId, RunStart};
 use accelcal_line::verify::{PositionCheck, VerifyReport};
-use accelcal_shared::record::{Record, MAX_CHANNELS, MAX_RECORD_LEN};
+use accelcal_shared::record::{Record, MAX_RECORD_LEN};
 use accelcal_shared::terms::MODEL_4;
-use accelcal_shared::N_BASIS;
 use anyhow::Context;
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal};
@@ -80,11 +79,26 @@ pub fn unit_ids(u: u32) -> (String, String) {
     (format!("{:024x}", 0xacce_1000_0000_u64 + u64::from(u)), format!("MS9-{u:06}"))
 }
 
-/// A six-position verification with errors of `sd` m/s² and the parameters measured against
-/// the product's limits (bias 5 mg, scale factor 2000 ppm, misalignment 5000 µrad), decided by
-/// simple acceptance.
-fn verification(device: &str, sd: f64, rng: &mut impl Rng) -> VerifyReport {
-    let err = Normal::new(0.0, sd).expect("a spread");
+/// The product's specification the generated line verifies against: 0.05 m/s² on each
+/// component, bias 5 mg, scale factor 2000 ppm, misalignment 5000 µrad, guard-band rule.
+fn specification() -> Specification {
+    Specification {
+        unit_type: "MS9002.D triad".into(),
+        acceleration_error_m_s2: 0.05,
+        rule: RuleKind::GuardBand,
+        guard_band_m_s2: None,
+        bias_mg: Some(5.0),
+        scale_factor_ppm: Some(2000.0),
+        misalignment_urad: Some(5000.0),
+    }
+}
+
+/// A verification at the six ±axis positions with errors of `sd` m/s² per component (U 0.004
+/// m/s²), its parameters measured and decided by the core ([`conformity::parameters`]).
+fn verification(device: &str, sd: f64, rng: &mut impl Rng) -> anyhow::Result<VerifyReport> {
+    let spec = specification();
+    let err = Normal::new(0.0, sd).context("a spread")?;
+    let u = [0.004; 3];
     let positions: Vec<PositionCheck> = (1..=6)
         .map(|p| {
             let axis = (p - 1) / 2;
@@ -100,71 +114,43 @@ fn verification(device: &str, sd: f64, rng: &mut impl Rng) -> VerifyReport {
                 measured_m_s2: std::array::from_fn(|i| expected[i] + e[i]),
                 error_m_s2: e,
                 sd_mean_m_s2: [1e-4; 3],
-                tolerance_m_s2: [0.05; 3],
+                tolerance_m_s2: [spec.acceleration_error_m_s2; 3],
                 lost: 0,
                 temp_c: None,
                 out_of_range: false,
-                pass: e.iter().all(|e| e.abs() <= 0.05),
-                u_expanded_m_s2: None,
+                pass: (0..3).all(|i| spec.decide(e[i], u[i]).accepted()),
+                u_expanded_m_s2: Some(u),
                 decisions: None,
             }
         })
         .collect();
-    let scale = sd / 0.003;
-    let mut parameters = Vec::new();
-    let mut push = |parameter: &str, axis: String, value: f64, limit: f64, unit: &str, u: f64| {
-        let decision = if value.abs() + u <= limit {
-            Decision::Pass
-        } else if value.abs() <= limit {
-            Decision::ConditionalPass
-        } else if value.abs() - u <= limit {
-            Decision::ConditionalFail
-        } else {
-            Decision::Fail
-        };
-        parameters.push(ParameterCheck {
-            parameter: parameter.into(),
-            axis,
-            value,
-            u_expanded: u,
-            limit,
-            unit: unit.into(),
-            decision,
-        });
-    };
-    for a in ["x", "y", "z"] {
-        push("bias", a.into(), rng.random_range(-1.0..1.0) * 1.2 * scale, 5.0, "mg", 0.3);
-    }
-    for a in ["x", "y", "z"] {
-        push("scale_factor", a.into(), rng.random_range(-1.0..1.0) * 400.0 * scale, 2000.0, "ppm", 150.0);
-    }
-    for (c, j) in [("x", "y"), ("x", "z"), ("y", "x"), ("y", "z"), ("z", "x"), ("z", "y")] {
-        push(
-            "misalignment",
-            format!("{c}→{j}"),
-            rng.random_range(-1.0..1.0) * 900.0 * scale,
-            5000.0,
-            "µrad",
-            300.0,
-        );
-    }
-    let decision = parameters.iter().map(|p| p.decision).max_by_key(|d| *d as u8).unwrap_or(Decision::Pass);
-    VerifyReport {
+    let measured: Vec<Measured> = positions
+        .iter()
+        .map(|p| Measured { expected_m_s2: p.expected_m_s2, error_m_s2: p.error_m_s2, u_expanded_m_s2: u })
+        .collect();
+    let parameters = conformity::parameters(&spec, G, &measured)?;
+    let worst = positions
+        .iter()
+        .flat_map(|p| (0..3).map(|i| spec.decide(p.error_m_s2[i], u[i])))
+        .chain(parameters.iter().map(|p| p.decision))
+        .max()
+        .unwrap_or(Decision::Pass);
+    Ok(VerifyReport {
         version: accelcal_core::document::VERIFY_VERSION,
         device_id: device.into(),
         record: serde_json::json!({"slot": 0, "sequence": 1, "created_unix_s": FIRST_DAY_UNIX_S, "crc": "00000000"}),
         g_m_s2: G,
         chamber_c: None,
-        tolerance_rule: "|error| <= 0.05 m/s² on every component (--tolerance)".into(),
+        tolerance_rule: "the specification's guard-band rule".into(),
         static_rule: "static".into(),
-        pass: positions.iter().all(|p| p.pass) && decision.accepted(),
+        pass: worst.accepted(),
         positions,
         interrupted: false,
         fit: None,
-        specification: None,
-        decision: Some(decision),
+        specification: Some(spec),
+        decision: Some(worst),
         parameters: Some(parameters),
-    }
+    })
 }
 
 /// One run's pieces: its campaign (the 62-position plan, 4 sample sets per position: the
@@ -203,23 +189,12 @@ fn pieces(device: &str, serial: &str, seed: u64) -> anyhow::Result<Pieces> {
     };
     let only: Vec<_> = fits.iter().map(|(_, f)| f).collect();
     let budget = uncertainty::budget(&pos, &stats, &only, refs).context("a simulated unit's budget")?;
-    let mut coefficients = [[0.0; N_BASIS]; MAX_CHANNELS];
-    for (ch, (_, f)) in fits.iter().enumerate() {
-        coefficients[ch][..4].copy_from_slice(&f.coefficients);
-    }
-    let mut id = [0u8; 12];
-    for (i, b) in id.iter_mut().enumerate() {
-        *b = u8::from_str_radix(&device[2 * i..2 * i + 2], 16)?;
-    }
-    let rec = Record {
-        device_id: id,
-        created_unix_s: FIRST_DAY_UNIX_S as u64,
-        structure: MODEL_4,
-        n_channels: 3,
-        coefficients,
-        g_m_s2: Some(G),
-        thermal: None,
+    let m = accelcal_shared::linear::Model4 {
+        u0: std::array::from_fn(|c| fits[c].1.coefficients[0]),
+        k: std::array::from_fn(|c| std::array::from_fn(|j| fits[c].1.coefficients[j + 1])),
     };
+    let id = accelcal_core::calibrate::parse_device_id(device).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let rec = Record::from_model4(id, FIRST_DAY_UNIX_S as u64, &m);
     let mut buf = [0u8; MAX_RECORD_LEN];
     let n = rec.emit(&mut buf).map_err(|e| anyhow::anyhow!("a simulated record: {e:?}"))?;
     let identity = Identity {
@@ -283,7 +258,7 @@ pub fn generate(
             if k > 0 {
                 // As found: a year's drift, now and then beyond the limits.
                 let sd = if rng.random_bool(0.03) { 0.02 } else { 0.006 };
-                db.store_verification(run, Phase::AsFound, &verification(&device, sd, &mut rng))?;
+                db.store_verification(run, Phase::AsFound, &verification(&device, sd, &mut rng)?)?;
             }
             let p = pieces(&device, &serial, rng.random())?;
             db.store_campaign(run, &p.campaign)?;
@@ -301,7 +276,7 @@ pub fn generate(
             db.store_fit(run, &p.fit_json)?;
             let rec = db.store_record(run, &p.record)?;
             db.record_flashed(&rec)?;
-            db.store_verification(run, Phase::AsLeft, &verification(&device, 0.003, &mut rng))?;
+            db.store_verification(run, Phase::AsLeft, &verification(&device, 0.003, &mut rng)?)?;
             let due = RecalibrationDue {
                 due_unix_s: t + INTERVAL_DAYS * DAY_S,
                 basis: format!("{INTERVAL_DAYS} days (the line's interval)"),
