@@ -68,11 +68,13 @@ pub(crate) struct VerificationRows {
 }
 
 pub(crate) fn verification_rows(report: &VerifyReport) -> VerificationRows {
-    let json = serde_json::to_value(report).unwrap_or_default();
-    let text = |v: Option<&serde_json::Value>| v.and_then(|v| v.as_str()).map(str::to_string);
+    // As the report's JSON spells them (the view `verification_decision` read them from it).
+    fn spelled<T: Serialize>(v: &T) -> Option<String> {
+        serde_json::to_value(v).ok().and_then(|v| v.as_str().map(str::to_string))
+    }
     VerificationRows {
-        decision: text(json.get("decision")),
-        rule: text(json.get("specification").and_then(|s| s.get("rule"))),
+        decision: report.decision.as_ref().and_then(spelled),
+        rule: report.specification.as_ref().and_then(|s| spelled(&s.rule)),
         max_abs_error_m_s2: report.max_abs_error_m_s2(),
         parameters: report
             .parameters
