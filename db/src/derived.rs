@@ -181,10 +181,16 @@ pub(crate) fn insert_verification(
     Ok(())
 }
 
-pub(crate) fn insert_observation(tx: &mut Tx<'_>, run: &str, plain: &[u8], g: f64) -> Result<(), DbError> {
-    let (obs, why) = match observation(plain, g) {
+/// Inserts the observation [`observation`] made of a run's campaign (made before the
+/// transaction: reading a campaign takes time the ledger's lock should not wait for).
+pub(crate) fn insert_observation(
+    tx: &mut Tx<'_>,
+    run: &str,
+    seen: &Result<Option<Observation>, String>,
+) -> Result<(), DbError> {
+    let (obs, why) = match seen {
         Ok(o) => (o.as_ref().map_or(Val::Null, json), Val::Null),
-        Err(why) => (Val::Null, Val::from(why)),
+        Err(why) => (Val::Null, Val::from(why.clone())),
     };
     tx.execute(
         "INSERT INTO head_observation (run_id, obs_json, why) VALUES ($1, $2, $3)",
@@ -296,7 +302,7 @@ pub(crate) fn backfill(c: &mut Conn) -> Result<usize, DbError> {
             for r in &cs {
                 let run = r[0].text()?;
                 let plain = gunzip(&run, &r[1].bytes()?)?;
-                insert_observation(tx, &run, &plain, r[2].real()?)?;
+                insert_observation(tx, &run, &observation(&plain, r[2].real()?))?;
                 after_c = run;
             }
             Ok(rows.len() + vs.len() + cs.len())

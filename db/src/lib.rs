@@ -360,7 +360,8 @@ impl Db {
             (file.to_vec(), z.finish().map_err(|e| bad(e.to_string()))?)
         };
         let sha = sha256_hex(&plain);
-        let g = self.start_of(run)?.g_m_s2;
+        // Observed before the store's transaction, which holds the ledger's lock.
+        let seen = derived::observation(&plain, self.start_of(run)?.g_m_s2);
         self.store_deriving(
             run,
             Piece {
@@ -370,7 +371,7 @@ impl Db {
                 values: vec![sha.clone().into(), gzip.into(), now_unix_s().into()],
                 sha,
             },
-            &|tx, run| derived::insert_observation(tx, run, &plain, g),
+            &|tx, run| derived::insert_observation(tx, run, &seen),
         )
     }
 
