@@ -600,11 +600,12 @@ pub struct BenchSignatureArgs {
     pub fleets: u32,
     /// Units per fleet, in time order (the 62-position plan, 100 sample sets per position, 80
     /// codes of noise, 2 mrad of misalignment spread).
-    #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u32).range(60..=5000))]
+    #[arg(long, default_value_t = 1000, value_parser = clap::value_parser!(u32).range(60..=5000))]
     pub units: u32,
     /// The unit at which the head changes (0-based; the tracking's baseline is its first 50
-    /// units).
-    #[arg(long, default_value_t = 100)]
+    /// units, then every unit before the one tracked, so a change early in a head's history is
+    /// partly taken into the baseline before it is flagged).
+    #[arg(long, default_value_t = 500)]
     pub change_at: u32,
     /// Write the cases as JSON to this file.
     #[arg(long, value_name = "FILE")]
