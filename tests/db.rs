@@ -776,3 +776,87 @@ fn derived_rows_are_backfilled_on_open_and_checked_by_db_verify() {
         "{out}"
     );
 }
+
+/// Issue 31 item 3's last part: the head's signature feeds the budget. 30 units on HEAD-E,
+/// whose certificate states 3″, every angle of which is off by a draw of N(0, 30″): `fit
+/// --head-asset HEAD-E --db` of a 31st unit on it takes the 30″ or so its units measure, says
+/// so in the head_angle contributor and in a warning; that contributor is the measured value's
+/// multiple of the one the certificate's 3″ gives.
+#[test]
+fn the_head_s_measured_angle_error_feeds_the_budget_when_it_exceeds_the_certificate() {
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, Normal};
+    let d = tempfile::tempdir().unwrap();
+    let spec = db_file(&d);
+    let mut db = Db::open(&spec).unwrap();
+    let errors: Vec<(f64, f64)> = {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let e = Normal::new(0.0, 30.0 / 3600.0).unwrap();
+        (0..62).map(|_| (e.sample(&mut rng), e.sample(&mut rng))).collect()
+    };
+    let reach = |plan: &mut accelcal_core::sim::Plan| {
+        for (p, e) in plan.positions.iter_mut().zip(&errors) {
+            (p.0, p.1) = (p.0 + e.0, p.1 + e.1);
+        }
+    };
+    let head = head_asset("HEAD-E", "DKD-17-010", "2099-12-31", 3.0, T0 - DAY);
+    dbkit::fleet::head_line(&mut db, &head, 30, |_, plan| reach(plan));
+    // The newest 10 of them, oldest first.
+    let last = db.latest_head_observations("HEAD-E", i64::MAX, 10).unwrap();
+    assert_eq!(last.len(), 10);
+    assert_eq!((last[0].serial.as_str(), last[9].serial.as_str()), ("SN-H020", "SN-H029"));
+    assert!(db.latest_head_observations("HEAD-2", i64::MAX, 10).unwrap().is_empty());
+    drop(db);
+    let campaign = d.path().join("unit.csv");
+    let mut f = std::fs::File::create(&campaign).unwrap();
+    dbkit::fleet::head_campaign(999, reach).write(&mut f).unwrap();
+    drop(f);
+    let c = campaign.to_str().unwrap();
+    let (by_head, stated) = (d.path().join("head.json"), d.path().join("stated.json"));
+    let rec = d.path().join("r.rec");
+    let (code, _, err) = accelcal(&[
+        "fit",
+        c,
+        "--db",
+        &spec,
+        "--head-asset",
+        "HEAD-E",
+        "--json",
+        by_head.to_str().unwrap(),
+        "--record",
+        rec.to_str().unwrap(),
+        "--device-id",
+        "51454d552d422d4c34373545",
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(err.contains("warning: head asset HEAD-E: its last 30 units measure"), "{err}");
+    assert!(err.contains("more than its certificate's 3″: the budget takes the measured value"), "{err}");
+    ok(&["fit", c, "--head-angle-u", "3", "--head-orthogonality-u", "6", "--json", stated.to_str().unwrap()]);
+    let read = |p: &Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+    };
+    let (h, s) = (read(&by_head), read(&stated));
+    let angle = h["uncertainty"]["contributors"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["name"] == "head_angle")
+        .unwrap()
+        .clone();
+    let src = angle["source"].as_str().unwrap();
+    assert!(
+        src.contains("its last 30 units measure") && src.contains("the measured value is taken"),
+        "{src}"
+    );
+    // The measured RMS is near the draw's 30″ (the α of a position at β = ±90° does not show).
+    let at = src.find("measure ").unwrap() + "measure ".len();
+    let rms: f64 = src[at..].split('″').next().unwrap().parse().unwrap();
+    assert!((22.0..38.0).contains(&rms), "{src}");
+    // The head_angle contributor is linear in the angle's u: the measured value over the 3″.
+    let head_u = |j: &serde_json::Value| -> f64 {
+        let c = j["uncertainty"]["contributors"].as_array().unwrap();
+        c.iter().find(|c| c["name"] == "head_angle").unwrap()["u_m_s2"].as_f64().unwrap()
+    };
+    let ratio = head_u(&h) / head_u(&s);
+    assert!((ratio / (rms / 3.0) - 1.0).abs() < 0.01, "{ratio} for {rms}″ over 3″");
+}

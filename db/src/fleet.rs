@@ -25,8 +25,12 @@ the limits those of the points charted; the Western Electric rules: 1 a point be
 side, 3 four of five beyond 1σ̂ on one side, 4 eight in a row on one side of the centre line (5: a moving range beyond \
 D4·MR̄). With all four rules, a chart of many in-control points often breaks one by chance: a violation is a place to look. \
 Head signature: per head asset, each unit's model-4 residuals read as head-angle errors at every position and its \
-misalignments, standardised by the head's first 50 units, two-sided CUSUMs (k = 0.5, h = 12 standard deviations); the \
-first unit past h is a change point. Check standards: a station's checks (station --check-standard) are not runs of the \
+misalignments as the mount's rotations and the block's non-orthogonalities, each followed by a self-starting two-sided \
+CUSUM (Hawkins: each unit standardised by every unit before it since the last change point, at least 50, its Student t \
+taken to the normal quantile; k = 0.5, h = 14 standard deviations: about one false alarm in 10,000 units of a true \
+head); the first unit past h is a change point. The head's angle error measured by its units since the last change \
+point (RMS over the head angles of each angle's mean error, its standard error taken out) is what `fit --head-asset` \
+takes for the budget's head_angle when it exceeds the certificate's. Check standards: a station's checks (station --check-standard) are not runs of the \
 line (no count, yield or population takes them); each station's check standard is shown over all its checks, its state \
 that of its latest check (station --help says how it is judged).";
 use super::{Db, DbError};
@@ -519,29 +523,63 @@ impl Db {
                 &f.params(),
             )
         })?;
-        let mut out = Vec::new();
-        for r in rows {
-            let run_id = r[2].text()?;
-            let seen = match (opt_text(&r[5])?, opt_text(&r[6])?) {
-                (_, Some(why)) => Err(why),
-                (None, None) => continue,
-                (Some(json), None) => Ok(serde_json::from_str(&json).map_err(|e| DbError::BadPiece {
-                    run_id: run_id.clone(),
-                    piece: "head observation",
-                    cause: e.to_string(),
-                })?),
-            };
-            out.push(HeadObservation {
-                asset: r[0].text()?,
-                serial: r[1].text()?,
-                run_id,
-                started_unix_s: r[3].int()?,
-                g_m_s2: r[4].real()?,
-                seen,
-            });
-        }
+        rows.iter().filter_map(|r| head_observation(r).transpose()).collect()
+    }
+
+    /// The head observations of the last `limit` runs on head asset `asset` that started before
+    /// `before_unix_s` and passed (not voided, not a check standard's check), oldest first:
+    /// what the uncertainty budget of a new calibration on that head takes its measured angle
+    /// error from ([`accelcal_core::headsig::MeasuredAngle`]).
+    pub fn latest_head_observations(
+        &mut self,
+        asset: &str,
+        before_unix_s: i64,
+        limit: usize,
+    ) -> Result<Vec<HeadObservation>, DbError> {
+        let rows = self.conn.transaction(|tx| {
+            tx.query(
+                &format!(
+                    "SELECT ra.asset_id, r.serial, r.run_id, r.started_unix_s, r.g_m_s2, h.obs_json, h.why \
+                     FROM run_asset ra JOIN run r ON r.run_id = ra.run_id \
+                     JOIN run_end e ON e.run_id = ra.run_id AND e.outcome = 'pass' \
+                     JOIN head_observation h ON h.run_id = ra.run_id \
+                     WHERE ra.kind = 'head' AND ra.asset_id = $1 AND r.started_unix_s < $2 \
+                     AND NOT ({}) \
+                     AND NOT EXISTS (SELECT 1 FROM void v WHERE v.run_id = ra.run_id) \
+                     ORDER BY r.started_unix_s DESC, r.run_id DESC LIMIT $3",
+                    super::check::IS_CHECK
+                ),
+                &[asset.into(), before_unix_s.into(), (limit.min(i64::MAX as usize) as i64).into()],
+            )
+        })?;
+        let mut out =
+            rows.iter().filter_map(|r| head_observation(r).transpose()).collect::<Result<Vec<_>, _>>()?;
+        out.reverse();
         Ok(out)
     }
+}
+
+/// A row `asset, serial, run_id, started_unix_s, g_m_s2, obs_json, why`: `None` for a campaign
+/// that shows nothing of its head (neither an observation nor why not: not a triad).
+fn head_observation(r: &[Val]) -> Result<Option<HeadObservation>, DbError> {
+    let run_id = r[2].text()?;
+    let seen = match (opt_text(&r[5])?, opt_text(&r[6])?) {
+        (_, Some(why)) => Err(why),
+        (None, None) => return Ok(None),
+        (Some(json), None) => Ok(serde_json::from_str(&json).map_err(|e| DbError::BadPiece {
+            run_id: run_id.clone(),
+            piece: "head observation",
+            cause: e.to_string(),
+        })?),
+    };
+    Ok(Some(HeadObservation {
+        asset: r[0].text()?,
+        serial: r[1].text()?,
+        run_id,
+        started_unix_s: r[3].int()?,
+        g_m_s2: r[4].real()?,
+        seen,
+    }))
 }
 
 /// One run's view of its head ([`Db::head_observations`]).

@@ -7,6 +7,8 @@ use accelcal_db::fleet::Filter;
 use accelcal_db::{Db, Outcome, Phase, RecalibrationDue, RunId};
 use accelcal_line::verify::VerifyReport;
 
+use accelcal_core::sim::Plan;
+
 use super::*;
 
 /// The runs of [`line_of_units`].
@@ -228,33 +230,34 @@ pub fn hostile_unit(db: &mut Db, t: i64) -> RunId {
 /// apart from T0, their simulated campaigns and model-4 fits stored; from the 56th unit on, the
 /// head reaches position 27's α 2 mrad off what it says.
 pub fn head_knocked_out(db: &mut Db) {
-    use accelcal_core::sim::{simulate, Plan, SimConfig};
     let head = head_asset("HEAD-2", "DKD-17-009", "2099-12-31", 3.0, T0 - DAY);
-    db.add_asset(&head).unwrap();
-    let nominal = Plan::head();
-    for u in 0..70usize {
-        let mut plan = nominal.clone();
+    head_line(db, &head, 70, |u, plan| {
         if u >= 55 {
             plan.positions[26].0 += (2e-3f64).to_degrees();
         }
-        let cfg =
-            SimConfig { seed: 100 + u as u64, plan, samples: 30, misalign_sd: 0.002, ..SimConfig::default() };
-        let (mut c, _) = simulate(&cfg);
-        for (row, (a, b)) in c.alpha_deg.iter_mut().zip(c.beta_deg.iter_mut()).enumerate() {
-            (*a, *b) = nominal.positions[row / 30];
-        }
+    });
+}
+
+/// `units` units calibrated on the registered head `head` (registered here) on station `st-1`,
+/// an hour apart from T0, serials `SN-H000`…: each its simulated campaign (the 62-position plan,
+/// 30 sets per position) on the plan the head really reaches (`reach(unit, plan)` changes the
+/// nominal plan's angles), stated at the nominal angles, stored with its model-4 fit, passed.
+pub fn head_line(db: &mut Db, head: &accelcal_db::Asset, units: usize, reach: impl Fn(usize, &mut Plan)) {
+    db.add_asset(head).unwrap();
+    for u in 0..units {
+        let c = head_campaign(100 + u as u64, |plan| reach(u, plan));
         let mut bytes = Vec::new();
         c.write(&mut bytes).unwrap();
         let device = format!("{:024x}", 0xa000 + u);
         let s = accelcal_db::RunStart {
-            g_m_s2: cfg.g,
+            g_m_s2: accelcal_shared::G_STANDARD,
             ..start(RunId::new(), &device, &format!("SN-H{u:03}"), "st-1", T0 + u as i64 * 3600)
         };
         db.begin_run(&s, None).unwrap();
-        db.store_run_asset(s.run_id, &head).unwrap();
+        db.store_run_asset(s.run_id, head).unwrap();
         db.store_campaign(s.run_id, &bytes).unwrap();
         // Its model-4 fit, for the control charts.
-        let pos = accelcal_core::positions::Positions::new(&c, cfg.g);
+        let pos = accelcal_core::positions::Positions::new(&c, s.g_m_s2);
         let fits = accelcal_core::calibrate::fit_positions(
             &pos,
             &pos.channel_stats(&c),
@@ -266,4 +269,20 @@ pub fn head_knocked_out(db: &mut Db) {
         db.store_fit(s.run_id, &fit_json(&coefs)).unwrap();
         db.finish_run(s.run_id, Outcome::Pass, "verified").unwrap();
     }
+}
+
+/// A simulated unit's campaign (seed `seed`, the 62-position plan, 30 sets per position, 2 mrad
+/// of misalignment spread) on the plan `reach` makes of the nominal one, its rows stating the
+/// nominal angles.
+pub fn head_campaign(seed: u64, reach: impl Fn(&mut Plan)) -> accelcal_core::campaign::Campaign {
+    use accelcal_core::sim::{simulate, SimConfig};
+    let nominal = Plan::head();
+    let mut plan = nominal.clone();
+    reach(&mut plan);
+    let cfg = SimConfig { seed, plan, samples: 30, misalign_sd: 0.002, ..SimConfig::default() };
+    let (mut c, _) = simulate(&cfg);
+    for (row, (a, b)) in c.alpha_deg.iter_mut().zip(c.beta_deg.iter_mut()).enumerate() {
+        (*a, *b) = nominal.positions[row / 30];
+    }
+    c
 }

@@ -515,8 +515,11 @@ pub struct FitArgs {
     pub head_orthogonality_u: Option<f64>,
     /// The dividing head as a registered asset (`accelcal asset add ID --kind head`): its
     /// certificate in force states the angle and orthogonality uncertainties of the budget, and
-    /// the run stores which head and certificate it used [with --db; instead of --head-angle-u
-    /// and --head-orthogonality-u; an overdue, unknown or non-head asset is refused].
+    /// the run stores which head and certificate it used. The head's own units measure its angle
+    /// error too (its last 1,000 passed runs in the database, since their last change point,
+    /// as `fleet` tracks them): when that exceeds the certificate's angle uncertainty, the
+    /// budget takes it and a warning says so [with --db; instead of --head-angle-u and
+    /// --head-orthogonality-u; an overdue, unknown or non-head asset is refused].
     #[arg(long, value_name = "ID", conflicts_with_all = ["head_angle_u", "head_orthogonality_u"])]
     pub head_asset: Option<String>,
     #[command(flatten)]

@@ -106,14 +106,33 @@ pub fn run(a: &FitArgs, g_stated: bool, warnings: &mut super::Warnings) -> anyho
         (Some(_), None) => return Err(bad("--head-asset needs --db: the asset is read from its register")),
         (None, _) => None,
     };
+    // What the head's own units measure of its angle error, beside its certificate.
+    let measured = match (&head, &mut db) {
+        (Some(h), Some(rdb)) => super::fleet::measured_head_angle(&mut rdb.db, &h.asset_id)?,
+        _ => None,
+    };
     let head_u = match &head {
         Some(h) => HeadU {
             angle: Some(h.angle_u_arcsec),
             orthogonality: Some(h.orthogonality_u_arcsec),
             asset: Some(h),
+            measured,
         },
-        None => HeadU { angle: a.head_angle_u, orthogonality: a.head_orthogonality_u, asset: None },
+        None => HeadU {
+            angle: a.head_angle_u,
+            orthogonality: a.head_orthogonality_u,
+            asset: None,
+            measured: None,
+        },
     };
+    if let (Some(h), Some(m)) = (&head, &measured) {
+        if m.rms_arcsec > h.angle_u_arcsec {
+            warnings.extend(&[format!(
+                "head asset {}: its last {} units measure {:.1}″ of angle error, more than its certificate's {}″: the budget takes the measured value (`accelcal fleet --head-asset {}` shows its signature)",
+                h.asset_id, m.units, m.rms_arcsec, h.angle_u_arcsec, h.asset_id
+            )]);
+        }
+    }
     // Streamed: the fits need the dwell statistics only, so memory does not grow with the rows.
     let r = super::reduce_campaign(&a.campaign, a.common.codes, warnings)?;
     let mut pos = r.positions(a.common.g);
@@ -230,6 +249,19 @@ struct HeadU<'a> {
     orthogonality: Option<f64>,
     /// The register entry they come from.
     asset: Option<&'a accelcal_db::Asset>,
+    /// The head's angle error as its own units measure it (the register's head, with `--db`):
+    /// the budget takes the larger of it and the stated `angle`.
+    measured: Option<accelcal_core::headsig::MeasuredAngle>,
+}
+
+impl HeadU<'_> {
+    /// The head angle's standard uncertainty the budget takes, arcsec.
+    fn angle_u(&self) -> Option<f64> {
+        match (self.angle, self.measured) {
+            (Some(stated), Some(m)) => Some(stated.max(m.rms_arcsec)),
+            (stated, _) => stated,
+        }
+    }
 }
 
 /// The uncertainty budget of an lsq fit of a model-4 triad (`None` for another fit, which the
@@ -253,7 +285,7 @@ fn fit_budget(
     let stated = head.angle.is_some() || head.orthogonality.is_some() || a.tempco.coefficients().is_some();
     let (bound, why) = g_uncertainty(a.common.g, g_source);
     let refs = References {
-        head_angle_rad: head.angle.unwrap_or(0.0) * ARCSEC,
+        head_angle_rad: head.angle_u().unwrap_or(0.0) * ARCSEC,
         head_orthogonality_rad: head.orthogonality.unwrap_or(0.0) * ARCSEC,
         g_m_s2: bound / 3f64.sqrt(),
         // GMDH needs a plan whose split identifies its candidates; on fewer positions the lack of
@@ -273,6 +305,16 @@ fn fit_budget(
                         "{} by head asset {}, certificate {} (due {})",
                         c.source, h.asset_id, h.certificate, h.due_date
                     );
+                    if let (true, Some(m)) = (c.name == "head_angle", head.measured) {
+                        c.source = format!(
+                            "{}; its last {} units measure {:.1}″ (RMS over {} head angles): the {} is taken",
+                            c.source,
+                            m.units,
+                            m.rms_arcsec,
+                            m.angles,
+                            if m.rms_arcsec > h.angle_u_arcsec { "measured value" } else { "stated value" }
+                        );
+                    }
                 }
             }
             Ok(Some(b))

@@ -120,20 +120,53 @@ fn heads(db: &mut Db, filter: &Filter) -> anyhow::Result<Vec<HeadJson>> {
                 }
                 Ok(obs) => {
                     g = o.g_m_s2;
-                    units.push(UnitObs {
-                        serial: o.serial.clone(),
-                        run_id: o.run_id.clone(),
-                        started_unix_s: o.started_unix_s,
-                        positions: obs.positions.clone(),
-                        resid_m_s2: obs.resid_m_s2.clone(),
-                        misalign_urad: obs.misalign_urad,
-                    });
+                    units.push(unit_obs(o, obs));
                 }
             }
         }
         out.push(HeadJson { asset: asset.to_string(), head: track(&units, g, Settings::default()) });
     }
     Ok(out)
+}
+
+/// One unit's observation of its head, for the tracking.
+fn unit_obs(
+    o: &accelcal_db::fleet::HeadObservation,
+    obs: &accelcal_db::derived::Observation,
+) -> accelcal_core::headsig::UnitObs {
+    accelcal_core::headsig::UnitObs {
+        serial: o.serial.clone(),
+        run_id: o.run_id.clone(),
+        started_unix_s: o.started_unix_s,
+        positions: obs.positions.clone(),
+        resid_m_s2: obs.resid_m_s2.clone(),
+        misalign_urad: obs.misalign_urad,
+    }
+}
+
+/// Units of a head read for its measured angle error ([`measured_head_angle`]).
+pub const MEASURED_UNITS: usize = 1000;
+
+/// The head asset's angle setting error as its last [`MEASURED_UNITS`] passed units measure it
+/// (those on the newest unit's plan, since the tracking's last change point among them;
+/// `accelcal_core::headsig::MeasuredAngle`), for the budget of a calibration starting now:
+/// `None` when fewer units than the tracking needs show it. A unit whose campaign showed
+/// nothing of the head is left out.
+pub fn measured_head_angle(
+    db: &mut Db,
+    asset: &str,
+) -> anyhow::Result<Option<accelcal_core::headsig::MeasuredAngle>> {
+    use accelcal_core::headsig::{track, Settings};
+    let now =
+        std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs() as i64);
+    let seen = db
+        .latest_head_observations(asset, now + 1, MEASURED_UNITS)
+        .with_context(|| format!("reading head asset {asset}'s units"))?;
+    let read: Vec<_> = seen.iter().filter_map(|o| o.seen.as_ref().ok().map(|obs| (o, obs))).collect();
+    let Some((newest, plan)) = read.last().map(|(o, obs)| (o, &obs.positions)) else { return Ok(None) };
+    let units: Vec<_> =
+        read.iter().filter(|(_, obs)| &obs.positions == plan).map(|(o, obs)| unit_obs(o, obs)).collect();
+    Ok(track(&units, newest.g_m_s2, Settings::default()).signature.measured_angle)
 }
 
 /// A change point of a head's signature in words: its unit, run, time, rule and estimate.
@@ -398,6 +431,12 @@ pub fn run(a: &FleetArgs) -> anyhow::Result<()> {
                 change_point(c)
             ),
         }
+        if let Some(m) = h.head.signature.measured_angle {
+            println!(
+                "    its angle error as its last {} units measure it: {:.1}″ RMS over {} head angles",
+                m.units, m.rms_arcsec, m.angles
+            );
+        }
     }
     println!(
         "  units due for recalibration by {due_by} ({} days after {until}, overdue included):",
@@ -571,6 +610,9 @@ pub fn run_bench_signature(a: &crate::cli::BenchSignatureArgs) -> anyhow::Result
                 (format!("α of position {} (α {al}°, β {be}°) +{mrad} mrad", position + 1), "arcsec")
             }
             HeadChange::Mount { mrad } => (format!("mount rotated {mrad} mrad about z"), "µrad"),
+            HeadChange::Errors { arcsec, .. } => {
+                (format!("every angle off by a draw of {arcsec}″"), "arcsec")
+            }
         };
         let mean = r.estimates.iter().sum::<f64>() / r.estimates.len().max(1) as f64;
         // A true head: every flag is a false alarm, after the change point as before it.

@@ -85,6 +85,9 @@ struct Station<'a> {
     info: Option<InfoDoc>,
     /// `--head-asset`'s certificate in force (checked before any node is touched).
     head_asset: Option<&'a Asset>,
+    /// The head's angle error as its own units measure it, when that exceeds its certificate's
+    /// (arcsec): what the budgets take instead.
+    head_measured_u: Option<f64>,
     /// When the command of the step being run started (`run`), for the journal's `seconds`.
     step_start: std::cell::Cell<Option<std::time::Instant>>,
 }
@@ -161,12 +164,13 @@ impl Station<'_> {
     }
 
     /// The head asset's stated uncertainties as `fit` and `verify` take them (none without
-    /// `--head-asset`).
+    /// `--head-asset`), the angle's replaced by what the head's units measure when that is
+    /// larger.
     fn head_u_args(&self) -> Vec<String> {
         match self.head_asset {
             Some(h) => vec![
                 "--head-angle-u".into(),
-                h.angle_u_arcsec.to_string(),
+                self.head_measured_u.unwrap_or(h.angle_u_arcsec).to_string(),
                 "--head-orthogonality-u".into(),
                 h.orthogonality_u_arcsec.to_string(),
             ],
@@ -517,7 +521,11 @@ pub fn run(a: &StationArgs, config: Option<&crate::resolved::ConfigUse>) -> anyh
     // Ctrl-C goes to the step (same process group); the station waits for it to stop cleanly.
     let stop = super::live::stop_flag()?;
     // The head's register entry first: an overdue or unknown head stops the station here.
-    let head_asset = a.head_asset.as_deref().map(|id| head_in_force(&db_spec, id)).transpose()?;
+    let head = a.head_asset.as_deref().map(|id| head_in_force(&db_spec, id)).transpose()?;
+    let (head_asset, head_measured_u) = match head {
+        Some((h, m)) => (Some(h), m),
+        None => (None, None),
+    };
     // A station whose check standard is out of control makes no calibration.
     let station_name = a.station_name.clone().unwrap_or_else(super::store::host_name);
     if a.check_standard.is_none() {
@@ -545,6 +553,7 @@ pub fn run(a: &StationArgs, config: Option<&crate::resolved::ConfigUse>) -> anyh
             ended: false,
             info: None,
             head_asset: head_asset.as_ref(),
+            head_measured_u,
             step_start: std::cell::Cell::new(None),
             tag: if specs.len() > 1 { format!("{}: ", u.serial) } else { String::new() },
         });
@@ -690,8 +699,9 @@ fn time_summary(stations: &[Station<'_>], wall: f64) -> String {
 }
 
 /// `--head-asset`'s certificate in force, read from the database without creating it (a missing
-/// database holds no asset).
-fn head_in_force(db_spec: &str, id: &str) -> anyhow::Result<Asset> {
+/// database holds no asset), and the head's angle error as its own units measure it when that
+/// exceeds the certificate's angle uncertainty (arcsec; `fit --head-asset` takes it the same way).
+fn head_in_force(db_spec: &str, id: &str) -> anyhow::Result<(Asset, Option<f64>)> {
     let mut db = match Db::open_existing(db_spec) {
         Err(DbError::NoDatabase { path }) => {
             return Err(DbError::Asset(AssetError::Unknown {
@@ -707,7 +717,25 @@ fn head_in_force(db_spec: &str, id: &str) -> anyhow::Result<Asset> {
         "station: head {} (certificate {}, due {}; angle u {} arcsec, orthogonality u {} arcsec)",
         h.asset_id, h.certificate, h.due_date, h.angle_u_arcsec, h.orthogonality_u_arcsec
     );
-    Ok(h)
+    let measured = super::fleet::measured_head_angle(&mut db, id)?;
+    let over = match measured {
+        Some(m) if m.rms_arcsec > h.angle_u_arcsec => {
+            eprintln!(
+                "warning: head asset {}: its last {} units measure {:.1}″ of angle error, more than its certificate's {}″: the budgets take the measured value (`accelcal fleet --head-asset {}` shows its signature)",
+                h.asset_id, m.units, m.rms_arcsec, h.angle_u_arcsec, h.asset_id
+            );
+            Some((m.rms_arcsec * 10.0).ceil() / 10.0)
+        }
+        Some(m) => {
+            eprintln!(
+                "station: head {}: its last {} units measure {:.1}″ of angle error, within its certificate's",
+                h.asset_id, m.units, m.rms_arcsec
+            );
+            None
+        }
+        None => None,
+    };
+    Ok((h, over))
 }
 
 /// Whether `e` rejects the unit (rather than failing the environment).
