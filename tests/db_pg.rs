@@ -194,4 +194,17 @@ fn serve_reads_the_server_s_numbers_and_shows_a_hostile_serial_as_text() {
     dbkit::serve::a_hostile_serial_is_text_and_a_stored_script_does_not_run(&pg.url);
     let pg = Cluster::start();
     dbkit::serve::only_get_is_answered_and_bad_requests_say_why(&pg.url);
+    let pg = Cluster::start();
+    let url = pg.url.clone();
+    dbkit::serve::connections_are_pooled_and_bounded(&pg.url, move || {
+        let mut c = postgres::Client::connect(&url, postgres::NoTls).unwrap();
+        c.query(
+            "SELECT pid FROM pg_stat_activity WHERE datname = current_database() AND pid <> pg_backend_pid()",
+            &[],
+        )
+        .unwrap()
+        .iter()
+        .map(|r| r.get(0))
+        .collect()
+    });
 }

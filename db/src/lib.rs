@@ -92,6 +92,13 @@ impl Db {
         Db::open_target(Target::parse(spec)?, Access::Read)
     }
 
+    /// Whether the connection still answers (`SELECT 1`): a pool's check before it hands out a
+    /// connection it kept (the server may have restarted meanwhile).
+    pub fn ping(&mut self) -> Result<(), DbError> {
+        self.conn.transaction(|tx| tx.query("SELECT 1", &[]))?;
+        Ok(())
+    }
+
     /// A second connection to the same database, for reading (a reader that queries on
     /// several connections at once).
     pub fn open_again(&self) -> Result<Db, DbError> {

@@ -269,3 +269,31 @@ pub fn the_pages_render_to_screenshots(spec: &str) {
         assert!(bytes.starts_with(b"\x89PNG") && bytes.len() > 20_000, "{name}: {} bytes", bytes.len());
     }
 }
+
+/// `serve` keeps its reading connections in a pool of at most `CONNECTIONS` (4): after 24 page
+/// loads, 8 of them at once, the server holds between 1 and 4 connections, and one that served
+/// the first page is still among them (a connection per request would hold none between pages).
+/// `pids` lists the database's other sessions (PostgreSQL's backends but the caller's own).
+pub fn connections_are_pooled_and_bounded(spec: &str, pids: impl Fn() -> Vec<i32>) {
+    let mut db = Db::open(spec).unwrap();
+    line_of_units(&mut db);
+    drop(db);
+    let server = serve(spec);
+    assert_eq!(request(&server.base, "GET", "/unit/SN-A1").0, 200);
+    let first = pids();
+    assert!((1..=4).contains(&first.len()), "{first:?}");
+    for _ in 0..3 {
+        let loads: Vec<_> = (0..8)
+            .map(|_| {
+                let base = server.base.clone();
+                std::thread::spawn(move || request(&base, "GET", "/unit/SN-A1").0)
+            })
+            .collect();
+        for l in loads {
+            assert_eq!(l.join().unwrap(), 200);
+        }
+    }
+    let after = pids();
+    assert!((1..=4).contains(&after.len()), "{after:?}");
+    assert!(first.iter().any(|p| after.contains(p)), "{first:?} then {after:?}");
+}

@@ -4,9 +4,12 @@
 //! axum serves server-side HTML from askama templates (`host/templates/serve/`, every value
 //! escaped by the template engine; the charts are SVG from plotters, which escapes its text).
 //! There is no JavaScript and no write endpoint: every route is a GET (axum answers 405 to any
-//! other method), and each request opens the database for reading on a blocking thread, gathers
-//! what its page shows with the same functions as `fleet`, `history` and `certificate`, and
-//! closes it. A Content-Security-Policy without scripts goes with every answer, so a stored
+//! other method), and each request takes a reading connection from a pool of at most
+//! [`CONNECTIONS`] (r2d2; checked with a `SELECT 1` as it is taken) on a blocking thread, and
+//! gathers what its page shows with the same functions as `fleet`, `history` and `certificate`.
+//! The pool bounds what a browser's reloads can take of a PostgreSQL server's connections, which
+//! the stations writing need, and saves a connection's setup per page; a request that finds
+//! every connection busy for [`WAIT`] is answered 503. A Content-Security-Policy without scripts goes with every answer, so a stored
 //! certificate (whose HTML the view serves as issued) cannot run one either.
 
 mod pages;
@@ -26,11 +29,39 @@ use axum::Router;
 use crate::cli::ServeArgs;
 use crate::cmd::store::reader_spec;
 
+/// Connections to the database the server keeps at most.
+pub const CONNECTIONS: u32 = 4;
+
+/// How long a request waits for a free connection before it is answered 503.
+const WAIT: std::time::Duration = std::time::Duration::from_secs(10);
+
+/// The pool's connections: readers of the database at `spec`.
+struct Readers {
+    spec: String,
+}
+
+impl r2d2::ManageConnection for Readers {
+    type Connection = Db;
+    type Error = accelcal_db::DbError;
+
+    fn connect(&self) -> Result<Db, accelcal_db::DbError> {
+        Db::open_existing(&self.spec)
+    }
+
+    fn is_valid(&self, db: &mut Db) -> Result<(), accelcal_db::DbError> {
+        db.ping()
+    }
+
+    fn has_broken(&self, _: &mut Db) -> bool {
+        false
+    }
+}
+
 /// What every handler needs.
 #[derive(Clone)]
 struct App {
-    /// The database, as `--db` gave it.
-    spec: String,
+    /// The reading connections.
+    pool: r2d2::Pool<Readers>,
     /// Its name as the pages show it.
     target: String,
     /// The overview's horizon for units and assets due, days.
@@ -63,7 +94,13 @@ pub fn run(a: &ServeArgs) -> anyhow::Result<()> {
     let spec = reader_spec(a.reader.db.as_deref())?;
     // The database must be there before the server listens.
     let target = Db::open_existing(&spec)?.target();
-    let app = App { spec, target: target.clone(), due_days: a.due_days };
+    let pool = r2d2::Pool::builder()
+        .max_size(CONNECTIONS)
+        .min_idle(Some(1))
+        .connection_timeout(WAIT)
+        .build(Readers { spec })
+        .with_context(|| format!("connecting to {target}"))?;
+    let app = App { pool, target: target.clone(), due_days: a.due_days };
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
@@ -119,7 +156,10 @@ where
 {
     let target = app.target.clone();
     let done = tokio::task::spawn_blocking(move || {
-        let mut db = Db::open_existing(&app.spec).map_err(PageError::internal)?;
+        let mut db = app.pool.get().map_err(|e| PageError {
+            status: StatusCode::SERVICE_UNAVAILABLE,
+            message: format!("no connection to the database within {} s: {e}", WAIT.as_secs()),
+        })?;
         render(&mut db, &app)
     })
     .await;
