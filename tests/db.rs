@@ -859,4 +859,11 @@ fn the_head_s_measured_angle_error_feeds_the_budget_when_it_exceeds_the_certific
     };
     let ratio = head_u(&h) / head_u(&s);
     assert!((ratio / (rms / 3.0) - 1.0).abs() < 0.01, "{ratio} for {rms}″ over 3″");
+    // `fleet` and serve's charts page say the same of the head.
+    let (code, out, err) = fleet_in_january(&spec, &[]);
+    assert_eq!(code, Some(0), "{err}");
+    let said = format!("its angle error as its last 30 units measure it: {rms:.1}″ RMS over 122 head angles");
+    assert!(out.contains(&said), "{said}: {out}");
+    let charts = dbkit::serve::page(&spec, "/charts?since=2026-01-01&until=2026-01-31&head_asset=HEAD-E");
+    assert!(charts.contains(&said), "{said}: {charts}");
 }

@@ -297,3 +297,11 @@ pub fn connections_are_pooled_and_bounded(spec: &str, pids: impl Fn() -> Vec<i32
     assert!((1..=4).contains(&after.len()), "{after:?}");
     assert!(first.iter().any(|p| after.contains(p)), "{first:?} then {after:?}");
 }
+
+/// The body of `serve`'s page `path` on the database `spec`.
+pub fn page(spec: &str, path: &str) -> String {
+    let server = serve(spec);
+    let (status, _, body) = request(&server.base, "GET", path);
+    assert_eq!(status, 200, "{path}: {body}");
+    body
+}

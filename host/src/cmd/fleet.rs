@@ -169,6 +169,14 @@ pub fn measured_head_angle(
     Ok(track(&units, newest.g_m_s2, Settings::default()).signature.measured_angle)
 }
 
+/// The head's angle error as its units measure it, in words.
+pub(crate) fn measured_line(m: &accelcal_core::headsig::MeasuredAngle) -> String {
+    format!(
+        "its angle error as its last {} units measure it: {:.1}″ RMS over {} head angles",
+        m.units, m.rms_arcsec, m.angles
+    )
+}
+
 /// A change point of a head's signature in words: its unit, run, time, rule and estimate.
 pub(crate) fn change_point(c: &accelcal_core::headsig::ChangePoint) -> String {
     format!(
@@ -431,11 +439,8 @@ pub fn run(a: &FleetArgs) -> anyhow::Result<()> {
                 change_point(c)
             ),
         }
-        if let Some(m) = h.head.signature.measured_angle {
-            println!(
-                "    its angle error as its last {} units measure it: {:.1}″ RMS over {} head angles",
-                m.units, m.rms_arcsec, m.angles
-            );
+        if let Some(m) = &h.head.signature.measured_angle {
+            println!("    {}", measured_line(m));
         }
     }
     println!(

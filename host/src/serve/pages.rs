@@ -12,7 +12,7 @@ use axum::http::StatusCode;
 
 use super::svg::{control_chart, drift_chart, signature_chart, Lines};
 use super::{App, PageError};
-use crate::cmd::fleet::{change_point, csv_of, due_by, filter_of, gather, FleetData, Parts};
+use crate::cmd::fleet::{change_point, csv_of, due_by, filter_of, gather, measured_line, FleetData, Parts};
 use crate::cmd::history::{outcome, verification};
 use crate::report::sig;
 
@@ -367,6 +367,8 @@ struct HeadView {
     asset: String,
     units: usize,
     settings: String,
+    /// The head's angle error as its units measure it, or empty.
+    measured: String,
     change_points: Vec<String>,
     svg: String,
 }
@@ -446,6 +448,7 @@ pub(super) fn charts(db: &mut Db, app: &App, q: &str) -> Result<String, PageErro
             asset: h.asset.clone(),
             units: h.head.units,
             settings: h.head.settings_line(),
+            measured: h.head.signature.measured_angle.as_ref().map(measured_line).unwrap_or_default(),
             change_points: h.head.change_points.iter().map(change_point).collect(),
             svg: if arcsec.is_empty() {
                 String::new()
