@@ -655,6 +655,13 @@ fn fleet_flags_a_head_knocked_out_of_true_from_the_units_campaigns() {
     let want = accelcal_core::spc::ImrLimits::of(&values).unwrap();
     assert!((k0["limits"]["ucl"].as_f64().unwrap() - want.ucl).abs() < 1e-9 * want.ucl.abs().max(1.0));
     assert_eq!(k0["limits"]["mr_bar"].as_f64().unwrap(), want.mr_bar);
+    // What an in-control chart of 70 points shows by chance, with each chart that breaks a rule.
+    assert!((k0["expected_by_chance"].as_f64().unwrap() - 0.0218 * 70.0).abs() < 1e-9, "{k0}");
+    let broken: Vec<&str> = out.lines().filter(|l| l.contains(" violation")).collect();
+    assert!(
+        broken.iter().all(|l| l.contains(" in 70 points (about 1.5 by chance), the last rule ")),
+        "{out}"
+    );
     assert!(
         out.contains(
             "control charts (I-MR, Western Electric rules, limits from the points charted): 12 charts"

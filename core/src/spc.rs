@@ -45,6 +45,30 @@ pub struct Violation {
     pub what: &'static str,
 }
 
+/// Violations per point (rules 1 to 5 together, [`ImrLimits::violations`]) on a chart of
+/// independent normal values whose limits come from its own points, by the chart's size:
+/// measured by the unit test `the_chance_rate_is_what_in_control_charts_show` on 2 million
+/// simulated points per size. Each rule counts every point that completes it, so a run of nine
+/// on one side is two violations of rule 4.
+pub const CHANCE_RATE: [(usize, f64); 4] = [(30, 0.0172), (70, 0.0218), (300, 0.0245), (2700, 0.0254)];
+
+/// The violations an in-control chart of `n` points shows by chance ([`CHANCE_RATE`], linear
+/// in log n between its sizes, held at its ends): at a line's volume a chart with about this
+/// many violations is not out of control for having them.
+pub fn violations_by_chance(n: usize) -> f64 {
+    let ln = (n.max(1) as f64).ln();
+    let rate = match CHANCE_RATE.iter().position(|&(m, _)| m >= n) {
+        Some(0) => CHANCE_RATE[0].1,
+        None => CHANCE_RATE[CHANCE_RATE.len() - 1].1,
+        Some(i) => {
+            let ((a, ra), (b, rb)) = (CHANCE_RATE[i - 1], CHANCE_RATE[i]);
+            let t = (ln - (a as f64).ln()) / ((b as f64).ln() - (a as f64).ln());
+            ra + t * (rb - ra)
+        }
+    };
+    rate * n as f64
+}
+
 impl ImrLimits {
     /// The limits of `x` (at least two points; `None` otherwise or when a value is not finite).
     pub fn of(x: &[f64]) -> Option<ImrLimits> {
@@ -120,6 +144,29 @@ mod tests {
         assert!(l.violations(&x).is_empty());
         assert_eq!(ImrLimits::of(&[1.0]), None);
         assert_eq!(ImrLimits::of(&[1.0, f64::NAN]), None);
+    }
+
+    #[test]
+    fn the_chance_rate_is_what_in_control_charts_show() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+        let nd = Normal::new(0.0, 1.0).unwrap();
+        for (n, rate) in CHANCE_RATE {
+            let (mut count, mut points) = (0, 0);
+            for _ in 0..(2_000_000 / n) {
+                let x: Vec<f64> = (0..n).map(|_| nd.sample(&mut rng)).collect();
+                count += ImrLimits::of(&x).unwrap().violations(&x).len();
+                points += n;
+            }
+            let seen = count as f64 / points as f64;
+            assert!((seen / rate - 1.0).abs() < 0.02, "{n} points: {seen} per point, stated {rate}");
+        }
+        assert_eq!(violations_by_chance(10), 0.172);
+        assert!((violations_by_chance(2700) - 68.58).abs() < 1e-9);
+        assert!((violations_by_chance(100_000) - 2540.0).abs() < 1e-9);
+        let mid = violations_by_chance(140) / 140.0;
+        assert!(mid > 0.0218 && mid < 0.0245, "{mid}");
     }
 
     #[test]

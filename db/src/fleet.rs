@@ -23,7 +23,9 @@ coefficient, the as-left largest |error|) over the runs that passed, in start or
 (Montgomery §6.4): centre x̄, σ̂ = MR̄/d2 with d2 = 1.128, limits x̄ ± 3σ̂, the moving range's limit D4·MR̄ with D4 = 3.267, \
 the limits those of the points charted; the Western Electric rules: 1 a point beyond 3σ̂, 2 two of three beyond 2σ̂ on one \
 side, 3 four of five beyond 1σ̂ on one side, 4 eight in a row on one side of the centre line (5: a moving range beyond \
-D4·MR̄). With all four rules, a chart of many in-control points often breaks one by chance: a violation is a place to look. \
+D4·MR̄). With all the rules, a chart of many in-control points breaks some by chance: a violation is a place to look, and \
+each chart states the violations an in-control chart of as many points shows by chance (0.017 per point at 30 points, \
+0.025 at 2,700). \
 Head signature: per head asset, each unit's model-4 residuals read as head-angle errors at every position and its \
 misalignments as the mount's rotations and the block's non-orthogonalities, each followed by a self-starting two-sided \
 CUSUM (Hawkins: each unit standardised by every unit before it since the last change point, at least 50, its Student t \
@@ -499,6 +501,7 @@ impl Db {
                     quantity: quantity.clone(),
                     unit,
                     limits,
+                    expected_by_chance: accelcal_core::spc::violations_by_chance(points.len()),
                     points,
                     violations,
                 });
@@ -627,4 +630,7 @@ pub struct Chart {
     pub points: Vec<ChartPoint>,
     /// The points that break a rule.
     pub violations: Vec<(accelcal_core::spc::Violation, ChartPoint)>,
+    /// The violations a chart of as many points shows by chance when in control
+    /// ([`accelcal_core::spc::violations_by_chance`]).
+    pub expected_by_chance: f64,
 }

@@ -399,12 +399,14 @@ pub fn run(a: &FleetArgs) -> anyhow::Result<()> {
     for c in broken {
         let (v, p) = c.violations.last().expect("a violation");
         println!(
-            "    {}, {} ({}): {} violation{}, the last rule {} ({}) at {} (run {}, {}): {:.6}, centre {:.6}, limits {:.6} .. {:.6}",
+            "    {}, {} ({}): {} violation{} in {} points (about {:.1} by chance), the last rule {} ({}) at {} (run {}, {}): {:.6}, centre {:.6}, limits {:.6} .. {:.6}",
             c.group,
             c.quantity,
             c.unit,
             c.violations.len(),
             if c.violations.len() == 1 { "" } else { "s" },
+            c.points.len(),
+            c.expected_by_chance,
             v.rule,
             v.what,
             if p.serial.is_empty() { "-" } else { &p.serial },

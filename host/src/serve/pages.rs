@@ -395,7 +395,15 @@ pub(super) fn charts(db: &mut Db, app: &App, q: &str) -> Result<String, PageErro
         let broken: Vec<usize> = c.violations.iter().map(|(v, _)| v.index).collect();
         let l = Lines { center: c.limits.center, lcl: c.limits.lcl, ucl: c.limits.ucl };
         charts.push(ChartView {
-            title: format!("{}, {} ({})", c.group, c.quantity, c.unit),
+            title: format!(
+                "{}, {} ({}): {} points, {} violations (about {:.1} by chance)",
+                c.group,
+                c.quantity,
+                c.unit,
+                c.points.len(),
+                c.violations.len(),
+                c.expected_by_chance
+            ),
             svg: control_chart(c.unit, &values, Some(&l), &broken).map_err(PageError::internal)?,
             violations: c
                 .violations
