@@ -305,15 +305,20 @@ fn fit_budget(
                         "{} by head asset {}, certificate {} (due {})",
                         c.source, h.asset_id, h.certificate, h.due_date
                     );
-                    if let (true, Some(m)) = (c.name == "head_angle", head.measured) {
-                        c.source = format!(
-                            "{}; its last {} units measure {:.1}″ (RMS over {} head angles): the {} is taken",
-                            c.source,
-                            m.units,
-                            m.rms_arcsec,
-                            m.angles,
-                            if m.rms_arcsec > h.angle_u_arcsec { "measured value" } else { "stated value" }
-                        );
+                    match (c.name == "head_angle", head.measured) {
+                        (true, Some(m)) if m.rms_arcsec > h.angle_u_arcsec => {
+                            c.source = format!(
+                                "{:.2} arcsec per angle and position, measured by the head's last {} units (RMS over {} head angles): more than the {} arcsec that head asset {}'s certificate {} (due {}) states",
+                                m.rms_arcsec, m.units, m.angles, h.angle_u_arcsec, h.asset_id, h.certificate, h.due_date
+                            );
+                        }
+                        (true, Some(m)) => {
+                            c.source = format!(
+                                "{}; its last {} units measure {:.2} arcsec (RMS over {} head angles)",
+                                c.source, m.units, m.rms_arcsec, m.angles
+                            );
+                        }
+                        _ => {}
                     }
                 }
             }
