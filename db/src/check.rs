@@ -17,7 +17,6 @@ use accelcal_core::spc::{ImrLimits, Violation};
 use accelcal_line::verify::VerifyReport;
 use serde::Serialize;
 
-use super::fleet::opt_text;
 use super::{Db, DbError};
 
 /// How the reason of a check run's end begins (`fleet`'s SQL leaves these runs out by it:
@@ -259,12 +258,12 @@ impl Db {
         })?;
         rows.iter()
             .map(|r| {
-                let report = opt_text(&r[4])?;
+                let report = r[4].opt_text()?;
                 Ok(CheckRun {
                     run_id: r[0].text()?,
                     serial: r[1].text()?,
                     started_unix_s: r[2].int()?,
-                    outcome: opt_text(&r[3])?,
+                    outcome: r[3].opt_text()?,
                     reason: r[5].text()?,
                     mean_error_m_s2: report
                         .and_then(|t| VerifyReport::parse(&t).ok())

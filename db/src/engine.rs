@@ -133,6 +133,14 @@ impl From<Vec<u8>> for Val {
 }
 
 impl Val {
+    /// The text, `None` for NULL.
+    pub(crate) fn opt_text(&self) -> Result<Option<String>, DbError> {
+        match self {
+            Val::Null => Ok(None),
+            v => v.text().map(Some),
+        }
+    }
+
     /// The text, or the schema is not what this build expects.
     pub fn text(&self) -> Result<String, DbError> {
         match self {

@@ -178,13 +178,6 @@ pub struct DueUnit {
     pub due_unix_s: i64,
 }
 
-pub(crate) fn opt_text(v: &Val) -> Result<Option<String>, DbError> {
-    match v {
-        Val::Null => Ok(None),
-        v => v.text().map(Some),
-    }
-}
-
 fn opt_int(v: &Val) -> Result<Option<i64>, DbError> {
     match v {
         Val::Null => Ok(None),
@@ -265,17 +258,17 @@ impl Db {
                     device_id: r[1].text()?,
                     serial: r[2].text()?,
                     station: r[3].text()?,
-                    head_asset: opt_text(&r[4])?,
+                    head_asset: r[4].opt_text()?,
                     operator: r[5].text()?,
                     started_unix_s: r[6].int()?,
                     g_m_s2: r[14].real()?,
                     ended_unix_s: opt_int(&r[7])?,
                     state: r[8].text()?,
-                    reason: opt_text(&r[9])?,
-                    as_found_decision: opt_text(&r[10])?,
-                    as_left_decision: opt_text(&r[11])?,
-                    model4: opt_text(&r[12])?.and_then(|t| serde_json::from_str(&t).ok()),
-                    u_m_s2: opt_text(&r[13])?.and_then(|t| serde_json::from_str(&t).ok()),
+                    reason: r[9].opt_text()?,
+                    as_found_decision: r[10].opt_text()?,
+                    as_left_decision: r[11].opt_text()?,
+                    model4: r[12].opt_text()?.and_then(|t| serde_json::from_str(&t).ok()),
+                    u_m_s2: r[13].opt_text()?.and_then(|t| serde_json::from_str(&t).ok()),
                 })
             })
             .collect()
@@ -566,7 +559,7 @@ impl Db {
 /// that shows nothing of its head (neither an observation nor why not: not a triad).
 fn head_observation(r: &[Val]) -> Result<Option<HeadObservation>, DbError> {
     let run_id = r[2].text()?;
-    let seen = match (opt_text(&r[5])?, opt_text(&r[6])?) {
+    let seen = match (r[5].opt_text()?, r[6].opt_text()?) {
         (_, Some(why)) => Err(why),
         (None, None) => return Ok(None),
         (Some(json), None) => Ok(serde_json::from_str(&json).map_err(|e| DbError::BadPiece {
