@@ -283,33 +283,40 @@ pub const MOUNT_TERMS: [&str; 6] = [
     "the non-orthogonality x–y",
 ];
 
-/// The statistics of a unit: at every position, its residual along `∂a/∂α` and along `∂a/∂β`
-/// (m/s²: the part of a head angle error model 4 did not absorb, times `|∂a/∂θ|`), then the six
-/// [`mount_terms`] (µrad); and for each statistic the factor to arcsec of head angle (1/|∂a/∂θ|;
-/// 1 for a misalignment, which is in µrad).
-fn statistics(u: &UnitObs, g: f64) -> (Vec<f64>, Vec<f64>) {
+/// The directions a plan's head angles move the acceleration: for each position, along `∂a/∂α`
+/// then `∂a/∂β`, the unit vector (zero where the angle moves nothing: α at β = ±90°) and the
+/// factor from m/s² along it to arcsec of head angle (`1/|∂a/∂θ|`; 0 there). The same for every
+/// unit on the plan, so [`track`] derives them once.
+fn directions(plan: &[(f64, f64)], g: f64) -> Vec<([f64; 3], f64)> {
     const H: f64 = 1e-6;
-    let n = 2 * u.positions.len() + 6;
-    let (mut out, mut to_unit) = (Vec::with_capacity(n), Vec::with_capacity(n));
-    for (&(al, be), r) in u.positions.iter().zip(&u.resid_m_s2) {
+    let mut out = Vec::with_capacity(2 * plan.len());
+    for &(al, be) in plan {
         for (da, db) in [(H, 0.0), (0.0, H)] {
             let plus = accelcal_shared::gravity(al + da.to_degrees(), be + db.to_degrees(), g);
             let minus = accelcal_shared::gravity(al - da.to_degrees(), be - db.to_degrees(), g);
             let d: [f64; 3] = std::array::from_fn(|j| (plus[j] - minus[j]) / (2.0 * H));
             let norm = d.iter().map(|x| x * x).sum::<f64>().sqrt();
             // |∂a/∂α| = g·|cos β|: nothing to see of α at β = ±90°.
-            if norm > 1e-6 * g {
-                out.push((0..3).map(|j| d[j] * r[j]).sum::<f64>() / norm);
-                to_unit.push(1.0 / norm / ARCSEC);
+            out.push(if norm > 1e-6 * g {
+                (d.map(|x| x / norm), 1.0 / norm / ARCSEC)
             } else {
-                out.push(0.0);
-                to_unit.push(0.0);
-            }
+                ([0.0; 3], 0.0)
+            });
         }
     }
+    out
+}
+
+/// The statistics of a unit on the plan of `dirs` ([`directions`]): at every position, its
+/// residual along `∂a/∂α` and along `∂a/∂β` (m/s²: the part of a head angle error model 4 did
+/// not absorb, times `|∂a/∂θ|`), then the six [`mount_terms`] (µrad).
+fn statistics(u: &UnitObs, dirs: &[([f64; 3], f64)]) -> Vec<f64> {
+    let mut out = Vec::with_capacity(dirs.len() + 6);
+    for (r, pair) in u.resid_m_s2.iter().zip(dirs.chunks(2)) {
+        out.extend(pair.iter().map(|(d, _)| (0..3).map(|j| d[j] * r[j]).sum::<f64>()));
+    }
     out.extend(mount_terms(&u.misalign_urad));
-    to_unit.extend([1.0; 6]);
-    (out, to_unit)
+    out
 }
 
 /// A running mean and standard deviation (Welford 1962).
@@ -361,8 +368,10 @@ pub fn track(units: &[UnitObs], g: f64, s: Settings) -> Head {
     let n_stat = 2 * n_pos + 6;
     let mut change_points = Vec::new();
     let mut start = 0;
-    let stats: Vec<Vec<f64>> = on.iter().map(|u| statistics(u, g).0).collect();
-    let to_unit = on.first().map(|u| statistics(u, g).1).unwrap_or_default();
+    let dirs = directions(&plan, g);
+    let stats: Vec<Vec<f64>> = on.iter().map(|u| statistics(u, &dirs)).collect();
+    // Each statistic's factor to its unit: arcsec of head angle, or 1 for a mount term (µrad).
+    let to_unit: Vec<f64> = dirs.iter().map(|d| d.1).chain([1.0; 6]).collect();
     let base = s.baseline.max(3);
     // Self-starting (Hawkins 1987): each unit is standardised by the units since the last change
     // point that end `base` units before it (at least the first `base`), per statistic, so the
@@ -379,8 +388,8 @@ pub fn track(units: &[UnitObs], g: f64, s: Settings) -> Head {
         if i < start + base {
             continue;
         }
-        let end = (start + base).max(i);
-        while added < end {
+        // The baseline: every unit since the last change point before this one.
+        while added < i {
             for (w, &x) in window.iter_mut().zip(&stats[added]) {
                 w.add(x);
             }
