@@ -271,6 +271,33 @@ pub fn run(s: &Scenario, set: &Settings, progress: &(dyn Fn(usize) + Sync)) -> R
 mod tests {
     use super::*;
 
+    /// A scenario of the head alone (2 codes of noise): its angle and orthogonality errors,
+    /// arcsec, stated and simulated.
+    fn head_only(name: &str, angle_arcsec: f64, orthogonality_arcsec: f64) -> Scenario {
+        Scenario {
+            name: name.into(),
+            noise_codes: 2.0,
+            head_angle_arcsec: angle_arcsec,
+            head_orthogonality_arcsec: orthogonality_arcsec,
+            g_u_m_s2: 0.0,
+            temperature: None,
+            quadratic_codes: 0.0,
+            range: (0.93, 0.97),
+        }
+    }
+
+    /// The coverage of the first `units` units of `s` when their budgets take `stated` instead
+    /// of the scenario's values.
+    fn coverage_stated(s: &Scenario, set: &Settings, units: usize, stated: References) -> f64 {
+        let (mut within, mut checks) = (0, 0);
+        for u in 0..units {
+            let o = one_unit(s, set, u, Some(stated)).unwrap();
+            within += o.within;
+            checks += o.checks;
+        }
+        within as f64 / checks as f64
+    }
+
     /// A head whose angles are off by 30″ (one sigma) while its certificate states 3″: its
     /// budget covers 95 % either way, since the part of the angle errors left in the residuals
     /// is in the dwell scatter unless a stated head_angle explains it (then it is taken out of
@@ -280,25 +307,10 @@ mod tests {
     #[test]
     fn a_head_worse_than_its_certificate_is_covered_with_its_stated_or_measured_error() {
         let set = Settings { units: 150, plan: Plan::head(), samples: 20, orientations: 10, seed: 5 };
-        let s = Scenario {
-            name: "head out of true".into(),
-            noise_codes: 2.0,
-            head_angle_arcsec: 30.0,
-            head_orthogonality_arcsec: 0.0,
-            g_u_m_s2: 0.0,
-            temperature: None,
-            quadratic_codes: 0.0,
-            range: (0.93, 0.97),
-        };
+        let s = head_only("head out of true", 30.0, 0.0);
         let coverage = |stated_arcsec: f64| {
             let stated = References { head_angle_rad: stated_arcsec * ARCSEC, ..References::default() };
-            let (mut within, mut checks) = (0, 0);
-            for u in 0..set.units {
-                let o = one_unit(&s, &set, u, Some(stated)).unwrap();
-                within += o.within;
-                checks += o.checks;
-            }
-            within as f64 / checks as f64
+            coverage_stated(&s, &set, set.units, stated)
         };
         let (certificate, measured) = (coverage(3.0), coverage(30.0));
         assert!((0.93..=0.97).contains(&certificate), "{certificate}");
@@ -308,27 +320,12 @@ mod tests {
     #[test]
     fn a_budget_that_is_right_covers_about_95_percent_and_one_without_the_head_does_not() {
         let set = Settings { units: 150, plan: Plan::head(), samples: 20, orientations: 10, seed: 3 };
-        let s = Scenario {
-            name: "head".into(),
-            noise_codes: 2.0,
-            head_angle_arcsec: 60.0,
-            head_orthogonality_arcsec: 60.0,
-            g_u_m_s2: 0.0,
-            temperature: None,
-            quadratic_codes: 0.0,
-            range: (0.93, 0.97),
-        };
+        let s = head_only("head", 60.0, 60.0);
         let out = run(&s, &set, &|_| {}).unwrap();
         assert!((0.92..=0.98).contains(&out.coverage), "{out:?}");
         // The same head, its orthogonality left out of the budget: the coverage falls.
         let stated = References { head_angle_rad: 60.0 * ARCSEC, ..References::default() };
-        let (mut within, mut checks) = (0, 0);
-        for u in 0..60 {
-            let o = one_unit(&s, &set, u, Some(stated)).unwrap();
-            within += o.within;
-            checks += o.checks;
-        }
-        let coverage = within as f64 / checks as f64;
+        let coverage = coverage_stated(&s, &set, 60, stated);
         assert!(coverage < 0.9, "{coverage}");
     }
 

@@ -126,12 +126,7 @@ pub fn run(a: &FitArgs, g_stated: bool, warnings: &mut super::Warnings) -> anyho
         },
     };
     if let (Some(h), Some(m)) = (&head, &measured) {
-        if m.rms_arcsec > h.angle_u_arcsec {
-            warnings.extend(&[format!(
-                "head asset {}: its last {} units measure {:.1}″ of angle error, more than its certificate's {}″: the budget takes the measured value (`accelcal fleet --head-asset {}` shows its signature)",
-                h.asset_id, m.units, m.rms_arcsec, h.angle_u_arcsec, h.asset_id
-            )]);
-        }
+        warnings.extend(super::fleet::over_certificate(h, m).as_slice());
     }
     // Streamed: the fits need the dwell statistics only, so memory does not grow with the rows.
     let r = super::reduce_campaign(&a.campaign, a.common.codes, warnings)?;

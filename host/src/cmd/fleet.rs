@@ -169,6 +169,18 @@ pub fn measured_head_angle(
     Ok(track(&units, newest.g_m_s2, Settings::default()).signature.measured_angle)
 }
 
+/// The warning that a head's units measure more angle error than its certificate states, and
+/// that the budget takes theirs (`fit --head-asset` and the station say it alike); `None` when the
+/// certificate covers it.
+pub(crate) fn over_certificate(h: &Asset, m: &accelcal_core::headsig::MeasuredAngle) -> Option<String> {
+    (m.rms_arcsec > h.angle_u_arcsec).then(|| {
+        format!(
+            "head asset {}: its last {} units measure {:.1}″ of angle error, more than its certificate's {}″: the budget takes the measured value (`accelcal fleet --head-asset {}` shows its signature)",
+            h.asset_id, m.units, m.rms_arcsec, h.angle_u_arcsec, h.asset_id
+        )
+    })
+}
+
 /// The head's angle error as its units measure it, in words.
 pub(crate) fn measured_line(m: &accelcal_core::headsig::MeasuredAngle) -> String {
     format!(

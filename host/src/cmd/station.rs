@@ -719,20 +719,19 @@ fn head_in_force(db_spec: &str, id: &str) -> anyhow::Result<(Asset, Option<f64>)
     );
     let measured = super::fleet::measured_head_angle(&mut db, id)?;
     let over = match measured {
-        Some(m) if m.rms_arcsec > h.angle_u_arcsec => {
-            eprintln!(
-                "warning: head asset {}: its last {} units measure {:.1}″ of angle error, more than its certificate's {}″: the budgets take the measured value (`accelcal fleet --head-asset {}` shows its signature)",
-                h.asset_id, m.units, m.rms_arcsec, h.angle_u_arcsec, h.asset_id
-            );
-            Some((m.rms_arcsec * 10.0).ceil() / 10.0)
-        }
-        Some(m) => {
-            eprintln!(
-                "station: head {}: its last {} units measure {:.1}″ of angle error, within its certificate's",
-                h.asset_id, m.units, m.rms_arcsec
-            );
-            None
-        }
+        Some(m) => match super::fleet::over_certificate(&h, &m) {
+            Some(warning) => {
+                eprintln!("warning: {warning}");
+                Some((m.rms_arcsec * 10.0).ceil() / 10.0)
+            }
+            None => {
+                eprintln!(
+                    "station: head {}: its last {} units measure {:.1}″ of angle error, within its certificate's",
+                    h.asset_id, m.units, m.rms_arcsec
+                );
+                None
+            }
+        },
         None => None,
     };
     Ok((h, over))
