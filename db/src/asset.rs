@@ -12,7 +12,8 @@ pub use jiff::civil::Date;
 use serde::Serialize;
 
 use super::engine::{Tx, Val};
-use super::{chain, insert_row, sha256_hex, Db, DbError, Outcome, RunId, Stored};
+use super::piece::insert_row;
+use super::{chain, sha256_hex, Db, DbError, Outcome, RunId, Stored};
 use accelcal_core::error::{Classify, Kind};
 
 /// What an asset is.

@@ -25,6 +25,7 @@ mod error;
 pub mod fleet;
 pub mod history;
 mod label;
+mod piece;
 mod types;
 
 use std::io::Read;
@@ -36,6 +37,7 @@ pub use engine::{schema_version, Access, Target};
 use engine::{Conn, Tx, Val};
 pub use error::DbError;
 pub use label::{Label, LabelClash, Relabel};
+use piece::{insert_row, Piece};
 pub use types::{LastFlash, Outcome, Phase, Progress, RunId, RunStart, RunSummary, Stored, StoredRecord};
 
 use accelcal_line::verify::VerifyReport;
@@ -63,19 +65,6 @@ pub fn now_unix_s() -> i64 {
 
 /// The gzip magic number.
 const GZIP_MAGIC: [u8; 2] = [0x1f, 0x8b];
-
-/// One piece of a run, ready to insert.
-struct Piece {
-    table: &'static str,
-    /// Its name in messages.
-    what: &'static str,
-    /// The second key column and its value: a verification's `phase`, a run asset's `kind`.
-    second: Option<(&'static str, &'static str)>,
-    /// The values of the columns after `run_id` (and the second key), without `content_sha256`, in the
-    /// order of [`chain::TABLES`].
-    values: Vec<Val>,
-    sha: String,
-}
 
 impl Db {
     /// Opens (a SQLite file is created when missing) and migrates the database `spec` names:
@@ -619,90 +608,6 @@ impl Db {
             })
         }
     }
-
-    /// Inserts a piece in one transaction: after checking that the run exists, is not
-    /// finished nor voided, and holds no other piece of the kind (the same one: [`Stored::Already`]).
-    fn store(&mut self, run: RunId, p: Piece) -> Result<Stored, DbError> {
-        self.store_deriving(run, p, &|_, _| Ok(()))
-    }
-
-    /// [`Db::store`], and `derive` writes the piece's derived rows ([`derived`]) in the same
-    /// transaction when the piece is new.
-    fn store_deriving(
-        &mut self,
-        run: RunId,
-        p: Piece,
-        derive: &dyn Fn(&mut Tx<'_>, &str) -> Result<(), DbError>,
-    ) -> Result<Stored, DbError> {
-        let run_s = run.to_string();
-        let table = chain::table(p.table);
-        let mut row = vec![Val::from(run_s.clone())];
-        if let Some((_, v)) = p.second {
-            row.push(v.into());
-        }
-        row.extend(p.values);
-        row.push(p.sha.clone().into());
-        debug_assert_eq!(row.len(), table.columns.len(), "{}: a value per column", p.table);
-        self.retried(|conn| {
-            conn.transaction(|tx| {
-                let id = Val::from(run_s.clone());
-                if tx.query("SELECT 1 FROM run WHERE run_id = $1", std::slice::from_ref(&id))?.is_empty() {
-                    return Err(DbError::NoRun { run_id: run_s.clone() });
-                }
-                if let Some(r) =
-                    tx.query("SELECT reason FROM void WHERE run_id = $1", std::slice::from_ref(&id))?.first()
-                {
-                    return Err(DbError::Conflict {
-                        run_id: run_s.clone(),
-                        what: format!(
-                            "the run is voided ({}): its {} cannot be stored",
-                            r[0].text()?,
-                            p.what
-                        ),
-                    });
-                }
-                if p.table != "run_end" {
-                    if let Some(r) = tx
-                        .query("SELECT outcome FROM run_end WHERE run_id = $1", std::slice::from_ref(&id))?
-                        .first()
-                    {
-                        return Err(DbError::Conflict {
-                            run_id: run_s.clone(),
-                            what: format!(
-                                "the run is finished ({}): its {} cannot be stored",
-                                r[0].text()?,
-                                p.what
-                            ),
-                        });
-                    }
-                }
-                let mut key = vec![id];
-                let mut key_sql = "run_id = $1".to_string();
-                if let Some((col, v)) = p.second {
-                    key.push(v.into());
-                    key_sql.push_str(&format!(" AND {col} = $2"));
-                }
-                let found =
-                    tx.query(&format!("SELECT content_sha256 FROM {} WHERE {key_sql}", p.table), &key)?;
-                if let Some(r) = found.first() {
-                    return if r[0].text()? == p.sha {
-                        Ok(Stored::Already)
-                    } else {
-                        Err(DbError::Conflict {
-                            run_id: run_s.clone(),
-                            what: format!(
-                                "it holds another {} already (a run stores each piece once)",
-                                p.what
-                            ),
-                        })
-                    };
-                }
-                insert_row(tx, table, &row)?;
-                derive(tx, &run_s)?;
-                Ok(Stored::New)
-            })
-        })
-    }
 }
 
 /// A text field's check ([`accelcal_core::text`]) as the refusal of the piece it would go into.
@@ -712,21 +617,6 @@ fn one_line(
     checked: Result<&str, accelcal_core::text::TextError>,
 ) -> Result<(), DbError> {
     checked.map(drop).map_err(|e| DbError::BadPiece { run_id: run.to_string(), piece, cause: e.to_string() })
-}
-
-/// Inserts a row of `table` (a value per column, in its order) and its ledger entry.
-fn insert_row(tx: &mut Tx<'_>, table: &chain::Table, row: &[Val]) -> Result<(), DbError> {
-    let placeholders: Vec<String> = (1..=row.len()).map(|i| format!("${i}")).collect();
-    tx.execute(
-        &format!(
-            "INSERT INTO {} ({}) VALUES ({})",
-            table.name,
-            table.columns.join(", "),
-            placeholders.join(", ")
-        ),
-        row,
-    )?;
-    chain::append(tx, table, row)
 }
 
 /// The `run` columns [`run_start`] reads, in its order.

@@ -2,7 +2,12 @@
 //! both sides, and their framing.
 //!
 //! A frame is one message serialised with postcard, COBS-encoded, and terminated by a single `0x00`
-//! byte (COBS guarantees the encoded body holds no zero). Every message type is a plain serde enum;
+//! byte (COBS guarantees the encoded body holds no zero). Both ends send each frame with a `0x00`
+//! in front of it as well ([`encode_sync`]): a receiver that joined the stream mid-frame (a
+//! serial port opened on a running node) drops the bytes up to its first `0x00`, and with the
+//! leading zero that is never more than the tail of one frame. A frame must decode to exactly
+//! one message: bytes left after it make it malformed, so the tail of a frame that happens to
+//! begin like another message is refused, not taken for that message. Every message type is a plain serde enum;
 //! postcard encodes a variant as its index (varint) followed by its fields, integers as varints,
 //! floats as little-endian IEEE 754. The protocol version is [`PROTOCOL_VERSION`]; the node states
 //! it in every [`Status`], and new variants are only ever appended so that old bytes keep decoding.
@@ -52,11 +57,12 @@ pub const MAX_BLOCK: usize = 16;
 /// the terminating zero included ([`MAX_NODE_FRAME`], [`MAX_REQUEST_FRAME`]).
 pub const MAX_FRAME: usize = 256;
 
-/// Longest frame of any [`NodeMsg`]: [`NodeMsg::Samples`] with a block of [`MAX_BLOCK`] f32
-/// triads and its temperature, 1 (variant) + 5 (seq varint) + 5 (first varint) + 1 (block
-/// variant) + 1 (length) + 16·12 + 11 (`Some` [`BlockTemp`]) = 216 bytes, + 1 COBS + 1
-/// terminator (tested).
-pub const MAX_NODE_FRAME: usize = 218;
+/// Longest frame of any [`NodeMsg`], with the leading zero the node puts in front of it
+/// ([`encode_sync`]): [`NodeMsg::Samples`] with a block of [`MAX_BLOCK`] f32 triads and its
+/// temperature, 1 (variant) + 5 (seq varint) + 5 (first varint) + 1 (block variant) + 1
+/// (length) + 16·12 + 11 (`Some` [`BlockTemp`]) = 216 bytes, + 1 COBS + 1 terminator + 1
+/// leading zero (tested).
+pub const MAX_NODE_FRAME: usize = 219;
 const _: () = assert!(MAX_NODE_FRAME <= MAX_FRAME && MAX_REQUEST_FRAME <= MAX_FRAME);
 
 /// A raw 16-bit code set: channels x, y, z.
@@ -73,8 +79,8 @@ pub const RATE_MIN_HZ: u32 = 100;
 ///
 /// Two limits, both with margin: one ADC scan (a discarded conversion and three channels, each
 /// oversampled 16×, 247.5-cycle sampling at 80 MHz) takes 159 µs, so the ADC alone would allow
-/// 6.3 kHz; and a block of 16 calibrated sets is a frame of at most [`MAX_NODE_FRAME`] = 218
-/// bytes, so 4 kHz is 54.5 kB/s, 59 % of USART1 at 921600 baud (92.16 kB/s), leaving the rest for
+/// 6.3 kHz; and a block of 16 calibrated sets is a frame of at most [`MAX_NODE_FRAME`] = 219
+/// bytes, so 4 kHz is 54.8 kB/s, 59 % of USART1 at 921600 baud (92.16 kB/s), leaving the rest for
 /// status reports and replay answers.
 pub const RATE_MAX_HZ: u32 = 4000;
 /// The live sampling rate the node starts with, Hz.
@@ -83,9 +89,9 @@ pub const DEFAULT_RATE_HZ: u32 = 1000;
 /// Size of the node's link receive ring, bytes (the real board's USART1 DMA ring).
 ///
 /// The link task stops reading the ring while it waits for room in its outbox (4 messages of at
-/// most [`MAX_NODE_FRAME`] = 218 bytes, 2.37 ms each at 921600 baud). With live sampling at
+/// most [`MAX_NODE_FRAME`] = 219 bytes, 2.38 ms each at 921600 baud). With live sampling at
 /// [`RATE_MAX_HZ`] taking a slot every 4 ms, the wait is at most 3 transmissions, 7.1 ms, in
-/// which a host sending without pause delivers 654 bytes; 2048 bytes hold 22 ms of line time,
+/// which a host sending without pause delivers 657 bytes; 2048 bytes hold 22 ms of line time,
 /// 3.1× that. A host that
 /// keeps to [`MAX_REQUESTS_IN_FLIGHT`] cannot overrun it however long the wait.
 pub const LINK_RX_RING: usize = 2048;
@@ -547,6 +553,27 @@ pub fn encode<'a, T: Serialize>(msg: &T, buf: &'a mut [u8]) -> Result<&'a [u8], 
     }
 }
 
+/// [`encode`] with a `0x00` in front of the frame, as both ends of the node link send: the zero
+/// ends whatever a receiver holds (the tail of a frame it joined mid-way, or noise), so the
+/// frame after it is read whole. Receivers skip the empty frame it makes.
+pub fn encode_sync<'a, T: Serialize>(msg: &T, buf: &'a mut [u8]) -> Result<&'a [u8], FrameError> {
+    let (zero, body) = buf.split_first_mut().ok_or(FrameError::TooLong)?;
+    *zero = 0;
+    let n = encode(msg, body)?.len();
+    Ok(&buf[..n + 1])
+}
+
+/// Decodes one frame's COBS body (the bytes between two zeros) in place into exactly one
+/// message: bad COBS, bad postcard and bytes left over after the message are all
+/// [`FrameError::Malformed`].
+fn decode_body<T: for<'de> Deserialize<'de>>(body: &mut [u8]) -> Result<T, FrameError> {
+    let n = cobs::decode_in_place(body).map_err(|_| FrameError::Malformed)?;
+    match postcard::take_from_bytes::<T>(&body[..n]) {
+        Ok((msg, [])) => Ok(msg),
+        _ => Err(FrameError::Malformed),
+    }
+}
+
 /// Accumulates link bytes into frames and decodes them; `N` is the longest accepted frame.
 pub struct FrameDecoder<const N: usize> {
     buf: [u8; N],
@@ -590,9 +617,7 @@ impl<const N: usize> FrameDecoder<N> {
             if overflow {
                 on_frame(Err(FrameError::TooLong));
             } else if len > 0 {
-                on_frame(
-                    postcard::from_bytes_cobs::<T>(&mut self.buf[..len]).map_err(|_| FrameError::Malformed),
-                );
+                on_frame(decode_body(&mut self.buf[..len]));
             }
         }
     }

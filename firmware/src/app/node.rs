@@ -250,7 +250,9 @@ pub async fn transmit(mut tx: impl LinkTx) -> ! {
     let mut buf = [0u8; MAX_FRAME];
     loop {
         let msg = OUTBOX.receive().await;
-        match wire::encode(&msg, &mut buf) {
+        // A zero in front of each frame: a host that opens its port while a frame is on the line
+        // drops the bytes up to the first zero, so it never loses more than that frame's tail.
+        match wire::encode_sync(&msg, &mut buf) {
             Ok(frame) => tx.write_all(frame).await,
             // Unreachable with the message sizes of `wire` (tested there); never send a partial frame.
             Err(e) => defmt::error!("frame encode failed: {}", e),

@@ -92,7 +92,7 @@ fn a_node_that_reset_is_set_back_and_t_s_keeps_increasing() {
     let mut bytes = VecDeque::new();
     for m in [NodeMsg::Info(info), NodeMsg::RateSet(status), NodeMsg::OutputSet(status)] {
         let mut buf = [0u8; wire::MAX_FRAME];
-        bytes.extend(wire::encode(&m, &mut buf).unwrap());
+        bytes.extend(wire::encode_sync(&m, &mut buf).unwrap());
     }
     let mut node = Session::from_streams(
         "test",

@@ -38,10 +38,10 @@ impl Classify for LinkError {
     }
 }
 
-/// Encodes one message as a frame.
+/// Encodes one message as a frame with its leading zero ([`wire::encode_sync`]).
 pub fn frame(msg: &HostMsg) -> Result<Vec<u8>, LinkError> {
     let mut buf = [0u8; MAX_FRAME];
-    Ok(wire::encode(msg, &mut buf).map_err(LinkError::Encode)?.to_vec())
+    Ok(wire::encode_sync(msg, &mut buf).map_err(LinkError::Encode)?.to_vec())
 }
 
 /// What a [`Receiver`] has read: bytes, how many of them were `0x00` (the frame delimiter), and
@@ -126,8 +126,10 @@ impl<R: Read> Receiver<R> {
 
     /// Wraps a byte stream joined while the node was already sending (a serial port opened on a
     /// running node, or a stream another reader has read from): the bytes before the first frame
-    /// delimiter are the tail of a frame and are dropped, not reported as a bad frame. A joiner at
-    /// a frame boundary loses one whole frame that way.
+    /// delimiter are the tail of a frame and are dropped, not reported as a bad frame. The node
+    /// puts a zero in front of every frame ([`wire::encode_sync`]), so a joiner at a frame
+    /// boundary drops only that zero; from a sender without leading zeros it would lose one
+    /// whole frame.
     pub fn mid_stream(inner: R) -> Self {
         Receiver { skip_to_delimiter: true, ..Receiver::new(inner) }
     }
@@ -186,8 +188,7 @@ impl<R: Read> Receiver<R> {
 
 /// Sends one message (with a leading zero, which resynchronises the node's decoder after noise).
 pub fn send(w: &mut impl Write, msg: &HostMsg) -> Result<(), LinkError> {
-    let mut bytes = vec![0u8];
-    bytes.extend_from_slice(&frame(msg)?);
+    let bytes = frame(msg)?;
     // `write_all` retries a write cut by a signal (EINTR); the flush (a serial port's `tcdrain`)
     // is retried here, so that a Ctrl-C never fails a request.
     w.write_all(&bytes)?;
@@ -254,10 +255,15 @@ pub(crate) mod tests {
     }
 
     #[test]
-    fn a_stream_joined_at_a_boundary_loses_one_frame() {
+    fn a_stream_joined_at_a_boundary_loses_one_frame_unless_frames_lead_with_a_zero() {
         let mut bytes = samples_frame();
         bytes.extend_from_slice(&samples_frame());
         assert_eq!(all(Receiver::mid_stream(Chunks(bytes, 0))).len(), 1);
+        // As the node sends them: each frame after a zero.
+        let mut buf = [0u8; MAX_FRAME];
+        let synced = wire::encode_sync(&samples(), &mut buf).unwrap().to_vec();
+        let got = all(Receiver::mid_stream(Chunks([synced.clone(), synced].concat(), 0)));
+        assert_eq!(got, vec![Ok(samples()), Ok(samples())]);
     }
 
     /// A peer that never stops sending `pattern` over and over, a few bytes per read, each read

@@ -122,13 +122,18 @@ impl Session {
     }
 
     /// A session over any pair of byte streams (tests); reads must time out every [`POLL`] or so.
+    ///
+    /// The stream is taken as joined mid-frame ([`Receiver::mid_stream`]), as every port is: the
+    /// node was sending before the port was opened, and the emulator's terminal hands over the
+    /// node's bytes from wherever they are when a program opens it. The tail of a frame, read as a
+    /// frame, can decode to another message; the first bad frame once did, as a refusal.
     pub fn from_streams(
         port: &str,
         tx: Box<dyn Write + Send>,
         rx: Box<dyn Read + Send>,
         answer: Duration,
     ) -> Session {
-        Session { port: port.to_string(), tx, rx: Receiver::new(rx), answer }
+        Session { port: port.to_string(), tx, rx: Receiver::mid_stream(rx), answer }
     }
 
     /// The receiving half, with whatever it has read past the last answer: a reader that goes on
@@ -189,8 +194,8 @@ impl Session {
     /// Sends `request` (when given) and waits for the first message that `pick` accepts, up to the
     /// answer timeout, sending the request again every [`RESEND`] (every request of the protocol
     /// may be repeated: a node that was not yet listening, or a pty not yet read by QEMU, loses
-    /// the first copy); a refusal is an error. `what` names the awaited answer in the timeout's
-    /// message.
+    /// the first copy); a refusal of a `SetRate` is an error. `what` names the awaited answer in
+    /// the timeout's message.
     fn await_msg<T>(
         &mut self,
         request: Option<&HostMsg>,
@@ -207,7 +212,9 @@ impl Session {
                 }
             }
             match self.poll_until(wait.deadline)? {
-                Some(NodeMsg::Refused(refusal)) => {
+                // Only a rate is ever refused: a refusal while waiting for another answer is not
+                // this request's (the node sends none unasked) and is not taken for one.
+                Some(NodeMsg::Refused(refusal)) if matches!(request, Some(HostMsg::SetRate { .. })) => {
                     return Err(SessionError::Refused { port: self.port.clone(), refusal })
                 }
                 Some(m) => {
@@ -340,9 +347,10 @@ mod tests {
         }
     }
 
+    /// A node message framed as the node sends it (a zero in front).
     fn frame(m: &NodeMsg) -> Vec<u8> {
         let mut buf = [0u8; MAX_FRAME];
-        wire::encode(m, &mut buf).unwrap().to_vec()
+        wire::encode_sync(m, &mut buf).unwrap().to_vec()
     }
 
     fn info(protocol: u8) -> Info {
@@ -354,6 +362,21 @@ mod tests {
             rate_hz: 1000,
             overruns: 0,
             reset_cause: ResetCause::PowerOn,
+            output: Output::Calibrated,
+        }
+    }
+
+    /// A status report of a node whose record was created at `created_unix_s`.
+    fn status(created_unix_s: u64) -> Status {
+        Status {
+            protocol: wire::PROTOCOL_VERSION,
+            record: RecordStatus::InUse { slot: 0, sequence: 1, created_unix_s, crc: 3 },
+            overruns: 0,
+            sample_sets: 0,
+            rate_hz: 1000,
+            bad_frames: 0,
+            reset_cause: ResetCause::PowerOn,
+            trigger_mismatch: false,
             output: Output::Calibrated,
         }
     }
@@ -393,6 +416,35 @@ mod tests {
         assert_eq!(*sent.lock().unwrap(), vec![0x00, 0x02, 0x03, 0x00]);
         assert_eq!(device_id_hex(b"QEMU-B-L475E"), "51454d552d422d4c34373545");
         assert_eq!(firmware_version([0, 1, 12]), "0.1.12");
+    }
+
+    /// A port opened while the node was sending a status report: the report's tail, which
+    /// without its first byte begins like a refusal, is dropped, and the answer is read.
+    #[test]
+    fn a_port_opened_mid_frame_reads_the_next_frame_not_the_tail() {
+        let status = status(1_796_525_864);
+        for cut in 1..frame(&NodeMsg::Status(status)).len() - 1 {
+            let (mut s, _) = session(&[]);
+            let script = {
+                let mut bytes = frame(&NodeMsg::Status(status))[cut..].to_vec();
+                bytes.extend(frame(&NodeMsg::Info(info(wire::PROTOCOL_VERSION))));
+                bytes
+            };
+            s.rx = Receiver::mid_stream(Box::new(Script(Arc::new(Mutex::new(script.into())))));
+            assert_eq!(s.info().unwrap(), info(wire::PROTOCOL_VERSION), "joined {cut} bytes into the status");
+        }
+    }
+
+    /// A refusal answers a `SetRate` only: while another answer is awaited it is passed over.
+    #[test]
+    fn a_refusal_fails_only_the_request_it_can_answer() {
+        let refused =
+            NodeMsg::Refused(wire::Refusal::RateOutOfRange { requested_hz: 0, min_hz: 1, max_hz: 2 });
+        let (mut s, _) = session(&[refused.clone(), NodeMsg::Info(info(wire::PROTOCOL_VERSION))]);
+        assert_eq!(s.info().unwrap(), info(wire::PROTOCOL_VERSION));
+        let (mut s, _) = session(&[refused]);
+        let e = s.set_rate(50).unwrap_err();
+        assert!(matches!(e, SessionError::Refused { .. }), "{e}");
     }
 
     /// A read cut by a signal (Ctrl-C while the serial port waits) is no message yet, never an
@@ -470,17 +522,7 @@ mod tests {
     #[test]
     fn a_wait_for_blocks_ends_whatever_else_comes() {
         use std::sync::atomic::{AtomicBool, Ordering};
-        let status = frame(&NodeMsg::Status(Status {
-            protocol: wire::PROTOCOL_VERSION,
-            record: RecordStatus::InUse { slot: 0, sequence: 1, created_unix_s: 2, crc: 3 },
-            overruns: 0,
-            sample_sets: 0,
-            rate_hz: 1000,
-            bad_frames: 0,
-            reset_cause: ResetCause::PowerOn,
-            trigger_mismatch: false,
-            output: Output::Calibrated,
-        }));
+        let status = frame(&NodeMsg::Status(status(2)));
         let script = Script::default();
         let block = NodeMsg::Samples { seq: 1, first: 0, data: Block::Raw(Default::default()), temp: None };
         script.0.lock().unwrap().extend(frame(&block));

@@ -94,9 +94,9 @@ fn status_round_trip_and_largest_message_fits() {
         output: Output::Calibrated,
     });
     let mut buf = [0u8; MAX_FRAME];
-    assert_eq!(encode(&big, &mut buf).unwrap().len(), MAX_NODE_FRAME, "the largest node message");
+    assert_eq!(encode_sync(&big, &mut buf).unwrap().len(), MAX_NODE_FRAME, "the largest node message");
     for m in [st, big, info] {
-        let frame = encode(&m, &mut buf).unwrap().to_vec();
+        let frame = encode_sync(&m, &mut buf).unwrap().to_vec();
         assert!(frame.len() <= MAX_NODE_FRAME);
         assert_eq!(decode_all::<NodeMsg>(&frame), vec![Ok(m)]);
     }
@@ -177,17 +177,16 @@ fn every_request_fits_max_request_frame_and_the_ring_holds_the_requests_in_fligh
         HostMsg::GetInfo,
         HostMsg::SetOutput(Output::Raw),
     ] {
-        // +1: the leading zero a sender may add.
-        let n = encode(&m, &mut buf).unwrap().len() + 1;
+        let n = encode_sync(&m, &mut buf).unwrap().len();
         assert!(n <= MAX_REQUEST_FRAME, "{m:?}: {n} bytes");
     }
-    let n = encode(
+    let n = encode_sync(
         &HostMsg::Replay { seq: u32::MAX, codes: codes(&[[65535; 3]; MAX_BLOCK]), temp: temp() },
         &mut buf,
     )
     .unwrap()
     .len();
-    assert_eq!(n + 1, MAX_REQUEST_FRAME, "the bound is tight");
+    assert_eq!(n, MAX_REQUEST_FRAME, "the bound is tight");
     assert_eq!(MAX_REQUESTS_IN_FLIGHT, 9);
 }
 
@@ -338,4 +337,50 @@ fn random_bytes_never_panic() {
         d.push(&chunk, |_: Result<HostMsg, _>| frames += 1);
     }
     assert!(frames > 10_000);
+}
+
+/// A node's status frame that lost its first byte (a port opened mid-frame, or a byte lost on the
+/// line) is the bytes 04 00 00 01 …: the start of a `Refused(RateOutOfRange { 0, 1, created })`,
+/// with the rest of the status left over. It once reached a station's verification as the
+/// node's refusal (max_hz = the record's creation time). Left-over bytes make it malformed.
+#[test]
+fn a_frame_that_lost_its_first_byte_is_malformed_not_another_message() {
+    let status = Status {
+        protocol: PROTOCOL_VERSION,
+        record: RecordStatus::InUse { slot: 0, sequence: 1, created_unix_s: 1_796_525_864, crc: 0xdead_beef },
+        overruns: 0,
+        sample_sets: 12_000,
+        rate_hz: 1000,
+        bad_frames: 0,
+        reset_cause: ResetCause::PowerOn,
+        trigger_mismatch: false,
+        output: Output::Calibrated,
+    };
+    let mut buf = [0u8; MAX_FRAME];
+    let frame = encode_sync(&NodeMsg::Status(status), &mut buf).unwrap().to_vec();
+    assert_eq!(&frame[..3], &[0x00, 0x01, 0x02], "a leading zero, then the COBS code of the variant's 0x00");
+    let shifted = &frame[2..];
+    // What the old decoder (postcard's `from_bytes_cobs`, left-over bytes ignored) made of it.
+    let mut body = shifted[..shifted.len() - 1].to_vec();
+    let old: NodeMsg = postcard::from_bytes_cobs(&mut body).unwrap();
+    assert_eq!(
+        old,
+        NodeMsg::Refused(Refusal::RateOutOfRange { requested_hz: 0, min_hz: 1, max_hz: 1_796_525_864 })
+    );
+    assert_eq!(decode_all::<NodeMsg>(shifted), vec![Err(FrameError::Malformed)]);
+    // The whole frame, read from its leading zero or from its body, is the status.
+    assert_eq!(decode_all::<NodeMsg>(&frame), vec![Ok(NodeMsg::Status(status))]);
+    assert_eq!(decode_all::<NodeMsg>(&frame[1..]), vec![Ok(NodeMsg::Status(status))]);
+}
+
+/// Any message with a byte appended inside its frame is malformed: exactly one message per frame.
+#[test]
+fn a_frame_with_bytes_after_its_message_is_malformed() {
+    let mut body = postcard::to_slice(&HostMsg::SetRate { hz: 4000 }, &mut [0u8; 8]).unwrap().to_vec();
+    body.push(0x00);
+    let mut framed = [0u8; 16];
+    let n = cobs::encode(&body, &mut framed);
+    let mut frame = framed[..n].to_vec();
+    frame.push(0);
+    assert_eq!(decode_all::<HostMsg>(&frame), vec![Err(FrameError::Malformed)]);
 }
