@@ -103,6 +103,65 @@ pub struct Observation {
     pub misalign_urad: [f64; 6],
 }
 
+/// Version byte of [`Observation::to_bytes`].
+const OBS_BYTES_VERSION: u8 = 1;
+
+impl Observation {
+    /// Bytes before the positions in [`Observation::to_bytes`]: the version and the count.
+    const HEAD: usize = 3;
+    /// Bytes per position: α and β (f64), the three residuals (f32).
+    const PER_POSITION: usize = 16 + 12;
+    /// Bytes of the six misalignments (f32).
+    const TAIL: usize = 24;
+
+    /// The compact form `head_observation_f32` holds: a version byte, the number of positions
+    /// (u16), the positions (α, β as f64: a plan's angles exactly), the residuals (three f32 per
+    /// position, m/s²: seven significant digits of a number whose noise is the fourth) and the
+    /// misalignments (six f32, µrad), little-endian. `None` when the positions and residuals
+    /// differ in number or exceed a u16 (the observation then stays in JSON only).
+    pub fn to_bytes(&self) -> Option<Vec<u8>> {
+        let n = self.positions.len();
+        if n != self.resid_m_s2.len() || n > usize::from(u16::MAX) {
+            return None;
+        }
+        let mut b = Vec::with_capacity(Self::HEAD + n * Self::PER_POSITION + Self::TAIL);
+        b.push(OBS_BYTES_VERSION);
+        b.extend_from_slice(&(n as u16).to_le_bytes());
+        for &(alpha, beta) in &self.positions {
+            b.extend_from_slice(&alpha.to_le_bytes());
+            b.extend_from_slice(&beta.to_le_bytes());
+        }
+        for v in self.resid_m_s2.as_flattened().iter().chain(&self.misalign_urad) {
+            b.extend_from_slice(&(*v as f32).to_le_bytes());
+        }
+        Some(b)
+    }
+
+    /// Reads [`Observation::to_bytes`]'s form back; any other bytes are an error that says why
+    /// (never a panic: the bytes come from a database anyone may write to).
+    pub fn from_bytes(b: &[u8]) -> Result<Observation, String> {
+        let (&version, rest) = b.split_first().ok_or("no bytes")?;
+        if version != OBS_BYTES_VERSION {
+            return Err(format!("format version {version}, this build reads {OBS_BYTES_VERSION}"));
+        }
+        let n = match rest {
+            [lo, hi, ..] => usize::from(u16::from_le_bytes([*lo, *hi])),
+            _ => return Err("no count of positions".into()),
+        };
+        let want = Self::HEAD + n * Self::PER_POSITION + Self::TAIL;
+        if b.len() != want {
+            return Err(format!("{} bytes for {n} positions, not {want}", b.len()));
+        }
+        let f64s = |at: usize| f64::from_le_bytes(b[at..at + 8].try_into().expect("8 bytes"));
+        let f32s = |at: usize| f64::from(f32::from_le_bytes(b[at..at + 4].try_into().expect("4 bytes")));
+        let positions = (0..n).map(|i| (f64s(Self::HEAD + 16 * i), f64s(Self::HEAD + 16 * i + 8))).collect();
+        let singles = Self::HEAD + 16 * n;
+        let resid_m_s2 = (0..n).map(|i| [0, 1, 2].map(|j| f32s(singles + 4 * (3 * i + j)))).collect();
+        let misalign_urad = [0, 1, 2, 3, 4, 5].map(|j| f32s(singles + 12 * n + 4 * j));
+        Ok(Observation { positions, resid_m_s2, misalign_urad })
+    }
+}
+
 /// The observation of a stored campaign (its plain bytes) at `g`: `Ok(None)` for a campaign
 /// that is not a triad model 4 fits with an invertible sensitivity (nothing to observe), `Err`
 /// for one that does not read.
@@ -196,6 +255,20 @@ pub(crate) fn insert_observation(
         "INSERT INTO head_observation (run_id, obs_json, why) VALUES ($1, $2, $3)",
         &[run.to_string().into(), obs, why],
     )?;
+    if let Ok(Some(o)) = seen {
+        insert_compact(tx, run, o)?;
+    }
+    Ok(())
+}
+
+/// Writes `head_observation_f32`'s row of an observation (none when it has no compact form).
+fn insert_compact(tx: &mut Tx<'_>, run: &str, o: &Observation) -> Result<(), DbError> {
+    if let Some(bytes) = o.to_bytes() {
+        tx.execute(
+            "INSERT INTO head_observation_f32 (run_id, obs) VALUES ($1, $2)",
+            &[run.to_string().into(), Val::Bytes(bytes)],
+        )?;
+    }
     Ok(())
 }
 
@@ -233,7 +306,8 @@ fn gunzip(run: &str, gz: &[u8]) -> Result<Vec<u8>, DbError> {
 const BATCH: i64 = 500;
 
 /// Derives the rows of every stored piece that has none yet (a database written before schema
-/// 6), a batch at a time; how many pieces it derived.
+/// 6, or its compact head observations before schema 7), a batch at a time; how many rows it
+/// derived.
 pub(crate) fn backfill(c: &mut Conn) -> Result<usize, DbError> {
     let pending = c.transaction(|tx| tx.query("SELECT pending FROM derived_backfill", &[]))?;
     if !pending.iter().any(|r| matches!(r[0], Val::Int(p) if p != 0)) {
@@ -242,8 +316,8 @@ pub(crate) fn backfill(c: &mut Conn) -> Result<usize, DbError> {
     let mut n = 0;
     // Each table is walked once in key order (a batch starts after the last key of the one
     // before), so that a batch does not scan again the rows the batches before it derived.
-    let (mut after_fit, mut after_v, mut after_c) =
-        (String::new(), (String::new(), String::new()), String::new());
+    let (mut after_fit, mut after_v, mut after_c, mut after_h) =
+        (String::new(), (String::new(), String::new()), String::new(), String::new());
     loop {
         let done = c.transaction(|tx| {
             let rows = tx.query(
@@ -305,7 +379,24 @@ pub(crate) fn backfill(c: &mut Conn) -> Result<usize, DbError> {
                 insert_observation(tx, &run, &observation(&plain, r[2].real()?))?;
                 after_c = run;
             }
-            Ok(rows.len() + vs.len() + cs.len())
+            // Observations stored before schema 7: their compact form, from their JSON (one
+            // that does not parse is left in JSON, where `db verify` names it).
+            let hs = tx.query(
+                &format!(
+                    "SELECT h.run_id, h.obs_json FROM head_observation h WHERE h.run_id > $1 \
+                     AND h.obs_json IS NOT NULL AND NOT EXISTS \
+                     (SELECT 1 FROM head_observation_f32 b WHERE b.run_id = h.run_id) ORDER BY h.run_id LIMIT {BATCH}"
+                ),
+                &[after_h.clone().into()],
+            )?;
+            for r in &hs {
+                let run = r[0].text()?;
+                if let Ok(o) = serde_json::from_str::<Observation>(&r[1].text()?) {
+                    insert_compact(tx, &run, &o)?;
+                }
+                after_h = run;
+            }
+            Ok(rows.len() + vs.len() + cs.len() + hs.len())
         })?;
         if done == 0 {
             c.transaction(|tx| {
@@ -322,13 +413,30 @@ pub(crate) fn backfill(c: &mut Conn) -> Result<usize, DbError> {
     }
 }
 
-/// Whether two lists of numbers derived from the same piece agree: to 1e-9 relative. A number
+/// Whether two lists of numbers derived from the same piece agree: to `rel` relative (1e-9 for
+/// numbers kept as f64). A number
 /// read back from JSON may differ from the one written in its last bit (serde_json's parser), and
 /// a later version may compute an observation in another order; a changed row differs by far
 /// more.
-fn close(a: &[f64], b: &[f64]) -> bool {
-    a.len() == b.len()
-        && a.iter().zip(b).all(|(x, y)| (x - y).abs() <= 1e-9 * x.abs().max(y.abs()).max(1e-12))
+fn close(a: &[f64], b: &[f64], rel: f64) -> bool {
+    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() <= rel * x.abs().max(y.abs()).max(1e-12))
+}
+
+/// How close a number stored as f32 is to the f64 it was made from, relative: f32 rounds to
+/// 6e-8, and a later version may compute the f64 in another order.
+const F32_CLOSE: f64 = 1e-6;
+
+/// Whether two observations (or their absence) agree, numbers to `rel` relative ([`close`]).
+fn same_observation(a: Option<&Observation>, b: Option<&Observation>, rel: f64) -> bool {
+    match (a, b) {
+        (Some(a), Some(b)) => {
+            let flat = |o: &Observation| o.positions.iter().flat_map(|&(x, y)| [x, y]).collect::<Vec<f64>>();
+            close(&flat(a), &flat(b), rel)
+                && close(a.resid_m_s2.as_flattened(), b.resid_m_s2.as_flattened(), rel)
+                && close(&a.misalign_urad, &b.misalign_urad, rel)
+        }
+        (a, b) => a.is_none() && b.is_none(),
+    }
 }
 
 /// Derives every piece's rows again and compares them with the stored ones: the runs whose
@@ -362,11 +470,11 @@ pub(crate) fn check(tx: &mut Tx<'_>) -> Result<Vec<(String, &'static str, String
         let want_params: Vec<(String, f64)> =
             want.parameters.iter().map(|(n, _, v)| (n.clone(), *v)).collect();
         let m4_same = match (m4, want.model4) {
-            (Some(a), Some(b)) => close(a.as_flattened(), b.as_flattened()),
+            (Some(a), Some(b)) => close(a.as_flattened(), b.as_flattened(), 1e-9),
             (a, b) => a.is_none() && b.is_none(),
         };
         let u_same = match (u, want.u_m_s2) {
-            (Some(a), Some(b)) => close(&a, &b),
+            (Some(a), Some(b)) => close(&a, &b, 1e-9),
             (a, b) => a.is_none() && b.is_none(),
         };
         if !m4_same || !u_same || params != want_params {
@@ -432,8 +540,8 @@ pub(crate) fn check(tx: &mut Tx<'_>) -> Result<Vec<(String, &'static str, String
         ));
     }
     for r in tx.query(
-        "SELECT c.run_id, c.gzip, r.g_m_s2, h.obs_json FROM campaign c JOIN run r ON r.run_id = c.run_id \
-         LEFT JOIN head_observation h ON h.run_id = c.run_id",
+        "SELECT c.run_id, c.gzip, r.g_m_s2, h.obs_json, b.obs FROM campaign c JOIN run r ON r.run_id = c.run_id \
+         LEFT JOIN head_observation h ON h.run_id = c.run_id LEFT JOIN head_observation_f32 b ON b.run_id = c.run_id",
         &[],
     )? {
         let run = r[0].text()?;
@@ -443,19 +551,67 @@ pub(crate) fn check(tx: &mut Tx<'_>) -> Result<Vec<(String, &'static str, String
             Val::Null => None,
             v => serde_json::from_str(&v.text()?).ok(),
         };
-        let same = match (&stored, &want) {
-            (Some(a), Some(b)) => {
-                let flat =
-                    |o: &Observation| o.positions.iter().flat_map(|&(x, y)| [x, y]).collect::<Vec<f64>>();
-                close(&flat(a), &flat(b))
-                    && close(a.resid_m_s2.as_flattened(), b.resid_m_s2.as_flattened())
-                    && close(&a.misalign_urad, &b.misalign_urad)
-            }
-            (a, b) => a.is_none() && b.is_none(),
+        if !same_observation(stored.as_ref(), want.as_ref(), 1e-9) {
+            bad.push((run.clone(), "head_observation", "not what its campaign derives".into()));
+        }
+        // The compact form: there exactly when the observation has one, and the same to f32's
+        // precision.
+        let compact = match &r[4] {
+            Val::Null => None,
+            v => Some(Observation::from_bytes(&v.bytes()?)),
+        };
+        let same = match (compact, want.as_ref().filter(|w| w.to_bytes().is_some())) {
+            (None, None) => true,
+            (Some(Ok(a)), Some(b)) => same_observation(Some(&a), Some(b), F32_CLOSE),
+            _ => false,
         };
         if !same {
-            bad.push((run, "head_observation", "not what its campaign derives".into()));
+            bad.push((run, "head_observation_f32", "not what its campaign derives".into()));
         }
     }
     Ok(bad)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn observation(n: usize) -> Observation {
+        Observation {
+            positions: (0..n).map(|i| (i as f64 * 22.5 - 90.0, 12.345_678_9 * i as f64)).collect(),
+            resid_m_s2: (0..n).map(|i| [1e-3 * i as f64, -2.5e-4, 1.0 / (i as f64 + 3.0)]).collect(),
+            misalign_urad: [1.0, -2.0, 300.5, 1e-3, 0.0, -7.25],
+        }
+    }
+
+    #[test]
+    fn the_compact_form_keeps_the_positions_exactly_and_the_rest_to_f32() {
+        let o = observation(62);
+        let b = o.to_bytes().unwrap();
+        assert_eq!(b.len(), 1_763, "the paper's 62 positions");
+        let back = Observation::from_bytes(&b).unwrap();
+        assert_eq!(back.positions, o.positions);
+        assert!(same_observation(Some(&back), Some(&o), F32_CLOSE));
+        assert!(!same_observation(Some(&back), Some(&o), 1e-9), "f32, not f64");
+        let none = Observation::from_bytes(&observation(0).to_bytes().unwrap()).unwrap();
+        assert!(none.positions.is_empty() && same_observation(Some(&none), Some(&observation(0)), F32_CLOSE));
+    }
+
+    #[test]
+    fn bytes_of_another_form_are_an_error_never_a_panic() {
+        let b = observation(3).to_bytes().unwrap();
+        for cut in 0..b.len() {
+            assert!(Observation::from_bytes(&b[..cut]).is_err(), "{cut} bytes");
+        }
+        let mut longer = b.clone();
+        longer.push(0);
+        assert_eq!(Observation::from_bytes(&longer).unwrap_err(), "112 bytes for 3 positions, not 111");
+        let mut other = b;
+        other[0] = 2;
+        assert_eq!(Observation::from_bytes(&other).unwrap_err(), "format version 2, this build reads 1");
+        // A count larger than the bytes that follow.
+        assert!(Observation::from_bytes(&[1, 0xff, 0xff, 0, 0]).is_err());
+        let odd = Observation { resid_m_s2: Vec::new(), ..observation(2) };
+        assert_eq!(odd.to_bytes(), None, "positions and residuals differ in number");
+    }
 }

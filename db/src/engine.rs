@@ -672,7 +672,7 @@ mod tests {
         assert_eq!((r.entries, r.rows, r.runs), (2, 2, 1));
         let mut db = Db::open(&spec).unwrap();
         assert_eq!(db.verify_chain().unwrap().entries, 2, "sealed once");
-        assert_eq!(db.schema_versions().unwrap(), vec![1, 2, 3, 4, 5, 6]);
+        assert_eq!(db.schema_versions().unwrap(), vec![1, 2, 3, 4, 5, 6, 7]);
         db.verify_run(s.run_id).unwrap();
     }
 

@@ -68,9 +68,14 @@ const STATE: &str =
     "CASE WHEN v.run_id IS NOT NULL THEN 'voided' WHEN e.outcome IS NULL THEN 'unfinished' ELSE e.outcome END";
 
 /// The selected runs with their state, as a common table expression `sel`.
+///
+/// `MATERIALIZED` (PostgreSQL 12, SQLite 3.35): the period's runs are selected once and then
+/// joined. Inlined, PostgreSQL checked each run's end for a check standard once per joined
+/// row (twelve per run for the fit parameters): on a month of 2,900 runs the populations took
+/// 94 ms inlined and 74 ms materialised (window form, a database being written meanwhile).
 fn selected() -> String {
     format!(
-        "WITH sel AS (SELECT r.run_id, r.device_id, r.started_unix_s, {STATE} AS state, e.reason FROM run r \
+        "WITH sel AS MATERIALIZED (SELECT r.run_id, r.device_id, r.started_unix_s, {STATE} AS state, e.reason FROM run r \
          LEFT JOIN run_end e ON e.run_id = r.run_id LEFT JOIN void v ON v.run_id = r.run_id WHERE {WHERE})"
     )
 }
@@ -363,7 +368,8 @@ fn unit_of(s: &str) -> &'static str {
 
 impl Db {
     /// The populations of the period's runs that passed (not voided), aggregated by the
-    /// database (mean, then the sum of squared deviations from it: two passes, no cancellation):
+    /// database (the mean by a window over each parameter's rows, then the sum of squared
+    /// deviations from it: two passes over one read, no cancellation):
     /// each channel's model-4 coefficients under IEEE 1293's names (K0 mg, K1 codes/g, δ µrad;
     /// no limit: the specification limits the calibrated unit, not the sensor), then each
     /// parameter the as-left verification measured against the specification's limit (bias mg,
@@ -375,26 +381,21 @@ impl Db {
         let (coef, asleft) = self.conn.transaction(|tx| {
             let coef = tx.query(
                 &format!(
-                    "{sel}, p AS (SELECT fp.ord, fp.name, fp.unit, fp.value FROM fit_parameter fp \
-                     JOIN sel ON sel.run_id = fp.run_id WHERE sel.state = 'pass'), \
-                     m AS (SELECT ord, MIN(name) AS name, MIN(unit) AS unit, COUNT(*) AS n, AVG(value) AS mu \
-                     FROM p GROUP BY ord), \
-                     d AS (SELECT p.ord, SUM((p.value - m.mu) * (p.value - m.mu)) AS ss FROM p \
-                     JOIN m ON m.ord = p.ord GROUP BY p.ord) \
-                     SELECT m.name, m.unit, m.n, m.mu, d.ss FROM m JOIN d ON d.ord = m.ord ORDER BY m.ord"
+                    "{sel}, p AS (SELECT fp.ord, fp.name, fp.unit, fp.value, \
+                     AVG(fp.value) OVER (PARTITION BY fp.ord) AS mu FROM fit_parameter fp \
+                     JOIN sel ON sel.run_id = fp.run_id WHERE sel.state = 'pass') \
+                     SELECT MIN(name), MIN(unit), COUNT(*), AVG(value), SUM((value - mu) * (value - mu)) \
+                     FROM p GROUP BY ord ORDER BY ord"
                 ),
                 &p,
             )?;
             let asleft = tx.query(
                 &format!(
-                    "{sel}, p AS (SELECT vp.ord, vp.name, vp.unit, vp.value, vp.limit_value FROM verification_parameter vp \
-                     JOIN sel ON sel.run_id = vp.run_id WHERE sel.state = 'pass' AND vp.phase = 'as_left'), \
-                     m AS (SELECT name, MIN(unit) AS unit, MIN(ord) AS ord, COUNT(*) AS n, AVG(value) AS mu, \
-                     MIN(limit_value) AS lim FROM p GROUP BY name), \
-                     d AS (SELECT p.name, SUM((p.value - m.mu) * (p.value - m.mu)) AS ss FROM p \
-                     JOIN m ON m.name = p.name GROUP BY p.name) \
-                     SELECT m.name, m.unit, m.n, m.mu, d.ss, m.lim FROM m JOIN d ON d.name = m.name \
-                     ORDER BY m.ord, m.name"
+                    "{sel}, p AS (SELECT vp.ord, vp.name, vp.unit, vp.value, vp.limit_value, \
+                     AVG(vp.value) OVER (PARTITION BY vp.name) AS mu FROM verification_parameter vp \
+                     JOIN sel ON sel.run_id = vp.run_id WHERE sel.state = 'pass' AND vp.phase = 'as_left') \
+                     SELECT name, MIN(unit), COUNT(*), AVG(value), SUM((value - mu) * (value - mu)), \
+                     MIN(limit_value) FROM p GROUP BY name ORDER BY MIN(ord), name"
                 ),
                 &p,
             )?;
@@ -510,10 +511,11 @@ impl Db {
         let rows = self.conn.transaction(|tx| {
             tx.query(
                 &format!(
-                    "{sel} SELECT ra.asset_id, r.serial, r.run_id, r.started_unix_s, r.g_m_s2, h.obs_json, h.why \
+                    "{sel} SELECT ra.asset_id, r.serial, r.run_id, r.started_unix_s, r.g_m_s2, {OBSERVED} \
                      FROM sel JOIN run r ON r.run_id = sel.run_id \
                      JOIN run_asset ra ON ra.run_id = sel.run_id AND ra.kind = 'head' \
-                     JOIN head_observation h ON h.run_id = sel.run_id WHERE sel.state = 'pass' \
+                     JOIN head_observation h ON h.run_id = sel.run_id \
+                     LEFT JOIN head_observation_f32 b ON b.run_id = sel.run_id WHERE sel.state = 'pass' \
                      ORDER BY r.started_unix_s, r.run_id"
                 ),
                 &f.params(),
@@ -535,10 +537,11 @@ impl Db {
         let rows = self.conn.transaction(|tx| {
             tx.query(
                 &format!(
-                    "SELECT ra.asset_id, r.serial, r.run_id, r.started_unix_s, r.g_m_s2, h.obs_json, h.why \
+                    "SELECT ra.asset_id, r.serial, r.run_id, r.started_unix_s, r.g_m_s2, {OBSERVED} \
                      FROM run_asset ra JOIN run r ON r.run_id = ra.run_id \
                      JOIN run_end e ON e.run_id = ra.run_id AND e.outcome = 'pass' \
                      JOIN head_observation h ON h.run_id = ra.run_id \
+                     LEFT JOIN head_observation_f32 b ON b.run_id = ra.run_id \
                      WHERE ra.kind = 'head' AND ra.asset_id = $1 AND r.started_unix_s < $2 \
                      AND NOT ({}) \
                      AND NOT EXISTS (SELECT 1 FROM void v WHERE v.run_id = ra.run_id) \
@@ -555,18 +558,25 @@ impl Db {
     }
 }
 
-/// A row `asset, serial, run_id, started_unix_s, g_m_s2, obs_json, why`: `None` for a campaign
-/// that shows nothing of its head (neither an observation nor why not: not a triad).
+/// The columns of a head observation [`head_observation`] reads, of `head_observation h` and
+/// `head_observation_f32 b`: the compact form, the JSON only where there is none (a
+/// database whose backfill has not reached it yet: it is not read otherwise), and why not.
+const OBSERVED: &str = "b.obs, CASE WHEN b.obs IS NULL THEN h.obs_json END, h.why";
+
+/// A row `asset, serial, run_id, started_unix_s, g_m_s2` and [`OBSERVED`]: `None` for a
+/// campaign that shows nothing of its head (neither an observation nor why not: not a triad).
 fn head_observation(r: &[Val]) -> Result<Option<HeadObservation>, DbError> {
     let run_id = r[2].text()?;
-    let seen = match (r[5].opt_text()?, r[6].opt_text()?) {
-        (_, Some(why)) => Err(why),
-        (None, None) => return Ok(None),
-        (Some(json), None) => Ok(serde_json::from_str(&json).map_err(|e| DbError::BadPiece {
-            run_id: run_id.clone(),
-            piece: "head observation",
-            cause: e.to_string(),
-        })?),
+    let bad = |cause: String| DbError::BadPiece { run_id: run_id.clone(), piece: "head observation", cause };
+    let compact = match &r[5] {
+        Val::Null => None,
+        v => Some(v.bytes()?),
+    };
+    let seen = match (compact, r[6].opt_text()?, r[7].opt_text()?) {
+        (_, _, Some(why)) => Err(why),
+        (Some(bytes), _, None) => Ok(super::derived::Observation::from_bytes(&bytes).map_err(bad)?),
+        (None, Some(json), None) => Ok(serde_json::from_str(&json).map_err(|e| bad(e.to_string()))?),
+        (None, None, None) => return Ok(None),
     };
     Ok(Some(HeadObservation {
         asset: r[0].text()?,

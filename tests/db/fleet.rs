@@ -175,11 +175,12 @@ fn derived_rows_are_backfilled_on_open_and_checked_by_db_verify() {
         calibrate(&mut db, &s, &coefs(0.0, 0), Some(0.01));
     }
     drop(db);
-    const DERIVED: [&str; 5] = [
+    const DERIVED: [&str; 6] = [
         "fit_summary",
         "fit_parameter",
         "verification_summary",
         "verification_parameter",
+        "head_observation_f32",
         "head_observation",
     ];
     let dump = || -> Vec<Vec<String>> {
@@ -202,7 +203,7 @@ fn derived_rows_are_backfilled_on_open_and_checked_by_db_verify() {
     assert!(stored.iter().all(|rows| !rows.is_empty()), "every derived table holds rows: {stored:?}");
     // As a database of version 5 is once migrated: no derived rows, the backfill pending.
     let c = rusqlite::Connection::open(&spec).unwrap();
-    for t in &DERIVED[..5] {
+    for t in DERIVED {
         c.execute_batch(&format!("DROP TRIGGER {t}_no_delete; DELETE FROM {t};")).unwrap();
     }
     c.execute_batch("DELETE FROM device_certificate").unwrap();
@@ -219,6 +220,27 @@ fn derived_rows_are_backfilled_on_open_and_checked_by_db_verify() {
     let (code, out, err) = accelcal(&["db", "verify", "--db", &spec]);
     assert_eq!(code, Some(0), "{out}{err}");
     drop(db);
+    // The observations in JSON only, as in a database of version 6: a reader takes the JSON
+    // where the compact form is missing (here the backfill is not pending, so `fleet` reads
+    // them so), and once migrated the compact form is made from them; `fleet` reads the same
+    // either way.
+    let fleet =
+        || accelcal(&["fleet", "--db", &spec, "--since", "2026-01-01", "--until", "2026-12-31", "--json"]);
+    let before = fleet();
+    let c = rusqlite::Connection::open(&spec).unwrap();
+    c.execute_batch("DELETE FROM head_observation_f32").unwrap();
+    let count =
+        |t: &str| c.query_row(&format!("SELECT COUNT(*) FROM {t}"), [], |r| r.get::<_, i64>(0)).unwrap();
+    assert_eq!(fleet(), before, "a reader takes the JSON where the compact form is missing");
+    assert_eq!(count("head_observation_f32"), 0);
+    c.execute_batch("UPDATE derived_backfill SET pending = 1").unwrap();
+    drop(Db::open(&spec).unwrap());
+    let observed = "SELECT COUNT(*) FROM head_observation WHERE obs_json IS NOT NULL";
+    assert!(count("head_observation_f32") > 0);
+    assert_eq!(count("head_observation_f32"), c.query_row(observed, [], |r| r.get::<_, i64>(0)).unwrap());
+    assert_eq!(dump(), stored, "the backfill from JSON writes what the store path wrote");
+    assert_eq!(fleet(), before);
+    drop(c);
     rusqlite::Connection::open(&spec)
         .unwrap()
         .execute_batch(
@@ -237,6 +259,16 @@ fn derived_rows_are_backfilled_on_open_and_checked_by_db_verify() {
         out.contains("the fit_summary/fit_parameter row of run") && out.contains("not what its fit derives"),
         "{out}"
     );
+    // A compact observation changed behind accelcal's back is named too.
+    rusqlite::Connection::open(&spec)
+        .unwrap()
+        .execute_batch(
+            "DROP TRIGGER head_observation_f32_no_update; \
+             UPDATE head_observation_f32 SET obs = X'01' WHERE run_id = (SELECT MIN(run_id) FROM head_observation_f32);",
+        )
+        .unwrap();
+    let r = Db::open(&spec).unwrap().verify_chain().unwrap();
+    assert!(r.mismatches.iter().any(|m| m.piece == "head_observation_f32"), "{:?}", r.mismatches);
 }
 
 /// Issue 31 item 3's last part: the head's signature feeds the budget. 30 units on HEAD-E,
