@@ -152,12 +152,17 @@ impl Observation {
         if b.len() != want {
             return Err(format!("{} bytes for {n} positions, not {want}", b.len()));
         }
-        let f64s = |at: usize| f64::from_le_bytes(b[at..at + 8].try_into().expect("8 bytes"));
-        let f32s = |at: usize| f64::from(f32::from_le_bytes(b[at..at + 4].try_into().expect("4 bytes")));
-        let positions = (0..n).map(|i| (f64s(Self::HEAD + 16 * i), f64s(Self::HEAD + 16 * i + 8))).collect();
-        let singles = Self::HEAD + 16 * n;
-        let resid_m_s2 = (0..n).map(|i| [0, 1, 2].map(|j| f32s(singles + 4 * (3 * i + j)))).collect();
-        let misalign_urad = [0, 1, 2, 3, 4, 5].map(|j| f32s(singles + 12 * n + 4 * j));
+        // The lengths are checked: each section splits into whole values.
+        let (angles, singles) = b[Self::HEAD..].split_at(16 * n);
+        let f64_at = |c: &[u8]| f64::from_le_bytes(c.try_into().expect("8 bytes"));
+        let f32s: Vec<f64> = singles
+            .chunks_exact(4)
+            .map(|c| f64::from(f32::from_le_bytes(c.try_into().expect("4 bytes"))))
+            .collect();
+        let (resid, misalign) = f32s.split_at(3 * n);
+        let positions = angles.chunks_exact(16).map(|c| (f64_at(&c[..8]), f64_at(&c[8..]))).collect();
+        let resid_m_s2 = resid.chunks_exact(3).map(|r| [r[0], r[1], r[2]]).collect();
+        let misalign_urad = misalign.try_into().expect("six misalignments");
         Ok(Observation { positions, resid_m_s2, misalign_urad })
     }
 }
@@ -413,14 +418,16 @@ pub(crate) fn backfill(c: &mut Conn) -> Result<usize, DbError> {
     }
 }
 
-/// Whether two lists of numbers derived from the same piece agree: to `rel` relative (1e-9 for
-/// numbers kept as f64). A number
-/// read back from JSON may differ from the one written in its last bit (serde_json's parser), and
-/// a later version may compute an observation in another order; a changed row differs by far
-/// more.
+/// Whether two lists of numbers derived from the same piece agree: to `rel` relative
+/// ([`F64_CLOSE`], [`F32_CLOSE`]). A number read back from JSON may differ from the one written
+/// in its last bit (serde_json's parser), and a later version may compute an observation in
+/// another order; a changed row differs by far more.
 fn close(a: &[f64], b: &[f64], rel: f64) -> bool {
     a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() <= rel * x.abs().max(y.abs()).max(1e-12))
 }
+
+/// How close a number stored as f64 is to the same number derived again, relative.
+const F64_CLOSE: f64 = 1e-9;
 
 /// How close a number stored as f32 is to the f64 it was made from, relative: f32 rounds to
 /// 6e-8, and a later version may compute the f64 in another order.
@@ -470,11 +477,11 @@ pub(crate) fn check(tx: &mut Tx<'_>) -> Result<Vec<(String, &'static str, String
         let want_params: Vec<(String, f64)> =
             want.parameters.iter().map(|(n, _, v)| (n.clone(), *v)).collect();
         let m4_same = match (m4, want.model4) {
-            (Some(a), Some(b)) => close(a.as_flattened(), b.as_flattened(), 1e-9),
+            (Some(a), Some(b)) => close(a.as_flattened(), b.as_flattened(), F64_CLOSE),
             (a, b) => a.is_none() && b.is_none(),
         };
         let u_same = match (u, want.u_m_s2) {
-            (Some(a), Some(b)) => close(&a, &b, 1e-9),
+            (Some(a), Some(b)) => close(&a, &b, F64_CLOSE),
             (a, b) => a.is_none() && b.is_none(),
         };
         if !m4_same || !u_same || params != want_params {
@@ -551,7 +558,7 @@ pub(crate) fn check(tx: &mut Tx<'_>) -> Result<Vec<(String, &'static str, String
             Val::Null => None,
             v => serde_json::from_str(&v.text()?).ok(),
         };
-        if !same_observation(stored.as_ref(), want.as_ref(), 1e-9) {
+        if !same_observation(stored.as_ref(), want.as_ref(), F64_CLOSE) {
             bad.push((run.clone(), "head_observation", "not what its campaign derives".into()));
         }
         // The compact form: there exactly when the observation has one, and the same to f32's
@@ -592,7 +599,7 @@ mod tests {
         let back = Observation::from_bytes(&b).unwrap();
         assert_eq!(back.positions, o.positions);
         assert!(same_observation(Some(&back), Some(&o), F32_CLOSE));
-        assert!(!same_observation(Some(&back), Some(&o), 1e-9), "f32, not f64");
+        assert!(!same_observation(Some(&back), Some(&o), F64_CLOSE), "f32, not f64");
         let none = Observation::from_bytes(&observation(0).to_bytes().unwrap()).unwrap();
         assert!(none.positions.is_empty() && same_observation(Some(&none), Some(&observation(0)), F32_CLOSE));
     }

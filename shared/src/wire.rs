@@ -7,9 +7,9 @@
 //! serial port opened on a running node) drops the bytes up to its first `0x00`, and with the
 //! leading zero that is never more than the tail of one frame. A frame must decode to exactly
 //! one message: bytes left after it make it malformed, so the tail of a frame that happens to
-//! begin like another message is refused, not taken for that message. Every message type is a plain serde enum;
-//! postcard encodes a variant as its index (varint) followed by its fields, integers as varints,
-//! floats as little-endian IEEE 754. The protocol version is [`PROTOCOL_VERSION`]; the node states
+//! begin like another message is refused, not taken for that message. Every message type is a
+//! plain serde enum; postcard encodes a variant as its index (varint) followed by its fields,
+//! integers as varints, floats as little-endian IEEE 754. The protocol version is [`PROTOCOL_VERSION`]; the node states
 //! it in every [`Status`], and new variants are only ever appended so that old bytes keep decoding.
 //!
 //! No-panic contract: [`FrameDecoder::push`] accepts any byte string. Malformed frames (bad COBS,
