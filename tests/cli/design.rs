@@ -106,11 +106,18 @@ fn a_chamber_plan_states_its_passes_soaks_and_u_at_the_worst_temperature() {
     // 3 passes of 16 × (10 s + 4 s), each after 600 s of soak.
     assert_eq!(j["head_time_s"], 3.0 * (16.0 * 14.0 + 600.0));
     assert_eq!(j["compared"][0]["head_time_s"], 3.0 * (62.0 * 14.0 + 600.0));
-    // 48 dwells, 8 coefficients: the noise on 40 degrees of freedom, the head's angles (Type B)
-    // beside it, so k is Student's t a little above 2 (t(40) = 2.021); the same plan in one pass
-    // states more.
-    let (k, nu) = (j["k"].as_f64().unwrap(), j["nu_eff"].as_f64().unwrap());
-    assert!(nu > 40.0 && nu < 61.0 && k > 2.0 && k < 2.021, "k {k}, nu_eff {nu}");
+    // 48 dwells of 400 samples: the noise is estimated within them, on 48 × 399 degrees of
+    // freedom, so k is 2. Of 2 samples each, on 48: the head's angles (Type B) beside it, k is
+    // Student's t a little above 2 (t(48) = 2.011).
+    assert_eq!(j["k"].as_f64(), Some(2.0));
+    let mut args = common.to_vec();
+    let (few, few_plan) = (d.s("few.json"), d.s("few.csv"));
+    args.extend_from_slice(&["--chamber=-10,20,50", "--samples", "2", "--out", &few_plan, "--json", &few]);
+    ok(&args);
+    let j2 = json(Path::new(&few));
+    let (k, nu) = (j2["k"].as_f64().unwrap(), j2["nu_eff"].as_f64().unwrap());
+    assert!(nu > 48.0 && nu < 61.0 && k > 2.0 && k < 2.011, "k {k}, nu_eff {nu}");
+    // The same plan in one pass states more.
     let mut args = common.to_vec();
     args.extend_from_slice(&["--out", &one_plan, "--json", &one]);
     ok(&args);

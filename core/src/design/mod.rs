@@ -19,8 +19,8 @@
 //! The calibrated acceleration `â = K⁻¹(u − u0)` then has at a true acceleration `a` the variance
 //! `Σ_pq m_ip m_iq rᵀ B_pq r` per axis `i` (`r = [1, a]`, `m = K⁻¹`), and the criterion is the
 //! budget's: the largest expanded uncertainty over the axes and over the orientations at 1 g,
-//! with the budget's coverage factor (2, or Student's t for the noise's n − 4 degrees of freedom,
-//! [`crate::uncertainty::coverage_factor`]). It is what [`crate::uncertainty::budget`] states after the campaign when its dwell scatter
+//! with the budget's coverage factor (2, or Student's t where the noise's degrees of freedom,
+//! the samples' within the dwells, are few: [`crate::uncertainty::coverage_factor`]). It is what [`crate::uncertainty::budget`] states after the campaign when its dwell scatter
 //! is the noise assumed here; the head's orthogonality, the temperature and model 4's lack of fit
 //! are not predicted (they depend on the head and the unit, not on the plan's noise), and
 //! [`Prediction::not_included`] says so.
@@ -33,8 +33,8 @@
 //! noise, quantisation and head-angle parts times `f(t) = [1, t] M_T⁻¹ [1, t]ᵀ = 1/J + (t − t̄)²/S_tt`
 //! (`J` setpoints, `S_tt` their sum of squares about their mean `t̄`), largest at an end of the
 //! calibrated range. The criterion is then taken at that worst temperature, and the noise is
-//! estimated on `J·n − 8` degrees of freedom. The positions that minimise it are model 4's up
-//! to the gravity part, which the factor does not scale.
+//! estimated from the samples within the dwells of every pass. The positions that minimise it are
+//! model 4's up to the gravity part, which the factor does not scale.
 //!
 //! [`search`] chooses the positions among those the head reaches (an exchange algorithm on the
 //! criterion), and with [`search::design_auto`] the number of positions and the dwell too, for the
@@ -272,7 +272,7 @@ pub struct Prediction {
     /// Per axis x, y, z, the largest expanded uncertainty over the orientations at 1 g, m/s².
     pub expanded_m_s2: [f64; 3],
     /// Its coverage factor: the budget's ([`coverage_factor`]: 2, or Student's t when the noise,
-    /// estimated from n − 4 degrees of freedom, leaves few).
+    /// estimated from the samples within the dwells, has few degrees of freedom).
     pub k: f64,
     /// The effective degrees of freedom that give `k`.
     pub nu_eff: Option<f64>,
@@ -373,6 +373,8 @@ pub(crate) struct Evaluator {
     /// In a chamber, its passes (one without); the noise, quantisation and head-angle variances
     /// above hold its factor ([`Chamber::factor`]).
     passes: usize,
+    /// Samples per position.
+    samples: f64,
 }
 
 impl Evaluator {
@@ -413,6 +415,7 @@ impl Evaluator {
             ua2: stated.head_angle_rad * stated.head_angle_rad * thermal,
             grav,
             passes,
+            samples: n,
         })
     }
 
@@ -505,14 +508,15 @@ impl Evaluator {
         let points = self.sphere(PREDICT_POINTS);
         let all = self.blocks(sums, Only::All).ok_or(DesignError::Singular)?;
         let combined = self.variances(&all, &points);
-        // The budget estimates the noise (with the quantisation) from the dwell scatter, on
-        // n − 4 degrees of freedom (J·n − 8 for the thermal model over J passes): its coverage
-        // factor is the budget's (`coverage_factor`).
+        // The budget estimates the noise from the samples' scatter within the dwells, on
+        // Σ(m − 1) degrees of freedom over every dwell of every pass, and counts the
+        // quantisation as stated (Type B): its coverage factor is the budget's
+        // (`coverage_factor`).
         let n = sums.m[(0, 0)].round();
-        let dof = if self.passes > 1 { self.passes as f64 * n - 8.0 } else { n - 4.0 };
+        let dof = self.passes as f64 * n * (self.samples - 1.0);
         let parts_of = [
             ("noise", Only::Noise, dof),
-            ("quantisation", Only::Quantisation, dof),
+            ("quantisation", Only::Quantisation, f64::INFINITY),
             ("head_angle", Only::HeadAngle, f64::INFINITY),
             ("gravity", Only::Gravity, f64::INFINITY),
         ];

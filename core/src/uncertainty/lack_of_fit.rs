@@ -11,7 +11,8 @@
 //! Its mean square over the sphere is `βᵀMβ` with `M` the sphere's mean of `ψψᵀ`.
 //!
 //! The estimate `β̂` carries the dwell scatter: `E[β̂ᵀMβ̂] = βᵀMβ + tr(MΣ)`, Σ the covariance of
-//! β̂ from the quadratic fit's own residuals. Noise alone makes `β̂ᵀMβ̂` a weighted χ² with mean
+//! β̂ from the samples' noise within the dwells and the head's stated errors (or, for dwells of
+//! one sample, from the quadratic fit's own residuals). Noise alone makes `β̂ᵀMβ̂` a weighted χ² with mean
 //! `tr(MΣ)` and standard deviation `√(2·tr((MΣ)²))`; the lack of fit stated is what is left above
 //! that mean and twice that spread, so that a linear unit's scatter is not counted a second
 //! time (the dwell scatter already carries it); the estimate of β is shrunk by the same factor.
@@ -64,6 +65,16 @@ pub struct Measured {
     pub explained_ss: Vec<f64>,
 }
 
+/// What is known of the dwell means' scatter besides their residuals, per channel in the order
+/// of the stats.
+#[derive(Clone, Copy, Debug)]
+pub struct Known<'a> {
+    /// The variance of one sample within the dwells, codes² ([`super::scatter::Within`]).
+    pub sample_var: &'a [f64],
+    /// The outputs (n × k codes) one sigma of each stated head angle error leaves.
+    pub angle: &'a [DMatrix<f64>],
+}
+
 /// Why the lack of fit could not be measured.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum NotMeasured {
@@ -94,6 +105,13 @@ impl std::fmt::Display for NotMeasured {
 /// stated for the head (its stage rotations) leaves on channel `c`: the head's, not the unit's,
 /// counted by their own contributor, so what they put into the quadratic terms is expected of a
 /// linear unit too and taken out with the scatter's share.
+///
+/// The dwell means' own scatter is estimated from the quadratic fit's residuals (n − 9 degrees
+/// of freedom). With `known` (the samples' noise within the dwells and the head's stated angle
+/// errors) it is the larger of that and what they predict: on few positions the residuals alone
+/// understate the noise often enough to call a linear unit's scatter a lack of fit, and the
+/// residuals still speak where something the stated values miss (a head worse than its
+/// certificate) scatters the dwell means more.
 pub fn measure(
     pos: &Positions,
     stats: &[ChannelStats],
@@ -101,6 +119,7 @@ pub fn measure(
     resid_maker: &DMatrix<f64>,
     sphere: &[[f64; 3]],
     stated: &[DMatrix<f64>],
+    known: Option<Known<'_>>,
 ) -> Result<Measured, NotMeasured> {
     let n = pos.len();
     if n < MIN_POSITIONS {
@@ -140,8 +159,24 @@ pub fn measure(
         let y = DVector::from_column_slice(&ch.mean);
         let beta_d = &aq * &y;
         let beta = Vec9::from_iterator(beta_d.iter().copied());
-        let s2 = (&y - &xq * &beta_d).norm_squared() / dof;
-        let mut cov = cov_shape * s2;
+        let mut cov = cov_shape * ((&y - &xq * &beta_d).norm_squared() / dof);
+        if let Some(k) = &known {
+            let v = k.sample_var.get(c).copied().unwrap_or(0.0);
+            let mut predicted = Mat9::from_iterator(
+                (&aq * DMatrix::from_fn(n, QUADRATIC_TERMS, |i, t| aq[(t, i)] * v / pos.weight[i].max(1.0)))
+                    .iter()
+                    .copied(),
+            );
+            if let Some(h) = k.angle.get(c) {
+                for col in h.column_iter() {
+                    let b = Vec9::from_iterator((&aq * col).iter().copied());
+                    predicted += b * b.transpose();
+                }
+            }
+            if (m * predicted).trace() > (m * cov).trace() {
+                cov = predicted;
+            }
+        }
         if let Some(h) = stated.get(c) {
             for col in h.column_iter() {
                 let b = Vec9::from_iterator((&aq * col).iter().copied());

@@ -6,12 +6,14 @@
 //! dwells' row counts). Each contributor is a perturbation of the dwell means (or, for g, of the
 //! regressors), so its covariance of the coefficients follows through `A` exactly to first order:
 //!
-//! - **dwell scatter** (Type A): the scatter of the dwell means about the fit, at the level of the
-//!   dwells (n − 4 degrees of freedom), not of the samples: the samples of one dwell share its
-//!   head angle error, so they are not independent. The channels' residuals are correlated (the
-//!   head's errors are common to them), and the 3 × 3 residual covariance carries that. What the
-//!   stated references account for in these residuals (below) is taken out of it, so nothing is
-//!   counted twice; when they account for all of it, the stated values stand alone.
+//! - **dwell scatter** (Type A, [`scatter`]): the noise of each dwell mean, the samples' scatter
+//!   within the dwells (pooled per channel, Σ(m − 1) degrees of freedom) over the dwell's samples;
+//!   then the dwell means' scatter about the fit (n − 4 degrees of freedom) is checked against
+//!   that noise and the stated references, and what it holds beyond them (samples correlated in
+//!   time, a head worse than stated) is counted too. The channels' residuals are correlated (the
+//!   head's errors are common to them), and the 3 × 3 residual covariance carries that. Where the
+//!   dwells hold one sample each, the dwell means' scatter less what the stated references
+//!   account for (below) is the whole of it, so nothing is counted twice.
 //! - **head angle** (Type B, the head's register entry or `fit --head-angle-u`): each angle of
 //!   each position set with an independent error of one sigma `u_θ`, as the simulator's
 //!   `angle_error` draws it; common to all channels.
@@ -47,6 +49,7 @@
 
 pub mod lack_of_fit;
 pub mod montecarlo;
+pub mod scatter;
 
 use accelcal_shared::linear::{LinearCal, Model4};
 use accelcal_shared::terms::MODEL_4;
@@ -320,7 +323,8 @@ pub fn budget(
     let x = DMatrix::from_fn(n, 4, |i, t| row(pos.accel[i])[t]);
     let w = DVector::from_fn(n, |i, _| pos.weight[i]);
     let xtw = DMatrix::from_fn(4, n, |t, i| x[(i, t)] * w[i]);
-    let a = (&xtw * &x).try_inverse().ok_or(UncertaintyError::Singular)? * &xtw;
+    let xtwx_inv = (&xtw * &x).try_inverse().ok_or(UncertaintyError::Singular)?;
+    let a = &xtwx_inv * &xtw;
     let resid_maker = DMatrix::identity(n, n) - &x * &a;
     let col = |i: usize| -> [f64; 4] { std::array::from_fn(|t| a[(t, i)]) };
     let rcol_ss: Vec<f64> = (0..n).map(|i| resid_maker.column(i).norm_squared()).collect();
@@ -346,23 +350,28 @@ pub fn budget(
     let kvec = |axis: usize| -> [f64; 3] { model.k[axis] };
 
     let mut contributors = Vec::new();
-    // What the stated contributors explain of the residual sum of squares (all channels).
-    let mut explained = 0.0;
+    // What the stated contributors explain of the residual sum of squares (all channels): in
+    // expectation (the head's angle errors, the quantisation) and as realised (this head's
+    // rotation, model 4's lack of fit).
+    let (mut expected, mut realised) = (0.0, 0.0);
 
     // Head angle setting errors: independent per position and angle.
     let mut angle = Cov12::zeros();
     let ua2 = refs.head_angle_rad * refs.head_angle_rad;
+    let angle_response: Vec<[[f64; 2]; 3]> = partials
+        .iter()
+        .map(|pd| [0, 1, 2].map(|ax| [dot3(&kvec(ax), &pd[0]), dot3(&kvec(ax), &pd[1])]))
+        .collect();
     if ua2 > 0.0 {
         for i in 0..n {
             let ai = col(i);
-            let d: [[f64; 2]; 3] =
-                [0, 1, 2].map(|ax| [dot3(&kvec(ax), &partials[i][0]), dot3(&kvec(ax), &partials[i][1])]);
+            let d = angle_response[i];
             for p in 0..3 {
                 for q in 0..3 {
                     let s = d[p][0] * d[q][0] + d[p][1] * d[q][1];
                     add_block(&mut angle, p, q, &ai, &ai, ua2 * s);
                 }
-                explained += ua2 * rcol_ss[i] * (d[p][0] * d[p][0] + d[p][1] * d[p][1]);
+                expected += ua2 * rcol_ss[i] * (d[p][0] * d[p][0] + d[p][1] * d[p][1]);
             }
         }
     }
@@ -398,7 +407,7 @@ pub fn budget(
         let vtv = v.transpose() * &v;
         if let Some(inv) = vtv.try_inverse() {
             let vtr = v.transpose() * &r;
-            explained += vtr.dot(&(inv * &vtr));
+            realised += vtr.dot(&(inv * &vtr));
         }
     }
 
@@ -420,7 +429,7 @@ pub fn budget(
         for p in 0..3 {
             add_block(&mut quant, p, p, &ai, &ai, v);
         }
-        explained += 3.0 * v * rcol_ss[i];
+        expected += 3.0 * v * rcol_ss[i];
     }
 
     // Temperature: each channel's bias and scale factor at T_ref, not T̄.
@@ -463,12 +472,31 @@ pub fn budget(
             _ => DMatrix::zeros(n, 0),
         })
         .collect();
-    let measured = lack_of_fit::measure(pos, stats, &a, &resid_maker, &points, &head_outputs);
+    // What the samples' noise and the head's stated angle errors predict of the dwell means'
+    // scatter, per channel in the order of the stats.
+    let within = scatter::Within::pooled(stats, order, &pos.weight);
+    let axis_of = |ci: usize| order.iter().position(|&o| o == ci);
+    let sample_var: Vec<f64> =
+        (0..stats.len()).map(|ci| axis_of(ci).zip(within).map_or(0.0, |(p, w)| w.var_codes2[p])).collect();
+    let angle_outputs: Vec<DMatrix<f64>> = (0..stats.len())
+        .map(|ci| match axis_of(ci) {
+            Some(p) if ua2 > 0.0 => DMatrix::from_fn(n, 2 * n, |i, j| {
+                if j % n == i {
+                    refs.head_angle_rad * angle_response[i][p][j / n]
+                } else {
+                    0.0
+                }
+            }),
+            _ => DMatrix::zeros(n, 0),
+        })
+        .collect();
+    let known = within.map(|_| lack_of_fit::Known { sample_var: &sample_var, angle: &angle_outputs });
+    let measured = lack_of_fit::measure(pos, stats, &a, &resid_maker, &points, &head_outputs, known);
     let lof_source = match &measured {
         Ok(m) => {
             for (p, &ci) in order.iter().enumerate() {
                 lof_cov[(4 * p, 4 * p)] = m.u_codes[ci] * m.u_codes[ci];
-                explained += m.explained_ss[ci];
+                realised += m.explained_ss[ci];
             }
             let [x, y, z] = order.map(|ci| m.rms_codes[ci]);
             let [fx, fy, fz] = order.map(|ci| m.floor_codes[ci]);
@@ -488,22 +516,57 @@ pub fn budget(
         Err(_) => "not measured".to_string(),
     };
 
-    // Dwell scatter: the residual covariance of the channels over the scatter matrix A·Aᵀ, less
-    // the part the stated contributors explain.
+    // Dwell scatter ([`scatter`]): the samples' noise within the dwells, and what the dwell means
+    // scatter about the fit beyond it and the stated references (all of their scatter, less what
+    // the references explain, when the dwells hold one sample each).
     let observed: f64 = resid.iter().map(|r| r.norm_squared()).sum();
-    let kept = if observed > 0.0 { (1.0 - explained / observed).max(0.0) } else { 0.0 };
+    let kept = match &within {
+        Some(w) => scatter::Check {
+            resid_maker: &resid_maker,
+            weight: &pos.weight,
+            resid: &resid,
+            angle_response: &angle_response,
+            angle_var: ua2,
+            realised,
+        }
+        .excess_fraction(w),
+        None if observed > 0.0 => (1.0 - (expected + realised) / observed).max(0.0),
+        None => 0.0,
+    };
+    let mut noise = Cov12::zeros();
+    if let Some(w) = &within {
+        for p in 0..3 {
+            for i in 0..4 {
+                for j in 0..4 {
+                    noise[(4 * p + i, 4 * p + j)] = w.var_codes2[p] * xtwx_inv[(i, j)];
+                }
+            }
+        }
+    }
     let aat = &a * a.transpose();
-    let mut scatter = Cov12::zeros();
+    let mut excess = Cov12::zeros();
     for p in 0..3 {
         for q in 0..3 {
             let s = resid[p].dot(&resid[q]) / dof * kept;
             for i in 0..4 {
                 for j in 0..4 {
-                    scatter[(4 * p + i, 4 * q + j)] = s * aat[(i, j)];
+                    excess[(4 * p + i, 4 * q + j)] = s * aat[(i, j)];
                 }
             }
         }
     }
+    let scatter_source = match &within {
+        Some(w) => format!(
+            "the samples' scatter within the dwells ({:.0} degrees of freedom) over each dwell's samples; beyond it and the \
+             stated references, the dwell means' scatter about the fit ({n} positions, {dof} degrees of freedom) holds {}",
+            w.dof,
+            if kept > 0.0 { format!("{:.0} % of its sum of squares more", kept * 100.0) } else { "nothing more".into() }
+        ),
+        None => format!(
+            "the dwell means' scatter about the fit ({n} positions, {dof} degrees of freedom), {:.0} % of it left once the stated references are taken out",
+            kept * 100.0
+        ),
+    };
 
     let stated = |rad: f64, what: &str| {
         if rad > 0.0 {
@@ -513,17 +576,14 @@ pub fn budget(
         }
     };
     let parts: [(&'static str, &'static str, String, Cov12); 7] = [
-        (
-            "dwell_scatter",
-            "A",
-            format!(
-                "the dwell means' scatter about the fit ({n} positions, {dof} degrees of freedom), {:.0} % of it left once the stated references are taken out",
-                kept * 100.0
-            ),
-            scatter,
-        ),
+        ("dwell_scatter", "A", scatter_source, noise + excess),
         ("head_angle", "B", stated(refs.head_angle_rad, "per angle and position"), angle),
-        ("head_orthogonality", "B", stated(refs.head_orthogonality_rad, "per rotation between the stages"), ortho),
+        (
+            "head_orthogonality",
+            "B",
+            stated(refs.head_orthogonality_rad, "per rotation between the stages"),
+            ortho,
+        ),
         ("gravity", "B", format!("u(g) = {:.3e} m/s²", refs.g_m_s2), grav),
         ("quantisation", "B", "1/12 code² per sample".to_string(), quant),
         ("temperature", "B", thermal_source, thermal),
@@ -545,17 +605,23 @@ pub fn budget(
     let total_var: f64 = combined.iter().map(|v| v.sum()).sum();
     let part_vars: Vec<Vec<Vector3<f64>>> =
         parts.iter().map(|p| points.iter().map(|&a| budget.variance_at(&p.3, a)).collect()).collect();
-    // The Type A parts' degrees of freedom: the dwell scatter's n − 4, the lack of fit's the
-    // quadratic model's n − 9; Type B, infinite.
-    let dof = |name: &str| match name {
-        "dwell_scatter" => dof,
-        "lack_of_fit" => n.saturating_sub(lack_of_fit::QUADRATIC_TERMS).max(1) as f64,
-        _ => f64::INFINITY,
-    };
+    // The Type A parts' degrees of freedom: the samples' noise Σ(m − 1), the dwell means' excess
+    // n − 4, the lack of fit's the quadratic model's n − 9; Type B, infinite. The dwell scatter
+    // enters as its two parts.
+    let lof_dof = n.saturating_sub(lack_of_fit::QUADRATIC_TERMS).max(1) as f64;
+    let noise_dof = within.as_ref().map_or(dof, |w| w.dof);
+    let scatter_vars: [(Vec<Vector3<f64>>, f64); 2] = [(noise, noise_dof), (excess, dof)]
+        .map(|(cov, nu)| (points.iter().map(|&a| budget.variance_at(&cov, a)).collect(), nu));
+    let ws_vars: Vec<(&Vec<Vector3<f64>>, f64)> = parts
+        .iter()
+        .zip(&part_vars)
+        .skip(1)
+        .map(|(p, v)| (v, if p.0 == "lack_of_fit" { lof_dof } else { f64::INFINITY }))
+        .chain(scatter_vars.iter().map(|(v, nu)| (v, *nu)))
+        .collect();
     for i in 0..3 {
         let worst = (0..points.len()).max_by(|&a, &b| combined[a][i].total_cmp(&combined[b][i])).unwrap_or(0);
-        let at: Vec<(f64, f64)> =
-            parts.iter().zip(&part_vars).map(|(p, v)| (v[worst][i], dof(p.0))).collect();
+        let at: Vec<(f64, f64)> = ws_vars.iter().map(|(v, nu)| (v[worst][i], *nu)).collect();
         let (k, nu) = coverage_factor(&at);
         if k > budget.k || (k == budget.k && nu < budget.nu_eff) {
             (budget.k, budget.nu_eff) = (k, nu);

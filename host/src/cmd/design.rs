@@ -461,7 +461,7 @@ fn bar(len: u64, what: &str) -> ProgressBar {
 fn print_table(rows: &[Compared], mc: bool, noise: String) {
     println!();
     println!(
-        "predicted expanded uncertainty of the calibrated acceleration at its worst orientation at 1 g (k = 2, or Student's t for the noise's n - 4 degrees of freedom, J·n - 8 over J chamber passes, where that is more); {noise}"
+        "predicted expanded uncertainty of the calibrated acceleration at its worst orientation at 1 g (k = 2, or Student's t where the noise's degrees of freedom, the samples' within the dwells, are few); {noise}"
     );
     print!(
         "  {:<13} {:>9} {:>7} {:>11} {:>10} {:>10} {:>10} {:>5} {:>8} {:>8}",
