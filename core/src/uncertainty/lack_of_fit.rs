@@ -65,14 +65,13 @@ pub struct Measured {
     pub explained_ss: Vec<f64>,
 }
 
-/// What is known of the dwell means' scatter besides their residuals, per channel in the order
-/// of the stats.
+/// What is known of the dwell means' scatter besides their residuals.
 #[derive(Clone, Copy, Debug)]
 pub struct Known<'a> {
-    /// The variance of one sample within the dwells, codes² ([`super::scatter::Within`]).
-    pub sample_var: &'a [f64],
-    /// The outputs (n × k codes) one sigma of each stated head angle error leaves.
-    pub angle: &'a [DMatrix<f64>],
+    /// Per channel (in the order of the stats), per position: the variance of the dwell mean
+    /// that the samples' noise within the dwells ([`super::scatter::Within`]) and the head's
+    /// stated angle errors give it, codes². Independent across positions.
+    pub mean_var: &'a [Vec<f64>],
 }
 
 /// Why the lack of fit could not be measured.
@@ -160,19 +159,15 @@ pub fn measure(
         let beta_d = &aq * &y;
         let beta = Vec9::from_iterator(beta_d.iter().copied());
         let mut cov = cov_shape * ((&y - &xq * &beta_d).norm_squared() / dof);
-        if let Some(k) = &known {
-            let v = k.sample_var.get(c).copied().unwrap_or(0.0);
-            let mut predicted = Mat9::from_iterator(
-                (&aq * DMatrix::from_fn(n, QUADRATIC_TERMS, |i, t| aq[(t, i)] * v / pos.weight[i].max(1.0)))
-                    .iter()
-                    .copied(),
+        if let Some(v) = known.and_then(|k| k.mean_var.get(c)) {
+            // Independent across positions: aq·diag(v)·aqᵀ.
+            let predicted = Mat9::from_iterator(
+                (&aq * DMatrix::from_fn(n, QUADRATIC_TERMS, |i, t| {
+                    aq[(t, i)] * v.get(i).copied().unwrap_or(0.0)
+                }))
+                .iter()
+                .copied(),
             );
-            if let Some(h) = k.angle.get(c) {
-                for col in h.column_iter() {
-                    let b = Vec9::from_iterator((&aq * col).iter().copied());
-                    predicted += b * b.transpose();
-                }
-            }
             if (m * predicted).trace() > (m * cov).trace() {
                 cov = predicted;
             }

@@ -476,21 +476,18 @@ pub fn budget(
     // scatter, per channel in the order of the stats.
     let within = scatter::Within::pooled(stats, order, &pos.weight);
     let axis_of = |ci: usize| order.iter().position(|&o| o == ci);
-    let sample_var: Vec<f64> =
-        (0..stats.len()).map(|ci| axis_of(ci).zip(within).map_or(0.0, |(p, w)| w.var_codes2[p])).collect();
-    let angle_outputs: Vec<DMatrix<f64>> = (0..stats.len())
-        .map(|ci| match axis_of(ci) {
-            Some(p) if ua2 > 0.0 => DMatrix::from_fn(n, 2 * n, |i, j| {
-                if j % n == i {
-                    refs.head_angle_rad * angle_response[i][p][j / n]
-                } else {
-                    0.0
-                }
-            }),
-            _ => DMatrix::zeros(n, 0),
+    let mean_var: Vec<Vec<f64>> = (0..stats.len())
+        .map(|ci| match (axis_of(ci), within) {
+            (Some(p), Some(w)) => (0..n)
+                .map(|i| {
+                    let d = angle_response[i][p];
+                    w.var_codes2[p] / pos.weight[i].max(1.0) + ua2 * (d[0] * d[0] + d[1] * d[1])
+                })
+                .collect(),
+            _ => Vec::new(),
         })
         .collect();
-    let known = within.map(|_| lack_of_fit::Known { sample_var: &sample_var, angle: &angle_outputs });
+    let known = within.map(|_| lack_of_fit::Known { mean_var: &mean_var });
     let measured = lack_of_fit::measure(pos, stats, &a, &resid_maker, &points, &head_outputs, known);
     let lof_source = match &measured {
         Ok(m) => {
@@ -662,25 +659,24 @@ pub fn budget(
 }
 
 impl Budget {
-    /// The 3 × 12 sensitivity of the calibrated acceleration to the coefficients at `a`.
-    fn jacobian(&self, a: [f64; 3]) -> SMatrix<f64, 3, N_COEF> {
-        let mut jac = SMatrix::<f64, 3, N_COEF>::zeros();
-        let r = row(a);
-        for c in 0..3 {
-            for i in 0..3 {
-                for t in 0..4 {
-                    jac[(i, 4 * c + t)] = -self.cal.m[i][c] * r[t];
-                }
-            }
-        }
-        jac
-    }
-
     /// Per axis, the variance of the calibrated acceleration at the true acceleration `a` (m/s²)
     /// under the coefficients' covariance `cov`, (m/s²)².
     pub fn variance_at(&self, cov: &Cov12, a: [f64; 3]) -> Vector3<f64> {
-        let j = self.jacobian(a);
-        (j * cov * j.transpose()).diagonal()
+        // The Jacobian is −K⁻¹ ⊗ rᵀ (r = [1, a]): per pair of channels the 4 × 4 block's
+        // quadratic form in r, then K⁻¹'s rows over them (the same as J·Σ·Jᵀ's diagonal).
+        let r = row(a);
+        let mut q = [[0.0; 3]; 3];
+        for (c, qc) in q.iter_mut().enumerate() {
+            for (d, v) in qc.iter_mut().enumerate() {
+                *v = (0..4)
+                    .map(|s| r[s] * (0..4).map(|t| cov[(4 * c + s, 4 * d + t)] * r[t]).sum::<f64>())
+                    .sum();
+            }
+        }
+        let m = &self.cal.m;
+        Vector3::from_fn(|i, _| {
+            (0..3).map(|c| (0..3).map(|d| m[i][c] * m[i][d] * q[c][d]).sum::<f64>()).sum()
+        })
     }
 
     /// Per axis, the expanded uncertainty (coverage factor [`Budget::k`]) of the calibrated

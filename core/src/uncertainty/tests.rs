@@ -173,3 +173,24 @@ fn the_coverage_factor_is_student_s_t_for_few_degrees_of_freedom_and_2_for_many(
     // Nothing of Type A: 2.
     assert_eq!(coverage_factor(&[(1.0, f64::INFINITY), (0.0, 3.0)]), (K_COVERAGE, f64::INFINITY));
 }
+
+#[test]
+fn the_variance_at_an_orientation_is_the_jacobian_s_quadratic_form() {
+    let (pos, stats, fits) = unit(80.0);
+    let fits: Vec<&LsqFit> = fits.iter().collect();
+    let b =
+        budget(&pos, &stats, &fits, References { head_angle_rad: 20.0 * ARCSEC, ..References::default() })
+            .unwrap();
+    // Any symmetric covariance: the budget's plus a dense one of its own.
+    let extra = Cov12::from_fn(|i, j| ((i * 7 + j * 7) as f64 * 0.3).cos() * 1e-3);
+    let cov = b.covariance + extra * extra.transpose();
+    for a in [[9.8, 0.0, 0.0], [3.0, -4.0, 8.5], [-5.0, 5.0, 6.6]] {
+        // ∂â/∂u0_c = −K⁻¹e_c, ∂â/∂k_c = −K⁻¹e_c·aᵀ.
+        let jac = SMatrix::<f64, 3, N_COEF>::from_fn(|i, k| -b.cal.m[i][k / 4] * row(a)[k % 4]);
+        let want = (jac * cov * jac.transpose()).diagonal();
+        let got = b.variance_at(&cov, a);
+        for i in 0..3 {
+            assert!((got[i] / want[i] - 1.0).abs() < 1e-12, "{a:?} axis {i}: {} {}", got[i], want[i]);
+        }
+    }
+}
