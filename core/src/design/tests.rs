@@ -243,3 +243,35 @@ fn a_chamber_prediction_is_the_thermal_fits_variance_at_the_worst_temperature() 
         "empirical {empirical:.4e}, predicted {predicted:.4e} (m/s²)², ratio {ratio:.3}"
     );
 }
+
+/// On a designed plan of 16 positions a linear unit is given a lack of fit on 2.3 % of its
+/// channels, as on the paper's plan (about 6.7 % of the units have one on some axis): the
+/// test's limit is a quantile of its weighted χ², which has few degrees of freedom on so few
+/// positions. Its mean and two spreads, before, gave 31 of these 300 units one (10.3 %).
+#[test]
+fn a_linear_unit_on_few_positions_is_seldom_given_a_lack_of_fit() {
+    let samples = 100;
+    let d = design(16, samples, &Prior::nominal(80.0, G).unwrap(), &stated(), G, &head(), 1).unwrap();
+    let plan = Plan { positions: d.positions.clone() };
+    let units = 300;
+    let mut given = 0;
+    for seed in 0..units {
+        let c = campaign(plan.clone(), samples, 1000 + seed);
+        let pos = Positions::new(&c, G);
+        let stats = pos.channel_stats(&c);
+        let fits = fit_positions(&pos, &stats, Method::Lsq, MODEL_4).unwrap();
+        let refs: Vec<_> = fits.iter().map(|(_, f)| f).collect();
+        let r = References {
+            head_angle_rad: stated().head_angle_rad,
+            g_m_s2: stated().g_m_s2,
+            ..References::default()
+        };
+        let b = budget(&pos, &stats, &refs, r).unwrap();
+        let lof = b.contributors.iter().find(|c| c.name == "lack_of_fit").unwrap();
+        given += usize::from(lof.u_m_s2 > 0.0);
+    }
+    let rate = given as f64 / units as f64;
+    eprintln!("lack of fit given to {given} of {units} linear units");
+    // 1 − (1 − 0.0228)³ = 6.7 %; the binomial's σ over 300 units is 1.4 points (16 here).
+    assert!((0.03..0.09).contains(&rate), "{given} of {units}");
+}

@@ -478,12 +478,9 @@ pub fn budget(
     let axis_of = |ci: usize| order.iter().position(|&o| o == ci);
     let mean_var: Vec<Vec<f64>> = (0..stats.len())
         .map(|ci| match (axis_of(ci), within) {
-            (Some(p), Some(w)) => (0..n)
-                .map(|i| {
-                    let d = angle_response[i][p];
-                    w.var_codes2[p] / pos.weight[i].max(1.0) + ua2 * (d[0] * d[0] + d[1] * d[1])
-                })
-                .collect(),
+            (Some(p), Some(w)) => {
+                (0..n).map(|i| w.mean_cov(p, p, pos.weight[i], &angle_response[i], ua2)).collect()
+            }
             _ => Vec::new(),
         })
         .collect();
@@ -516,7 +513,6 @@ pub fn budget(
     // Dwell scatter ([`scatter`]): the samples' noise within the dwells, and what the dwell means
     // scatter about the fit beyond it and the stated references (all of their scatter, less what
     // the references explain, when the dwells hold one sample each).
-    let observed: f64 = resid.iter().map(|r| r.norm_squared()).sum();
     let kept = match &within {
         Some(w) => scatter::Check {
             resid_maker: &resid_maker,
@@ -527,8 +523,14 @@ pub fn budget(
             realised,
         }
         .excess_fraction(w),
-        None if observed > 0.0 => (1.0 - (expected + realised) / observed).max(0.0),
-        None => 0.0,
+        None => {
+            let observed: f64 = resid.iter().map(|r| r.norm_squared()).sum();
+            if observed > 0.0 {
+                (1.0 - (expected + realised) / observed).max(0.0)
+            } else {
+                0.0
+            }
+        }
     };
     let mut noise = Cov12::zeros();
     if let Some(w) = &within {

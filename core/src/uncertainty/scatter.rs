@@ -8,7 +8,9 @@
 //! scatter about the fit (`n − 4` degrees of freedom) is then a check of the rest: under that
 //! noise and the head's stated angle errors the stacked residuals `r` of the three channels are
 //! Gaussian with a known covariance `C`, so `rᵀr` has the mean `tr C` and the standard deviation
-//! `√(2·tr C²)`. What `rᵀr` holds above its mean and [`SPREADS`] of those spreads (after what
+//! `√(2·tr C²)`. What `rᵀr` holds above the value noise alone stays below with the probability
+//! [`super::lack_of_fit::LEVEL`] ([`super::lack_of_fit::noise_limit`], as for the quadratic
+//! terms) (after what
 //! the realised references explain: the head's rotation as this head has it, model 4's lack of
 //! fit) is an error the stated values miss (samples correlated in time, a head worse than its
 //! certificate, a drift) and is counted too, as before, from the dwell means on `n − 4`.
@@ -25,10 +27,7 @@ use nalgebra::{DMatrix, DVector};
 
 use crate::positions::ChannelStats;
 
-/// How many standard deviations of the residuals' sum of squares, above its mean under the
-/// samples' noise and the stated head, are taken as that noise's share before an excess is
-/// counted (as [`super::lack_of_fit::SPREADS`] for the quadratic terms).
-pub const SPREADS: f64 = super::lack_of_fit::SPREADS;
+use super::lack_of_fit::noise_limit;
 
 /// The samples' noise within the dwells, per axis row.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -49,6 +48,22 @@ impl Within {
         }
         let var_codes2 = order.map(|ci| stats[ci].within_ss.iter().sum::<f64>() / dof);
         var_codes2.iter().all(|v| v.is_finite()).then_some(Within { var_codes2, dof })
+    }
+
+    /// The covariance of the dwell means of axis rows `p` and `q` at one position, codes²: the
+    /// samples' noise over the dwell's `samples` (rows independent), and the head's stated angle
+    /// variance `angle_var` (rad²) through `response`, that position's output per radian of each
+    /// head angle (α, β) on each row. Independent across positions.
+    pub fn mean_cov(
+        &self,
+        p: usize,
+        q: usize,
+        samples: f64,
+        response: &[[f64; 2]; 3],
+        angle_var: f64,
+    ) -> f64 {
+        let noise = if p == q { self.var_codes2[p] / samples.max(1.0) } else { 0.0 };
+        noise + angle_var * (response[p][0] * response[q][0] + response[p][1] * response[q][1])
     }
 }
 
@@ -71,8 +86,8 @@ pub struct Check<'a> {
 
 impl Check<'_> {
     /// The fraction of the residuals' sum of squares that the samples' noise `within` and the
-    /// stated references do not account for beyond [`SPREADS`] of their spread: 0 when the
-    /// residuals are what they should be.
+    /// stated references do not account for beyond [`noise_limit`] of their mean and spread: 0
+    /// when the residuals are what they should be.
     pub fn excess_fraction(&self, within: &Within) -> f64 {
         let n = self.weight.len();
         let observed: f64 = self.resid.iter().map(|v| v.norm_squared()).sum();
@@ -85,9 +100,7 @@ impl Check<'_> {
         // tr C² = Σ_pq Σ_ij S_pq,i·S_pq,j·G_ij² (no 3n × 3n product needed).
         let g = self.resid_maker.transpose() * self.resid_maker;
         let s = |p: usize, q: usize, i: usize| {
-            let noise = if p == q { within.var_codes2[p] / self.weight[i].max(1.0) } else { 0.0 };
-            let d = &self.angle_response[i];
-            noise + self.angle_var * (d[p][0] * d[q][0] + d[p][1] * d[q][1])
+            within.mean_cov(p, q, self.weight[i], &self.angle_response[i], self.angle_var)
         };
         let mean: f64 = (0..3).map(|p| (0..n).map(|i| s(p, p, i) * g[(i, i)]).sum::<f64>()).sum();
         let mut square = 0.0;
@@ -101,8 +114,7 @@ impl Check<'_> {
                 }
             }
         }
-        let spread = (2.0 * square).sqrt();
-        let excess = observed - self.realised - mean - SPREADS * spread;
+        let excess = observed - self.realised - noise_limit(mean, square);
         (excess / observed).clamp(0.0, 1.0)
     }
 }
@@ -151,7 +163,8 @@ mod tests {
             .collect();
         let within = Within { var_codes2: [6400.0, 3600.0, 4900.0], dof: 500.0 };
         let angle_var = (20.0 * super::super::ARCSEC).powi(2);
-        // Residuals whose sum of squares is the dense covariance's mean plus `extra` spreads.
+        // Residuals whose sum of squares is the dense covariance's noise limit plus `extra`
+        // spreads.
         let make = |extra: f64| {
             let check = Check {
                 resid_maker: &resid_maker,
@@ -162,7 +175,8 @@ mod tests {
                 realised: 0.0,
             };
             let c = dense(&check, &within);
-            let target = c.trace() + extra * (2.0 * c.norm_squared()).sqrt();
+            let spread = (2.0 * c.norm_squared()).sqrt();
+            let target = noise_limit(c.trace(), c.norm_squared()) + extra * spread;
             let unit = DVector::from_element(n, (target / (3 * n) as f64).sqrt());
             vec![unit.clone(), unit.clone(), unit]
         };
@@ -177,12 +191,12 @@ mod tests {
             }
             .excess_fraction(&within)
         };
-        // At the mean plus SPREADS spreads, exactly nothing is left over; at twice that many, the
-        // excess is SPREADS spreads out of the whole.
-        let at = make(SPREADS);
+        // At the noise limit exactly nothing is left over; below it nothing; above it, the part
+        // beyond the limit out of the whole.
+        let at = make(0.0);
         assert!(check_with(&at).abs() < 1e-9, "{}", check_with(&at));
-        assert_eq!(check_with(&make(0.0)), 0.0);
-        let over = make(2.0 * SPREADS);
+        assert_eq!(check_with(&make(-0.5)), 0.0);
+        let over = make(2.0);
         let observed: f64 = over.iter().map(|v| v.norm_squared()).sum();
         let baseline: f64 = at.iter().map(|v| v.norm_squared()).sum();
         let want = (observed - baseline) / observed;
