@@ -303,7 +303,7 @@ mod tests {
     /// is in the dwell scatter unless a stated head_angle explains it (then it is taken out of
     /// the scatter, not counted twice). So the head's measured value
     /// (`headsig::MeasuredAngle`), fed to the budget, names the head as the source without
-    /// widening U much (95.1 % with 3″ stated, 96.1 % with 30″ at this seed).
+    /// widening U much (94.9 % with 3″ stated, 96.0 % with 30″ at this seed).
     #[test]
     fn a_head_worse_than_its_certificate_is_covered_with_its_stated_or_measured_error() {
         let set = Settings { units: 150, plan: Plan::head(), samples: 20, orientations: 10, seed: 5 };
@@ -313,6 +313,7 @@ mod tests {
             coverage_stated(&s, &set, set.units, stated)
         };
         let (certificate, measured) = (coverage(3.0), coverage(30.0));
+        eprintln!("coverage: {certificate} with the certificate's 3″, {measured} with the measured 30″");
         assert!((0.93..=0.97).contains(&certificate), "{certificate}");
         assert!((0.93..=0.97).contains(&measured), "{measured}");
     }
