@@ -25,8 +25,8 @@ fn main() {
     let checked = settings::check_text(&matches, &cli.command).and_then(|()| {
         let config = settings::apply_config(&mut cli.command, &mut given)?;
         settings::check(&cli.command, &given)?;
-        let g_stated = settings::resolve_gravity(&mut cli.command, &given)?;
-        Ok(resolved::Resolved { g_stated, config })
+        let gravity = settings::gravity::stated(&cli.command, &given)?;
+        Ok(resolved::Resolved { gravity, config })
     });
     let resolved = match checked {
         Ok(r) => r,

@@ -22,8 +22,9 @@ use accelcal_core::error::bad;
 use clap::parser::ValueSource;
 use clap::ArgMatches;
 
-use crate::cli::{Algorithm, Command, CriterionArg, FitArgs, LocalGravity, MethodArg, RecordCommand};
+use crate::cli::{Algorithm, Command, CriterionArg, FitArgs, MethodArg, RecordCommand};
 
+pub mod gravity;
 mod station_config;
 
 pub use station_config::apply as apply_config;
@@ -182,63 +183,6 @@ fn flag(id: &str) -> String {
     format!("--{}", id.replace('_', "-"))
 }
 
-/// The `--g` of a command and its `--latitude`/`--height`, when it has them.
-fn gravity_of(command: &mut Command) -> Option<(&mut f64, &LocalGravity)> {
-    match command {
-        Command::Fit(a) => Some((&mut a.common.g, &a.common.local)),
-        Command::Select(a) => Some((&mut a.common.g, &a.common.local)),
-        Command::Compare(a) => Some((&mut a.common.g, &a.common.local)),
-        Command::Diagnose(a) => Some((&mut a.common.g, &a.common.local)),
-        Command::Plan(a) => Some((&mut a.g, &a.local)),
-        Command::Simulate(a) => Some((&mut a.g, &a.local)),
-        _ => None,
-    }
-}
-
-/// Checks `--latitude`/`--height` and puts the local gravity they give into the command's `g`:
-/// `--g` and `--latitude` together are refused, as is `--height` without `--latitude`. Returns
-/// whether the user stated g (`--g` or `--latitude`) to a command that reads a campaign (its
-/// `# g_m_s2:` line then does not apply); `false` for the others.
-pub fn resolve_gravity(command: &mut Command, given: &Given) -> anyhow::Result<bool> {
-    let optional = match command {
-        Command::Acquire(a) => Some((&mut a.g, &a.local)),
-        Command::Verify(a) => Some((&mut a.g, &a.local)),
-        Command::Station(a) => Some((&mut a.g, &a.local)),
-        _ => None,
-    };
-    if let Some((g, local)) = optional {
-        if let Some(v) = local_gravity(given, local)? {
-            *g = Some(v);
-        }
-        return Ok(false);
-    }
-    let stated = given.has("g") || given.has("latitude");
-    let Some((g, local)) = gravity_of(command) else { return Ok(false) };
-    if let Some(v) = local_gravity(given, local)? {
-        *g = v;
-    }
-    Ok(stated)
-}
-
-/// The gravity `--latitude`/`--height` give, after checking them against `--g`.
-fn local_gravity(given: &Given, local: &LocalGravity) -> anyhow::Result<Option<f64>> {
-    if given.has("g") && given.has("latitude") {
-        return Err(bad("--g and --latitude both give gravity: give one of them"));
-    }
-    if given.has("height") && !given.has("latitude") {
-        return Err(bad("--height needs --latitude (it corrects the normal gravity there)"));
-    }
-    let Some(lat) = local.latitude else { return Ok(None) };
-    if !(lat.is_finite() && (-90.0..=90.0).contains(&lat)) {
-        return Err(bad(format!("--latitude must be in -90..=90 degrees, got {lat}")));
-    }
-    let h = local.height.unwrap_or(0.0);
-    if !(h.is_finite() && h.abs() <= 100_000.0) {
-        return Err(bad(format!("--height must be within ±100000 m, got {h}")));
-    }
-    Ok(Some(accelcal_shared::normal_gravity(lat, h)))
-}
-
 /// Checks a parsed command line before anything is read or written.
 pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
     check_run(command, given)?;
@@ -345,9 +289,6 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
             if let Some(hz) = a.rate_hz {
                 accelcal_shared::wire::check_rate(hz).map_err(|r| bad(format!("--rate-hz: {r}")))?;
             }
-            if let Some(g) = a.g {
-                crate::cmd::check_g(g)?;
-            }
             check_head_timeout(given, &a.head, a.head_timeout_s)?;
             positive_seconds("--timeout-s", a.timeout_s)
         }
@@ -386,9 +327,6 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
                     a.settle_timeout_s
                 )));
             }
-            if let Some(g) = a.g {
-                crate::cmd::check_g(g)?;
-            }
             check_answer_timeout(&a.link)?;
             check_head_timeout(given, &a.head, a.head_timeout_s)?;
             let fit: Vec<(&str, &Path)> = a.fit.iter().map(|p| ("--fit", p.as_path())).collect();
@@ -410,7 +348,7 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
         }
         Command::Report(a) => {
             if let Some(g) = a.g {
-                crate::cmd::check_g(g)?;
+                crate::resolved::check_g(g)?;
             }
             check_issuer(&a.issuer)?;
             let mut inputs = vec![
@@ -538,9 +476,6 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
                 )));
             }
             check_issuer(&a.issuer)?;
-            if let Some(g) = a.g {
-                crate::cmd::check_g(g)?;
-            }
             if let Some(out) = a.outs.iter().find(|o| o.is_file()) {
                 return Err(bad(format!(
                     "--out {} is a file: the station needs a directory for the unit",

@@ -117,6 +117,39 @@ fn fit_states_the_expanded_uncertainty_its_covariance_and_contributors() {
     assert!(e.contains("triad"), "{e}");
 }
 
+/// Gravity's contributor follows where g came from, resolved once: the campaign's `# g_m_s2:`
+/// (a number, taken as rounded), `--latitude` (normal gravity), or nobody (the assumed 9.81 m/s²,
+/// within 0.03 m/s² anywhere at sea level: before, a campaign without the line was budgeted as
+/// if 9.81 had been given, 0.005 m/s²).
+#[test]
+fn gravity_s_contributor_follows_where_g_came_from() {
+    let d = Dir::new();
+    let c = simulate(&d, "c.csv", &["--samples", "20"]);
+    let text = std::fs::read_to_string(&c).unwrap();
+    assert!(text.starts_with("# g_m_s2: 9.81\n"), "{}", &text[..40]);
+    let plain = d.s("plain.csv");
+    std::fs::write(&plain, text.lines().filter(|l| !l.starts_with("# g_")).collect::<Vec<_>>().join("\n")).unwrap();
+    let gravity = |campaign: &str, extra: &[&str]| {
+        let j = d.s("g.json");
+        let mut args = vec!["fit", campaign, "--json", &j];
+        args.extend_from_slice(extra);
+        ok(&args);
+        let doc = json(Path::new(&j));
+        let c = doc["uncertainty"]["contributors"].as_array().unwrap().clone();
+        let g = c.into_iter().find(|c| c["name"] == "gravity").unwrap();
+        (g["u_m_s2"].as_f64().unwrap(), g["source"].as_str().unwrap().to_string())
+    };
+    let (header, why) = gravity(&c, &[]);
+    assert!(why.contains("as given, taken as rounded") && why.contains("bound 5.0e-3"), "{why}");
+    let (site, why) = gravity(&c, &["--latitude", "50.45"]);
+    assert!(why.contains("normal gravity") && why.contains("bound 1.0e-3"), "{why}");
+    let (assumed, why) = gravity(&plain, &[]);
+    assert!(why.contains("assumed, the site unknown") && why.contains("bound 3.0e-2"), "{why}");
+    assert!(site < header && header < assumed, "{site} {header} {assumed}");
+    let (given, why) = gravity(&plain, &["--g", "9.81"]);
+    assert!(why.contains("as given") && (given - header).abs() < 1e-12 * header, "{why}");
+}
+
 #[test]
 fn stated_temperature_coefficients_count_the_calibration_temperature_against_the_reference() {
     let d = Dir::new();

@@ -49,10 +49,9 @@ pub fn plots(dir: &std::path::Path, r: &Comparison) -> anyhow::Result<Vec<std::p
 }
 
 /// Runs `accelcal compare`.
-pub fn run(a: &CompareArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
-    super::check_g(a.common.g)?;
+pub fn run(a: &CompareArgs, g: &super::Gravity, warnings: &mut super::Warnings) -> anyhow::Result<()> {
     // Streamed: the fits need the dwell statistics, the errors one row at a time.
-    let r = compute_files(&a.campaign, a.validate.as_deref(), a.common.codes, a.common.g, warnings)?;
+    let r = compute_files(&a.campaign, a.validate.as_deref(), a.common.codes, g.g, warnings)?;
     print_table(&r);
     if let Some(j) = &a.common.json {
         write_json(j, &r)?;

@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use accelcal_core::campaign::identity::{g_uncertainty, G_SOURCE_NORMAL};
+use accelcal_core::campaign::identity::g_uncertainty;
 use accelcal_core::campaign::Campaign;
 use accelcal_core::design::search::{design, design_auto, AutoTarget, Designed, Head, MIN_POSITIONS};
 use accelcal_core::design::{head_time_s, predict, Chamber, DesignError, Part, Prediction, Prior, Stated};
@@ -71,7 +71,7 @@ pub fn check(a: &PlanArgs) -> anyhow::Result<()> {
         ));
     }
     head(a).reachable().map_err(|e| bad(format!("--alpha-step-deg/--beta-step-deg/--beta-max-deg: {e}")))?;
-    super::check_g(a.g)
+    Ok(())
 }
 
 /// `--chamber` and `--soak-s`, or `None` without a chamber.
@@ -206,15 +206,15 @@ fn criteria(p: &Prediction) -> Criteria {
 }
 
 /// The unit type: from `--like` or the nominal triad.
-fn prior(a: &PlanArgs) -> anyhow::Result<Prior> {
+fn prior(a: &PlanArgs, g: f64) -> anyhow::Result<Prior> {
     let d = &a.design;
     Ok(match (&d.like, d.noise) {
         (Some(path), _) => {
             let c = Campaign::read(path).with_context(|| format!("--like {}", path.display()))?;
-            Prior::from_campaign(&c, a.g, &path.display().to_string())
+            Prior::from_campaign(&c, g, &path.display().to_string())
                 .with_context(|| format!("--like {}", path.display()))?
         }
-        (None, Some(noise)) => Prior::nominal(noise, a.g)?,
+        (None, Some(noise)) => Prior::nominal(noise, g)?,
         (None, None) => unreachable!("checked: --like or --noise"),
     })
 }
@@ -235,12 +235,12 @@ fn write_plan(path: &Path, d: &Designed, header: &str) -> anyhow::Result<()> {
 }
 
 /// Runs `accelcal plan --design`.
-pub fn run(a: &PlanArgs, size: DesignSize) -> anyhow::Result<()> {
+pub fn run(a: &PlanArgs, size: DesignSize, gravity: &super::Gravity) -> anyhow::Result<()> {
+    let g = gravity.g;
     let d = &a.design;
     let out = d.out.as_deref().expect("checked: --out");
-    let prior = prior(a)?;
-    let source = a.local.latitude.map(|_| G_SOURCE_NORMAL);
-    let (bound, _) = g_uncertainty(a.g, source);
+    let prior = prior(a, g)?;
+    let (bound, _) = g_uncertainty(g, gravity.words().as_deref());
     let angle_u = d.head_angle_u.unwrap_or(0.0);
     let chamber = chamber(a)?;
     let stated =
@@ -254,15 +254,15 @@ pub fn run(a: &PlanArgs, size: DesignSize) -> anyhow::Result<()> {
     };
     let samples = d.samples.unwrap_or(SAMPLES) as usize;
     let head = head(a);
-    let paper = predict(&Plan::head().positions, samples, &prior, &stated, a.g)?;
+    let paper = predict(&Plan::head().positions, samples, &prior, &stated, g)?;
     let (designed, target) = match size {
-        DesignSize::Positions(n) => (design(n, samples, &prior, &stated, a.g, &head, a.seed)?, None),
+        DesignSize::Positions(n) => (design(n, samples, &prior, &stated, g, &head, a.seed)?, None),
         DesignSize::Auto => {
             let target = d.target_u.unwrap_or(paper.worst_m_s2);
             let t = AutoTarget { u_m_s2: target, rate_hz, move_s };
             let n = accelcal_core::design::search::AUTO_DWELLS_S.len() as u64;
             let pb = bar(n, "dwells tried");
-            let r = design_auto(&t, &prior, &stated, a.g, &head, a.seed, &|_| pb.inc(1));
+            let r = design_auto(&t, &prior, &stated, g, &head, a.seed, &|_| pb.inc(1));
             pb.finish_and_clear();
             (r?, Some(target))
         }
@@ -330,7 +330,7 @@ pub fn run(a: &PlanArgs, size: DesignSize) -> anyhow::Result<()> {
     println!("  written: {}", out.display());
 
     let reference = |name: &'static str, plan: Plan| -> anyhow::Result<Row> {
-        let prediction = predict(&plan.positions, samples, &prior, &stated, a.g)?;
+        let prediction = predict(&plan.positions, samples, &prior, &stated, g)?;
         Ok(Row { name, positions: plan.positions, samples, prediction })
     };
     let rows = [

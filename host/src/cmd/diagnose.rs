@@ -12,15 +12,13 @@ use accelcal_core::output::write_json;
 use crate::report::sig;
 
 /// Runs `accelcal diagnose`.
-pub fn run(a: &DiagnoseArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
-    super::check_g(a.common.g)?;
+pub fn run(a: &DiagnoseArgs, g: &super::Gravity, warnings: &mut super::Warnings) -> anyhow::Result<()> {
     let base = accelcal_core::lsq::parse_terms(&a.terms).map_err(|e| bad(format!("--terms {e}")))?;
     // Streamed in two passes: the diagnosis needs the bins only, so memory does not grow with
     // the rows.
     let binned = Binned::read_with(&a.campaign, a.common.codes).context("reading the campaign")?;
     warnings.extend(&binned.warnings);
-    let d = Data::from_binned(&binned, a.common.g)
-        .and_then(|d| diagnose::diagnose_data(&d, base).map(|r| (d, r)));
+    let d = Data::from_binned(&binned, g.g).and_then(|d| diagnose::diagnose_data(&d, base).map(|r| (d, r)));
     let (d, report) = d.map_err(|e| bad(format!("{}: {e}", a.campaign.display())))?;
     print_report(&report);
     if let Some(dir) = &a.plot {

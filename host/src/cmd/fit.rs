@@ -68,9 +68,8 @@ pub fn print_table(method: Method, fits: &[(String, LsqFit)]) {
     }
 }
 
-/// Runs `accelcal fit`.
-/// `g_stated`: `--g` or `--latitude` gave g (the campaign's `# g_m_s2:` did not).
-pub fn run(a: &FitArgs, g_stated: bool, warnings: &mut super::Warnings) -> anyhow::Result<()> {
+/// Runs `accelcal fit` at the gravity `g` (the user's, the campaign's or the assumed 9.81).
+pub fn run(a: &FitArgs, g: &super::Gravity, warnings: &mut super::Warnings) -> anyhow::Result<()> {
     let method = match a.method {
         MethodArg::Lsq => Method::Lsq,
         MethodArg::TestTurns => Method::TestTurns,
@@ -85,10 +84,9 @@ pub fn run(a: &FitArgs, g_stated: bool, warnings: &mut super::Warnings) -> anyho
                     "--codes does not apply to fit --method gravity-norm (it applies to --method lsq and test-turns, which fit a campaign)",
                 ));
             }
-            return super::gravity::run(a);
+            return super::gravity::run(a, g);
         }
     };
-    super::check_g(a.common.g)?;
     let structure = lsq::parse_terms(&a.terms).map_err(|e| bad(format!("--terms: {e}")))?;
     let given_id = a.device_id.as_deref().map(parse_device_id).transpose()?;
     if a.temp_input.is_some() && a.record.is_none() {
@@ -130,7 +128,7 @@ pub fn run(a: &FitArgs, g_stated: bool, warnings: &mut super::Warnings) -> anyho
     }
     // Streamed: the fits need the dwell statistics only, so memory does not grow with the rows.
     let r = super::reduce_campaign(&a.campaign, a.common.codes, warnings)?;
-    let mut pos = r.positions(a.common.g);
+    let mut pos = r.positions(g.g);
     pos.t_ref_c = a.thermal.t_ref_c();
     let stats = r.channel_stats();
     let fits =
@@ -153,8 +151,7 @@ pub fn run(a: &FitArgs, g_stated: bool, warnings: &mut super::Warnings) -> anyho
                 }
                 (None, _) => None,
             };
-            let rec =
-                record(&fits, device_id.unwrap_or_default(), super::created(a.created), a.common.g, thermal)?;
+            let rec = record(&fits, device_id.unwrap_or_default(), super::created(a.created), g.g, thermal)?;
             gate(path, &rec)?;
             Some((path, record_bytes(&rec)?, rec))
         }
@@ -163,23 +160,14 @@ pub fn run(a: &FitArgs, g_stated: bool, warnings: &mut super::Warnings) -> anyho
     print_table(method, &fits);
     let header = accelcal_core::campaign::header(&a.campaign)?;
     let get = |k: &str| header.iter().find(|(key, _)| key == k).map(|(_, v)| v.clone()).unwrap_or_default();
-    // Where g came from, for its uncertainty: normal gravity from the site, a value the user
-    // gave, or the campaign's `# g_source:` line.
-    let g_source = if a.common.local.latitude.is_some() {
-        Some(accelcal_core::campaign::identity::G_SOURCE_NORMAL.to_string())
-    } else if g_stated {
-        Some("--g".to_string())
-    } else {
-        Some(get("g_source")).filter(|s| !s.is_empty())
-    };
-    let budget = fit_budget(a, head_u, method, &pos, &stats, &fits, g_source.as_deref())?;
+    let budget = fit_budget(a, head_u, method, &pos, &stats, &fits, g)?;
     if let Some(b) = &budget {
         super::uncertainty::print_budget(&UncertaintyJson::from(b));
     }
     let identity = Identity {
         device_id: device_id.map(|d| device_id_hex(&d)).or(unit.device_id),
         serial: unit.serial,
-        g_m_s2: a.common.g,
+        g_m_s2: g.g,
         campaign_sha256: unit.sha256,
         record_crc: rec.as_ref().map(|(_, bytes, _)| record_crc_hex(bytes)),
     };
@@ -200,11 +188,6 @@ pub fn run(a: &FitArgs, g_stated: bool, warnings: &mut super::Warnings) -> anyho
         );
     }
     if let Some(rdb) = &mut db {
-        let g_source = if g_stated {
-            "--g / --latitude".to_string()
-        } else {
-            format!("the campaign's `# g_m_s2:` ({})", get("g_source"))
-        };
         let Some(device_id) = identity.device_id.clone() else {
             return Err(bad(format!(
                 "fit --db needs the unit's device id: {} has no `# device_id:` line (give --record with --device-id)",
@@ -216,7 +199,7 @@ pub fn run(a: &FitArgs, g_stated: bool, warnings: &mut super::Warnings) -> anyho
             serial: identity.serial.clone().unwrap_or_default(),
             head: String::new(),
             firmware_version: get("firmware"),
-            g: (a.common.g, g_source),
+            g: (g.g, g.stored()),
         })?;
         if let Some(h) = &head {
             rdb.db.store_run_asset(run, h)?;
@@ -262,8 +245,7 @@ impl HeadU<'_> {
 /// The uncertainty budget of an lsq fit of a model-4 triad (`None` for another fit, which the
 /// settings let through only without the head's stated uncertainties, or a campaign
 /// whose channels are not a triad: then those options are refused here). The standard uncertainty
-/// of g is its source's bound taken as rectangular (bound/√3); `g_source` is the campaign's
-/// `# g_source:` line.
+/// of g is its source's bound taken as rectangular (bound/√3).
 fn fit_budget(
     a: &FitArgs,
     head: HeadU<'_>,
@@ -271,14 +253,14 @@ fn fit_budget(
     pos: &Positions,
     stats: &[ChannelStats],
     fits: &[(String, LsqFit)],
-    g_source: Option<&str>,
+    g: &super::Gravity,
 ) -> anyhow::Result<Option<Budget>> {
     use accelcal_core::campaign::identity::g_uncertainty;
     if method != Method::Lsq || fits.iter().any(|(_, f)| f.structure != accelcal_shared::terms::MODEL_4) {
         return Ok(None);
     }
     let stated = head.angle.is_some() || head.orthogonality.is_some() || a.tempco.coefficients().is_some();
-    let (bound, why) = g_uncertainty(a.common.g, g_source);
+    let (bound, why) = g_uncertainty(g.g, g.words().as_deref());
     let refs = References {
         head_angle_rad: head.angle_u().unwrap_or(0.0) * ARCSEC,
         head_orthogonality_rad: head.orthogonality.unwrap_or(0.0) * ARCSEC,

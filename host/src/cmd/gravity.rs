@@ -240,26 +240,25 @@ pub fn json_report(cal: &Calibration, identity: Identity) -> JsonReport {
 }
 
 /// Reads the input, detects the holds and fits, without printing anything.
-pub fn calibrate_file(a: &FitArgs) -> anyhow::Result<(imutk::Recording, Calibration)> {
-    super::check_g(a.common.g)?;
+pub fn calibrate_file(a: &FitArgs, g: f64) -> anyhow::Result<(imutk::Recording, Calibration)> {
     validate(a)?;
     let InputFormat::ImuTk = a.gravity.format;
-    gravity::calibrate_path(&a.campaign, a.common.g, &detector(&a.gravity), structure_choice(&a.gravity))
+    gravity::calibrate_path(&a.campaign, g, &detector(&a.gravity), structure_choice(&a.gravity))
 }
 
 /// Runs `accelcal fit --method gravity-norm`: prints the report, writes the JSON, the plots and
 /// the holds as a campaign if asked.
-pub fn run(a: &FitArgs) -> anyhow::Result<()> {
+pub fn run(a: &FitArgs, g: &super::Gravity) -> anyhow::Result<()> {
     // The device id is checked before the input is read.
     let device_id = a.device_id.as_deref().map(parse_device_id).transpose()?;
-    let (rec, cal) = calibrate_file(a)?;
+    let (rec, cal) = calibrate_file(a, g.g)?;
     // The record is built and checked first: a record a node would refuse writes nothing.
     let record = match &a.record {
         Some(path) => {
-            accelcal_core::calibrate::check_record_g(a.common.g)?;
+            accelcal_core::calibrate::check_record_g(g.g)?;
             let r = model4_record(&cal.fit.model, device_id.unwrap_or_default(), super::created(a.created))
                 .map(|mut r| {
-                    r.g_m_s2 = Some(a.common.g);
+                    r.g_m_s2 = Some(g.g);
                     r
                 })
                 .ok_or_else(|| {
@@ -281,7 +280,7 @@ pub fn run(a: &FitArgs) -> anyhow::Result<()> {
         let identity = Identity {
             device_id: record.as_ref().map(|(_, r)| device_id_hex(&r.device_id)),
             serial: None,
-            g_m_s2: a.common.g,
+            g_m_s2: g.g,
             campaign_sha256: content_sha256(&a.campaign)?,
             record_crc: crc,
         };

@@ -6,7 +6,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{mpsc, Arc};
 use std::time::Duration;
 
-use accelcal_core::campaign::identity::{Identity, G_SOURCE_ASSUMED, G_SOURCE_NORMAL};
+use accelcal_core::campaign::identity::Identity;
 use accelcal_core::error::{bad, Interrupted};
 use accelcal_core::output::write_json;
 use accelcal_core::sim::Plan;
@@ -21,6 +21,7 @@ use accelcal_line::verify::{
 };
 use accelcal_shared::wire::{Info, Output, RecordStatus};
 
+use super::{Gravity, Source};
 use crate::cli::{AcquireArgs, InfoArgs, OutputArg, OutputArgs, PortArgs, VerifyArgs};
 
 fn open(link: &PortArgs) -> anyhow::Result<Session> {
@@ -234,29 +235,16 @@ impl Progress for Lines {
     }
 }
 
-/// Where a command's g came from (`--g`, `--latitude`, or the announced 9.81 fallback, which is
-/// announced here, once).
-fn g_source(g: Option<f64>, local: &crate::cli::LocalGravity) -> (f64, String) {
-    let (g, source, fallback) = g_and_source(g, local);
-    if fallback {
+/// The gravity of a command at the rig: the user's (`--g`, `--latitude`), or the announced 9.81
+/// fallback, announced here, once.
+fn rig_gravity(stated: Option<&Gravity>) -> Gravity {
+    stated.cloned().unwrap_or_else(|| {
         eprintln!(
             "note: {}",
             super::g_fallback("neither --g nor --latitude/--height was given for the rig's site")
         );
-    }
-    (g, source)
-}
-
-pub fn g_and_source(g: Option<f64>, local: &crate::cli::LocalGravity) -> (f64, String, bool) {
-    match (g, local.latitude) {
-        (Some(g), Some(lat)) => (
-            g,
-            format!("{G_SOURCE_NORMAL} at latitude {lat} deg, height {} m", local.height.unwrap_or(0.0)),
-            false,
-        ),
-        (Some(g), None) => (g, "--g".into(), false),
-        _ => (accelcal_shared::G_STANDARD, format!("{G_SOURCE_ASSUMED} (no --g or --latitude given)"), true),
-    }
+        Gravity::assumed()
+    })
 }
 
 /// A flag set by Ctrl-C or SIGTERM.
@@ -287,7 +275,10 @@ pub const DEFAULT_SAMPLES: usize = 400;
 /// `--resume`'s samples, rate and g: the campaign's (its header), whatever the defaults; an
 /// option that contradicts them is refused, naming both (checked before the node is opened).
 /// With several campaigns (one per node), they must agree.
-fn resumed_settings(a: &AcquireArgs) -> anyhow::Result<(usize, Option<u32>, (f64, String))> {
+fn resumed_settings(
+    a: &AcquireArgs,
+    stated: Option<&Gravity>,
+) -> anyhow::Result<(usize, Option<u32>, (f64, String))> {
     let mut first: Option<(&std::path::Path, acquire::ResumeSettings)> = None;
     for out in &a.out {
         let file = acquire::resume_settings(out)?;
@@ -304,13 +295,8 @@ fn resumed_settings(a: &AcquireArgs) -> anyhow::Result<(usize, Option<u32>, (f64
         if let Some(hz) = a.rate_hz.filter(|&hz| hz != file.rate_hz) {
             return Err(clash(format!("--rate-hz {hz}"), "rate_hz", file.rate_hz.to_string()));
         }
-        if let Some(g) = a.g.filter(|&g| g != file.g) {
-            let option = if a.local.latitude.is_some() {
-                format!("--latitude (g = {g} m/s²)")
-            } else {
-                format!("--g {g}")
-            };
-            return Err(clash(option, "g_m_s2", file.g.to_string()));
+        if let Some(g) = stated.filter(|g| g.g != file.g) {
+            return Err(clash(g.option(), "g_m_s2", file.g.to_string()));
         }
         match &first {
             None => first = Some((out, file)),
@@ -358,13 +344,14 @@ impl Progress for NodeLines {
 }
 
 /// Runs `accelcal acquire`.
-pub fn run_acquire(a: &AcquireArgs) -> anyhow::Result<()> {
+pub fn run_acquire(a: &AcquireArgs, stated: Option<&Gravity>) -> anyhow::Result<()> {
     let plan = Plan::from_spec(&a.plan, 1).map_err(|e| bad(format!("--plan {e}")))?;
     let soak = soak_of(&a.chamber, a.soak_s)?;
     let (samples, rate_hz, (g, g_source)) = if a.resume {
-        resumed_settings(a)?
+        resumed_settings(a, stated)?
     } else {
-        (a.samples.unwrap_or(DEFAULT_SAMPLES), a.rate_hz, g_source(a.g, &a.local))
+        let g = rig_gravity(stated);
+        (a.samples.unwrap_or(DEFAULT_SAMPLES), a.rate_hz, (g.g, g.stored()))
     };
     let stop = stop_flag()?;
     let answer = Duration::from_secs_f64(a.timeout_s);
@@ -462,7 +449,7 @@ fn check_line(c: &PositionCheck, n: usize) -> String {
 }
 
 /// Runs `accelcal verify`.
-pub fn run_verify(a: &VerifyArgs) -> anyhow::Result<()> {
+pub fn run_verify(a: &VerifyArgs, stated: Option<&Gravity>) -> anyhow::Result<()> {
     let plan = Plan::from_spec(&a.plan, 1).map_err(|e| bad(format!("--plan {e}")))?;
     // Checked in `settings`: --coverage >= 1, and neither it nor --fit with --tolerance.
     let k = a.coverage.unwrap_or(DEFAULT_COVERAGE);
@@ -483,10 +470,11 @@ pub fn run_verify(a: &VerifyArgs) -> anyhow::Result<()> {
     };
     let soak = soak_of(a.chamber.as_slice(), a.soak_s)?;
     // Without --g or --latitude, the g of the fit (the rig's, where the unit was calibrated).
-    let (g, g_source) = match (a.g, &fit) {
-        (None, Some((what, id))) => (id.g_m_s2, format!("the fit's, {what}")),
-        _ => g_source(a.g, &a.local),
+    let gravity = match (stated, &fit) {
+        (None, Some((what, id))) => Gravity { g: id.g_m_s2, source: Source::Fit { what: what.clone() } },
+        _ => rig_gravity(stated),
     };
+    let (g, g_source) = (gravity.g, gravity.stored());
     let spec = a.spec.as_deref().map(super::spec::read).transpose()?;
     if let Some(s) = &spec {
         accelcal_line::verify::plan_measures_parameters(s, &plan.positions, g)?;

@@ -26,25 +26,17 @@ pub mod store;
 pub mod uncertainty;
 
 use crate::cli::{Cli, Command};
+pub use crate::resolved::{check_g, fallback_note as g_fallback, Gravity, Source};
 
 /// Runs a parsed command line; the campaign readers' warnings go to `warnings`.
 pub fn run(cli: Cli, resolved: &crate::resolved::Resolved, warnings: &mut Warnings) -> anyhow::Result<()> {
-    let g_stated = resolved.g_stated;
+    let stated = resolved.gravity.as_ref();
     match cli.command {
-        Command::Simulate(a) => simulate::run(&a),
-        Command::Select(mut a) => {
-            campaign_g(&mut a.common, g_stated, &a.campaign, warnings)?;
-            select::run(&a, warnings)
-        }
-        Command::Plan(a) => plan::run(&a),
-        Command::Fit(mut a) => {
-            campaign_g(&mut a.common, g_stated, &a.campaign, warnings)?;
-            fit::run(&a, g_stated, warnings)
-        }
-        Command::Compare(mut a) => {
-            campaign_g(&mut a.common, g_stated, &a.campaign, warnings)?;
-            compare::run(&a, warnings)
-        }
+        Command::Simulate(a) => simulate::run(&a, &Gravity::default_of(stated, a.g)),
+        Command::Select(a) => select::run(&a, &campaign_g(stated, &a.campaign, warnings)?, warnings),
+        Command::Plan(a) => plan::run(&a, &Gravity::default_of(stated, a.g)),
+        Command::Fit(a) => fit::run(&a, &campaign_g(stated, &a.campaign, warnings)?, warnings),
+        Command::Compare(a) => compare::run(&a, &campaign_g(stated, &a.campaign, warnings)?, warnings),
         Command::Demo(a) => demo::run(&a),
         Command::Flash(a) => node::run_flash(&a),
         Command::Record(crate::cli::RecordCommand::Show(a)) => record::run_show(&a),
@@ -53,17 +45,14 @@ pub fn run(cli: Cli, resolved: &crate::resolved::Resolved, warnings: &mut Warnin
         Command::Emulate(a) => emulate::run(&a),
         Command::Info(a) => live::run_info(&a),
         Command::Output(a) => live::run_output(&a),
-        Command::Acquire(a) => live::run_acquire(&a),
-        Command::Verify(a) => live::run_verify(&a),
+        Command::Acquire(a) => live::run_acquire(&a, stated),
+        Command::Verify(a) => live::run_verify(&a, stated),
         Command::Report(a) => report::run(&a),
-        Command::Diagnose(mut a) => {
-            campaign_g(&mut a.common, g_stated, &a.campaign, warnings)?;
-            diagnose::run(&a, warnings)
-        }
+        Command::Diagnose(a) => diagnose::run(&a, &campaign_g(stated, &a.campaign, warnings)?, warnings),
         Command::BenchDiagnose(a) => bench_diagnose::run(&a),
         Command::BenchSignature(a) => fleet::run_bench_signature(&a),
         Command::UncertaintyCheck(a) => uncertainty::run_check(&a),
-        Command::Station(a) => station::run(&a, resolved.config.as_ref()),
+        Command::Station(a) => station::run(&a, stated, resolved.config.as_ref()),
         Command::History(a) => history::run(&a),
         Command::Void(a) => db::run_void(&a),
         Command::Db(crate::cli::DbCommand::Verify(a)) => db::run_verify(&a),
@@ -101,49 +90,46 @@ pub fn error_line(w: &Warnings, e: &anyhow::Error) -> String {
     }
 }
 
-/// Without --g or --latitude, a campaign that states the gravity it was acquired at (`# g_m_s2:`,
-/// written by `acquire` and `simulate`) is calibrated at that g; one that does not is calibrated
-/// at 9.81, and a warning says so (once).
+/// The gravity a command that reads a campaign works at: what the user stated; else the
+/// campaign's `# g_m_s2:` line (written by `acquire` and `simulate`), with its `# g_source:`;
+/// else 9.81, and a note says so (once).
 fn campaign_g(
-    common: &mut crate::cli::CommonArgs,
-    g_stated: bool,
+    stated: Option<&Gravity>,
     campaign: &std::path::Path,
     warnings: &mut Warnings,
-) -> anyhow::Result<()> {
-    if g_stated || !campaign.is_file() {
-        return Ok(());
+) -> anyhow::Result<Gravity> {
+    use accelcal_core::campaign::identity::{G_KEY, G_SOURCE_KEY};
+    if let Some(g) = stated {
+        return Ok(g.clone());
+    }
+    if !campaign.is_file() {
+        // The reader names the missing file.
+        return Ok(Gravity::assumed());
     }
     let header = accelcal_core::campaign::header(campaign)?;
-    if let Some((_, v)) = header.iter().find(|(k, _)| k == "g_m_s2") {
-        let g: f64 = v.parse().map_err(|_| {
-            accelcal_core::error::bad(format!(
-                "{}: `# g_m_s2: {v}` is not a number of m/s²",
+    let get = |key: &str| header.iter().find(|(k, _)| k == key).map(|(_, v)| v.clone());
+    match get(G_KEY) {
+        Some(v) => {
+            let g: f64 = v.parse().map_err(|_| {
+                accelcal_core::error::bad(format!(
+                    "{}: `# g_m_s2: {v}` is not a number of m/s²",
+                    campaign.display()
+                ))
+            })?;
+            check_g(g)?;
+            Ok(Gravity {
+                g,
+                source: Source::Campaign { g_source: get(G_SOURCE_KEY).filter(|s| !s.is_empty()) },
+            })
+        }
+        None => {
+            warnings.note(g_fallback(&format!(
+                "{} does not state its gravity (`# g_m_s2:`) and neither --g nor --latitude was given",
                 campaign.display()
-            ))
-        })?;
-        check_g(g)?;
-        common.g = g;
-    } else {
-        warnings.note(g_fallback(&format!(
-            "{} does not state its gravity (`# g_m_s2:`) and neither --g nor --latitude was given",
-            campaign.display()
-        )));
+            )));
+            Ok(Gravity::assumed())
+        }
     }
-    Ok(())
-}
-
-/// The one announcement of the 9.81 m/s² fallback (without the `note: ` prefix), with why it
-/// applies: `select`/`fit`/`compare`/`diagnose`, `acquire`/`verify` and `report` all say it so.
-pub fn g_fallback(why: &str) -> String {
-    format!("g = {} m/s² assumed: {why}", accelcal_shared::G_STANDARD)
-}
-
-/// Checks that g is usable.
-pub fn check_g(g: f64) -> anyhow::Result<()> {
-    if !(g.is_finite() && g > 0.0) {
-        return Err(accelcal_core::error::bad(format!("--g must be a positive number of m/s², got {g}")));
-    }
-    Ok(())
 }
 
 /// Checks `--t-ref`, °C.

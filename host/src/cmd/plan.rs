@@ -32,19 +32,19 @@ fn positions(plan: &Plan, g: f64) -> Vec<PositionJson> {
 }
 
 /// Runs `accelcal plan`.
-pub fn run(a: &PlanArgs) -> anyhow::Result<()> {
+pub fn run(a: &PlanArgs, gravity: &super::Gravity) -> anyhow::Result<()> {
     if let Some(size) = a.design.design {
-        return super::design::run(a, size);
+        return super::design::run(a, size, gravity);
     }
-    super::check_g(a.g)?;
+    let g = gravity.g;
     let plan = Plan::from_spec(&a.plan, a.seed).map_err(|e| bad(format!("--plan {e}")))?;
-    let rows = positions(&plan, a.g);
+    let rows = positions(&plan, g);
     println!(
         "plan `{}`: {} positions; what a triad's axes should read, g = {} m/s² \
          (ax = -g cos(beta) sin(alpha), ay = -g sin(beta), az = -g cos(alpha) cos(beta))",
         a.plan,
         rows.len(),
-        a.g
+        g
     );
     println!(
         "  {:>4} {:>10} {:>10} {:>10} {:>10} {:>10} {:>7} {:>7} {:>7}",
@@ -60,13 +60,13 @@ pub fn run(a: &PlanArgs) -> anyhow::Result<()> {
             x,
             y,
             z,
-            x / a.g,
-            y / a.g,
-            z / a.g
+            x / g,
+            y / g,
+            z / g
         );
     }
     if let Some(j) = &a.json {
-        write_json(j, &serde_json::json!({ "plan": a.plan, "g": a.g, "positions": rows }))?;
+        write_json(j, &serde_json::json!({ "plan": a.plan, "g": g, "positions": rows }))?;
     }
     Ok(())
 }

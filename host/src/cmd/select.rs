@@ -250,15 +250,14 @@ pub fn plots(dir: &Path, sel: &[Selection], settings: &Settings) -> anyhow::Resu
 }
 
 /// Runs `accelcal select`.
-pub fn run(a: &SelectArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
-    super::check_g(a.common.g)?;
+pub fn run(a: &SelectArgs, g: &super::Gravity, warnings: &mut super::Warnings) -> anyhow::Result<()> {
     if !(a.tolerance.is_finite() && a.tolerance >= 0.0) {
         return Err(bad(format!("--tolerance must be a number of codes >= 0, got {}", a.tolerance)));
     }
     super::check_t_ref(a.thermal.t_ref_c())?;
     // Streamed: GMDH needs the dwell statistics only.
     let r = super::reduce_campaign(&a.campaign, a.common.codes, warnings)?;
-    let (mut pos, stats) = (r.positions(a.common.g), r.channel_stats());
+    let (mut pos, stats) = (r.positions(g.g), r.channel_stats());
     pos.t_ref_c = a.thermal.t_ref_c();
     if a.max_terms == 0 || a.width == 0 || a.threads == Some(0) {
         return Err(bad("--max-terms, --width and --threads must be at least 1"));

@@ -34,8 +34,7 @@ fn thermal_plan(a: &SimulateArgs) -> anyhow::Result<Option<sim::ThermalPlan>> {
 }
 
 /// Builds the simulator settings from the command line.
-pub fn config(a: &SimulateArgs) -> anyhow::Result<SimConfig> {
-    super::check_g(a.g)?;
+pub fn config(a: &SimulateArgs, g: f64) -> anyhow::Result<SimConfig> {
     let plan = Plan::from_spec(&a.plan, a.seed).map_err(|e| bad(format!("--plan {e}")))?;
     let effects = a
         .effects
@@ -74,7 +73,7 @@ pub fn config(a: &SimulateArgs) -> anyhow::Result<SimConfig> {
         seed: a.seed,
         plan,
         layout: a.layout.clone(),
-        g: a.g,
+        g,
         samples: a.samples,
         rate_hz: a.rate_hz,
         move_s: a.move_s,
@@ -90,8 +89,8 @@ pub fn config(a: &SimulateArgs) -> anyhow::Result<SimConfig> {
 }
 
 /// Runs `accelcal simulate`.
-pub fn run(a: &SimulateArgs) -> anyhow::Result<()> {
-    let cfg = config(a)?;
+pub fn run(a: &SimulateArgs, g: &super::Gravity) -> anyhow::Result<()> {
+    let cfg = config(a, g.g)?;
     let (mut campaign, mut truth) = sim::simulate(&cfg);
     if a.codes == CodeRange::Signed16 {
         // The simulated ADC is unsigned16; its codes less mid-scale are the signed counts of a

@@ -68,6 +68,8 @@ fn units(a: &StationArgs) -> Vec<UnitSpec> {
 /// One unit's run of the line.
 struct Station<'a> {
     a: &'a StationArgs,
+    /// The gravity `--g` or `--latitude`/`--height` (or the settings file) gave.
+    gravity: Option<&'a super::Gravity>,
     u: &'a UnitSpec,
     dir: &'a Path,
     journal: Journal,
@@ -128,17 +130,17 @@ impl Station<'_> {
 
     /// The gravity options as given (the steps announce their source themselves).
     fn gravity(&self) -> Vec<String> {
-        let a = self.a;
-        match (a.local.latitude, a.g) {
-            (Some(lat), _) => {
-                let mut v = vec!["--latitude".into(), lat.to_string()];
-                if let Some(h) = a.local.height {
-                    v.extend(["--height".into(), h.to_string()]);
+        use super::Source;
+        match self.gravity.map(|g| (g.g, &g.source)) {
+            Some((_, Source::Site { latitude, height })) => {
+                let mut v = vec!["--latitude".into(), latitude.to_string()];
+                if *height != 0.0 {
+                    v.extend(["--height".into(), height.to_string()]);
                 }
                 v
             }
-            (None, Some(g)) => vec!["--g".into(), g.to_string()],
-            (None, None) => vec![],
+            Some((g, _)) => vec!["--g".into(), g.to_string()],
+            None => vec![],
         }
     }
 
@@ -362,7 +364,8 @@ impl Station<'_> {
             None => RunId::new(),
         };
         let started = *self.journal.started_unix_s.get_or_insert_with(accelcal_db::now_unix_s);
-        let (g, g_source, _) = super::live::g_and_source(self.a.g, &self.a.local);
+        let gravity = self.gravity.cloned().unwrap_or_else(super::Gravity::assumed);
+        let (g, g_source) = (gravity.g, gravity.stored());
         let start = RunStart {
             run_id: run,
             device_id: device.to_string(),
@@ -506,7 +509,11 @@ fn acquire_together(units: &mut [&mut Station<'_>]) -> anyhow::Result<()> {
 /// other; the campaigns together; then each unit's line to its certificate. A rejected unit does
 /// not stop the others (the station ends with exit code 1 after them); any other error stops the
 /// station.
-pub fn run(a: &StationArgs, config: Option<&crate::resolved::ConfigUse>) -> anyhow::Result<()> {
+pub fn run(
+    a: &StationArgs,
+    gravity: Option<&super::Gravity>,
+    config: Option<&crate::resolved::ConfigUse>,
+) -> anyhow::Result<()> {
     if let Some(c) = config {
         let overridden = match c.overridden.as_slice() {
             [] => String::new(),
@@ -543,6 +550,7 @@ pub fn run(a: &StationArgs, config: Option<&crate::resolved::ConfigUse>) -> anyh
         let db = Db::open(&db_spec)?;
         stations.push(Station {
             a,
+            gravity,
             u,
             dir: &u.dir,
             journal,
