@@ -128,7 +128,8 @@ fn gravity_s_contributor_follows_where_g_came_from() {
     let text = std::fs::read_to_string(&c).unwrap();
     assert!(text.starts_with("# g_m_s2: 9.81\n"), "{}", &text[..40]);
     let plain = d.s("plain.csv");
-    std::fs::write(&plain, text.lines().filter(|l| !l.starts_with("# g_")).collect::<Vec<_>>().join("\n")).unwrap();
+    std::fs::write(&plain, text.lines().filter(|l| !l.starts_with("# g_")).collect::<Vec<_>>().join("\n"))
+        .unwrap();
     let gravity = |campaign: &str, extra: &[&str]| {
         let j = d.s("g.json");
         let mut args = vec!["fit", campaign, "--json", &j];

@@ -47,7 +47,7 @@ pub const LEVEL: f64 = 0.977_249_868_051_820_8;
 /// that carries no noise.
 pub fn noise_limit(mean: f64, square: f64) -> f64 {
     use statrs::distribution::{ChiSquared, ContinuousCDF};
-    if !(mean > 0.0 && square > 0.0) || !mean.is_finite() || !square.is_finite() {
+    if !(mean > 0.0 && square > 0.0 && mean.is_finite() && square.is_finite()) {
         return mean.max(0.0);
     }
     let c = square / mean;
