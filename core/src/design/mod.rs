@@ -94,20 +94,13 @@ impl Prior {
             .map_err(|e| DesignError::Prior(format!("model 4 cannot be fitted on it: {e}")))?;
         let refs: Vec<_> = fits.iter().map(|(_, f)| f).collect();
         let order = triad_order(&refs).map_err(|e| DesignError::Prior(e.to_string()))?;
-        let noise = order.map(|ci| {
-            let ss: f64 = stats[ci].within_ss.iter().sum();
-            let dof = pos.weight.iter().map(|w| w - 1.0).filter(|&d| d > 0.0).sum::<f64>();
-            if dof > 0.0 {
-                (ss / dof).sqrt()
-            } else {
-                f64::NAN
-            }
-        });
-        if noise.iter().any(|v| !v.is_finite()) {
+        // The samples' noise as the budget pools it.
+        let Some(within) = crate::uncertainty::scatter::Within::pooled(&stats, order, &pos.weight) else {
             return Err(DesignError::Prior(
                 "its dwells hold one sample each, so it shows no sample noise".to_string(),
             ));
-        }
+        };
+        let noise = within.var_codes2.map(f64::sqrt);
         let c4 = |ci: usize| &refs[ci].coefficients;
         let model =
             Model4 { u0: order.map(|ci| c4(ci)[0]), k: order.map(|ci| [c4(ci)[1], c4(ci)[2], c4(ci)[3]]) };

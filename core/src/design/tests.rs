@@ -27,6 +27,22 @@ fn campaign(plan: Plan, samples: usize, seed: u64) -> Campaign {
     simulate(&cfg).0
 }
 
+/// The budget of a simulated unit (as [`campaign`]) fitted with model 4 by least squares, with
+/// the head's and g's stated uncertainties.
+fn unit_budget(plan: Plan, samples: usize, seed: u64) -> crate::uncertainty::Budget {
+    let c = campaign(plan, samples, seed);
+    let pos = Positions::new(&c, G);
+    let stats = pos.channel_stats(&c);
+    let fits = fit_positions(&pos, &stats, Method::Lsq, MODEL_4).unwrap();
+    let refs: Vec<_> = fits.iter().map(|(_, f)| f).collect();
+    let r = References {
+        head_angle_rad: stated().head_angle_rad,
+        g_m_s2: stated().g_m_s2,
+        ..References::default()
+    };
+    budget(&pos, &stats, &refs, r).unwrap()
+}
+
 #[test]
 fn the_head_reaches_every_alpha_at_each_beta_and_each_pole_once() {
     let r = head().reachable().unwrap();
@@ -58,17 +74,7 @@ fn the_prediction_is_what_the_budgets_state_after_the_campaign() {
     let mut sum = 0.0;
     let units = 12;
     for seed in 0..units {
-        let c = campaign(Plan::head(), samples, seed);
-        let pos = Positions::new(&c, G);
-        let stats = pos.channel_stats(&c);
-        let fits = fit_positions(&pos, &stats, Method::Lsq, MODEL_4).unwrap();
-        let refs: Vec<_> = fits.iter().map(|(_, f)| f).collect();
-        let r = References {
-            head_angle_rad: stated().head_angle_rad,
-            g_m_s2: stated().g_m_s2,
-            ..References::default()
-        };
-        let b = budget(&pos, &stats, &refs, r).unwrap();
+        let b = unit_budget(Plan::head(), samples, seed);
         sum += b.expanded_max.into_iter().fold(0.0, f64::max);
     }
     let mean = sum / units as f64;
@@ -256,17 +262,7 @@ fn a_linear_unit_on_few_positions_is_seldom_given_a_lack_of_fit() {
     let units = 300;
     let mut given = 0;
     for seed in 0..units {
-        let c = campaign(plan.clone(), samples, 1000 + seed);
-        let pos = Positions::new(&c, G);
-        let stats = pos.channel_stats(&c);
-        let fits = fit_positions(&pos, &stats, Method::Lsq, MODEL_4).unwrap();
-        let refs: Vec<_> = fits.iter().map(|(_, f)| f).collect();
-        let r = References {
-            head_angle_rad: stated().head_angle_rad,
-            g_m_s2: stated().g_m_s2,
-            ..References::default()
-        };
-        let b = budget(&pos, &stats, &refs, r).unwrap();
+        let b = unit_budget(plan.clone(), samples, 1000 + seed);
         let lof = b.contributors.iter().find(|c| c.name == "lack_of_fit").unwrap();
         given += usize::from(lof.u_m_s2 > 0.0);
     }
