@@ -3,7 +3,7 @@
 //! place, and leaves no output file behind. Also what the readers exclude with a warning, and that
 //! a refusal after such warnings is still one line.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

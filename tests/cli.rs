@@ -4,7 +4,7 @@
 //! snapshots of what users read (a certificate, a diagnosis JSON; `insta` snapshots under
 //! `tests/snapshots/`). The examples of the README and the guide: `tests/docs.rs`.
 
-mod common;
+use crate::common;
 
 #[path = "cli/assets.rs"]
 mod assets;

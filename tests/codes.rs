@@ -4,7 +4,7 @@
 //! but for the bias, shifted by exactly that; a gzipped campaign must give the same JSON as the
 //! plain one.
 
-mod common;
+use crate::common;
 
 use std::io::Write;
 use std::path::{Path, PathBuf};

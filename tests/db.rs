@@ -2,7 +2,7 @@
 //! writer killed mid-unit resuming, two writers at once, one schema for both engines, and
 //! `accelcal history` end to end (its output a snapshot).
 
-mod dbkit;
+use crate::dbkit;
 #[path = "db/fleet.rs"]
 mod fleet;
 
@@ -52,8 +52,11 @@ fn a_writer_killed_mid_unit_resumes_with_no_duplicate_and_no_partial_row() {
     }
     let d = tempfile::tempdir().unwrap();
     let spec = db_file(&d);
-    let run =
-        killed_writer_resumes(&spec, "a_writer_killed_mid_unit_resumes_with_no_duplicate_and_no_partial_row");
+    let run = killed_writer_resumes(
+        &spec,
+        module_path!(),
+        "a_writer_killed_mid_unit_resumes_with_no_duplicate_and_no_partial_row",
+    );
     let c = rusqlite::Connection::open(&spec).unwrap();
     for table in ["run", "campaign", "fit", "cal_record", "flash", "verification", "run_end"] {
         let n: i64 = c

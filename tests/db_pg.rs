@@ -3,7 +3,7 @@
 //! `scripts/postgres-cluster.sh`): the scenarios of `tests/db.rs`, the triggers that keep rows
 //! append-only, two stations writing at once, a station killed mid-unit, and `history`.
 
-mod dbkit;
+use crate::dbkit;
 
 use accelcal_db::{Db, RunId};
 use dbkit::*;
@@ -67,6 +67,7 @@ fn a_station_killed_mid_unit_resumes_with_no_duplicate_and_no_partial_row() {
     let pg = Cluster::start();
     let run = killed_writer_resumes(
         &pg.url,
+        module_path!(),
         "a_station_killed_mid_unit_resumes_with_no_duplicate_and_no_partial_row",
     );
     let mut c = postgres::Client::connect(&pg.url, postgres::NoTls).unwrap();

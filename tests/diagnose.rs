@@ -4,7 +4,7 @@
 //! library not given a library name, a partial effect, a drift and a rising temperature reported
 //! as confounded, the CLI's JSON keys and exit codes, and a small blind benchmark held to the aims.
 
-mod common;
+use crate::common;
 
 use accelcal_core::diagnose::{self, bench};
 use accelcal_core::sim::{self, effects, SimConfig, TempProfile};

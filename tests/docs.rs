@@ -5,7 +5,7 @@
 
 #[path = "../xtask/src/commands_md.rs"]
 mod commands_md;
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

@@ -9,8 +9,8 @@
 //! both. The ELF is taken from `ACCELCAL_NODE_QEMU_ELF`, else from the firmware's release target
 //! directory. A missing prerequisite fails the test with the command that provides it.
 
-mod common;
-mod support;
+use crate::common;
+use crate::support;
 
 #[path = "hil/thermal.rs"]
 mod thermal;

@@ -3,10 +3,10 @@
 //! f32 values as the host's f32 path, and the node's final status must show no overrun and no bad
 //! frame. Prints the replay rate (sample sets per second of wall time).
 //!
-//! It is its own test binary so that it runs alone (the HIL tests in `hil.rs` would share the two
-//! cores with it). Needs `qemu-system-arm` and the QEMU build, like `hil.rs` (`cargo xtask test`).
+//! It runs alone among the emulated benches (`support::one_bench`, and nextest's test group
+//! `bench`). Needs `qemu-system-arm` and the QEMU build, like `hil.rs` (`cargo xtask test`).
 
-mod support;
+use crate::support;
 
 use std::time::Instant;
 
@@ -43,6 +43,7 @@ fn codes(n: usize) -> Vec<[u16; 3]> {
 
 #[test]
 fn node_replays_100000_sets_in_order_without_overruns() {
+    let _bench = support::one_bench();
     let m = Model4 {
         u0: [32100.5, 33012.25, 31877.75],
         k: [[1671.2, 8.5, -3.25], [-4.0, 1650.75, 6.5], [2.5, -7.75, 1689.0]],

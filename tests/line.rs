@@ -8,16 +8,15 @@
 /// The station's check standard (issue 31 item 2).
 #[path = "line/check.rs"]
 mod check;
-mod common;
+use crate::common;
 /// The station killed at every journal/database boundary, the manual line, mistakes (issue 28).
 #[path = "line/crash.rs"]
 mod crash;
-mod dbkit;
+use crate::dbkit;
 /// Several nodes on one head (issue 23).
 #[path = "line/multi.rs"]
 mod multi;
-#[allow(dead_code)]
-mod support;
+use crate::support;
 
 #[path = "line/interrupt.rs"]
 mod interrupt;
@@ -38,13 +37,7 @@ use accelcal_line::node::session::Session;
 use accelcal_shared::wire::Block;
 use common::{accelcal, ok, succeed};
 
-/// One emulated bench at a time: each runs QEMU and a paced front end, and two at once on a
-/// 2-core machine starve each other (the tests would pass, slower and with more lost sets).
-static ONE_BENCH: std::sync::Mutex<()> = std::sync::Mutex::new(());
-
-fn one_bench() -> std::sync::MutexGuard<'static, ()> {
-    ONE_BENCH.lock().unwrap_or_else(|e| e.into_inner())
-}
+use support::one_bench;
 
 /// A running `accelcal emulate`; stopped with SIGINT (as a user's Ctrl-C) when dropped.
 struct Emulator {

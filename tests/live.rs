@@ -9,12 +9,12 @@
 //! QEMU runs one at a time here (a lock): each keeps its main loop busy (one host core) so that
 //! 1 kHz of sets gets through. Needs `qemu-system-arm` and the QEMU build, like `hil.rs`.
 
-mod support;
+use crate::support;
 
 use std::io::{Read, Write};
 use std::os::unix::net::UnixStream;
 use std::sync::mpsc;
-use std::sync::{Mutex, MutexGuard};
+use std::sync::MutexGuard;
 use std::time::{Duration, Instant};
 
 use accelcal_line::node::link::{self, Receiver};
@@ -29,9 +29,6 @@ use accelcal_shared::wire::{
     Status, MAX_BLOCK, PROTOCOL_VERSION,
 };
 use support::{node_elf, record_bytes, thermal_model};
-
-/// One QEMU at a time (each spins a host core).
-static ONE_QEMU: Mutex<()> = Mutex::new(());
 
 /// The fed sets' temperature (0.01 °C), from the set's index: a ramp of 0.1 °C per set from
 /// 20 °C, wrapping every 400 sets (so a thermal record's tracker follows a changing temperature).
@@ -73,7 +70,7 @@ struct Bench {
 
 impl Bench {
     fn start(record: Option<&[u8]>) -> Bench {
-        let lock = ONE_QEMU.lock().unwrap_or_else(|e| e.into_inner());
+        let lock = support::one_bench();
         let slot0 = record.map(|r| SlotImage::build(r, 1).unwrap().to_vec());
         let opts = QemuOptions {
             frontend: true,
@@ -404,7 +401,7 @@ fn node_tells_the_front_end_its_rate() {
 /// gdbstub answers on its port.
 #[test]
 fn qemu_offers_the_link_on_a_pty_and_a_gdbstub() {
-    let _lock = ONE_QEMU.lock().unwrap_or_else(|e| e.into_inner());
+    let _lock = support::one_bench();
     let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
     let page = SlotImage::build(&record(), 3).unwrap().to_vec();
     let opts = QemuOptions {

@@ -4,7 +4,7 @@
 //! to the calibrated acceleration at each chamber temperature compared with a model-4 record,
 //! evaluated the way a node evaluates it (`accelcal_shared::thermal`).
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

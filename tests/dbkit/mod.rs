@@ -241,12 +241,17 @@ pub fn writer_child() -> bool {
 }
 
 /// A writer killed (SIGKILL) after storing its fit; the run resumed under its id holds every
-/// piece once. `test` is the name of the calling test, which the child runs again.
-pub fn killed_writer_resumes(spec: &str, test: &str) -> RunId {
+/// piece once. `test` is the name of the calling test and `module` its `module_path!()`: the
+/// child runs that test again, named by its path in the test binary (`db::…`).
+pub fn killed_writer_resumes(spec: &str, module: &str, test: &str) -> RunId {
     Db::open(spec).unwrap();
     let run = RunId::new();
+    let path = match module.split_once("::") {
+        Some((_crate, inside)) => format!("{inside}::{test}"),
+        None => test.to_string(),
+    };
     let mut child = Command::new(std::env::current_exe().unwrap())
-        .args(["--exact", test, "--nocapture", "--test-threads", "1"])
+        .args(["--exact", &path, "--nocapture", "--test-threads", "1"])
         .env(CHILD_ENV, format!("{spec}\t{run}"))
         .stdout(Stdio::piped())
         .spawn()

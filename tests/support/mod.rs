@@ -1,5 +1,5 @@
-//! Helpers shared by the QEMU test binaries (`hil.rs`, `hil_load.rs`): where the node's QEMU build
-//! is, and record bytes.
+//! Helpers shared by the QEMU tests (`hil`, `hil_load`, `live`, `line`): where the node's QEMU
+//! build is, record bytes, and the one emulated bench at a time.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -51,7 +51,17 @@ pub fn record_bytes(r: &Record) -> Vec<u8> {
 /// The thermal model the QEMU tests load (`hil.rs`, `live.rs`): model 4 of a plausible triad with
 /// `t` (3 codes/°C of bias on each channel) and `ax*t`, `ay*t`, `az*t` (100 ppm/°C of each
 /// sensitivity, the unit), read from the front end, calibrated over −10..50 °C.
-#[allow(dead_code)] // not every test binary loads it
+/// One emulated bench at a time (the tests of `line`, `live` and `hil_load`): each runs QEMU,
+/// which spins a host core, and a paced front end; two at once on a 2-core machine starve each
+/// other (the tests would pass, slower and with more lost sets). Under nextest the test group
+/// `bench` (`.config/nextest.toml`) does the same across processes.
+static ONE_BENCH: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+/// Waits for the emulated bench to be free; it is this test's until the guard is dropped.
+pub fn one_bench() -> std::sync::MutexGuard<'static, ()> {
+    ONE_BENCH.lock().unwrap_or_else(|e| e.into_inner())
+}
+
 pub fn thermal_model() -> ThermalModel {
     let k = [[1671.2, 8.5, -3.25], [-4.0, 1650.75, 6.5], [2.5, -7.75, 1689.0]];
     ThermalModel {
