@@ -101,7 +101,7 @@ impl Gravity {
 }
 
 /// The one announcement of the 9.81 m/s² fallback (without the `note: ` prefix), with why it
-/// applies: `select`/`fit`/`compare`/`diagnose`, `acquire`/`verify` and `report` all say it so.
+/// applies: `select`/`fit`/`compare`/`diagnose` and `acquire`/`verify` (a station's steps too) say it so.
 pub fn fallback_note(why: &str) -> String {
     format!("g = {} m/s² assumed: {why}", accelcal_shared::G_STANDARD)
 }
