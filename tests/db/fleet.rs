@@ -350,6 +350,16 @@ fn the_head_s_measured_angle_error_feeds_the_budget_when_it_exceeds_the_certific
     };
     let ratio = head_u(&h) / head_u(&s);
     assert!((ratio / (rms / 3.0) - 1.0).abs() < 0.01, "{ratio} for {rms}″ over 3″");
+    // U is much the same either way: the residuals already carry the head's error (the guide,
+    // `line/database.md`, quotes these).
+    let u_max = |j: &serde_json::Value| -> f64 {
+        j["uncertainty"]["U_m_s2"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).fold(0.0, f64::max)
+    };
+    eprintln!(
+        "U: {:.2e} m/s² with the measured {rms}″, {:.2e} with the certificate's 3″",
+        u_max(&h),
+        u_max(&s)
+    );
     // `fleet` and serve's charts page say the same of the head.
     let (code, out, err) = fleet_in_january(&spec, &[]);
     assert_eq!(code, Some(0), "{err}");
