@@ -40,21 +40,23 @@ pub fn fit_parameter_names() -> Vec<(String, &'static str)> {
 }
 
 pub(crate) fn fit_rows(doc: &FitDoc) -> FitRows {
-    use accelcal_core::ieee1293::Parameters;
     let model4 = super::history::model4_of(doc).ok().map(|m| m.coef);
-    let mut parameters = Vec::new();
-    if let Some(m) = model4 {
-        let p: [Parameters; 3] = std::array::from_fn(|c| Parameters::of(c, m[c]));
-        let mut values: Vec<f64> = Vec::new();
-        values.extend(p.iter().map(|p| p.k0_mg));
-        values.extend(p.iter().map(|p| p.k1_codes_per_g));
-        for (c, pc) in p.iter().enumerate() {
-            values.extend((0..3).filter(|&j| j != c).map(|j| pc.delta_urad[j]));
-        }
-        parameters =
-            fit_parameter_names().into_iter().zip(values).map(|((name, unit), v)| (name, unit, v)).collect();
-    }
+    let parameters = model4.as_ref().map(fit_parameters).unwrap_or_default();
     FitRows { model4, u_m_s2: doc.uncertainty.as_ref().map(|u| u.u_m_s2), parameters }
+}
+
+/// A model-4 triad's IEEE 1293 parameters (`[channel][term 1, ax, ay, az]`), as
+/// `fit_parameter` holds them: name, unit and value, in [`fit_parameter_names`]' order.
+pub fn fit_parameters(model4: &[[f64; 4]; 3]) -> Vec<(String, &'static str, f64)> {
+    use accelcal_core::ieee1293::Parameters;
+    let p: [Parameters; 3] = std::array::from_fn(|c| Parameters::of(c, model4[c]));
+    let mut values: Vec<f64> = Vec::new();
+    values.extend(p.iter().map(|p| p.k0_mg));
+    values.extend(p.iter().map(|p| p.k1_codes_per_g));
+    for (c, pc) in p.iter().enumerate() {
+        values.extend((0..3).filter(|&j| j != c).map(|j| pc.delta_urad[j]));
+    }
+    fit_parameter_names().into_iter().zip(values).map(|((name, unit), v)| (name, unit, v)).collect()
 }
 
 /// A verification's derived rows: decision and rule, largest |error|, and the parameters it

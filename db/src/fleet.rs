@@ -155,6 +155,10 @@ pub struct FleetRun {
     /// Its stored fit's expanded uncertainty per axis (`fit_summary`).
     #[serde(skip)]
     pub u_m_s2: Option<[f64; 3]>,
+    /// The as-left verification's largest |error|, m/s² (`verification_summary`), for the
+    /// control charts.
+    #[serde(skip)]
+    pub as_left_max_abs_error_m_s2: Option<f64>,
 }
 
 impl FleetRun {
@@ -245,7 +249,7 @@ impl Db {
                 &format!(
                     "SELECT r.run_id, r.device_id, r.serial, r.station, ra.asset_id, r.operator, r.started_unix_s, \
                      e.ended_unix_s, {STATE}, COALESCE(v.reason, e.reason), af.decision, al.decision, fs.model4_json, \
-                     fs.u_json, r.g_m_s2 FROM run r LEFT JOIN run_end e ON e.run_id = r.run_id \
+                     fs.u_json, r.g_m_s2, al.max_abs_error_m_s2 FROM run r LEFT JOIN run_end e ON e.run_id = r.run_id \
                      LEFT JOIN void v ON v.run_id = r.run_id \
                      LEFT JOIN run_asset ra ON ra.run_id = r.run_id AND ra.kind = 'head' \
                      LEFT JOIN verification_summary af ON af.run_id = r.run_id AND af.phase = 'as_found' \
@@ -274,6 +278,10 @@ impl Db {
                     as_left_decision: r[11].opt_text()?,
                     model4: r[12].opt_text()?.and_then(|t| serde_json::from_str(&t).ok()),
                     u_m_s2: r[13].opt_text()?.and_then(|t| serde_json::from_str(&t).ok()),
+                    as_left_max_abs_error_m_s2: match &r[15] {
+                        Val::Null => None,
+                        v => Some(v.real()?),
+                    },
                 })
             })
             .collect()
@@ -434,76 +442,6 @@ impl Db {
         Ok(out)
     }
 
-    /// The control charts of the period's runs that passed (not voided), by head asset (or
-    /// station), in the order they started: each IEEE 1293 coefficient and the as-left
-    /// verification's largest |error| ([`accelcal_core::spc`]: I-MR, the Western Electric
-    /// rules), from the derived rows. A group needs two points.
-    pub fn charts(&mut self, f: &Filter) -> Result<Vec<Chart>, DbError> {
-        use accelcal_core::spc::ImrLimits;
-        use std::collections::{BTreeMap, HashMap};
-        let sel = selected();
-        let rows = self.conn.transaction(|tx| {
-            tx.query(
-                &format!(
-                    "{sel}, g AS (SELECT sel.run_id, r.serial, r.started_unix_s, \
-                     COALESCE('head ' || ra.asset_id, 'station ' || r.station) AS grp FROM sel \
-                     JOIN run r ON r.run_id = sel.run_id \
-                     LEFT JOIN run_asset ra ON ra.run_id = sel.run_id AND ra.kind = 'head' WHERE sel.state = 'pass') \
-                     SELECT g.grp, fp.name, g.serial, g.run_id, g.started_unix_s, fp.value FROM g \
-                     JOIN fit_parameter fp ON fp.run_id = g.run_id \
-                     UNION ALL SELECT g.grp, 'as-left max |error|', g.serial, g.run_id, g.started_unix_s, \
-                     vs.max_abs_error_m_s2 FROM g JOIN verification_summary vs ON vs.run_id = g.run_id \
-                     AND vs.phase = 'as_left' WHERE vs.max_abs_error_m_s2 IS NOT NULL \
-                     ORDER BY 5, 4"
-                ),
-                &f.params(),
-            )
-        })?;
-        let mut groups: BTreeMap<String, HashMap<String, Vec<ChartPoint>>> = BTreeMap::new();
-        for r in rows {
-            let point = ChartPoint {
-                serial: r[2].text()?,
-                run_id: r[3].text()?,
-                started_unix_s: r[4].int()?,
-                value: r[5].real()?,
-            };
-            groups.entry(r[0].text()?).or_default().entry(r[1].text()?).or_default().push(point);
-        }
-        // Each channel's K0, K1 and δ, then the as-left verification.
-        let mut quantities: Vec<(String, &'static str)> = Vec::new();
-        for c in 0..3 {
-            quantities.push((format!("K0 {}", AXES[c]), "mg"));
-            quantities.push((format!("K1 {}", AXES[c]), "codes/g"));
-            for j in (0..3).filter(|&j| j != c) {
-                quantities.push((format!("δ {}→{}", AXES[c], AXES[j]), "µrad"));
-            }
-        }
-        quantities.push(("as-left max |error|".into(), "m/s²"));
-        let mut out = Vec::new();
-        for (group, mut by) in groups {
-            for (quantity, unit) in &quantities {
-                let points = by.remove(quantity).unwrap_or_default();
-                let values: Vec<f64> = points.iter().map(|p| p.value).collect();
-                let Some(limits) = ImrLimits::of(&values) else { continue };
-                let violations = limits
-                    .violations(&values)
-                    .into_iter()
-                    .map(|v| (v.clone(), points[v.index].clone()))
-                    .collect();
-                out.push(Chart {
-                    group: group.clone(),
-                    quantity: quantity.clone(),
-                    unit,
-                    limits,
-                    expected_by_chance: accelcal_core::spc::violations_by_chance(points.len()),
-                    points,
-                    violations,
-                });
-            }
-        }
-        Ok(out)
-    }
-
     /// What each run of the period that passed (not voided) with a registered head shows of its
     /// head (`head_observation`), by head asset, in the order the runs started.
     pub fn head_observations(&mut self, f: &Filter) -> Result<Vec<HeadObservation>, DbError> {
@@ -557,6 +495,73 @@ impl Db {
         Ok(out)
     }
 }
+
+/// The control charts of a period's runs ([`Db::fleet_runs`]: in the order they started) that
+/// passed (not voided), by head asset (or station): each IEEE 1293 coefficient of its model-4
+/// fit (the `fit_parameter` rows, [`super::derived::fit_parameters`]) and the as-left
+/// verification's largest |error| ([`accelcal_core::spc`]: I-MR, the Western Electric rules).
+/// A group needs two points. The runs already hold what the charts take, so the period's points
+/// are not read a second time.
+pub fn charts(runs: &[FleetRun]) -> Vec<Chart> {
+    use accelcal_core::spc::ImrLimits;
+    use std::collections::{BTreeMap, HashMap};
+    let mut groups: BTreeMap<String, HashMap<String, Vec<ChartPoint>>> = BTreeMap::new();
+    for run in runs.iter().filter(|r| r.state == "pass") {
+        let group = match &run.head_asset {
+            Some(asset) => format!("head {asset}"),
+            None => format!("station {}", run.station),
+        };
+        let by = groups.entry(group).or_default();
+        let point = |value: f64| ChartPoint {
+            serial: run.serial.clone(),
+            run_id: run.run_id.clone(),
+            started_unix_s: run.started_unix_s,
+            value,
+        };
+        for (name, _, value) in run.model4.as_ref().map(super::derived::fit_parameters).unwrap_or_default() {
+            by.entry(name).or_default().push(point(value));
+        }
+        if let Some(e) = run.as_left_max_abs_error_m_s2 {
+            by.entry(AS_LEFT_MAX.to_string()).or_default().push(point(e));
+        }
+    }
+    // Each channel's K0, K1 and δ, then the as-left verification.
+    let mut quantities: Vec<(String, &'static str)> = Vec::new();
+    for c in 0..3 {
+        quantities.push((format!("K0 {}", AXES[c]), "mg"));
+        quantities.push((format!("K1 {}", AXES[c]), "codes/g"));
+        for j in (0..3).filter(|&j| j != c) {
+            quantities.push((format!("δ {}→{}", AXES[c], AXES[j]), "µrad"));
+        }
+    }
+    quantities.push((AS_LEFT_MAX.into(), "m/s²"));
+    let mut out = Vec::new();
+    for (group, mut by) in groups {
+        for (quantity, unit) in &quantities {
+            let points = by.remove(quantity).unwrap_or_default();
+            let values: Vec<f64> = points.iter().map(|p| p.value).collect();
+            let Some(limits) = ImrLimits::of(&values) else { continue };
+            let violations = limits
+                .violations(&values)
+                .into_iter()
+                .map(|v| (v.clone(), points[v.index].clone()))
+                .collect();
+            out.push(Chart {
+                group: group.clone(),
+                quantity: quantity.clone(),
+                unit,
+                limits,
+                expected_by_chance: accelcal_core::spc::violations_by_chance(points.len()),
+                points,
+                violations,
+            });
+        }
+    }
+    out
+}
+
+/// The as-left verification's chart.
+const AS_LEFT_MAX: &str = "as-left max |error|";
 
 /// The columns of a head observation [`head_observation`] reads, of `head_observation h` and
 /// `head_observation_f32 b`: the compact form, the JSON only where there is none (a

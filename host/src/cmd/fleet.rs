@@ -283,31 +283,33 @@ pub(crate) fn gather(db: &mut Db, filter: &Filter, due_by: Date, parts: Parts) -
     let stations = db.station_counts(filter)?;
     let units_due = db.units_due(start_of_day_unix_s(due_by) + DAY_S, filter.serial_prefix.as_deref())?;
     let assets = db.assets()?;
-    // The charts and the heads' signatures read every point of the period: each on a connection
-    // of its own, while this one reads the runs and the populations.
-    let (runs, pops, heads, charts) = std::thread::scope(|s| -> anyhow::Result<_> {
-        let (h, c) = match parts {
+    // The heads' signatures read every observation of the period: on a connection of their
+    // own, while this one reads the runs and the populations. The control charts are drawn from
+    // the runs.
+    let (runs, pops, heads) = std::thread::scope(|s| -> anyhow::Result<_> {
+        let h = match parts {
             Parts::Charts => {
-                let (mut dh, mut dc) = (db.open_again()?, db.open_again()?);
-                (Some(s.spawn(move || heads(&mut dh, filter))), Some(s.spawn(move || dc.charts(filter))))
+                let mut dh = db.open_again()?;
+                Some(s.spawn(move || heads(&mut dh, filter)))
             }
-            Parts::Table | Parts::Overview => (None, None),
+            Parts::Table | Parts::Overview => None,
         };
         let (runs, pops) = match parts {
             Parts::Charts | Parts::Table => (db.fleet_runs(filter)?, db.populations(filter)?),
             Parts::Overview => (Vec::new(), Vec::new()),
         };
-        let joined = |what: &str| anyhow::anyhow!("the thread reading {what} panicked");
         let heads = match h {
-            Some(h) => h.join().map_err(|_| joined("the heads' signatures"))??,
+            Some(h) => h
+                .join()
+                .map_err(|_| anyhow::anyhow!("the thread reading the heads' signatures panicked"))??,
             None => Vec::new(),
         };
-        let charts = match c {
-            Some(c) => c.join().map_err(|_| joined("the control charts"))??,
-            None => Vec::new(),
-        };
-        Ok((runs, pops, heads, charts))
+        Ok((runs, pops, heads))
     })?;
+    let charts = match parts {
+        Parts::Charts => accelcal_db::fleet::charts(&runs),
+        Parts::Table | Parts::Overview => Vec::new(),
+    };
     let check_standards = db.check_standards(filter.station.as_deref())?;
     Ok(FleetData { counts, stations, runs, due_by, units_due, assets, pops, heads, charts, check_standards })
 }
