@@ -89,6 +89,17 @@ fn every_column_of_the_migrated_database_is_in_the_chain_in_order() {
 }
 
 #[test]
+fn a_reader_does_not_wait_for_a_writer() {
+    let d = tempfile::tempdir().unwrap();
+    let spec = db_file(&d);
+    dbkit::a_reader_does_not_wait_for_a_writer(&spec, || {
+        let c = rusqlite::Connection::open(&spec).unwrap();
+        c.execute_batch("BEGIN IMMEDIATE").unwrap();
+        c
+    });
+}
+
+#[test]
 fn two_writers_at_once_lose_nothing() {
     let d = tempfile::tempdir().unwrap();
     two_writers_lose_nothing(&db_file(&d), 8);

@@ -16,6 +16,17 @@ fn pieces_are_stored_once_and_a_finished_run_takes_nothing_more() {
 }
 
 #[test]
+fn a_reader_does_not_wait_for_a_writer() {
+    let pg = Cluster::start();
+    dbkit::a_reader_does_not_wait_for_a_writer(&pg.url, || {
+        let mut c = postgres::Client::connect(&pg.url, postgres::NoTls).unwrap();
+        c.batch_execute(&format!("BEGIN; SELECT pg_advisory_xact_lock({})", accelcal_db::LEDGER_LOCK))
+            .unwrap();
+        c
+    });
+}
+
+#[test]
 fn calibration_rows_are_never_updated_deleted_or_truncated() {
     let pg = Cluster::start();
     let mut db = Db::open(&pg.url).unwrap();

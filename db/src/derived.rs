@@ -315,9 +315,14 @@ const BATCH: i64 = 500;
 /// Derives the rows of every stored piece that has none yet (a database written before schema
 /// 6, or its compact head observations before schema 7), a batch at a time; how many rows it
 /// derived.
+/// Whether a migration left rows to derive ([`backfill`]).
+pub(crate) fn pending(tx: &mut Tx<'_>) -> Result<bool, DbError> {
+    let pending = tx.query("SELECT pending FROM derived_backfill", &[])?;
+    Ok(pending.iter().any(|r| matches!(r[0], Val::Int(p) if p != 0)))
+}
+
 pub(crate) fn backfill(c: &mut Conn) -> Result<usize, DbError> {
-    let pending = c.transaction(|tx| tx.query("SELECT pending FROM derived_backfill", &[]))?;
-    if !pending.iter().any(|r| matches!(r[0], Val::Int(p) if p != 0)) {
+    if !c.transaction(pending)? {
         return Ok(0);
     }
     let mut n = 0;

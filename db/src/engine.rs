@@ -228,7 +228,11 @@ impl PgToSql for Val {
 pub struct Conn {
     link: Link,
     target: String,
-    /// Opened read-only (a read-only SQLite file): transactions are deferred, not immediate.
+    /// Opened to read ([`Access::Read`]): its transactions take no writer's lock, so a reader
+    /// never waits for a writer nor makes one wait. SQLite: deferred, not immediate (in WAL mode
+    /// a transaction reads one snapshot); PostgreSQL: `REPEATABLE READ, READ ONLY` (one snapshot
+    /// for the whole transaction), without the ledger's advisory lock. Set once the open's
+    /// migration and backfill, which write, are done.
     read_only: bool,
 }
 
@@ -275,7 +279,7 @@ pub enum Access {
 
 /// A transaction of either engine.
 pub enum Tx<'a> {
-    /// SQLite (begun `IMMEDIATE`: the write lock is taken at the start).
+    /// SQLite (a writer's begun `IMMEDIATE`: the write lock is taken at the start).
     Sqlite(rusqlite::Transaction<'a>),
     /// PostgreSQL, with its connection's prepared statements.
     Postgres(postgres::Transaction<'a>, &'a mut Statements),
@@ -327,6 +331,7 @@ impl Conn {
                         .map_err(migration_failed)?;
                     after(c)
                 })?;
+                conn.read_only = access == Access::Read;
                 Ok(conn)
             }
         }
@@ -368,6 +373,16 @@ impl Conn {
         })
     }
 
+    /// Runs `f` in one transaction that only reads, as a reader's are (see `read_only`),
+    /// whatever the connection was opened for: what every open asks (is there anything to seal
+    /// or derive?) must not wait for a writer.
+    pub fn reading<T>(&mut self, f: impl FnOnce(&mut Tx<'_>) -> Result<T, DbError>) -> Result<T, DbError> {
+        let was = std::mem::replace(&mut self.read_only, true);
+        let out = self.transaction(f);
+        self.read_only = was;
+        out
+    }
+
     fn transaction_here<T>(
         &mut self,
         f: impl FnOnce(&mut Tx<'_>) -> Result<T, DbError>,
@@ -385,6 +400,21 @@ impl Conn {
                 match tx {
                     Tx::Sqlite(t) => t.commit().map_err(DbError::sqlite)?,
                     Tx::Postgres(..) => unreachable!("a SQLite connection gives SQLite transactions"),
+                }
+                Ok(out)
+            }
+            Link::Postgres(c, statements) if self.read_only => {
+                let t = c
+                    .build_transaction()
+                    .isolation_level(postgres::IsolationLevel::RepeatableRead)
+                    .read_only(true)
+                    .start()
+                    .map_err(DbError::pg)?;
+                let mut tx = Tx::Postgres(t, statements);
+                let out = f(&mut tx)?;
+                match tx {
+                    Tx::Postgres(t, _) => t.commit().map_err(DbError::pg)?,
+                    Tx::Sqlite(_) => unreachable!("a PostgreSQL connection gives PostgreSQL transactions"),
                 }
                 Ok(out)
             }
@@ -413,8 +443,9 @@ impl Conn {
 
 /// Key of the PostgreSQL advisory lock held while migrating ("accelcal" in ASCII).
 const MIGRATION_LOCK: i64 = 0x6163_6365_6c63_616c;
-/// Key of the PostgreSQL advisory lock each writing transaction holds ("ledger\0\0").
-const LEDGER_LOCK: i64 = 0x6c65_6467_6572_0000;
+/// Key of the PostgreSQL advisory lock each writing transaction holds ("ledger\0\0"); a
+/// reading one does not.
+pub const LEDGER_LOCK: i64 = 0x6c65_6467_6572_0000;
 
 fn migration_failed(e: refinery::Error) -> DbError {
     DbError::Migration { cause: e.to_string() }
@@ -500,6 +531,7 @@ fn open_sqlite(
     }
     after(&mut conn)?;
     drop(lock);
+    conn.read_only = access == Access::Read;
     Ok(conn)
 }
 

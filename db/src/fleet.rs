@@ -75,7 +75,7 @@ const STATE: &str =
 /// 94 ms inlined and 74 ms materialised (window form, a database being written meanwhile).
 fn selected() -> String {
     format!(
-        "WITH sel AS MATERIALIZED (SELECT r.run_id, r.device_id, r.started_unix_s, {STATE} AS state, e.reason FROM run r \
+        "WITH sel AS MATERIALIZED (SELECT r.run_id, r.device_id, r.station, r.started_unix_s, {STATE} AS state, e.reason FROM run r \
          LEFT JOIN run_end e ON e.run_id = r.run_id LEFT JOIN void v ON v.run_id = r.run_id WHERE {WHERE})"
     )
 }
@@ -117,6 +117,9 @@ pub struct Counts {
     pub final_pass_units: i64,
     /// Rejected runs by reason, most frequent first.
     pub rejections: Vec<(String, i64)>,
+    /// Each station's runs and those that passed, by station name.
+    #[serde(skip)]
+    pub stations: Vec<(String, i64, i64)>,
 }
 
 /// One run of the period, as the fleet's table and its CSV show it.
@@ -195,49 +198,58 @@ fn opt_int(v: &Val) -> Result<Option<i64>, DbError> {
 }
 
 impl Db {
-    /// The period's runs counted by state, its units, the yields and the rejections by reason.
+    /// The period's runs counted by state, its units, the yields, the rejections by reason and
+    /// each station's runs: one statement, so that the period's runs are selected once.
     pub fn fleet_counts(&mut self, f: &Filter) -> Result<Counts, DbError> {
         let sel = selected();
-        let p = f.params();
-        self.conn.transaction(|tx| {
-            let mut c = Counts::default();
-            for r in tx.query(&format!("{sel} SELECT state, COUNT(*) FROM sel GROUP BY state"), &p)? {
-                let n = r[1].int()?;
-                c.runs += n;
-                match r[0].text()?.as_str() {
-                    "pass" => c.passed = n,
-                    "rejected" => c.rejected = n,
-                    "unfinished" => c.unfinished = n,
-                    _ => c.voided = n,
+        // Three kinds of row: 0 a state and reason with its runs; 1 a station with its runs and
+        // those that passed; 2 the units, the units with a finished run, and of those the units
+        // whose first and last finished runs passed.
+        let rows = self.conn.transaction(|tx| {
+            tx.query(
+                &format!(
+                    "{sel}, w AS (SELECT device_id, state, state IN ('pass', 'rejected') AS fin, \
+                     ROW_NUMBER() OVER (PARTITION BY device_id, state IN ('pass', 'rejected') \
+                     ORDER BY started_unix_s, run_id) AS first_n, \
+                     ROW_NUMBER() OVER (PARTITION BY device_id, state IN ('pass', 'rejected') \
+                     ORDER BY started_unix_s DESC, run_id DESC) AS last_n FROM sel) \
+                     SELECT 0, state, reason, COUNT(*), 0, 0, 0 FROM sel GROUP BY state, reason \
+                     UNION ALL SELECT 1, station, NULL, COUNT(*), \
+                     SUM(CASE WHEN state = 'pass' THEN 1 ELSE 0 END), 0, 0 FROM sel GROUP BY station \
+                     UNION ALL SELECT 2, NULL, NULL, COUNT(DISTINCT device_id), \
+                     COUNT(DISTINCT CASE WHEN fin THEN device_id END), \
+                     COALESCE(SUM(CASE WHEN fin AND first_n = 1 AND state = 'pass' THEN 1 ELSE 0 END), 0), \
+                     COALESCE(SUM(CASE WHEN fin AND last_n = 1 AND state = 'pass' THEN 1 ELSE 0 END), 0) FROM w"
+                ),
+                &f.params(),
+            )
+        })?;
+        let mut c = Counts::default();
+        for r in &rows {
+            match r[0].int()? {
+                0 => {
+                    let n = r[3].int()?;
+                    c.runs += n;
+                    match r[1].text()?.as_str() {
+                        "pass" => c.passed += n,
+                        "rejected" => {
+                            c.rejected += n;
+                            c.rejections.push((r[2].opt_text()?.unwrap_or_default(), n));
+                        }
+                        "unfinished" => c.unfinished += n,
+                        _ => c.voided += n,
+                    }
+                }
+                1 => c.stations.push((r[1].text()?, r[3].int()?, r[4].int()?)),
+                _ => {
+                    (c.units, c.units_finished, c.first_pass_units, c.final_pass_units) =
+                        (r[3].int()?, r[4].int()?, r[5].int()?, r[6].int()?);
                 }
             }
-            c.units = tx.query(&format!("{sel} SELECT COUNT(DISTINCT device_id) FROM sel"), &p)?[0][0].int()?;
-            let y = &tx.query(
-                &format!(
-                    "{sel}, fin AS (SELECT device_id, state, \
-                     ROW_NUMBER() OVER (PARTITION BY device_id ORDER BY started_unix_s, run_id) AS first_n, \
-                     ROW_NUMBER() OVER (PARTITION BY device_id ORDER BY started_unix_s DESC, run_id DESC) AS last_n \
-                     FROM sel WHERE state IN ('pass', 'rejected')) \
-                     SELECT COUNT(DISTINCT device_id), \
-                     COALESCE(SUM(CASE WHEN first_n = 1 AND state = 'pass' THEN 1 ELSE 0 END), 0), \
-                     COALESCE(SUM(CASE WHEN last_n = 1 AND state = 'pass' THEN 1 ELSE 0 END), 0) FROM fin"
-                ),
-                &p,
-            )?[0];
-            (c.units_finished, c.first_pass_units, c.final_pass_units) = (y[0].int()?, y[1].int()?, y[2].int()?);
-            c.rejections = tx
-                .query(
-                    &format!(
-                        "{sel} SELECT reason, COUNT(*) AS n FROM sel WHERE state = 'rejected' \
-                         GROUP BY reason ORDER BY n DESC, reason"
-                    ),
-                    &p,
-                )?
-                .iter()
-                .map(|r| Ok((r[0].text()?, r[1].int()?)))
-                .collect::<Result<_, DbError>>()?;
-            Ok(c)
-        })
+        }
+        c.rejections.sort_by(|a, b| b.1.cmp(&a.1).then_with(|| a.0.cmp(&b.0)));
+        c.stations.sort();
+        Ok(c)
     }
 
     /// The period's runs, oldest first, with their head, outcome, decisions, fit and as-left
@@ -285,26 +297,6 @@ impl Db {
                 })
             })
             .collect()
-    }
-
-    /// Each station's runs in the period and those that passed, by station name.
-    pub fn station_counts(&mut self, f: &Filter) -> Result<Vec<(String, i64, i64)>, DbError> {
-        let sel = selected();
-        let rows = self.conn.transaction(|tx| {
-            tx.query(
-                &format!(
-                    "{sel} SELECT r.station, COUNT(*), SUM(CASE WHEN sel.state = 'pass' THEN 1 ELSE 0 END) \
-                     FROM sel JOIN run r ON r.run_id = sel.run_id GROUP BY r.station"
-                ),
-                &f.params(),
-            )
-        })?;
-        let mut out: Vec<(String, i64, i64)> = rows
-            .iter()
-            .map(|r| Ok((r[0].text()?, r[1].int()?, r[2].int()?)))
-            .collect::<Result<_, DbError>>()?;
-        out.sort();
-        Ok(out)
     }
 
     /// The units whose latest certificate (of a run not voided) states a recalibration date
@@ -386,29 +378,31 @@ impl Db {
     pub fn populations(&mut self, f: &Filter) -> Result<Vec<Population>, DbError> {
         let sel = selected();
         let p = f.params();
-        let (coef, asleft) = self.conn.transaction(|tx| {
-            let coef = tx.query(
+        // One statement, so that the period's runs are selected once. Each population's mean is
+        // aggregated first (`fm`, `vm`), then the squared deviations from it: two passes over the
+        // rows read once, no cancellation. Rows of kind 0 are the coefficients by `ord`, of kind
+        // 1 the as-left parameters by name.
+        let rows = self.conn.transaction(|tx| {
+            tx.query(
                 &format!(
-                    "{sel}, p AS (SELECT fp.ord, fp.name, fp.unit, fp.value, \
-                     AVG(fp.value) OVER (PARTITION BY fp.ord) AS mu FROM fit_parameter fp \
-                     JOIN sel ON sel.run_id = fp.run_id WHERE sel.state = 'pass') \
-                     SELECT MIN(name), MIN(unit), COUNT(*), AVG(value), SUM((value - mu) * (value - mu)) \
-                     FROM p GROUP BY ord ORDER BY ord"
+                    "{sel}, fp AS MATERIALIZED (SELECT fp.ord, fp.name, fp.unit, fp.value FROM fit_parameter fp \
+                     JOIN sel ON sel.run_id = fp.run_id WHERE sel.state = 'pass'), \
+                     fm AS (SELECT ord, AVG(value) AS mu FROM fp GROUP BY ord), \
+                     vp AS MATERIALIZED (SELECT vp.ord, vp.name, vp.unit, vp.value, vp.limit_value \
+                     FROM verification_parameter vp JOIN sel ON sel.run_id = vp.run_id \
+                     WHERE sel.state = 'pass' AND vp.phase = 'as_left'), \
+                     vm AS (SELECT name, AVG(value) AS mu FROM vp GROUP BY name) \
+                     SELECT 0 AS kind, MIN(fp.name) AS name, MIN(fp.unit), COUNT(*), MIN(fm.mu), \
+                     SUM((fp.value - fm.mu) * (fp.value - fm.mu)), NULL, fp.ord AS o \
+                     FROM fp JOIN fm ON fm.ord = fp.ord GROUP BY fp.ord \
+                     UNION ALL SELECT 1, vp.name, MIN(vp.unit), COUNT(*), MIN(vm.mu), \
+                     SUM((vp.value - vm.mu) * (vp.value - vm.mu)), MIN(vp.limit_value), MIN(vp.ord) \
+                     FROM vp JOIN vm ON vm.name = vp.name GROUP BY vp.name ORDER BY 1, 8, 2"
                 ),
                 &p,
-            )?;
-            let asleft = tx.query(
-                &format!(
-                    "{sel}, p AS (SELECT vp.ord, vp.name, vp.unit, vp.value, vp.limit_value, \
-                     AVG(vp.value) OVER (PARTITION BY vp.name) AS mu FROM verification_parameter vp \
-                     JOIN sel ON sel.run_id = vp.run_id WHERE sel.state = 'pass' AND vp.phase = 'as_left') \
-                     SELECT name, MIN(unit), COUNT(*), AVG(value), SUM((value - mu) * (value - mu)), \
-                     MIN(limit_value) FROM p GROUP BY name ORDER BY MIN(ord), name"
-                ),
-                &p,
-            )?;
-            Ok((coef, asleft))
+            )
         })?;
+        let (coef, asleft): (Vec<_>, Vec<_>) = rows.iter().partition(|r| matches!(r[0].int(), Ok(0)));
         let mut out = Vec::new();
         if coef.is_empty() {
             // No model-4 unit: the coefficients' populations are there, empty.
@@ -416,27 +410,27 @@ impl Db {
                 out.push(Population::of(name, unit, 0, 0.0, 0.0, None));
             }
         }
-        for r in &coef {
-            let n = r[2].int()? as usize;
+        for r in coef {
+            let n = r[3].int()? as usize;
             out.push(Population::of(
-                r[0].text()?,
-                unit_of(&r[1].text()?),
+                r[1].text()?,
+                unit_of(&r[2].text()?),
                 n,
-                r[3].real()?,
                 r[4].real()?,
+                r[5].real()?,
                 None,
             ));
         }
-        for r in &asleft {
-            let n = r[2].int()? as usize;
-            let name = format!("as-left {}", r[0].text()?);
+        for r in asleft {
+            let n = r[3].int()? as usize;
+            let name = format!("as-left {}", r[1].text()?);
             out.push(Population::of(
                 name,
-                unit_of(&r[1].text()?),
+                unit_of(&r[2].text()?),
                 n,
-                r[3].real()?,
                 r[4].real()?,
-                Some(r[5].real()?),
+                r[5].real()?,
+                Some(r[6].real()?),
             ));
         }
         Ok(out)

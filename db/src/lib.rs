@@ -33,7 +33,7 @@ use std::io::Read;
 pub use asset::{AffectedRun, Asset, AssetError, AssetKind};
 pub use certificate::{CertificateNumber, RecalibrationDue};
 pub use chain::{ChainReport, Mismatch, RunSeal};
-pub use engine::{schema_version, Access, Target};
+pub use engine::{schema_version, Access, Target, LEDGER_LOCK};
 use engine::{Conn, Tx, Val};
 pub use error::DbError;
 pub use label::{Label, LabelClash, Relabel};
@@ -97,9 +97,17 @@ impl Db {
     fn open_target(target: Target, access: Access) -> Result<Db, DbError> {
         // Rows of a version-1 database get their chain entries once, under the migration's lock.
         // Rows derived from pieces stored before schema 6 are derived then, under the same lock.
+        // Whether there is anything to do is asked in a reading transaction, so that opening a
+        // database a station is writing into does not wait for the station's lock.
         let conn = Conn::open(&target, access, |c| {
-            c.transaction(|tx| chain::seal_legacy(tx).map(drop))?;
-            derived::backfill(c).map(drop)
+            let (legacy, pending) = c.reading(|tx| Ok((chain::unsealed(tx)?, derived::pending(tx)?)))?;
+            if legacy {
+                c.transaction(|tx| chain::seal_legacy(tx).map(drop))?;
+            }
+            if pending {
+                derived::backfill(c)?;
+            }
+            Ok(())
         })?;
         Ok(Db { conn, target })
     }

@@ -763,3 +763,34 @@ pub fn decided_as_found(device: &str, decision: accelcal_core::conformity::Decis
     found.decision = Some(decision);
     found
 }
+
+/// A reader (`fleet`, `serve`, `history`: a database opened to read) does not wait for a
+/// writer. `hold` takes the writers' lock as a station's store does and keeps it
+/// until the guard it returns is dropped (SQLite: `BEGIN IMMEDIATE`; PostgreSQL: the ledger's
+/// advisory lock); meanwhile the period's fleet, read on two connections at once as `fleet`
+/// reads it, is counted well within the writers' 10 s wait.
+pub fn a_reader_does_not_wait_for_a_writer<G>(spec: &str, hold: impl FnOnce() -> G) {
+    use accelcal_db::fleet::Filter;
+    let mut db = Db::open(spec).unwrap();
+    let s = start(RunId::parse("00000000000000000000000000000a11").unwrap(), DEVICE, "SN-R1", "st-1", T0);
+    calibrate(&mut db, &s, &coefs(0.0, 0), None);
+    drop(db);
+    let filter = Filter { since_unix_s: T0 - DAY, until_unix_s: T0 + DAY, ..Filter::default() };
+    let guard = hold();
+    let t = std::time::Instant::now();
+    let (tx, rx) = std::sync::mpsc::channel();
+    let spec2 = spec.to_string();
+    std::thread::spawn(move || {
+        let read = || -> Result<(i64, usize), DbError> {
+            let mut reader = Db::open_existing(&spec2)?;
+            let mut again = reader.open_again()?;
+            Ok((reader.fleet_counts(&filter)?.passed, again.fleet_runs(&filter)?.len()))
+        };
+        let _ = tx.send(read());
+    });
+    let read = rx.recv_timeout(std::time::Duration::from_secs(5));
+    drop(guard);
+    let read = read.expect("the reader waited for the writer's lock (no answer in 5 s)");
+    assert_eq!(read.unwrap(), (1, 1));
+    assert!(t.elapsed() < std::time::Duration::from_secs(5), "{:?}", t.elapsed());
+}

@@ -280,7 +280,7 @@ pub(crate) enum Parts {
 /// Gathers a period's fleet from the database; `due_by`: the last day of the units and assets due.
 pub(crate) fn gather(db: &mut Db, filter: &Filter, due_by: Date, parts: Parts) -> anyhow::Result<FleetData> {
     let counts = db.fleet_counts(filter)?;
-    let stations = db.station_counts(filter)?;
+    let stations = counts.stations.clone();
     let units_due = db.units_due(start_of_day_unix_s(due_by) + DAY_S, filter.serial_prefix.as_deref())?;
     let assets = db.assets()?;
     // The heads' signatures read every observation of the period: on a connection of their
