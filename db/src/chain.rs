@@ -211,7 +211,6 @@ pub(crate) fn unsealed(tx: &mut Tx<'_>) -> Result<bool, DbError> {
 
 /// Rows written before the ledger existed (a version-1 database) get their entries, once: every
 /// run in the order it started, each run's rows in the order a station writes them.
-
 pub fn seal_legacy(tx: &mut Tx<'_>) -> Result<usize, DbError> {
     // Whether the ledger holds an entry, not how many: every open asks, and a count reads them
     // all.
