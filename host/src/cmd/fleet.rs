@@ -283,25 +283,32 @@ pub(crate) fn gather(db: &mut Db, filter: &Filter, due_by: Date, parts: Parts) -
     let stations = counts.stations.clone();
     let units_due = db.units_due(start_of_day_unix_s(due_by) + DAY_S, filter.serial_prefix.as_deref())?;
     let assets = db.assets()?;
-    // The heads' signatures read every observation of the period: on a connection of their
-    // own, while this one reads the runs and the populations. The control charts are drawn from
-    // the runs.
+    // The heads' signatures and the populations read every observation and parameter of the
+    // period: each on a connection of its own (a reader takes no lock, so they run at once),
+    // while this one reads the runs. The control charts are drawn from the runs.
     let (runs, pops, heads) = std::thread::scope(|s| -> anyhow::Result<_> {
-        let h = match parts {
+        let (h, p) = match parts {
             Parts::Charts => {
-                let mut dh = db.open_again()?;
-                Some(s.spawn(move || heads(&mut dh, filter)))
+                let (mut dh, mut dp) = (db.open_again()?, db.open_again()?);
+                (Some(s.spawn(move || heads(&mut dh, filter))), Some(s.spawn(move || dp.populations(filter))))
             }
-            Parts::Table | Parts::Overview => None,
+            Parts::Table => {
+                let mut dp = db.open_again()?;
+                (None, Some(s.spawn(move || dp.populations(filter))))
+            }
+            Parts::Overview => (None, None),
         };
-        let (runs, pops) = match parts {
-            Parts::Charts | Parts::Table => (db.fleet_runs(filter)?, db.populations(filter)?),
-            Parts::Overview => (Vec::new(), Vec::new()),
+        let runs = match parts {
+            Parts::Charts | Parts::Table => db.fleet_runs(filter)?,
+            Parts::Overview => Vec::new(),
+        };
+        let joined = |what: &str| anyhow::anyhow!("the thread reading {what} panicked");
+        let pops = match p {
+            Some(p) => p.join().map_err(|_| joined("the populations"))??,
+            None => Vec::new(),
         };
         let heads = match h {
-            Some(h) => h
-                .join()
-                .map_err(|_| anyhow::anyhow!("the thread reading the heads' signatures panicked"))??,
+            Some(h) => h.join().map_err(|_| joined("the heads' signatures"))??,
             None => Vec::new(),
         };
         Ok((runs, pops, heads))
