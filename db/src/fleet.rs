@@ -67,7 +67,8 @@ pub(crate) const WHERE: &str =
 const STATE: &str =
     "CASE WHEN v.run_id IS NOT NULL THEN 'voided' WHEN e.outcome IS NULL THEN 'unfinished' ELSE e.outcome END";
 
-/// The selected runs with their state, as a common table expression `sel`.
+/// The selected runs with their state (and what the readers take of each: serial, station, g), as
+/// a common table expression `sel`.
 ///
 /// `MATERIALIZED` (PostgreSQL 12, SQLite 3.35): the period's runs are selected once and then
 /// joined. Inlined, PostgreSQL checked each run's end for a check standard once per joined
@@ -75,7 +76,8 @@ const STATE: &str =
 /// 94 ms inlined and 74 ms materialised (window form, a database being written meanwhile).
 fn selected() -> String {
     format!(
-        "WITH sel AS MATERIALIZED (SELECT r.run_id, r.device_id, r.station, r.started_unix_s, {STATE} AS state, e.reason FROM run r \
+        "WITH sel AS MATERIALIZED (SELECT r.run_id, r.device_id, r.serial, r.station, r.started_unix_s, r.g_m_s2, {STATE} AS state, \
+         e.reason FROM run r \
          LEFT JOIN run_end e ON e.run_id = r.run_id LEFT JOIN void v ON v.run_id = r.run_id WHERE {WHERE})"
     )
 }
@@ -443,12 +445,11 @@ impl Db {
         let rows = self.conn.transaction(|tx| {
             tx.query(
                 &format!(
-                    "{sel} SELECT ra.asset_id, r.serial, r.run_id, r.started_unix_s, r.g_m_s2, {OBSERVED} \
-                     FROM sel JOIN run r ON r.run_id = sel.run_id \
-                     JOIN run_asset ra ON ra.run_id = sel.run_id AND ra.kind = 'head' \
+                    "{sel} SELECT ra.asset_id, sel.serial, sel.run_id, sel.started_unix_s, sel.g_m_s2, {OBSERVED} \
+                     FROM sel JOIN run_asset ra ON ra.run_id = sel.run_id AND ra.kind = 'head' \
                      JOIN head_observation h ON h.run_id = sel.run_id \
                      LEFT JOIN head_observation_f32 b ON b.run_id = sel.run_id WHERE sel.state = 'pass' \
-                     ORDER BY r.started_unix_s, r.run_id"
+                     ORDER BY sel.started_unix_s, sel.run_id"
                 ),
                 &f.params(),
             )
