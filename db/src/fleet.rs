@@ -380,30 +380,41 @@ impl Db {
     pub fn populations(&mut self, f: &Filter) -> Result<Vec<Population>, DbError> {
         let sel = selected();
         let p = f.params();
-        // One statement, so that the period's runs are selected once. Each population's mean is
-        // aggregated first (`fm`, `vm`), then the squared deviations from it: two passes over the
-        // rows read once, no cancellation. Rows of kind 0 are the coefficients by `ord`, of kind
-        // 1 the as-left parameters by name.
-        let rows = self.conn.transaction(|tx| {
-            tx.query(
-                &format!(
-                    "{sel}, fp AS MATERIALIZED (SELECT fp.ord, fp.name, fp.unit, fp.value FROM fit_parameter fp \
-                     JOIN sel ON sel.run_id = fp.run_id WHERE sel.state = 'pass'), \
-                     fm AS (SELECT ord, AVG(value) AS mu FROM fp GROUP BY ord), \
-                     vp AS MATERIALIZED (SELECT vp.ord, vp.name, vp.unit, vp.value, vp.limit_value \
-                     FROM verification_parameter vp JOIN sel ON sel.run_id = vp.run_id \
-                     WHERE sel.state = 'pass' AND vp.phase = 'as_left'), \
-                     vm AS (SELECT name, AVG(value) AS mu FROM vp GROUP BY name) \
-                     SELECT 0 AS kind, MIN(fp.name) AS name, MIN(fp.unit), COUNT(*), MIN(fm.mu), \
-                     SUM((fp.value - fm.mu) * (fp.value - fm.mu)), NULL, fp.ord AS o \
-                     FROM fp JOIN fm ON fm.ord = fp.ord GROUP BY fp.ord \
-                     UNION ALL SELECT 1, vp.name, MIN(vp.unit), COUNT(*), MIN(vm.mu), \
-                     SUM((vp.value - vm.mu) * (vp.value - vm.mu)), MIN(vp.limit_value), MIN(vp.ord) \
-                     FROM vp JOIN vm ON vm.name = vp.name GROUP BY vp.name ORDER BY 1, 8, 2"
-                ),
-                &p,
+        // One statement, so that the period's runs are selected once. Rows of kind 0 are the
+        // coefficients by `ord`, of kind 1 the as-left parameters by name: each with its count,
+        // mean and sum of squared deviations from the mean, without cancellation. PostgreSQL's
+        // AVG and VAR_SAMP of double precision take one pass (Youngs and Cramer's updates, since
+        // PostgreSQL 12); SQLite has no variance, so there each population's mean is aggregated
+        // first (`fm`, `vm`), then the squared deviations from it: two passes over one read.
+        let sql = if self.conn.engine() == "postgres" {
+            format!(
+                "{sel} SELECT 0 AS kind, MIN(fp.name), MIN(fp.unit), COUNT(*), AVG(fp.value), \
+                 COALESCE(VAR_SAMP(fp.value), 0) * (COUNT(*) - 1), NULL, fp.ord AS o \
+                 FROM fit_parameter fp JOIN sel ON sel.run_id = fp.run_id WHERE sel.state = 'pass' \
+                 GROUP BY fp.ord \
+                 UNION ALL SELECT 1, vp.name, MIN(vp.unit), COUNT(*), AVG(vp.value), \
+                 COALESCE(VAR_SAMP(vp.value), 0) * (COUNT(*) - 1), MIN(vp.limit_value), MIN(vp.ord) \
+                 FROM verification_parameter vp JOIN sel ON sel.run_id = vp.run_id \
+                 WHERE sel.state = 'pass' AND vp.phase = 'as_left' GROUP BY vp.name ORDER BY 1, 8, 2"
             )
-        })?;
+        } else {
+            format!(
+                "{sel}, fp AS MATERIALIZED (SELECT fp.ord, fp.name, fp.unit, fp.value FROM fit_parameter fp \
+                 JOIN sel ON sel.run_id = fp.run_id WHERE sel.state = 'pass'), \
+                 fm AS (SELECT ord, AVG(value) AS mu FROM fp GROUP BY ord), \
+                 vp AS MATERIALIZED (SELECT vp.ord, vp.name, vp.unit, vp.value, vp.limit_value \
+                 FROM verification_parameter vp JOIN sel ON sel.run_id = vp.run_id \
+                 WHERE sel.state = 'pass' AND vp.phase = 'as_left'), \
+                 vm AS (SELECT name, AVG(value) AS mu FROM vp GROUP BY name) \
+                 SELECT 0 AS kind, MIN(fp.name) AS name, MIN(fp.unit), COUNT(*), MIN(fm.mu), \
+                 SUM((fp.value - fm.mu) * (fp.value - fm.mu)), NULL, fp.ord AS o \
+                 FROM fp JOIN fm ON fm.ord = fp.ord GROUP BY fp.ord \
+                 UNION ALL SELECT 1, vp.name, MIN(vp.unit), COUNT(*), MIN(vm.mu), \
+                 SUM((vp.value - vm.mu) * (vp.value - vm.mu)), MIN(vp.limit_value), MIN(vp.ord) \
+                 FROM vp JOIN vm ON vm.name = vp.name GROUP BY vp.name ORDER BY 1, 8, 2"
+            )
+        };
+        let rows = self.conn.transaction(|tx| tx.query(&sql, &p))?;
         let (coef, asleft): (Vec<_>, Vec<_>) = rows.iter().partition(|r| matches!(r[0].int(), Ok(0)));
         let mut out = Vec::new();
         if coef.is_empty() {
