@@ -279,8 +279,8 @@ pub(crate) enum Parts {
 
 /// Gathers a period's fleet from the database; `due_by`: the last day of the units and assets due.
 pub(crate) fn gather(db: &mut Db, filter: &Filter, due_by: Date, parts: Parts) -> anyhow::Result<FleetData> {
-    let counts = db.fleet_counts(filter)?;
-    let stations = counts.stations.clone();
+    let mut counts = db.fleet_counts(filter)?;
+    let stations = std::mem::take(&mut counts.stations);
     let units_due = db.units_due(start_of_day_unix_s(due_by) + DAY_S, filter.serial_prefix.as_deref())?;
     let assets = db.assets()?;
     // The heads' signatures and the populations read every observation and parameter of the
