@@ -203,7 +203,8 @@ pub fn append(tx: &mut Tx<'_>, table: &Table, row: &[Val]) -> Result<(), DbError
 }
 
 /// Whether the database holds runs and no ledger entry: rows written before the ledger, which
-/// [`seal_legacy`] chains.
+/// [`seal_legacy`] chains. Whether the ledger holds an entry, not how many: every open asks, and
+/// a count reads them all.
 pub(crate) fn unsealed(tx: &mut Tx<'_>) -> Result<bool, DbError> {
     Ok(tx.query("SELECT 1 FROM ledger LIMIT 1", &[])?.is_empty()
         && !tx.query("SELECT 1 FROM run LIMIT 1", &[])?.is_empty())
@@ -212,9 +213,7 @@ pub(crate) fn unsealed(tx: &mut Tx<'_>) -> Result<bool, DbError> {
 /// Rows written before the ledger existed (a version-1 database) get their entries, once: every
 /// run in the order it started, each run's rows in the order a station writes them.
 pub fn seal_legacy(tx: &mut Tx<'_>) -> Result<usize, DbError> {
-    // Whether the ledger holds an entry, not how many: every open asks, and a count reads them
-    // all.
-    if !tx.query("SELECT 1 FROM ledger LIMIT 1", &[])?.is_empty() {
+    if !unsealed(tx)? {
         return Ok(0);
     }
     let runs = tx.query("SELECT run_id FROM run ORDER BY started_unix_s, run_id", &[])?;

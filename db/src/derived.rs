@@ -312,19 +312,16 @@ fn gunzip(run: &str, gz: &[u8]) -> Result<Vec<u8>, DbError> {
 /// Rows a batch of the backfill takes in one transaction.
 const BATCH: i64 = 500;
 
-/// Derives the rows of every stored piece that has none yet (a database written before schema
-/// 6, or its compact head observations before schema 7), a batch at a time; how many rows it
-/// derived.
 /// Whether a migration left rows to derive ([`backfill`]).
 pub(crate) fn pending(tx: &mut Tx<'_>) -> Result<bool, DbError> {
     let pending = tx.query("SELECT pending FROM derived_backfill", &[])?;
     Ok(pending.iter().any(|r| matches!(r[0], Val::Int(p) if p != 0)))
 }
 
+/// Derives the rows of every stored piece that has none yet (a database written before schema
+/// 6, or its compact head observations before schema 7), a batch at a time; how many rows it
+/// derived. The open calls it when [`pending`] says so, under the migration's lock.
 pub(crate) fn backfill(c: &mut Conn) -> Result<usize, DbError> {
-    if !c.transaction(pending)? {
-        return Ok(0);
-    }
     let mut n = 0;
     // Each table is walked once in key order (a batch starts after the last key of the one
     // before), so that a batch does not scan again the rows the batches before it derived.

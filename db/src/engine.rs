@@ -403,25 +403,20 @@ impl Conn {
                 }
                 Ok(out)
             }
-            Link::Postgres(c, statements) if self.read_only => {
-                let t = c
-                    .build_transaction()
-                    .isolation_level(postgres::IsolationLevel::RepeatableRead)
-                    .read_only(true)
-                    .start()
-                    .map_err(DbError::pg)?;
-                let mut tx = Tx::Postgres(t, statements);
-                let out = f(&mut tx)?;
-                match tx {
-                    Tx::Postgres(t, _) => t.commit().map_err(DbError::pg)?,
-                    Tx::Sqlite(_) => unreachable!("a PostgreSQL connection gives PostgreSQL transactions"),
-                }
-                Ok(out)
-            }
             Link::Postgres(c, statements) => {
-                let mut tx = Tx::Postgres(c.transaction().map_err(DbError::pg)?, statements);
-                // One writer at a time appends to the ledger (SQLite: `BEGIN IMMEDIATE` does it).
-                tx.execute("SELECT pg_advisory_xact_lock($1)", &[Val::Int(LEDGER_LOCK)])?;
+                let t = if self.read_only {
+                    c.build_transaction()
+                        .isolation_level(postgres::IsolationLevel::RepeatableRead)
+                        .read_only(true)
+                        .start()
+                } else {
+                    c.transaction()
+                };
+                let mut tx = Tx::Postgres(t.map_err(DbError::pg)?, statements);
+                if !self.read_only {
+                    // One writer at a time appends to the ledger (SQLite: `BEGIN IMMEDIATE` does it).
+                    tx.execute("SELECT pg_advisory_xact_lock($1)", &[Val::Int(LEDGER_LOCK)])?;
+                }
                 let out = f(&mut tx)?;
                 match tx {
                     Tx::Postgres(t, _) => t.commit().map_err(DbError::pg)?,
