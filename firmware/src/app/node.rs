@@ -30,7 +30,16 @@ use super::ports::{LinkRx, LinkTx, SampleClock, SampleSource};
 use super::progress::{self, SAMPLED, SENT};
 
 /// Messages waiting for the link transmitter.
-pub static OUTBOX: Channel<CriticalSectionRawMutex, NodeMsg, 4> = Channel::new();
+pub static OUTBOX: Channel<CriticalSectionRawMutex, NodeMsg, OUTBOX_DEPTH> = Channel::new();
+/// How many messages [`OUTBOX`] holds.
+const OUTBOX_DEPTH: usize = 4;
+/// Of them, the slots the live stream leaves free, for answers and status reports. Those wait
+/// for room (`send`), where a live block that finds no room is dropped and counted
+/// (`try_send`). Without the reserve, when the link is slower than the stream the woken waiter
+/// races the sampler for each slot the transmitter frees, and an answer can lose every race
+/// (the host gives up on it); with it, an answer waits behind at most `OUTBOX_DEPTH - 1`
+/// frames however saturated the link.
+const RESERVED_FOR_ANSWERS: usize = 1;
 
 /// Counters reported in [`Status`].
 pub struct Stats {
@@ -290,7 +299,8 @@ pub async fn stream_samples(mut source: impl SampleSource, node: Node) -> ! {
                 next = next.wrapping_add(n as u32);
                 STATS.sample_sets.fetch_add(n as u32, Ordering::Relaxed);
                 let (data, temp) = Node::live_block(&mut applier, &codes[..n], &temp_c[..n]);
-                if OUTBOX.try_send(NodeMsg::Samples { seq, first, data, temp }).is_err() {
+                let room = OUTBOX.free_capacity() > RESERVED_FOR_ANSWERS;
+                if !room || OUTBOX.try_send(NodeMsg::Samples { seq, first, data, temp }).is_err() {
                     STATS.overruns.fetch_add(n as u32, Ordering::Relaxed);
                 }
                 seq = seq.wrapping_add(1);
