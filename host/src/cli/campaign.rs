@@ -282,19 +282,6 @@ impl TempcoArgs {
             thermometer_c: self.thermometer_u?,
         })
     }
-
-    /// The options as a command line gives them (what the station passes to its fit step).
-    pub fn to_args(&self) -> Vec<String> {
-        [
-            ("--bias-tempco-u", self.bias_tempco_u),
-            ("--scale-tempco-u", self.scale_tempco_u),
-            ("--thermometer-u", self.thermometer_u),
-        ]
-        .into_iter()
-        .filter_map(|(option, v)| Some([option.to_string(), v?.to_string()]))
-        .flatten()
-        .collect()
-    }
 }
 
 fn parse_layout(s: &str) -> Result<Layout, String> {

@@ -27,7 +27,10 @@ use crate::cli::StationArgs;
 
 mod check;
 mod finish;
+mod step_cmd;
 mod steps;
+
+use step_cmd::{Against, DbRun, FlashRoute, GravityGiven, Head, HeadU, Issuer, Link, StepCommand};
 
 /// File names in the unit's directory.
 const INFO: &str = "info.json";
@@ -123,77 +126,57 @@ impl Station<'_> {
         self.path(name).display().to_string()
     }
 
-    /// The node's link options.
-    fn link(&self) -> Vec<String> {
-        link_args(self.a, std::slice::from_ref(&self.u.port))
+    /// The node's link.
+    fn link(&self) -> Link {
+        link_of(self.a, std::slice::from_ref(&self.u.port))
     }
 
-    /// The gravity options as given (the steps announce their source themselves).
-    fn gravity(&self) -> Vec<String> {
+    /// The gravity as given (the steps announce its source themselves).
+    fn gravity(&self) -> Option<GravityGiven> {
         use super::Source;
-        match self.gravity.map(|g| (g.g, &g.source)) {
-            Some((_, Source::Site { latitude, height })) => {
-                let mut v = vec!["--latitude".into(), latitude.to_string()];
-                if *height != 0.0 {
-                    v.extend(["--height".into(), height.to_string()]);
-                }
-                v
-            }
-            Some((g, _)) => vec!["--g".into(), g.to_string()],
-            None => vec![],
-        }
+        self.gravity.map(|g| match g.source {
+            Source::Site { latitude, height } => GravityGiven::Site { latitude, height },
+            _ => GravityGiven::G(g.g),
+        })
     }
 
-    /// A verification's command line (`fit`: the fit JSON of the record under test).
-    fn verify_args(&self, json: &str, fit: Option<String>) -> Vec<String> {
-        let mut v = vec!["verify".into()];
-        v.extend(self.link());
-        v.extend(["--head".into(), self.a.head().to_string(), "--plan".into(), VERIFY_PLAN.into()]);
-        v.extend(head_timeout(self.a));
-        v.extend(["--samples".into(), self.a.samples.to_string(), "--json".into(), self.p(json)]);
-        if let Some(f) = fit {
-            v.extend(["--fit".into(), f]);
+    /// A verification's command (`fit`: the fit JSON of the record under test).
+    fn verify_cmd(&self, json: &str, fit: Option<PathBuf>) -> StepCommand {
+        StepCommand::Verify {
+            link: self.link(),
+            head: head_of(self.a),
+            plan: VERIFY_PLAN.into(),
+            samples: self.a.samples,
+            json: self.path(json),
+            fit,
+            // `--spec` and `--coverage` exclude each other (clap, and the settings file's check).
+            against: match &self.a.spec {
+                Some(file) => Against::Spec { file: file.clone(), head_u: self.head_u() },
+                None => Against::Scatter { coverage: self.a.coverage },
+            },
+            gravity: self.gravity(),
         }
-        if let Some(k) = self.a.coverage {
-            v.extend(["--coverage".into(), k.to_string()]);
-        }
-        if let Some(spec) = &self.a.spec {
-            v.extend(["--spec".into(), spec.display().to_string()]);
-            v.extend(self.head_u_args());
-        }
-        v.extend(self.gravity());
-        v
     }
 
     /// The head asset's stated uncertainties as `fit` and `verify` take them (none without
     /// `--head-asset`), the angle's replaced by what the head's units measure when that is
     /// larger.
-    fn head_u_args(&self) -> Vec<String> {
-        match self.head_asset {
-            Some(h) => vec![
-                "--head-angle-u".into(),
-                self.head_measured_u.unwrap_or(h.angle_u_arcsec).to_string(),
-                "--head-orthogonality-u".into(),
-                h.orthogonality_u_arcsec.to_string(),
-            ],
-            None => Vec::new(),
-        }
+    fn head_u(&self) -> Option<HeadU> {
+        self.head_asset.map(|h| HeadU {
+            angle_arcsec: self.head_measured_u.unwrap_or(h.angle_u_arcsec),
+            orthogonality_arcsec: h.orthogonality_u_arcsec,
+        })
     }
 
-    /// `--db SPEC --run-id R` for a step that stores its own piece.
-    fn db_args(&self) -> anyhow::Result<Vec<String>> {
+    /// The database and run for a step that stores its own piece.
+    fn db_run(&self) -> anyhow::Result<DbRun> {
         let run = self.run.context("no run: step info has not run")?;
-        Ok(vec!["--db".into(), self.db_spec.clone(), "--run-id".into(), run.to_string()])
+        Ok(DbRun { spec: self.db_spec.clone(), run })
     }
 
-    /// A command line as the journal keeps it: the database without its password.
-    fn journalled(&self, args: &[String]) -> Vec<String> {
-        let target = self.db.target();
-        args.iter().map(|a| if *a == self.db_spec { target.clone() } else { a.clone() }).collect()
-    }
-
-    /// Runs `accelcal ARGS` as step `step`; `Failed` on exit code 1, an error on anything but 0.
-    fn run(&self, step: Step, args: &[String]) -> anyhow::Result<Exit> {
+    /// Runs `accelcal` with the command `cmd` as step `step`; `Failed` on exit code 1, an error
+    /// on anything but 0.
+    fn run(&self, step: Step, cmd: &StepCommand) -> anyhow::Result<Exit> {
         let n = Step::ALL.iter().position(|s| *s == step).unwrap_or(0) + 1;
         let stopped = || {
             anyhow::Error::new(Interrupted(format!(
@@ -211,12 +194,12 @@ impl Station<'_> {
             if step == Step::Acquire { "" } else { self.tag.as_str() },
             Step::ALL.len(),
             step.name(),
-            self.journalled(args).join(" ")
+            cmd.journalled(&self.db.target()).join(" ")
         );
         let exe = std::env::current_exe().context("finding the accelcal executable")?;
         self.step_start.set(Some(std::time::Instant::now()));
         let status = Command::new(exe)
-            .args(args)
+            .args(cmd.args())
             .status()
             .map_err(|e| environment(format!("starting step {}", step.name()), e))?;
         match status.code() {
@@ -233,12 +216,12 @@ impl Station<'_> {
         }
     }
 
-    /// Records `step` as finished with `outcome` and the hashes of `outputs`, and saves the
-    /// journal.
+    /// Records `step` as finished by `command` (none when nothing had to run) with `outcome` and
+    /// the hashes of `outputs`, and saves the journal.
     fn finish(
         &mut self,
         step: Step,
-        command: Vec<String>,
+        command: Option<&StepCommand>,
         outcome: String,
         outputs: &[&str],
     ) -> anyhow::Result<()> {
@@ -252,7 +235,7 @@ impl Station<'_> {
             .collect::<anyhow::Result<_>>()?;
         let finished = super::record::utc(super::created(None));
         eprintln!("station: {}{} {outcome}", self.tag, step.name());
-        let command = self.journalled(&command);
+        let command = command.map(|c| c.journalled(&self.db.target())).unwrap_or_default();
         let seconds = self.step_start.take().map(|t| t.elapsed().as_secs_f64());
         self.journal.finish(StepRecord { step, command, finished, outcome, outputs, seconds });
         write_json(&self.path(JOURNAL), &self.journal)?;
@@ -294,10 +277,8 @@ impl Station<'_> {
 
     /// Step `info`, run every time: the node on the port must be the journal's device.
     fn info(&mut self) -> anyhow::Result<InfoDoc> {
-        let mut args = vec!["info".to_string()];
-        args.extend(self.link());
-        args.extend(["--json".into(), self.p(INFO)]);
-        if let Exit::Failed = self.run(Step::Info, &args)? {
+        let cmd = StepCommand::Info { link: self.link(), json: self.path(INFO) };
+        if let Exit::Failed = self.run(Step::Info, &cmd)? {
             return Err(anyhow::anyhow!("step info failed (its error is above)"));
         }
         let text = std::fs::read_to_string(self.path(INFO)).with_context(|| self.p(INFO))?;
@@ -308,7 +289,7 @@ impl Station<'_> {
             Some(r) => format!("record CRC {} in force", r.crc),
             None => "no record in force".into(),
         };
-        self.finish(Step::Info, args, format!("device {device}, {record}"), &[INFO])?;
+        self.finish(Step::Info, Some(&cmd), format!("device {device}, {record}"), &[INFO])?;
         self.info = Some(info.clone());
         self.begin(&info, &device)?;
         Ok(info)
@@ -443,23 +424,15 @@ impl Station<'_> {
     }
 }
 
-/// `--head-timeout-s S` for an emulated head (a manual head has none).
-fn head_timeout(a: &StationArgs) -> Vec<String> {
-    if a.head() == "manual" {
-        vec![]
-    } else {
-        vec!["--head-timeout-s".into(), a.head_timeout_s.to_string()]
-    }
+/// The head, with the time a move may take when it is emulated (a manual head has none).
+fn head_of(a: &StationArgs) -> Head {
+    let timeout_s = (a.head() != "manual").then_some(a.head_timeout_s);
+    Head { spec: a.head().to_string(), timeout_s }
 }
 
-/// `--port P1 [--port P2 ...] --baud B --timeout-s T`.
-fn link_args(a: &StationArgs, ports: &[String]) -> Vec<String> {
-    let mut v = Vec::new();
-    for p in ports {
-        v.extend(["--port".into(), p.clone()]);
-    }
-    v.extend(["--baud".into(), a.baud.to_string(), "--timeout-s".into(), a.timeout_s.to_string()]);
-    v
+/// The link to the nodes on `ports`.
+fn link_of(a: &StationArgs, ports: &[String]) -> Link {
+    Link { ports: ports.to_vec(), baud: a.baud, timeout_s: a.timeout_s }
 }
 
 /// Step `acquire` of every unit that has not done it, in one `acquire` over all their nodes (one
@@ -474,29 +447,24 @@ fn acquire_together(units: &mut [&mut Station<'_>]) -> anyhow::Result<()> {
     if let Some(&first) = todo.first() {
         let a = units[first].a;
         let ports: Vec<String> = todo.iter().map(|&i| units[i].u.port.clone()).collect();
-        let mut args = vec!["acquire".to_string()];
-        args.extend(link_args(a, &ports));
-        args.extend(["--head".into(), a.head().to_string(), "--plan".into(), a.plan.clone()]);
-        args.extend(head_timeout(a));
-        args.extend(["--samples".into(), a.samples.to_string()]);
-        for &i in &todo {
-            args.extend(["--serial".into(), units[i].u.serial.clone(), "--out".into(), units[i].p(CAMPAIGN)]);
-        }
-        if let Some(hz) = a.rate_hz {
-            args.extend(["--rate-hz".into(), hz.to_string()]);
-        }
-        args.extend(units[first].gravity());
-        if todo.iter().any(|&i| units[i].path(CAMPAIGN).exists()) {
-            args.push("--resume".into());
-        }
-        if let Exit::Failed = units[first].run(Step::Acquire, &args)? {
+        let cmd = StepCommand::Acquire {
+            link: link_of(a, &ports),
+            head: head_of(a),
+            plan: a.plan.clone(),
+            samples: a.samples,
+            units: todo.iter().map(|&i| (units[i].u.serial.clone(), units[i].path(CAMPAIGN))).collect(),
+            rate_hz: a.rate_hz,
+            gravity: units[first].gravity(),
+            resume: todo.iter().any(|&i| units[i].path(CAMPAIGN).exists()),
+        };
+        if let Exit::Failed = units[first].run(Step::Acquire, &cmd)? {
             return Err(anyhow::anyhow!("step acquire failed (its error is above)"));
         }
         // One campaign for every unit on the head: each journal states its time.
         let started = units[first].step_start.get();
         for &i in &todo {
             units[i].step_start.set(started);
-            units[i].finish(Step::Acquire, args.clone(), "campaign recorded".into(), &[CAMPAIGN])?;
+            units[i].finish(Step::Acquire, Some(&cmd), "campaign recorded".into(), &[CAMPAIGN])?;
         }
     }
     for s in units.iter_mut() {

@@ -91,7 +91,7 @@ impl Station<'_> {
             if on_disk.is_some() && on_disk == self.db.certificate_sha256(run)? {
                 self.finish(
                     Step::Certificate,
-                    vec![],
+                    None,
                     "written (stored, and the run ended, before the stop)".into(),
                     &[CERTIFICATE],
                 )?;

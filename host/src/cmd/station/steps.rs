@@ -22,15 +22,15 @@ impl Station<'_> {
             return Ok(());
         }
         if info.record.is_none() {
-            return self.finish(Step::AsFound, vec![], "skipped: no record in force".into(), &[]);
+            return self.finish(Step::AsFound, None, "skipped: no record in force".into(), &[]);
         }
         let _ = std::fs::remove_file(self.path(AS_FOUND));
         let fit = match &self.a.as_found_fit {
-            Some(p) => Some(p.display().to_string()),
+            Some(p) => Some(p.clone()),
             None => self.stored_fit_of(info)?,
         };
-        let args = self.verify_args(AS_FOUND, fit);
-        self.run(Step::AsFound, &args)?;
+        let cmd = self.verify_cmd(AS_FOUND, fit);
+        self.run(Step::AsFound, &cmd)?;
         let outcome = match self.verdict(AS_FOUND)? {
             (v, verdict) if v.decision.is_some() => {
                 format!(
@@ -43,12 +43,12 @@ impl Station<'_> {
             (_, Ok(n)) => format!("PASS ({n} positions)"),
             (_, Err(f)) => format!("FAIL ({f})"),
         };
-        self.finish(Step::AsFound, args, outcome, &[AS_FOUND])
+        self.finish(Step::AsFound, Some(&cmd), outcome, &[AS_FOUND])
     }
 
     /// The fit of the record in force, from the database (written to the unit's directory for
     /// the as-found verification's tolerance), when a run stored it.
-    pub(super) fn stored_fit_of(&mut self, info: &InfoDoc) -> anyhow::Result<Option<String>> {
+    pub(super) fn stored_fit_of(&mut self, info: &InfoDoc) -> anyhow::Result<Option<PathBuf>> {
         let (Some(device), Some(crc)) =
             (self.journal.device_id.clone(), info.record.as_ref().map(|r| r.crc.as_str()))
         else {
@@ -71,7 +71,7 @@ impl Station<'_> {
             self.db.target(),
             path.display()
         );
-        Ok(Some(path.display().to_string()))
+        Ok(Some(path))
     }
 
     /// Stores the campaign of the finished step `acquire`.
@@ -86,15 +86,12 @@ impl Station<'_> {
         if self.done(Step::Select)? {
             return Ok(());
         }
-        let args: Vec<String> = vec![
-            "select".into(),
-            self.p(CAMPAIGN),
-            "--json".into(),
-            self.p(SELECT),
-            "--tolerance".into(),
-            self.a.select_tolerance.to_string(),
-        ];
-        if let Exit::Failed = self.run(Step::Select, &args)? {
+        let cmd = StepCommand::Select {
+            campaign: self.path(CAMPAIGN),
+            json: self.path(SELECT),
+            tolerance: self.a.select_tolerance,
+        };
+        if let Exit::Failed = self.run(Step::Select, &cmd)? {
             return Err(anyhow::anyhow!("step select failed (its error is above)"));
         }
         let text = std::fs::read_to_string(self.path(SELECT)).with_context(|| self.p(SELECT))?;
@@ -103,7 +100,7 @@ impl Station<'_> {
         if let Err(e) = deployable(&doc) {
             return Err(self.reject(e.into()));
         }
-        self.finish(Step::Select, args, "model 4 deployable on every channel".into(), &[SELECT])
+        self.finish(Step::Select, Some(&cmd), "model 4 deployable on every channel".into(), &[SELECT])
     }
 
     pub(super) fn fit(&mut self) -> anyhow::Result<()> {
@@ -123,23 +120,18 @@ impl Station<'_> {
             return Ok(());
         }
         let device = self.journal.device_id.clone().context("no device id: step info has not run")?;
-        let args: Vec<String> = vec![
-            "fit".into(),
-            self.p(CAMPAIGN),
-            "--record".into(),
-            self.p(RECORD),
-            "--json".into(),
-            self.p(FIT),
-            "--device-id".into(),
-            device,
-        ];
-        let mut args = args;
-        args.extend(self.head_u_args());
-        args.extend(self.a.tempco.to_args());
-        if let Exit::Failed = self.run(Step::Fit, &args)? {
+        let cmd = StepCommand::Fit {
+            campaign: self.path(CAMPAIGN),
+            record: self.path(RECORD),
+            json: self.path(FIT),
+            device_id: device,
+            head_u: self.head_u(),
+            tempco: self.a.tempco.coefficients(),
+        };
+        if let Exit::Failed = self.run(Step::Fit, &cmd)? {
             return Err(anyhow::anyhow!("step fit failed (its error is above)"));
         }
-        self.finish(Step::Fit, args, "record written".into(), &[FIT, RECORD])
+        self.finish(Step::Fit, Some(&cmd), "record written".into(), &[FIT, RECORD])
     }
 
     pub(super) fn flash(&mut self) -> anyhow::Result<()> {
@@ -152,7 +144,7 @@ impl Station<'_> {
             if self.runs_record(rec.crc32()) {
                 return self.finish(
                     Step::Flash,
-                    vec![],
+                    None,
                     "the node runs the new record (flashed before the stop)".into(),
                     &[],
                 );
@@ -160,25 +152,23 @@ impl Station<'_> {
         }
         // Given the database, the flash step writes the record the run stored (step fit stored
         // it; a file that is not it is refused) and notes the flash there.
-        let a = self.a;
-        let mut args = vec!["flash".to_string(), self.p(RECORD)];
-        args.extend(self.db_args()?);
-        match &self.u.gdb {
-            Some(g) => args.extend(["--gdb".into(), g.clone()]),
-            None => {
-                args.extend(["--chip".into(), a.chip.clone()]);
-                if let Some(p) = &self.u.probe {
-                    args.extend(["--probe".into(), p.clone()]);
-                }
-            }
-        }
-        args.extend(["--port".into(), self.u.port.clone(), "--baud".into(), a.baud.to_string()]);
-        if let Exit::Failed = self.run(Step::Flash, &args)? {
+        let route = match &self.u.gdb {
+            Some(g) => FlashRoute::Gdb(g.clone()),
+            None => FlashRoute::Probe { chip: self.a.chip.clone(), probe: self.u.probe.clone() },
+        };
+        let cmd = StepCommand::Flash {
+            record: self.path(RECORD),
+            db: self.db_run()?,
+            route,
+            port: self.u.port.clone(),
+            baud: self.a.baud,
+        };
+        if let Exit::Failed = self.run(Step::Flash, &cmd)? {
             // What the node runs is what the step said (a cut write keeps the old record; a
             // confirmed write whose note failed runs the new one).
             return Err(anyhow::anyhow!("step flash failed (its error above says what the node runs)"));
         }
-        self.finish(Step::Flash, args, "the node runs the new record".into(), &[])
+        self.finish(Step::Flash, Some(&cmd), "the node runs the new record".into(), &[])
     }
 
     /// Step `as-left`; its failure rejects the unit. Journalled first, pass or fail, then
@@ -186,13 +176,13 @@ impl Station<'_> {
     pub(super) fn as_left(&mut self) -> anyhow::Result<()> {
         if !self.done(Step::AsLeft)? {
             let _ = std::fs::remove_file(self.path(AS_LEFT));
-            let args = self.verify_args(AS_LEFT, Some(self.p(FIT)));
-            self.run(Step::AsLeft, &args)?;
+            let cmd = self.verify_cmd(AS_LEFT, Some(self.path(FIT)));
+            self.run(Step::AsLeft, &cmd)?;
             let outcome = match self.verdict(AS_LEFT)?.1 {
                 Ok(n) => format!("PASS ({n} positions)"),
                 Err(f) => format!("FAIL ({f})"),
             };
-            self.finish(Step::AsLeft, args, outcome, &[AS_LEFT])?;
+            self.finish(Step::AsLeft, Some(&cmd), outcome, &[AS_LEFT])?;
         }
         let (report, verdict) = self.verdict(AS_LEFT)?;
         let run = self.run_id()?;
@@ -213,42 +203,30 @@ impl Station<'_> {
             // Stored by the report step before a crash (it writes the file first).
             return self.finish(
                 Step::Certificate,
-                vec![],
+                None,
                 "written (stored before the stop)".into(),
                 &[CERTIFICATE],
             );
         }
-        let mut args: Vec<String> = vec![
-            "report".into(),
-            "--campaign".into(),
-            self.p(CAMPAIGN),
-            "--record".into(),
-            self.p(RECORD),
-            "--fit".into(),
-            self.p(FIT),
-            "--verify".into(),
-            self.p(AS_LEFT),
-            "--out".into(),
-            self.p(CERTIFICATE),
-        ];
-        if self.path(AS_FOUND).is_file() {
-            args.extend(["--as-found".into(), self.p(AS_FOUND)]);
-        }
         let i = &self.a.issuer;
-        for (flag, v) in [
-            ("--laboratory", &i.laboratory),
-            ("--laboratory-address", &i.laboratory_address),
-            ("--customer", &i.customer),
-            ("--authorised-by", &i.authorised_by),
-        ] {
-            if let Some(v) = v {
-                args.extend([flag.into(), v.clone()]);
-            }
-        }
-        args.extend(self.db_args()?);
-        if let Exit::Failed = self.run(Step::Certificate, &args)? {
+        let cmd = StepCommand::Report {
+            campaign: self.path(CAMPAIGN),
+            record: self.path(RECORD),
+            fit: self.path(FIT),
+            verify: self.path(AS_LEFT),
+            out: self.path(CERTIFICATE),
+            as_found: Some(self.path(AS_FOUND)).filter(|p| p.is_file()),
+            issuer: Issuer {
+                laboratory: i.laboratory.clone(),
+                laboratory_address: i.laboratory_address.clone(),
+                customer: i.customer.clone(),
+                authorised_by: i.authorised_by.clone(),
+            },
+            db: self.db_run()?,
+        };
+        if let Exit::Failed = self.run(Step::Certificate, &cmd)? {
             return Err(anyhow::anyhow!("step certificate failed (its error is above)"));
         }
-        self.finish(Step::Certificate, args, "written".into(), &[CERTIFICATE])
+        self.finish(Step::Certificate, Some(&cmd), "written".into(), &[CERTIFICATE])
     }
 }
