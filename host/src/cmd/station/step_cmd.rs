@@ -328,7 +328,10 @@ mod tests {
     }
 
     fn db() -> DbRun {
-        DbRun { spec: "host=/tmp/pg user=a password=secret dbname=d".into(), run: RunId::new() }
+        DbRun {
+            spec: "host=/tmp/pg user=a password=secret dbname=d".into(),
+            run: RunId::parse("0123456789abcdef0123456789abcdef").expect("a run id"),
+        }
     }
 
     const HEAD_U: HeadU = HeadU { angle_arcsec: 12.5, orthogonality_arcsec: 3.0 };
