@@ -56,15 +56,9 @@ pub struct Filter {
 
 /// The condition on `run r` of a [`Filter`], with its parameters `$1`…`$6`. A check of a
 /// station's check standard ([`super::check`]) is not a calibration: it is left out.
-///
-/// A filter not given is `''`, and each is written `($n = '' OR …)`: PostgreSQL plans a statement
-/// for its values, folds the unused filters away and estimates the period's runs from the index.
-/// The serial's prefix test written bare was estimated as 0.5 % of them (a function's equality),
-/// so the month's 8,000 runs were planned as 40: its populations sorted 96,000 parameter rows on
-/// disk instead of hashing twelve groups.
 pub(crate) const WHERE: &str =
     "r.started_unix_s >= $1 AND r.started_unix_s < $2 AND ($3 = '' OR r.station = $3) \
-     AND ($4 = '' OR substr(r.serial, 1, length($4)) = $4) AND ($5 = '' OR EXISTS (SELECT 1 FROM run_asset ha \
+     AND substr(r.serial, 1, length($4)) = $4 AND ($5 = '' OR EXISTS (SELECT 1 FROM run_asset ha \
      WHERE ha.run_id = r.run_id AND ha.kind = 'head' AND ha.asset_id = $5)) AND ($6 = '' OR r.operator = $6) \
      AND NOT EXISTS (SELECT 1 FROM run_end ce WHERE ce.run_id = r.run_id \
      AND substr(ce.reason, 1, 14) = 'check standard')";
@@ -318,7 +312,7 @@ impl Db {
             tx.query(
                 "SELECT c.device_id, r.serial, c.run_id, c.due_unix_s FROM device_certificate c \
                  JOIN run r ON r.run_id = c.run_id \
-                 WHERE c.due_unix_s < $1 AND ($2 = '' OR substr(r.serial, 1, length($2)) = $2) \
+                 WHERE c.due_unix_s < $1 AND substr(r.serial, 1, length($2)) = $2 \
                  ORDER BY c.due_unix_s, r.serial",
                 &[before_unix_s.into(), serial_prefix.unwrap_or("").into()],
             )
