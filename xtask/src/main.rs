@@ -213,7 +213,7 @@ fn bench(only: Option<&str>) -> anyhow::Result<()> {
 /// Issue 31 item 5: `fleet` and `serve` on a PostgreSQL database of 100,000 units and 300,000
 /// runs, in a cluster of its own under `target/bench-fleet-pg` (PostgreSQL from
 /// `scripts/setup-postgres.sh`). The first run writes the line through the store path (about
-/// 45 minutes on 2 cores, 11 GB); the cluster is halted after, its data kept, and later runs time
+/// 105 minutes on 2 cores); the cluster is halted after, its data kept, and later runs time
 /// the same database. Not part of `bench` without a part.
 fn fleet_bench() -> anyhow::Result<()> {
     let r = root();
