@@ -60,12 +60,19 @@ pub(crate) const WHERE: &str =
     "r.started_unix_s >= $1 AND r.started_unix_s < $2 AND ($3 = '' OR r.station = $3) \
      AND substr(r.serial, 1, length($4)) = $4 AND ($5 = '' OR EXISTS (SELECT 1 FROM run_asset ha \
      WHERE ha.run_id = r.run_id AND ha.kind = 'head' AND ha.asset_id = $5)) AND ($6 = '' OR r.operator = $6) \
-     AND NOT EXISTS (SELECT 1 FROM run_end ce WHERE ce.run_id = r.run_id \
-     AND substr(ce.reason, 1, 14) = 'check standard')";
+     AND r.run_id NOT IN (SELECT ce.run_id FROM run_end ce WHERE substr(ce.reason, 1, 14) = 'check standard')";
 
 /// A run's state: `voided` before its end, `unfinished` without one, else its outcome.
 const STATE: &str =
     "CASE WHEN v.run_id IS NOT NULL THEN 'voided' WHEN e.outcome IS NULL THEN 'unfinished' ELSE e.outcome END";
+
+/// [`STATE`] for a query that takes nothing else of the void: `IN` a subquery, which both
+/// engines read once into a hashed set (PostgreSQL's hashed SubPlan, SQLite's ephemeral index),
+/// where a join looked the void up once per run. The check standards' runs are left out the
+/// same way in [`WHERE`]: on a month of the whole line (8,230 runs of 300,000) the selection
+/// took 62 ms instead of 87 ms.
+const STATE_NO_JOIN: &str = "CASE WHEN r.run_id IN (SELECT v.run_id FROM void v) THEN 'voided' \
+     WHEN e.outcome IS NULL THEN 'unfinished' ELSE e.outcome END";
 
 /// The selected runs with their state (and what the readers take of each: serial, station, g), as
 /// a common table expression `sel`.
@@ -76,9 +83,8 @@ const STATE: &str =
 /// 94 ms inlined and 74 ms materialised (window form, a database being written meanwhile).
 fn selected() -> String {
     format!(
-        "WITH sel AS MATERIALIZED (SELECT r.run_id, r.device_id, r.serial, r.station, r.started_unix_s, r.g_m_s2, {STATE} AS state, \
-         e.reason FROM run r \
-         LEFT JOIN run_end e ON e.run_id = r.run_id LEFT JOIN void v ON v.run_id = r.run_id WHERE {WHERE})"
+        "WITH sel AS MATERIALIZED (SELECT r.run_id, r.device_id, r.serial, r.station, r.started_unix_s, r.g_m_s2, \
+         {STATE_NO_JOIN} AS state, e.reason FROM run r LEFT JOIN run_end e ON e.run_id = r.run_id WHERE {WHERE})"
     )
 }
 
@@ -414,7 +420,15 @@ impl Db {
                  FROM vp JOIN vm ON vm.name = vp.name GROUP BY vp.name ORDER BY 1, 8, 2"
             )
         };
-        let rows = self.conn.transaction(|tx| tx.query(&sql, &p))?;
+        let postgres = self.conn.engine() == "postgres";
+        let rows = self.conn.transaction(|tx| {
+            if postgres {
+                // The coefficients' rows of a month of the whole line (97,000) are sorted by
+                // parameter: in the default 4 MB that sort spills to disk (3.8 MB written).
+                tx.execute("SET LOCAL work_mem = '32MB'", &[])?;
+            }
+            tx.query(&sql, &p)
+        })?;
         let (coef, asleft): (Vec<_>, Vec<_>) = rows.iter().partition(|r| matches!(r[0].int(), Ok(0)));
         let mut out = Vec::new();
         if coef.is_empty() {
