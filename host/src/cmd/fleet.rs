@@ -318,7 +318,18 @@ pub(crate) fn gather(db: &mut Db, filter: &Filter, due_by: Date, parts: Parts) -
             Some(h) => h.join().map_err(|_| joined("the heads' signatures"))??,
             None => Vec::new(),
         };
-        Ok(FleetData { counts, stations, runs, due_by, units_due, assets, pops, heads, charts, check_standards })
+        Ok(FleetData {
+            counts,
+            stations,
+            runs,
+            due_by,
+            units_due,
+            assets,
+            pops,
+            heads,
+            charts,
+            check_standards,
+        })
     })
 }
 
