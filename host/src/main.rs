@@ -28,7 +28,8 @@ fn main() {
         let gravity = settings::gravity::stated(&cli.command, &given)?;
         Ok(resolved::Resolved { gravity, config })
     });
-    let resolved = match checked {
+    let settled = checked.and_then(|resolved| Ok((resolved, settings::settled::settle(cli.command)?)));
+    let (resolved, settings) = match settled {
         Ok(r) => r,
         Err(e) => {
             eprintln!("error: {}", words::line(&e));
@@ -37,11 +38,11 @@ fn main() {
     };
     let mut warnings = cmd::Warnings::default();
     // The station tells a rejected unit (1) from a failed environment (3).
-    let code = match cli.command {
-        cli::Command::Station(_) => crate::exit::station_code,
+    let code = match settings {
+        settings::settled::Settings::Parsed(cli::Command::Station(_)) => crate::exit::station_code,
         _ => crate::exit::code,
     };
-    match cmd::run(cli, &resolved, &mut warnings) {
+    match cmd::run(settings, &resolved, &mut warnings) {
         Ok(()) => cmd::print_warnings(&warnings),
         Err(e) => {
             // One line: the error, with the campaign's warnings folded in.

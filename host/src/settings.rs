@@ -25,6 +25,8 @@ use clap::ArgMatches;
 use crate::cli::{Algorithm, Command, CriterionArg, FitArgs, MethodArg, RecordCommand};
 
 pub mod gravity;
+pub mod reader;
+pub mod settled;
 mod station_config;
 
 pub use station_config::apply as apply_config;
@@ -494,8 +496,8 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
         Command::Db(_) => Ok(()),
         Command::Asset(a) => crate::cmd::asset::check(a),
         Command::Affected(a) => crate::cmd::asset::check_affected(a),
-        Command::Fleet(a) => crate::cmd::fleet::check(a),
-        Command::Certificate(a) => crate::cmd::fleet::check_certificate(a),
+        // Checked as they are settled (`settled::settle`).
+        Command::Fleet(_) | Command::Certificate(_) => Ok(()),
         Command::Serve(_) => Ok(()),
         Command::BenchFleet(a) => crate::cmd::fleet_bench::check(a),
     }

@@ -3,63 +3,17 @@
 
 use accelcal_core::error::bad;
 use accelcal_core::output::{utc_date_time, write_atomic, write_json};
-use accelcal_db::asset::{start_of_day_unix_s, today_utc, Asset, Date};
+use accelcal_db::asset::{start_of_day_unix_s, Asset, Date};
 use accelcal_db::fleet::{Chart, Counts, DueUnit, Filter, FleetRun, Population};
-use accelcal_db::{Db, RunId, Target};
+use accelcal_db::Db;
 use anyhow::Context;
 use serde::Serialize;
 
 use super::store::reader_spec;
-use crate::cli::{CertificateArgs, FleetArgs};
+use crate::settings::reader::{Certificate, Fleet};
 
 /// Seconds in a day.
 const DAY_S: i64 = 86_400;
-
-/// The period of `fleet`: (first day, last day), UTC.
-fn period(a: &FleetArgs) -> anyhow::Result<(Date, Date)> {
-    let until = a.until.unwrap_or_else(today_utc);
-    let since = match a.since {
-        Some(s) => s,
-        None => until
-            .checked_sub(std::time::Duration::from_secs(30 * DAY_S as u64))
-            .context("--until is too early")?,
-    };
-    if since > until {
-        return Err(bad(format!("--since {since} is after --until {until}: the period is empty")));
-    }
-    Ok((since, until))
-}
-
-/// An output file that would overwrite the database (a SQLite file) is refused.
-fn not_the_db(db: Option<&str>, out: &std::path::Path, what: &str) -> anyhow::Result<()> {
-    if let Ok(spec) = reader_spec(db) {
-        if let Ok(Target::Sqlite(f)) = Target::parse(&spec) {
-            if f == out {
-                return Err(bad(format!(
-                    "{what} {} is the database: refusing to overwrite it",
-                    out.display()
-                )));
-            }
-        }
-    }
-    Ok(())
-}
-
-/// Checks `fleet`'s line before anything is opened.
-pub fn check(a: &FleetArgs) -> anyhow::Result<()> {
-    period(a)?;
-    if let (Some(j), Some(c)) = (&a.json, &a.csv) {
-        if j == c {
-            return Err(bad(format!("--json and --csv are the same file {}", j.display())));
-        }
-    }
-    for (what, out) in [("--json", &a.json), ("--csv", &a.csv)] {
-        if let Some(out) = out {
-            not_the_db(a.reader.db.as_deref(), out, what)?;
-        }
-    }
-    Ok(())
-}
 
 /// `fleet --json`.
 #[derive(Serialize)]
@@ -339,8 +293,8 @@ pub(crate) fn due_by(until: Date, days: u32) -> anyhow::Result<Date> {
 }
 
 /// Runs `accelcal fleet`.
-pub fn run(a: &FleetArgs) -> anyhow::Result<()> {
-    let (since, until) = period(a)?;
+pub fn run(a: &Fleet) -> anyhow::Result<()> {
+    let (since, until) = (a.since, a.until);
     let filter = filter_of(
         since,
         until,
@@ -349,7 +303,7 @@ pub fn run(a: &FleetArgs) -> anyhow::Result<()> {
         a.serial_prefix.clone(),
         a.operator.clone(),
     );
-    let mut db = Db::open_existing(&reader_spec(a.reader.db.as_deref())?)?;
+    let mut db = Db::open_existing(&reader_spec(a.db.as_deref())?)?;
     let data = gather(&mut db, &filter, due_by(until, a.due_days)?, Parts::Charts)?;
     let FleetData { counts, runs, due_by, units_due, pops, heads, charts, check_standards, .. } = &data;
     let (runs, due_by) = (runs.as_slice(), *due_by);
@@ -589,16 +543,10 @@ pub(crate) fn csv_of(runs: &[FleetRun]) -> anyhow::Result<String> {
     String::from_utf8(bytes).context("the CSV is UTF-8")
 }
 
-/// Checks `certificate`'s line before anything is opened.
-pub fn check_certificate(a: &CertificateArgs) -> anyhow::Result<()> {
-    RunId::parse(&a.run_id)?;
-    not_the_db(a.reader.db.as_deref(), &a.out, "--out")
-}
-
 /// Runs `accelcal certificate`.
-pub fn run_certificate(a: &CertificateArgs) -> anyhow::Result<()> {
-    let run = RunId::parse(&a.run_id)?;
-    let mut db = Db::open_existing(&reader_spec(a.reader.db.as_deref())?)?;
+pub fn run_certificate(a: &Certificate) -> anyhow::Result<()> {
+    let run = a.run;
+    let mut db = Db::open_existing(&reader_spec(a.db.as_deref())?)?;
     let Some(html) = db.certificate_html(run)? else {
         return Err(bad(format!("run {run} has no certificate in {}", db.target())));
     };

@@ -25,13 +25,23 @@ pub mod station;
 pub mod store;
 pub mod uncertainty;
 
-use crate::cli::{Cli, Command};
+use crate::cli::Command;
 pub use crate::resolved::{check_g, fallback_note as g_fallback, Gravity, Source};
+use crate::settings::settled::Settings;
 
-/// Runs a parsed command line; the campaign readers' warnings go to `warnings`.
-pub fn run(cli: Cli, resolved: &crate::resolved::Resolved, warnings: &mut Warnings) -> anyhow::Result<()> {
+/// Runs a settled command line; the campaign readers' warnings go to `warnings`.
+pub fn run(
+    settings: Settings,
+    resolved: &crate::resolved::Resolved,
+    warnings: &mut Warnings,
+) -> anyhow::Result<()> {
     let stated = resolved.gravity.as_ref();
-    match cli.command {
+    let command = match settings {
+        Settings::Fleet(s) => return fleet::run(&s),
+        Settings::Certificate(s) => return fleet::run_certificate(&s),
+        Settings::Parsed(command) => command,
+    };
+    match command {
         Command::Simulate(a) => simulate::run(&a, &Gravity::default_of(stated, a.g)),
         Command::Select(a) => select::run(&a, &campaign_g(stated, &a.campaign, warnings)?, warnings),
         Command::Plan(a) => plan::run(&a, &Gravity::default_of(stated, a.g)),
@@ -58,8 +68,9 @@ pub fn run(cli: Cli, resolved: &crate::resolved::Resolved, warnings: &mut Warnin
         Command::Db(crate::cli::DbCommand::Verify(a)) => db::run_verify(&a),
         Command::Asset(a) => asset::run(&a),
         Command::Affected(a) => asset::run_affected(&a),
-        Command::Fleet(a) => fleet::run(&a),
-        Command::Certificate(a) => fleet::run_certificate(&a),
+        Command::Fleet(_) | Command::Certificate(_) => {
+            unreachable!("fleet and certificate are settled (settings::settled::settle)")
+        }
         Command::Serve(a) => crate::serve::run(&a),
         Command::BenchFleet(a) => fleet_bench::run(&a),
     }
