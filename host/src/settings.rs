@@ -24,6 +24,7 @@ use clap::ArgMatches;
 
 use crate::cli::{Algorithm, Command, CriterionArg, FitArgs, MethodArg, RecordCommand};
 
+pub mod asset;
 pub mod gravity;
 pub mod reader;
 pub mod settled;
@@ -491,15 +492,16 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
         | Command::UncertaintyCheck(_)
         | Command::Demo(_) => Ok(()),
         Command::Plan(a) => crate::cmd::design::check(a),
-        Command::History(a) => crate::cmd::history::check(a),
-        Command::Void(a) => crate::cmd::db::check_void(a),
         Command::Db(_) => Ok(()),
-        Command::Asset(a) => crate::cmd::asset::check(a),
-        Command::Affected(a) => crate::cmd::asset::check_affected(a),
         // Checked as they are settled (`settled::settle`).
-        Command::Fleet(_) | Command::Certificate(_) => Ok(()),
-        Command::Serve(_) => Ok(()),
-        Command::BenchFleet(a) => crate::cmd::fleet_bench::check(a),
+        Command::Fleet(_)
+        | Command::Certificate(_)
+        | Command::History(_)
+        | Command::Void(_)
+        | Command::Asset(_)
+        | Command::Affected(_)
+        | Command::Serve(_)
+        | Command::BenchFleet(_) => Ok(()),
     }
 }
 

@@ -1,82 +1,34 @@
 //! `accelcal asset add|list|show` (the register of the line's reference equipment,
 //! [`accelcal_db::asset`]) and `accelcal affected` (the runs an asset calibrated since a date).
 
-use accelcal_core::error::bad;
 use accelcal_core::output::{utc_date_time, write_json};
 use accelcal_db::asset::{start_of_day_unix_s, today_utc, Date};
-use accelcal_db::{AffectedRun, Asset, AssetKind, Db, Outcome, Stored, Target};
+use accelcal_db::{AffectedRun, Asset, AssetKind, Db, Outcome, Stored};
 use anyhow::Context;
 use serde::Serialize;
 
 use super::store::{named_db, reader_spec, user_name, DEFAULT_DB};
-use crate::cli::{AffectedArgs, AssetAddArgs, AssetCommand, AssetDb, AssetListArgs, AssetShowArgs};
-
-/// Checks an asset command's line before anything is opened.
-pub fn check(c: &AssetCommand) -> anyhow::Result<()> {
-    match c {
-        AssetCommand::Add(a) => {
-            let kind = AssetKind::from(a.kind);
-            if kind == AssetKind::Head {
-                for (given, option) in [(a.angle_u, "--angle-u"), (a.orthogonality_u, "--orthogonality-u")] {
-                    if given.is_none() {
-                        return Err(bad(format!(
-                            "asset add --kind head needs {option} ARCSEC: the head's certificate states it, and the \
-                             uncertainty budget of every unit calibrated on the head takes it (give 0 if the \
-                             certificate states it as negligible)"
-                        )));
-                    }
-                }
-            } else if let Some(option) = [(a.angle_u, "--angle-u"), (a.orthogonality_u, "--orthogonality-u")]
-                .into_iter()
-                .find_map(|(v, o)| v.map(|_| o))
-            {
-                return Err(bad(format!(
-                    "{option} does not apply to asset add --kind {} (a dividing head states it)",
-                    kind.name()
-                )));
-            }
-            Ok(())
-        }
-        AssetCommand::List(a) => json_is_not_the_db(&a.store, a.json.as_deref()),
-        AssetCommand::Show(a) => json_is_not_the_db(&a.store, a.json.as_deref()),
-    }
-}
-
-/// Checks `affected`'s line before anything is opened.
-pub fn check_affected(a: &AffectedArgs) -> anyhow::Result<()> {
-    json_is_not_the_db(&a.store, a.json.as_deref())
-}
-
-fn json_is_not_the_db(store: &AssetDb, json: Option<&std::path::Path>) -> anyhow::Result<()> {
-    let Some(j) = json else { return Ok(()) };
-    let spec = named_db(store.db.as_deref()).unwrap_or_else(|| DEFAULT_DB.into());
-    if let Target::Sqlite(f) = Target::parse(&spec)? {
-        if j == f {
-            return Err(bad(format!("--json {} is the database: refusing to overwrite it", j.display())));
-        }
-    }
-    Ok(())
-}
+use crate::settings::asset as settings;
 
 /// Runs `accelcal asset …`.
-pub fn run(c: &AssetCommand) -> anyhow::Result<()> {
+pub fn run(c: &settings::Asset) -> anyhow::Result<()> {
     match c {
-        AssetCommand::Add(a) => add(a),
-        AssetCommand::List(a) => list(a),
-        AssetCommand::Show(a) => show(a),
+        settings::Asset::Add(a) => add(a),
+        settings::Asset::List(a) => list(a),
+        settings::Asset::Show(a) => show(a),
     }
 }
 
-fn add(a: &AssetAddArgs) -> anyhow::Result<()> {
-    let spec = named_db(a.store.db.as_deref()).unwrap_or_else(|| DEFAULT_DB.into());
+fn add(a: &settings::Add) -> anyhow::Result<()> {
+    let spec = named_db(a.db.as_deref()).unwrap_or_else(|| DEFAULT_DB.into());
     let mut db = Db::open(&spec)?;
     let asset = Asset {
         asset_id: a.id.clone(),
-        kind: a.kind.into(),
-        certificate: a.certificate.trim().to_string(),
+        kind: a.kind,
+        certificate: a.certificate.clone(),
         due_date: a.due,
-        angle_u_arcsec: a.angle_u.unwrap_or(0.0),
-        orthogonality_u_arcsec: a.orthogonality_u.unwrap_or(0.0),
+        angle_u_arcsec: a.angle_u_arcsec,
+        orthogonality_u_arcsec: a.orthogonality_u_arcsec,
         operator: a.operator.clone().unwrap_or_else(user_name),
         registered_unix_s: accelcal_db::now_unix_s(),
     };
@@ -143,8 +95,8 @@ struct AssetJson {
     overdue: bool,
 }
 
-fn list(a: &AssetListArgs) -> anyhow::Result<()> {
-    let mut db = Db::open_existing(&reader_spec(a.store.db.as_deref())?)?;
+fn list(a: &settings::Listing) -> anyhow::Result<()> {
+    let mut db = Db::open_existing(&reader_spec(a.db.as_deref())?)?;
     let assets = db.assets()?;
     let today = today_utc();
     println!("assets in {} (today {today}, UTC): {}", db.target(), assets.len());
@@ -194,8 +146,8 @@ struct ShowJson {
     runs: Vec<AffectedRun>,
 }
 
-fn show(a: &AssetShowArgs) -> anyhow::Result<()> {
-    let mut db = Db::open_existing(&reader_spec(a.store.db.as_deref())?)?;
+fn show(a: &settings::Show) -> anyhow::Result<()> {
+    let mut db = Db::open_existing(&reader_spec(a.db.as_deref())?)?;
     let certificates = db.asset_certificates(&a.id)?;
     let runs = db.affected(&a.id, i64::MIN)?;
     let today = today_utc();
@@ -246,8 +198,8 @@ struct AffectedJson {
 }
 
 /// Runs `accelcal affected`.
-pub fn run_affected(a: &AffectedArgs) -> anyhow::Result<()> {
-    let mut db = Db::open_existing(&reader_spec(a.store.db.as_deref())?)?;
+pub fn run_affected(a: &settings::Affected) -> anyhow::Result<()> {
+    let mut db = Db::open_existing(&reader_spec(a.db.as_deref())?)?;
     let runs = db.affected(&a.asset, start_of_day_unix_s(a.since))?;
     let mut devices: Vec<&str> = runs.iter().map(|r| r.device_id.as_str()).collect();
     devices.sort_unstable();

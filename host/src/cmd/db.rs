@@ -1,29 +1,19 @@
 //! `accelcal void` (a run taken out of history, never deleted) and `accelcal db verify` (every
 //! row against the hash chain, `core::db::chain`).
 
-use accelcal_core::error::bad;
 use accelcal_core::output::write_json;
-use accelcal_db::{Db, RunId, Stored};
+use accelcal_db::{Db, Stored};
 use accelcal_line::verify::Failed;
 
 use super::store::{reader_spec, user_name};
-use crate::cli::{DbVerifyArgs, VoidArgs};
-
-/// Checks `void`'s command line before anything is opened.
-pub fn check_void(a: &VoidArgs) -> anyhow::Result<()> {
-    RunId::parse(&a.run_id)?;
-    if a.reason.trim().is_empty() {
-        return Err(bad("--reason is empty: say why the run is voided (it is stored with it)"));
-    }
-    Ok(())
-}
+use crate::settings::reader::{DbVerify, Void};
 
 /// Runs `accelcal void`.
-pub fn run_void(a: &VoidArgs) -> anyhow::Result<()> {
-    let run = RunId::parse(&a.run_id)?;
-    let mut db = Db::open(&reader_spec(a.reader.db.as_deref())?)?;
+pub fn run_void(a: &Void) -> anyhow::Result<()> {
+    let run = a.run;
+    let mut db = Db::open(&reader_spec(a.db.as_deref())?)?;
     let operator = a.operator.clone().unwrap_or_else(user_name);
-    let stored = db.void_run(run, a.reason.trim(), &operator)?;
+    let stored = db.void_run(run, a.reason.as_str(), &operator)?;
     let p = db.progress(run)?;
     println!(
         "void: run {run} of device {} ({}) {} in {}: {}; it stays in the database, listed as voided, and counts in no history, fleet or interval",
@@ -31,14 +21,14 @@ pub fn run_void(a: &VoidArgs) -> anyhow::Result<()> {
         if p.start.serial.is_empty() { "no serial" } else { p.start.serial.as_str() },
         if stored == Stored::New { "voided" } else { "was voided already" },
         db.target(),
-        a.reason.trim()
+        a.reason.as_str()
     );
     Ok(())
 }
 
 /// Runs `accelcal db verify`: exit code 1 when a row does not match.
-pub fn run_verify(a: &DbVerifyArgs) -> anyhow::Result<()> {
-    let mut db = Db::open_existing(&reader_spec(a.reader.db.as_deref())?)?;
+pub fn run_verify(a: &DbVerify) -> anyhow::Result<()> {
+    let mut db = Db::open_existing(&reader_spec(a.db.as_deref())?)?;
     let r = db.verify_chain()?;
     if let Some(j) = &a.json {
         write_json(j, &r)?;

@@ -11,7 +11,6 @@ use std::time::{Duration, Instant};
 use accelcal_core::calibrate::{fit_positions, Method};
 use accelcal_core::campaign::identity::Identity;
 use accelcal_core::conformity::{self, Decision, Measured, RuleKind, Specification};
-use accelcal_core::error::bad;
 use accelcal_core::positions::Positions;
 use accelcal_core::sim::{simulate, Plan, SimConfig};
 use accelcal_core::uncertainty::{self, References, ARCSEC};
@@ -25,7 +24,7 @@ use anyhow::Context;
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal};
 
-use crate::cli::BenchFleetArgs;
+use crate::settings::reader::BenchFleet;
 
 const DAY_S: i64 = 86_400;
 /// The line's first day: 2024-01-01T00:00:00Z.
@@ -336,19 +335,8 @@ fn median_max(mut times: Vec<Duration>) -> (Duration, Duration) {
     (times[times.len() / 2], times[times.len() - 1])
 }
 
-/// Checks `bench-fleet`'s line before anything is opened.
-pub fn check(a: &BenchFleetArgs) -> anyhow::Result<()> {
-    if a.runs < a.units {
-        return Err(bad(format!(
-            "--runs {} is fewer than --units {}: every unit has a run",
-            a.runs, a.units
-        )));
-    }
-    month_end(&a.month).map(|_| ())
-}
-
 /// Runs `accelcal bench-fleet`.
-pub fn run(a: &BenchFleetArgs) -> anyhow::Result<()> {
+pub fn run(a: &BenchFleet) -> anyhow::Result<()> {
     let line = Line { units: a.units, runs: a.runs, seed: a.seed };
     let mut db = Db::open(&a.db)?;
     let held = db.fleet_counts(&accelcal_db::fleet::Filter {
@@ -386,7 +374,7 @@ pub fn run(a: &BenchFleetArgs) -> anyhow::Result<()> {
         );
     }
     let exe = std::env::current_exe().context("finding accelcal itself")?;
-    let (since, until) = (a.month.clone() + "-01", month_end(&a.month)?);
+    let (since, until) = (a.first_day.clone(), a.last_day.clone());
     let json = std::env::temp_dir().join(format!("accelcal-bench-fleet-{}.json", std::process::id()));
     let mut times = Vec::new();
     for _ in 0..a.repeat {
@@ -461,19 +449,4 @@ pub fn run(a: &BenchFleetArgs) -> anyhow::Result<()> {
         println!("{name:<40} {:>10} {:>10} {size:>10}  {aim}", ms(med), ms(max));
     }
     Ok(())
-}
-
-/// The last day of a month `YYYY-MM`.
-fn month_end(month: &str) -> anyhow::Result<String> {
-    let first = accelcal_db::asset::parse_date(&format!("{month}-01"))
-        .map_err(|e| bad(format!("--month {month}: {e}")))?;
-    let mut day = first;
-    for d in 1..31 {
-        let next = first.checked_add(Duration::from_secs(d * DAY_S as u64)).context("a date")?;
-        if next.to_string()[..7] != first.to_string()[..7] {
-            break;
-        }
-        day = next;
-    }
-    Ok(day.to_string())
 }

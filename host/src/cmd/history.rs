@@ -1,57 +1,21 @@
 //! `accelcal history SERIAL|DEVICE`: a unit's runs from the calibration database, the drift
 //! between its calibrations and the recommended recalibration date (`core::db::history`).
 
-use accelcal_core::error::bad;
 use accelcal_core::output::write_json;
-use accelcal_db::history::{history, History, RecalRule, VerifySummary};
-use accelcal_db::{Db, Outcome, Target};
+use accelcal_db::history::{history, History, VerifySummary};
+use accelcal_db::{Db, Outcome};
 use anyhow::Context;
 
 use super::record::utc;
-use crate::cli::HistoryArgs;
 use crate::report::sig;
-
-/// Checks the command line before anything is opened.
-pub fn check(a: &HistoryArgs) -> anyhow::Result<()> {
-    let positive = |name: &str, v: f64| {
-        if v.is_finite() && v > 0.0 {
-            Ok(())
-        } else {
-            Err(bad(format!("{name} must be a positive number, got {v}")))
-        }
-    };
-    positive("--tolerance-m-s2", a.tolerance_m_s2)?;
-    positive("--coverage", a.coverage)?;
-    positive("--max-interval-days", a.max_interval_days)?;
-    if a.max_interval_days > 36_525.0 {
-        return Err(bad(format!(
-            "--max-interval-days {} is not an interval: give a positive number of days, at most 36525 (a century)",
-            a.max_interval_days
-        )));
-    }
-    if a.unit.trim().is_empty() {
-        return Err(bad("SERIAL|DEVICE is empty"));
-    }
-    let spec = super::store::reader_spec(a.db.as_deref())?;
-    if let (Some(j), Target::Sqlite(f)) = (&a.json, Target::parse(&spec)?) {
-        if j == &f {
-            return Err(bad(format!("--json {} is the database: refusing to overwrite it", j.display())));
-        }
-    }
-    Ok(())
-}
+use crate::settings::reader::History as HistorySettings;
 
 /// Runs `accelcal history`.
-pub fn run(a: &HistoryArgs) -> anyhow::Result<()> {
+pub fn run(a: &HistorySettings) -> anyhow::Result<()> {
     let spec = super::store::reader_spec(a.db.as_deref())?;
     let mut db = Db::open_existing(&spec)?;
     let runs = db.unit_runs(&a.unit)?;
-    let rule = RecalRule {
-        tolerance_m_s2: a.tolerance_m_s2,
-        coverage: a.coverage,
-        max_interval_days: a.max_interval_days,
-    };
-    let h = history(&runs, rule);
+    let h = history(&runs, a.rule);
     print(&h, &db.target());
     if let Some(j) = &a.json {
         write_json(j, &h).with_context(|| format!("writing {}", j.display()))?;

@@ -39,6 +39,13 @@ pub fn run(
     let command = match settings {
         Settings::Fleet(s) => return fleet::run(&s),
         Settings::Certificate(s) => return fleet::run_certificate(&s),
+        Settings::History(s) => return history::run(&s),
+        Settings::Void(s) => return db::run_void(&s),
+        Settings::DbVerify(s) => return db::run_verify(&s),
+        Settings::Asset(s) => return asset::run(&s),
+        Settings::Affected(s) => return asset::run_affected(&s),
+        Settings::Serve(s) => return crate::serve::run(&s),
+        Settings::BenchFleet(s) => return fleet_bench::run(&s),
         Settings::Parsed(command) => command,
     };
     match command {
@@ -63,16 +70,17 @@ pub fn run(
         Command::BenchSignature(a) => fleet::run_bench_signature(&a),
         Command::UncertaintyCheck(a) => uncertainty::run_check(&a),
         Command::Station(a) => station::run(&a, stated, resolved.config.as_ref()),
-        Command::History(a) => history::run(&a),
-        Command::Void(a) => db::run_void(&a),
-        Command::Db(crate::cli::DbCommand::Verify(a)) => db::run_verify(&a),
-        Command::Asset(a) => asset::run(&a),
-        Command::Affected(a) => asset::run_affected(&a),
-        Command::Fleet(_) | Command::Certificate(_) => {
-            unreachable!("fleet and certificate are settled (settings::settled::settle)")
+        Command::Fleet(_)
+        | Command::Certificate(_)
+        | Command::History(_)
+        | Command::Void(_)
+        | Command::Db(crate::cli::DbCommand::Verify(_))
+        | Command::Asset(_)
+        | Command::Affected(_)
+        | Command::Serve(_)
+        | Command::BenchFleet(_) => {
+            unreachable!("the commands on the database are settled (settings::settled::settle)")
         }
-        Command::Serve(a) => crate::serve::run(&a),
-        Command::BenchFleet(a) => fleet_bench::run(&a),
     }
 }
 

@@ -26,8 +26,8 @@ use axum::response::{Html, IntoResponse, Response};
 use axum::routing::get;
 use axum::Router;
 
-use crate::cli::ServeArgs;
 use crate::cmd::store::reader_spec;
+use crate::settings::reader::Serve;
 
 /// Connections to the database the server keeps at most.
 pub const CONNECTIONS: u32 = 4;
@@ -90,8 +90,8 @@ impl PageError {
 }
 
 /// Runs `accelcal serve` until Ctrl-C.
-pub fn run(a: &ServeArgs) -> anyhow::Result<()> {
-    let spec = reader_spec(a.reader.db.as_deref())?;
+pub fn run(a: &Serve) -> anyhow::Result<()> {
+    let spec = reader_spec(a.db.as_deref())?;
     // The database must be there before the server listens.
     let target = Db::open_existing(&spec)?.target();
     let pool = r2d2::Pool::builder()

@@ -1,5 +1,5 @@
-//! The settings of the commands that read the calibration database for the line (`fleet`,
-//! `certificate`): their command line checked and resolved into plain values before anything is
+//! The settings of the commands on the calibration database (`fleet`, `certificate`, `history`,
+//! `void`, `db verify`, `serve`, `bench-fleet`): their command line checked and resolved into plain values before anything is
 //! opened. The commands take these values, never clap's structs (issue 29's `Settings`, for
 //! these commands so far).
 
@@ -10,7 +10,11 @@ use accelcal_db::asset::{today_utc, Date};
 use accelcal_db::{RunId, Target};
 use anyhow::Context;
 
-use crate::cli::{CertificateArgs, FleetArgs};
+use accelcal_db::history::RecalRule;
+
+use crate::cli::{
+    BenchFleetArgs, CertificateArgs, DbVerifyArgs, FleetArgs, HistoryArgs, ServeArgs, VoidArgs,
+};
 use crate::cmd::store::reader_spec;
 
 /// The period `fleet` shows when `--since` is not given: the 30 days before `--until`.
@@ -89,6 +93,163 @@ pub fn certificate(a: &CertificateArgs) -> anyhow::Result<Certificate> {
     Ok(Certificate { db: a.reader.db.clone(), run, out: a.out.clone() })
 }
 
+/// `accelcal history`, settled.
+#[derive(Clone, Debug, PartialEq)]
+pub struct History {
+    /// `--db` as given.
+    pub db: Option<String>,
+    /// The unit: its serial or device id, not empty.
+    pub unit: String,
+    /// When a unit is due again (`--tolerance-m-s2`, `--coverage`, `--max-interval-days`).
+    pub rule: RecalRule,
+    /// `--json`: not the database.
+    pub json: Option<PathBuf>,
+}
+
+/// `history`'s settings from its command line.
+pub fn history(a: &HistoryArgs) -> anyhow::Result<History> {
+    let positive = |name: &str, v: f64| {
+        if v.is_finite() && v > 0.0 {
+            Ok(())
+        } else {
+            Err(bad(format!("{name} must be a positive number, got {v}")))
+        }
+    };
+    positive("--tolerance-m-s2", a.tolerance_m_s2)?;
+    positive("--coverage", a.coverage)?;
+    positive("--max-interval-days", a.max_interval_days)?;
+    if a.max_interval_days > 36_525.0 {
+        return Err(bad(format!(
+            "--max-interval-days {} is not an interval: give a positive number of days, at most 36525 (a century)",
+            a.max_interval_days
+        )));
+    }
+    if a.unit.trim().is_empty() {
+        return Err(bad("SERIAL|DEVICE is empty"));
+    }
+    let spec = reader_spec(a.db.as_deref())?;
+    if let (Some(j), Target::Sqlite(f)) = (&a.json, Target::parse(&spec)?) {
+        if j == &f {
+            return Err(bad(format!("--json {} is the database: refusing to overwrite it", j.display())));
+        }
+    }
+    Ok(History {
+        db: a.db.clone(),
+        unit: a.unit.clone(),
+        rule: RecalRule {
+            tolerance_m_s2: a.tolerance_m_s2,
+            coverage: a.coverage,
+            max_interval_days: a.max_interval_days,
+        },
+        json: a.json.clone(),
+    })
+}
+
+/// `accelcal void`, settled.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Void {
+    /// `--db` as given.
+    pub db: Option<String>,
+    /// The run voided.
+    pub run: RunId,
+    /// `--reason`, trimmed, not empty.
+    pub reason: String,
+    /// `--operator` (`None`: the user's name).
+    pub operator: Option<String>,
+}
+
+/// `void`'s settings from its command line.
+pub fn void(a: &VoidArgs) -> anyhow::Result<Void> {
+    let run = RunId::parse(&a.run_id)?;
+    let reason = a.reason.trim();
+    if reason.is_empty() {
+        return Err(bad("--reason is empty: say why the run is voided (it is stored with it)"));
+    }
+    Ok(Void { db: a.reader.db.clone(), run, reason: reason.to_string(), operator: a.operator.clone() })
+}
+
+/// `accelcal db verify`, settled.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DbVerify {
+    /// `--db` as given.
+    pub db: Option<String>,
+    /// `--json`.
+    pub json: Option<PathBuf>,
+}
+
+/// `db verify`'s settings from its command line.
+pub fn db_verify(a: &DbVerifyArgs) -> DbVerify {
+    DbVerify { db: a.reader.db.clone(), json: a.json.clone() }
+}
+
+/// `accelcal serve`, settled.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Serve {
+    /// `--db` as given.
+    pub db: Option<String>,
+    /// `--bind`: where the server listens.
+    pub bind: std::net::SocketAddr,
+    /// `--due-days`, as `fleet`'s.
+    pub due_days: u32,
+}
+
+/// `serve`'s settings from its command line.
+pub fn serve(a: &ServeArgs) -> Serve {
+    Serve { db: a.reader.db.clone(), bind: a.bind, due_days: a.due_days }
+}
+
+/// `accelcal bench-fleet`, settled.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BenchFleet {
+    /// `--db`: the database timed (and filled first when it holds no run).
+    pub db: String,
+    /// `--units`, `--runs` (at least one run per unit), `--seed`: the line generated.
+    pub units: u32,
+    pub runs: u32,
+    pub seed: u64,
+    /// `--month` (`YYYY-MM`) and its first and last days (`YYYY-MM-DD`): the period timed.
+    pub month: String,
+    pub first_day: String,
+    pub last_day: String,
+    /// `--writers`: connections that write the line at once.
+    pub writers: u32,
+    /// `--repeat`: times each command and page is timed.
+    pub repeat: u32,
+}
+
+/// `bench-fleet`'s settings from its command line.
+pub fn bench_fleet(a: &BenchFleetArgs) -> anyhow::Result<BenchFleet> {
+    if a.runs < a.units {
+        return Err(bad(format!(
+            "--runs {} is fewer than --units {}: every unit has a run",
+            a.runs, a.units
+        )));
+    }
+    let first = accelcal_db::asset::parse_date(&format!("{}-01", a.month))
+        .map_err(|e| bad(format!("--month {}: {e}", a.month)))?;
+    // The month's last day: the last of the 31 days from its first that is still in it.
+    let mut last = first;
+    for d in 1..31 {
+        let next =
+            first.checked_add(std::time::Duration::from_secs(d * 86_400)).context("--month: a date")?;
+        if next.month() != first.month() {
+            break;
+        }
+        last = next;
+    }
+    Ok(BenchFleet {
+        db: a.db.clone(),
+        units: a.units,
+        runs: a.runs,
+        seed: a.seed,
+        month: a.month.clone(),
+        first_day: first.to_string(),
+        last_day: last.to_string(),
+        writers: a.writers,
+        repeat: a.repeat,
+    })
+}
+
 /// The day `fleet`'s `--until` defaults to: today, UTC.
 pub fn today() -> Date {
     today_utc()
@@ -142,5 +303,19 @@ mod tests {
         assert_eq!(e.to_string(), "--json and --csv are the same file a");
         let e = settled(&["accelcal", "fleet", "--db", "c.sqlite", "--csv", "c.sqlite"]).unwrap_err();
         assert_eq!(e.to_string(), "--csv c.sqlite is the database: refusing to overwrite it");
+    }
+
+    #[test]
+    fn bench_fleet_s_month_runs_from_its_first_day_to_its_last() {
+        let month = |m: &str| -> anyhow::Result<(String, String)> {
+            let cli =
+                Cli::try_parse_from(["accelcal", "bench-fleet", "--db", "x", "--month", m]).expect("parses");
+            let Command::BenchFleet(a) = cli.command else { panic!("not bench-fleet") };
+            bench_fleet(&a).map(|s| (s.first_day, s.last_day))
+        };
+        assert_eq!(month("2026-06").expect("a month"), ("2026-06-01".into(), "2026-06-30".into()));
+        assert_eq!(month("2024-02").expect("a month"), ("2024-02-01".into(), "2024-02-29".into()));
+        assert_eq!(month("2026-12").expect("a month"), ("2026-12-01".into(), "2026-12-31".into()));
+        assert!(month("2026-13").unwrap_err().to_string().starts_with("--month 2026-13: "));
     }
 }

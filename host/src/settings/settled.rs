@@ -1,10 +1,10 @@
 //! The settled command line ([`Settings`]) that `main` hands to the commands.
 
-use super::reader;
+use super::{asset, reader};
 use crate::cli::Command;
 
 /// A command line, checked and settled before anything is opened: the commands converted so far
-/// (issue 29: the database's readers) take their own settings, plain values with nothing of clap;
+/// (issue 29: the commands on the database) take their own settings, plain values with nothing of clap;
 /// the others still take their parsed arguments, checked by
 /// `settings::check`.
 #[derive(Debug)]
@@ -13,6 +13,20 @@ pub enum Settings {
     Fleet(reader::Fleet),
     /// `accelcal certificate`.
     Certificate(reader::Certificate),
+    /// `accelcal history`.
+    History(reader::History),
+    /// `accelcal void`.
+    Void(reader::Void),
+    /// `accelcal db verify`.
+    DbVerify(reader::DbVerify),
+    /// `accelcal asset add|list|show`.
+    Asset(asset::Asset),
+    /// `accelcal affected`.
+    Affected(asset::Affected),
+    /// `accelcal serve`.
+    Serve(reader::Serve),
+    /// `accelcal bench-fleet`.
+    BenchFleet(reader::BenchFleet),
     /// Every other command, as parsed.
     Parsed(Command),
 }
@@ -22,6 +36,13 @@ pub fn settle(command: Command) -> anyhow::Result<Settings> {
     Ok(match command {
         Command::Fleet(a) => Settings::Fleet(reader::fleet(&a, reader::today())?),
         Command::Certificate(a) => Settings::Certificate(reader::certificate(&a)?),
+        Command::History(a) => Settings::History(reader::history(&a)?),
+        Command::Void(a) => Settings::Void(reader::void(&a)?),
+        Command::Db(crate::cli::DbCommand::Verify(a)) => Settings::DbVerify(reader::db_verify(&a)),
+        Command::Asset(c) => Settings::Asset(asset::asset(&c)?),
+        Command::Affected(a) => Settings::Affected(asset::affected(&a)?),
+        Command::Serve(a) => Settings::Serve(reader::serve(&a)),
+        Command::BenchFleet(a) => Settings::BenchFleet(reader::bench_fleet(&a)?),
         command => Settings::Parsed(command),
     })
 }
