@@ -25,6 +25,7 @@ use clap::ArgMatches;
 use crate::cli::{Algorithm, Command, CriterionArg, FitArgs, MethodArg, RecordCommand};
 
 pub mod asset;
+pub mod campaign;
 pub mod gravity;
 pub mod reader;
 pub mod settled;

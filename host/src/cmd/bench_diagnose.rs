@@ -3,22 +3,18 @@
 
 use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::cli::BenchDiagnoseArgs;
+use crate::settings::campaign::BenchDiagnose;
 use accelcal_core::diagnose::bench::{self, CaseKind, Summary, Tally};
-use accelcal_core::error::bad;
 use accelcal_core::output::write_json;
 
 /// Runs `accelcal bench-diagnose`.
-pub fn run(a: &BenchDiagnoseArgs) -> anyhow::Result<()> {
-    if a.campaigns == 0 {
-        return Err(bad("--campaigns must be >= 1"));
-    }
+pub fn run(a: &BenchDiagnose) -> anyhow::Result<()> {
     let pb = ProgressBar::new(a.campaigns as u64);
     pb.set_style(
         ProgressStyle::with_template("{bar:40} {pos}/{len} campaigns, {elapsed} elapsed, eta {eta}")
             .expect("valid template"),
     );
-    let range = parse_range(&a.magnitude)?;
+    let range = a.magnitude;
     let s = bench::run(a.campaigns, a.seed, range, &|| pb.inc(1));
     pb.finish_and_clear();
     print_summary(&s, a.seed, range);
@@ -26,14 +22,6 @@ pub fn run(a: &BenchDiagnoseArgs) -> anyhow::Result<()> {
         write_json(j, &s)?;
     }
     Ok(())
-}
-
-fn parse_range(s: &str) -> anyhow::Result<(f64, f64)> {
-    let v: Vec<Option<f64>> = s.split(':').map(|x| x.trim().parse::<f64>().ok()).collect();
-    match v[..] {
-        [Some(lo), Some(hi)] if lo.is_finite() && hi.is_finite() && lo > 0.0 && hi >= lo => Ok((lo, hi)),
-        _ => Err(bad(format!("--magnitude `{s}`: expected LO:HI with 0 < LO <= HI"))),
-    }
 }
 
 /// Prints the table per case kind, the detail rows per true effect set, and the aims.

@@ -3,7 +3,7 @@
 use accelcal_core::compare::{compute_files, Comparison, Inversion};
 use accelcal_core::output::write_json;
 
-use crate::cli::CompareArgs;
+use crate::settings::campaign::Compare;
 
 /// Prints Table 2.
 pub fn print_table(r: &Comparison) {
@@ -49,11 +49,11 @@ pub fn plots(dir: &std::path::Path, r: &Comparison) -> anyhow::Result<Vec<std::p
 }
 
 /// Runs `accelcal compare`.
-pub fn run(a: &CompareArgs, g: &super::Gravity, warnings: &mut super::Warnings) -> anyhow::Result<()> {
+pub fn run(a: &Compare, g: &super::Gravity, warnings: &mut super::Warnings) -> anyhow::Result<()> {
     // Streamed: the fits need the dwell statistics, the errors one row at a time.
-    let r = compute_files(&a.campaign, a.validate.as_deref(), a.common.codes, g.g, warnings)?;
+    let r = compute_files(&a.campaign.path, a.validate.as_deref(), a.campaign.codes, g.g, warnings)?;
     print_table(&r);
-    if let Some(j) = &a.common.json {
+    if let Some(j) = &a.campaign.json {
         write_json(j, &r)?;
     }
     if let Some(dir) = &a.plot {

@@ -8,13 +8,13 @@ use accelcal_core::calibrate::{fit_all, gate, record, record_bytes, record_crc_h
 use accelcal_core::campaign::identity::{content_sha256, Identity};
 use accelcal_line::node::session::device_id_hex;
 
-use crate::cli::DemoArgs;
+use crate::settings::campaign::Demo;
 use accelcal_core::gmdh::Split;
 use accelcal_core::output::{write_atomic, write_atomic_with, write_json};
 use accelcal_core::sim::{self, SimConfig};
 
 /// Runs `accelcal demo`.
-pub fn run(a: &DemoArgs) -> anyhow::Result<()> {
+pub fn run(a: &Demo) -> anyhow::Result<()> {
     let out = &a.out;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let steps = ProgressBar::new(5);

@@ -4,7 +4,7 @@
 use anyhow::Context;
 use serde_json::json;
 
-use crate::cli::DiagnoseArgs;
+use crate::settings::campaign::Diagnose;
 use accelcal_core::diagnose::{self, Binned, Data, Report};
 use accelcal_core::error::bad;
 use accelcal_core::output::write_json;
@@ -12,21 +12,21 @@ use accelcal_core::output::write_json;
 use crate::report::sig;
 
 /// Runs `accelcal diagnose`.
-pub fn run(a: &DiagnoseArgs, g: &super::Gravity, warnings: &mut super::Warnings) -> anyhow::Result<()> {
-    let base = accelcal_core::lsq::parse_terms(&a.terms).map_err(|e| bad(format!("--terms {e}")))?;
+pub fn run(a: &Diagnose, g: &super::Gravity, warnings: &mut super::Warnings) -> anyhow::Result<()> {
+    let base = a.terms.clone();
     // Streamed in two passes: the diagnosis needs the bins only, so memory does not grow with
     // the rows.
-    let binned = Binned::read_with(&a.campaign, a.common.codes).context("reading the campaign")?;
+    let binned = Binned::read_with(&a.campaign.path, a.campaign.codes).context("reading the campaign")?;
     warnings.extend(&binned.warnings);
     let d = Data::from_binned(&binned, g.g).and_then(|d| diagnose::diagnose_data(&d, base).map(|r| (d, r)));
-    let (d, report) = d.map_err(|e| bad(format!("{}: {e}", a.campaign.display())))?;
+    let (d, report) = d.map_err(|e| bad(format!("{}: {e}", a.campaign.path.display())))?;
     print_report(&report);
     if let Some(dir) = &a.plot {
         for f in crate::report::diagnose_plot::gap_map(dir, &d, &report.gap)? {
             println!("wrote {}", f.display());
         }
     }
-    if let Some(j) = &a.common.json {
+    if let Some(j) = &a.campaign.json {
         write_json(j, &to_json(&report))?;
     }
     Ok(())

@@ -556,18 +556,9 @@ pub fn run_certificate(a: &Certificate) -> anyhow::Result<()> {
 }
 
 /// Runs `accelcal bench-signature`.
-pub fn run_bench_signature(a: &crate::cli::BenchSignatureArgs) -> anyhow::Result<()> {
+pub fn run_bench_signature(a: &crate::settings::campaign::BenchSignature) -> anyhow::Result<()> {
     use accelcal_core::headsig::{study, HeadChange, Settings};
-    if a.change_at >= a.units {
-        return Err(bad(format!("--change-at {} is not before --units {}", a.change_at, a.units)));
-    }
     let s = Settings::default();
-    if (a.change_at as usize) < s.baseline {
-        return Err(bad(format!(
-            "--change-at {} is inside the tracking's baseline of {} units",
-            a.change_at, s.baseline
-        )));
-    }
     let changes = [
         HeadChange::None,
         HeadChange::Offset { position: 26, mrad: 0.5 },

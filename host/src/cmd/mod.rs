@@ -46,6 +46,16 @@ pub fn run(
         Settings::Affected(s) => return asset::run_affected(&s),
         Settings::Serve(s) => return crate::serve::run(&s),
         Settings::BenchFleet(s) => return fleet_bench::run(&s),
+        Settings::Demo(s) => return demo::run(&s),
+        Settings::Compare(s) => {
+            return compare::run(&s, &campaign_g(stated, &s.campaign.path, warnings)?, warnings)
+        }
+        Settings::Diagnose(s) => {
+            return diagnose::run(&s, &campaign_g(stated, &s.campaign.path, warnings)?, warnings)
+        }
+        Settings::BenchDiagnose(s) => return bench_diagnose::run(&s),
+        Settings::BenchSignature(s) => return fleet::run_bench_signature(&s),
+        Settings::UncertaintyCheck(s) => return uncertainty::run_check(&s),
         Settings::Parsed(command) => command,
     };
     match command {
@@ -53,8 +63,6 @@ pub fn run(
         Command::Select(a) => select::run(&a, &campaign_g(stated, &a.campaign, warnings)?, warnings),
         Command::Plan(a) => plan::run(&a, &Gravity::default_of(stated, a.g)),
         Command::Fit(a) => fit::run(&a, &campaign_g(stated, &a.campaign, warnings)?, warnings),
-        Command::Compare(a) => compare::run(&a, &campaign_g(stated, &a.campaign, warnings)?, warnings),
-        Command::Demo(a) => demo::run(&a),
         Command::Flash(a) => node::run_flash(&a),
         Command::Record(crate::cli::RecordCommand::Show(a)) => record::run_show(&a),
         Command::Monitor(a) => node::run_monitor(&a),
@@ -65,10 +73,6 @@ pub fn run(
         Command::Acquire(a) => live::run_acquire(&a, stated),
         Command::Verify(a) => live::run_verify(&a, stated),
         Command::Report(a) => report::run(&a),
-        Command::Diagnose(a) => diagnose::run(&a, &campaign_g(stated, &a.campaign, warnings)?, warnings),
-        Command::BenchDiagnose(a) => bench_diagnose::run(&a),
-        Command::BenchSignature(a) => fleet::run_bench_signature(&a),
-        Command::UncertaintyCheck(a) => uncertainty::run_check(&a),
         Command::Station(a) => station::run(&a, stated, resolved.config.as_ref()),
         Command::Fleet(_)
         | Command::Certificate(_)
@@ -78,7 +82,13 @@ pub fn run(
         | Command::Asset(_)
         | Command::Affected(_)
         | Command::Serve(_)
-        | Command::BenchFleet(_) => {
+        | Command::BenchFleet(_)
+        | Command::Demo(_)
+        | Command::Compare(_)
+        | Command::Diagnose(_)
+        | Command::BenchDiagnose(_)
+        | Command::BenchSignature(_)
+        | Command::UncertaintyCheck(_) => {
             unreachable!("the commands on the database are settled (settings::settled::settle)")
         }
     }

@@ -7,7 +7,7 @@ use accelcal_core::uncertainty::UncertaintyJson;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
-use crate::cli::UncertaintyCheckArgs;
+use crate::settings::campaign::UncertaintyCheck;
 
 /// The JSON of `uncertainty-check`.
 #[derive(Serialize)]
@@ -182,7 +182,7 @@ struct ScenarioJson<'a> {
 }
 
 /// Runs `accelcal uncertainty-check`.
-pub fn run_check(a: &UncertaintyCheckArgs) -> anyhow::Result<()> {
+pub fn run_check(a: &UncertaintyCheck) -> anyhow::Result<()> {
     let set = Settings {
         units: a.units as usize,
         plan: accelcal_core::sim::Plan::head(),

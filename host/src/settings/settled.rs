@@ -1,6 +1,6 @@
 //! The settled command line ([`Settings`]) that `main` hands to the commands.
 
-use super::{asset, reader};
+use super::{asset, campaign, reader};
 use crate::cli::Command;
 
 /// A command line, checked and settled before anything is opened: the commands converted so far
@@ -27,6 +27,18 @@ pub enum Settings {
     Serve(reader::Serve),
     /// `accelcal bench-fleet`.
     BenchFleet(reader::BenchFleet),
+    /// `accelcal demo`.
+    Demo(campaign::Demo),
+    /// `accelcal compare`.
+    Compare(campaign::Compare),
+    /// `accelcal diagnose`.
+    Diagnose(campaign::Diagnose),
+    /// `accelcal bench-diagnose`.
+    BenchDiagnose(campaign::BenchDiagnose),
+    /// `accelcal bench-signature`.
+    BenchSignature(campaign::BenchSignature),
+    /// `accelcal uncertainty-check`.
+    UncertaintyCheck(campaign::UncertaintyCheck),
     /// Every other command, as parsed.
     Parsed(Command),
 }
@@ -43,6 +55,12 @@ pub fn settle(command: Command) -> anyhow::Result<Settings> {
         Command::Affected(a) => Settings::Affected(asset::affected(&a)?),
         Command::Serve(a) => Settings::Serve(reader::serve(&a)),
         Command::BenchFleet(a) => Settings::BenchFleet(reader::bench_fleet(&a)?),
+        Command::Demo(a) => Settings::Demo(campaign::demo(&a)),
+        Command::Compare(a) => Settings::Compare(campaign::compare(&a)),
+        Command::Diagnose(a) => Settings::Diagnose(campaign::diagnose(&a)?),
+        Command::BenchDiagnose(a) => Settings::BenchDiagnose(campaign::bench_diagnose(&a)?),
+        Command::BenchSignature(a) => Settings::BenchSignature(campaign::bench_signature(&a)?),
+        Command::UncertaintyCheck(a) => Settings::UncertaintyCheck(campaign::uncertainty_check(&a)),
         command => Settings::Parsed(command),
     })
 }
