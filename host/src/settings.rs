@@ -27,9 +27,11 @@ use crate::cli::{Algorithm, Command, CriterionArg, FitArgs, MethodArg, RecordCom
 pub mod asset;
 pub mod campaign;
 pub mod gravity;
+pub mod line;
 pub mod reader;
 pub mod settled;
 mod station_config;
+pub mod values;
 
 pub use station_config::apply as apply_config;
 

@@ -10,20 +10,11 @@ use accelcal_line::emulate::bench::{Bench, BenchOptions, NodeOptions};
 use accelcal_line::emulate::head::SensorTemp;
 use accelcal_line::emulate::{Motion, PaceOptions};
 
-use crate::cli::EmulateArgs;
+use crate::settings::line::Emulate;
 
 /// Runs `accelcal emulate`.
-pub fn run(a: &EmulateArgs) -> anyhow::Result<()> {
-    if !accelcal_line::node::head::CHAMBER_RANGE_C.contains(&a.chamber) {
-        return Err(bad(format!("--chamber must be a temperature in -60..=150 °C, got {}", a.chamber)));
-    }
-    if !(a.thermal_lag_s.is_finite() && a.thermal_lag_s >= 0.0) {
-        return Err(bad(format!(
-            "--thermal-lag-s must be a number of seconds >= 0, got {}",
-            a.thermal_lag_s
-        )));
-    }
-    let units = a.unit.iter().map(|p| Unit::read_for_node(p)).collect::<Result<Vec<_>, _>>()?;
+pub fn run(a: &Emulate) -> anyhow::Result<()> {
+    let units = a.units.iter().map(|u| Unit::read_for_node(&u.file)).collect::<Result<Vec<_>, _>>()?;
     if !a.elf.is_file() {
         return Err(bad(format!(
             "{}: no such firmware ELF (build it with `cargo xtask test` or see firmware/README.md)",
@@ -31,25 +22,25 @@ pub fn run(a: &EmulateArgs) -> anyhow::Result<()> {
         )));
     }
     let mut nodes = Vec::with_capacity(units.len());
-    for (i, unit) in units.into_iter().enumerate() {
-        let record = match a.record.get(i) {
+    for (u, unit) in a.units.iter().zip(units) {
+        let record = match &u.record {
             Some(p) => Some(
                 std::fs::read(p).map_err(|e| bad(format!("{}: cannot read the record: {e}", p.display())))?,
             ),
             None => None,
         };
-        nodes.push(NodeOptions { seed: a.seed.get(i).copied().unwrap_or(unit.seed), unit, record });
+        nodes.push(NodeOptions { seed: u.seed.unwrap_or(unit.seed), unit, record });
     }
     let opts = BenchOptions {
         qemu: a.qemu_bin.clone(),
         elf: a.elf.clone(),
         nodes,
-        motion: Motion { speed_deg_s: a.head_speed, ..Motion::default() },
-        sensor: SensorTemp::soaked(a.chamber, a.thermal_lag_s),
+        motion: Motion { speed_deg_s: a.head_speed_deg_s, ..Motion::default() },
+        sensor: SensorTemp::soaked(a.chamber_c, a.thermal_lag_s),
         pace: PaceOptions { rate_factor: a.rate_factor, ..PaceOptions::default() },
-        gdb_port: a.gdb_port.unwrap_or(0),
-        head_port: a.head_port.unwrap_or(0),
-        first_node: usize::from(a.first_node) - 1,
+        gdb_port: a.gdb_port,
+        head_port: a.head_port,
+        first_node: a.first_node,
     };
     let stop = super::live::stop_flag()?;
     let mut bench = Bench::start(opts)?;
@@ -70,7 +61,7 @@ pub fn run(a: &EmulateArgs) -> anyhow::Result<()> {
                 "emulate: node {} of {} ({}) running in QEMU, device {}, link {}, gdbstub {}",
                 i + 1,
                 nodes.len(),
-                a.unit[i].display(),
+                a.units[i].file.display(),
                 node.device_id,
                 node.port,
                 node.gdb

@@ -15,6 +15,7 @@ use accelcal_core::positions::{ChannelStats, Positions};
 use accelcal_core::uncertainty::{self, Budget, References, UncertaintyJson, ARCSEC};
 
 use crate::cli::{FitArgs, MethodArg};
+use crate::settings::values::RunStore;
 
 /// The JSON document of a set of fits of the unit `identity`; `t_ref_c` (°C) is stated when a
 /// fit has a term in `t`.
@@ -95,7 +96,7 @@ pub fn run(a: &FitArgs, g: &super::Gravity, warnings: &mut super::Warnings) -> a
     super::check_t_ref(a.thermal.t_ref_c())?;
     let unit = CampaignId::read(&a.campaign)?;
     let device_id = record_device_id(a, given_id, &unit)?;
-    let mut db = super::store::open(&a.run)?;
+    let mut db = super::store::open(RunStore::of(&a.run)?.as_ref())?;
     // The head's register entry, checked before anything is computed or written.
     let head = match (&a.head_asset, &mut db) {
         (Some(id), Some(rdb)) => {

@@ -22,10 +22,12 @@ use accelcal_line::verify::{
 use accelcal_shared::wire::{Info, Output, RecordStatus};
 
 use super::{Gravity, Source};
-use crate::cli::{AcquireArgs, InfoArgs, OutputArg, OutputArgs, PortArgs, VerifyArgs};
+use crate::cli::{AcquireArgs, VerifyArgs};
+use crate::settings::line::{self, Link, SetOutput};
+use crate::settings::values::RunStore;
 
-fn open(link: &PortArgs) -> anyhow::Result<Session> {
-    Ok(Session::open(&link.port, link.baud, Duration::from_secs_f64(link.timeout_s))?)
+fn open(link: &Link) -> anyhow::Result<Session> {
+    Ok(Session::open(&link.port, link.baud, link.timeout)?)
 }
 
 /// The reset cause's variant name (`PowerOn`, `IndependentWatchdog`, ...).
@@ -69,7 +71,7 @@ pub fn info_text(i: &Info) -> String {
 }
 
 /// Runs `accelcal info`.
-pub fn run_info(a: &InfoArgs) -> anyhow::Result<()> {
+pub fn run_info(a: &line::Info) -> anyhow::Result<()> {
     let mut s = open(&a.link)?;
     let info = s.info()?;
     println!("{}", info_text(&info));
@@ -80,13 +82,9 @@ pub fn run_info(a: &InfoArgs) -> anyhow::Result<()> {
 }
 
 /// Runs `accelcal output`.
-pub fn run_output(a: &OutputArgs) -> anyhow::Result<()> {
+pub fn run_output(a: &SetOutput) -> anyhow::Result<()> {
     let mut s = open(&a.link)?;
-    let mode = match a.mode {
-        OutputArg::Calibrated => Output::Calibrated,
-        OutputArg::Raw => Output::Raw,
-    };
-    let st = s.set_output(mode)?;
+    let st = s.set_output(a.mode)?;
     println!("output: the node now streams {}", st.output.name());
     if let (Output::Calibrated, RecordStatus::Missing(f)) = (st.output, st.record) {
         println!(
@@ -480,9 +478,9 @@ pub fn run_verify(a: &VerifyArgs, stated: Option<&Gravity>) -> anyhow::Result<()
         accelcal_line::verify::plan_measures_parameters(s, &plan.positions, g)?;
     }
     let (refs, not_included) = super::spec::references(g, &g_source, a.head_angle_u, a.head_orthogonality_u);
-    let mut db = super::store::open(&a.run)?;
+    let mut db = super::store::open(RunStore::of(&a.run)?.as_ref())?;
     let stop = stop_flag()?;
-    let mut node = open(&a.link)?;
+    let mut node = open(&Link::of(&a.link))?;
     let mut head = connect_head(&a.head, a.head_timeout_s, &stop)?;
     let serial = fit.as_ref().and_then(|(_, id)| id.serial.clone()).unwrap_or_default();
     let cfg = VerifyConfig {

@@ -56,6 +56,14 @@ pub fn run(
         Settings::BenchDiagnose(s) => return bench_diagnose::run(&s),
         Settings::BenchSignature(s) => return fleet::run_bench_signature(&s),
         Settings::UncertaintyCheck(s) => return uncertainty::run_check(&s),
+        Settings::Info(s) => return live::run_info(&s),
+        Settings::Output(s) => return live::run_output(&s),
+        Settings::Monitor(s) => return node::run_monitor(&s),
+        Settings::RecordShow(s) => return record::run_show(&s),
+        Settings::Emulate(s) => return emulate::run(&s),
+        Settings::Flash(s) => return node::run_flash(&s),
+        Settings::Hil(s) => return node::run_hil(&s, warnings),
+        Settings::Report(s) => return report::run(&s),
         Settings::Parsed(command) => command,
     };
     match command {
@@ -63,16 +71,8 @@ pub fn run(
         Command::Select(a) => select::run(&a, &campaign_g(stated, &a.campaign, warnings)?, warnings),
         Command::Plan(a) => plan::run(&a, &Gravity::default_of(stated, a.g)),
         Command::Fit(a) => fit::run(&a, &campaign_g(stated, &a.campaign, warnings)?, warnings),
-        Command::Flash(a) => node::run_flash(&a),
-        Command::Record(crate::cli::RecordCommand::Show(a)) => record::run_show(&a),
-        Command::Monitor(a) => node::run_monitor(&a),
-        Command::Hil(a) => node::run_hil(&a, warnings),
-        Command::Emulate(a) => emulate::run(&a),
-        Command::Info(a) => live::run_info(&a),
-        Command::Output(a) => live::run_output(&a),
         Command::Acquire(a) => live::run_acquire(&a, stated),
         Command::Verify(a) => live::run_verify(&a, stated),
-        Command::Report(a) => report::run(&a),
         Command::Station(a) => station::run(&a, stated, resolved.config.as_ref()),
         Command::Fleet(_)
         | Command::Certificate(_)
@@ -88,7 +88,15 @@ pub fn run(
         | Command::Diagnose(_)
         | Command::BenchDiagnose(_)
         | Command::BenchSignature(_)
-        | Command::UncertaintyCheck(_) => {
+        | Command::UncertaintyCheck(_)
+        | Command::Info(_)
+        | Command::Output(_)
+        | Command::Monitor(_)
+        | Command::Record(_)
+        | Command::Emulate(_)
+        | Command::Flash(_)
+        | Command::Hil(_)
+        | Command::Report(_) => {
             unreachable!("the commands on the database are settled (settings::settled::settle)")
         }
     }

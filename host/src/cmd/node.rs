@@ -9,37 +9,38 @@ use accelcal_line::node::{flash, hil, monitor};
 use accelcal_shared::wire::RecordStatus;
 use anyhow::Context;
 
-use crate::cli::{FlashArgs, HilArgs, MonitorArgs};
+use crate::settings::line::{Flash, Hil};
+use crate::settings::values::FlashRoute;
 
 fn read_file(path: &PathBuf, what: &str) -> anyhow::Result<Vec<u8>> {
     std::fs::read(path).map_err(|e| bad(format!("{}: cannot read the {what}: {e}", path.display())))
 }
 
 /// Runs `accelcal flash`.
-pub fn run_flash(a: &FlashArgs) -> anyhow::Result<()> {
+pub fn run_flash(a: &Flash) -> anyhow::Result<()> {
     let record = read_file(&a.record, "record")?;
     let rec = accelcal_shared::record::Record::parse(&record)
         .map_err(|e| bad(format!("{}: {e}", a.record.display())))?;
     accelcal_core::calibrate::gate(&a.record, &rec)?;
     // With --db, what is written is the run's stored record (the file must be it).
-    let mut db = super::store::open(&a.run)?;
+    let mut db = super::store::open(a.store.as_ref())?;
     let stored = match &mut db {
         Some(rdb) => Some(super::store::record_to_flash(rdb, &a.record, &record)?),
         None => None,
     };
     let record = stored.as_ref().map_or(record.clone(), |s| s.bytes().to_vec());
     let answer = std::time::Duration::from_secs(10);
-    let node_id = match (&a.gdb, &a.port) {
-        (Some(_), Some(port)) => Some(Session::open(port, a.baud, answer)?.info()?.device_id),
+    let node_id = match (&a.route, &a.port) {
+        (FlashRoute::Gdb(_), Some(port)) => Some(Session::open(port, a.baud, answer)?.info()?.device_id),
         _ => None,
     };
     let writing = || format!("writing {} to the node", a.record.display());
-    let (slot, sequence, address) = match &a.gdb {
-        None => {
-            let r = flash::flash_record(&record, &a.chip, a.probe.as_deref()).with_context(writing)?;
+    let (slot, sequence, address) = match &a.route {
+        FlashRoute::Probe { chip, probe } => {
+            let r = flash::flash_record(&record, chip, probe.as_deref()).with_context(writing)?;
             (r.slot, r.sequence, r.address)
         }
-        Some(addr) => {
+        FlashRoute::Gdb(addr) => {
             match flash::flash_record_gdb(&record, addr, node_id, a.cut_after).with_context(writing)? {
                 flash::GdbFlash::Written(r) => (r.slot, r.sequence, r.address),
                 flash::GdbFlash::Cut { slot, bytes } => {
@@ -110,13 +111,12 @@ fn confirm(port: &str, baud: u32, slot: u8, sequence: u32, crc: u32) -> anyhow::
 }
 
 /// Runs `accelcal monitor`.
-pub fn run_monitor(a: &MonitorArgs) -> anyhow::Result<()> {
-    let silence = std::time::Duration::from_secs_f64(a.timeout_s);
-    monitor::monitor(&a.port, a.baud, a.count, a.rate_hz, silence, &mut std::io::stdout().lock())
+pub fn run_monitor(a: &crate::settings::line::Monitor) -> anyhow::Result<()> {
+    monitor::monitor(&a.port, a.baud, a.count, a.rate_hz, a.silence, &mut std::io::stdout().lock())
 }
 
 /// Runs `accelcal hil`.
-pub fn run_hil(a: &HilArgs, warnings: &mut super::Warnings) -> anyhow::Result<()> {
+pub fn run_hil(a: &Hil, warnings: &mut super::Warnings) -> anyhow::Result<()> {
     let record = read_file(&a.record, "record")?;
     let thermal = match accelcal_shared::record::Record::parse(&record) {
         Ok(r) => r.thermal.is_some(),
@@ -139,7 +139,7 @@ pub fn run_hil(a: &HilArgs, warnings: &mut super::Warnings) -> anyhow::Result<()
     }
     let mut opts = hil::HilOptions::new(&a.elf);
     opts.qemu = a.qemu_bin.clone();
-    opts.timeout = std::time::Duration::from_secs_f64(a.timeout_s);
+    opts.timeout = a.timeout;
     let mut out = accelcal_core::output::AtomicFile::create(&a.out)?;
     let writing = || format!("writing {}", a.out.display());
     let header = if thermal { hil::CSV_HEADER_THERMAL } else { hil::CSV_HEADER };

@@ -12,7 +12,7 @@ use accelcal_shared::boot;
 use accelcal_shared::record::{Record, FORMAT_VERSION};
 use serde::Serialize;
 
-use crate::cli::RecordShowArgs;
+use crate::settings::line::RecordShow;
 
 /// The JSON written by `record show --json`.
 #[derive(Debug, Serialize)]
@@ -104,7 +104,7 @@ fn budget_of(
 /// stored with the record (CRC `crc` of device `device`); with its name for messages. `None`
 /// when neither is given.
 fn fit_text(
-    a: &RecordShowArgs,
+    a: &RecordShow,
     path: &str,
     (crc, device): (&str, &str),
 ) -> anyhow::Result<Option<(String, String)>> {
@@ -140,7 +140,7 @@ pub struct ThermalJson {
 }
 
 /// Runs `accelcal record show`.
-pub fn run_show(a: &RecordShowArgs) -> anyhow::Result<()> {
+pub fn run_show(a: &RecordShow) -> anyhow::Result<()> {
     let path = a.file.display();
     let bytes = std::fs::read(&a.file).map_err(|e| bad(format!("{path}: cannot read the record: {e}")))?;
     let rec = Record::parse(&bytes).map_err(|e| bad(format!("{path}: {e}")))?;

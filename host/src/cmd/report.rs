@@ -29,7 +29,7 @@ use accelcal_line::verify::VerifyReport;
 use accelcal_shared::record::Record;
 use serde::Deserialize as _;
 
-use crate::cli::ReportArgs;
+use crate::settings::line::Report;
 
 mod method;
 mod results;
@@ -74,7 +74,7 @@ impl Unit {
 /// and the record (device id), the fit and the campaign (SHA-256 of its content), the fit and the
 /// record (the record's CRC, device id), the verification and the record (device id, CRC), the
 /// verification's g and the fit's (the certificate states one g).
-fn read_unit(a: &ReportArgs) -> anyhow::Result<Unit> {
+fn read_unit(a: &Report) -> anyhow::Result<Unit> {
     let campaign = CampaignId::read(&a.campaign)?;
     let header = accelcal_core::campaign::header(&a.campaign)?;
     let rec_bytes = std::fs::read(&a.record)
@@ -149,9 +149,9 @@ fn same_g((a, ga): (&str, f64), (b, gb): (&str, f64)) -> anyhow::Result<()> {
 }
 
 /// Runs `accelcal report`.
-pub fn run(a: &ReportArgs) -> anyhow::Result<()> {
+pub fn run(a: &Report) -> anyhow::Result<()> {
     let mut u = read_unit(a)?;
-    let mut db = super::store::open(&a.run)?;
+    let mut db = super::store::open(a.store.as_ref())?;
     let run = match &mut db {
         Some(rdb) => Some(rdb.existing("report")?),
         None => None,

@@ -12,7 +12,8 @@ use accelcal_core::error::bad;
 use accelcal_db::{Db, Outcome, Phase, Progress, Relabel, RunId, RunStart, Stored, StoredRecord, DB_ENV};
 use accelcal_line::verify::VerifyReport;
 
-use crate::cli::{PhaseArg, RunArgs};
+use crate::cli::PhaseArg;
+use crate::settings::values::RunStore;
 
 /// The station's database file when neither --db nor ACCELCAL_DB names one (beside the units'
 /// directories), and the readers' when it is in the current directory.
@@ -64,13 +65,12 @@ pub struct RunDb {
     pub relabel: Option<Relabel>,
 }
 
-/// Opens `--db` when given (`--run-id` parsed first: a bad id opens nothing).
-pub fn open(a: &RunArgs) -> anyhow::Result<Option<RunDb>> {
-    let Some(spec) = &a.db else { return Ok(None) };
-    let run = a.run_id.as_deref().map(RunId::parse).transpose()?;
-    let db = Db::open(spec)?;
+/// Opens the database a command stores into, when it has one.
+pub fn open(a: Option<&RunStore>) -> anyhow::Result<Option<RunDb>> {
+    let Some(a) = a else { return Ok(None) };
+    let db = Db::open(&a.spec)?;
     let relabel = a.relabel.clone().map(|reason| Relabel { reason, operator: user_name() });
-    Ok(Some(RunDb { db, run, relabel }))
+    Ok(Some(RunDb { db, run: a.run, relabel }))
 }
 
 /// What a command that may begin a run knows about it.

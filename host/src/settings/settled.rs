@@ -1,6 +1,6 @@
 //! The settled command line ([`Settings`]) that `main` hands to the commands.
 
-use super::{asset, campaign, reader};
+use super::{asset, campaign, line, reader};
 use crate::cli::Command;
 
 /// A command line, checked and settled before anything is opened: the commands converted so far
@@ -39,6 +39,22 @@ pub enum Settings {
     BenchSignature(campaign::BenchSignature),
     /// `accelcal uncertainty-check`.
     UncertaintyCheck(campaign::UncertaintyCheck),
+    /// `accelcal info`.
+    Info(line::Info),
+    /// `accelcal output`.
+    Output(line::SetOutput),
+    /// `accelcal monitor`.
+    Monitor(line::Monitor),
+    /// `accelcal record show`.
+    RecordShow(line::RecordShow),
+    /// `accelcal emulate`.
+    Emulate(line::Emulate),
+    /// `accelcal flash`.
+    Flash(line::Flash),
+    /// `accelcal hil`.
+    Hil(line::Hil),
+    /// `accelcal report`.
+    Report(line::Report),
     /// Every other command, as parsed.
     Parsed(Command),
 }
@@ -61,6 +77,14 @@ pub fn settle(command: Command) -> anyhow::Result<Settings> {
         Command::BenchDiagnose(a) => Settings::BenchDiagnose(campaign::bench_diagnose(&a)?),
         Command::BenchSignature(a) => Settings::BenchSignature(campaign::bench_signature(&a)?),
         Command::UncertaintyCheck(a) => Settings::UncertaintyCheck(campaign::uncertainty_check(&a)),
+        Command::Info(a) => Settings::Info(line::info(&a)),
+        Command::Output(a) => Settings::Output(line::output(&a)),
+        Command::Monitor(a) => Settings::Monitor(line::monitor(&a)),
+        Command::Record(crate::cli::RecordCommand::Show(a)) => Settings::RecordShow(line::record_show(&a)),
+        Command::Emulate(a) => Settings::Emulate(line::emulate(&a)?),
+        Command::Flash(a) => Settings::Flash(line::flash(&a)?),
+        Command::Hil(a) => Settings::Hil(line::hil(&a)),
+        Command::Report(a) => Settings::Report(line::report(&a)?),
         command => Settings::Parsed(command),
     })
 }

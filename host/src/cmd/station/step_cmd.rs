@@ -9,6 +9,8 @@ use std::path::PathBuf;
 use accelcal_core::uncertainty::TempCoefficients;
 use accelcal_db::RunId;
 
+pub(super) use crate::settings::values::{FlashRoute, Issuer};
+
 /// A node link as `info`, `acquire` and `verify` take it.
 #[derive(Clone, Debug, PartialEq)]
 pub(super) struct Link {
@@ -46,24 +48,6 @@ pub(super) enum GravityGiven {
 pub(super) struct DbRun {
     pub spec: String,
     pub run: RunId,
-}
-
-/// How `flash` reaches the MCU.
-#[derive(Clone, Debug, PartialEq)]
-pub(super) enum FlashRoute {
-    /// A GDB server (QEMU's gdbstub), `HOST:PORT`.
-    Gdb(String),
-    /// A debug probe: the chip's name, and the probe when several are connected.
-    Probe { chip: String, probe: Option<String> },
-}
-
-/// Who issues the certificate and for whom (each optional).
-#[derive(Clone, Debug, Default, PartialEq)]
-pub(super) struct Issuer {
-    pub laboratory: Option<String>,
-    pub laboratory_address: Option<String>,
-    pub customer: Option<String>,
-    pub authorised_by: Option<String>,
 }
 
 /// What a verification judges the errors against.

@@ -1,0 +1,54 @@
+//! Values several commands' settings share, and the station's steps with them: the run a command
+//! stores into, how `flash` reaches the MCU, who issues a certificate.
+
+use accelcal_db::RunId;
+
+use crate::cli::{Issuer as IssuerArgs, RunArgs};
+
+/// The database a command stores its piece in (`--db`, as given), the run (`--run-id`, parsed)
+/// and the relabel a run begun now stores (`--relabel`, its reason).
+#[derive(Clone, Debug, PartialEq)]
+pub struct RunStore {
+    pub spec: String,
+    pub run: Option<RunId>,
+    pub relabel: Option<String>,
+}
+
+impl RunStore {
+    /// From `--db`, `--run-id` and `--relabel` (`None` without `--db`).
+    pub fn of(a: &RunArgs) -> anyhow::Result<Option<RunStore>> {
+        let Some(spec) = &a.db else { return Ok(None) };
+        let run = a.run_id.as_deref().map(RunId::parse).transpose()?;
+        Ok(Some(RunStore { spec: spec.clone(), run, relabel: a.relabel.clone() }))
+    }
+}
+
+/// How `flash` reaches the MCU.
+#[derive(Clone, Debug, PartialEq)]
+pub enum FlashRoute {
+    /// A GDB server (QEMU's gdbstub), `HOST:PORT`.
+    Gdb(String),
+    /// A debug probe: the chip's name, and the probe when several are connected.
+    Probe { chip: String, probe: Option<String> },
+}
+
+/// Who issues the certificate and for whom (each optional).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Issuer {
+    pub laboratory: Option<String>,
+    pub laboratory_address: Option<String>,
+    pub customer: Option<String>,
+    pub authorised_by: Option<String>,
+}
+
+impl Issuer {
+    /// From `--laboratory`, `--laboratory-address`, `--customer` and `--authorised-by`.
+    pub fn of(a: &IssuerArgs) -> Issuer {
+        Issuer {
+            laboratory: a.laboratory.clone(),
+            laboratory_address: a.laboratory_address.clone(),
+            customer: a.customer.clone(),
+            authorised_by: a.authorised_by.clone(),
+        }
+    }
+}
