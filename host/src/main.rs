@@ -28,7 +28,10 @@ fn main() {
         let gravity = settings::gravity::stated(&cli.command, &given)?;
         Ok(resolved::Resolved { gravity, config })
     });
-    let settled = checked.and_then(|resolved| Ok((resolved, settings::settled::settle(cli.command)?)));
+    let settled = checked.and_then(|resolved| {
+        let settings = settings::settled::settle(cli.command, &resolved)?;
+        Ok((resolved, settings))
+    });
     let (resolved, settings) = match settled {
         Ok(r) => r,
         Err(e) => {

@@ -80,7 +80,7 @@ fn chamber(a: &PlanArgs) -> Result<Option<Chamber>, DesignError> {
     if d.chamber.is_empty() {
         return Ok(None);
     }
-    Chamber::new(d.chamber.clone(), d.soak_s.unwrap_or(super::simulate::SOAK_DEFAULT_S)).map(Some)
+    Chamber::new(d.chamber.clone(), d.soak_s.unwrap_or(crate::settings::campaign::SOAK_DEFAULT_S)).map(Some)
 }
 
 fn head(a: &PlanArgs) -> Head {

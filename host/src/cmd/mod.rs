@@ -64,10 +64,10 @@ pub fn run(
         Settings::Flash(s) => return node::run_flash(&s),
         Settings::Hil(s) => return node::run_hil(&s, warnings),
         Settings::Report(s) => return report::run(&s),
+        Settings::Simulate(s) => return simulate::run(&s),
         Settings::Parsed(command) => command,
     };
     match command {
-        Command::Simulate(a) => simulate::run(&a, &Gravity::default_of(stated, a.g)),
         Command::Select(a) => select::run(&a, &campaign_g(stated, &a.campaign, warnings)?, warnings),
         Command::Plan(a) => plan::run(&a, &Gravity::default_of(stated, a.g)),
         Command::Fit(a) => fit::run(&a, &campaign_g(stated, &a.campaign, warnings)?, warnings),
@@ -96,7 +96,8 @@ pub fn run(
         | Command::Emulate(_)
         | Command::Flash(_)
         | Command::Hil(_)
-        | Command::Report(_) => {
+        | Command::Report(_)
+        | Command::Simulate(_) => {
             unreachable!("the commands on the database are settled (settings::settled::settle)")
         }
     }

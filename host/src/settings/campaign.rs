@@ -1,14 +1,19 @@
 //! The settings of the commands on simulated or recorded campaigns that need no link to a node
-//! (`demo`, `compare`, `diagnose`, `bench-diagnose`, `bench-signature`, `uncertainty-check`):
+//! (`demo`, `simulate`, `compare`, `diagnose`, `bench-diagnose`, `bench-signature`,
+//! `uncertainty-check`):
 //! their command line checked and resolved into plain values before anything is opened.
 
 use std::path::PathBuf;
 
 use accelcal_core::campaign::CodeRange;
 use accelcal_core::error::bad;
+use accelcal_core::sim::{self, Plan, SimConfig};
+
+use crate::resolved::Gravity;
 
 use crate::cli::{
-    BenchDiagnoseArgs, BenchSignatureArgs, CompareArgs, DemoArgs, DiagnoseArgs, UncertaintyCheckArgs,
+    BenchDiagnoseArgs, BenchSignatureArgs, CompareArgs, DemoArgs, DiagnoseArgs, SimulateArgs,
+    UncertaintyCheckArgs,
 };
 
 /// `accelcal demo`, settled.
@@ -148,4 +153,111 @@ pub fn uncertainty_check(a: &UncertaintyCheckArgs) -> UncertaintyCheck {
         seed: a.seed,
         json: a.json.clone(),
     }
+}
+
+/// `accelcal simulate`, settled: the simulator's settings checked, at the gravity stated (`--g`,
+/// `--latitude`) or the command's default.
+pub struct Simulate {
+    /// The simulator's settings (its g the stated gravity, else `--g`'s default).
+    pub config: SimConfig,
+    /// `--out`: the campaign; `--truth`: its truth (default: beside it, `.truth.json`).
+    pub out: PathBuf,
+    pub truth: PathBuf,
+    /// `--serial` written into the campaign's header.
+    pub serial: Option<String>,
+    /// `--codes`: the range of the codes written.
+    pub codes: CodeRange,
+    /// `--json`.
+    pub json: Option<PathBuf>,
+}
+
+/// `simulate`'s settings; `stated`: the gravity the command line states.
+pub fn simulate(a: &SimulateArgs, stated: Option<&Gravity>) -> anyhow::Result<Simulate> {
+    Ok(Simulate {
+        config: config(a, Gravity::default_of(stated, a.g).g)?,
+        out: a.out.clone(),
+        truth: a.truth.clone().unwrap_or_else(|| a.out.with_extension("truth.json")),
+        serial: a.serial.clone(),
+        codes: a.codes,
+        json: a.json.clone(),
+    })
+}
+
+/// Soak at each chamber setpoint when --soak-s is not given, s.
+pub const SOAK_DEFAULT_S: f64 = 900.0;
+/// Chamber-to-sensor lag when --thermal-lag-s is not given, s (`emulate`'s default).
+const THERMAL_LAG_DEFAULT_S: f64 = 30.0;
+
+/// The thermal plan of `--chamber`, `--soak-s` and `--thermal-lag-s` (settings refuses the last two
+/// without the first).
+fn thermal_plan(a: &SimulateArgs) -> anyhow::Result<Option<sim::ThermalPlan>> {
+    if a.chamber.is_empty() {
+        return Ok(None);
+    }
+    if let Some(t) = a.chamber.iter().find(|t| !(t.is_finite() && (-60.0..=150.0).contains(*t))) {
+        return Err(bad(format!("--chamber: each setpoint must be a temperature in -60..=150 °C, got {t}")));
+    }
+    let soak_s = a.soak_s.unwrap_or(SOAK_DEFAULT_S);
+    let tau_s = a.thermal_lag_s.unwrap_or(THERMAL_LAG_DEFAULT_S);
+    for (name, v) in [("--soak-s", soak_s), ("--thermal-lag-s", tau_s)] {
+        if !(v.is_finite() && v >= 0.0) {
+            return Err(bad(format!("{name} must be a number of seconds >= 0, got {v}")));
+        }
+    }
+    Ok(Some(sim::ThermalPlan { chamber_c: a.chamber.clone(), soak_s, tau_s }))
+}
+
+/// The simulator's settings from `simulate`'s command line, at gravity `g`.
+fn config(a: &SimulateArgs, g: f64) -> anyhow::Result<SimConfig> {
+    let plan = Plan::from_spec(&a.plan, a.seed).map_err(|e| bad(format!("--plan {e}")))?;
+    let effects = a
+        .effects
+        .iter()
+        .map(|s| sim::effects::parse(s).map_err(|e| bad(format!("--effect {e}"))))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let thermal = thermal_plan(a)?;
+    if a.temp_profile.is_some() && thermal.is_some() {
+        return Err(bad("--temp-profile and --chamber both set the temperature: give one"));
+    }
+    if a.temp_profile.is_none() && thermal.is_none() {
+        if let Some(e) = effects.iter().find(|e| e.needs_temperature()) {
+            return Err(bad(format!(
+                "--effect {} needs a temperature: --temp-profile BASE:AMP:CYCLES or --chamber T1,T2,…",
+                e.name()
+            )));
+        }
+    }
+    for (name, v) in [
+        ("--noise", a.noise),
+        ("--bias-sd", a.bias_sd),
+        ("--scale-sd", a.scale_sd),
+        ("--misalign-sd", a.misalign_sd),
+    ] {
+        if !(v.is_finite() && v >= 0.0) {
+            return Err(bad(format!("{name} must be a finite number >= 0, got {v}")));
+        }
+    }
+    if a.samples == 0
+        || !(a.rate_hz.is_finite() && a.rate_hz > 0.0)
+        || !(a.move_s.is_finite() && a.move_s >= 0.0)
+    {
+        return Err(bad("--samples must be >= 1, --rate-hz > 0 and --move-s >= 0"));
+    }
+    Ok(SimConfig {
+        seed: a.seed,
+        plan,
+        layout: a.layout.clone(),
+        g,
+        samples: a.samples,
+        rate_hz: a.rate_hz,
+        move_s: a.move_s,
+        noise: a.noise,
+        bias_sd: a.bias_sd,
+        scale_sd: a.scale_sd,
+        misalign_sd: a.misalign_sd,
+        effects,
+        quantize: !a.ideal_adc,
+        temp: a.temp_profile,
+        thermal,
+    })
 }

@@ -2,12 +2,12 @@
 
 use super::{asset, campaign, line, reader};
 use crate::cli::Command;
+use crate::resolved::Resolved;
 
 /// A command line, checked and settled before anything is opened: the commands converted so far
 /// (issue 29: the commands on the database) take their own settings, plain values with nothing of clap;
 /// the others still take their parsed arguments, checked by
 /// `settings::check`.
-#[derive(Debug)]
 pub enum Settings {
     /// `accelcal fleet`.
     Fleet(reader::Fleet),
@@ -55,12 +55,15 @@ pub enum Settings {
     Hil(line::Hil),
     /// `accelcal report`.
     Report(line::Report),
+    /// `accelcal simulate`.
+    Simulate(campaign::Simulate),
     /// Every other command, as parsed.
     Parsed(Command),
 }
 
 /// Settles a checked command line (`settings::check` first).
-pub fn settle(command: Command) -> anyhow::Result<Settings> {
+pub fn settle(command: Command, resolved: &Resolved) -> anyhow::Result<Settings> {
+    let stated = resolved.gravity.as_ref();
     Ok(match command {
         Command::Fleet(a) => Settings::Fleet(reader::fleet(&a, reader::today())?),
         Command::Certificate(a) => Settings::Certificate(reader::certificate(&a)?),
@@ -85,6 +88,7 @@ pub fn settle(command: Command) -> anyhow::Result<Settings> {
         Command::Flash(a) => Settings::Flash(line::flash(&a)?),
         Command::Hil(a) => Settings::Hil(line::hil(&a)),
         Command::Report(a) => Settings::Report(line::report(&a)?),
+        Command::Simulate(a) => Settings::Simulate(campaign::simulate(&a, stated)?),
         command => Settings::Parsed(command),
     })
 }
