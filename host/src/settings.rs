@@ -494,7 +494,6 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
         | Command::BenchSignature(_)
         | Command::UncertaintyCheck(_)
         | Command::Demo(_) => Ok(()),
-        Command::Plan(a) => crate::cmd::design::check(a),
         Command::Db(_) => Ok(()),
         // Checked as they are settled (`settled::settle`).
         Command::Fleet(_)
@@ -504,7 +503,8 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
         | Command::Asset(_)
         | Command::Affected(_)
         | Command::Serve(_)
-        | Command::BenchFleet(_) => Ok(()),
+        | Command::BenchFleet(_)
+        | Command::Plan(_) => Ok(()),
     }
 }
 

@@ -6,9 +6,8 @@ use std::path::Path;
 
 use accelcal_core::campaign::identity::g_uncertainty;
 use accelcal_core::campaign::Campaign;
-use accelcal_core::design::search::{design, design_auto, AutoTarget, Designed, Head, MIN_POSITIONS};
-use accelcal_core::design::{head_time_s, predict, Chamber, DesignError, Part, Prediction, Prior, Stated};
-use accelcal_core::error::bad;
+use accelcal_core::design::search::{design, design_auto, AutoTarget, Designed, Head};
+use accelcal_core::design::{head_time_s, predict, Part, Prediction, Prior, Stated};
 use accelcal_core::output::{write_atomic, write_json};
 use accelcal_core::sim::Plan;
 use accelcal_core::uncertainty::montecarlo::{self, Scenario, Settings};
@@ -17,80 +16,11 @@ use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
-use crate::cli::{DesignSize, PlanArgs};
+use crate::cli::DesignSize;
+use crate::settings::campaign::{Design, UnitType};
 
-/// The defaults of the design's options.
-const MOVE_S: f64 = 10.0;
-const RATE_HZ: f64 = 100.0;
-const SAMPLES: u32 = 400;
-const STEP_DEG: f64 = 15.0;
-const BETA_MAX_DEG: f64 = 90.0;
 /// Orientations each Monte Carlo unit is judged at.
 const MC_ORIENTATIONS: usize = 10;
-
-/// Checks the design's options before any I/O: what does not apply to the size asked for is
-/// refused.
-pub fn check(a: &PlanArgs) -> anyhow::Result<()> {
-    let d = &a.design;
-    let Some(size) = d.design else { return Ok(()) };
-    if d.out.is_none() {
-        return Err(bad("--design needs --out FILE: where to write the designed plan"));
-    }
-    if d.like.is_none() && d.noise.is_none() {
-        return Err(bad(
-            "--design needs the unit type: --like CAMPAIGN (an earlier campaign of the same kind of unit) or --noise CODES (the nominal triad with that noise per sample)",
-        ));
-    }
-    let out = d.out.as_deref();
-    if out.is_some() && (out == d.like.as_deref() || out == a.json.as_deref()) {
-        return Err(bad(format!(
-            "--out {} is also {}: the designed plan would overwrite it",
-            out.map(|p| p.display().to_string()).unwrap_or_default(),
-            if out == d.like.as_deref() { "--like" } else { "--json" }
-        )));
-    }
-    if a.json.is_some() && a.json.as_deref() == d.like.as_deref() {
-        return Err(bad("--json is also --like: the design's JSON would overwrite the campaign"));
-    }
-    if let DesignSize::Positions(n) = size {
-        if n < MIN_POSITIONS {
-            return Err(DesignError::TooFew { n, min: MIN_POSITIONS }.into());
-        }
-    }
-    if !d.chamber.is_empty() {
-        chamber(a).map_err(|e| bad(format!("--chamber: {e}")))?;
-        if d.montecarlo.is_some() {
-            return Err(bad(
-                "--montecarlo does not apply with --chamber: the simulation calibrates model 4 on one pass (the thermal model's check by simulation is not built)",
-            ));
-        }
-    }
-    if d.target_u.is_some() && size != DesignSize::Auto {
-        return Err(bad(
-            "--target-U applies to --design auto only (with --design N the number of positions is yours)",
-        ));
-    }
-    head(a).reachable().map_err(|e| bad(format!("--alpha-step-deg/--beta-step-deg/--beta-max-deg: {e}")))?;
-    Ok(())
-}
-
-/// `--chamber` and `--soak-s`, or `None` without a chamber.
-fn chamber(a: &PlanArgs) -> Result<Option<Chamber>, DesignError> {
-    let d = &a.design;
-    if d.chamber.is_empty() {
-        return Ok(None);
-    }
-    Chamber::new(d.chamber.clone(), d.soak_s.unwrap_or(crate::settings::campaign::SOAK_DEFAULT_S)).map(Some)
-}
-
-fn head(a: &PlanArgs) -> Head {
-    let d = &a.design;
-    Head {
-        alpha_step_deg: d.alpha_step_deg.unwrap_or(STEP_DEG),
-        beta_step_deg: d.beta_step_deg.unwrap_or(STEP_DEG),
-        beta_max_deg: d.beta_max_deg.unwrap_or(BETA_MAX_DEG),
-    }
-}
 
 /// A plan of the comparison with its prediction.
 struct Row {
@@ -206,16 +136,14 @@ fn criteria(p: &Prediction) -> Criteria {
 }
 
 /// The unit type: from `--like` or the nominal triad.
-fn prior(a: &PlanArgs, g: f64) -> anyhow::Result<Prior> {
-    let d = &a.design;
-    Ok(match (&d.like, d.noise) {
-        (Some(path), _) => {
+fn prior(unit: &UnitType, g: f64) -> anyhow::Result<Prior> {
+    Ok(match unit {
+        UnitType::Like(path) => {
             let c = Campaign::read(path).with_context(|| format!("--like {}", path.display()))?;
             Prior::from_campaign(&c, g, &path.display().to_string())
                 .with_context(|| format!("--like {}", path.display()))?
         }
-        (None, Some(noise)) => Prior::nominal(noise, g)?,
-        (None, None) => unreachable!("checked: --like or --noise"),
+        UnitType::Noise(noise) => Prior::nominal(*noise, g)?,
     })
 }
 
@@ -235,34 +163,33 @@ fn write_plan(path: &Path, d: &Designed, header: &str) -> anyhow::Result<()> {
 }
 
 /// Runs `accelcal plan --design`.
-pub fn run(a: &PlanArgs, size: DesignSize, gravity: &super::Gravity) -> anyhow::Result<()> {
+pub fn run(d: &Design) -> anyhow::Result<()> {
+    let (gravity, size) = (&d.gravity, d.size);
     let g = gravity.g;
-    let d = &a.design;
-    let out = d.out.as_deref().expect("checked: --out");
-    let prior = prior(a, g)?;
+    let out = d.out.as_path();
+    let prior = prior(&d.unit, g)?;
     let (bound, _) = g_uncertainty(g, gravity.words().as_deref());
-    let angle_u = d.head_angle_u.unwrap_or(0.0);
-    let chamber = chamber(a)?;
+    let angle_u = d.head_angle_u_arcsec;
+    let chamber = d.chamber.clone();
     let stated =
         Stated { head_angle_rad: angle_u * ARCSEC, g_m_s2: bound / 3f64.sqrt(), chamber: chamber.clone() };
-    let move_s = d.move_s.unwrap_or(MOVE_S);
-    let rate_hz = d.rate_hz.unwrap_or(RATE_HZ);
+    let (move_s, rate_hz) = (d.move_s, d.rate_hz);
     // A plan's head time: one pass, or in a chamber every pass and its soak.
     let time_of = |positions: usize, samples: usize| {
         let one = head_time_s(positions, samples, rate_hz, move_s);
         chamber.as_ref().map_or(one, |c| c.head_time_s(one))
     };
-    let samples = d.samples.unwrap_or(SAMPLES) as usize;
-    let head = head(a);
+    let samples = d.samples as usize;
+    let head = d.head.clone();
     let paper = predict(&Plan::head().positions, samples, &prior, &stated, g)?;
     let (designed, target) = match size {
-        DesignSize::Positions(n) => (design(n, samples, &prior, &stated, g, &head, a.seed)?, None),
+        DesignSize::Positions(n) => (design(n, samples, &prior, &stated, g, &head, d.seed)?, None),
         DesignSize::Auto => {
             let target = d.target_u.unwrap_or(paper.worst_m_s2);
             let t = AutoTarget { u_m_s2: target, rate_hz, move_s };
             let n = accelcal_core::design::search::AUTO_DWELLS_S.len() as u64;
             let pb = bar(n, "dwells tried");
-            let r = design_auto(&t, &prior, &stated, g, &head, a.seed, &|_| pb.inc(1));
+            let r = design_auto(&t, &prior, &stated, g, &head, d.seed, &|_| pb.inc(1));
             pb.finish_and_clear();
             (r?, Some(target))
         }
@@ -377,7 +304,7 @@ pub fn run(a: &PlanArgs, size: DesignSize, gravity: &super::Gravity) -> anyhow::
                 plan: Plan { positions: r.positions.clone() },
                 samples: r.samples,
                 orientations: MC_ORIENTATIONS,
-                seed: a.seed,
+                seed: d.seed,
             };
             let o = montecarlo::run(&scenario, &set, &|_| pb.inc(1)).map_err(anyhow::Error::msg)?;
             c.montecarlo = Some(MonteCarlo {
@@ -394,7 +321,7 @@ pub fn run(a: &PlanArgs, size: DesignSize, gravity: &super::Gravity) -> anyhow::
     let parts: Vec<String> = p.parts.iter().map(|x| format!("{} {:.3e}", x.name, x.u_m_s2)).collect();
     println!("the designed plan's contributors (standard uncertainty, m/s²): {}", parts.join(", "));
     println!("not predicted (add them from the fit's budget): {}", p.not_included.join("; "));
-    if let Some(j) = &a.json {
+    if let Some(j) = &d.json {
         let doc = DesignJson {
             design: size_word(size),
             positions: n,

@@ -65,11 +65,11 @@ pub fn run(
         Settings::Hil(s) => return node::run_hil(&s, warnings),
         Settings::Report(s) => return report::run(&s),
         Settings::Simulate(s) => return simulate::run(&s),
+        Settings::Plan(s) => return plan::run(&s),
         Settings::Parsed(command) => command,
     };
     match command {
         Command::Select(a) => select::run(&a, &campaign_g(stated, &a.campaign, warnings)?, warnings),
-        Command::Plan(a) => plan::run(&a, &Gravity::default_of(stated, a.g)),
         Command::Fit(a) => fit::run(&a, &campaign_g(stated, &a.campaign, warnings)?, warnings),
         Command::Acquire(a) => live::run_acquire(&a, stated),
         Command::Verify(a) => live::run_verify(&a, stated),
@@ -97,7 +97,8 @@ pub fn run(
         | Command::Flash(_)
         | Command::Hil(_)
         | Command::Report(_)
-        | Command::Simulate(_) => {
+        | Command::Simulate(_)
+        | Command::Plan(_) => {
             unreachable!("the commands on the database are settled (settings::settled::settle)")
         }
     }

@@ -2,12 +2,11 @@
 //! there, under the dividing-head convention of the campaigns (`shared::kinematics`):
 //! `ax = −g·cosβ·sinα`, `ay = −g·sinβ`, `az = −g·cosα·cosβ`.
 
-use accelcal_core::error::bad;
 use accelcal_core::output::write_json;
 use accelcal_core::sim::Plan;
 use serde::Serialize;
 
-use crate::cli::PlanArgs;
+use crate::settings::campaign::PlanSettings;
 
 /// One position of the JSON document.
 #[derive(Serialize)]
@@ -32,17 +31,17 @@ fn positions(plan: &Plan, g: f64) -> Vec<PositionJson> {
 }
 
 /// Runs `accelcal plan`.
-pub fn run(a: &PlanArgs, gravity: &super::Gravity) -> anyhow::Result<()> {
-    if let Some(size) = a.design.design {
-        return super::design::run(a, size, gravity);
-    }
-    let g = gravity.g;
-    let plan = Plan::from_spec(&a.plan, a.seed).map_err(|e| bad(format!("--plan {e}")))?;
-    let rows = positions(&plan, g);
+pub fn run(p: &PlanSettings) -> anyhow::Result<()> {
+    let a = match p {
+        PlanSettings::Design(d) => return super::design::run(d),
+        PlanSettings::Show(a) => a,
+    };
+    let g = a.gravity.g;
+    let rows = positions(&a.plan, g);
     println!(
         "plan `{}`: {} positions; what a triad's axes should read, g = {} m/s² \
          (ax = -g cos(beta) sin(alpha), ay = -g sin(beta), az = -g cos(alpha) cos(beta))",
-        a.plan,
+        a.spec,
         rows.len(),
         g
     );
@@ -66,7 +65,7 @@ pub fn run(a: &PlanArgs, gravity: &super::Gravity) -> anyhow::Result<()> {
         );
     }
     if let Some(j) = &a.json {
-        write_json(j, &serde_json::json!({ "plan": a.plan, "g": g, "positions": rows }))?;
+        write_json(j, &serde_json::json!({ "plan": a.spec, "g": g, "positions": rows }))?;
     }
     Ok(())
 }

@@ -1,20 +1,21 @@
 //! The settings of the commands on simulated or recorded campaigns that need no link to a node
-//! (`demo`, `simulate`, `compare`, `diagnose`, `bench-diagnose`, `bench-signature`,
+//! (`demo`, `simulate`, `plan`, `compare`, `diagnose`, `bench-diagnose`, `bench-signature`,
 //! `uncertainty-check`):
 //! their command line checked and resolved into plain values before anything is opened.
 
 use std::path::PathBuf;
 
 use accelcal_core::campaign::CodeRange;
+use accelcal_core::design::search::{Head, MIN_POSITIONS};
+use accelcal_core::design::{Chamber, DesignError};
 use accelcal_core::error::bad;
 use accelcal_core::sim::{self, Plan, SimConfig};
 
-use crate::resolved::Gravity;
-
 use crate::cli::{
-    BenchDiagnoseArgs, BenchSignatureArgs, CompareArgs, DemoArgs, DiagnoseArgs, SimulateArgs,
-    UncertaintyCheckArgs,
+    BenchDiagnoseArgs, BenchSignatureArgs, CompareArgs, DemoArgs, DesignSize, DiagnoseArgs, PlanArgs,
+    SimulateArgs, UncertaintyCheckArgs,
 };
+use crate::resolved::Gravity;
 
 /// `accelcal demo`, settled.
 #[derive(Clone, Debug, PartialEq)]
@@ -260,4 +261,169 @@ fn config(a: &SimulateArgs, g: f64) -> anyhow::Result<SimConfig> {
         temp: a.temp_profile,
         thermal,
     })
+}
+
+/// `accelcal plan`, settled: a plan shown, or one designed.
+pub enum PlanSettings {
+    /// `plan --plan SPEC`: the positions and what a triad reads at each.
+    Show(ShowPlan),
+    /// `plan --design N|auto`.
+    Design(Box<Design>),
+}
+
+/// `plan` without `--design`.
+pub struct ShowPlan {
+    /// `--plan` as given, and the plan it names (`--seed` for `random:N`).
+    pub spec: String,
+    pub plan: Plan,
+    /// The stated gravity, else `--g`.
+    pub gravity: Gravity,
+    /// `--json`.
+    pub json: Option<PathBuf>,
+}
+
+/// The unit type a design is for.
+#[derive(Clone, Debug, PartialEq)]
+pub enum UnitType {
+    /// `--like CAMPAIGN`: an earlier campaign of the same kind of unit.
+    Like(PathBuf),
+    /// `--noise CODES`: the nominal triad with this noise per sample.
+    Noise(f64),
+}
+
+/// `plan --design`, each default resolved.
+pub struct Design {
+    /// How many positions (or `auto`).
+    pub size: DesignSize,
+    /// `--out`: the designed plan; `--json`: the comparison.
+    pub out: PathBuf,
+    pub json: Option<PathBuf>,
+    pub unit: UnitType,
+    /// `--head-angle-u`, arcsec (0 when not given).
+    pub head_angle_u_arcsec: f64,
+    /// `--move-s`, `--rate-hz`, `--samples` per position.
+    pub move_s: f64,
+    pub rate_hz: f64,
+    pub samples: u32,
+    /// `--target-U` (auto only), m/s².
+    pub target_u: Option<f64>,
+    /// The head's reachable positions.
+    pub head: Head,
+    /// `--chamber` and `--soak-s`.
+    pub chamber: Option<Chamber>,
+    /// `--montecarlo`: units simulated per plan.
+    pub montecarlo: Option<u32>,
+    /// `--seed` of the design's random starts.
+    pub seed: u64,
+    /// The stated gravity, else `--g`.
+    pub gravity: Gravity,
+}
+
+/// `plan`'s settings; `stated`: the gravity the command line states.
+pub fn plan(a: &PlanArgs, stated: Option<&Gravity>) -> anyhow::Result<PlanSettings> {
+    check_design(a)?;
+    let gravity = Gravity::default_of(stated, a.g);
+    let d = &a.design;
+    let Some(size) = d.design else {
+        let plan = Plan::from_spec(&a.plan, a.seed).map_err(|e| bad(format!("--plan {e}")))?;
+        return Ok(PlanSettings::Show(ShowPlan {
+            spec: a.plan.clone(),
+            plan,
+            gravity,
+            json: a.json.clone(),
+        }));
+    };
+    let unit = match (&d.like, d.noise) {
+        (Some(path), _) => UnitType::Like(path.clone()),
+        (None, Some(noise)) => UnitType::Noise(noise),
+        (None, None) => unreachable!("check_design: --like or --noise"),
+    };
+    Ok(PlanSettings::Design(Box::new(Design {
+        size,
+        out: d.out.clone().expect("check_design: --out"),
+        json: a.json.clone(),
+        unit,
+        head_angle_u_arcsec: d.head_angle_u.unwrap_or(0.0),
+        move_s: d.move_s.unwrap_or(MOVE_S),
+        rate_hz: d.rate_hz.unwrap_or(RATE_HZ),
+        samples: d.samples.unwrap_or(SAMPLES),
+        target_u: d.target_u,
+        head: head(a),
+        chamber: chamber(a)?,
+        montecarlo: d.montecarlo,
+        seed: a.seed,
+        gravity,
+    })))
+}
+
+/// The defaults of the design's options.
+const MOVE_S: f64 = 10.0;
+const RATE_HZ: f64 = 100.0;
+const SAMPLES: u32 = 400;
+const STEP_DEG: f64 = 15.0;
+const BETA_MAX_DEG: f64 = 90.0;
+
+/// Checks the design's options before any I/O: what does not apply to the size asked for is
+/// refused.
+fn check_design(a: &PlanArgs) -> anyhow::Result<()> {
+    let d = &a.design;
+    let Some(size) = d.design else { return Ok(()) };
+    if d.out.is_none() {
+        return Err(bad("--design needs --out FILE: where to write the designed plan"));
+    }
+    if d.like.is_none() && d.noise.is_none() {
+        return Err(bad(
+            "--design needs the unit type: --like CAMPAIGN (an earlier campaign of the same kind of unit) or --noise CODES (the nominal triad with that noise per sample)",
+        ));
+    }
+    let out = d.out.as_deref();
+    if out.is_some() && (out == d.like.as_deref() || out == a.json.as_deref()) {
+        return Err(bad(format!(
+            "--out {} is also {}: the designed plan would overwrite it",
+            out.map(|p| p.display().to_string()).unwrap_or_default(),
+            if out == d.like.as_deref() { "--like" } else { "--json" }
+        )));
+    }
+    if a.json.is_some() && a.json.as_deref() == d.like.as_deref() {
+        return Err(bad("--json is also --like: the design's JSON would overwrite the campaign"));
+    }
+    if let DesignSize::Positions(n) = size {
+        if n < MIN_POSITIONS {
+            return Err(DesignError::TooFew { n, min: MIN_POSITIONS }.into());
+        }
+    }
+    if !d.chamber.is_empty() {
+        chamber(a).map_err(|e| bad(format!("--chamber: {e}")))?;
+        if d.montecarlo.is_some() {
+            return Err(bad(
+                "--montecarlo does not apply with --chamber: the simulation calibrates model 4 on one pass (the thermal model's check by simulation is not built)",
+            ));
+        }
+    }
+    if d.target_u.is_some() && size != DesignSize::Auto {
+        return Err(bad(
+            "--target-U applies to --design auto only (with --design N the number of positions is yours)",
+        ));
+    }
+    head(a).reachable().map_err(|e| bad(format!("--alpha-step-deg/--beta-step-deg/--beta-max-deg: {e}")))?;
+    Ok(())
+}
+
+/// `--chamber` and `--soak-s`, or `None` without a chamber.
+fn chamber(a: &PlanArgs) -> Result<Option<Chamber>, DesignError> {
+    let d = &a.design;
+    if d.chamber.is_empty() {
+        return Ok(None);
+    }
+    Chamber::new(d.chamber.clone(), d.soak_s.unwrap_or(SOAK_DEFAULT_S)).map(Some)
+}
+
+/// The head's reachable positions: `--alpha-step-deg`, `--beta-step-deg`, `--beta-max-deg`.
+fn head(a: &PlanArgs) -> Head {
+    let d = &a.design;
+    Head {
+        alpha_step_deg: d.alpha_step_deg.unwrap_or(STEP_DEG),
+        beta_step_deg: d.beta_step_deg.unwrap_or(STEP_DEG),
+        beta_max_deg: d.beta_max_deg.unwrap_or(BETA_MAX_DEG),
+    }
 }

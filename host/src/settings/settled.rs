@@ -57,6 +57,8 @@ pub enum Settings {
     Report(line::Report),
     /// `accelcal simulate`.
     Simulate(campaign::Simulate),
+    /// `accelcal plan`.
+    Plan(campaign::PlanSettings),
     /// Every other command, as parsed.
     Parsed(Command),
 }
@@ -89,6 +91,7 @@ pub fn settle(command: Command, resolved: &Resolved) -> anyhow::Result<Settings>
         Command::Hil(a) => Settings::Hil(line::hil(&a)),
         Command::Report(a) => Settings::Report(line::report(&a)?),
         Command::Simulate(a) => Settings::Simulate(campaign::simulate(&a, stated)?),
+        Command::Plan(a) => Settings::Plan(campaign::plan(&a, stated)?),
         command => Settings::Parsed(command),
     })
 }
