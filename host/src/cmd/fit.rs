@@ -93,7 +93,7 @@ pub fn run(a: &FitArgs, g: &super::Gravity, warnings: &mut super::Warnings) -> a
     if a.temp_input.is_some() && a.record.is_none() {
         return Err(bad("--temp-input applies to --record only"));
     }
-    super::check_t_ref(a.thermal.t_ref_c())?;
+    crate::settings::campaign::check_t_ref(a.thermal.t_ref_c())?;
     let unit = CampaignId::read(&a.campaign)?;
     let device_id = record_device_id(a, given_id, &unit)?;
     let mut db = super::store::open(RunStore::of(&a.run)?.as_ref())?;

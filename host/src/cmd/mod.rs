@@ -66,10 +66,12 @@ pub fn run(
         Settings::Report(s) => return report::run(&s),
         Settings::Simulate(s) => return simulate::run(&s),
         Settings::Plan(s) => return plan::run(&s),
+        Settings::Select(s) => {
+            return select::run(&s, &campaign_g(stated, &s.campaign.path, warnings)?, warnings)
+        }
         Settings::Parsed(command) => command,
     };
     match command {
-        Command::Select(a) => select::run(&a, &campaign_g(stated, &a.campaign, warnings)?, warnings),
         Command::Fit(a) => fit::run(&a, &campaign_g(stated, &a.campaign, warnings)?, warnings),
         Command::Acquire(a) => live::run_acquire(&a, stated),
         Command::Verify(a) => live::run_verify(&a, stated),
@@ -98,7 +100,8 @@ pub fn run(
         | Command::Hil(_)
         | Command::Report(_)
         | Command::Simulate(_)
-        | Command::Plan(_) => {
+        | Command::Plan(_)
+        | Command::Select(_) => {
             unreachable!("the commands on the database are settled (settings::settled::settle)")
         }
     }
@@ -169,16 +172,6 @@ fn campaign_g(
             Ok(Gravity::assumed())
         }
     }
-}
-
-/// Checks `--t-ref`, °C.
-pub fn check_t_ref(t_ref: f64) -> anyhow::Result<()> {
-    if !(t_ref.is_finite() && (-100.0..=200.0).contains(&t_ref)) {
-        return Err(accelcal_core::error::bad(format!(
-            "--t-ref must be a temperature in -100..=200 °C, got {t_ref}"
-        )));
-    }
-    Ok(())
 }
 
 /// The creation time of a record: `--created`, or now.

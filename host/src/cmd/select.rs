@@ -7,7 +7,7 @@ use accelcal_shared::{Basis, Structure};
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::cli::{Algorithm, SelectArgs};
+use crate::settings::campaign::{Search, Select};
 use accelcal_core::campaign::Campaign;
 use accelcal_core::document::{CandidateDoc, SelectChannelDoc, SelectDoc, SelectedDoc};
 use accelcal_core::error::bad;
@@ -250,41 +250,28 @@ pub fn plots(dir: &Path, sel: &[Selection], settings: &Settings) -> anyhow::Resu
 }
 
 /// Runs `accelcal select`.
-pub fn run(a: &SelectArgs, g: &super::Gravity, warnings: &mut super::Warnings) -> anyhow::Result<()> {
-    if !(a.tolerance.is_finite() && a.tolerance >= 0.0) {
-        return Err(bad(format!("--tolerance must be a number of codes >= 0, got {}", a.tolerance)));
-    }
-    super::check_t_ref(a.thermal.t_ref_c())?;
+pub fn run(a: &Select, g: &super::Gravity, warnings: &mut super::Warnings) -> anyhow::Result<()> {
     // Streamed: GMDH needs the dwell statistics only.
-    let r = super::reduce_campaign(&a.campaign, a.common.codes, warnings)?;
+    let r = super::reduce_campaign(&a.campaign.path, a.campaign.codes, warnings)?;
     let (mut pos, stats) = (r.positions(g.g), r.channel_stats());
-    pos.t_ref_c = a.thermal.t_ref_c();
-    if a.max_terms == 0 || a.width == 0 || a.threads == Some(0) {
-        return Err(bad("--max-terms, --width and --threads must be at least 1"));
-    }
-    let settings = Settings {
-        basis: a.basis.into(),
-        criterion: a.criterion.into(),
-        split: a.split,
-        tolerance: a.tolerance,
-        max_terms: a.max_terms.min(accelcal_shared::N_BASIS),
-    };
+    pos.t_ref_c = a.t_ref_c;
+    let settings = &a.settings;
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(a.threads.unwrap_or(0))
         .build()
         .map_err(|e| anyhow::anyhow!("starting worker threads: {e}"))?;
     let sel = pool
-        .install(|| match a.algorithm {
-            Algorithm::Combi => compute_on(&pos, &stats, &a.channels, &settings),
-            Algorithm::Multi => compute_multi_on(&pos, &stats, &a.channels, &settings, a.width),
+        .install(|| match a.search {
+            Search::Combi => compute_on(&pos, &stats, &a.channels, settings),
+            Search::Multi { width } => compute_multi_on(&pos, &stats, &a.channels, settings, width),
         })
-        .with_context(|| a.campaign.display().to_string())?;
-    print_tables(&sel, &settings);
-    if let Some(j) = &a.common.json {
-        write_json(j, &to_json(&sel, &settings, &a.split.to_string(), a.top))?;
+        .with_context(|| a.campaign.path.display().to_string())?;
+    print_tables(&sel, settings);
+    if let Some(j) = &a.campaign.json {
+        write_json(j, &to_json(&sel, settings, &settings.split.to_string(), a.top))?;
     }
     if let Some(dir) = &a.plot {
-        for p in plots(dir, &sel, &settings)? {
+        for p in plots(dir, &sel, settings)? {
             println!("plot: {}", p.display());
         }
     }

@@ -1,5 +1,5 @@
 //! The settings of the commands on simulated or recorded campaigns that need no link to a node
-//! (`demo`, `simulate`, `plan`, `compare`, `diagnose`, `bench-diagnose`, `bench-signature`,
+//! (`demo`, `simulate`, `plan`, `select`, `compare`, `diagnose`, `bench-diagnose`, `bench-signature`,
 //! `uncertainty-check`):
 //! their command line checked and resolved into plain values before anything is opened.
 
@@ -12,8 +12,8 @@ use accelcal_core::error::bad;
 use accelcal_core::sim::{self, Plan, SimConfig};
 
 use crate::cli::{
-    BenchDiagnoseArgs, BenchSignatureArgs, CompareArgs, DemoArgs, DesignSize, DiagnoseArgs, PlanArgs,
-    SimulateArgs, UncertaintyCheckArgs,
+    Algorithm, BenchDiagnoseArgs, BenchSignatureArgs, CompareArgs, DemoArgs, DesignSize, DiagnoseArgs,
+    PlanArgs, SelectArgs, SimulateArgs, UncertaintyCheckArgs,
 };
 use crate::resolved::Gravity;
 
@@ -426,4 +426,72 @@ fn head(a: &PlanArgs) -> Head {
         beta_step_deg: d.beta_step_deg.unwrap_or(STEP_DEG),
         beta_max_deg: d.beta_max_deg.unwrap_or(BETA_MAX_DEG),
     }
+}
+
+/// Checks `--t-ref`, °C.
+pub fn check_t_ref(t_ref: f64) -> anyhow::Result<()> {
+    if !(t_ref.is_finite() && (-100.0..=200.0).contains(&t_ref)) {
+        return Err(accelcal_core::error::bad(format!(
+            "--t-ref must be a temperature in -100..=200 °C, got {t_ref}"
+        )));
+    }
+    Ok(())
+}
+
+/// `accelcal select`, settled.
+pub struct Select {
+    pub campaign: Campaign,
+    /// GMDH's settings: basis, criterion, split, tolerance (codes, ≥ 0), largest model.
+    pub settings: accelcal_core::gmdh::Settings,
+    /// `--t-ref`, °C: the thermal terms' reference.
+    pub t_ref_c: f64,
+    /// How the models are searched.
+    pub search: Search,
+    /// `--channels` (empty: every channel).
+    pub channels: Vec<String>,
+    /// `--threads` (`None`: one per core).
+    pub threads: Option<usize>,
+    /// `--top`: the candidates the JSON lists.
+    pub top: Option<usize>,
+    /// `--plot`.
+    pub plot: Option<PathBuf>,
+}
+
+/// How `select` searches the models.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Search {
+    /// Every combination of the basis's terms (combinatorial GMDH).
+    Combi,
+    /// Multi-row GMDH, a beam this wide.
+    Multi { width: usize },
+}
+
+/// `select`'s settings (the options of another mode refused by `settings::check`).
+pub fn select(a: &SelectArgs) -> anyhow::Result<Select> {
+    if !(a.tolerance.is_finite() && a.tolerance >= 0.0) {
+        return Err(bad(format!("--tolerance must be a number of codes >= 0, got {}", a.tolerance)));
+    }
+    check_t_ref(a.thermal.t_ref_c())?;
+    if a.max_terms == 0 || a.width == 0 || a.threads == Some(0) {
+        return Err(bad("--max-terms, --width and --threads must be at least 1"));
+    }
+    Ok(Select {
+        campaign: Campaign { path: a.campaign.clone(), codes: a.common.codes, json: a.common.json.clone() },
+        settings: accelcal_core::gmdh::Settings {
+            basis: a.basis.into(),
+            criterion: a.criterion.into(),
+            split: a.split.clone(),
+            tolerance: a.tolerance,
+            max_terms: a.max_terms.min(accelcal_shared::N_BASIS),
+        },
+        t_ref_c: a.thermal.t_ref_c(),
+        search: match a.algorithm {
+            Algorithm::Combi => Search::Combi,
+            Algorithm::Multi => Search::Multi { width: a.width },
+        },
+        channels: a.channels.clone(),
+        threads: a.threads,
+        top: a.top,
+        plot: a.plot.clone(),
+    })
 }

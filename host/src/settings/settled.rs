@@ -59,6 +59,8 @@ pub enum Settings {
     Simulate(campaign::Simulate),
     /// `accelcal plan`.
     Plan(campaign::PlanSettings),
+    /// `accelcal select`.
+    Select(campaign::Select),
     /// Every other command, as parsed.
     Parsed(Command),
 }
@@ -92,6 +94,7 @@ pub fn settle(command: Command, resolved: &Resolved) -> anyhow::Result<Settings>
         Command::Report(a) => Settings::Report(line::report(&a)?),
         Command::Simulate(a) => Settings::Simulate(campaign::simulate(&a, stated)?),
         Command::Plan(a) => Settings::Plan(campaign::plan(&a, stated)?),
+        Command::Select(a) => Settings::Select(campaign::select(&a)?),
         command => Settings::Parsed(command),
     })
 }
