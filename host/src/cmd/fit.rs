@@ -1,12 +1,10 @@
 //! `accelcal fit`: coefficients by least squares or test turns, and the calibration record.
 
-use accelcal_core::calibrate::{
-    fit_positions, gate, parse_device_id, record, record_bytes, record_crc_hex, Method,
-};
+use accelcal_core::calibrate::{fit_positions, gate, record, record_bytes, record_crc_hex, Method};
 use accelcal_core::campaign::identity::{CampaignId, Identity};
 use accelcal_core::document::{FitChannelDoc, FitDoc};
 use accelcal_core::error::bad;
-use accelcal_core::lsq::{self, LsqFit};
+use accelcal_core::lsq::LsqFit;
 use accelcal_core::output::{finite, write_atomic, write_json};
 use accelcal_line::node::session::device_id_hex;
 use anyhow::Context;
@@ -14,8 +12,7 @@ use anyhow::Context;
 use accelcal_core::positions::{ChannelStats, Positions};
 use accelcal_core::uncertainty::{self, Budget, References, UncertaintyJson, ARCSEC};
 
-use crate::cli::{FitArgs, MethodArg};
-use crate::settings::values::RunStore;
+use crate::settings::campaign::{Fit, FitSettings};
 
 /// The JSON document of a set of fits of the unit `identity`; `t_ref_c` (°C) is stated when a
 /// fit has a term in `t`.
@@ -70,33 +67,15 @@ pub fn print_table(method: Method, fits: &[(String, LsqFit)]) {
 }
 
 /// Runs `accelcal fit` at the gravity `g` (the user's, the campaign's or the assumed 9.81).
-pub fn run(a: &FitArgs, g: &super::Gravity, warnings: &mut super::Warnings) -> anyhow::Result<()> {
-    let method = match a.method {
-        MethodArg::Lsq => Method::Lsq,
-        MethodArg::TestTurns => Method::TestTurns,
-        MethodArg::GravityNorm => {
-            if a.temp_input.is_some() {
-                return Err(bad(
-                    "--temp-input does not apply to fit --method gravity-norm (its model has no terms in t)",
-                ));
-            }
-            if a.common.codes.is_some() {
-                return Err(bad(
-                    "--codes does not apply to fit --method gravity-norm (it applies to --method lsq and test-turns, which fit a campaign)",
-                ));
-            }
-            return super::gravity::run(a, g);
-        }
+pub fn run(s: &FitSettings, g: &super::Gravity, warnings: &mut super::Warnings) -> anyhow::Result<()> {
+    let a = match s {
+        FitSettings::GravityNorm(a) => return super::gravity::run(a, g),
+        FitSettings::Campaign(a) => a,
     };
-    let structure = lsq::parse_terms(&a.terms).map_err(|e| bad(format!("--terms: {e}")))?;
-    let given_id = a.device_id.as_deref().map(parse_device_id).transpose()?;
-    if a.temp_input.is_some() && a.record.is_none() {
-        return Err(bad("--temp-input applies to --record only"));
-    }
-    crate::settings::campaign::check_t_ref(a.thermal.t_ref_c())?;
-    let unit = CampaignId::read(&a.campaign)?;
-    let device_id = record_device_id(a, given_id, &unit)?;
-    let mut db = super::store::open(RunStore::of(&a.run)?.as_ref())?;
+    let (method, structure) = (a.method, a.structure);
+    let unit = CampaignId::read(&a.campaign.path)?;
+    let device_id = record_device_id(a, a.device_id, &unit)?;
+    let mut db = super::store::open(a.store.as_ref())?;
     // The head's register entry, checked before anything is computed or written.
     let head = match (&a.head_asset, &mut db) {
         (Some(id), Some(rdb)) => {
@@ -128,26 +107,26 @@ pub fn run(a: &FitArgs, g: &super::Gravity, warnings: &mut super::Warnings) -> a
         warnings.extend(super::fleet::over_certificate(h, m).as_slice());
     }
     // Streamed: the fits need the dwell statistics only, so memory does not grow with the rows.
-    let r = super::reduce_campaign(&a.campaign, a.common.codes, warnings)?;
+    let r = super::reduce_campaign(&a.campaign.path, a.campaign.codes, warnings)?;
     let mut pos = r.positions(g.g);
-    pos.t_ref_c = a.thermal.t_ref_c();
+    pos.t_ref_c = a.t_ref_c;
     let stats = r.channel_stats();
-    let fits =
-        fit_positions(&pos, &stats, method, structure).with_context(|| a.campaign.display().to_string())?;
+    let fits = fit_positions(&pos, &stats, method, structure)
+        .with_context(|| a.campaign.path.display().to_string())?;
     // The record is built and checked first: a record a node would refuse writes nothing.
     let rec = match &a.record {
         Some(path) => {
             let thermal = match (a.temp_input, pos.temp_range()) {
                 (Some(input), Some((lo, hi))) => Some(accelcal_shared::record::Thermal {
-                    t_ref_c: a.thermal.t_ref_c() as f32,
+                    t_ref_c: a.t_ref_c as f32,
                     t_min_c: lo as f32,
                     t_max_c: hi as f32,
-                    source: input.into(),
+                    source: input,
                 }),
                 (Some(_), None) => {
                     return Err(bad(format!(
                         "{}: --temp-input needs the campaign's temperature, and it has no `temp_c` column",
-                        a.campaign.display()
+                        a.campaign.path.display()
                     )))
                 }
                 (None, _) => None,
@@ -159,7 +138,7 @@ pub fn run(a: &FitArgs, g: &super::Gravity, warnings: &mut super::Warnings) -> a
         None => None,
     };
     print_table(method, &fits);
-    let header = accelcal_core::campaign::header(&a.campaign)?;
+    let header = accelcal_core::campaign::header(&a.campaign.path)?;
     let get = |k: &str| header.iter().find(|(key, _)| key == k).map(|(_, v)| v.clone()).unwrap_or_default();
     let budget = fit_budget(a, head_u, method, &pos, &stats, &fits, g)?;
     if let Some(b) = &budget {
@@ -172,8 +151,8 @@ pub fn run(a: &FitArgs, g: &super::Gravity, warnings: &mut super::Warnings) -> a
         campaign_sha256: unit.sha256,
         record_crc: rec.as_ref().map(|(_, bytes, _)| record_crc_hex(bytes)),
     };
-    let doc = to_json(method, &fits, a.thermal.t_ref_c(), identity.clone(), budget.as_ref());
-    if let Some(j) = &a.common.json {
+    let doc = to_json(method, &fits, a.t_ref_c, identity.clone(), budget.as_ref());
+    if let Some(j) = &a.campaign.json {
         write_json(j, &doc)?;
     }
     if let Some((path, bytes, rec)) = &rec {
@@ -192,7 +171,7 @@ pub fn run(a: &FitArgs, g: &super::Gravity, warnings: &mut super::Warnings) -> a
         let Some(device_id) = identity.device_id.clone() else {
             return Err(bad(format!(
                 "fit --db needs the unit's device id: {} has no `# device_id:` line (give --record with --device-id)",
-                a.campaign.display()
+                a.campaign.path.display()
             )));
         };
         let run = rdb.begin_or_continue(super::store::Begin {
@@ -211,7 +190,7 @@ pub fn run(a: &FitArgs, g: &super::Gravity, warnings: &mut super::Warnings) -> a
         }
         let json = serde_json::to_string_pretty(&doc).context("serialising the fit")?;
         let bytes = rec.as_ref().map(|(_, b, _)| b.as_slice());
-        super::store::fit_pieces(&mut rdb.db, run, &a.campaign, &json, bytes)?;
+        super::store::fit_pieces(&mut rdb.db, run, &a.campaign.path, &json, bytes)?;
         println!(
             "db: run {run}: campaign, fit{} stored in {}",
             if bytes.is_some() { " and record" } else { "" },
@@ -248,7 +227,7 @@ impl HeadU<'_> {
 /// whose channels are not a triad: then those options are refused here). The standard uncertainty
 /// of g is its source's bound taken as rectangular (bound/√3).
 fn fit_budget(
-    a: &FitArgs,
+    a: &Fit,
     head: HeadU<'_>,
     method: Method,
     pos: &Positions,
@@ -260,7 +239,7 @@ fn fit_budget(
     if method != Method::Lsq || fits.iter().any(|(_, f)| f.structure != accelcal_shared::terms::MODEL_4) {
         return Ok(None);
     }
-    let stated = head.angle.is_some() || head.orthogonality.is_some() || a.tempco.coefficients().is_some();
+    let stated = head.angle.is_some() || head.orthogonality.is_some() || a.tempco.is_some();
     let (bound, why) = g_uncertainty(g.g, g.words().as_deref());
     let refs = References {
         head_angle_rad: head.angle_u().unwrap_or(0.0) * ARCSEC,
@@ -269,7 +248,7 @@ fn fit_budget(
         // GMDH needs a plan whose split identifies its candidates; on fewer positions the lack of
         // fit is not measured, and the budget says so.
         lack_of_fit_codes: lack_of_fit_codes(pos, stats),
-        temperature: a.tempco.coefficients(),
+        temperature: a.tempco,
     };
     let only: Vec<&LsqFit> = fits.iter().map(|(_, f)| f).collect();
     match uncertainty::budget(pos, stats, &only, refs) {
@@ -303,7 +282,7 @@ fn fit_budget(
             Ok(Some(b))
         }
         Err(uncertainty::UncertaintyError::NotATriad(_)) if !stated => Ok(None),
-        Err(e) => Err(anyhow::Error::new(e).context(a.campaign.display().to_string())),
+        Err(e) => Err(anyhow::Error::new(e).context(a.campaign.path.display().to_string())),
     }
 }
 
@@ -316,11 +295,7 @@ fn lack_of_fit_codes(pos: &Positions, stats: &[ChannelStats]) -> Option<[f64; 3]
 /// The device id of `fit --record`: the campaign's `# device_id:` line, which `--device-id` may
 /// repeat but not contradict, else `--device-id`; refused when neither gives one. `None` without
 /// `--record`.
-fn record_device_id(
-    a: &FitArgs,
-    given: Option<[u8; 12]>,
-    unit: &CampaignId,
-) -> anyhow::Result<Option<[u8; 12]>> {
+fn record_device_id(a: &Fit, given: Option<[u8; 12]>, unit: &CampaignId) -> anyhow::Result<Option<[u8; 12]>> {
     if a.record.is_none() {
         return Ok(None);
     }
@@ -330,14 +305,14 @@ fn record_device_id(
             "--device-id {} contradicts {}'s `# device_id: {}`: not the same unit (leave --device-id out: the \
              campaign's is used)",
             device_id_hex(&g),
-            a.campaign.display(),
+            a.campaign.path.display(),
             device_id_hex(&c)
         ))),
         (Some(id), _) | (None, Some(id)) => Ok(Some(id)),
         (None, None) => Err(bad(format!(
             "fit --record needs --device-id HEX, the MCU's 96-bit unique id (`accelcal info` shows it): {} has no \
              `# device_id:` line, and a node accepts only a record made for it",
-            a.campaign.display()
+            a.campaign.path.display()
         ))),
     }
 }

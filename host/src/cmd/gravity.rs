@@ -4,54 +4,19 @@
 
 use std::path::Path;
 
-use accelcal_core::calibrate::{gate, parse_device_id, record_bytes, record_crc_hex, write_record};
+use accelcal_core::calibrate::{gate, record_bytes, record_crc_hex, write_record};
 use accelcal_core::campaign::identity::{content_sha256, Identity};
 use accelcal_core::error::bad;
-use accelcal_core::gravity::{
-    self, fit::GravityStructure, fit::TriadModel, holds::DetectorConfig, holds::ThresholdSource,
-};
-use accelcal_core::gravity::{imutk, Calibration, StructureChoice};
+use accelcal_core::gravity::{self, fit::GravityStructure, fit::TriadModel, holds::ThresholdSource};
+use accelcal_core::gravity::{imutk, Calibration};
 use accelcal_core::output::{write_atomic, write_atomic_with, write_json};
 use accelcal_line::node::session::device_id_hex;
 use accelcal_shared::record::Record;
 use anyhow::Context;
 use serde::Serialize;
 
-use crate::cli::{FitArgs, GravityOptions, InputFormat, StructureArg};
 use crate::report::gravity_plot as plot;
-
-/// Checks the gravity-norm options before any I/O; errors are bad input (exit code 2).
-pub fn validate(a: &FitArgs) -> anyhow::Result<()> {
-    let o = &a.gravity;
-    if !(o.min_hold_s.is_finite() && o.min_hold_s >= 0.0) {
-        return Err(bad(format!("--min-hold-s must be non-negative, got {}", o.min_hold_s)));
-    }
-    if !(o.window_s.is_finite() && o.window_s > 0.0) {
-        return Err(bad(format!("--window-s must be positive, got {}", o.window_s)));
-    }
-    if let Some(th) = o.threshold.filter(|th| !(th.is_finite() && *th > 0.0)) {
-        return Err(bad(format!("--threshold must be positive, got {th}")));
-    }
-    Ok(())
-}
-
-fn detector(o: &GravityOptions) -> DetectorConfig {
-    DetectorConfig {
-        window_s: o.window_s,
-        min_hold_s: o.min_hold_s,
-        threshold: o.threshold,
-        ..DetectorConfig::default()
-    }
-}
-
-fn structure_choice(o: &GravityOptions) -> StructureChoice {
-    match o.structure {
-        StructureArg::BiasScale => StructureChoice::Fixed(GravityStructure::BiasScale),
-        StructureArg::ImuTk => StructureChoice::Fixed(GravityStructure::ImuTk),
-        StructureArg::Quadratic => StructureChoice::Fixed(GravityStructure::ImuTkQuadratic),
-        StructureArg::Auto => StructureChoice::Auto,
-    }
-}
+use crate::settings::campaign::GravityNormFit;
 
 /// One channel of the JSON report.
 #[derive(Debug, Clone, Serialize)]
@@ -240,17 +205,14 @@ pub fn json_report(cal: &Calibration, identity: Identity) -> JsonReport {
 }
 
 /// Reads the input, detects the holds and fits, without printing anything.
-pub fn calibrate_file(a: &FitArgs, g: f64) -> anyhow::Result<(imutk::Recording, Calibration)> {
-    validate(a)?;
-    let InputFormat::ImuTk = a.gravity.format;
-    gravity::calibrate_path(&a.campaign, g, &detector(&a.gravity), structure_choice(&a.gravity))
+pub fn calibrate_file(a: &GravityNormFit, g: f64) -> anyhow::Result<(imutk::Recording, Calibration)> {
+    gravity::calibrate_path(&a.input, g, &a.detector, a.structure.clone())
 }
 
 /// Runs `accelcal fit --method gravity-norm`: prints the report, writes the JSON, the plots and
 /// the holds as a campaign if asked.
-pub fn run(a: &FitArgs, g: &super::Gravity) -> anyhow::Result<()> {
-    // The device id is checked before the input is read.
-    let device_id = a.device_id.as_deref().map(parse_device_id).transpose()?;
+pub fn run(a: &GravityNormFit, g: &super::Gravity) -> anyhow::Result<()> {
+    let device_id = a.device_id;
     let (rec, cal) = calibrate_file(a, g.g)?;
     // The record is built and checked first: a record a node would refuse writes nothing.
     let record = match &a.record {
@@ -274,23 +236,23 @@ pub fn run(a: &FitArgs, g: &super::Gravity) -> anyhow::Result<()> {
         }
         None => None,
     };
-    print!("{}", human_report(&a.campaign, rec.len(), &cal));
-    if let Some(path) = &a.common.json {
+    print!("{}", human_report(&a.input, rec.len(), &cal));
+    if let Some(path) = &a.json {
         let crc = record.as_ref().map(|(_, r)| record_bytes(r).map(|b| record_crc_hex(&b))).transpose()?;
         let identity = Identity {
             device_id: record.as_ref().map(|(_, r)| device_id_hex(&r.device_id)),
             serial: None,
             g_m_s2: g.g,
-            campaign_sha256: content_sha256(&a.campaign)?,
+            campaign_sha256: content_sha256(&a.input)?,
             record_crc: crc,
         };
         write_json(path, &json_report(&cal, identity))?;
         println!("wrote {}", path.display());
     }
-    if let Some(dir) = &a.gravity.plot {
+    if let Some(dir) = &a.plot {
         write_plots(dir, &rec.t, &cal)?;
     }
-    if let Some(path) = &a.gravity.campaign_out {
+    if let Some(path) = &a.campaign_out {
         let c = gravity::holds_campaign(&rec, &cal);
         write_atomic_with(path, |w| c.write(w).context("writing CSV"))?;
         println!("wrote {} ({} holds as position dwells)", path.display(), cal.detection.holds.len());

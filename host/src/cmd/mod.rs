@@ -27,6 +27,7 @@ pub mod uncertainty;
 
 use crate::cli::Command;
 pub use crate::resolved::{check_g, fallback_note as g_fallback, Gravity, Source};
+use crate::settings::campaign;
 use crate::settings::settled::Settings;
 
 /// Runs a settled command line; the campaign readers' warnings go to `warnings`.
@@ -69,10 +70,16 @@ pub fn run(
         Settings::Select(s) => {
             return select::run(&s, &campaign_g(stated, &s.campaign.path, warnings)?, warnings)
         }
+        Settings::Fit(s) => {
+            let input = match &s {
+                campaign::FitSettings::Campaign(f) => &f.campaign.path,
+                campaign::FitSettings::GravityNorm(f) => &f.input,
+            };
+            return fit::run(&s, &campaign_g(stated, input, warnings)?, warnings);
+        }
         Settings::Parsed(command) => command,
     };
     match command {
-        Command::Fit(a) => fit::run(&a, &campaign_g(stated, &a.campaign, warnings)?, warnings),
         Command::Acquire(a) => live::run_acquire(&a, stated),
         Command::Verify(a) => live::run_verify(&a, stated),
         Command::Station(a) => station::run(&a, stated, resolved.config.as_ref()),
@@ -101,7 +108,8 @@ pub fn run(
         | Command::Report(_)
         | Command::Simulate(_)
         | Command::Plan(_)
-        | Command::Select(_) => {
+        | Command::Select(_)
+        | Command::Fit(_) => {
             unreachable!("the commands on the database are settled (settings::settled::settle)")
         }
     }

@@ -1,5 +1,6 @@
 //! The settings of the commands on simulated or recorded campaigns that need no link to a node
-//! (`demo`, `simulate`, `plan`, `select`, `compare`, `diagnose`, `bench-diagnose`, `bench-signature`,
+//! (`demo`, `simulate`, `plan`, `select`, `fit`, `compare`, `diagnose`, `bench-diagnose`,
+//! `bench-signature`,
 //! `uncertainty-check`):
 //! their command line checked and resolved into plain values before anything is opened.
 
@@ -11,9 +12,11 @@ use accelcal_core::design::{Chamber, DesignError};
 use accelcal_core::error::bad;
 use accelcal_core::sim::{self, Plan, SimConfig};
 
+use super::values::RunStore;
 use crate::cli::{
     Algorithm, BenchDiagnoseArgs, BenchSignatureArgs, CompareArgs, DemoArgs, DesignSize, DiagnoseArgs,
-    PlanArgs, SelectArgs, SimulateArgs, UncertaintyCheckArgs,
+    FitArgs, GravityOptions, MethodArg, PlanArgs, SelectArgs, SimulateArgs, StructureArg,
+    UncertaintyCheckArgs,
 };
 use crate::resolved::Gravity;
 
@@ -494,4 +497,140 @@ pub fn select(a: &SelectArgs) -> anyhow::Result<Select> {
         top: a.top,
         plot: a.plot.clone(),
     })
+}
+
+/// `accelcal fit`, settled: a campaign fitted by least squares or test turns, or a recording
+/// calibrated by the gravity norm.
+pub enum FitSettings {
+    Campaign(Box<Fit>),
+    GravityNorm(Box<GravityNormFit>),
+}
+
+/// `fit --method lsq|test-turns`.
+pub struct Fit {
+    pub campaign: Campaign,
+    pub method: accelcal_core::calibrate::Method,
+    /// `--terms`.
+    pub structure: accelcal_shared::Structure,
+    /// `--record`, with `--device-id` (parsed; the campaign's `# device_id:` otherwise) and
+    /// `--created`.
+    pub record: Option<PathBuf>,
+    pub device_id: Option<[u8; 12]>,
+    pub created: Option<u64>,
+    /// `--t-ref`, °C, and `--temp-input` (with `--record` only).
+    pub t_ref_c: f64,
+    pub temp_input: Option<accelcal_shared::record::TempSource>,
+    /// The head's stated uncertainties, arcsec, or its asset in the register (with `--db`).
+    pub head_angle_u: Option<f64>,
+    pub head_orthogonality_u: Option<f64>,
+    pub head_asset: Option<String>,
+    /// The unit type's temperature coefficients (all or none).
+    pub tempco: Option<accelcal_core::uncertainty::TempCoefficients>,
+    /// `--db`, `--run-id`, `--relabel`.
+    pub store: Option<RunStore>,
+}
+
+/// `fit --method gravity-norm`.
+pub struct GravityNormFit {
+    /// The recording (imu_tk's format) and `--json`.
+    pub input: PathBuf,
+    pub json: Option<PathBuf>,
+    /// `--record` with `--device-id` (parsed) and `--created`.
+    pub record: Option<PathBuf>,
+    pub device_id: Option<[u8; 12]>,
+    pub created: Option<u64>,
+    /// How the holds are found (`--window-s`, `--min-hold-s`, `--threshold`) and the model
+    /// (`--structure`).
+    pub detector: accelcal_core::gravity::holds::DetectorConfig,
+    pub structure: accelcal_core::gravity::StructureChoice,
+    /// `--plot`, `--campaign-out`.
+    pub plot: Option<PathBuf>,
+    pub campaign_out: Option<PathBuf>,
+}
+
+/// `fit`'s settings (what does not apply to the method refused by `settings::check`).
+pub fn fit(a: &FitArgs) -> anyhow::Result<FitSettings> {
+    use accelcal_core::calibrate::{parse_device_id, Method};
+    let method = match a.method {
+        MethodArg::Lsq => Method::Lsq,
+        MethodArg::TestTurns => Method::TestTurns,
+        MethodArg::GravityNorm => {
+            if a.temp_input.is_some() {
+                return Err(bad(
+                    "--temp-input does not apply to fit --method gravity-norm (its model has no terms in t)",
+                ));
+            }
+            if a.common.codes.is_some() {
+                return Err(bad(
+                    "--codes does not apply to fit --method gravity-norm (it applies to --method lsq and test-turns, which fit a campaign)",
+                ));
+            }
+            let device_id = a.device_id.as_deref().map(parse_device_id).transpose()?;
+            let o = &a.gravity;
+            return Ok(FitSettings::GravityNorm(Box::new(GravityNormFit {
+                input: a.campaign.clone(),
+                json: a.common.json.clone(),
+                record: a.record.clone(),
+                device_id,
+                created: a.created,
+                detector: detector(o)?,
+                structure: structure_choice(o),
+                plot: o.plot.clone(),
+                campaign_out: o.campaign_out.clone(),
+            })));
+        }
+    };
+    let structure = accelcal_core::lsq::parse_terms(&a.terms).map_err(|e| bad(format!("--terms: {e}")))?;
+    let device_id = a.device_id.as_deref().map(parse_device_id).transpose()?;
+    if a.temp_input.is_some() && a.record.is_none() {
+        return Err(bad("--temp-input applies to --record only"));
+    }
+    check_t_ref(a.thermal.t_ref_c())?;
+    Ok(FitSettings::Campaign(Box::new(Fit {
+        campaign: Campaign { path: a.campaign.clone(), codes: a.common.codes, json: a.common.json.clone() },
+        method,
+        structure,
+        record: a.record.clone(),
+        device_id,
+        created: a.created,
+        t_ref_c: a.thermal.t_ref_c(),
+        temp_input: a.temp_input.map(Into::into),
+        head_angle_u: a.head_angle_u,
+        head_orthogonality_u: a.head_orthogonality_u,
+        head_asset: a.head_asset.clone(),
+        tempco: a.tempco.coefficients(),
+        store: RunStore::of(&a.run)?,
+    })))
+}
+
+/// The gravity norm's hold detector: `--window-s` (positive), `--min-hold-s` (≥ 0),
+/// `--threshold` (positive, when given).
+fn detector(o: &GravityOptions) -> anyhow::Result<accelcal_core::gravity::holds::DetectorConfig> {
+    if !(o.min_hold_s.is_finite() && o.min_hold_s >= 0.0) {
+        return Err(bad(format!("--min-hold-s must be non-negative, got {}", o.min_hold_s)));
+    }
+    if !(o.window_s.is_finite() && o.window_s > 0.0) {
+        return Err(bad(format!("--window-s must be positive, got {}", o.window_s)));
+    }
+    if let Some(th) = o.threshold.filter(|th| !(th.is_finite() && *th > 0.0)) {
+        return Err(bad(format!("--threshold must be positive, got {th}")));
+    }
+    Ok(accelcal_core::gravity::holds::DetectorConfig {
+        window_s: o.window_s,
+        min_hold_s: o.min_hold_s,
+        threshold: o.threshold,
+        ..Default::default()
+    })
+}
+
+/// The gravity norm's model: `--structure`.
+fn structure_choice(o: &GravityOptions) -> accelcal_core::gravity::StructureChoice {
+    use accelcal_core::gravity::fit::GravityStructure;
+    use accelcal_core::gravity::StructureChoice;
+    match o.structure {
+        StructureArg::BiasScale => StructureChoice::Fixed(GravityStructure::BiasScale),
+        StructureArg::ImuTk => StructureChoice::Fixed(GravityStructure::ImuTk),
+        StructureArg::Quadratic => StructureChoice::Fixed(GravityStructure::ImuTkQuadratic),
+        StructureArg::Auto => StructureChoice::Auto,
+    }
 }

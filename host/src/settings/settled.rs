@@ -61,6 +61,8 @@ pub enum Settings {
     Plan(campaign::PlanSettings),
     /// `accelcal select`.
     Select(campaign::Select),
+    /// `accelcal fit`.
+    Fit(campaign::FitSettings),
     /// Every other command, as parsed.
     Parsed(Command),
 }
@@ -95,6 +97,7 @@ pub fn settle(command: Command, resolved: &Resolved) -> anyhow::Result<Settings>
         Command::Simulate(a) => Settings::Simulate(campaign::simulate(&a, stated)?),
         Command::Plan(a) => Settings::Plan(campaign::plan(&a, stated)?),
         Command::Select(a) => Settings::Select(campaign::select(&a)?),
+        Command::Fit(a) => Settings::Fit(campaign::fit(&a)?),
         command => Settings::Parsed(command),
     })
 }
