@@ -9,7 +9,6 @@ use std::time::Duration;
 use accelcal_core::campaign::identity::Identity;
 use accelcal_core::error::{bad, Interrupted};
 use accelcal_core::output::write_json;
-use accelcal_core::sim::Plan;
 use accelcal_line::acquire::{
     self, AcquireConfig, NodeRun, PositionReport, Positioner, Progress, StaticRule,
 };
@@ -17,14 +16,11 @@ use accelcal_line::node::head::{HeadSpec, SimHead};
 use accelcal_line::node::session::{device_id_hex, firmware_version, Session};
 use accelcal_line::verify::{
     calibrated_rule, uncertainty_from_fit_json, verify, PositionCheck, Tolerance, VerifyConfig, VerifyReport,
-    DEFAULT_COVERAGE,
 };
 use accelcal_shared::wire::{Info, Output, RecordStatus};
 
 use super::{Gravity, Source};
-use crate::cli::{AcquireArgs, VerifyArgs};
-use crate::settings::line::{self, Link, SetOutput};
-use crate::settings::values::RunStore;
+use crate::settings::line::{self, Acquire, HeadUse, Judged, Link, SetOutput, Verify};
 
 fn open(link: &Link) -> anyhow::Result<Session> {
     Ok(Session::open(&link.port, link.baud, link.timeout)?)
@@ -166,27 +162,6 @@ impl Positioner for ManualHead {
     }
 }
 
-/// The chamber options of `acquire`/`verify`, checked: the soak is required with a setpoint and
-/// refused without one.
-fn soak_of(setpoints: &[f64], soak_s: Option<f64>) -> anyhow::Result<Option<Duration>> {
-    match (setpoints.is_empty(), soak_s) {
-        (true, None) => Ok(None),
-        (true, Some(_)) => Err(bad("--soak-s applies with --chamber only")),
-        (false, None) => Err(bad("--chamber needs --soak-s (seconds to wait at each setpoint)")),
-        (false, Some(s)) if !(s.is_finite() && s >= 0.0) => {
-            Err(bad(format!("--soak-s must be a number of seconds >= 0, got {s}")))
-        }
-        (false, Some(s)) => {
-            if let Some(t) =
-                setpoints.iter().find(|t| !accelcal_line::node::head::CHAMBER_RANGE_C.contains(*t))
-            {
-                return Err(bad(format!("--chamber {t}: a setpoint must be in -60..=150 °C")));
-            }
-            Ok(Some(Duration::from_secs_f64(s)))
-        }
-    }
-}
-
 /// Progress lines on stderr.
 struct Lines;
 
@@ -256,14 +231,10 @@ pub fn stop_flag() -> anyhow::Result<Arc<AtomicBool>> {
 
 /// The head `spec` names; an emulated one must answer every request within `timeout_s`
 /// (`--head-timeout-s`), an operator takes the time they need.
-fn connect_head(
-    spec: &HeadSpec,
-    timeout_s: f64,
-    stop: &Arc<AtomicBool>,
-) -> anyhow::Result<Box<dyn Positioner>> {
-    Ok(match spec {
+fn connect_head(head: &HeadUse, stop: &Arc<AtomicBool>) -> anyhow::Result<Box<dyn Positioner>> {
+    Ok(match &head.spec {
         HeadSpec::Manual => Box::new(ManualHead::new(stop.clone())),
-        HeadSpec::Sim(addr) => Box::new(SimHead::connect(addr, Duration::from_secs_f64(timeout_s))?),
+        HeadSpec::Sim(addr) => Box::new(SimHead::connect(addr, Duration::from_secs_f64(head.timeout_s))?),
     })
 }
 
@@ -273,12 +244,10 @@ pub const DEFAULT_SAMPLES: usize = 400;
 /// `--resume`'s samples, rate and g: the campaign's (its header), whatever the defaults; an
 /// option that contradicts them is refused, naming both (checked before the node is opened).
 /// With several campaigns (one per node), they must agree.
-fn resumed_settings(
-    a: &AcquireArgs,
-    stated: Option<&Gravity>,
-) -> anyhow::Result<(usize, Option<u32>, (f64, String))> {
+fn resumed_settings(a: &Acquire) -> anyhow::Result<(usize, Option<u32>, (f64, String))> {
+    let stated = a.stated.as_ref();
     let mut first: Option<(&std::path::Path, acquire::ResumeSettings)> = None;
-    for out in &a.out {
+    for out in a.nodes.iter().map(|n| &n.out) {
         let file = acquire::resume_settings(out)?;
         let d = out.display();
         let clash = |option: String, key: &str, have: String| {
@@ -342,44 +311,46 @@ impl Progress for NodeLines {
 }
 
 /// Runs `accelcal acquire`.
-pub fn run_acquire(a: &AcquireArgs, stated: Option<&Gravity>) -> anyhow::Result<()> {
-    let plan = Plan::from_spec(&a.plan, 1).map_err(|e| bad(format!("--plan {e}")))?;
-    let soak = soak_of(&a.chamber, a.soak_s)?;
+pub fn run_acquire(a: &Acquire) -> anyhow::Result<()> {
     let (samples, rate_hz, (g, g_source)) = if a.resume {
-        resumed_settings(a, stated)?
+        resumed_settings(a)?
     } else {
-        let g = rig_gravity(stated);
+        let g = rig_gravity(a.stated.as_ref());
         (a.samples.unwrap_or(DEFAULT_SAMPLES), a.rate_hz, (g.g, g.stored()))
     };
     let stop = stop_flag()?;
-    let answer = Duration::from_secs_f64(a.timeout_s);
-    let mut nodes = Vec::with_capacity(a.port.len());
-    for port in &a.port {
-        nodes.push(Session::open(port, a.baud, answer)?);
+    let mut nodes = Vec::with_capacity(a.nodes.len());
+    for n in &a.nodes {
+        nodes.push(Session::open(&n.port, a.baud, a.answer_timeout)?);
     }
-    let mut head = connect_head(&a.head, a.head_timeout_s, &stop)?;
+    let mut head = connect_head(&a.head, &stop)?;
     let cfg = AcquireConfig {
-        out: a.out[0].clone(),
-        plan,
-        plan_name: a.plan.clone(),
+        out: a.nodes[0].out.clone(),
+        plan: a.plan.clone(),
+        plan_name: a.plan_spec.clone(),
         samples,
         rate_hz,
-        rule: StaticRule { window: a.static_window, z: a.static_z, ..StaticRule::default() },
-        settle_timeout: Duration::from_secs_f64(a.settle_timeout_s),
+        rule: a.rule,
+        settle_timeout: a.settle_timeout,
         g,
         g_source,
-        serial: a.serial.first().cloned(),
+        serial: a.nodes[0].serial.clone(),
         resume: a.resume,
         date: super::record::utc(super::created(None)),
         tool_version: env!("CARGO_PKG_VERSION").into(),
-        chamber: soak.map(|soak| acquire::Chamber { setpoints_c: a.chamber.clone(), soak }),
+        chamber: a.chamber.clone(),
     };
-    let several = a.port.len() > 1;
-    let cfgs: Vec<AcquireConfig> = (0..a.port.len())
-        .map(|i| AcquireConfig { out: a.out[i].clone(), serial: a.serial.get(i).cloned(), ..cfg.clone() })
+    let several = a.nodes.len() > 1;
+    let cfgs: Vec<AcquireConfig> = a
+        .nodes
+        .iter()
+        .map(|n| AcquireConfig { out: n.out.clone(), serial: n.serial.clone(), ..cfg.clone() })
         .collect();
-    let mut lines: Vec<NodeLines> =
-        a.port.iter().map(|p| NodeLines(if several { format!("{p}: ") } else { String::new() })).collect();
+    let mut lines: Vec<NodeLines> = a
+        .nodes
+        .iter()
+        .map(|n| NodeLines(if several { format!("{}: ", n.port) } else { String::new() }))
+        .collect();
     let mut runs: Vec<NodeRun> = nodes
         .iter_mut()
         .zip(&cfgs)
@@ -390,15 +361,15 @@ pub fn run_acquire(a: &AcquireArgs, stated: Option<&Gravity>) -> anyhow::Result<
     if sums.iter().any(|s| s.interrupted) {
         let held: Vec<String> = sums
             .iter()
-            .zip(&a.out)
-            .map(|(s, out)| format!("{} holds {} of {} positions", out.display(), s.positions, s.planned))
+            .zip(&a.nodes)
+            .map(|(s, n)| format!("{} holds {} of {} positions", n.out.display(), s.positions, s.planned))
             .collect();
         return Err(anyhow::Error::new(Interrupted(format!(
             "interrupted: {}; continue with --resume",
             held.join(", ")
         ))));
     }
-    for (sum, out) in sums.iter().zip(&a.out) {
+    for (sum, out) in sums.iter().zip(a.nodes.iter().map(|n| &n.out)) {
         println!(
             "acquire: {} positions of device {} written to {} ({} sets each, {} sets lost while recording)",
             sum.positions,
@@ -447,14 +418,13 @@ fn check_line(c: &PositionCheck, n: usize) -> String {
 }
 
 /// Runs `accelcal verify`.
-pub fn run_verify(a: &VerifyArgs, stated: Option<&Gravity>) -> anyhow::Result<()> {
-    let plan = Plan::from_spec(&a.plan, 1).map_err(|e| bad(format!("--plan {e}")))?;
-    // Checked in `settings`: --coverage >= 1, and neither it nor --fit with --tolerance.
-    let k = a.coverage.unwrap_or(DEFAULT_COVERAGE);
+pub fn run_verify(a: &Verify) -> anyhow::Result<()> {
+    let stated = a.stated.as_ref();
     let mut fit = None;
-    let tolerance = match (a.tolerance, &a.fit) {
-        (Some(t), _) => Tolerance::Fixed(t),
-        (None, Some(p)) => {
+    let tolerance = match &a.judged {
+        Judged::Tolerance(t) => Tolerance::Fixed(*t),
+        Judged::Derived { fit: Some(p), k } => {
+            let k = *k;
             let text = std::fs::read_to_string(p)
                 .map_err(|e| bad(format!("{}: cannot read the fit JSON: {e}", p.display())))?;
             let what = p.display().to_string();
@@ -464,9 +434,8 @@ pub fn run_verify(a: &VerifyArgs, stated: Option<&Gravity>) -> anyhow::Result<()
             fit = Some((what.clone(), Identity::of_fit_json(&doc, &what)?));
             Tolerance::Derived { cal: Some(Box::new(cal)), k }
         }
-        (None, None) => Tolerance::Derived { cal: None, k },
+        Judged::Derived { fit: None, k } => Tolerance::Derived { cal: None, k: *k },
     };
-    let soak = soak_of(a.chamber.as_slice(), a.soak_s)?;
     // Without --g or --latitude, the g of the fit (the rig's, where the unit was calibrated).
     let gravity = match (stated, &fit) {
         (None, Some((what, id))) => Gravity { g: id.g_m_s2, source: Source::Fit { what: what.clone() } },
@@ -475,22 +444,22 @@ pub fn run_verify(a: &VerifyArgs, stated: Option<&Gravity>) -> anyhow::Result<()
     let (g, g_source) = (gravity.g, gravity.stored());
     let spec = a.spec.as_deref().map(super::spec::read).transpose()?;
     if let Some(s) = &spec {
-        accelcal_line::verify::plan_measures_parameters(s, &plan.positions, g)?;
+        accelcal_line::verify::plan_measures_parameters(s, &a.plan.positions, g)?;
     }
     let (refs, not_included) = super::spec::references(g, &g_source, a.head_angle_u, a.head_orthogonality_u);
-    let mut db = super::store::open(RunStore::of(&a.run)?.as_ref())?;
+    let mut db = super::store::open(a.store.as_ref())?;
     let stop = stop_flag()?;
-    let mut node = open(&Link::of(&a.link))?;
-    let mut head = connect_head(&a.head, a.head_timeout_s, &stop)?;
+    let mut node = open(&a.link)?;
+    let mut head = connect_head(&a.head, &stop)?;
     let serial = fit.as_ref().and_then(|(_, id)| id.serial.clone()).unwrap_or_default();
     let cfg = VerifyConfig {
-        plan,
+        plan: a.plan.clone(),
         samples: a.samples,
         rule: calibrated_rule(),
-        settle_timeout: Duration::from_secs_f64(a.settle_timeout_s),
+        settle_timeout: a.settle_timeout,
         g,
         tolerance,
-        chamber: a.chamber.zip(soak),
+        chamber: a.chamber,
         fit,
         spec: spec.map(|s| (s, refs)),
     };
@@ -511,11 +480,11 @@ pub fn run_verify(a: &VerifyArgs, stated: Option<&Gravity>) -> anyhow::Result<()
         let run = rdb.begin_or_continue(super::store::Begin {
             device_id: report.device_id.clone(),
             serial,
-            head: super::store::head_text(&a.head),
+            head: super::store::head_text(&a.head.spec),
             firmware_version: String::new(),
             g: (g, g_source.clone()),
         })?;
-        let phase = super::store::phase(a.phase);
+        let phase = a.phase;
         // The stored report is the file's, as `report --verify` and the station read it back.
         let stored = match &a.json {
             Some(p) => VerifyReport::read(p)?,

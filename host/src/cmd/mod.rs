@@ -77,11 +77,11 @@ pub fn run(
             };
             return fit::run(&s, &campaign_g(stated, input, warnings)?, warnings);
         }
+        Settings::Acquire(s) => return live::run_acquire(&s),
+        Settings::Verify(s) => return live::run_verify(&s),
         Settings::Parsed(command) => command,
     };
     match command {
-        Command::Acquire(a) => live::run_acquire(&a, stated),
-        Command::Verify(a) => live::run_verify(&a, stated),
         Command::Station(a) => station::run(&a, stated, resolved.config.as_ref()),
         Command::Fleet(_)
         | Command::Certificate(_)
@@ -109,7 +109,9 @@ pub fn run(
         | Command::Simulate(_)
         | Command::Plan(_)
         | Command::Select(_)
-        | Command::Fit(_) => {
+        | Command::Fit(_)
+        | Command::Acquire(_)
+        | Command::Verify(_) => {
             unreachable!("the commands on the database are settled (settings::settled::settle)")
         }
     }

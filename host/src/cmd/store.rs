@@ -12,7 +12,6 @@ use accelcal_core::error::bad;
 use accelcal_db::{Db, Outcome, Phase, Progress, Relabel, RunId, RunStart, Stored, StoredRecord, DB_ENV};
 use accelcal_line::verify::VerifyReport;
 
-use crate::cli::PhaseArg;
 use crate::settings::values::RunStore;
 
 /// The station's database file when neither --db nor ACCELCAL_DB names one (beside the units'
@@ -153,14 +152,6 @@ impl RunDb {
             Err(accelcal_db::DbError::NoRun { .. }) => Ok(None),
             Err(e) => Err(e.into()),
         }
-    }
-}
-
-/// The verification phase of `--phase`.
-pub fn phase(p: PhaseArg) -> Phase {
-    match p {
-        PhaseArg::AsFound => Phase::AsFound,
-        PhaseArg::AsLeft => Phase::AsLeft,
     }
 }
 

@@ -1,5 +1,5 @@
-//! The settings of the commands that talk to a node over its link and need no head (`info`,
-//! `output`, `monitor`), of `record show`, `flash`, `report`, `hil` and the emulated bench
+//! The settings of the commands that talk to a node over its link (`info`, `output`, `monitor`,
+//! `acquire`, `verify`), of `record show`, `flash`, `report`, `hil` and the emulated bench
 //! (`emulate`): plain values, after `settings::check` has checked
 //! the line (the timeouts positive, the rate one the node takes, the outputs distinct).
 
@@ -12,11 +12,16 @@ use accelcal_core::error::bad;
 
 use accelcal_core::campaign::CodeRange;
 
+use accelcal_core::sim::Plan;
+use accelcal_line::acquire::StaticRule;
+use accelcal_line::node::head::HeadSpec;
+
 use super::values::{FlashRoute, Issuer, RunStore};
 use crate::cli::{
-    EmulateArgs, FlashArgs, HilArgs, InfoArgs, MonitorArgs, OutputArg, OutputArgs, PortArgs, RecordShowArgs,
-    ReportArgs,
+    AcquireArgs, EmulateArgs, FlashArgs, HilArgs, InfoArgs, MonitorArgs, OutputArg, OutputArgs, PortArgs,
+    RecordShowArgs, ReportArgs, VerifyArgs,
 };
+use crate::resolved::Gravity;
 
 /// A node's link: its serial port (or `tcp:HOST:PORT`), baud rate and how long a request waits
 /// for its answer.
@@ -29,7 +34,7 @@ pub struct Link {
 
 impl Link {
     /// The link `--port`, `--baud` and `--timeout-s` name.
-    pub fn of(a: &PortArgs) -> Link {
+    fn of(a: &PortArgs) -> Link {
         Link { port: a.port.clone(), baud: a.baud, timeout: Duration::from_secs_f64(a.timeout_s) }
     }
 }
@@ -267,5 +272,168 @@ pub fn report(a: &ReportArgs) -> anyhow::Result<Report> {
         out: a.out.clone(),
         store: RunStore::of(&a.run)?,
         issuer: Issuer::of(&a.issuer),
+    })
+}
+
+/// The chamber options of `acquire`/`verify`, checked: the soak is required with a setpoint and
+/// refused without one.
+fn soak_of(setpoints: &[f64], soak_s: Option<f64>) -> anyhow::Result<Option<Duration>> {
+    match (setpoints.is_empty(), soak_s) {
+        (true, None) => Ok(None),
+        (true, Some(_)) => Err(bad("--soak-s applies with --chamber only")),
+        (false, None) => Err(bad("--chamber needs --soak-s (seconds to wait at each setpoint)")),
+        (false, Some(s)) if !(s.is_finite() && s >= 0.0) => {
+            Err(bad(format!("--soak-s must be a number of seconds >= 0, got {s}")))
+        }
+        (false, Some(s)) => {
+            if let Some(t) =
+                setpoints.iter().find(|t| !accelcal_line::node::head::CHAMBER_RANGE_C.contains(*t))
+            {
+                return Err(bad(format!("--chamber {t}: a setpoint must be in -60..=150 °C")));
+            }
+            Ok(Some(Duration::from_secs_f64(s)))
+        }
+    }
+}
+
+/// The dividing head a command drives, and how long an emulated one may take to answer (s; an
+/// operator takes the time they need).
+#[derive(Clone, Debug, PartialEq)]
+pub struct HeadUse {
+    pub spec: HeadSpec,
+    pub timeout_s: f64,
+}
+
+/// `accelcal acquire`, settled.
+pub struct Acquire {
+    /// One node per `--port`, each with its `--out` and `--serial` (once each, in order).
+    pub nodes: Vec<AcquireNode>,
+    pub baud: u32,
+    /// `--timeout-s`: how long a request waits for its answer.
+    pub answer_timeout: Duration,
+    pub head: HeadUse,
+    /// `--plan` as given, and the plan.
+    pub plan_spec: String,
+    pub plan: Plan,
+    /// `--samples` per position and `--rate-hz` (`None`: the defaults, or with `--resume` the
+    /// campaign's).
+    pub samples: Option<usize>,
+    pub rate_hz: Option<u32>,
+    /// The gravity the command line states (`None`: the campaign's with `--resume`, else 9.81,
+    /// announced).
+    pub stated: Option<Gravity>,
+    /// `--resume`: continue the campaigns.
+    pub resume: bool,
+    /// When a position is static (`--static-window`, `--static-z`) and how long it may take to
+    /// become so (`--settle-timeout-s`).
+    pub rule: StaticRule,
+    pub settle_timeout: Duration,
+    /// `--chamber` and `--soak-s`.
+    pub chamber: Option<accelcal_line::acquire::Chamber>,
+}
+
+/// One node of an acquisition.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AcquireNode {
+    pub port: String,
+    pub out: PathBuf,
+    pub serial: Option<String>,
+}
+
+/// `acquire`'s settings (the counts of `--out` and `--serial` checked by `settings::check`).
+pub fn acquire(a: &AcquireArgs, stated: Option<&Gravity>) -> anyhow::Result<Acquire> {
+    let plan = Plan::from_spec(&a.plan, 1).map_err(|e| bad(format!("--plan {e}")))?;
+    let soak = soak_of(&a.chamber, a.soak_s)?;
+    let nodes = a
+        .port
+        .iter()
+        .enumerate()
+        .map(|(i, port)| AcquireNode {
+            port: port.clone(),
+            out: a.out[i].clone(),
+            serial: a.serial.get(i).cloned(),
+        })
+        .collect();
+    Ok(Acquire {
+        nodes,
+        baud: a.baud,
+        answer_timeout: Duration::from_secs_f64(a.timeout_s),
+        head: HeadUse { spec: a.head.clone(), timeout_s: a.head_timeout_s },
+        plan_spec: a.plan.clone(),
+        plan,
+        samples: a.samples,
+        rate_hz: a.rate_hz,
+        stated: stated.cloned(),
+        resume: a.resume,
+        rule: StaticRule { window: a.static_window, z: a.static_z, ..StaticRule::default() },
+        settle_timeout: Duration::from_secs_f64(a.settle_timeout_s),
+        chamber: soak.map(|soak| accelcal_line::acquire::Chamber { setpoints_c: a.chamber.clone(), soak }),
+    })
+}
+
+/// What a verification's errors are judged by.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Judged {
+    /// `--tolerance`, m/s².
+    Tolerance(f64),
+    /// The tolerance derived from the measured scatter, with the fit's uncertainty when `--fit`
+    /// is given, at the coverage factor `--coverage`.
+    Derived { fit: Option<PathBuf>, k: f64 },
+}
+
+/// `accelcal verify`, settled.
+pub struct Verify {
+    pub link: Link,
+    pub head: HeadUse,
+    /// `--plan` and `--samples` per position.
+    pub plan: Plan,
+    pub samples: usize,
+    pub judged: Judged,
+    /// `--spec`: the product specification the parameters are decided against, with the head's
+    /// stated uncertainties (arcsec) its budget takes.
+    pub spec: Option<PathBuf>,
+    pub head_angle_u: Option<f64>,
+    pub head_orthogonality_u: Option<f64>,
+    /// The gravity the command line states (`None`: the fit's, else 9.81, announced).
+    pub stated: Option<Gravity>,
+    pub settle_timeout: Duration,
+    /// `--chamber` (one setpoint) and its soak.
+    pub chamber: Option<(f64, Duration)>,
+    /// `--json`.
+    pub json: Option<PathBuf>,
+    /// `--db`, `--run-id`, `--relabel`, and which verification of the run it is (`--phase`).
+    pub store: Option<RunStore>,
+    pub phase: accelcal_db::Phase,
+}
+
+/// `verify`'s settings (`--coverage` and `--fit` refused with `--tolerance` by `settings::check`).
+pub fn verify(a: &VerifyArgs, stated: Option<&Gravity>) -> anyhow::Result<Verify> {
+    let plan = Plan::from_spec(&a.plan, 1).map_err(|e| bad(format!("--plan {e}")))?;
+    let judged = match a.tolerance {
+        Some(t) => Judged::Tolerance(t),
+        None => Judged::Derived {
+            fit: a.fit.clone(),
+            k: a.coverage.unwrap_or(accelcal_line::verify::DEFAULT_COVERAGE),
+        },
+    };
+    let soak = soak_of(a.chamber.as_slice(), a.soak_s)?;
+    Ok(Verify {
+        link: Link::of(&a.link),
+        head: HeadUse { spec: a.head.clone(), timeout_s: a.head_timeout_s },
+        plan,
+        samples: a.samples,
+        judged,
+        spec: a.spec.clone(),
+        head_angle_u: a.head_angle_u,
+        head_orthogonality_u: a.head_orthogonality_u,
+        stated: stated.cloned(),
+        settle_timeout: Duration::from_secs_f64(a.settle_timeout_s),
+        chamber: a.chamber.zip(soak),
+        json: a.json.clone(),
+        store: RunStore::of(&a.run)?,
+        phase: match a.phase {
+            crate::cli::PhaseArg::AsFound => accelcal_db::Phase::AsFound,
+            crate::cli::PhaseArg::AsLeft => accelcal_db::Phase::AsLeft,
+        },
     })
 }

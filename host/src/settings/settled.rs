@@ -63,6 +63,10 @@ pub enum Settings {
     Select(campaign::Select),
     /// `accelcal fit`.
     Fit(campaign::FitSettings),
+    /// `accelcal acquire`.
+    Acquire(line::Acquire),
+    /// `accelcal verify`.
+    Verify(Box<line::Verify>),
     /// Every other command, as parsed.
     Parsed(Command),
 }
@@ -98,6 +102,8 @@ pub fn settle(command: Command, resolved: &Resolved) -> anyhow::Result<Settings>
         Command::Plan(a) => Settings::Plan(campaign::plan(&a, stated)?),
         Command::Select(a) => Settings::Select(campaign::select(&a)?),
         Command::Fit(a) => Settings::Fit(campaign::fit(&a)?),
+        Command::Acquire(a) => Settings::Acquire(line::acquire(&a, stated)?),
+        Command::Verify(a) => Settings::Verify(Box::new(line::verify(&a, stated)?)),
         command => Settings::Parsed(command),
     })
 }
