@@ -42,7 +42,7 @@ fn main() {
     let mut warnings = cmd::Warnings::default();
     // The station tells a rejected unit (1) from a failed environment (3).
     let code = match settings {
-        settings::settled::Settings::Parsed(cli::Command::Station(_)) => crate::exit::station_code,
+        settings::settled::Settings::Station(_) => crate::exit::station_code,
         _ => crate::exit::code,
     };
     match cmd::run(settings, &resolved, &mut warnings) {

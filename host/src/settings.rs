@@ -30,6 +30,7 @@ pub mod gravity;
 pub mod line;
 pub mod reader;
 pub mod settled;
+pub mod station;
 mod station_config;
 pub mod values;
 

@@ -117,14 +117,7 @@ pub struct DesignArgs {
     pub soak_s: Option<f64>,
 }
 
-/// What `--design` asks for.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum DesignSize {
-    /// This many positions.
-    Positions(usize),
-    /// The number of positions and the dwell too.
-    Auto,
-}
+pub use crate::settings::campaign::DesignSize;
 
 /// `N` or `auto`.
 fn parse_design(s: &str) -> Result<DesignSize, String> {

@@ -16,8 +16,7 @@ use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
-use crate::cli::DesignSize;
-use crate::settings::campaign::{Design, UnitType};
+use crate::settings::campaign::{Design, DesignSize, UnitType};
 
 /// Orientations each Monte Carlo unit is judged at.
 const MC_ORIENTATIONS: usize = 10;

@@ -25,7 +25,6 @@ pub mod station;
 pub mod store;
 pub mod uncertainty;
 
-use crate::cli::Command;
 pub use crate::resolved::{check_g, fallback_note as g_fallback, Gravity, Source};
 use crate::settings::campaign;
 use crate::settings::settled::Settings;
@@ -37,83 +36,45 @@ pub fn run(
     warnings: &mut Warnings,
 ) -> anyhow::Result<()> {
     let stated = resolved.gravity.as_ref();
-    let command = match settings {
-        Settings::Fleet(s) => return fleet::run(&s),
-        Settings::Certificate(s) => return fleet::run_certificate(&s),
-        Settings::History(s) => return history::run(&s),
-        Settings::Void(s) => return db::run_void(&s),
-        Settings::DbVerify(s) => return db::run_verify(&s),
-        Settings::Asset(s) => return asset::run(&s),
-        Settings::Affected(s) => return asset::run_affected(&s),
-        Settings::Serve(s) => return crate::serve::run(&s),
-        Settings::BenchFleet(s) => return fleet_bench::run(&s),
-        Settings::Demo(s) => return demo::run(&s),
-        Settings::Compare(s) => {
-            return compare::run(&s, &campaign_g(stated, &s.campaign.path, warnings)?, warnings)
-        }
+    match settings {
+        Settings::Fleet(s) => fleet::run(&s),
+        Settings::Certificate(s) => fleet::run_certificate(&s),
+        Settings::History(s) => history::run(&s),
+        Settings::Void(s) => db::run_void(&s),
+        Settings::DbVerify(s) => db::run_verify(&s),
+        Settings::Asset(s) => asset::run(&s),
+        Settings::Affected(s) => asset::run_affected(&s),
+        Settings::Serve(s) => crate::serve::run(&s),
+        Settings::BenchFleet(s) => fleet_bench::run(&s),
+        Settings::Demo(s) => demo::run(&s),
+        Settings::Compare(s) => compare::run(&s, &campaign_g(stated, &s.campaign.path, warnings)?, warnings),
         Settings::Diagnose(s) => {
-            return diagnose::run(&s, &campaign_g(stated, &s.campaign.path, warnings)?, warnings)
+            diagnose::run(&s, &campaign_g(stated, &s.campaign.path, warnings)?, warnings)
         }
-        Settings::BenchDiagnose(s) => return bench_diagnose::run(&s),
-        Settings::BenchSignature(s) => return fleet::run_bench_signature(&s),
-        Settings::UncertaintyCheck(s) => return uncertainty::run_check(&s),
-        Settings::Info(s) => return live::run_info(&s),
-        Settings::Output(s) => return live::run_output(&s),
-        Settings::Monitor(s) => return node::run_monitor(&s),
-        Settings::RecordShow(s) => return record::run_show(&s),
-        Settings::Emulate(s) => return emulate::run(&s),
-        Settings::Flash(s) => return node::run_flash(&s),
-        Settings::Hil(s) => return node::run_hil(&s, warnings),
-        Settings::Report(s) => return report::run(&s),
-        Settings::Simulate(s) => return simulate::run(&s),
-        Settings::Plan(s) => return plan::run(&s),
-        Settings::Select(s) => {
-            return select::run(&s, &campaign_g(stated, &s.campaign.path, warnings)?, warnings)
-        }
+        Settings::BenchDiagnose(s) => bench_diagnose::run(&s),
+        Settings::BenchSignature(s) => fleet::run_bench_signature(&s),
+        Settings::UncertaintyCheck(s) => uncertainty::run_check(&s),
+        Settings::Info(s) => live::run_info(&s),
+        Settings::Output(s) => live::run_output(&s),
+        Settings::Monitor(s) => node::run_monitor(&s),
+        Settings::RecordShow(s) => record::run_show(&s),
+        Settings::Emulate(s) => emulate::run(&s),
+        Settings::Flash(s) => node::run_flash(&s),
+        Settings::Hil(s) => node::run_hil(&s, warnings),
+        Settings::Report(s) => report::run(&s),
+        Settings::Simulate(s) => simulate::run(&s),
+        Settings::Plan(s) => plan::run(&s),
+        Settings::Select(s) => select::run(&s, &campaign_g(stated, &s.campaign.path, warnings)?, warnings),
         Settings::Fit(s) => {
             let input = match &s {
                 campaign::FitSettings::Campaign(f) => &f.campaign.path,
                 campaign::FitSettings::GravityNorm(f) => &f.input,
             };
-            return fit::run(&s, &campaign_g(stated, input, warnings)?, warnings);
+            fit::run(&s, &campaign_g(stated, input, warnings)?, warnings)
         }
-        Settings::Acquire(s) => return live::run_acquire(&s),
-        Settings::Verify(s) => return live::run_verify(&s),
-        Settings::Parsed(command) => command,
-    };
-    match command {
-        Command::Station(a) => station::run(&a, stated, resolved.config.as_ref()),
-        Command::Fleet(_)
-        | Command::Certificate(_)
-        | Command::History(_)
-        | Command::Void(_)
-        | Command::Db(crate::cli::DbCommand::Verify(_))
-        | Command::Asset(_)
-        | Command::Affected(_)
-        | Command::Serve(_)
-        | Command::BenchFleet(_)
-        | Command::Demo(_)
-        | Command::Compare(_)
-        | Command::Diagnose(_)
-        | Command::BenchDiagnose(_)
-        | Command::BenchSignature(_)
-        | Command::UncertaintyCheck(_)
-        | Command::Info(_)
-        | Command::Output(_)
-        | Command::Monitor(_)
-        | Command::Record(_)
-        | Command::Emulate(_)
-        | Command::Flash(_)
-        | Command::Hil(_)
-        | Command::Report(_)
-        | Command::Simulate(_)
-        | Command::Plan(_)
-        | Command::Select(_)
-        | Command::Fit(_)
-        | Command::Acquire(_)
-        | Command::Verify(_) => {
-            unreachable!("the commands on the database are settled (settings::settled::settle)")
-        }
+        Settings::Acquire(s) => live::run_acquire(&s),
+        Settings::Verify(s) => live::run_verify(&s),
+        Settings::Station(s) => station::run(&s, stated, resolved.config.as_ref()),
     }
 }
 

@@ -22,15 +22,15 @@ use accelcal_line::station::{deployable, sha256_file, Journal, StationError, Ste
 use accelcal_line::verify::{Failed, VerifyReport};
 use anyhow::Context;
 
-use super::store::{crash_point, DEFAULT_DB, PASS_REASON};
-use crate::cli::StationArgs;
+use super::store::{crash_point, PASS_REASON};
+use crate::settings::station::{Station as StationSettings, StationUnit};
 
 mod check;
 mod finish;
 mod step_cmd;
 mod steps;
 
-use step_cmd::{Against, DbRun, FlashRoute, GravityGiven, Head, HeadU, Issuer, Link, StepCommand};
+use step_cmd::{Against, DbRun, FlashRoute, GravityGiven, Head, HeadU, Link, StepCommand};
 
 /// File names in the unit's directory.
 const INFO: &str = "info.json";
@@ -46,34 +46,12 @@ const CERTIFICATE: &str = "certificate.html";
 /// Plan of the verifications: the six test-turn positions.
 const VERIFY_PLAN: &str = "six";
 
-/// One node on the head: its link, its unit, its directory, its flash route.
-struct UnitSpec {
-    port: String,
-    serial: String,
-    dir: PathBuf,
-    gdb: Option<String>,
-    probe: Option<String>,
-}
-
-/// The units of the command line, paired by order (`settings` checked the counts).
-fn units(a: &StationArgs) -> Vec<UnitSpec> {
-    (0..a.ports.len())
-        .map(|i| UnitSpec {
-            port: a.ports[i].clone(),
-            serial: a.check_standard.clone().unwrap_or_else(|| a.serials[i].clone()),
-            dir: a.outs[i].clone(),
-            gdb: a.gdb.get(i).cloned(),
-            probe: a.probe.get(i).cloned(),
-        })
-        .collect()
-}
-
 /// One unit's run of the line.
 struct Station<'a> {
-    a: &'a StationArgs,
+    a: &'a StationSettings,
     /// The gravity `--g` or `--latitude`/`--height` (or the settings file) gave.
     gravity: Option<&'a super::Gravity>,
-    u: &'a UnitSpec,
+    u: &'a StationUnit,
     dir: &'a Path,
     journal: Journal,
     stop: Arc<AtomicBool>,
@@ -95,19 +73,6 @@ struct Station<'a> {
     head_measured_u: Option<f64>,
     /// When the command of the step being run started (`run`), for the journal's `seconds`.
     step_start: std::cell::Cell<Option<std::time::Instant>>,
-}
-
-/// The station's database: `--db`, else `ACCELCAL_DB`, else `calibration.sqlite` beside the
-/// unit's directory (every unit of a line in one file).
-pub fn db_spec(a: &StationArgs) -> String {
-    if let Some(s) = super::store::named_db(a.db.as_deref()) {
-        return s;
-    }
-    let first = a.outs.first().map(PathBuf::as_path).unwrap_or(Path::new("."));
-    match first.parent().filter(|p| !p.as_os_str().is_empty()) {
-        Some(parent) => parent.join(DEFAULT_DB).display().to_string(),
-        None => DEFAULT_DB.into(),
-    }
 }
 
 /// How a child ended.
@@ -352,7 +317,7 @@ impl Station<'_> {
             device_id: device.to_string(),
             serial: self.u.serial.clone(),
             station: self.a.station_name.clone().unwrap_or_else(super::store::host_name),
-            head: self.a.head().to_string(),
+            head: self.a.head.clone(),
             operator: self.a.operator.clone().unwrap_or_else(super::store::user_name),
             started_unix_s: started,
             software_version: env!("CARGO_PKG_VERSION").into(),
@@ -425,13 +390,13 @@ impl Station<'_> {
 }
 
 /// The head, with the time a move may take when it is emulated (a manual head has none).
-fn head_of(a: &StationArgs) -> Head {
-    let timeout_s = (a.head() != "manual").then_some(a.head_timeout_s);
-    Head { spec: a.head().to_string(), timeout_s }
+fn head_of(a: &StationSettings) -> Head {
+    let timeout_s = (a.head != "manual").then_some(a.head_timeout_s);
+    Head { spec: a.head.clone(), timeout_s }
 }
 
 /// The link to the nodes on `ports`.
-fn link_of(a: &StationArgs, ports: &[String]) -> Link {
+fn link_of(a: &StationSettings, ports: &[String]) -> Link {
     Link { ports: ports.to_vec(), baud: a.baud, timeout_s: a.timeout_s }
 }
 
@@ -478,7 +443,7 @@ fn acquire_together(units: &mut [&mut Station<'_>]) -> anyhow::Result<()> {
 /// not stop the others (the station ends with exit code 1 after them); any other error stops the
 /// station.
 pub fn run(
-    a: &StationArgs,
+    a: &StationSettings,
     gravity: Option<&super::Gravity>,
     config: Option<&crate::resolved::ConfigUse>,
 ) -> anyhow::Result<()> {
@@ -490,8 +455,8 @@ pub fn run(
         eprintln!("station: settings {} ({}){overridden}", c.path.display(), c.keys.join(", "));
     }
     let t0 = std::time::Instant::now();
-    let specs = units(a);
-    let db_spec = db_spec(a);
+    let specs = &a.units;
+    let db_spec = a.db.clone();
     let mut stations = Vec::with_capacity(specs.len());
     // Ctrl-C goes to the step (same process group); the station waits for it to stop cleanly.
     let stop = super::live::stop_flag()?;
@@ -510,7 +475,7 @@ pub fn run(
         let s = super::spec::read(p)?;
         eprintln!("station: specification {}", s.describe());
     }
-    for u in &specs {
+    for u in specs {
         let journal = Journal::open(&u.dir, &u.serial)?;
         std::fs::create_dir_all(&u.dir)
             .map_err(|e| environment(format!("creating {}", u.dir.display()), e))?;

@@ -14,9 +14,8 @@ use accelcal_core::sim::{self, Plan, SimConfig};
 
 use super::values::RunStore;
 use crate::cli::{
-    Algorithm, BenchDiagnoseArgs, BenchSignatureArgs, CompareArgs, DemoArgs, DesignSize, DiagnoseArgs,
-    FitArgs, GravityOptions, MethodArg, PlanArgs, SelectArgs, SimulateArgs, StructureArg,
-    UncertaintyCheckArgs,
+    Algorithm, BenchDiagnoseArgs, BenchSignatureArgs, CompareArgs, DemoArgs, DiagnoseArgs, FitArgs,
+    GravityOptions, MethodArg, PlanArgs, SelectArgs, SimulateArgs, StructureArg, UncertaintyCheckArgs,
 };
 use crate::resolved::Gravity;
 
@@ -264,6 +263,15 @@ fn config(a: &SimulateArgs, g: f64) -> anyhow::Result<SimConfig> {
         temp: a.temp_profile,
         thermal,
     })
+}
+
+/// What `--design` asks for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DesignSize {
+    /// This many positions.
+    Positions(usize),
+    /// The number of positions and the dwell too.
+    Auto,
 }
 
 /// `accelcal plan`, settled: a plan shown, or one designed.

@@ -1,13 +1,11 @@
 //! The settled command line ([`Settings`]) that `main` hands to the commands.
 
-use super::{asset, campaign, line, reader};
+use super::{asset, campaign, line, reader, station};
 use crate::cli::Command;
 use crate::resolved::Resolved;
 
-/// A command line, checked and settled before anything is opened: the commands converted so far
-/// (issue 29: the commands on the database) take their own settings, plain values with nothing of clap;
-/// the others still take their parsed arguments, checked by
-/// `settings::check`.
+/// A command line, checked (`settings::check`) and settled before anything is opened: one variant
+/// per command, plain values with nothing of clap. The commands take these, never a clap struct.
 pub enum Settings {
     /// `accelcal fleet`.
     Fleet(reader::Fleet),
@@ -67,8 +65,8 @@ pub enum Settings {
     Acquire(line::Acquire),
     /// `accelcal verify`.
     Verify(Box<line::Verify>),
-    /// Every other command, as parsed.
-    Parsed(Command),
+    /// `accelcal station`.
+    Station(Box<station::Station>),
 }
 
 /// Settles a checked command line (`settings::check` first).
@@ -104,6 +102,6 @@ pub fn settle(command: Command, resolved: &Resolved) -> anyhow::Result<Settings>
         Command::Fit(a) => Settings::Fit(campaign::fit(&a)?),
         Command::Acquire(a) => Settings::Acquire(line::acquire(&a, stated)?),
         Command::Verify(a) => Settings::Verify(Box::new(line::verify(&a, stated)?)),
-        command => Settings::Parsed(command),
+        Command::Station(a) => Settings::Station(Box::new(station::station(&a))),
     })
 }

@@ -126,7 +126,7 @@ impl Station<'_> {
             json: self.path(FIT),
             device_id: device,
             head_u: self.head_u(),
-            tempco: self.a.tempco.coefficients(),
+            tempco: self.a.tempco,
         };
         if let Exit::Failed = self.run(Step::Fit, &cmd)? {
             return Err(anyhow::anyhow!("step fit failed (its error is above)"));
@@ -208,7 +208,6 @@ impl Station<'_> {
                 &[CERTIFICATE],
             );
         }
-        let i = &self.a.issuer;
         let cmd = StepCommand::Report {
             campaign: self.path(CAMPAIGN),
             record: self.path(RECORD),
@@ -216,12 +215,7 @@ impl Station<'_> {
             verify: self.path(AS_LEFT),
             out: self.path(CERTIFICATE),
             as_found: Some(self.path(AS_FOUND)).filter(|p| p.is_file()),
-            issuer: Issuer {
-                laboratory: i.laboratory.clone(),
-                laboratory_address: i.laboratory_address.clone(),
-                customer: i.customer.clone(),
-                authorised_by: i.authorised_by.clone(),
-            },
+            issuer: self.a.issuer.clone(),
             db: self.db_run()?,
         };
         if let Exit::Failed = self.run(Step::Certificate, &cmd)? {
