@@ -179,7 +179,7 @@ pub fn run(d: &Design) -> anyhow::Result<()> {
         chamber.as_ref().map_or(one, |c| c.head_time_s(one))
     };
     let samples = d.samples as usize;
-    let head = d.head.clone();
+    let head = d.head;
     let paper = predict(&Plan::head().positions, samples, &prior, &stated, g)?;
     let (designed, target) = match size {
         DesignSize::Positions(n) => (design(n, samples, &prior, &stated, g, &head, d.seed)?, None),

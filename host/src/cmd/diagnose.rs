@@ -13,7 +13,7 @@ use crate::report::sig;
 
 /// Runs `accelcal diagnose`.
 pub fn run(a: &Diagnose, g: &super::Gravity, warnings: &mut super::Warnings) -> anyhow::Result<()> {
-    let base = a.terms.clone();
+    let base = a.terms;
     // Streamed in two passes: the diagnosis needs the bins only, so memory does not grow with
     // the rows.
     let binned = Binned::read_with(&a.campaign.path, a.campaign.codes).context("reading the campaign")?;

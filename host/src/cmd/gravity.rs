@@ -206,7 +206,7 @@ pub fn json_report(cal: &Calibration, identity: Identity) -> JsonReport {
 
 /// Reads the input, detects the holds and fits, without printing anything.
 pub fn calibrate_file(a: &GravityNormFit, g: f64) -> anyhow::Result<(imutk::Recording, Calibration)> {
-    gravity::calibrate_path(&a.input, g, &a.detector, a.structure.clone())
+    gravity::calibrate_path(&a.input, g, &a.detector, a.structure)
 }
 
 /// Runs `accelcal fit --method gravity-norm`: prints the report, writes the JSON, the plots and

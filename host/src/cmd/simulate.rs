@@ -27,7 +27,7 @@ pub fn run(a: &Simulate) -> anyhow::Result<()> {
     campaign.serial = a.serial.clone();
     write_atomic_with(&a.out, |w| campaign.write(w).context("writing CSV"))?;
     let truth_path = &a.truth;
-    write_json(&truth_path, &truth)?;
+    write_json(truth_path, &truth)?;
     println!(
         "wrote {} ({} rows, {} positions) and {}",
         a.out.display(),

@@ -491,7 +491,7 @@ pub fn select(a: &SelectArgs) -> anyhow::Result<Select> {
         settings: accelcal_core::gmdh::Settings {
             basis: a.basis.into(),
             criterion: a.criterion.into(),
-            split: a.split.clone(),
+            split: a.split,
             tolerance: a.tolerance,
             max_terms: a.max_terms.min(accelcal_shared::N_BASIS),
         },
