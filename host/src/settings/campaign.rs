@@ -332,7 +332,6 @@ pub struct Design {
 
 /// `plan`'s settings; `stated`: the gravity the command line states.
 pub fn plan(a: &PlanArgs, stated: Option<&Gravity>) -> anyhow::Result<PlanSettings> {
-    check_design(a)?;
     let gravity = Gravity::default_of(stated, a.g);
     let d = &a.design;
     let Some(size) = d.design else {
@@ -344,14 +343,22 @@ pub fn plan(a: &PlanArgs, stated: Option<&Gravity>) -> anyhow::Result<PlanSettin
             json: a.json.clone(),
         }));
     };
+    let Some(out) = d.out.clone() else {
+        return Err(bad("--design needs --out FILE: where to write the designed plan"));
+    };
     let unit = match (&d.like, d.noise) {
         (Some(path), _) => UnitType::Like(path.clone()),
         (None, Some(noise)) => UnitType::Noise(noise),
-        (None, None) => unreachable!("check_design: --like or --noise"),
+        (None, None) => {
+            return Err(bad(
+                "--design needs the unit type: --like CAMPAIGN (an earlier campaign of the same kind of unit) or --noise CODES (the nominal triad with that noise per sample)",
+            ))
+        }
     };
+    check_design(a, size, &out)?;
     Ok(PlanSettings::Design(Box::new(Design {
         size,
-        out: d.out.clone().expect("check_design: --out"),
+        out,
         json: a.json.clone(),
         unit,
         head_angle_u_arcsec: d.head_angle_u.unwrap_or(0.0),
@@ -376,23 +383,13 @@ const BETA_MAX_DEG: f64 = 90.0;
 
 /// Checks the design's options before any I/O: what does not apply to the size asked for is
 /// refused.
-fn check_design(a: &PlanArgs) -> anyhow::Result<()> {
+fn check_design(a: &PlanArgs, size: DesignSize, out: &std::path::Path) -> anyhow::Result<()> {
     let d = &a.design;
-    let Some(size) = d.design else { return Ok(()) };
-    if d.out.is_none() {
-        return Err(bad("--design needs --out FILE: where to write the designed plan"));
-    }
-    if d.like.is_none() && d.noise.is_none() {
-        return Err(bad(
-            "--design needs the unit type: --like CAMPAIGN (an earlier campaign of the same kind of unit) or --noise CODES (the nominal triad with that noise per sample)",
-        ));
-    }
-    let out = d.out.as_deref();
-    if out.is_some() && (out == d.like.as_deref() || out == a.json.as_deref()) {
+    if Some(out) == d.like.as_deref() || Some(out) == a.json.as_deref() {
         return Err(bad(format!(
             "--out {} is also {}: the designed plan would overwrite it",
-            out.map(|p| p.display().to_string()).unwrap_or_default(),
-            if out == d.like.as_deref() { "--like" } else { "--json" }
+            out.display(),
+            if Some(out) == d.like.as_deref() { "--like" } else { "--json" }
         )));
     }
     if a.json.is_some() && a.json.as_deref() == d.like.as_deref() {
