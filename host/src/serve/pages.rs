@@ -48,7 +48,7 @@ impl Filters {
         let since = match day("since", &self.since)? {
             Some(s) => s,
             None => until
-                .checked_sub(std::time::Duration::from_secs(30 * 86_400))
+                .checked_sub(crate::settings::reader::DEFAULT_PERIOD)
                 .map_err(|_| PageError::bad("until is too early"))?,
         };
         if since > until {

@@ -1,8 +1,7 @@
 //! The settings of the commands on simulated or recorded campaigns that need no link to a node
 //! (`demo`, `simulate`, `plan`, `select`, `fit`, `compare`, `diagnose`, `bench-diagnose`,
-//! `bench-signature`,
-//! `uncertainty-check`):
-//! their command line checked and resolved into plain values before anything is opened.
+//! `bench-signature`, `uncertainty-check`): their command line checked and resolved into plain
+//! values before anything is opened.
 
 use std::path::PathBuf;
 
@@ -14,8 +13,9 @@ use accelcal_core::sim::{self, Plan, SimConfig};
 
 use super::values::RunStore;
 use crate::cli::{
-    Algorithm, BenchDiagnoseArgs, BenchSignatureArgs, CompareArgs, DemoArgs, DiagnoseArgs, FitArgs,
-    GravityOptions, MethodArg, PlanArgs, SelectArgs, SimulateArgs, StructureArg, UncertaintyCheckArgs,
+    Algorithm, BenchDiagnoseArgs, BenchSignatureArgs, CommonArgs, CompareArgs, DemoArgs, DiagnoseArgs,
+    FitArgs, GravityOptions, MethodArg, PlanArgs, SelectArgs, SimulateArgs, StructureArg,
+    UncertaintyCheckArgs,
 };
 use crate::resolved::Gravity;
 
@@ -44,6 +44,13 @@ pub struct Campaign {
     pub json: Option<PathBuf>,
 }
 
+impl Campaign {
+    /// The campaign file with `--codes` and `--json`.
+    fn of(path: &std::path::Path, common: &CommonArgs) -> Campaign {
+        Campaign { path: path.to_path_buf(), codes: common.codes, json: common.json.clone() }
+    }
+}
+
 /// `accelcal compare`, settled.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Compare {
@@ -57,7 +64,7 @@ pub struct Compare {
 /// `compare`'s settings (its files' distinctness is checked by `settings::check`).
 pub fn compare(a: &CompareArgs) -> Compare {
     Compare {
-        campaign: Campaign { path: a.campaign.clone(), codes: a.common.codes, json: a.common.json.clone() },
+        campaign: Campaign::of(&a.campaign, &a.common),
         validate: a.validate.clone(),
         plot: a.plot.clone(),
     }
@@ -76,7 +83,7 @@ pub struct Diagnose {
 /// `diagnose`'s settings (its files' distinctness is checked by `settings::check`).
 pub fn diagnose(a: &DiagnoseArgs) -> anyhow::Result<Diagnose> {
     Ok(Diagnose {
-        campaign: Campaign { path: a.campaign.clone(), codes: a.common.codes, json: a.common.json.clone() },
+        campaign: Campaign::of(&a.campaign, &a.common),
         terms: accelcal_core::lsq::parse_terms(&a.terms).map_err(|e| bad(format!("--terms {e}")))?,
         plot: a.plot.clone(),
     })
@@ -197,7 +204,7 @@ fn thermal_plan(a: &SimulateArgs) -> anyhow::Result<Option<sim::ThermalPlan>> {
     if a.chamber.is_empty() {
         return Ok(None);
     }
-    if let Some(t) = a.chamber.iter().find(|t| !(t.is_finite() && (-60.0..=150.0).contains(*t))) {
+    if let Some(t) = a.chamber.iter().find(|t| !accelcal_line::node::head::CHAMBER_RANGE_C.contains(*t)) {
         return Err(bad(format!("--chamber: each setpoint must be a temperature in -60..=150 °C, got {t}")));
     }
     let soak_s = a.soak_s.unwrap_or(SOAK_DEFAULT_S);
@@ -484,7 +491,7 @@ pub fn select(a: &SelectArgs) -> anyhow::Result<Select> {
         return Err(bad("--max-terms, --width and --threads must be at least 1"));
     }
     Ok(Select {
-        campaign: Campaign { path: a.campaign.clone(), codes: a.common.codes, json: a.common.json.clone() },
+        campaign: Campaign::of(&a.campaign, &a.common),
         settings: accelcal_core::gmdh::Settings {
             basis: a.basis.into(),
             criterion: a.criterion.into(),
@@ -592,7 +599,7 @@ pub fn fit(a: &FitArgs) -> anyhow::Result<FitSettings> {
     }
     check_t_ref(a.thermal.t_ref_c())?;
     Ok(FitSettings::Campaign(Box::new(Fit {
-        campaign: Campaign { path: a.campaign.clone(), codes: a.common.codes, json: a.common.json.clone() },
+        campaign: Campaign::of(&a.campaign, &a.common),
         method,
         structure,
         record: a.record.clone(),

@@ -1,12 +1,11 @@
 //! The settings of the commands on the calibration database (`fleet`, `certificate`, `history`,
-//! `void`, `db verify`, `serve`, `bench-fleet`): their command line checked and resolved into plain values before anything is
-//! opened. The commands take these values, never clap's structs (issue 29's `Settings`, for
-//! these commands so far).
+//! `void`, `db verify`, `serve`, `bench-fleet`): their command line checked and resolved into
+//! plain values before anything is opened.
 
 use std::path::PathBuf;
 
 use accelcal_core::error::bad;
-use accelcal_db::asset::{today_utc, Date};
+use accelcal_db::asset::Date;
 use accelcal_db::{RunId, Target};
 use anyhow::Context;
 
@@ -17,8 +16,9 @@ use crate::cli::{
 };
 use crate::cmd::store::reader_spec;
 
-/// The period `fleet` shows when `--since` is not given: the 30 days before `--until`.
-const THIRTY_DAYS: std::time::Duration = std::time::Duration::from_secs(30 * 86_400);
+/// The period `fleet` and `serve`'s pages show when its start is not given: the 30 days before
+/// its end.
+pub const DEFAULT_PERIOD: std::time::Duration = std::time::Duration::from_secs(30 * 86_400);
 
 /// `accelcal fleet`, settled.
 #[derive(Clone, Debug, PartialEq)]
@@ -46,7 +46,7 @@ pub fn fleet(a: &FleetArgs, today: Date) -> anyhow::Result<Fleet> {
     let until = a.until.unwrap_or(today);
     let since = match a.since {
         Some(s) => s,
-        None => until.checked_sub(THIRTY_DAYS).context("--until is too early")?,
+        None => until.checked_sub(DEFAULT_PERIOD).context("--until is too early")?,
     };
     if since > until {
         return Err(bad(format!("--since {since} is after --until {until}: the period is empty")));
@@ -127,11 +127,8 @@ pub fn history(a: &HistoryArgs) -> anyhow::Result<History> {
     if a.unit.trim().is_empty() {
         return Err(bad("SERIAL|DEVICE is empty"));
     }
-    let spec = reader_spec(a.db.as_deref())?;
-    if let (Some(j), Target::Sqlite(f)) = (&a.json, Target::parse(&spec)?) {
-        if j == &f {
-            return Err(bad(format!("--json {} is the database: refusing to overwrite it", j.display())));
-        }
+    if let Some(j) = &a.json {
+        not_the_db(a.db.as_deref(), j, "--json")?;
     }
     Ok(History {
         db: a.db.clone(),
@@ -227,16 +224,6 @@ pub fn bench_fleet(a: &BenchFleetArgs) -> anyhow::Result<BenchFleet> {
     }
     let first = accelcal_db::asset::parse_date(&format!("{}-01", a.month))
         .map_err(|e| bad(format!("--month {}: {e}", a.month)))?;
-    // The month's last day: the last of the 31 days from its first that is still in it.
-    let mut last = first;
-    for d in 1..31 {
-        let next =
-            first.checked_add(std::time::Duration::from_secs(d * 86_400)).context("--month: a date")?;
-        if next.month() != first.month() {
-            break;
-        }
-        last = next;
-    }
     Ok(BenchFleet {
         db: a.db.clone(),
         units: a.units,
@@ -244,15 +231,10 @@ pub fn bench_fleet(a: &BenchFleetArgs) -> anyhow::Result<BenchFleet> {
         seed: a.seed,
         month: a.month.clone(),
         first_day: first.to_string(),
-        last_day: last.to_string(),
+        last_day: first.last_of_month().to_string(),
         writers: a.writers,
         repeat: a.repeat,
     })
-}
-
-/// The day `fleet`'s `--until` defaults to: today, UTC.
-pub fn today() -> Date {
-    today_utc()
 }
 
 /// An output file that would overwrite the database (a SQLite file) is refused.

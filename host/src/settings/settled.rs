@@ -73,7 +73,7 @@ pub enum Settings {
 pub fn settle(command: Command, resolved: &Resolved) -> anyhow::Result<Settings> {
     let stated = resolved.gravity.as_ref();
     Ok(match command {
-        Command::Fleet(a) => Settings::Fleet(reader::fleet(&a, reader::today())?),
+        Command::Fleet(a) => Settings::Fleet(reader::fleet(&a, accelcal_db::asset::today_utc())?),
         Command::Certificate(a) => Settings::Certificate(reader::certificate(&a)?),
         Command::History(a) => Settings::History(reader::history(&a)?),
         Command::Void(a) => Settings::Void(reader::void(&a)?),
