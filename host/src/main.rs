@@ -18,7 +18,7 @@ use clap::{CommandFactory, FromArgMatches};
 
 fn main() {
     reset_sigpipe();
-    let matches = cli::Cli::command().get_matches();
+    let matches = cli::Cli::command().try_get_matches().unwrap_or_else(|e| refused(e));
     let mut cli = cli::Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     // The whole command line is checked before any file is opened.
     let mut given = settings::Given::of(&matches).expect("clap requires a subcommand");
@@ -53,6 +53,18 @@ fn main() {
             std::process::exit(code(&e));
         }
     }
+}
+
+/// clap's refusal of the command line. A value that clap's value parser refuses (a number out of
+/// its range, `cli::range`) is bad input like any other: one line, exit code 2. Help, version
+/// and the usage errors clap explains with a usage and a tip keep clap's words.
+fn refused(e: clap::Error) -> ! {
+    if e.kind() == clap::error::ErrorKind::ValueValidation {
+        let text = e.render().to_string();
+        eprintln!("{}", text.lines().next().unwrap_or("error: a value is out of its range").trim_end());
+        std::process::exit(2);
+    }
+    e.exit()
 }
 
 /// Restores the default action of SIGPIPE (Rust ignores it), so that `accelcal ... | head` ends

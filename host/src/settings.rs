@@ -251,13 +251,10 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
                 &[("--out", Some(&a.out)), ("--truth", a.truth.as_deref()), ("--json", a.json.as_deref())],
             )
         }
-        Command::Hil(a) => {
-            positive_seconds("--timeout-s", a.timeout_s)?;
-            distinct(
-                &[("CAMPAIGN", &a.campaign), ("--record", &a.record), ("--qemu", &a.elf)],
-                &[("--out", Some(&a.out))],
-            )
-        }
+        Command::Hil(a) => distinct(
+            &[("CAMPAIGN", &a.campaign), ("--record", &a.record), ("--qemu", &a.elf)],
+            &[("--out", Some(&a.out))],
+        ),
         Command::Record(RecordCommand::Show(a)) => {
             distinct(&[("FILE", &a.file)], &[("--json", a.json.as_deref())])
         }
@@ -281,29 +278,9 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
                     out.display()
                 )));
             }
-            if let Some(n) = a.samples.filter(|&n| n < 2) {
-                return Err(bad(format!("--samples must be at least 2 sets per position, got {n}")));
-            }
-            if a.static_window < 2 || !(a.static_z.is_finite() && a.static_z > 0.0) {
-                return Err(bad("--static-window must be at least 2 sets and --static-z a positive number"));
-            }
-            if !(a.settle_timeout_s.is_finite() && a.settle_timeout_s > 0.0) {
-                return Err(bad(format!(
-                    "--settle-timeout-s must be a positive number of seconds, got {}",
-                    a.settle_timeout_s
-                )));
-            }
-            if let Some(hz) = a.rate_hz {
-                accelcal_shared::wire::check_rate(hz).map_err(|r| bad(format!("--rate-hz: {r}")))?;
-            }
-            check_head_timeout(given, &a.head, a.head_timeout_s)?;
-            positive_seconds("--timeout-s", a.timeout_s)
+            refuse_head_timeout(given, &a.head)
         }
-        Command::Info(a) => {
-            check_answer_timeout(&a.link)?;
-            distinct(&[], &[("--json", a.json.as_deref())])
-        }
-        Command::Output(a) => check_answer_timeout(&a.link),
+        Command::Info(a) => distinct(&[], &[("--json", a.json.as_deref())]),
         Command::Verify(a) => {
             if a.tolerance.is_some() {
                 given.refuse(
@@ -312,43 +289,11 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
                     " (it derives the tolerance; --tolerance sets it)",
                 )?;
             }
-            if let Some(t) = a.tolerance {
-                if !(t.is_finite() && t > 0.0) {
-                    return Err(bad(format!("--tolerance must be a positive number of m/s², got {t}")));
-                }
-            }
-            if let Some(k) = a.coverage {
-                if !(k.is_finite() && k >= 1.0) {
-                    return Err(bad(format!("--coverage must be a number >= 1, got {k}")));
-                }
-            }
-            if a.samples < 2 {
-                return Err(bad(format!(
-                    "--samples must be at least 2 sets per position, got {}",
-                    a.samples
-                )));
-            }
-            if !(a.settle_timeout_s.is_finite() && a.settle_timeout_s > 0.0) {
-                return Err(bad(format!(
-                    "--settle-timeout-s must be a positive number of seconds, got {}",
-                    a.settle_timeout_s
-                )));
-            }
-            check_answer_timeout(&a.link)?;
-            check_head_timeout(given, &a.head, a.head_timeout_s)?;
+            refuse_head_timeout(given, &a.head)?;
             let fit: Vec<(&str, &Path)> = a.fit.iter().map(|p| ("--fit", p.as_path())).collect();
             distinct(&fit, &[("--json", a.json.as_deref())])
         }
         Command::Emulate(a) => {
-            if !(a.head_speed.is_finite() && a.head_speed > 0.0) {
-                return Err(bad(format!(
-                    "--head-speed must be a positive number of degrees per second, got {}",
-                    a.head_speed
-                )));
-            }
-            if !(a.rate_factor.is_finite() && a.rate_factor > 0.0 && a.rate_factor <= 100.0) {
-                return Err(bad(format!("--rate-factor must be in (0, 100], got {}", a.rate_factor)));
-            }
             let units = a.unit.len();
             once_each("--seed", a.seed.len(), units, "--unit", true)?;
             once_each("--record", a.record.len(), units, "--unit", true)
@@ -383,18 +328,11 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
             }
             Ok(())
         }
-        Command::Monitor(a) => {
-            if let Some(hz) = a.rate_hz {
-                accelcal_shared::wire::check_rate(hz).map_err(|r| bad(format!("--rate-hz: {r}")))?;
-            }
-            positive_seconds("--timeout-s", a.timeout_s)
-        }
         Command::Station(a) => {
             if a.head.as_deref() == Some("manual") {
                 let head = given.setting("head", "manual");
                 given.refuse(&["head_timeout_s"], &head, " (the operator turns the head)")?;
             }
-            positive_seconds(&given.name("head_timeout_s"), a.head_timeout_s)?;
             if !a.gdb.is_empty() {
                 let gdb = if given.on_command_line("gdb") {
                     "station --gdb".to_string()
@@ -451,30 +389,6 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
             dup(a.ports.clone(), "--port")?;
             dup(a.serials.clone(), "--serial")?;
             dup(a.outs.iter().map(|p| resolve(p).display().to_string()).collect(), "--out")?;
-            positive_seconds(&given.name("timeout_s"), a.timeout_s)?;
-            if a.samples < 2 {
-                return Err(bad(format!(
-                    "{} must be at least 2 sets per position, got {}",
-                    given.name("samples"),
-                    a.samples
-                )));
-            }
-            if let Some(hz) = a.rate_hz {
-                accelcal_shared::wire::check_rate(hz)
-                    .map_err(|r| bad(format!("{}: {r}", given.name("rate_hz"))))?;
-            }
-            if !(a.select_tolerance.is_finite() && a.select_tolerance >= 0.0) {
-                return Err(bad(format!(
-                    "{} must be a number of codes >= 0, got {}",
-                    given.name("select_tolerance"),
-                    a.select_tolerance
-                )));
-            }
-            if let Some(k) = a.coverage {
-                if !(k.is_finite() && k >= 1.0) {
-                    return Err(bad(format!("{} must be a number >= 1, got {k}", given.name("coverage"))));
-                }
-            }
             if a.coverage.is_some() && a.spec.is_some() {
                 return Err(bad(format!(
                     "{} and {} do not go together: the specification's decision rule decides, not a coverage factor",
@@ -491,6 +405,8 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
             }
             Ok(())
         }
+        // Their numbers are checked by their value parsers (`cli::range`).
+        Command::Output(_) | Command::Monitor(_) => Ok(()),
         Command::BenchDiagnose(_)
         | Command::BenchSignature(_)
         | Command::UncertaintyCheck(_)
@@ -522,20 +438,12 @@ fn once_each(option: &str, given: usize, n: usize, per: &str, optional: bool) ->
     )))
 }
 
-fn check_answer_timeout(link: &crate::cli::PortArgs) -> anyhow::Result<()> {
-    positive_seconds("--timeout-s", link.timeout_s)
-}
-
-/// `--head-timeout-s`: a positive number of seconds, for an emulated head only.
-fn check_head_timeout(
-    given: &Given,
-    head: &accelcal_line::node::head::HeadSpec,
-    s: f64,
-) -> anyhow::Result<()> {
+/// `--head-timeout-s` is for an emulated head only.
+fn refuse_head_timeout(given: &Given, head: &accelcal_line::node::head::HeadSpec) -> anyhow::Result<()> {
     if *head == accelcal_line::node::head::HeadSpec::Manual {
         given.refuse(&["head_timeout_s"], "--head manual", " (the operator turns the head)")?;
     }
-    positive_seconds("--head-timeout-s", s)
+    Ok(())
 }
 
 /// `--laboratory-address` goes with `--laboratory`.
@@ -544,15 +452,6 @@ fn check_issuer(i: &crate::cli::Issuer) -> anyhow::Result<()> {
         return Err(bad("--laboratory-address needs --laboratory (the address is printed after its name)"));
     }
     Ok(())
-}
-
-/// Refuses a number of seconds that is not positive and finite, naming its option.
-fn positive_seconds(option: &str, s: f64) -> anyhow::Result<()> {
-    if s.is_finite() && s > 0.0 {
-        Ok(())
-    } else {
-        Err(bad(format!("{option} must be a positive number of seconds, got {s}")))
-    }
 }
 
 /// The options of `fit` that state the budget's references: the head's uncertainties, the unit

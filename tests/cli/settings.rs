@@ -488,3 +488,46 @@ fn a_busy_port_is_the_environment_and_its_os_error_is_printed_once() {
     assert!(cause.contains("os error"), "{err}");
     assert_eq!(err.matches(cause).count(), 1, "the OS error printed once: {err}");
 }
+
+/// A number outside its option's range is refused by the option's value parser as the command
+/// line is parsed (`host/src/cli/range.rs`): one line naming the option and the value, exit code
+/// 2, whichever command takes the option; a number that does not parse the same way, shown
+/// escaped.
+#[test]
+fn a_number_out_of_its_range_is_one_line_naming_the_option() {
+    let cases: &[(&[&str], &str)] = &[
+        (
+            &["info", "--port", "P", "--timeout-s", "0"],
+            "error: --timeout-s must be a positive number of seconds, got 0",
+        ),
+        (
+            &["emulate", "--qemu", "R", "--unit", "u", "--head-speed", "0"],
+            "error: --head-speed must be a positive number of degrees per second, got 0",
+        ),
+        (&["simulate", "--out", "a.csv", "--samples", "0"], "error: --samples must be at least 1, got 0"),
+        (&["select", "C", "--width", "0"], "error: --width must be at least 1, got 0"),
+        (
+            &["select", "C", "--t-ref", "300"],
+            "error: --t-ref must be a temperature in -100..=200 °C, got 300",
+        ),
+        (
+            &["fit", "R", "--method", "gravity-norm", "--window-s", "0"],
+            "error: --window-s must be a positive number of seconds, got 0",
+        ),
+        (
+            &["history", "U-1", "--db", "cal.sqlite", "--coverage", "0"],
+            "error: --coverage must be a positive number, got 0",
+        ),
+        (&["plan", "--design", "12", "--noise=-1"], "error: --noise must be a finite number ≥ 0, got -1"),
+        (
+            &["monitor", "--port", "P", "--timeout-s", "1\u{1b}[2J"],
+            "error: --timeout-s `1\\u{1b}[2J`: invalid float literal",
+        ),
+    ];
+    for (args, want) in cases {
+        let out = common::accelcal(args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert_eq!(err.trim_end(), *want, "{args:?}");
+    }
+}

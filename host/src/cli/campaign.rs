@@ -9,7 +9,7 @@ use accelcal_core::campaign::CodeRange;
 use accelcal_core::gmdh::{Criterion, Split};
 use accelcal_core::sim::{Layout, TempProfile};
 
-use super::{parse_codes, CommonArgs, LocalGravity, RunArgs};
+use super::{parse_codes, CommonArgs, Count, LocalGravity, Range, Real, RunArgs};
 
 /// `accelcal plan`.
 #[derive(Debug, Args)]
@@ -62,17 +62,17 @@ pub struct DesignArgs {
     pub like: Option<PathBuf>,
     /// Without --like: the nominal triad (16384 codes per g) with this white noise per sample,
     /// ADC codes (one sigma) [with --design].
-    #[arg(long, value_name = "CODES", requires = "design", value_parser = parse_sigma)]
+    #[arg(long, value_name = "CODES", requires = "design", value_parser = Real(Range::Sigma))]
     pub noise: Option<f64>,
     /// The dividing head's angle setting uncertainty, arcsec: one sigma of each angle at each
     /// position, from its certificate (as `fit --head-angle-u`) [with --design; default 0].
-    #[arg(long, value_name = "ARCSEC", value_parser = parse_arcsec, requires = "design")]
+    #[arg(long, value_name = "ARCSEC", value_parser = Real(Range::Arcsec), requires = "design")]
     pub head_angle_u: Option<f64>,
     /// Move plus settling time per position, s [with --design; default 10].
-    #[arg(long, value_name = "S", requires = "design", value_parser = parse_sigma)]
+    #[arg(long, value_name = "S", requires = "design", value_parser = Real(Range::SecondsOrZero))]
     pub move_s: Option<f64>,
     /// Sample rate, Hz [with --design; default 100].
-    #[arg(long, value_name = "HZ", requires = "design", value_parser = parse_positive)]
+    #[arg(long, value_name = "HZ", requires = "design", value_parser = Real(Range::Positive))]
     pub rate_hz: Option<f64>,
     /// Sample sets per position: the designed plan's dwell with --design N, and the dwell of the
     /// plans it is compared with (the paper's 62 positions, tumble24, six) [with --design;
@@ -81,16 +81,16 @@ pub struct DesignArgs {
     pub samples: Option<u32>,
     /// The expanded uncertainty to reach with --design auto, m/s² (worst axis, worst orientation
     /// at 1 g, k = 2) [default: the paper's 62-position plan's, at --samples].
-    #[arg(long = "target-U", value_name = "M_S2", requires = "design", value_parser = parse_positive)]
+    #[arg(long = "target-U", value_name = "M_S2", requires = "design", value_parser = Real(Range::Positive))]
     pub target_u: Option<f64>,
     /// The head's α step, degrees (α all round) [with --design; default 15].
-    #[arg(long, value_name = "DEG", requires = "design", value_parser = parse_positive)]
+    #[arg(long, value_name = "DEG", requires = "design", value_parser = Real(Range::Positive))]
     pub alpha_step_deg: Option<f64>,
     /// The head's β step, degrees [with --design; default 15].
-    #[arg(long, value_name = "DEG", requires = "design", value_parser = parse_positive)]
+    #[arg(long, value_name = "DEG", requires = "design", value_parser = Real(Range::Positive))]
     pub beta_step_deg: Option<f64>,
     /// The head's β limit either side of 0, degrees (at most 90) [with --design; default 90].
-    #[arg(long, value_name = "DEG", requires = "design", value_parser = parse_sigma)]
+    #[arg(long, value_name = "DEG", requires = "design", value_parser = Real(Range::Sigma))]
     pub beta_max_deg: Option<f64>,
     /// Check the prediction by simulation (JCGM 101): this many simulated units calibrated on
     /// each plan compared (the paper's, tumble24, six, the designed one) with the unit type's
@@ -113,7 +113,7 @@ pub struct DesignArgs {
     pub chamber: Vec<f64>,
     /// Seconds the chamber holds each setpoint before its pass, counted in the head time [with
     /// --chamber; default: 900, as simulate's].
-    #[arg(long = "soak-s", value_name = "S", requires = "chamber", value_parser = parse_sigma)]
+    #[arg(long = "soak-s", value_name = "S", requires = "chamber", value_parser = Real(Range::SecondsOrZero))]
     pub soak_s: Option<f64>,
 }
 
@@ -127,14 +127,6 @@ fn parse_design(s: &str) -> Result<DesignSize, String> {
             Ok(n) if n > 0 => Ok(DesignSize::Positions(n)),
             _ => Err("expected a number of positions or `auto`".into()),
         },
-    }
-}
-
-/// A finite number > 0.
-fn parse_positive(s: &str) -> Result<f64, String> {
-    match s.trim().parse::<f64>() {
-        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
-        _ => Err("expected a finite number > 0".into()),
     }
 }
 
@@ -161,25 +153,25 @@ pub struct SimulateArgs {
     #[arg(long, default_value = "triad", value_parser = parse_layout)]
     pub layout: Layout,
     /// Sample sets per position (the dwell; its mean is what selection and fits use).
-    #[arg(long, default_value_t = 400)]
+    #[arg(long, default_value_t = 400, value_parser = Count(Range::AtLeast1))]
     pub samples: usize,
     /// Sample rate, Hz.
-    #[arg(long, default_value_t = 100.0)]
+    #[arg(long, default_value_t = 100.0, value_parser = Real(Range::Positive))]
     pub rate_hz: f64,
     /// Time between positions (head moving), s.
-    #[arg(long, default_value_t = 2.0)]
+    #[arg(long, default_value_t = 2.0, value_parser = Real(Range::SecondsOrZero))]
     pub move_s: f64,
     /// White noise per sample, ADC codes (one sigma).
-    #[arg(long, default_value_t = 80.0)]
+    #[arg(long, default_value_t = 80.0, value_parser = Real(Range::Sigma))]
     pub noise: f64,
     /// Spread of the zero offsets around mid-scale, codes (one sigma).
-    #[arg(long, default_value_t = 300.0)]
+    #[arg(long, default_value_t = 300.0, value_parser = Real(Range::Sigma))]
     pub bias_sd: f64,
     /// Relative spread of the scale factors around 16384 codes/g (one sigma).
-    #[arg(long, default_value_t = 0.01)]
+    #[arg(long, default_value_t = 0.01, value_parser = Real(Range::Sigma))]
     pub scale_sd: f64,
     /// Misalignment of each sensitive axis, rad (one sigma per angle).
-    #[arg(long, default_value_t = 0.01)]
+    #[arg(long, default_value_t = 0.01, value_parser = Real(Range::Sigma))]
     pub misalign_sd: f64,
     /// Add an error effect, `NAME=KEY:VALUE,...` (repeatable; see --help for the effects, their
     /// keys and units).
@@ -196,11 +188,11 @@ pub struct SimulateArgs {
     #[arg(long, value_name = "T1,T2,…", value_delimiter = ',', allow_hyphen_values = true)]
     pub chamber: Vec<f64>,
     /// Seconds the chamber holds each setpoint before its pass starts [with --chamber; default: 900].
-    #[arg(long, value_name = "S")]
+    #[arg(long, value_name = "S", value_parser = Real(Range::SecondsOrZero))]
     pub soak_s: Option<f64>,
     /// Thermal time constant between the chamber and the sensor, seconds (first-order lag) [with
     /// --chamber; default: 30, as `emulate`'s].
-    #[arg(long, value_name = "S")]
+    #[arg(long, value_name = "S", value_parser = Real(Range::SecondsOrZero))]
     pub thermal_lag_s: Option<f64>,
     /// An ideal ADC: no rounding to whole codes, no clipping (for checks against exact values).
     #[arg(long)]
@@ -224,27 +216,6 @@ pub struct SimulateArgs {
     pub json: Option<PathBuf>,
 }
 
-/// A stated uncertainty of an angle: arcsec, finite, 0..=3600.
-pub(crate) fn parse_arcsec(s: &str) -> Result<f64, String> {
-    match s.trim().parse::<f64>() {
-        Ok(v) if v.is_finite() && (0.0..=3600.0).contains(&v) => Ok(v),
-        _ => Err("expected a number of arcseconds in 0..=3600".into()),
-    }
-}
-
-/// Whether `v` can be a stated one-sigma uncertainty: a finite number ≥ 0.
-pub fn is_sigma(v: f64) -> bool {
-    v.is_finite() && v >= 0.0
-}
-
-/// A stated one-sigma uncertainty ([`is_sigma`]).
-fn parse_sigma(s: &str) -> Result<f64, String> {
-    match s.trim().parse::<f64>() {
-        Ok(v) if is_sigma(v) => Ok(v),
-        _ => Err("expected a finite number ≥ 0".into()),
-    }
-}
-
 /// The unit type's temperature sensitivity and the thermometer, for the uncertainty budget.
 #[derive(Args, Debug, Clone, Default)]
 pub struct TempcoArgs {
@@ -254,15 +225,15 @@ pub struct TempcoArgs {
     /// temperature T̄ and stated at the reference --t-ref, so each channel's bias is uncertain by
     /// this × √((T̄ − t_ref)² + u(T)²) [--method lsq, model 4, a campaign with `temp_c`; default:
     /// named on the budget as not included].
-    #[arg(long, value_name = "MG_PER_C", value_parser = parse_sigma, requires_all = ["scale_tempco_u", "thermometer_u"])]
+    #[arg(long, value_name = "MG_PER_C", value_parser = Real(Range::Sigma), requires_all = ["scale_tempco_u", "thermometer_u"])]
     pub bias_tempco_u: Option<f64>,
     /// The unit type's scale-factor temperature coefficient, ppm/°C, one sigma (see
     /// --bias-tempco-u).
-    #[arg(long, value_name = "PPM_PER_C", value_parser = parse_sigma, requires_all = ["bias_tempco_u", "thermometer_u"])]
+    #[arg(long, value_name = "PPM_PER_C", value_parser = Real(Range::Sigma), requires_all = ["bias_tempco_u", "thermometer_u"])]
     pub scale_tempco_u: Option<f64>,
     /// The standard uncertainty of the campaign's temperature reading (`temp_c`), °C (see
     /// --bias-tempco-u).
-    #[arg(long, value_name = "C", value_parser = parse_sigma, requires_all = ["bias_tempco_u", "scale_tempco_u"])]
+    #[arg(long, value_name = "C", value_parser = Real(Range::Sigma), requires_all = ["bias_tempco_u", "scale_tempco_u"])]
     pub thermometer_u: Option<f64>,
 }
 
@@ -321,7 +292,7 @@ impl From<BasisArg> for accelcal_shared::Basis {
 pub struct ThermalArgs {
     /// Reference temperature of the thermal terms, °C: their variable t is `temp_c − T_REF`
     /// (the campaign's `temp_c` column, dwell means) [default: 25; only with terms in t].
-    #[arg(long, value_name = "DEG_C", allow_hyphen_values = true)]
+    #[arg(long, value_name = "DEG_C", allow_hyphen_values = true, value_parser = Real(Range::TRef))]
     pub t_ref: Option<f64>,
 }
 
@@ -370,7 +341,7 @@ pub struct SelectArgs {
     pub split: Split,
     /// The simplest model whose criterion is within this many ADC codes of the best is selected
     /// (the paper's rule: one ADC code); 0 selects the minimum.
-    #[arg(long, default_value_t = 1.0, value_name = "CODES")]
+    #[arg(long, default_value_t = 1.0, value_name = "CODES", value_parser = Real(Range::Codes))]
     pub tolerance: f64,
     /// Only these channels (comma-separated names) [default: all].
     #[arg(long, value_delimiter = ',')]
@@ -382,13 +353,13 @@ pub struct SelectArgs {
     #[arg(long, value_enum, default_value_t = Algorithm::Combi)]
     pub algorithm: Algorithm,
     /// Models kept per layer by `--algorithm multi`.
-    #[arg(long, default_value_t = 32)]
+    #[arg(long, default_value_t = 32, value_parser = Count(Range::AtLeast1))]
     pub width: usize,
     /// Largest number of terms in a candidate, intercept included.
-    #[arg(long, value_name = "K", default_value_t = accelcal_shared::N_BASIS)]
+    #[arg(long, value_name = "K", default_value_t = accelcal_shared::N_BASIS, value_parser = Count(Range::AtLeast1))]
     pub max_terms: usize,
     /// Worker threads [default: one per core].
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", value_parser = Count(Range::AtLeast1))]
     pub threads: Option<usize>,
     /// In JSON, list only the N best candidates per channel (0 = all; default: all up to 4096
     /// candidates, else 1000).
@@ -486,12 +457,12 @@ pub struct FitArgs {
     /// angle at each position (as the simulator's `angle_error` draws it), from the head's
     /// calibration certificate; it enters the uncertainty budget [--method lsq, model 4; default:
     /// not stated, the setting errors count only as far as the dwell scatter shows them].
-    #[arg(long, value_name = "ARCSEC", value_parser = parse_arcsec)]
+    #[arg(long, value_name = "ARCSEC", value_parser = Real(Range::Arcsec))]
     pub head_angle_u: Option<f64>,
     /// The dividing head's orthogonality uncertainty, arcsec: one sigma of each of the three
     /// rotations between its stages (the simulator's `head_misalignment`) [--method lsq, model 4;
     /// default: not stated, and named on the budget as not included].
-    #[arg(long, value_name = "ARCSEC", value_parser = parse_arcsec)]
+    #[arg(long, value_name = "ARCSEC", value_parser = Real(Range::Arcsec))]
     pub head_orthogonality_u: Option<f64>,
     /// The dividing head as a registered asset (`accelcal asset add ID --kind head`): its
     /// certificate in force states the angle and orthogonality uncertainties of the budget, and
@@ -561,7 +532,7 @@ pub struct DiagnoseArgs {
 #[derive(Debug, Args)]
 pub struct BenchDiagnoseArgs {
     /// Number of simulated campaigns.
-    #[arg(long, default_value_t = 240)]
+    #[arg(long, default_value_t = 240, value_parser = Count(Range::AtLeast1))]
     pub campaigns: usize,
     /// Master seed (each campaign's seed, effect and magnitude are drawn from it).
     #[arg(long, default_value_t = 2026)]
@@ -636,7 +607,7 @@ pub struct HilArgs {
     #[arg(long, default_value = "qemu-system-arm", value_name = "PATH")]
     pub qemu_bin: PathBuf,
     /// Seconds the node may stay silent (no frame) before the run fails.
-    #[arg(long, default_value_t = 20.0, value_name = "S")]
+    #[arg(long, default_value_t = 20.0, value_name = "S", value_parser = Real(Range::Seconds))]
     pub timeout_s: f64,
     /// Range of the campaign's raw codes [default: its `# codes:` line, else unsigned16]. Only
     /// unsigned16 can be replayed: the node samples a 16-bit unsigned ADC.
@@ -681,14 +652,14 @@ pub struct GravityOptions {
     #[arg(long, value_name = "DIR")]
     pub plot: Option<PathBuf>,
     /// Shortest accepted static hold, in seconds.
-    #[arg(long, default_value_t = 2.0)]
+    #[arg(long, default_value_t = 2.0, value_parser = Real(Range::SecondsOrZero))]
     pub min_hold_s: f64,
     /// Detector threshold in codes² (sum of the three axis variances) [default: 4 x the lower
     /// quartile of the detector trace].
-    #[arg(long)]
+    #[arg(long, value_parser = Real(Range::Positive))]
     pub threshold: Option<f64>,
     /// Length of the detector's sliding window, in seconds.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, value_parser = Real(Range::Seconds))]
     pub window_s: f64,
     /// Model structure to fit (`auto`: selected on withheld holds).
     #[arg(long, value_enum, default_value = "imu-tk")]

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::{Args, Subcommand};
 
-use super::ReaderDb;
+use super::{Range, ReaderDb, Real};
 
 /// `accelcal history`: a unit's runs from the calibration database.
 #[derive(Debug, Args)]
@@ -19,14 +19,14 @@ pub struct HistoryArgs {
     pub db: Option<String>,
     /// The tolerance T the drift of a coefficient may reach before the unit is recalibrated,
     /// as an acceleration error at 1 g, m/s².
-    #[arg(long = "tolerance-m-s2", value_name = "M_S2", default_value_t = accelcal_db::history::DEFAULT_RULE.tolerance_m_s2)]
+    #[arg(long = "tolerance-m-s2", value_name = "M_S2", default_value_t = accelcal_db::history::DEFAULT_RULE.tolerance_m_s2, value_parser = Real(Range::Positive))]
     pub tolerance_m_s2: f64,
     /// Coverage factor k on the drift rate's standard error.
-    #[arg(long, value_name = "K", default_value_t = accelcal_db::history::DEFAULT_RULE.coverage)]
+    #[arg(long, value_name = "K", default_value_t = accelcal_db::history::DEFAULT_RULE.coverage, value_parser = Real(Range::Positive))]
     pub coverage: f64,
     /// The longest recommended interval between calibrations, days (also the interval after a
     /// single calibration; at most 36525, a century).
-    #[arg(long, value_name = "DAYS", default_value_t = accelcal_db::history::DEFAULT_RULE.max_interval_days)]
+    #[arg(long, value_name = "DAYS", default_value_t = accelcal_db::history::DEFAULT_RULE.max_interval_days, value_parser = Real(Range::Positive))]
     pub max_interval_days: f64,
     /// Write the history as JSON to this file.
     #[arg(long, value_name = "FILE")]
@@ -137,12 +137,12 @@ pub struct AssetAddArgs {
     /// A head's angle setting uncertainty, arcsec: one sigma of the error of each head angle at
     /// each position, from the head's certificate (`fit --head-angle-u`) [required for a head;
     /// refused for other kinds].
-    #[arg(long, value_name = "ARCSEC", value_parser = super::campaign::parse_arcsec)]
+    #[arg(long, value_name = "ARCSEC", value_parser = Real(Range::Arcsec))]
     pub angle_u: Option<f64>,
     /// A head's orthogonality uncertainty, arcsec: one sigma of each of the three rotations
     /// between its stages (`fit --head-orthogonality-u`) [required for a head; refused for other
     /// kinds].
-    #[arg(long, value_name = "ARCSEC", value_parser = super::campaign::parse_arcsec)]
+    #[arg(long, value_name = "ARCSEC", value_parser = Real(Range::Arcsec))]
     pub orthogonality_u: Option<f64>,
     #[command(flatten)]
     pub store: AssetDb,

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use clap::{Args, Subcommand, ValueEnum};
 
-use super::{LocalGravity, RunArgs};
+use super::{Count, LocalGravity, Range, RateHz, Real, RunArgs};
 
 /// `accelcal flash`: write a calibration record into a node through a debug probe.
 #[derive(Debug, Args)]
@@ -83,11 +83,11 @@ pub struct MonitorArgs {
     #[arg(long, value_name = "N")]
     pub count: Option<u64>,
     /// First set the node's sampling rate per channel, Hz (100..=4000).
-    #[arg(long, alias = "rate", value_name = "HZ")]
+    #[arg(long, alias = "rate", value_name = "HZ", value_parser = RateHz)]
     pub rate_hz: Option<u32>,
     /// Seconds the node may go without sending a message before the command fails, whatever else
     /// arrives (bytes that make no frame, bad frames); the node sends its status every second.
-    #[arg(long, default_value_t = 5.0, value_name = "S")]
+    #[arg(long, default_value_t = 5.0, value_name = "S", value_parser = Real(Range::Seconds))]
     pub timeout_s: f64,
 }
 
@@ -103,7 +103,7 @@ pub struct PortArgs {
     pub baud: u32,
     /// Seconds the node may take to answer a request (and, while it streams, between two sample
     /// blocks) before the command fails, whatever else it sends meanwhile.
-    #[arg(long, alias = "answer-timeout-s", default_value_t = 5.0, value_name = "S")]
+    #[arg(long, alias = "answer-timeout-s", default_value_t = 5.0, value_name = "S", value_parser = Real(Range::Seconds))]
     pub timeout_s: f64,
 }
 
@@ -133,11 +133,11 @@ pub struct EmulateArgs {
     #[arg(long, default_value = "qemu-system-arm", value_name = "PATH")]
     pub qemu_bin: PathBuf,
     /// Angular speed of the head's two axes, degrees per second (each move also takes 0.1 s).
-    #[arg(long, default_value_t = 60.0, value_name = "DEG_S")]
+    #[arg(long, default_value_t = 60.0, value_name = "DEG_S", value_parser = Real(Range::DegreesPerS))]
     pub head_speed: f64,
     /// The front end converts at this factor times the rate the node asks for (above 1: faster
     /// than the node can take, to provoke overruns).
-    #[arg(long, default_value_t = 1.0, value_name = "F")]
+    #[arg(long, default_value_t = 1.0, value_name = "F", value_parser = Real(Range::RateFactor))]
     pub rate_factor: f64,
     /// TCP port of QEMU's gdbstub on 127.0.0.1 [default: a free one]; with several --unit, the
     /// first node's, node N's is PORT + N - 1.
@@ -154,10 +154,10 @@ pub struct EmulateArgs {
     /// there); `CHAMBER <temp_c>` on the head's protocol (`acquire --chamber`, `verify
     /// --chamber`) changes it. The unit's `temperature` effect and the front end's temperature
     /// channel follow the sensor's temperature.
-    #[arg(long, alias = "temp-c", default_value_t = 25.0, value_name = "DEG_C", allow_hyphen_values = true)]
+    #[arg(long, alias = "temp-c", default_value_t = 25.0, value_name = "DEG_C", allow_hyphen_values = true, value_parser = Real(Range::Chamber))]
     pub chamber: f64,
     /// Thermal time constant between the chamber and the sensor, seconds (first-order lag).
-    #[arg(long, default_value_t = 30.0, value_name = "S")]
+    #[arg(long, default_value_t = 30.0, value_name = "S", value_parser = Real(Range::SecondsOrZero))]
     pub thermal_lag_s: f64,
 }
 
@@ -207,7 +207,7 @@ pub struct AcquireArgs {
     pub baud: u32,
     /// Seconds a node may take to answer a request (and, while it streams, between two sample
     /// blocks) before the command fails, whatever else it sends meanwhile.
-    #[arg(long, alias = "answer-timeout-s", default_value_t = 5.0, value_name = "S")]
+    #[arg(long, alias = "answer-timeout-s", default_value_t = 5.0, value_name = "S", value_parser = Real(Range::Seconds))]
     pub timeout_s: f64,
     /// The head: `manual` (the command shows each position's angles and what the unit should
     /// read, and waits for Enter) or `sim:HOST:PORT` (the emulated head `accelcal emulate` prints).
@@ -215,7 +215,7 @@ pub struct AcquireArgs {
     pub head: accelcal_line::node::head::HeadSpec,
     /// Seconds an emulated head (`--head sim:…`) may take to answer a request before the command
     /// fails; a move is answered once the head stands still, so this bounds the longest move.
-    #[arg(long, default_value_t = 120.0, value_name = "S")]
+    #[arg(long, default_value_t = 120.0, value_name = "S", value_parser = Real(Range::Seconds))]
     pub head_timeout_s: f64,
     /// Position plan: head (62 positions), six (the test-turn positions), tumble24, random:N, or a plan
     /// file (CSV `alpha_deg,beta_deg`).
@@ -229,7 +229,7 @@ pub struct AcquireArgs {
     pub out: Vec<PathBuf>,
     /// Sample sets recorded per position, after the stream is static [default: 400; with
     /// --resume, the campaign's].
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", value_parser = Count(Range::Sets))]
     pub samples: Option<usize>,
     /// The unit's serial number, written into the campaign; with several --port, once per port in
     /// the same order, or not at all.
@@ -250,16 +250,16 @@ pub struct AcquireArgs {
     pub resume: bool,
     /// Set the node's sampling rate per channel first, Hz (100..=4000) [default: the node's; with
     /// --resume, the campaign's]; held for every position (set again after a node reset).
-    #[arg(long, alias = "rate", value_name = "HZ")]
+    #[arg(long, alias = "rate", value_name = "HZ", value_parser = RateHz)]
     pub rate_hz: Option<u32>,
     /// Seconds a position may take to become static before it is refused.
-    #[arg(long, default_value_t = 30.0, value_name = "S")]
+    #[arg(long, default_value_t = 30.0, value_name = "S", value_parser = Real(Range::Seconds))]
     pub settle_timeout_s: f64,
     /// Static test: sets per window (two consecutive windows are compared).
-    #[arg(long, default_value_t = 64, value_name = "N")]
+    #[arg(long, default_value_t = 64, value_name = "N", value_parser = Count(Range::Window))]
     pub static_window: usize,
     /// Static test: largest change of the window means, in standard errors.
-    #[arg(long, default_value_t = 3.0, value_name = "Z")]
+    #[arg(long, default_value_t = 3.0, value_name = "Z", value_parser = Real(Range::Positive))]
     pub static_z: f64,
     /// A thermal campaign: run the plan at each of these chamber setpoints (°C, comma-separated),
     /// each after --soak-s (the node must report its temperature, recorded as `temp_c`).
@@ -267,7 +267,7 @@ pub struct AcquireArgs {
     pub chamber: Vec<f64>,
     /// Seconds to wait after each change of the chamber setpoint before the first position
     /// [with --chamber].
-    #[arg(long, value_name = "S")]
+    #[arg(long, value_name = "S", value_parser = Real(Range::SecondsOrZero))]
     pub soak_s: Option<f64>,
 }
 
@@ -282,22 +282,22 @@ pub struct VerifyArgs {
     pub head: accelcal_line::node::head::HeadSpec,
     /// Seconds an emulated head (`--head sim:…`) may take to answer a request before the command
     /// fails; a move is answered once the head stands still, so this bounds the longest move.
-    #[arg(long, default_value_t = 120.0, value_name = "S")]
+    #[arg(long, default_value_t = 120.0, value_name = "S", value_parser = Real(Range::Seconds))]
     pub head_timeout_s: f64,
     /// Position plan: six (the test-turn positions), head, tumble24, random:N, or a plan file.
     #[arg(long, default_value = "six")]
     pub plan: String,
     /// Sample sets averaged per position, after the stream is static.
-    #[arg(long, default_value_t = 400, value_name = "N")]
+    #[arg(long, default_value_t = 400, value_name = "N", value_parser = Count(Range::Sets))]
     pub samples: usize,
     /// Pass bound on every component's error, m/s² [default: derived per position, K·sqrt(σ_cal² +
     /// σ_mean²), σ_cal from --fit's covariance, σ_mean from the measured scatter, K = --coverage].
-    #[arg(long, value_name = "M_S2")]
+    #[arg(long, value_name = "M_S2", value_parser = Real(Range::MetresPerS2))]
     pub tolerance: Option<f64>,
     /// Coverage factor K of the derived tolerance (>= 1). With Gaussian errors a good node fails a
     /// six-position verification (18 components) about once in 900 runs at K = 4, once in 10⁵ at
     /// K = 5 [default: 4; not with --tolerance].
-    #[arg(long, value_name = "K")]
+    #[arg(long, value_name = "K", value_parser = Real(Range::Coverage))]
     pub coverage: Option<f64>,
     /// The `fit --json` output of the record's fit: its covariance matrix enters the derived
     /// tolerance (a thermal fit's terms in t too, at each position's temperature) [not with
@@ -311,7 +311,7 @@ pub struct VerifyArgs {
     #[command(flatten)]
     pub local: LocalGravity,
     /// Seconds a position may take to become static before it is refused.
-    #[arg(long, default_value_t = 30.0, value_name = "S")]
+    #[arg(long, default_value_t = 30.0, value_name = "S", value_parser = Real(Range::Seconds))]
     pub settle_timeout_s: f64,
     /// Write the verification table as JSON to this file.
     #[arg(long, value_name = "FILE")]
@@ -320,7 +320,7 @@ pub struct VerifyArgs {
     #[arg(long, value_name = "DEG_C", allow_hyphen_values = true)]
     pub chamber: Option<f64>,
     /// Seconds to wait after setting the chamber before the first position [with --chamber].
-    #[arg(long, value_name = "S")]
+    #[arg(long, value_name = "S", value_parser = Real(Range::SecondsOrZero))]
     pub soak_s: Option<f64>,
     /// The calibration database.
     #[command(flatten)]
@@ -339,11 +339,11 @@ pub struct VerifyArgs {
     pub spec: Option<PathBuf>,
     /// The head's angle setting uncertainty, arcsec (one sigma, from its certificate): it enters
     /// U of each measured error [with --spec; default: not stated, named as not included].
-    #[arg(long, value_name = "ARCSEC", value_parser = super::campaign::parse_arcsec, requires = "spec")]
+    #[arg(long, value_name = "ARCSEC", value_parser = Real(Range::Arcsec), requires = "spec")]
     pub head_angle_u: Option<f64>,
     /// The head's orthogonality uncertainty, arcsec (one sigma of each rotation between its
     /// stages): it enters U of each measured error [with --spec; default: not stated].
-    #[arg(long, value_name = "ARCSEC", value_parser = super::campaign::parse_arcsec, requires = "spec")]
+    #[arg(long, value_name = "ARCSEC", value_parser = Real(Range::Arcsec), requires = "spec")]
     pub head_orthogonality_u: Option<f64>,
 }
 
@@ -404,7 +404,7 @@ pub struct StationArgs {
     #[arg(long, default_value_t = accelcal_line::node::monitor::NODE_BAUD)]
     pub baud: u32,
     /// Seconds a node may stay silent (no answer to a request) before a step fails.
-    #[arg(long, alias = "answer-timeout-s", default_value_t = 5.0, value_name = "S")]
+    #[arg(long, alias = "answer-timeout-s", default_value_t = 5.0, value_name = "S", value_parser = Real(Range::Seconds))]
     pub timeout_s: f64,
     /// The head: `manual` (the operator turns it; each step prompts) or `sim:HOST:PORT` (as for
     /// `acquire`).
@@ -433,11 +433,11 @@ pub struct StationArgs {
     #[arg(long, default_value = "head")]
     pub plan: String,
     /// Sample sets recorded per position, in the campaign and in each verification.
-    #[arg(long, default_value_t = 400, value_name = "N")]
+    #[arg(long, default_value_t = 400, value_name = "N", value_parser = Count(Range::Sets))]
     pub samples: usize,
     /// Set the node's sampling rate per channel for the campaign, Hz (100..=4000) [default: the
     /// node's].
-    #[arg(long, value_name = "HZ")]
+    #[arg(long, value_name = "HZ", value_parser = RateHz)]
     pub rate_hz: Option<u32>,
     /// Gravity at the rig, m/s² [default: 9.81, announced; better --latitude/--height].
     #[arg(long, value_name = "M_S2")]
@@ -447,10 +447,10 @@ pub struct StationArgs {
     pub local: LocalGravity,
     /// The selection's tolerance, ADC codes: `select --tolerance` (the simplest model within it of
     /// the best is selected; the paper's rule is one code).
-    #[arg(long, default_value_t = 1.0, value_name = "CODES")]
+    #[arg(long, default_value_t = 1.0, value_name = "CODES", value_parser = Real(Range::Codes))]
     pub select_tolerance: f64,
     /// Coverage factor K of the verifications' derived tolerance (>= 1) [default: verify's, 4].
-    #[arg(long, value_name = "K")]
+    #[arg(long, value_name = "K", value_parser = Real(Range::Coverage))]
     pub coverage: Option<f64>,
     /// The `fit --json` of the record in force, for the as-found verification's tolerance
     /// [default: the database's fit of that record (its CRC), else the tolerance from the
@@ -499,7 +499,7 @@ pub struct StationArgs {
     /// Seconds an emulated head (`--head sim:…`) may take to answer a request before a step
     /// fails (passed to acquire and the verifications); a move is answered once the head
     /// stands still, so this bounds the longest move.
-    #[arg(long, default_value_t = 120.0, value_name = "S")]
+    #[arg(long, default_value_t = 120.0, value_name = "S", value_parser = Real(Range::Seconds))]
     pub head_timeout_s: f64,
     /// Begin the run even though the database ties this --serial to another device, or the
     /// node's device to another serial: the serial moves to this device, stored as a relabel row

@@ -9,10 +9,12 @@ use accelcal_core::campaign::CodeRange;
 mod campaign;
 mod db;
 mod line;
+pub mod range;
 
 pub use campaign::*;
 pub use db::*;
 pub use line::*;
+pub use range::{Count, Range, RateHz, Real};
 
 /// Production calibration of analog MEMS accelerometer blocks (MS9002.D class) on a dividing
 /// head: GMDH model-structure selection, least-squares and test-turn fits, and their comparison.

@@ -104,9 +104,6 @@ pub struct BenchDiagnose {
 
 /// `bench-diagnose`'s settings.
 pub fn bench_diagnose(a: &BenchDiagnoseArgs) -> anyhow::Result<BenchDiagnose> {
-    if a.campaigns == 0 {
-        return Err(bad("--campaigns must be >= 1"));
-    }
     let v: Vec<Option<f64>> = a.magnitude.split(':').map(|x| x.trim().parse::<f64>().ok()).collect();
     let magnitude = match v[..] {
         [Some(lo), Some(hi)] if lo.is_finite() && hi.is_finite() && lo > 0.0 && hi >= lo => (lo, hi),
@@ -209,11 +206,6 @@ fn thermal_plan(a: &SimulateArgs) -> anyhow::Result<Option<sim::ThermalPlan>> {
     }
     let soak_s = a.soak_s.unwrap_or(SOAK_DEFAULT_S);
     let tau_s = a.thermal_lag_s.unwrap_or(THERMAL_LAG_DEFAULT_S);
-    for (name, v) in [("--soak-s", soak_s), ("--thermal-lag-s", tau_s)] {
-        if !(v.is_finite() && v >= 0.0) {
-            return Err(bad(format!("{name} must be a number of seconds >= 0, got {v}")));
-        }
-    }
     Ok(Some(sim::ThermalPlan { chamber_c: a.chamber.clone(), soak_s, tau_s }))
 }
 
@@ -236,22 +228,6 @@ fn config(a: &SimulateArgs, g: f64) -> anyhow::Result<SimConfig> {
                 e.name()
             )));
         }
-    }
-    for (name, v) in [
-        ("--noise", a.noise),
-        ("--bias-sd", a.bias_sd),
-        ("--scale-sd", a.scale_sd),
-        ("--misalign-sd", a.misalign_sd),
-    ] {
-        if !(v.is_finite() && v >= 0.0) {
-            return Err(bad(format!("{name} must be a finite number >= 0, got {v}")));
-        }
-    }
-    if a.samples == 0
-        || !(a.rate_hz.is_finite() && a.rate_hz > 0.0)
-        || !(a.move_s.is_finite() && a.move_s >= 0.0)
-    {
-        return Err(bad("--samples must be >= 1, --rate-hz > 0 and --move-s >= 0"));
     }
     Ok(SimConfig {
         seed: a.seed,
@@ -443,16 +419,6 @@ fn head(a: &PlanArgs) -> Head {
     }
 }
 
-/// Checks `--t-ref`, °C.
-pub fn check_t_ref(t_ref: f64) -> anyhow::Result<()> {
-    if !(t_ref.is_finite() && (-100.0..=200.0).contains(&t_ref)) {
-        return Err(accelcal_core::error::bad(format!(
-            "--t-ref must be a temperature in -100..=200 °C, got {t_ref}"
-        )));
-    }
-    Ok(())
-}
-
 /// `accelcal select`, settled.
 pub struct Select {
     pub campaign: Campaign,
@@ -483,13 +449,6 @@ pub enum Search {
 
 /// `select`'s settings (the options of another mode refused by `settings::check`).
 pub fn select(a: &SelectArgs) -> anyhow::Result<Select> {
-    if !(a.tolerance.is_finite() && a.tolerance >= 0.0) {
-        return Err(bad(format!("--tolerance must be a number of codes >= 0, got {}", a.tolerance)));
-    }
-    check_t_ref(a.thermal.t_ref_c())?;
-    if a.max_terms == 0 || a.width == 0 || a.threads == Some(0) {
-        return Err(bad("--max-terms, --width and --threads must be at least 1"));
-    }
     Ok(Select {
         campaign: Campaign::of(&a.campaign, &a.common),
         settings: accelcal_core::gmdh::Settings {
@@ -597,7 +556,6 @@ pub fn fit(a: &FitArgs) -> anyhow::Result<FitSettings> {
     if a.temp_input.is_some() && a.record.is_none() {
         return Err(bad("--temp-input applies to --record only"));
     }
-    check_t_ref(a.thermal.t_ref_c())?;
     Ok(FitSettings::Campaign(Box::new(Fit {
         campaign: Campaign::of(&a.campaign, &a.common),
         method,
@@ -618,15 +576,6 @@ pub fn fit(a: &FitArgs) -> anyhow::Result<FitSettings> {
 /// The gravity norm's hold detector: `--window-s` (positive), `--min-hold-s` (≥ 0),
 /// `--threshold` (positive, when given).
 fn detector(o: &GravityOptions) -> anyhow::Result<accelcal_core::gravity::holds::DetectorConfig> {
-    if !(o.min_hold_s.is_finite() && o.min_hold_s >= 0.0) {
-        return Err(bad(format!("--min-hold-s must be non-negative, got {}", o.min_hold_s)));
-    }
-    if !(o.window_s.is_finite() && o.window_s > 0.0) {
-        return Err(bad(format!("--window-s must be positive, got {}", o.window_s)));
-    }
-    if let Some(th) = o.threshold.filter(|th| !(th.is_finite() && *th > 0.0)) {
-        return Err(bad(format!("--threshold must be positive, got {th}")));
-    }
     Ok(accelcal_core::gravity::holds::DetectorConfig {
         window_s: o.window_s,
         min_hold_s: o.min_hold_s,

@@ -108,16 +108,6 @@ pub struct History {
 
 /// `history`'s settings from its command line.
 pub fn history(a: &HistoryArgs) -> anyhow::Result<History> {
-    let positive = |name: &str, v: f64| {
-        if v.is_finite() && v > 0.0 {
-            Ok(())
-        } else {
-            Err(bad(format!("{name} must be a positive number, got {v}")))
-        }
-    };
-    positive("--tolerance-m-s2", a.tolerance_m_s2)?;
-    positive("--coverage", a.coverage)?;
-    positive("--max-interval-days", a.max_interval_days)?;
     if a.max_interval_days > 36_525.0 {
         return Err(bad(format!(
             "--max-interval-days {} is not an interval: give a positive number of days, at most 36525 (a century)",

@@ -20,7 +20,7 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use super::Given;
-use crate::cli::{Command, StationArgs};
+use crate::cli::{Command, Range, StationArgs};
 
 /// The file, as written. Every key is optional; a missing one leaves the option's default.
 #[derive(Debug, Deserialize)]
@@ -122,14 +122,25 @@ pub fn apply(command: &mut Command, given: &mut Given) -> anyhow::Result<Option<
     }
     f.text_value(&mut a.head, "head", "head", c.head)?;
     f.text_value(&mut a.head_asset, "head_asset", "head_asset", c.head_asset)?;
-    f.value(&mut a.head_timeout_s, "head_timeout_s", "head_timeout_s", c.head_timeout_s);
+    f.value(
+        &mut a.head_timeout_s,
+        "head_timeout_s",
+        "head_timeout_s",
+        f.real("head_timeout_s", c.head_timeout_s, Range::Seconds)?,
+    );
     f.nodes(a, c.node)?;
     f.text_value_plain(&mut a.plan, "plan", c.plan)?;
-    f.value(&mut a.samples, "samples", "samples", c.samples);
-    f.optional(&mut a.rate_hz, "rate_hz", "rate_hz", c.rate_hz);
+    let samples = f.checked("samples", c.samples, |n| {
+        Range::Sets.check(n as f64).map(|_| n).map_err(|m| format!(" {m}"))
+    })?;
+    f.value(&mut a.samples, "samples", "samples", samples);
+    let rate_hz = f.checked("rate_hz", c.rate_hz, crate::cli::range::rate_hz)?;
+    f.optional(&mut a.rate_hz, "rate_hz", "rate_hz", rate_hz);
     f.gravity(a, c.g, c.latitude, c.height)?;
-    f.value(&mut a.select_tolerance, "select_tolerance", "select_tolerance", c.select_tolerance);
-    f.optional(&mut a.coverage, "coverage", "coverage", c.coverage);
+    let select_tolerance = f.real("select_tolerance", c.select_tolerance, Range::Codes)?;
+    f.value(&mut a.select_tolerance, "select_tolerance", "select_tolerance", select_tolerance);
+    let coverage = f.real("coverage", c.coverage, Range::Coverage)?;
+    f.optional(&mut a.coverage, "coverage", "coverage", coverage);
     let tempco = [
         ("bias_tempco_u", &c.bias_tempco_u),
         ("scale_tempco_u", &c.scale_tempco_u),
@@ -137,9 +148,8 @@ pub fn apply(command: &mut Command, given: &mut Given) -> anyhow::Result<Option<
     ];
     for (key, v) in tempco {
         if let Some(v) = v {
-            let x = *v.get_ref();
-            if !crate::cli::is_sigma(x) {
-                return Err(bad(format!("{name}:{}: {key} must be a finite number ≥ 0, got {x}", f.at(v))));
+            if let Err(m) = Range::Sigma.check(*v.get_ref()) {
+                return Err(bad(format!("{name}:{}: {key} {m}", f.at(v))));
             }
         }
     }
@@ -176,7 +186,8 @@ pub fn apply(command: &mut Command, given: &mut Given) -> anyhow::Result<Option<
     });
     f.text_value(&mut a.db, "db", "db", db)?;
     f.value(&mut a.baud, "baud", "baud", c.baud);
-    f.value(&mut a.timeout_s, "timeout_s", "timeout_s", c.timeout_s);
+    let timeout_s = f.real("timeout_s", c.timeout_s, Range::Seconds)?;
+    f.value(&mut a.timeout_s, "timeout_s", "timeout_s", timeout_s);
     f.text_value_plain(&mut a.chip, "chip", c.chip)?;
     let mut keys: Vec<String> = f.given.config.iter().map(|(_, key, _)| key.clone()).collect();
     keys.dedup();
@@ -213,6 +224,31 @@ impl File<'_, '_, '_> {
         let at = format!("{}:{}", self.name, self.at(v));
         self.given.config.push((id, key.to_string(), at));
         true
+    }
+
+    /// `v`, when it is in the range its option's value parser accepts on the command line
+    /// (`check` says what it must be after the key's name); otherwise the refusal, which names the
+    /// key and its line as the later checks do (`` `samples` (station.toml:5:11) must be ...``).
+    /// `key` is also the option's clap id.
+    fn checked<T: Copy>(
+        &self,
+        key: &str,
+        v: Option<Spanned<T>>,
+        check: impl Fn(T) -> Result<T, String>,
+    ) -> anyhow::Result<Option<Spanned<T>>> {
+        // A value the command line overrides is not used, and not checked (the command line's
+        // was, by its value parser).
+        if let Some(v) = v.as_ref().filter(|_| !self.given.on_command_line(key)) {
+            if let Err(m) = check(*v.get_ref()) {
+                return Err(bad(format!("`{key}` ({}:{}){m}", self.name, self.at(v))));
+            }
+        }
+        Ok(v)
+    }
+
+    /// [`File::checked`] for a number in a [`Range`].
+    fn real(&self, key: &str, v: Option<Spanned<f64>>, range: Range) -> anyhow::Result<Option<Spanned<f64>>> {
+        self.checked(key, v, |x| range.check(x).map_err(|m| format!(" {m}")))
     }
 
     /// An option with a default.
