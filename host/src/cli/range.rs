@@ -71,7 +71,7 @@ impl Range {
             Range::DegreesPerS => {
                 (v.is_finite() && v > 0.0, "must be a positive number of degrees per second")
             }
-            Range::Sigma => (is_sigma(v), "must be a finite number ≥ 0"),
+            Range::Sigma => (v.is_finite() && v >= 0.0, "must be a finite number ≥ 0"),
             Range::Codes => (v.is_finite() && v >= 0.0, "must be a number of codes >= 0"),
             Range::Coverage => (v.is_finite() && v >= 1.0, "must be a number >= 1"),
             Range::Arcsec => {
@@ -85,11 +85,11 @@ impl Range {
             Err(format!("{must}, got {v}"))
         }
     }
-}
 
-/// Whether `v` can be a stated one-sigma uncertainty: a finite number ≥ 0.
-pub fn is_sigma(v: f64) -> bool {
-    v.is_finite() && v >= 0.0
+    /// [`Range::check`] for a count.
+    pub fn count(self, n: usize) -> Result<usize, String> {
+        self.check(n as f64).map(|_| n)
+    }
 }
 
 /// The value parser of a number (`f64`) in a [`Range`].
@@ -157,7 +157,7 @@ impl TypedValueParser for Count {
         value: &OsStr,
     ) -> Result<usize, clap::Error> {
         let n: usize = number(cmd, arg, value)?;
-        self.0.check(n as f64).map(|_| n).map_err(|why| out_of_range(cmd, arg, why))
+        self.0.count(n).map_err(|why| out_of_range(cmd, arg, why))
     }
 }
 

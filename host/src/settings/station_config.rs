@@ -130,9 +130,7 @@ pub fn apply(command: &mut Command, given: &mut Given) -> anyhow::Result<Option<
     );
     f.nodes(a, c.node)?;
     f.text_value_plain(&mut a.plan, "plan", c.plan)?;
-    let samples = f.checked("samples", c.samples, |n| {
-        Range::Sets.check(n as f64).map(|_| n).map_err(|m| format!(" {m}"))
-    })?;
+    let samples = f.checked("samples", c.samples, |n| Range::Sets.count(n).map_err(|m| format!(" {m}")))?;
     f.value(&mut a.samples, "samples", "samples", samples);
     let rate_hz = f.checked("rate_hz", c.rate_hz, crate::cli::range::rate_hz)?;
     f.optional(&mut a.rate_hz, "rate_hz", "rate_hz", rate_hz);
