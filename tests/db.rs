@@ -148,7 +148,7 @@ fn both_engines_have_the_same_tables_and_columns() {
         let want = match &v[..4] {
             "V1__" => 8,
             "V2__" => 3,
-            "V4__" | "V5__" | "V7__" => 1,
+            "V4__" | "V5__" | "V7__" | "V8__" => 1,
             "V6__" => 7,
             _ => 2,
         };
@@ -448,8 +448,12 @@ fn a_row_replaced_behind_accelcal_s_back_is_named_and_never_flashed() {
     let d = tempfile::tempdir().unwrap();
     let spec = db_file(&d);
     // SQLite's REPLACE deletes without firing the delete trigger (no recursive_triggers).
+    // Schema 8's insert trigger refuses the REPLACE: dropped, as someone with write access can.
     a_changed_row_breaks_the_chain(&spec, false, &|sql| {
-        rusqlite::Connection::open(&spec).unwrap().execute_batch(sql).unwrap()
+        rusqlite::Connection::open(&spec)
+            .unwrap()
+            .execute_batch(&format!("DROP TRIGGER cal_record_no_replace; {sql}"))
+            .unwrap()
     });
 }
 
@@ -476,7 +480,7 @@ fn sixteen_first_opens_at_once_migrate_once() {
         assert_eq!(out.status.code(), Some(2), "{err}");
         assert!(err.contains(&format!("run {run}: not in the database")), "{err}");
     }
-    assert_eq!(Db::open(&spec).unwrap().schema_versions().unwrap(), vec![1, 2, 3, 4, 5, 6, 7]);
+    assert_eq!(Db::open(&spec).unwrap().schema_versions().unwrap(), vec![1, 2, 3, 4, 5, 6, 7, 8]);
 }
 
 /// Issue 28 items 7 and 11: a database that cannot be written stops a writer first, naming the
@@ -562,4 +566,113 @@ fn the_recalibration_date_is_stored_with_the_number_and_decisions_are_columns() 
         let mut s = c.prepare("SELECT run_id, decision, rule FROM verification_decision").unwrap();
         s.query_map([], |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?))).unwrap().map(|r| r.unwrap()).collect()
     });
+}
+
+/// SQL run the way someone with write access does it: every trigger of the schema dropped first.
+fn with_triggers_dropped(spec: &str) -> impl Fn(&str) + '_ {
+    move |sql: &str| {
+        let c = rusqlite::Connection::open(spec).unwrap();
+        let triggers: Vec<String> = c
+            .prepare("SELECT name FROM sqlite_master WHERE type = 'trigger'")
+            .unwrap()
+            .query_map([], |r| r.get(0))
+            .unwrap()
+            .collect::<Result<_, _>>()
+            .unwrap();
+        for t in triggers {
+            c.execute_batch(&format!("DROP TRIGGER {t}")).unwrap();
+        }
+        c.execute_batch(&format!("PRAGMA foreign_keys = OFF; {sql}")).unwrap();
+    }
+}
+
+#[test]
+fn laundering_is_reported_and_no_reader_writes_a_byte() {
+    let d = tempfile::tempdir().unwrap();
+    let spec = db_file(&d);
+    tamper::laundering_is_reported_and_no_reader_writes(&spec, false, &with_triggers_dropped(&spec));
+}
+
+#[test]
+fn a_cut_tail_is_found_against_an_anchor_log_and_a_certificate() {
+    let d = tempfile::tempdir().unwrap();
+    let spec = db_file(&d);
+    tamper::a_cut_tail_is_found_against_the_anchors(&spec, &with_triggers_dropped(&spec));
+}
+
+#[test]
+fn a_missing_certificate_number_is_reported() {
+    let d = tempfile::tempdir().unwrap();
+    let spec = db_file(&d);
+    tamper::a_missing_certificate_number_is_reported(&spec, &with_triggers_dropped(&spec));
+}
+
+#[test]
+fn a_forged_asset_is_refused_by_fit_and_station() {
+    let d = tempfile::tempdir().unwrap();
+    let spec = db_file(&d);
+    tamper::a_forged_asset_is_refused(&spec, false, &with_triggers_dropped(&spec));
+}
+
+#[test]
+fn derived_edits_are_found() {
+    let d = tempfile::tempdir().unwrap();
+    let spec = db_file(&d);
+    tamper::derived_edits_are_found(&spec, &with_triggers_dropped(&spec));
+}
+
+/// A cell that does not read as its type is named by table, row and column, every such cell in
+/// `db verify`, the first in a reader's error; the other units' history still reads.
+#[test]
+fn a_bad_cell_is_named() {
+    let d = tempfile::tempdir().unwrap();
+    let spec = db_file(&d);
+    let mut db = Db::open(&spec).unwrap();
+    let run = calibrate(&mut db, &start(RunId::new(), DEVICE, "SN-1", "st-1", T0), &coefs(0.0, 0), None);
+    calibrate(&mut db, &start(RunId::new(), DEVICE_2, "SN-2", "st-1", T0 + 5), &coefs(0.0, 1), None);
+    drop(db);
+    with_triggers_dropped(&spec)(&format!("UPDATE run SET g_m_s2 = 'abc' WHERE run_id = '{run}'"));
+    let (code, out, err) = accelcal(&["db", "verify", "--db", &spec]);
+    assert_eq!(code, Some(1), "{out}{err}");
+    assert!(
+        out.contains(&format!(
+            "bad cell: table run, row run_id = '{run}', column g_m_s2: declared DOUBLE PRECISION, holds text 'abc'"
+        )),
+        "{out}"
+    );
+    let (code, _, err) = accelcal(&["history", "SN-1", "--db", &spec]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains("a cell does not read as its column's type: table run") && err.contains("column g_m_s2"),
+        "{err}"
+    );
+    let (code, out, err) = accelcal(&["history", "SN-2", "--db", &spec]);
+    assert_eq!(code, Some(0), "the other unit reads: {out}{err}");
+}
+
+/// A reader never migrates: an older schema tells it which command does, and `db migrate` does.
+#[test]
+fn readers_never_migrate_and_db_migrate_does() {
+    let d = tempfile::tempdir().unwrap();
+    let spec = db_file(&d);
+    let mut db = Db::open(&spec).unwrap();
+    calibrate(&mut db, &start(RunId::new(), DEVICE, "SN-1", "st-1", T0), &coefs(0.0, 0), None);
+    drop(db);
+    // Back to schema 7, as a database of the last release is.
+    with_triggers_dropped(&spec)(
+        "DROP TABLE chain_event; DELETE FROM refinery_schema_history WHERE version = 8",
+    );
+    let before = std::fs::read(&spec).unwrap();
+    let (code, _, err) = accelcal(&["history", "SN-1", "--db", &spec]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains("at schema version 7, this build reads version 8: run `accelcal db migrate --db"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read(&spec).unwrap(), before, "the reader wrote nothing");
+    let (code, out, err) = accelcal(&["db", "migrate", "--db", &spec]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    assert!(out.contains("is at schema version 8"), "{out}");
+    let (code, out, err) = accelcal(&["history", "SN-1", "--db", &spec]);
+    assert_eq!(code, Some(0), "{out}{err}");
 }

@@ -220,3 +220,33 @@ fn serve_reads_the_server_s_numbers_and_shows_a_hostile_serial_as_text() {
         .collect()
     });
 }
+
+/// SQL run with the append-only triggers off for the session, as a superuser can.
+fn as_superuser(url: &str) -> impl Fn(&str) + '_ {
+    move |sql: &str| {
+        let mut c = postgres::Client::connect(url, postgres::NoTls).unwrap();
+        c.batch_execute(&format!("SET session_replication_role = replica; {sql}")).unwrap();
+    }
+}
+
+#[test]
+fn laundering_is_reported_and_no_reader_writes() {
+    let pg = Cluster::start();
+    tamper::laundering_is_reported_and_no_reader_writes(&pg.url, true, &as_superuser(&pg.url));
+}
+
+#[test]
+fn a_cut_tail_is_found_against_an_anchor_log_and_a_certificate() {
+    let pg = Cluster::start();
+    tamper::a_cut_tail_is_found_against_the_anchors(&pg.url, &as_superuser(&pg.url));
+}
+
+#[test]
+fn a_forged_asset_is_refused_and_derived_edits_are_found() {
+    let pg = Cluster::start();
+    tamper::a_forged_asset_is_refused(&pg.url, true, &as_superuser(&pg.url));
+    let pg = Cluster::start();
+    tamper::derived_edits_are_found(&pg.url, &as_superuser(&pg.url));
+    let pg = Cluster::start();
+    tamper::a_missing_certificate_number_is_reported(&pg.url, &as_superuser(&pg.url));
+}

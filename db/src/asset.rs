@@ -326,8 +326,19 @@ impl Db {
     }
 
     /// Every certificate of asset `id`, oldest first ([`AssetError::Unknown`] when it has none).
+    /// Its register rows are checked against their hash chain first
+    /// ([`DbError::AssetTampered`]): a forged certificate, due date or uncertainty is never used.
     pub fn asset_certificates(&mut self, id: &str) -> Result<Vec<Asset>, DbError> {
-        let all = self.conn.transaction(|tx| certificates(tx, id))?;
+        let (all, mut bad) =
+            self.conn.reading(|tx| Ok((certificates(tx, id)?, chain::verify_asset(tx, id)?)))?;
+        if !bad.is_empty() {
+            let first = bad.remove(0);
+            return Err(DbError::AssetTampered {
+                asset_id: id.into(),
+                first: Box::new(first),
+                more: bad.len(),
+            });
+        }
         if all.is_empty() {
             return Err(DbError::Asset(AssetError::Unknown { asset_id: id.into(), target: self.target() }));
         }

@@ -150,11 +150,50 @@ impl Db {
     }
 }
 
+/// Certificate numbers are given in sequence (1, 2, 3…, `YEAR-SEQUENCE`): a sequence missing
+/// below the largest is a certificate whose rows were removed.
+pub(crate) fn gaps(tx: &mut Tx<'_>) -> Result<Vec<chain::Mismatch>, DbError> {
+    let seqs: Vec<i64> = tx
+        .query("SELECT sequence FROM certificate_number ORDER BY sequence", &[])?
+        .iter()
+        .map(|r| r[0].int())
+        .collect::<Result<_, _>>()?;
+    let mut out = Vec::new();
+    let mut want = 1;
+    for s in seqs {
+        if s > want {
+            let missing = if s - want == 1 {
+                format!("number {want} is missing")
+            } else {
+                format!("numbers {want} to {} are missing", s - 1)
+            };
+            out.push(chain::Mismatch {
+                seq: 0,
+                run_id: String::new(),
+                piece: "certificate_number".into(),
+                what: format!(
+                    "certificates are numbered in sequence, and {missing} (their rows were removed)"
+                ),
+            });
+        }
+        want = s + 1;
+    }
+    Ok(out)
+}
+
 impl Db {
-    /// The certificate stored for run `run` (`report`'s page, as issued), `None` when it has none.
+    /// The certificate stored for run `run` (`report`'s page, as issued), `None` when it has
+    /// none; [`DbError::Tampered`] when the run's rows (or the assets it used) do not match
+    /// their hash chain: a forged certificate is never handed out as issued.
     pub fn certificate_html(&mut self, run: RunId) -> Result<Option<String>, DbError> {
         let id = Val::from(run.to_string());
-        self.conn.transaction(|tx| {
+        if self.conn.reading(|tx| {
+            Ok(tx.query("SELECT 1 FROM certificate WHERE run_id = $1", std::slice::from_ref(&id))?.is_empty())
+        })? {
+            return Ok(None);
+        }
+        self.verify_run(run)?;
+        self.conn.reading(|tx| {
             tx.query("SELECT html FROM certificate WHERE run_id = $1", std::slice::from_ref(&id))?
                 .first()
                 .map(|r| r[0].text())

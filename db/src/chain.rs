@@ -26,7 +26,7 @@ pub struct Table {
 }
 
 /// Every table of the calibration, as the chain sees it.
-pub const TABLES: [Table; 14] = [
+pub const TABLES: [Table; 15] = [
     Table {
         name: "run",
         columns: &[
@@ -97,13 +97,14 @@ pub const TABLES: [Table; 14] = [
         name: "recalibration_due",
         columns: &["run_id", "due_unix_s", "basis", "stored_unix_s", "content_sha256"],
     },
+    Table { name: "chain_event", columns: &["event_id", "kind", "detail", "unix_s", "content_sha256"] },
 ];
 
 impl Table {
     /// Whether its rows belong to no run (a relabel, an asset): their ledger entries have
     /// `run_id` `''` and chain to the ledger's latest entry.
     pub fn is_global(&self) -> bool {
-        matches!(self.name, "relabel" | "asset")
+        matches!(self.name, "relabel" | "asset" | "chain_event")
     }
 }
 
@@ -118,6 +119,7 @@ pub fn piece_key(table: &str, row: &[Val]) -> Result<String, DbError> {
         "verification" => format!("verification:{}", row[1].text()?),
         "relabel" => format!("relabel:{}", row[0].text()?),
         "asset" => format!("asset:{}:{}", row[0].text()?, row[1].text()?),
+        "chain_event" => format!("chain_event:{}", row[0].text()?),
         "run_asset" => format!("run_asset:{}", row[1].text()?),
         t => t.to_string(),
     })
@@ -202,22 +204,71 @@ pub fn append(tx: &mut Tx<'_>, table: &Table, row: &[Val]) -> Result<(), DbError
     Ok(())
 }
 
-/// Whether the database holds runs and no ledger entry: rows written before the ledger, which
-/// [`seal_legacy`] chains. Whether the ledger holds an entry, not how many: every open asks, and
-/// a count reads them all.
-pub(crate) fn unsealed(tx: &mut Tx<'_>) -> Result<bool, DbError> {
-    Ok(tx.query("SELECT 1 FROM ledger LIMIT 1", &[])?.is_empty()
-        && !tx.query("SELECT 1 FROM run LIMIT 1", &[])?.is_empty())
+/// The schema version that brought the ledger: a database opened at an older one predates the
+/// chain, and its rows are sealed once ([`seal_legacy`]).
+pub const LEDGER_SCHEMA: i64 = 2;
+
+/// The ledger's shape against the rows it chains, counted (cheap enough for every writer's
+/// open): what [`Shape::broken`] reads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Shape {
+    /// Rows of the chained tables.
+    pub rows: i64,
+    /// Ledger entries.
+    pub entries: i64,
+    /// The largest entry number (0 for none).
+    pub max_seq: i64,
 }
 
-/// Rows written before the ledger existed (a version-1 database) get their entries, once: every
-/// run in the order it started, each run's rows in the order a station writes them.
+impl Shape {
+    /// Rows and no ledger entry: a database of schema 1, or a ledger emptied behind accelcal's
+    /// back.
+    pub fn unsealed(&self) -> bool {
+        self.entries == 0 && self.rows > 0
+    }
+
+    /// What is wrong, if anything: an emptied ledger, entries missing from the middle, rows
+    /// without an entry or entries without a row.
+    pub fn broken(&self) -> Option<String> {
+        if self.unsealed() {
+            Some(format!("the ledger is empty and {} rows are in the database", self.rows))
+        } else if self.max_seq != self.entries {
+            Some(format!(
+                "the ledger holds {} entries numbered up to {}: entries were removed",
+                self.entries, self.max_seq
+            ))
+        } else if self.rows != self.entries {
+            Some(format!("{} rows for {} ledger entries: every row has exactly one", self.rows, self.entries))
+        } else {
+            None
+        }
+    }
+}
+
+/// Counts the chained rows and the ledger's entries.
+pub(crate) fn shape(tx: &mut Tx<'_>) -> Result<Shape, DbError> {
+    let counts: Vec<String> = TABLES.iter().map(|t| format!("(SELECT COUNT(*) FROM {})", t.name)).collect();
+    let r = tx.query(
+        &format!(
+            "SELECT {}, (SELECT COUNT(*) FROM ledger), (SELECT COALESCE(MAX(seq), 0) FROM ledger)",
+            counts.join(" + ")
+        ),
+        &[],
+    )?;
+    Ok(Shape { rows: r[0][0].int()?, entries: r[0][1].int()?, max_seq: r[0][2].int()? })
+}
+
+/// Rows written before the ledger existed (a database of schema 1, migrated by a writer) get
+/// their entries, once: every run in the order it started, each run's rows in the order a
+/// station writes them; then a `legacy-seal` event, chained too, says how many rows were sealed
+/// and when, so that `db verify` tells rows chained as written from rows chained late.
 pub fn seal_legacy(tx: &mut Tx<'_>) -> Result<usize, DbError> {
-    if !unsealed(tx)? {
+    if !shape(tx)?.unsealed() {
         return Ok(0);
     }
     let runs = tx.query("SELECT run_id FROM run ORDER BY started_unix_s, run_id", &[])?;
     let mut n = 0;
+    let count = runs.len();
     for r in runs {
         let id = r[0].text()?;
         for t in TABLES.iter().filter(|t| !t.is_global()) {
@@ -227,7 +278,33 @@ pub fn seal_legacy(tx: &mut Tx<'_>) -> Result<usize, DbError> {
             }
         }
     }
+    let detail =
+        format!("{n} rows of {count} runs written before the ledger existed (schema 1), chained once");
+    let row: Vec<Val> = vec![
+        uuid::Uuid::new_v4().to_string().into(),
+        LEGACY_SEAL.into(),
+        detail.clone().into(),
+        super::now_unix_s().into(),
+        super::sha256_hex(event_content(LEGACY_SEAL, &detail).as_bytes()).into(),
+    ];
+    super::insert_row(tx, table("chain_event"), &row)?;
     Ok(n)
+}
+
+/// The chain event of [`seal_legacy`].
+pub const LEGACY_SEAL: &str = "legacy-seal";
+
+/// What a chain_event row's `content_sha256` hashes.
+pub fn event_content(kind: &str, detail: &str) -> String {
+    format!("{kind}\n{detail}")
+}
+
+/// The chain's events, oldest first: kind, detail, Unix seconds.
+pub(crate) fn events(tx: &mut Tx<'_>) -> Result<Vec<(String, String, i64)>, DbError> {
+    tx.query("SELECT kind, detail, unix_s FROM chain_event ORDER BY unix_s, event_id", &[])?
+        .iter()
+        .map(|r| Ok((r[0].text()?, r[1].text()?, r[2].int()?)))
+        .collect()
 }
 
 /// The rows of `table` of run `run` (verifications: as found, then as left).
@@ -264,19 +341,19 @@ fn entries(tx: &mut Tx<'_>, run: Option<&str>) -> Result<Vec<Entry>, DbError> {
         )?,
         None => tx.query(&format!("SELECT {cols} FROM ledger ORDER BY seq"), &[])?,
     };
-    rows.iter()
-        .map(|r| {
-            Ok(Entry {
-                seq: r[0].int()?,
-                run: r[1].text()?,
-                piece: r[2].text()?,
-                row: r[3].text()?,
-                prev_seq: r[4].int()?,
-                prev: r[5].text()?,
-                chain: r[6].text()?,
-            })
-        })
-        .collect()
+    rows.iter().map(|r| entry(r)).collect()
+}
+
+fn entry(r: &[Val]) -> Result<Entry, DbError> {
+    Ok(Entry {
+        seq: r[0].int()?,
+        run: r[1].text()?,
+        piece: r[2].text()?,
+        row: r[3].text()?,
+        prev_seq: r[4].int()?,
+        prev: r[5].text()?,
+        chain: r[6].text()?,
+    })
 }
 
 /// A row or entry that does not match.
@@ -311,6 +388,21 @@ pub struct ChainReport {
     pub runs: usize,
     /// Everything that does not match, the first first.
     pub mismatches: Vec<Mismatch>,
+    /// The chain's own events, oldest first (`legacy-seal`: rows chained late, not as written).
+    pub events: Vec<ChainEvent>,
+    /// Cells that do not read as their column's type (SQLite), each named.
+    pub bad_cells: Vec<super::cells::BadCell>,
+}
+
+/// An event of the chain itself ([`LEGACY_SEAL`]).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ChainEvent {
+    /// Its kind.
+    pub kind: String,
+    /// What it did.
+    pub detail: String,
+    /// When, Unix seconds.
+    pub unix_s: i64,
 }
 
 /// The chain value of a run's last entry: what a certificate and a journal keep of it.
@@ -421,8 +513,12 @@ fn check_rows(
                     e.seq,
                     "it is not the row that was stored (its digest differs from its ledger entry's)".into(),
                 ));
-            } else if let Some(why) = content_mismatch(t, &row)? {
-                out.push(m(e.seq, why));
+            } else {
+                match content_mismatch(t, &row) {
+                    Ok(Some(why)) => out.push(m(e.seq, why)),
+                    Ok(None) => {}
+                    Err(err) => out.push(m(e.seq, format!("a cell does not read as its type: {err}"))),
+                }
             }
         }
     }
@@ -499,6 +595,7 @@ fn content_mismatch(t: &Table, row: &[Val]) -> Result<Option<String>, DbError> {
             super::certificate::recalibration_due_content(col("due_unix_s").int()?, &col("basis").text()?)
                 .into_bytes()
         }
+        "chain_event" => event_content(&col("kind").text()?, &col("detail").text()?).into_bytes(),
         other => unreachable!("table {other} is in TABLES"),
     };
     Ok((super::sha256_hex(&content) != stored)
@@ -552,10 +649,20 @@ pub fn verify_all(tx: &mut Tx<'_>) -> Result<ChainReport, DbError> {
         rows += check_rows(tx, run, &by_piece, &mut out)?;
     }
     first_first(&mut out);
-    Ok(ChainReport { entries: list.len(), rows, runs: run_ids.len(), mismatches: out })
+    let events =
+        events(tx)?.into_iter().map(|(kind, detail, unix_s)| ChainEvent { kind, detail, unix_s }).collect();
+    Ok(ChainReport {
+        entries: list.len(),
+        rows,
+        runs: run_ids.len(),
+        mismatches: out,
+        events,
+        bad_cells: Vec::new(),
+    })
 }
 
-/// Checks one run's rows and entries; its seal when they match.
+/// Checks one run's rows and entries, and the register rows of the assets it used; its seal
+/// when they match.
 pub fn verify_run(tx: &mut Tx<'_>, run: &str) -> Result<Result<RunSeal, Vec<Mismatch>>, DbError> {
     let list = entries(tx, Some(run))?;
     let mut out = Vec::new();
@@ -563,6 +670,14 @@ pub fn verify_run(tx: &mut Tx<'_>, run: &str) -> Result<Result<RunSeal, Vec<Mism
     let last = list.last().map(|e| RunSeal { seq: e.seq, chain_sha256: e.chain.clone() });
     let by_piece = list.into_iter().map(|e| (e.piece.clone(), e)).collect();
     check_rows(tx, run, &by_piece, &mut out)?;
+    let used: Vec<String> = tx
+        .query("SELECT DISTINCT asset_id FROM run_asset WHERE run_id = $1", &[run.to_string().into()])?
+        .iter()
+        .map(|r| r[0].text())
+        .collect::<Result<_, _>>()?;
+    for id in used {
+        out.extend(verify_asset(tx, &id)?);
+    }
     first_first(&mut out);
     Ok(match (out.is_empty(), last) {
         (true, Some(seal)) => Ok(seal),
@@ -574,6 +689,82 @@ pub fn verify_run(tx: &mut Tx<'_>, run: &str) -> Result<Result<RunSeal, Vec<Mism
         }]),
         (false, _) => Err(out),
     })
+}
+
+/// Checks asset `id`'s register rows (every certificate of it) against their ledger entries:
+/// each row's digest and content, each entry's chain value and link, and no entry whose row
+/// is gone. Empty when they match.
+pub fn verify_asset(tx: &mut Tx<'_>, id: &str) -> Result<Vec<Mismatch>, DbError> {
+    let t = table("asset");
+    let prefix = format!("asset:{id}:");
+    let cols = "seq, run_id, piece, row_sha256, prev_seq, prev_sha256, chain_sha256";
+    let list: Vec<Entry> = tx
+        .query(
+            &format!(
+                "SELECT {cols} FROM ledger WHERE run_id = '' AND substr(piece, 1, length($1)) = $1 ORDER BY seq"
+            ),
+            &[prefix.clone().into()],
+        )?
+        .iter()
+        .map(|r| entry(r))
+        .collect::<Result<_, _>>()?;
+    let mut out = Vec::new();
+    // Each entry stands alone in the chain (it follows the ledger's latest at its time).
+    for e in &list {
+        check_entries(std::slice::from_ref(e), None, tx, &mut out)?;
+    }
+    let by_piece: std::collections::HashMap<String, Entry> =
+        list.into_iter().map(|e| (e.piece.clone(), e)).collect();
+    let rows = tx.query(
+        &format!("SELECT {} FROM asset WHERE asset_id = $1 ORDER BY certificate", t.columns.join(", ")),
+        &[id.to_string().into()],
+    )?;
+    let mut seen = std::collections::HashSet::new();
+    for row in rows {
+        let piece = piece_key(t.name, &row)?;
+        let m = |seq: i64, what: String| Mismatch { seq, run_id: String::new(), piece: piece.clone(), what };
+        let Some(e) = by_piece.get(&piece) else {
+            out.push(m(0, "it has no ledger entry (written behind accelcal's back)".into()));
+            continue;
+        };
+        seen.insert(piece.clone());
+        if row_digest(t, &row) != e.row {
+            out.push(m(
+                e.seq,
+                "it is not the row that was stored (its digest differs from its ledger entry's)".into(),
+            ));
+        } else if let Some(why) = content_mismatch(t, &row)? {
+            out.push(m(e.seq, why));
+        }
+    }
+    for (piece, e) in &by_piece {
+        if !seen.contains(piece) {
+            out.push(Mismatch {
+                seq: e.seq,
+                run_id: String::new(),
+                piece: piece.clone(),
+                what: "its row is gone".into(),
+            });
+        }
+    }
+    first_first(&mut out);
+    Ok(out)
+}
+
+/// The ledger's latest entry: the chain head an anchor keeps (`None`: an empty ledger).
+pub fn head(tx: &mut Tx<'_>) -> Result<Option<RunSeal>, DbError> {
+    tx.query("SELECT seq, chain_sha256 FROM ledger ORDER BY seq DESC LIMIT 1", &[])?
+        .first()
+        .map(|r| Ok(RunSeal { seq: r[0].int()?, chain_sha256: r[1].text()? }))
+        .transpose()
+}
+
+/// The chain value of ledger entry `seq`, if the ledger holds it.
+pub fn chain_at(tx: &mut Tx<'_>, seq: i64) -> Result<Option<String>, DbError> {
+    tx.query("SELECT chain_sha256 FROM ledger WHERE seq = $1", &[seq.into()])?
+        .first()
+        .map(|r| r[0].text())
+        .transpose()
 }
 
 /// A run start's content hash (what `begin_run` stores).

@@ -459,75 +459,103 @@ pub(crate) fn check(tx: &mut Tx<'_>) -> Result<Vec<(String, &'static str, String
          LEFT JOIN fit_summary s ON s.run_id = f.run_id",
         &[],
     )? {
-        let run = r[0].text()?;
-        let Ok(doc) = FitDoc::parse(&r[1].text()?) else { continue };
-        let want = fit_rows(&doc);
-        let text = |v: &Val| -> Result<Option<String>, DbError> {
-            match v {
-                Val::Null => Ok(None),
-                v => v.text().map(Some),
+        let key = r[0].text().unwrap_or_default();
+        let each = |bad: &mut Vec<(String, &'static str, String)>, tx: &mut Tx<'_>| -> Result<(), DbError> {
+            let run = r[0].text()?;
+            let Ok(doc) = FitDoc::parse(&r[1].text()?) else { return Ok(()) };
+            let want = fit_rows(&doc);
+            let text = |v: &Val| -> Result<Option<String>, DbError> {
+                match v {
+                    Val::Null => Ok(None),
+                    v => v.text().map(Some),
+                }
+            };
+            let m4: Option<[[f64; 4]; 3]> = text(&r[2])?.and_then(|t| serde_json::from_str(&t).ok());
+            let u: Option<[f64; 3]> = text(&r[3])?.and_then(|t| serde_json::from_str(&t).ok());
+            // Every column of the derived rows: the name, the unit and the value, in order.
+            let params: Vec<(i64, String, String, f64)> = tx
+                .query(
+                    "SELECT ord, name, unit, value FROM fit_parameter WHERE run_id = $1 ORDER BY ord",
+                    &[run.clone().into()],
+                )?
+                .iter()
+                .map(|p| Ok((p[0].int()?, p[1].text()?, p[2].text()?, p[3].real()?)))
+                .collect::<Result<_, DbError>>()?;
+            let want_params: Vec<(i64, String, String, f64)> = want
+                .parameters
+                .iter()
+                .enumerate()
+                .map(|(i, (n, u, v))| (i as i64, n.clone(), u.to_string(), *v))
+                .collect();
+            let m4_same = match (m4, want.model4) {
+                (Some(a), Some(b)) => close(a.as_flattened(), b.as_flattened(), F64_CLOSE),
+                (a, b) => a.is_none() && b.is_none(),
+            };
+            let u_same = match (u, want.u_m_s2) {
+                (Some(a), Some(b)) => close(&a, &b, F64_CLOSE),
+                (a, b) => a.is_none() && b.is_none(),
+            };
+            if !m4_same || !u_same || params != want_params {
+                bad.push((run, "fit_summary/fit_parameter", "not what its fit derives".into()));
             }
+            Ok(())
         };
-        let m4: Option<[[f64; 4]; 3]> = text(&r[2])?.and_then(|t| serde_json::from_str(&t).ok());
-        let u: Option<[f64; 3]> = text(&r[3])?.and_then(|t| serde_json::from_str(&t).ok());
-        let params: Vec<(String, f64)> = tx
-            .query(
-                "SELECT name, value FROM fit_parameter WHERE run_id = $1 ORDER BY ord",
-                &[run.clone().into()],
-            )?
-            .iter()
-            .map(|p| Ok((p[0].text()?, p[1].real()?)))
-            .collect::<Result<_, DbError>>()?;
-        let want_params: Vec<(String, f64)> =
-            want.parameters.iter().map(|(n, _, v)| (n.clone(), *v)).collect();
-        let m4_same = match (m4, want.model4) {
-            (Some(a), Some(b)) => close(a.as_flattened(), b.as_flattened(), F64_CLOSE),
-            (a, b) => a.is_none() && b.is_none(),
-        };
-        let u_same = match (u, want.u_m_s2) {
-            (Some(a), Some(b)) => close(&a, &b, F64_CLOSE),
-            (a, b) => a.is_none() && b.is_none(),
-        };
-        if !m4_same || !u_same || params != want_params {
-            bad.push((run, "fit_summary/fit_parameter", "not what its fit derives".into()));
+        // A cell that does not read (`db verify` names it) is this run's finding, not the end of the check.
+        if let Err(e) = each(&mut bad, tx) {
+            bad.push((key, "fit_summary/fit_parameter", format!("a cell does not read as its type: {e}")));
         }
     }
     for r in tx.query(
-        "SELECT v.run_id, v.phase, v.report_json, s.decision, s.max_abs_error_m_s2 FROM verification v \
+        "SELECT v.run_id, v.phase, v.report_json, s.decision, s.max_abs_error_m_s2, s.rule, s.run_id FROM verification v \
          LEFT JOIN verification_summary s ON s.run_id = v.run_id AND s.phase = v.phase",
         &[],
     )? {
-        let (run, phase) = (r[0].text()?, r[1].text()?);
-        let Ok(report) = serde_json::from_str::<VerifyReport>(&r[2].text()?) else { continue };
-        let want = verification_rows(&report);
-        let decision = match &r[3] {
-            Val::Null => None,
-            v => Some(v.text()?),
+        let key = r[0].text().unwrap_or_default();
+        let each = |bad: &mut Vec<(String, &'static str, String)>, tx: &mut Tx<'_>| -> Result<(), DbError> {
+            let (run, phase) = (r[0].text()?, r[1].text()?);
+            let Ok(report) = serde_json::from_str::<VerifyReport>(&r[2].text()?) else { return Ok(()) };
+            let want = verification_rows(&report);
+            let decision = match &r[3] {
+                Val::Null => None,
+                v => Some(v.text()?),
+            };
+            let max = match &r[4] {
+                Val::Null => f64::NAN,
+                v => v.real()?,
+            };
+            let rule = r[5].opt_text()?;
+            let params: Vec<(i64, String, String, f64, f64)> = tx
+                .query(
+                    "SELECT ord, name, unit, value, limit_value FROM verification_parameter WHERE run_id = $1 \
+                     AND phase = $2 ORDER BY ord",
+                    &[run.clone().into(), phase.clone().into()],
+                )?
+                .iter()
+                .map(|p| Ok((p[0].int()?, p[1].text()?, p[2].text()?, p[3].real()?, p[4].real()?)))
+                .collect::<Result<_, DbError>>()?;
+            let want_params: Vec<(i64, String, String, f64, f64)> = want
+                .parameters
+                .iter()
+                .enumerate()
+                .map(|(i, (n, u, v, l))| (i as i64, n.clone(), u.to_string(), *v, *l))
+                .collect();
+            if r[6] == Val::Null
+                || decision != want.decision
+                || rule != want.rule
+                || max.to_bits() != want.max_abs_error_m_s2.to_bits()
+                || params != want_params
+            {
+                bad.push((
+                    run,
+                    "verification_summary/verification_parameter",
+                    format!("not what its {phase} verification derives"),
+                ));
+            }
+            Ok(())
         };
-        let max = match &r[4] {
-            Val::Null => f64::NAN,
-            v => v.real()?,
-        };
-        let params: Vec<(String, f64, f64)> = tx
-            .query(
-                "SELECT name, value, limit_value FROM verification_parameter WHERE run_id = $1 AND phase = $2 \
-                 ORDER BY ord",
-                &[run.clone().into(), phase.clone().into()],
-            )?
-            .iter()
-            .map(|p| Ok((p[0].text()?, p[1].real()?, p[2].real()?)))
-            .collect::<Result<_, DbError>>()?;
-        let want_params: Vec<(String, f64, f64)> =
-            want.parameters.iter().map(|(n, _, v, l)| (n.clone(), *v, *l)).collect();
-        if decision != want.decision
-            || max.to_bits() != want.max_abs_error_m_s2.to_bits()
-            || params != want_params
-        {
-            bad.push((
-                run,
-                "verification_summary/verification_parameter",
-                format!("not what its {phase} verification derives"),
-            ));
+        // A cell that does not read (`db verify` names it) is this run's finding, not the end of the check.
+        if let Err(e) = each(&mut bad, tx) {
+            bad.push((key, "verification_summary/verification_parameter", format!("a cell does not read as its type: {e}")));
         }
     }
     let mut want: Vec<Vec<String>> = Vec::new();
@@ -555,29 +583,37 @@ pub(crate) fn check(tx: &mut Tx<'_>) -> Result<Vec<(String, &'static str, String
          LEFT JOIN head_observation h ON h.run_id = c.run_id LEFT JOIN head_observation_f32 b ON b.run_id = c.run_id",
         &[],
     )? {
-        let run = r[0].text()?;
-        let Ok(plain) = gunzip(&run, &r[1].bytes()?) else { continue };
-        let want = observation(&plain, r[2].real()?).ok().flatten();
-        let stored: Option<Observation> = match &r[3] {
-            Val::Null => None,
-            v => serde_json::from_str(&v.text()?).ok(),
+        let key = r[0].text().unwrap_or_default();
+        let each = |bad: &mut Vec<(String, &'static str, String)>, _tx: &mut Tx<'_>| -> Result<(), DbError> {
+            let run = r[0].text()?;
+            let Ok(plain) = gunzip(&run, &r[1].bytes()?) else { return Ok(()) };
+            let want = observation(&plain, r[2].real()?).ok().flatten();
+            let stored: Option<Observation> = match &r[3] {
+                Val::Null => None,
+                v => serde_json::from_str(&v.text()?).ok(),
+            };
+            if !same_observation(stored.as_ref(), want.as_ref(), F64_CLOSE) {
+                bad.push((run.clone(), "head_observation", "not what its campaign derives".into()));
+            }
+            // The compact form: there exactly when the observation has one, and the same to f32's
+            // precision.
+            let compact = match &r[4] {
+                Val::Null => None,
+                v => Some(Observation::from_bytes(&v.bytes()?)),
+            };
+            let same = match (compact, want.as_ref().filter(|w| w.to_bytes().is_some())) {
+                (None, None) => true,
+                (Some(Ok(a)), Some(b)) => same_observation(Some(&a), Some(b), F32_CLOSE),
+                _ => false,
+            };
+            if !same {
+                bad.push((run, "head_observation_f32", "not what its campaign derives".into()));
+            }
+            Ok(())
         };
-        if !same_observation(stored.as_ref(), want.as_ref(), F64_CLOSE) {
-            bad.push((run.clone(), "head_observation", "not what its campaign derives".into()));
-        }
-        // The compact form: there exactly when the observation has one, and the same to f32's
-        // precision.
-        let compact = match &r[4] {
-            Val::Null => None,
-            v => Some(Observation::from_bytes(&v.bytes()?)),
-        };
-        let same = match (compact, want.as_ref().filter(|w| w.to_bytes().is_some())) {
-            (None, None) => true,
-            (Some(Ok(a)), Some(b)) => same_observation(Some(&a), Some(b), F32_CLOSE),
-            _ => false,
-        };
-        if !same {
-            bad.push((run, "head_observation_f32", "not what its campaign derives".into()));
+        // A cell that does not read (`db verify` names it) is this run's finding, not the end of the check.
+        if let Err(e) = each(&mut bad, tx) {
+            bad.push((key, "head_observation", format!("a cell does not read as its type: {e}")));
         }
     }
     Ok(bad)

@@ -8,6 +8,7 @@ use std::time::Duration;
 
 use postgres::types::{to_sql_checked, IsNull, ToSql as PgToSql, Type};
 
+use super::cells::BadCell;
 use super::DbError;
 
 /// The migrations of each engine (`core/migrations/<engine>/V<n>__<name>.sql`), embedded.
@@ -296,13 +297,15 @@ pub fn schema_version() -> i64 {
 }
 
 impl Conn {
-    /// Connects and brings the schema to this build's version (see [`Access`]); `after` runs
-    /// under the same lock as the migration, once the schema is current, when the database
-    /// takes writes (the ledger's sealing of rows written before it existed).
+    /// Connects. [`Access::Write`] brings the schema to this build's version; `after` runs under
+    /// the migration's lock once the schema is current, with the schema version the database had
+    /// before (`None`: a new database): the ledger's sealing of rows written before it existed,
+    /// the derived rows' backfill, the writer's check of the chain's shape. [`Access::Read`]
+    /// never writes: a database at another schema version is refused ([`DbError::NeedsMigration`]).
     pub fn open(
         target: &Target,
         access: Access,
-        after: impl FnOnce(&mut Conn) -> Result<(), DbError>,
+        after: impl FnOnce(&mut Conn, Option<i64>) -> Result<(), DbError>,
     ) -> Result<Conn, DbError> {
         match target {
             Target::Sqlite(path) => open_sqlite(path, access, after),
@@ -319,21 +322,59 @@ impl Conn {
                 let mut conn = Conn {
                     link: Link::Postgres(Box::new(client), Statements::default()),
                     target: redact(spec),
-                    read_only: false,
+                    read_only: access == Access::Read,
                 };
+                if access == Access::Read {
+                    conn.check_current()?;
+                    return Ok(conn);
+                }
                 // Under an advisory lock, so that stations starting together migrate once.
                 conn.pg_locked(|c| {
+                    let before = c.reading(latest_version)?;
                     let Link::Postgres(client, _) = &mut c.link else {
                         unreachable!("a PostgreSQL connection")
                     };
                     embedded::postgres::migrations::runner()
                         .run(client.as_mut())
                         .map_err(migration_failed)?;
-                    after(c)
+                    after(c, before)
                 })?;
-                conn.read_only = access == Access::Read;
                 Ok(conn)
             }
+        }
+    }
+
+    /// A reader's check: the database is at this build's schema, with nothing left for a writer
+    /// to derive. Read in one transaction that only reads.
+    fn check_current(&mut self) -> Result<(), DbError> {
+        let target = self.target.clone();
+        let (have, pending) = self.reading(|tx| {
+            let have = latest_version(tx)?;
+            let pending = match have {
+                Some(v) if v >= 6 => super::derived::pending(tx)?,
+                _ => false,
+            };
+            Ok((have, pending))
+        })?;
+        let want = schema_version();
+        match have {
+            Some(v) if v == want && !pending => Ok(()),
+            Some(v) if v > want => Err(DbError::NeedsMigration {
+                target,
+                why: format!(
+                    "it is at schema version {v}, newer than this build's {want}: use a later accelcal"
+                ),
+            }),
+            have => Err(DbError::NeedsMigration {
+                target,
+                why: match have {
+                    None => format!("it has no accelcal schema (this build reads version {want})"),
+                    Some(v) if v < want => {
+                        format!("it is at schema version {v}, this build reads version {want}")
+                    }
+                    Some(_) => "rows stored before schema 6 still wait for their derived rows".into(),
+                },
+            }),
         }
     }
 
@@ -364,13 +405,26 @@ impl Conn {
         f: impl FnOnce(&mut Tx<'_>) -> Result<T, DbError>,
     ) -> Result<T, DbError> {
         let target = self.target.clone();
-        self.transaction_here(f).map_err(|e| match e {
+        match self.transaction_here(f) {
             // The engine's message, with the database it came from.
-            DbError::Engine { cause } if !cause.starts_with(&target) => {
-                DbError::Engine { cause: format!("{target}: {cause}") }
+            Err(DbError::Engine { cause }) if !cause.starts_with(&target) => {
+                Err(DbError::Engine { cause: format!("{target}: {cause}") })
             }
-            e => e,
-        })
+            // A value that does not read as its type: named by table, row and column when a
+            // cell of SQLite's holds another type than its column's.
+            Err(DbError::Schema { what }) => {
+                let was = std::mem::replace(&mut self.read_only, true);
+                let cells = self.transaction_here(scan_cells).unwrap_or_default();
+                self.read_only = was;
+                Err(match cells.split_first() {
+                    Some((first, more)) => {
+                        DbError::BadCell { target, first: Box::new(first.clone()), more: more.len() }
+                    }
+                    None => DbError::Schema { what },
+                })
+            }
+            r => r,
+        }
     }
 
     /// Runs `f` in one transaction that only reads, as a reader's are (see `read_only`),
@@ -436,6 +490,28 @@ impl Conn {
     }
 }
 
+/// The newest schema version applied (`None`: no accelcal schema, a new database). Read
+/// without failing when the history table is not there.
+fn latest_version(tx: &mut Tx<'_>) -> Result<Option<i64>, DbError> {
+    let exists = match tx {
+        Tx::Sqlite(_) => {
+            "SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'refinery_schema_history'"
+        }
+        Tx::Postgres(..) => {
+            "SELECT 1 FROM pg_catalog.pg_tables WHERE tablename = 'refinery_schema_history' \
+                             AND schemaname = ANY (current_schemas(false))"
+        }
+    };
+    if tx.query(exists, &[])?.is_empty() {
+        return Ok(None);
+    }
+    let rows = tx.query("SELECT MAX(version) FROM refinery_schema_history", &[])?;
+    match rows.first().map(|r| &r[0]) {
+        None | Some(Val::Null) => Ok(None),
+        Some(v) => v.int().map(Some),
+    }
+}
+
 /// Key of the PostgreSQL advisory lock held while migrating ("accelcal" in ASCII).
 const MIGRATION_LOCK: i64 = 0x6163_6365_6c63_616c;
 /// Key of the PostgreSQL advisory lock each writing transaction holds ("ledger\0\0"); a
@@ -463,32 +539,30 @@ fn writable(path: &Path) -> bool {
 fn open_sqlite(
     path: &Path,
     access: Access,
-    after: impl FnOnce(&mut Conn) -> Result<(), DbError>,
+    after: impl FnOnce(&mut Conn, Option<i64>) -> Result<(), DbError>,
 ) -> Result<Conn, DbError> {
     use rusqlite::OpenFlags;
     let shown = path.display().to_string();
     let failed = |e: rusqlite::Error| DbError::Unreachable { target: shown.clone(), cause: e.to_string() };
     let exists = path.exists();
-    if access == Access::Read && !exists {
-        return Err(DbError::NoDatabase { path: path.to_path_buf() });
-    }
-    if access == Access::Read && !writable(path) {
-        // A read-only file or mount: read it as it is, without locks (nothing can change it).
-        let uri = format!("file:{}?immutable=1", uri_path(path));
+    if access == Access::Read {
+        if !exists {
+            return Err(DbError::NoDatabase { path: path.to_path_buf() });
+        }
+        // A reader never writes the database: opened read-only (SQLite may create the `-wal`
+        // and `-shm` files beside it, never the database's own pages). A read-only file or
+        // mount is read as it is, without locks (nothing can change it).
         let flags =
             OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_URI | OpenFlags::SQLITE_OPEN_NO_MUTEX;
-        let c = rusqlite::Connection::open_with_flags(uri, flags).map_err(failed)?;
-        let mut conn = Conn { link: Link::Sqlite(c), target: shown.clone(), read_only: true };
-        let have = conn.applied_versions().unwrap_or_default();
-        if have.last().copied() != Some(schema_version()) {
-            return Err(DbError::Migration {
-                cause: format!(
-                    "{shown} is read-only and at schema version {}, this build reads version {}: open it once where it can be written",
-                    have.last().map_or("none".to_string(), i64::to_string),
-                    schema_version()
-                ),
-            });
+        let c = if writable(path) {
+            rusqlite::Connection::open_with_flags(path, flags)
+        } else {
+            rusqlite::Connection::open_with_flags(format!("file:{}?immutable=1", uri_path(path)), flags)
         }
+        .map_err(failed)?;
+        c.busy_timeout(WAIT).map_err(failed)?;
+        let mut conn = Conn { link: Link::Sqlite(c), target: shown.clone(), read_only: true };
+        conn.check_current()?;
         return Ok(conn);
     }
     if exists && !writable(path) {
@@ -497,8 +571,9 @@ fn open_sqlite(
     // Processes opening a new file at once set it up one after the other: the switch to WAL
     // (SQLite answers `database is locked` at once, without its busy handler, to a first open
     // that meets another's) and the migration (refinery reads the applied versions before its
-    // transaction, so two first opens would both create the tables): an exclusive flock(2) on the database's directory. Not on the database file itself: closing
-    // any other descriptor of it would drop this process's fcntl(2) locks, SQLite's own.
+    // transaction, so two first opens would both create the tables): an exclusive flock(2) on
+    // the database's directory. Not on the database file itself: closing any other descriptor
+    // of it would drop this process's fcntl(2) locks, SQLite's own.
     let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
     let lock = std::fs::File::open(dir).map_err(|e| DbError::Unreachable {
         target: shown.clone(),
@@ -520,13 +595,13 @@ fn open_sqlite(
     c.pragma_update(None, "synchronous", "FULL").map_err(failed)?;
     c.pragma_update(None, "foreign_keys", "ON").map_err(failed)?;
     let mut conn = Conn { link: Link::Sqlite(c), target: shown.clone(), read_only: false };
+    let before = conn.reading(latest_version)?;
     {
         let Link::Sqlite(c) = &mut conn.link else { unreachable!("a SQLite connection") };
         embedded::sqlite::migrations::runner().run(c).map_err(migration_failed)?;
     }
-    after(&mut conn)?;
+    after(&mut conn, before)?;
     drop(lock);
-    conn.read_only = access == Access::Read;
     Ok(conn)
 }
 
@@ -641,6 +716,97 @@ fn pg_val(r: &postgres::Row, i: usize) -> Result<Val, DbError> {
     Ok(v.unwrap_or(Val::Null))
 }
 
+/// Text from a cell as a message shows it: control characters escaped (`\u{1b}`), nothing else.
+fn shown(s: &str) -> String {
+    s.chars().map(|c| if c.is_control() { c.escape_unicode().to_string() } else { c.to_string() }).collect()
+}
+
+/// The storage classes a declared type takes (SQLite's affinity rules for the types the schema
+/// uses).
+fn takes(declared: &str) -> &'static [&'static str] {
+    let d = declared.to_ascii_uppercase();
+    if d.contains("INT") || d.contains("BOOL") {
+        &["integer"]
+    } else if d.contains("CHAR") || d.contains("TEXT") || d.contains("CLOB") {
+        &["text"]
+    } else if d.contains("BLOB") || d.contains("BYTEA") || d.is_empty() {
+        &["blob"]
+    } else {
+        // REAL, DOUBLE PRECISION, FLOAT: a whole number may be kept as an integer.
+        &["real", "integer"]
+    }
+}
+
+/// Every cell of every accelcal table (the calibration's, the ledger, the derived rows, the
+/// migration history) that does not read as its declared type. Empty on PostgreSQL, whose
+/// columns hold their type only.
+pub fn scan_cells(tx: &mut Tx<'_>) -> Result<Vec<BadCell>, DbError> {
+    if !matches!(tx, Tx::Sqlite(_)) {
+        return Ok(Vec::new());
+    }
+    let tables: Vec<String> = tx
+        .query(
+            "SELECT name FROM sqlite_master WHERE type = 'table' AND name NOT LIKE 'sqlite\\_%' ESCAPE '\\' ORDER BY name",
+            &[],
+        )?
+        .iter()
+        .map(|r| r[0].text())
+        .collect::<Result<_, _>>()?;
+    let mut out = Vec::new();
+    for t in tables {
+        // name, type, notnull, pk (SQLite's table_info columns 1, 2, 3, 5).
+        let info =
+            tx.query(&format!("SELECT name, type, \"notnull\", pk FROM pragma_table_info('{t}')"), &[])?;
+        let mut key: Vec<(i64, String)> = Vec::new();
+        let mut cols: Vec<(String, String, bool)> = Vec::new();
+        for r in &info {
+            let name = r[0].text()?;
+            let pk = r[3].int()?;
+            if pk > 0 {
+                key.push((pk, name.clone()));
+            }
+            cols.push((name, r[1].text()?, r[2].int()? != 0));
+        }
+        key.sort();
+        let key_sql = if key.is_empty() {
+            "'rowid ' || rowid".to_string()
+        } else {
+            key.iter()
+                .map(|(_, k)| format!("'{k} = ' || quote(substr(CAST(\"{k}\" AS TEXT), 1, 40))"))
+                .collect::<Vec<_>>()
+                .join(" || ', ' || ")
+        };
+        for (c, declared, not_null) in cols {
+            let mut allowed: Vec<&str> = takes(&declared).to_vec();
+            if !not_null {
+                allowed.push("null");
+            }
+            let list = allowed.iter().map(|a| format!("'{a}'")).collect::<Vec<_>>().join(", ");
+            let rows = tx.query(
+                &format!(
+                    "SELECT {key_sql}, typeof(\"{c}\"), quote(substr(CAST(\"{c}\" AS TEXT), 1, 40)) FROM \"{t}\" \
+                     WHERE typeof(\"{c}\") NOT IN ({list}) LIMIT 1000"
+                ),
+                &[],
+            )?;
+            for r in rows {
+                let value = match &r[2] {
+                    Val::Text(s) => shown(s),
+                    v => format!("{v:?}"),
+                };
+                out.push(BadCell {
+                    table: t.clone(),
+                    row: shown(&r[0].text().unwrap_or_default()),
+                    column: c.clone(),
+                    declared: declared.clone(),
+                    read: format!("{} {value}", r[1].text()?),
+                });
+            }
+        }
+    }
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -696,10 +862,11 @@ mod tests {
         let spec = path.display().to_string();
         let r = Db::open(&spec).unwrap().verify_chain().unwrap();
         assert!(r.mismatches.is_empty(), "{:?}", r.mismatches);
-        assert_eq!((r.entries, r.rows, r.runs), (2, 2, 1));
+        assert_eq!((r.entries, r.rows, r.runs), (3, 3, 1), "two rows and the legacy-seal event");
+        assert_eq!(r.events.len(), 1);
         let mut db = Db::open(&spec).unwrap();
-        assert_eq!(db.verify_chain().unwrap().entries, 2, "sealed once");
-        assert_eq!(db.schema_versions().unwrap(), vec![1, 2, 3, 4, 5, 6, 7]);
+        assert_eq!(db.verify_chain().unwrap().entries, 3, "sealed once");
+        assert_eq!(db.schema_versions().unwrap(), vec![1, 2, 3, 4, 5, 6, 7, 8]);
         db.verify_run(s.run_id).unwrap();
     }
 

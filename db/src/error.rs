@@ -45,6 +45,36 @@ pub enum DbError {
         /// refinery's message.
         cause: String,
     },
+    /// A reader met a database at another schema version than this build's: it never migrates.
+    #[error("database {target}: {why}: run `accelcal db migrate --db {target}` once (it migrates the schema and writes what the migration asks); readers never write")]
+    NeedsMigration {
+        /// The target, password hidden.
+        target: String,
+        /// Which version it is at.
+        why: String,
+    },
+    /// The ledger does not have the shape the rows need: emptied, shortened, or rows without an
+    /// entry. A writer stores nothing into such a database.
+    #[error("database {target}: the hash chain is broken: {what}; rows were written or removed behind accelcal's back (`accelcal db verify` lists them): nothing is stored until the database is restored")]
+    ChainBroken {
+        /// The target, password hidden.
+        target: String,
+        /// What was found.
+        what: String,
+    },
+    /// The anchor log cannot be read or appended to.
+    #[error(transparent)]
+    AnchorLog(#[from] super::anchor::AnchorLogError),
+    /// Asset `asset_id`'s register rows do not match their hash chain.
+    #[error("asset {asset_id}: its register rows do not match their hash chain: {first}{} (`db verify` lists them); the asset is not used", if *more > 0 { format!(", and {more} more") } else { String::new() })]
+    AssetTampered {
+        /// The asset.
+        asset_id: String,
+        /// The first row that does not match.
+        first: Box<Mismatch>,
+        /// How many more.
+        more: usize,
+    },
     /// A statement failed (the connection was lost, a constraint or an append-only trigger
     /// refused it).
     #[error("database: {cause}")]
@@ -74,6 +104,16 @@ pub enum DbError {
     /// A registered asset the command cannot use, or an asset the register refuses.
     #[error(transparent)]
     Asset(super::AssetError),
+    /// A cell holds another type than its column's (SQLite), named.
+    #[error("database {target}: a cell does not read as its column's type: {first}{} (`db verify` lists them)", if *more > 0 { format!(", and {more} more") } else { String::new() })]
+    BadCell {
+        /// The target, password hidden.
+        target: String,
+        /// The first such cell.
+        first: Box<super::cells::BadCell>,
+        /// How many more.
+        more: usize,
+    },
     /// A value read back is not what the schema says.
     #[error("database schema mismatch: {what}")]
     Schema {
@@ -145,13 +185,18 @@ impl Classify for DbError {
             | DbError::NoUnit { .. }
             | DbError::ReadOnly { .. }
             | DbError::Tampered { .. }
+            | DbError::AssetTampered { .. }
             | DbError::Label(_)
             | DbError::Ambiguous { .. } => Kind::BadInput,
             DbError::Asset(e) => e.kind(),
             DbError::Raced { .. } => Kind::Environment,
             DbError::Unreachable { .. }
             | DbError::Migration { .. }
+            | DbError::NeedsMigration { .. }
+            | DbError::AnchorLog(_)
+            | DbError::ChainBroken { .. }
             | DbError::Engine { .. }
+            | DbError::BadCell { .. }
             | DbError::Schema { .. } => Kind::Environment,
         }
     }

@@ -15,7 +15,9 @@
 
 // Index loops mirror the math (channels × terms), as in the core.
 #![allow(clippy::needless_range_loop)]
+pub mod anchor;
 pub mod asset;
+pub mod cells;
 mod certificate;
 pub mod chain;
 pub mod check;
@@ -30,9 +32,10 @@ mod types;
 
 use std::io::Read;
 
+pub use anchor::{Anchor, AnchorFinding, AnchorLog};
 pub use asset::{AffectedRun, Asset, AssetError, AssetKind};
 pub use certificate::{CertificateNumber, RecalibrationDue};
-pub use chain::{ChainReport, Mismatch, RunSeal};
+pub use chain::{ChainEvent, ChainReport, Mismatch, RunSeal};
 pub use engine::{schema_version, Access, Target, LEDGER_LOCK};
 use engine::{Conn, Tx, Val};
 pub use error::DbError;
@@ -49,6 +52,8 @@ pub const DB_ENV: &str = "ACCELCAL_DB";
 pub struct Db {
     conn: Conn,
     target: Target,
+    /// `--anchor-log`: where each write's new chain head is appended ([`Db::with_anchor_log`]).
+    anchor_log: Option<anchor::AnchorLog>,
 }
 
 use accelcal_core::digest::hex;
@@ -95,21 +100,28 @@ impl Db {
     }
 
     fn open_target(target: Target, access: Access) -> Result<Db, DbError> {
-        // Rows of a version-1 database get their chain entries once, under the migration's lock.
-        // Rows derived from pieces stored before schema 6 are derived then, under the same lock.
-        // Whether there is anything to do is asked in a reading transaction, so that opening a
-        // database a station is writing into does not wait for the station's lock.
-        let conn = Conn::open(&target, access, |c| {
-            let (legacy, pending) = c.reading(|tx| Ok((chain::unsealed(tx)?, derived::pending(tx)?)))?;
-            if legacy {
+        // A writer, under the migration's lock once the schema is current: the rows of a
+        // database that predates the ledger (schema 1) are chained once, recorded in the chain
+        // as a `legacy-seal` event; on a chained schema an emptied or shortened ledger is
+        // tampering, never sealed again ([`chain::shape`]). Rows derived from pieces stored
+        // before schema 6 are derived then. What there is to do is asked in a reading
+        // transaction, so that opening a database a station is writing into does not wait for
+        // the station's lock. A reader does none of this ([`Access::Read`]).
+        let shown = target.display();
+        let conn = Conn::open(&target, access, |c, before| {
+            let legacy = before.is_some_and(|v| v < chain::LEDGER_SCHEMA);
+            let (shape, pending) = c.reading(|tx| Ok((chain::shape(tx)?, derived::pending(tx)?)))?;
+            if legacy && shape.unsealed() {
                 c.transaction(|tx| chain::seal_legacy(tx).map(drop))?;
+            } else if let Some(what) = shape.broken() {
+                return Err(DbError::ChainBroken { target: shown.clone(), what });
             }
             if pending {
                 derived::backfill(c)?;
             }
             Ok(())
         })?;
-        Ok(Db { conn, target })
+        Ok(Db { conn, target, anchor_log: None })
     }
 
     /// The database, for messages (password hidden).
@@ -194,13 +206,83 @@ impl Db {
         })
     }
 
-    /// Runs `f` again once when another writer stored the same key at the same moment (the
-    /// second try sees its row: the same piece, or a conflict).
+    /// Runs a write `f`, again once when another writer stored the same key at the same moment
+    /// (the second try sees its row: the same piece, or a conflict); then appends the chain head
+    /// to the anchor log, when there is one.
     fn retried<T>(&mut self, mut f: impl FnMut(&mut Conn) -> Result<T, DbError>) -> Result<T, DbError> {
-        match f(&mut self.conn) {
+        let out = match f(&mut self.conn) {
             Err(DbError::Raced { .. }) => f(&mut self.conn),
             r => r,
+        }?;
+        if let Some(log) = &self.anchor_log {
+            if let Some(head) = self.conn.reading(chain::head)? {
+                log.append(&anchor::Anchor { seq: head.seq, chain_sha256: head.chain_sha256 }, now_unix_s())?;
+            }
         }
+        Ok(out)
+    }
+
+    /// Appends every new chain head this connection writes to `log` (`--anchor-log`), after
+    /// checking the log's latest anchor against the ledger: a writer refuses a database whose
+    /// ledger was cut short or rewritten behind the anchor.
+    pub fn with_anchor_log(mut self, log: anchor::AnchorLog) -> Result<Db, DbError> {
+        if let Some(last) = log.read()?.pop() {
+            let source = log.path().display().to_string();
+            if let Some(problem) = self.anchor_problem(&last)? {
+                return Err(DbError::ChainBroken {
+                    target: self.target(),
+                    what: format!("the anchor log {source}'s latest anchor: {problem}"),
+                });
+            }
+        }
+        self.anchor_log = Some(log);
+        Ok(self)
+    }
+
+    /// The chain head: the ledger's latest entry (`None`: nothing stored yet).
+    pub fn chain_head(&mut self) -> Result<Option<anchor::Anchor>, DbError> {
+        Ok(self
+            .conn
+            .reading(chain::head)?
+            .map(|h| anchor::Anchor { seq: h.seq, chain_sha256: h.chain_sha256 }))
+    }
+
+    /// Checks anchors read from files (an anchor log, certificates, journals) against the
+    /// ledger: each must be the entry at its place. Also what the chain itself does not show:
+    /// a ledger cut short behind an anchor.
+    pub fn check_anchors(
+        &mut self,
+        found: &[(String, anchor::Anchor)],
+    ) -> Result<Vec<anchor::AnchorFinding>, DbError> {
+        found
+            .iter()
+            .map(|(source, a)| {
+                Ok(anchor::AnchorFinding {
+                    source: source.clone(),
+                    anchor: a.clone(),
+                    problem: self.anchor_problem(a)?,
+                })
+            })
+            .collect()
+    }
+
+    fn anchor_problem(&mut self, a: &anchor::Anchor) -> Result<Option<String>, DbError> {
+        let (at, head) = self.conn.reading(|tx| Ok((chain::chain_at(tx, a.seq)?, chain::head(tx)?)))?;
+        Ok(match at {
+            Some(c) if c == a.chain_sha256 => None,
+            Some(_) => Some(format!(
+                "ledger entry {} is not the one anchored (its chain value differs): the ledger was rewritten from there on",
+                a.seq
+            )),
+            None => Some(match head {
+                Some(h) if h.seq < a.seq => format!(
+                    "the ledger ends at entry {}, but entry {} was anchored: entries were removed from its end",
+                    h.seq, a.seq
+                ),
+                None => format!("the ledger is empty, but entry {} was anchored", a.seq),
+                Some(_) => format!("ledger entry {} is gone", a.seq),
+            }),
+        })
     }
 
     /// Takes run `run` out of the unit's history, the fleet's statistics and the recalibration
@@ -285,8 +367,11 @@ impl Db {
     /// Checks the whole database against its hash chain, and the rows derived from the pieces
     /// ([`derived`]) against the pieces.
     pub fn verify_chain(&mut self) -> Result<ChainReport, DbError> {
-        self.conn.transaction(|tx| {
+        self.conn.reading(|tx| {
+            let cells = engine::scan_cells(tx)?;
             let mut r = chain::verify_all(tx)?;
+            r.bad_cells = cells;
+            r.mismatches.extend(certificate::gaps(tx)?);
             r.mismatches.extend(
                 derived::check(tx)?.into_iter().map(|(run_id, piece, what)| chain::Mismatch {
                     seq: 0,
@@ -302,7 +387,7 @@ impl Db {
     /// Checks run `run`'s rows against their hash chain: its seal, or [`DbError::Tampered`].
     pub fn verify_run(&mut self, run: RunId) -> Result<RunSeal, DbError> {
         let id = run.to_string();
-        match self.conn.transaction(|tx| chain::verify_run(tx, &id))? {
+        match self.conn.reading(|tx| chain::verify_run(tx, &id))? {
             Ok(seal) => Ok(seal),
             Err(mut m) => {
                 let first = m.remove(0);

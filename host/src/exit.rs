@@ -57,6 +57,7 @@ registry!(
     accelcal_db::DbError,
     accelcal_db::LabelClash,
     accelcal_db::AssetError,
+    accelcal_db::anchor::AnchorLogError,
     accelcal_core::gmdh::GmdhError,
     accelcal_core::compare::CompareError,
     accelcal_core::calibrate::RecordError,
@@ -295,6 +296,27 @@ mod tests {
             (e(label_clash()), BadInput),
             (e(DbError::Asset(asset_error())), Environment),
             (e(asset_error()), Environment),
+            (
+                e(accelcal_db::anchor::AnchorLogError {
+                    path: "anchors.log".into(),
+                    cause: "No space left on device".into(),
+                }),
+                Environment,
+            ),
+            (
+                e(DbError::ChainBroken {
+                    target: "cal.sqlite".into(),
+                    what: "the ledger is empty and 3 rows are in the database".into(),
+                }),
+                Environment,
+            ),
+            (
+                e(DbError::NeedsMigration {
+                    target: "cal.sqlite".into(),
+                    why: "it is at schema version 7, this build reads version 8".into(),
+                }),
+                Environment,
+            ),
             (
                 e(accelcal_db::AssetError::Overdue {
                     asset_id: "h".into(),

@@ -218,6 +218,10 @@ pub struct Journal {
     pub started_unix_s: Option<i64>,
     /// The finished steps, in order.
     pub steps: Vec<StepRecord>,
+    /// The database's chain heads after the steps (`accelcal-anchor seq=N chain_sha256=HEX`),
+    /// oldest first: anchors kept outside the database (`db verify --anchors JOURNAL`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub anchors: Vec<String>,
 }
 
 impl Journal {
@@ -230,6 +234,14 @@ impl Journal {
             run_id: None,
             started_unix_s: None,
             steps: Vec::new(),
+            anchors: Vec::new(),
+        }
+    }
+
+    /// Keeps a chain head after a step (the same one twice in a row once).
+    pub fn anchor(&mut self, text: String) {
+        if self.anchors.last() != Some(&text) {
+            self.anchors.push(text);
         }
     }
 

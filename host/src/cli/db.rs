@@ -48,6 +48,12 @@ pub struct VoidArgs {
     /// Who voids it [default: the account running the command].
     #[arg(long, value_name = "NAME")]
     pub operator: Option<String>,
+    /// Append each chain head this command writes to FILE, one line `TIME accelcal-anchor seq=N
+    /// chain_sha256=HEX`: a copy of the hash chain's state kept outside the database, which `db
+    /// verify --anchors FILE` checks. The file's latest anchor is checked first: a database cut
+    /// short or rewritten behind it is refused.
+    #[arg(long, value_name = "FILE")]
+    pub anchor_log: Option<PathBuf>,
 }
 
 /// `accelcal db`: the calibration database itself.
@@ -57,6 +63,11 @@ pub enum DbCommand {
     /// to each other, and the rows' content hashes; name the first row that does not match.
     /// Exit code 0 when everything matches, 1 when a row does not.
     Verify(DbVerifyArgs),
+    /// Bring the database to this build's schema: the one command that migrates (readers never
+    /// write). Rows of a database older than the hash chain are chained once, and the chain
+    /// records it (a `legacy-seal` event, which `db verify` shows); rows derived from the pieces
+    /// are derived. A database already current is left as it is. Exit code 0 when done.
+    Migrate(DbMigrateArgs),
 }
 
 /// `accelcal db verify`.
@@ -67,6 +78,19 @@ pub struct DbVerifyArgs {
     /// Write what was checked and every row that does not match as JSON to this file.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
+    /// Also check the anchors (`accelcal-anchor seq=N chain_sha256=HEX`) these files hold
+    /// against the ledger: anchor logs (`--anchor-log`), certificates, station journals. Each
+    /// must be the ledger's entry at its place; a ledger cut short or rewritten behind one is
+    /// reported. A file that holds no anchor is an error.
+    #[arg(long, value_name = "PATH", num_args = 1..)]
+    pub anchors: Vec<PathBuf>,
+}
+
+/// `accelcal db migrate`.
+#[derive(Debug, Args)]
+pub struct DbMigrateArgs {
+    #[command(flatten)]
+    pub reader: ReaderDb,
 }
 
 /// `accelcal asset`: the line's registered reference equipment.
@@ -120,6 +144,9 @@ pub struct AssetDb {
 /// `accelcal asset add`.
 #[derive(Debug, Args)]
 pub struct AssetAddArgs {
+    /// Append each chain head this command writes to FILE (see `fit --anchor-log`).
+    #[arg(long, value_name = "FILE")]
+    pub anchor_log: Option<PathBuf>,
     /// The asset's id, as the line names it (`--head-asset`): 1 to 64 letters, digits, `.`,
     /// `_` or `-`.
     #[arg(value_name = "ID")]

@@ -474,6 +474,13 @@ pub struct StationArgs {
     /// in the directory that holds --out].
     #[arg(long, value_name = "FILE|URL")]
     pub db: Option<String>,
+    /// Append each chain head the station and its steps write to FILE (a line `TIME
+    /// accelcal-anchor seq=N chain_sha256=HEX`; `db verify --anchors FILE` checks them). The
+    /// file's latest anchor is checked first: a database cut short or rewritten behind it stops
+    /// the station before it touches a node. The unit's journal keeps the chain head after each
+    /// step, and its certificate the head at issue, either way.
+    #[arg(long, value_name = "FILE")]
+    pub anchor_log: Option<PathBuf>,
     /// The dividing head as a registered asset (`accelcal asset add ID --kind head`): the run
     /// stores it, and the fit's uncertainty budget takes the head's stated uncertainties from its
     /// certificate in force. An overdue, unknown or non-head asset stops the station before it

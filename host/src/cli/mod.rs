@@ -161,6 +161,12 @@ pub struct RunArgs {
     /// REASON [with --db, for `fit` and `verify` when they begin a run].
     #[arg(long, value_name = "REASON")]
     pub relabel: Option<String>,
+    /// Append each chain head this command writes to FILE [with --db], one line `TIME accelcal-anchor seq=N
+    /// chain_sha256=HEX`: a copy of the hash chain's state kept outside the database, which `db
+    /// verify --anchors FILE` checks. The file's latest anchor is checked first: a database cut
+    /// short or rewritten behind it is refused.
+    #[arg(long, value_name = "FILE")]
+    pub anchor_log: Option<PathBuf>,
 }
 
 /// The database a command that only reads it (or appends one row) names.

@@ -21,7 +21,7 @@ pub fn run(c: &settings::Asset) -> anyhow::Result<()> {
 
 fn add(a: &settings::Add) -> anyhow::Result<()> {
     let spec = named_db(a.db.as_deref()).unwrap_or_else(|| DEFAULT_DB.into());
-    let mut db = Db::open(&spec)?;
+    let mut db = super::store::with_anchor_log(Db::open(&spec)?, a.anchor_log.as_deref())?;
     let asset = Asset {
         asset_id: a.id.clone(),
         kind: a.kind,

@@ -42,6 +42,7 @@ pub fn run(
         Settings::History(s) => history::run(&s),
         Settings::Void(s) => db::run_void(&s),
         Settings::DbVerify(s) => db::run_verify(&s),
+        Settings::DbMigrate(s) => db::run_migrate(s.as_deref()),
         Settings::Asset(s) => asset::run(&s),
         Settings::Affected(s) => asset::run_affected(&s),
         Settings::Serve(s) => crate::serve::run(&s),

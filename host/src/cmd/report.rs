@@ -410,6 +410,13 @@ pub fn run(a: &Report) -> anyhow::Result<()> {
             .clone()
             .unwrap_or_else(|| "not authorised: a draft, not a certificate of calibration".into()),
     ));
+    // The hash chain's head at issue, kept outside the database by every copy of this page:
+    // `db verify --anchors CERTIFICATE` finds a database cut short or rewritten behind it.
+    if let Some(rdb) = &mut db {
+        if let Some(anchor) = rdb.db.chain_head()? {
+            rows.push(("Ledger anchor", anchor.text()));
+        }
+    }
     for (k, v) in rows {
         let v = if k == "Campaign" { v } else { esc(&v) };
         let _ = write!(h, "<tr><th class=\"l\">{k}</th><td class=\"l\">{v}</td></tr>");

@@ -136,7 +136,7 @@ impl Station<'_> {
     /// The database and run for a step that stores its own piece.
     fn db_run(&self) -> anyhow::Result<DbRun> {
         let run = self.run.context("no run: step info has not run")?;
-        Ok(DbRun { spec: self.db_spec.clone(), run })
+        Ok(DbRun { spec: self.db_spec.clone(), run, anchor_log: self.a.anchor_log.clone() })
     }
 
     /// Runs `accelcal` with the command `cmd` as step `step`; `Failed` on exit code 1, an error
@@ -203,6 +203,10 @@ impl Station<'_> {
         let command = command.map(|c| c.journalled(&self.db.target())).unwrap_or_default();
         let seconds = self.step_start.take().map(|t| t.elapsed().as_secs_f64());
         self.journal.finish(StepRecord { step, command, finished, outcome, outputs, seconds });
+        // The chain head after the step: the journal is an anchor kept outside the database.
+        if let Some(anchor) = self.db.chain_head()? {
+            self.journal.anchor(anchor.text());
+        }
         write_json(&self.path(JOURNAL), &self.journal)?;
         crash_point(&format!("journal:{}", step.name()));
         Ok(())
@@ -480,7 +484,7 @@ pub fn run(
         std::fs::create_dir_all(&u.dir)
             .map_err(|e| environment(format!("creating {}", u.dir.display()), e))?;
         // Opened before the node is touched: an unreachable database stops the station there.
-        let db = Db::open(&db_spec)?;
+        let db = super::store::with_anchor_log(Db::open(&db_spec)?, a.anchor_log.as_deref())?;
         stations.push(Station {
             a,
             gravity,

@@ -67,9 +67,17 @@ pub struct RunDb {
 /// Opens the database a command stores into, when it has one.
 pub fn open(a: Option<&RunStore>) -> anyhow::Result<Option<RunDb>> {
     let Some(a) = a else { return Ok(None) };
-    let db = Db::open(&a.spec)?;
+    let db = with_anchor_log(Db::open(&a.spec)?, a.anchor_log.as_deref())?;
     let relabel = a.relabel.clone().map(|reason| Relabel { reason, operator: user_name() });
     Ok(Some(RunDb { db, run: a.run, relabel }))
+}
+
+/// `db`, appending each chain head it writes to `log` (`--anchor-log`) when one is given.
+pub fn with_anchor_log(db: Db, log: Option<&Path>) -> anyhow::Result<Db> {
+    Ok(match log {
+        Some(l) => db.with_anchor_log(accelcal_db::AnchorLog::new(l))?,
+        None => db,
+    })
 }
 
 /// What a command that may begin a run knows about it.

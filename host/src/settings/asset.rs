@@ -39,6 +39,8 @@ pub struct Add {
     pub orthogonality_u_arcsec: f64,
     /// `--operator` (`None`: the user's name).
     pub operator: Option<String>,
+    /// `--anchor-log`.
+    pub anchor_log: Option<std::path::PathBuf>,
 }
 
 /// `asset list`.
@@ -103,6 +105,7 @@ pub fn asset(c: &AssetCommand) -> anyhow::Result<Asset> {
                 angle_u_arcsec: a.angle_u.unwrap_or(0.0),
                 orthogonality_u_arcsec: a.orthogonality_u.unwrap_or(0.0),
                 operator: a.operator.clone(),
+                anchor_log: a.anchor_log.clone(),
             })
         }
         AssetCommand::List(a) => {

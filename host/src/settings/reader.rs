@@ -143,6 +143,8 @@ pub struct Void {
     pub reason: String,
     /// `--operator` (`None`: the user's name).
     pub operator: Option<String>,
+    /// `--anchor-log`.
+    pub anchor_log: Option<PathBuf>,
 }
 
 /// `void`'s settings from its command line.
@@ -152,7 +154,13 @@ pub fn void(a: &VoidArgs) -> anyhow::Result<Void> {
     if reason.is_empty() {
         return Err(bad("--reason is empty: say why the run is voided (it is stored with it)"));
     }
-    Ok(Void { db: a.reader.db.clone(), run, reason: reason.to_string(), operator: a.operator.clone() })
+    Ok(Void {
+        db: a.reader.db.clone(),
+        run,
+        reason: reason.to_string(),
+        operator: a.operator.clone(),
+        anchor_log: a.anchor_log.clone(),
+    })
 }
 
 /// `accelcal db verify`, settled.
@@ -162,11 +170,13 @@ pub struct DbVerify {
     pub db: Option<String>,
     /// `--json`.
     pub json: Option<PathBuf>,
+    /// `--anchors`.
+    pub anchors: Vec<PathBuf>,
 }
 
 /// `db verify`'s settings from its command line.
 pub fn db_verify(a: &DbVerifyArgs) -> DbVerify {
-    DbVerify { db: a.reader.db.clone(), json: a.json.clone() }
+    DbVerify { db: a.reader.db.clone(), json: a.json.clone(), anchors: a.anchors.clone() }
 }
 
 /// `accelcal serve`, settled.

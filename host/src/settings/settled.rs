@@ -17,6 +17,8 @@ pub enum Settings {
     Void(reader::Void),
     /// `accelcal db verify`.
     DbVerify(reader::DbVerify),
+    /// `db migrate`: the database named (`--db`, else the default reader's).
+    DbMigrate(Option<String>),
     /// `accelcal asset add|list|show`.
     Asset(asset::Asset),
     /// `accelcal affected`.
@@ -78,6 +80,7 @@ pub fn settle(command: Command, resolved: &Resolved) -> anyhow::Result<Settings>
         Command::History(a) => Settings::History(reader::history(&a)?),
         Command::Void(a) => Settings::Void(reader::void(&a)?),
         Command::Db(crate::cli::DbCommand::Verify(a)) => Settings::DbVerify(reader::db_verify(&a)),
+        Command::Db(crate::cli::DbCommand::Migrate(a)) => Settings::DbMigrate(a.reader.db.clone()),
         Command::Asset(c) => Settings::Asset(asset::asset(&c)?),
         Command::Affected(a) => Settings::Affected(asset::affected(&a)?),
         Command::Serve(a) => Settings::Serve(reader::serve(&a)),

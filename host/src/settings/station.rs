@@ -47,6 +47,8 @@ pub struct Station {
     /// The database: `--db`, else `ACCELCAL_DB`, else `calibration.sqlite` beside the first
     /// unit's directory.
     pub db: String,
+    /// `--anchor-log`: where every chain head the run writes is appended.
+    pub anchor_log: Option<PathBuf>,
     /// `--head-asset`: the head in the register.
     pub head_asset: Option<String>,
     /// The unit type's temperature coefficients (all or none).
@@ -88,6 +90,7 @@ pub fn station(a: &StationArgs) -> Station {
         as_found_fit: a.as_found_fit.clone(),
         chip: a.chip.clone(),
         db: db_spec(a),
+        anchor_log: a.anchor_log.clone(),
         head_asset: a.head_asset.clone(),
         tempco: a.tempco.coefficients(),
         station_name: a.station_name.clone(),

@@ -50,6 +50,7 @@ struct StationConfig {
     thermometer_u: Option<Spanned<f64>>,
     spec: Option<Spanned<PathBuf>>,
     db: Option<Spanned<String>>,
+    anchor_log: Option<Spanned<PathBuf>>,
     baud: Option<Spanned<u32>>,
     timeout_s: Option<Spanned<f64>>,
     chip: Option<Spanned<String>>,
@@ -183,6 +184,12 @@ pub fn apply(command: &mut Command, given: &mut Given) -> anyhow::Result<Option<
         Spanned::new(span, v)
     });
     f.text_value(&mut a.db, "db", "db", db)?;
+    let anchor_log = c.anchor_log.map(|s| {
+        let span = s.span();
+        let p = s.into_inner();
+        Spanned::new(span, if p.is_relative() { dir.join(p) } else { p })
+    });
+    f.optional(&mut a.anchor_log, "anchor_log", "anchor_log", anchor_log);
     f.value(&mut a.baud, "baud", "baud", c.baud);
     let timeout_s = f.real("timeout_s", c.timeout_s, Range::Seconds)?;
     f.value(&mut a.timeout_s, "timeout_s", "timeout_s", timeout_s);

@@ -12,6 +12,8 @@ pub struct RunStore {
     pub spec: String,
     pub run: Option<RunId>,
     pub relabel: Option<String>,
+    /// `--anchor-log`.
+    pub anchor_log: Option<std::path::PathBuf>,
 }
 
 impl RunStore {
@@ -19,7 +21,12 @@ impl RunStore {
     pub fn of(a: &RunArgs) -> anyhow::Result<Option<RunStore>> {
         let Some(spec) = &a.db else { return Ok(None) };
         let run = a.run_id.as_deref().map(RunId::parse).transpose()?;
-        Ok(Some(RunStore { spec: spec.clone(), run, relabel: a.relabel.clone() }))
+        Ok(Some(RunStore {
+            spec: spec.clone(),
+            run,
+            relabel: a.relabel.clone(),
+            anchor_log: a.anchor_log.clone(),
+        }))
     }
 }
 

@@ -48,6 +48,8 @@ pub(super) enum GravityGiven {
 pub(super) struct DbRun {
     pub spec: String,
     pub run: RunId,
+    /// `--anchor-log`, passed on to the step.
+    pub anchor_log: Option<std::path::PathBuf>,
 }
 
 /// What a verification judges the errors against.
@@ -186,6 +188,9 @@ impl Line {
         let shown = self.db_shown.clone().unwrap_or_else(|| d.spec.clone());
         self.opt("--db", shown);
         self.opt("--run-id", d.run);
+        if let Some(l) = &d.anchor_log {
+            self.path("--anchor-log", l);
+        }
     }
 }
 
@@ -315,6 +320,7 @@ mod tests {
         DbRun {
             spec: "host=/tmp/pg user=a password=secret dbname=d".into(),
             run: RunId::parse("0123456789abcdef0123456789abcdef").expect("a run id"),
+            anchor_log: Some("/var/lib/accelcal/anchors.log".into()),
         }
     }
 
@@ -384,6 +390,7 @@ mod tests {
             let Command::Flash(a) = parse(&c) else { panic!("flash") };
             assert_eq!(a.record, PathBuf::from("r.rec"));
             assert_eq!((a.run.db.as_deref(), a.run.run_id), (Some(d.spec.as_str()), Some(d.run.to_string())));
+            assert_eq!(a.run.anchor_log, d.anchor_log, "the anchor log is passed on");
             assert_eq!((a.port.as_deref(), a.baud), (Some("/dev/ttyACM0"), 921_600));
             match route {
                 FlashRoute::Gdb(g) => assert_eq!(a.gdb, Some(g)),
