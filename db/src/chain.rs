@@ -165,6 +165,21 @@ fn chain_value(seq: i64, prev_seq: i64, prev: &str, run: &str, piece: &str, row:
     super::sha256_hex(format!("{seq}\n{prev_seq}\n{prev}\n{run}\n{piece}\n{row}").as_bytes())
 }
 
+/// Inserts a row of `table` (a value per column, in its order) and its ledger entry.
+pub(crate) fn insert_row(tx: &mut Tx<'_>, table: &Table, row: &[Val]) -> Result<(), DbError> {
+    let placeholders: Vec<String> = (1..=row.len()).map(|i| format!("${i}")).collect();
+    tx.execute(
+        &format!(
+            "INSERT INTO {} ({}) VALUES ({})",
+            table.name,
+            table.columns.join(", "),
+            placeholders.join(", ")
+        ),
+        row,
+    )?;
+    append(tx, table, row)
+}
+
 /// Appends the ledger entry of a row just inserted (in the same transaction).
 pub fn append(tx: &mut Tx<'_>, table: &Table, row: &[Val]) -> Result<(), DbError> {
     let run = run_of(table, row)?;
@@ -287,7 +302,7 @@ pub fn seal_legacy(tx: &mut Tx<'_>) -> Result<usize, DbError> {
         super::now_unix_s().into(),
         super::sha256_hex(event_content(LEGACY_SEAL, &detail).as_bytes()).into(),
     ];
-    super::insert_row(tx, table("chain_event"), &row)?;
+    insert_row(tx, table("chain_event"), &row)?;
     Ok(n)
 }
 

@@ -344,21 +344,14 @@ impl Conn {
         }
     }
 
-    /// A reader's check: the database is at this build's schema, with nothing left for a writer
-    /// to derive. Read in one transaction that only reads.
+    /// A reader's check: the database is at this build's schema. Read in one transaction that
+    /// only reads.
     fn check_current(&mut self) -> Result<(), DbError> {
         let target = self.target.clone();
-        let (have, pending) = self.reading(|tx| {
-            let have = latest_version(tx)?;
-            let pending = match have {
-                Some(v) if v >= 6 => super::derived::pending(tx)?,
-                _ => false,
-            };
-            Ok((have, pending))
-        })?;
+        let have = self.reading(latest_version)?;
         let want = schema_version();
         match have {
-            Some(v) if v == want && !pending => Ok(()),
+            Some(v) if v == want => Ok(()),
             Some(v) if v > want => Err(DbError::NeedsMigration {
                 target,
                 why: format!(
@@ -369,10 +362,7 @@ impl Conn {
                 target,
                 why: match have {
                     None => format!("it has no accelcal schema (this build reads version {want})"),
-                    Some(v) if v < want => {
-                        format!("it is at schema version {v}, this build reads version {want}")
-                    }
-                    Some(_) => "rows stored before schema 6 still wait for their derived rows".into(),
+                    Some(v) => format!("it is at schema version {v}, this build reads version {want}"),
                 },
             }),
         }

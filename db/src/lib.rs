@@ -121,6 +121,15 @@ impl Db {
             }
             Ok(())
         })?;
+        // A reader of a database whose pieces still wait for their derived rows would show a
+        // part of them: a writer derives them first.
+        let mut conn = conn;
+        if access == Access::Read && conn.reading(derived::pending)? {
+            return Err(DbError::NeedsMigration {
+                target: shown,
+                why: "rows stored before schema 6 still wait for their derived rows".into(),
+            });
+        }
         Ok(Db { conn, target, anchor_log: None })
     }
 

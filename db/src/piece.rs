@@ -104,17 +104,5 @@ impl Db {
     }
 }
 
-/// Inserts a row of `table` (a value per column, in its order) and its ledger entry.
-pub(crate) fn insert_row(tx: &mut Tx<'_>, table: &chain::Table, row: &[Val]) -> Result<(), DbError> {
-    let placeholders: Vec<String> = (1..=row.len()).map(|i| format!("${i}")).collect();
-    tx.execute(
-        &format!(
-            "INSERT INTO {} ({}) VALUES ({})",
-            table.name,
-            table.columns.join(", "),
-            placeholders.join(", ")
-        ),
-        row,
-    )?;
-    chain::append(tx, table, row)
-}
+/// Inserts a row and its ledger entry ([`chain::insert_row`]).
+pub(crate) use super::chain::insert_row;
