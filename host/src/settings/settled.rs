@@ -23,6 +23,8 @@ pub enum Settings {
     Affected(asset::Affected),
     /// `accelcal serve`.
     Serve(reader::Serve),
+    /// `accelcal serve-user add`.
+    ServeUserAdd(reader::AddUser),
     /// `accelcal bench-fleet`.
     BenchFleet(reader::BenchFleet),
     /// `accelcal demo`.
@@ -80,7 +82,10 @@ pub fn settle(command: Command, resolved: &Resolved) -> anyhow::Result<Settings>
         Command::Db(crate::cli::DbCommand::Verify(a)) => Settings::DbVerify(reader::db_verify(&a)),
         Command::Asset(c) => Settings::Asset(asset::asset(&c)?),
         Command::Affected(a) => Settings::Affected(asset::affected(&a)?),
-        Command::Serve(a) => Settings::Serve(reader::serve(&a)),
+        Command::Serve(a) => Settings::Serve(reader::serve(&a)?),
+        Command::ServeUser(crate::cli::ServeUserCommand::Add(a)) => {
+            Settings::ServeUserAdd(reader::add_user(&a)?)
+        }
         Command::BenchFleet(a) => Settings::BenchFleet(reader::bench_fleet(&a)?),
         Command::Demo(a) => Settings::Demo(campaign::demo(&a)),
         Command::Compare(a) => Settings::Compare(campaign::compare(&a)),
