@@ -198,6 +198,20 @@ fn check_runs_are_the_station_s_checks_on_this_engine() {
     check_runs_are_the_station_s_checks(&pg.url);
 }
 
+/// Issue 55: Ctrl-C ends serve on PostgreSQL with exit code 0 (the synchronous client's
+/// connections are closed outside the server's runtime), and a failing query is 503.
+#[test]
+fn serve_stops_on_ctrl_c_and_answers_503_when_a_query_fails() {
+    let pg = Cluster::start();
+    dbkit::serve::a_signal_stops_the_server_cleanly(&pg.url);
+    let pg = Cluster::start();
+    let url = pg.url.clone();
+    dbkit::serve::a_database_failure_is_503(&pg.url, move || {
+        let mut c = postgres::Client::connect(&url, postgres::NoTls).unwrap();
+        c.batch_execute("ALTER TABLE run RENAME TO run_gone").unwrap();
+    });
+}
+
 #[test]
 fn serve_reads_the_server_s_numbers_and_shows_a_hostile_serial_as_text() {
     let pg = Cluster::start();

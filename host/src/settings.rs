@@ -420,6 +420,7 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
         | Command::Asset(_)
         | Command::Affected(_)
         | Command::Serve(_)
+        | Command::ServeUser(_)
         | Command::BenchFleet(_)
         | Command::Plan(_) => Ok(()),
     }

@@ -115,6 +115,7 @@ const UNITS: &[(&str, &str)] = &[
     ("--height", ", m "),
     ("--head-speed", "degrees per second"),
     ("--settle-timeout-s", "Seconds"),
+    ("--header-timeout-s", "Seconds"),
     ("--static-z", "standard errors"),
 ];
 
@@ -142,6 +143,7 @@ const DIMENSIONLESS: &[&str] = &[
     "--runs",
     "--writers",
     "--repeat",
+    "--max-connections",
 ];
 
 #[test]

@@ -149,6 +149,53 @@ fn serve_answers_only_get_and_says_why_a_request_is_bad() {
     dbkit::serve::only_get_is_answered_and_bad_requests_say_why(&db_file(&d));
 }
 
+/// Issue 55: 1,100 idle connections under `ulimit -n 1024` do not stop a page.
+#[test]
+fn serve_answers_a_page_within_a_second_past_1100_idle_connections() {
+    let d = tempfile::tempdir().unwrap();
+    dbkit::serve::idle_connections_do_not_stop_a_page(&db_file(&d));
+}
+
+/// Issue 55: Ctrl-C and SIGTERM end serve with exit code 0.
+#[test]
+fn serve_stops_on_ctrl_c_with_exit_code_0() {
+    let d = tempfile::tempdir().unwrap();
+    dbkit::serve::a_signal_stops_the_server_cleanly(&db_file(&d));
+}
+
+/// Issue 55: beyond loopback only with `--users`, and then every request needs the password.
+#[test]
+fn serve_beyond_loopback_needs_users_and_asks_every_request_for_the_password() {
+    let d = tempfile::tempdir().unwrap();
+    dbkit::serve::a_bind_beyond_loopback_needs_a_password(&db_file(&d));
+}
+
+/// Issue 55: a date beyond the range is a 400 naming its field; no control character reaches a page.
+#[test]
+fn serve_answers_hostile_urls_in_words() {
+    let d = tempfile::tempdir().unwrap();
+    dbkit::serve::hostile_urls_are_answered_in_words(&db_file(&d));
+}
+
+/// Issue 55: a failing query is 503, a unit that is not there 404.
+#[test]
+fn serve_answers_503_when_the_database_fails() {
+    let d = tempfile::tempdir().unwrap();
+    let spec = db_file(&d);
+    let s = spec.clone();
+    dbkit::serve::a_database_failure_is_503(&spec, move || {
+        let c = rusqlite::Connection::open(&s).unwrap();
+        c.execute_batch("ALTER TABLE run RENAME TO run_gone").unwrap();
+    });
+}
+
+/// Issue 55: the database file removed is 503, another one moved into its place is read.
+#[test]
+fn serve_reads_a_database_file_replaced_while_it_runs() {
+    let d = tempfile::tempdir().unwrap();
+    dbkit::serve::a_database_file_replaced_is_read_anew(&db_file(&d));
+}
+
 /// The pages in Chromium's screenshots, in `target/tmp/serve-screenshots/` (the guide's pictures).
 #[test]
 fn serve_s_pages_render_to_screenshots() {

@@ -19,6 +19,28 @@ struct Server {
     base: String,
 }
 
+impl Server {
+    /// Sends `signal` and waits (at most 15 s) for the exit: its code and what it wrote on stderr.
+    fn stop(mut self, signal: i32) -> (Option<i32>, String) {
+        // SAFETY: kill(2) on the child this test started, still unreaped.
+        assert_eq!(unsafe { libc::kill(self.child.id() as i32, signal) }, 0);
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(15);
+        let status = loop {
+            if let Some(s) = self.child.try_wait().unwrap() {
+                break s;
+            }
+            assert!(
+                std::time::Instant::now() < deadline,
+                "serve did not stop within 15 s of signal {signal}"
+            );
+            std::thread::sleep(std::time::Duration::from_millis(50));
+        };
+        let mut err = String::new();
+        self.child.stderr.take().unwrap().read_to_string(&mut err).unwrap();
+        (status.code(), err)
+    }
+}
+
 impl Drop for Server {
     fn drop(&mut self) {
         let _ = self.child.kill();
@@ -28,26 +50,52 @@ impl Drop for Server {
 
 /// Starts `accelcal serve --db SPEC --bind 127.0.0.1:0` and reads its address off its first line.
 fn serve(spec: &str) -> Server {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_accelcal"))
-        .args(["serve", "--db", spec, "--bind", "127.0.0.1:0"])
+    serve_with(spec, &[])
+}
+
+/// `serve` with `extra` options (`--bind 127.0.0.1:0` unless they bind), run by `bash -c
+/// 'ulimit -n 1024; exec accelcal serve …'`: the common limit of open files. Its address is
+/// always reached through 127.0.0.1.
+fn serve_with(spec: &str, extra: &[&str]) -> Server {
+    let mut child = Command::new("bash")
+        .args(["-c", "ulimit -n 1024 && exec \"$0\" \"$@\"", env!("CARGO_BIN_EXE_accelcal")])
+        .args(["serve", "--db", spec])
+        .args(if extra.contains(&"--bind") { &[][..] } else { &["--bind", "127.0.0.1:0"][..] })
+        .args(extra)
+        .env_remove("ACCELCAL_DB")
         .stdout(Stdio::piped())
-        .stderr(Stdio::null())
+        .stderr(Stdio::piped())
         .spawn()
         .unwrap();
     let mut line = String::new();
     BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
-    let at = line.find("http://").unwrap_or_else(|| panic!("no address in `{line}`"));
+    let Some(at) = line.find("http://") else {
+        let mut err = String::new();
+        let _ = child.stderr.take().unwrap().read_to_string(&mut err);
+        panic!("no address in `{line}`: {err}");
+    };
     let base = line[at..].split_whitespace().next().unwrap().trim_end_matches('/').to_string();
+    let port = base.rsplit(':').next().unwrap();
+    let base = format!("http://127.0.0.1:{port}");
     assert!(line.starts_with("serving ") && line.contains("read-only"), "{line}");
     Server { child, base }
 }
 
 /// One HTTP/1.1 request: (status, headers, body).
 fn request(base: &str, method: &str, path: &str) -> (u16, String, String) {
+    request_with(base, method, path, "")
+}
+
+/// One HTTP/1.1 request with `headers` (each ending in CRLF): (status, headers, body).
+fn request_with(base: &str, method: &str, path: &str, headers: &str) -> (u16, String, String) {
     let host = base.trim_start_matches("http://");
     let mut s = TcpStream::connect(host).unwrap();
-    write!(s, "{method} {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\nContent-Length: 0\r\n\r\n")
-        .unwrap();
+    s.set_read_timeout(Some(std::time::Duration::from_secs(30))).unwrap();
+    write!(
+        s,
+        "{method} {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\nContent-Length: 0\r\n{headers}\r\n"
+    )
+    .unwrap();
     let mut raw = Vec::new();
     s.read_to_end(&mut raw).unwrap();
     let raw = String::from_utf8_lossy(&raw).into_owned();
@@ -304,4 +352,210 @@ pub fn page(spec: &str, path: &str) -> String {
     let (status, _, body) = request(&server.base, "GET", path);
     assert_eq!(status, 200, "{path}: {body}");
     body
+}
+
+/// Issue 55: 1,100 idle connections (never a byte sent) do not stop a `GET /` from answering
+/// within a second under `ulimit -n 1024`: the connections are capped (256 by default) and a new
+/// one takes the place of the oldest idle one, so the server's `accept` never runs out of
+/// descriptors; the idle ones are closed by the header timeout.
+pub fn idle_connections_do_not_stop_a_page(spec: &str) {
+    line_db(spec);
+    // This test holds the 1,100 connections: its own limit must allow them.
+    let mut lim = libc::rlimit { rlim_cur: 0, rlim_max: 0 };
+    // SAFETY: getrlimit/setrlimit read and write the struct they are given.
+    unsafe {
+        assert_eq!(libc::getrlimit(libc::RLIMIT_NOFILE, &mut lim), 0);
+        if lim.rlim_cur < 4096 {
+            lim.rlim_cur = lim.rlim_max.min(4096);
+            assert_eq!(libc::setrlimit(libc::RLIMIT_NOFILE, &lim), 0);
+        }
+    }
+    assert!(lim.rlim_cur >= 1_200, "the test needs 1,200 open files, the hard limit is {}", lim.rlim_max);
+    let server = serve_with(spec, &["--header-timeout-s", "5"]);
+    let host = server.base.trim_start_matches("http://").to_string();
+    let idle: Vec<TcpStream> = (0..1_100).map(|_| TcpStream::connect(&host).unwrap()).collect();
+    let t = std::time::Instant::now();
+    let mut s = TcpStream::connect(&host).unwrap();
+    s.set_read_timeout(Some(std::time::Duration::from_secs(1))).unwrap();
+    write!(s, "GET / HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n").unwrap();
+    let mut head = [0u8; 15];
+    s.read_exact(&mut head).expect("an answer within a second");
+    assert!(t.elapsed() < std::time::Duration::from_secs(1), "{:?}", t.elapsed());
+    assert_eq!(&head, b"HTTP/1.1 200 OK", "{}", String::from_utf8_lossy(&head));
+    // Most of the idle connections were closed to make room: a read finds their end at once.
+    let closed = idle
+        .iter()
+        .take(100)
+        .filter(|c| {
+            c.set_read_timeout(Some(std::time::Duration::from_millis(200))).unwrap();
+            matches!((&**c).read(&mut [0u8; 8]), Ok(0))
+        })
+        .count();
+    assert_eq!(closed, 100, "the oldest idle connections are closed");
+    drop(idle);
+    let (code, err) = server.stop(libc::SIGINT);
+    assert_eq!(code, Some(0), "{err}");
+}
+
+/// Ctrl-C (SIGINT) and SIGTERM stop the server with exit code 0 and no panic, with a page served
+/// and a keep-alive connection open at the time (issue 55: the synchronous PostgreSQL client
+/// panicked "Cannot start a runtime from within a runtime" as the pool closed).
+pub fn a_signal_stops_the_server_cleanly(spec: &str) {
+    line_db(spec);
+    for signal in [libc::SIGINT, libc::SIGTERM] {
+        let server = serve(spec);
+        for path in ["/", "/unit/SN-A1", &format!("/fleet?{JANUARY}")] {
+            assert_eq!(request(&server.base, "GET", path).0, 200, "{path}");
+        }
+        let host = server.base.trim_start_matches("http://").to_string();
+        let mut open = TcpStream::connect(&host).unwrap();
+        write!(open, "GET /unit/SN-A1 HTTP/1.1\r\nHost: {host}\r\n\r\n").unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(300));
+        let (code, err) = server.stop(signal);
+        assert_eq!(code, Some(0), "signal {signal}: {err}");
+        assert!(!err.contains("panicked"), "signal {signal}: {err}");
+    }
+}
+
+/// A bind beyond loopback needs `--users`; with it, every request needs the password (401
+/// without it or with a wrong one, with `WWW-Authenticate: Basic realm="accelcal"`), 200 with it.
+pub fn a_bind_beyond_loopback_needs_a_password(spec: &str) {
+    line_db(spec);
+    for bind in ["0.0.0.0:0", "[::]:0", "192.0.2.7:0"] {
+        let (code, out, err) = accelcal(&["serve", "--db", spec, "--bind", bind]);
+        assert_eq!(code, Some(2), "{bind}: {out}{err}");
+        assert!(err.starts_with("error: --bind ") && err.contains("--users FILE"), "{err}");
+        assert_eq!(err.lines().count(), 1, "{err}");
+    }
+    let d = tempfile::tempdir().unwrap();
+    let (users, pw) = (d.path().join("users"), d.path().join("pw"));
+    let (users_s, pw_s) = (users.to_str().unwrap(), pw.to_str().unwrap());
+    // A password file that is not there, or whose first line is empty, is said plainly.
+    let (code, _, err) = accelcal(&["serve-user", "add", "anna", "--file", users_s, "--password-file", pw_s]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.starts_with("error: reading the password file ") && err.contains("pw"), "{err}");
+    std::fs::write(&pw, "\nsecond line\n").unwrap();
+    let (code, _, err) = accelcal(&["serve-user", "add", "anna", "--file", users_s, "--password-file", pw_s]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("its first line is empty"), "{err}");
+    // Names that are not plain text are refused before anything is read.
+    for name in ["a:b", "a\u{1b}[2J", "a\u{200b}b", ""] {
+        let (code, _, err) =
+            accelcal(&["serve-user", "add", name, "--file", users_s, "--password-file", pw_s]);
+        assert_eq!(code, Some(2), "{name:?}: {err}");
+        assert_eq!(err.lines().count(), 1, "{err}");
+    }
+    assert!(!users.exists());
+    std::fs::write(&pw, "correct horse\n").unwrap();
+    let (code, out, err) =
+        accelcal(&["serve-user", "add", "anna", "--file", users_s, "--password-file", pw_s]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(out.contains("anna added (1 users)"), "{out}");
+    let text = std::fs::read_to_string(&users).unwrap();
+    assert!(text.starts_with("anna:$argon2id$v=19$m=19456,t=2,p=1$") && text.lines().count() == 1, "{text}");
+    use std::os::unix::fs::PermissionsExt;
+    assert_eq!(std::fs::metadata(&users).unwrap().permissions().mode() & 0o777, 0o600);
+    let server = serve_with(spec, &["--bind", "0.0.0.0:0", "--users", users_s]);
+    use base64::Engine as _;
+    let basic =
+        |u: &str| format!("Authorization: Basic {}\r\n", base64::engine::general_purpose::STANDARD.encode(u));
+    for (headers, want) in [
+        (String::new(), 401),
+        (basic("anna:wrong horse"), 401),
+        (basic("bob:correct horse"), 401),
+        (basic("anna:correct horse"), 200),
+    ] {
+        for path in ["/", "/unit/SN-A1", "/nothing-here"] {
+            let (status, head, _) = request_with(&server.base, "GET", path, &headers);
+            let want = if want == 200 && path == "/nothing-here" { 404 } else { want };
+            assert_eq!(status, want, "{path} {headers}: {head}");
+            if want == 401 {
+                assert!(head.contains("www-authenticate: Basic realm=\"accelcal\""), "{head}");
+            }
+        }
+    }
+    // A second user, and a new password for the first: the old one no longer opens the view.
+    std::fs::write(&pw, "battery staple\n").unwrap();
+    let (code, out, err) =
+        accelcal(&["serve-user", "add", "anna", "--file", users_s, "--password-file", pw_s]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(out.contains("anna password changed (1 users)"), "{out}");
+    drop(server);
+    let server = serve_with(spec, &["--bind", "0.0.0.0:0", "--users", users_s]);
+    assert_eq!(request_with(&server.base, "GET", "/", &basic("anna:correct horse")).0, 401);
+    assert_eq!(request_with(&server.base, "GET", "/", &basic("anna:battery staple")).0, 200);
+    // A users file that is not one is refused at the start, naming its line.
+    std::fs::write(&users, "anna:not a hash\n").unwrap();
+    let (code, _, err) = accelcal(&["serve", "--db", spec, "--bind", "127.0.0.1:0", "--users", users_s]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("users:1: the hash of anna"), "{err}");
+}
+
+/// Dates beyond what the view can count are a 400 naming the field; control characters of the
+/// URL are shown as `\u{…}` text, never written raw.
+pub fn hostile_urls_are_answered_in_words(spec: &str) {
+    line_db(spec);
+    let server = serve(spec);
+    for (path, field) in [
+        ("/fleet?until=9999-12-31", "until: 9999-12-31 is too late"),
+        ("/charts?since=2026-01-01&until=9999-12-31", "until: 9999-12-31 is too late"),
+        ("/fleet.csv?until=9999-12-31", "until: 9999-12-31 is too late"),
+        ("/fleet?since=9999-12-31", "since 9999-12-31 is after until"),
+    ] {
+        let (status, _, body) = request(&server.base, "GET", path);
+        assert_eq!(status, 400, "{path}: {body}");
+        assert!(body.contains(field), "{path}: {body}");
+    }
+    for (path, shown) in [("/unit/%00", "no unit `\\u{0}`"), ("/unit/%1b[2J", "no unit `\\u{1b}[2J`")] {
+        let (status, _, body) = request(&server.base, "GET", path);
+        assert_eq!(status, 404, "{path}: {body}");
+        assert!(
+            !body.chars().any(|c| c.is_control() && !matches!(c, '\n' | '\t' | '\r')),
+            "{path}: {body:?}"
+        );
+        assert!(body.contains(shown), "{path}: {body}");
+    }
+}
+
+/// A query that fails in the engine is 503 (the database's failure), not 404; a unit that is not
+/// there stays 404. `break_it` renames the table `run` behind the server's back.
+pub fn a_database_failure_is_503(spec: &str, break_it: impl FnOnce()) {
+    line_db(spec);
+    let server = serve(spec);
+    assert_eq!(request(&server.base, "GET", "/unit/SN-A1").0, 200);
+    let (status, _, body) = request(&server.base, "GET", "/unit/NOBODY");
+    assert_eq!(status, 404, "{body}");
+    break_it();
+    let (status, _, body) = request(&server.base, "GET", "/unit/SN-A1");
+    assert_eq!(status, 503, "{body}");
+    assert!(body.contains("the database failed: "), "{body}");
+    assert_eq!(request(&server.base, "GET", "/").0, 503);
+}
+
+/// A SQLite file removed while the server runs is 503 until a database is there again, then
+/// its data is served (not the removed file's, which the pooled connections still held open).
+pub fn a_database_file_replaced_is_read_anew(spec: &str) {
+    line_db(spec);
+    let server = serve(spec);
+    assert_eq!(request(&server.base, "GET", "/unit/SN-A1").0, 200);
+    assert_eq!(request(&server.base, "GET", "/unit/SN-NEW").0, 404);
+    let path = std::path::Path::new(spec);
+    for f in [spec.to_string(), format!("{spec}-wal"), format!("{spec}-shm")] {
+        let _ = std::fs::remove_file(f);
+    }
+    let (status, _, body) = request(&server.base, "GET", "/unit/SN-A1");
+    assert_eq!(status, 503, "{body}");
+    assert!(body.contains("the database file is not there"), "{body}");
+    assert_eq!(request(&server.base, "GET", "/").0, 503);
+    // Another database, written beside it and moved into its place.
+    let other = path.with_file_name("other.sqlite");
+    let mut db = Db::open(other.to_str().unwrap()).unwrap();
+    let s = super::start(accelcal_db::RunId::new(), super::DEVICE_2, "SN-NEW", "st-9", T0);
+    super::calibrate(&mut db, &s, &super::coefs(0.0, 0), None);
+    drop(db);
+    std::fs::rename(&other, path).unwrap();
+    let (status, _, body) = request(&server.base, "GET", "/unit/SN-NEW");
+    assert_eq!(status, 200, "{body}");
+    let (status, _, body) = request(&server.base, "GET", "/unit/SN-A1");
+    assert_eq!(status, 404, "{body}");
 }

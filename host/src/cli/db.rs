@@ -262,13 +262,53 @@ pub struct ServeArgs {
     #[command(flatten)]
     pub reader: ReaderDb,
     /// The address to listen on (`IP:PORT`; port 0 takes a free port, and the line printed at the
-    /// start says which). The view has no login: keep it on a trusted network.
+    /// start says which). An address beyond loopback (anything but 127.0.0.0/8 and ::1, 0.0.0.0
+    /// and :: included) needs --users.
     #[arg(long, value_name = "IP:PORT", default_value = "127.0.0.1:8080")]
     pub bind: std::net::SocketAddr,
+    /// Ask every request for a user name and password (HTTP Basic authentication) checked against
+    /// this file of argon2 hashes, written by `accelcal serve-user add NAME --file FILE`; read
+    /// once at the start. Basic authentication sends the password in the clear: off this machine,
+    /// put a reverse proxy that terminates TLS in front.
+    #[arg(long, value_name = "FILE")]
+    pub users: Option<PathBuf>,
+    /// Seconds a connection has to send a request's whole header, counted from its opening and
+    /// again from each answer (so also how long an idle keep-alive connection is kept); then it
+    /// is closed.
+    #[arg(long, value_name = "SECONDS", default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..=3600))]
+    pub header_timeout_s: u32,
+    /// Connections open at once, at most. At the cap, a new connection takes the place of the
+    /// oldest idle one (waiting for a request); when all are answering requests it gets `503
+    /// Service Unavailable`. The open-file limit (ulimit -n) is raised to fit, or the cap refused.
+    #[arg(long, value_name = "N", default_value_t = 256, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    pub max_connections: u32,
     /// The units and assets due within this many days of today are listed on the overview
     /// (overdue ones too).
     #[arg(long, value_name = "DAYS", default_value_t = 30, value_parser = clap::value_parser!(u32).range(0..=3660))]
     pub due_days: u32,
+}
+
+/// `accelcal serve-user`.
+#[derive(Debug, Subcommand)]
+pub enum ServeUserCommand {
+    /// Add a user to a `serve --users` file, or change their password: the password (asked on
+    /// the terminal twice without echo, or the first line of --password-file) is stored as an
+    /// argon2id hash with a random salt; the file is written whole and readable by its owner
+    /// only. A running `serve` reads it again when restarted.
+    Add(ServeUserAddArgs),
+}
+
+/// `accelcal serve-user add`.
+#[derive(Debug, Args)]
+pub struct ServeUserAddArgs {
+    /// The user's name (plain text: no `:`, no control or format character).
+    pub name: String,
+    /// The users file (created when missing).
+    #[arg(long, value_name = "FILE")]
+    pub file: PathBuf,
+    /// Read the password from the first line of this file instead of the terminal (for scripts).
+    #[arg(long, value_name = "FILE")]
+    pub password_file: Option<PathBuf>,
 }
 
 /// `accelcal bench-fleet`.

@@ -134,8 +134,15 @@ pub enum Command {
     /// units, yield, stations, assets and units due), each unit's page (runs, as found and as
     /// left, drift, stored certificates), the control charts and the heads' signatures, and the
     /// fleet table with `fleet`'s filters and a CSV download. Server-side HTML, no JavaScript, no
-    /// write endpoint (GET only); stops on Ctrl-C.
+    /// write endpoint (GET only); stops on Ctrl-C or SIGTERM (exit code 0). Every connection has
+    /// a header-read and idle timeout, their number is capped (503 past the cap), and a bind
+    /// beyond loopback needs --users (HTTP Basic authentication; TLS belongs to a reverse proxy
+    /// in front).
     Serve(ServeArgs),
+    /// The users of `serve --users FILE`: `serve-user add NAME --file FILE` adds a user or
+    /// changes their password (an argon2id hash per line).
+    #[command(subcommand)]
+    ServeUser(ServeUserCommand),
     /// Benchmark of `fleet` and `serve` on a line-sized database: an empty one is first filled
     /// with a simulated line's history through the normal store path (units calibrated once a
     /// year on three stations, each with its head); then `fleet --json` for a month, the

@@ -46,6 +46,7 @@ pub fn run(
         Settings::Asset(s) => asset::run(&s),
         Settings::Affected(s) => asset::run_affected(&s),
         Settings::Serve(s) => crate::serve::run(&s),
+        Settings::ServeUserAdd(s) => crate::serve::auth::run_add(&s),
         Settings::BenchFleet(s) => fleet_bench::run(&s),
         Settings::Demo(s) => demo::run(&s),
         Settings::Compare(s) => compare::run(&s, &campaign_g(stated, &s.campaign.path, warnings)?, warnings),

@@ -6,10 +6,11 @@ use accelcal_core::output::utc_date_time;
 use accelcal_db::asset::{parse_date, today_utc, Date};
 use accelcal_db::fleet::{Counts, FleetRun};
 use accelcal_db::history::{history, DEFAULT_RULE};
-use accelcal_db::{Db, Outcome, RunId};
+use accelcal_db::{Db, DbError, Outcome, RunId};
 use askama::Template;
 use axum::http::StatusCode;
 
+use super::escape;
 use super::svg::{control_chart, drift_chart, signature_chart, Lines};
 use super::{App, PageError};
 use crate::cmd::fleet::{change_point, csv_of, due_by, filter_of, gather, measured_line, FleetData, Parts};
@@ -39,8 +40,10 @@ impl Filters {
         serde_urlencoded::from_str(q).map_err(|e| PageError::bad(format!("the query `{q}`: {e}")))
     }
 
-    /// The period: `until` (default today), `since` (default 30 days before it).
-    fn period(&self) -> Result<(Date, Date), PageError> {
+    /// The period: `until` (default today), `since` (default 30 days before it), and the day up
+    /// to which what falls due is listed (`due_days` after `until`). A day the view cannot count
+    /// from is refused naming its field.
+    fn period(&self, due_days: u32) -> Result<(Date, Date, Date), PageError> {
         let day = |name: &str, v: &Option<String>| -> Result<Option<Date>, PageError> {
             given(v).map(|s| parse_date(&s).map_err(|e| PageError::bad(format!("{name}: {e}")))).transpose()
         };
@@ -54,11 +57,17 @@ impl Filters {
         if since > until {
             return Err(PageError::bad(format!("since {since} is after until {until}: the period is empty")));
         }
-        Ok((since, until))
+        let due = due_by(until, due_days).map_err(|_| {
+            PageError::bad(format!(
+                "until: {until} is too late: this view lists what falls due up to {due_days} days after it \
+                 (serve --due-days), beyond the last day it can count"
+            ))
+        })?;
+        Ok((since, until, due))
     }
 
     fn gather(&self, db: &mut Db, due_days: u32, parts: Parts) -> Result<(FleetData, Date, Date), PageError> {
-        let (since, until) = self.period()?;
+        let (since, until, due) = self.period(due_days)?;
         let f = filter_of(
             since,
             until,
@@ -67,8 +76,7 @@ impl Filters {
             given(&self.serial_prefix),
             given(&self.operator),
         );
-        let due = due_by(until, due_days).map_err(PageError::internal)?;
-        let data = gather(db, &f, due, parts).map_err(PageError::internal)?;
+        let data = gather(db, &f, due, parts).map_err(PageError::of)?;
         Ok((data, since, until))
     }
 
@@ -225,8 +233,8 @@ pub(super) fn overview(db: &mut Db, app: &App) -> Result<String, PageError> {
     let month = Filters::default();
     let (data, since, _) = month.gather(db, app.due_days, Parts::Overview)?;
     let day_filter = filter_of(today, today, None, None, None, None);
-    let day_counts = db.fleet_counts(&day_filter).map_err(PageError::internal)?;
-    let day_runs = db.fleet_runs(&day_filter).map_err(PageError::internal)?;
+    let day_counts = db.fleet_counts(&day_filter).map_err(PageError::unavailable)?;
+    let day_runs = db.fleet_runs(&day_filter).map_err(PageError::unavailable)?;
     let mut names: Vec<&str> = data.stations.iter().map(|s| s.0.as_str()).collect();
     names.extend(data.check_standards.iter().map(|c| c.station.as_str()));
     names.sort_unstable();
@@ -404,7 +412,7 @@ pub(super) fn charts(db: &mut Db, app: &App, q: &str) -> Result<String, PageErro
                 c.violations.len(),
                 c.expected_by_chance
             ),
-            svg: control_chart(c.unit, &values, Some(&l), &broken).map_err(PageError::internal)?,
+            svg: escape::svg(control_chart(c.unit, &values, Some(&l), &broken).map_err(PageError::internal)?),
             violations: c
                 .violations
                 .iter()
@@ -431,7 +439,9 @@ pub(super) fn charts(db: &mut Db, app: &App, q: &str) -> Result<String, PageErro
             let l = c.limits.as_ref().map(|l| Lines { center: l.center, lcl: l.lcl, ucl: l.ucl });
             views.push(ChartView {
                 title: format!("{} ({})", c.quantity, c.unit),
-                svg: control_chart(c.unit, &values, l.as_ref(), &broken).map_err(PageError::internal)?,
+                svg: escape::svg(
+                    control_chart(c.unit, &values, l.as_ref(), &broken).map_err(PageError::internal)?,
+                ),
                 violations: c
                     .violations
                     .iter()
@@ -461,7 +471,7 @@ pub(super) fn charts(db: &mut Db, app: &App, q: &str) -> Result<String, PageErro
             svg: if arcsec.is_empty() {
                 String::new()
             } else {
-                signature_chart(&arcsec).map_err(PageError::internal)?
+                escape::svg(signature_chart(&arcsec).map_err(PageError::internal)?)
             },
         });
     }
@@ -501,7 +511,12 @@ struct UnitPage<'a> {
 /// `/unit/KEY` (a serial or a device id): `history`'s runs, drift and recalibration date, with
 /// links to the stored certificates.
 pub(super) fn unit(db: &mut Db, app: &App, key: &str) -> Result<String, PageError> {
-    let runs = db.unit_runs(key).map_err(|e| PageError::not_found(e.to_string()))?;
+    // A unit that is not there (or a serial of several devices) is 404; a query that fails is the
+    // database's failure (503).
+    let runs = db.unit_runs(key).map_err(|e| match e {
+        DbError::NoUnit { .. } | DbError::Ambiguous { .. } => PageError::not_found(e.to_string()),
+        e => PageError::unavailable(e),
+    })?;
     if runs.is_empty() {
         return Err(PageError::not_found(format!("no unit `{key}` in the database")));
     }
@@ -510,7 +525,7 @@ pub(super) fn unit(db: &mut Db, app: &App, key: &str) -> Result<String, PageErro
     for r in &h.runs {
         let outcome = outcome(r);
         let certificate = match RunId::parse(&r.run_id) {
-            Ok(id) => db.certificate_html(id).map_err(PageError::internal)?.is_some(),
+            Ok(id) => db.certificate_html(id).map_err(PageError::unavailable)?.is_some(),
             Err(_) => false,
         };
         let note = match (&r.voided, &r.not_a_calibration, r.outcome) {
@@ -546,8 +561,11 @@ pub(super) fn unit(db: &mut Db, app: &App, key: &str) -> Result<String, PageErro
             })
         })
         .collect();
-    let drift_svg =
-        if pairs.is_empty() { String::new() } else { drift_chart(&pairs).map_err(PageError::internal)? };
+    let drift_svg = if pairs.is_empty() {
+        String::new()
+    } else {
+        escape::svg(drift_chart(&pairs).map_err(PageError::internal)?)
+    };
     let drifts = h
         .drifts
         .iter()
@@ -592,7 +610,7 @@ pub(super) fn unit(db: &mut Db, app: &App, key: &str) -> Result<String, PageErro
 pub(super) fn certificate(db: &mut Db, id: &str) -> Result<String, PageError> {
     let run = RunId::parse(id).map_err(|e| PageError::bad(e.to_string()))?;
     db.certificate_html(run)
-        .map_err(PageError::internal)?
+        .map_err(PageError::unavailable)?
         .ok_or_else(|| PageError::not_found(format!("run {run} has no certificate")))
 }
 

@@ -12,7 +12,8 @@ use anyhow::Context;
 use accelcal_db::history::RecalRule;
 
 use crate::cli::{
-    BenchFleetArgs, CertificateArgs, DbVerifyArgs, FleetArgs, HistoryArgs, ServeArgs, VoidArgs,
+    BenchFleetArgs, CertificateArgs, DbVerifyArgs, FleetArgs, HistoryArgs, ServeArgs, ServeUserAddArgs,
+    VoidArgs,
 };
 use crate::cmd::store::reader_spec;
 
@@ -184,15 +185,59 @@ pub fn db_verify(a: &DbVerifyArgs) -> DbVerify {
 pub struct Serve {
     /// `--db` as given.
     pub db: Option<String>,
-    /// `--bind`: where the server listens.
+    /// `--bind`: where the server listens (beyond loopback only with `users`).
     pub bind: std::net::SocketAddr,
     /// `--due-days`, as `fleet`'s.
     pub due_days: u32,
+    /// `--users`: HTTP Basic authentication against this file of argon2 hashes.
+    pub users: Option<PathBuf>,
+    /// `--header-timeout-s`: a request's header must be complete this long after the connection
+    /// opened or after its previous answer.
+    pub header_timeout: std::time::Duration,
+    /// `--max-connections`.
+    pub max_connections: usize,
 }
 
-/// `serve`'s settings from its command line.
-pub fn serve(a: &ServeArgs) -> Serve {
-    Serve { db: a.reader.db.clone(), bind: a.bind, due_days: a.due_days }
+/// `serve`'s settings from its command line: a bind beyond loopback (`0.0.0.0`, `::`, any
+/// address but 127.0.0.0/8 and ::1) needs `--users`.
+pub fn serve(a: &ServeArgs) -> anyhow::Result<Serve> {
+    if a.users.is_none() && !a.bind.ip().to_canonical().is_loopback() {
+        return Err(bad(format!(
+            "--bind {} is beyond this machine and the view would have no login: give --users FILE \
+             (written by `accelcal serve-user add NAME --file FILE`), or bind 127.0.0.1 behind a reverse proxy",
+            a.bind
+        )));
+    }
+    Ok(Serve {
+        db: a.reader.db.clone(),
+        bind: a.bind,
+        due_days: a.due_days,
+        users: a.users.clone(),
+        header_timeout: std::time::Duration::from_secs(a.header_timeout_s.into()),
+        max_connections: a.max_connections as usize,
+    })
+}
+
+/// `accelcal serve-user add`, settled.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AddUser {
+    /// The user's name (plain text without `:`: `serve::auth::refused_name`).
+    pub name: String,
+    /// `--file`: the users file, written or updated.
+    pub file: PathBuf,
+    /// `--password-file`: the password is its first line; else it is asked on the terminal.
+    pub password_file: Option<PathBuf>,
+}
+
+/// `serve-user add`'s settings from its command line.
+pub fn add_user(a: &ServeUserAddArgs) -> anyhow::Result<AddUser> {
+    if let Some(why) = crate::serve::auth::refused_name(&a.name) {
+        return Err(bad(why));
+    }
+    if a.password_file.as_ref() == Some(&a.file) {
+        return Err(bad(format!("--password-file and --file are the same file {}", a.file.display())));
+    }
+    Ok(AddUser { name: a.name.clone(), file: a.file.clone(), password_file: a.password_file.clone() })
 }
 
 /// `accelcal bench-fleet`, settled.

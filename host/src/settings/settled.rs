@@ -25,6 +25,8 @@ pub enum Settings {
     Affected(asset::Affected),
     /// `accelcal serve`.
     Serve(reader::Serve),
+    /// `accelcal serve-user add`.
+    ServeUserAdd(reader::AddUser),
     /// `accelcal bench-fleet`.
     BenchFleet(reader::BenchFleet),
     /// `accelcal demo`.
@@ -83,7 +85,10 @@ pub fn settle(command: Command, resolved: &Resolved) -> anyhow::Result<Settings>
         Command::Db(crate::cli::DbCommand::Migrate(a)) => Settings::DbMigrate(a.reader.db.clone()),
         Command::Asset(c) => Settings::Asset(asset::asset(&c)?),
         Command::Affected(a) => Settings::Affected(asset::affected(&a)?),
-        Command::Serve(a) => Settings::Serve(reader::serve(&a)),
+        Command::Serve(a) => Settings::Serve(reader::serve(&a)?),
+        Command::ServeUser(crate::cli::ServeUserCommand::Add(a)) => {
+            Settings::ServeUserAdd(reader::add_user(&a)?)
+        }
         Command::BenchFleet(a) => Settings::BenchFleet(reader::bench_fleet(&a)?),
         Command::Demo(a) => Settings::Demo(campaign::demo(&a)),
         Command::Compare(a) => Settings::Compare(campaign::compare(&a)),
