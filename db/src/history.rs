@@ -112,6 +112,10 @@ pub struct RunLine {
     pub voided: Option<String>,
     /// When it was voided, Unix seconds.
     pub voided_unix_s: Option<i64>,
+    /// Why the run's rows are not the ones stored (they do not match their hash chain): such a
+    /// run is listed, never used.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tampered: Option<String>,
 }
 
 /// One coefficient's change between two calibrations.
@@ -327,6 +331,7 @@ pub fn history(runs: &[RunSummary], rule: RecalRule) -> History {
     for r in runs {
         let passed = matches!(r.end, Some((Outcome::Pass, _, _)));
         let model = match (&r.fit_json, passed, &r.voided) {
+            _ if passed && r.tampered.is_some() => Some(Err(r.tampered.clone().unwrap_or_default())),
             (_, true, Some((why, _))) => Some(Err(format!("voided: {why}"))),
             (Some(f), true, None) => Some(model4(f)),
             (None, true, None) => Some(Err("no fit was stored".to_string())),
@@ -359,6 +364,7 @@ pub fn history(runs: &[RunSummary], rule: RecalRule) -> History {
             as_left: r.as_left.as_ref().map(VerifySummary::of),
             voided: r.voided.as_ref().map(|v| v.0.clone()),
             voided_unix_s: r.voided.as_ref().map(|v| v.1),
+            tampered: r.tampered.clone(),
         });
     }
     let mut serials: Vec<String> = Vec::new();

@@ -785,7 +785,13 @@ fn summary(tx: &mut Tx<'_>, start: RunStart) -> Result<RunSummary, DbError> {
         Some(r) => Some((r[0].text()?, r[1].int()?)),
         None => None,
     };
+    // A run whose rows do not match their chain is listed as such and never used.
+    let tampered = match chain::verify_run(tx, &start.run_id.to_string())? {
+        Ok(_) => None,
+        Err(m) => m.first().map(|m| format!("its rows do not match their hash chain: {m}")),
+    };
     Ok(RunSummary {
+        tampered,
         start,
         campaign_sha256,
         fit_json,

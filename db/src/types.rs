@@ -192,6 +192,9 @@ pub struct RunSummary {
     pub end: Option<(Outcome, String, i64)>,
     /// Voided: the reason and when.
     pub voided: Option<(String, i64)>,
+    /// `Some`: the run's rows (or the assets it used) do not match their hash chain, the first
+    /// mismatch in words. Such a run is listed and never used.
+    pub tampered: Option<String>,
 }
 
 /// The latest flash into a device ([`Db::last_flash`]).

@@ -559,3 +559,9 @@ pub fn a_database_file_replaced_is_read_anew(spec: &str) {
     let (status, _, body) = request(&server.base, "GET", "/unit/SN-A1");
     assert_eq!(status, 404, "{body}");
 }
+
+/// Starts `serve` on `spec`, asks for each of `paths` and stops it: each one's status and body.
+pub fn statuses(spec: &str, paths: &[&str]) -> Vec<(u16, String)> {
+    let s = serve(spec);
+    paths.iter().map(|p| request(&s.base, "GET", p)).map(|(code, _, body)| (code, body)).collect()
+}

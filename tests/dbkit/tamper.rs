@@ -61,6 +61,8 @@ pub fn laundering_is_reported_and_no_reader_writes(spec: &str, postgres: bool, e
         assert_ne!(code, Some(101), "{args:?} panicked: {err}");
         outputs.push((r[0].clone(), code, out, err));
     }
+    let cert_path = format!("/run/{run}/certificate");
+    let pages = super::serve::statuses(spec, &["/", cert_path.as_str(), "/unit/SN-1"]);
     assert_eq!(file_hash(spec), before, "no reader wrote a byte");
     assert_eq!(ledger_entries(spec, postgres), 0, "no reader sealed the rows again");
     let (_, code, out, err) = &outputs[0];
@@ -71,6 +73,16 @@ pub fn laundering_is_reported_and_no_reader_writes(spec: &str, postgres: bool, e
     assert_ne!(*code, Some(0), "the certificate of a run without its chain is not printed: {err}");
     assert!(err.contains("do not match their hash chain"), "{err}");
     assert!(!cert.exists(), "no forged certificate written");
+    let (_, _, out, err) = &outputs[1];
+    assert!(
+        out.contains("TAMPERED, not used: its rows do not match their hash chain"),
+        "history: {out}{err}"
+    );
+    assert_eq!(pages[0].0, 200, "the overview still answers: {}", pages[0].1);
+    assert_eq!(pages[1].0, 409, "serve's certificate route: {}", pages[1].1);
+    assert!(pages[1].1.contains("do not match their hash chain"), "{}", pages[1].1);
+    assert_eq!(pages[2].0, 200, "{}", pages[2].1);
+    assert!(pages[2].1.contains("TAMPERED"), "the unit page marks the run: {}", pages[2].1);
     // A writer refuses to go on.
     let e = Db::open(spec).err().expect("a writer refuses the database");
     assert!(matches!(e, DbError::ChainBroken { .. }), "{e}");

@@ -24,8 +24,12 @@ pub fn run(a: &HistorySettings) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// A run's outcome in one word: `voided`, `pass`, `rejected` or `unfinished`.
+/// A run's outcome in one word: `voided`, `pass`, `rejected` or `unfinished`, or `TAMPERED` when
+/// its rows do not match their hash chain (whatever they say).
 pub(crate) fn outcome(r: &accelcal_db::history::RunLine) -> &'static str {
+    if r.tampered.is_some() {
+        return "TAMPERED";
+    }
     match (r.outcome, &r.voided) {
         (_, Some(_)) => "voided",
         (Some(Outcome::Pass), None) => "pass",
@@ -75,7 +79,9 @@ fn print(h: &History, target: &str) {
             verification(&r.as_found),
             verification(&r.as_left),
         );
-        if let (Some(why), Some(t)) = (&r.voided, r.voided_unix_s) {
+        if let Some(why) = &r.tampered {
+            println!("     TAMPERED, not used: {why} (run {})", r.run_id);
+        } else if let (Some(why), Some(t)) = (&r.voided, r.voided_unix_s) {
             println!("     voided {}: {why} (run {})", utc(t.max(0) as u64), r.run_id);
         } else if let Some(why) = &r.not_a_calibration {
             println!("     not a calibration: {why}");

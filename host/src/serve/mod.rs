@@ -145,6 +145,11 @@ impl PageError {
         PageError { status: StatusCode::INTERNAL_SERVER_ERROR, message: e.to_string() }
     }
 
+    /// The rows asked for do not match their hash chain: 409, and nothing of them shown.
+    fn tampered(e: impl std::fmt::Display) -> PageError {
+        PageError { status: StatusCode::CONFLICT, message: e.to_string() }
+    }
+
     /// The database failed: 503, for a reload to try again (not 404: the page may well exist).
     fn unavailable(e: impl std::fmt::Display) -> PageError {
         PageError { status: StatusCode::SERVICE_UNAVAILABLE, message: format!("the database failed: {e}") }

@@ -525,10 +525,15 @@ pub(super) fn unit(db: &mut Db, app: &App, key: &str) -> Result<String, PageErro
     for r in &h.runs {
         let outcome = outcome(r);
         let certificate = match RunId::parse(&r.run_id) {
-            Ok(id) => db.certificate_html(id).map_err(PageError::unavailable)?.is_some(),
+            // A run whose rows do not match their chain offers no certificate.
+            Ok(id) if r.tampered.is_none() => {
+                db.certificate_sha256(id).map_err(PageError::unavailable)?.is_some()
+            }
+            Ok(_) => false,
             Err(_) => false,
         };
         let note = match (&r.voided, &r.not_a_calibration, r.outcome) {
+            _ if r.tampered.is_some() => format!("TAMPERED: {}", r.tampered.as_deref().unwrap_or_default()),
             (Some(why), _, _) => format!("voided: {why}"),
             (None, Some(why), _) => format!("not a calibration: {why}"),
             (None, None, Some(Outcome::Rejected)) => format!("rejected: {}", r.reason),
@@ -610,7 +615,11 @@ pub(super) fn unit(db: &mut Db, app: &App, key: &str) -> Result<String, PageErro
 pub(super) fn certificate(db: &mut Db, id: &str) -> Result<String, PageError> {
     let run = RunId::parse(id).map_err(|e| PageError::bad(e.to_string()))?;
     db.certificate_html(run)
-        .map_err(PageError::unavailable)?
+        .map_err(|e| match e {
+            // A forged certificate is not shown as issued.
+            e @ accelcal_db::DbError::Tampered { .. } => PageError::tampered(e),
+            e => PageError::unavailable(e),
+        })?
         .ok_or_else(|| PageError::not_found(format!("run {run} has no certificate")))
 }
 
