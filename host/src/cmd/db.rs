@@ -15,14 +15,14 @@ pub fn run_void(a: &Void) -> anyhow::Result<()> {
     let operator = a.operator.clone().unwrap_or_else(user_name);
     let stored = db.void_run(run, a.reason.as_str(), &operator)?;
     let p = db.progress(run)?;
-    println!(
+    outln!(
         "void: run {run} of device {} ({}) {} in {}: {}; it stays in the database, listed as voided, and counts in no history, fleet or interval",
         p.start.device_id,
         if p.start.serial.is_empty() { "no serial" } else { p.start.serial.as_str() },
         if stored == Stored::New { "voided" } else { "was voided already" },
         db.target(),
         a.reason.as_str()
-    );
+    )?;
     Ok(())
 }
 
@@ -33,22 +33,22 @@ pub fn run_verify(a: &DbVerify) -> anyhow::Result<()> {
     if let Some(j) = &a.json {
         write_json(j, &r)?;
     }
-    println!(
+    outln!(
         "db verify: {}: {} runs, {} rows, {} ledger entries checked",
         db.target(),
         r.runs,
         r.rows,
         r.entries
-    );
+    )?;
     match r.mismatches.first() {
         None => {
-            println!("db verify: every row matches its hash chain");
+            outln!("db verify: every row matches its hash chain")?;
             Ok(())
         }
         Some(first) => {
-            println!("db verify: the first row that does not match is {first}");
+            outln!("db verify: the first row that does not match is {first}")?;
             for m in r.mismatches.iter().skip(1) {
-                println!("  also: {m}");
+                outln!("  also: {m}")?;
             }
             Err(anyhow::Error::new(Failed {
                 failed: r.mismatches.len(),
