@@ -120,16 +120,16 @@ const REFUSED: &[(&str, &str)] = &[
         "simulate --out a.csv --chamber 200",
         "--chamber: each setpoint must be a temperature in -60..=150 °C, got 200",
     ),
-    ("monitor --port P --timeout-s 0", "--timeout-s must be a positive number of seconds, got 0"),
-    ("info --port P --timeout-s 0", "--timeout-s must be a positive number of seconds, got 0"),
+    ("monitor --port P --timeout-s 0", "--timeout-s must be a positive number of seconds up to 86400 (a day), got 0"),
+    ("info --port P --timeout-s 0", "--timeout-s must be a positive number of seconds up to 86400 (a day), got 0"),
     (
         "hil --qemu R --record V --out o.csv C --timeout-s 0",
-        "--timeout-s must be a positive number of seconds, got 0",
+        "--timeout-s must be a positive number of seconds up to 86400 (a day), got 0",
     ),
     ("acquire --port P --head manual --out a.csv --rate-hz 50", "--rate-hz: RateOutOfRange"),
     // Issue 28: an emulated head's replies are bounded by --head-timeout-s (it was a fixed 120 s).
-    ("acquire --port P --head sim:h:1 --out a.csv --head-timeout-s 0", "--head-timeout-s must be a positive number of seconds, got 0"),
-    ("verify --port P --head sim:h:1 --head-timeout-s inf", "--head-timeout-s must be a positive number of seconds, got inf"),
+    ("acquire --port P --head sim:h:1 --out a.csv --head-timeout-s 0", "--head-timeout-s must be a positive number of seconds up to 86400 (a day), got 0"),
+    ("verify --port P --head sim:h:1 --head-timeout-s inf", "--head-timeout-s must be a positive number of seconds up to 86400 (a day), got inf"),
     (
         "acquire --port P --head manual --out a.csv --head-timeout-s 10",
         "--head-timeout-s does not apply to --head manual (the operator turns the head)",
@@ -498,7 +498,20 @@ fn a_number_out_of_its_range_is_one_line_naming_the_option() {
     let cases: &[(&[&str], &str)] = &[
         (
             &["info", "--port", "P", "--timeout-s", "0"],
-            "error: --timeout-s must be a positive number of seconds, got 0",
+            "error: --timeout-s must be a positive number of seconds up to 86400 (a day), got 0",
+        ),
+        // Issue 55: a duration is at most a day; 1e20 s panicked building the timeout.
+        (
+            &["info", "--port", "P", "--timeout-s", "1e20"],
+            "error: --timeout-s must be a positive number of seconds up to 86400 (a day), got 1e20",
+        ),
+        (
+            &["monitor", "--port", "P", "--timeout-s", "86400.5"],
+            "error: --timeout-s must be a positive number of seconds up to 86400 (a day), got 86400.5",
+        ),
+        (
+            &["simulate", "--out", "a.csv", "--chamber", "20", "--soak-s", "1e300"],
+            "error: --soak-s must be a number of seconds from 0 to 86400 (a day), got 1e300",
         ),
         (
             &["emulate", "--qemu", "R", "--unit", "u", "--head-speed", "0"],
@@ -512,7 +525,7 @@ fn a_number_out_of_its_range_is_one_line_naming_the_option() {
         ),
         (
             &["fit", "R", "--method", "gravity-norm", "--window-s", "0"],
-            "error: --window-s must be a positive number of seconds, got 0",
+            "error: --window-s must be a positive number of seconds up to 86400 (a day), got 0",
         ),
         (
             &["history", "U-1", "--db", "cal.sqlite", "--coverage", "0"],
