@@ -85,9 +85,58 @@ pub fn header_value<'v>(field: &str, value: &'v str) -> Result<&'v str, TextErro
     Ok(value)
 }
 
+/// Bytes a peer sent (a head's reply, a GDB server's answer), as text that is safe to put into a
+/// message or print: shown as they are, except an ASCII control character or a backslash as its
+/// escape (`\x1b`, `\n`, `\\`), any other control character, line separator or format character
+/// (a zero-width space, a bidi override) as `\u{202e}`, and a byte that is not UTF-8 as `\xNN`.
+/// A peer cannot retitle or clear the operator's terminal, nor break the message's line.
+pub fn escape_peer(bytes: &[u8]) -> String {
+    use std::fmt::Write;
+    let mut out = String::with_capacity(bytes.len());
+    for chunk in bytes.utf8_chunks() {
+        for c in chunk.valid().chars() {
+            if c.is_ascii_control() || c == '\\' {
+                out.extend(std::ascii::escape_default(c as u8).map(char::from));
+            } else if breaks_line(c) || is_format(c) {
+                out.extend(c.escape_unicode());
+            } else {
+                out.push(c);
+            }
+        }
+        for b in chunk.invalid() {
+            let _ = write!(out, "\\x{b:02x}");
+        }
+    }
+    out
+}
+
+/// Whether `c` is a Unicode format character (general category Cf: the zero-width characters,
+/// the bidi controls, the soft hyphen, the byte order mark...): invisible, or reordering the text
+/// around it, so that two values that differ display the same.
+pub fn is_format(c: char) -> bool {
+    use unicode_properties::{GeneralCategory, UnicodeGeneralCategory};
+    c.general_category() == GeneralCategory::Format
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_peer_s_bytes_are_shown_escaped() {
+        assert_eq!(escape_peer(b"OK 1.5 -90"), "OK 1.5 -90");
+        assert_eq!(escape_peer("Müller 名前".as_bytes()), "Müller 名前");
+        let shown = escape_peer(b"\x1b]0;pwned\x07\x1b[2J");
+        assert_eq!(shown, r"\x1b]0;pwned\x07\x1b[2J");
+        assert!(!shown.contains('\u{1b}'));
+        assert_eq!(escape_peer(b"a\r\nb\t\\"), r"a\r\nb\t\\");
+        assert_eq!(escape_peer(b"\x00\x7f"), r"\x00\x7f");
+        assert_eq!(escape_peer(b"A\xff\xfeB\xc3"), r"A\xff\xfeB\xc3");
+        assert_eq!(
+            escape_peer("a\u{202e}b\u{200b}c\u{9b}d\u{2028}".as_bytes()),
+            r"a\u{202e}b\u{200b}c\u{9b}d\u{2028}"
+        );
+    }
 
     #[test]
     fn one_line_of_text_is_accepted_as_it_is() {
