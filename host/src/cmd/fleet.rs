@@ -496,9 +496,22 @@ pub fn run(a: &Fleet) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// One row per run: the columns an MES takes.
+/// A text cell of a CSV as a spreadsheet must read it: a cell that begins with `=`, `+`, `-`, `@`,
+/// a tab or a carriage return would be run as a formula (`=HYPERLINK(...)`, `@SUM(...)`, DDE), so
+/// it is prefixed with a single quote, as OWASP's "CSV Injection" page says; every other text
+/// is kept as it is. Only text columns go through it: a negative number stays a number.
+pub(crate) fn spreadsheet_text(cell: &str) -> String {
+    if cell.starts_with(['=', '+', '-', '@', '\t', '\r']) {
+        format!("'{cell}")
+    } else {
+        cell.to_string()
+    }
+}
+
+/// One row per run: the columns an MES takes (`fleet --csv` and serve's `/fleet.csv`). Text
+/// cells are neutralised ([`spreadsheet_text`]) and quoted, numbers are written unquoted.
 pub(crate) fn csv_of(runs: &[FleetRun]) -> anyhow::Result<String> {
-    let mut w = csv::Writer::from_writer(Vec::new());
+    let mut w = csv::WriterBuilder::new().quote_style(csv::QuoteStyle::NonNumeric).from_writer(Vec::new());
     let mut header: Vec<String> = [
         "run_id",
         "serial",
@@ -525,18 +538,18 @@ pub(crate) fn csv_of(runs: &[FleetRun]) -> anyhow::Result<String> {
     w.write_record(&header)?;
     for r in runs {
         let mut row = vec![
-            r.run_id.clone(),
-            r.serial.clone(),
-            r.device_id.clone(),
-            r.station.clone(),
-            r.head_asset.clone().unwrap_or_default(),
-            r.operator.clone(),
+            spreadsheet_text(&r.run_id),
+            spreadsheet_text(&r.serial),
+            spreadsheet_text(&r.device_id),
+            spreadsheet_text(&r.station),
+            spreadsheet_text(r.head_asset.as_deref().unwrap_or_default()),
+            spreadsheet_text(&r.operator),
             utc_date_time(r.started_unix_s),
             r.ended_unix_s.map(utc_date_time).unwrap_or_default(),
-            r.state.clone(),
-            r.reason.clone().unwrap_or_default(),
-            r.as_found_decision.clone().unwrap_or_default(),
-            r.as_left_decision.clone().unwrap_or_default(),
+            spreadsheet_text(&r.state),
+            spreadsheet_text(r.reason.as_deref().unwrap_or_default()),
+            spreadsheet_text(r.as_found_decision.as_deref().unwrap_or_default()),
+            spreadsheet_text(r.as_left_decision.as_deref().unwrap_or_default()),
         ];
         match r.model4() {
             Some(m) => row.extend(m.iter().flatten().map(|v| format!("{v}"))),
