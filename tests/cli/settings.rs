@@ -397,6 +397,79 @@ fn a_serial_that_would_forge_a_header_line_is_refused_and_nothing_is_written() {
     assert_eq!((get("serial"), get("g_m_s2")), (vec!["A # g_m_s2: 9.0"], vec!["9.81"]));
 }
 
+/// Issue 55: identifiers with a zero-width character or a bidi control (two units that would
+/// display the same) are refused before anything is done: exit code 2, one line naming the option
+/// and the character as U+XXXX, nothing written; the station's settings file likewise.
+#[test]
+fn an_identifier_with_a_format_character_is_refused() {
+    let d = Dir::new();
+    let out = d.s("c.csv");
+    let db = d.s("cal.sqlite");
+    let cases: [(Vec<&str>, &str); 4] = [
+        (vec!["simulate", "--out", &out, "--samples", "4", "--serial", "SN\u{200b}1"], "--serial"),
+        (
+            vec![
+                "station",
+                "--port",
+                "P",
+                "--head",
+                "manual",
+                "--serial",
+                "S-1",
+                "--out",
+                &out,
+                "--operator",
+                "ana\u{202e}",
+            ],
+            "--operator",
+        ),
+        (
+            vec![
+                "station",
+                "--port",
+                "P",
+                "--head",
+                "manual",
+                "--serial",
+                "S-1",
+                "--out",
+                &out,
+                "--customer",
+                "\u{feff}ACME",
+            ],
+            "--customer",
+        ),
+        (
+            vec![
+                "asset",
+                "add",
+                "HEAD\u{2066}-1",
+                "--kind",
+                "thermometer",
+                "--certificate",
+                "C-1",
+                "--due",
+                "2099-01-01",
+                "--db",
+                &db,
+            ],
+            "ID",
+        ),
+    ];
+    for (args, option) in cases {
+        let e = bad(&args);
+        assert!(e.starts_with(&format!("error: {option}: ")), "{args:?}: {e}");
+        assert!(e.contains("holds the invisible format character U+"), "{e}");
+        assert!(!e.contains(['\u{200b}', '\u{202e}', '\u{feff}', '\u{2066}']), "{e:?}");
+        assert_eq!(std::fs::read_dir(d.0.path()).unwrap().count(), 0, "{args:?}: a file was written");
+    }
+    let e = bad(&["simulate", "--out", &out, "--serial", "SN\u{200b}1"]);
+    assert!(
+        e.contains(r#"--serial: "SN\u{200b}1" holds the invisible format character U+200B at character 3"#),
+        "{e}"
+    );
+}
+
 #[test]
 fn options_that_do_not_apply_and_outputs_that_are_inputs_are_refused_before_any_io() {
     let d = Dir::new();
