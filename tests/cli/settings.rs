@@ -617,3 +617,44 @@ fn a_number_out_of_its_range_is_one_line_naming_the_option() {
         assert_eq!(err.trim_end(), *want, "{args:?}");
     }
 }
+
+/// Issue 55: a command that appends to an existing database refuses a SQLite file that is not
+/// there instead of creating an empty one: exit code 2, one line naming the file, and the file
+/// still missing afterwards.
+#[test]
+fn a_missing_database_is_refused_by_commands_that_append_to_one() {
+    let d = Dir::new();
+    let db = d.s("missing.sqlite");
+    let run = "7c9e6679-7425-40de-944b-e07fc1f90ae7";
+    let cases: [(Vec<&str>, &str); 3] = [
+        (vec!["void", run, "--reason", "x", "--db", &db], "void"),
+        (vec!["flash", "x.rec", "--db", &db, "--run-id", run, "--gdb", "127.0.0.1:1"], "flash --db"),
+        (
+            vec![
+                "report",
+                "--campaign",
+                "C",
+                "--record",
+                "x.rec",
+                "--fit",
+                "f.json",
+                "--out",
+                "c.html",
+                "--db",
+                &db,
+                "--run-id",
+                run,
+            ],
+            "report --db",
+        ),
+    ];
+    for (args, command) in cases {
+        let e = bad(&args);
+        assert_eq!(
+            e,
+            format!("error: {db}: no such database: {command} appends to an existing database, it does not create one"),
+            "{args:?}"
+        );
+        assert!(!d.p("missing.sqlite").exists(), "{args:?} created the database");
+    }
+}
