@@ -16,6 +16,8 @@ mod design;
 mod fleet_bench;
 #[path = "cli/help.rs"]
 mod help;
+#[path = "cli/output.rs"]
+mod output;
 #[path = "cli/records.rs"]
 mod records;
 #[path = "cli/settings.rs"]

@@ -39,6 +39,23 @@ pub enum TextError {
         /// Its position, in characters from 1.
         at: usize,
     },
+    /// The value holds a Unicode format character (general category Cf: a zero-width character,
+    /// a bidi control), which displays as nothing or reorders the text around it.
+    #[error(
+        "{field}: {value:?} holds the invisible format character U+{code:04X} at character {at} (zero-width \
+         characters and bidi controls are refused: two values that differ would display the same)",
+        code = u32::from(*ch)
+    )]
+    Format {
+        /// The field.
+        field: String,
+        /// The whole value.
+        value: String,
+        /// The offending character.
+        ch: char,
+        /// Its position, in characters from 1.
+        at: usize,
+    },
     /// A header value with white space at one end, which the header reader would not keep.
     #[error(
         "{field}: {value:?} begins or ends with white space, which a campaign's `# key: value` line does not \
@@ -64,14 +81,16 @@ fn breaks_line(c: char) -> bool {
     c.is_control() || c == '\u{2028}' || c == '\u{2029}'
 }
 
-/// `value`, when it is one line of text (no control character, no line separator); otherwise a
-/// [`TextError::Control`] naming `field`, the value escaped and the first offending character.
+/// `value`, when it is one line of text (no control character, no line separator) without a
+/// Unicode format character ([`is_format`]: zero-width characters, bidi controls); otherwise a
+/// [`TextError::Control`] or [`TextError::Format`] naming `field`, the value escaped and the
+/// first offending character.
 pub fn single_line<'v>(field: &str, value: &'v str) -> Result<&'v str, TextError> {
-    match value.chars().enumerate().find(|&(_, c)| breaks_line(c)) {
+    let (field, owned) = (field.to_string(), value.to_string());
+    match value.chars().enumerate().find(|&(_, c)| breaks_line(c) || is_format(c)) {
         None => Ok(value),
-        Some((i, ch)) => {
-            Err(TextError::Control { field: field.to_string(), value: value.to_string(), ch, at: i + 1 })
-        }
+        Some((i, ch)) if breaks_line(ch) => Err(TextError::Control { field, value: owned, ch, at: i + 1 }),
+        Some((i, ch)) => Err(TextError::Format { field, value: owned, ch, at: i + 1 }),
     }
 }
 
@@ -85,9 +104,58 @@ pub fn header_value<'v>(field: &str, value: &'v str) -> Result<&'v str, TextErro
     Ok(value)
 }
 
+/// Bytes a peer sent (a head's reply, a GDB server's answer), as text that is safe to put into a
+/// message or print: shown as they are, except an ASCII control character or a backslash as its
+/// escape (`\x1b`, `\n`, `\\`), any other control character, line separator or format character
+/// (a zero-width space, a bidi override) as `\u{202e}`, and a byte that is not UTF-8 as `\xNN`.
+/// A peer cannot retitle or clear the operator's terminal, nor break the message's line.
+pub fn escape_peer(bytes: &[u8]) -> String {
+    use std::fmt::Write;
+    let mut out = String::with_capacity(bytes.len());
+    for chunk in bytes.utf8_chunks() {
+        for c in chunk.valid().chars() {
+            if c.is_ascii_control() || c == '\\' {
+                out.extend(std::ascii::escape_default(c as u8).map(char::from));
+            } else if breaks_line(c) || is_format(c) {
+                out.extend(c.escape_unicode());
+            } else {
+                out.push(c);
+            }
+        }
+        for b in chunk.invalid() {
+            let _ = write!(out, "\\x{b:02x}");
+        }
+    }
+    out
+}
+
+/// Whether `c` is a Unicode format character (general category Cf: the zero-width characters,
+/// the bidi controls, the soft hyphen, the byte order mark...): invisible, or reordering the text
+/// around it, so that two values that differ display the same.
+pub fn is_format(c: char) -> bool {
+    use unicode_properties::{GeneralCategory, UnicodeGeneralCategory};
+    c.general_category() == GeneralCategory::Format
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_peer_s_bytes_are_shown_escaped() {
+        assert_eq!(escape_peer(b"OK 1.5 -90"), "OK 1.5 -90");
+        assert_eq!(escape_peer("Müller 名前".as_bytes()), "Müller 名前");
+        let shown = escape_peer(b"\x1b]0;pwned\x07\x1b[2J");
+        assert_eq!(shown, r"\x1b]0;pwned\x07\x1b[2J");
+        assert!(!shown.contains('\u{1b}'));
+        assert_eq!(escape_peer(b"a\r\nb\t\\"), r"a\r\nb\t\\");
+        assert_eq!(escape_peer(b"\x00\x7f"), r"\x00\x7f");
+        assert_eq!(escape_peer(b"A\xff\xfeB\xc3"), r"A\xff\xfeB\xc3");
+        assert_eq!(
+            escape_peer("a\u{202e}b\u{200b}c\u{9b}d\u{2028}".as_bytes()),
+            r"a\u{202e}b\u{200b}c\u{9b}d\u{2028}"
+        );
+    }
 
     #[test]
     fn one_line_of_text_is_accepted_as_it_is() {
@@ -129,6 +197,38 @@ mod tests {
         assert!(e.contains(r#""\u{1b}]0;x\u{7}""#) && !e.contains('\u{1b}'), "{e}");
         let e = single_line("--station", "a\u{2028}b").unwrap_err().to_string();
         assert!(e.contains(r#""a\u{2028}b""#) && e.contains("U+2028"), "{e}");
+    }
+
+    /// Zero-width characters and bidi controls (general category Cf) are refused, naming the
+    /// field and the character as U+XXXX; a visible non-ASCII character is not.
+    #[test]
+    fn format_characters_are_refused_naming_field_and_code_point() {
+        let refused = [
+            '\u{200b}', '\u{200c}', '\u{200d}', '\u{2060}', '\u{feff}', '\u{202a}', '\u{202b}', '\u{202c}',
+            '\u{202d}', '\u{202e}', '\u{2066}', '\u{2067}', '\u{2068}', '\u{2069}', '\u{200e}', '\u{200f}',
+            '\u{61c}', '\u{ad}',
+        ];
+        for ch in refused {
+            let v = format!("SN{ch}1");
+            let e = single_line("--serial", &v).unwrap_err();
+            assert_eq!(e, TextError::Format { field: "--serial".into(), value: v.clone(), ch, at: 3 });
+            assert_eq!(header_value("serial", &v).unwrap_err().kind(), Kind::BadInput);
+            let words = e.to_string();
+            assert!(
+                words.starts_with("--serial: ") && words.contains(&format!("U+{:04X}", u32::from(ch))),
+                "{words}"
+            );
+            assert!(!words.contains(ch), "{words}");
+        }
+        let e = single_line("--operator", "ana\u{202e}gnp.exe").unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "--operator: \"ana\\u{202e}gnp.exe\" holds the invisible format character U+202E at character 4 \
+             (zero-width characters and bidi controls are refused: two values that differ would display the same)"
+        );
+        for v in ["Müller", "名前", "مختبر", "SN-1 ✓"] {
+            assert_eq!(single_line("--operator", v), Ok(v));
+        }
     }
 
     #[test]

@@ -240,6 +240,15 @@ mod tests {
                 BadInput,
             ),
             (
+                e(accelcal_core::text::TextError::Format {
+                    field: "serial".into(),
+                    value: "U\u{200b}1".into(),
+                    ch: '\u{200b}',
+                    at: 2,
+                }),
+                BadInput,
+            ),
+            (
                 e(IdentityError::Mismatch(Box::new(accelcal_core::campaign::identity::Mismatch {
                     a: "f.json".into(),
                     field: "serial",

@@ -3,6 +3,9 @@
 //! environment). A failure prints one line; the campaign readers'
 //! warnings are printed after a success, or folded into that line.
 
+#[macro_use]
+mod out;
+
 mod cli;
 mod cmd;
 mod exit;
@@ -35,8 +38,7 @@ fn main() {
     let (resolved, settings) = match settled {
         Ok(r) => r,
         Err(e) => {
-            eprintln!("error: {}", words::line(&e));
-            std::process::exit(2);
+            failed(&words::line(&e), 2);
         }
     };
     let mut warnings = cmd::Warnings::default();
@@ -46,22 +48,38 @@ fn main() {
         _ => crate::exit::code,
     };
     match cmd::run(settings, &resolved, &mut warnings) {
-        Ok(()) => cmd::print_warnings(&warnings),
+        Ok(()) => {
+            cmd::print_warnings(&warnings);
+            // The command's work is done; a diagnostic it could not write still fails it.
+            if let Some(e) = out::stderr_failed() {
+                let e = anyhow::anyhow!("writing to standard error: {e}");
+                failed(&words::line(&e), code(&e));
+            }
+        }
         Err(e) => {
             // One line: the error, with the campaign's warnings folded in.
-            eprintln!("error: {}", cmd::error_line(&warnings, &e));
-            std::process::exit(code(&e));
+            failed(&cmd::error_line(&warnings, &e), code(&e));
         }
     }
+}
+
+/// Prints `error: {line}` and exits with `code`. A standard error that cannot take the line
+/// changes nothing: the exit code still says what happened.
+fn failed(line: &str, code: i32) -> ! {
+    use std::io::Write;
+    let _ = writeln!(std::io::stderr().lock(), "error: {line}");
+    std::process::exit(code)
 }
 
 /// clap's refusal of the command line. A value that clap's value parser refuses (a number out of
 /// its range, `cli::range`) is bad input like any other: one line, exit code 2. Help, version
 /// and the usage errors clap explains with a usage and a tip keep clap's words.
 fn refused(e: clap::Error) -> ! {
+    use std::io::Write;
     if e.kind() == clap::error::ErrorKind::ValueValidation {
         let text = e.render().to_string();
-        eprintln!("{}", text.lines().next().unwrap_or("error: a value is out of its range").trim_end());
+        let line = text.lines().next().unwrap_or("error: a value is out of its range").trim_end();
+        let _ = writeln!(std::io::stderr().lock(), "{line}");
         std::process::exit(2);
     }
     e.exit()

@@ -120,16 +120,16 @@ const REFUSED: &[(&str, &str)] = &[
         "simulate --out a.csv --chamber 200",
         "--chamber: each setpoint must be a temperature in -60..=150 °C, got 200",
     ),
-    ("monitor --port P --timeout-s 0", "--timeout-s must be a positive number of seconds, got 0"),
-    ("info --port P --timeout-s 0", "--timeout-s must be a positive number of seconds, got 0"),
+    ("monitor --port P --timeout-s 0", "--timeout-s must be a positive number of seconds up to 86400 (a day), got 0"),
+    ("info --port P --timeout-s 0", "--timeout-s must be a positive number of seconds up to 86400 (a day), got 0"),
     (
         "hil --qemu R --record V --out o.csv C --timeout-s 0",
-        "--timeout-s must be a positive number of seconds, got 0",
+        "--timeout-s must be a positive number of seconds up to 86400 (a day), got 0",
     ),
     ("acquire --port P --head manual --out a.csv --rate-hz 50", "--rate-hz: RateOutOfRange"),
     // Issue 28: an emulated head's replies are bounded by --head-timeout-s (it was a fixed 120 s).
-    ("acquire --port P --head sim:h:1 --out a.csv --head-timeout-s 0", "--head-timeout-s must be a positive number of seconds, got 0"),
-    ("verify --port P --head sim:h:1 --head-timeout-s inf", "--head-timeout-s must be a positive number of seconds, got inf"),
+    ("acquire --port P --head sim:h:1 --out a.csv --head-timeout-s 0", "--head-timeout-s must be a positive number of seconds up to 86400 (a day), got 0"),
+    ("verify --port P --head sim:h:1 --head-timeout-s inf", "--head-timeout-s must be a positive number of seconds up to 86400 (a day), got inf"),
     (
         "acquire --port P --head manual --out a.csv --head-timeout-s 10",
         "--head-timeout-s does not apply to --head manual (the operator turns the head)",
@@ -397,6 +397,79 @@ fn a_serial_that_would_forge_a_header_line_is_refused_and_nothing_is_written() {
     assert_eq!((get("serial"), get("g_m_s2")), (vec!["A # g_m_s2: 9.0"], vec!["9.81"]));
 }
 
+/// Issue 55: identifiers with a zero-width character or a bidi control (two units that would
+/// display the same) are refused before anything is done: exit code 2, one line naming the option
+/// and the character as U+XXXX, nothing written; the station's settings file likewise.
+#[test]
+fn an_identifier_with_a_format_character_is_refused() {
+    let d = Dir::new();
+    let out = d.s("c.csv");
+    let db = d.s("cal.sqlite");
+    let cases: [(Vec<&str>, &str); 4] = [
+        (vec!["simulate", "--out", &out, "--samples", "4", "--serial", "SN\u{200b}1"], "--serial"),
+        (
+            vec![
+                "station",
+                "--port",
+                "P",
+                "--head",
+                "manual",
+                "--serial",
+                "S-1",
+                "--out",
+                &out,
+                "--operator",
+                "ana\u{202e}",
+            ],
+            "--operator",
+        ),
+        (
+            vec![
+                "station",
+                "--port",
+                "P",
+                "--head",
+                "manual",
+                "--serial",
+                "S-1",
+                "--out",
+                &out,
+                "--customer",
+                "\u{feff}ACME",
+            ],
+            "--customer",
+        ),
+        (
+            vec![
+                "asset",
+                "add",
+                "HEAD\u{2066}-1",
+                "--kind",
+                "thermometer",
+                "--certificate",
+                "C-1",
+                "--due",
+                "2099-01-01",
+                "--db",
+                &db,
+            ],
+            "ID",
+        ),
+    ];
+    for (args, option) in cases {
+        let e = bad(&args);
+        assert!(e.starts_with(&format!("error: {option}: ")), "{args:?}: {e}");
+        assert!(e.contains("holds the invisible format character U+"), "{e}");
+        assert!(!e.contains(['\u{200b}', '\u{202e}', '\u{feff}', '\u{2066}']), "{e:?}");
+        assert_eq!(std::fs::read_dir(d.0.path()).unwrap().count(), 0, "{args:?}: a file was written");
+    }
+    let e = bad(&["simulate", "--out", &out, "--serial", "SN\u{200b}1"]);
+    assert!(
+        e.contains(r#"--serial: "SN\u{200b}1" holds the invisible format character U+200B at character 3"#),
+        "{e}"
+    );
+}
+
 #[test]
 fn options_that_do_not_apply_and_outputs_that_are_inputs_are_refused_before_any_io() {
     let d = Dir::new();
@@ -498,7 +571,20 @@ fn a_number_out_of_its_range_is_one_line_naming_the_option() {
     let cases: &[(&[&str], &str)] = &[
         (
             &["info", "--port", "P", "--timeout-s", "0"],
-            "error: --timeout-s must be a positive number of seconds, got 0",
+            "error: --timeout-s must be a positive number of seconds up to 86400 (a day), got 0",
+        ),
+        // Issue 55: a duration is at most a day; 1e20 s panicked building the timeout.
+        (
+            &["info", "--port", "P", "--timeout-s", "1e20"],
+            "error: --timeout-s must be a positive number of seconds up to 86400 (a day), got 1e20",
+        ),
+        (
+            &["monitor", "--port", "P", "--timeout-s", "86400.5"],
+            "error: --timeout-s must be a positive number of seconds up to 86400 (a day), got 86400.5",
+        ),
+        (
+            &["simulate", "--out", "a.csv", "--chamber", "20", "--soak-s", "1e300"],
+            "error: --soak-s must be a number of seconds from 0 to 86400 (a day), got 1e300",
         ),
         (
             &["emulate", "--qemu", "R", "--unit", "u", "--head-speed", "0"],
@@ -512,7 +598,7 @@ fn a_number_out_of_its_range_is_one_line_naming_the_option() {
         ),
         (
             &["fit", "R", "--method", "gravity-norm", "--window-s", "0"],
-            "error: --window-s must be a positive number of seconds, got 0",
+            "error: --window-s must be a positive number of seconds up to 86400 (a day), got 0",
         ),
         (
             &["history", "U-1", "--db", "cal.sqlite", "--coverage", "0"],
@@ -529,5 +615,46 @@ fn a_number_out_of_its_range_is_one_line_naming_the_option() {
         let err = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
         assert_eq!(err.trim_end(), *want, "{args:?}");
+    }
+}
+
+/// Issue 55: a command that appends to an existing database refuses a SQLite file that is not
+/// there instead of creating an empty one: exit code 2, one line naming the file, and the file
+/// still missing afterwards.
+#[test]
+fn a_missing_database_is_refused_by_commands_that_append_to_one() {
+    let d = Dir::new();
+    let db = d.s("missing.sqlite");
+    let run = "7c9e6679-7425-40de-944b-e07fc1f90ae7";
+    let cases: [(Vec<&str>, &str); 3] = [
+        (vec!["void", run, "--reason", "x", "--db", &db], "void"),
+        (vec!["flash", "x.rec", "--db", &db, "--run-id", run, "--gdb", "127.0.0.1:1"], "flash --db"),
+        (
+            vec![
+                "report",
+                "--campaign",
+                "C",
+                "--record",
+                "x.rec",
+                "--fit",
+                "f.json",
+                "--out",
+                "c.html",
+                "--db",
+                &db,
+                "--run-id",
+                run,
+            ],
+            "report --db",
+        ),
+    ];
+    for (args, command) in cases {
+        let e = bad(&args);
+        assert_eq!(
+            e,
+            format!("error: {db}: no such database: {command} appends to an existing database, it does not create one"),
+            "{args:?}"
+        );
+        assert!(!d.p("missing.sqlite").exists(), "{args:?} created the database");
     }
 }

@@ -35,6 +35,16 @@ fn a_wrong_settings_file_is_refused_with_its_line_and_nothing_is_done() {
         ("rate_hz = 5", "`rate_hz` (station.toml:5:11): "),
         ("plan = \"six\"", "station.toml:5:1: duplicate key"),
         ("spec = \"a\\nb.toml\"", "station.toml:5:8: spec: \"a\\nb.toml\" holds a control character (U+000A)"),
+        // Issue 55: a duration is at most a day (a larger one overflowed the timeout's Duration).
+        (
+            "timeout_s = 1e300",
+            "`timeout_s` (station.toml:5:13) must be a positive number of seconds up to 86400 (a day), got 1e300",
+        ),
+        // Issue 55: an identifier with a bidi control is refused like a control character.
+        (
+            "operator = \"ana\\u202e\"",
+            "station.toml:5:12: operator: \"ana\\u{202e}\" holds the invisible format character U+202E",
+        ),
         ("bias_tempco_u = -0.1", "station.toml:5:17: bias_tempco_u must be a finite number ≥ 0, got -0.1"),
         (
             "bias_tempco_u = 0.1\nscale_tempco_u = 50",

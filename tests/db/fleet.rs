@@ -72,6 +72,38 @@ fn the_fleet_is_counted_by_the_database_and_printed() {
 /// stored; from the 56th unit on, the head reaches position 27's α 2 mrad off what it says.
 /// `fleet --json` names the head, flags a change point at a unit after the change, at that
 /// position, and the signature since shows it there.
+/// Issue 55: text that a spreadsheet would run as a formula (a serial `=HYPERLINK(…)`, an
+/// operator `@SUM(…)`, a station `-2+3`) comes out of `fleet --csv` prefixed with `'`, quoted;
+/// the numbers stay numbers (serve's `/fleet.csv` is the same function, `csv_of`).
+#[test]
+fn fleet_csv_neutralises_formulas_in_text_cells() {
+    let d = tempfile::tempdir().unwrap();
+    let spec = db_file(&d);
+    let serial = r#"=HYPERLINK("http://x","y")"#;
+    let mut db = Db::open(&spec).unwrap();
+    let run = RunId::new();
+    let s =
+        accelcal_db::RunStart { operator: "@SUM(A1)".into(), ..start(run, DEVICE, serial, "-2+3", T0 + DAY) };
+    db.begin_run(&s, None).unwrap();
+    let mut c = coefs(0.0, 0);
+    c[0][0] = -1.5;
+    db.store_fit(run, &fit_json(&c)).unwrap();
+    drop(db);
+    let csv = d.path().join("f.csv");
+    let (code, _, err) = fleet_in_january(&spec, &["--csv", csv.to_str().unwrap()]);
+    assert_eq!(code, Some(0), "{err}");
+    let text = std::fs::read_to_string(&csv).unwrap();
+    assert!(text.contains(r#""'=HYPERLINK(""http://x"",""y"")""#), "{text}");
+    let mut rows = csv::Reader::from_path(&csv).unwrap();
+    let row = rows.records().next().unwrap().unwrap();
+    assert_eq!(&row[1], format!("'{serial}"));
+    assert_eq!(&row[3], "'-2+3");
+    assert_eq!(&row[5], "'@SUM(A1)");
+    // The coefficients: numbers, negative ones too, written unquoted.
+    assert_eq!(&row[12], "-1.5");
+    assert!(text.contains(",-1.5,"), "{text}");
+}
+
 #[test]
 fn fleet_flags_a_head_knocked_out_of_true_from_the_units_campaigns() {
     let d = tempfile::tempdir().unwrap();

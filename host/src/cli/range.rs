@@ -12,10 +12,15 @@ use std::ffi::OsStr;
 use clap::builder::TypedValueParser;
 use clap::error::ErrorKind;
 
+/// The longest duration any option takes, seconds: a day. No wait of the line is longer, and a
+/// `Duration` built from a checked number cannot overflow (`Duration::from_secs_f64` panics past
+/// about 1.8e19 s: `info --timeout-s 1e20` did).
+pub const DAY_S: f64 = 86_400.0;
+
 /// A range of values, with the words that say it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Range {
-    /// A positive, finite number of seconds (a timeout, a settling time).
+    /// A positive number of seconds up to a day, [`DAY_S`] (a timeout, a settling time).
     Seconds,
     /// At least 2 sample sets per position (a mean and a spread).
     Sets,
@@ -25,7 +30,7 @@ pub enum Range {
     Positive,
     /// At least 1 (a count).
     AtLeast1,
-    /// A finite number of seconds ≥ 0 (a soak, a lag, a move).
+    /// A number of seconds from 0 to a day, [`DAY_S`] (a soak, a lag, a move).
     SecondsOrZero,
     /// A climatic chamber's setpoint: the emulated head's range,
     /// [`accelcal_line::node::head::CHAMBER_RANGE_C`], °C.
@@ -54,12 +59,16 @@ impl Range {
     /// name.
     pub fn check(self, v: f64) -> Result<f64, String> {
         let (ok, must) = match self {
-            Range::Seconds => (v.is_finite() && v > 0.0, "must be a positive number of seconds"),
+            Range::Seconds => {
+                (v > 0.0 && v <= DAY_S, "must be a positive number of seconds up to 86400 (a day)")
+            }
             Range::Sets => (v >= 2.0, "must be at least 2 sets per position"),
             Range::Window => (v >= 2.0, "must be at least 2 sets"),
             Range::Positive => (v.is_finite() && v > 0.0, "must be a positive number"),
             Range::AtLeast1 => (v >= 1.0, "must be at least 1"),
-            Range::SecondsOrZero => (v.is_finite() && v >= 0.0, "must be a number of seconds >= 0"),
+            Range::SecondsOrZero => {
+                ((0.0..=DAY_S).contains(&v), "must be a number of seconds from 0 to 86400 (a day)")
+            }
             Range::Chamber => (
                 accelcal_line::node::head::CHAMBER_RANGE_C.contains(&v),
                 "must be a temperature in -60..=150 °C",
@@ -82,13 +91,23 @@ impl Range {
         if ok {
             Ok(v)
         } else {
-            Err(format!("{must}, got {v}"))
+            Err(format!("{must}, got {}", shown(v)))
         }
     }
 
     /// [`Range::check`] for a count.
     pub fn count(self, n: usize) -> Result<usize, String> {
         self.check(n as f64).map(|_| n)
+    }
+}
+
+/// A refused number as the message shows it: as written for the everyday sizes, in exponent form
+/// past 1e15 (`1e20`, not twenty-one digits; `1e300`, not three hundred).
+fn shown(v: f64) -> String {
+    if v.is_finite() && v.abs() >= 1e15 {
+        format!("{v:e}")
+    } else {
+        v.to_string()
     }
 }
 
@@ -198,6 +217,16 @@ mod tests {
             (Range::Seconds, 0.0, false),
             (Range::Seconds, 1e-9, true),
             (Range::Seconds, f64::INFINITY, false),
+            (Range::Seconds, f64::NAN, false),
+            (Range::Seconds, 86_400.0, true),
+            (Range::Seconds, 86_400.5, false),
+            (Range::Seconds, 1e20, false),
+            (Range::SecondsOrZero, 0.0, true),
+            (Range::SecondsOrZero, -0.0, true),
+            (Range::SecondsOrZero, -1.0, false),
+            (Range::SecondsOrZero, 86_400.0, true),
+            (Range::SecondsOrZero, 1e300, false),
+            (Range::SecondsOrZero, f64::NAN, false),
             (Range::Sets, 1.0, false),
             (Range::Sets, 2.0, true),
             (Range::Sigma, 0.0, true),
@@ -214,7 +243,14 @@ mod tests {
         for &(r, v, ok) in cases {
             assert_eq!(r.check(v).is_ok(), ok, "{r:?} {v}");
         }
-        assert_eq!(Range::Seconds.check(0.0).unwrap_err(), "must be a positive number of seconds, got 0");
+        assert_eq!(
+            Range::Seconds.check(0.0).unwrap_err(),
+            "must be a positive number of seconds up to 86400 (a day), got 0"
+        );
+        assert_eq!(
+            Range::Seconds.check(1e20).unwrap_err(),
+            "must be a positive number of seconds up to 86400 (a day), got 1e20"
+        );
         assert_eq!(Range::Sets.check(1.0).unwrap_err(), "must be at least 2 sets per position, got 1");
         // The chamber's words state the emulated head's range.
         assert_eq!(accelcal_line::node::head::CHAMBER_RANGE_C, -60.0..=150.0);
@@ -228,7 +264,11 @@ mod tests {
             .arg(clap::Arg::new("samples").long("samples").value_parser(Count(Range::Sets)));
         let e = cmd.clone().try_get_matches_from(["t", "--timeout-s", "0"]).unwrap_err();
         assert_eq!(e.kind(), ErrorKind::ValueValidation);
-        assert!(e.to_string().contains("--timeout-s must be a positive number of seconds, got 0"), "{e}");
+        assert!(
+            e.to_string()
+                .contains("--timeout-s must be a positive number of seconds up to 86400 (a day), got 0"),
+            "{e}"
+        );
         let e = cmd.clone().try_get_matches_from(["t", "--samples", "1"]).unwrap_err();
         assert!(e.to_string().contains("--samples must be at least 2 sets per position, got 1"), "{e}");
         let m = cmd.try_get_matches_from(["t", "--timeout-s", "2.5", "--samples", "3"]).unwrap();

@@ -33,7 +33,7 @@ fn add(a: &settings::Add) -> anyhow::Result<()> {
         registered_unix_s: accelcal_db::now_unix_s(),
     };
     let stored = db.add_asset(&asset)?;
-    println!(
+    outln!(
         "asset: {} ({}) certificate {}, due {}{}: {} in {}",
         asset.asset_id,
         asset.kind.name(),
@@ -42,17 +42,18 @@ fn add(a: &settings::Add) -> anyhow::Result<()> {
         stated(&asset),
         if stored == Stored::New { "registered" } else { "was registered already" },
         db.target()
-    );
+    )?;
     let in_force = db.asset_certificates(&asset.asset_id)?.pop().expect("the asset just registered");
     if in_force.certificate != asset.certificate {
-        println!(
+        outln!(
             "asset: {}'s certificate in force is {} (registered later)",
-            asset.asset_id, in_force.certificate
-        );
+            asset.asset_id,
+            in_force.certificate
+        )?;
     }
     let today = today_utc();
     if today > in_force.due_date {
-        eprintln!(
+        errln!(
             "warning: {} is overdue (due {}, today {today} UTC): a station refuses it until a new certificate is registered",
             asset.asset_id, in_force.due_date
         );
@@ -99,17 +100,23 @@ fn list(a: &settings::Listing) -> anyhow::Result<()> {
     let mut db = Db::open_existing(&reader_spec(a.db.as_deref())?)?;
     let assets = db.assets()?;
     let today = today_utc();
-    println!("assets in {} (today {today}, UTC): {}", db.target(), assets.len());
+    outln!("assets in {} (today {today}, UTC): {}", db.target(), assets.len())?;
     if !assets.is_empty() {
-        println!(
+        outln!(
             "  {:<16} {:<12} {:<20} {:<11} {:<26} {:>9} {:>9}",
-            "id", "kind", "certificate", "due", "status", "angle u\"", "orth. u\""
-        );
+            "id",
+            "kind",
+            "certificate",
+            "due",
+            "status",
+            "angle u\"",
+            "orth. u\""
+        )?;
     }
     for x in &assets {
         let head = x.kind == AssetKind::Head;
         let u = |v: f64| if head { format!("{v}") } else { "-".into() };
-        println!(
+        outln!(
             "  {:<16} {:<12} {:<20} {:<11} {:<26} {:>9} {:>9}",
             x.asset_id,
             x.kind.name(),
@@ -118,7 +125,7 @@ fn list(a: &settings::Listing) -> anyhow::Result<()> {
             status(x.due_date, today),
             u(x.angle_u_arcsec),
             u(x.orthogonality_u_arcsec)
-        );
+        )?;
     }
     if let Some(j) = &a.json {
         let doc = ListJson {
@@ -129,7 +136,7 @@ fn list(a: &settings::Listing) -> anyhow::Result<()> {
                 .collect(),
         };
         write_json(j, &doc).with_context(|| format!("writing {}", j.display()))?;
-        println!("wrote {}", j.display());
+        outln!("wrote {}", j.display())?;
     }
     Ok(())
 }
@@ -152,7 +159,7 @@ fn show(a: &settings::Show) -> anyhow::Result<()> {
     let runs = db.affected(&a.id, i64::MIN)?;
     let today = today_utc();
     let last = certificates.last().expect("an asset has a certificate");
-    println!(
+    outln!(
         "asset {} ({}) in {}: certificate {} in force, due {}: {}{}",
         a.id,
         last.kind.name(),
@@ -161,17 +168,17 @@ fn show(a: &settings::Show) -> anyhow::Result<()> {
         last.due_date,
         status(last.due_date, today),
         stated(last)
-    );
-    println!("  {:<20} {:<11} {:<21} {:<12} {:>5}", "certificate", "due", "registered (UTC)", "by", "runs");
+    )?;
+    outln!("  {:<20} {:<11} {:<21} {:<12} {:>5}", "certificate", "due", "registered (UTC)", "by", "runs")?;
     for c in &certificates {
-        println!(
+        outln!(
             "  {:<20} {:<11} {:<21} {:<12} {:>5}",
             c.certificate,
             c.due_date.to_string(),
             utc_date_time(c.registered_unix_s),
             c.operator,
             runs.iter().filter(|r| r.certificate == c.certificate).count()
-        );
+        )?;
     }
     if let Some(j) = &a.json {
         let doc = ShowJson {
@@ -182,7 +189,7 @@ fn show(a: &settings::Show) -> anyhow::Result<()> {
             runs,
         };
         write_json(j, &doc).with_context(|| format!("writing {}", j.display()))?;
-        println!("wrote {}", j.display());
+        outln!("wrote {}", j.display())?;
     }
     Ok(())
 }
@@ -204,19 +211,25 @@ pub fn run_affected(a: &settings::Affected) -> anyhow::Result<()> {
     let mut devices: Vec<&str> = runs.iter().map(|r| r.device_id.as_str()).collect();
     devices.sort_unstable();
     devices.dedup();
-    println!(
+    outln!(
         "affected: asset {} since {} (UTC) in {}: {} runs of {} units",
         a.asset,
         a.since,
         db.target(),
         runs.len(),
         devices.len()
-    );
+    )?;
     if !runs.is_empty() {
-        println!(
+        outln!(
             "  {:<36} {:<20} {:<12} {:<24} {:<10} {:<16} {:<9} certified",
-            "run", "started (UTC)", "serial", "device", "station", "certificate", "outcome"
-        );
+            "run",
+            "started (UTC)",
+            "serial",
+            "device",
+            "station",
+            "certificate",
+            "outcome"
+        )?;
     }
     for r in &runs {
         let outcome = match (&r.voided, r.outcome) {
@@ -225,7 +238,7 @@ pub fn run_affected(a: &settings::Affected) -> anyhow::Result<()> {
             (None, Some(Outcome::Rejected)) => "rejected",
             (None, None) => "open",
         };
-        println!(
+        outln!(
             "  {:<36} {:<20} {:<12} {:<24} {:<10} {:<16} {:<9} {}",
             r.run_id,
             utc_date_time(r.started_unix_s),
@@ -235,19 +248,19 @@ pub fn run_affected(a: &settings::Affected) -> anyhow::Result<()> {
             r.certificate,
             outcome,
             if r.certified { "yes" } else { "no" }
-        );
+        )?;
     }
     if runs.iter().any(|r| r.certified && r.voided.is_none()) {
-        println!(
+        outln!(
             "affected: if {} was found out of tolerance, assess each certified unit above (recall it, or \
              verify it as found on another reference)",
             a.asset
-        );
+        )?;
     }
     if let Some(j) = &a.json {
         let doc = AffectedJson { asset_id: a.asset.clone(), since: a.since, units: devices.len(), runs };
         write_json(j, &doc).with_context(|| format!("writing {}", j.display()))?;
-        println!("wrote {}", j.display());
+        outln!("wrote {}", j.display())?;
     }
     Ok(())
 }

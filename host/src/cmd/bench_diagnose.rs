@@ -17,7 +17,7 @@ pub fn run(a: &BenchDiagnose) -> anyhow::Result<()> {
     let range = a.magnitude;
     let s = bench::run(a.campaigns, a.seed, range, &|| pb.inc(1));
     pb.finish_and_clear();
-    print_summary(&s, a.seed, range);
+    print_summary(&s, a.seed, range)?;
     if let Some(j) = &a.json {
         write_json(j, &s)?;
     }
@@ -25,20 +25,28 @@ pub fn run(a: &BenchDiagnose) -> anyhow::Result<()> {
 }
 
 /// Prints the table per case kind, the detail rows per true effect set, and the aims.
-pub fn print_summary(s: &Summary, seed: u64, range: (f64, f64)) {
-    println!(
+pub fn print_summary(s: &Summary, seed: u64, range: (f64, f64)) -> anyhow::Result<()> {
+    outln!(
         "blind benchmark: {} campaigns, master seed {seed}, magnitudes {}..{} x per-position noise (each effect its own)",
         s.campaigns, range.0, range.1
-    );
+    )?;
     let pct = |n: usize, t: &Tally| format!("{:.1}%", 100.0 * n as f64 / t.campaigns.max(1) as f64);
     let oracle = |t: &Tally| t.vs_oracle().map_or("-".to_string(), |v| format!("{v:.3}"));
-    println!(
+    outln!(
         "{:<16} {:>9} {:>6} {:>7} {:>6} {:>7} {:>6} {:>7} {:>9}",
-        "kind", "campaigns", "right", "%", "wrong", "%", "missed", "%", "shrink/or"
-    );
+        "kind",
+        "campaigns",
+        "right",
+        "%",
+        "wrong",
+        "%",
+        "missed",
+        "%",
+        "shrink/or"
+    )?;
     // The kinds in the order of their declaration: clean, one, two, three, outside.
     for (k, t) in &s.kinds {
-        println!(
+        outln!(
             "{:<16} {:>9} {:>6} {:>7} {:>6} {:>7} {:>6} {:>7} {:>9}",
             k.name(),
             t.campaigns,
@@ -49,10 +57,10 @@ pub fn print_summary(s: &Summary, seed: u64, range: (f64, f64)) {
             t.missed,
             pct(t.missed, t),
             oracle(t)
-        );
+        )?;
     }
-    println!();
-    println!("per true effect set (right/wrong/missed; what was reported when not right, ~ = partial):");
+    outln!()?;
+    outln!("per true effect set (right/wrong/missed; what was reported when not right, ~ = partial):")?;
     for k in s.kinds.keys() {
         for (truth, (kind, t)) in s.truths.iter().filter(|(_, (kind, _))| kind == k) {
             let others: Vec<String> = s.confusion[truth]
@@ -67,44 +75,45 @@ pub fn print_summary(s: &Summary, seed: u64, range: (f64, f64)) {
                 format!("{}/{}/{}", t.right, t.wrong, t.missed),
                 others.join(", ")
             );
-            println!("{}", row.trim_end());
+            outln!("{}", row.trim_end())?;
         }
     }
-    println!();
+    outln!()?;
     let get = |k: CaseKind| s.kinds.get(&k).cloned().unwrap_or_default();
     let aim = |ok: bool| if ok { "met" } else { "NOT met" };
     let (one, two, clean, out) =
         (get(CaseKind::Single), get(CaseKind::Pair), get(CaseKind::Clean), get(CaseKind::Outside));
-    println!("aims:");
-    println!(
+    outln!("aims:")?;
+    outln!(
         "  one effect right >= 95%: {:.1}% ({})",
         100.0 * one.right_share(),
         aim(one.right_share() >= 0.95)
-    );
-    println!(
+    )?;
+    outln!(
         "  two effects, both named and nothing else >= 90%: {:.1}% ({})",
         100.0 * two.right_share(),
         aim(two.right_share() >= 0.90)
-    );
-    println!(
+    )?;
+    outln!(
         "  no effect named on clean campaigns: {}/{} with a name ({})",
         clean.wrong,
         clean.campaigns,
         aim(clean.wrong == 0)
-    );
+    )?;
     let over = s.outside_overclaimed as f64 / out.campaigns.max(1) as f64;
-    println!(
+    outln!(
         "  outside the library, a library name claiming more than half of the held-out gap <= 10%: {}/{} = {:.1}% ({})",
         s.outside_overclaimed,
         out.campaigns,
         100.0 * over,
         aim(over <= 0.10)
-    );
-    println!(
+    )?;
+    outln!(
         "  held-out shrink within 10% of the oracle's (>= 0.900): {:.3} ({})",
         s.shrink_vs_oracle,
         aim(s.shrink_vs_oracle >= 0.9)
-    );
+    )?;
+    Ok(())
 }
 
 fn abbrev(name: &str) -> String {

@@ -6,8 +6,8 @@ use accelcal_core::output::write_json;
 use crate::settings::campaign::Compare;
 
 /// Prints Table 2.
-pub fn print_table(r: &Comparison) {
-    println!(
+pub fn print_table(r: &Comparison) -> anyhow::Result<()> {
+    outln!(
         "acceleration error after calibration, m/s² ({} validation positions, {} rows, {} inversion)",
         r.validation_positions,
         r.validation_rows,
@@ -15,18 +15,19 @@ pub fn print_table(r: &Comparison) {
             Inversion::Triad => "triad K^-1",
             Inversion::PerChannel => "per-channel",
         }
-    );
-    println!("  {:<8} {:>11} {:>11} {:>11} {:>11}", "channel", "mean LSQ", "mean TT", "std LSQ", "std TT");
+    )?;
+    outln!("  {:<8} {:>11} {:>11} {:>11} {:>11}", "channel", "mean LSQ", "mean TT", "std LSQ", "std TT")?;
     for ch in &r.channels {
-        println!(
+        outln!(
             "  {:<8} {:>11.5} {:>11.5} {:>11.5} {:>11.5}",
             ch.channel,
             ch.lsq.mean_error,
             ch.test_turns.mean_error,
             ch.lsq.std_error,
             ch.test_turns.std_error
-        );
+        )?;
     }
+    Ok(())
 }
 
 /// Writes the two error-per-position plots into `dir`.
@@ -52,13 +53,13 @@ pub fn plots(dir: &std::path::Path, r: &Comparison) -> anyhow::Result<Vec<std::p
 pub fn run(a: &Compare, g: &super::Gravity, warnings: &mut super::Warnings) -> anyhow::Result<()> {
     // Streamed: the fits need the dwell statistics, the errors one row at a time.
     let r = compute_files(&a.campaign.path, a.validate.as_deref(), a.campaign.codes, g.g, warnings)?;
-    print_table(&r);
+    print_table(&r)?;
     if let Some(j) = &a.campaign.json {
         write_json(j, &r)?;
     }
     if let Some(dir) = &a.plot {
         for p in plots(dir, &r)? {
-            println!("plot: {}", p.display());
+            outln!("plot: {}", p.display())?;
         }
     }
     Ok(())

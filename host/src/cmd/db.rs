@@ -17,14 +17,14 @@ pub fn run_void(a: &Void) -> anyhow::Result<()> {
     let operator = a.operator.clone().unwrap_or_else(user_name);
     let stored = db.void_run(run, a.reason.as_str(), &operator)?;
     let p = db.progress(run)?;
-    println!(
+    outln!(
         "void: run {run} of device {} ({}) {} in {}: {}; it stays in the database, listed as voided, and counts in no history, fleet or interval",
         p.start.device_id,
         if p.start.serial.is_empty() { "no serial" } else { p.start.serial.as_str() },
         if stored == Stored::New { "voided" } else { "was voided already" },
         db.target(),
         a.reason.as_str()
-    );
+    )?;
     Ok(())
 }
 
@@ -33,13 +33,13 @@ pub fn run_migrate(db: Option<&str>) -> anyhow::Result<()> {
     let spec = reader_spec(db)?;
     let mut db = Db::open(&spec)?;
     let versions = db.schema_versions()?;
-    println!(
+    outln!(
         "db migrate: {} is at schema version {} (this build's)",
         db.target(),
         versions.last().copied().unwrap_or_default()
-    );
+    )?;
     for e in db.verify_chain()?.events {
-        println!("db migrate: chain event {}: {}", e.kind, e.detail);
+        outln!("db migrate: chain event {}: {}", e.kind, e.detail)?;
     }
     Ok(())
 }
@@ -67,7 +67,7 @@ pub fn run_verify(a: &DbVerify) -> anyhow::Result<()> {
     if let Some(j) = &a.json {
         write_json(j, &Report { chain: &r, anchors: &anchors })?;
     }
-    println!(
+    outln!(
         "db verify: {}: {} runs, {} rows, {} ledger entries checked{}",
         db.target(),
         r.runs,
@@ -78,34 +78,34 @@ pub fn run_verify(a: &DbVerify) -> anyhow::Result<()> {
         } else {
             format!(", {} anchors from {} files", found.len(), a.anchors.len())
         }
-    );
+    )?;
     for e in &r.events {
-        println!("db verify: chain event {}: {}", e.kind, e.detail);
+        outln!("db verify: chain event {}: {}", e.kind, e.detail)?;
     }
     for c in &r.bad_cells {
-        println!("db verify: bad cell: {c}");
+        outln!("db verify: bad cell: {c}")?;
     }
     let broken: Vec<&AnchorFinding> = anchors.iter().filter(|f| f.problem.is_some()).collect();
     for f in &broken {
-        println!(
+        outln!(
             "db verify: anchor {} (entry {}): {}",
             f.source,
             f.anchor.seq,
             f.problem.as_deref().unwrap_or_default()
-        );
+        )?;
     }
     if let Some(first) = r.mismatches.first() {
-        println!("db verify: the first row that does not match is {first}");
+        outln!("db verify: the first row that does not match is {first}")?;
         for m in r.mismatches.iter().skip(1) {
-            println!("  also: {m}");
+            outln!("  also: {m}")?;
         }
     }
     let findings = r.mismatches.len() + r.bad_cells.len() + broken.len();
     if findings == 0 {
-        println!(
+        outln!(
             "db verify: every row matches its hash chain{}",
             if found.is_empty() { "" } else { ", and every anchor is in it" }
-        );
+        )?;
         return Ok(());
     }
     let first = r

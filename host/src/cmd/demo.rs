@@ -74,24 +74,30 @@ pub fn run(a: &Demo) -> anyhow::Result<()> {
     steps.inc(1);
     steps.finish_and_clear();
 
-    println!(
+    outln!(
         "accelcal demo: simulated triad (seed {}), {} rows at {} positions -> {}\n",
         a.seed,
         campaign.len(),
         cfg.plan.positions.len(),
         campaign_path.display()
-    );
-    println!("Table 1. Model structure selection (combinatorial GMDH)\n");
-    super::select::print_tables(&sel, &settings);
-    println!("Model 4 coefficients by LSQ against the simulator's truth");
-    println!(
+    )?;
+    outln!("Table 1. Model structure selection (combinatorial GMDH)\n")?;
+    super::select::print_tables(&sel, &settings)?;
+    outln!("Model 4 coefficients by LSQ against the simulator's truth")?;
+    outln!(
         "  {:<8} {:>12} {:>12} {:>10} {:>10} {:>10} {:>10}",
-        "channel", "u0 fit", "u0 true", "k_own fit", "k_own true", "cross fit", "cross true"
-    );
+        "channel",
+        "u0 fit",
+        "u0 true",
+        "k_own fit",
+        "k_own true",
+        "cross fit",
+        "cross true"
+    )?;
     for ((name, f), t) in lsq.iter().zip(&truth.channels) {
         let own = t.axis;
         let cross = |k: &[f64]| (0..3).filter(|&j| j != own).map(|j| k[j].abs()).fold(0.0, f64::max);
-        println!(
+        outln!(
             "  {:<8} {:>12.2} {:>12.2} {:>10.3} {:>10.3} {:>10.3} {:>10.3}",
             name,
             f.coefficients[0],
@@ -100,13 +106,13 @@ pub fn run(a: &Demo) -> anyhow::Result<()> {
             t.k[own],
             cross(&f.coefficients[1..4]),
             cross(&t.k)
-        );
+        )?;
     }
-    println!("\nTable 2. Errors of the calibrated acceleration, LSQ against test turns\n");
-    super::compare::print_table(&cmp);
-    println!("\nwrote in {}: campaign.csv truth.json select.json fit-lsq.json fit-test-turns.json compare.json calibration.rec ({} bytes)", out.display(), rec.len());
+    outln!("\nTable 2. Errors of the calibrated acceleration, LSQ against test turns\n")?;
+    super::compare::print_table(&cmp)?;
+    outln!("\nwrote in {}: campaign.csv truth.json select.json fit-lsq.json fit-test-turns.json compare.json calibration.rec ({} bytes)", out.display(), rec.len())?;
     for p in crit_plots.iter().chain(&err_plots) {
-        println!("plot: {}", p.display());
+        outln!("plot: {}", p.display())?;
     }
     Ok(())
 }

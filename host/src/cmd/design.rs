@@ -229,31 +229,31 @@ pub fn run(d: &Design) -> anyhow::Result<()> {
     );
     write_plan(out, &designed, &header)?;
 
-    println!(
+    outln!(
         "plan design: {n} positions x {} sample sets ({dwell} s at {rate_hz} Hz), head time {time:.0} s with {move_s} s per move and settling",
         designed.samples
-    );
+    )?;
     if let Some((run, model)) = &in_chamber {
-        println!("  {run}; U of {model}");
+        outln!("  {run}; U of {model}")?;
     }
-    println!("  unit type: {}", prior.source);
-    println!(
+    outln!("  unit type: {}", prior.source)?;
+    outln!(
         "  head: α every {}°, β every {}° within ±{}° ({} positions); angle u {angle_u}″ per angle and position; u(g) = {:.2e} m/s²",
         head.alpha_step_deg,
         head.beta_step_deg,
         head.beta_max_deg,
         head.reachable()?.len(),
         stated.g_m_s2
-    );
+    )?;
     if let Some(t) = target {
         let whence = if d.target_u.is_some() { "--target-U" } else { "the paper's plan's, at --samples" };
-        println!(
+        outln!(
             "  target U = {t:.4e} m/s² ({whence}); the least head time among the dwells tried reaches it"
-        );
+        )?;
     }
-    println!("  GMDH ranks the paper's models on it by {selection}");
-    println!("  order: {:.0}° of travel from α = β = 0 (the larger stage per move)", designed.travel_deg);
-    println!("  written: {}", out.display());
+    outln!("  GMDH ranks the paper's models on it by {selection}")?;
+    outln!("  order: {:.0}° of travel from α = β = 0 (the larger stage per move)", designed.travel_deg)?;
+    outln!("  written: {}", out.display())?;
 
     let reference = |name: &'static str, plan: Plan| -> anyhow::Result<Row> {
         let prediction = predict(&plan.positions, samples, &prior, &stated, g)?;
@@ -316,10 +316,10 @@ pub fn run(d: &Design) -> anyhow::Result<()> {
         }
         pb.finish_and_clear();
     }
-    print_table(&compared, d.montecarlo.is_some(), noise_words(&prior));
+    print_table(&compared, d.montecarlo.is_some(), noise_words(&prior))?;
     let parts: Vec<String> = p.parts.iter().map(|x| format!("{} {:.3e}", x.name, x.u_m_s2)).collect();
-    println!("the designed plan's contributors (standard uncertainty, m/s²): {}", parts.join(", "));
-    println!("not predicted (add them from the fit's budget): {}", p.not_included.join("; "));
+    outln!("the designed plan's contributors (standard uncertainty, m/s²): {}", parts.join(", "))?;
+    outln!("not predicted (add them from the fit's budget): {}", p.not_included.join("; "))?;
     if let Some(j) = &d.json {
         let doc = DesignJson {
             design: size_word(size),
@@ -384,12 +384,12 @@ fn bar(len: u64, what: &str) -> ProgressBar {
     pb
 }
 
-fn print_table(rows: &[Compared], mc: bool, noise: String) {
-    println!();
-    println!(
+fn print_table(rows: &[Compared], mc: bool, noise: String) -> anyhow::Result<()> {
+    outln!()?;
+    outln!(
         "predicted expanded uncertainty of the calibrated acceleration at its worst orientation at 1 g (k = 2, or Student's t where the noise's degrees of freedom, the samples' within the dwells, are few); {noise}"
-    );
-    print!(
+    )?;
+    out!(
         "  {:<13} {:>9} {:>7} {:>11} {:>10} {:>10} {:>10} {:>5} {:>8} {:>8}",
         "plan",
         "positions",
@@ -401,14 +401,14 @@ fn print_table(rows: &[Compared], mc: bool, noise: String) {
         "k",
         "D codes",
         "A codes"
-    );
+    )?;
     if mc {
-        print!(" {:>11} {:>11} {:>8} {:>11}", "MC mean U", "MC RMS U", "coverage", "RMS error");
+        out!(" {:>11} {:>11} {:>8} {:>11}", "MC mean U", "MC RMS U", "coverage", "RMS error")?;
     }
-    println!();
+    outln!()?;
     for r in rows {
         let [x, y, z] = r.u_axes_m_s2;
-        print!(
+        out!(
             "  {:<13} {:>9} {:>7} {:>11.0} {:>10.3e} {:>10.3e} {:>10.3e} {:>5.2} {:>8.3} {:>8.3}",
             r.plan,
             r.positions,
@@ -420,22 +420,23 @@ fn print_table(rows: &[Compared], mc: bool, noise: String) {
             r.k,
             r.criteria.d_codes,
             r.criteria.a_codes
-        );
+        )?;
         if let Some(m) = &r.montecarlo {
-            print!(
+            out!(
                 " {:>11.3e} {:>11.3e} {:>7.1}% {:>11.3e}",
                 m.stated_u_m_s2,
                 m.rms_stated_u_m_s2,
                 100.0 * m.coverage,
                 m.rms_error_m_s2
-            );
+            )?;
         }
-        println!();
+        outln!()?;
     }
     if mc {
         let units = rows.first().and_then(|r| r.montecarlo.as_ref()).map_or(0, |m| m.units);
-        println!(
+        outln!(
             "  MC: {units} simulated units per plan (the simulator's spread of units, the noise above, the head's angle errors drawn), each fitted with model 4 by least squares and judged at {MC_ORIENTATIONS} random orientations: the mean of the budgets' U (worst axis of each: a mean of maxima, above the expectation when the budget has few degrees of freedom), the RMS of each axis' U (worst axis; the prediction's like), the share of true errors within U (95 % when right), and their RMS, m/s²"
-        );
+        )?;
     }
+    Ok(())
 }

@@ -20,10 +20,10 @@ pub fn run(a: &Diagnose, g: &super::Gravity, warnings: &mut super::Warnings) -> 
     warnings.extend(&binned.warnings);
     let d = Data::from_binned(&binned, g.g).and_then(|d| diagnose::diagnose_data(&d, base).map(|r| (d, r)));
     let (d, report) = d.map_err(|e| bad(format!("{}: {e}", a.campaign.path.display())))?;
-    print_report(&report);
+    print_report(&report)?;
     if let Some(dir) = &a.plot {
         for f in crate::report::diagnose_plot::gap_map(dir, &d, &report.gap)? {
-            println!("wrote {}", f.display());
+            outln!("wrote {}", f.display())?;
         }
     }
     if let Some(j) = &a.campaign.json {
@@ -71,21 +71,25 @@ fn headline(r: &Report) -> String {
 }
 
 /// The strongest period over time of each channel's dwell residuals.
-fn print_periods(r: &Report) {
+fn print_periods(r: &Report) -> anyhow::Result<()> {
     let Some((lo, hi)) = r.gap.channels.iter().find_map(|c| c.period.as_ref().map(|p| p.searched_s)) else {
-        return;
+        return Ok(());
     };
-    println!();
-    println!(
+    outln!()?;
+    outln!(
         "periodicity over time (sine fitted to the dwell residuals, periods {} to {} s; false alarm: F test against the rest of the residual, over the whole search; below {} is significant)",
         sig(lo, 3),
         sig(hi, 3),
         diagnose::periodic::FALSE_ALARM
-    );
-    println!(
+    )?;
+    outln!(
         "{:<8} {:>10} {:>15} {:>12} {:>12}",
-        "channel", "period_s", "amplitude_codes", "amplitude_mg", "false_alarm"
-    );
+        "channel",
+        "period_s",
+        "amplitude_codes",
+        "amplitude_mg",
+        "false_alarm"
+    )?;
     for c in &r.gap.channels {
         match &c.period {
             Some(p) => {
@@ -94,7 +98,7 @@ fn print_periods(r: &Report) {
                 } else {
                     ("unresolved".into(), "-".into())
                 };
-                println!(
+                outln!(
                     "{:<8} {:>10} {:>15} {:>12} {:>12}  {}",
                     c.name,
                     sig(p.period_s, 3),
@@ -102,14 +106,15 @@ fn print_periods(r: &Report) {
                     mg,
                     format!("{:.2e}", p.false_alarm),
                     if p.significant { "significant" } else { "not significant" }
-                )
+                )?
             }
-            None => println!("{:<8} {:>10} {:>15} {:>12} {:>12}", c.name, "-", "-", "-", "-"),
+            None => outln!("{:<8} {:>10} {:>15} {:>12} {:>12}", c.name, "-", "-", "-", "-")?,
         }
     }
     if r.gap.channels.iter().any(|c| c.period.as_ref().is_some_and(|p| !p.amplitude_resolved)) {
-        println!("  (unresolved: the sine reaches its amplitude only between the positions' times, or beyond the ADC's range)");
+        outln!("  (unresolved: the sine reaches its amplitude only between the positions' times, or beyond the ADC's range)")?;
     }
+    Ok(())
 }
 
 /// `codes` in mg at `mg_per_code` (3 significant digits), or `-` without a sensitivity.
@@ -143,30 +148,31 @@ fn mg_per_code_of<'a>(r: &Report, names: impl IntoIterator<Item = &'a str>) -> f
 }
 
 /// Whether the dwell residual is common to all channels.
-fn print_common_mode(r: &Report) {
-    let Some(cm) = &r.gap.common_mode else { return };
-    println!();
-    println!("common mode (correlation r of the dwell residuals of two channels over the positions, z = atanh(r)*sqrt(positions - 3))");
+fn print_common_mode(r: &Report) -> anyhow::Result<()> {
+    let Some(cm) = &r.gap.common_mode else { return Ok(()) };
+    outln!()?;
+    outln!("common mode (correlation r of the dwell residuals of two channels over the positions, z = atanh(r)*sqrt(positions - 3))")?;
     let pairs: Vec<String> = cm
         .pairs
         .iter()
         .map(|p| format!("{}-{}: r = {} (z = {})", p.channels.0, p.channels.1, sig(p.r, 3), sig(p.z, 3)))
         .collect();
-    println!("  {}", pairs.join("; "));
-    println!(
+    outln!("  {}", pairs.join("; "))?;
+    outln!(
         "  -> {}",
         if cm.common {
             "common to all channels (every pair beyond |z| = 4, one sign)"
         } else {
             "not common to all channels"
         }
-    );
+    )?;
+    Ok(())
 }
 
 /// Prints the human tables.
-pub fn print_report(r: &Report) {
+pub fn print_report(r: &Report) -> anyhow::Result<()> {
     let g = &r.gap;
-    println!(
+    outln!(
         "baseline {}: chi2 {} on {} dof, z = {} (simulated twin: z = {}) -> {}",
         r.baseline,
         sig(g.chi2, 6),
@@ -174,15 +180,23 @@ pub fn print_report(r: &Report) {
         sig(g.z, 3),
         sig(g.z_sim, 3),
         headline(r)
-    );
-    println!();
-    println!("where the gap lies (sigma per sample, rms_pos and rms_sim in codes; z-scores: |z| > 4 is beyond the noise)");
-    println!(
+    )?;
+    outln!()?;
+    outln!("where the gap lies (sigma per sample, rms_pos and rms_sim in codes; z-scores: |z| > 4 is beyond the noise)")?;
+    outln!(
         "{:<8} {:>7} {:>9} {:>9} {:>9} {:>9} {:>8} {:>8} {:>9}",
-        "channel", "sigma", "rms_pos", "rms_sim", "z_pos", "z_dwell", "z_time", "z_temp", "z_approach"
-    );
+        "channel",
+        "sigma",
+        "rms_pos",
+        "rms_sim",
+        "z_pos",
+        "z_dwell",
+        "z_time",
+        "z_temp",
+        "z_approach"
+    )?;
     for c in &g.channels {
-        println!(
+        outln!(
             "{:<8} {:>7} {:>9} {:>9} {:>9} {:>9} {:>8} {:>8} {:>9}",
             c.name,
             sig(c.sigma, 3),
@@ -193,35 +207,33 @@ pub fn print_report(r: &Report) {
             sig(c.z_time, 3),
             c.z_temp.map_or("-".into(), |z| sig(z, 3)),
             sig(c.z_approach, 3)
-        );
+        )?;
     }
-    print_periods(r);
-    print_common_mode(r);
-    println!();
-    println!("largest position residuals (dwell residual / per-position noise)");
+    print_periods(r)?;
+    print_common_mode(r)?;
+    outln!()?;
+    outln!("largest position residuals (dwell residual / per-position noise)")?;
     for p in &g.worst_positions {
         let zs: Vec<String> = p.z.iter().map(|z| format!("{z:>7.1}")).collect();
-        println!(
-            "  #{:<3} alpha {:>7.2} beta {:>7.2}: {}",
-            p.position,
-            p.alpha_deg,
-            p.beta_deg,
-            zs.join(" ")
-        );
+        outln!("  #{:<3} alpha {:>7.2} beta {:>7.2}: {}", p.position, p.alpha_deg, p.beta_deg, zs.join(" "))?;
     }
-    println!();
+    outln!()?;
     for (i, round) in r.attribution.rounds.iter().enumerate() {
-        println!(
+        outln!(
             "round {} (held-out chi2 {} over {} bins, rms {} codes)",
             i + 1,
             sig(round.before.chi2, 6),
             round.before.bins,
             sig(round.before.rms, 4)
-        );
-        println!(
+        )?;
+        outln!(
             "  {:<18} {:>12} {:>10} {:>10} {:>10}",
-            "effect", "chi2 drop", "threshold", "explained", "rms after"
-        );
+            "effect",
+            "chi2 drop",
+            "threshold",
+            "explained",
+            "rms after"
+        )?;
         // The share of the excess χ² (over one per bin) a trial removes; with no excess (the
         // baseline already fits to the noise) there is nothing to share.
         let has_excess = round.before.chi2 > round.before.bins as f64;
@@ -233,7 +245,7 @@ pub fn print_report(r: &Report) {
                 (true, true) => "worse".into(),
                 (true, false) => format!("{:.0}%", 100.0 * t.explained),
             };
-            println!(
+            outln!(
                 "  {:<18} {:>12} {:>10} {:>10} {:>10}{}",
                 t.name,
                 sig(t.chi2_drop, 5),
@@ -241,18 +253,18 @@ pub fn print_report(r: &Report) {
                 share,
                 sig(t.score.rms, 4),
                 if worse { NEGATIVE_SHARE } else { "" }
-            );
+            )?;
         }
-        println!("  -> {}", round.kept.unwrap_or("nothing significant"));
+        outln!("  -> {}", round.kept.unwrap_or("nothing significant"))?;
     }
-    println!();
-    print_selection_notes(r);
+    outln!()?;
+    print_selection_notes(r)?;
     if r.effects.is_empty() {
-        println!("effects found: none");
+        outln!("effects found: none")?;
     }
     for e in &r.effects {
         let per = mg_per_code_of(r, e.channels.iter().map(String::as_str));
-        println!(
+        outln!(
             "effect {}{} on {}: held-out rms {} -> {} codes ({} -> {} mg)",
             e.name,
             if e.partial { " (PARTIAL)" } else { "" },
@@ -261,7 +273,7 @@ pub fn print_report(r: &Report) {
             sig(e.heldout_rms_after, 4),
             mg(e.heldout_rms_before, per),
             mg(e.heldout_rms_after, per)
-        );
+        )?;
         let kind = accelcal_core::effects::EffectKind::from_name(&e.name);
         for (who, ps) in &e.parameters {
             let list: Vec<String> = ps
@@ -287,63 +299,65 @@ pub fn print_report(r: &Report) {
                     }
                 })
                 .collect();
-            println!("  {who:<6} {}", list.join(", "));
+            outln!("  {who:<6} {}", list.join(", "))?;
         }
     }
-    println!(
+    outln!(
         "unexplained rms: {} codes, {} mg (final z = {})",
         sig(r.unexplained_rms, 3),
         mg(r.unexplained_rms, mg_per_code_of(r, [])),
         sig(r.attribution.final_z, 3)
-    );
+    )?;
     if let Some(terms) = &r.remedy {
         let terms = terms.trim_start_matches("1,");
-        println!(
+        outln!(
             "remedy: model the temperature: `accelcal fit CAMPAIGN --terms '{terms}'` (with --record, add --temp-input mcu or front-end); `accelcal select CAMPAIGN --basis linear-thermal` lets GMDH choose; `diagnose --terms '{terms}'` shows what is left"
-        );
+        )?;
     }
-    print_leftovers(r);
+    print_leftovers(r)?;
+    Ok(())
 }
 
 /// Effects kept but not named, and where the named set came from.
-fn print_selection_notes(r: &Report) {
+fn print_selection_notes(r: &Report) -> anyhow::Result<()> {
     let a = &r.attribution;
     let min = 100.0 * diagnose::selection::MIN_EXPLAINED;
     for s in a.signatures.iter().filter(|s| !s.present()) {
-        println!(
+        outln!(
             "{}: its signature is not in the withheld data (amplitude {}, z = {}; needs >= {} and >= {}): not named",
             s.name,
             sig(s.amplitude, 3),
             sig(s.z, 3),
             diagnose::attribution::SIGNATURE.0,
             diagnose::attribution::SIGNATURE.1
-        );
+        )?;
     }
     if !a.not_named.is_empty() && r.effects.is_empty() {
-        println!(
+        outln!(
             "kept but not named: {} (together they remove {:.0}% of the excess, less than {min:.0}%, or their signature is missing)",
             a.not_named.join(", "),
             100.0 * a.joint_explained,
-        );
+        )?;
     }
     if a.from_joint_search && !r.effects.is_empty() {
-        println!("the greedy path stalled; the joint search of pairs and triples named the effects below");
+        outln!("the greedy path stalled; the joint search of pairs and triples named the effects below")?;
     }
+    Ok(())
 }
 
 /// What the named effects left of their kind, where the residual lies, and confounded effects.
-fn print_leftovers(r: &Report) {
+fn print_leftovers(r: &Report) -> anyhow::Result<()> {
     let a = &r.attribution;
     let z = diagnose::structure::PARTIAL_Z;
     for l in a.leftovers.iter().filter(|l| l.partial) {
-        println!(
+        outln!(
             "  {} is partial: structure of its kind is left (its wider family, {}: z = {}; the residual {}: z = {}; partial at z >= {z})",
             l.name,
             l.family,
             sig(l.z_family, 3),
             l.domain,
             sig(l.z_domain, 3)
-        );
+        )?;
     }
     if r.unexplained_rms > 0.0 {
         let at: Vec<String> = a
@@ -360,7 +374,7 @@ fn print_leftovers(r: &Report) {
             })
             .collect();
         if !at.is_empty() {
-            println!("  the unexplained residual lies on {}", at.join("; "));
+            outln!("  the unexplained residual lies on {}", at.join("; "))?;
         }
     }
     for c in &a.confounds {
@@ -371,15 +385,16 @@ fn print_leftovers(r: &Report) {
             .filter_map(|n| a.rounds.first()?.trials.iter().find(|t| t.name == *n))
             .map(|t| format!("{} {}", t.name, sig(t.chi2_drop, 4)))
             .collect();
-        println!(
+        outln!(
             "confounded: {} and {} (time and temperature correlate, r = {}; held-out chi2 drop alone: {}): on this campaign each can stand for the other, and only the shape of the temperature curve tells them apart; to separate them: {}",
             c.effects[0],
             c.effects[1],
             sig(c.r, 3),
             drops.join(", "),
             c.separate
-        );
+        )?;
     }
+    Ok(())
 }
 
 #[cfg(test)]

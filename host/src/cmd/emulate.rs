@@ -51,13 +51,15 @@ pub fn run(a: &Emulate) -> anyhow::Result<()> {
     drop(out);
     let nodes = &bench.endpoints.nodes;
     if let [node] = nodes.as_slice() {
-        eprintln!(
+        errln!(
             "emulate: node running in QEMU, link {}, gdbstub {}, head {}; Ctrl-C stops",
-            node.port, node.gdb, bench.endpoints.head
+            node.port,
+            node.gdb,
+            bench.endpoints.head
         );
     } else {
         for (i, node) in nodes.iter().enumerate() {
-            eprintln!(
+            errln!(
                 "emulate: node {} of {} ({}) running in QEMU, device {}, link {}, gdbstub {}",
                 i + 1,
                 nodes.len(),
@@ -67,13 +69,13 @@ pub fn run(a: &Emulate) -> anyhow::Result<()> {
                 node.gdb
             );
         }
-        eprintln!("emulate: head {} shared by the {} nodes; Ctrl-C stops", bench.endpoints.head, nodes.len());
+        errln!("emulate: head {} shared by the {} nodes; Ctrl-C stops", bench.endpoints.head, nodes.len());
     }
     let result = bench.run_until(&stop);
     let several = bench.nodes.len() > 1;
     for (i, n) in bench.nodes.iter().enumerate() {
         let which = if several { format!(" of node {}", i + 1) } else { String::new() };
-        eprintln!(
+        errln!(
             "emulate: stopped; the front end{which} sent {} sample sets at {} Hz ({} skipped because QEMU fell behind)",
             n.counters.sent.load(Ordering::Relaxed),
             n.rate_hz.load(Ordering::Relaxed),

@@ -46,24 +46,25 @@ pub fn to_json(
 }
 
 /// Prints the coefficient table.
-pub fn print_table(method: Method, fits: &[(String, LsqFit)]) {
+pub fn print_table(method: Method, fits: &[(String, LsqFit)]) -> anyhow::Result<()> {
     for (name, f) in fits {
         match method {
             Method::Lsq => {
-                println!("channel {name}: LSQ, condition {:.3}, residual RMS {:.2} codes", f.condition, f.rms)
+                outln!("channel {name}: LSQ, condition {:.3}, residual RMS {:.2} codes", f.condition, f.rms)?
             }
-            Method::TestTurns => println!("channel {name}: test turns"),
+            Method::TestTurns => outln!("channel {name}: test turns")?,
         }
-        println!("  {:<10} {:>16} {:>14}", "term", "coefficient", "std error");
+        outln!("  {:<10} {:>16} {:>14}", "term", "coefficient", "std error")?;
         for ((t, c), s) in f.structure.terms().zip(&f.coefficients).zip(&f.std_errors()) {
-            println!(
+            outln!(
                 "  {:<10} {:>16} {:>14}",
                 t.to_string(),
                 crate::report::sig(*c, 8),
                 crate::report::sig(*s, 3)
-            );
+            )?;
         }
     }
+    Ok(())
 }
 
 /// Runs `accelcal fit` at the gravity `g` (the user's, the campaign's or the assumed 9.81).
@@ -137,12 +138,12 @@ pub fn run(s: &FitSettings, g: &super::Gravity, warnings: &mut super::Warnings) 
         }
         None => None,
     };
-    print_table(method, &fits);
+    print_table(method, &fits)?;
     let header = accelcal_core::campaign::header(&a.campaign.path)?;
     let get = |k: &str| header.iter().find(|(key, _)| key == k).map(|(_, v)| v.clone()).unwrap_or_default();
     let budget = fit_budget(a, head_u, method, &pos, &stats, &fits, g)?;
     if let Some(b) = &budget {
-        super::uncertainty::print_budget(&UncertaintyJson::from(b));
+        super::uncertainty::print_budget(&UncertaintyJson::from(b))?;
     }
     let identity = Identity {
         device_id: device_id.map(|d| device_id_hex(&d)).or(unit.device_id),
@@ -157,7 +158,7 @@ pub fn run(s: &FitSettings, g: &super::Gravity, warnings: &mut super::Warnings) 
     }
     if let Some((path, bytes, rec)) = &rec {
         write_atomic(path, bytes)?;
-        println!(
+        outln!(
             "record: {} ({} bytes, {} channels, terms {}, device {}, CRC {})",
             path.display(),
             rec.len(),
@@ -165,7 +166,7 @@ pub fn run(s: &FitSettings, g: &super::Gravity, warnings: &mut super::Warnings) 
             rec.structure,
             device_id_hex(&rec.device_id),
             record_crc_hex(bytes)
-        );
+        )?;
     }
     if let Some(rdb) = &mut db {
         let Some(device_id) = identity.device_id.clone() else {
@@ -183,19 +184,25 @@ pub fn run(s: &FitSettings, g: &super::Gravity, warnings: &mut super::Warnings) 
         })?;
         if let Some(h) = &head {
             rdb.db.store_run_asset(run, h)?;
-            println!(
-                "db: run {run}: head {} (certificate {}, due {}) stored",
-                h.asset_id, h.certificate, h.due_date
-            );
         }
         let json = serde_json::to_string_pretty(&doc).context("serialising the fit")?;
         let bytes = rec.as_ref().map(|(_, b, _)| b.as_slice());
         super::store::fit_pieces(&mut rdb.db, run, &a.campaign.path, &json, bytes)?;
-        println!(
+        // Said once every piece is stored: an output that fails leaves no run begun and empty
+        // (stderr's lines never stop a command, see `crate::out`).
+        if let Some(h) = &head {
+            outln!(
+                "db: run {run}: head {} (certificate {}, due {}) stored",
+                h.asset_id,
+                h.certificate,
+                h.due_date
+            )?;
+        }
+        outln!(
             "db: run {run}: campaign, fit{} stored in {}",
             if bytes.is_some() { " and record" } else { "" },
             rdb.db.target()
-        );
+        )?;
     }
     Ok(())
 }

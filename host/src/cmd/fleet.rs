@@ -67,7 +67,7 @@ fn heads(db: &mut Db, filter: &Filter) -> anyhow::Result<Vec<HeadJson>> {
         for o in seen.iter().filter(|o| o.asset == asset) {
             match &o.seen {
                 Err(why) => {
-                    eprintln!(
+                    errln!(
                         "warning: head {asset}: run {}'s {why}: left out of the head's signature",
                         o.run_id
                     );
@@ -321,18 +321,21 @@ pub fn run(a: &Fleet) -> anyhow::Result<()> {
     .iter()
     .filter_map(|(k, v)| v.as_ref().map(|v| format!("{k} {v}")))
     .collect();
-    println!(
+    outln!(
         "fleet: {since} to {until} (UTC) in {}{}: {} runs of {} units",
         db.target(),
         if filters.is_empty() { String::new() } else { format!(" ({})", filters.join(", ")) },
         counts.runs,
         counts.units
-    );
-    println!(
+    )?;
+    outln!(
         "  runs: {} pass, {} rejected, {} unfinished, {} voided",
-        counts.passed, counts.rejected, counts.unfinished, counts.voided
-    );
-    println!(
+        counts.passed,
+        counts.rejected,
+        counts.unfinished,
+        counts.voided
+    )?;
+    outln!(
         "  yield: first pass {}/{} units ({}), final {}/{} ({})",
         counts.first_pass_units,
         counts.units_finished,
@@ -340,33 +343,39 @@ pub fn run(a: &Fleet) -> anyhow::Result<()> {
         counts.final_pass_units,
         counts.units_finished,
         pct(counts.final_pass_units, counts.units_finished)
-    );
+    )?;
     for (reason, n) in &counts.rejections {
-        println!("  rejected {n}×: {reason}");
+        outln!("  rejected {n}×: {reason}")?;
     }
     if found_out.is_empty() {
-        println!("  as found out of tolerance: none");
+        outln!("  as found out of tolerance: none")?;
     }
     for r in &found_out {
-        println!(
+        outln!(
             "  as found out of tolerance: {} ({}) run {} {}: {}",
             if r.serial.is_empty() { "-" } else { &r.serial },
             r.device_id,
             r.run_id,
             utc_date_time(r.started_unix_s),
             r.as_found_decision.as_deref().unwrap_or("-")
-        );
+        )?;
     }
     let calibrated = pops.first().map_or(0, |p| p.n);
-    println!(
+    outln!(
         "  populations of the {calibrated} units that passed (Cpk = min(L − mean, mean + L)/(3·s) against the specification's ±L):"
-    );
-    println!(
+    )?;
+    outln!(
         "    {:<30} {:>8} {:>4} {:>14} {:>12} {:>10} {:>6}",
-        "", "unit", "n", "mean", "s", "limit", "Cpk"
-    );
+        "",
+        "unit",
+        "n",
+        "mean",
+        "s",
+        "limit",
+        "Cpk"
+    )?;
     for p in pops {
-        println!(
+        outln!(
             "    {:<30} {:>8} {:>4} {:>14} {:>12} {:>10} {:>6}",
             p.name,
             p.unit,
@@ -375,17 +384,17 @@ pub fn run(a: &Fleet) -> anyhow::Result<()> {
             format!("{:.4}", p.sd),
             p.limit.map_or("-".into(), |l| format!("±{l}")),
             p.cpk.map_or("-".into(), |c| format!("{c:.2}"))
-        );
+        )?;
     }
     let broken: Vec<&Chart> = charts.iter().filter(|c| !c.violations.is_empty()).collect();
-    println!(
+    outln!(
         "  control charts (I-MR, Western Electric rules, limits from the points charted): {} charts, {} out of control",
         charts.len(),
         broken.len()
-    );
+    )?;
     for c in broken {
         let (v, p) = c.violations.last().expect("a violation");
-        println!(
+        outln!(
             "    {}, {} ({}): {} violation{} in {} points (about {:.1} by chance), the last rule {} ({}) at {} (run {}, {}): {:.6}, centre {:.6}, limits {:.6} .. {:.6}",
             c.group,
             c.quantity,
@@ -403,61 +412,61 @@ pub fn run(a: &Fleet) -> anyhow::Result<()> {
             c.limits.center,
             c.limits.lcl,
             c.limits.ucl
-        );
+        )?;
     }
     for c in check_standards {
-        println!(
+        outln!(
             "  check standard of {}: {}, {} checks, {}{}",
             c.station,
             c.serial,
             c.checks,
             c.state.to_uppercase(),
             c.why.as_ref().map(|w| format!(" ({w})")).unwrap_or_default()
-        );
+        )?;
     }
     for h in heads {
         let s = h.head.settings_line();
         match h.head.change_points.last() {
-            None => println!("  head {}: {} units, no change point ({s})", h.asset, h.head.units),
-            Some(c) => println!(
+            None => outln!("  head {}: {} units, no change point ({s})", h.asset, h.head.units)?,
+            Some(c) => outln!(
                 "  head {}: {} units, {} change point{}, the last at {}",
                 h.asset,
                 h.head.units,
                 h.head.change_points.len(),
                 if h.head.change_points.len() == 1 { "" } else { "s" },
                 change_point(c)
-            ),
+            )?,
         }
         if let Some(m) = &h.head.signature.measured_angle {
-            println!("    {}", measured_line(m));
+            outln!("    {}", measured_line(m))?;
         }
     }
-    println!(
+    outln!(
         "  units due for recalibration by {due_by} ({} days after {until}, overdue included):",
         a.due_days
-    );
+    )?;
     if units_due.is_empty() {
-        println!("    none");
+        outln!("    none")?;
     }
     for u in units_due {
-        println!(
+        outln!(
             "    {:<16} {}  due {}  (certificate of run {})",
             if u.serial.is_empty() { "-" } else { &u.serial },
             u.device_id,
             &utc_date_time(u.due_unix_s)[..10],
             u.run_id
-        );
+        )?;
     }
-    println!("  assets due by {due_by}:");
+    outln!("  assets due by {due_by}:")?;
     if assets_due.is_empty() {
-        println!("    none");
+        outln!("    none")?;
     }
     for x in &assets_due {
-        println!("    {} ({}) certificate {}, due {}", x.asset_id, x.kind.name(), x.certificate, x.due_date);
+        outln!("    {} ({}) certificate {}, due {}", x.asset_id, x.kind.name(), x.certificate, x.due_date)?;
     }
     if let Some(c) = &a.csv {
         write_atomic(c, csv_of(runs)?.as_bytes())?;
-        println!("wrote {} ({} runs)", c.display(), runs.len());
+        outln!("wrote {} ({} runs)", c.display(), runs.len())?;
     }
     if let Some(j) = &a.json {
         write_json(
@@ -482,14 +491,27 @@ pub fn run(a: &Fleet) -> anyhow::Result<()> {
                 runs,
             },
         )?;
-        println!("wrote {}", j.display());
+        outln!("wrote {}", j.display())?;
     }
     Ok(())
 }
 
-/// One row per run: the columns an MES takes.
+/// A text cell of a CSV as a spreadsheet must read it: a cell that begins with `=`, `+`, `-`, `@`,
+/// a tab or a carriage return would be run as a formula (`=HYPERLINK(...)`, `@SUM(...)`, DDE), so
+/// it is prefixed with a single quote, as OWASP's "CSV Injection" page says; every other text
+/// is kept as it is. Only text columns go through it: a negative number stays a number.
+pub(crate) fn spreadsheet_text(cell: &str) -> String {
+    if cell.starts_with(['=', '+', '-', '@', '\t', '\r']) {
+        format!("'{cell}")
+    } else {
+        cell.to_string()
+    }
+}
+
+/// One row per run: the columns an MES takes (`fleet --csv` and serve's `/fleet.csv`). Text
+/// cells are neutralised ([`spreadsheet_text`]) and quoted, numbers are written unquoted.
 pub(crate) fn csv_of(runs: &[FleetRun]) -> anyhow::Result<String> {
-    let mut w = csv::Writer::from_writer(Vec::new());
+    let mut w = csv::WriterBuilder::new().quote_style(csv::QuoteStyle::NonNumeric).from_writer(Vec::new());
     let mut header: Vec<String> = [
         "run_id",
         "serial",
@@ -516,18 +538,18 @@ pub(crate) fn csv_of(runs: &[FleetRun]) -> anyhow::Result<String> {
     w.write_record(&header)?;
     for r in runs {
         let mut row = vec![
-            r.run_id.clone(),
-            r.serial.clone(),
-            r.device_id.clone(),
-            r.station.clone(),
-            r.head_asset.clone().unwrap_or_default(),
-            r.operator.clone(),
+            spreadsheet_text(&r.run_id),
+            spreadsheet_text(&r.serial),
+            spreadsheet_text(&r.device_id),
+            spreadsheet_text(&r.station),
+            spreadsheet_text(r.head_asset.as_deref().unwrap_or_default()),
+            spreadsheet_text(&r.operator),
             utc_date_time(r.started_unix_s),
             r.ended_unix_s.map(utc_date_time).unwrap_or_default(),
-            r.state.clone(),
-            r.reason.clone().unwrap_or_default(),
-            r.as_found_decision.clone().unwrap_or_default(),
-            r.as_left_decision.clone().unwrap_or_default(),
+            spreadsheet_text(&r.state),
+            spreadsheet_text(r.reason.as_deref().unwrap_or_default()),
+            spreadsheet_text(r.as_found_decision.as_deref().unwrap_or_default()),
+            spreadsheet_text(r.as_left_decision.as_deref().unwrap_or_default()),
         ];
         match r.model4() {
             Some(m) => row.extend(m.iter().flatten().map(|v| format!("{v}"))),
@@ -551,7 +573,7 @@ pub fn run_certificate(a: &Certificate) -> anyhow::Result<()> {
         return Err(bad(format!("run {run} has no certificate in {}", db.target())));
     };
     write_atomic(&a.out, html.as_bytes())?;
-    println!("certificate: run {run}'s certificate, as issued, written to {}", a.out.display());
+    outln!("certificate: run {run}'s certificate, as issued, written to {}", a.out.display())?;
     Ok(())
 }
 
@@ -570,14 +592,19 @@ pub fn run_bench_signature(a: &crate::settings::campaign::BenchSignature) -> any
         HeadChange::Mount { mrad: 0.5 },
     ];
     let rows = study(&changes, a.fleets as usize, a.units as usize, a.change_at as usize, s);
-    println!(
+    outln!(
         "head signature: {} fleets of {} units per case, the head changed at unit {} (not told); baseline {} units, CUSUM k = {}, h = {}",
         a.fleets, a.units, a.change_at, s.baseline, s.k, s.h
-    );
-    println!(
+    )?;
+    outln!(
         "{:<34} {:>9} {:>14} {:>10} {:>16} {:>14}",
-        "change", "flagged", "median delay", "max delay", "mean estimate", "false alarms"
-    );
+        "change",
+        "flagged",
+        "median delay",
+        "max delay",
+        "mean estimate",
+        "false alarms"
+    )?;
     let after = a.units - a.change_at;
     for r in &rows {
         let mut d: Vec<usize> = r.delays.iter().flatten().copied().collect();
@@ -601,7 +628,7 @@ pub fn run_bench_signature(a: &crate::settings::campaign::BenchSignature) -> any
             }
             _ => format!("{} in {} units", r.false_alarms, r.fleets * a.change_at as usize),
         };
-        println!(
+        outln!(
             "{:<34} {:>9} {:>14} {:>10} {:>16} {:>14}",
             case,
             match r.change {
@@ -622,12 +649,12 @@ pub fn run_bench_signature(a: &crate::settings::campaign::BenchSignature) -> any
                 _ => format!("{mean:.0} {unit}"),
             },
             false_alarms
-        );
+        )?;
     }
-    println!("a flag more than {after} units after the change is none: the fleet ended");
+    outln!("a flag more than {after} units after the change is none: the fleet ended")?;
     if let Some(j) = &a.json {
         write_json(j, &rows)?;
-        println!("wrote {}", j.display());
+        outln!("wrote {}", j.display())?;
     }
     Ok(())
 }

@@ -359,19 +359,19 @@ pub fn run(a: &BenchFleet) -> anyhow::Result<()> {
         drop(db);
         generate_all(&a.db, line, a.writers, &|n| bar.inc(n))?;
         bar.finish_and_clear();
-        println!(
+        outln!(
             "generated {} units, {} runs through the store path in {:.0} s",
             a.units,
             a.runs,
             t.elapsed().as_secs_f64()
-        );
+        )?;
     } else {
-        println!(
+        outln!(
             "{} holds {} runs of {} units already: not generated again",
             db.target(),
             held.runs,
             held.units
-        );
+        )?;
     }
     let exe = std::env::current_exe().context("finding accelcal itself")?;
     let (since, until) = (a.first_day.clone(), a.last_day.clone());
@@ -435,18 +435,18 @@ pub fn run(a: &BenchFleet) -> anyhow::Result<()> {
     let _ = server.kill();
     let _ = server.wait();
     let rows = result?;
-    println!("{:<40} {:>10} {:>10} {:>10}  aim", "", "median", "max", "bytes");
+    outln!("{:<40} {:>10} {:>10} {:>10}  aim", "", "median", "max", "bytes")?;
     let ms = |d: Duration| format!("{:.0} ms", d.as_secs_f64() * 1e3);
-    println!(
+    outln!(
         "{:<40} {:>10} {:>10} {:>10}  ≤ 1 s",
         format!("fleet --json, {}", a.month),
         ms(fleet_med),
         ms(fleet_max),
         json_bytes
-    );
+    )?;
     let aims = ["≤ 300 ms", "≤ 100 ms", "-", "-"];
     for ((name, med, max, size), aim) in rows.into_iter().zip(aims) {
-        println!("{name:<40} {:>10} {:>10} {size:>10}  {aim}", ms(med), ms(max));
+        outln!("{name:<40} {:>10} {:>10} {size:>10}  {aim}", ms(med), ms(max))?;
     }
     Ok(())
 }

@@ -236,7 +236,7 @@ pub fn run(a: &GravityNormFit, g: &super::Gravity) -> anyhow::Result<()> {
         }
         None => None,
     };
-    print!("{}", human_report(&a.input, rec.len(), &cal));
+    out!("{}", human_report(&a.input, rec.len(), &cal))?;
     if let Some(path) = &a.json {
         let crc = record.as_ref().map(|(_, r)| record_bytes(r).map(|b| record_crc_hex(&b))).transpose()?;
         let identity = Identity {
@@ -247,7 +247,7 @@ pub fn run(a: &GravityNormFit, g: &super::Gravity) -> anyhow::Result<()> {
             record_crc: crc,
         };
         write_json(path, &json_report(&cal, identity))?;
-        println!("wrote {}", path.display());
+        outln!("wrote {}", path.display())?;
     }
     if let Some(dir) = &a.plot {
         write_plots(dir, &rec.t, &cal)?;
@@ -255,16 +255,16 @@ pub fn run(a: &GravityNormFit, g: &super::Gravity) -> anyhow::Result<()> {
     if let Some(path) = &a.campaign_out {
         let c = gravity::holds_campaign(&rec, &cal);
         write_atomic_with(path, |w| c.write(w).context("writing CSV"))?;
-        println!("wrote {} ({} holds as position dwells)", path.display(), cal.detection.holds.len());
+        outln!("wrote {} ({} holds as position dwells)", path.display(), cal.detection.holds.len())?;
     }
     if let Some((path, r)) = record {
         write_record(path, &r)?;
-        println!(
+        outln!(
             "record: {} ({} bytes, model 4 from {}: u0 = bias, K = S·T⁻¹)",
             path.display(),
             r.len(),
             cal.fit.structure.name()
-        );
+        )?;
     }
     Ok(())
 }
@@ -281,7 +281,7 @@ pub fn write_plots(dir: &Path, t: &[f64], cal: &Calibration) -> anyhow::Result<(
     write_atomic(&res, plot::residuals_svg(cal)?.as_bytes())?;
     let det = dir.join("gravity-detector.svg");
     write_atomic(&det, plot::detector_svg(t, &cal.detection)?.as_bytes())?;
-    println!("wrote {}\nwrote {}", res.display(), det.display());
+    outln!("wrote {}\nwrote {}", res.display(), det.display())?;
     Ok(())
 }
 

@@ -16,10 +16,10 @@ pub fn run(a: &HistorySettings) -> anyhow::Result<()> {
     let mut db = Db::open_existing(&spec)?;
     let runs = db.unit_runs(&a.unit)?;
     let h = history(&runs, a.rule);
-    print(&h, &db.target());
+    print(&h, &db.target())?;
     if let Some(j) = &a.json {
         write_json(j, &h).with_context(|| format!("writing {}", j.display()))?;
-        println!("wrote {}", j.display());
+        outln!("wrote {}", j.display())?;
     }
     Ok(())
 }
@@ -52,23 +52,30 @@ pub(crate) fn verification(v: &Option<VerifySummary>) -> String {
     }
 }
 
-fn print(h: &History, target: &str) {
+fn print(h: &History, target: &str) -> anyhow::Result<()> {
     let n_cal = h.runs.iter().filter(|r| r.calibration.is_some()).count();
     let serials = if h.serials.is_empty() { "no serial number".to_string() } else { h.serials.join(", ") };
-    println!(
+    outln!(
         "unit {} ({serials}): {} run{}, {n_cal} calibration{} in {target}",
         h.device_id,
         h.runs.len(),
         if h.runs.len() == 1 { "" } else { "s" },
         if n_cal == 1 { "" } else { "s" }
-    );
-    println!(
+    )?;
+    outln!(
         "{:>3}  {:<20}  {:<10}  {:<10}  {:<9}  {:<8}  {:<24}  {:<24}",
-        "cal", "started (UTC)", "station", "operator", "outcome", "record", "as found", "as left"
-    );
+        "cal",
+        "started (UTC)",
+        "station",
+        "operator",
+        "outcome",
+        "record",
+        "as found",
+        "as left"
+    )?;
     for r in &h.runs {
         let outcome = outcome(r);
-        println!(
+        outln!(
             "{:>3}  {:<20}  {:<10}  {:<10}  {:<9}  {:<8}  {:<24}  {:<24}",
             r.calibration.map_or("-".to_string(), |n| n.to_string()),
             utc(r.started_unix_s.max(0) as u64),
@@ -78,22 +85,22 @@ fn print(h: &History, target: &str) {
             r.record_crc32.as_deref().unwrap_or("-"),
             verification(&r.as_found),
             verification(&r.as_left),
-        );
+        )?;
         if let Some(why) = &r.tampered {
-            println!("     TAMPERED, not used: {why} (run {})", r.run_id);
+            outln!("     TAMPERED, not used: {why} (run {})", r.run_id)?;
         } else if let (Some(why), Some(t)) = (&r.voided, r.voided_unix_s) {
-            println!("     voided {}: {why} (run {})", utc(t.max(0) as u64), r.run_id);
+            outln!("     voided {}: {why} (run {})", utc(t.max(0) as u64), r.run_id)?;
         } else if let Some(why) = &r.not_a_calibration {
-            println!("     not a calibration: {why}");
+            outln!("     not a calibration: {why}")?;
         }
         if matches!(r.outcome, Some(Outcome::Rejected)) {
-            println!("     rejected: {}", r.reason);
+            outln!("     rejected: {}", r.reason)?;
         }
     }
     if !h.drifts.is_empty() {
-        println!("drift between consecutive calibrations, m/s² at 1 g ± standard uncertainty (the fits' covariances):");
+        outln!("drift between consecutive calibrations, m/s² at 1 g ± standard uncertainty (the fits' covariances):")?;
         for d in &h.drifts {
-            println!("  {} -> {} ({:.1} days)", d.from, d.to, d.days);
+            outln!("  {} -> {} ({:.1} days)", d.from, d.to, d.days)?;
             for ch in ["x", "y", "z"] {
                 let cells: Vec<String> = d
                     .terms
@@ -103,17 +110,20 @@ fn print(h: &History, target: &str) {
                         format!("{:>2} {:>10} ± {:<8}", t.term, sig(t.delta_m_s2, 3), sig(t.sigma_m_s2, 2))
                     })
                     .collect();
-                println!("    {ch}: {}", cells.join("  "));
+                outln!("    {ch}: {}", cells.join("  "))?;
             }
         }
     }
     let rc = &h.recalibration;
     match rc.due_unix_s {
-        Some(t) => println!("recalibrate by {} ({})", &utc(t.max(0) as u64)[..10], rc.basis),
-        None => println!("recalibration: {}", rc.basis),
+        Some(t) => outln!("recalibrate by {} ({})", &utc(t.max(0) as u64)[..10], rc.basis)?,
+        None => outln!("recalibration: {}", rc.basis)?,
     }
-    println!(
+    outln!(
         "  rule: tolerance {} m/s² at 1 g, k = {}, at most {} days (method: accelcal history --help)",
-        rc.rule.tolerance_m_s2, rc.rule.coverage, rc.rule.max_interval_days
-    );
+        rc.rule.tolerance_m_s2,
+        rc.rule.coverage,
+        rc.rule.max_interval_days
+    )?;
+    Ok(())
 }

@@ -70,7 +70,7 @@ pub fn info_text(i: &Info) -> String {
 pub fn run_info(a: &line::Info) -> anyhow::Result<()> {
     let mut s = open(&a.link)?;
     let info = s.info()?;
-    println!("{}", info_text(&info));
+    outln!("{}", info_text(&info))?;
     if let Some(p) = &a.json {
         write_json(p, &info_json(&info))?;
     }
@@ -81,11 +81,11 @@ pub fn run_info(a: &line::Info) -> anyhow::Result<()> {
 pub fn run_output(a: &SetOutput) -> anyhow::Result<()> {
     let mut s = open(&a.link)?;
     let st = s.set_output(a.mode)?;
-    println!("output: the node now streams {}", st.output.name());
+    outln!("output: the node now streams {}", st.output.name())?;
     if let (Output::Calibrated, RecordStatus::Missing(f)) = (st.output, st.record) {
-        println!(
+        outln!(
             "note: the node has no record ({f}): its calibrated stream is raw codes flagged uncalibrated"
-        );
+        )?;
     }
     Ok(())
 }
@@ -135,7 +135,7 @@ impl ManualHead {
 
 impl Positioner for ManualHead {
     fn set(&mut self, k: usize, n: usize, (a, b): (f64, f64), e: [f64; 3]) -> anyhow::Result<()> {
-        eprint!(
+        err!(
             "position {}/{n}: set the head to alpha {a} deg, beta {b} deg; the unit should then read \
              ax {:+.3}, ay {:+.3}, az {:+.3} m/s². Press Enter when it stands there. ",
             k + 1,
@@ -149,14 +149,14 @@ impl Positioner for ManualHead {
 
     fn retry(&mut self, k: usize, why: &str) -> anyhow::Result<bool> {
         let stop = if why.ends_with(['?', '.']) { "" } else { "." };
-        eprint!("position {} refused: {why}{stop} Retry it? [Y/n] ", k + 1);
+        err!("position {} refused: {why}{stop} Retry it? [Y/n] ", k + 1);
         std::io::stderr().flush()?;
         // Stopped: "retry", and the caller sees its stop flag.
         Ok(self.read_line()?.is_none_or(|l| !l.trim().eq_ignore_ascii_case("n")))
     }
 
     fn chamber(&mut self, setpoint_c: f64) -> anyhow::Result<()> {
-        eprint!("set the thermal chamber to {setpoint_c} °C; press Enter when it is set (the soak time starts then). ");
+        err!("set the thermal chamber to {setpoint_c} °C; press Enter when it is set (the soak time starts then). ");
         std::io::stderr().flush()?;
         self.read_line().map(|_| ())
     }
@@ -176,7 +176,7 @@ fn duration(d: Duration) -> String {
 
 impl Progress for Lines {
     fn position_done(&mut self, r: &PositionReport, done: usize, total: usize, left: Duration) {
-        eprintln!(
+        errln!(
             "position {done}/{total} (alpha {} deg, beta {} deg): static after {:.2} s ({} sets dropped), recorded; \
              {} sets lost; mean codes {:.1} {:.1} {:.1}; about {} left",
             r.angles.0,
@@ -191,13 +191,13 @@ impl Progress for Lines {
         );
     }
     fn started(&mut self, from: usize, total: usize, rule: &StaticRule) {
-        eprintln!("acquire: positions {} to {total}; {}", from + 1, rule.describe());
+        errln!("acquire: positions {} to {total}; {}", from + 1, rule.describe());
     }
     fn note(&mut self, line: &str) {
-        eprintln!("note: {line}");
+        errln!("note: {line}");
     }
     fn resumed(&mut self, done: usize, truncated_rows: usize) {
-        eprintln!(
+        errln!(
             "resume: {done} complete positions kept{}",
             if truncated_rows > 0 {
                 format!(", {truncated_rows} rows of an unfinished position removed")
@@ -212,7 +212,7 @@ impl Progress for Lines {
 /// fallback, announced here, once.
 fn rig_gravity(stated: Option<&Gravity>) -> Gravity {
     stated.cloned().unwrap_or_else(|| {
-        eprintln!(
+        errln!(
             "note: {}",
             super::g_fallback("neither --g nor --latitude/--height was given for the rig's site")
         );
@@ -293,19 +293,19 @@ struct NodeLines(String);
 
 impl Progress for NodeLines {
     fn position_done(&mut self, r: &PositionReport, done: usize, total: usize, left: Duration) {
-        eprint!("{}", self.0);
+        err!("{}", self.0);
         Lines.position_done(r, done, total, left);
     }
     fn started(&mut self, from: usize, total: usize, rule: &StaticRule) {
-        eprint!("{}", self.0);
+        err!("{}", self.0);
         Lines.started(from, total, rule);
     }
     fn note(&mut self, line: &str) {
-        eprint!("{}", self.0);
+        err!("{}", self.0);
         Lines.note(line);
     }
     fn resumed(&mut self, done: usize, truncated_rows: usize) {
-        eprint!("{}", self.0);
+        err!("{}", self.0);
         Lines.resumed(done, truncated_rows);
     }
 }
@@ -370,14 +370,14 @@ pub fn run_acquire(a: &Acquire) -> anyhow::Result<()> {
         ))));
     }
     for (sum, out) in sums.iter().zip(a.nodes.iter().map(|n| &n.out)) {
-        println!(
+        outln!(
             "acquire: {} positions of device {} written to {} ({} sets each, {} sets lost while recording)",
             sum.positions,
             sum.device_id,
             out.display(),
             samples,
             sum.lost
-        );
+        )?;
     }
     Ok(())
 }
@@ -465,14 +465,27 @@ pub fn run_verify(a: &Verify) -> anyhow::Result<()> {
     };
     match &cfg.spec {
         Some((s, _)) => {
-            println!("verify: g = {g} m/s² ({g_source}); specification {}", s.describe());
+            outln!("verify: g = {g} m/s² ({g_source}); specification {}", s.describe())?;
             if !not_included.is_empty() {
-                println!("verify: U of each measured error does not include {}", not_included.join(", nor "));
+                outln!("verify: U of each measured error does not include {}", not_included.join(", nor "))?;
             }
         }
-        None => println!("verify: g = {g} m/s² ({g_source}); pass rule: {}", cfg.tolerance.describe()),
+        None => outln!("verify: g = {g} m/s² ({g_source}); pass rule: {}", cfg.tolerance.describe())?,
     }
-    let report = verify(&mut node, head.as_mut(), &cfg, &mut |c, n| println!("{}", check_line(c, n)), &stop)?;
+    // A position's line that cannot be written does not stop the node half-way: the first
+    // failure is returned once the report is written and stored.
+    let mut out_failed = None;
+    let report = verify(
+        &mut node,
+        head.as_mut(),
+        &cfg,
+        &mut |c, n| {
+            if let Err(e) = outln!("{}", check_line(c, n)) {
+                out_failed.get_or_insert(e);
+            }
+        },
+        &stop,
+    )?;
     if let Some(p) = &a.json {
         write_json(p, &report)?;
     }
@@ -491,22 +504,30 @@ pub fn run_verify(a: &Verify) -> anyhow::Result<()> {
             None => report.clone(),
         };
         rdb.db.store_verification(run, phase, &stored)?;
-        println!(
+        // A failed as-left verification rejects the unit, as at the station.
+        let rejected = match (phase, report.failure().filter(|_| !report.interrupted)) {
+            (accelcal_db::Phase::AsLeft, Some(f)) => {
+                let why = format!("as-left verification: {f}");
+                rdb.db.finish_run(run, accelcal_db::Outcome::Rejected, &why)?;
+                Some(why)
+            }
+            _ => None,
+        };
+        // Said once the database holds everything: an output that fails leaves no run half-stored.
+        outln!(
             "db: run {run}: {} verification stored in {}",
             super::store::phase_name(phase),
             rdb.db.target()
-        );
-        // A failed as-left verification rejects the unit, as at the station.
-        if let (accelcal_db::Phase::AsLeft, Some(f)) =
-            (phase, report.failure().filter(|_| !report.interrupted))
-        {
-            let why = format!("as-left verification: {f}");
-            rdb.db.finish_run(run, accelcal_db::Outcome::Rejected, &why)?;
-            println!("db: run {run} ended rejected ({why})");
+        )?;
+        if let Some(why) = rejected {
+            outln!("db: run {run} ended rejected ({why})")?;
         }
     }
+    if let Some(e) = out_failed {
+        return Err(e);
+    }
     for c in report.parameters.iter().flatten() {
-        println!(
+        outln!(
             "verify: {} {}: {:+.4} {} ± {:.4} (limit {} {}): {}",
             c.parameter.replace('_', " "),
             c.axis,
@@ -516,7 +537,7 @@ pub fn run_verify(a: &Verify) -> anyhow::Result<()> {
             c.limit,
             c.unit,
             c.decision.name()
-        );
+        )?;
     }
     if report.interrupted {
         return Err(anyhow::Error::new(Interrupted(format!(
@@ -536,12 +557,12 @@ pub fn run_verify(a: &Verify) -> anyhow::Result<()> {
             None => e,
         });
     }
-    println!(
+    outln!(
         "verify: {}, {} positions of device {} (record {})",
         report.decision.map_or("PASS", |_| "PASS (every component accepted by the decision rule)"),
         report.positions.len(),
         report.device_id,
         report.record["crc"].as_str().map(|c| format!("CRC {c}")).unwrap_or_default()
-    );
+    )?;
     Ok(())
 }

@@ -87,10 +87,10 @@ pub use accelcal_core::reduce::reduce_campaign;
 /// each (after a success).
 pub fn print_warnings(w: &Warnings) {
     for line in w.lines() {
-        eprintln!("warning: {line}");
+        errln!("warning: {line}");
     }
     for line in w.notes() {
-        eprintln!("note: {line}");
+        errln!("note: {line}");
     }
 }
 

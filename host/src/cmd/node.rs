@@ -44,19 +44,19 @@ pub fn run_flash(a: &Flash) -> anyhow::Result<()> {
             match flash::flash_record_gdb(&record, addr, node_id, a.cut_after).with_context(writing)? {
                 flash::GdbFlash::Written(r) => (r.slot, r.sequence, r.address),
                 flash::GdbFlash::Cut { slot, bytes } => {
-                    println!(
+                    outln!(
                     "flash: write CUT after {bytes} bytes of record slot {slot} (--cut-after), MCU reset: the previous \
                      record stays in force"
-                );
+                )?;
                     return Ok(());
                 }
             }
         }
     };
-    println!(
+    outln!(
         "flash: wrote {} to record slot {slot} at {address:#010x}, sequence {sequence}; MCU reset",
         a.record.display()
-    );
+    )?;
     if let Some(port) = &a.port {
         let crc = u32::from_le_bytes(record[rec.len() - 4..rec.len()].try_into().expect("4 bytes"));
         confirm(port, a.baud, slot, sequence, crc)?;
@@ -70,12 +70,12 @@ pub fn run_flash(a: &Flash) -> anyhow::Result<()> {
             )
         })?;
         super::store::crash_point("db:flash");
-        println!(
+        outln!(
             "db: run {}: flash of record CRC {:08x} stored in {}",
             rec.run_id(),
             rec.crc32(),
             rdb.db.target()
-        );
+        )?;
     }
     Ok(())
 }
@@ -94,7 +94,7 @@ fn confirm(port: &str, baud: u32, slot: u8, sequence: u32, crc: u32) -> anyhow::
                 RecordStatus::InUse { slot: s2, sequence: q, crc: c, .. }
                     if (s2, q, c) == (slot, sequence, crc) =>
                 {
-                    println!("flash: confirmed over {port}: the node runs the new record (slot {slot}, sequence {sequence}, CRC {crc:08x})");
+                    outln!("flash: confirmed over {port}: the node runs the new record (slot {slot}, sequence {sequence}, CRC {crc:08x})")?;
                     return Ok(());
                 }
                 other if late => break other,
@@ -160,12 +160,12 @@ pub fn run_hil(a: &Hil, warnings: &mut super::Warnings) -> anyhow::Result<()> {
     } else {
         String::new()
     };
-    println!(
+    outln!(
         "hil: {} sample sets replayed through {}{thermal_note}; {}; wrote {}",
         sets,
         a.elf.display(),
         monitor::format_status(&status),
         a.out.display()
-    );
+    )?;
     Ok(())
 }

@@ -38,20 +38,28 @@ pub fn run(p: &PlanSettings) -> anyhow::Result<()> {
     };
     let g = a.gravity.g;
     let rows = positions(&a.plan, g);
-    println!(
+    outln!(
         "plan `{}`: {} positions; what a triad's axes should read, g = {} m/s² \
          (ax = -g cos(beta) sin(alpha), ay = -g sin(beta), az = -g cos(alpha) cos(beta))",
         a.spec,
         rows.len(),
         g
-    );
-    println!(
+    )?;
+    outln!(
         "  {:>4} {:>10} {:>10} {:>10} {:>10} {:>10} {:>7} {:>7} {:>7}",
-        "#", "alpha_deg", "beta_deg", "ax m/s²", "ay m/s²", "az m/s²", "ax g", "ay g", "az g"
-    );
+        "#",
+        "alpha_deg",
+        "beta_deg",
+        "ax m/s²",
+        "ay m/s²",
+        "az m/s²",
+        "ax g",
+        "ay g",
+        "az g"
+    )?;
     for (i, r) in rows.iter().enumerate() {
         let [x, y, z] = r.accel_ms2;
-        println!(
+        outln!(
             "  {:>4} {:>10.2} {:>10.2} {:>10.4} {:>10.4} {:>10.4} {:>7.3} {:>7.3} {:>7.3}",
             i + 1,
             r.alpha_deg,
@@ -62,7 +70,7 @@ pub fn run(p: &PlanSettings) -> anyhow::Result<()> {
             x / g,
             y / g,
             z / g
-        );
+        )?;
     }
     if let Some(j) = &a.json {
         write_json(j, &serde_json::json!({ "plan": a.spec, "g": g, "positions": rows }))?;

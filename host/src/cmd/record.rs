@@ -150,45 +150,45 @@ pub fn run_show(a: &RecordShow) -> anyhow::Result<()> {
     if let Some((text, f_name)) = &fit {
         j.uncertainty = Some(budget_of(text, f_name, &name, (&crc, &j.device_id))?);
     }
-    println!("record {path}: {} bytes, format version {}, CRC-32 {}", j.length, j.format_version, j.crc32);
-    println!("device id: {}", j.device_id);
-    println!("created: {} ({})", j.created_unix_s, j.created_utc);
+    outln!("record {path}: {} bytes, format version {}, CRC-32 {}", j.length, j.format_version, j.crc32)?;
+    outln!("device id: {}", j.device_id)?;
+    outln!("created: {} ({})", j.created_unix_s, j.created_utc)?;
     match j.g_m_s2 {
-        Some(g) => println!("g: {g} m/s² (the gravity the fit used)"),
-        None => println!("g: not stated (format version 1)"),
+        Some(g) => outln!("g: {g} m/s² (the gravity the fit used)")?,
+        None => outln!("g: not stated (format version 1)")?,
     }
-    println!("terms: {}", j.terms.join(","));
+    outln!("terms: {}", j.terms.join(","))?;
     if let Some(t) = &j.thermal {
-        println!(
+        outln!(
             "temperature: t = temp_c − {} °C, calibrated {} to {} °C, read from the {}",
             t.t_ref_c,
             t.t_min_c,
             t.t_max_c,
             if t.input == "mcu" { "MCU's sensor" } else { "front end's channel" }
-        );
+        )?;
     }
     for (c, coef) in j.coefficients.iter().enumerate() {
         let v: Vec<String> = coef.iter().map(|v| v.to_string()).collect();
-        println!("channel {c}: {}", v.join(" "));
+        outln!("channel {c}: {}", v.join(" "))?;
     }
     match &j.refusal {
-        None if j.thermal.is_some() => println!(
+        None if j.thermal.is_some() => outln!(
             "node: accepts it (model 4 with thermal terms on three channels, invertible over the calibrated range in f32 and fixed point)"
-        ),
-        None => println!("node: accepts it (model 4 on three channels, invertible in f32 and fixed point)"),
-        Some(r) if j.node_accepts => println!("node: would accept it, but accelcal refuses it: {r}"),
-        Some(r) => println!("node: {r}"),
+        )?,
+        None => outln!("node: accepts it (model 4 on three channels, invertible in f32 and fixed point)")?,
+        Some(r) if j.node_accepts => outln!("node: would accept it, but accelcal refuses it: {r}")?,
+        Some(r) => outln!("node: {r}")?,
     }
     match (&fit, &j.uncertainty) {
-        (Some(_), Some(Some(b))) => super::uncertainty::print_budget(b),
-        (Some((_, name)), _) => println!(
+        (Some(_), Some(Some(b))) => super::uncertainty::print_budget(b)?,
+        (Some((_, name)), _) => outln!(
             "uncertainty: {name} states no budget (one is worked out for a model-4 triad fitted by least squares)"
-        ),
+        )?,
         (None, _) => {}
     }
     if let Some(p) = &a.json {
         write_json(p, &j)?;
-        println!("wrote {}", p.display());
+        outln!("wrote {}", p.display())?;
     }
     Ok(())
 }

@@ -442,17 +442,17 @@ pub fn run(a: &Report) -> anyhow::Result<()> {
     h.push_str(&table2(cmp.as_ref(), method)?);
     h.push_str("</body></html>\n");
     write_atomic(&a.out, h.as_bytes())?;
-    println!(
+    outln!(
         "report: certificate of unit {serial} (device {device_id}, record CRC {crc}) written to {}",
         a.out.display()
-    );
+    )?;
     if let (Some(rdb), Some((run, _))) = (&mut db, &run) {
         rdb.db.store_certificate(*run, &h)?;
         super::store::crash_point("db:certificate");
         // The run is complete: it ends as the station ends it.
         rdb.db.finish_run(*run, accelcal_db::Outcome::Pass, super::store::PASS_REASON)?;
         super::store::crash_point("db:end-report");
-        println!("db: run {run}: certificate stored in {}; the run ended pass", rdb.db.target());
+        outln!("db: run {run}: certificate stored in {}; the run ended pass", rdb.db.target())?;
     }
     Ok(())
 }

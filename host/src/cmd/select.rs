@@ -138,17 +138,17 @@ fn label(basis: Basis, s: Structure) -> String {
 }
 
 /// Prints Table 1 for each channel: every candidate for small bases, else the 15 best.
-pub fn print_tables(sel: &[Selection], settings: &Settings) {
+pub fn print_tables(sel: &[Selection], settings: &Settings) -> anyhow::Result<()> {
     for s in sel {
-        println!(
+        outln!(
             "channel {}: {} criterion, RMS ADC codes of dwell means (best {:.2}, tolerance {} code{})",
             s.channel,
             settings.criterion.name(),
             s.best,
             settings.tolerance,
             if settings.tolerance == 1.0 { "" } else { "s" }
-        );
-        println!("  {:>3}  {:<44} {:>12}  ", "#", "model terms", "criterion");
+        )?;
+        outln!("  {:>3}  {:<44} {:>12}  ", "#", "model terms", "criterion")?;
         let mut rows: Vec<usize> = (0..s.candidates.len()).collect();
         let many = rows.len() > 32;
         if many {
@@ -164,21 +164,22 @@ pub fn print_tables(sel: &[Selection], settings: &Settings) {
                 None => format!("{:>12}", "unidentif."),
             };
             let mark = if i == s.selected { "  <- selected" } else { "" };
-            println!(
+            outln!(
                 "  {:>3}  {:<44} {crit}{mark}",
                 label(settings.basis, c.structure),
                 c.structure.to_string()
-            );
+            )?;
         }
         if many {
             let unid = s.candidates.iter().filter(|c| c.criterion.is_none()).count();
-            println!(
+            outln!(
                 "  (15 best of {} candidates shown; {unid} not identifiable on this plan)",
                 s.candidates.len()
-            );
+            )?;
         }
-        println!();
+        outln!()?;
     }
+    Ok(())
 }
 
 /// Builds the JSON document.
@@ -266,13 +267,13 @@ pub fn run(a: &Select, g: &super::Gravity, warnings: &mut super::Warnings) -> an
             Search::Multi { width } => compute_multi_on(&pos, &stats, &a.channels, settings, width),
         })
         .with_context(|| a.campaign.path.display().to_string())?;
-    print_tables(&sel, settings);
+    print_tables(&sel, settings)?;
     if let Some(j) = &a.campaign.json {
         write_json(j, &to_json(&sel, settings, &settings.split.to_string(), a.top))?;
     }
     if let Some(dir) = &a.plot {
         for p in plots(dir, &sel, settings)? {
-            println!("plot: {}", p.display());
+            outln!("plot: {}", p.display())?;
         }
     }
     Ok(())

@@ -28,16 +28,16 @@ pub fn run(a: &Simulate) -> anyhow::Result<()> {
     write_atomic_with(&a.out, |w| campaign.write(w).context("writing CSV"))?;
     let truth_path = &a.truth;
     write_json(truth_path, &truth)?;
-    println!(
+    outln!(
         "wrote {} ({} rows, {} positions) and {}",
         a.out.display(),
         campaign.len(),
         cfg.plan.positions.len(),
         truth_path.display()
-    );
-    println!("{:<8} {:>10} {:>10} {:>10} {:>10}", "channel", "bias", "k_x", "k_y", "k_z");
+    )?;
+    outln!("{:<8} {:>10} {:>10} {:>10} {:>10}", "channel", "bias", "k_x", "k_y", "k_z")?;
     for c in &truth.channels {
-        println!("{:<8} {:>10.1} {:>10.3} {:>10.3} {:>10.3}", c.name, c.bias, c.k[0], c.k[1], c.k[2]);
+        outln!("{:<8} {:>10.1} {:>10.3} {:>10.3} {:>10.3}", c.name, c.bias, c.k[0], c.k[1], c.k[2])?;
     }
     if let Some(j) = &a.json {
         write_json(

@@ -153,7 +153,7 @@ impl Station<'_> {
         if self.stop.load(Ordering::Relaxed) {
             return Err(stopped());
         }
-        eprintln!(
+        errln!(
             "station: {}step {n}/{} {}: accelcal {}",
             // The campaign is one step of every unit on the head.
             if step == Step::Acquire { "" } else { self.tag.as_str() },
@@ -199,7 +199,7 @@ impl Station<'_> {
             })
             .collect::<anyhow::Result<_>>()?;
         let finished = super::record::utc(super::created(None));
-        eprintln!("station: {}{} {outcome}", self.tag, step.name());
+        errln!("station: {}{} {outcome}", self.tag, step.name());
         let command = command.map(|c| c.journalled(&self.db.target())).unwrap_or_default();
         let seconds = self.step_start.take().map(|t| t.elapsed().as_secs_f64());
         self.journal.finish(StepRecord { step, command, finished, outcome, outputs, seconds });
@@ -216,13 +216,7 @@ impl Station<'_> {
     fn done(&self, step: Step) -> anyhow::Result<bool> {
         Ok(match self.journal.done(self.dir, step)? {
             Some(r) => {
-                eprintln!(
-                    "station: {}{} done at {} ({}), kept",
-                    self.tag,
-                    step.name(),
-                    r.finished,
-                    r.outcome
-                );
+                errln!("station: {}{} done at {} ({}), kept", self.tag, step.name(), r.finished, r.outcome);
                 true
             }
             None => false,
@@ -295,7 +289,7 @@ impl Station<'_> {
                 Some(Outcome::Pass) => "its certified record",
                 _ => "the record its last run flashed",
             };
-            eprintln!(
+            errln!(
                 "station: {}WARNING: the node no longer runs {what}: it runs {}, but run {} flashed record CRC {last_crc} on {}",
                 self.tag,
                 self.in_force_words(),
@@ -362,7 +356,7 @@ impl Station<'_> {
             crash_point("db:run_asset");
         }
         self.run = Some(run);
-        eprintln!(
+        errln!(
             "station: {}run {run} {} in {}",
             self.tag,
             if new { "begun" } else { "continued" },
@@ -456,7 +450,7 @@ pub fn run(
             [] => String::new(),
             keys => format!("; the command line overrides {}", keys.join(", ")),
         };
-        eprintln!("station: settings {} ({}){overridden}", c.path.display(), c.keys.join(", "));
+        errln!("station: settings {} ({}){overridden}", c.path.display(), c.keys.join(", "));
     }
     let t0 = std::time::Instant::now();
     let specs = &a.units;
@@ -477,7 +471,7 @@ pub fn run(
     }
     if let Some(p) = &a.spec {
         let s = super::spec::read(p)?;
-        eprintln!("station: specification {}", s.describe());
+        errln!("station: specification {}", s.describe());
     }
     for u in specs {
         let journal = Journal::open(&u.dir, &u.serial)?;
@@ -523,7 +517,7 @@ pub fn run(
     acquire_together(&mut open)?;
     let mut rejected = Vec::new();
     let result = after_acquire_all(open, specs.len(), &mut rejected);
-    eprintln!("station: {}", time_summary(&stations, t0.elapsed().as_secs_f64()));
+    errln!("station: {}", time_summary(&stations, t0.elapsed().as_secs_f64()));
     result?;
     if rejected.is_empty() {
         Ok(())
@@ -549,7 +543,7 @@ fn after_acquire_all(
     // A rejection among several units is noted; anything else is returned.
     let note = |s: &Station<'_>, r: anyhow::Result<()>, rejected: &mut Vec<String>| match r {
         Err(e) if units > 1 && is_rejection(&e) => {
-            eprintln!("station: unit {} REJECTED: {}", s.u.serial, crate::words::line(&e));
+            errln!("station: unit {} REJECTED: {}", s.u.serial, crate::words::line(&e));
             rejected.push(s.u.serial.clone());
             Ok(())
         }
@@ -606,7 +600,7 @@ fn after_acquire_all(
             }
             (Ok(()), Err(e)) => Err(e),
             (Err(p), Err(h)) => {
-                eprintln!("station: {}", crate::words::line(&p));
+                errln!("station: {}", crate::words::line(&p));
                 Err(h)
             }
         }
@@ -658,19 +652,23 @@ fn head_in_force(db_spec: &str, id: &str) -> anyhow::Result<(Asset, Option<f64>)
         r => r?,
     };
     let h = db.asset_in_force(id, AssetKind::Head, accelcal_db::asset::today_utc())?;
-    eprintln!(
+    errln!(
         "station: head {} (certificate {}, due {}; angle u {} arcsec, orthogonality u {} arcsec)",
-        h.asset_id, h.certificate, h.due_date, h.angle_u_arcsec, h.orthogonality_u_arcsec
+        h.asset_id,
+        h.certificate,
+        h.due_date,
+        h.angle_u_arcsec,
+        h.orthogonality_u_arcsec
     );
     let measured = super::fleet::measured_head_angle(&mut db, id)?;
     let over = match measured {
         Some(m) => match super::fleet::over_certificate(&h, &m) {
             Some(warning) => {
-                eprintln!("warning: {warning}");
+                errln!("warning: {warning}");
                 Some((m.rms_arcsec * 10.0).ceil() / 10.0)
             }
             None => {
-                eprintln!(
+                errln!(
                     "station: head {}: its last {} units measure {:.1}″ of angle error, within its certificate's",
                     h.asset_id, m.units, m.rms_arcsec
                 );

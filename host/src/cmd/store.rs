@@ -46,7 +46,7 @@ pub fn named_db(given: Option<&str>) -> Option<String> {
 /// here, as a power cut would stop them. No effect when it is not set.
 pub fn crash_point(point: &str) {
     if std::env::var_os("ACCELCAL_CRASH_AT").is_some_and(|v| v == point) {
-        eprintln!("crash point {point}: killed (ACCELCAL_CRASH_AT)");
+        errln!("crash point {point}: killed (ACCELCAL_CRASH_AT)");
         // SAFETY: kill(2) on the caller's own process group; nothing is read or written.
         unsafe {
             libc::kill(0, libc::SIGKILL);
@@ -116,7 +116,7 @@ impl RunDb {
                         p.start.device_id, b.device_id
                     )));
                 }
-                eprintln!("db: run {run} in {}", self.db.target());
+                errln!("db: run {run} in {}", self.db.target());
                 return Ok(run);
             }
         }
@@ -137,7 +137,7 @@ impl RunDb {
         self.db.begin_run(&start, self.relabel.as_ref())?;
         crash_point("db:run");
         self.run = Some(run);
-        eprintln!(
+        errln!(
             "db: run {run} begun in {} (give --run-id {run} to the line's next commands)",
             self.db.target()
         );

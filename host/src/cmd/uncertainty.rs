@@ -59,13 +59,19 @@ fn parameter_rules(u_expanded: f64, seed: u64) -> anyhow::Result<(Vec<ParameterR
         misalignment_urad: Some(PARAMETER_LIMITS[2].2),
     };
     let draws = RULE_DRAWS;
-    println!(
+    outln!(
         "parameters at their limits, guard-band rule (the six ±axis positions, each component with U = {u_expanded:.3e} m/s²); {draws} verifications per row"
-    );
-    println!(
+    )?;
+    outln!(
         "{:<14} {:>6} {:>12} {:>9} {:>11} {:>11} {:>9}",
-        "parameter", "axis", "true value", "pass", "cond. pass", "cond. fail", "fail"
-    );
+        "parameter",
+        "axis",
+        "true value",
+        "pass",
+        "cond. pass",
+        "cond. fail",
+        "fail"
+    )?;
     let (mut rows, mut missed) = (Vec::new(), Vec::new());
     for (i, (parameter, axis, limit, unit)) in PARAMETER_LIMITS.into_iter().enumerate() {
         let shares = parameter_outcome_rates(
@@ -78,7 +84,7 @@ fn parameter_rules(u_expanded: f64, seed: u64) -> anyhow::Result<(Vec<ParameterR
             seed + 10 + i as u64,
         )?;
         let pct = |x: f64| format!("{:.2}%", 100.0 * x);
-        println!(
+        outln!(
             "{:<14} {:>6} {:>12} {:>9} {:>11} {:>11} {:>9}",
             parameter,
             axis,
@@ -87,7 +93,7 @@ fn parameter_rules(u_expanded: f64, seed: u64) -> anyhow::Result<(Vec<ParameterR
             pct(shares[1]),
             pct(shares[2]),
             pct(shares[3])
-        );
+        )?;
         if shares[0] > 0.025 {
             missed.push(format!("{parameter} false-accept rate {:.2} % > 2.5 %", 100.0 * shares[0]));
         }
@@ -123,16 +129,21 @@ const RULE_DRAWS: usize = 200_000;
 /// The decision rules against a limit T with the U of the budget's first scenario (every
 /// contributor on): the shares of each decision for units whose true error is T − U/2, T and
 /// T + U/2, and the guard-band rule's false-accept rate at T (it must be at most 2.5 %).
-fn decision_rules(u_expanded: f64, seed: u64) -> (Vec<RuleRow>, Option<String>) {
+fn decision_rules(u_expanded: f64, seed: u64) -> anyhow::Result<(Vec<RuleRow>, Option<String>)> {
     use accelcal_core::conformity::{outcome_rates, RuleKind, Specification, K};
     let t = CHECK_LIMIT_M_S2;
-    println!(
+    outln!(
         "decision rules (ILAC-G8) against T = {t} m/s², U = {u_expanded:.3e} m/s² (the budget's, every contributor on); {RULE_DRAWS} measurements per row"
-    );
-    println!(
+    )?;
+    outln!(
         "{:<11} {:>14} {:>9} {:>11} {:>11} {:>9}",
-        "rule", "true error", "pass", "cond. pass", "cond. fail", "fail"
-    );
+        "rule",
+        "true error",
+        "pass",
+        "cond. pass",
+        "cond. fail",
+        "fail"
+    )?;
     let mut rows = Vec::new();
     let mut far = None;
     for rule in [RuleKind::GuardBand, RuleKind::Simple] {
@@ -152,7 +163,7 @@ fn decision_rules(u_expanded: f64, seed: u64) -> (Vec<RuleRow>, Option<String>) 
         {
             let shares = outcome_rates(&spec, e, u_expanded / K, RULE_DRAWS, seed + i as u64);
             let pct = |x: f64| format!("{:.2}%", 100.0 * x);
-            println!(
+            outln!(
                 "{:<11} {:>14} {:>9} {:>11} {:>11} {:>9}",
                 rule.name(),
                 label,
@@ -160,7 +171,7 @@ fn decision_rules(u_expanded: f64, seed: u64) -> (Vec<RuleRow>, Option<String>) 
                 pct(shares[1]),
                 pct(shares[2]),
                 pct(shares[3])
-            );
+            )?;
             if rule == RuleKind::GuardBand && label == "T" {
                 far = Some(shares[0]);
             }
@@ -168,9 +179,9 @@ fn decision_rules(u_expanded: f64, seed: u64) -> (Vec<RuleRow>, Option<String>) 
         }
     }
     let far = far.expect("the guard-band row at T");
-    println!("guard-band false-accept rate at the limit: {:.2} % (at most 2.5 %)", 100.0 * far);
+    outln!("guard-band false-accept rate at the limit: {:.2} % (at most 2.5 %)", 100.0 * far)?;
     let missed = (far > 0.025).then(|| format!("guard-band false-accept rate {:.2} % > 2.5 %", 100.0 * far));
-    (rows, missed)
+    Ok((rows, missed))
 }
 
 #[derive(Serialize)]
@@ -202,18 +213,32 @@ pub fn run_check(a: &UncertaintyCheck) -> anyhow::Result<()> {
         outcomes.push(out);
     }
     pb.finish_and_clear();
-    println!(
+    outln!(
         "Monte Carlo check of the uncertainty budget (JCGM 101): {} units per scenario, {} sample sets per position, {} orientations per unit, seed {}",
         set.units, set.samples, set.orientations, set.seed
-    );
-    println!(
+    )?;
+    outln!(
         "{:<20} {:>7} {:>7} {:>9} {:>8} {:>15} {:>10} {:>10} {:>13}  mean max U",
-        "scenario", "noise", "angle", "orthog.", "u(g)", "temperature", "quadratic", "coverage", "range"
-    );
-    println!(
+        "scenario",
+        "noise",
+        "angle",
+        "orthog.",
+        "u(g)",
+        "temperature",
+        "quadratic",
+        "coverage",
+        "range"
+    )?;
+    outln!(
         "{:<20} {:>7} {:>7} {:>9} {:>8} {:>15} {:>10}",
-        "", "codes", "arcsec", "arcsec", "m/s²", "mg/ppm/°C, °C", "codes"
-    );
+        "",
+        "codes",
+        "arcsec",
+        "arcsec",
+        "m/s²",
+        "mg/ppm/°C, °C",
+        "codes"
+    )?;
     let mut rows = Vec::new();
     let mut failed = Vec::new();
     for o in &outcomes {
@@ -226,7 +251,7 @@ pub fn run_check(a: &UncertaintyCheck) -> anyhow::Result<()> {
         let temp = s.temperature.map_or("-".to_string(), |t| {
             format!("{}/{}/{}", t.bias_mg_per_c, t.scale_ppm_per_c, t.thermometer_c)
         });
-        println!(
+        outln!(
             "{:<20} {:>7} {:>7} {:>9} {:>8} {:>15} {:>10} {:>9.2}% {:>5.1}–{:.1} %  {:.3e} m/s²  {}",
             s.name,
             s.noise_codes,
@@ -240,11 +265,11 @@ pub fn run_check(a: &UncertaintyCheck) -> anyhow::Result<()> {
             100.0 * hi,
             o.mean_u_m_s2,
             if passed { "ok" } else { "MISSED" }
-        );
+        )?;
         rows.push(ScenarioJson { outcome: o, range: (lo, hi), passed });
     }
     let u_all = outcomes.first().map_or(0.0, |o| o.mean_u_m_s2);
-    let (decision_rules, missed) = decision_rules(u_all, a.seed);
+    let (decision_rules, missed) = decision_rules(u_all, a.seed)?;
     failed.extend(missed);
     let (parameter_rules, missed) = parameter_rules(u_all, a.seed)?;
     failed.extend(missed);
@@ -264,9 +289,9 @@ pub fn run_check(a: &UncertaintyCheck) -> anyhow::Result<()> {
         )?;
     }
     if failed.is_empty() {
-        println!(
+        outln!(
             "the budget holds: every scenario's coverage is in its range, and the guard band keeps its risk"
-        );
+        )?;
         Ok(())
     } else {
         Err(anyhow::anyhow!("the budget's coverage is out of its range: {}", failed.join(", ")))
@@ -275,24 +300,18 @@ pub fn run_check(a: &UncertaintyCheck) -> anyhow::Result<()> {
 
 /// Prints a budget (`fit`'s, or the one a fit JSON states): the expanded uncertainty per axis and
 /// each contributor.
-pub fn print_budget(b: &UncertaintyJson) {
+pub fn print_budget(b: &UncertaintyJson) -> anyhow::Result<()> {
     let u = b.u_m_s2;
-    println!(
+    outln!(
         "expanded uncertainty of the calibrated acceleration (k = {}, the largest over the orientations at 1 g): x {:.2e}, y {:.2e}, z {:.2e} m/s²",
         b.k, u[0], u[1], u[2]
-    );
-    println!("  {:<20} {:>4} {:>12} {:>7}  source", "contributor", "type", "u, m/s²", "share");
+    )?;
+    outln!("  {:<20} {:>4} {:>12} {:>7}  source", "contributor", "type", "u, m/s²", "share")?;
     for c in &b.contributors {
-        println!(
-            "  {:<20} {:>4} {:>12.3e} {:>6.1}%  {}",
-            c.name,
-            c.kind,
-            c.u_m_s2,
-            100.0 * c.share,
-            c.source
-        );
+        outln!("  {:<20} {:>4} {:>12.3e} {:>6.1}%  {}", c.name, c.kind, c.u_m_s2, 100.0 * c.share, c.source)?;
     }
     for n in &b.not_included {
-        println!("  not included: {n}");
+        outln!("  not included: {n}")?;
     }
+    Ok(())
 }

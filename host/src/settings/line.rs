@@ -197,7 +197,7 @@ pub fn flash(a: &FlashArgs) -> anyhow::Result<Flash> {
         port: a.port.clone(),
         baud: a.baud,
         cut_after: a.cut_after,
-        store: RunStore::of(&a.run)?,
+        store: RunStore::existing(&a.run, "flash --db")?,
     })
 }
 
@@ -261,7 +261,7 @@ pub fn report(a: &ReportArgs) -> anyhow::Result<Report> {
         as_found: a.as_found.clone(),
         g: a.g,
         out: a.out.clone(),
-        store: RunStore::of(&a.run)?,
+        store: RunStore::existing(&a.run, "report --db")?,
         issuer: Issuer::of(&a.issuer),
     })
 }

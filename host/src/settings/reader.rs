@@ -155,6 +155,9 @@ pub fn void(a: &VoidArgs) -> anyhow::Result<Void> {
     if reason.is_empty() {
         return Err(bad("--reason is empty: say why the run is voided (it is stored with it)"));
     }
+    if let Some(spec) = crate::cmd::store::named_db(a.reader.db.as_deref()) {
+        super::values::existing_db(&spec, "void")?;
+    }
     Ok(Void {
         db: a.reader.db.clone(),
         run,

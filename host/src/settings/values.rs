@@ -28,6 +28,34 @@ impl RunStore {
             anchor_log: a.anchor_log.clone(),
         }))
     }
+
+    /// [`RunStore::of`] for a command that stores into a run the database already holds
+    /// (`flash --db`, `report --db`): a missing SQLite file is refused ([`existing_db`]).
+    pub fn existing(a: &RunArgs, command: &str) -> anyhow::Result<Option<RunStore>> {
+        let store = RunStore::of(a)?;
+        if let Some(s) = &store {
+            existing_db(&s.spec, command)?;
+        }
+        Ok(store)
+    }
+}
+
+/// Refuses a SQLite database file that does not exist, for a command that appends to a database
+/// that must already hold its run (`void`, `flash --db`, `report --db`): opening it for writing
+/// would create an empty one. Checked as the command line is settled, before any I/O; a
+/// PostgreSQL server is the server's to answer. (The readers open with `Db::open_existing`,
+/// which refuses a missing file itself; `fit`, `verify`, `station` and `asset add` may begin a
+/// database.)
+pub fn existing_db(spec: &str, command: &str) -> anyhow::Result<()> {
+    if let accelcal_db::Target::Sqlite(path) = accelcal_db::Target::parse(spec)? {
+        if !path.exists() {
+            return Err(accelcal_core::error::bad(format!(
+                "{}: no such database: {command} appends to an existing database, it does not create one",
+                path.display()
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// How `flash` reaches the MCU.

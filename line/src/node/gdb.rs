@@ -175,7 +175,7 @@ impl GdbClient {
         if a == b"OK" {
             Ok(())
         } else {
-            Err(self.protocol(format!("{what}: answered `{}`", String::from_utf8_lossy(&a))))
+            Err(self.protocol(format!("{what}: answered `{}`", accelcal_core::text::escape_peer(&a))))
         }
     }
 
@@ -190,7 +190,7 @@ impl GdbClient {
                     return Err(self.protocol(format!(
                         "reading {} bytes at {at:#010x}: answered `{}`",
                         chunk.len(),
-                        String::from_utf8_lossy(&a)
+                        accelcal_core::text::escape_peer(&a)
                     )))
                 }
             }
@@ -218,7 +218,7 @@ impl GdbClient {
         if a != b"OK" {
             return Err(self.protocol(format!(
                 "vFlashErase at {addr:#010x}: answered `{}`",
-                String::from_utf8_lossy(&a)
+                accelcal_core::text::escape_peer(&a)
             )));
         }
         for (i, chunk) in data.chunks(CHUNK).enumerate() {
@@ -265,6 +265,9 @@ mod tests {
                     let p = String::from_utf8(buf.clone()).unwrap();
                     let answer = if p == "?" {
                         "S05".to_string()
+                    } else if p.starts_with("mdead0000,") {
+                        // A hostile server: terminal escape sequences instead of memory.
+                        "\x1b]0;pwned\x07\x1b[2J".into()
                     } else if let Some(r) = p.strip_prefix('m') {
                         let (a, n) = r.split_once(',').unwrap();
                         let (a, n) = (
@@ -314,6 +317,10 @@ mod tests {
         assert_eq!(back, data);
         let e = c.read(0x2_0000, &mut [0u8; 4]).unwrap_err().to_string();
         assert!(e.contains("answered `E14`"), "{e}");
+        // What the server sends is shown escaped, never sent to the terminal.
+        let e = c.read(0xdead_0000, &mut [0u8; 4]).unwrap_err().to_string();
+        assert!(e.contains(r"answered `\x1b]0;pwned\x07\x1b[2J`"), "{e}");
+        assert!(!e.contains('\u{1b}') && !e.contains('\u{7}'), "{e}");
         c.detach().unwrap();
         let mem = server.join().unwrap();
         assert_eq!(&mem[0x1000..0x1000 + 1500], &data[..]);

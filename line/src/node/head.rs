@@ -15,6 +15,7 @@
 //! paper's convention (α about the spindle, β the tilt; `accelcal_shared::kinematics`).
 
 use accelcal_core::error::{Classify, Kind};
+use accelcal_core::text::escape_peer;
 use std::io::{BufRead, BufReader, Write};
 use std::net::TcpStream;
 use std::time::{Duration, Instant};
@@ -146,7 +147,7 @@ impl Request {
             },
             _ => Err(format!(
                 "unknown request `{}` (expected MOVE <alpha> <beta>, WHERE, CHAMBER <temp_c> or TEMP)",
-                line.trim()
+                escape_peer(line.trim().as_bytes())
             )),
         }
     }
@@ -165,12 +166,14 @@ impl Reply {
         }
     }
 
-    /// Parses a reply line.
+    /// Parses a reply line. What the head sent is shown escaped in a refusal's words and in an
+    /// `ERR`'s message ([`escape_peer`]): a reply cannot send escape sequences to the terminal.
     pub fn parse(line: &str) -> Result<Reply, String> {
         let line = line.trim();
         if let Some(m) = line.strip_prefix("ERR") {
-            return Ok(Reply::Err(m.trim().to_string()));
+            return Ok(Reply::Err(escape_peer(m.trim().as_bytes())));
         }
+        let shown = escape_peer(line.as_bytes());
         let mut words = line.split_whitespace();
         match words.next() {
             Some("OK") => {
@@ -180,7 +183,7 @@ impl Reply {
             Some("TEMP") => {
                 match words.next().and_then(|w| w.parse::<f64>().ok()).filter(|v| v.is_finite()) {
                     Some(setpoint_c) => Ok(Reply::Temp { setpoint_c }),
-                    None => Err(format!("`{line}`: expected TEMP <setpoint_c>")),
+                    None => Err(format!("`{shown}`: expected TEMP <setpoint_c>")),
                 }
             }
             Some("AT") => {
@@ -188,12 +191,12 @@ impl Reply {
                 let moving = match rest.get(2) {
                     Some(&"MOVING") => true,
                     Some(&"STILL") => false,
-                    _ => return Err(format!("`{line}`: expected AT <alpha> <beta> MOVING|STILL")),
+                    _ => return Err(format!("`{shown}`: expected AT <alpha> <beta> MOVING|STILL")),
                 };
                 let (alpha_deg, beta_deg) = angles(rest.into_iter(), "AT")?;
                 Ok(Reply::At { alpha_deg, beta_deg, moving })
             }
-            _ => Err(format!("unexpected reply `{line}` from the head")),
+            _ => Err(format!("unexpected reply `{shown}` from the head")),
         }
     }
 }
@@ -303,7 +306,13 @@ impl SimHead {
                 });
             }
         }
-        match Reply::parse(&String::from_utf8_lossy(&line)) {
+        let Ok(text) = std::str::from_utf8(&line) else {
+            return Err(HeadError::Protocol {
+                addr,
+                message: format!("a reply that is not UTF-8 text: `{}`", escape_peer(line.trim_ascii())),
+            });
+        };
+        match Reply::parse(text) {
             Ok(Reply::Err(message)) => {
                 Err(HeadError::Protocol { addr, message: format!("refused: {message}") })
             }
@@ -370,6 +379,37 @@ mod tests {
         assert_eq!("sim:127.0.0.1:4000".parse::<HeadSpec>(), Ok(HeadSpec::Sim("127.0.0.1:4000".into())));
         assert!("sim:nowhere".parse::<HeadSpec>().is_err());
         assert!("auto".parse::<HeadSpec>().is_err());
+    }
+
+    /// A hostile head: its replies (a terminal title and a screen clear, an `ERR` with a bidi
+    /// override, bytes that are not UTF-8) are shown escaped in the error, never sent raw to the
+    /// operator's terminal (issue 55).
+    #[test]
+    fn a_head_s_reply_is_shown_escaped() {
+        let replies: [&[u8]; 3] =
+            [b"\x1b]0;pwned\x07\x1b[2J\n", "ERR no\u{202e}gnirts\x1b[31m\n".as_bytes(), b"OK \xff\x1b[2J\n"];
+        let wants = [
+            r"unexpected reply `\x1b]0;pwned\x07\x1b[2J` from the head",
+            r"refused: no\u{202e}gnirts\x1b[31m",
+            r"a reply that is not UTF-8 text: `OK \xff\x1b[2J`",
+        ];
+        let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        let addr = listener.local_addr().unwrap().to_string();
+        let server = std::thread::spawn(move || {
+            for reply in replies {
+                let (mut s, _) = listener.accept().unwrap();
+                let mut line = String::new();
+                BufReader::new(s.try_clone().unwrap()).read_line(&mut line).unwrap();
+                s.write_all(reply).unwrap();
+            }
+        });
+        for want in wants {
+            let mut head = SimHead::connect(&addr, Duration::from_secs(5)).unwrap();
+            let e = head.move_to(30.0, -90.0).unwrap_err().to_string();
+            assert_eq!(e, format!("head {addr}: {want}"));
+            assert!(!e.contains(['\u{1b}', '\u{7}', '\u{202e}']), "{e}");
+        }
+        server.join().unwrap();
     }
 
     /// A head that takes the connection and never answers, and one whose reply trickles in a byte

@@ -287,7 +287,10 @@ impl Qemu {
         match self.child.try_wait() {
             Ok(Some(status)) => Some(QemuError::Exited {
                 status,
-                stderr: std::fs::read_to_string(&self.stderr_path).unwrap_or_default(),
+                // The node's own words (its panic message): shown escaped, on the error's line.
+                stderr: accelcal_core::text::escape_peer(
+                    std::fs::read(&self.stderr_path).unwrap_or_default().trim_ascii(),
+                ),
             }),
             _ => None,
         }

@@ -35,11 +35,11 @@ impl Station<'_> {
         let serial = self.u.serial.clone();
         let info = self.info()?;
         if self.ended {
-            println!(
+            outln!(
                 "station: check standard {serial}: finished before (run {} in {}); nothing to do",
                 self.run_id()?,
                 self.db.target()
-            );
+            )?;
             return Ok(());
         }
         if info.record.is_none() {
@@ -71,7 +71,7 @@ impl Station<'_> {
         self.db.finish_run(run, outcome, &judgement.reason(n))?;
         crash_point("db:end");
         if let Judgement::OutOfControl(why) = judgement {
-            println!("station: check standard {serial} on {station}: OUT OF CONTROL ({values})");
+            outln!("station: check standard {serial} on {station}: OUT OF CONTROL ({values})")?;
             return Err(StationError::OutOfControl {
                 station: station.to_string(),
                 serial,
@@ -80,10 +80,10 @@ impl Station<'_> {
             .into());
         }
         let state = judgement.words(n);
-        println!(
+        outln!(
             "station: check standard {serial} on {station}: {state} ({values}); run {run} in {}",
             self.db.target()
-        );
+        )?;
         Ok(())
     }
 }

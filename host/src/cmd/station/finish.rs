@@ -23,7 +23,7 @@ impl Station<'_> {
         let run = self.run_id()?;
         self.db.finish_run(run, Outcome::Pass, PASS_REASON)?;
         crash_point("db:end");
-        println!(
+        outln!(
             "station: unit {} (device {}) PASS{}; certificate {}; journal {}; run {run} stored in {}",
             self.u.serial,
             self.journal.device_id.as_deref().unwrap_or("?"),
@@ -31,7 +31,7 @@ impl Station<'_> {
             self.p(CERTIFICATE),
             self.p(JOURNAL),
             self.db.target()
-        );
+        )?;
         Ok(())
     }
 
@@ -108,13 +108,13 @@ impl Station<'_> {
                 )));
             }
         }
-        println!(
+        outln!(
             "station: unit {} (device {}) PASS, finished before (run {} in {}); nothing to do",
             self.u.serial,
             self.journal.device_id.as_deref().unwrap_or("?"),
             self.run_id()?,
             self.db.target()
-        );
+        )?;
         Ok(())
     }
 }

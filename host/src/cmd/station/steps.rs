@@ -56,7 +56,7 @@ impl Station<'_> {
         };
         let Ok(crc) = u32::from_str_radix(crc, 16) else { return Ok(None) };
         let Some(json) = self.db.fit_of_record(&device, crc)? else {
-            eprintln!(
+            errln!(
                 "station: {}the record in force (CRC {crc:08x}) is not in {}: the as-found tolerance comes from the measured scatter alone",
                 self.tag,
                 self.db.target()
@@ -65,7 +65,7 @@ impl Station<'_> {
         };
         let path = self.path(AS_FOUND_FIT);
         accelcal_core::output::write_atomic(&path, json.as_bytes())?;
-        eprintln!(
+        errln!(
             "station: {}the fit of the record in force (CRC {crc:08x}) from {}: {}",
             self.tag,
             self.db.target(),
