@@ -11,6 +11,7 @@ pub mod head;
 pub mod hil;
 pub mod link;
 pub mod monitor;
+pub mod port;
 pub mod qemu;
 pub mod session;
 

@@ -76,9 +76,7 @@ pub fn monitor(
         wire::check_rate(hz).map_err(|r| accelcal_core::error::bad(format!("--rate-hz: {r}")))?;
     }
     // Reads time out every POLL: the receiver checks its deadline between them.
-    let port = serialport::new(port_name, baud)
-        .timeout(super::session::POLL)
-        .open()
+    let port = super::port::open(port_name, baud, super::session::POLL, super::port::LOCK_WAIT)
         .map_err(|e| accelcal_core::error::bad(format!("{port_name}: cannot open serial port: {e}")))?;
     let rx: Receiver<Box<dyn std::io::Read + Send>> = match rate {
         Some(hz) => {

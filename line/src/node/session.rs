@@ -116,7 +116,7 @@ impl Session {
     /// `answer` for their reply.
     pub fn open(port: &str, baud: u32, answer: Duration) -> Result<Session, SessionError> {
         let open = |cause| SessionError::Open { port: port.to_string(), cause };
-        let p = serialport::new(port, baud).timeout(POLL).open().map_err(open)?;
+        let p = super::port::open(port, baud, POLL, super::port::LOCK_WAIT).map_err(open)?;
         let tx = p.try_clone().map_err(open)?;
         Ok(Session::from_streams(port, Box::new(tx), Box::new(p), answer))
     }
