@@ -325,6 +325,13 @@ impl Db {
         Ok(latest)
     }
 
+    /// Whether asset `id`'s register rows match their hash chain: `None`, else the first row that
+    /// does not, in words (a reader lists such an asset as tampered, never as in force).
+    pub fn asset_tampered(&mut self, id: &str) -> Result<Option<String>, DbError> {
+        let bad = self.conn.reading(|tx| chain::verify_asset(tx, id))?;
+        Ok(bad.first().map(|m| format!("its register rows do not match their hash chain: {m}")))
+    }
+
     /// Every certificate of asset `id`, oldest first ([`AssetError::Unknown`] when it has none).
     /// Its register rows are checked against their hash chain first
     /// ([`DbError::AssetTampered`]): a forged certificate, due date or uncertainty is never used.

@@ -511,32 +511,52 @@ fn check_rows(
         };
         for row in rows {
             n += 1;
-            let piece = piece_key(t.name, &row)?;
-            let m = |seq: i64, what: String| Mismatch {
-                seq,
-                run_id: run.to_string(),
-                piece: piece.clone(),
-                what,
-            };
-            let Some(e) = by_piece.get(&piece) else {
-                out.push(m(0, "it has no ledger entry (written behind accelcal's back)".into()));
-                continue;
-            };
-            seen.insert(piece.clone());
-            if row_digest(t, &row) != e.row {
-                out.push(m(
-                    e.seq,
-                    "it is not the row that was stored (its digest differs from its ledger entry's)".into(),
-                ));
-            } else {
-                match content_mismatch(t, &row) {
-                    Ok(Some(why)) => out.push(m(e.seq, why)),
-                    Ok(None) => {}
-                    Err(err) => out.push(m(e.seq, format!("a cell does not read as its type: {err}"))),
-                }
-            }
+            check_row(t, &row, run, by_piece, &mut seen, out)?;
         }
     }
+    gone(run, by_piece, &seen, out);
+    Ok(n)
+}
+
+/// Checks one row of `t` against its entry in `by_piece` (and notes the entry `seen`): an entry,
+/// the same digest, and a `content_sha256` that is the hash of what the row holds.
+fn check_row(
+    t: &Table,
+    row: &[Val],
+    run: &str,
+    by_piece: &std::collections::HashMap<String, Entry>,
+    seen: &mut std::collections::HashSet<String>,
+    out: &mut Vec<Mismatch>,
+) -> Result<(), DbError> {
+    let piece = piece_key(t.name, row)?;
+    let m = |seq: i64, what: String| Mismatch { seq, run_id: run.to_string(), piece: piece.clone(), what };
+    let Some(e) = by_piece.get(&piece) else {
+        out.push(m(0, "it has no ledger entry (written behind accelcal's back)".into()));
+        return Ok(());
+    };
+    seen.insert(piece.clone());
+    if row_digest(t, row) != e.row {
+        out.push(m(
+            e.seq,
+            "it is not the row that was stored (its digest differs from its ledger entry's)".into(),
+        ));
+        return Ok(());
+    }
+    match content_mismatch(t, row) {
+        Ok(Some(why)) => out.push(m(e.seq, why)),
+        Ok(None) => {}
+        Err(err) => out.push(m(e.seq, format!("a cell does not read as its type: {err}"))),
+    }
+    Ok(())
+}
+
+/// The entries of `by_piece` whose row was not seen: the row is gone.
+fn gone(
+    run: &str,
+    by_piece: &std::collections::HashMap<String, Entry>,
+    seen: &std::collections::HashSet<String>,
+    out: &mut Vec<Mismatch>,
+) {
     for (piece, e) in by_piece {
         if !seen.contains(piece) {
             out.push(Mismatch {
@@ -547,7 +567,6 @@ fn check_rows(
             });
         }
     }
-    Ok(n)
 }
 
 /// Why a row's `content_sha256` is not the hash of what it holds, if it is not.
@@ -736,32 +755,9 @@ pub fn verify_asset(tx: &mut Tx<'_>, id: &str) -> Result<Vec<Mismatch>, DbError>
     )?;
     let mut seen = std::collections::HashSet::new();
     for row in rows {
-        let piece = piece_key(t.name, &row)?;
-        let m = |seq: i64, what: String| Mismatch { seq, run_id: String::new(), piece: piece.clone(), what };
-        let Some(e) = by_piece.get(&piece) else {
-            out.push(m(0, "it has no ledger entry (written behind accelcal's back)".into()));
-            continue;
-        };
-        seen.insert(piece.clone());
-        if row_digest(t, &row) != e.row {
-            out.push(m(
-                e.seq,
-                "it is not the row that was stored (its digest differs from its ledger entry's)".into(),
-            ));
-        } else if let Some(why) = content_mismatch(t, &row)? {
-            out.push(m(e.seq, why));
-        }
+        check_row(t, &row, "", &by_piece, &mut seen, &mut out)?;
     }
-    for (piece, e) in &by_piece {
-        if !seen.contains(piece) {
-            out.push(Mismatch {
-                seq: e.seq,
-                run_id: String::new(),
-                piece: piece.clone(),
-                what: "its row is gone".into(),
-            });
-        }
-    }
+    gone("", &by_piece, &seen, &mut out);
     first_first(&mut out);
     Ok(out)
 }

@@ -213,6 +213,9 @@ pub fn a_forged_asset_is_refused(spec: &str, postgres: bool, exec: Exec<'_>) {
         assert!(e.to_string().contains("append-only: asset rows are never replaced"), "{e}");
     }
     exec(&sql);
+    let (code, out, err) = accelcal(&["asset", "list", "--db", spec]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(out.contains("TAMPERED, not usable"), "the register lists the forged asset as such: {out}");
     let mut db = Db::open(spec).unwrap();
     let e = db.asset_certificates("HEAD-1").unwrap_err();
     assert!(matches!(e, DbError::AssetTampered { .. }), "{e}");

@@ -94,6 +94,9 @@ struct AssetJson {
     #[serde(flatten)]
     asset: Asset,
     overdue: bool,
+    /// Why its register rows are not the ones stored, when they are not.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    tampered: Option<String>,
 }
 
 fn list(a: &settings::Listing) -> anyhow::Result<()> {
@@ -113,26 +116,37 @@ fn list(a: &settings::Listing) -> anyhow::Result<()> {
             "orth. u\""
         )?;
     }
+    // An asset whose register rows do not match their chain is never listed as in force.
+    let mut tampered = Vec::with_capacity(assets.len());
     for x in &assets {
+        tampered.push(db.asset_tampered(&x.asset_id)?);
+    }
+    for (x, forged) in assets.iter().zip(&tampered) {
         let head = x.kind == AssetKind::Head;
         let u = |v: f64| if head { format!("{v}") } else { "-".into() };
+        let state =
+            if forged.is_some() { "TAMPERED, not usable".to_string() } else { status(x.due_date, today) };
         outln!(
             "  {:<16} {:<12} {:<20} {:<11} {:<26} {:>9} {:>9}",
             x.asset_id,
             x.kind.name(),
             x.certificate,
             x.due_date.to_string(),
-            status(x.due_date, today),
+            state,
             u(x.angle_u_arcsec),
             u(x.orthogonality_u_arcsec)
         )?;
+        if let Some(why) = forged {
+            outln!("    {}: {why}", x.asset_id)?;
+        }
     }
     if let Some(j) = &a.json {
         let doc = ListJson {
             today,
             assets: assets
                 .into_iter()
-                .map(|asset| AssetJson { overdue: today > asset.due_date, asset })
+                .zip(tampered)
+                .map(|(asset, tampered)| AssetJson { overdue: today > asset.due_date, asset, tampered })
                 .collect(),
         };
         write_json(j, &doc).with_context(|| format!("writing {}", j.display()))?;
