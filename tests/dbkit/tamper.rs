@@ -78,7 +78,16 @@ pub fn laundering_is_reported_and_no_reader_writes(spec: &str, postgres: bool, e
         out.contains("TAMPERED, not used: its rows do not match their hash chain"),
         "history: {out}{err}"
     );
+    let (_, code, out, err) = &outputs[2];
+    assert_eq!(*code, Some(0), "{err}");
+    assert!(
+        out.contains(
+            "WARNING: the database's hash chain is broken (the ledger is empty and the database holds runs)"
+        ),
+        "fleet: {out}"
+    );
     assert_eq!(pages[0].0, 200, "the overview still answers: {}", pages[0].1);
+    assert!(pages[0].1.contains("hash chain is broken"), "the overview says so: {}", pages[0].1);
     assert_eq!(pages[1].0, 409, "serve's certificate route: {}", pages[1].1);
     assert!(pages[1].1.contains("do not match their hash chain"), "{}", pages[1].1);
     assert_eq!(pages[2].0, 200, "{}", pages[2].1);

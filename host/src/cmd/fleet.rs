@@ -40,6 +40,8 @@ struct FleetJson<'a> {
     /// Each station's check standard (`station --check-standard`): its state and charts, over
     /// all its checks (the limits need the first 20), whatever the period.
     check_standards: &'a [accelcal_db::check::CheckStandard],
+    /// `null`, or why the database's hash chain is broken: the numbers may be forged.
+    chain_broken: Option<&'a str>,
     runs: &'a [FleetRun],
 }
 
@@ -182,6 +184,9 @@ pub(crate) struct FleetData {
     pub heads: Vec<HeadJson>,
     pub charts: Vec<Chart>,
     pub check_standards: Vec<accelcal_db::check::CheckStandard>,
+    /// `Some`: the ledger's shape says rows were written or removed behind accelcal's back
+    /// (`Db::chain_broken`): every number here may be forged.
+    pub chain_broken: Option<String>,
 }
 
 impl FleetData {
@@ -264,6 +269,7 @@ pub(crate) fn gather(db: &mut Db, filter: &Filter, due_by: Date, parts: Parts) -
             Parts::Table | Parts::Overview => Vec::new(),
         };
         let check_standards = db.check_standards(filter.station.as_deref())?;
+        let chain_broken = db.chain_broken()?;
         let pops = match p {
             Some(p) => p.join().map_err(|_| joined("the populations"))??,
             None => Vec::new(),
@@ -283,6 +289,7 @@ pub(crate) fn gather(db: &mut Db, filter: &Filter, due_by: Date, parts: Parts) -
             heads,
             charts,
             check_standards,
+            chain_broken,
         })
     })
 }
@@ -328,6 +335,9 @@ pub fn run(a: &Fleet) -> anyhow::Result<()> {
         counts.runs,
         counts.units
     )?;
+    if let Some(why) = &data.chain_broken {
+        outln!("  WARNING: the database's hash chain is broken ({why}): these numbers may be forged; `accelcal db verify` lists what does not match")?;
+    }
     outln!(
         "  runs: {} pass, {} rejected, {} unfinished, {} voided",
         counts.passed,
@@ -488,6 +498,7 @@ pub fn run(a: &Fleet) -> anyhow::Result<()> {
                 heads,
                 charts,
                 check_standards,
+                chain_broken: data.chain_broken.as_deref(),
                 runs,
             },
         )?;

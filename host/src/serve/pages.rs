@@ -225,6 +225,8 @@ struct OverviewPage<'a> {
     due_by: String,
     due: Vec<DueRow>,
     today_runs: Vec<RunRow>,
+    /// Why the database's hash chain is broken, when it is (`FleetData::chain_broken`).
+    chain_broken: Option<String>,
 }
 
 /// `/`: today's units, the last 30 days' yield, stations, assets and units due.
@@ -293,6 +295,7 @@ pub(super) fn overview(db: &mut Db, app: &App) -> Result<String, PageError> {
         due_by: data.due_by.to_string(),
         due,
         today_runs: day_runs.iter().map(RunRow::from).collect(),
+        chain_broken: data.chain_broken.clone(),
     };
     page.render().map_err(PageError::internal)
 }
