@@ -358,12 +358,10 @@ impl Conn {
                     "it is at schema version {v}, newer than this build's {want}: use a later accelcal"
                 ),
             }),
-            have => Err(DbError::NeedsMigration {
+            None => Err(DbError::NotCreated { target }),
+            Some(v) => Err(DbError::NeedsMigration {
                 target,
-                why: match have {
-                    None => format!("it has no accelcal schema (this build reads version {want})"),
-                    Some(v) => format!("it is at schema version {v}, this build reads version {want}"),
-                },
+                why: format!("it is at schema version {v}, this build reads version {want}"),
             }),
         }
     }

@@ -24,6 +24,13 @@ pub enum DbError {
         /// The path given.
         path: PathBuf,
     },
+    /// A reader was given a database that holds no accelcal schema yet (a new PostgreSQL
+    /// database, an empty file): like [`DbError::NoDatabase`], nothing was stored there.
+    #[error("database {target}: it holds no calibration yet (its tables are created by the first command that stores into it)")]
+    NotCreated {
+        /// The target, password hidden.
+        target: String,
+    },
     /// The database cannot be opened or reached.
     #[error("database {target} cannot be reached: {cause}")]
     Unreachable {
@@ -178,6 +185,7 @@ impl Classify for DbError {
         match self {
             DbError::BadTarget { .. }
             | DbError::NoDatabase { .. }
+            | DbError::NotCreated { .. }
             | DbError::NoRun { .. }
             | DbError::Conflict { .. }
             | DbError::Mismatch { .. }

@@ -276,6 +276,7 @@ mod tests {
             (e(IdentityError::Campaign(CampaignError::File { path: p(), msg: "m".into() })), BadInput),
             (e(DbError::BadTarget { spec: "x".into(), why: "m".into() }), BadInput),
             (e(DbError::NoDatabase { path: p() }), BadInput),
+            (e(DbError::NotCreated { target: "postgres://line@db/new".into() }), BadInput),
             (e(DbError::Unreachable { target: "t".into(), cause: "m".into() }), Environment),
             (e(DbError::Migration { cause: "m".into() }), Environment),
             (e(DbError::Engine { cause: "m".into() }), Environment),

@@ -642,10 +642,13 @@ fn time_summary(stations: &[Station<'_>], wall: f64) -> String {
 /// exceeds the certificate's angle uncertainty (arcsec; `fit --head-asset` takes it the same way).
 fn head_in_force(db_spec: &str, id: &str) -> anyhow::Result<(Asset, Option<f64>)> {
     let mut db = match Db::open_existing(db_spec) {
-        Err(DbError::NoDatabase { path }) => {
+        Err(DbError::NoDatabase { .. } | DbError::NotCreated { .. }) => {
             return Err(DbError::Asset(AssetError::Unknown {
                 asset_id: id.into(),
-                target: format!("{} (no database there yet)", path.display()),
+                target: format!(
+                    "{} (no calibration there yet)",
+                    accelcal_db::Target::parse(db_spec).map(|t| t.display()).unwrap_or_default()
+                ),
             })
             .into())
         }

@@ -11,7 +11,7 @@ use super::*;
 /// station without checks, or without a database yet, is not refused.
 pub(super) fn refuse_out_of_control(db_spec: &str, station: &str) -> anyhow::Result<()> {
     let mut db = match Db::open_existing(db_spec) {
-        Err(DbError::NoDatabase { .. }) => return Ok(()),
+        Err(DbError::NoDatabase { .. } | DbError::NotCreated { .. }) => return Ok(()),
         r => r?,
     };
     let checks = db.check_runs(station)?;
