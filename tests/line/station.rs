@@ -392,7 +392,13 @@ fn an_as_found_drift_is_decided_against_the_specification() {
             .iter()
             .map(|p| p["error_m_s2"][0].as_f64().unwrap())
             .collect();
-        assert!(x_errors.iter().all(|e| (e - shift_m_s2).abs() < 0.01), "{x_errors:?}");
+        // The shift is seen: the mean over the six positions within 10 mm/s² of it (the smallest
+        // shift is 25 mm/s²), each position within 25 mm/s². One clean-clone CI run measured 29 to
+        // 45 mm/s² for the 35 mm/s² shift (a standard deviation of about 5 mm/s² over the six
+        // positions): a bound of 10 mm/s² on each of the 18 positions failed there.
+        let mean = x_errors.iter().sum::<f64>() / x_errors.len() as f64;
+        assert!((mean - shift_m_s2).abs() < 0.01, "mean {mean} of {x_errors:?}");
+        assert!(x_errors.iter().all(|e| (e - shift_m_s2).abs() < 0.025), "{x_errors:?}");
         let cert = std::fs::read_to_string(d.join("certificate.html")).unwrap();
         let as_found_step = &journal(&d)[1].1;
         if let Some(why) = out_of_tolerance {
