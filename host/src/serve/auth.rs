@@ -23,36 +23,13 @@ use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
 use base64::Engine as _;
 
-use super::escape::hidden;
-use crate::settings::reader::AddUser;
+use crate::settings::reader::{refused_name, AddUser};
 
 /// Password checks running at once, at most (the rest wait their turn).
 pub const CHECKS: usize = 2;
 
 /// The realm the browser's login dialog names.
 const CHALLENGE: &str = "Basic realm=\"accelcal\", charset=\"UTF-8\"";
-
-/// Why a user's name cannot be one: `None` when it can.
-pub fn refused_name(name: &str) -> Option<String> {
-    if name.is_empty() {
-        return Some("a user's name cannot be empty".into());
-    }
-    if let Some(c) = name.chars().find(|&c| hidden(c)) {
-        return Some(format!(
-            "the user name {name:?} holds a control or format character (U+{:04X}): a name is plain text",
-            u32::from(c)
-        ));
-    }
-    if name.contains(':') {
-        return Some(format!(
-            "the user name {name:?} holds a `:`, which HTTP Basic authentication cannot send"
-        ));
-    }
-    if name.trim() != name {
-        return Some(format!("the user name {name:?} begins or ends with white space"));
-    }
-    None
-}
 
 /// The users of a `--users` file: each name with its hash.
 pub struct Users {

@@ -224,7 +224,7 @@ pub fn serve(a: &ServeArgs) -> anyhow::Result<Serve> {
 /// `accelcal serve-user add`, settled.
 #[derive(Clone, Debug, PartialEq)]
 pub struct AddUser {
-    /// The user's name (plain text without `:`: `serve::auth::refused_name`).
+    /// The user's name (plain text without `:`: [`refused_name`]).
     pub name: String,
     /// `--file`: the users file, written or updated.
     pub file: PathBuf,
@@ -234,7 +234,7 @@ pub struct AddUser {
 
 /// `serve-user add`'s settings from its command line.
 pub fn add_user(a: &ServeUserAddArgs) -> anyhow::Result<AddUser> {
-    if let Some(why) = crate::serve::auth::refused_name(&a.name) {
+    if let Some(why) = refused_name(&a.name) {
         return Err(bad(why));
     }
     if a.password_file.as_ref() == Some(&a.file) {
@@ -298,6 +298,32 @@ fn not_the_db(db: Option<&str>, out: &std::path::Path, what: &str) -> anyhow::Re
         }
     }
     Ok(())
+}
+
+/// Why a user's name (`serve-user add`, a `--users` file) cannot be one: `None` when it can.
+/// Here, with the settings, so that the command line is checked before any I/O and `serve`'s
+/// users file is read by the same rule.
+pub fn refused_name(name: &str) -> Option<String> {
+    if name.is_empty() {
+        return Some("a user's name cannot be empty".into());
+    }
+    if let Some(c) = name.chars().find(|&c| {
+        c.is_control() || accelcal_core::text::is_format(c) || matches!(c, '\u{2028}' | '\u{2029}')
+    }) {
+        return Some(format!(
+            "the user name {name:?} holds a control or format character (U+{:04X}): a name is plain text",
+            u32::from(c)
+        ));
+    }
+    if name.contains(':') {
+        return Some(format!(
+            "the user name {name:?} holds a `:`, which HTTP Basic authentication cannot send"
+        ));
+    }
+    if name.trim() != name {
+        return Some(format!("the user name {name:?} begins or ends with white space"));
+    }
+    None
 }
 
 #[cfg(test)]
