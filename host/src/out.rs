@@ -82,18 +82,13 @@ mod tests {
             if path.components().any(|c| c.as_os_str() == "serve") {
                 continue;
             }
-            let code = text.split("#[cfg(test)]").next().unwrap();
-            for (i, l) in code.lines().enumerate() {
-                let t = l.trim_start();
-                if t.starts_with("//") {
-                    continue;
-                }
+            for (n, t) in crate::sources::code_lines(&text) {
                 for m in ["println!(", "print!(", "eprintln!(", "eprint!("] {
-                    let hit = l
+                    let hit = t
                         .match_indices(m)
-                        .any(|(at, _)| !l[..at].ends_with(|c: char| c.is_alphanumeric() || c == '_'));
+                        .any(|(at, _)| !t[..at].ends_with(|c: char| c.is_alphanumeric() || c == '_'));
                     if hit {
-                        found.push(format!("{}:{}: {}", path.display(), i + 1, t));
+                        found.push(format!("{}:{n}: {t}", path.display()));
                     }
                 }
             }

@@ -1,5 +1,5 @@
 //! The libraries' source files, for the tests that read them (`exit`'s registry of error types,
-//! `words`' check that the core spells no flag).
+//! `words`' check that the core spells no flag, `out`'s that the binary prints only through it).
 
 use std::path::PathBuf;
 
@@ -20,4 +20,11 @@ pub fn library_sources(crates: &[&str]) -> Vec<(PathBuf, String)> {
         }
     }
     out
+}
+
+/// The lines of code of a source file, numbered from 1 and trimmed at the start: before its unit
+/// tests (which sit at the end, after `#[cfg(test)]`), comment lines left out.
+pub fn code_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
+    let code = text.split("#[cfg(test)]").next().unwrap_or_default();
+    code.lines().enumerate().map(|(i, l)| (i + 1, l.trim_start())).filter(|(_, t)| !t.starts_with("//"))
 }

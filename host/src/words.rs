@@ -74,19 +74,13 @@ mod tests {
             if path.ends_with("tests.rs") {
                 continue;
             }
-            // Unit tests sit at the end of a file, after `#[cfg(test)]`.
-            let code = text.split("#[cfg(test)]").next().unwrap();
-            for (i, l) in code.lines().enumerate() {
-                let t = l.trim_start();
-                if t.starts_with("//") {
-                    continue;
-                }
+            for (n, t) in crate::sources::code_lines(&text) {
                 let flag = t.match_indices("--").any(|(at, _)| {
                     t[at + 2..].starts_with(|c: char| c.is_ascii_lowercase())
                         && !t[..at].ends_with(|c: char| c.is_ascii_alphanumeric())
                 });
                 if flag {
-                    found.push(format!("{}:{}: {t}", path.display(), i + 1));
+                    found.push(format!("{}:{n}: {t}", path.display()));
                 }
             }
         }
