@@ -77,7 +77,7 @@ registry!(
     accelcal_line::emulate::frontend::FrontendError,
     accelcal_line::node::flash::FlashError,
     accelcal_line::node::gdb::GdbError,
-    accelcal_line::node::head::HeadError,
+    accelcal_line::head::HeadError,
     accelcal_line::node::hil::HilError,
     accelcal_line::node::link::LinkError,
     accelcal_line::node::qemu::QemuError,
@@ -163,7 +163,7 @@ mod tests {
         use accelcal_line::emulate::head::HeadServerError;
         use accelcal_line::node::flash::FlashError;
         use accelcal_line::node::gdb::GdbError;
-        use accelcal_line::node::head::HeadError;
+        use accelcal_line::head::HeadError;
         use accelcal_line::node::hil::HilError;
         use accelcal_line::node::link::LinkError;
         use accelcal_line::node::qemu::QemuError;

@@ -440,8 +440,8 @@ fn once_each(option: &str, given: usize, n: usize, per: &str, optional: bool) ->
 }
 
 /// `--head-timeout-s` is for an emulated head only.
-fn refuse_head_timeout(given: &Given, head: &accelcal_line::node::head::HeadSpec) -> anyhow::Result<()> {
-    if *head == accelcal_line::node::head::HeadSpec::Manual {
+fn refuse_head_timeout(given: &Given, head: &accelcal_line::head::HeadSpec) -> anyhow::Result<()> {
+    if *head == accelcal_line::head::HeadSpec::Manual {
         given.refuse(&["head_timeout_s"], "--head manual", " (the operator turns the head)")?;
     }
     Ok(())

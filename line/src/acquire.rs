@@ -29,7 +29,7 @@ use std::time::{Duration, Instant};
 
 use accelcal_shared::wire::{Block, Codes, Output};
 
-use crate::node::head::SimHead;
+use crate::head::Positioner;
 use crate::node::session::Session;
 use accelcal_core::error::{bad, environment};
 use accelcal_core::sim::Plan;
@@ -163,23 +163,6 @@ impl SettleDetector {
     }
 }
 
-/// What sets the head to a position.
-pub trait Positioner {
-    /// Sets the head to position `k` (0-based) of `n`, `(alpha_deg, beta_deg)`; `expected` is the
-    /// acceleration the unit should read there, m/s² (g times the paper's kinematics). Returns once
-    /// the head stands there (an operator confirmed it, or the emulated head arrived).
-    fn set(&mut self, k: usize, n: usize, angles: (f64, f64), expected: [f64; 3]) -> anyhow::Result<()>;
-
-    /// Position `k` was refused: it did not become static in time, or its reading did not move as
-    /// the plan says (`why` says which, and by how much); true to try it again (the head is set
-    /// again), false to stop with an error naming the position. A positioner that waits for an
-    /// operator returns at once when a stop was requested (the caller checks its stop flag).
-    fn retry(&mut self, k: usize, why: &str) -> anyhow::Result<bool>;
-
-    /// Sets the rig's thermal chamber to `setpoint_c` (°C); the caller then waits its soak time.
-    fn chamber(&mut self, setpoint_c: f64) -> anyhow::Result<()>;
-}
-
 /// A thermal acquisition's chamber: the plan is run once at each setpoint, after a soak.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Chamber {
@@ -229,20 +212,6 @@ fn soak_nodes(
         }
     }
     Ok(true)
-}
-
-/// The emulated head as a [`Positioner`]: moves and never retries.
-impl Positioner for SimHead {
-    fn set(&mut self, _k: usize, _n: usize, (a, b): (f64, f64), _expected: [f64; 3]) -> anyhow::Result<()> {
-        Ok(self.move_to(a, b)?)
-    }
-    fn retry(&mut self, _k: usize, _why: &str) -> anyhow::Result<bool> {
-        Ok(false)
-    }
-    fn chamber(&mut self, setpoint_c: f64) -> anyhow::Result<()> {
-        self.set_chamber(setpoint_c)?;
-        Ok(())
-    }
 }
 
 /// Settings of an acquisition (checked by the caller before any I/O).

@@ -12,6 +12,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
 pub mod acquire;
 pub mod emulate;
+pub mod head;
 pub mod node;
 pub mod station;
 pub mod verify;

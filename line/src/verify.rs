@@ -26,7 +26,8 @@ use accelcal_shared::terms::Term;
 use accelcal_shared::wire::{Block, Output, RecordStatus};
 use serde::Serialize;
 
-use crate::acquire::{block_kind, capture, Captured, Positioner, StaticRule};
+use crate::acquire::{block_kind, capture, Captured, StaticRule};
+use crate::head::{Positioner, Target};
 use crate::node::session::{device_id_hex, record_json, Session};
 use accelcal_core::campaign::identity::{self, Identity};
 use accelcal_core::conformity::{
@@ -574,7 +575,7 @@ fn run(
     for (k, &(a, b)) in cfg.plan.positions.iter().enumerate() {
         let expected = accelcal_shared::gravity(a, b, cfg.g);
         let cap = loop {
-            head.set(k, n, (a, b), expected)?;
+            head.set(&Target { k, n, angles: (a, b).into(), expected_m_s2: expected })?;
             match capture(node, cfg.rule, cfg.settle_timeout, cfg.samples, stop, calibrated_values)? {
                 Captured::Done(c) => break c,
                 Captured::Stopped => {

@@ -212,7 +212,7 @@ pub struct AcquireArgs {
     /// The head: `manual` (the command shows each position's angles and what the unit should
     /// read, and waits for Enter) or `sim:HOST:PORT` (the emulated head `accelcal emulate` prints).
     #[arg(long, value_name = "HEAD")]
-    pub head: accelcal_line::node::head::HeadSpec,
+    pub head: accelcal_line::head::HeadSpec,
     /// Seconds an emulated head (`--head sim:…`) may take to answer a request before the command
     /// fails; a move is answered once the head stands still, so this bounds the longest move.
     #[arg(long, default_value_t = 120.0, value_name = "S", value_parser = Real(Range::Seconds))]
@@ -279,7 +279,7 @@ pub struct VerifyArgs {
     pub link: PortArgs,
     /// The head: `manual` or `sim:HOST:PORT` (as for `acquire`).
     #[arg(long, value_name = "HEAD")]
-    pub head: accelcal_line::node::head::HeadSpec,
+    pub head: accelcal_line::head::HeadSpec,
     /// Seconds an emulated head (`--head sim:…`) may take to answer a request before the command
     /// fails; a move is answered once the head stands still, so this bounds the longest move.
     #[arg(long, default_value_t = 120.0, value_name = "S", value_parser = Real(Range::Seconds))]
@@ -557,5 +557,5 @@ pub enum PhaseArg {
 
 /// A `--head` value, checked and kept as written (the station passes it on to each step).
 fn parse_head_text(s: &str) -> Result<String, String> {
-    s.parse::<accelcal_line::node::head::HeadSpec>().map(|_| s.to_string())
+    s.parse::<accelcal_line::head::HeadSpec>().map(|_| s.to_string())
 }

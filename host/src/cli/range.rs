@@ -33,7 +33,7 @@ pub enum Range {
     /// A number of seconds from 0 to a day, [`DAY_S`] (a soak, a lag, a move).
     SecondsOrZero,
     /// A climatic chamber's setpoint: the emulated head's range,
-    /// [`accelcal_line::node::head::CHAMBER_RANGE_C`], °C.
+    /// [`accelcal_line::head::CHAMBER_RANGE_C`], °C.
     Chamber,
     /// The reference temperature of the thermal terms: -100..=200 °C.
     TRef,
@@ -70,7 +70,7 @@ impl Range {
                 ((0.0..=DAY_S).contains(&v), "must be a number of seconds from 0 to 86400 (a day)")
             }
             Range::Chamber => (
-                accelcal_line::node::head::CHAMBER_RANGE_C.contains(&v),
+                accelcal_line::head::CHAMBER_RANGE_C.contains(&v),
                 "must be a temperature in -60..=150 °C",
             ),
             Range::TRef => {
@@ -253,7 +253,7 @@ mod tests {
         );
         assert_eq!(Range::Sets.check(1.0).unwrap_err(), "must be at least 2 sets per position, got 1");
         // The chamber's words state the emulated head's range.
-        assert_eq!(accelcal_line::node::head::CHAMBER_RANGE_C, -60.0..=150.0);
+        assert_eq!(accelcal_line::head::CHAMBER_RANGE_C, -60.0..=150.0);
     }
 
     /// clap's error names the option and says the range (the message `main` prints).

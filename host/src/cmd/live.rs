@@ -1,18 +1,17 @@
 //! The commands that talk to a running node over its link: `accelcal info`, `accelcal output`,
 //! `accelcal acquire`.
 
-use std::io::{BufRead, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{mpsc, Arc};
+use std::sync::Arc;
 use std::time::Duration;
 
 use accelcal_core::campaign::identity::Identity;
 use accelcal_core::error::{bad, Interrupted};
 use accelcal_core::output::write_json;
 use accelcal_line::acquire::{
-    self, AcquireConfig, NodeRun, PositionReport, Positioner, Progress, StaticRule,
+    self, AcquireConfig, NodeRun, PositionReport, Progress, StaticRule,
 };
-use accelcal_line::node::head::{HeadSpec, SimHead};
+use accelcal_line::head::{HeadSettings, Positioner};
 use accelcal_line::node::session::{device_id_hex, firmware_version, Session};
 use accelcal_line::verify::{
     calibrated_rule, uncertainty_from_fit_json, verify, PositionCheck, Tolerance, VerifyConfig, VerifyReport,
@@ -20,7 +19,7 @@ use accelcal_line::verify::{
 use accelcal_shared::wire::{Info, Output, RecordStatus};
 
 use super::{Gravity, Source};
-use crate::settings::line::{self, Acquire, HeadUse, Judged, Link, SetOutput, Verify};
+use crate::settings::line::{self, Acquire, Judged, Link, SetOutput, Verify};
 
 fn open(link: &Link) -> anyhow::Result<Session> {
     Ok(Session::open(&link.port, link.baud, link.timeout)?)
@@ -90,78 +89,6 @@ pub fn run_output(a: &SetOutput) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The operator at a manual head: shown the angles and the expected reading, confirms with Enter.
-/// Standard input is read by a thread, so that a Ctrl-C at a prompt stops the command at once
-/// (a read of a terminal is restarted after the signal, and would wait for Enter).
-struct ManualHead {
-    /// The operator's lines; `None` once standard input is closed.
-    lines: mpsc::Receiver<Option<String>>,
-    stop: Arc<AtomicBool>,
-}
-
-impl ManualHead {
-    fn new(stop: Arc<AtomicBool>) -> ManualHead {
-        let (tx, lines) = mpsc::channel();
-        std::thread::spawn(move || loop {
-            let mut line = String::new();
-            let got = match std::io::stdin().lock().read_line(&mut line) {
-                Ok(0) | Err(_) => None,
-                Ok(_) => Some(line),
-            };
-            let end = got.is_none();
-            if tx.send(got).is_err() || end {
-                break;
-            }
-        });
-        ManualHead { lines, stop }
-    }
-
-    /// The operator's next line; `None` when a stop was requested meanwhile.
-    fn read_line(&mut self) -> anyhow::Result<Option<String>> {
-        loop {
-            if self.stop.load(Ordering::Relaxed) {
-                return Ok(None);
-            }
-            match self.lines.recv_timeout(Duration::from_millis(100)) {
-                Ok(Some(line)) => return Ok(Some(line)),
-                Err(mpsc::RecvTimeoutError::Timeout) => {}
-                Ok(None) | Err(mpsc::RecvTimeoutError::Disconnected) => return Err(bad(
-                    "standard input closed while waiting for the operator (--head manual needs a terminal)",
-                )),
-            }
-        }
-    }
-}
-
-impl Positioner for ManualHead {
-    fn set(&mut self, k: usize, n: usize, (a, b): (f64, f64), e: [f64; 3]) -> anyhow::Result<()> {
-        err!(
-            "position {}/{n}: set the head to alpha {a} deg, beta {b} deg; the unit should then read \
-             ax {:+.3}, ay {:+.3}, az {:+.3} m/s². Press Enter when it stands there. ",
-            k + 1,
-            e[0],
-            e[1],
-            e[2]
-        );
-        std::io::stderr().flush()?;
-        self.read_line().map(|_| ())
-    }
-
-    fn retry(&mut self, k: usize, why: &str) -> anyhow::Result<bool> {
-        let stop = if why.ends_with(['?', '.']) { "" } else { "." };
-        err!("position {} refused: {why}{stop} Retry it? [Y/n] ", k + 1);
-        std::io::stderr().flush()?;
-        // Stopped: "retry", and the caller sees its stop flag.
-        Ok(self.read_line()?.is_none_or(|l| !l.trim().eq_ignore_ascii_case("n")))
-    }
-
-    fn chamber(&mut self, setpoint_c: f64) -> anyhow::Result<()> {
-        err!("set the thermal chamber to {setpoint_c} °C; press Enter when it is set (the soak time starts then). ");
-        std::io::stderr().flush()?;
-        self.read_line().map(|_| ())
-    }
-}
-
 /// Progress lines on stderr.
 struct Lines;
 
@@ -229,13 +156,9 @@ pub fn stop_flag() -> anyhow::Result<Arc<AtomicBool>> {
     Ok(stop)
 }
 
-/// The head `spec` names; an emulated one must answer every request within `timeout_s`
-/// (`--head-timeout-s`), an operator takes the time they need.
-fn connect_head(head: &HeadUse, stop: &Arc<AtomicBool>) -> anyhow::Result<Box<dyn Positioner>> {
-    Ok(match &head.spec {
-        HeadSpec::Manual => Box::new(ManualHead::new(stop.clone())),
-        HeadSpec::Sim(addr) => Box::new(SimHead::connect(addr, Duration::from_secs_f64(head.timeout_s))?),
-    })
+/// The head the settings name, connected; an operator is prompted on stderr.
+fn connect_head(head: &HeadSettings, stop: &Arc<AtomicBool>) -> anyhow::Result<Box<dyn Positioner>> {
+    accelcal_line::head::open(head, stop.clone(), Box::new(std::io::stderr()))
 }
 
 /// `acquire --samples` when it is not given (and not resumed).

@@ -172,10 +172,10 @@ pub fn phase_name(p: Phase) -> &'static str {
 }
 
 /// A head as the command line names it.
-pub fn head_text(h: &accelcal_line::node::head::HeadSpec) -> String {
+pub fn head_text(h: &accelcal_line::head::HeadSpec) -> String {
     match h {
-        accelcal_line::node::head::HeadSpec::Manual => "manual".into(),
-        accelcal_line::node::head::HeadSpec::Sim(addr) => format!("sim:{addr}"),
+        accelcal_line::head::HeadSpec::Manual => "manual".into(),
+        accelcal_line::head::HeadSpec::Sim(addr) => format!("sim:{addr}"),
     }
 }
 

@@ -201,7 +201,7 @@ fn thermal_plan(a: &SimulateArgs) -> anyhow::Result<Option<sim::ThermalPlan>> {
     if a.chamber.is_empty() {
         return Ok(None);
     }
-    if let Some(t) = a.chamber.iter().find(|t| !accelcal_line::node::head::CHAMBER_RANGE_C.contains(*t)) {
+    if let Some(t) = a.chamber.iter().find(|t| !accelcal_line::head::CHAMBER_RANGE_C.contains(*t)) {
         return Err(bad(format!("--chamber: each setpoint must be a temperature in -60..=150 °C, got {t}")));
     }
     let soak_s = a.soak_s.unwrap_or(SOAK_DEFAULT_S);

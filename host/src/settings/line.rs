@@ -14,7 +14,7 @@ use accelcal_core::campaign::CodeRange;
 
 use accelcal_core::sim::Plan;
 use accelcal_line::acquire::StaticRule;
-use accelcal_line::node::head::HeadSpec;
+use accelcal_line::head::HeadSettings;
 
 use super::values::{FlashRoute, Issuer, RunStore};
 use crate::cli::{
@@ -275,7 +275,7 @@ fn soak_of(setpoints: &[f64], soak_s: Option<f64>) -> anyhow::Result<Option<Dura
         (false, None) => Err(bad("--chamber needs --soak-s (seconds to wait at each setpoint)")),
         (false, Some(s)) => {
             if let Some(t) =
-                setpoints.iter().find(|t| !accelcal_line::node::head::CHAMBER_RANGE_C.contains(*t))
+                setpoints.iter().find(|t| !accelcal_line::head::CHAMBER_RANGE_C.contains(*t))
             {
                 return Err(bad(format!("--chamber {t}: a setpoint must be in -60..=150 °C")));
             }
@@ -284,13 +284,6 @@ fn soak_of(setpoints: &[f64], soak_s: Option<f64>) -> anyhow::Result<Option<Dura
     }
 }
 
-/// The dividing head a command drives, and how long an emulated one may take to answer (s; an
-/// operator takes the time they need).
-#[derive(Clone, Debug, PartialEq)]
-pub struct HeadUse {
-    pub spec: HeadSpec,
-    pub timeout_s: f64,
-}
 
 /// `accelcal acquire`, settled.
 pub struct Acquire {
@@ -299,7 +292,7 @@ pub struct Acquire {
     pub baud: u32,
     /// `--timeout-s`: how long a request waits for its answer.
     pub answer_timeout: Duration,
-    pub head: HeadUse,
+    pub head: HeadSettings,
     /// `--plan` as given, and the plan.
     pub plan_spec: String,
     pub plan: Plan,
@@ -346,7 +339,7 @@ pub fn acquire(a: &AcquireArgs, stated: Option<&Gravity>) -> anyhow::Result<Acqu
         nodes,
         baud: a.baud,
         answer_timeout: Duration::from_secs_f64(a.timeout_s),
-        head: HeadUse { spec: a.head.clone(), timeout_s: a.head_timeout_s },
+        head: HeadSettings { spec: a.head.clone(), timeout: Duration::from_secs_f64(a.head_timeout_s) },
         plan_spec: a.plan.clone(),
         plan,
         samples: a.samples,
@@ -372,7 +365,7 @@ pub enum Judged {
 /// `accelcal verify`, settled.
 pub struct Verify {
     pub link: Link,
-    pub head: HeadUse,
+    pub head: HeadSettings,
     /// `--plan` and `--samples` per position.
     pub plan: Plan,
     pub samples: usize,
@@ -407,7 +400,7 @@ pub fn verify(a: &VerifyArgs, stated: Option<&Gravity>) -> anyhow::Result<Verify
     let soak = soak_of(a.chamber.as_slice(), a.soak_s)?;
     Ok(Verify {
         link: Link::of(&a.link),
-        head: HeadUse { spec: a.head.clone(), timeout_s: a.head_timeout_s },
+        head: HeadSettings { spec: a.head.clone(), timeout: Duration::from_secs_f64(a.head_timeout_s) },
         plan,
         samples: a.samples,
         judged,

@@ -118,7 +118,7 @@ pub fn apply(command: &mut Command, given: &mut Given) -> anyhow::Result<Option<
     if let Some(head) = &c.head {
         let at = f.at(head);
         head.get_ref()
-            .parse::<accelcal_line::node::head::HeadSpec>()
+            .parse::<accelcal_line::head::HeadSpec>()
             .map_err(|e| bad(format!("{name}:{at}: head: {e}")))?;
     }
     f.text_value(&mut a.head, "head", "head", c.head)?;

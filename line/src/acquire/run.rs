@@ -15,9 +15,10 @@ use std::time::Instant;
 
 use accelcal_shared::wire::Output;
 
+use crate::head::{Positioner, Target};
 use super::{
     ensure_node, header, open_resumed, record_position, reports_temperature, set_rate, soak_nodes,
-    AcquireConfig, AcquireSummary, CampaignFile, Clock, MotionCheck, Positioner, Progress, Recorded,
+    AcquireConfig, AcquireSummary, CampaignFile, Clock, MotionCheck, Progress, Recorded,
 };
 use crate::node::session::{device_id_hex, firmware_version, Session};
 use accelcal_core::error::{bad, environment};
@@ -261,7 +262,7 @@ fn run_positions(
             }
         }
         while !pending.is_empty() {
-            head.set(k, n, angles, expected)?;
+            head.set(&Target { k, n, angles: angles.into(), expected_m_s2: expected })?;
             if stop.load(Ordering::Relaxed) {
                 return end(states, true);
             }

@@ -1,6 +1,6 @@
 //! The emulated dividing head: its state and motion model ([`HeadState`], [`Motion`]), the state
 //! shared with the front end ([`Head`]), and a TCP server of the head protocol of
-//! [`crate::node::head`] ([`serve_head`]).
+//! [`crate::head::protocol`] ([`serve_head`]).
 //!
 //! Motion model: both axes start together and turn at `speed_deg_s` (the larger angle difference
 //! sets the time), plus a fixed `overhead_s` for starting and stopping, so a move lasts
@@ -26,7 +26,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
-use crate::node::head::{Reply, Request};
+use crate::head::protocol::{Reply, Request};
 use accelcal_core::error::{Classify, Kind};
 
 /// How often blocking loops look at their stop flag.
@@ -462,7 +462,7 @@ pub fn spawn_head_server(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::node::head::SimHead;
+    use crate::head::SimHead;
     use std::io::{BufRead, BufReader};
 
     #[test]

@@ -2,12 +2,11 @@
 //! link on a socket or a pty, the emulated front end, slot images, a gdbstub), replaying a campaign
 //! through it ([`hil`]), writing a calibration record into a node's flash through a debug probe
 //! or a GDB server ([`flash`], [`gdb`]), showing a node's live stream ([`monitor`]), asking it who
-//! it is and what it streams ([`session`]), and driving an emulated dividing head ([`head`]).
+//! it is and what it streams ([`session`]).
 //! [`link`] frames the protocol of `accelcal_shared::wire` over any byte stream.
 
 pub mod flash;
 pub mod gdb;
-pub mod head;
 pub mod hil;
 pub mod link;
 pub mod monitor;

@@ -1,0 +1,63 @@
+//! Which head a command drives: the `--head` spec (`manual`, `sim:HOST:PORT`), parsed once into
+//! a typed value that settings carry.
+
+/// Which head a command drives.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum HeadSpec {
+    /// An operator turns the head by hand; the command shows the angles and waits for Enter.
+    Manual,
+    /// An emulated head at this TCP address (`HOST:PORT`), as `accelcal emulate` prints it.
+    Sim(String),
+}
+
+impl std::str::FromStr for HeadSpec {
+    type Err = String;
+    fn from_str(s: &str) -> Result<HeadSpec, String> {
+        if s == "manual" {
+            return Ok(HeadSpec::Manual);
+        }
+        match s.strip_prefix("sim:") {
+            Some(addr)
+                if addr.rsplit_once(':').is_some_and(|(h, p)| !h.is_empty() && p.parse::<u16>().is_ok()) =>
+            {
+                Ok(HeadSpec::Sim(addr.to_string()))
+            }
+            _ => Err(format!(
+                "`{s}`: expected `manual` or `sim:HOST:PORT` (the `head` that `accelcal emulate` prints)"
+            )),
+        }
+    }
+}
+
+impl std::fmt::Display for HeadSpec {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            HeadSpec::Manual => f.write_str("manual"),
+            HeadSpec::Sim(a) => write!(f, "sim:{a}"),
+        }
+    }
+}
+
+/// The head a command drives and how it is driven, settled from the command line and the
+/// station's settings file before any I/O.
+#[derive(Clone, Debug, PartialEq)]
+pub struct HeadSettings {
+    /// Which head.
+    pub spec: HeadSpec,
+    /// How long a driven head may take to answer a request, a move included
+    /// (`--head-timeout-s`); an operator takes the time they need.
+    pub timeout: std::time::Duration,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn head_specs() {
+        assert_eq!("manual".parse::<HeadSpec>(), Ok(HeadSpec::Manual));
+        assert_eq!("sim:127.0.0.1:4000".parse::<HeadSpec>(), Ok(HeadSpec::Sim("127.0.0.1:4000".into())));
+        assert!("sim:nowhere".parse::<HeadSpec>().is_err());
+        assert!("auto".parse::<HeadSpec>().is_err());
+    }
+}
