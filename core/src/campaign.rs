@@ -25,6 +25,7 @@ use accelcal_shared::kinematics;
 use crate::input::Input;
 
 mod codes;
+pub mod head_at;
 pub mod identity;
 use crate::error::{Classify, Kind, Plain, Setting, Worded, Wording};
 use crate::text::TextError;

@@ -331,7 +331,11 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
         Command::Station(a) => {
             if a.head.as_deref() == Some("manual") {
                 let head = given.setting("head", "manual");
-                given.refuse(&["head_timeout_s"], &head, " (the operator turns the head)")?;
+                given.refuse(
+                    &["head_timeout_s", "head_tolerance_arcsec"],
+                    &head,
+                    " (the operator turns the head, and their word is the read-back)",
+                )?;
             }
             if !a.gdb.is_empty() {
                 let gdb = if given.on_command_line("gdb") {
@@ -442,7 +446,11 @@ fn once_each(option: &str, given: usize, n: usize, per: &str, optional: bool) ->
 /// `--head-timeout-s` is for an emulated head only.
 fn refuse_head_timeout(given: &Given, head: &accelcal_line::head::HeadSpec) -> anyhow::Result<()> {
     if *head == accelcal_line::head::HeadSpec::Manual {
-        given.refuse(&["head_timeout_s"], "--head manual", " (the operator turns the head)")?;
+        given.refuse(
+            &["head_timeout_s", "head_tolerance_arcsec"],
+            "--head manual",
+            " (the operator turns the head, and their word is the read-back)",
+        )?;
     }
     Ok(())
 }

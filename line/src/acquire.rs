@@ -201,17 +201,23 @@ fn soak_nodes(
     stop: &AtomicBool,
 ) -> anyhow::Result<bool> {
     head.chamber(setpoint_c)?;
+    dwell(nodes, soak, stop)
+}
+
+/// Waits `wait`, reading (and dropping) the nodes' streams in turn meanwhile, so that no node's
+/// buffer fills; returns early (false) when `stop` is set.
+pub fn dwell(nodes: &mut [&mut Session], wait: Duration, stop: &AtomicBool) -> anyhow::Result<bool> {
     let t0 = Instant::now();
     let mut waits: Vec<_> = nodes.iter().map(|n| n.block_wait()).collect();
-    while t0.elapsed() < soak {
-        for (node, wait) in nodes.iter_mut().zip(&mut waits) {
+    while t0.elapsed() < wait {
+        for (node, w) in nodes.iter_mut().zip(&mut waits) {
             if stop.load(Ordering::Relaxed) {
                 return Ok(false);
             }
-            node.poll_samples(wait)?;
+            node.poll_samples(w)?;
         }
     }
-    Ok(true)
+    Ok(!stop.load(Ordering::Relaxed))
 }
 
 /// Settings of an acquisition (checked by the caller before any I/O).
@@ -232,6 +238,8 @@ pub struct AcquireConfig {
     pub rule: StaticRule,
     /// How long a position may take to become static.
     pub settle_timeout: Duration,
+    /// The head's part of the settled rule (read-back tolerance, wait after the move).
+    pub settle: crate::head::Settle,
     /// Local gravity, m/s².
     pub g: f64,
     /// How g was obtained (for the header: `--g`, `--latitude/--height`, or the 9.81 fallback).

@@ -19,6 +19,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use accelcal_core::campaign::head_at::HeadAt;
 use accelcal_core::document::SelectDoc;
 use accelcal_core::error::{Classify, Kind};
 
@@ -199,6 +200,28 @@ pub struct StepRecord {
     /// before steps were timed).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub seconds: Option<f64>,
+    /// The head at each position of the step (acquire, and the verifications): the angles
+    /// commanded and the angles the head read back once the move was done.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub positions: Vec<HeadAt>,
+}
+
+/// The head's commanded and read-back angles at each position of a verification's report
+/// (positions of a report written before heads read back are left out).
+pub fn verified_positions(report: &crate::verify::VerifyReport) -> Vec<HeadAt> {
+    report
+        .positions
+        .iter()
+        .filter_map(|p| {
+            Some(HeadAt {
+                position: p.position,
+                alpha_deg: p.alpha_deg,
+                beta_deg: p.beta_deg,
+                read_back_alpha_deg: p.read_back_alpha_deg?,
+                read_back_beta_deg: p.read_back_beta_deg?,
+            })
+        })
+        .collect()
 }
 
 /// A unit's journal.
@@ -370,6 +393,7 @@ mod tests {
             outcome: "ok".into(),
             outputs: outputs.iter().map(|(n, h)| (n.to_string(), h.to_string())).collect(),
             seconds: None,
+            positions: Vec::new(),
         }
     }
 

@@ -19,7 +19,7 @@
 //! with probability 6.3·10⁻⁵, so a six-position verification (18 components) fails a good node
 //! about once in 900 runs; `K` = 5 makes that once in 10⁵.
 
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use accelcal_shared::terms::Term;
@@ -278,6 +278,8 @@ pub struct VerifyConfig {
     pub rule: StaticRule,
     /// How long a position may take to become static.
     pub settle_timeout: Duration,
+    /// The head's part of the settled rule (read-back tolerance, wait after the move).
+    pub settle: crate::head::Settle,
     /// Local gravity, m/s².
     pub g: f64,
     /// The pass bound.
@@ -302,6 +304,13 @@ pub struct PositionCheck {
     pub alpha_deg: f64,
     /// β, degrees.
     pub beta_deg: f64,
+    /// α the head read back once the move was done, degrees (the commanded α for a manual head;
+    /// `null` in a report written before heads read back, tool 0.x before issue 56).
+    #[serde(default)]
+    pub read_back_alpha_deg: Option<f64>,
+    /// β the head read back, degrees (`null` likewise).
+    #[serde(default)]
+    pub read_back_beta_deg: Option<f64>,
     /// What the head imposes, m/s².
     pub expected_m_s2: [f64; 3],
     /// The node's mean calibrated acceleration, m/s².
@@ -574,8 +583,19 @@ fn run(
     }
     for (k, &(a, b)) in cfg.plan.positions.iter().enumerate() {
         let expected = accelcal_shared::gravity(a, b, cfg.g);
+        let mut read_back;
         let cap = loop {
-            head.set(&Target { k, n, angles: (a, b).into(), expected_m_s2: expected })?;
+            let target = Target { k, n, angles: (a, b).into(), expected_m_s2: expected };
+            read_back = head.set(&target)?;
+            if stop.load(Ordering::Relaxed) {
+                report.interrupted = true;
+                return Ok(());
+            }
+            crate::head::settled(&head.describe(), &target, read_back, cfg.settle.tolerance_arcsec)?;
+            if !crate::acquire::dwell(&mut [&mut *node], cfg.settle.wait, stop)? {
+                report.interrupted = true;
+                return Ok(());
+            }
             match capture(node, cfg.rule, cfg.settle_timeout, cfg.samples, stop, calibrated_values)? {
                 Captured::Done(c) => break c,
                 Captured::Stopped => {
@@ -609,6 +629,8 @@ fn run(
             position: k + 1,
             alpha_deg: a,
             beta_deg: b,
+            read_back_alpha_deg: Some(read_back.alpha_deg),
+            read_back_beta_deg: Some(read_back.beta_deg),
             expected_m_s2: expected,
             measured_m_s2: measured,
             error_m_s2: error,

@@ -27,8 +27,13 @@ fn a_wrong_settings_file_is_refused_with_its_line_and_nothing_is_done() {
         ("samples = 1", "`samples` (station.toml:5:11) must be at least 2 sets per position, got 1"),
         (
             "head_timeout_s = 30",
-            "`head_timeout_s` (station.toml:5:18) does not apply to `head = \"manual\"` (station.toml:3:8) (the operator turns the head)",
+            "`head_timeout_s` (station.toml:5:18) does not apply to `head = \"manual\"` (station.toml:3:8) (the operator turns the head, and their word is the read-back)",
         ),
+        (
+            "head_tolerance_arcsec = 5",
+            "`head_tolerance_arcsec` (station.toml:5:25) does not apply to `head = \"manual\"` (station.toml:3:8) (the operator turns the head, and their word is the read-back)",
+        ),
+        ("settle_s = -1", "`settle_s` (station.toml:5:12) must be a number of seconds from 0 to 86400 (a day), got -1"),
         ("operator = \"Bob\\u001b[2J\"", "station.toml:5:12: operator: \"Bob\\u{1b}[2J\" holds a control character (U+001B)"),
         ("g = 9.8\nlatitude = 46.99", "station.toml:5:5: g and latitude (at 6:12) both give gravity: keep one of them"),
         ("height = 400", "station.toml:5:10: height needs latitude (it corrects the normal gravity there)"),

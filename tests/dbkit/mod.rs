@@ -114,6 +114,8 @@ pub fn verification(device: &str, max_err: f64, tol: f64) -> VerifyReport {
                 position: p,
                 alpha_deg: 90.0 * p as f64,
                 beta_deg: 0.0,
+                read_back_alpha_deg: Some(90.0 * p as f64),
+                read_back_beta_deg: Some(0.0),
                 expected_m_s2: [0.0, 0.0, G],
                 measured_m_s2: [e, 0.0, G],
                 error_m_s2: [e, 0.0, 0.0],

@@ -67,6 +67,23 @@ fn the_station_runs_the_line_journals_it_and_resumes_after_ctrl_c() {
         seconds[1].is_none() && seconds.iter().enumerate().all(|(i, t)| i == 1 || t.is_some_and(|t| t > 0.0)),
         "{seconds:?}"
     );
+    // The journal keeps the head's commanded and read-back angles at each position of the steps
+    // that moved it (issue 56 item 4): the campaign's 24 and the as-left verification's 6, the
+    // emulated head reading back where it was sent.
+    let steps = json(&a.join("station.json"))["steps"].as_array().unwrap().clone();
+    let moved: Vec<(String, usize)> = steps
+        .iter()
+        .map(|r| (r["step"].as_str().unwrap().to_string(), r["positions"].as_array().map_or(0, Vec::len)))
+        .filter(|(_, n)| *n > 0)
+        .collect();
+    assert_eq!(moved, [("acquire".to_string(), 24), ("as-left".to_string(), 6)]);
+    for p in steps.iter().filter_map(|r| r["positions"].as_array()).flatten() {
+        for (c, r) in [("alpha_deg", "read_back_alpha_deg"), ("beta_deg", "read_back_beta_deg")] {
+            assert!((p[c].as_f64().unwrap() - p[r].as_f64().unwrap()).abs() < 1e-9, "{p}");
+        }
+    }
+    let campaign = std::fs::read_to_string(a.join("campaign.csv")).unwrap();
+    assert_eq!(campaign.lines().filter(|l| l.starts_with("# head_at: position=")).count(), 24);
     let err = String::from_utf8_lossy(&out.stderr);
     let time = err.lines().find(|l| l.starts_with("station: time ")).unwrap_or_else(|| panic!("{err}"));
     assert!(time.contains(", acquire ") && time.contains("% of the run)"), "{time}");

@@ -2,7 +2,7 @@
 
 use super::*;
 
-fn parse(s: &str) -> Result<Campaign, CampaignError> {
+pub(super) fn parse(s: &str) -> Result<Campaign, CampaignError> {
     Campaign::from_reader(s.as_bytes(), Path::new("c.csv"))
 }
 

@@ -217,6 +217,15 @@ pub struct AcquireArgs {
     /// fails; a move is answered once the head stands still, so this bounds the longest move.
     #[arg(long, default_value_t = 120.0, value_name = "S", value_parser = Real(Range::Seconds))]
     pub head_timeout_s: f64,
+    /// Largest accepted deviation of the angles a driven head reads back after a move from the
+    /// commanded ones, arcsec (either angle; α modulo 360°). A position read back beyond it is
+    /// refused before anything of it is recorded, and the command ends (exit code 3).
+    #[arg(long, default_value_t = accelcal_line::head::Settle::TOLERANCE_ARCSEC, value_name = "ARCSEC", value_parser = Real(Range::Arcsec))]
+    pub head_tolerance_arcsec: f64,
+    /// Seconds to wait after the head reports a move done (or the operator confirms it) before
+    /// the static test of the node's stream begins: for a head that rings after it stops.
+    #[arg(long, default_value_t = 0.0, value_name = "S", value_parser = Real(Range::SecondsOrZero))]
+    pub settle_s: f64,
     /// Position plan: head (62 positions), six (the test-turn positions), tumble24, random:N, or a plan
     /// file (CSV `alpha_deg,beta_deg`).
     #[arg(long, default_value = "head")]
@@ -284,6 +293,15 @@ pub struct VerifyArgs {
     /// fails; a move is answered once the head stands still, so this bounds the longest move.
     #[arg(long, default_value_t = 120.0, value_name = "S", value_parser = Real(Range::Seconds))]
     pub head_timeout_s: f64,
+    /// Largest accepted deviation of the angles a driven head reads back after a move from the
+    /// commanded ones, arcsec (either angle; α modulo 360°). A position read back beyond it is
+    /// refused before anything of it is recorded, and the command ends (exit code 3).
+    #[arg(long, default_value_t = accelcal_line::head::Settle::TOLERANCE_ARCSEC, value_name = "ARCSEC", value_parser = Real(Range::Arcsec))]
+    pub head_tolerance_arcsec: f64,
+    /// Seconds to wait after the head reports a move done (or the operator confirms it) before
+    /// the static test of the node's stream begins: for a head that rings after it stops.
+    #[arg(long, default_value_t = 0.0, value_name = "S", value_parser = Real(Range::SecondsOrZero))]
+    pub settle_s: f64,
     /// Position plan: six (the test-turn positions), head, tumble24, random:N, or a plan file.
     #[arg(long, default_value = "six")]
     pub plan: String,
@@ -508,6 +526,14 @@ pub struct StationArgs {
     /// stands still, so this bounds the longest move.
     #[arg(long, default_value_t = 120.0, value_name = "S", value_parser = Real(Range::Seconds))]
     pub head_timeout_s: f64,
+    /// Largest accepted deviation of a driven head's read-back angles from the commanded ones,
+    /// arcsec (passed to acquire and the verifications) [default: 10].
+    #[arg(long, value_name = "ARCSEC", value_parser = Real(Range::Arcsec))]
+    pub head_tolerance_arcsec: Option<f64>,
+    /// Seconds to wait after each move before the static test (passed to acquire and the
+    /// verifications) [default: 0].
+    #[arg(long, value_name = "S", value_parser = Real(Range::SecondsOrZero))]
+    pub settle_s: Option<f64>,
     /// Begin the run even though the database ties this --serial to another device, or the
     /// node's device to another serial: the serial moves to this device, stored as a relabel row
     /// with REASON (with several --port, it applies to each unit whose label clashes).

@@ -109,6 +109,8 @@ fn verification(device: &str, sd: f64, rng: &mut impl Rng) -> anyhow::Result<Ver
                 position: p,
                 alpha_deg: 90.0 * p as f64,
                 beta_deg: 0.0,
+                read_back_alpha_deg: Some(90.0 * p as f64),
+                read_back_beta_deg: Some(0.0),
                 expected_m_s2: expected,
                 measured_m_s2: std::array::from_fn(|i| expected[i] + e[i]),
                 error_m_s2: e,

@@ -248,6 +248,7 @@ pub fn run_acquire(a: &Acquire) -> anyhow::Result<()> {
     }
     let mut head = connect_head(&a.head, &stop)?;
     let cfg = AcquireConfig {
+        settle: a.settle,
         out: a.nodes[0].out.clone(),
         plan: a.plan.clone(),
         plan_name: a.plan_spec.clone(),
@@ -376,6 +377,7 @@ pub fn run_verify(a: &Verify) -> anyhow::Result<()> {
     let mut head = connect_head(&a.head, &stop)?;
     let serial = fit.as_ref().and_then(|(_, id)| id.serial.clone()).unwrap_or_default();
     let cfg = VerifyConfig {
+        settle: a.settle,
         plan: a.plan.clone(),
         samples: a.samples,
         rule: calibrated_rule(),

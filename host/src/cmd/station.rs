@@ -14,11 +14,14 @@ use std::process::Command;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
+use accelcal_core::campaign::head_at::HeadAt;
 use accelcal_core::document::InfoDoc;
 use accelcal_core::error::{bad, environment, Interrupted};
 use accelcal_core::output::write_json;
 use accelcal_db::{Asset, AssetError, AssetKind, Db, DbError, Outcome, Phase, Relabel, RunId, RunStart};
-use accelcal_line::station::{deployable, sha256_file, Journal, StationError, Step, StepRecord, JOURNAL};
+use accelcal_line::station::{
+    deployable, sha256_file, verified_positions, Journal, StationError, Step, StepRecord, JOURNAL,
+};
 use accelcal_line::verify::{Failed, VerifyReport};
 use anyhow::Context;
 
@@ -190,7 +193,7 @@ impl Station<'_> {
         outcome: String,
         outputs: &[&str],
     ) -> anyhow::Result<()> {
-        let outputs = outputs
+        let outputs: std::collections::BTreeMap<String, String> = outputs
             .iter()
             .map(|n| {
                 let h = sha256_file(&self.path(n))
@@ -202,7 +205,18 @@ impl Station<'_> {
         errln!("station: {}{} {outcome}", self.tag, step.name());
         let command = command.map(|c| c.journalled(&self.db.target())).unwrap_or_default();
         let seconds = self.step_start.take().map(|t| t.elapsed().as_secs_f64());
-        self.journal.finish(StepRecord { step, command, finished, outcome, outputs, seconds });
+        let positions = match step {
+            Step::Acquire => HeadAt::read_all(&self.path(CAMPAIGN))?,
+            Step::AsFound | Step::AsLeft => {
+                let name = if step == Step::AsFound { AS_FOUND } else { AS_LEFT };
+                match outputs.contains_key(name) {
+                    true => verified_positions(&VerifyReport::read(&self.path(name))?),
+                    false => Vec::new(),
+                }
+            }
+            _ => Vec::new(),
+        };
+        self.journal.finish(StepRecord { step, command, finished, outcome, outputs, seconds, positions });
         // The chain head after the step: the journal is an anchor kept outside the database.
         if let Some(anchor) = self.db.chain_head()? {
             self.journal.anchor(anchor.text());
@@ -315,7 +329,7 @@ impl Station<'_> {
             device_id: device.to_string(),
             serial: self.u.serial.clone(),
             station: self.a.station_name.clone().unwrap_or_else(super::store::host_name),
-            head: self.a.head.clone(),
+            head: self.a.head.to_string(),
             operator: self.a.operator.clone().unwrap_or_else(super::store::user_name),
             started_unix_s: started,
             software_version: env!("CARGO_PKG_VERSION").into(),
@@ -387,10 +401,16 @@ impl Station<'_> {
     }
 }
 
-/// The head, with the time a move may take when it is emulated (a manual head has none).
+/// The head, with the time a move may take and the read-back tolerance when it is driven (a
+/// manual head has neither).
 fn head_of(a: &StationSettings) -> Head {
-    let timeout_s = (a.head != "manual").then_some(a.head_timeout_s);
-    Head { spec: a.head.clone(), timeout_s }
+    let driven = a.head != accelcal_line::head::HeadSpec::Manual;
+    Head {
+        spec: a.head.clone(),
+        timeout_s: driven.then_some(a.head_timeout_s),
+        tolerance_arcsec: a.head_tolerance_arcsec.filter(|_| driven),
+        settle_s: a.settle_s,
+    }
 }
 
 /// The link to the nodes on `ports`.

@@ -14,7 +14,7 @@ use accelcal_core::campaign::CodeRange;
 
 use accelcal_core::sim::Plan;
 use accelcal_line::acquire::StaticRule;
-use accelcal_line::head::HeadSettings;
+use accelcal_line::head::{HeadSettings, Settle};
 
 use super::values::{FlashRoute, Issuer, RunStore};
 use crate::cli::{
@@ -293,6 +293,8 @@ pub struct Acquire {
     /// `--timeout-s`: how long a request waits for its answer.
     pub answer_timeout: Duration,
     pub head: HeadSettings,
+    /// The head's part of the settled rule.
+    pub settle: Settle,
     /// `--plan` as given, and the plan.
     pub plan_spec: String,
     pub plan: Plan,
@@ -340,6 +342,7 @@ pub fn acquire(a: &AcquireArgs, stated: Option<&Gravity>) -> anyhow::Result<Acqu
         baud: a.baud,
         answer_timeout: Duration::from_secs_f64(a.timeout_s),
         head: HeadSettings { spec: a.head.clone(), timeout: Duration::from_secs_f64(a.head_timeout_s) },
+        settle: Settle { tolerance_arcsec: a.head_tolerance_arcsec, wait: Duration::from_secs_f64(a.settle_s) },
         plan_spec: a.plan.clone(),
         plan,
         samples: a.samples,
@@ -366,6 +369,8 @@ pub enum Judged {
 pub struct Verify {
     pub link: Link,
     pub head: HeadSettings,
+    /// The head's part of the settled rule.
+    pub settle: Settle,
     /// `--plan` and `--samples` per position.
     pub plan: Plan,
     pub samples: usize,
@@ -401,6 +406,7 @@ pub fn verify(a: &VerifyArgs, stated: Option<&Gravity>) -> anyhow::Result<Verify
     Ok(Verify {
         link: Link::of(&a.link),
         head: HeadSettings { spec: a.head.clone(), timeout: Duration::from_secs_f64(a.head_timeout_s) },
+        settle: Settle { tolerance_arcsec: a.head_tolerance_arcsec, wait: Duration::from_secs_f64(a.settle_s) },
         plan,
         samples: a.samples,
         judged,

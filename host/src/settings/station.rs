@@ -28,9 +28,12 @@ pub struct Station {
     /// The nodes' link: baud rate and how long a request waits for its answer, s.
     pub baud: u32,
     pub timeout_s: f64,
-    /// The head (`manual` or `sim:HOST:PORT`) and how long an emulated head's move may take, s.
-    pub head: String,
+    /// The head, how long a driven head's move may take (s), the read-back tolerance (arcsec)
+    /// and the wait after a move (s) when given.
+    pub head: accelcal_line::head::HeadSpec,
     pub head_timeout_s: f64,
+    pub head_tolerance_arcsec: Option<f64>,
+    pub settle_s: Option<f64>,
     /// `--plan`, `--samples`, `--rate-hz` of the acquisition.
     pub plan: String,
     pub samples: usize,
@@ -79,8 +82,10 @@ pub fn station(a: &StationArgs) -> Station {
         check_standard: a.check_standard.clone(),
         baud: a.baud,
         timeout_s: a.timeout_s,
-        head: a.head().to_string(),
+        head: a.head().parse().expect("settings::check parsed the station's head"),
         head_timeout_s: a.head_timeout_s,
+        head_tolerance_arcsec: a.head_tolerance_arcsec,
+        settle_s: a.settle_s,
         plan: a.plan.clone(),
         samples: a.samples,
         rate_hz: a.rate_hz,

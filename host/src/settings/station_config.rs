@@ -35,6 +35,8 @@ struct StationConfig {
     head: Option<Spanned<String>>,
     head_asset: Option<Spanned<String>>,
     head_timeout_s: Option<Spanned<f64>>,
+    head_tolerance_arcsec: Option<Spanned<f64>>,
+    settle_s: Option<Spanned<f64>>,
     #[serde(default)]
     node: Vec<Spanned<Node>>,
     plan: Option<Spanned<String>>,
@@ -129,6 +131,10 @@ pub fn apply(command: &mut Command, given: &mut Given) -> anyhow::Result<Option<
         "head_timeout_s",
         f.real("head_timeout_s", c.head_timeout_s, Range::Seconds)?,
     );
+    let tolerance = f.real("head_tolerance_arcsec", c.head_tolerance_arcsec, Range::Arcsec)?;
+    f.optional(&mut a.head_tolerance_arcsec, "head_tolerance_arcsec", "head_tolerance_arcsec", tolerance);
+    let settle = f.real("settle_s", c.settle_s, Range::SecondsOrZero)?;
+    f.optional(&mut a.settle_s, "settle_s", "settle_s", settle);
     f.nodes(a, c.node)?;
     f.text_value_plain(&mut a.plan, "plan", c.plan)?;
     let samples = f.checked("samples", c.samples, |n| Range::Sets.count(n).map_err(|m| format!(" {m}")))?;

@@ -115,6 +115,9 @@ pub(super) fn open_resumed(cfg: &AcquireConfig, device_id: &str) -> anyhow::Resu
         if !line.ends_with('\n') {
             break; // a row cut by a crash
         }
+        if line.starts_with('#') {
+            continue; // a position's `head_at` line: it belongs to the rows after it
+        }
         let fields: Vec<&str> = line.trim_end().split(',').collect();
         let (a, b) = (fields.get(1).copied().unwrap_or(""), fields.get(2).copied().unwrap_or(""));
         let key = (a.to_string(), b.to_string());
@@ -180,6 +183,7 @@ mod tests {
             samples,
             rule: StaticRule::default(),
             settle_timeout: Duration::from_secs(5),
+            settle: crate::head::Settle::default(),
             g: 9.81,
             g_source: "--g".into(),
             serial: Some("S1".into()),
@@ -197,13 +201,23 @@ mod tests {
         let path = dir.path().join("c.csv");
         let c = cfg(path.clone(), 3);
         let mut text = header(&c, "51454d552d422d4c34373545", "0.1.0", 1000, false).unwrap();
-        for (p, (a, b)) in Plan::six().positions.iter().take(2).enumerate() {
+        // Each position after its `head_at` line, as the acquisition writes it.
+        let at = |p: usize, a: f64, b: f64| accelcal_core::campaign::head_at::HeadAt {
+            position: p + 1,
+            alpha_deg: a,
+            beta_deg: b,
+            read_back_alpha_deg: a + 1e-4,
+            read_back_beta_deg: b,
+        };
+        for (p, &(a, b)) in Plan::six().positions.iter().take(2).enumerate() {
+            text.push_str(&at(p, a, b).line());
             for i in 0..3 {
                 text.push_str(&format!("{},{a},{b},1,2,3\n", (p * 3 + i) as f64 / 1000.0));
             }
         }
         let whole = text.len();
         // Two rows of the third position and a row cut short.
+        text.push_str(&at(2, 90.0, 0.0).line());
         text.push_str("0.006,90,0,1,2,3\n0.007,90,0,1,2,3\n0.008,90,0,1");
         std::fs::write(&path, &text).unwrap();
         let r = open_resumed(&c, "51454d552d422d4c34373545").unwrap();
@@ -213,6 +227,8 @@ mod tests {
         // The file reads as a campaign of two dwells.
         let camp = accelcal_core::campaign::Campaign::read(&path).unwrap();
         assert_eq!(camp.dwells().len(), 2);
+        let kept = accelcal_core::campaign::head_at::HeadAt::read_all(&path).unwrap();
+        assert_eq!(kept.iter().map(|h| h.position).collect::<Vec<_>>(), [1, 2]);
         let e = open_resumed(&c, "000000000000000000000000").err().unwrap().to_string();
         assert!(e.contains("device_id is `51454d552d422d4c34373545`"), "{e}");
         let mut other = cfg(path.clone(), 3);

@@ -16,6 +16,7 @@ use std::time::Instant;
 use accelcal_shared::wire::Output;
 
 use crate::head::{Positioner, Target};
+use accelcal_core::campaign::head_at::HeadAt;
 use super::{
     ensure_node, header, open_resumed, record_position, reports_temperature, set_rate, soak_nodes,
     AcquireConfig, AcquireSummary, CampaignFile, Clock, MotionCheck, Progress, Recorded,
@@ -262,8 +263,25 @@ fn run_positions(
             }
         }
         while !pending.is_empty() {
-            head.set(&Target { k, n, angles: angles.into(), expected_m_s2: expected })?;
+            let target = Target { k, n, angles: angles.into(), expected_m_s2: expected };
+            let read_back = head.set(&target)?;
             if stop.load(Ordering::Relaxed) {
+                return end(states, true);
+            }
+            // The settled rule: the read-back within the tolerance, then the wait, then (in the
+            // capture) the node's static test. A read-back off the commanded angles ends the
+            // acquisition before anything of the position is recorded.
+            crate::head::settled(&head.describe(), &target, read_back, cfg.settle.tolerance_arcsec)?;
+            let head_at = HeadAt {
+                position: k + 1,
+                alpha_deg: angles.0,
+                beta_deg: angles.1,
+                read_back_alpha_deg: read_back.alpha_deg,
+                read_back_beta_deg: read_back.beta_deg,
+            };
+            let mut nodes: Vec<&mut Session> =
+                runs.iter_mut().enumerate().filter(|(i, _)| pending.contains(i)).map(|(_, r)| &mut *r.node).collect();
+            if !crate::acquire::dwell(&mut nodes, cfg.settle.wait, stop)? {
                 return end(states, true);
             }
             for &i in &pending {
@@ -289,7 +307,7 @@ fn run_positions(
             }
             for (i, text, report, last_t) in accepted {
                 let (r, s) = (&mut runs[i], &mut states[i]);
-                s.out.append(&text)?;
+                s.out.append(&(head_at.line() + &text))?;
                 s.motion.accept(expected, report.mean, k + 1);
                 s.lost += report.lost;
                 s.clock.last = last_t;

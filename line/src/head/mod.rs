@@ -111,6 +111,30 @@ pub fn open(
     })
 }
 
+/// The head's part of the settled rule: a position is recorded only when the controller reported
+/// the move done, the read-back lies within `tolerance_arcsec` of the commanded angles, `wait` has
+/// elapsed since, and the node's stream is still (the acquisition's static test).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Settle {
+    /// Largest accepted deviation of either read-back angle from the commanded one, arcsec
+    /// (`--head-tolerance-arcsec`).
+    pub tolerance_arcsec: f64,
+    /// Wait after the move is reported done, before the static test (`--settle-s`).
+    pub wait: std::time::Duration,
+}
+
+impl Settle {
+    /// `--head-tolerance-arcsec`'s default: ten times a Zaber rotary stage's microstep (0.84″),
+    /// far below any fault a head can have and any angle error the budget allows for.
+    pub const TOLERANCE_ARCSEC: f64 = 10.0;
+}
+
+impl Default for Settle {
+    fn default() -> Settle {
+        Settle { tolerance_arcsec: Settle::TOLERANCE_ARCSEC, wait: std::time::Duration::ZERO }
+    }
+}
+
 /// How far `read_back` lies from `commanded`, arcsec: the larger of the two angles' deviations,
 /// α taken modulo 360° (a spindle at 359.9° stands 0.1° from 0°).
 pub fn off_arcsec(commanded: Angles, read_back: Angles) -> f64 {

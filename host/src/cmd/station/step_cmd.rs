@@ -21,12 +21,16 @@ pub(super) struct Link {
     pub timeout_s: f64,
 }
 
-/// The dividing head: `manual` or `sim:HOST:PORT`, and how long a move may take (s; none for a
-/// manual head, which waits for the operator).
+/// The dividing head and how it is driven: how long a move may take (s), the read-back
+/// tolerance (arcsec) and the wait after a move (s). A manual head has no timeout and no
+/// tolerance (the operator's word is the read-back); the tolerance and the wait are passed on only
+/// when the station was given them.
 #[derive(Clone, Debug, PartialEq)]
 pub(super) struct Head {
-    pub spec: String,
+    pub spec: accelcal_line::head::HeadSpec,
     pub timeout_s: Option<f64>,
+    pub tolerance_arcsec: Option<f64>,
+    pub settle_s: Option<f64>,
 }
 
 /// The head's stated uncertainties, arcsec.
@@ -162,6 +166,8 @@ impl Line {
         self.opt("--head", &h.spec);
         self.opt("--plan", plan);
         self.maybe("--head-timeout-s", h.timeout_s);
+        self.maybe("--head-tolerance-arcsec", h.tolerance_arcsec);
+        self.maybe("--settle-s", h.settle_s);
     }
 
     fn head_u(&mut self, u: Option<HeadU>) {
@@ -313,7 +319,12 @@ mod tests {
     }
 
     fn sim() -> Head {
-        Head { spec: "sim:127.0.0.1:4000".into(), timeout_s: Some(90.0) }
+        Head {
+            spec: "sim:127.0.0.1:4000".parse().unwrap(),
+            timeout_s: Some(90.0),
+            tolerance_arcsec: Some(20.0),
+            settle_s: None,
+        }
     }
 
     fn db() -> DbRun {
@@ -347,6 +358,7 @@ mod tests {
         let Command::Acquire(a) = parse(&c) else { panic!("acquire") };
         assert_eq!(a.port, ["/dev/pts/3", "/dev/pts/4"]);
         assert_eq!((a.baud, a.timeout_s, a.head_timeout_s), (921_600, 2.5, 90.0));
+        assert_eq!((a.head_tolerance_arcsec, a.settle_s), (20.0, 0.0));
         assert_eq!((a.head.to_string().as_str(), a.plan.as_str()), ("sim:127.0.0.1:4000", "random:24"));
         assert_eq!((a.samples, a.rate_hz, a.resume), (Some(200), Some(1000), true));
         assert_eq!(a.serial, ["A-1", "A-2"]);
@@ -402,7 +414,12 @@ mod tests {
 
         let verify = |against| StepCommand::Verify {
             link: link(&["/dev/pts/3"]),
-            head: Head { spec: "manual".into(), timeout_s: None },
+            head: Head {
+                spec: accelcal_line::head::HeadSpec::Manual,
+                timeout_s: None,
+                tolerance_arcsec: None,
+                settle_s: Some(1.5),
+            },
             plan: "six".into(),
             samples: 300,
             json: "v.json".into(),
@@ -413,6 +430,7 @@ mod tests {
         let c = verify(Against::Scatter { coverage: Some(3.0) });
         let Command::Verify(a) = parse(&c) else { panic!("verify") };
         assert_eq!((a.head.to_string().as_str(), a.plan.as_str(), a.samples), ("manual", "six", 300));
+        assert_eq!(a.settle_s, 1.5);
         assert_eq!(
             (a.json, a.fit, a.coverage, a.spec),
             (Some("v.json".into()), Some("f.json".into()), Some(3.0), None)
