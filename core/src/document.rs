@@ -7,11 +7,15 @@
 //!   selection).
 //! - [`InfoDoc`]: `info --json`, read by the station (the node's device, firmware and record in
 //!   force).
+//! - [`verify::VerifyReport`]: `verify --json`, read by `report --verify`, the station and the
+//!   database.
 //!
 //! A reader is lenient where older writers were: a field a reader does not need may be missing
 //! (serde defaults), and a fit written before fits carried the unit's identity reads with
 //! `identity: None` ([`FitDoc::identity`]; [`crate::campaign::identity::Identity::of_fit_json`]
 //! refuses it where the identity is needed).
+
+pub mod verify;
 
 use serde::{Deserialize, Serialize};
 
@@ -27,7 +31,7 @@ pub const SELECT_VERSION: u32 = 1;
 /// The version of `info --json` this build writes (see [`FIT_VERSION`]).
 pub const INFO_VERSION: u32 = 1;
 /// The version of `verify --json` this build writes (see [`FIT_VERSION`];
-/// `accelcal_line::verify::VerifyReport`).
+/// [`verify::VerifyReport`]).
 pub const VERIFY_VERSION: u32 = 1;
 
 /// Refuses a document of a later version than this build reads.

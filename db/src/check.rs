@@ -14,7 +14,7 @@
 //! of control, until a check is in control again.
 
 use accelcal_core::spc::{ImrLimits, Violation};
-use accelcal_line::verify::VerifyReport;
+use accelcal_core::document::verify::VerifyReport;
 use serde::Serialize;
 
 use super::{Db, DbError};

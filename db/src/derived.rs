@@ -12,7 +12,7 @@ use serde::{Deserialize, Serialize};
 use super::engine::{Conn, Tx, Val};
 use super::DbError;
 use accelcal_core::document::FitDoc;
-use accelcal_line::verify::VerifyReport;
+use accelcal_core::document::verify::VerifyReport;
 
 const AXES: [&str; 3] = ["x", "y", "z"];
 

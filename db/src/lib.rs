@@ -43,7 +43,7 @@ pub use label::{Label, LabelClash, Relabel};
 use piece::{insert_row, Piece};
 pub use types::{LastFlash, Outcome, Phase, Progress, RunId, RunStart, RunSummary, Stored, StoredRecord};
 
-use accelcal_line::verify::VerifyReport;
+use accelcal_core::document::verify::VerifyReport;
 
 /// The environment variable that names the database when `--db` is not given.
 pub const DB_ENV: &str = "ACCELCAL_DB";
@@ -533,7 +533,7 @@ impl Db {
             cause: e.to_string(),
         })?;
         let start = self.start_of(run)?;
-        let id = accelcal_line::node::session::device_id_hex(&rec.device_id);
+        let id = accelcal_core::digest::hex(&rec.device_id);
         self.check_same(run, "the record's device id", &id, "the run's", &start.device_id)?;
         let crc32 = record_crc(bytes);
         self.store(

@@ -4,7 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::DbError;
-use accelcal_line::verify::VerifyReport;
+use accelcal_core::document::verify::VerifyReport;
 
 /// A calibration run's id: a UUID the station chooses before storing anything, and keeps to
 /// resume the run.

@@ -1,6 +1,7 @@
 //! `verify`'s unit tests: the tolerances from a fit's uncertainty, the rules, the reports.
 
 use super::*;
+use accelcal_core::error::Classify;
 
 fn model4(se_bias: f64, se_k: [f64; 3], k_own: f64) -> ChannelUncertainty {
     let terms = ["1", "ax", "ay", "az"].iter().zip([se_bias, se_k[0], se_k[1], se_k[2]]);
