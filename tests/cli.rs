@@ -554,6 +554,25 @@ fn the_certificate_is_the_snapshot() {
     assert!(text.contains("at 25.0 °C (the node's sensor, 24.9 to 25.1 °C over the positions)"), "{text}");
     insta::assert_snapshot!("certificate_text", text);
 
+    // A fit that a later accelcal wrote is refused, as every reader of the fit JSON refuses it
+    // (issue 58: `report` read it without the version check).
+    let mut later = json(&d.p("u42-fit.json"));
+    later["version"] = serde_json::json!(99);
+    std::fs::write(d.p("later-fit.json"), later.to_string()).unwrap();
+    let e = bad(&[
+        "report",
+        "--campaign",
+        &c,
+        "--record",
+        &rec,
+        "--fit",
+        &d.s("later-fit.json"),
+        "-o",
+        &d.s("later.html"),
+    ]);
+    assert!(e.contains("version 99, written by a newer accelcal"), "{e}");
+    assert!(!d.p("later.html").exists());
+
     // A test-turn record: Table 2 names it the record's method, LSQ the other one.
     let text = certify("test-turns");
     assert!(text.contains("test turns (the record's method) and LSQ"), "{text}");

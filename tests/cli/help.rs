@@ -117,6 +117,8 @@ const UNITS: &[(&str, &str)] = &[
     ("--settle-timeout-s", "Seconds"),
     ("--header-timeout-s", "Seconds"),
     ("--static-z", "standard errors"),
+    ("--head-tolerance-arcsec", "arcsec"),
+    ("--settle-s", "Seconds"),
 ];
 
 /// Numeric options without a physical unit (counts, seeds, ratios).

@@ -132,7 +132,7 @@ const REFUSED: &[(&str, &str)] = &[
     ("verify --port P --head sim:h:1 --head-timeout-s inf", "--head-timeout-s must be a positive number of seconds up to 86400 (a day), got inf"),
     (
         "acquire --port P --head manual --out a.csv --head-timeout-s 10",
-        "--head-timeout-s does not apply to --head manual (the operator turns the head)",
+        "--head-timeout-s does not apply to --head manual (the operator turns the head, and their word is the read-back)",
     ),
     ("verify --port P --head manual --head-timeout-s 10", "--head-timeout-s does not apply to --head manual"),
     ("monitor --port P --rate 50", "--rate-hz: RateOutOfRange"),
@@ -277,7 +277,7 @@ const REFUSED: &[(&str, &str)] = &[
     ),
     (
         "station --port P --head manual --serial S-1 --out u1 --head-timeout-s 5",
-        "--head-timeout-s does not apply to --head manual (the operator turns the head)",
+        "--head-timeout-s does not apply to --head manual (the operator turns the head, and their word is the read-back)",
     ),
     (
         r"station --port P --head manual --serial S-1 --out u1 --relabel a\tb",

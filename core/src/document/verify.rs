@@ -164,7 +164,7 @@ impl VerifyReport {
         let name = path.display();
         let text = std::fs::read_to_string(path).map_err(|e| bad(format!("{name}: cannot read: {e}")))?;
         VerifyReport::parse(&text)
-            .map_err(|e| bad(format!("{name}: not `accelcal verify --json` output: {e}")))
+            .map_err(|e| bad(format!("{name}: not the JSON report `accelcal verify` writes: {e}")))
     }
 }
 
