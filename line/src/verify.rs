@@ -413,6 +413,7 @@ fn run(
     report: &mut VerifyReport,
 ) -> anyhow::Result<()> {
     let n = cfg.plan.positions.len();
+    head.home()?;
     if let Some((setpoint_c, soak)) = cfg.chamber {
         if !crate::acquire::soak(node, head, setpoint_c, soak, stop)? {
             report.interrupted = true;

@@ -141,7 +141,7 @@ fn a_manual_head_that_is_not_turned_is_refused() {
 
     // Resumed, with the head turned before each Enter: accepted.
     let addr = em.head.strip_prefix("sim:").unwrap();
-    let mut head = accelcal_line::head::SimHead::connect(addr, Duration::from_secs(60)).unwrap();
+    let mut head = accelcal_line::head::LineHead::connect(addr, Duration::from_secs(60)).unwrap();
     let a = args(&["--resume"]);
     let mut op = Operator::start(&a.iter().map(String::as_str).collect::<Vec<_>>());
     for (k, &(al, be)) in accelcal_core::sim::Plan::six().positions.iter().enumerate().skip(1) {

@@ -210,11 +210,13 @@ pub struct AcquireArgs {
     #[arg(long, alias = "answer-timeout-s", default_value_t = 5.0, value_name = "S", value_parser = Real(Range::Seconds))]
     pub timeout_s: f64,
     /// The head: `manual` (the command shows each position's angles and what the unit should
-    /// read, and waits for Enter) or `sim:HOST:PORT` (the emulated head `accelcal emulate` prints).
+    /// read, and waits for Enter), `sim:HOST:PORT` (the emulated head `accelcal emulate` prints)
+    /// or `exec:COMMAND` (an adapter program speaking the head protocol on its standard input and
+    /// output, e.g. `exec:"python3 examples/head-adapter/zaber_adapter.py HOST:PORT"`).
     #[arg(long, value_name = "HEAD")]
     pub head: accelcal_line::head::HeadSpec,
-    /// Seconds an emulated head (`--head sim:…`) may take to answer a request before the command
-    /// fails; a move is answered once the head stands still, so this bounds the longest move.
+    /// Seconds a driven head (`--head sim:…` or `exec:…`) may take to answer a request before the
+    /// command fails; a move is answered once the head stands still, so this bounds the longest move.
     #[arg(long, default_value_t = 120.0, value_name = "S", value_parser = Real(Range::Seconds))]
     pub head_timeout_s: f64,
     /// Largest accepted deviation of the angles a driven head reads back after a move from the
@@ -286,11 +288,11 @@ pub struct VerifyArgs {
     /// The node's link.
     #[command(flatten)]
     pub link: PortArgs,
-    /// The head: `manual` or `sim:HOST:PORT` (as for `acquire`).
+    /// The head: `manual`, `sim:HOST:PORT` or `exec:COMMAND` (as for `acquire`).
     #[arg(long, value_name = "HEAD")]
     pub head: accelcal_line::head::HeadSpec,
-    /// Seconds an emulated head (`--head sim:…`) may take to answer a request before the command
-    /// fails; a move is answered once the head stands still, so this bounds the longest move.
+    /// Seconds a driven head (`--head sim:…` or `exec:…`) may take to answer a request before the
+    /// command fails; a move is answered once the head stands still, so this bounds the longest move.
     #[arg(long, default_value_t = 120.0, value_name = "S", value_parser = Real(Range::Seconds))]
     pub head_timeout_s: f64,
     /// Largest accepted deviation of the angles a driven head reads back after a move from the
@@ -424,8 +426,8 @@ pub struct StationArgs {
     /// Seconds a node may stay silent (no answer to a request) before a step fails.
     #[arg(long, alias = "answer-timeout-s", default_value_t = 5.0, value_name = "S", value_parser = Real(Range::Seconds))]
     pub timeout_s: f64,
-    /// The head: `manual` (the operator turns it; each step prompts) or `sim:HOST:PORT` (as for
-    /// `acquire`).
+    /// The head: `manual` (the operator turns it; each step prompts), `sim:HOST:PORT` or
+    /// `exec:COMMAND` (as for `acquire`).
     #[arg(long, value_name = "HEAD", value_parser = parse_head_text)]
     pub head: Option<String>,
     /// The unit's serial number (written into the campaign and the certificate; the unit's

@@ -245,6 +245,9 @@ fn run_positions(
     let from = states.iter().map(|s| s.done).min().unwrap_or(n);
     let accel = |k: usize| accelcal_shared::gravity(positions[k].0, positions[k].1, cfg.g);
     let t0 = Instant::now();
+    if from < n {
+        head.home()?;
+    }
     for k in from..n {
         let angles = positions[k];
         let expected = accel(k);

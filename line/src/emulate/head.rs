@@ -370,6 +370,15 @@ pub fn serve_head(
 pub fn answer(line: &str, head: &Head, stop: &AtomicBool) -> Option<Reply> {
     Some(match Request::parse(line) {
         Err(e) => Reply::Err(e),
+        Ok(Request::Hello) => Reply::Hello {
+            version: crate::head::protocol::VERSION,
+            ident: format!("accelcal emulated head {}", env!("CARGO_PKG_VERSION")),
+        },
+        // The emulated head's axes need no homing: it answers where it stands.
+        Ok(Request::Home | Request::Stop) => {
+            let p = head.pose();
+            Reply::Ok { alpha_deg: p.alpha_deg, beta_deg: p.beta_deg }
+        }
         Ok(Request::Where) => {
             let p = head.pose();
             Reply::At { alpha_deg: p.alpha_deg, beta_deg: p.beta_deg, moving: p.moving.is_some() }
@@ -462,7 +471,7 @@ pub fn spawn_head_server(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::head::SimHead;
+    use crate::head::LineHead;
     use std::io::{BufRead, BufReader};
 
     #[test]
@@ -511,7 +520,7 @@ mod tests {
         let stop = Arc::new(AtomicBool::new(false));
         let (addr, server) = spawn_head_server(bind_head(0).unwrap(), head.clone(), stop.clone()).unwrap();
         let addr = addr.to_string();
-        let mut client = SimHead::connect(&addr, Duration::from_secs(5)).unwrap();
+        let mut client = LineHead::connect(&addr, Duration::from_secs(5)).unwrap();
         let t0 = Instant::now();
         client.move_to(90.0, -45.0).unwrap();
         let took = t0.elapsed().as_secs_f64();
@@ -543,6 +552,7 @@ mod tests {
         let stats = server.join().unwrap().unwrap();
         assert_eq!(stats.connections, 4);
         assert_eq!(stats.moves, 1);
-        assert_eq!(stats.requests, 7);
+        // HELLO, MOVE, WHERE, WHERE, MOVE refused, then the three bad requests.
+        assert_eq!(stats.requests, 8);
     }
 }

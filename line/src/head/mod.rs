@@ -7,15 +7,18 @@
 //!   head's settings ([`HeadSettings`]);
 //! - [`open`]: the factory from settings to a driver;
 //! - [`settled`]: the rule a position must meet before anything of it is recorded;
-//! - the drivers, one file each: [`manual`] (an operator), [`sim`] (the emulated head over the
-//!   line protocol of [`protocol`]).
+//! - the drivers, one file each: [`manual`] (an operator), [`line_head`] (a head on the line
+//!   protocol of [`protocol`] over a [`link`]: the emulated head, `sim:`), [`exec`] (an adapter
+//!   program speaking that protocol, `exec:`).
 //!
 //! A new driver is one new file plus its arm in [`spec::HeadSpec`] and in [`open`].
 
 pub mod error;
+pub mod exec;
+pub mod line_head;
+pub mod link;
 pub mod manual;
 pub mod protocol;
-pub mod sim;
 pub mod spec;
 
 use std::sync::atomic::AtomicBool;
@@ -23,7 +26,7 @@ use std::sync::Arc;
 
 pub use error::HeadError;
 pub use protocol::CHAMBER_RANGE_C;
-pub use sim::SimHead;
+pub use line_head::LineHead;
 pub use spec::{HeadSettings, HeadSpec};
 
 /// A head's two angles, degrees, in the paper's convention (α about the spindle, β the tilt;
@@ -62,7 +65,8 @@ pub trait Positioner {
     /// where the head gives one).
     fn describe(&self) -> String;
 
-    /// Brings the axes that need it to their home position; called once before the first move.
+    /// Brings the axes that need it to their home position; called once before the first move of
+    /// an acquisition or a verification.
     fn home(&mut self) -> anyhow::Result<()> {
         Ok(())
     }
@@ -107,7 +111,8 @@ pub fn open(
 ) -> anyhow::Result<Box<dyn Positioner>> {
     Ok(match &settings.spec {
         HeadSpec::Manual => Box::new(manual::ManualHead::new(stop, operator)),
-        HeadSpec::Sim(addr) => Box::new(SimHead::connect(addr, settings.timeout)?),
+        HeadSpec::Sim(addr) => Box::new(LineHead::connect(addr, settings.timeout)?.stop_on(stop)),
+        HeadSpec::Exec(command) => Box::new(exec::start(command, settings.timeout, operator)?.stop_on(stop)),
     })
 }
 

@@ -1,5 +1,5 @@
-//! Which head a command drives: the `--head` spec (`manual`, `sim:HOST:PORT`), parsed once into
-//! a typed value that settings carry.
+//! Which head a command drives: the `--head` spec (`manual`, `sim:HOST:PORT`, `exec:COMMAND`),
+//! parsed once into a typed value that settings carry.
 
 /// Which head a command drives.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -8,6 +8,9 @@ pub enum HeadSpec {
     Manual,
     /// An emulated head at this TCP address (`HOST:PORT`), as `accelcal emulate` prints it.
     Sim(String),
+    /// An adapter: this command line (split as a shell would, [`super::exec::words`]) is started
+    /// and speaks the head protocol on its standard input and output.
+    Exec(String),
 }
 
 impl std::str::FromStr for HeadSpec {
@@ -16,6 +19,10 @@ impl std::str::FromStr for HeadSpec {
         if s == "manual" {
             return Ok(HeadSpec::Manual);
         }
+        if let Some(command) = s.strip_prefix("exec:") {
+            super::exec::words(command)?;
+            return Ok(HeadSpec::Exec(command.to_string()));
+        }
         match s.strip_prefix("sim:") {
             Some(addr)
                 if addr.rsplit_once(':').is_some_and(|(h, p)| !h.is_empty() && p.parse::<u16>().is_ok()) =>
@@ -23,7 +30,8 @@ impl std::str::FromStr for HeadSpec {
                 Ok(HeadSpec::Sim(addr.to_string()))
             }
             _ => Err(format!(
-                "`{s}`: expected `manual` or `sim:HOST:PORT` (the `head` that `accelcal emulate` prints)"
+                "`{s}`: expected `manual`, `sim:HOST:PORT` (the `head` that `accelcal emulate` prints) or \
+                 `exec:COMMAND` (an adapter speaking the head protocol)"
             )),
         }
     }
@@ -34,6 +42,7 @@ impl std::fmt::Display for HeadSpec {
         match self {
             HeadSpec::Manual => f.write_str("manual"),
             HeadSpec::Sim(a) => write!(f, "sim:{a}"),
+            HeadSpec::Exec(c) => write!(f, "exec:{c}"),
         }
     }
 }
@@ -59,5 +68,9 @@ mod tests {
         assert_eq!("sim:127.0.0.1:4000".parse::<HeadSpec>(), Ok(HeadSpec::Sim("127.0.0.1:4000".into())));
         assert!("sim:nowhere".parse::<HeadSpec>().is_err());
         assert!("auto".parse::<HeadSpec>().is_err());
+        let spec = "exec:python3 a.py 'h:1'";
+        assert_eq!(spec.parse::<HeadSpec>(), Ok(HeadSpec::Exec("python3 a.py 'h:1'".into())));
+        assert_eq!(spec.parse::<HeadSpec>().unwrap().to_string(), spec);
+        assert!("exec:".parse::<HeadSpec>().is_err() && "exec:a 'b".parse::<HeadSpec>().is_err());
     }
 }
