@@ -218,4 +218,45 @@ mod tests {
             server.join().unwrap();
         }
     }
+
+    /// Ctrl-C during a move: the client sends `STOP` while the `MOVE` waits, and returns the
+    /// angles where the head stopped once both replies are in; a head that speaks another version
+    /// is refused at the greeting.
+    #[test]
+    fn a_stop_during_a_move_is_sent_and_both_replies_are_read() {
+        let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        let addr = listener.local_addr().unwrap().to_string();
+        let server = std::thread::spawn(move || {
+            let (mut s, _) = listener.accept().unwrap();
+            greet(&mut s);
+            let mut r = BufReader::new(s.try_clone().unwrap());
+            let mut line = String::new();
+            r.read_line(&mut line).unwrap();
+            assert_eq!(line, "MOVE 90 0\n");
+            line.clear();
+            r.read_line(&mut line).unwrap();
+            assert_eq!(line, "STOP\n");
+            s.write_all(b"OK 12.5 0\nOK 12.5 0\n").unwrap();
+            line.clear();
+            r.read_line(&mut line).unwrap();
+            assert_eq!(line, "WHERE\n");
+            s.write_all(b"AT 12.5 0 STILL\n").unwrap();
+            let (mut s, _) = listener.accept().unwrap();
+            let mut line = String::new();
+            BufReader::new(s.try_clone().unwrap()).read_line(&mut line).unwrap();
+            s.write_all(b"HELLO 3 a later head\n").unwrap();
+        });
+        let stop = Arc::new(AtomicBool::new(false));
+        let mut head = LineHead::connect(&addr, Duration::from_secs(5)).unwrap().stop_on(stop.clone());
+        let flag = stop.clone();
+        std::thread::spawn(move || {
+            std::thread::sleep(Duration::from_millis(100));
+            flag.store(true, std::sync::atomic::Ordering::Relaxed);
+        });
+        assert_eq!(head.move_to(90.0, 0.0).unwrap(), Angles { alpha_deg: 12.5, beta_deg: 0.0 });
+        assert_eq!(head.read_back().unwrap(), Angles { alpha_deg: 12.5, beta_deg: 0.0 });
+        let e = LineHead::connect(&addr, Duration::from_secs(5)).err().unwrap().to_string();
+        assert!(e.contains("speaks head protocol version 3; this build speaks version 2"), "{e}");
+        server.join().unwrap();
+    }
 }
