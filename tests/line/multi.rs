@@ -14,13 +14,26 @@ fn header_value(campaign: &Path, key: &str) -> String {
 }
 
 /// Keeps the header, the first `positions` positions of `samples` rows of a campaign and five rows
-/// of the next, plus half a row (as a crash leaves it).
+/// of the next, plus half a row (as a crash leaves it). The body's comment lines (each position's
+/// `# head_at:` line) are kept and not counted as rows.
 fn cut_after(campaign: &Path, positions: usize, samples: usize) {
     let text = std::fs::read_to_string(campaign).unwrap();
-    let rows = text.lines().take_while(|l| l.starts_with('#')).count() + 1 + positions * samples + 5;
-    let keep: Vec<&str> = text.lines().take(rows).collect();
-    let next = text.lines().nth(rows).unwrap();
-    std::fs::write(campaign, format!("{}\n{}", keep.join("\n"), &next[..next.len() / 2])).unwrap();
+    let header = text.lines().take_while(|l| l.starts_with('#')).count() + 1;
+    let want = positions * samples + 5;
+    let mut data = 0;
+    let mut keep: Vec<&str> = Vec::new();
+    let mut lines = text.lines();
+    for l in lines.by_ref() {
+        if keep.len() >= header && !l.starts_with('#') {
+            if data == want {
+                std::fs::write(campaign, format!("{}\n{}", keep.join("\n"), &l[..l.len() / 2])).unwrap();
+                return;
+            }
+            data += 1;
+        }
+        keep.push(l);
+    }
+    panic!("{} has fewer than {want} rows", campaign.display());
 }
 
 #[test]
