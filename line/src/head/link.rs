@@ -47,7 +47,8 @@ enum Line {
 /// What the link holds open besides its two directions.
 enum Peer {
     Tcp(TcpStream),
-    Child(Child),
+    /// The adapter, and the thread that forwards its standard error.
+    Child(Child, Option<std::thread::JoinHandle<()>>),
 }
 
 /// A head's line protocol over one transport.
@@ -115,10 +116,12 @@ impl Link {
     }
 
     /// A link over a child's standard input (`stdin`) and output (`stdout`), named `name` in
-    /// errors; the child is stopped when the link is dropped.
+    /// errors; the child is stopped when the link is dropped, and then `forwarder` (the thread
+    /// that copies its standard error) is given the same grace to pass on its last lines.
     pub fn child(
         name: &str,
         mut child: Child,
+        forwarder: Option<std::thread::JoinHandle<()>>,
         timeout: Duration,
     ) -> Result<Link, HeadError> {
         let (Some(stdin), Some(stdout)) = (child.stdin.take(), child.stdout.take()) else {
@@ -136,7 +139,7 @@ impl Link {
             writer: Some(Box::new(stdin)),
             lines: rx,
             timeout,
-            peer: Peer::Child(child),
+            peer: Peer::Child(child, forwarder),
         })
     }
 
@@ -255,16 +258,27 @@ impl Drop for Link {
             Peer::Tcp(s) => {
                 let _ = s.shutdown(std::net::Shutdown::Both);
             }
-            Peer::Child(c) => {
+            Peer::Child(c, forwarder) => {
                 let t0 = Instant::now();
-                while t0.elapsed() < EXEC_GRACE {
-                    if let Ok(Some(_)) = c.try_wait() {
-                        return;
-                    }
+                while t0.elapsed() < EXEC_GRACE && !matches!(c.try_wait(), Ok(Some(_))) {
                     std::thread::sleep(Duration::from_millis(10));
                 }
-                let _ = c.kill();
-                let _ = c.wait();
+                if !matches!(c.try_wait(), Ok(Some(_))) {
+                    let _ = c.kill();
+                    let _ = c.wait();
+                }
+                // The adapter's last diagnostics reach the operator before the command goes on
+                // (or ends with the adapter's error); a grandchild holding the pipe open is not
+                // waited for beyond the grace.
+                if let Some(f) = forwarder.take() {
+                    let t0 = Instant::now();
+                    while t0.elapsed() < EXEC_GRACE && !f.is_finished() {
+                        std::thread::sleep(Duration::from_millis(5));
+                    }
+                    if f.is_finished() {
+                        let _ = f.join();
+                    }
+                }
             }
         }
     }
