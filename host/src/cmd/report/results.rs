@@ -62,6 +62,16 @@ impl Cov {
     }
 }
 
+/// `v ± U` as ILAC-P14 asks ([`crate::report::Ilac`]); the value alone, to four significant
+/// digits, when U is not known.
+pub fn stated(v: f64, u: f64, signed: bool) -> String {
+    match crate::report::Ilac::of(v, u) {
+        Some(r) => format!("{} &plusmn; {}", r.value(signed), r.u()),
+        None if signed && v >= 0.0 => format!("+{}", crate::report::sig(v, 4)),
+        None => crate::report::sig(v, 4),
+    }
+}
+
 /// The results section: U per axis, the IEEE 1293 parameters with their U, the budget.
 pub fn section(rec: &Record, fit: &FitDoc, budget: Option<&UncertaintyJson>) -> String {
     let cov = Cov::of(fit, budget);
@@ -107,18 +117,16 @@ pub fn section(rec: &Record, fit: &FitDoc, budget: Option<&UncertaintyJson>) -> 
         let u_k1 = cov.expanded(&[(ik, G_N)]);
         let _ = write!(
             h,
-            "<tr><td class=\"l\">{}</td><td>{:+.3} &plusmn; {}</td><td>{:.2} &plusmn; {}</td>",
+            "<tr><td class=\"l\">{}</td><td>{}</td><td>{}</td>",
             AXES[c],
-            k0_mg,
-            crate::report::sig(u_k0, 2),
-            k1,
-            crate::report::sig(u_k1, 2)
+            stated(k0_mg, u_k0, true),
+            stated(k1, u_k1, false)
         );
         for j in (0..3).filter(|&j| j != c) {
             let kj = row[j + 1];
             let d = p.delta_urad[j];
             let u_d = cov.expanded(&[(4 * c + j + 1, 1.0 / kc), (ik, -kj / (kc * kc))]) * 1e6;
-            let _ = write!(h, "<td>toward {}: {:+.0} &plusmn; {:.0}</td>", AXES[j], d, u_d);
+            let _ = write!(h, "<td>toward {}: {}</td>", AXES[j], stated(d, u_d, true));
         }
         h.push_str("</tr>");
     }

@@ -168,7 +168,7 @@ fn position_table(v: &VerifyReport) -> String {
 fn parameter_table(v: &VerifyReport) -> String {
     let Some(params) = v.parameters.as_ref().filter(|p| !p.is_empty()) else { return String::new() };
     let mut h = String::from(
-        "<table><tr><th class=\"l\">parameter (from the ±axis positions)</th><th>axis</th><th>error</th><th>U</th><th>limit</th><th></th></tr>",
+        "<table><tr><th class=\"l\">parameter (from the ±axis positions)</th><th>axis</th><th>error</th><th>U</th><th>limit</th><th>decision</th></tr>",
     );
     for c in params {
         let word = if c.decision.accepted() {
@@ -176,14 +176,18 @@ fn parameter_table(v: &VerifyReport) -> String {
         } else {
             c.decision.name().to_uppercase()
         };
+        // ILAC-P14: U to two significant digits, the value to U's last digit; each cell says its
+        // unit, which differs from row to row.
+        let unit = esc(&c.unit);
+        let (value, u) = match crate::report::Ilac::of(c.value, c.u_expanded) {
+            Some(r) => (r.value(true), r.u()),
+            None => (format!("{:+}", c.value), format!("{}", c.u_expanded)),
+        };
         let _ = write!(
             h,
-            "<tr><td class=\"l\">{}</td><td>{}</td><td>{:+.4} {}</td><td>{:.4}</td><td>{}</td><td class=\"{}\">{word}</td></tr>",
+            "<tr><td class=\"l\">{}</td><td>{}</td><td>{value} {unit}</td><td>{u} {unit}</td><td>{} {unit}</td><td class=\"{}\">{word}</td></tr>",
             esc(&c.parameter.replace('_', " ")),
             esc(&c.axis),
-            c.value,
-            esc(&c.unit),
-            c.u_expanded,
             c.limit,
             if c.decision.accepted() { "pass" } else { "fail" }
         );
