@@ -391,9 +391,10 @@ pub fn run(a: &Report) -> anyhow::Result<()> {
     rows.push(("Decision rule", decision_rule(u.verify.as_ref())));
     rows.push((
         "Campaign",
+        // No file path: where the operator kept the campaign is not the customer's business; its
+        // SHA-256 identifies it (issue 57).
         format!(
-            "{} &mdash; plan {}, {} sets per position; SHA-256 {}",
-            esc(&a.campaign.display().to_string()),
+            "plan {}, {} sets per position; SHA-256 {}",
             esc(&plan),
             esc(&u.get("samples").unwrap_or_else(|| "-".into())),
             &u.fit_id.campaign_sha256[..16]
