@@ -171,12 +171,9 @@ pub fn phase_name(p: Phase) -> &'static str {
     }
 }
 
-/// A head as the command line names it.
+/// A head as the command line names it (the spec's one spelling, its `Display`).
 pub fn head_text(h: &accelcal_line::head::HeadSpec) -> String {
-    match h {
-        accelcal_line::head::HeadSpec::Manual => "manual".into(),
-        accelcal_line::head::HeadSpec::Sim(addr) => format!("sim:{addr}"),
-    }
+    h.to_string()
 }
 
 /// Stores a verification, read back from its JSON file (what `verify --json` wrote).

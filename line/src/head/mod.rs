@@ -8,7 +8,7 @@
 //! - [`open`]: the factory from settings to a driver;
 //! - [`settled`]: the rule a position must meet before anything of it is recorded;
 //! - the drivers, one file each: [`manual`] (an operator), [`sim`] (the emulated head over the
-//!   line protocol of [`protocol`]).
+//!   line protocol of [`protocol`]), [`zaber`] (a Zaber head over Zaber's ASCII protocol).
 //!
 //! A new driver is one new file plus its arm in [`spec::HeadSpec`] and in [`open`].
 
@@ -17,6 +17,7 @@ pub mod manual;
 pub mod protocol;
 pub mod sim;
 pub mod spec;
+pub mod zaber;
 
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
@@ -25,6 +26,7 @@ pub use error::HeadError;
 pub use protocol::CHAMBER_RANGE_C;
 pub use sim::SimHead;
 pub use spec::{HeadSettings, HeadSpec};
+pub use zaber::{ZaberAxes, ZaberHead, ZaberPort};
 
 /// A head's two angles, degrees, in the paper's convention (α about the spindle, β the tilt;
 /// `accelcal_shared::kinematics`).
@@ -108,6 +110,7 @@ pub fn open(
     Ok(match &settings.spec {
         HeadSpec::Manual => Box::new(manual::ManualHead::new(stop, operator)),
         HeadSpec::Sim(addr) => Box::new(SimHead::connect(addr, settings.timeout)?),
+        HeadSpec::Zaber(port) => Box::new(ZaberHead::connect(port, settings.zaber, settings.timeout, stop)?),
     })
 }
 

@@ -1,5 +1,7 @@
-//! Which head a command drives: the `--head` spec (`manual`, `sim:HOST:PORT`), parsed once into
-//! a typed value that settings carry.
+//! Which head a command drives: the `--head` spec (`manual`, `sim:HOST:PORT`, `zaber:PORT`),
+//! parsed once into a typed value that settings carry.
+
+use super::zaber::{ZaberAxes, ZaberPort};
 
 /// Which head a command drives.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -8,6 +10,9 @@ pub enum HeadSpec {
     Manual,
     /// An emulated head at this TCP address (`HOST:PORT`), as `accelcal emulate` prints it.
     Sim(String),
+    /// A Zaber head: a serial port (`zaber:/dev/ttyUSB0`) or a TCP address (`zaber:HOST:PORT`),
+    /// its axes and scale in [`HeadSettings::zaber`].
+    Zaber(ZaberPort),
 }
 
 impl std::str::FromStr for HeadSpec {
@@ -16,6 +21,13 @@ impl std::str::FromStr for HeadSpec {
         if s == "manual" {
             return Ok(HeadSpec::Manual);
         }
+        if let Some(port) = s.strip_prefix("zaber:") {
+            return ZaberPort::parse(port).map(HeadSpec::Zaber).ok_or_else(|| {
+                format!(
+                    "`{s}`: expected `zaber:/dev/SERIAL_PORT` or `zaber:HOST:PORT` (a Zaber chain's port)"
+                )
+            });
+        }
         match s.strip_prefix("sim:") {
             Some(addr)
                 if addr.rsplit_once(':').is_some_and(|(h, p)| !h.is_empty() && p.parse::<u16>().is_ok()) =>
@@ -23,7 +35,7 @@ impl std::str::FromStr for HeadSpec {
                 Ok(HeadSpec::Sim(addr.to_string()))
             }
             _ => Err(format!(
-                "`{s}`: expected `manual` or `sim:HOST:PORT` (the `head` that `accelcal emulate` prints)"
+                "`{s}`: expected `manual`, `sim:HOST:PORT` or `zaber:PORT` (the `head` that `accelcal emulate` prints)"
             )),
         }
     }
@@ -34,6 +46,7 @@ impl std::fmt::Display for HeadSpec {
         match self {
             HeadSpec::Manual => f.write_str("manual"),
             HeadSpec::Sim(a) => write!(f, "sim:{a}"),
+            HeadSpec::Zaber(p) => write!(f, "zaber:{p}"),
         }
     }
 }
@@ -47,6 +60,9 @@ pub struct HeadSettings {
     /// How long a driven head may take to answer a request, a move included
     /// (`--head-timeout-s`); an operator takes the time they need.
     pub timeout: std::time::Duration,
+    /// A Zaber head's axes and scale (`--zaber-alpha`, `--zaber-beta`, `--zaber-deg-per-step`;
+    /// the defaults for any other head).
+    pub zaber: ZaberAxes,
 }
 
 #[cfg(test)]
@@ -59,5 +75,15 @@ mod tests {
         assert_eq!("sim:127.0.0.1:4000".parse::<HeadSpec>(), Ok(HeadSpec::Sim("127.0.0.1:4000".into())));
         assert!("sim:nowhere".parse::<HeadSpec>().is_err());
         assert!("auto".parse::<HeadSpec>().is_err());
+        assert_eq!(
+            "zaber:/dev/ttyUSB0".parse::<HeadSpec>(),
+            Ok(HeadSpec::Zaber(ZaberPort::Serial("/dev/ttyUSB0".into())))
+        );
+        assert_eq!(
+            "zaber:10.0.0.5:55550".parse::<HeadSpec>(),
+            Ok(HeadSpec::Zaber(ZaberPort::Tcp("10.0.0.5:55550".into())))
+        );
+        assert_eq!("zaber:10.0.0.5:55550".parse::<HeadSpec>().unwrap().to_string(), "zaber:10.0.0.5:55550");
+        assert!("zaber:".parse::<HeadSpec>().is_err() && "zaber:ttyUSB0".parse::<HeadSpec>().is_err());
     }
 }
