@@ -171,7 +171,7 @@ pub fn phase_name(p: Phase) -> &'static str {
     }
 }
 
-/// A head as the command line names it.
+/// A head as the command line names it (the spec's one spelling, its `Display`).
 pub fn head_text(h: &accelcal_line::head::HeadSpec) -> String {
     h.to_string()
 }

@@ -341,7 +341,11 @@ pub fn acquire(a: &AcquireArgs, stated: Option<&Gravity>) -> anyhow::Result<Acqu
         nodes,
         baud: a.baud,
         answer_timeout: Duration::from_secs_f64(a.timeout_s),
-        head: HeadSettings { spec: a.head.clone(), timeout: Duration::from_secs_f64(a.head_timeout_s) },
+        head: HeadSettings {
+            spec: a.head.clone(),
+            timeout: Duration::from_secs_f64(a.head_timeout_s),
+            zaber: Default::default(),
+        },
         settle: Settle { tolerance_arcsec: a.head_tolerance_arcsec, wait: Duration::from_secs_f64(a.settle_s) },
         plan_spec: a.plan.clone(),
         plan,
@@ -405,7 +409,11 @@ pub fn verify(a: &VerifyArgs, stated: Option<&Gravity>) -> anyhow::Result<Verify
     let soak = soak_of(a.chamber.as_slice(), a.soak_s)?;
     Ok(Verify {
         link: Link::of(&a.link),
-        head: HeadSettings { spec: a.head.clone(), timeout: Duration::from_secs_f64(a.head_timeout_s) },
+        head: HeadSettings {
+            spec: a.head.clone(),
+            timeout: Duration::from_secs_f64(a.head_timeout_s),
+            zaber: Default::default(),
+        },
         settle: Settle { tolerance_arcsec: a.head_tolerance_arcsec, wait: Duration::from_secs_f64(a.settle_s) },
         plan,
         samples: a.samples,

@@ -18,9 +18,12 @@ use std::time::Duration;
 use accelcal_shared::contract::qemu_node_id;
 use accelcal_shared::slots::SlotImage;
 
+use super::fault::{FaultCounter, HeadFault};
 use super::frontend::{read_ctl, run_frontend, FeCounters, FrontEnd, PaceOptions};
 use super::head::{bind_head, spawn_head_server, Clock, Head, Motion, SensorTemp};
 use super::pty::Pty;
+use super::zaber::{serve_zaber, spawn_zaber_pty, ZaberStage};
+use crate::head::ZaberAxes;
 use crate::node::qemu::{BlankSlot, Link, LinkChannel, Qemu, QemuOptions};
 use crate::node::session::device_id_hex;
 use accelcal_core::error::bad;
@@ -53,12 +56,28 @@ pub struct BenchOptions {
     pub pace: PaceOptions,
     /// Port of the first node's gdbstub (0: a free one); node `i`'s is this plus `i`.
     pub gdb_port: u16,
-    /// Port of the head (0: a free one).
+    /// Port of the head (0: a free one); a head on a pseudo-terminal has none.
     pub head_port: u16,
+    /// The head's protocol and where it is served.
+    pub head: HeadDialect,
+    /// A fault the head injects once.
+    pub head_fault: Option<HeadFault>,
     /// The first node's number among the line's emulated nodes, from 0: node `i` reports the
     /// device id `contract::qemu_node_id(first_node + i)`, so that two benches of one line
     /// report distinct devices.
     pub first_node: usize,
+}
+
+/// Which protocol the emulated head speaks, and where (`accelcal emulate --head`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum HeadDialect {
+    /// The line protocol of `head::protocol` over TCP (`sim:HOST:PORT`).
+    #[default]
+    Sim,
+    /// Zaber's ASCII protocol over TCP (`zaber:HOST:PORT`; `emulate::zaber`).
+    Zaber,
+    /// Zaber's ASCII protocol on a pseudo-terminal, as a serial chain (`zaber:/dev/pts/N`).
+    ZaberPty,
 }
 
 /// Where to reach one emulated node.
@@ -80,7 +99,8 @@ pub struct Endpoints {
     pub port: String,
     /// The first node's gdbstub, `HOST:PORT`.
     pub gdb: String,
-    /// The head, `sim:HOST:PORT`.
+    /// The head, the spec to pass to `--head`: `sim:HOST:PORT`, `zaber:HOST:PORT` or
+    /// `zaber:/dev/pts/N`.
     pub head: String,
     /// Every node, in the order of the units.
     pub nodes: Vec<NodeEndpoints>,
@@ -125,7 +145,10 @@ impl Bench {
             n.unit.check_triad()?;
         }
         opts.motion.check().map_err(|e| bad(format!("head motion: {e}")))?;
-        let head_listener = bind_head(opts.head_port)?;
+        let head_listener = match opts.head {
+            HeadDialect::Sim | HeadDialect::Zaber => Some(bind_head(opts.head_port)?),
+            HeadDialect::ZaberPty => None,
+        };
         let stop = Arc::new(AtomicBool::new(false));
         let head = Arc::new(Head::with_chamber(Clock::start(), opts.motion, (0.0, 0.0), opts.sensor));
         let mut bench = Bench {
@@ -156,14 +179,34 @@ impl Bench {
             bench.endpoints.nodes.push(ends);
             bench.nodes.push(counters);
         }
-        let (head_addr, head_thread) = spawn_head_server(head_listener, head, stop)?;
-        bench.threads.push(std::thread::spawn(move || {
-            let _ = head_thread.join();
-        }));
+        bench.endpoints.head = match (opts.head, head_listener) {
+            (HeadDialect::Sim, Some(listener)) => {
+                let faults = Arc::new(FaultCounter::new(opts.head_fault));
+                let (addr, thread) = spawn_head_server(listener, head, faults, stop)?;
+                bench.threads.push(std::thread::spawn(move || {
+                    let _ = thread.join();
+                }));
+                format!("sim:{addr}")
+            }
+            (HeadDialect::Zaber, Some(listener)) => {
+                let addr = listener.local_addr()?;
+                let stage = ZaberStage::new(head, ZaberAxes::default(), opts.head_fault);
+                bench.threads.push(std::thread::spawn(move || {
+                    let _ = serve_zaber(listener, &stage, &stop);
+                }));
+                format!("zaber:{addr}")
+            }
+            (_, _) => {
+                let stage = Arc::new(ZaberStage::new(head, ZaberAxes::default(), opts.head_fault));
+                let (path, threads) = spawn_zaber_pty(stage, &stop)
+                    .map_err(|e| anyhow::anyhow!("opening the head's pseudo-terminal: {e}"))?;
+                bench.threads.extend(threads);
+                format!("zaber:{path}")
+            }
+        };
         let first = &bench.endpoints.nodes[0];
         bench.endpoints.port = first.port.clone();
         bench.endpoints.gdb = first.gdb.clone();
-        bench.endpoints.head = format!("sim:{head_addr}");
         Ok(bench)
     }
 

@@ -26,6 +26,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
+use super::fault::{FaultCounter, FaultKind};
 use crate::head::protocol::{Reply, Request};
 use accelcal_core::error::{Classify, Kind};
 
@@ -198,6 +199,54 @@ impl HeadState {
         };
         Ok(end_s)
     }
+
+    /// Sets axis `axis` (0: α, 1: β) heading for `to` (degrees) at `t_s`, the other axis keeping
+    /// its target, as a stage takes a new `move` while it moves (Zaber's ASCII protocol): while a
+    /// move is under way, it is turned towards the new angles from where it started, its start
+    /// kept, and counts once; otherwise a move starts. Returns when it ends, s.
+    pub fn move_axis(&mut self, t_s: f64, axis: usize, to: f64) -> Result<f64, String> {
+        if !to.is_finite() {
+            return Err(format!("angle must be finite, got {to}"));
+        }
+        let now = self.pose(t_s);
+        let Some((mut target, _)) = now.moving else {
+            let mut target = now.stand;
+            if axis == 0 {
+                target.0 = to
+            } else {
+                target.1 = to
+            }
+            return self.start_move(t_s, target);
+        };
+        if axis == 0 {
+            target.0 = to
+        } else {
+            target.1 = to
+        }
+        let Some(m) = self.current.as_mut() else { return Err("no move under way".into()) };
+        // Never ends before now: the head does not jump to a move's end.
+        let end_s = (m.start_s + self.motion.duration_s(m.from, target)).max(t_s);
+        *m = Move { to: target, end_s, ..*m };
+        Ok(end_s)
+    }
+
+    /// Stops the move under way at `t_s` where the head is then: it stands there, and the move
+    /// counts as done (the front end's next position). Standing, nothing changes.
+    pub fn stop(&mut self, t_s: f64) {
+        let now = self.pose(t_s);
+        let Some(m) = self.current else { return };
+        if now.moving.is_none() {
+            return;
+        }
+        *self = HeadState {
+            motion: self.motion,
+            stand: (now.alpha_deg, now.beta_deg),
+            prev_stand: Some(m.from),
+            stopped_at_s: t_s,
+            moves: self.moves + 1,
+            current: None,
+        };
+    }
 }
 
 /// The sensor's temperature on the emulated bench: it follows the chamber's setpoint as a first
@@ -301,6 +350,24 @@ impl Head {
         let t = self.clock.now_s();
         self.state().start_move(t, to)
     }
+
+    /// Sets one axis heading for `to` now ([`HeadState::move_axis`]); returns the move's end
+    /// time on the bench clock, s.
+    pub fn move_axis(&self, axis: usize, to: f64) -> Result<f64, String> {
+        let t = self.clock.now_s();
+        self.state().move_axis(t, axis, to)
+    }
+
+    /// Stops the head now where it is ([`HeadState::stop`]).
+    pub fn stop(&self) {
+        self.stop_at(self.clock.now_s())
+    }
+
+    /// Stops the head where it was at `t_s` on the bench clock (not after now; a move that
+    /// ended before `t_s` is not undone).
+    pub fn stop_at(&self, t_s: f64) {
+        self.state().stop(t_s)
+    }
 }
 
 /// Why the head server stopped.
@@ -340,10 +407,13 @@ pub struct HeadServerStats {
     pub moves: u64,
 }
 
-/// Serves the head protocol on `listener`, one connection at a time, until `stop` is set.
+/// Serves the head protocol on `listener`, one connection at a time, until `stop` is set;
+/// `faults` strikes one `MOVE` where it says (`reject`: `ERR`; `silent`: no reply, no motion;
+/// `off=ARCSEC`: α lands that far off, and `OK` says so; the other kinds are not injected here).
 pub fn serve_head(
     listener: TcpListener,
     head: &Head,
+    faults: &FaultCounter,
     stop: &AtomicBool,
 ) -> Result<HeadServerStats, HeadServerError> {
     let addr = listener.local_addr().map(|a| a.to_string()).unwrap_or_default();
@@ -355,7 +425,7 @@ pub fn serve_head(
             Ok((stream, _)) => {
                 stats.connections += 1;
                 // A connection's failure ends that connection only.
-                let _ = serve_connection(stream, head, stop, &mut stats);
+                let _ = serve_connection(stream, head, faults, stop, &mut stats);
             }
             Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => std::thread::sleep(POLL / 4),
             Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
@@ -366,8 +436,17 @@ pub fn serve_head(
     Ok(stats)
 }
 
-/// The reply to one request line; a `MOVE` blocks until the head has arrived (or `stop`).
-pub fn answer(line: &str, head: &Head, stop: &AtomicBool) -> Option<Reply> {
+/// The reply to one request line; a `MOVE` blocks until the head has arrived, or until
+/// `stop_requested` says a `STOP` came in meanwhile (the head then stops where it is and the
+/// `MOVE` is answered with those angles; the `STOP` is answered next, as the protocol says).
+/// None: no reply (`stop` was set, or the fault `silent` struck).
+pub fn answer(
+    line: &str,
+    head: &Head,
+    faults: &FaultCounter,
+    stop: &AtomicBool,
+    stop_requested: &mut dyn FnMut() -> bool,
+) -> Option<Reply> {
     Some(match Request::parse(line) {
         Err(e) => Reply::Err(e),
         Ok(Request::Hello) => Reply::Hello {
@@ -388,33 +467,54 @@ pub fn answer(line: &str, head: &Head, stop: &AtomicBool) -> Option<Reply> {
             Reply::Temp { setpoint_c: head.chamber_setpoint() }
         }
         Ok(Request::Temp) => Reply::Temp { setpoint_c: head.chamber_setpoint() },
-        Ok(Request::Move { alpha_deg, beta_deg }) => match head.start_move((alpha_deg, beta_deg)) {
-            Err(e) => Reply::Err(e),
-            Ok(end_s) => {
-                let clock = head.clock();
-                let end = clock.instant(end_s);
-                loop {
-                    let now = Instant::now();
-                    if now >= end && head.pose().moving.is_none() {
-                        break;
-                    }
-                    if stop.load(Ordering::Relaxed) {
-                        return None;
-                    }
-                    std::thread::sleep(
-                        end.saturating_duration_since(now).clamp(Duration::from_millis(1), POLL),
-                    );
-                }
-                let p = head.pose();
-                Reply::Ok { alpha_deg: p.alpha_deg, beta_deg: p.beta_deg }
+        Ok(Request::Move { alpha_deg, beta_deg }) => match faults.next_move() {
+            Some(FaultKind::Silent) => return None,
+            Some(FaultKind::Reject) => Reply::Err("the head refuses the move (injected fault)".into()),
+            fault => {
+                let off = if let Some(FaultKind::Off(arcsec)) = fault { arcsec / 3600.0 } else { 0.0 };
+                move_and_wait(head, (alpha_deg + off, beta_deg), stop, stop_requested)?
             }
         },
+    })
+}
+
+/// Moves the head to `to` and waits until it stands there, or stops it when `stop_requested`
+/// (None if `stop` is set meanwhile).
+fn move_and_wait(
+    head: &Head,
+    to: (f64, f64),
+    stop: &AtomicBool,
+    stop_requested: &mut dyn FnMut() -> bool,
+) -> Option<Reply> {
+    Some(match head.start_move(to) {
+        Err(e) => Reply::Err(e),
+        Ok(end_s) => {
+            let clock = head.clock();
+            let end = clock.instant(end_s);
+            loop {
+                let now = Instant::now();
+                if now >= end && head.pose().moving.is_none() {
+                    break;
+                }
+                if stop.load(Ordering::Relaxed) {
+                    return None;
+                }
+                if stop_requested() {
+                    head.stop();
+                    break;
+                }
+                std::thread::sleep(end.saturating_duration_since(now).clamp(Duration::from_millis(1), POLL));
+            }
+            let p = head.pose();
+            Reply::Ok { alpha_deg: p.alpha_deg, beta_deg: p.beta_deg }
+        }
     })
 }
 
 fn serve_connection(
     mut stream: TcpStream,
     head: &Head,
+    faults: &FaultCounter,
     stop: &AtomicBool,
     stats: &mut HeadServerStats,
 ) -> std::io::Result<()> {
@@ -433,12 +533,27 @@ fn serve_connection(
         pending.extend_from_slice(&buf[..n]);
         while let Some(i) = pending.iter().position(|&b| b == b'\n') {
             let line: Vec<u8> = pending.drain(..=i).collect();
+            // During a move, what the client sends is read on: a `STOP` line among it stops the
+            // head (it stays in `pending`, to be answered after the move).
+            let mut stop_requested = || {
+                let mut more = [0u8; 256];
+                if let Ok(n @ 1..) = stream.read(&mut more) {
+                    pending.extend_from_slice(&more[..n]);
+                }
+                pending.split(|&b| b == b'\n').rev().skip(1).any(|l| l.trim_ascii() == b"STOP")
+            };
             let reply = match std::str::from_utf8(&line) {
                 Ok(l) if l.trim().is_empty() => continue,
-                Ok(l) => answer(l, head, stop),
+                Ok(l) => answer(l, head, faults, stop, &mut stop_requested),
                 Err(_) => Some(Reply::Err("request is not UTF-8".into())),
             };
-            let Some(reply) = reply else { return Ok(()) };
+            let Some(reply) = reply else {
+                if stop.load(Ordering::Relaxed) {
+                    return Ok(());
+                }
+                stats.requests += 1;
+                continue;
+            };
             if matches!(reply, Reply::Ok { .. }) {
                 stats.moves += 1;
             }
@@ -459,12 +574,13 @@ fn serve_connection(
 pub fn spawn_head_server(
     listener: TcpListener,
     head: Arc<Head>,
+    faults: Arc<FaultCounter>,
     stop: Arc<AtomicBool>,
 ) -> Result<(SocketAddr, std::thread::JoinHandle<Result<HeadServerStats, HeadServerError>>), HeadServerError>
 {
     let addr =
         listener.local_addr().map_err(|cause| HeadServerError::Listen { addr: "127.0.0.1".into(), cause })?;
-    let h = std::thread::spawn(move || serve_head(listener, &head, &stop));
+    let h = std::thread::spawn(move || serve_head(listener, &head, &faults, &stop));
     Ok((addr, h))
 }
 
@@ -504,6 +620,28 @@ mod tests {
         assert!(Motion::default().check().is_ok());
     }
 
+    #[test]
+    fn one_axis_moves_join_the_move_under_way_and_a_stop_stands_where_it_is() {
+        let m = Motion { speed_deg_s: 10.0, overhead_s: 0.0 };
+        let mut h = HeadState::new(m, (0.0, 0.0));
+        assert_eq!(h.move_axis(1.0, 0, 20.0), Ok(3.0));
+        // β joins the move α started: one move, its end set by the larger angle.
+        assert_eq!(h.move_axis(1.0, 1, -40.0), Ok(5.0));
+        let mid = h.pose(3.0);
+        assert_eq!((mid.alpha_deg, mid.beta_deg, mid.moves_completed), (10.0, -20.0, 0));
+        h.stop(3.0);
+        let p = h.pose(10.0);
+        assert_eq!((p.alpha_deg, p.beta_deg, p.moving), (10.0, -20.0, None));
+        assert_eq!((p.moves_completed, p.prev_stand, p.stopped_at_s), (1, Some((0.0, 0.0)), 3.0));
+        // Standing, a stop changes nothing; the next move starts from the stopped pose.
+        let before = h.clone();
+        h.stop(11.0);
+        assert_eq!(h, before);
+        assert_eq!(h.move_axis(12.0, 1, -20.0), Ok(12.0));
+        assert_eq!(h.pose(12.0).moves_completed, 2);
+        assert!(h.move_axis(13.0, 0, f64::INFINITY).is_err());
+    }
+
     fn raw(addr: &str, line: &str) -> String {
         let mut s = TcpStream::connect(addr).unwrap();
         s.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
@@ -518,7 +656,9 @@ mod tests {
         let head =
             Arc::new(Head::new(Clock::start(), Motion { speed_deg_s: 900.0, overhead_s: 0.05 }, (0.0, 0.0)));
         let stop = Arc::new(AtomicBool::new(false));
-        let (addr, server) = spawn_head_server(bind_head(0).unwrap(), head.clone(), stop.clone()).unwrap();
+        let faults = Arc::new(FaultCounter::new(None));
+        let (addr, server) =
+            spawn_head_server(bind_head(0).unwrap(), head.clone(), faults, stop.clone()).unwrap();
         let addr = addr.to_string();
         let mut client = LineHead::connect(&addr, Duration::from_secs(5)).unwrap();
         let t0 = Instant::now();
@@ -554,5 +694,39 @@ mod tests {
         assert_eq!(stats.moves, 1);
         // HELLO, MOVE, WHERE, WHERE, MOVE refused, then the three bad requests.
         assert_eq!(stats.requests, 8);
+    }
+
+    /// Ctrl-C during a move (issue 56): the client sends `STOP` while its `MOVE` waits; the head
+    /// stops where it is, answers the `MOVE` and the `STOP` with those angles, and stands still
+    /// there (`WHERE` says `STILL`).
+    #[test]
+    fn a_stop_during_a_move_stops_the_head_where_it_is() {
+        let head = Arc::new(Head::new(Clock::start(), Motion { speed_deg_s: 90.0, overhead_s: 0.0 }, (0.0, 0.0)));
+        let stop = Arc::new(AtomicBool::new(false));
+        let faults = Arc::new(FaultCounter::new(None));
+        let (addr, server) = spawn_head_server(bind_head(0).unwrap(), head.clone(), faults, stop.clone()).unwrap();
+        let ctrl_c = Arc::new(AtomicBool::new(false));
+        let mut client =
+            LineHead::connect(&addr.to_string(), Duration::from_secs(5)).unwrap().stop_on(ctrl_c.clone());
+        let flag = ctrl_c.clone();
+        let press = std::thread::spawn(move || {
+            std::thread::sleep(Duration::from_millis(300));
+            flag.store(true, Ordering::Relaxed);
+        });
+        let t0 = Instant::now();
+        let at = client.move_to(90.0, 0.0).unwrap();
+        assert!(t0.elapsed() < Duration::from_millis(800), "{:?}", t0.elapsed());
+        assert!((5.0..60.0).contains(&at.alpha_deg), "{at:?}");
+        std::thread::sleep(Duration::from_millis(100));
+        let p = head.pose();
+        assert!(p.moving.is_none() && (p.alpha_deg - at.alpha_deg).abs() < 1e-9, "{p:?} {at:?}");
+        assert_eq!(
+            client.request(Request::Where).unwrap(),
+            Reply::At { alpha_deg: at.alpha_deg, beta_deg: 0.0, moving: false }
+        );
+        press.join().unwrap();
+        drop(client);
+        stop.store(true, Ordering::Relaxed);
+        server.join().unwrap().unwrap();
     }
 }

@@ -10,9 +10,11 @@
 //! join.
 
 pub mod bench;
+pub mod fault;
 pub mod frontend;
 pub mod head;
 pub mod pty;
+pub mod zaber;
 
 pub use frontend::{
     read_ctl, run_frontend, CtlStats, FeCounters, FeStats, FrontEnd, FrontendError, PaceOptions,

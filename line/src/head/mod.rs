@@ -9,7 +9,8 @@
 //! - [`settled`]: the rule a position must meet before anything of it is recorded;
 //! - the drivers, one file each: [`manual`] (an operator), [`line_head`] (a head on the line
 //!   protocol of [`protocol`] over a [`link`]: the emulated head, `sim:`), [`exec`] (an adapter
-//!   program speaking that protocol, `exec:`).
+//!   program speaking that protocol, `exec:`), [`zaber`] (a Zaber head over Zaber's ASCII
+//!   protocol, `zaber:`).
 //!
 //! A new driver is one new file plus its arm in [`spec::HeadSpec`] and in [`open`].
 
@@ -20,6 +21,7 @@ pub mod link;
 pub mod manual;
 pub mod protocol;
 pub mod spec;
+pub mod zaber;
 
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
@@ -28,6 +30,7 @@ pub use error::HeadError;
 pub use protocol::CHAMBER_RANGE_C;
 pub use line_head::LineHead;
 pub use spec::{HeadSettings, HeadSpec};
+pub use zaber::{ZaberAxes, ZaberHead, ZaberPort};
 
 /// A head's two angles, degrees, in the paper's convention (α about the spindle, β the tilt;
 /// `accelcal_shared::kinematics`).
@@ -113,6 +116,7 @@ pub fn open(
         HeadSpec::Manual => Box::new(manual::ManualHead::new(stop, operator)),
         HeadSpec::Sim(addr) => Box::new(LineHead::connect(addr, settings.timeout)?.stop_on(stop)),
         HeadSpec::Exec(command) => Box::new(exec::start(command, settings.timeout, operator)?.stop_on(stop)),
+        HeadSpec::Zaber(port) => Box::new(ZaberHead::connect(port, settings.zaber, settings.timeout, stop)?),
     })
 }
 

@@ -1,5 +1,7 @@
-//! Which head a command drives: the `--head` spec (`manual`, `sim:HOST:PORT`, `exec:COMMAND`),
-//! parsed once into a typed value that settings carry.
+//! Which head a command drives: the `--head` spec (`manual`, `sim:HOST:PORT`, `zaber:PORT`,
+//! `exec:COMMAND`), parsed once into a typed value that settings carry.
+
+use super::zaber::{ZaberAxes, ZaberPort};
 
 /// Which head a command drives.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -11,6 +13,9 @@ pub enum HeadSpec {
     /// An adapter: this command line (split as a shell would, [`super::exec::words`]) is started
     /// and speaks the head protocol on its standard input and output.
     Exec(String),
+    /// A Zaber head: a serial port (`zaber:/dev/ttyUSB0`) or a TCP address (`zaber:HOST:PORT`),
+    /// its axes and scale in [`HeadSettings::zaber`].
+    Zaber(ZaberPort),
 }
 
 impl std::str::FromStr for HeadSpec {
@@ -23,6 +28,13 @@ impl std::str::FromStr for HeadSpec {
             super::exec::words(command)?;
             return Ok(HeadSpec::Exec(command.to_string()));
         }
+        if let Some(port) = s.strip_prefix("zaber:") {
+            return ZaberPort::parse(port).map(HeadSpec::Zaber).ok_or_else(|| {
+                format!(
+                    "`{s}`: expected `zaber:/dev/SERIAL_PORT` or `zaber:HOST:PORT` (a Zaber chain's port)"
+                )
+            });
+        }
         match s.strip_prefix("sim:") {
             Some(addr)
                 if addr.rsplit_once(':').is_some_and(|(h, p)| !h.is_empty() && p.parse::<u16>().is_ok()) =>
@@ -30,8 +42,8 @@ impl std::str::FromStr for HeadSpec {
                 Ok(HeadSpec::Sim(addr.to_string()))
             }
             _ => Err(format!(
-                "`{s}`: expected `manual`, `sim:HOST:PORT` (the `head` that `accelcal emulate` prints) or \
-                 `exec:COMMAND` (an adapter speaking the head protocol)"
+                "`{s}`: expected `manual`, `sim:HOST:PORT` or `zaber:PORT` (the `head` that `accelcal emulate` \
+                 prints), or `exec:COMMAND` (an adapter speaking the head protocol)"
             )),
         }
     }
@@ -43,6 +55,7 @@ impl std::fmt::Display for HeadSpec {
             HeadSpec::Manual => f.write_str("manual"),
             HeadSpec::Sim(a) => write!(f, "sim:{a}"),
             HeadSpec::Exec(c) => write!(f, "exec:{c}"),
+            HeadSpec::Zaber(p) => write!(f, "zaber:{p}"),
         }
     }
 }
@@ -56,6 +69,9 @@ pub struct HeadSettings {
     /// How long a driven head may take to answer a request, a move included
     /// (`--head-timeout-s`); an operator takes the time they need.
     pub timeout: std::time::Duration,
+    /// A Zaber head's axes and scale (`--zaber-alpha`, `--zaber-beta`, `--zaber-deg-per-step`;
+    /// the defaults for any other head).
+    pub zaber: ZaberAxes,
 }
 
 #[cfg(test)]
@@ -72,5 +88,15 @@ mod tests {
         assert_eq!(spec.parse::<HeadSpec>(), Ok(HeadSpec::Exec("python3 a.py 'h:1'".into())));
         assert_eq!(spec.parse::<HeadSpec>().unwrap().to_string(), spec);
         assert!("exec:".parse::<HeadSpec>().is_err() && "exec:a 'b".parse::<HeadSpec>().is_err());
+        assert_eq!(
+            "zaber:/dev/ttyUSB0".parse::<HeadSpec>(),
+            Ok(HeadSpec::Zaber(ZaberPort::Serial("/dev/ttyUSB0".into())))
+        );
+        assert_eq!(
+            "zaber:10.0.0.5:55550".parse::<HeadSpec>(),
+            Ok(HeadSpec::Zaber(ZaberPort::Tcp("10.0.0.5:55550".into())))
+        );
+        assert_eq!("zaber:10.0.0.5:55550".parse::<HeadSpec>().unwrap().to_string(), "zaber:10.0.0.5:55550");
+        assert!("zaber:".parse::<HeadSpec>().is_err() && "zaber:ttyUSB0".parse::<HeadSpec>().is_err());
     }
 }
