@@ -60,8 +60,9 @@ class ZaberLink:
         line, _, self.buf = self.buf.partition(b"\n")
         return line.decode("ascii", "replace").strip()
 
-    def command(self, name, device, axis, text):
-        """Sends `/D A text`, returns (status, flag, data) of its reply; RJ is an error."""
+    def command(self, name, device, axis, text, check_faults=True):
+        """Sends `/D A text`, returns (status, flag, data) of its reply; RJ is an error, and so is
+        a fault flag unless `check_faults` is False."""
         self.sock.sendall(f"/{device} {axis} {text}\n".encode("ascii"))
         while True:
             line = self._line()
@@ -77,7 +78,7 @@ class ZaberLink:
             data = " ".join(words[5:])
             if reply == "RJ":
                 raise HeadError(f"{name} (device {device} axis {axis}) rejected `{text}`: {data}")
-            if flag.startswith(FAULT_PREFIX) or flag in FAULTS_ALSO:
+            if check_faults and (flag.startswith(FAULT_PREFIX) or flag in FAULTS_ALSO):
                 raise HeadError(f"{name} (device {device} axis {axis}) reports fault {flag}")
             return status, flag, data
 
@@ -109,6 +110,11 @@ class Head:
 
     def home(self):
         for name, d, a in self.axes:
+            # Faults left over from an earlier run are cleared (its reply lists them); one that
+            # persists shows again in the poll below, and is reported.
+            _, _, cleared = self.link.command(name, d, a, "warnings clear", check_faults=False)
+            if cleared.split()[1:]:
+                print(f"{name} (device {d} axis {a}): cleared {' '.join(cleared.split()[1:])}", file=sys.stderr)
             _, flag, _ = self.link.command(name, d, a, "")
             if flag == NOT_HOMED:
                 print(f"homing {name} (device {d} axis {a})", file=sys.stderr)
