@@ -415,7 +415,9 @@ pub(super) fn charts(db: &mut Db, app: &App, q: &str) -> Result<String, PageErro
                 c.violations.len(),
                 c.expected_by_chance
             ),
-            svg: escape::svg(control_chart(c.unit, &values, Some(&l), &broken).map_err(PageError::internal)?),
+            svg: escape::markup(
+                control_chart(c.unit, &values, Some(&l), &broken).map_err(PageError::internal)?,
+            ),
             violations: c
                 .violations
                 .iter()
@@ -442,7 +444,7 @@ pub(super) fn charts(db: &mut Db, app: &App, q: &str) -> Result<String, PageErro
             let l = c.limits.as_ref().map(|l| Lines { center: l.center, lcl: l.lcl, ucl: l.ucl });
             views.push(ChartView {
                 title: format!("{} ({})", c.quantity, c.unit),
-                svg: escape::svg(
+                svg: escape::markup(
                     control_chart(c.unit, &values, l.as_ref(), &broken).map_err(PageError::internal)?,
                 ),
                 violations: c
@@ -474,7 +476,7 @@ pub(super) fn charts(db: &mut Db, app: &App, q: &str) -> Result<String, PageErro
             svg: if arcsec.is_empty() {
                 String::new()
             } else {
-                escape::svg(signature_chart(&arcsec).map_err(PageError::internal)?)
+                escape::markup(signature_chart(&arcsec).map_err(PageError::internal)?)
             },
         });
     }
@@ -572,7 +574,7 @@ pub(super) fn unit(db: &mut Db, app: &App, key: &str) -> Result<String, PageErro
     let drift_svg = if pairs.is_empty() {
         String::new()
     } else {
-        escape::svg(drift_chart(&pairs).map_err(PageError::internal)?)
+        escape::markup(drift_chart(&pairs).map_err(PageError::internal)?)
     };
     let drifts = h
         .drifts
@@ -614,7 +616,8 @@ pub(super) fn unit(db: &mut Db, app: &App, key: &str) -> Result<String, PageErro
     page.render().map_err(PageError::internal)
 }
 
-/// `/run/ID/certificate`: the stored certificate, as issued.
+/// `/run/ID/certificate`: the stored certificate, as issued, its control characters shown as
+/// text (`\u{1b}`, [`escape::markup`]).
 pub(super) fn certificate(db: &mut Db, id: &str) -> Result<String, PageError> {
     let run = RunId::parse(id).map_err(|e| PageError::bad(e.to_string()))?;
     db.certificate_html(run)
@@ -640,3 +643,4 @@ pub(super) fn error(target: &str, status: StatusCode, message: &str) -> String {
     let page = ErrorPage { db: target, version: VERSION, status: status.to_string(), message };
     page.render().unwrap_or_else(|_| format!("{status}"))
 }
+        .map(escape::markup)
