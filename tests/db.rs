@@ -635,33 +635,102 @@ fn derived_edits_are_found() {
     tamper::derived_edits_are_found(&spec, &with_triggers_dropped(&spec));
 }
 
-/// A cell that does not read as its type is named by table, row and column, every such cell in
-/// `db verify`, the first in a reader's error; the other units' history still reads.
+/// A cell that does not read as its type is named by table, row and column: every such cell in
+/// `db verify`; `history`, `fleet` and serve's pages list every other run and name the run that
+/// does not read by its bad cell.
 #[test]
 fn a_bad_cell_is_named() {
     let d = tempfile::tempdir().unwrap();
     let spec = db_file(&d);
     let mut db = Db::open(&spec).unwrap();
     let run = calibrate(&mut db, &start(RunId::new(), DEVICE, "SN-1", "st-1", T0), &coefs(0.0, 0), None);
-    calibrate(&mut db, &start(RunId::new(), DEVICE_2, "SN-2", "st-1", T0 + 5), &coefs(0.0, 1), None);
+    let again =
+        calibrate(&mut db, &start(RunId::new(), DEVICE, "SN-1", "st-1", T0 + 3 * DAY), &coefs(0.0, 2), None);
+    let other =
+        calibrate(&mut db, &start(RunId::new(), DEVICE_2, "SN-2", "st-1", T0 + 5), &coefs(0.0, 1), None);
     drop(db);
     with_triggers_dropped(&spec)(&format!("UPDATE run SET g_m_s2 = 'abc' WHERE run_id = '{run}'"));
+    let cell = format!(
+        "table run, row run_id = '{run}', column g_m_s2: declared DOUBLE PRECISION, holds text 'abc'"
+    );
     let (code, out, err) = accelcal(&["db", "verify", "--db", &spec]);
     assert_eq!(code, Some(1), "{out}{err}");
+    assert!(out.contains(&format!("bad cell: {cell}")), "{out}");
+    // history: the unit's other run listed, the bad one named.
+    let d2 = tempfile::tempdir().unwrap();
+    let json = d2.path().join("h.json");
+    let (code, out, err) = accelcal(&["history", "SN-1", "--db", &spec, "--json", json.to_str().unwrap()]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    assert!(
+        out.contains("1 run, 1 calibration") && out.contains("(and 1 run that do not read, below)"),
+        "{out}"
+    );
+    assert!(
+        out.contains(&format!("UNREADABLE, not used: run {run} does not read: bad cell: {cell}")),
+        "{out}"
+    );
+    let h: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(h["runs"][0]["run_id"], again.to_string(), "{h}");
+    assert_eq!(h["unreadable"][0]["run_id"], run.to_string(), "{h}");
+    assert_eq!(h["unreadable"][0]["bad_cells"][0]["column"], "g_m_s2", "{h}");
+    let (code, out, err) = accelcal(&["history", "SN-2", "--db", &spec]);
+    assert_eq!(code, Some(0), "the other unit reads: {out}{err}");
+    assert!(!out.contains("UNREADABLE"), "{out}");
+    // fleet: every other run in its table and JSON, the bad one named.
+    let json = d2.path().join("f.json");
+    let (code, out, err) = accelcal(&[
+        "fleet",
+        "--since",
+        "2025-12-01",
+        "--until",
+        "2026-02-01",
+        "--db",
+        &spec,
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(0), "{out}{err}");
     assert!(
         out.contains(&format!(
-            "bad cell: table run, row run_id = '{run}', column g_m_s2: declared DOUBLE PRECISION, holds text 'abc'"
+            "UNREADABLE, not in the runs or the charts (counted): run {run} does not read: bad cell: {cell}"
         )),
         "{out}"
     );
-    let (code, _, err) = accelcal(&["history", "SN-1", "--db", &spec]);
-    assert_eq!(code, Some(1), "{err}");
-    assert!(
-        err.contains("a cell does not read as its column's type: table run") && err.contains("column g_m_s2"),
-        "{err}"
+    let f: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let ids: Vec<&str> =
+        f["runs"].as_array().unwrap().iter().map(|r| r["run_id"].as_str().unwrap()).collect();
+    assert_eq!(ids, [other.to_string(), again.to_string()], "{f}");
+    assert_eq!(f["unreadable_runs"][0]["run_id"], run.to_string(), "{f}");
+    assert_eq!(f["unreadable_runs"][0]["bad_cells"][0]["table"], "run", "{f}");
+    assert_eq!(f["unreadable_runs"][0]["bad_cells"][0]["column"], "g_m_s2", "{f}");
+    // serve: the overview, the fleet's table and the unit's page answer, list the other runs and
+    // name the bad cell.
+    let pages = dbkit::serve::statuses(
+        &spec,
+        &[
+            "/fleet?since=2025-12-01&until=2026-02-01",
+            "/charts?since=2025-12-01&until=2026-02-01",
+            "/unit/SN-1",
+            "/",
+        ],
     );
-    let (code, out, err) = accelcal(&["history", "SN-2", "--db", &spec]);
-    assert_eq!(code, Some(0), "the other unit reads: {out}{err}");
+    assert_eq!(pages[3].0, 200, "the overview (today's runs: none of these): {}", pages[3].1);
+    for (i, (status, body)) in pages[..3].iter().enumerate() {
+        assert_eq!(*status, 200, "page {i}: {body}");
+        assert!(
+            body.contains("id=\"unreadable\"")
+                && body.contains(&run.to_string())
+                && body.contains("column g_m_s2"),
+            "page {i} names the bad cell: {body}"
+        );
+    }
+    assert!(pages[0].1.contains("/unit/SN-2") && pages[0].1.contains("/unit/SN-1"), "{}", pages[0].1);
+    assert_eq!(
+        pages[2].1.matches("<tr><td class=\"num\">").count(),
+        1,
+        "the unit's other run: {}",
+        pages[2].1
+    );
 }
 
 /// A reader never migrates: an older schema tells it which command does, and `db migrate` does.

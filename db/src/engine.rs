@@ -398,20 +398,26 @@ impl Conn {
             Err(DbError::Engine { cause }) if !cause.starts_with(&target) => {
                 Err(DbError::Engine { cause: format!("{target}: {cause}") })
             }
-            // A value that does not read as its type: named by table, row and column when a
-            // cell of SQLite's holds another type than its column's.
-            Err(DbError::Schema { what }) => {
-                let was = std::mem::replace(&mut self.read_only, true);
-                let cells = self.transaction_here(scan_cells).unwrap_or_default();
-                self.read_only = was;
-                Err(match cells.split_first() {
-                    Some((first, more)) => {
-                        DbError::BadCell { target, first: Box::new(first.clone()), more: more.len() }
-                    }
-                    None => DbError::Schema { what },
-                })
-            }
+            Err(e @ DbError::Schema { .. }) => Err(self.name_bad_cell(e)),
             r => r,
+        }
+    }
+
+    /// A value that does not read as its type ([`DbError::Schema`]), named by table, row and
+    /// column ([`DbError::BadCell`]) when a cell of SQLite's holds another type than its
+    /// column's; any other failure as it is.
+    pub fn name_bad_cell(&mut self, e: DbError) -> DbError {
+        let DbError::Schema { what } = e else { return e };
+        let was = std::mem::replace(&mut self.read_only, true);
+        let cells = self.transaction_here(scan_cells).unwrap_or_default();
+        self.read_only = was;
+        match cells.split_first() {
+            Some((first, more)) => DbError::BadCell {
+                target: self.target.clone(),
+                first: Box::new(first.clone()),
+                more: more.len(),
+            },
+            None => DbError::Schema { what },
         }
     }
 
