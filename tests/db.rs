@@ -759,3 +759,88 @@ fn readers_never_migrate_and_db_migrate_does() {
     let (code, out, err) = accelcal(&["history", "SN-1", "--db", &spec]);
     assert_eq!(code, Some(0), "{out}{err}");
 }
+
+/// SQL on the SQLite file as it is (the migration history has no trigger to drop).
+fn plain(spec: &str, sql: &str) {
+    rusqlite::Connection::open(spec).unwrap().execute_batch(sql).unwrap();
+}
+
+/// Issue 55: a damaged migration history (its newest row deleted, a cell edited) stops every
+/// command with one line that names the table and what to do, and readers still write nothing;
+/// `db migrate` records it again when the schema is exactly that of one of this build's
+/// versions, and says to restore a backup when it is none's.
+#[test]
+fn a_damaged_migration_history_is_named_and_db_migrate_records_it_again() {
+    let d = tempfile::tempdir().unwrap();
+    let spec = db_file(&d);
+    let mut db = Db::open(&spec).unwrap();
+    calibrate(&mut db, &start(RunId::new(), DEVICE, "SN-1", "st-1", T0), &coefs(0.0, 0), None);
+    drop(db);
+    let latest = accelcal_db::schema_version();
+    let table = "its migration history (table refinery_schema_history) is damaged: ";
+    let cases = [
+        (
+            "DELETE FROM refinery_schema_history WHERE version = (SELECT MAX(version) FROM refinery_schema_history)"
+                .to_string(),
+            format!(
+                "it records schema version {}, and the schema is that of version {latest}: the rows of the versions after {} were removed",
+                latest - 1,
+                latest - 1
+            ),
+        ),
+        (
+            "UPDATE refinery_schema_history SET applied_on = 'abc' WHERE version = 3".to_string(),
+            "the row of version 3: its applied_on is 'abc', not a time".to_string(),
+        ),
+        (
+            "UPDATE refinery_schema_history SET checksum = '1' WHERE version = 5".to_string(),
+            "the row of version 5: its checksum is '1', not ".to_string(),
+        ),
+        (
+            "DELETE FROM refinery_schema_history WHERE version = 2".to_string(),
+            "version 2 is missing from it, and version 3 is recorded".to_string(),
+        ),
+    ];
+    for (sql, what) in &cases {
+        plain(&spec, sql);
+        let before = std::fs::read(&spec).unwrap();
+        for args in [
+            vec!["history", "SN-1"],
+            vec!["fleet", "--since", "2025-12-01", "--until", "2026-02-01"],
+            vec!["db", "verify"],
+        ] {
+            let mut args = args.clone();
+            args.extend(["--db", &spec]);
+            let (code, out, err) = accelcal(&args);
+            assert_eq!(code, Some(1), "{args:?}: {out}{err}");
+            assert!(err.contains(table) && err.contains(what.as_str()), "{args:?}: {err}");
+            assert!(err.contains(&format!("run `accelcal db migrate --db {spec}` once")), "{err}");
+            assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
+        }
+        assert_eq!(std::fs::read(&spec).unwrap(), before, "no reader wrote ({sql})");
+        let e = Db::open(&spec).err().expect("a writer refuses the database");
+        assert!(e.to_string().contains(what.as_str()), "{e}");
+        let (code, out, err) = accelcal(&["db", "migrate", "--db", &spec]);
+        assert_eq!(code, Some(0), "{sql}: {out}{err}");
+        assert!(
+            out.contains(&format!(
+                "recorded again as versions 1 to {latest}, the schema being exactly that of version {latest}"
+            )),
+            "{out}"
+        );
+        let (code, out, err) = accelcal(&["history", "SN-1", "--db", &spec]);
+        assert_eq!(code, Some(0), "read again after db migrate: {out}{err}");
+    }
+    // A schema that is no version's cannot be recorded again: a backup restores it.
+    plain(&spec, "UPDATE refinery_schema_history SET name = 'x' WHERE version = 4; CREATE TABLE extra (x)");
+    let (code, out, err) = accelcal(&["db", "migrate", "--db", &spec]);
+    assert_eq!(code, Some(1), "{out}{err}");
+    assert!(
+        err.contains(table)
+            && err.contains("its name is 'x', not `")
+            && err.contains(
+                "the schema is that of none of this build's versions: restore the database from a backup"
+            ),
+        "{err}"
+    );
+}

@@ -28,6 +28,7 @@ pub mod fleet;
 pub mod history;
 mod label;
 mod piece;
+mod schema_history;
 mod types;
 
 use std::io::Read;
@@ -36,7 +37,7 @@ pub use anchor::{Anchor, AnchorFinding, AnchorLog};
 pub use asset::{AffectedRun, Asset, AssetError, AssetKind};
 pub use certificate::{CertificateNumber, RecalibrationDue};
 pub use chain::{ChainEvent, ChainReport, Mismatch, RunSeal};
-pub use engine::{schema_version, Access, Target, LEDGER_LOCK};
+pub use engine::{repair_schema_history, schema_version, Access, Target, LEDGER_LOCK};
 use engine::{Conn, Tx, Val};
 pub use error::DbError;
 pub use label::{Label, LabelClash, Relabel};
