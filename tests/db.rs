@@ -635,6 +635,14 @@ fn derived_edits_are_found() {
     tamper::derived_edits_are_found(&spec, &with_triggers_dropped(&spec));
 }
 
+/// Issue 55 item 3: `fleet`, `history` and serve mark a run whose rows do not match their chain.
+#[test]
+fn a_tampered_run_is_marked_by_fleet_history_and_serve() {
+    let d = tempfile::tempdir().unwrap();
+    let spec = db_file(&d);
+    tamper::a_tampered_run_is_marked_where_it_is_listed(&spec, &with_triggers_dropped(&spec));
+}
+
 /// A cell that does not read as its type is named by table, row and column: every such cell in
 /// `db verify`; `history`, `fleet` and serve's pages list every other run and name the run that
 /// does not read by its bad cell.
