@@ -635,33 +635,110 @@ fn derived_edits_are_found() {
     tamper::derived_edits_are_found(&spec, &with_triggers_dropped(&spec));
 }
 
-/// A cell that does not read as its type is named by table, row and column, every such cell in
-/// `db verify`, the first in a reader's error; the other units' history still reads.
+/// Issue 55 item 3: `fleet`, `history` and serve mark a run whose rows do not match their chain.
+#[test]
+fn a_tampered_run_is_marked_by_fleet_history_and_serve() {
+    let d = tempfile::tempdir().unwrap();
+    let spec = db_file(&d);
+    tamper::a_tampered_run_is_marked_where_it_is_listed(&spec, &with_triggers_dropped(&spec));
+}
+
+/// A cell that does not read as its type is named by table, row and column: every such cell in
+/// `db verify`; `history`, `fleet` and serve's pages list every other run and name the run that
+/// does not read by its bad cell.
 #[test]
 fn a_bad_cell_is_named() {
     let d = tempfile::tempdir().unwrap();
     let spec = db_file(&d);
     let mut db = Db::open(&spec).unwrap();
     let run = calibrate(&mut db, &start(RunId::new(), DEVICE, "SN-1", "st-1", T0), &coefs(0.0, 0), None);
-    calibrate(&mut db, &start(RunId::new(), DEVICE_2, "SN-2", "st-1", T0 + 5), &coefs(0.0, 1), None);
+    let again =
+        calibrate(&mut db, &start(RunId::new(), DEVICE, "SN-1", "st-1", T0 + 3 * DAY), &coefs(0.0, 2), None);
+    let other =
+        calibrate(&mut db, &start(RunId::new(), DEVICE_2, "SN-2", "st-1", T0 + 5), &coefs(0.0, 1), None);
     drop(db);
     with_triggers_dropped(&spec)(&format!("UPDATE run SET g_m_s2 = 'abc' WHERE run_id = '{run}'"));
+    let cell = format!(
+        "table run, row run_id = '{run}', column g_m_s2: declared DOUBLE PRECISION, holds text 'abc'"
+    );
     let (code, out, err) = accelcal(&["db", "verify", "--db", &spec]);
     assert_eq!(code, Some(1), "{out}{err}");
+    assert!(out.contains(&format!("bad cell: {cell}")), "{out}");
+    // history: the unit's other run listed, the bad one named.
+    let d2 = tempfile::tempdir().unwrap();
+    let json = d2.path().join("h.json");
+    let (code, out, err) = accelcal(&["history", "SN-1", "--db", &spec, "--json", json.to_str().unwrap()]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    assert!(
+        out.contains("1 run, 1 calibration") && out.contains("(and 1 run that do not read, below)"),
+        "{out}"
+    );
+    assert!(
+        out.contains(&format!("UNREADABLE, not used: run {run} does not read: bad cell: {cell}")),
+        "{out}"
+    );
+    let h: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(h["runs"][0]["run_id"], again.to_string(), "{h}");
+    assert_eq!(h["unreadable"][0]["run_id"], run.to_string(), "{h}");
+    assert_eq!(h["unreadable"][0]["bad_cells"][0]["column"], "g_m_s2", "{h}");
+    let (code, out, err) = accelcal(&["history", "SN-2", "--db", &spec]);
+    assert_eq!(code, Some(0), "the other unit reads: {out}{err}");
+    assert!(!out.contains("UNREADABLE"), "{out}");
+    // fleet: every other run in its table and JSON, the bad one named.
+    let json = d2.path().join("f.json");
+    let (code, out, err) = accelcal(&[
+        "fleet",
+        "--since",
+        "2025-12-01",
+        "--until",
+        "2026-02-01",
+        "--db",
+        &spec,
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(0), "{out}{err}");
     assert!(
         out.contains(&format!(
-            "bad cell: table run, row run_id = '{run}', column g_m_s2: declared DOUBLE PRECISION, holds text 'abc'"
+            "UNREADABLE, not in the runs or the charts (counted): run {run} does not read: bad cell: {cell}"
         )),
         "{out}"
     );
-    let (code, _, err) = accelcal(&["history", "SN-1", "--db", &spec]);
-    assert_eq!(code, Some(1), "{err}");
-    assert!(
-        err.contains("a cell does not read as its column's type: table run") && err.contains("column g_m_s2"),
-        "{err}"
+    let f: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let ids: Vec<&str> =
+        f["runs"].as_array().unwrap().iter().map(|r| r["run_id"].as_str().unwrap()).collect();
+    assert_eq!(ids, [other.to_string(), again.to_string()], "{f}");
+    assert_eq!(f["unreadable_runs"][0]["run_id"], run.to_string(), "{f}");
+    assert_eq!(f["unreadable_runs"][0]["bad_cells"][0]["table"], "run", "{f}");
+    assert_eq!(f["unreadable_runs"][0]["bad_cells"][0]["column"], "g_m_s2", "{f}");
+    // serve: the overview, the fleet's table and the unit's page answer, list the other runs and
+    // name the bad cell.
+    let pages = dbkit::serve::statuses(
+        &spec,
+        &[
+            "/fleet?since=2025-12-01&until=2026-02-01",
+            "/charts?since=2025-12-01&until=2026-02-01",
+            "/unit/SN-1",
+            "/",
+        ],
     );
-    let (code, out, err) = accelcal(&["history", "SN-2", "--db", &spec]);
-    assert_eq!(code, Some(0), "the other unit reads: {out}{err}");
+    assert_eq!(pages[3].0, 200, "the overview (today's runs: none of these): {}", pages[3].1);
+    for (i, (status, body)) in pages[..3].iter().enumerate() {
+        assert_eq!(*status, 200, "page {i}: {body}");
+        assert!(
+            body.contains("id=\"unreadable\"")
+                && body.contains(&run.to_string())
+                && body.contains("column g_m_s2"),
+            "page {i} names the bad cell: {body}"
+        );
+    }
+    assert!(pages[0].1.contains("/unit/SN-2") && pages[0].1.contains("/unit/SN-1"), "{}", pages[0].1);
+    assert_eq!(
+        pages[2].1.matches("<tr><td class=\"num\">").count(),
+        1,
+        "the unit's other run: {}",
+        pages[2].1
+    );
 }
 
 /// A reader never migrates: an older schema tells it which command does, and `db migrate` does.
@@ -689,4 +766,89 @@ fn readers_never_migrate_and_db_migrate_does() {
     assert!(out.contains("is at schema version 8"), "{out}");
     let (code, out, err) = accelcal(&["history", "SN-1", "--db", &spec]);
     assert_eq!(code, Some(0), "{out}{err}");
+}
+
+/// SQL on the SQLite file as it is (the migration history has no trigger to drop).
+fn plain(spec: &str, sql: &str) {
+    rusqlite::Connection::open(spec).unwrap().execute_batch(sql).unwrap();
+}
+
+/// Issue 55: a damaged migration history (its newest row deleted, a cell edited) stops every
+/// command with one line that names the table and what to do, and readers still write nothing;
+/// `db migrate` records it again when the schema is exactly that of one of this build's
+/// versions, and says to restore a backup when it is none's.
+#[test]
+fn a_damaged_migration_history_is_named_and_db_migrate_records_it_again() {
+    let d = tempfile::tempdir().unwrap();
+    let spec = db_file(&d);
+    let mut db = Db::open(&spec).unwrap();
+    calibrate(&mut db, &start(RunId::new(), DEVICE, "SN-1", "st-1", T0), &coefs(0.0, 0), None);
+    drop(db);
+    let latest = accelcal_db::schema_version();
+    let table = "its migration history (table refinery_schema_history) is damaged: ";
+    let cases = [
+        (
+            "DELETE FROM refinery_schema_history WHERE version = (SELECT MAX(version) FROM refinery_schema_history)"
+                .to_string(),
+            format!(
+                "it records schema version {}, and the schema is that of version {latest}: the rows of the versions after {} were removed",
+                latest - 1,
+                latest - 1
+            ),
+        ),
+        (
+            "UPDATE refinery_schema_history SET applied_on = 'abc' WHERE version = 3".to_string(),
+            "the row of version 3: its applied_on is 'abc', not a time".to_string(),
+        ),
+        (
+            "UPDATE refinery_schema_history SET checksum = '1' WHERE version = 5".to_string(),
+            "the row of version 5: its checksum is '1', not ".to_string(),
+        ),
+        (
+            "DELETE FROM refinery_schema_history WHERE version = 2".to_string(),
+            "version 2 is missing from it, and version 3 is recorded".to_string(),
+        ),
+    ];
+    for (sql, what) in &cases {
+        plain(&spec, sql);
+        let before = std::fs::read(&spec).unwrap();
+        for args in [
+            vec!["history", "SN-1"],
+            vec!["fleet", "--since", "2025-12-01", "--until", "2026-02-01"],
+            vec!["db", "verify"],
+        ] {
+            let mut args = args.clone();
+            args.extend(["--db", &spec]);
+            let (code, out, err) = accelcal(&args);
+            assert_eq!(code, Some(1), "{args:?}: {out}{err}");
+            assert!(err.contains(table) && err.contains(what.as_str()), "{args:?}: {err}");
+            assert!(err.contains(&format!("run `accelcal db migrate --db {spec}` once")), "{err}");
+            assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
+        }
+        assert_eq!(std::fs::read(&spec).unwrap(), before, "no reader wrote ({sql})");
+        let e = Db::open(&spec).err().expect("a writer refuses the database");
+        assert!(e.to_string().contains(what.as_str()), "{e}");
+        let (code, out, err) = accelcal(&["db", "migrate", "--db", &spec]);
+        assert_eq!(code, Some(0), "{sql}: {out}{err}");
+        assert!(
+            out.contains(&format!(
+                "recorded again as versions 1 to {latest}, the schema being exactly that of version {latest}"
+            )),
+            "{out}"
+        );
+        let (code, out, err) = accelcal(&["history", "SN-1", "--db", &spec]);
+        assert_eq!(code, Some(0), "read again after db migrate: {out}{err}");
+    }
+    // A schema that is no version's cannot be recorded again: a backup restores it.
+    plain(&spec, "UPDATE refinery_schema_history SET name = 'x' WHERE version = 4; CREATE TABLE extra (x)");
+    let (code, out, err) = accelcal(&["db", "migrate", "--db", &spec]);
+    assert_eq!(code, Some(1), "{out}{err}");
+    assert!(
+        err.contains(table)
+            && err.contains("its name is 'x', not `")
+            && err.contains(
+                "the schema is that of none of this build's versions: restore the database from a backup"
+            ),
+        "{err}"
+    );
 }

@@ -250,6 +250,12 @@ fn laundering_is_reported_and_no_reader_writes() {
 }
 
 #[test]
+fn a_tampered_run_is_marked_by_fleet_history_and_serve() {
+    let pg = Cluster::start();
+    tamper::a_tampered_run_is_marked_where_it_is_listed(&pg.url, &as_superuser(&pg.url));
+}
+
+#[test]
 fn a_cut_tail_is_found_against_an_anchor_log_and_a_certificate() {
     let pg = Cluster::start();
     tamper::a_cut_tail_is_found_against_the_anchors(&pg.url, &as_superuser(&pg.url));

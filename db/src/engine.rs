@@ -9,10 +9,11 @@ use std::time::Duration;
 use postgres::types::{to_sql_checked, IsNull, ToSql as PgToSql, Type};
 
 use super::cells::BadCell;
+use super::schema_history;
 use super::DbError;
 
 /// The migrations of each engine (`core/migrations/<engine>/V<n>__<name>.sql`), embedded.
-mod embedded {
+pub(crate) mod embedded {
     pub mod sqlite {
         refinery::embed_migrations!("migrations/sqlite");
     }
@@ -330,6 +331,7 @@ impl Conn {
                 }
                 // Under an advisory lock, so that stations starting together migrate once.
                 conn.pg_locked(|c| {
+                    c.check_history()?;
                     let before = c.reading(latest_version)?;
                     let Link::Postgres(client, _) = &mut c.link else {
                         unreachable!("a PostgreSQL connection")
@@ -348,6 +350,7 @@ impl Conn {
     /// only reads.
     fn check_current(&mut self) -> Result<(), DbError> {
         let target = self.target.clone();
+        self.check_history()?;
         let have = self.reading(latest_version)?;
         let want = schema_version();
         match have {
@@ -362,6 +365,18 @@ impl Conn {
             Some(v) => Err(DbError::NeedsMigration {
                 target,
                 why: format!("it is at schema version {v}, this build reads version {want}"),
+            }),
+        }
+    }
+
+    /// The migration history checked ([`schema_history::damage`]) before anything trusts it.
+    fn check_history(&mut self) -> Result<(), DbError> {
+        match self.reading(schema_history::damage)? {
+            None => Ok(()),
+            Some(what) => Err(DbError::MigrationHistory {
+                target: self.target.clone(),
+                what,
+                repairable: matches!(self.link, Link::Sqlite(_)),
             }),
         }
     }
@@ -398,20 +413,26 @@ impl Conn {
             Err(DbError::Engine { cause }) if !cause.starts_with(&target) => {
                 Err(DbError::Engine { cause: format!("{target}: {cause}") })
             }
-            // A value that does not read as its type: named by table, row and column when a
-            // cell of SQLite's holds another type than its column's.
-            Err(DbError::Schema { what }) => {
-                let was = std::mem::replace(&mut self.read_only, true);
-                let cells = self.transaction_here(scan_cells).unwrap_or_default();
-                self.read_only = was;
-                Err(match cells.split_first() {
-                    Some((first, more)) => {
-                        DbError::BadCell { target, first: Box::new(first.clone()), more: more.len() }
-                    }
-                    None => DbError::Schema { what },
-                })
-            }
+            Err(e @ DbError::Schema { .. }) => Err(self.name_bad_cell(e)),
             r => r,
+        }
+    }
+
+    /// A value that does not read as its type ([`DbError::Schema`]), named by table, row and
+    /// column ([`DbError::BadCell`]) when a cell of SQLite's holds another type than its
+    /// column's; any other failure as it is.
+    pub fn name_bad_cell(&mut self, e: DbError) -> DbError {
+        let DbError::Schema { what } = e else { return e };
+        let was = std::mem::replace(&mut self.read_only, true);
+        let cells = self.transaction_here(scan_cells).unwrap_or_default();
+        self.read_only = was;
+        match cells.split_first() {
+            Some((first, more)) => DbError::BadCell {
+                target: self.target.clone(),
+                first: Box::new(first.clone()),
+                more: more.len(),
+            },
+            None => DbError::Schema { what },
         }
     }
 
@@ -583,6 +604,7 @@ fn open_sqlite(
     c.pragma_update(None, "synchronous", "FULL").map_err(failed)?;
     c.pragma_update(None, "foreign_keys", "ON").map_err(failed)?;
     let mut conn = Conn { link: Link::Sqlite(c), target: shown.clone(), read_only: false };
+    conn.check_history()?;
     let before = conn.reading(latest_version)?;
     {
         let Link::Sqlite(c) = &mut conn.link else { unreachable!("a SQLite connection") };
@@ -591,6 +613,31 @@ fn open_sqlite(
     after(&mut conn, before)?;
     drop(lock);
     Ok(conn)
+}
+
+/// `accelcal db migrate`'s first step on an existing SQLite file: its migration history recorded
+/// again when it is damaged and the schema is exactly that of one of this build's versions
+/// ([`schema_history::repair`]); what was done, or `None` (nothing to do, or PostgreSQL, whose
+/// history is only checked).
+pub fn repair_schema_history(target: &Target) -> Result<Option<String>, DbError> {
+    use rusqlite::OpenFlags;
+    let Target::Sqlite(path) = target else { return Ok(None) };
+    if !path.exists() {
+        return Ok(None);
+    }
+    if !writable(path) {
+        return Err(DbError::ReadOnly { path: path.to_path_buf() });
+    }
+    let shown = path.display().to_string();
+    let failed = |e: rusqlite::Error| DbError::Unreachable { target: shown.clone(), cause: e.to_string() };
+    let c = rusqlite::Connection::open_with_flags(
+        path,
+        OpenFlags::SQLITE_OPEN_READ_WRITE | OpenFlags::SQLITE_OPEN_NO_MUTEX,
+    )
+    .map_err(failed)?;
+    c.busy_timeout(WAIT).map_err(failed)?;
+    let mut conn = Conn { link: Link::Sqlite(c), target: shown.clone(), read_only: false };
+    conn.transaction(|tx| schema_history::repair(tx, &shown))
 }
 
 /// A path for a `file:` URI: `%`, `?` and `#` percent-encoded.

@@ -52,6 +52,22 @@ pub enum DbError {
         /// refinery's message.
         cause: String,
     },
+    /// The migration history (`refinery_schema_history`) is not this build's migrations as
+    /// applied: a row deleted or edited. Nothing trusts it until it is recorded again (`db
+    /// migrate`, SQLite, when the schema is exactly one version's) or the database restored.
+    #[error("database {target}: its migration history (table refinery_schema_history) is damaged: {what}: {}", if *repairable {
+        format!("run `accelcal db migrate --db {target}` once (it records the history again when the schema is exactly that of one of this build's versions), or restore the database from a backup")
+    } else {
+        "restore the database from a backup".to_string()
+    })]
+    MigrationHistory {
+        /// The target, password hidden.
+        target: String,
+        /// What is wrong with it.
+        what: String,
+        /// Whether `db migrate` may record it again (SQLite, the schema one version's).
+        repairable: bool,
+    },
     /// A reader met a database at another schema version than this build's: it never migrates.
     #[error("database {target}: {why}: run `accelcal db migrate --db {target}` once (it migrates the schema and writes what the migration asks); readers never write")]
     NeedsMigration {
@@ -201,6 +217,7 @@ impl Classify for DbError {
             DbError::Unreachable { .. }
             | DbError::Migration { .. }
             | DbError::NeedsMigration { .. }
+            | DbError::MigrationHistory { .. }
             | DbError::AnchorLog(_)
             | DbError::ChainBroken { .. }
             | DbError::Engine { .. }

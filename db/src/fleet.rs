@@ -5,6 +5,8 @@
 
 use serde::Serialize;
 
+use std::collections::{BTreeMap, HashMap};
+
 use super::engine::Val;
 
 /// What `fleet` counts and how, as `fleet --help` states it.
@@ -170,9 +172,23 @@ pub struct FleetRun {
     /// control charts.
     #[serde(skip)]
     pub as_left_max_abs_error_m_s2: Option<f64>,
+    /// Why the rows the fleet shows of it do not match their hash chain ([`Db::tampered_runs`]),
+    /// when they do not: such a run is listed as tampered, and charted nowhere.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tampered: Option<String>,
 }
 
 impl FleetRun {
+    /// Its state as a table shows it: `tampered` when its rows do not match their hash chain
+    /// (whatever they say), else [`FleetRun::state`].
+    pub fn shown_state(&self) -> &str {
+        if self.tampered.is_some() {
+            "tampered"
+        } else {
+            &self.state
+        }
+    }
+
     /// Its stored fit's model-4 coefficients, `[channel x, y, z][term 1, ax, ay, az]`, when it
     /// has a model-4 fit.
     pub fn model4(&self) -> Option<[[f64; 4]; 3]> {
@@ -280,31 +296,88 @@ impl Db {
                 &p,
             )
         })?;
-        rows.iter()
-            .map(|r| {
-                Ok(FleetRun {
-                    run_id: r[0].text()?,
-                    device_id: r[1].text()?,
-                    serial: r[2].text()?,
-                    station: r[3].text()?,
-                    head_asset: r[4].opt_text()?,
-                    operator: r[5].text()?,
-                    started_unix_s: r[6].int()?,
-                    g_m_s2: r[14].real()?,
-                    ended_unix_s: opt_int(&r[7])?,
-                    state: r[8].text()?,
-                    reason: r[9].opt_text()?,
-                    as_found_decision: r[10].opt_text()?,
-                    as_left_decision: r[11].opt_text()?,
-                    model4: r[12].opt_text()?.and_then(|t| serde_json::from_str(&t).ok()),
-                    u_m_s2: r[13].opt_text()?.and_then(|t| serde_json::from_str(&t).ok()),
-                    as_left_max_abs_error_m_s2: match &r[15] {
-                        Val::Null => None,
-                        v => Some(v.real()?),
-                    },
-                })
+        let mut runs = self.listed(&rows, 0, |r| {
+            Ok(FleetRun {
+                run_id: r[0].text()?,
+                device_id: r[1].text()?,
+                serial: r[2].text()?,
+                station: r[3].text()?,
+                head_asset: r[4].opt_text()?,
+                operator: r[5].text()?,
+                started_unix_s: r[6].int()?,
+                g_m_s2: r[14].real()?,
+                ended_unix_s: opt_int(&r[7])?,
+                state: r[8].text()?,
+                reason: r[9].opt_text()?,
+                as_found_decision: r[10].opt_text()?,
+                as_left_decision: r[11].opt_text()?,
+                model4: r[12].opt_text()?.and_then(|t| serde_json::from_str(&t).ok()),
+                u_m_s2: r[13].opt_text()?.and_then(|t| serde_json::from_str(&t).ok()),
+                as_left_max_abs_error_m_s2: match &r[15] {
+                    Val::Null => None,
+                    v => Some(v.real()?),
+                },
+                tampered: None,
             })
-            .collect()
+        })?;
+        let mut tampered = self.tampered_runs(f)?;
+        for r in &mut runs {
+            r.tampered = tampered.remove(&r.run_id);
+        }
+        Ok(runs)
+    }
+
+    /// The period's runs whose rows that the fleet shows (`run`, `run_end`, `void`,
+    /// `run_asset`: the unit, station, operator, state, reason and head) do not match their
+    /// ledger entries, each with the first mismatch in words. One pass over the period's
+    /// entries and those rows (each run checked once, not a [`Db::verify_run`] per run): a row
+    /// without an entry, a row whose digest is not its entry's, an entry whose row is gone. The
+    /// chain's links and the other pieces (the campaign, the fit, the verifications) are `db
+    /// verify`'s, and `history`'s unit by unit.
+    pub fn tampered_runs(&mut self, f: &Filter) -> Result<BTreeMap<String, String>, DbError> {
+        use super::chain::{piece_key, row_digest, table};
+        const SHOWN: [&str; 4] = ["run", "run_end", "void", "run_asset"];
+        let sel = selected();
+        let p = f.params();
+        let (entries, rows) = self.conn.transaction(|tx| {
+            let entries = tx.query(
+                &format!(
+                    "{sel} SELECT l.run_id, l.piece, l.row_sha256 FROM ledger l JOIN sel ON sel.run_id = l.run_id \
+                     WHERE l.piece IN ('run', 'run_end', 'void') OR substr(l.piece, 1, 10) = 'run_asset:'"
+                ),
+                &p,
+            )?;
+            let mut rows = Vec::new();
+            for name in SHOWN {
+                let t = table(name);
+                let cols: Vec<String> = t.columns.iter().map(|c| format!("t.{c}")).collect();
+                let sql = format!("{sel} SELECT {} FROM {name} t JOIN sel ON sel.run_id = t.run_id", cols.join(", "));
+                rows.push((t, tx.query(&sql, &p)?));
+            }
+            Ok((entries, rows))
+        })?;
+        let mut want: HashMap<(String, String), String> = entries
+            .iter()
+            .map(|r| Ok(((r[0].text()?, r[1].text()?), r[2].text()?)))
+            .collect::<Result<_, DbError>>()?;
+        let mut out = BTreeMap::new();
+        for (t, rows) in &rows {
+            for row in rows {
+                let (run, piece) = (row[0].text()?, piece_key(t.name, row)?);
+                let why = match want.remove(&(run.clone(), piece.clone())) {
+                    None => format!("its {piece} row has no ledger entry (written behind accelcal's back)"),
+                    Some(d) if d != row_digest(t, row) => {
+                        format!("its {piece} row is not the one stored (its digest differs from its ledger entry's)")
+                    }
+                    Some(_) => continue,
+                };
+                out.entry(run).or_insert(why);
+            }
+        }
+        for ((run, piece), _) in want {
+            out.entry(run).or_insert_with(|| format!("its {piece} row is gone"));
+        }
+        Ok(out)
     }
 
     /// The units whose latest certificate (of a run not voided) states a recalibration date
@@ -323,16 +396,14 @@ impl Db {
                 &[before_unix_s.into(), serial_prefix.unwrap_or("").into()],
             )
         })?;
-        rows.iter()
-            .map(|r| {
-                Ok(DueUnit {
-                    device_id: r[0].text()?,
-                    serial: r[1].text()?,
-                    run_id: r[2].text()?,
-                    due_unix_s: r[3].int()?,
-                })
+        self.listed(&rows, 2, |r| {
+            Ok(DueUnit {
+                device_id: r[0].text()?,
+                serial: r[1].text()?,
+                run_id: r[2].text()?,
+                due_unix_s: r[3].int()?,
             })
-            .collect()
+        })
     }
 }
 
@@ -479,7 +550,7 @@ impl Db {
                 &f.params(),
             )
         })?;
-        rows.iter().filter_map(|r| head_observation(r).transpose()).collect()
+        Ok(self.listed(&rows, 2, head_observation)?.into_iter().flatten().collect())
     }
 
     /// The head observations of the last `limit` runs on head asset `asset` that started before
@@ -509,8 +580,8 @@ impl Db {
                 &[asset.into(), before_unix_s.into(), (limit.min(i64::MAX as usize) as i64).into()],
             )
         })?;
-        let mut out =
-            rows.iter().filter_map(|r| head_observation(r).transpose()).collect::<Result<Vec<_>, _>>()?;
+        let mut out: Vec<HeadObservation> =
+            self.listed(&rows, 2, head_observation)?.into_iter().flatten().collect();
         out.reverse();
         Ok(out)
     }
@@ -526,7 +597,7 @@ pub fn charts(runs: &[FleetRun]) -> Vec<Chart> {
     use accelcal_core::spc::ImrLimits;
     use std::collections::{BTreeMap, HashMap};
     let mut groups: BTreeMap<String, HashMap<String, Vec<ChartPoint>>> = BTreeMap::new();
-    for run in runs.iter().filter(|r| r.state == "pass") {
+    for run in runs.iter().filter(|r| r.state == "pass" && r.tampered.is_none()) {
         let group = match &run.head_asset {
             Some(asset) => format!("head {asset}"),
             None => format!("station {}", run.station),

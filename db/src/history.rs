@@ -227,6 +227,9 @@ pub struct History {
     pub drifts: Vec<Drift>,
     /// The recommended recalibration.
     pub recalibration: Recalibration,
+    /// The unit's runs that do not read (a cell that does not read as its column's type,
+    /// [`crate::Db::listing_unreadable`]): named, never used.
+    pub unreadable: Vec<super::cells::UnreadableRun>,
 }
 
 const CHANNELS: [&str; 3] = ["x", "y", "z"];
@@ -411,6 +414,7 @@ pub fn history(runs: &[RunSummary], rule: RecalRule) -> History {
         runs: lines,
         drifts,
         recalibration,
+        unreadable: Vec::new(),
     }
 }
 

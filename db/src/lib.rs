@@ -28,6 +28,7 @@ pub mod fleet;
 pub mod history;
 mod label;
 mod piece;
+mod schema_history;
 mod types;
 
 use std::io::Read;
@@ -36,7 +37,7 @@ pub use anchor::{Anchor, AnchorFinding, AnchorLog};
 pub use asset::{AffectedRun, Asset, AssetError, AssetKind};
 pub use certificate::{CertificateNumber, RecalibrationDue};
 pub use chain::{ChainEvent, ChainReport, Mismatch, RunSeal};
-pub use engine::{schema_version, Access, Target, LEDGER_LOCK};
+pub use engine::{repair_schema_history, schema_version, Access, Target, LEDGER_LOCK};
 use engine::{Conn, Tx, Val};
 pub use error::DbError;
 pub use label::{Label, LabelClash, Relabel};
@@ -54,6 +55,11 @@ pub struct Db {
     target: Target,
     /// `--anchor-log`: where each write's new chain head is appended ([`Db::with_anchor_log`]).
     anchor_log: Option<anchor::AnchorLog>,
+    /// Whether a run whose rows do not read as their types is set aside and listed
+    /// ([`Db::listing_unreadable`]) instead of failing the read.
+    list_unreadable: bool,
+    /// The runs set aside so far, and why each ([`Db::unreadable`]).
+    unreadable: std::collections::BTreeMap<String, String>,
 }
 
 use accelcal_core::digest::hex;
@@ -96,7 +102,76 @@ impl Db {
     /// A second connection to the same database, for reading (a reader that queries on
     /// several connections at once).
     pub fn open_again(&self) -> Result<Db, DbError> {
-        Db::open_target(self.target.clone(), Access::Read)
+        let mut db = Db::open_target(self.target.clone(), Access::Read)?;
+        db.list_unreadable = self.list_unreadable;
+        Ok(db)
+    }
+
+    /// A reader that lists runs (`history`, `fleet`, `serve`): a run whose rows do not read as
+    /// their types (a SQLite cell written behind accelcal's back) is set aside, and the others
+    /// are listed; [`Db::unreadable`] names what was set aside. Without it, such a run fails
+    /// the read (what a writer, or a command that uses the run, needs).
+    pub fn listing_unreadable(mut self) -> Db {
+        self.list_unreadable = true;
+        self
+    }
+
+    /// The runs set aside since the last call ([`Db::listing_unreadable`]), each with the cells
+    /// that do not read as their column's type (one scan of the database's cells, made only
+    /// when a run was set aside), by run id.
+    pub fn unreadable(&mut self) -> Result<Vec<cells::UnreadableRun>, DbError> {
+        if self.unreadable.is_empty() {
+            return Ok(Vec::new());
+        }
+        let cells = self.conn.reading(engine::scan_cells)?;
+        Ok(std::mem::take(&mut self.unreadable)
+            .into_iter()
+            .map(|(run_id, error)| cells::UnreadableRun {
+                bad_cells: cells.iter().filter(|c| c.run_id() == Some(run_id.as_str())).cloned().collect(),
+                run_id,
+                error,
+            })
+            .collect())
+    }
+
+    /// How many runs were set aside since the last [`Db::unreadable`].
+    pub fn unreadable_count(&self) -> usize {
+        self.unreadable.len()
+    }
+
+    /// Forgets the runs set aside (a pooled connection handing itself to the next request).
+    pub fn forget_unreadable(&mut self) {
+        self.unreadable.clear();
+    }
+
+    /// Takes over the runs `other` (a connection of [`Db::open_again`]) set aside.
+    pub fn unreadable_from(&mut self, other: &mut Db) {
+        self.unreadable.append(&mut other.unreadable);
+    }
+
+    /// Notes runs set aside ([`cells::each_row`]).
+    fn set_aside(&mut self, runs: cells::SetAside) {
+        for (run, why) in runs {
+            self.unreadable.entry(run).or_insert(why);
+        }
+    }
+
+    /// The rows of a listing read by `f` ([`cells::each_row`]): with
+    /// [`Db::listing_unreadable`], a run whose row does not read is set aside (its id in column
+    /// `run_col`); otherwise such a row is the failure, its bad cell named.
+    fn listed<T>(
+        &mut self,
+        rows: &[Vec<engine::Val>],
+        run_col: usize,
+        f: impl FnMut(&[engine::Val]) -> Result<T, DbError>,
+    ) -> Result<Vec<T>, DbError> {
+        match cells::each_row(self.list_unreadable, rows, run_col, f) {
+            Ok((out, aside)) => {
+                self.set_aside(aside);
+                Ok(out)
+            }
+            Err(e) => Err(self.conn.name_bad_cell(e)),
+        }
     }
 
     fn open_target(target: Target, access: Access) -> Result<Db, DbError> {
@@ -130,7 +205,7 @@ impl Db {
                 why: "rows stored before schema 6 still wait for their derived rows".into(),
             });
         }
-        Ok(Db { conn, target, anchor_log: None })
+        Ok(Db { conn, target, anchor_log: None, list_unreadable: false, unreadable: Default::default() })
     }
 
     /// The database, for messages (password hidden).
@@ -679,7 +754,8 @@ impl Db {
     pub fn unit_runs(&mut self, key: &str) -> Result<Vec<RunSummary>, DbError> {
         let key = key.trim();
         let target = self.target();
-        self.conn.transaction(|tx| {
+        let tolerant = self.list_unreadable;
+        let (runs, aside) = self.conn.transaction(|tx| {
             let lower = key.to_ascii_lowercase();
             let is_device = !tx
                 .query("SELECT 1 FROM run WHERE device_id = $1 LIMIT 1", &[lower.clone().into()])?
@@ -702,9 +778,10 @@ impl Db {
                 ),
                 &[device.into()],
             )?;
-            let starts: Vec<RunStart> = rows.iter().map(|r| run_start(r)).collect::<Result<_, _>>()?;
-            starts.into_iter().map(|s| summary(tx, s)).collect()
-        })
+            cells::each_row(tolerant, &rows, 0, |r| summary(tx, run_start(r)?))
+        })?;
+        self.set_aside(aside);
+        Ok(runs)
     }
 
     /// The run's start, or [`DbError::NoRun`].

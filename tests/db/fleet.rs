@@ -175,6 +175,13 @@ fn serve_shows_a_hostile_serial_as_text_and_runs_no_stored_script() {
     dbkit::serve::a_hostile_serial_is_text_and_a_stored_script_does_not_run(&db_file(&d));
 }
 
+/// Issue 55: no control character of a stored certificate reaches `/run/ID/certificate`.
+#[test]
+fn serve_shows_a_stored_certificate_s_control_characters_escaped() {
+    let d = tempfile::tempdir().unwrap();
+    dbkit::serve::a_stored_certificate_s_controls_are_shown_escaped(&db_file(&d));
+}
+
 #[test]
 fn serve_answers_only_get_and_says_why_a_request_is_bad() {
     let d = tempfile::tempdir().unwrap();

@@ -242,6 +242,24 @@ pub fn a_hostile_serial_is_text_and_a_stored_script_does_not_run(spec: &str) {
     assert_eq!(cert.matches("PWNED").count(), 1, "the certificate's script ran: {cert}");
 }
 
+/// No control character of a stored certificate reaches the page (issue 55): a customer's name
+/// holding ESC, an OSC title, BEL and NUL is served as the visible text `\u{1b}`, `\u{7}`,
+/// `\u{0}`; the page's own line feeds stay.
+pub fn a_stored_certificate_s_controls_are_shown_escaped(spec: &str) {
+    let mut db = Db::open(spec).unwrap();
+    let s = super::start(accelcal_db::RunId::new(), super::DEVICE, "SN-C", "st-1", T0);
+    db.begin_run(&s, None).unwrap();
+    db.store_certificate(s.run_id, "<html>\n<p>customer ACME\u{1b}]0;owned\u{7} Ltd\u{0}</p>\n</html>")
+        .unwrap();
+    db.finish_run(s.run_id, accelcal_db::Outcome::Pass, "verified").unwrap();
+    drop(db);
+    let server = serve(spec);
+    let (status, _, body) = request(&server.base, "GET", &format!("/run/{}/certificate", s.run_id));
+    assert_eq!(status, 200, "{body}");
+    assert!(body.contains("<p>customer ACME\\u{1b}]0;owned\\u{7} Ltd\\u{0}</p>\n"), "{body:?}");
+    assert!(!body.chars().any(|c| c.is_control() && !matches!(c, '\n' | '\t' | '\r')), "{body:?}");
+}
+
 /// Only GET is answered; a bad filter, an unknown unit or page say why; a SQLite database is the
 /// same bytes afterwards.
 pub fn only_get_is_answered_and_bad_requests_say_why(spec: &str) {

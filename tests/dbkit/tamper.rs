@@ -297,3 +297,66 @@ pub fn derived_edits_are_found(spec: &str, exec: Exec<'_>) {
         assert!(out.contains(finding), "{sql}: {out}");
     }
 }
+
+/// A run whose row was edited behind accelcal's back (its operator, and its end's reason) is
+/// marked as tampered by every reader that lists it, and the other runs are shown as they are:
+/// `fleet` (text, `--json`'s `tampered`, the CSV's state), `history`, and serve's fleet and unit
+/// pages; the fleet charts it nowhere.
+pub fn a_tampered_run_is_marked_where_it_is_listed(spec: &str, exec: Exec<'_>) {
+    let mut db = Db::open(spec).unwrap();
+    let run = calibrate(&mut db, &start(RunId::new(), DEVICE, "SN-1", "st-1", T0), &coefs(0.0, 0), None);
+    let other =
+        calibrate(&mut db, &start(RunId::new(), DEVICE_2, "SN-2", "st-1", T0 + 5), &coefs(0.0, 1), None);
+    drop(db);
+    exec(&format!("UPDATE run SET operator = 'mallory' WHERE run_id = '{run}'"));
+    let d = tempfile::tempdir().unwrap();
+    let (json, csv) = (d.path().join("f.json"), d.path().join("f.csv"));
+    let (code, out, err) = accelcal(&[
+        "fleet",
+        "--since",
+        "2025-12-01",
+        "--until",
+        "2026-02-01",
+        "--db",
+        spec,
+        "--json",
+        json.to_str().unwrap(),
+        "--csv",
+        csv.to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    assert!(
+        out.contains("TAMPERED: 1 run whose rows do not match their hash chain")
+            && out.contains(&format!(
+                "run {run} (SN-1): its run row is not the one stored (its digest differs from its ledger entry's)"
+            )),
+        "{out}"
+    );
+    let f: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let runs = f["runs"].as_array().unwrap();
+    let of = |id: &RunId| runs.iter().find(|r| r["run_id"] == id.to_string()).unwrap().clone();
+    assert!(of(&run)["tampered"].as_str().unwrap().contains("its run row is not the one stored"), "{f}");
+    assert!(of(&other).get("tampered").is_none(), "the other run is not marked: {f}");
+    let csv = std::fs::read_to_string(&csv).unwrap();
+    let line = |id: &RunId| csv.lines().find(|l| l.contains(&id.to_string())).unwrap().to_string();
+    assert!(line(&run).contains("\"tampered\""), "{csv}");
+    assert!(line(&other).contains("\"pass\""), "{csv}");
+    let charted =
+        f["charts"].as_array().unwrap().iter().flat_map(|c| c["points"].as_array().unwrap().clone());
+    assert!(
+        charted.clone().all(|p| p["run_id"] != run.to_string()),
+        "a tampered run is charted nowhere: {f}"
+    );
+    let (_, out, err) = accelcal(&["history", "SN-1", "--db", spec]);
+    assert!(out.contains("TAMPERED, not used: its rows do not match their hash chain"), "{out}{err}");
+    let pages = super::serve::statuses(spec, &["/fleet?since=2025-12-01&until=2026-02-01", "/unit/SN-1"]);
+    assert_eq!(pages[0].0, 200, "{}", pages[0].1);
+    assert!(
+        pages[0].1.contains("class=\"bad\">tampered</td>")
+            && pages[0].1.contains("TAMPERED, not used: its run row"),
+        "{}",
+        pages[0].1
+    );
+    assert_eq!(pages[1].0, 200, "{}", pages[1].1);
+    assert!(pages[1].1.contains("TAMPERED"), "{}", pages[1].1);
+}

@@ -31,6 +31,9 @@ pub fn run_void(a: &Void) -> anyhow::Result<()> {
 /// Runs `accelcal db migrate`: the one command that writes what a migration asks.
 pub fn run_migrate(db: Option<&str>) -> anyhow::Result<()> {
     let spec = reader_spec(db)?;
+    if let Some(done) = accelcal_db::repair_schema_history(&accelcal_db::Target::parse(&spec)?)? {
+        outln!("db migrate: the migration history (table refinery_schema_history): {done}")?;
+    }
     let mut db = Db::open(&spec)?;
     let versions = db.schema_versions()?;
     outln!(

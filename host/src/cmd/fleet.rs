@@ -4,6 +4,7 @@
 use accelcal_core::error::bad;
 use accelcal_core::output::{utc_date_time, write_atomic, write_json};
 use accelcal_db::asset::{start_of_day_unix_s, Asset, Date};
+use accelcal_db::cells::UnreadableRun;
 use accelcal_db::fleet::{Chart, Counts, DueUnit, Filter, FleetRun, Population};
 use accelcal_db::Db;
 use anyhow::Context;
@@ -42,6 +43,9 @@ struct FleetJson<'a> {
     check_standards: &'a [accelcal_db::check::CheckStandard],
     /// `null`, or why the database's hash chain is broken: the numbers may be forged.
     chain_broken: Option<&'a str>,
+    /// The period's runs that do not read: each named by its cells that do not read as their
+    /// column's type; they are in no other field.
+    unreadable_runs: &'a [UnreadableRun],
     runs: &'a [FleetRun],
 }
 
@@ -187,6 +191,9 @@ pub(crate) struct FleetData {
     /// `Some`: the ledger's shape says rows were written or removed behind accelcal's back
     /// (`Db::chain_broken`): every number here may be forged.
     pub chain_broken: Option<String>,
+    /// The period's runs that do not read (a cell that does not read as its column's type):
+    /// named, and in no table, population or chart ([`Db::listing_unreadable`]).
+    pub unreadable: Vec<UnreadableRun>,
 }
 
 impl FleetData {
@@ -248,7 +255,10 @@ pub(crate) fn gather(db: &mut Db, filter: &Filter, due_by: Date, parts: Parts) -
         let (h, p) = match parts {
             Parts::Charts => {
                 let (mut dh, mut dp) = (db.open_again()?, db.open_again()?);
-                (Some(s.spawn(move || heads(&mut dh, filter))), Some(s.spawn(move || dp.populations(filter))))
+                (
+                    Some(s.spawn(move || (heads(&mut dh, filter), dh))),
+                    Some(s.spawn(move || dp.populations(filter))),
+                )
             }
             Parts::Table => {
                 let mut dp = db.open_again()?;
@@ -275,9 +285,14 @@ pub(crate) fn gather(db: &mut Db, filter: &Filter, due_by: Date, parts: Parts) -
             None => Vec::new(),
         };
         let heads = match h {
-            Some(h) => h.join().map_err(|_| joined("the heads' signatures"))??,
+            Some(h) => {
+                let (heads, mut dh) = h.join().map_err(|_| joined("the heads' signatures"))?;
+                db.unreadable_from(&mut dh);
+                heads?
+            }
             None => Vec::new(),
         };
+        let unreadable = db.unreadable()?;
         Ok(FleetData {
             counts,
             stations,
@@ -290,6 +305,7 @@ pub(crate) fn gather(db: &mut Db, filter: &Filter, due_by: Date, parts: Parts) -
             charts,
             check_standards,
             chain_broken,
+            unreadable,
         })
     })
 }
@@ -310,7 +326,7 @@ pub fn run(a: &Fleet) -> anyhow::Result<()> {
         a.serial_prefix.clone(),
         a.operator.clone(),
     );
-    let mut db = Db::open_existing(&reader_spec(a.db.as_deref())?)?;
+    let mut db = Db::open_existing(&reader_spec(a.db.as_deref())?)?.listing_unreadable();
     let data = gather(&mut db, &filter, due_by(until, a.due_days)?, Parts::Charts)?;
     let FleetData { counts, runs, due_by, units_due, pops, heads, charts, check_standards, .. } = &data;
     let (runs, due_by) = (runs.as_slice(), *due_by);
@@ -337,6 +353,20 @@ pub fn run(a: &Fleet) -> anyhow::Result<()> {
     )?;
     if let Some(why) = &data.chain_broken {
         outln!("  WARNING: the database's hash chain is broken ({why}): these numbers may be forged; `accelcal db verify` lists what does not match")?;
+    }
+    let tampered: Vec<&FleetRun> = runs.iter().filter(|r| r.tampered.is_some()).collect();
+    if !tampered.is_empty() {
+        outln!(
+            "  TAMPERED: {} run{} whose rows do not match their hash chain (counted as the database holds them, charted nowhere; `accelcal db verify` lists every mismatch):",
+            tampered.len(),
+            if tampered.len() == 1 { "" } else { "s" }
+        )?;
+        for r in tampered {
+            outln!("    run {} ({}): {}", r.run_id, r.serial, r.tampered.as_deref().unwrap_or_default())?;
+        }
+    }
+    for u in &data.unreadable {
+        outln!("  UNREADABLE, not in the runs or the charts (counted): {u}")?;
     }
     outln!(
         "  runs: {} pass, {} rejected, {} unfinished, {} voided",
@@ -499,6 +529,7 @@ pub fn run(a: &Fleet) -> anyhow::Result<()> {
                 charts,
                 check_standards,
                 chain_broken: data.chain_broken.as_deref(),
+                unreadable_runs: &data.unreadable,
                 runs,
             },
         )?;
@@ -557,7 +588,7 @@ pub(crate) fn csv_of(runs: &[FleetRun]) -> anyhow::Result<String> {
             spreadsheet_text(&r.operator),
             utc_date_time(r.started_unix_s),
             r.ended_unix_s.map(utc_date_time).unwrap_or_default(),
-            spreadsheet_text(&r.state),
+            spreadsheet_text(r.shown_state()),
             spreadsheet_text(r.reason.as_deref().unwrap_or_default()),
             spreadsheet_text(r.as_found_decision.as_deref().unwrap_or_default()),
             spreadsheet_text(r.as_left_decision.as_deref().unwrap_or_default()),

@@ -13,9 +13,10 @@ use crate::settings::reader::History as HistorySettings;
 /// Runs `accelcal history`.
 pub fn run(a: &HistorySettings) -> anyhow::Result<()> {
     let spec = super::store::reader_spec(a.db.as_deref())?;
-    let mut db = Db::open_existing(&spec)?;
+    let mut db = Db::open_existing(&spec)?.listing_unreadable();
     let runs = db.unit_runs(&a.unit)?;
-    let h = history(&runs, a.rule);
+    let mut h = history(&runs, a.rule);
+    h.unreadable = db.unreadable()?;
     print(&h, &db.target())?;
     if let Some(j) = &a.json {
         write_json(j, &h).with_context(|| format!("writing {}", j.display()))?;
@@ -56,11 +57,15 @@ fn print(h: &History, target: &str) -> anyhow::Result<()> {
     let n_cal = h.runs.iter().filter(|r| r.calibration.is_some()).count();
     let serials = if h.serials.is_empty() { "no serial number".to_string() } else { h.serials.join(", ") };
     outln!(
-        "unit {} ({serials}): {} run{}, {n_cal} calibration{} in {target}",
+        "unit {} ({serials}): {} run{}, {n_cal} calibration{} in {target}{}",
         h.device_id,
         h.runs.len(),
         if h.runs.len() == 1 { "" } else { "s" },
-        if n_cal == 1 { "" } else { "s" }
+        if n_cal == 1 { "" } else { "s" },
+        match h.unreadable.len() {
+            0 => String::new(),
+            n => format!(" (and {n} run{} that do not read, below)", if n == 1 { "" } else { "s" }),
+        }
     )?;
     outln!(
         "{:>3}  {:<20}  {:<10}  {:<10}  {:<9}  {:<8}  {:<24}  {:<24}",
@@ -96,6 +101,9 @@ fn print(h: &History, target: &str) -> anyhow::Result<()> {
         if matches!(r.outcome, Some(Outcome::Rejected)) {
             outln!("     rejected: {}", r.reason)?;
         }
+    }
+    for u in &h.unreadable {
+        outln!("UNREADABLE, not used: {u}")?;
     }
     if !h.drifts.is_empty() {
         outln!("drift between consecutive calibrations, m/s² at 1 g ± standard uncertainty (the fits' covariances):")?;

@@ -3,7 +3,7 @@
 //! (zero-width, bidi controls: general category Cf) nor line or paragraph separator reaches a
 //! page. Each is written as the visible text `\u{1b}`, so a serial or a URL that holds one is
 //! shown as what it is rather than acted upon by a browser or a terminal that a page is piped to.
-//! The charts' SVG (`|safe`) goes through [`svg`].
+//! The charts' SVG (`|safe`) and a stored certificate (served as issued) go through [`markup`].
 
 use std::fmt::{self, Write};
 
@@ -35,10 +35,11 @@ impl askama::filters::Escaper for Html {
     }
 }
 
-/// A chart's SVG, which plotters wrote (escaping its text) and a template writes as it is: every
-/// [`hidden`] character but the tab, line feed and carriage return of its layout written as
-/// `\u{…}`.
-pub fn svg(s: String) -> String {
+/// Markup served as it was written: a chart's SVG, which plotters wrote (escaping its text) and a
+/// template writes as it is, and a stored certificate (its customer's name, its serial, …, were
+/// escaped when the page was made, but not of control characters). Every [`hidden`] character
+/// but the tab, line feed and carriage return of its layout written as `\u{…}`.
+pub fn markup(s: String) -> String {
     if !s.chars().any(|c| hidden(c) && !matches!(c, '\t' | '\n' | '\r')) {
         return s;
     }
@@ -76,7 +77,7 @@ mod tests {
     #[test]
     fn an_svg_keeps_its_layout_and_loses_its_controls() {
         let s = "<svg>\n\t<text>A\u{1b}B\u{feff}</text>\r\n</svg>".to_string();
-        assert_eq!(svg(s), "<svg>\n\t<text>A\\u{1b}B\\u{feff}</text>\r\n</svg>");
-        assert_eq!(svg("<svg/>".into()), "<svg/>");
+        assert_eq!(markup(s), "<svg>\n\t<text>A\\u{1b}B\\u{feff}</text>\r\n</svg>");
+        assert_eq!(markup("<svg/>".into()), "<svg/>");
     }
 }

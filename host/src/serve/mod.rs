@@ -86,12 +86,12 @@ impl r2d2::ManageConnection for Readers {
 
     fn connect(&self) -> Result<Reader, ReaderError> {
         let Some(path) = &self.file else {
-            return Ok(Reader { db: Db::open_existing(&self.spec)?, file: None });
+            return Ok(Reader { db: Db::open_existing(&self.spec)?.listing_unreadable(), file: None });
         };
         // The file's identity before and after the open: a file replaced meanwhile is not known
         // to be the one opened.
         let before = file_id(path);
-        let db = Db::open_existing(&self.spec)?;
+        let db = Db::open_existing(&self.spec)?.listing_unreadable();
         match (before, file_id(path)) {
             (Some(a), Some(b)) if a == b => Ok(Reader { db, file: Some(a) }),
             _ => Err(ReaderError::Replaced(path.clone())),
@@ -299,6 +299,8 @@ where
             status: StatusCode::SERVICE_UNAVAILABLE,
             message: format!("no connection to the database within {} s: {e}", WAIT.as_secs()),
         })?;
+        // What an earlier page's reads set aside and did not show is not this page's.
+        r.db.forget_unreadable();
         render(&mut r.db, &app)
     })
     .await;

@@ -172,8 +172,11 @@ impl From<&FleetRun> for RunRow {
             head: r.head_asset.clone().unwrap_or_default(),
             operator: r.operator.clone(),
             started: utc_date_time(r.started_unix_s),
-            state: r.state.clone(),
-            reason: r.reason.clone().unwrap_or_default(),
+            state: r.shown_state().to_string(),
+            reason: match &r.tampered {
+                Some(why) => format!("TAMPERED, not used: {why}"),
+                None => r.reason.clone().unwrap_or_default(),
+            },
             as_found: r.as_found_decision.clone().unwrap_or_default(),
             as_left: r.as_left_decision.clone().unwrap_or_default(),
             u_max: r
@@ -186,6 +189,11 @@ impl From<&FleetRun> for RunRow {
                 .unwrap_or_default(),
         }
     }
+}
+
+/// The runs set aside, each in words (its bad cells named).
+fn words(runs: &[accelcal_db::cells::UnreadableRun]) -> Vec<String> {
+    runs.iter().map(ToString::to_string).collect()
 }
 
 struct StationRow {
@@ -216,6 +224,8 @@ struct DueRow {
 struct OverviewPage<'a> {
     db: &'a str,
     version: &'a str,
+    /// The runs the page's reads set aside (`Db::listing_unreadable`), in words.
+    unreadable: Vec<String>,
     today: String,
     day: CountsView,
     month: CountsView,
@@ -237,6 +247,9 @@ pub(super) fn overview(db: &mut Db, app: &App) -> Result<String, PageError> {
     let day_filter = filter_of(today, today, None, None, None, None);
     let day_counts = db.fleet_counts(&day_filter).map_err(PageError::unavailable)?;
     let day_runs = db.fleet_runs(&day_filter).map_err(PageError::unavailable)?;
+    let mut unreadable = words(&data.unreadable);
+    unreadable.extend(words(&db.unreadable().map_err(PageError::unavailable)?));
+    unreadable.dedup();
     let mut names: Vec<&str> = data.stations.iter().map(|s| s.0.as_str()).collect();
     names.extend(data.check_standards.iter().map(|c| c.station.as_str()));
     names.sort_unstable();
@@ -286,6 +299,7 @@ pub(super) fn overview(db: &mut Db, app: &App) -> Result<String, PageError> {
     let page = OverviewPage {
         db: &app.target,
         version: VERSION,
+        unreadable,
         today: today.to_string(),
         day: (&day_counts).into(),
         month: (&data.counts).into(),
@@ -315,6 +329,8 @@ struct PopulationRow {
 struct FleetPage<'a> {
     db: &'a str,
     version: &'a str,
+    /// The runs the page's reads set aside (`Db::listing_unreadable`), in words.
+    unreadable: Vec<String>,
     form: Form,
     query: &'a str,
     counts: CountsView,
@@ -350,6 +366,7 @@ pub(super) fn fleet(db: &mut Db, app: &App, q: &str) -> Result<String, PageError
     let page = FleetPage {
         db: &app.target,
         version: VERSION,
+        unreadable: words(&data.unreadable),
         form: f.form(since, until),
         query: q,
         counts: (&data.counts).into(),
@@ -389,6 +406,8 @@ struct HeadView {
 struct ChartsPage<'a> {
     db: &'a str,
     version: &'a str,
+    /// The runs the page's reads set aside (`Db::listing_unreadable`), in words.
+    unreadable: Vec<String>,
     form: Form,
     charts: Vec<ChartView>,
     checks: Vec<(String, Vec<ChartView>)>,
@@ -415,7 +434,9 @@ pub(super) fn charts(db: &mut Db, app: &App, q: &str) -> Result<String, PageErro
                 c.violations.len(),
                 c.expected_by_chance
             ),
-            svg: escape::svg(control_chart(c.unit, &values, Some(&l), &broken).map_err(PageError::internal)?),
+            svg: escape::markup(
+                control_chart(c.unit, &values, Some(&l), &broken).map_err(PageError::internal)?,
+            ),
             violations: c
                 .violations
                 .iter()
@@ -442,7 +463,7 @@ pub(super) fn charts(db: &mut Db, app: &App, q: &str) -> Result<String, PageErro
             let l = c.limits.as_ref().map(|l| Lines { center: l.center, lcl: l.lcl, ucl: l.ucl });
             views.push(ChartView {
                 title: format!("{} ({})", c.quantity, c.unit),
-                svg: escape::svg(
+                svg: escape::markup(
                     control_chart(c.unit, &values, l.as_ref(), &broken).map_err(PageError::internal)?,
                 ),
                 violations: c
@@ -474,12 +495,19 @@ pub(super) fn charts(db: &mut Db, app: &App, q: &str) -> Result<String, PageErro
             svg: if arcsec.is_empty() {
                 String::new()
             } else {
-                escape::svg(signature_chart(&arcsec).map_err(PageError::internal)?)
+                escape::markup(signature_chart(&arcsec).map_err(PageError::internal)?)
             },
         });
     }
-    let page =
-        ChartsPage { db: &app.target, version: VERSION, form: f.form(since, until), charts, checks, heads };
+    let page = ChartsPage {
+        db: &app.target,
+        version: VERSION,
+        unreadable: words(&data.unreadable),
+        form: f.form(since, until),
+        charts,
+        checks,
+        heads,
+    };
     page.render().map_err(PageError::internal)
 }
 
@@ -502,6 +530,8 @@ struct UnitRun {
 struct UnitPage<'a> {
     db: &'a str,
     version: &'a str,
+    /// The runs the page's reads set aside (`Db::listing_unreadable`), in words.
+    unreadable: Vec<String>,
     key: &'a str,
     device_id: String,
     serials: String,
@@ -520,7 +550,7 @@ pub(super) fn unit(db: &mut Db, app: &App, key: &str) -> Result<String, PageErro
         DbError::NoUnit { .. } | DbError::Ambiguous { .. } => PageError::not_found(e.to_string()),
         e => PageError::unavailable(e),
     })?;
-    if runs.is_empty() {
+    if runs.is_empty() && db.unreadable_count() == 0 {
         return Err(PageError::not_found(format!("no unit `{key}` in the database")));
     }
     let h = history(&runs, DEFAULT_RULE);
@@ -572,7 +602,7 @@ pub(super) fn unit(db: &mut Db, app: &App, key: &str) -> Result<String, PageErro
     let drift_svg = if pairs.is_empty() {
         String::new()
     } else {
-        escape::svg(drift_chart(&pairs).map_err(PageError::internal)?)
+        escape::markup(drift_chart(&pairs).map_err(PageError::internal)?)
     };
     let drifts = h
         .drifts
@@ -603,6 +633,7 @@ pub(super) fn unit(db: &mut Db, app: &App, key: &str) -> Result<String, PageErro
     let page = UnitPage {
         db: &app.target,
         version: VERSION,
+        unreadable: words(&db.unreadable().map_err(PageError::unavailable)?),
         key,
         device_id: h.device_id.clone(),
         serials: if h.serials.is_empty() { "no serial number".into() } else { h.serials.join(", ") },
@@ -614,7 +645,8 @@ pub(super) fn unit(db: &mut Db, app: &App, key: &str) -> Result<String, PageErro
     page.render().map_err(PageError::internal)
 }
 
-/// `/run/ID/certificate`: the stored certificate, as issued.
+/// `/run/ID/certificate`: the stored certificate, as issued, its control characters shown as
+/// text (`\u{1b}`, [`escape::markup`]).
 pub(super) fn certificate(db: &mut Db, id: &str) -> Result<String, PageError> {
     let run = RunId::parse(id).map_err(|e| PageError::bad(e.to_string()))?;
     db.certificate_html(run)
@@ -623,6 +655,7 @@ pub(super) fn certificate(db: &mut Db, id: &str) -> Result<String, PageError> {
             e @ accelcal_db::DbError::Tampered { .. } => PageError::tampered(e),
             e => PageError::unavailable(e),
         })?
+        .map(escape::markup)
         .ok_or_else(|| PageError::not_found(format!("run {run} has no certificate")))
 }
 
@@ -631,12 +664,20 @@ pub(super) fn certificate(db: &mut Db, id: &str) -> Result<String, PageError> {
 struct ErrorPage<'a> {
     db: &'a str,
     version: &'a str,
+    /// The runs the page's reads set aside (`Db::listing_unreadable`), in words.
+    unreadable: Vec<String>,
     status: String,
     message: &'a str,
 }
 
 /// The page of an error.
 pub(super) fn error(target: &str, status: StatusCode, message: &str) -> String {
-    let page = ErrorPage { db: target, version: VERSION, status: status.to_string(), message };
+    let page = ErrorPage {
+        db: target,
+        version: VERSION,
+        unreadable: Vec::new(),
+        status: status.to_string(),
+        message,
+    };
     page.render().unwrap_or_else(|_| format!("{status}"))
 }
