@@ -5,8 +5,8 @@
 
 use super::*;
 
-/// The acquisition's positions in the journal: each read back within the tolerance of where it
-/// was sent.
+/// How many positions of the acquisition the journal keeps (each with its commanded and
+/// read-back angles).
 fn acquired_positions(dir: &Path) -> usize {
     let steps = json(&dir.join("station.json"))["steps"].as_array().unwrap().clone();
     steps.iter().find(|r| r["step"] == "acquire").and_then(|r| r["positions"].as_array()).map_or(0, Vec::len)
