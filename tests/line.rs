@@ -27,6 +27,9 @@ mod print;
 mod station;
 #[path = "line/thermal.rs"]
 mod thermal;
+/// The station on an emulated Zaber head, over TCP and a pseudo-terminal, with a fault (issue 56).
+#[path = "line/zaber.rs"]
+mod zaber;
 use print::printed_certificate;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
@@ -73,7 +76,7 @@ impl Emulator {
             .expect("emulate prints its endpoints");
         let v: serde_json::Value = serde_json::from_str(&line).unwrap_or_else(|e| panic!("{e}: `{line}`"));
         let s = |k: &str| v[k].as_str().unwrap_or_else(|| panic!("no `{k}` in {line}")).to_string();
-        assert!(s("head").starts_with("sim:127.0.0.1:"), "{line}");
+        assert!(["sim:127.0.0.1:", "zaber:"].iter().any(|h| s("head").starts_with(h)), "{line}");
         let field = |n: &serde_json::Value, k: &str| {
             n[k].as_str().unwrap_or_else(|| panic!("no `{k}` in a node of {line}")).to_string()
         };

@@ -278,7 +278,8 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
                     out.display()
                 )));
             }
-            refuse_head_timeout(given, &a.head)
+            refuse_head_timeout(given, &a.head)?;
+            check_zaber(given, &a.head.to_string(), &a.zaber, "--head")
         }
         Command::Info(a) => distinct(&[], &[("--json", a.json.as_deref())]),
         Command::Verify(a) => {
@@ -290,10 +291,35 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
                 )?;
             }
             refuse_head_timeout(given, &a.head)?;
+            check_zaber(given, &a.head.to_string(), &a.zaber, "--head")?;
             let fit: Vec<(&str, &Path)> = a.fit.iter().map(|p| ("--fit", p.as_path())).collect();
             distinct(&fit, &[("--json", a.json.as_deref())])
         }
         Command::Emulate(a) => {
+            match (a.head_fault, a.head_fault_at) {
+                (Some(_), None) => {
+                    return Err(bad("--head-fault needs --head-fault-at N: the move it strikes"))
+                }
+                (None, Some(_)) => {
+                    return Err(bad("--head-fault-at needs --head-fault KIND: the fault it injects"))
+                }
+                (Some(k), Some(_))
+                    if a.head_dialect == crate::cli::HeadDialectArg::Sim && !k.applies_to_sim() =>
+                {
+                    return Err(bad(format!(
+                        "--head-fault {k} does not apply to --head sim (its line protocol has no motor \
+                         warnings; it takes reject, silent and off=ARCSEC; --head zaber takes them all)"
+                    )))
+                }
+                _ => {}
+            }
+            if a.head_dialect == crate::cli::HeadDialectArg::ZaberPty {
+                given.refuse(
+                    &["head_port"],
+                    "--head zaber-pty",
+                    " (its head is a pseudo-terminal, not a TCP port)",
+                )?;
+            }
             let units = a.unit.len();
             once_each("--seed", a.seed.len(), units, "--unit", true)?;
             once_each("--record", a.record.len(), units, "--unit", true)
@@ -329,6 +355,9 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
             Ok(())
         }
         Command::Station(a) => {
+            if let Some(head) = &a.head {
+                check_zaber(given, head, &a.zaber, &given.setting("head", head))?;
+            }
             if a.head.as_deref() == Some("manual") {
                 let head = given.setting("head", "manual");
                 given.refuse(
@@ -453,6 +482,20 @@ fn refuse_head_timeout(given: &Given, head: &accelcal_line::head::HeadSpec) -> a
         )?;
     }
     Ok(())
+}
+
+/// A Zaber head's options apply to `--head zaber:…` only (`head` names the head for the
+/// message), and its two axes must differ.
+fn check_zaber(given: &Given, head: &str, z: &crate::cli::ZaberArgs, named: &str) -> anyhow::Result<()> {
+    if !head.starts_with("zaber:") {
+        let named = if named == "--head" { format!("--head {head}") } else { named.to_string() };
+        return given.refuse(
+            &crate::cli::ZaberArgs::IDS,
+            &named,
+            " (they set a Zaber head's axes and scale)",
+        );
+    }
+    z.axes().check().map_err(|e| bad(format!("--zaber-alpha/--zaber-beta: {e}")))
 }
 
 /// `--laboratory-address` goes with `--laboratory`.

@@ -119,11 +119,13 @@ const UNITS: &[(&str, &str)] = &[
     ("--static-z", "standard errors"),
     ("--head-tolerance-arcsec", "arcsec"),
     ("--settle-s", "Seconds"),
+    ("--zaber-deg-per-step", "Degrees per microstep"),
 ];
 
 /// Numeric options without a physical unit (counts, seeds, ratios).
 const DIMENSIONLESS: &[&str] = &[
     "--first-node",
+    "--head-fault-at", // the N-th move
     "--seed",
     "--samples",
     "--scale-sd", // relative

@@ -33,6 +33,18 @@ fn a_wrong_settings_file_is_refused_with_its_line_and_nothing_is_done() {
             "head_tolerance_arcsec = 5",
             "`head_tolerance_arcsec` (station.toml:5:25) does not apply to `head = \"manual\"` (station.toml:3:8) (the operator turns the head, and their word is the read-back)",
         ),
+        (
+            "head_zaber_alpha = \"1/1\"",
+            "`head_zaber_alpha` (station.toml:5:20) does not apply to `head = \"manual\"` (station.toml:3:8) (they set a Zaber head's axes and scale)",
+        ),
+        (
+            "head_zaber_beta = \"2/0\"",
+            "`head_zaber_beta` (station.toml:5:19): `2/0`: expected DEVICE/AXIS, a device 1..=99 and an axis 1..=9 (as `1/1`)",
+        ),
+        (
+            "head_zaber_deg_per_step = 0",
+            "`head_zaber_deg_per_step` (station.toml:5:27) must be a number of degrees per microstep in (0, 1), got 0",
+        ),
         ("settle_s = -1", "`settle_s` (station.toml:5:12) must be a number of seconds from 0 to 86400 (a day), got -1"),
         ("operator = \"Bob\\u001b[2J\"", "station.toml:5:12: operator: \"Bob\\u{1b}[2J\" holds a control character (U+001B)"),
         ("g = 9.8\nlatitude = 46.99", "station.toml:5:5: g and latitude (at 6:12) both give gravity: keep one of them"),

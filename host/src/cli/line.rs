@@ -146,6 +146,23 @@ pub struct EmulateArgs {
     /// TCP port of the emulated head on 127.0.0.1 [default: a free one].
     #[arg(long, value_name = "PORT")]
     pub head_port: Option<u16>,
+    /// The emulated head's protocol: `sim` (the line protocol, `sim:HOST:PORT`), `zaber`
+    /// (Zaber's ASCII protocol over TCP, `zaber:HOST:PORT`) or `zaber-pty` (Zaber's ASCII
+    /// protocol on a pseudo-terminal, as a serial chain: `zaber:/dev/pts/N`). The printed line's
+    /// `head` is the spec to pass to `--head`. The Zaber stage has α at device 1 axis 1 and β at
+    /// device 2 axis 1, 0.000234375 degrees per microstep, and starts not homed.
+    #[arg(long = "head", value_enum, default_value = "sim", value_name = "PROTOCOL")]
+    pub head_dialect: HeadDialectArg,
+    /// Inject one fault into the head at the move --head-fault-at: reject (the move is refused),
+    /// stall, limit (α stops half-way with Zaber's FS or WL), not-homed (α loses its reference and
+    /// refuses the move), silent (no reply, no motion) or off=ARCSEC (α lands that many arcsec
+    /// off, and its read-back says so). The sim head takes reject, silent and off=ARCSEC.
+    #[arg(long, value_name = "KIND", value_parser = parse_fault_kind, allow_hyphen_values = true)]
+    pub head_fault: Option<accelcal_line::emulate::fault::FaultKind>,
+    /// The move the fault strikes: the N-th move the emulated head receives since it started,
+    /// 1-based (a Zaber head counts the moves to α), so the same command run again meets no fault.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    pub head_fault_at: Option<u64>,
     /// The number of this bench's first node on the line (1..=99): node N reports the device
     /// id QEMU-NODE-NN (node 1 QEMU-B-L475E), so two benches of one line report distinct devices.
     #[arg(long, default_value_t = 1, value_name = "N", value_parser = clap::value_parser!(u8).range(1..=99))]
@@ -159,6 +176,22 @@ pub struct EmulateArgs {
     /// Thermal time constant between the chamber and the sensor, seconds (first-order lag).
     #[arg(long, default_value_t = 30.0, value_name = "S", value_parser = Real(Range::SecondsOrZero))]
     pub thermal_lag_s: f64,
+}
+
+/// `emulate --head`: the emulated head's protocol.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum HeadDialectArg {
+    /// The line protocol over TCP.
+    Sim,
+    /// Zaber's ASCII protocol over TCP.
+    Zaber,
+    /// Zaber's ASCII protocol on a pseudo-terminal.
+    ZaberPty,
+}
+
+/// A `--head-fault` value.
+fn parse_fault_kind(s: &str) -> Result<accelcal_line::emulate::fault::FaultKind, String> {
+    s.parse()
 }
 
 /// `accelcal info`: who the node is.
@@ -211,12 +244,15 @@ pub struct AcquireArgs {
     pub timeout_s: f64,
     /// The head: `manual` (the command shows each position's angles and what the unit should
     /// read, and waits for Enter), `sim:HOST:PORT` (the emulated head `accelcal emulate` prints)
-    /// or `exec:COMMAND` (an adapter program speaking the head protocol on its standard input and
+    /// `zaber:PORT` (a Zaber head over Zaber's ASCII protocol: a serial port such as
+    /// `zaber:/dev/ttyUSB0`, at 115200 Bd 8N1, or a TCP address `zaber:HOST:PORT`) or
+    /// `exec:COMMAND` (an adapter program speaking the head protocol on its standard input and
     /// output, e.g. `exec:"python3 examples/head-adapter/zaber_adapter.py HOST:PORT"`).
     #[arg(long, value_name = "HEAD")]
     pub head: accelcal_line::head::HeadSpec,
-    /// Seconds a driven head (`--head sim:…` or `exec:…`) may take to answer a request before the
-    /// command fails; a move is answered once the head stands still, so this bounds the longest move.
+    /// Seconds a driven head (`--head sim:…`, `zaber:…` or `exec:…`) may take to answer a request
+    /// before the command fails; a move is answered once the head stands still, so this bounds the
+    /// longest move.
     #[arg(long, default_value_t = 120.0, value_name = "S", value_parser = Real(Range::Seconds))]
     pub head_timeout_s: f64,
     /// Largest accepted deviation of the angles a driven head reads back after a move from the
@@ -228,6 +264,9 @@ pub struct AcquireArgs {
     /// the static test of the node's stream begins: for a head that rings after it stops.
     #[arg(long, default_value_t = 0.0, value_name = "S", value_parser = Real(Range::SecondsOrZero))]
     pub settle_s: f64,
+    /// A Zaber head's axes and scale.
+    #[command(flatten)]
+    pub zaber: ZaberArgs,
     /// Position plan: head (62 positions), six (the test-turn positions), tumble24, random:N, or a plan
     /// file (CSV `alpha_deg,beta_deg`).
     #[arg(long, default_value = "head")]
@@ -288,11 +327,12 @@ pub struct VerifyArgs {
     /// The node's link.
     #[command(flatten)]
     pub link: PortArgs,
-    /// The head: `manual`, `sim:HOST:PORT` or `exec:COMMAND` (as for `acquire`).
+    /// The head: `manual`, `sim:HOST:PORT`, `zaber:PORT` or `exec:COMMAND` (as for `acquire`).
     #[arg(long, value_name = "HEAD")]
     pub head: accelcal_line::head::HeadSpec,
-    /// Seconds a driven head (`--head sim:…` or `exec:…`) may take to answer a request before the
-    /// command fails; a move is answered once the head stands still, so this bounds the longest move.
+    /// Seconds a driven head (`--head sim:…`, `zaber:…` or `exec:…`) may take to answer a request
+    /// before the command fails; a move is answered once the head stands still, so this bounds the
+    /// longest move.
     #[arg(long, default_value_t = 120.0, value_name = "S", value_parser = Real(Range::Seconds))]
     pub head_timeout_s: f64,
     /// Largest accepted deviation of the angles a driven head reads back after a move from the
@@ -304,6 +344,9 @@ pub struct VerifyArgs {
     /// the static test of the node's stream begins: for a head that rings after it stops.
     #[arg(long, default_value_t = 0.0, value_name = "S", value_parser = Real(Range::SecondsOrZero))]
     pub settle_s: f64,
+    /// A Zaber head's axes and scale.
+    #[command(flatten)]
+    pub zaber: ZaberArgs,
     /// Position plan: six (the test-turn positions), head, tumble24, random:N, or a plan file.
     #[arg(long, default_value = "six")]
     pub plan: String,
@@ -427,7 +470,7 @@ pub struct StationArgs {
     #[arg(long, alias = "answer-timeout-s", default_value_t = 5.0, value_name = "S", value_parser = Real(Range::Seconds))]
     pub timeout_s: f64,
     /// The head: `manual` (the operator turns it; each step prompts), `sim:HOST:PORT` or
-    /// `exec:COMMAND` (as for `acquire`).
+    /// `zaber:PORT` or `exec:COMMAND` (as for `acquire`).
     #[arg(long, value_name = "HEAD", value_parser = parse_head_text)]
     pub head: Option<String>,
     /// The unit's serial number (written into the campaign and the certificate; the unit's
@@ -523,7 +566,7 @@ pub struct StationArgs {
     /// Who runs the station, for the database [default: the USER environment variable].
     #[arg(long, value_name = "NAME")]
     pub operator: Option<String>,
-    /// Seconds an emulated head (`--head sim:…`) may take to answer a request before a step
+    /// Seconds a driven head (`--head sim:…`, `zaber:…`) may take to answer a request before a step
     /// fails (passed to acquire and the verifications); a move is answered once the head
     /// stands still, so this bounds the longest move.
     #[arg(long, default_value_t = 120.0, value_name = "S", value_parser = Real(Range::Seconds))]
@@ -536,6 +579,9 @@ pub struct StationArgs {
     /// verifications) [default: 0].
     #[arg(long, value_name = "S", value_parser = Real(Range::SecondsOrZero))]
     pub settle_s: Option<f64>,
+    /// A Zaber head's axes and scale (passed to acquire and the verifications).
+    #[command(flatten)]
+    pub zaber: ZaberArgs,
     /// Begin the run even though the database ties this --serial to another device, or the
     /// node's device to another serial: the serial moves to this device, stored as a relabel row
     /// with REASON (with several --port, it applies to each unit whose label clashes).
@@ -581,6 +627,42 @@ pub enum PhaseArg {
     AsFound,
     /// After the new record was flashed.
     AsLeft,
+}
+
+/// A Zaber head's axes and scale (`--head zaber:…` only), each passed on as given.
+#[derive(Debug, Clone, Default, PartialEq, Args)]
+pub struct ZaberArgs {
+    /// A Zaber head's α axis (the spindle) as DEVICE/AXIS: its device number on the chain
+    /// (1..=99) and its axis on the device (1..=9) [default: 1/1].
+    #[arg(long, value_name = "D/A", value_parser = parse_zaber_axis)]
+    pub zaber_alpha: Option<accelcal_line::head::zaber::codec::Address>,
+    /// A Zaber head's β axis (the tilt) as DEVICE/AXIS [default: 2/1].
+    #[arg(long, value_name = "D/A", value_parser = parse_zaber_axis)]
+    pub zaber_beta: Option<accelcal_line::head::zaber::codec::Address>,
+    /// Degrees per microstep of a Zaber head's two rotary stages, from their datasheet: the
+    /// commanded angles are rounded to it [default: 0.000234375, 0.84375 arcsec].
+    #[arg(long, value_name = "DEG", value_parser = Real(Range::DegPerStep))]
+    pub zaber_deg_per_step: Option<f64>,
+}
+
+impl ZaberArgs {
+    /// The axes and scale, the defaults where not given.
+    pub fn axes(&self) -> accelcal_line::head::ZaberAxes {
+        let d = accelcal_line::head::ZaberAxes::default();
+        accelcal_line::head::ZaberAxes {
+            alpha: self.zaber_alpha.unwrap_or(d.alpha),
+            beta: self.zaber_beta.unwrap_or(d.beta),
+            deg_per_step: self.zaber_deg_per_step.unwrap_or(d.deg_per_step),
+        }
+    }
+
+    /// The clap ids of the options, for refusing them with another head.
+    pub const IDS: [&'static str; 3] = ["zaber_alpha", "zaber_beta", "zaber_deg_per_step"];
+}
+
+/// A `--zaber-alpha`/`--zaber-beta` value.
+pub fn parse_zaber_axis(s: &str) -> Result<accelcal_line::head::zaber::codec::Address, String> {
+    s.parse()
 }
 
 /// A `--head` value, checked and kept as written (the station passes it on to each step).

@@ -51,6 +51,8 @@ pub enum Range {
     Arcsec,
     /// A factor on the emulated node's rate: (0, 100].
     RateFactor,
+    /// Degrees per microstep of a rotary stage: (0, 1).
+    DegPerStep,
 }
 
 impl Range {
@@ -87,6 +89,9 @@ impl Range {
                 (v.is_finite() && (0.0..=3600.0).contains(&v), "must be a number of arcseconds in 0..=3600")
             }
             Range::RateFactor => (v.is_finite() && v > 0.0 && v <= 100.0, "must be in (0, 100]"),
+            Range::DegPerStep => {
+                (v.is_finite() && v > 0.0 && v < 1.0, "must be a number of degrees per microstep in (0, 1)")
+            }
         };
         if ok {
             Ok(v)

@@ -40,8 +40,8 @@ pub fn run(a: &Emulate) -> anyhow::Result<()> {
         pace: PaceOptions { rate_factor: a.rate_factor, ..PaceOptions::default() },
         gdb_port: a.gdb_port,
         head_port: a.head_port,
-        head: Default::default(),
-        head_fault: None,
+        head: a.head,
+        head_fault: a.head_fault,
         first_node: a.first_node,
     };
     let stop = super::live::stop_flag()?;

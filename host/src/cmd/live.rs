@@ -156,12 +156,10 @@ pub fn stop_flag() -> anyhow::Result<Arc<AtomicBool>> {
     Ok(stop)
 }
 
-/// The head the settings name, connected and homed where it needs it; an operator is prompted
-/// on stderr.
+/// The head the settings name, connected; an operator is prompted on stderr. The acquisition
+/// and the verification home it before their first move.
 fn connect_head(head: &HeadSettings, stop: &Arc<AtomicBool>) -> anyhow::Result<Box<dyn Positioner>> {
-    let mut h = accelcal_line::head::open(head, stop.clone(), Box::new(std::io::stderr()))?;
-    h.home()?;
-    Ok(h)
+    accelcal_line::head::open(head, stop.clone(), Box::new(std::io::stderr()))
 }
 
 /// `acquire --samples` when it is not given (and not resumed).

@@ -410,6 +410,7 @@ fn head_of(a: &StationSettings) -> Head {
         timeout_s: driven.then_some(a.head_timeout_s),
         tolerance_arcsec: a.head_tolerance_arcsec.filter(|_| driven),
         settle_s: a.settle_s,
+        zaber: a.zaber.clone(),
     }
 }
 

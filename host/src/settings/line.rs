@@ -125,6 +125,9 @@ pub struct Emulate {
     /// `--gdb-port`, `--head-port` (0: any free port).
     pub gdb_port: u16,
     pub head_port: u16,
+    /// `--head`: the emulated head's protocol, and `--head-fault` at `--head-fault-at`.
+    pub head: accelcal_line::emulate::bench::HeadDialect,
+    pub head_fault: Option<accelcal_line::emulate::fault::HeadFault>,
     /// `--first-node`, from 0.
     pub first_node: usize,
     /// `--chamber`, °C, and `--thermal-lag-s` (≥ 0): the sensor's temperature.
@@ -142,6 +145,10 @@ pub struct EmulatedUnit {
     /// `--record`: the calibration record in its flash at start.
     pub record: Option<PathBuf>,
 }
+
+use crate::cli::HeadDialectArg;
+use accelcal_line::emulate::bench::HeadDialect;
+use accelcal_line::emulate::fault::HeadFault;
 
 /// `emulate`'s settings (the counts of `--seed` and `--record` are checked by `settings::check`).
 pub fn emulate(a: &EmulateArgs) -> anyhow::Result<Emulate> {
@@ -163,6 +170,12 @@ pub fn emulate(a: &EmulateArgs) -> anyhow::Result<Emulate> {
         rate_factor: a.rate_factor,
         gdb_port: a.gdb_port.unwrap_or(0),
         head_port: a.head_port.unwrap_or(0),
+        head: match a.head_dialect {
+            HeadDialectArg::Sim => HeadDialect::Sim,
+            HeadDialectArg::Zaber => HeadDialect::Zaber,
+            HeadDialectArg::ZaberPty => HeadDialect::ZaberPty,
+        },
+        head_fault: a.head_fault.zip(a.head_fault_at).map(|(kind, at_move)| HeadFault { kind, at_move }),
         first_node: usize::from(a.first_node) - 1,
         chamber_c: a.chamber,
         thermal_lag_s: a.thermal_lag_s,
@@ -344,7 +357,7 @@ pub fn acquire(a: &AcquireArgs, stated: Option<&Gravity>) -> anyhow::Result<Acqu
         head: HeadSettings {
             spec: a.head.clone(),
             timeout: Duration::from_secs_f64(a.head_timeout_s),
-            zaber: Default::default(),
+            zaber: a.zaber.axes(),
         },
         settle: Settle { tolerance_arcsec: a.head_tolerance_arcsec, wait: Duration::from_secs_f64(a.settle_s) },
         plan_spec: a.plan.clone(),
@@ -412,7 +425,7 @@ pub fn verify(a: &VerifyArgs, stated: Option<&Gravity>) -> anyhow::Result<Verify
         head: HeadSettings {
             spec: a.head.clone(),
             timeout: Duration::from_secs_f64(a.head_timeout_s),
-            zaber: Default::default(),
+            zaber: a.zaber.axes(),
         },
         settle: Settle { tolerance_arcsec: a.head_tolerance_arcsec, wait: Duration::from_secs_f64(a.settle_s) },
         plan,

@@ -34,6 +34,8 @@ pub struct Station {
     pub head_timeout_s: f64,
     pub head_tolerance_arcsec: Option<f64>,
     pub settle_s: Option<f64>,
+    /// A Zaber head's axes and scale, as given (passed on to the steps).
+    pub zaber: crate::cli::ZaberArgs,
     /// `--plan`, `--samples`, `--rate-hz` of the acquisition.
     pub plan: String,
     pub samples: usize,
@@ -86,6 +88,7 @@ pub fn station(a: &StationArgs) -> Station {
         head_timeout_s: a.head_timeout_s,
         head_tolerance_arcsec: a.head_tolerance_arcsec,
         settle_s: a.settle_s,
+        zaber: a.zaber.clone(),
         plan: a.plan.clone(),
         samples: a.samples,
         rate_hz: a.rate_hz,

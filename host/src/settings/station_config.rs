@@ -37,6 +37,9 @@ struct StationConfig {
     head_timeout_s: Option<Spanned<f64>>,
     head_tolerance_arcsec: Option<Spanned<f64>>,
     settle_s: Option<Spanned<f64>>,
+    head_zaber_alpha: Option<Spanned<String>>,
+    head_zaber_beta: Option<Spanned<String>>,
+    head_zaber_deg_per_step: Option<Spanned<f64>>,
     #[serde(default)]
     node: Vec<Spanned<Node>>,
     plan: Option<Spanned<String>>,
@@ -135,6 +138,12 @@ pub fn apply(command: &mut Command, given: &mut Given) -> anyhow::Result<Option<
     f.optional(&mut a.head_tolerance_arcsec, "head_tolerance_arcsec", "head_tolerance_arcsec", tolerance);
     let settle = f.real("settle_s", c.settle_s, Range::SecondsOrZero)?;
     f.optional(&mut a.settle_s, "settle_s", "settle_s", settle);
+    let alpha = f.zaber_axis("zaber_alpha", "head_zaber_alpha", c.head_zaber_alpha)?;
+    f.optional(&mut a.zaber.zaber_alpha, "zaber_alpha", "head_zaber_alpha", alpha);
+    let beta = f.zaber_axis("zaber_beta", "head_zaber_beta", c.head_zaber_beta)?;
+    f.optional(&mut a.zaber.zaber_beta, "zaber_beta", "head_zaber_beta", beta);
+    let scale = f.real("head_zaber_deg_per_step", c.head_zaber_deg_per_step, Range::DegPerStep)?;
+    f.optional(&mut a.zaber.zaber_deg_per_step, "zaber_deg_per_step", "head_zaber_deg_per_step", scale);
     f.nodes(a, c.node)?;
     f.text_value_plain(&mut a.plan, "plan", c.plan)?;
     let samples = f.checked("samples", c.samples, |n| Range::Sets.count(n).map_err(|m| format!(" {m}")))?;
@@ -255,6 +264,26 @@ impl File<'_, '_, '_> {
             }
         }
         Ok(v)
+    }
+
+    /// A Zaber axis, `D/A` (`head_zaber_alpha`, `head_zaber_beta`), parsed as `--zaber-alpha`
+    /// parses it; refused naming the key and its line. Not checked when the command line gives
+    /// option `id`.
+    fn zaber_axis(
+        &self,
+        id: &str,
+        key: &str,
+        v: Option<Spanned<String>>,
+    ) -> anyhow::Result<Option<Spanned<accelcal_line::head::zaber::codec::Address>>> {
+        let Some(v) = v else { return Ok(None) };
+        if self.given.on_command_line(id) {
+            // Overridden: not used, not checked (`optional` notes it).
+            return Ok(Some(Spanned::new(v.span(), accelcal_line::head::ZaberAxes::default().alpha)));
+        }
+        match crate::cli::parse_zaber_axis(v.get_ref()) {
+            Ok(a) => Ok(Some(Spanned::new(v.span(), a))),
+            Err(m) => Err(bad(format!("`{key}` ({}:{}): {m}", self.name, self.at(&v)))),
+        }
     }
 
     /// [`File::checked`] for a number in a [`Range`].

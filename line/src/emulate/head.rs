@@ -642,6 +642,44 @@ mod tests {
         assert!(h.move_axis(13.0, 0, f64::INFINITY).is_err());
     }
 
+    /// `--head-fault` on the line protocol: `reject` is an `ERR`, `silent` no reply (the client
+    /// times out), `off=` lands α off and `OK` says so; each strikes the move it names only.
+    #[test]
+    fn the_line_protocol_s_head_injects_reject_silent_and_off() {
+        use crate::emulate::fault::HeadFault;
+        for (kind, want) in [
+            (FaultKind::Reject, "refused: the head refuses the move (injected fault)"),
+            (FaultKind::Silent, "no reply to `MOVE 20 0` within 0.3 s"),
+            (FaultKind::Off(36.0), ""),
+        ] {
+            let head = Arc::new(Head::new(
+                Clock::start(),
+                Motion { speed_deg_s: 900.0, overhead_s: 0.01 },
+                (0.0, 0.0),
+            ));
+            let stop = Arc::new(AtomicBool::new(false));
+            let faults = Arc::new(FaultCounter::new(Some(HeadFault { kind, at_move: 2 })));
+            let (addr, server) =
+                spawn_head_server(bind_head(0).unwrap(), head, faults, stop.clone()).unwrap();
+            let mut c = SimHead::connect(&addr.to_string(), Duration::from_millis(300)).unwrap();
+            assert_eq!(c.move_to(10.0, 0.0).unwrap(), crate::head::Angles { alpha_deg: 10.0, beta_deg: 0.0 });
+            match c.move_to(20.0, 0.0) {
+                Ok(got) => {
+                    assert_eq!(want, "");
+                    assert!((got.alpha_deg - 20.01).abs() < 1e-9, "{got:?}");
+                }
+                Err(e) => assert!(e.to_string().contains(want), "{kind}: {e}"),
+            }
+            // The next move meets no fault (on a new connection: the server serves one at a time).
+            drop(c);
+            let mut c = SimHead::connect(&addr.to_string(), Duration::from_secs(5)).unwrap();
+            assert_eq!(c.move_to(30.0, 0.0).unwrap(), crate::head::Angles { alpha_deg: 30.0, beta_deg: 0.0 });
+            stop.store(true, Ordering::Relaxed);
+            drop(c);
+            server.join().unwrap().unwrap();
+        }
+    }
+
     fn raw(addr: &str, line: &str) -> String {
         let mut s = TcpStream::connect(addr).unwrap();
         s.set_read_timeout(Some(Duration::from_secs(5))).unwrap();

@@ -31,6 +31,8 @@ pub(super) struct Head {
     pub timeout_s: Option<f64>,
     pub tolerance_arcsec: Option<f64>,
     pub settle_s: Option<f64>,
+    /// A Zaber head's axes and scale, each passed on when given.
+    pub zaber: crate::cli::ZaberArgs,
 }
 
 /// The head's stated uncertainties, arcsec.
@@ -168,6 +170,9 @@ impl Line {
         self.maybe("--head-timeout-s", h.timeout_s);
         self.maybe("--head-tolerance-arcsec", h.tolerance_arcsec);
         self.maybe("--settle-s", h.settle_s);
+        self.maybe("--zaber-alpha", h.zaber.zaber_alpha);
+        self.maybe("--zaber-beta", h.zaber.zaber_beta);
+        self.maybe("--zaber-deg-per-step", h.zaber.zaber_deg_per_step);
     }
 
     fn head_u(&mut self, u: Option<HeadU>) {
@@ -324,6 +329,7 @@ mod tests {
             timeout_s: Some(90.0),
             tolerance_arcsec: Some(20.0),
             settle_s: None,
+            zaber: Default::default(),
         }
     }
 
@@ -364,6 +370,27 @@ mod tests {
         assert_eq!(a.serial, ["A-1", "A-2"]);
         assert_eq!(a.out, [PathBuf::from("a/c.csv"), PathBuf::from("b/c.csv")]);
         assert_eq!((a.g, a.local.latitude, a.local.height), (None, Some(-33.9), Some(120.0)));
+        assert_eq!(a.zaber, crate::cli::ZaberArgs::default(), "none given, none passed");
+
+        // A Zaber head's axes and scale reach the step as given.
+        let zaber = crate::cli::ZaberArgs {
+            zaber_alpha: Some("3/1".parse().unwrap()),
+            zaber_beta: Some("3/2".parse().unwrap()),
+            zaber_deg_per_step: Some(0.001),
+        };
+        let head = Head { spec: "zaber:/dev/ttyUSB0".parse().unwrap(), zaber: zaber.clone(), ..sim() };
+        let c = StepCommand::Acquire {
+            link: link(&["/dev/pts/3"]),
+            head,
+            plan: "six".into(),
+            samples: 200,
+            units: vec![("A-1".into(), "a/c.csv".into())],
+            rate_hz: None,
+            gravity: None,
+            resume: false,
+        };
+        let Command::Acquire(a) = parse(&c) else { panic!("acquire") };
+        assert_eq!((a.head.to_string().as_str(), a.zaber), ("zaber:/dev/ttyUSB0", zaber));
 
         let c = StepCommand::Select { campaign: "c.csv".into(), json: "s.json".into(), tolerance: 5.0 };
         let Command::Select(a) = parse(&c) else { panic!("select") };
@@ -419,6 +446,7 @@ mod tests {
                 timeout_s: None,
                 tolerance_arcsec: None,
                 settle_s: Some(1.5),
+                zaber: Default::default(),
             },
             plan: "six".into(),
             samples: 300,
