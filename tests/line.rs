@@ -18,6 +18,9 @@ use crate::dbkit;
 mod multi;
 use crate::support;
 
+/// The heads the tool drives: Zaber ASCII, an adapter, faults (issue 56).
+#[path = "line/heads.rs"]
+mod heads;
 #[path = "line/interrupt.rs"]
 mod interrupt;
 /// The certificate printed with Chromium and read back page by page.
@@ -27,9 +30,6 @@ mod print;
 mod station;
 #[path = "line/thermal.rs"]
 mod thermal;
-/// The station on an emulated Zaber head, over TCP and a pseudo-terminal, with a fault (issue 56).
-#[path = "line/zaber.rs"]
-mod zaber;
 use print::printed_certificate;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};

@@ -13,8 +13,8 @@
 //! a rule is broken at its own point. A station refuses production while its latest check is out
 //! of control, until a check is in control again.
 
-use accelcal_core::spc::{ImrLimits, Violation};
 use accelcal_core::document::verify::VerifyReport;
+use accelcal_core::spc::{ImrLimits, Violation};
 use serde::Serialize;
 
 use super::{Db, DbError};

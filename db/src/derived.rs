@@ -11,8 +11,8 @@ use serde::{Deserialize, Serialize};
 
 use super::engine::{Conn, Tx, Val};
 use super::DbError;
-use accelcal_core::document::FitDoc;
 use accelcal_core::document::verify::VerifyReport;
+use accelcal_core::document::FitDoc;
 
 const AXES: [&str; 3] = ["x", "y", "z"];
 

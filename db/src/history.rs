@@ -12,8 +12,8 @@
 use serde::Serialize;
 
 use super::{Outcome, RunSummary};
-use accelcal_core::document::FitDoc;
 use accelcal_core::document::verify::VerifyReport;
+use accelcal_core::document::FitDoc;
 
 /// The recommended recalibration date's method, as `history --help` and the guide (docs/src/line/database.md) state it.
 pub const METHOD: &str = "Recalibration date: each of the 12 model-4 coefficients (bias and 3 \

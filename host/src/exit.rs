@@ -161,9 +161,9 @@ mod tests {
         use accelcal_db::DbError;
         use accelcal_line::emulate::frontend::FrontendError;
         use accelcal_line::emulate::head::HeadServerError;
+        use accelcal_line::head::HeadError;
         use accelcal_line::node::flash::FlashError;
         use accelcal_line::node::gdb::GdbError;
-        use accelcal_line::head::HeadError;
         use accelcal_line::node::hil::HilError;
         use accelcal_line::node::link::LinkError;
         use accelcal_line::node::qemu::QemuError;

@@ -28,11 +28,9 @@ use accelcal_shared::wire::{Block, Output, RecordStatus};
 use crate::acquire::{block_kind, capture, Captured, StaticRule};
 use crate::head::{Positioner, Target};
 use crate::node::session::{device_id_hex, record_json, Session};
-pub use accelcal_core::document::verify::{Failed, PositionCheck, VerifyReport};
 use accelcal_core::campaign::identity::{self, Identity};
-use accelcal_core::conformity::{
-    measured_error_u, parameters, Measured, Specification, VerifyReferences,
-};
+use accelcal_core::conformity::{measured_error_u, parameters, Measured, Specification, VerifyReferences};
+pub use accelcal_core::document::verify::{Failed, PositionCheck, VerifyReport};
 use accelcal_core::document::FitDoc;
 use accelcal_core::error::bad;
 use accelcal_core::sim::Plan;

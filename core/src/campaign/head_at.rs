@@ -43,7 +43,8 @@ impl HeadAt {
     /// Parses one line (with or without its line feed); `None` when it is not a `head_at` line
     /// or a field is missing or not a finite number.
     pub fn parse(line: &str) -> Option<HeadAt> {
-        let rest = line.trim().strip_prefix('#')?.trim_start().strip_prefix(HEAD_AT_KEY)?.strip_prefix(':')?;
+        let rest =
+            line.trim().strip_prefix('#')?.trim_start().strip_prefix(HEAD_AT_KEY)?.strip_prefix(':')?;
         let mut fields = std::collections::BTreeMap::new();
         for word in rest.split_whitespace() {
             let (k, v) = word.split_once('=')?;
@@ -91,7 +92,9 @@ mod tests {
             "# head_at: position=5 alpha_deg=90 beta_deg=-60 read_back_alpha_deg=90.00012 read_back_beta_deg=-60\n"
         );
         assert_eq!(HeadAt::parse(&h.line()), Some(h));
-        for other in ["# note: head_at", "# head_at: position=5", "# head_at: position=x alpha_deg=1", "1,2,3"] {
+        for other in
+            ["# note: head_at", "# head_at: position=5", "# head_at: position=x alpha_deg=1", "1,2,3"]
+        {
             assert_eq!(HeadAt::parse(other), None, "{other}");
         }
         let nan = h.line().replace("=-60 read", "=NaN read");
@@ -116,7 +119,11 @@ mod tests {
         );
         std::fs::write(&p, &text).unwrap();
         assert_eq!(HeadAt::read_all(&p).unwrap(), vec![h(1, 0.0), h(2, 90.0)]);
-        let plain = text.lines().filter(|l| !l.starts_with("# head_at")).collect::<Vec<_>>().join("\n") + "\n";
-        assert_eq!(super::super::tests::parse(&text).unwrap().len(), super::super::tests::parse(&plain).unwrap().len());
+        let plain =
+            text.lines().filter(|l| !l.starts_with("# head_at")).collect::<Vec<_>>().join("\n") + "\n";
+        assert_eq!(
+            super::super::tests::parse(&text).unwrap().len(),
+            super::super::tests::parse(&plain).unwrap().len()
+        );
     }
 }

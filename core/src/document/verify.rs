@@ -167,4 +167,3 @@ impl VerifyReport {
             .map_err(|e| bad(format!("{name}: not the JSON report `accelcal verify` writes: {e}")))
     }
 }
-

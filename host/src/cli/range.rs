@@ -71,10 +71,9 @@ impl Range {
             Range::SecondsOrZero => {
                 ((0.0..=DAY_S).contains(&v), "must be a number of seconds from 0 to 86400 (a day)")
             }
-            Range::Chamber => (
-                accelcal_line::head::CHAMBER_RANGE_C.contains(&v),
-                "must be a temperature in -60..=150 °C",
-            ),
+            Range::Chamber => {
+                (accelcal_line::head::CHAMBER_RANGE_C.contains(&v), "must be a temperature in -60..=150 °C")
+            }
             Range::TRef => {
                 (v.is_finite() && (-100.0..=200.0).contains(&v), "must be a temperature in -100..=200 °C")
             }

@@ -8,9 +8,7 @@ use std::time::Duration;
 use accelcal_core::campaign::identity::Identity;
 use accelcal_core::error::{bad, Interrupted};
 use accelcal_core::output::write_json;
-use accelcal_line::acquire::{
-    self, AcquireConfig, NodeRun, PositionReport, Progress, StaticRule,
-};
+use accelcal_line::acquire::{self, AcquireConfig, NodeRun, PositionReport, Progress, StaticRule};
 use accelcal_line::head::{HeadSettings, Positioner};
 use accelcal_line::node::session::{device_id_hex, firmware_version, Session};
 use accelcal_line::verify::{

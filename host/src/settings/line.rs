@@ -287,16 +287,13 @@ fn soak_of(setpoints: &[f64], soak_s: Option<f64>) -> anyhow::Result<Option<Dura
         (true, Some(_)) => Err(bad("--soak-s applies with --chamber only")),
         (false, None) => Err(bad("--chamber needs --soak-s (seconds to wait at each setpoint)")),
         (false, Some(s)) => {
-            if let Some(t) =
-                setpoints.iter().find(|t| !accelcal_line::head::CHAMBER_RANGE_C.contains(*t))
-            {
+            if let Some(t) = setpoints.iter().find(|t| !accelcal_line::head::CHAMBER_RANGE_C.contains(*t)) {
                 return Err(bad(format!("--chamber {t}: a setpoint must be in -60..=150 °C")));
             }
             Ok(Some(Duration::from_secs_f64(s)))
         }
     }
 }
-
 
 /// `accelcal acquire`, settled.
 pub struct Acquire {
@@ -359,7 +356,10 @@ pub fn acquire(a: &AcquireArgs, stated: Option<&Gravity>) -> anyhow::Result<Acqu
             timeout: Duration::from_secs_f64(a.head_timeout_s),
             zaber: a.zaber.axes(),
         },
-        settle: Settle { tolerance_arcsec: a.head_tolerance_arcsec, wait: Duration::from_secs_f64(a.settle_s) },
+        settle: Settle {
+            tolerance_arcsec: a.head_tolerance_arcsec,
+            wait: Duration::from_secs_f64(a.settle_s),
+        },
         plan_spec: a.plan.clone(),
         plan,
         samples: a.samples,
@@ -427,7 +427,10 @@ pub fn verify(a: &VerifyArgs, stated: Option<&Gravity>) -> anyhow::Result<Verify
             timeout: Duration::from_secs_f64(a.head_timeout_s),
             zaber: a.zaber.axes(),
         },
-        settle: Settle { tolerance_arcsec: a.head_tolerance_arcsec, wait: Duration::from_secs_f64(a.settle_s) },
+        settle: Settle {
+            tolerance_arcsec: a.head_tolerance_arcsec,
+            wait: Duration::from_secs_f64(a.settle_s),
+        },
         plan,
         samples: a.samples,
         judged,

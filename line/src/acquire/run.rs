@@ -15,13 +15,13 @@ use std::time::Instant;
 
 use accelcal_shared::wire::Output;
 
-use crate::head::{Positioner, Target};
-use accelcal_core::campaign::head_at::HeadAt;
 use super::{
     ensure_node, header, open_resumed, record_position, reports_temperature, set_rate, soak_nodes,
     AcquireConfig, AcquireSummary, CampaignFile, Clock, MotionCheck, Progress, Recorded,
 };
+use crate::head::{Positioner, Target};
 use crate::node::session::{device_id_hex, firmware_version, Session};
+use accelcal_core::campaign::head_at::HeadAt;
 use accelcal_core::error::{bad, environment};
 
 /// One node of an acquisition: its session, its settings (its own `out` and `serial`; the rest
@@ -282,8 +282,12 @@ fn run_positions(
                 read_back_alpha_deg: read_back.alpha_deg,
                 read_back_beta_deg: read_back.beta_deg,
             };
-            let mut nodes: Vec<&mut Session> =
-                runs.iter_mut().enumerate().filter(|(i, _)| pending.contains(i)).map(|(_, r)| &mut *r.node).collect();
+            let mut nodes: Vec<&mut Session> = runs
+                .iter_mut()
+                .enumerate()
+                .filter(|(i, _)| pending.contains(i))
+                .map(|(_, r)| &mut *r.node)
+                .collect();
             if !crate::acquire::dwell(&mut nodes, cfg.settle.wait, stop)? {
                 return end(states, true);
             }

@@ -661,7 +661,7 @@ mod tests {
             let faults = Arc::new(FaultCounter::new(Some(HeadFault { kind, at_move: 2 })));
             let (addr, server) =
                 spawn_head_server(bind_head(0).unwrap(), head, faults, stop.clone()).unwrap();
-            let mut c = SimHead::connect(&addr.to_string(), Duration::from_millis(300)).unwrap();
+            let mut c = LineHead::connect(&addr.to_string(), Duration::from_millis(300)).unwrap();
             assert_eq!(c.move_to(10.0, 0.0).unwrap(), crate::head::Angles { alpha_deg: 10.0, beta_deg: 0.0 });
             match c.move_to(20.0, 0.0) {
                 Ok(got) => {
@@ -672,7 +672,7 @@ mod tests {
             }
             // The next move meets no fault (on a new connection: the server serves one at a time).
             drop(c);
-            let mut c = SimHead::connect(&addr.to_string(), Duration::from_secs(5)).unwrap();
+            let mut c = LineHead::connect(&addr.to_string(), Duration::from_secs(5)).unwrap();
             assert_eq!(c.move_to(30.0, 0.0).unwrap(), crate::head::Angles { alpha_deg: 30.0, beta_deg: 0.0 });
             stop.store(true, Ordering::Relaxed);
             drop(c);
@@ -739,10 +739,12 @@ mod tests {
     /// there (`WHERE` says `STILL`).
     #[test]
     fn a_stop_during_a_move_stops_the_head_where_it_is() {
-        let head = Arc::new(Head::new(Clock::start(), Motion { speed_deg_s: 90.0, overhead_s: 0.0 }, (0.0, 0.0)));
+        let head =
+            Arc::new(Head::new(Clock::start(), Motion { speed_deg_s: 90.0, overhead_s: 0.0 }, (0.0, 0.0)));
         let stop = Arc::new(AtomicBool::new(false));
         let faults = Arc::new(FaultCounter::new(None));
-        let (addr, server) = spawn_head_server(bind_head(0).unwrap(), head.clone(), faults, stop.clone()).unwrap();
+        let (addr, server) =
+            spawn_head_server(bind_head(0).unwrap(), head.clone(), faults, stop.clone()).unwrap();
         let ctrl_c = Arc::new(AtomicBool::new(false));
         let mut client =
             LineHead::connect(&addr.to_string(), Duration::from_secs(5)).unwrap().stop_on(ctrl_c.clone());

@@ -85,4 +85,3 @@ impl Classify for HeadError {
         Kind::Environment
     }
 }
-

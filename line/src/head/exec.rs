@@ -130,6 +130,9 @@ mod tests {
             .err()
             .unwrap()
             .to_string();
-        assert!(e.starts_with("head exec:/nonexistent/adapter --x (starting `/nonexistent/adapter`):"), "{e}");
+        assert!(
+            e.starts_with("head exec:/nonexistent/adapter --x (starting `/nonexistent/adapter`):"),
+            "{e}"
+        );
     }
 }

@@ -208,15 +208,16 @@ impl Link {
         let line = match line {
             Line::Text(l) => l,
             Line::TooLong => {
-                return Err(self.protocol(format!("a reply longer than {MAX_REPLY} bytes without a line end")));
+                return Err(
+                    self.protocol(format!("a reply longer than {MAX_REPLY} bytes without a line end"))
+                );
             }
             Line::Closed => return Err(self.protocol("connection closed".into())),
             Line::Failed(e) => return Err(self.io(e)),
         };
         let Ok(text) = std::str::from_utf8(&line) else {
-            return Err(
-                self.protocol(format!("a reply that is not UTF-8 text: `{}`", escape_peer(line.trim_ascii())))
-            );
+            return Err(self
+                .protocol(format!("a reply that is not UTF-8 text: `{}`", escape_peer(line.trim_ascii()))));
         };
         match Reply::parse(text) {
             Ok(Reply::Err(message)) => Err(self.protocol(format!("refused: {message}"))),

@@ -27,8 +27,8 @@ use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
 pub use error::HeadError;
-pub use protocol::CHAMBER_RANGE_C;
 pub use line_head::LineHead;
+pub use protocol::CHAMBER_RANGE_C;
 pub use spec::{HeadSettings, HeadSpec};
 pub use zaber::{ZaberAxes, ZaberHead, ZaberPort};
 

@@ -46,8 +46,8 @@ pub struct ZaberAxes {
 }
 
 impl ZaberAxes {
-    /// The default scale: a rotary stage of 1.8° full steps at 128 microsteps, 0.000234375°
-    /// (0.84375″) per microstep.
+    /// The default scale, 0.000234375° (0.84375″) per microstep: 0.03° per full step at 128
+    /// microsteps, a 1.8° motor through a 60:1 worm gear.
     pub const DEG_PER_STEP: f64 = 0.000_234_375;
 
     /// Checks the axes and the scale: two distinct axes, and a scale that is a finite number of
