@@ -2,7 +2,7 @@
 //! type; SQLite keeps whatever was written (`UPDATE run SET g_m_s2 = 'abc'` behind accelcal's
 //! back), and a reader that meets such a cell can only say what it expected. [`scan`] names
 //! each such cell by its table, its row's key and its column, from the schema's own declared
-//! types (`PRAGMA table_info`; the engine's [`crate::engine`] `scan_cells`), so that `db verify`
+//! types (`PRAGMA table_info`; the engine's `scan_cells`), so that `db verify`
 //! lists them all and a reader's failure names the first.
 
 use serde::Serialize;

@@ -86,7 +86,7 @@ fn recorded(rows: &[[Option<String>; 4]]) -> Option<i64> {
 /// What is wrong with the history, in words, or `None`: every row is one of this build's
 /// migrations as refinery recorded it (version, name, checksum, a time it was applied), from
 /// version 1 without a gap (a later build's versions above this build's are left to
-/// [`crate::engine`]'s version check). `None` too when there is no history yet.
+/// the engine's version check). `None` too when there is no history yet.
 pub(crate) fn problem(tx: &mut Tx<'_>) -> Result<Option<String>, DbError> {
     if !exists(tx)? {
         return Ok(None);
