@@ -14,7 +14,7 @@ use accelcal_core::campaign::CodeRange;
 
 use accelcal_core::sim::Plan;
 use accelcal_line::acquire::StaticRule;
-use accelcal_line::head::{HeadSettings, Settle};
+use accelcal_line::head::{HeadSettings, HeadSpec, Settle, ZaberAxes};
 
 use super::values::{FlashRoute, Issuer, RunStore};
 use crate::cli::{
@@ -351,15 +351,8 @@ pub fn acquire(a: &AcquireArgs, stated: Option<&Gravity>) -> anyhow::Result<Acqu
         nodes,
         baud: a.baud,
         answer_timeout: Duration::from_secs_f64(a.timeout_s),
-        head: HeadSettings {
-            spec: a.head.clone(),
-            timeout: Duration::from_secs_f64(a.head_timeout_s),
-            zaber: a.zaber.axes(),
-        },
-        settle: Settle {
-            tolerance_arcsec: a.head_tolerance_arcsec,
-            wait: Duration::from_secs_f64(a.settle_s),
-        },
+        head: head_settings(&a.head, a.head_timeout_s, a.zaber.axes()),
+        settle: settle(a.head_tolerance_arcsec, a.settle_s),
         plan_spec: a.plan.clone(),
         plan,
         samples: a.samples,
@@ -422,15 +415,8 @@ pub fn verify(a: &VerifyArgs, stated: Option<&Gravity>) -> anyhow::Result<Verify
     let soak = soak_of(a.chamber.as_slice(), a.soak_s)?;
     Ok(Verify {
         link: Link::of(&a.link),
-        head: HeadSettings {
-            spec: a.head.clone(),
-            timeout: Duration::from_secs_f64(a.head_timeout_s),
-            zaber: a.zaber.axes(),
-        },
-        settle: Settle {
-            tolerance_arcsec: a.head_tolerance_arcsec,
-            wait: Duration::from_secs_f64(a.settle_s),
-        },
+        head: head_settings(&a.head, a.head_timeout_s, a.zaber.axes()),
+        settle: settle(a.head_tolerance_arcsec, a.settle_s),
         plan,
         samples: a.samples,
         judged,
@@ -447,4 +433,14 @@ pub fn verify(a: &VerifyArgs, stated: Option<&Gravity>) -> anyhow::Result<Verify
             crate::cli::PhaseArg::AsLeft => accelcal_db::Phase::AsLeft,
         },
     })
+}
+
+/// The head `--head`, `--head-timeout-s` and the Zaber options name.
+fn head_settings(spec: &HeadSpec, timeout_s: f64, zaber: ZaberAxes) -> HeadSettings {
+    HeadSettings { spec: spec.clone(), timeout: Duration::from_secs_f64(timeout_s), zaber }
+}
+
+/// The settled rule of `--head-tolerance-arcsec` and `--settle-s`.
+fn settle(tolerance_arcsec: f64, settle_s: f64) -> Settle {
+    Settle { tolerance_arcsec, wait: Duration::from_secs_f64(settle_s) }
 }

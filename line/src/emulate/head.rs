@@ -416,6 +416,18 @@ pub fn serve_head(
     faults: &FaultCounter,
     stop: &AtomicBool,
 ) -> Result<HeadServerStats, HeadServerError> {
+    accept_one_at_a_time(listener, stop, |stream, stats| serve_connection(stream, head, faults, stop, stats))
+}
+
+/// Accepts connections on `listener` until `stop` is set and hands each to `serve`, one at a
+/// time in order of arrival (checked at least every [`POLL`]); a connection's failure ends that
+/// connection only. The emulated head's servers (this protocol's, and the Zaber dialect's) share
+/// it.
+pub fn accept_one_at_a_time(
+    listener: TcpListener,
+    stop: &AtomicBool,
+    mut serve: impl FnMut(TcpStream, &mut HeadServerStats) -> std::io::Result<()>,
+) -> Result<HeadServerStats, HeadServerError> {
     let addr = listener.local_addr().map(|a| a.to_string()).unwrap_or_default();
     let err = |cause| HeadServerError::Listen { addr: addr.clone(), cause };
     listener.set_nonblocking(true).map_err(err)?;
@@ -424,8 +436,7 @@ pub fn serve_head(
         match listener.accept() {
             Ok((stream, _)) => {
                 stats.connections += 1;
-                // A connection's failure ends that connection only.
-                let _ = serve_connection(stream, head, faults, stop, &mut stats);
+                let _ = serve(stream, &mut stats);
             }
             Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => std::thread::sleep(POLL / 4),
             Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}

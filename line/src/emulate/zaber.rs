@@ -230,30 +230,12 @@ pub fn serve_zaber(
     stage: &ZaberStage,
     stop: &AtomicBool,
 ) -> Result<HeadServerStats, HeadServerError> {
-    let addr = listener.local_addr().map(|a| a.to_string()).unwrap_or_default();
-    let err = |cause| HeadServerError::Listen { addr: addr.clone(), cause };
-    listener.set_nonblocking(true).map_err(err)?;
-    let mut stats = HeadServerStats::default();
-    while !stop.load(Ordering::Relaxed) {
-        match listener.accept() {
-            Ok((stream, _)) => {
-                stats.connections += 1;
-                let setup = stream
-                    .set_nonblocking(false)
-                    .and_then(|_| stream.set_read_timeout(Some(POLL)))
-                    .and_then(|_| stream.set_nodelay(true));
-                if setup.is_ok() {
-                    // A connection's failure ends that connection only.
-                    let _ = serve_stream(stream, stage, stop, &mut stats);
-                }
-            }
-            Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => std::thread::sleep(POLL / 4),
-            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-            Err(e) if e.kind() == std::io::ErrorKind::ConnectionAborted => {}
-            Err(e) => return Err(err(e)),
-        }
-    }
-    Ok(stats)
+    super::head::accept_one_at_a_time(listener, stop, |stream, stats| {
+        stream.set_nonblocking(false)?;
+        stream.set_read_timeout(Some(POLL))?;
+        stream.set_nodelay(true)?;
+        serve_stream(stream, stage, stop, stats)
+    })
 }
 
 /// Serves the stage on a pseudo-terminal of its own, as a serial chain is reached; returns the
