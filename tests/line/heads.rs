@@ -190,6 +190,40 @@ fn a_read_back_off_the_commanded_angle_is_refused_and_the_rerun_finishes() {
     em.stop();
 }
 
+/// The other faults the emulated stage injects, each at its first move (the acquisition's first
+/// position): the station ends with exit code 3, naming α and what it said (or the command no
+/// reply came to), and nothing of the position is recorded. (The reruns after a fault are shown
+/// above, for a stall and a read-back off the commanded angle.)
+#[test]
+fn every_other_injected_fault_ends_the_station_naming_the_axis() {
+    let _one = one_bench();
+    let dir = tempfile::tempdir().unwrap();
+    let (truth, _) = unit(dir.path(), "u", 44, 10);
+    let cases: [(&str, [&str; 2]); 4] = [
+        ("reject", ["alpha (device 1 axis 1) refused `move abs ", "RJ IDLE -- BADDATA"]),
+        ("limit", ["alpha (device 1 axis 1) reports a fault: ", "WL"]),
+        ("not-homed", ["alpha (device 1 axis 1) refused `move abs ", "WH"]),
+        ("silent", ["no reply to `/1 1 move abs ", "within 3 s"]),
+    ];
+    for (fault, words) in cases {
+        let em = Emulator::start(&truth, &["--head", "zaber", "--head-fault", fault, "--head-fault-at", "1"]);
+        let out_dir = dir.path().join(fault);
+        let mut args = station_args(&em, "F-2", &out_dir, &[]);
+        args.extend_from_slice(&["--head-timeout-s", "3"]);
+        let out = accelcal(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(3), "{fault}: {err}");
+        for w in words {
+            assert!(err.contains(w), "{fault}: no `{w}` in {err}");
+        }
+        let campaign = out_dir.join("campaign.csv");
+        let text = std::fs::read_to_string(&campaign).unwrap_or_default();
+        let head_at = text.lines().filter(|l| l.starts_with("# head_at:")).count();
+        assert_eq!((head_at, dwells(&campaign).len()), (0, 0), "{fault}: {text}");
+        em.stop();
+    }
+}
+
 /// The example adapter against the emulated Zaber stage in this process (no QEMU): it greets,
 /// homes the axes the stage reports not homed, moves both and reads them back in microsteps, and
 /// a Ctrl-C during a move stops the stage where it is; an injected stall on α comes back as the
