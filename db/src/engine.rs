@@ -499,19 +499,24 @@ impl Conn {
     }
 }
 
-/// The newest schema version applied (`None`: no accelcal schema, a new database). Read
-/// without failing when the history table is not there.
-fn latest_version(tx: &mut Tx<'_>) -> Result<Option<i64>, DbError> {
-    let exists = match tx {
+/// Whether the migration history table (`refinery_schema_history`) is there.
+pub(crate) fn history_exists(tx: &mut Tx<'_>) -> Result<bool, DbError> {
+    let sql = match tx {
         Tx::Sqlite(_) => {
             "SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'refinery_schema_history'"
         }
         Tx::Postgres(..) => {
             "SELECT 1 FROM pg_catalog.pg_tables WHERE tablename = 'refinery_schema_history' \
-                             AND schemaname = ANY (current_schemas(false))"
+             AND schemaname = ANY (current_schemas(false))"
         }
     };
-    if tx.query(exists, &[])?.is_empty() {
+    Ok(!tx.query(sql, &[])?.is_empty())
+}
+
+/// The newest schema version applied (`None`: no accelcal schema, a new database). Read
+/// without failing when the history table is not there.
+fn latest_version(tx: &mut Tx<'_>) -> Result<Option<i64>, DbError> {
+    if !history_exists(tx)? {
         return Ok(None);
     }
     let rows = tx.query("SELECT MAX(version) FROM refinery_schema_history", &[])?;

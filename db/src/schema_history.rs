@@ -7,7 +7,7 @@
 //! ([`DbError::MigrationHistory`]); `accelcal db migrate` records the history again when the
 //! SQLite schema is exactly that of one of this build's versions ([`repair`]).
 
-use super::engine::{embedded, Tx, Val};
+use super::engine::{embedded, history_exists, Tx, Val};
 use super::DbError;
 
 /// One migration of this build, as refinery records it.
@@ -44,19 +44,6 @@ fn shown(v: &Option<String>) -> String {
     }
 }
 
-fn exists(tx: &mut Tx<'_>) -> Result<bool, DbError> {
-    let sql = match tx {
-        Tx::Sqlite(_) => {
-            "SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'refinery_schema_history'"
-        }
-        Tx::Postgres(..) => {
-            "SELECT 1 FROM pg_catalog.pg_tables WHERE tablename = 'refinery_schema_history' \
-             AND schemaname = ANY (current_schemas(false))"
-        }
-    };
-    Ok(!tx.query(sql, &[])?.is_empty())
-}
-
 /// The history's rows as text (a cell that is not its type reads as what it holds), each
 /// `[version, name, applied_on, checksum]`.
 fn rows(tx: &mut Tx<'_>) -> Result<Vec<[Option<String>; 4]>, DbError> {
@@ -88,7 +75,7 @@ fn recorded(rows: &[[Option<String>; 4]]) -> Option<i64> {
 /// version 1 without a gap (a later build's versions above this build's are left to
 /// the engine's version check). `None` too when there is no history yet.
 pub(crate) fn problem(tx: &mut Tx<'_>) -> Result<Option<String>, DbError> {
-    if !exists(tx)? {
+    if !history_exists(tx)? {
         return Ok(None);
     }
     let known = known(matches!(tx, Tx::Postgres(..)));
@@ -177,7 +164,7 @@ pub(crate) fn damage(tx: &mut Tx<'_>) -> Result<Option<String>, DbError> {
     if let Some(p) = problem(tx)? {
         return Ok(Some(p));
     }
-    if !exists(tx)? {
+    if !history_exists(tx)? {
         return Ok(None);
     }
     let recorded = recorded(&rows(tx)?);
@@ -198,7 +185,7 @@ pub(crate) fn damage(tx: &mut Tx<'_>) -> Result<Option<String>, DbError> {
 /// `None` when the history is sound. A schema that is no version's is
 /// [`DbError::MigrationHistory`]: only a backup restores it.
 pub(crate) fn repair(tx: &mut Tx<'_>, target: &str) -> Result<Option<String>, DbError> {
-    if !matches!(tx, Tx::Sqlite(_)) || !exists(tx)? {
+    if !matches!(tx, Tx::Sqlite(_)) || !history_exists(tx)? {
         return Ok(None);
     }
     let rows = rows(tx)?;
