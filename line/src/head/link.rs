@@ -148,11 +148,6 @@ impl Link {
         &self.name
     }
 
-    /// The longest wait for a reply.
-    pub fn timeout(&self) -> Duration {
-        self.timeout
-    }
-
     fn io(&self, cause: std::io::Error) -> HeadError {
         HeadError::Io { addr: self.name.clone(), cause }
     }
