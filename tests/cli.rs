@@ -459,7 +459,9 @@ fn a_closed_pipe_ends_the_output_quietly() {
 /// separated by ` | `; plots and style left out.
 fn page_text(html: &str) -> String {
     let mut s = html.to_string();
-    for (open, close) in [("<title>", "</title>"), ("<style>", "</style>"), ("<svg", "</svg>")] {
+    for (open, close) in
+        [("<title>", "</title>"), ("<style>", "</style>"), ("<svg", "</svg>"), ("<script", "</script>")]
+    {
         while let Some(a) = s.find(open) {
             let b = s[a..].find(close).map_or(s.len(), |b| a + b + close.len());
             s.replace_range(a..b, "");
@@ -488,17 +490,31 @@ fn page_text(html: &str) -> String {
     }
     let out =
         out.replace("&mdash;", "—").replace("&plusmn;", "±").replace("&alpha;", "α").replace("&beta;", "β");
-    out.replace("&amp;", "&").replace("&lt;", "<").replace("&gt;", ">").replace("&quot;", "\"")
+    let out = out
+        .replace("&#39;", "'")
+        .replace("&#60;", "<")
+        .replace("&#62;", ">")
+        .replace("&#34;", "\"")
+        .replace("&#38;", "&")
+        .replace("&amp;", "&")
+        .replace("&lt;", "<")
+        .replace("&gt;", ">")
+        .replace("&quot;", "\"");
+    // One line per row or paragraph, without the template's blank lines.
+    out.lines().map(str::trim).filter(|l| !l.is_empty()).collect::<Vec<_>>().join("\n") + "\n"
 }
 
 /// Issue 24.4: the certificate of a simulated unit, verified (a verification document of the
 /// record, as `verify --json` writes it): one g with its bound, per-axis tolerances, the
-/// temperature of the verification, GMDH next to the record's terms, Table 2 for information.
+/// temperature of the verification. Issue 57: the same document as a PDF (every value read back
+/// by `pdftotext`, the document attached), and GMDH next to the record's terms and Table 2 in the
+/// technical report, not on the certificate.
 #[test]
 fn the_certificate_is_the_snapshot() {
     let d = Dir::new();
     let c = simulate(&d, "u42.csv", &["--seed", "42", "--samples", "20", "--serial", "U-42"]);
     let (rec, fit, cert) = (d.s("u42.rec"), d.s("u42-fit.json"), d.s("u42.html"));
+    let (pdf, technical) = (d.s("u42.pdf"), d.s("u42-technical.html"));
     // Fit by `method`, verify (a document of the record) and certify: the report's stdout and the
     // page's text.
     let certify = |method: &str| {
@@ -532,6 +548,18 @@ fn the_certificate_is_the_snapshot() {
             &verification,
             "-o",
             &cert,
+            "--pdf",
+            &pdf,
+            "--technical",
+            &technical,
+            "--customer",
+            "ACME <Sensors> & Co",
+            "--customer-address",
+            "2 Road, Town",
+            "--received",
+            "2026-12-01",
+            "--place",
+            "line 2",
         ]);
         assert!(out.contains(&format!("certificate of unit U-42 (device {id}, record CRC {crc})")), "{out}");
         page_text(&std::fs::read_to_string(&cert).unwrap())
@@ -551,8 +579,51 @@ fn the_certificate_is_the_snapshot() {
         .replace(&format!("accelcal {}", env!("CARGO_PKG_VERSION")), "accelcal (version)");
     assert_eq!(text.matches(" m/s² (").count(), 1, "one g: {text}");
     assert!(text.contains("g (local gravity) | 9.810 ± 0.005 m/s²"), "{text}");
-    assert!(text.contains("at 25.0 °C (the node's sensor, 24.9 to 25.1 °C over the positions)"), "{text}");
+    assert!(
+        text.contains(
+            "at 25.0 °C (the unit's own sensor, not a traceable thermometer; 24.9 to 25.1 °C over the positions)"
+        ),
+        "{text}"
+    );
     insta::assert_snapshot!("certificate_text", text);
+    // Engineering material is not on the certificate.
+    for gone in ["GMDH selects", "Table 2", "Coefficients in force"] {
+        assert!(!text.contains(gone), "{gone} on the certificate: {text}");
+    }
+    let tech = page_text(&std::fs::read_to_string(&technical).unwrap());
+    for want in ["GMDH selects", "Table 2", "Coefficients in force", "U-42"] {
+        assert!(tech.contains(want), "{want} not in the technical report: {tech}");
+    }
+
+    // The PDF: A4 pages numbered, a draft marked on each, and every value of the HTML page's
+    // results table read back by pdftotext.
+    let pages = crate::line::print::certificate_pdf(
+        Path::new(&pdf),
+        "Calibration certificate draft, not numbered — accelerometer triad U-42",
+        &[
+            "Results: expanded uncertainty U",
+            "Uncertainty budget",
+            "ACME <Sensors> & Co, 2 Road, Town",
+            "line 2",
+        ],
+    );
+    assert!(pages.iter().all(|p| p.contains("DRAFT — awaiting approval")), "{pages:?}");
+    let pdf_text: String = pages.concat();
+    let results = text.lines().skip_while(|l| !l.starts_with("channel | bias K0")).skip(1).take(3);
+    for line in results {
+        for cell in line.split('|').map(str::trim).filter(|c| c.contains('±')) {
+            assert!(pdf_text.contains(cell), "{cell} not in the PDF: {pdf_text}");
+        }
+    }
+    let size = Command::new("pdfinfo").arg(&pdf).output().expect("pdfinfo (poppler-utils)");
+    let info = String::from_utf8_lossy(&size.stdout);
+    assert!(info.contains("595.28 x 841.89 pts (A4)"), "{info}");
+    let fonts = Command::new("pdffonts").arg(&pdf).output().expect("pdffonts (poppler-utils)");
+    let fonts = String::from_utf8_lossy(&fonts.stdout);
+    assert!(
+        fonts.lines().skip(2).all(|l| l.contains(" yes yes ")),
+        "every font embedded and subset: {fonts}"
+    );
 
     // A fit that a later accelcal wrote is refused, as every reader of the fit JSON refuses it
     // (issue 58: `report` read it without the version check).
@@ -574,9 +645,10 @@ fn the_certificate_is_the_snapshot() {
     assert!(!d.p("later.html").exists());
 
     // A test-turn record: Table 2 names it the record's method, LSQ the other one.
-    let text = certify("test-turns");
-    assert!(text.contains("test turns (the record's method) and LSQ"), "{text}");
-    assert!(text.contains("standard error of the test turns fit"), "{text}");
+    let _ = certify("test-turns");
+    let tech = page_text(&std::fs::read_to_string(&technical).unwrap());
+    assert!(tech.contains("test turns (the record's method) and LSQ"), "{tech}");
+    assert!(tech.contains("standard error of the test turns fit"), "{tech}");
 }
 
 /// Numbers rounded to 9 significant digits: the snapshot then holds every digit a reader could

@@ -25,12 +25,12 @@ mod heads;
 mod interrupt;
 /// The certificate printed with Chromium and read back page by page.
 #[path = "line/print.rs"]
-mod print;
+pub(crate) mod print;
 #[path = "line/station.rs"]
 mod station;
 #[path = "line/thermal.rs"]
 mod thermal;
-use print::printed_certificate;
+use print::{certificate_pdf, printed_certificate};
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -521,7 +521,7 @@ fn the_production_line_in_emulation() {
         &cert,
         &p("cert.pdf"),
         "Calibration certificate draft, not numbered — accelerometer triad U11",
-        &["Results: expanded uncertainty U", "bias K0", "As left: verification", "Coefficients in force"],
+        &["Results: expanded uncertainty U", "bias K0", "As left: verification", "Uncertainty budget"],
     );
 
     // Wrong coefficients (another unit's fit, this node's id): verified with the fit of this

@@ -17,6 +17,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
 pub mod calibrate;
 pub mod campaign;
+pub mod certificate;
 pub mod compare;
 pub mod conformity;
 pub mod design;

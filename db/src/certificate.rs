@@ -24,6 +24,17 @@ pub struct RecalibrationDue {
     pub basis: String,
 }
 
+/// Whether `s` is written as a certificate number is (`2026-000017`: a year, a dash, six or
+/// more digits), as opposed to a run id.
+pub fn is_number(s: &str) -> bool {
+    match s.split_once('-') {
+        Some((y, n)) => {
+            y.len() == 4 && n.len() >= 6 && y.bytes().chain(n.bytes()).all(|b| b.is_ascii_digit())
+        }
+        None => false,
+    }
+}
+
 /// What a recalibration_due row's `content_sha256` hashes.
 pub(crate) fn recalibration_due_content(due_unix_s: i64, basis: &str) -> String {
     format!("{due_unix_s}\n{basis}")
@@ -182,6 +193,21 @@ pub(crate) fn gaps(tx: &mut Tx<'_>) -> Result<Vec<chain::Mismatch>, DbError> {
 }
 
 impl Db {
+    /// The run whose certificate has number `number`, `None` when no certificate has it.
+    pub fn run_of_certificate(&mut self, number: &str) -> Result<Option<RunId>, DbError> {
+        let n = Val::from(number.to_string());
+        let rows = self.conn.reading(|tx| {
+            tx.query("SELECT run_id FROM certificate_number WHERE number = $1", std::slice::from_ref(&n))
+        })?;
+        match rows.first() {
+            Some(r) => {
+                let id = r[0].text()?;
+                Ok(Some(RunId::parse(&id)?))
+            }
+            None => Ok(None),
+        }
+    }
+
     /// The certificate stored for run `run` (`report`'s page, as issued), `None` when it has
     /// none; [`DbError::Tampered`] when the run's rows (or the assets it used) do not match
     /// their hash chain: a forged certificate is never handed out as issued.

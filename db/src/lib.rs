@@ -18,7 +18,7 @@
 pub mod anchor;
 pub mod asset;
 pub mod cells;
-mod certificate;
+pub mod certificate;
 pub mod chain;
 pub mod check;
 pub mod derived;

@@ -503,6 +503,13 @@ fn check_issuer(i: &crate::cli::Issuer) -> anyhow::Result<()> {
     if i.laboratory_address.is_some() && i.laboratory.is_none() {
         return Err(bad("--laboratory-address needs --laboratory (the address is printed after its name)"));
     }
+    if i.customer_address.is_some() && i.customer.is_none() {
+        return Err(bad("--customer-address needs --customer (the address is printed after its name)"));
+    }
+    if let Some(d) = &i.received {
+        accelcal_db::asset::parse_date(d)
+            .map_err(|e| bad(format!("--received {d:?}: {e} (the day the item was received, YYYY-MM-DD)")))?;
+    }
     Ok(())
 }
 

@@ -1,5 +1,6 @@
-//! The certificate as a reader prints it: headless Chromium's PDF, each page's text by poppler's
-//! `pdftotext`, and the checks every printed page must pass.
+//! The certificate as a reader prints it: headless Chromium's PDF of the HTML page, and the PDF
+//! accelcal writes itself; each page's text by poppler's `pdftotext`, and the checks every
+//! printed page must pass.
 
 use std::path::Path;
 use std::process::Command;
@@ -14,6 +15,11 @@ fn pdf_page_texts(html: &Path, pdf: &Path) -> Vec<String> {
         .output()
         .expect("chromium is installed (bash scripts/setup-chromium.sh)");
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    pdf_texts(pdf)
+}
+
+/// Each page's text of a PDF (poppler's `pdftotext -layout`).
+pub fn pdf_texts(pdf: &Path) -> Vec<String> {
     let text = Command::new("pdftotext")
         .args(["-layout", "-enc", "UTF-8"])
         .arg(pdf)
@@ -34,7 +40,16 @@ fn pdf_page_texts(html: &Path, pdf: &Path) -> Vec<String> {
 /// number, or that it is a draft) and the unit, no page carries the tool's command-line wording
 /// (an `--option`), and each of `sections` is on some page. Gives the pages' text.
 pub fn printed_certificate(html: &Path, pdf: &Path, named: &str, sections: &[&str]) -> Vec<String> {
-    let pages = pdf_page_texts(html, pdf);
+    page_checks(pdf_page_texts(html, pdf), named, sections)
+}
+
+/// The certificate's own PDF (`report --pdf`, the station's `certificate.pdf`), checked as
+/// [`printed_certificate`] checks a printed page.
+pub fn certificate_pdf(pdf: &Path, named: &str, sections: &[&str]) -> Vec<String> {
+    page_checks(pdf_texts(pdf), named, sections)
+}
+
+fn page_checks(pages: Vec<String>, named: &str, sections: &[&str]) -> Vec<String> {
     let n = pages.len();
     assert!((1..=4).contains(&n), "{n} pages");
     for (i, t) in pages.iter().enumerate() {

@@ -379,6 +379,13 @@ fn an_as_found_drift_is_decided_against_the_specification() {
             "accelerometer triad A-1",
             &["Example Customer AG", "Results: expanded uncertainty U"],
         );
+        // The station's own PDF beside the page: the same content, authorised as stated.
+        let pages = super::certificate_pdf(
+            &first.join("certificate.pdf"),
+            "accelerometer triad A-1",
+            &["Example Customer AG", "Results: expanded uncertainty U", "A. Reviewer"],
+        );
+        assert!(pages.iter().all(|p| !p.contains("DRAFT")), "{pages:?}");
     }
     let record = first.join("record.rec");
     // Inside T; beyond T; inside T but beyond the bias limit (every position accepted, the
@@ -441,16 +448,14 @@ fn an_as_found_drift_is_decided_against_the_specification() {
         let title = "<h1>Calibration certificate No. ";
         let at = cert.find(title).expect("a numbered certificate") + title.len();
         let number = &cert[at..at + cert[at..].find('<').unwrap()];
-        super::printed_certificate(
-            &d.join("certificate.html"),
-            &d.join("certificate.pdf"),
-            &format!("Calibration certificate No. {number} — accelerometer triad A-1"),
-            &[
-                "As found (before recalibration)",
-                "Drift since the last calibration",
-                "Recommended recalibration by",
-            ],
-        );
+        let sections = [
+            "As found (before recalibration)",
+            "Drift since the last calibration",
+            "Recommended recalibration by",
+        ];
+        let named = format!("Calibration certificate No. {number} — accelerometer triad A-1");
+        super::printed_certificate(&d.join("certificate.html"), &d.join("printed.pdf"), &named, &sections);
+        super::certificate_pdf(&d.join("certificate.pdf"), &named, &sections);
         assert_eq!(json(&d.join("as-left.json"))["decision"], "pass");
         if name == "drift-bias" {
             let bias_x = found["parameters"]

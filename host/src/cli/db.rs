@@ -343,13 +343,17 @@ pub struct BenchFleetArgs {
 /// `accelcal certificate`.
 #[derive(Debug, Args)]
 pub struct CertificateArgs {
-    /// The run whose certificate to print again (a UUID, as `station` prints it and `fleet`
-    /// lists it).
-    #[arg(value_name = "RUN_ID")]
-    pub run_id: String,
+    /// The certificate to print again: its number (YYYY-NNNNNN, as printed on it) or its run's
+    /// id (a UUID, as `station` prints it and `fleet` lists it).
+    #[arg(value_name = "NUMBER|RUN_ID")]
+    pub certificate: String,
     /// Write the stored certificate (an HTML page, as issued) to this file.
-    #[arg(long, short = 'o', value_name = "FILE", required = true)]
-    pub out: PathBuf,
+    #[arg(long, short = 'o', value_name = "FILE")]
+    pub out: Option<PathBuf>,
+    /// Write the certificate as a PDF (A4, fonts embedded, text extractable), rendered from the
+    /// document its page carries, to this file.
+    #[arg(long, value_name = "FILE")]
+    pub pdf: Option<PathBuf>,
     #[command(flatten)]
     pub reader: ReaderDb,
 }

@@ -432,6 +432,14 @@ pub struct ReportArgs {
     /// The certificate to write (HTML).
     #[arg(long, short, value_name = "FILE")]
     pub out: PathBuf,
+    /// Also write the certificate as a PDF (A4, fonts embedded, text extractable) to this file.
+    #[arg(long, value_name = "FILE")]
+    pub pdf: Option<PathBuf>,
+    /// Also write the technical report (the coefficients with their standard errors, GMDH's
+    /// model selection and the paper's Table 2: engineering material, not the certificate) to
+    /// this HTML file.
+    #[arg(long, value_name = "FILE")]
+    pub technical: Option<PathBuf>,
     /// The calibration database.
     #[command(flatten)]
     pub run: RunArgs,
@@ -614,6 +622,15 @@ pub struct Issuer {
     /// printed].
     #[arg(long, value_name = "NAME")]
     pub customer: Option<String>,
+    /// The customer's address or contact, printed after its name (with --customer).
+    #[arg(long, value_name = "TEXT")]
+    pub customer_address: Option<String>,
+    /// The day the item was received, YYYY-MM-DD, printed with the dates.
+    #[arg(long, value_name = "DATE")]
+    pub received: Option<String>,
+    /// Where the item is calibrated (the station and the site), printed on the certificate.
+    #[arg(long, value_name = "TEXT")]
+    pub place: Option<String>,
     /// The person who authorises the certificate, printed on it [default: none; the page then
     /// says it is a draft].
     #[arg(long, value_name = "NAME")]

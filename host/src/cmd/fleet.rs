@@ -1,7 +1,6 @@
 //! `accelcal fleet` (the line across units over a period, [`accelcal_db::fleet`]) and
 //! `accelcal certificate` (a stored certificate printed again).
 
-use accelcal_core::error::bad;
 use accelcal_core::output::{utc_date_time, write_atomic, write_json};
 use accelcal_db::asset::{start_of_day_unix_s, Asset, Date};
 use accelcal_db::cells::UnreadableRun;
@@ -11,7 +10,7 @@ use anyhow::Context;
 use serde::Serialize;
 
 use super::store::reader_spec;
-use crate::settings::reader::{Certificate, Fleet};
+use crate::settings::reader::Fleet;
 
 /// Seconds in a day.
 const DAY_S: i64 = 86_400;
@@ -605,18 +604,6 @@ pub(crate) fn csv_of(runs: &[FleetRun]) -> anyhow::Result<String> {
     }
     let bytes = w.into_inner().map_err(|e| anyhow::anyhow!("writing the CSV: {e}"))?;
     String::from_utf8(bytes).context("the CSV is UTF-8")
-}
-
-/// Runs `accelcal certificate`.
-pub fn run_certificate(a: &Certificate) -> anyhow::Result<()> {
-    let run = a.run;
-    let mut db = Db::open_existing(&reader_spec(a.db.as_deref())?)?;
-    let Some(html) = db.certificate_html(run)? else {
-        return Err(bad(format!("run {run} has no certificate in {}", db.target())));
-    };
-    write_atomic(&a.out, html.as_bytes())?;
-    outln!("certificate: run {run}'s certificate, as issued, written to {}", a.out.display())?;
-    Ok(())
 }
 
 /// Runs `accelcal bench-signature`.

@@ -2,6 +2,7 @@
 
 pub mod asset;
 pub mod bench_diagnose;
+pub mod certificate;
 pub mod compare;
 pub mod db;
 pub mod demo;
@@ -38,7 +39,7 @@ pub fn run(
     let stated = resolved.gravity.as_ref();
     match settings {
         Settings::Fleet(s) => fleet::run(&s),
-        Settings::Certificate(s) => fleet::run_certificate(&s),
+        Settings::Certificate(s) => certificate::run(&s),
         Settings::History(s) => history::run(&s),
         Settings::Void(s) => db::run_void(&s),
         Settings::DbVerify(s) => db::run_verify(&s),

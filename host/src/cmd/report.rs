@@ -1,17 +1,11 @@
-//! `accelcal report`: the calibration certificate of one unit, a self-contained HTML page (plots
-//! inline) laid out as ISO/IEC 17025 §7.8 asks: its number (the run's, from the database), the
-//! laboratory, customer, item and condition on receipt, method, dates, traceability,
-//! environment, decision rule (`verification`), who authorised it, then the results with U
-//! (`results`) and the method's sections (`method`); every
-//! printed page ends with the number and "Page i of n" (CSS page margin boxes). No command-line
-//! wording reaches the page ([`plain`]).
-//!
-//! Everything on it is computed here from the unit's files, so that the page cannot disagree with
-//! them: the campaign (its `acquire` header: serial, device id, firmware, g, plan, date), the
-//! record written to the node (device id, CRC, coefficients), the model selection (GMDH over the
-//! paper's 11 models, regularity criterion, alternate split, 1-code tolerance: what `demo` runs),
-//! the LSQ fit with its standard errors, Table 2 (LSQ against test turns) and the verification
-//! (`verify --json`).
+//! `accelcal report`: the calibration certificate of one unit. It reads the unit's files and
+//! checks that they are of one unit (the campaign's `acquire` header: serial, device id,
+//! firmware, g, plan, date; the record written to the node; the fit JSON; the verifications),
+//! takes the number, the drift and the assets from the database, and builds the certificate
+//! document ([`accelcal_core::certificate::build`]), which the HTML page and the PDF render.
+//! `--technical` writes the engineering material the certificate leaves out: the coefficients
+//! with their standard errors, GMDH's model selection (the paper's 11 models, regularity
+//! criterion, alternate split, 1-code tolerance) and the paper's Table 2.
 
 use std::fmt::Write as _;
 
@@ -31,11 +25,10 @@ use accelcal_shared::record::Record;
 use crate::settings::line::Report;
 
 mod method;
-mod results;
-mod verification;
-use crate::report::with_uncertainty;
+use accelcal_core::certificate::{
+    AssetRef, DriftInput, GravityInput, Inputs, IssuerInput, Release, TermChange,
+};
 use method::{coefficients, structure, table2};
-use verification::{as_found, decision_rule, receipt, verification, verification_temperature};
 
 /// HTML-escapes text.
 fn esc(s: &str) -> String {
@@ -218,7 +211,6 @@ pub fn run(a: &Report) -> anyhow::Result<()> {
         }
         _ => None,
     };
-    let (rec, device_id, crc) = (&u.rec, &u.device_id, &u.crc);
     let g = u.fit_id.g_m_s2;
     // The g's origin: the campaign's, when the fit used it, else the fit's own --g/--latitude.
     let campaign_g = u.get(G_KEY).and_then(|v| v.parse::<f64>().ok());
@@ -228,7 +220,7 @@ pub fn run(a: &Report) -> anyhow::Result<()> {
             // Acquire names a stated g by its option.
             let words = match s.as_deref() {
                 Some("--g") => "the value the operator stated".to_string(),
-                Some(s) => plain(s),
+                Some(s) => s.to_string(),
                 None => "the value stated with the campaign".to_string(),
             };
             (s, words)
@@ -236,11 +228,98 @@ pub fn run(a: &Report) -> anyhow::Result<()> {
         _ => (None, "the value stated with the fit".to_string()),
     };
     let (g_bound, g_why) = g_uncertainty(g, source.as_deref());
+    let serial = u.fit_id.serial.clone().unwrap_or_else(|| "-".into());
+    let mut budget = u.fit.uncertainty.clone();
+    if let (Some(b), Some((_, id, cert))) =
+        (&mut budget, assets.iter().find(|(k, _, _)| *k == accelcal_db::asset::AssetKind::Head))
+    {
+        name_head_asset(b, id, cert);
+    }
+    // The hash chain's head at issue, kept outside the database by every copy of the page.
+    let anchor = match &mut db {
+        Some(rdb) => rdb.db.chain_head()?.map(|a| a.text()),
+        None => None,
+    };
+    let asset_refs: Vec<AssetRef> = assets
+        .iter()
+        .map(|(kind, id, cert)| AssetRef {
+            kind: kind.name().to_string(),
+            id: id.clone(),
+            certificate: cert.clone(),
+        })
+        .collect();
+    let operator = run.as_ref().map(|(_, p)| p.start.operator.clone());
+    let issuer = IssuerInput {
+        laboratory: a.issuer.laboratory.clone(),
+        laboratory_address: a.issuer.laboratory_address.clone(),
+        customer: a.issuer.customer.clone(),
+        customer_address: a.issuer.customer_address.clone(),
+        received: a.issuer.received.clone(),
+        place: a.issuer.place.clone(),
+    };
+    let doc = accelcal_core::certificate::build(&Inputs {
+        number: number.as_ref().map(|n| n.number.as_str()),
+        issued_unix_s: i64::try_from(super::created(None)).unwrap_or(i64::MAX),
+        issuer: &issuer,
+        header: &u.header,
+        campaign_sha256: &u.fit_id.campaign_sha256,
+        record: &u.rec,
+        record_crc: &u.crc,
+        device_id: &u.device_id,
+        fit: &u.fit,
+        budget: budget.as_ref(),
+        serial: &serial,
+        gravity: GravityInput { g_m_s2: g, bound_m_s2: g_bound, source: source_words, why: g_why },
+        verify: u.verify.as_ref(),
+        as_found: u.as_found.as_ref(),
+        assets: &asset_refs,
+        operator: operator.as_deref(),
+        drift: since_last.as_ref().map(drift_input),
+        anchor: anchor.as_deref(),
+        software: env!("CARGO_PKG_VERSION"),
+    });
+    let release = match &a.issuer.authorised_by {
+        Some(name) => Release::Stated { name: name.clone() },
+        None => Release::Draft,
+    };
+    let h = crate::report::certificate::html(&doc, &release)?;
+    write_atomic(&a.out, h.as_bytes())?;
+    outln!(
+        "report: certificate of unit {serial} (device {}, record CRC {}) written to {}",
+        u.device_id,
+        u.crc,
+        a.out.display()
+    )?;
+    if let Some(p) = &a.pdf {
+        write_atomic(p, &crate::report::pdf::pdf(&doc, &release)?)?;
+        outln!("report: its PDF written to {}", p.display())?;
+    }
+    if let Some(p) = &a.technical {
+        write_atomic(p, technical(&a.campaign, &u)?.as_bytes())?;
+        outln!("report: the technical report written to {}", p.display())?;
+    }
+    if let (Some(rdb), Some((run, _))) = (&mut db, &run) {
+        rdb.db.store_certificate(*run, &h)?;
+        super::store::crash_point("db:certificate");
+        // The run is complete: it ends as the station ends it.
+        rdb.db.finish_run(*run, accelcal_db::Outcome::Pass, super::store::PASS_REASON)?;
+        super::store::crash_point("db:end-report");
+        outln!("db: run {run}: certificate stored in {}; the run ended pass", rdb.db.target())?;
+    }
+    Ok(())
+}
+
+/// The technical report (`report --technical`): the engineering material behind the record,
+/// which the certificate leaves out: the coefficients with the fit's standard errors, the model
+/// structure GMDH selects, and the paper's Table 2.
+fn technical(campaign_path: &std::path::Path, u: &Unit) -> anyhow::Result<String> {
+    let rec = &u.rec;
+    let g = u.fit_id.g_m_s2;
     let method = match u.fit.method.as_str() {
         "test-turns" => Method::TestTurns,
         _ => Method::Lsq,
     };
-    let campaign = Campaign::read(&a.campaign)?;
+    let campaign = Campaign::read(campaign_path)?;
     // The positions at the record's reference temperature; a thermal record's structure is
     // chosen among the linear-thermal candidates, and its coefficients are those of its terms.
     let mut pos = Positions::new(&campaign, g);
@@ -254,207 +333,49 @@ pub fn run(a: &Report) -> anyhow::Result<()> {
     }
     let sel = super::select::compute_on(&pos, &stats, &[], &settings)?;
     let cmp = accelcal_core::compare::compute(&campaign, None, g).ok();
-
     let serial = u.fit_id.serial.clone().unwrap_or_else(|| "-".into());
-    let now = super::record::utc(super::created(None));
-    let temp = u.verify.as_ref().map(verification_temperature);
-    let mut budget = u.fit.uncertainty.clone();
-    if let (Some(b), Some((_, id, cert))) =
-        (&mut budget, assets.iter().find(|(k, _, _)| *k == accelcal_db::asset::AssetKind::Head))
-    {
-        name_head_asset(b, id, cert);
-    }
-    let numbered = number.as_ref().map(|n| n.number.clone());
-    let page_no = numbered.as_deref().map_or("draft, not numbered".to_string(), |n| format!("No. {n}"));
     let mut h = String::new();
     let _ = write!(
         h,
-        "<!doctype html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>Calibration certificate {}</title><style>{CSS}@page{{@bottom-left{{content:\"Calibration certificate {} \\2014  accelerometer triad {}\";{FOOT}}}@bottom-right{{content:\"Page \" counter(page) \" of \" counter(pages);{FOOT}}}}}</style></head><body>",
-        esc(&page_no),
-        css_text(&page_no),
-        css_text(&serial)
+        "<!doctype html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>Technical report, accelerometer triad {}</title><style>{CSS}</style></head><body><h1>Technical report: accelerometer triad {}</h1><p>Device {}, record CRC {}, campaign SHA-256 {}. Engineering material behind the calibration; not part of the certificate.</p>",
+        esc(&serial),
+        esc(&serial),
+        esc(&u.device_id),
+        esc(&u.crc),
+        esc(&u.fit_id.campaign_sha256)
     );
-    let lab = match &a.issuer.laboratory {
-        Some(l) => format!(
-            "<div class=\"lab\"><b>{}</b>{}</div>",
-            esc(l),
-            a.issuer.laboratory_address.as_deref().map(|s| format!("<br>{}", esc(s))).unwrap_or_default()
-        ),
-        None => String::new(),
-    };
-    let _ = write!(
-        h,
-        "<div class=\"top\"><div><h1>Calibration certificate {}</h1><div>Accelerometer triad {}</div></div>{lab}</div>",
-        esc(&page_no),
-        esc(&serial)
-    );
-    let verdict = match &u.verify {
-        Some(v) if v.pass && v.decision.is_some() => format!(
-            "<span class=\"pass\">CONFORMS: every position accepted by the decision rule ({}), {}</span>",
-            esc(v.specification.as_ref().map_or("", |s| s.rule.name())),
-            esc(temp.as_deref().unwrap_or_default())
-        ),
-        Some(v) if v.pass => format!(
-            "<span class=\"pass\">VERIFIED: every position within its tolerance on every axis, {}</span>",
-            esc(temp.as_deref().unwrap_or_default())
-        ),
-        Some(v) => format!(
-            "<span class=\"fail\">NOT VERIFIED: {} of {} positions outside tolerance</span>",
-            v.positions.iter().filter(|p| !p.pass).count(),
-            v.positions.len()
-        ),
-        None => "<span class=\"fail\">not verified after calibration</span>".into(),
-    };
-    let found = match u.as_found.as_ref().and_then(|v| v.decision) {
-        Some(d) if d.out_of_tolerance() => {
-            format!(" <span class=\"fail\">AS FOUND OUT OF TOLERANCE ({})</span>", d.name())
-        }
-        _ => String::new(),
-    };
-    let _ = write!(h, "<p class=\"verdict\">{verdict}{found}</p><table class=\"id\">");
-    let plan = u.get("plan").unwrap_or_else(|| "-".into());
-    let mut rows: Vec<(&str, String)> = Vec::new();
-    if let Some(c) = &a.issuer.customer {
-        rows.push(("Customer", c.clone()));
-    }
-    rows.push((
-        "Item",
-        format!(
-            "accelerometer triad, serial {serial}; node device id (MCU) {device_id}, firmware {}",
-            u.get("firmware").unwrap_or_else(|| "-".into())
-        ),
-    ));
-    rows.push(("Condition on receipt", receipt(u.as_found.as_ref())));
-    rows.push((
-        "Method",
-        format!(
-            "static calibration in the Earth's gravity on a dividing head (the principle of ISO 16063-16), plan {plan}; \
-             output model 4 (u = u0 + k·a per channel) chosen by combinatorial GMDH (regularity criterion, the simplest model within one code of the best); coefficients by {}; accelcal {}",
-            method_words(method),
-            env!("CARGO_PKG_VERSION")
-        ),
-    ));
-    rows.push((
-        "Record",
-        format!(
-            "CRC {crc}, created {}, {} ({} bytes, format {})",
-            super::record::utc(rec.created_unix_s),
-            match rec.thermal {
-                Some(t) => format!(
-                    "model 4 with thermal terms {}, t = temp_c − {} °C, calibrated {} to {} °C, temperature from the {}",
-                    rec.structure,
-                    t.t_ref_c,
-                    t.t_min_c,
-                    t.t_max_c,
-                    t.source.name()
-                ),
-                None => format!("model 4 ({})", rec.structure),
-            },
-            rec.len(),
-            rec.version()
-        ),
-    ));
-    rows.push((
-        "Dates",
-        format!(
-            "calibrated {} (campaign acquired); issued {now}",
-            u.get("date").unwrap_or_else(|| "-".into())
-        ),
-    ));
-    rows.push((
-        "g (local gravity)",
-        format!("{} m/s² ({}; {g_why})", with_uncertainty(g, g_bound), plain(&source_words)),
-    ));
-    let head = match assets.iter().find(|(k, _, _)| *k == accelcal_db::asset::AssetKind::Head) {
-        Some((_, id, cert)) => format!("dividing head {id}, calibration certificate {cert}"),
-        None => "the dividing head is not a registered asset: its angles are traceable only as stated in the budget".into(),
-    };
-    let others: Vec<String> = assets
-        .iter()
-        .filter(|(k, _, _)| *k != accelcal_db::asset::AssetKind::Head)
-        .map(|(kind, id, cert)| format!("{} {id}, calibration certificate {cert}", kind.name()))
-        .collect();
-    rows.push((
-        "Traceability",
-        format!(
-            "g from {}; {head}{}",
-            plain(&source_words),
-            others.iter().map(|o| format!("; {o}")).collect::<String>()
-        ),
-    ));
-    rows.push((
-        "Environment",
-        temp.clone().map_or("temperature not measured (no verification after calibration)".into(), |t| {
-            format!("verified {t}")
-        }),
-    ));
-    rows.push(("Decision rule", decision_rule(u.verify.as_ref())));
-    rows.push((
-        "Campaign",
-        // No file path: where the operator kept the campaign is not the customer's business; its
-        // SHA-256 identifies it (issue 57).
-        format!(
-            "plan {}, {} sets per position; SHA-256 {}",
-            esc(&plan),
-            esc(&u.get("samples").unwrap_or_else(|| "-".into())),
-            &u.fit_id.campaign_sha256[..16]
-        ),
-    ));
-    if let Some((_, p)) = &run {
-        rows.push(("Calibrated by", p.start.operator.clone()));
-    }
-    rows.push((
-        "Authorised by",
-        a.issuer
-            .authorised_by
-            .clone()
-            .unwrap_or_else(|| "not authorised: a draft, not a certificate of calibration".into()),
-    ));
-    // The hash chain's head at issue, kept outside the database by every copy of this page:
-    // `db verify --anchors CERTIFICATE` finds a database cut short or rewritten behind it.
-    if let Some(rdb) = &mut db {
-        if let Some(anchor) = rdb.db.chain_head()? {
-            rows.push(("Ledger anchor", anchor.text()));
-        }
-    }
-    for (k, v) in rows {
-        let v = if k == "Campaign" { v } else { esc(&v) };
-        let _ = write!(h, "<tr><th class=\"l\">{k}</th><td class=\"l\">{v}</td></tr>");
-    }
-    h.push_str("</table>");
-    h.push_str(&results::section(rec, &u.fit, budget.as_ref()));
-    h.push_str(
-        "<p class=\"small\">The results relate only to the item calibrated. This certificate shall not be reproduced except in \
-         full without the laboratory's written approval. The expanded uncertainty is the standard uncertainty multiplied by the \
-         coverage factor k, evaluated after the GUM (JCGM 100:2008) by a method validated by Monte Carlo simulation after JCGM 101:2008.</p>",
-    );
-    if let Some(v) = &u.as_found {
-        h.push_str(&as_found(v));
-    }
-    if let Some(v) = &u.verify {
-        h.push_str(&verification(v, temp.as_deref().unwrap_or_default())?);
-    }
-    if let Some(d) = &since_last {
-        h.push_str(&drift_since_last(d));
-    }
     h.push_str(&coefficients(rec, &u.fit, method)?);
     h.push_str(&structure(&sel, rec, &u.fit));
     h.push_str(&table2(cmp.as_ref(), method)?);
     h.push_str("</body></html>\n");
-    write_atomic(&a.out, h.as_bytes())?;
-    outln!(
-        "report: certificate of unit {serial} (device {device_id}, record CRC {crc}) written to {}",
-        a.out.display()
-    )?;
-    if let (Some(rdb), Some((run, _))) = (&mut db, &run) {
-        rdb.db.store_certificate(*run, &h)?;
-        super::store::crash_point("db:certificate");
-        // The run is complete: it ends as the station ends it.
-        rdb.db.finish_run(*run, accelcal_db::Outcome::Pass, super::store::PASS_REASON)?;
-        super::store::crash_point("db:end-report");
-        outln!("db: run {run}: certificate stored in {}; the run ended pass", rdb.db.target())?;
+    Ok(h)
+}
+
+/// The unit's drift and recalibration as the certificate states them.
+fn drift_input(h: &accelcal_db::history::History) -> DriftInput {
+    let last = h.drifts.last().filter(|d| Some(d.to) == h.runs.iter().filter_map(|r| r.calibration).max());
+    let rc = &h.recalibration;
+    DriftInput {
+        last: last.map(|d| {
+            (
+                d.days,
+                d.terms
+                    .iter()
+                    .map(|t| TermChange {
+                        channel: t.channel.to_string(),
+                        term: t.term.to_string(),
+                        delta_m_s2: t.delta_m_s2,
+                        sigma_m_s2: t.sigma_m_s2,
+                    })
+                    .collect(),
+            )
+        }),
+        due_unix_s: rc.due_unix_s,
+        basis: rc.basis.clone(),
+        tolerance_m_s2: rc.rule.tolerance_m_s2,
+        coverage: rc.rule.coverage,
+        max_interval_days: rc.rule.max_interval_days,
     }
-    Ok(())
 }
 
 /// The unit's history with run `run` counted as its latest calibration.
@@ -469,48 +390,6 @@ fn since_last_calibration(
     accelcal_db::history::history(runs, accelcal_db::history::DEFAULT_RULE)
 }
 
-/// The drift of the coefficients since the unit's last calibration, and the recommended
-/// recalibration date.
-fn drift_since_last(h: &accelcal_db::history::History) -> String {
-    let mut s = String::new();
-    let last = h.drifts.last().filter(|d| Some(d.to) == h.runs.iter().filter_map(|r| r.calibration).max());
-    match last {
-        Some(d) => {
-            let _ = write!(
-                s,
-                "<h2>Drift since the last calibration ({:.0} days ago): change of each coefficient as an error at 1 g, m/s² &plusmn; standard uncertainty</h2><table><tr><th class=\"l\">channel</th><th>bias</th><th>ax</th><th>ay</th><th>az</th></tr>",
-                d.days
-            );
-            for ch in ["x", "y", "z"] {
-                let _ = write!(s, "<tr><td class=\"l\">{ch}</td>");
-                for t in d.terms.iter().filter(|t| t.channel == ch) {
-                    let _ = write!(
-                        s,
-                        "<td>{} &plusmn; {}</td>",
-                        crate::report::sig(t.delta_m_s2, 3),
-                        crate::report::sig(t.sigma_m_s2, 2)
-                    );
-                }
-                s.push_str("</tr>");
-            }
-            s.push_str("</table>");
-        }
-        None => s.push_str("<h2>Drift since the last calibration</h2><p>First calibration of this unit in the database: no drift yet.</p>"),
-    }
-    let rc = &h.recalibration;
-    let due =
-        rc.due_unix_s.map_or("-".to_string(), |t| super::record::utc(t.max(0) as u64)[..10].to_string());
-    let _ = write!(
-        s,
-        "<p>Recommended recalibration by <b>{due}</b>: {} (tolerance {} m/s² at 1 g, k = {}, at most {} days; from the drift of each coefficient over the unit's calibrations, shortened after an as-found result out of tolerance as ILAC-G24 method 1).</p>",
-        esc(&plain(&rc.basis)),
-        rc.rule.tolerance_m_s2,
-        rc.rule.coverage,
-        rc.rule.max_interval_days
-    );
-    s
-}
-
 /// The method's short label.
 fn label(m: Method) -> &'static str {
     match m {
@@ -519,65 +398,10 @@ fn label(m: Method) -> &'static str {
     }
 }
 
-/// The style of the page's footer (its margin boxes).
-const FOOT: &str = "font:7pt sans-serif;color:#444";
-
-/// Text as a CSS string's content inside the page's `<style>`: quotes and backslashes escaped,
-/// `<` and `>` as CSS escapes (a `</style>` in a serial number must not end the element),
-/// control characters left out.
-fn css_text(s: &str) -> String {
-    let mut out = String::with_capacity(s.len());
-    for c in s.chars().filter(|c| !c.is_control()) {
-        match c {
-            '"' | '\\' => {
-                out.push('\\');
-                out.push(c);
-            }
-            '<' => out.push_str("\\3C "),
-            '>' => out.push_str("\\3E "),
-            c => out.push(c),
-        }
-    }
-    out
-}
-
-/// Text for the page without the tool's command-line wording: a parenthesis that names an
-/// option (`(not stated: --head-angle-u)`) is left out, and a remaining `--option` loses its
-/// dashes.
-pub(crate) fn plain(s: &str) -> String {
-    let mut out = String::with_capacity(s.len());
-    let mut rest = s;
-    while let Some(open) = rest.find('(') {
-        let Some(close) = rest[open..].find(')').map(|c| open + c) else { break };
-        let inner = &rest[open..=close];
-        out.push_str(&rest[..open]);
-        if !inner.contains("--") {
-            out.push_str(inner);
-        } else if out.ends_with(' ') {
-            out.pop();
-        }
-        rest = &rest[close + 1..];
-    }
-    out.push_str(rest);
-    out.replace(" --", " ").replace("`", "")
-}
-
-/// The method in words.
-fn method_words(m: Method) -> &'static str {
-    match m {
-        Method::Lsq => "least squares (LSQ) over every position",
-        Method::TestTurns => "test turns",
-    }
-}
-
-/// The page's style: A4 pages, compact tables, two columns of plots.
-const CSS: &str = "@page{size:A4;margin:9mm 9mm 11mm}.top{display:flex;justify-content:space-between;gap:6mm}.lab{text-align:right}body{font:8.5pt/1.25 sans-serif;margin:0;color:#111}\
-h1{font-size:13pt;margin:0 0 3px}h2{font-size:9.5pt;margin:7px 0 3px;border-bottom:1px solid #888}\
-table{border-collapse:collapse;width:100%}td,th{border:1px solid #ccc;padding:1px 4px;text-align:right;\
-font-variant-numeric:tabular-nums}th{background:#eee;font-weight:600}.l{text-align:left}.id th{width:24%}\
-.pass{color:#060}.fail{color:#b00;font-weight:bold}.verdict{font-size:10.5pt;margin:2px 0 5px}\
-.small{font-size:7.5pt;margin:1px 0 3px}.cols{display:flex;gap:5mm;align-items:flex-start}.cols>div{flex:1;min-width:0}\
-.cols>div.wide{flex:1.6}svg{width:100%;height:auto}.budget td:not(.l){white-space:nowrap}h2{break-after:avoid}tr,.small{break-inside:avoid}";
+/// The technical report's style.
+const CSS: &str = "body{font:9pt/1.3 sans-serif;margin:12mm;color:#111}h1{font-size:13pt}h2{font-size:10pt;border-bottom:1px solid #888}\
+table{border-collapse:collapse;width:100%}td,th{border:1px solid #ccc;padding:1px 4px;text-align:right}th{background:#eee}.l{text-align:left}\
+.small{font-size:8pt}.cols>div{margin-bottom:4mm}svg{width:100%;max-width:170mm;height:auto}";
 
 /// The head rows of a budget whose values the run's registered head stated (the station passes
 /// the asset's values to its fit step, which knows no register): named by the asset, as a fit
@@ -587,29 +411,5 @@ fn name_head_asset(b: &mut accelcal_core::uncertainty::UncertaintyJson, id: &str
         if c.source.ends_with(", stated") {
             c.source = format!("{} by head asset {id}, certificate {cert}", c.source);
         }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::{css_text, plain};
-
-    #[test]
-    fn command_line_wording_is_kept_off_the_page() {
-        assert_eq!(plain("default 9.81 m/s² (no --g or --latitude given)"), "default 9.81 m/s²");
-        assert_eq!(
-            plain("the head's angle setting error (not stated: --head-angle-u); the rest (as stated)"),
-            "the head's angle setting error; the rest (as stated)"
-        );
-        assert_eq!(plain("at most 365 days (--max-interval-days), or less"), "at most 365 days, or less");
-        assert_eq!(plain("the campaign's `# g_m_s2:` line"), "the campaign's # g_m_s2: line");
-        assert_eq!(plain("an unclosed (paren"), "an unclosed (paren");
-    }
-
-    #[test]
-    fn text_in_a_css_string_cannot_end_it() {
-        assert_eq!(css_text(r#"U-42"; } body { x"#), r#"U-42\"; } body { x"#);
-        assert_eq!(css_text("a\\b\nc"), "a\\\\bc");
-        assert_eq!(css_text("</style><b>"), "\\3C /style\\3E \\3C b\\3E ");
     }
 }

@@ -45,6 +45,8 @@ const FIT: &str = "fit.json";
 const RECORD: &str = "record.rec";
 const AS_LEFT: &str = "as-left.json";
 const CERTIFICATE: &str = "certificate.html";
+/// The certificate as a PDF, written beside the HTML page.
+const CERTIFICATE_PDF: &str = "certificate.pdf";
 
 /// Plan of the verifications: the six test-turn positions.
 const VERIFY_PLAN: &str = "six";

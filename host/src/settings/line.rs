@@ -258,6 +258,10 @@ pub struct Report {
     pub g: Option<f64>,
     /// `--out`: the certificate.
     pub out: PathBuf,
+    /// `--pdf`: the certificate as a PDF.
+    pub pdf: Option<PathBuf>,
+    /// `--technical`: the technical report.
+    pub technical: Option<PathBuf>,
     /// `--db` and `--run-id`: the run the certificate is stored with.
     pub store: Option<RunStore>,
     /// Who issues it, for whom.
@@ -274,6 +278,8 @@ pub fn report(a: &ReportArgs) -> anyhow::Result<Report> {
         as_found: a.as_found.clone(),
         g: a.g,
         out: a.out.clone(),
+        pdf: a.pdf.clone(),
+        technical: a.technical.clone(),
         store: RunStore::existing(&a.run, "report --db")?,
         issuer: Issuer::of(&a.issuer),
     })

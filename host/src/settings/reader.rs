@@ -76,22 +76,54 @@ pub fn fleet(a: &FleetArgs, today: Date) -> anyhow::Result<Fleet> {
     })
 }
 
+/// Which certificate: its run, or its number.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Which {
+    /// The run's (a UUID).
+    Run(RunId),
+    /// The certificate numbered so (`2026-000017`).
+    Number(String),
+}
+
 /// `accelcal certificate`, settled.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Certificate {
     /// `--db` as given.
     pub db: Option<String>,
-    /// The run whose certificate is printed again.
-    pub run: RunId,
-    /// `--out`: not the database.
-    pub out: PathBuf,
+    /// The certificate printed again.
+    pub which: Which,
+    /// `--out`: the HTML page; not the database.
+    pub out: Option<PathBuf>,
+    /// `--pdf`: the PDF; not the database.
+    pub pdf: Option<PathBuf>,
 }
 
-/// `certificate`'s settings from its command line.
+/// `certificate`'s settings from its command line: a run id or a certificate number
+/// (`YYYY-NNNNNN`), and at least one of `--out` and `--pdf`, neither the database.
 pub fn certificate(a: &CertificateArgs) -> anyhow::Result<Certificate> {
-    let run = RunId::parse(&a.run_id)?;
-    not_the_db(a.reader.db.as_deref(), &a.out, "--out")?;
-    Ok(Certificate { db: a.reader.db.clone(), run, out: a.out.clone() })
+    let which = match accelcal_db::certificate::is_number(&a.certificate) {
+        true => Which::Number(a.certificate.clone()),
+        false => Which::Run(RunId::parse(&a.certificate).map_err(|e| {
+            bad(format!(
+                "{:?} is neither a certificate number (YYYY-NNNNNN, as printed) nor a run id: {e}",
+                a.certificate
+            ))
+        })?),
+    };
+    if a.out.is_none() && a.pdf.is_none() {
+        return Err(bad("certificate needs --out FILE (the HTML page) or --pdf FILE, or both"));
+    }
+    for (what, out) in [("--out", &a.out), ("--pdf", &a.pdf)] {
+        if let Some(out) = out {
+            not_the_db(a.reader.db.as_deref(), out, what)?;
+        }
+    }
+    if let (Some(o), Some(p)) = (&a.out, &a.pdf) {
+        if o == p {
+            return Err(bad(format!("--out and --pdf name the same file, {}", o.display())));
+        }
+    }
+    Ok(Certificate { db: a.reader.db.clone(), which, out: a.out.clone(), pdf: a.pdf.clone() })
 }
 
 /// `accelcal history`, settled.

@@ -29,6 +29,9 @@ struct StationConfig {
     /// The laboratory that issues the certificates.
     laboratory: Option<Spanned<Laboratory>>,
     customer: Option<Spanned<String>>,
+    customer_address: Option<Spanned<String>>,
+    received: Option<Spanned<String>>,
+    place: Option<Spanned<String>>,
     authorised_by: Option<Spanned<String>>,
     station: Option<Spanned<String>>,
     operator: Option<Spanned<String>>,
@@ -98,6 +101,9 @@ pub fn apply(command: &mut Command, given: &mut Given) -> anyhow::Result<Option<
     f.text_value(&mut a.station_name, "station_name", "station", c.station)?;
     f.text_value(&mut a.operator, "operator", "operator", c.operator)?;
     f.text_value(&mut a.issuer.customer, "customer", "customer", c.customer)?;
+    f.text_value(&mut a.issuer.customer_address, "customer_address", "customer_address", c.customer_address)?;
+    f.text_value(&mut a.issuer.received, "received", "received", c.received)?;
+    f.text_value(&mut a.issuer.place, "place", "place", c.place)?;
     f.text_value(&mut a.issuer.authorised_by, "authorised_by", "authorised_by", c.authorised_by)?;
     if let Some(lab) = c.laboratory {
         let at = f.at(&lab);

@@ -73,6 +73,9 @@ pub struct Issuer {
     pub laboratory: Option<String>,
     pub laboratory_address: Option<String>,
     pub customer: Option<String>,
+    pub customer_address: Option<String>,
+    pub received: Option<String>,
+    pub place: Option<String>,
     pub authorised_by: Option<String>,
 }
 
@@ -83,6 +86,9 @@ impl Issuer {
             laboratory: a.laboratory.clone(),
             laboratory_address: a.laboratory_address.clone(),
             customer: a.customer.clone(),
+            customer_address: a.customer_address.clone(),
+            received: a.received.clone(),
+            place: a.place.clone(),
             authorised_by: a.authorised_by.clone(),
         }
     }

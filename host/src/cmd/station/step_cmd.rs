@@ -124,6 +124,7 @@ pub(super) enum StepCommand {
         fit: PathBuf,
         verify: PathBuf,
         out: PathBuf,
+        pdf: PathBuf,
         as_found: Option<PathBuf>,
         issuer: Issuer,
         db: DbRun,
@@ -289,17 +290,21 @@ impl StepCommand {
                 }
                 l.gravity(*gravity);
             }
-            StepCommand::Report { campaign, record, fit, verify, out, as_found, issuer, db } => {
+            StepCommand::Report { campaign, record, fit, verify, out, pdf, as_found, issuer, db } => {
                 l.word("report");
                 l.path("--campaign", campaign);
                 l.path("--record", record);
                 l.path("--fit", fit);
                 l.path("--verify", verify);
                 l.path("--out", out);
+                l.path("--pdf", pdf);
                 l.maybe("--as-found", as_found.as_ref().map(|p| p.display()));
                 l.maybe("--laboratory", issuer.laboratory.as_ref());
                 l.maybe("--laboratory-address", issuer.laboratory_address.as_ref());
                 l.maybe("--customer", issuer.customer.as_ref());
+                l.maybe("--customer-address", issuer.customer_address.as_ref());
+                l.maybe("--received", issuer.received.as_ref());
+                l.maybe("--place", issuer.place.as_ref());
                 l.maybe("--authorised-by", issuer.authorised_by.as_ref());
                 l.db(db);
             }
@@ -475,10 +480,12 @@ mod tests {
             fit: "f.json".into(),
             verify: "v.json".into(),
             out: "cert.html".into(),
+            pdf: "cert.pdf".into(),
             as_found: Some("af.json".into()),
             issuer: Issuer {
                 laboratory: Some("Lab".into()),
                 customer: Some("C".into()),
+                place: Some("line 2, Kyiv".into()),
                 ..Issuer::default()
             },
             db: d.clone(),
@@ -489,7 +496,9 @@ mod tests {
             (a.verify, a.out, a.as_found),
             (Some("v.json".into()), "cert.html".into(), Some("af.json".into()))
         );
+        assert_eq!(a.pdf, Some("cert.pdf".into()));
         let i = a.issuer;
+        assert_eq!(i.place.as_deref(), Some("line 2, Kyiv"));
         assert_eq!(
             (i.laboratory, i.laboratory_address, i.customer, i.authorised_by),
             (Some("Lab".into()), None, Some("C".into()), None)

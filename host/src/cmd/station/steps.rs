@@ -214,6 +214,7 @@ impl Station<'_> {
             fit: self.path(FIT),
             verify: self.path(AS_LEFT),
             out: self.path(CERTIFICATE),
+            pdf: self.path(CERTIFICATE_PDF),
             as_found: Some(self.path(AS_FOUND)).filter(|p| p.is_file()),
             issuer: self.a.issuer.clone(),
             db: self.db_run()?,
@@ -221,6 +222,6 @@ impl Station<'_> {
         if let Exit::Failed = self.run(Step::Certificate, &cmd)? {
             return Err(anyhow::anyhow!("step certificate failed (its error is above)"));
         }
-        self.finish(Step::Certificate, Some(&cmd), "written".into(), &[CERTIFICATE])
+        self.finish(Step::Certificate, Some(&cmd), "written".into(), &[CERTIFICATE, CERTIFICATE_PDF])
     }
 }
