@@ -58,6 +58,7 @@ registry!(
     accelcal_db::LabelClash,
     accelcal_db::AssetError,
     accelcal_db::anchor::AnchorLogError,
+    accelcal_core::certificate::DocumentError,
     accelcal_core::gmdh::GmdhError,
     accelcal_core::compare::CompareError,
     accelcal_core::calibrate::RecordError,
@@ -313,6 +314,7 @@ mod tests {
                 }),
                 Environment,
             ),
+            (e(accelcal_core::certificate::DocumentError::Format { found: 9 }), BadInput),
             (
                 e(DbError::ChainBroken {
                     target: "cal.sqlite".into(),

@@ -11,7 +11,7 @@ fn fit_states_the_expanded_uncertainty_its_covariance_and_contributors() {
     let out = ok(&["fit", &c, "--json", &plain]);
     assert!(out.contains("expanded uncertainty of the calibrated acceleration (k = 2"), "{out}");
     assert!(out.contains("not included: the head's axis orthogonality (none given)"), "{out}");
-    ok(&["fit", &c, "--head-angle-u", "20", "--head-orthogonality-u", "30", "--json", &head]);
+    let printed = ok(&["fit", &c, "--head-angle-u", "20", "--head-orthogonality-u", "30", "--json", &head]);
     let (p, h) = (json(Path::new(&plain)), json(Path::new(&head)));
     let u = &h["uncertainty"];
     assert_eq!(u["k"], 2.0);
@@ -34,6 +34,26 @@ fn fit_states_the_expanded_uncertainty_its_covariance_and_contributors() {
     let shares: f64 =
         u["contributors"].as_array().unwrap().iter().map(|c| c["share"].as_f64().unwrap()).sum();
     assert!((shares - 1.0).abs() < 1e-9, "{shares}");
+    // Issue 59: the budget adds up on paper where U is stated, and says where and how likely.
+    let at = &u["stated_at"];
+    let axis = ["x", "y", "z"].iter().position(|a| at["axis"] == *a).unwrap();
+    let uc: f64 = u["contributors"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["u_m_s2"].as_f64().unwrap().powi(2))
+        .sum::<f64>()
+        .sqrt();
+    let k = u["k"].as_f64().unwrap();
+    let stated = u["U_m_s2"][axis].as_f64().unwrap();
+    assert!((k * uc / stated - 1.0).abs() < 1e-9, "{} {stated}", k * uc);
+    let coverage = u["coverage_probability"].as_f64().unwrap();
+    assert!((0.95..0.96).contains(&coverage), "{coverage}");
+    assert!(
+        printed.contains(&format!("the contributors along {} at (", at["axis"].as_str().unwrap())),
+        "{printed}"
+    );
+    assert!(printed.contains("expanded U = k·u_c"), "{printed}");
     let names: Vec<&str> =
         u["contributors"].as_array().unwrap().iter().map(|c| c["name"].as_str().unwrap()).collect();
     assert_eq!(
@@ -86,7 +106,7 @@ fn fit_states_the_expanded_uncertainty_its_covariance_and_contributors() {
         let c = v["uncertainty"]["contributors"].as_array().unwrap();
         c.iter().find(|c| c["name"] == name).unwrap()[key].as_f64().unwrap()
     };
-    assert!(field(&mh, "head_orthogonality", "share") > 0.5, "{mh}");
+    assert!(field(&mh, "head_orthogonality", "share_mean") > 0.5, "{mh}");
     let scatter = |v: &Value| field(v, "dwell_scatter", "u_m_s2");
     // Unstated, what the fit cannot absorb of the rotation is seen as dwell scatter and as model
     // 4's lack of fit (the data cannot tell the head's rotation from the unit's quadratic

@@ -572,7 +572,7 @@ fn budget_section(b: &UncertaintyJson) -> Section {
         col("share, %", true, 0.7),
         col("from", false, 3.6),
     ];
-    let rows = b
+    let mut rows: Vec<Vec<Span>> = b
         .contributors
         .iter()
         .map(|c| {
@@ -585,12 +585,48 @@ fn budget_section(b: &UncertaintyJson) -> Section {
             ]
         })
         .collect();
+    // The sum, where the contributors are taken where U is stated: √Σu² and k·√Σu² = U.
+    let stated = b.stated_at.as_ref().and_then(|s| {
+        let i = AXES.iter().position(|a| *a == s.axis)?;
+        Some((s, b.u_m_s2[i]))
+    });
+    if let Some((_, u_axis)) = stated {
+        let uc = b.contributors.iter().map(|c| c.u_m_s2 * c.u_m_s2).sum::<f64>().sqrt();
+        rows.push(vec![
+            Span::styled("combined standard uncertainty u_c = √Σu²", Style::Strong),
+            Span::plain(""),
+            Span::styled(sig(uc, 2), Style::Strong),
+            Span::plain("100.0"),
+            Span::plain(""),
+        ]);
+        let p = b
+            .coverage_probability
+            .map_or(String::new(), |p| format!(", coverage probability {:.1} %", 100.0 * p));
+        rows.push(vec![
+            Span::styled(format!("expanded uncertainty U = k·u_c, k = {}", b.k), Style::Strong),
+            Span::plain(""),
+            Span::styled(sig(u_axis, 2), Style::Strong),
+            Span::plain(""),
+            Span::plain(format!("the U stated for this axis{p}")),
+        ]);
+    }
     let mut blocks = vec![Block::Table(Table { columns, rows })];
     if !b.not_included.is_empty() {
         let words: Vec<String> = b.not_included.iter().map(|n| plain(n)).collect();
         blocks.push(small(format!("Not included in U: {}.", words.join("; "))));
     }
-    section("Uncertainty budget of the calibrated acceleration", blocks)
+    let heading = match stated {
+        Some((s, _)) => format!(
+            "Uncertainty budget of the calibrated acceleration along {} at ({}) m/s², the orientation at 1 g where U is \
+             largest",
+            s.axis,
+            s.acceleration_m_s2.iter().map(|v| format!("{v:+.2}")).collect::<Vec<_>>().join(", ")
+        ),
+        None => "Uncertainty budget of the calibrated acceleration (each contributor at its own worst axis and \
+                 orientation; shares averaged over the orientations)"
+            .to_string(),
+    };
+    section(heading, blocks)
 }
 
 /// A contributor's name in words.

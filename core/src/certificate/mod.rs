@@ -323,6 +323,12 @@ pub enum DocumentError {
     },
 }
 
+impl crate::error::Classify for DocumentError {
+    fn kind(&self) -> crate::error::Kind {
+        crate::error::Kind::BadInput
+    }
+}
+
 impl Certificate {
     /// The canonical bytes: compact JSON in the fields' declared order.
     pub fn canonical_json(&self) -> String {

@@ -89,6 +89,18 @@ pub fn coverage_factor(parts: &[(f64, f64)]) -> (f64, f64) {
     (if t.is_finite() { t.max(K_COVERAGE) } else { K_COVERAGE }, nu)
 }
 
+/// The probability that ±k standard uncertainties cover the value: normal for infinite `nu`,
+/// else Student's t with `nu` degrees of freedom.
+pub fn coverage_probability(k: f64, nu: f64) -> f64 {
+    use statrs::distribution::{ContinuousCDF, Normal, StudentsT};
+    let cdf = if nu.is_finite() && nu > 0.0 {
+        StudentsT::new(0.0, 1.0, nu).map(|d| d.cdf(k)).ok()
+    } else {
+        Normal::new(0.0, 1.0).map(|d| d.cdf(k)).ok()
+    };
+    cdf.map_or(f64::NAN, |c| 2.0 * c - 1.0)
+}
+
 /// One arcsecond, rad.
 pub const ARCSEC: f64 = std::f64::consts::PI / 648_000.0;
 
@@ -162,12 +174,18 @@ pub struct Contributor {
     /// Its name: `dwell_scatter`, `head_angle`, `head_orthogonality`, `gravity`, `quantisation`,
     /// `temperature`, `lack_of_fit`.
     pub name: &'static str,
-    /// Its standard uncertainty of the calibrated acceleration, m/s²: the largest over the axes
-    /// and the orientations at 1 g.
+    /// Its standard uncertainty of the calibrated acceleration where U is stated (the axis and
+    /// orientation of the largest U, [`Budget::stated`]), m/s²: the contributors' u² there add
+    /// up to the combined u², so that √Σu² × k = U.
     pub u_m_s2: f64,
-    /// Its share of the combined variance (summed over the axes, averaged over the orientations
-    /// at 1 g); the shares add up to 1.
+    /// Its share of the combined variance there; the shares add up to 1.
     pub share: f64,
+    /// Its standard uncertainty at its own worst: the largest over the axes and the orientations
+    /// at 1 g, m/s².
+    pub u_worst_m_s2: f64,
+    /// Its share of the combined variance summed over the axes and averaged over the
+    /// orientations at 1 g.
+    pub share_mean: f64,
     /// GUM type: `A` (from the data) or `B` (from a stated value).
     #[serde(rename = "type")]
     pub kind: &'static str,
@@ -200,6 +218,12 @@ pub struct Budget {
     pub k: f64,
     /// The effective degrees of freedom that give `k` (infinite when every part is Type B).
     pub nu_eff: f64,
+    /// The probability that the interval ±U covers the value: of the normal distribution for
+    /// infinite `nu_eff`, else of Student's t with `nu_eff` degrees of freedom, at `k`.
+    pub coverage_probability: f64,
+    /// Where U is stated: the axis (0, 1, 2 for x, y, z) and the acceleration (m/s²) of the
+    /// orientation at 1 g where the expanded uncertainty is largest.
+    pub stated: (usize, [f64; 3]),
 }
 
 /// The design row of model 4 at an acceleration.
@@ -599,6 +623,8 @@ pub fn budget(
         expanded_max: [0.0; 3],
         k: K_COVERAGE,
         nu_eff: f64::INFINITY,
+        coverage_probability: 0.0,
+        stated: (0, [0.0; 3]),
     };
     let combined: Vec<Vector3<f64>> = points.iter().map(|&a| budget.variance_at(&covariance, a)).collect();
     let total_var: f64 = combined.iter().map(|v| v.sum()).sum();
@@ -628,10 +654,34 @@ pub fn budget(
     }
     budget.expanded_max =
         [0, 1, 2].map(|i| budget.k * combined.iter().map(|v| v[i]).fold(0.0f64, f64::max).sqrt());
+    budget.coverage_probability = coverage_probability(budget.k, budget.nu_eff);
+    // Where U is stated: the axis and orientation of the largest combined variance.
+    let (mut at_axis, mut at_point) = (0, 0);
+    for (p, v) in combined.iter().enumerate() {
+        for i in 0..3 {
+            if v[i] > combined[at_point][at_axis] {
+                (at_axis, at_point) = (i, p);
+            }
+        }
+    }
+    budget.stated = (at_axis, points.get(at_point).copied().unwrap_or([0.0; 3]));
+    let stated_var = combined.get(at_point).map_or(0.0, |v| v[at_axis]);
     for ((name, kind, source, cov), vars) in parts.into_iter().zip(part_vars) {
-        let u = vars.iter().map(|v| v.max()).fold(0.0f64, f64::max).sqrt();
-        let share = if total_var > 0.0 { vars.iter().map(|v| v.sum()).sum::<f64>() / total_var } else { 0.0 };
-        contributors.push(Contributor { name, u_m_s2: u, share, kind, source, covariance: cov });
+        let u_worst = vars.iter().map(|v| v.max()).fold(0.0f64, f64::max).sqrt();
+        let share_mean =
+            if total_var > 0.0 { vars.iter().map(|v| v.sum()).sum::<f64>() / total_var } else { 0.0 };
+        let var = vars.get(at_point).map_or(0.0, |v| v[at_axis].max(0.0));
+        let share = if stated_var > 0.0 { var / stated_var } else { 0.0 };
+        contributors.push(Contributor {
+            name,
+            u_m_s2: var.sqrt(),
+            share,
+            u_worst_m_s2: u_worst,
+            share_mean,
+            kind,
+            source,
+            covariance: cov,
+        });
     }
     budget.contributors = contributors;
     if refs.head_angle_rad == 0.0 {
@@ -715,6 +765,15 @@ pub struct UncertaintyJson {
     /// over the orientations at 1 g, m/s².
     #[serde(rename = "U_m_s2")]
     pub u_m_s2: [f64; 3],
+    /// The probability that ±U covers the value (`k` and `nu_eff`: normal or Student's t);
+    /// absent in a fit JSON written before it was stated.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub coverage_probability: Option<f64>,
+    /// Where the contributors' `u_m_s2` and `share` are taken: the axis and orientation of the
+    /// largest U; absent in a fit JSON written before (its `u_m_s2` is each contributor's
+    /// worst and its `share` the mean over the orientations).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stated_at: Option<StatedAt>,
     /// The coefficients' names in the covariance's order.
     pub coefficients: Vec<String>,
     /// The combined 12 × 12 covariance (codes², codes²/(m/s²), codes²/(m/s²)²).
@@ -725,17 +784,34 @@ pub struct UncertaintyJson {
     pub not_included: Vec<String>,
 }
 
+/// Where a budget states U ([`Budget::stated`]).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct StatedAt {
+    /// The axis: `x`, `y` or `z`.
+    pub axis: String,
+    /// The acceleration of the orientation, m/s².
+    pub acceleration_m_s2: [f64; 3],
+}
+
 /// One contributor as the fit JSON states it ([`Contributor`] without its covariance).
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct ContributorJson {
     /// Its name: `dwell_scatter`, `head_angle`, `head_orthogonality`, `gravity`, `quantisation`,
     /// `temperature`, `lack_of_fit`.
     pub name: String,
-    /// Its standard uncertainty of the calibrated acceleration, m/s² (the largest over the axes
-    /// and the orientations at 1 g).
+    /// Its standard uncertainty of the calibrated acceleration where U is stated (`stated_at`),
+    /// m/s²: √Σu² × k = U there.
     pub u_m_s2: f64,
-    /// Its share of the combined variance.
+    /// Its share of the combined variance there.
     pub share: f64,
+    /// Its standard uncertainty at its own worst axis and orientation, m/s² (absent in a fit
+    /// JSON written before it was stated).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub u_worst_m_s2: Option<f64>,
+    /// Its share of the variance summed over the axes and averaged over the orientations
+    /// (absent likewise).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub share_mean: Option<f64>,
     /// GUM type: `A` or `B`.
     #[serde(rename = "type")]
     pub kind: String,
@@ -761,6 +837,11 @@ impl From<&Budget> for UncertaintyJson {
             k: b.k,
             nu_eff: b.nu_eff.is_finite().then_some(b.nu_eff),
             u_m_s2: b.expanded_max,
+            coverage_probability: b.coverage_probability.is_finite().then_some(b.coverage_probability),
+            stated_at: Some(StatedAt {
+                axis: ["x", "y", "z"][b.stated.0].to_string(),
+                acceleration_m_s2: b.stated.1,
+            }),
             coefficients: Budget::coefficient_names(),
             covariance: (0..N_COEF).map(|i| (0..N_COEF).map(|j| b.covariance[(i, j)]).collect()).collect(),
             contributors: b
@@ -770,6 +851,8 @@ impl From<&Budget> for UncertaintyJson {
                     name: c.name.to_string(),
                     u_m_s2: c.u_m_s2,
                     share: c.share,
+                    u_worst_m_s2: Some(c.u_worst_m_s2),
+                    share_mean: Some(c.share_mean),
                     kind: c.kind.to_string(),
                     source: c.source.clone(),
                 })

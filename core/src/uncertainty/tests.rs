@@ -33,7 +33,22 @@ fn each_stated_reference_adds_its_contributor_and_the_shares_add_up() {
     let all = budget(&pos, &stats, &fits, refs(20.0, 30.0, 1e-3)).unwrap();
     let share: f64 = all.contributors.iter().map(|c| c.share).sum();
     assert!((share - 1.0).abs() < 1e-9, "{share}");
-    let u = |b: &Budget, name: &str| b.contributors.iter().find(|c| c.name == name).unwrap().u_m_s2;
+    let mean: f64 = all.contributors.iter().map(|c| c.share_mean).sum();
+    assert!((mean - 1.0).abs() < 1e-9, "{mean}");
+    // The budget adds up where U is stated: √Σu² × k is the largest U, on its axis.
+    let (axis, _) = all.stated;
+    let uc = all.contributors.iter().map(|c| c.u_m_s2 * c.u_m_s2).sum::<f64>().sqrt();
+    let largest = all.expanded_max.iter().fold(0.0f64, |m, &u| m.max(u));
+    assert!(
+        (all.k * uc / all.expanded_max[axis] - 1.0).abs() < 1e-9,
+        "{} {:?}",
+        all.k * uc,
+        all.expanded_max
+    );
+    assert_eq!(all.expanded_max[axis], largest);
+    assert!(all.contributors.iter().all(|c| c.u_m_s2 <= c.u_worst_m_s2 * (1.0 + 1e-12)));
+    assert!((all.coverage_probability - 0.9545).abs() < 1e-3, "{}", all.coverage_probability);
+    let u = |b: &Budget, name: &str| b.contributors.iter().find(|c| c.name == name).unwrap().u_worst_m_s2;
     assert_eq!(u(&none, "head_orthogonality"), 0.0);
     assert!(u(&all, "head_orthogonality") > 0.0 && u(&all, "gravity") > 0.0);
     // g's relative error scales the acceleration: at 1 g, u = g·u(g)/g = u(g).

@@ -306,9 +306,28 @@ pub fn print_budget(b: &UncertaintyJson) -> anyhow::Result<()> {
         "expanded uncertainty of the calibrated acceleration (k = {}, the largest over the orientations at 1 g): x {:.2e}, y {:.2e}, z {:.2e} m/s²",
         b.k, u[0], u[1], u[2]
     )?;
+    match &b.stated_at {
+        Some(s) => outln!(
+            "  the contributors along {} at ({}) m/s², the orientation where U is largest (√Σu² × k = U there):",
+            s.axis,
+            s.acceleration_m_s2.iter().map(|v| format!("{v:+.2}")).collect::<Vec<_>>().join(", ")
+        )?,
+        None => outln!(
+            "  the contributors at their own worst axis and orientation, shares averaged over the orientations \
+             (a fit JSON written before budgets stated where U is):"
+        )?,
+    }
     outln!("  {:<20} {:>4} {:>12} {:>7}  source", "contributor", "type", "u, m/s²", "share")?;
     for c in &b.contributors {
         outln!("  {:<20} {:>4} {:>12.3e} {:>6.1}%  {}", c.name, c.kind, c.u_m_s2, 100.0 * c.share, c.source)?;
+    }
+    if let Some(i) = b.stated_at.as_ref().and_then(|s| ["x", "y", "z"].iter().position(|a| *a == s.axis)) {
+        let uc = b.contributors.iter().map(|c| c.u_m_s2 * c.u_m_s2).sum::<f64>().sqrt();
+        let p = b
+            .coverage_probability
+            .map_or(String::new(), |p| format!(", coverage probability {:.1} %", 100.0 * p));
+        outln!("  {:<20} {:>4} {:>12.3e} {:>6.1}%  √Σu²", "combined u_c", "", uc, 100.0)?;
+        outln!("  {:<20} {:>4} {:>12.3e} {:>7}  k = {}{p}", "expanded U = k·u_c", "", b.u_m_s2[i], "", b.k)?;
     }
     for n in &b.not_included {
         outln!("  not included: {n}")?;
