@@ -5,7 +5,7 @@
 
 use serde::Serialize;
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::BTreeMap;
 
 use super::engine::Val;
 
@@ -380,57 +380,26 @@ impl Db {
         Ok(runs)
     }
 
-    /// The period's runs whose rows that the fleet shows (`run`, `run_end`, `void`,
-    /// `run_asset`: the unit, station, operator, state, reason and head) do not match their
-    /// ledger entries, each with the first mismatch in words. One pass over the period's
-    /// entries and those rows (each run checked once, not a [`Db::verify_run`] per run): a row
-    /// without an entry, a row whose digest is not its entry's, an entry whose row is gone. The
-    /// chain's links and the other pieces (the campaign, the fit, the verifications) are `db
-    /// verify`'s, and `history`'s unit by unit.
+    /// The period's runs whose chain does not match, each with its first mismatch in words:
+    /// every run's ledger entries (chain values and links) and its rows of every run's table
+    /// (the start, the campaign, the fit, the record, the flash, the verifications, the
+    /// certificate and its number and date, the end, the void, the assets used) as
+    /// [`Db::verify_run`] checks one, and the register rows of the assets the runs used; one
+    /// statement per table for the whole period ([`super::chain::verify_selected`]), not a
+    /// [`Db::verify_run`] per run.
     pub fn tampered_runs(&mut self, f: &Filter) -> Result<BTreeMap<String, String>, DbError> {
-        use super::chain::{piece_key, row_digest, table};
-        const SHOWN: [&str; 4] = ["run", "run_end", "void", "run_asset"];
         let sel = selected(self.conn.engine());
         let p = f.params_aside(&BTreeMap::new());
-        let (entries, rows) = self.conn.transaction(|tx| {
-            let entries = tx.query(
-                &format!(
-                    "{sel} SELECT l.run_id, l.piece, l.row_sha256 FROM ledger l JOIN sel ON sel.run_id = l.run_id \
-                     WHERE l.piece IN ('run', 'run_end', 'void') OR substr(l.piece, 1, 10) = 'run_asset:'"
-                ),
-                &p,
-            )?;
-            let mut rows = Vec::new();
-            for name in SHOWN {
-                let t = table(name);
-                let cols: Vec<String> = t.columns.iter().map(|c| format!("t.{c}")).collect();
-                let sql = format!("{sel} SELECT {} FROM {name} t JOIN sel ON sel.run_id = t.run_id", cols.join(", "));
-                rows.push((t, tx.query(&sql, &p)?));
-            }
-            Ok((entries, rows))
-        })?;
-        let mut want: HashMap<(String, String), String> = entries
-            .iter()
-            .map(|r| Ok(((r[0].text()?, r[1].text()?), r[2].text()?)))
-            .collect::<Result<_, DbError>>()?;
-        let mut out = BTreeMap::new();
-        for (t, rows) in &rows {
-            for row in rows {
-                let (run, piece) = (row[0].text()?, piece_key(t.name, row)?);
-                let why = match want.remove(&(run.clone(), piece.clone())) {
-                    None => format!("its {piece} row has no ledger entry (written behind accelcal's back)"),
-                    Some(d) if d != row_digest(t, row) => {
-                        format!("its {piece} row is not the one stored (its digest differs from its ledger entry's)")
-                    }
-                    Some(_) => continue,
-                };
-                out.entry(run).or_insert(why);
-            }
-        }
-        for ((run, piece), _) in want {
-            out.entry(run).or_insert_with(|| format!("its {piece} row is gone"));
-        }
-        Ok(out)
+        let found = self.conn.transaction(|tx| super::chain::verify_selected(tx, &sel, &p))?;
+        Ok(found
+            .into_iter()
+            .filter_map(|(run, m)| {
+                let first = m.into_iter().next()?;
+                let at = if first.seq > 0 { format!(" (ledger entry {})", first.seq) } else { String::new() };
+                let whose = if first.run_id.is_empty() { "the asset register's" } else { "its" };
+                Some((run, format!("{whose} {} row{at}: {}", first.piece, first.what)))
+            })
+            .collect())
     }
 
     /// The units whose latest certificate (of a run not voided) states a recalibration date

@@ -325,7 +325,7 @@ pub fn a_tampered_run_is_marked_where_it_is_listed(spec: &str, exec: Exec<'_>) {
     );
     drop(db);
     exec(&format!("UPDATE run SET operator = 'mallory' WHERE run_id = '{run}'"));
-    exec(&format!("UPDATE run_end SET reason = 'forged' WHERE run_id = '{fit_forged}'"));
+    exec(&format!("UPDATE fit SET stored_unix_s = stored_unix_s + 1 WHERE run_id = '{fit_forged}'"));
     let not_a_number = if postgres { "'NaN'" } else { "'abc'" };
     exec(&format!("UPDATE fit_parameter SET value = {not_a_number} WHERE run_id = '{nan}' AND ord = 0"));
     let d = tempfile::tempdir().unwrap();
@@ -346,10 +346,9 @@ pub fn a_tampered_run_is_marked_where_it_is_listed(spec: &str, exec: Exec<'_>) {
     assert_eq!(code, Some(0), "{out}{err}");
     assert!(
         out.contains("TAMPERED: 2 runs whose rows do not match their hash chain (set aside")
-            && out.contains(&format!(
-                "run {run} (SN-1): its run row is not the one stored (its digest differs from its ledger entry's)"
-            ))
-            && out.contains(&format!("run {fit_forged} (SN-3): its run_end row"))
+            && out.contains(&format!("run {run} (SN-1): its run row (ledger entry "))
+            && out.contains("it is not the row that was stored (its digest differs from its ledger entry's)")
+            && out.contains(&format!("run {fit_forged} (SN-3): its fit row"))
             && out.contains("2 runs of 2 units (2 tampered runs set aside)")
             && out.contains("runs: 2 pass, 0 rejected")
             && out.contains("yield: first pass 2/2 units"),
@@ -359,8 +358,8 @@ pub fn a_tampered_run_is_marked_where_it_is_listed(spec: &str, exec: Exec<'_>) {
     let f: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     let runs = f["runs"].as_array().unwrap();
     let of = |id: &RunId| runs.iter().find(|r| r["run_id"] == id.to_string()).unwrap().clone();
-    assert!(of(&run)["tampered"].as_str().unwrap().contains("its run row is not the one stored"), "{f}");
-    assert!(of(&fit_forged)["tampered"].as_str().unwrap().contains("its run_end row"), "{f}");
+    assert!(of(&run)["tampered"].as_str().unwrap().contains("its run row (ledger entry "), "{f}");
+    assert!(of(&fit_forged)["tampered"].as_str().unwrap().contains("its fit row"), "{f}");
     assert!(of(&other).get("tampered").is_none(), "the other run is not marked: {f}");
     assert!(of(&nan).get("tampered").is_none(), "a derived cell is not the chain's: {f}");
     assert_eq!((f["counts"]["runs"].as_i64(), f["counts"]["tampered"].as_i64()), (Some(2), Some(2)), "{f}");
