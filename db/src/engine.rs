@@ -311,20 +311,7 @@ impl Conn {
         match target {
             Target::Sqlite(path) => open_sqlite(path, access, after),
             Target::Postgres(spec) => {
-                let mut config: postgres::Config = spec.parse().map_err(|e: postgres::Error| {
-                    DbError::BadTarget { spec: redact(spec), why: e.to_string() }
-                })?;
-                if config.get_connect_timeout().is_none() {
-                    config.connect_timeout(WAIT);
-                }
-                let client = config
-                    .connect(postgres::NoTls)
-                    .map_err(|e| DbError::Unreachable { target: redact(spec), cause: pg_cause(&e) })?;
-                let mut conn = Conn {
-                    link: Link::Postgres(Box::new(client), Statements::default()),
-                    target: redact(spec),
-                    read_only: access == Access::Read,
-                };
+                let mut conn = connect_pg(spec, access)?;
                 if access == Access::Read {
                     conn.check_current()?;
                     return Ok(conn);
@@ -373,11 +360,9 @@ impl Conn {
     fn check_history(&mut self) -> Result<(), DbError> {
         match self.reading(schema_history::damage)? {
             None => Ok(()),
-            Some(what) => Err(DbError::MigrationHistory {
-                target: self.target.clone(),
-                what,
-                repairable: matches!(self.link, Link::Sqlite(_)),
-            }),
+            Some(what) => {
+                Err(DbError::MigrationHistory { target: self.target.clone(), what, repairable: true })
+            }
         }
     }
 
@@ -620,13 +605,43 @@ fn open_sqlite(
     Ok(conn)
 }
 
-/// `accelcal db migrate`'s first step on an existing SQLite file: its migration history recorded
+/// A PostgreSQL connection, not yet checked or migrated (10 s to connect unless `spec` says).
+fn connect_pg(spec: &str, access: Access) -> Result<Conn, DbError> {
+    let mut config: postgres::Config = spec
+        .parse()
+        .map_err(|e: postgres::Error| DbError::BadTarget { spec: redact(spec), why: e.to_string() })?;
+    if config.get_connect_timeout().is_none() {
+        config.connect_timeout(WAIT);
+    }
+    let client = config
+        .connect(postgres::NoTls)
+        .map_err(|e| DbError::Unreachable { target: redact(spec), cause: pg_cause(&e) })?;
+    Ok(Conn {
+        link: Link::Postgres(Box::new(client), Statements::default()),
+        target: redact(spec),
+        read_only: access == Access::Read,
+    })
+}
+
+/// `accelcal db migrate`'s first step on an existing database: its migration history recorded
 /// again when it is damaged and the schema is exactly that of one of this build's versions
-/// ([`schema_history::repair`]); what was done, or `None` (nothing to do, or PostgreSQL, whose
-/// history is only checked).
+/// ([`schema_history::repair`]; on PostgreSQL under the migration's lock); what was done, or
+/// `None` (nothing to do).
 pub fn repair_schema_history(target: &Target) -> Result<Option<String>, DbError> {
     use rusqlite::OpenFlags;
-    let Target::Sqlite(path) = target else { return Ok(None) };
+    let path = match target {
+        Target::Sqlite(path) => path,
+        Target::Postgres(spec) => {
+            let mut conn = connect_pg(spec, Access::Write)?;
+            let shown = conn.target.clone();
+            let mut done = None;
+            conn.pg_locked(|c| {
+                done = c.transaction(|tx| schema_history::repair(tx, &shown))?;
+                Ok(())
+            })?;
+            return Ok(done);
+        }
+    };
     if !path.exists() {
         return Ok(None);
     }
