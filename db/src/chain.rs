@@ -14,8 +14,9 @@
 use serde::Serialize;
 use sha2::{Digest, Sha256};
 
+pub use super::content::{event_content, relabel_content, run_content};
 use super::engine::{Tx, Val};
-use super::{DbError, RunStart};
+use super::DbError;
 
 /// A table's columns in the order its digest takes them (its key columns first).
 pub struct Table {
@@ -308,11 +309,6 @@ pub fn seal_legacy(tx: &mut Tx<'_>) -> Result<usize, DbError> {
 
 /// The chain event of [`seal_legacy`].
 pub const LEGACY_SEAL: &str = "legacy-seal";
-
-/// What a chain_event row's `content_sha256` hashes.
-pub fn event_content(kind: &str, detail: &str) -> String {
-    format!("{kind}\n{detail}")
-}
 
 /// The chain's events, oldest first: kind, detail, Unix seconds.
 pub(crate) fn events(tx: &mut Tx<'_>) -> Result<Vec<(String, String, i64)>, DbError> {
@@ -614,19 +610,19 @@ fn content_mismatch(t: &Table, row: &[Val]) -> Result<Option<String>, DbError> {
             &col("reason").text()?,
         )
         .into_bytes(),
-        "asset" => super::asset::asset_content(row)?.into_bytes(),
-        "run_asset" => super::asset::run_asset_content(
+        "asset" => super::content::asset_content(row)?.into_bytes(),
+        "run_asset" => super::content::run_asset_content(
             &col("kind").text()?,
             &col("asset_id").text()?,
             &col("certificate").text()?,
         )
         .into_bytes(),
         "certificate_number" => {
-            super::certificate::certificate_number_content(col("sequence").int()?, &col("number").text()?)
+            super::content::certificate_number_content(col("sequence").int()?, &col("number").text()?)
                 .into_bytes()
         }
         "recalibration_due" => {
-            super::certificate::recalibration_due_content(col("due_unix_s").int()?, &col("basis").text()?)
+            super::content::recalibration_due_content(col("due_unix_s").int()?, &col("basis").text()?)
                 .into_bytes()
         }
         "chain_event" => event_content(&col("kind").text()?, &col("detail").text()?).into_bytes(),
@@ -634,11 +630,6 @@ fn content_mismatch(t: &Table, row: &[Val]) -> Result<Option<String>, DbError> {
     };
     Ok((super::sha256_hex(&content) != stored)
         .then(|| "its content_sha256 is not the hash of what it holds".into()))
-}
-
-/// What a relabel row's `content_sha256` hashes.
-pub fn relabel_content(device: &str, old: &str, new: &str, reason: &str) -> String {
-    format!("{device}\n{old}\n{new}\n{reason}")
 }
 
 /// Orders mismatches by the ledger entry they break (rows without one last): the first first.
@@ -867,9 +858,4 @@ pub fn chain_at(tx: &mut Tx<'_>, seq: i64) -> Result<Option<String>, DbError> {
         .first()
         .map(|r| r[0].text())
         .transpose()
-}
-
-/// A run start's content hash (what `begin_run` stores).
-pub fn run_content(s: &RunStart) -> String {
-    super::sha256_hex(serde_json::to_string(s).expect("a run start serialises").as_bytes())
 }

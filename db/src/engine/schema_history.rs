@@ -8,8 +8,8 @@
 //! schema is exactly that of one of this build's versions ([`repair`]; on PostgreSQL, its
 //! tables are those of one version's).
 
-use super::engine::{embedded, history_exists, Tx, Val};
-use super::DbError;
+use super::{embedded, history_exists, Tx, Val};
+use crate::DbError;
 
 /// One migration of this build, as refinery records it.
 struct Known {
