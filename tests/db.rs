@@ -700,7 +700,7 @@ fn a_bad_cell_is_named() {
     assert_eq!(code, Some(0), "{out}{err}");
     assert!(
         out.contains(&format!(
-            "UNREADABLE, not in the runs or the charts (counted): run {run} does not read: bad cell: {cell}"
+            "UNREADABLE, left out of whatever reads its bad cells (counted): run {run} does not read: bad cell: {cell}"
         )),
         "{out}"
     );

@@ -270,3 +270,71 @@ fn a_forged_asset_is_refused_and_derived_edits_are_found() {
     let pg = Cluster::start();
     tamper::a_missing_certificate_number_is_reported(&pg.url, &as_superuser(&pg.url));
 }
+
+/// Issue 55 on PostgreSQL: a migration history whose newest row was deleted, or whose checksum
+/// was edited, stops every command with one line naming the table; `db migrate` records it
+/// again when the schema's tables are exactly those of one of this build's versions, and says
+/// to restore a backup when they are none's.
+#[test]
+fn a_damaged_migration_history_is_named_and_db_migrate_records_it_again() {
+    let pg = Cluster::start();
+    let spec = pg.url.as_str();
+    let mut db = Db::open(spec).unwrap();
+    calibrate(&mut db, &start(RunId::new(), DEVICE, "SN-1", "st-1", T0), &coefs(0.0, 0), None);
+    drop(db);
+    let plain =
+        |sql: &str| postgres::Client::connect(spec, postgres::NoTls).unwrap().batch_execute(sql).unwrap();
+    let latest = accelcal_db::schema_version();
+    let table = "its migration history (table refinery_schema_history) is damaged: ";
+    let cases = [
+        (
+            "DELETE FROM refinery_schema_history WHERE version = (SELECT MAX(version) FROM refinery_schema_history)"
+                .to_string(),
+            format!(
+                "it records schema version {}, and the schema is that of version {latest}: the rows of the versions after {} were removed",
+                latest - 1,
+                latest - 1
+            ),
+        ),
+        (
+            "UPDATE refinery_schema_history SET checksum = '1' WHERE version = 5".to_string(),
+            "the row of version 5: its checksum is '1', not ".to_string(),
+        ),
+    ];
+    for (sql, what) in &cases {
+        plain(sql);
+        for args in [vec!["history", "SN-1"], vec!["db", "verify"]] {
+            let mut args = args.clone();
+            args.extend(["--db", spec]);
+            let (code, out, err) = accelcal(&args);
+            assert_eq!(code, Some(1), "{args:?}: {out}{err}");
+            assert!(err.contains(table) && err.contains(what.as_str()), "{args:?}: {err}");
+            assert!(err.contains("run `accelcal db migrate --db "), "{err}");
+            assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
+        }
+        let e = Db::open(spec).err().expect("a writer refuses the database");
+        assert!(e.to_string().contains(what.as_str()), "{e}");
+        let (code, out, err) = accelcal(&["db", "migrate", "--db", spec]);
+        assert_eq!(code, Some(0), "{sql}: {out}{err}");
+        assert!(
+            out.contains(&format!(
+                "recorded again as versions 1 to {latest}, the schema being exactly that of version {latest}"
+            )),
+            "{out}"
+        );
+        let (code, out, err) = accelcal(&["history", "SN-1", "--db", spec]);
+        assert_eq!(code, Some(0), "read again after db migrate: {out}{err}");
+    }
+    // Tables that are no version's cannot be recorded again: a backup restores them.
+    plain("UPDATE refinery_schema_history SET name = 'x' WHERE version = 4; CREATE TABLE extra (x integer)");
+    let (code, out, err) = accelcal(&["db", "migrate", "--db", spec]);
+    assert_eq!(code, Some(1), "{out}{err}");
+    assert!(
+        err.contains(table)
+            && err.contains("its name is 'x', not `")
+            && err.contains(
+                "the schema is that of none of this build's versions: restore the database from a backup"
+            ),
+        "{err}"
+    );
+}

@@ -11,6 +11,7 @@
 pub use jiff::civil::Date;
 use serde::Serialize;
 
+use super::content::{asset_content, run_asset_content};
 use super::engine::{Tx, Val};
 use super::piece::insert_row;
 use super::{chain, sha256_hex, Db, DbError, Outcome, RunId, Stored};
@@ -169,25 +170,6 @@ pub fn today_utc() -> Date {
 /// The first second (UTC) of `d`, since the Unix epoch.
 pub fn start_of_day_unix_s(d: Date) -> i64 {
     d.to_zoned(jiff::tz::TimeZone::UTC).map(|z| z.timestamp().as_second()).unwrap_or(i64::MIN)
-}
-
-/// What an asset row's `content_sha256` hashes: what the certificate states (not who registered
-/// it when), so that registering the same certificate again is a no-op.
-pub(crate) fn asset_content(row: &[Val]) -> Result<String, DbError> {
-    Ok(format!(
-        "{}\n{}\n{}\n{}\n{:?}\n{:?}",
-        row[0].text()?,
-        row[1].text()?,
-        row[2].text()?,
-        row[3].text()?,
-        row[4].real()?.to_bits(),
-        row[5].real()?.to_bits()
-    ))
-}
-
-/// What a run_asset row's `content_sha256` hashes.
-pub(crate) fn run_asset_content(kind: &str, asset_id: &str, certificate: &str) -> String {
-    format!("{kind}\n{asset_id}\n{certificate}")
 }
 
 const ASSET_COLUMNS: &str = "asset_id, certificate, kind, due_date, angle_u_arcsec, orthogonality_u_arcsec, \

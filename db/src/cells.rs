@@ -7,7 +7,7 @@
 
 use serde::Serialize;
 
-use super::engine::Val;
+use super::val::Val;
 use super::DbError;
 
 /// A cell whose stored type is not its column's.

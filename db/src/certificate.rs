@@ -1,6 +1,7 @@
 //! Certificate numbers (schema 4) and the recalibration date a certificate states (schema 5):
 //! given once per run in one transaction, the same when the certificate is printed again.
 
+use super::content::{certificate_number_content, recalibration_due_content};
 use super::engine::{Tx, Val};
 use super::{chain, insert_row, now_unix_s, sha256_hex, Db, DbError, RunId};
 
@@ -33,16 +34,6 @@ pub fn is_number(s: &str) -> bool {
         }
         None => false,
     }
-}
-
-/// What a recalibration_due row's `content_sha256` hashes.
-pub(crate) fn recalibration_due_content(due_unix_s: i64, basis: &str) -> String {
-    format!("{due_unix_s}\n{basis}")
-}
-
-/// What a certificate_number row's `content_sha256` hashes.
-pub(crate) fn certificate_number_content(sequence: i64, number: &str) -> String {
-    format!("{sequence}\n{number}")
 }
 
 impl Db {

@@ -14,8 +14,9 @@
 use serde::Serialize;
 use sha2::{Digest, Sha256};
 
+pub use super::content::{event_content, relabel_content, run_content};
 use super::engine::{Tx, Val};
-use super::{DbError, RunStart};
+use super::DbError;
 
 /// A table's columns in the order its digest takes them (its key columns first).
 pub struct Table {
@@ -308,11 +309,6 @@ pub fn seal_legacy(tx: &mut Tx<'_>) -> Result<usize, DbError> {
 
 /// The chain event of [`seal_legacy`].
 pub const LEGACY_SEAL: &str = "legacy-seal";
-
-/// What a chain_event row's `content_sha256` hashes.
-pub fn event_content(kind: &str, detail: &str) -> String {
-    format!("{kind}\n{detail}")
-}
 
 /// The chain's events, oldest first: kind, detail, Unix seconds.
 pub(crate) fn events(tx: &mut Tx<'_>) -> Result<Vec<(String, String, i64)>, DbError> {
@@ -614,19 +610,19 @@ fn content_mismatch(t: &Table, row: &[Val]) -> Result<Option<String>, DbError> {
             &col("reason").text()?,
         )
         .into_bytes(),
-        "asset" => super::asset::asset_content(row)?.into_bytes(),
-        "run_asset" => super::asset::run_asset_content(
+        "asset" => super::content::asset_content(row)?.into_bytes(),
+        "run_asset" => super::content::run_asset_content(
             &col("kind").text()?,
             &col("asset_id").text()?,
             &col("certificate").text()?,
         )
         .into_bytes(),
         "certificate_number" => {
-            super::certificate::certificate_number_content(col("sequence").int()?, &col("number").text()?)
+            super::content::certificate_number_content(col("sequence").int()?, &col("number").text()?)
                 .into_bytes()
         }
         "recalibration_due" => {
-            super::certificate::recalibration_due_content(col("due_unix_s").int()?, &col("basis").text()?)
+            super::content::recalibration_due_content(col("due_unix_s").int()?, &col("basis").text()?)
                 .into_bytes()
         }
         "chain_event" => event_content(&col("kind").text()?, &col("detail").text()?).into_bytes(),
@@ -634,11 +630,6 @@ fn content_mismatch(t: &Table, row: &[Val]) -> Result<Option<String>, DbError> {
     };
     Ok((super::sha256_hex(&content) != stored)
         .then(|| "its content_sha256 is not the hash of what it holds".into()))
-}
-
-/// What a relabel row's `content_sha256` hashes.
-pub fn relabel_content(device: &str, old: &str, new: &str, reason: &str) -> String {
-    format!("{device}\n{old}\n{new}\n{reason}")
 }
 
 /// Orders mismatches by the ledger entry they break (rows without one last): the first first.
@@ -725,6 +716,97 @@ pub fn verify_run(tx: &mut Tx<'_>, run: &str) -> Result<Result<RunSeal, Vec<Mism
     })
 }
 
+/// Checks the runs a selection names as [`verify_run`] checks one (each entry's chain value and
+/// link, each row of every run's table against its entry, its `content_sha256`, no entry whose
+/// row is gone, the register rows of the assets the runs used), with one statement for their
+/// entries and one per table instead of a handful per run: what a reader that lists many runs
+/// (`fleet`, `serve`) marks. `sel` is a common table expression `WITH sel AS (…)` whose
+/// `run_id` are the runs, `params` its parameters. Each run that does not match, with its
+/// mismatches, the first first.
+pub(crate) fn verify_selected(
+    tx: &mut Tx<'_>,
+    sel: &str,
+    params: &[Val],
+) -> Result<std::collections::BTreeMap<String, Vec<Mismatch>>, DbError> {
+    use std::collections::{BTreeMap, HashMap, HashSet};
+    // Each entry with the chain value of the entry it follows (by its key: no lookup per run).
+    let listed = tx.query(
+        &format!(
+            "{sel} SELECT l.seq, l.run_id, l.piece, l.row_sha256, l.prev_seq, l.prev_sha256, l.chain_sha256, \
+             p.chain_sha256 FROM ledger l JOIN sel ON sel.run_id = l.run_id \
+             LEFT JOIN ledger p ON p.seq = l.prev_seq ORDER BY l.seq"
+        ),
+        params,
+    )?;
+    let mut followed: HashMap<i64, String> = HashMap::new();
+    let mut by_run: BTreeMap<String, Vec<Entry>> = BTreeMap::new();
+    for r in &listed {
+        let e = entry(r)?;
+        if let Some(c) = r[7].opt_text()? {
+            followed.insert(e.prev_seq, c);
+        }
+        by_run.entry(e.run.clone()).or_default().push(e);
+    }
+    drop(listed);
+    let mut out: BTreeMap<String, Vec<Mismatch>> = BTreeMap::new();
+    let mut pieces: HashMap<String, HashMap<String, Entry>> = HashMap::new();
+    for (run, es) in by_run {
+        let mut found = Vec::new();
+        check_entries(&es, Some(&followed), tx, &mut found)?;
+        if !found.is_empty() {
+            out.entry(run.clone()).or_default().extend(found);
+        }
+        pieces.insert(run, es.into_iter().map(|e| (e.piece.clone(), e)).collect());
+    }
+    // The rows, a table at a time (the campaigns' bytes are not all held at once).
+    let none = HashMap::new();
+    let mut seen: HashMap<String, HashSet<String>> = HashMap::new();
+    for t in TABLES.iter().filter(|t| !t.is_global()) {
+        let cols: Vec<String> = t.columns.iter().map(|c| format!("t.{c}")).collect();
+        let rows = tx.query(
+            &format!("{sel} SELECT {} FROM {} t JOIN sel ON sel.run_id = t.run_id", cols.join(", "), t.name),
+            params,
+        )?;
+        for row in rows {
+            let run = row[0].text()?;
+            let mut found = Vec::new();
+            let by_piece = pieces.get(&run).unwrap_or(&none);
+            check_row(t, &row, &run, by_piece, seen.entry(run.clone()).or_default(), &mut found)?;
+            if !found.is_empty() {
+                out.entry(run).or_default().extend(found);
+            }
+        }
+    }
+    for (run, by_piece) in &pieces {
+        let mut found = Vec::new();
+        gone(run, by_piece, seen.get(run).unwrap_or(&HashSet::new()), &mut found);
+        if !found.is_empty() {
+            out.entry(run.clone()).or_default().extend(found);
+        }
+    }
+    // The register rows of the assets the runs used, each asset checked once.
+    let used = tx.query(
+        &format!("{sel} SELECT ra.run_id, ra.asset_id FROM run_asset ra JOIN sel ON sel.run_id = ra.run_id"),
+        params,
+    )?;
+    let mut assets: HashMap<String, Vec<Mismatch>> = HashMap::new();
+    for r in &used {
+        let (run, id) = (r[0].text()?, r[1].text()?);
+        if !assets.contains_key(&id) {
+            let found = verify_asset(tx, &id)?;
+            assets.insert(id.clone(), found);
+        }
+        let found = &assets[&id];
+        if !found.is_empty() {
+            out.entry(run).or_default().extend(found.iter().cloned());
+        }
+    }
+    for found in out.values_mut() {
+        first_first(found);
+    }
+    Ok(out)
+}
+
 /// Checks asset `id`'s register rows (every certificate of it) against their ledger entries:
 /// each row's digest and content, each entry's chain value and link, and no entry whose row
 /// is gone. Empty when they match.
@@ -776,9 +858,4 @@ pub fn chain_at(tx: &mut Tx<'_>, seq: i64) -> Result<Option<String>, DbError> {
         .first()
         .map(|r| r[0].text())
         .transpose()
-}
-
-/// A run start's content hash (what `begin_run` stores).
-pub fn run_content(s: &RunStart) -> String {
-    super::sha256_hex(serde_json::to_string(s).expect("a run start serialises").as_bytes())
 }

@@ -54,7 +54,7 @@ pub enum DbError {
     },
     /// The migration history (`refinery_schema_history`) is not this build's migrations as
     /// applied: a row deleted or edited. Nothing trusts it until it is recorded again (`db
-    /// migrate`, SQLite, when the schema is exactly one version's) or the database restored.
+    /// migrate`, when the schema is exactly one version's) or the database restored.
     #[error("database {target}: its migration history (table refinery_schema_history) is damaged: {what}: {}", if *repairable {
         format!("run `accelcal db migrate --db {target}` once (it records the history again when the schema is exactly that of one of this build's versions), or restore the database from a backup")
     } else {
@@ -65,7 +65,7 @@ pub enum DbError {
         target: String,
         /// What is wrong with it.
         what: String,
-        /// Whether `db migrate` may record it again (SQLite, the schema one version's).
+        /// Whether `db migrate` may record it again (the schema one version's).
         repairable: bool,
     },
     /// A reader met a database at another schema version than this build's: it never migrates.

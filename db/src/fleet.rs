@@ -5,7 +5,7 @@
 
 use serde::Serialize;
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::BTreeMap;
 
 use super::engine::Val;
 
@@ -54,6 +54,11 @@ pub struct Filter {
     pub serial_prefix: Option<String>,
     /// Who ran it.
     pub operator: Option<String>,
+    /// The period's runs whose rows do not match their hash chain, by run id with the first
+    /// mismatch in words, once found ([`Db::checked`]): no count, yield, population or chart
+    /// takes them, and [`Db::fleet_runs`] lists them marked. `None`: each query finds them
+    /// itself ([`Db::tampered_runs`]), so that a tampered run is never counted as good.
+    pub tampered: Option<BTreeMap<String, String>>,
 }
 
 /// The condition on `run r` of a [`Filter`], with its parameters `$1`…`$6`. A check of a
@@ -77,20 +82,29 @@ const STATE_NO_JOIN: &str = "CASE WHEN r.run_id IN (SELECT v.run_id FROM void v)
      WHEN e.outcome IS NULL THEN 'unfinished' ELSE e.outcome END";
 
 /// The selected runs with their state (and what the readers take of each: serial, station, g), as
-/// a common table expression `sel`.
+/// a common table expression `sel`. The runs set aside as tampered are not in it: their ids are
+/// parameter `$7`, a JSON array (read by `json_each` on SQLite, `json_array_elements_text` on
+/// PostgreSQL, each once into a hashed set).
 ///
 /// `MATERIALIZED` (PostgreSQL 12, SQLite 3.35): the period's runs are selected once and then
 /// joined. Inlined, PostgreSQL checked each run's end for a check standard once per joined
 /// row (twelve per run for the fit parameters): on a month of 2,900 runs the populations took
 /// 94 ms inlined and 74 ms materialised (window form, a database being written meanwhile).
-fn selected() -> String {
+fn selected(engine: &str) -> String {
+    let aside = if engine == "postgres" {
+        "SELECT json_array_elements_text(CAST($7 AS text)::json)"
+    } else {
+        "SELECT value FROM json_each($7)"
+    };
     format!(
         "WITH sel AS MATERIALIZED (SELECT r.run_id, r.device_id, r.serial, r.station, r.started_unix_s, r.g_m_s2, \
-         {STATE_NO_JOIN} AS state, e.reason FROM run r LEFT JOIN run_end e ON e.run_id = r.run_id WHERE {WHERE})"
+         {STATE_NO_JOIN} AS state, e.reason FROM run r LEFT JOIN run_end e ON e.run_id = r.run_id WHERE {WHERE} \
+         AND r.run_id NOT IN ({aside}))"
     )
 }
 
 impl Filter {
+    /// The parameters of [`WHERE`], `$1`…`$6`.
     fn params(&self) -> Vec<Val> {
         let text = |v: &Option<String>| Val::from(v.clone().unwrap_or_default());
         vec![
@@ -102,12 +116,21 @@ impl Filter {
             text(&self.operator),
         ]
     }
+
+    /// The parameters of [`selected`]: [`Filter::params`] and `$7`, the runs `aside`.
+    fn params_aside(&self, aside: &BTreeMap<String, String>) -> Vec<Val> {
+        let ids: Vec<&String> = aside.keys().collect();
+        let mut p = self.params();
+        p.push(serde_json::to_string(&ids).expect("strings serialise").into());
+        p
+    }
 }
 
-/// What the database counts of a period's runs.
+/// What the database counts of a period's runs: the runs set aside as tampered
+/// ([`Filter::tampered`]) are in no count but [`Counts::tampered`].
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct Counts {
-    /// Runs started in the period.
+    /// Runs started in the period (the tampered ones set aside).
     pub runs: i64,
     /// Of them: ended `pass`, ended `rejected`, not ended, voided.
     pub passed: i64,
@@ -130,6 +153,19 @@ pub struct Counts {
     /// Each station's runs and those that passed, by station name.
     #[serde(skip)]
     pub stations: Vec<(String, i64, i64)>,
+    /// Runs of the period set aside because their rows do not match their hash chain: in no
+    /// other count, yield or population.
+    pub tampered: i64,
+}
+
+impl Counts {
+    /// How many tampered runs were set aside, in words (`1 tampered run set aside`), when any
+    /// were.
+    pub fn set_aside(&self) -> Option<String> {
+        (self.tampered > 0).then(|| {
+            format!("{} tampered run{} set aside", self.tampered, if self.tampered == 1 { "" } else { "s" })
+        })
+    }
 }
 
 /// One run of the period, as the fleet's table and its CSV show it.
@@ -222,10 +258,27 @@ fn opt_int(v: &Val) -> Result<Option<i64>, DbError> {
 }
 
 impl Db {
+    /// `f` with the period's tampered runs found ([`Filter::tampered`], [`Db::tampered_runs`]):
+    /// what the queries of one view of the period take, so that the runs are checked once.
+    pub fn checked(&mut self, f: &Filter) -> Result<Filter, DbError> {
+        let tampered = self.tampered_runs(f)?;
+        Ok(Filter { tampered: Some(tampered), ..f.clone() })
+    }
+
+    /// The runs of `f` set aside as tampered: those it holds, else found now.
+    fn aside(&mut self, f: &Filter) -> Result<BTreeMap<String, String>, DbError> {
+        match &f.tampered {
+            Some(t) => Ok(t.clone()),
+            None => self.tampered_runs(f),
+        }
+    }
+
     /// The period's runs counted by state, its units, the yields, the rejections by reason and
-    /// each station's runs: one statement, so that the period's runs are selected once.
+    /// each station's runs: one statement, so that the period's runs are selected once. The
+    /// tampered runs are set aside (counted in [`Counts::tampered`] alone).
     pub fn fleet_counts(&mut self, f: &Filter) -> Result<Counts, DbError> {
-        let sel = selected();
+        let aside = self.aside(f)?;
+        let sel = selected(self.conn.engine());
         // Three kinds of row: 0 a state and reason with its runs; 1 a station with its runs and
         // those that passed; 2 the units, the units with a finished run, and of those the units
         // whose first and last finished runs passed.
@@ -245,10 +298,10 @@ impl Db {
                      COALESCE(SUM(CASE WHEN fin AND first_n = 1 AND state = 'pass' THEN 1 ELSE 0 END), 0), \
                      COALESCE(SUM(CASE WHEN fin AND last_n = 1 AND state = 'pass' THEN 1 ELSE 0 END), 0) FROM w"
                 ),
-                &f.params(),
+                &f.params_aside(&aside),
             )
         })?;
-        let mut c = Counts::default();
+        let mut c = Counts { tampered: aside.len() as i64, ..Counts::default() };
         for r in &rows {
             match r[0].int()? {
                 0 => {
@@ -279,6 +332,7 @@ impl Db {
     /// The period's runs, oldest first, with their head, outcome, decisions, fit and as-left
     /// verification.
     pub fn fleet_runs(&mut self, f: &Filter) -> Result<Vec<FleetRun>, DbError> {
+        let mut tampered = self.aside(f)?;
         let p = f.params();
         let rows = self.conn.transaction(|tx| {
             tx.query(
@@ -320,64 +374,32 @@ impl Db {
                 tampered: None,
             })
         })?;
-        let mut tampered = self.tampered_runs(f)?;
         for r in &mut runs {
             r.tampered = tampered.remove(&r.run_id);
         }
         Ok(runs)
     }
 
-    /// The period's runs whose rows that the fleet shows (`run`, `run_end`, `void`,
-    /// `run_asset`: the unit, station, operator, state, reason and head) do not match their
-    /// ledger entries, each with the first mismatch in words. One pass over the period's
-    /// entries and those rows (each run checked once, not a [`Db::verify_run`] per run): a row
-    /// without an entry, a row whose digest is not its entry's, an entry whose row is gone. The
-    /// chain's links and the other pieces (the campaign, the fit, the verifications) are `db
-    /// verify`'s, and `history`'s unit by unit.
+    /// The period's runs whose chain does not match, each with its first mismatch in words:
+    /// every run's ledger entries (chain values and links) and its rows of every run's table
+    /// (the start, the campaign, the fit, the record, the flash, the verifications, the
+    /// certificate and its number and date, the end, the void, the assets used) as
+    /// [`Db::verify_run`] checks one, and the register rows of the assets the runs used; one
+    /// statement per table for the whole period ([`super::chain::verify_selected`]), not a
+    /// [`Db::verify_run`] per run.
     pub fn tampered_runs(&mut self, f: &Filter) -> Result<BTreeMap<String, String>, DbError> {
-        use super::chain::{piece_key, row_digest, table};
-        const SHOWN: [&str; 4] = ["run", "run_end", "void", "run_asset"];
-        let sel = selected();
-        let p = f.params();
-        let (entries, rows) = self.conn.transaction(|tx| {
-            let entries = tx.query(
-                &format!(
-                    "{sel} SELECT l.run_id, l.piece, l.row_sha256 FROM ledger l JOIN sel ON sel.run_id = l.run_id \
-                     WHERE l.piece IN ('run', 'run_end', 'void') OR substr(l.piece, 1, 10) = 'run_asset:'"
-                ),
-                &p,
-            )?;
-            let mut rows = Vec::new();
-            for name in SHOWN {
-                let t = table(name);
-                let cols: Vec<String> = t.columns.iter().map(|c| format!("t.{c}")).collect();
-                let sql = format!("{sel} SELECT {} FROM {name} t JOIN sel ON sel.run_id = t.run_id", cols.join(", "));
-                rows.push((t, tx.query(&sql, &p)?));
-            }
-            Ok((entries, rows))
-        })?;
-        let mut want: HashMap<(String, String), String> = entries
-            .iter()
-            .map(|r| Ok(((r[0].text()?, r[1].text()?), r[2].text()?)))
-            .collect::<Result<_, DbError>>()?;
-        let mut out = BTreeMap::new();
-        for (t, rows) in &rows {
-            for row in rows {
-                let (run, piece) = (row[0].text()?, piece_key(t.name, row)?);
-                let why = match want.remove(&(run.clone(), piece.clone())) {
-                    None => format!("its {piece} row has no ledger entry (written behind accelcal's back)"),
-                    Some(d) if d != row_digest(t, row) => {
-                        format!("its {piece} row is not the one stored (its digest differs from its ledger entry's)")
-                    }
-                    Some(_) => continue,
-                };
-                out.entry(run).or_insert(why);
-            }
-        }
-        for ((run, piece), _) in want {
-            out.entry(run).or_insert_with(|| format!("its {piece} row is gone"));
-        }
-        Ok(out)
+        let sel = selected(self.conn.engine());
+        let p = f.params_aside(&BTreeMap::new());
+        let found = self.conn.transaction(|tx| super::chain::verify_selected(tx, &sel, &p))?;
+        Ok(found
+            .into_iter()
+            .filter_map(|(run, m)| {
+                let first = m.into_iter().next()?;
+                let at = if first.seq > 0 { format!(" (ledger entry {})", first.seq) } else { String::new() };
+                let whose = if first.run_id.is_empty() { "the asset register's" } else { "its" };
+                Some((run, format!("{whose} {} row{at}: {}", first.piece, first.what)))
+            })
+            .collect())
     }
 
     /// The units whose latest certificate (of a run not voided) states a recalibration date
@@ -440,6 +462,10 @@ impl Population {
 
 const AXES: [&str; 3] = ["x", "y", "z"];
 
+/// Why a run is left out of the populations ([`Db::populations`]).
+const NOT_A_NUMBER: &str =
+    "a value of its fit's or as-left verification's parameters is not a finite number: left out of the populations";
+
 /// A unit as the database names it (`mg`, `ppm`, `µrad`, `codes/g`, `m/s²`).
 fn unit_of(s: &str) -> &'static str {
     ["mg", "ppm", "codes/g", "m/s²"].into_iter().find(|u| *u == s).unwrap_or("µrad")
@@ -455,40 +481,68 @@ impl Db {
     /// scale factor ppm, misalignment µrad; the tightest limit stated) with its Cpk. A run whose
     /// fit is not model 4 is left out of the coefficients.
     pub fn populations(&mut self, f: &Filter) -> Result<Vec<Population>, DbError> {
-        let sel = selected();
-        let p = f.params();
+        let aside = self.aside(f)?;
+        let engine = self.conn.engine();
+        let sel = selected(engine);
+        let p = f.params_aside(&aside);
         // One statement, so that the period's runs are selected once. Rows of kind 0 are the
         // coefficients by `ord`, of kind 1 the as-left parameters by name: each with its count,
         // mean and sum of squared deviations from the mean, without cancellation. PostgreSQL's
         // AVG and VAR_SAMP of double precision take one pass (Youngs and Cramer's updates, since
         // PostgreSQL 12); SQLite has no variance, so there each population's mean is aggregated
         // first (`fm`, `vm`), then the squared deviations from it: two passes over one read.
-        let sql = if self.conn.engine() == "postgres" {
+        // These rows are derived, not chained, and an average takes whatever a cell holds
+        // (SQLite's AVG reads 'abc' as 0): a run with a value that is not a finite number
+        // (`bad`) is left out of every population and named, a row of kind 2.
+        let not_number = |c: &str| {
+            if engine == "postgres" {
+                format!("{c} IN ('NaN'::float8, 'Infinity'::float8, '-Infinity'::float8)")
+            } else {
+                format!(
+                    "(typeof({c}) NOT IN ('real', 'integer') OR {c} > 1.7976931348623157e308 \
+                     OR {c} < -1.7976931348623157e308)"
+                )
+            }
+        };
+        let (fv, vv, vl) = (not_number("fp.value"), not_number("vp.value"), not_number("vp.limit_value"));
+        let sql = if engine == "postgres" {
             format!(
-                "{sel} SELECT 0 AS kind, MIN(fp.name), MIN(fp.unit), COUNT(*), AVG(fp.value), \
+                "{sel}, bad AS MATERIALIZED (SELECT fp.run_id FROM fit_parameter fp JOIN sel ON sel.run_id = fp.run_id \
+                 WHERE sel.state = 'pass' AND {fv} UNION SELECT vp.run_id FROM verification_parameter vp \
+                 JOIN sel ON sel.run_id = vp.run_id WHERE sel.state = 'pass' AND vp.phase = 'as_left' \
+                 AND ({vv} OR {vl})) \
+                 SELECT 0 AS kind, MIN(fp.name), MIN(fp.unit), COUNT(*), AVG(fp.value), \
                  COALESCE(VAR_SAMP(fp.value), 0) * (COUNT(*) - 1), NULL, fp.ord AS o \
                  FROM fit_parameter fp JOIN sel ON sel.run_id = fp.run_id WHERE sel.state = 'pass' \
-                 GROUP BY fp.ord \
+                 AND fp.run_id NOT IN (SELECT run_id FROM bad) GROUP BY fp.ord \
                  UNION ALL SELECT 1, vp.name, MIN(vp.unit), COUNT(*), AVG(vp.value), \
                  COALESCE(VAR_SAMP(vp.value), 0) * (COUNT(*) - 1), MIN(vp.limit_value), MIN(vp.ord) \
                  FROM verification_parameter vp JOIN sel ON sel.run_id = vp.run_id \
-                 WHERE sel.state = 'pass' AND vp.phase = 'as_left' GROUP BY vp.name ORDER BY 1, 8, 2"
+                 WHERE sel.state = 'pass' AND vp.phase = 'as_left' AND vp.run_id NOT IN (SELECT run_id FROM bad) \
+                 GROUP BY vp.name \
+                 UNION ALL SELECT 2, run_id, NULL, 0, NULL, NULL, NULL, NULL FROM bad ORDER BY 1, 8, 2"
             )
         } else {
             format!(
-                "{sel}, fp AS MATERIALIZED (SELECT fp.ord, fp.name, fp.unit, fp.value FROM fit_parameter fp \
+                "{sel}, fp0 AS MATERIALIZED (SELECT fp.run_id, fp.ord, fp.name, fp.unit, fp.value FROM fit_parameter fp \
                  JOIN sel ON sel.run_id = fp.run_id WHERE sel.state = 'pass'), \
-                 fm AS (SELECT ord, AVG(value) AS mu FROM fp GROUP BY ord), \
-                 vp AS MATERIALIZED (SELECT vp.ord, vp.name, vp.unit, vp.value, vp.limit_value \
+                 vp0 AS MATERIALIZED (SELECT vp.run_id, vp.ord, vp.name, vp.unit, vp.value, vp.limit_value \
                  FROM verification_parameter vp JOIN sel ON sel.run_id = vp.run_id \
                  WHERE sel.state = 'pass' AND vp.phase = 'as_left'), \
+                 bad AS MATERIALIZED (SELECT fp.run_id FROM fp0 fp WHERE {fv} \
+                 UNION SELECT vp.run_id FROM vp0 vp WHERE {vv} OR {vl}), \
+                 fp AS (SELECT ord, name, unit, value FROM fp0 WHERE run_id NOT IN (SELECT run_id FROM bad)), \
+                 fm AS (SELECT ord, AVG(value) AS mu FROM fp GROUP BY ord), \
+                 vp AS (SELECT ord, name, unit, value, limit_value FROM vp0 \
+                 WHERE run_id NOT IN (SELECT run_id FROM bad)), \
                  vm AS (SELECT name, AVG(value) AS mu FROM vp GROUP BY name) \
                  SELECT 0 AS kind, MIN(fp.name) AS name, MIN(fp.unit), COUNT(*), MIN(fm.mu), \
                  SUM((fp.value - fm.mu) * (fp.value - fm.mu)), NULL, fp.ord AS o \
                  FROM fp JOIN fm ON fm.ord = fp.ord GROUP BY fp.ord \
                  UNION ALL SELECT 1, vp.name, MIN(vp.unit), COUNT(*), MIN(vm.mu), \
                  SUM((vp.value - vm.mu) * (vp.value - vm.mu)), MIN(vp.limit_value), MIN(vp.ord) \
-                 FROM vp JOIN vm ON vm.name = vp.name GROUP BY vp.name ORDER BY 1, 8, 2"
+                 FROM vp JOIN vm ON vm.name = vp.name GROUP BY vp.name \
+                 UNION ALL SELECT 2, run_id, NULL, 0, NULL, NULL, NULL, NULL FROM bad ORDER BY 1, 8, 2"
             )
         };
         let postgres = self.conn.engine() == "postgres";
@@ -500,7 +554,11 @@ impl Db {
             }
             tx.query(&sql, &p)
         })?;
-        let (coef, asleft): (Vec<_>, Vec<_>) = rows.iter().partition(|r| matches!(r[0].int(), Ok(0)));
+        let kind = |k: i64| rows.iter().filter(move |r| matches!(r[0].int(), Ok(x) if x == k));
+        let (coef, asleft): (Vec<_>, Vec<_>) = (kind(0).collect(), kind(1).collect());
+        let bad =
+            kind(2).map(|r| Ok((r[1].text()?, NOT_A_NUMBER.to_string()))).collect::<Result<_, DbError>>()?;
+        self.set_aside(bad);
         let mut out = Vec::new();
         if coef.is_empty() {
             // No model-4 unit: the coefficients' populations are there, empty.
@@ -537,7 +595,8 @@ impl Db {
     /// What each run of the period that passed (not voided) with a registered head shows of its
     /// head (`head_observation`), by head asset, in the order the runs started.
     pub fn head_observations(&mut self, f: &Filter) -> Result<Vec<HeadObservation>, DbError> {
-        let sel = selected();
+        let aside = self.aside(f)?;
+        let sel = selected(self.conn.engine());
         let rows = self.conn.transaction(|tx| {
             tx.query(
                 &format!(
@@ -547,7 +606,7 @@ impl Db {
                      LEFT JOIN head_observation_f32 b ON b.run_id = sel.run_id WHERE sel.state = 'pass' \
                      ORDER BY sel.started_unix_s, sel.run_id"
                 ),
-                &f.params(),
+                &f.params_aside(&aside),
             )
         })?;
         Ok(self.listed(&rows, 2, head_observation)?.into_iter().flatten().collect())

@@ -21,6 +21,7 @@ pub mod cells;
 pub mod certificate;
 pub mod chain;
 pub mod check;
+mod content;
 pub mod derived;
 mod engine;
 mod error;
@@ -28,8 +29,8 @@ pub mod fleet;
 pub mod history;
 mod label;
 mod piece;
-mod schema_history;
 mod types;
+mod val;
 
 use std::io::Read;
 

@@ -298,17 +298,36 @@ pub fn derived_edits_are_found(spec: &str, exec: Exec<'_>) {
     }
 }
 
-/// A run whose row was edited behind accelcal's back (its operator, and its end's reason) is
-/// marked as tampered by every reader that lists it, and the other runs are shown as they are:
-/// `fleet` (text, `--json`'s `tampered`, the CSV's state), `history`, and serve's fleet and unit
-/// pages; the fleet charts it nowhere.
+/// A run whose row was edited behind accelcal's back (its operator; another run's fit, a piece
+/// the fleet does not show) is marked as tampered by every reader that lists it, and the other
+/// runs are shown as they are: `fleet` (text, `--json`'s `tampered`, the CSV's state),
+/// `history`, and serve's fleet and unit pages. A tampered run is set aside from every count,
+/// yield and population (and said so: `2 tampered runs set aside`), and charted nowhere. A
+/// derived value that is not a number (SQLite: text in a REAL column; PostgreSQL: NaN) does not
+/// poison a population: its run is left out of them and named.
 pub fn a_tampered_run_is_marked_where_it_is_listed(spec: &str, exec: Exec<'_>) {
+    let postgres = matches!(accelcal_db::Target::parse(spec), Ok(accelcal_db::Target::Postgres(_)));
     let mut db = Db::open(spec).unwrap();
     let run = calibrate(&mut db, &start(RunId::new(), DEVICE, "SN-1", "st-1", T0), &coefs(0.0, 0), None);
     let other =
         calibrate(&mut db, &start(RunId::new(), DEVICE_2, "SN-2", "st-1", T0 + 5), &coefs(0.0, 1), None);
+    let fit_forged = calibrate(
+        &mut db,
+        &start(RunId::new(), "fedcba9876543210fedcba98", "SN-3", "st-1", T0 + 10),
+        &coefs(0.0, 2),
+        None,
+    );
+    let nan = calibrate(
+        &mut db,
+        &start(RunId::new(), "00112233445566778899aabb", "SN-4", "st-1", T0 + 15),
+        &coefs(0.0, 3),
+        None,
+    );
     drop(db);
     exec(&format!("UPDATE run SET operator = 'mallory' WHERE run_id = '{run}'"));
+    exec(&format!("UPDATE fit SET stored_unix_s = stored_unix_s + 1 WHERE run_id = '{fit_forged}'"));
+    let not_a_number = if postgres { "'NaN'" } else { "'abc'" };
+    exec(&format!("UPDATE fit_parameter SET value = {not_a_number} WHERE run_id = '{nan}' AND ord = 0"));
     let d = tempfile::tempdir().unwrap();
     let (json, csv) = (d.path().join("f.json"), d.path().join("f.csv"));
     let (code, out, err) = accelcal(&[
@@ -326,17 +345,32 @@ pub fn a_tampered_run_is_marked_where_it_is_listed(spec: &str, exec: Exec<'_>) {
     ]);
     assert_eq!(code, Some(0), "{out}{err}");
     assert!(
-        out.contains("TAMPERED: 1 run whose rows do not match their hash chain")
-            && out.contains(&format!(
-                "run {run} (SN-1): its run row is not the one stored (its digest differs from its ledger entry's)"
-            )),
+        out.contains("TAMPERED: 2 runs whose rows do not match their hash chain (set aside")
+            && out.contains(&format!("run {run} (SN-1): its run row (ledger entry "))
+            && out.contains("it is not the row that was stored (its digest differs from its ledger entry's)")
+            && out.contains(&format!("run {fit_forged} (SN-3): its fit row"))
+            && out.contains("2 runs of 2 units (2 tampered runs set aside)")
+            && out.contains("runs: 2 pass, 0 rejected")
+            && out.contains("yield: first pass 2/2 units"),
         "{out}"
     );
+    assert!(out.contains(&format!("run {nan} does not read")), "{out}");
     let f: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     let runs = f["runs"].as_array().unwrap();
     let of = |id: &RunId| runs.iter().find(|r| r["run_id"] == id.to_string()).unwrap().clone();
-    assert!(of(&run)["tampered"].as_str().unwrap().contains("its run row is not the one stored"), "{f}");
+    assert!(of(&run)["tampered"].as_str().unwrap().contains("its run row (ledger entry "), "{f}");
+    assert!(of(&fit_forged)["tampered"].as_str().unwrap().contains("its fit row"), "{f}");
     assert!(of(&other).get("tampered").is_none(), "the other run is not marked: {f}");
+    assert!(of(&nan).get("tampered").is_none(), "a derived cell is not the chain's: {f}");
+    assert_eq!((f["counts"]["runs"].as_i64(), f["counts"]["tampered"].as_i64()), (Some(2), Some(2)), "{f}");
+    let pops = f["populations"].as_array().unwrap();
+    assert!(!pops.is_empty(), "{f}");
+    for p in pops {
+        // Only `other`: the tampered runs are set aside, `nan`'s value is not a number.
+        assert_eq!(p["n"], 1, "{p}");
+        assert!(p["mean"].as_f64().is_some_and(f64::is_finite), "{p}");
+    }
+    assert!(f["unreadable_runs"].as_array().unwrap().iter().any(|u| u["run_id"] == nan.to_string()), "{f}");
     let csv = std::fs::read_to_string(&csv).unwrap();
     let line = |id: &RunId| csv.lines().find(|l| l.contains(&id.to_string())).unwrap().to_string();
     assert!(line(&run).contains("\"tampered\""), "{csv}");
@@ -344,7 +378,7 @@ pub fn a_tampered_run_is_marked_where_it_is_listed(spec: &str, exec: Exec<'_>) {
     let charted =
         f["charts"].as_array().unwrap().iter().flat_map(|c| c["points"].as_array().unwrap().clone());
     assert!(
-        charted.clone().all(|p| p["run_id"] != run.to_string()),
+        charted.clone().all(|p| p["run_id"] != run.to_string() && p["run_id"] != fit_forged.to_string()),
         "a tampered run is charted nowhere: {f}"
     );
     let (_, out, err) = accelcal(&["history", "SN-1", "--db", spec]);
@@ -353,7 +387,8 @@ pub fn a_tampered_run_is_marked_where_it_is_listed(spec: &str, exec: Exec<'_>) {
     assert_eq!(pages[0].0, 200, "{}", pages[0].1);
     assert!(
         pages[0].1.contains("class=\"bad\">tampered</td>")
-            && pages[0].1.contains("TAMPERED, not used: its run row"),
+            && pages[0].1.contains("TAMPERED, not used: its run row")
+            && pages[0].1.contains("final yield 2/2 (100.0 %); 2 tampered runs set aside."),
         "{}",
         pages[0].1
     );

@@ -226,6 +226,7 @@ pub(crate) fn filter_of(
         head_asset,
         serial_prefix,
         operator,
+        tampered: None,
     }
 }
 
@@ -244,6 +245,10 @@ pub(crate) enum Parts {
 
 /// Gathers a period's fleet from the database; `due_by`: the last day of the units and assets due.
 pub(crate) fn gather(db: &mut Db, filter: &Filter, due_by: Date, parts: Parts) -> anyhow::Result<FleetData> {
+    // The period's runs are checked against their chain once, first: every count, population,
+    // chart and signature below sets the tampered ones aside, and the runs' table marks them.
+    let checked = db.checked(filter)?;
+    let filter = &checked;
     // The populations and the heads' signatures read every parameter and observation of the
     // period: each on a connection of its own (a reader takes no lock, so they run at once),
     // started first, while this one counts, finds what is due, reads the runs and draws the
@@ -256,12 +261,12 @@ pub(crate) fn gather(db: &mut Db, filter: &Filter, due_by: Date, parts: Parts) -
                 let (mut dh, mut dp) = (db.open_again()?, db.open_again()?);
                 (
                     Some(s.spawn(move || (heads(&mut dh, filter), dh))),
-                    Some(s.spawn(move || dp.populations(filter))),
+                    Some(s.spawn(move || (dp.populations(filter), dp))),
                 )
             }
             Parts::Table => {
                 let mut dp = db.open_again()?;
-                (None, Some(s.spawn(move || dp.populations(filter))))
+                (None, Some(s.spawn(move || (dp.populations(filter), dp))))
             }
             Parts::Overview => (None, None),
         };
@@ -280,7 +285,11 @@ pub(crate) fn gather(db: &mut Db, filter: &Filter, due_by: Date, parts: Parts) -
         let check_standards = db.check_standards(filter.station.as_deref())?;
         let chain_broken = db.chain_broken()?;
         let pops = match p {
-            Some(p) => p.join().map_err(|_| joined("the populations"))??,
+            Some(p) => {
+                let (pops, mut dp) = p.join().map_err(|_| joined("the populations"))?;
+                db.unreadable_from(&mut dp);
+                pops?
+            }
             None => Vec::new(),
         };
         let heads = match h {
@@ -344,11 +353,12 @@ pub fn run(a: &Fleet) -> anyhow::Result<()> {
     .filter_map(|(k, v)| v.as_ref().map(|v| format!("{k} {v}")))
     .collect();
     outln!(
-        "fleet: {since} to {until} (UTC) in {}{}: {} runs of {} units",
+        "fleet: {since} to {until} (UTC) in {}{}: {} runs of {} units{}",
         db.target(),
         if filters.is_empty() { String::new() } else { format!(" ({})", filters.join(", ")) },
         counts.runs,
-        counts.units
+        counts.units,
+        counts.set_aside().map(|s| format!(" ({s})")).unwrap_or_default()
     )?;
     if let Some(why) = &data.chain_broken {
         outln!("  WARNING: the database's hash chain is broken ({why}): these numbers may be forged; `accelcal db verify` lists what does not match")?;
@@ -356,7 +366,7 @@ pub fn run(a: &Fleet) -> anyhow::Result<()> {
     let tampered: Vec<&FleetRun> = runs.iter().filter(|r| r.tampered.is_some()).collect();
     if !tampered.is_empty() {
         outln!(
-            "  TAMPERED: {} run{} whose rows do not match their hash chain (counted as the database holds them, charted nowhere; `accelcal db verify` lists every mismatch):",
+            "  TAMPERED: {} run{} whose rows do not match their hash chain (set aside: in no count, yield, population or chart; `accelcal db verify` lists every mismatch):",
             tampered.len(),
             if tampered.len() == 1 { "" } else { "s" }
         )?;
@@ -365,7 +375,7 @@ pub fn run(a: &Fleet) -> anyhow::Result<()> {
         }
     }
     for u in &data.unreadable {
-        outln!("  UNREADABLE, not in the runs or the charts (counted): {u}")?;
+        outln!("  UNREADABLE, left out of whatever reads its bad cells (counted): {u}")?;
     }
     outln!(
         "  runs: {} pass, {} rejected, {} unfinished, {} voided",

@@ -348,6 +348,8 @@ pub fn run(a: &BenchFleet) -> anyhow::Result<()> {
         head_asset: None,
         serial_prefix: None,
         operator: None,
+        // Only whether the line is there: no run is checked against its chain.
+        tampered: Some(Default::default()),
     })?;
     if held.runs == 0 {
         let bar = indicatif::ProgressBar::new(u64::from(a.runs));

@@ -114,6 +114,8 @@ struct CountsView {
     first_pass: String,
     final_pass: String,
     rejections: Vec<(String, i64)>,
+    /// `; 1 tampered run set aside` when any were (empty otherwise).
+    set_aside: String,
 }
 
 fn pct(n: i64, of: i64) -> String {
@@ -136,6 +138,7 @@ impl From<&Counts> for CountsView {
             first_pass: pct(c.first_pass_units, c.units_finished),
             final_pass: pct(c.final_pass_units, c.units_finished),
             rejections: c.rejections.clone(),
+            set_aside: c.set_aside().map(|s| format!("; {s}")).unwrap_or_default(),
         }
     }
 }
@@ -244,7 +247,8 @@ pub(super) fn overview(db: &mut Db, app: &App) -> Result<String, PageError> {
     let today = today_utc();
     let month = Filters::default();
     let (data, since, _) = month.gather(db, app.due_days, Parts::Overview)?;
-    let day_filter = filter_of(today, today, None, None, None, None);
+    let day_filter =
+        db.checked(&filter_of(today, today, None, None, None, None)).map_err(PageError::unavailable)?;
     let day_counts = db.fleet_counts(&day_filter).map_err(PageError::unavailable)?;
     let day_runs = db.fleet_runs(&day_filter).map_err(PageError::unavailable)?;
     let mut unreadable = words(&data.unreadable);

@@ -2,19 +2,39 @@
 //! build's migrations before a database is read or migrated. refinery trusts the table: a row
 //! deleted makes it apply that migration again (`table chain_event already exists`), an edited
 //! `applied_on` makes it panic, a version missing in the middle is skipped in silence. Every
-//! command checks the table first ([`problem`], and on SQLite [`schema_version`] when the table
+//! command checks the table first ([`problem`], and [`schema_version`] when the table
 //! says the schema is older than it is) and says what is wrong with it in one line
 //! ([`DbError::MigrationHistory`]); `accelcal db migrate` records the history again when the
-//! SQLite schema is exactly that of one of this build's versions ([`repair`]).
+//! schema is exactly that of one of this build's versions ([`repair`]; on PostgreSQL, its
+//! tables are those of one version's).
 
-use super::engine::{embedded, history_exists, Tx, Val};
-use super::DbError;
+use super::{embedded, history_exists, Tx, Val};
+use crate::DbError;
 
 /// One migration of this build, as refinery records it.
 struct Known {
     version: i64,
     name: String,
     checksum: String,
+    /// The tables its SQL creates ([`tables_created`]).
+    tables: Vec<String>,
+}
+
+/// The tables `CREATE TABLE [IF NOT EXISTS] name` statements of `sql` create, lower-cased.
+fn tables_created(sql: &str) -> Vec<String> {
+    let words: Vec<String> = sql
+        .split(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+        .filter(|w| !w.is_empty())
+        .map(str::to_ascii_lowercase)
+        .collect();
+    let mut out = Vec::new();
+    for (i, w) in words.iter().enumerate() {
+        if w == "create" && words.get(i + 1).is_some_and(|t| t == "table") {
+            let at = if words.get(i + 2).is_some_and(|x| x == "if") { i + 5 } else { i + 2 };
+            out.extend(words.get(at).cloned());
+        }
+    }
+    out
 }
 
 fn known(postgres: bool) -> Vec<Known> {
@@ -30,6 +50,7 @@ fn known(postgres: bool) -> Vec<Known> {
             version: i64::from(m.version()),
             name: m.name().to_string(),
             checksum: m.checksum().to_string(),
+            tables: tables_created(m.sql().unwrap_or_default()),
         })
         .collect();
     out.sort_by_key(|k| k.version);
@@ -124,12 +145,14 @@ type Schema = Vec<(String, String, String)>;
 const SCHEMA_SQL: &str = "SELECT type, name, COALESCE(sql, '') FROM sqlite_master \
      WHERE name NOT LIKE 'sqlite\\_%' ESCAPE '\\' ORDER BY type, name";
 
-/// The version of this build whose schema the SQLite database's is, exactly (every table,
-/// index and trigger with its SQL, as a new database migrated to that version has them);
-/// `None` when it is none of them, and on PostgreSQL.
+/// The version of this build whose schema the database's is, exactly, or `None` when it is
+/// none of them. SQLite: every table, index and trigger with its SQL, as a new database
+/// migrated to that version in memory has them. PostgreSQL (where no database is at hand to
+/// migrate aside, and a reader may not create one): the tables of the search path's schemas,
+/// as the migrations up to that version create them, no more and no fewer.
 pub(crate) fn schema_version(tx: &mut Tx<'_>) -> Result<Option<i64>, DbError> {
-    if !matches!(tx, Tx::Sqlite(_)) {
-        return Ok(None);
+    if matches!(tx, Tx::Postgres(..)) {
+        return pg_schema_version(tx);
     }
     let have: Schema = tx
         .query(SCHEMA_SQL, &[])?
@@ -158,7 +181,32 @@ pub(crate) fn schema_version(tx: &mut Tx<'_>) -> Result<Option<i64>, DbError> {
     Ok(None)
 }
 
-/// What is wrong with the history: its [`problem`], or (SQLite) rows of the newest versions
+/// [`schema_version`] on PostgreSQL: the version whose migrations create exactly the tables
+/// there are (the history's own table aside).
+fn pg_schema_version(tx: &mut Tx<'_>) -> Result<Option<i64>, DbError> {
+    let mut have: Vec<String> = tx
+        .query(
+            "SELECT tablename FROM pg_catalog.pg_tables WHERE schemaname = ANY (current_schemas(false)) \
+             AND tablename <> 'refinery_schema_history'",
+            &[],
+        )?
+        .iter()
+        .map(|r| r[0].text())
+        .collect::<Result<_, _>>()?;
+    have.sort_unstable();
+    let mut created: Vec<String> = Vec::new();
+    let mut found = None;
+    for k in known(true) {
+        created.extend(k.tables);
+        created.sort_unstable();
+        if created == have {
+            found = Some(k.version);
+        }
+    }
+    Ok(found)
+}
+
+/// What is wrong with the history: its [`problem`], or rows of the newest versions
 /// deleted, the schema being that of a later version than the history records.
 pub(crate) fn damage(tx: &mut Tx<'_>) -> Result<Option<String>, DbError> {
     if let Some(p) = problem(tx)? {
@@ -179,15 +227,16 @@ pub(crate) fn damage(tx: &mut Tx<'_>) -> Result<Option<String>, DbError> {
     }
 }
 
-/// Records the history again (`accelcal db migrate`, SQLite): when it is damaged ([`damage`])
+/// Records the history again (`accelcal db migrate`): when it is damaged ([`damage`])
 /// and the schema is exactly that of one of this build's versions, its rows become those of
 /// the versions up to it (a row's time kept where it was one); what was done, in words, or
 /// `None` when the history is sound. A schema that is no version's is
 /// [`DbError::MigrationHistory`]: only a backup restores it.
 pub(crate) fn repair(tx: &mut Tx<'_>, target: &str) -> Result<Option<String>, DbError> {
-    if !matches!(tx, Tx::Sqlite(_)) || !history_exists(tx)? {
+    if !history_exists(tx)? {
         return Ok(None);
     }
+    let postgres = matches!(tx, Tx::Postgres(..));
     let rows = rows(tx)?;
     let Some(what) = damage(tx)? else {
         return Ok(None);
@@ -201,15 +250,21 @@ pub(crate) fn repair(tx: &mut Tx<'_>, target: &str) -> Result<Option<String>, Db
     };
     let now = jiff::Timestamp::now().to_string();
     tx.execute("DELETE FROM refinery_schema_history", &[])?;
-    for k in known(false).into_iter().filter(|k| k.version <= v) {
+    for k in known(postgres).into_iter().filter(|k| k.version <= v) {
         let kept = rows
             .iter()
             .find(|r| r[0].as_deref() == Some(k.version.to_string().as_str()))
             .and_then(|r| r[2].clone())
             .filter(|t| t.parse::<jiff::Timestamp>().is_ok());
         tx.execute(
-            "INSERT INTO refinery_schema_history (version, name, applied_on, checksum) VALUES ($1, $2, $3, $4)",
-            &[Val::Int(k.version), k.name.into(), kept.unwrap_or_else(|| now.clone()).into(), k.checksum.into()],
+            "INSERT INTO refinery_schema_history (version, name, applied_on, checksum) \
+             VALUES (CAST($1 AS bigint), $2, $3, $4)",
+            &[
+                Val::Int(k.version),
+                k.name.into(),
+                kept.unwrap_or_else(|| now.clone()).into(),
+                k.checksum.into(),
+            ],
         )?;
     }
     Ok(Some(format!(

@@ -3,13 +3,14 @@
 //! `$2`… placeholders in order of first use, which SQLite reads as numbered parameters too).
 //! Nothing above this module knows which engine it talks to.
 
+mod schema_history;
+
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use postgres::types::{to_sql_checked, IsNull, ToSql as PgToSql, Type};
 
 use super::cells::BadCell;
-use super::schema_history;
 use super::DbError;
 
 /// The migrations of each engine (`core/migrations/<engine>/V<n>__<name>.sql`), embedded.
@@ -86,96 +87,7 @@ fn redact(s: &str) -> String {
         .join(" ")
 }
 
-/// One value passed to or read from a statement.
-#[derive(Clone, Debug, PartialEq)]
-pub enum Val {
-    /// SQL NULL (read only: every column is `NOT NULL`; outer joins give it).
-    Null,
-    /// `BIGINT`.
-    Int(i64),
-    /// `DOUBLE PRECISION`.
-    Real(f64),
-    /// `TEXT`.
-    Text(String),
-    /// `BLOB` / `BYTEA`.
-    Bytes(Vec<u8>),
-    /// `BOOLEAN` (SQLite stores 0 or 1).
-    Bool(bool),
-}
-
-impl From<&str> for Val {
-    fn from(s: &str) -> Val {
-        Val::Text(s.into())
-    }
-}
-impl From<String> for Val {
-    fn from(s: String) -> Val {
-        Val::Text(s)
-    }
-}
-impl From<i64> for Val {
-    fn from(v: i64) -> Val {
-        Val::Int(v)
-    }
-}
-impl From<f64> for Val {
-    fn from(v: f64) -> Val {
-        Val::Real(v)
-    }
-}
-impl From<bool> for Val {
-    fn from(v: bool) -> Val {
-        Val::Bool(v)
-    }
-}
-impl From<Vec<u8>> for Val {
-    fn from(v: Vec<u8>) -> Val {
-        Val::Bytes(v)
-    }
-}
-
-impl Val {
-    /// The text, `None` for NULL.
-    pub(crate) fn opt_text(&self) -> Result<Option<String>, DbError> {
-        match self {
-            Val::Null => Ok(None),
-            v => v.text().map(Some),
-        }
-    }
-
-    /// The text, or the schema is not what this build expects.
-    pub fn text(&self) -> Result<String, DbError> {
-        match self {
-            Val::Text(s) => Ok(s.clone()),
-            other => Err(DbError::schema(format!("expected text, read {other:?}"))),
-        }
-    }
-
-    /// The integer.
-    pub fn int(&self) -> Result<i64, DbError> {
-        match self {
-            Val::Int(v) => Ok(*v),
-            other => Err(DbError::schema(format!("expected an integer, read {other:?}"))),
-        }
-    }
-
-    /// The number.
-    pub fn real(&self) -> Result<f64, DbError> {
-        match self {
-            Val::Real(v) => Ok(*v),
-            Val::Int(v) => Ok(*v as f64),
-            other => Err(DbError::schema(format!("expected a number, read {other:?}"))),
-        }
-    }
-
-    /// The bytes.
-    pub fn bytes(&self) -> Result<Vec<u8>, DbError> {
-        match self {
-            Val::Bytes(v) => Ok(v.clone()),
-            other => Err(DbError::schema(format!("expected bytes, read {other:?}"))),
-        }
-    }
-}
+pub use super::val::Val;
 
 impl rusqlite::ToSql for Val {
     fn to_sql(&self) -> rusqlite::Result<rusqlite::types::ToSqlOutput<'_>> {
@@ -311,20 +223,7 @@ impl Conn {
         match target {
             Target::Sqlite(path) => open_sqlite(path, access, after),
             Target::Postgres(spec) => {
-                let mut config: postgres::Config = spec.parse().map_err(|e: postgres::Error| {
-                    DbError::BadTarget { spec: redact(spec), why: e.to_string() }
-                })?;
-                if config.get_connect_timeout().is_none() {
-                    config.connect_timeout(WAIT);
-                }
-                let client = config
-                    .connect(postgres::NoTls)
-                    .map_err(|e| DbError::Unreachable { target: redact(spec), cause: pg_cause(&e) })?;
-                let mut conn = Conn {
-                    link: Link::Postgres(Box::new(client), Statements::default()),
-                    target: redact(spec),
-                    read_only: access == Access::Read,
-                };
+                let mut conn = connect_pg(spec, access)?;
                 if access == Access::Read {
                     conn.check_current()?;
                     return Ok(conn);
@@ -373,11 +272,9 @@ impl Conn {
     fn check_history(&mut self) -> Result<(), DbError> {
         match self.reading(schema_history::damage)? {
             None => Ok(()),
-            Some(what) => Err(DbError::MigrationHistory {
-                target: self.target.clone(),
-                what,
-                repairable: matches!(self.link, Link::Sqlite(_)),
-            }),
+            Some(what) => {
+                Err(DbError::MigrationHistory { target: self.target.clone(), what, repairable: true })
+            }
         }
     }
 
@@ -620,13 +517,43 @@ fn open_sqlite(
     Ok(conn)
 }
 
-/// `accelcal db migrate`'s first step on an existing SQLite file: its migration history recorded
+/// A PostgreSQL connection, not yet checked or migrated (10 s to connect unless `spec` says).
+fn connect_pg(spec: &str, access: Access) -> Result<Conn, DbError> {
+    let mut config: postgres::Config = spec
+        .parse()
+        .map_err(|e: postgres::Error| DbError::BadTarget { spec: redact(spec), why: e.to_string() })?;
+    if config.get_connect_timeout().is_none() {
+        config.connect_timeout(WAIT);
+    }
+    let client = config
+        .connect(postgres::NoTls)
+        .map_err(|e| DbError::Unreachable { target: redact(spec), cause: pg_cause(&e) })?;
+    Ok(Conn {
+        link: Link::Postgres(Box::new(client), Statements::default()),
+        target: redact(spec),
+        read_only: access == Access::Read,
+    })
+}
+
+/// `accelcal db migrate`'s first step on an existing database: its migration history recorded
 /// again when it is damaged and the schema is exactly that of one of this build's versions
-/// ([`schema_history::repair`]); what was done, or `None` (nothing to do, or PostgreSQL, whose
-/// history is only checked).
+/// ([`schema_history::repair`]; on PostgreSQL under the migration's lock); what was done, or
+/// `None` (nothing to do).
 pub fn repair_schema_history(target: &Target) -> Result<Option<String>, DbError> {
     use rusqlite::OpenFlags;
-    let Target::Sqlite(path) = target else { return Ok(None) };
+    let path = match target {
+        Target::Sqlite(path) => path,
+        Target::Postgres(spec) => {
+            let mut conn = connect_pg(spec, Access::Write)?;
+            let shown = conn.target.clone();
+            let mut done = None;
+            conn.pg_locked(|c| {
+                done = c.transaction(|tx| schema_history::repair(tx, &shown))?;
+                Ok(())
+            })?;
+            return Ok(done);
+        }
+    };
     if !path.exists() {
         return Ok(None);
     }
