@@ -225,7 +225,10 @@ impl Conn {
             Target::Postgres(spec) => {
                 let mut conn = connect_pg(spec, access)?;
                 if access == Access::Read {
-                    conn.check_current()?;
+                    // A writer that is migrating holds the migration's lock: the reader waits for
+                    // it (a shared hold, which writes nothing) rather than see a schema half
+                    // migrated (two stations starting together on a new database).
+                    conn.pg_locked_as(LockMode::Shared, |c| c.check_current())?;
                     return Ok(conn);
                 }
                 // Under an advisory lock, so that stations starting together migrate once.
@@ -280,13 +283,27 @@ impl Conn {
 
     /// Runs `f` holding the migration's advisory lock (PostgreSQL).
     fn pg_locked(&mut self, f: impl FnOnce(&mut Conn) -> Result<(), DbError>) -> Result<(), DbError> {
+        self.pg_locked_as(LockMode::Exclusive, f)
+    }
+
+    /// Runs `f` holding the migration's advisory lock, `exclusive` (a writer that may migrate) or
+    /// `shared` (a reader, which waits for a migration under way and lets other readers in).
+    fn pg_locked_as(
+        &mut self,
+        mode: LockMode,
+        f: impl FnOnce(&mut Conn) -> Result<(), DbError>,
+    ) -> Result<(), DbError> {
         let lock = |c: &mut Conn, sql: &str| -> Result<(), DbError> {
             let Link::Postgres(client, _) = &mut c.link else { unreachable!("a PostgreSQL connection") };
             client.execute(sql, &[&MIGRATION_LOCK]).map(drop).map_err(DbError::pg)
         };
-        lock(self, "SELECT pg_advisory_lock($1)")?;
+        let (take, give) = match mode {
+            LockMode::Shared => ("SELECT pg_advisory_lock_shared($1)", "SELECT pg_advisory_unlock_shared($1)"),
+            LockMode::Exclusive => ("SELECT pg_advisory_lock($1)", "SELECT pg_advisory_unlock($1)"),
+        };
+        lock(self, take)?;
         let r = f(self);
-        lock(self, "SELECT pg_advisory_unlock($1)")?;
+        lock(self, give)?;
         r
     }
 
@@ -421,6 +438,13 @@ fn latest_version(tx: &mut Tx<'_>) -> Result<Option<i64>, DbError> {
         None | Some(Val::Null) => Ok(None),
         Some(v) => v.int().map(Some),
     }
+}
+
+/// How the migration's advisory lock is held: by a writer that may migrate, or by a reader.
+#[derive(Clone, Copy)]
+enum LockMode {
+    Exclusive,
+    Shared,
 }
 
 /// Key of the PostgreSQL advisory lock held while migrating ("accelcal" in ASCII).
