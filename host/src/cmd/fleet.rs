@@ -409,9 +409,17 @@ pub fn run(a: &Fleet) -> anyhow::Result<()> {
             r.as_found_decision.as_deref().unwrap_or("-")
         )?;
     }
+    // A unit calibrated twice in the period is two runs of one unit (issue 59).
     let calibrated = pops.first().map_or(0, |p| p.n);
+    let passed_units: std::collections::BTreeSet<&str> = runs
+        .iter()
+        .filter(|r| r.state == "pass" && r.tampered.is_none())
+        .map(|r| r.device_id.as_str())
+        .collect();
     outln!(
-        "  populations of the {calibrated} units that passed (Cpk = min(L − mean, mean + L)/(3·s) against the specification's ±L):"
+        "  populations of the {calibrated} runs of {} {} that passed (Cpk = min(L − mean, mean + L)/(3·s) against the specification's ±L):",
+        passed_units.len(),
+        if passed_units.len() == 1 { "unit" } else { "units" }
     )?;
     outln!(
         "    {:<30} {:>8} {:>4} {:>14} {:>12} {:>10} {:>6}",
