@@ -47,13 +47,14 @@
 //! the orientations at 1 g is what the certificate states. [`montecarlo`] checks the whole by
 //! simulation (JCGM 101:2008).
 
+mod contributors;
 pub mod lack_of_fit;
 pub mod montecarlo;
 pub mod scatter;
 
 use accelcal_shared::linear::{LinearCal, Model4};
 use accelcal_shared::terms::MODEL_4;
-use nalgebra::{DMatrix, DVector, SMatrix, Vector3};
+use nalgebra::{SMatrix, Vector3};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Classify, Kind};
@@ -309,14 +310,14 @@ pub fn sphere(n: usize) -> Vec<[f64; 3]> {
 const SPHERE_POINTS: usize = 600;
 
 /// Makes the budget of a model-4 triad fitted by least squares on `pos` (`fits` in the order of
-/// `stats`), with the references' stated uncertainties.
+/// `stats`), with the references' stated uncertainties: each contributor's covariance
+/// ([`contributors`]), then their sum.
 pub fn budget(
     pos: &Positions,
     stats: &[ChannelStats],
     fits: &[&LsqFit],
     refs: References,
 ) -> Result<Budget, UncertaintyError> {
-    let lof = refs.lack_of_fit_codes.unwrap_or([0.0; 3]);
     let tc = refs.temperature.unwrap_or_default();
     for v in [
         refs.head_angle_rad,
@@ -327,7 +328,7 @@ pub fn budget(
         tc.thermometer_c,
     ]
     .into_iter()
-    .chain(lof)
+    .chain(refs.lack_of_fit_codes.unwrap_or([0.0; 3]))
     {
         if !(v.is_finite() && v >= 0.0) {
             return Err(UncertaintyError::BadStated(v));
@@ -342,254 +343,25 @@ pub fn budget(
     let c = |ci: usize, t: usize| fits[ci].coefficients[t];
     let model = Model4 { u0: order.map(|ci| c(ci, 0)), k: order.map(|ci| [c(ci, 1), c(ci, 2), c(ci, 3)]) };
     let cal = model.invert().map_err(|_| UncertaintyError::Singular)?;
+    let setup = contributors::Setup::new(pos, stats, fits, order, model)?;
+    let dof = setup.dof;
 
-    // A = (XᵀWX)⁻¹XᵀW, 4 × n; R = I − X·A, the residual maker.
-    let x = DMatrix::from_fn(n, 4, |i, t| row(pos.accel[i])[t]);
-    let w = DVector::from_fn(n, |i, _| pos.weight[i]);
-    let xtw = DMatrix::from_fn(4, n, |t, i| x[(i, t)] * w[i]);
-    let xtwx_inv = (&xtw * &x).try_inverse().ok_or(UncertaintyError::Singular)?;
-    let a = &xtwx_inv * &xtw;
-    let resid_maker = DMatrix::identity(n, n) - &x * &a;
-    let col = |i: usize| -> [f64; 4] { std::array::from_fn(|t| a[(t, i)]) };
-    let rcol_ss: Vec<f64> = (0..n).map(|i| resid_maker.column(i).norm_squared()).collect();
-    let apply_a = |d: &DVector<f64>| -> [f64; 4] {
-        let v = &a * d;
-        std::array::from_fn(|t| v[t])
-    };
-
-    // Residuals of the dwell means, per axis row.
-    let resid: Vec<DVector<f64>> = order
-        .iter()
-        .map(|&ci| {
-            let c = &fits[ci].coefficients;
-            DVector::from_fn(n, |i, _| {
-                let r = row(pos.accel[i]);
-                stats[ci].mean[i] - (0..4).map(|t| c[t] * r[t]).sum::<f64>()
-            })
-        })
-        .collect();
-    let dof = (n - 4) as f64;
-    let partials: Vec<[[f64; 3]; 5]> =
-        pos.dwells.iter().map(|d| head_partials(d.alpha_deg, d.beta_deg, g)).collect();
-    let kvec = |axis: usize| -> [f64; 3] { model.k[axis] };
-
-    let mut contributors = Vec::new();
-    // What the stated contributors explain of the residual sum of squares (all channels): in
+    // Each contributor, and what it explains of the residual sum of squares (all channels): in
     // expectation (the head's angle errors, the quantisation) and as realised (this head's
-    // rotation, model 4's lack of fit).
-    let (mut expected, mut realised) = (0.0, 0.0);
-
-    // Head angle setting errors: independent per position and angle.
-    let mut angle = Cov12::zeros();
-    let ua2 = refs.head_angle_rad * refs.head_angle_rad;
-    let angle_response: Vec<[[f64; 2]; 3]> = partials
-        .iter()
-        .map(|pd| [0, 1, 2].map(|ax| [dot3(&kvec(ax), &pd[0]), dot3(&kvec(ax), &pd[1])]))
-        .collect();
-    if ua2 > 0.0 {
-        for i in 0..n {
-            let ai = col(i);
-            let d = angle_response[i];
-            for p in 0..3 {
-                for q in 0..3 {
-                    let s = d[p][0] * d[q][0] + d[p][1] * d[q][1];
-                    add_block(&mut angle, p, q, &ai, &ai, ua2 * s);
-                }
-                expected += ua2 * rcol_ss[i] * (d[p][0] * d[p][0] + d[p][1] * d[p][1]);
-            }
-        }
-    }
-
-    // Head orthogonality: three rotations common to every position.
-    let mut ortho = Cov12::zeros();
-    let uo2 = refs.head_orthogonality_rad * refs.head_orthogonality_rad;
-    // What the fit does not absorb of a rotation stays in the residuals, with a shape of its
-    // own (the three channels' residuals stacked): the part of the residuals of those shapes is
-    // this head's rotation as realised, not scatter, and is taken out of the dwell scatter. The
-    // stated value is not subtracted: a stated error that is not there must not shrink the budget.
-    let mut shapes = vec![DVector::zeros(3 * n); 3];
-    if uo2 > 0.0 {
-        for j in 0..3 {
-            let dc: Vec<[f64; 4]> = (0..3)
-                .map(|ax| {
-                    let d = DVector::from_fn(n, |i, _| dot3(&kvec(ax), &partials[i][2 + j]));
-                    shapes[j].rows_mut(ax * n, n).copy_from(&(&resid_maker * &d));
-                    apply_a(&d)
-                })
-                .collect();
-            for p in 0..3 {
-                for q in 0..3 {
-                    add_block(&mut ortho, p, q, &dc[p], &dc[q], uo2);
-                }
-            }
-        }
-    }
-
-    if uo2 > 0.0 {
-        let r = DVector::from_fn(3 * n, |k, _| resid[k / n][k % n]);
-        let v = DMatrix::from_fn(3 * n, 3, |k, j| shapes[j][k]);
-        let vtv = v.transpose() * &v;
-        if let Some(inv) = vtv.try_inverse() {
-            let vtr = v.transpose() * &r;
-            realised += vtr.dot(&(inv * &vtr));
-        }
-    }
-
-    // Gravity: a relative error of g scales every sensitivity.
-    let mut grav = Cov12::zeros();
-    let rel = refs.g_m_s2 / g;
-    let dk: [[f64; 4]; 3] = [0, 1, 2].map(|ax| [0.0, kvec(ax)[0], kvec(ax)[1], kvec(ax)[2]]);
-    for p in 0..3 {
-        for q in 0..3 {
-            add_block(&mut grav, p, q, &dk[p], &dk[q], rel * rel);
-        }
-    }
-
-    // Quantisation: 1/12 code² per sample, independent per channel.
-    let mut quant = Cov12::zeros();
-    for i in 0..n {
-        let ai = col(i);
-        let v = 1.0 / (12.0 * pos.weight[i].max(1.0));
-        for p in 0..3 {
-            add_block(&mut quant, p, p, &ai, &ai, v);
-        }
-        expected += 3.0 * v * rcol_ss[i];
-    }
-
-    // Temperature: each channel's bias and scale factor at T_ref, not T̄.
-    let mut thermal = Cov12::zeros();
-    let mut thermal_source = String::from("not stated");
-    if let Some(t) = refs.temperature {
-        let temps = pos.temp_c.as_ref().ok_or(UncertaintyError::NoTemperature)?;
-        let wsum: f64 = pos.weight.iter().sum();
-        let mean =
-            temps.iter().zip(&pos.weight).map(|(t, w)| t * w).sum::<f64>() / wsum.max(f64::MIN_POSITIVE);
-        let dt = mean - pos.t_ref_c;
-        let spread = dt * dt + t.thermometer_c * t.thermometer_c;
-        for p in 0..3 {
-            let k = kvec(p);
-            let own = k[p].abs();
-            // mg are of standard gravity.
-            let bias_codes = t.bias_mg_per_c * 1e-3 * accelcal_shared::G_STANDARD * own;
-            thermal[(4 * p, 4 * p)] += bias_codes * bias_codes * spread;
-            let rel = t.scale_ppm_per_c * 1e-6;
-            let dk = [0.0, k[0], k[1], k[2]];
-            add_block(&mut thermal, p, p, &dk, &dk, rel * rel * spread);
-        }
-        thermal_source = format!(
-            "{} mg/°C bias and {} ppm/°C scale factor per channel (stated, one sigma), calibrated at {mean:.1} °C \
-             (mean of the campaign's readings) for the reference {:.1} °C, thermometer u(T) = {} °C",
-            t.bias_mg_per_c, t.scale_ppm_per_c, pos.t_ref_c, t.thermometer_c
-        );
-    }
-
-    // Model 4's lack of fit: each channel's RMS error over the sphere, on its bias term.
+    // rotation, model 4's lack of fit), which the dwell scatter then leaves out.
+    let angle = contributors::head_angle(&setup, refs.head_angle_rad * refs.head_angle_rad);
+    let ortho =
+        contributors::head_orthogonality(&setup, refs.head_orthogonality_rad * refs.head_orthogonality_rad);
+    let grav = contributors::gravity(&setup, refs.g_m_s2 / g);
+    let quant = contributors::quantisation(&setup);
+    let (thermal, thermal_source) = contributors::temperature(&setup, &refs)?;
     let points: Vec<[f64; 3]> = sphere(SPHERE_POINTS).into_iter().map(|d| d.map(|v| v * g)).collect();
-    let mut lof_cov = Cov12::zeros();
-    // The head's stated rotation leaves outputs of its own, which a linear unit shows too.
-    let head_outputs: Vec<DMatrix<f64>> = (0..stats.len())
-        .map(|ci| match order.iter().position(|&o| o == ci) {
-            Some(p) if uo2 > 0.0 => {
-                let uo = refs.head_orthogonality_rad;
-                DMatrix::from_fn(n, 3, |i, j| uo * dot3(&kvec(p), &partials[i][2 + j]))
-            }
-            _ => DMatrix::zeros(n, 0),
-        })
-        .collect();
-    // What the samples' noise and the head's stated angle errors predict of the dwell means'
-    // scatter, per channel in the order of the stats.
     let within = scatter::Within::pooled(stats, order, &pos.weight);
-    let axis_of = |ci: usize| order.iter().position(|&o| o == ci);
-    let mean_var: Vec<Vec<f64>> = (0..stats.len())
-        .map(|ci| match (axis_of(ci), within) {
-            (Some(p), Some(w)) => {
-                (0..n).map(|i| w.mean_cov(p, p, pos.weight[i], &angle_response[i], ua2)).collect()
-            }
-            _ => Vec::new(),
-        })
-        .collect();
-    let known = within.map(|_| lack_of_fit::Known { mean_var: &mean_var });
-    let measured = lack_of_fit::measure(pos, stats, &a, &resid_maker, &points, &head_outputs, known);
-    let lof_source = match &measured {
-        Ok(m) => {
-            for (p, &ci) in order.iter().enumerate() {
-                lof_cov[(4 * p, 4 * p)] = m.u_codes[ci] * m.u_codes[ci];
-                realised += m.explained_ss[ci];
-            }
-            let [x, y, z] = order.map(|ci| m.rms_codes[ci]);
-            let [fx, fy, fz] = order.map(|ci| m.floor_codes[ci]);
-            let gap = match refs.lack_of_fit_codes {
-                Some(_) => {
-                    let [gx, gy, gz] = order.map(|ci| lof[ci]);
-                    format!("; GMDH's criterion gap to the best of the paper's 11 models x {gx:.2}, y {gy:.2}, z {gz:.2} codes")
-                }
-                None => String::new(),
-            };
-            format!(
-                "model 4's error against the quadratic model, RMS over the sphere less the dwell scatter's share: \
-                 x {x:.2}, y {y:.2}, z {z:.2} codes (this plan resolves x {fx:.2}, y {fy:.2}, z {fz:.2}); u is half its \
-                 95th percentile{gap}"
-            )
-        }
-        Err(_) => "not measured".to_string(),
-    };
-
-    // Dwell scatter ([`scatter`]): the samples' noise within the dwells, and what the dwell means
-    // scatter about the fit beyond it and the stated references (all of their scatter, less what
-    // the references explain, when the dwells hold one sample each).
-    let kept = match &within {
-        Some(w) => scatter::Check {
-            resid_maker: &resid_maker,
-            weight: &pos.weight,
-            resid: &resid,
-            angle_response: &angle_response,
-            angle_var: ua2,
-            realised,
-        }
-        .excess_fraction(w),
-        None => {
-            let observed: f64 = resid.iter().map(|r| r.norm_squared()).sum();
-            if observed > 0.0 {
-                (1.0 - (expected + realised) / observed).max(0.0)
-            } else {
-                0.0
-            }
-        }
-    };
-    let mut noise = Cov12::zeros();
-    if let Some(w) = &within {
-        for p in 0..3 {
-            for i in 0..4 {
-                for j in 0..4 {
-                    noise[(4 * p + i, 4 * p + j)] = w.var_codes2[p] * xtwx_inv[(i, j)];
-                }
-            }
-        }
-    }
-    let aat = &a * a.transpose();
-    let mut excess = Cov12::zeros();
-    for p in 0..3 {
-        for q in 0..3 {
-            let s = resid[p].dot(&resid[q]) / dof * kept;
-            for i in 0..4 {
-                for j in 0..4 {
-                    excess[(4 * p + i, 4 * q + j)] = s * aat[(i, j)];
-                }
-            }
-        }
-    }
-    let scatter_source = match &within {
-        Some(w) => format!(
-            "the samples' scatter within the dwells ({:.0} degrees of freedom) over each dwell's samples; beyond it and the \
-             stated references, the dwell means' scatter about the fit ({n} positions, {dof} degrees of freedom) holds {}",
-            w.dof,
-            if kept > 0.0 { format!("{:.0} % of its sum of squares more", kept * 100.0) } else { "nothing more".into() }
-        ),
-        None => format!(
-            "the dwell means' scatter about the fit ({n} positions, {dof} degrees of freedom), {:.0} % of it left once the stated references are taken out",
-            kept * 100.0
-        ),
-    };
+    let (lof, lof_source, lof_missing) = contributors::lack_of_fit(&setup, &refs, within, &points);
+    let expected = angle.explains + quant.explains;
+    let realised = ortho.explains + lof.explains;
+    let (noise, excess, scatter_source) =
+        contributors::dwell_scatter(&setup, &refs, within, expected, realised);
 
     let stated = |rad: f64, what: &str| {
         if rad > 0.0 {
@@ -600,18 +372,41 @@ pub fn budget(
     };
     let parts: [(&'static str, &'static str, String, Cov12); 7] = [
         ("dwell_scatter", "A", scatter_source, noise + excess),
-        ("head_angle", "B", stated(refs.head_angle_rad, "per angle and position"), angle),
+        ("head_angle", "B", stated(refs.head_angle_rad, "per angle and position"), angle.cov),
         (
             "head_orthogonality",
             "B",
             stated(refs.head_orthogonality_rad, "per rotation between the stages"),
-            ortho,
+            ortho.cov,
         ),
         ("gravity", "B", format!("u(g) = {:.3e} m/s²", refs.g_m_s2), grav),
-        ("quantisation", "B", "1/12 code² per sample".to_string(), quant),
+        ("quantisation", "B", "1/12 code² per sample".to_string(), quant.cov),
         ("temperature", "B", thermal_source, thermal),
-        ("lack_of_fit", "A", lof_source, lof_cov),
+        ("lack_of_fit", "A", lof_source, lof.cov),
     ];
+    let mut budget =
+        sum(order, model, cal, parts, &points, [(noise, within.map_or(dof, |w| w.dof)), (excess, dof)], n);
+    budget.not_included = not_included(&refs, lof_missing);
+    Ok(budget)
+}
+
+/// A contributor before the sum: its name, GUM type, source in words and covariance.
+type PartIn = (&'static str, &'static str, String, Cov12);
+
+/// The budget of the contributors `parts` (the dwell scatter first, then the references): the
+/// combined covariance; the coverage factor from the effective degrees of freedom at each
+/// axis' worst orientation among `points` (the dwell scatter entering as its two parts
+/// `scatter`, each with its degrees of freedom; the lack of fit with the quadratic model's
+/// n − 9; Type B infinite); U per axis; and each contributor where U is largest.
+fn sum(
+    order: [usize; 3],
+    model: Model4,
+    cal: LinearCal,
+    parts: [PartIn; 7],
+    points: &[[f64; 3]],
+    scatter: [(Cov12, f64); 2],
+    n: usize,
+) -> Budget {
     let covariance = parts.iter().fold(Cov12::zeros(), |acc, p| acc + p.3);
     let mut budget = Budget {
         order,
@@ -634,9 +429,8 @@ pub fn budget(
     // n − 4, the lack of fit's the quadratic model's n − 9; Type B, infinite. The dwell scatter
     // enters as its two parts.
     let lof_dof = n.saturating_sub(lack_of_fit::QUADRATIC_TERMS).max(1) as f64;
-    let noise_dof = within.as_ref().map_or(dof, |w| w.dof);
-    let scatter_vars: [(Vec<Vector3<f64>>, f64); 2] = [(noise, noise_dof), (excess, dof)]
-        .map(|(cov, nu)| (points.iter().map(|&a| budget.variance_at(&cov, a)).collect(), nu));
+    let scatter_vars: [(Vec<Vector3<f64>>, f64); 2] =
+        scatter.map(|(cov, nu)| (points.iter().map(|&a| budget.variance_at(&cov, a)).collect(), nu));
     let ws_vars: Vec<(&Vec<Vector3<f64>>, f64)> = parts
         .iter()
         .zip(&part_vars)
@@ -656,6 +450,7 @@ pub fn budget(
         [0, 1, 2].map(|i| budget.k * combined.iter().map(|v| v[i]).fold(0.0f64, f64::max).sqrt());
     budget.coverage_probability = coverage_probability(budget.k, budget.nu_eff);
     // Where U is stated: the axis and orientation of the largest combined variance.
+    let mut parts_out = Vec::new();
     let (mut at_axis, mut at_point) = (0, 0);
     for (p, v) in combined.iter().enumerate() {
         for i in 0..3 {
@@ -672,7 +467,7 @@ pub fn budget(
             if total_var > 0.0 { vars.iter().map(|v| v.sum()).sum::<f64>() / total_var } else { 0.0 };
         let var = vars.get(at_point).map_or(0.0, |v| v[at_axis].max(0.0));
         let share = if stated_var > 0.0 { var / stated_var } else { 0.0 };
-        contributors.push(Contributor {
+        parts_out.push(Contributor {
             name,
             u_m_s2: var.sqrt(),
             share,
@@ -683,31 +478,37 @@ pub fn budget(
             covariance: cov,
         });
     }
-    budget.contributors = contributors;
+    budget.contributors = parts_out;
+    budget
+}
+
+/// What the budget leaves out, in words.
+fn not_included(refs: &References, lof_missing: Option<String>) -> Vec<String> {
+    let mut out = Vec::new();
     if refs.head_angle_rad == 0.0 {
-        budget.not_included.push(
+        out.push(
             "the head's angle setting errors as stated by its certificate (none given: they count only as far as the dwell scatter shows them)".into(),
         );
     }
     if refs.head_orthogonality_rad == 0.0 {
-        budget.not_included.push("the head's axis orthogonality (none given)".into());
+        out.push("the head's axis orthogonality (none given)".into());
     }
     if refs.temperature.is_none() {
-        budget.not_included.push(
+        out.push(
             "the temperature during calibration against the reference temperature (no temperature coefficient stated)".into(),
         );
     }
-    budget.not_included.push(match measured {
-        Ok(_) => {
+    out.push(match lof_missing {
+        None => {
             "terms of the output above the second degree in acceleration (model 4's lack of fit is measured \
-                  against the quadratic model)"
+                 against the quadratic model)"
                 .into()
         }
-        Err(why) => {
+        Some(why) => {
             format!("model 4's lack of fit beyond what the dwell scatter shows (not measured: {why})")
         }
     });
-    Ok(budget)
+    out
 }
 
 impl Budget {
