@@ -29,6 +29,7 @@ pub mod history;
 mod label;
 mod piece;
 mod schema_history;
+pub mod signer;
 mod types;
 
 use std::io::Read;
@@ -42,6 +43,7 @@ use engine::{Conn, Tx, Val};
 pub use error::DbError;
 pub use label::{Label, LabelClash, Relabel};
 use piece::{insert_row, Piece};
+pub use signer::{CertificateState, ReleaseError, Signer};
 pub use types::{LastFlash, Outcome, Phase, Progress, RunId, RunStart, RunSummary, Stored, StoredRecord};
 
 use accelcal_core::document::verify::VerifyReport;
