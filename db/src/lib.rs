@@ -884,7 +884,17 @@ fn summary(tx: &mut Tx<'_>, start: RunStart) -> Result<RunSummary, DbError> {
         Ok(_) => None,
         Err(m) => m.first().map(|m| format!("its rows do not match their hash chain: {m}")),
     };
+    let certificate_state = one(
+        tx,
+        "SELECT a.meaning FROM certificate c LEFT JOIN approval a ON a.run_id = c.run_id WHERE c.run_id = $1",
+    )?
+    .map(|r| match &r[0] {
+        Val::Null => Ok(signer::CertificateState::AwaitingApproval),
+        v => Ok::<_, DbError>(signer::CertificateState::of(Some(&v.text()?))),
+    })
+    .transpose()?;
     Ok(RunSummary {
+        certificate_state,
         tampered,
         start,
         campaign_sha256,

@@ -66,6 +66,25 @@ pub struct StoredDecision {
     pub signature: String,
 }
 
+impl StoredDecision {
+    /// The release a renderer is told for this decision.
+    pub fn release(&self) -> accelcal_core::certificate::Release {
+        use accelcal_core::certificate::Release;
+        let (name, function, date, fingerprint) = (
+            self.signer.name.clone(),
+            self.signer.function.clone(),
+            date_of(self.decision.unix_s),
+            self.signer.fingerprint.clone(),
+        );
+        match self.decision.meaning {
+            Meaning::Approved => Release::Approved { name, function, date, fingerprint },
+            Meaning::Rejected => {
+                Release::Rejected { name, function, date, fingerprint, reason: self.decision.reason.clone() }
+            }
+        }
+    }
+}
+
 /// Where a certificate stands.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
@@ -427,6 +446,17 @@ impl Db {
                     signature: signature.to_string(),
                 })
             })
+        })
+    }
+
+    /// The number of run `run`'s certificate, `None` when it has none (read only).
+    pub fn number_of_run(&mut self, run: RunId) -> Result<Option<String>, DbError> {
+        let id = run.to_string();
+        self.conn.reading(|tx| {
+            tx.query("SELECT number FROM certificate_number WHERE run_id = $1", &[id.clone().into()])?
+                .first()
+                .map(|r| r[0].text())
+                .transpose()
         })
     }
 
