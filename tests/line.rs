@@ -27,6 +27,7 @@ mod interrupt;
 #[path = "line/print.rs"]
 pub(crate) mod print;
 #[path = "line/station.rs"]
+mod release;
 mod station;
 #[path = "line/thermal.rs"]
 mod thermal;

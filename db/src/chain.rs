@@ -27,7 +27,7 @@ pub struct Table {
 }
 
 /// Every table of the calibration, as the chain sees it.
-pub const TABLES: [Table; 15] = [
+pub const TABLES: [Table; 18] = [
     Table {
         name: "run",
         columns: &[
@@ -99,13 +99,43 @@ pub const TABLES: [Table; 15] = [
         columns: &["run_id", "due_unix_s", "basis", "stored_unix_s", "content_sha256"],
     },
     Table { name: "chain_event", columns: &["event_id", "kind", "detail", "unix_s", "content_sha256"] },
+    Table {
+        name: "signer",
+        columns: &[
+            "fingerprint",
+            "name",
+            "function",
+            "public_key",
+            "operator",
+            "registered_unix_s",
+            "content_sha256",
+        ],
+    },
+    Table {
+        name: "signer_revocation",
+        columns: &["fingerprint", "reason", "operator", "revoked_unix_s", "content_sha256"],
+    },
+    Table {
+        name: "approval",
+        columns: &[
+            "run_id",
+            "number",
+            "document_sha256",
+            "meaning",
+            "reason",
+            "fingerprint",
+            "signature",
+            "signed_unix_s",
+            "content_sha256",
+        ],
+    },
 ];
 
 impl Table {
     /// Whether its rows belong to no run (a relabel, an asset): their ledger entries have
     /// `run_id` `''` and chain to the ledger's latest entry.
     pub fn is_global(&self) -> bool {
-        matches!(self.name, "relabel" | "asset" | "chain_event")
+        matches!(self.name, "relabel" | "asset" | "chain_event" | "signer" | "signer_revocation")
     }
 }
 
@@ -122,6 +152,9 @@ pub fn piece_key(table: &str, row: &[Val]) -> Result<String, DbError> {
         "asset" => format!("asset:{}:{}", row[0].text()?, row[1].text()?),
         "chain_event" => format!("chain_event:{}", row[0].text()?),
         "run_asset" => format!("run_asset:{}", row[1].text()?),
+        "signer" => format!("signer:{}", row[0].text()?),
+        "signer_revocation" => format!("signer_revocation:{}", row[0].text()?),
+        "approval" => format!("approval:{}", row[1].text()?),
         t => t.to_string(),
     })
 }
@@ -323,6 +356,7 @@ fn rows_of(tx: &mut Tx<'_>, table: &Table, run: &str) -> Result<Vec<Vec<Val>>, D
     let order = match table.name {
         "verification" => " ORDER BY phase DESC",
         "run_asset" => " ORDER BY kind",
+        "approval" => " ORDER BY number",
         _ => "",
     };
     tx.query(
@@ -626,6 +660,19 @@ fn content_mismatch(t: &Table, row: &[Val]) -> Result<Option<String>, DbError> {
                 .into_bytes()
         }
         "chain_event" => event_content(&col("kind").text()?, &col("detail").text()?).into_bytes(),
+        "signer" => super::signer::signer_content(
+            &col("name").text()?,
+            &col("function").text()?,
+            &col("public_key").text()?,
+        )
+        .into_bytes(),
+        "signer_revocation" => col("reason").text()?.into_bytes(),
+        "approval" => super::signer::approval_content(
+            &super::signer::decision_of_row(row)?,
+            &col("fingerprint").text()?,
+            &col("signature").text()?,
+        )?
+        .into_bytes(),
         other => unreachable!("table {other} is in TABLES"),
     };
     Ok((super::sha256_hex(&content) != stored)
@@ -702,6 +749,14 @@ pub fn verify_run(tx: &mut Tx<'_>, run: &str) -> Result<Result<RunSeal, Vec<Mism
         .collect::<Result<_, _>>()?;
     for id in used {
         out.extend(verify_asset(tx, &id)?);
+    }
+    let signers: Vec<String> = tx
+        .query("SELECT DISTINCT fingerprint FROM approval WHERE run_id = $1", &[run.to_string().into()])?
+        .iter()
+        .map(|r| r[0].text())
+        .collect::<Result<_, _>>()?;
+    for fp in signers {
+        out.extend(verify_signer(tx, &fp)?);
     }
     first_first(&mut out);
     Ok(match (out.is_empty(), last) {
@@ -811,15 +866,43 @@ pub(crate) fn verify_selected(
 /// each row's digest and content, each entry's chain value and link, and no entry whose row
 /// is gone. Empty when they match.
 pub fn verify_asset(tx: &mut Tx<'_>, id: &str) -> Result<Vec<Mismatch>, DbError> {
-    let t = table("asset");
-    let prefix = format!("asset:{id}:");
+    verify_global(tx, &[(table("asset"), "asset_id")], id, &format!("asset:{id}:"))
+}
+
+/// Checks signer `fingerprint`'s register rows (the key and its revocation, when it has one)
+/// against their ledger entries, as [`verify_asset`] does an asset's. Empty when they match.
+pub fn verify_signer(tx: &mut Tx<'_>, fingerprint: &str) -> Result<Vec<Mismatch>, DbError> {
+    let mut out = verify_global(
+        tx,
+        &[(table("signer"), "fingerprint")],
+        fingerprint,
+        &format!("signer:{fingerprint}"),
+    )?;
+    out.extend(verify_global(
+        tx,
+        &[(table("signer_revocation"), "fingerprint")],
+        fingerprint,
+        &format!("signer_revocation:{fingerprint}"),
+    )?);
+    first_first(&mut out);
+    Ok(out)
+}
+
+/// Checks the global rows of `tables` whose key column equals `id` against their ledger
+/// entries (those whose piece begins with `prefix`).
+fn verify_global(
+    tx: &mut Tx<'_>,
+    tables: &[(&Table, &str)],
+    id: &str,
+    prefix: &str,
+) -> Result<Vec<Mismatch>, DbError> {
     let cols = "seq, run_id, piece, row_sha256, prev_seq, prev_sha256, chain_sha256";
     let list: Vec<Entry> = tx
         .query(
             &format!(
                 "SELECT {cols} FROM ledger WHERE run_id = '' AND substr(piece, 1, length($1)) = $1 ORDER BY seq"
             ),
-            &[prefix.clone().into()],
+            &[prefix.to_string().into()],
         )?
         .iter()
         .map(|r| entry(r))
@@ -831,13 +914,20 @@ pub fn verify_asset(tx: &mut Tx<'_>, id: &str) -> Result<Vec<Mismatch>, DbError>
     }
     let by_piece: std::collections::HashMap<String, Entry> =
         list.into_iter().map(|e| (e.piece.clone(), e)).collect();
-    let rows = tx.query(
-        &format!("SELECT {} FROM asset WHERE asset_id = $1 ORDER BY certificate", t.columns.join(", ")),
-        &[id.to_string().into()],
-    )?;
     let mut seen = std::collections::HashSet::new();
-    for row in rows {
-        check_row(t, &row, "", &by_piece, &mut seen, &mut out)?;
+    for (t, key) in tables {
+        let rows = tx.query(
+            &format!(
+                "SELECT {} FROM {} WHERE {key} = $1 ORDER BY {}",
+                t.columns.join(", "),
+                t.name,
+                t.columns[1]
+            ),
+            &[id.to_string().into()],
+        )?;
+        for row in rows {
+            check_row(t, &row, "", &by_piece, &mut seen, &mut out)?;
+        }
     }
     gone("", &by_piece, &seen, &mut out);
     first_first(&mut out);

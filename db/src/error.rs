@@ -127,6 +127,9 @@ pub enum DbError {
     /// A registered asset the command cannot use, or an asset the register refuses.
     #[error(transparent)]
     Asset(super::AssetError),
+    /// A signer or a decision the register refuses.
+    #[error(transparent)]
+    Release(super::signer::ReleaseError),
     /// A cell holds another type than its column's (SQLite), named.
     #[error("database {target}: a cell does not read as its column's type: {first}{} (`db verify` lists them)", if *more > 0 { format!(", and {more} more") } else { String::new() })]
     BadCell {
@@ -213,6 +216,7 @@ impl Classify for DbError {
             | DbError::Label(_)
             | DbError::Ambiguous { .. } => Kind::BadInput,
             DbError::Asset(e) => e.kind(),
+            DbError::Release(e) => e.kind(),
             DbError::Raced { .. } => Kind::Environment,
             DbError::Unreachable { .. }
             | DbError::Migration { .. }

@@ -212,6 +212,9 @@ pub struct FleetRun {
     /// when they do not: such a run is listed as tampered, and charted nowhere.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub tampered: Option<String>,
+    /// Where its stored certificate stands (`awaiting_approval`, `approved`, `rejected`; null:
+    /// no certificate stored).
+    pub certificate_state: Option<super::signer::CertificateState>,
 }
 
 impl FleetRun {
@@ -339,8 +342,11 @@ impl Db {
                 &format!(
                     "SELECT r.run_id, r.device_id, r.serial, r.station, ra.asset_id, r.operator, r.started_unix_s, \
                      e.ended_unix_s, {STATE}, COALESCE(v.reason, e.reason), af.decision, al.decision, fs.model4_json, \
-                     fs.u_json, r.g_m_s2, al.max_abs_error_m_s2 FROM run r LEFT JOIN run_end e ON e.run_id = r.run_id \
+                     fs.u_json, r.g_m_s2, al.max_abs_error_m_s2, \
+                     CASE WHEN EXISTS (SELECT 1 FROM certificate c WHERE c.run_id = r.run_id) THEN 1 ELSE 0 END, \
+                     ap.meaning FROM run r LEFT JOIN run_end e ON e.run_id = r.run_id \
                      LEFT JOIN void v ON v.run_id = r.run_id \
+                     LEFT JOIN approval ap ON ap.run_id = r.run_id \
                      LEFT JOIN run_asset ra ON ra.run_id = r.run_id AND ra.kind = 'head' \
                      LEFT JOIN verification_summary af ON af.run_id = r.run_id AND af.phase = 'as_found' \
                      LEFT JOIN verification_summary al ON al.run_id = r.run_id AND al.phase = 'as_left' \
@@ -372,6 +378,10 @@ impl Db {
                     v => Some(v.real()?),
                 },
                 tampered: None,
+                certificate_state: match r[16].int()? {
+                    0 => None,
+                    _ => Some(super::signer::CertificateState::of(r[17].opt_text()?.as_deref())),
+                },
             })
         })?;
         for r in &mut runs {

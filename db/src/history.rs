@@ -116,6 +116,10 @@ pub struct RunLine {
     /// run is listed, never used.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub tampered: Option<String>,
+    /// Where its stored certificate stands (`awaiting_approval`, `approved`, `rejected`);
+    /// absent when it has none.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub certificate_state: Option<super::signer::CertificateState>,
 }
 
 /// One coefficient's change between two calibrations.
@@ -368,6 +372,7 @@ pub fn history(runs: &[RunSummary], rule: RecalRule) -> History {
             voided: r.voided.as_ref().map(|v| v.0.clone()),
             voided_unix_s: r.voided.as_ref().map(|v| v.1),
             tampered: r.tampered.clone(),
+            certificate_state: r.certificate_state,
         });
     }
     let mut serials: Vec<String> = Vec::new();

@@ -29,6 +29,7 @@ pub mod fleet;
 pub mod history;
 mod label;
 mod piece;
+pub mod signer;
 mod types;
 mod val;
 
@@ -43,6 +44,7 @@ use engine::{Conn, Tx, Val};
 pub use error::DbError;
 pub use label::{Label, LabelClash, Relabel};
 use piece::{insert_row, Piece};
+pub use signer::{CertificateState, ReleaseError, Signer};
 pub use types::{LastFlash, Outcome, Phase, Progress, RunId, RunStart, RunSummary, Stored, StoredRecord};
 
 use accelcal_core::document::verify::VerifyReport;
@@ -883,7 +885,17 @@ fn summary(tx: &mut Tx<'_>, start: RunStart) -> Result<RunSummary, DbError> {
         Ok(_) => None,
         Err(m) => m.first().map(|m| format!("its rows do not match their hash chain: {m}")),
     };
+    let certificate_state = one(
+        tx,
+        "SELECT a.meaning FROM certificate c LEFT JOIN approval a ON a.run_id = c.run_id WHERE c.run_id = $1",
+    )?
+    .map(|r| match &r[0] {
+        Val::Null => Ok(signer::CertificateState::AwaitingApproval),
+        v => Ok::<_, DbError>(signer::CertificateState::of(Some(&v.text()?))),
+    })
+    .transpose()?;
     Ok(RunSummary {
+        certificate_state,
         tampered,
         start,
         campaign_sha256,

@@ -195,6 +195,8 @@ pub struct RunSummary {
     /// `Some`: the run's rows (or the assets it used) do not match their hash chain, the first
     /// mismatch in words. Such a run is listed and never used.
     pub tampered: Option<String>,
+    /// Where its stored certificate stands (`None`: no certificate stored).
+    pub certificate_state: Option<super::signer::CertificateState>,
 }
 
 /// The latest flash into a device ([`Db::last_flash`]).

@@ -57,6 +57,8 @@ registry!(
     accelcal_db::DbError,
     accelcal_db::LabelClash,
     accelcal_db::AssetError,
+    accelcal_db::ReleaseError,
+    accelcal_core::certificate::approval::SigningError,
     accelcal_db::anchor::AnchorLogError,
     accelcal_core::certificate::DocumentError,
     accelcal_core::gmdh::GmdhError,
@@ -151,6 +153,7 @@ mod tests {
     fn every_variant() -> Vec<(anyhow::Error, Kind)> {
         use accelcal_core::campaign::identity::IdentityError;
         use accelcal_core::campaign::CampaignError;
+        use accelcal_core::certificate::approval::SigningError;
         use accelcal_core::diagnose::DiagnoseError;
         use accelcal_core::gmdh::GmdhError;
         use accelcal_core::gravity::fit::FitError;
@@ -159,7 +162,7 @@ mod tests {
         use accelcal_core::gravity::GravityError;
         use accelcal_core::lsq::LsqError;
         use accelcal_core::sim::unit::UnitError;
-        use accelcal_db::DbError;
+        use accelcal_db::{DbError, ReleaseError};
         use accelcal_line::emulate::frontend::FrontendError;
         use accelcal_line::emulate::head::HeadServerError;
         use accelcal_line::head::HeadError;
@@ -325,7 +328,7 @@ mod tests {
             (
                 e(DbError::NeedsMigration {
                     target: "cal.sqlite".into(),
-                    why: "it is at schema version 7, this build reads version 8".into(),
+                    why: "it is at schema version 7, this build reads version 9".into(),
                 }),
                 Environment,
             ),
@@ -347,6 +350,33 @@ mod tests {
                 Environment,
             ),
             (e(accelcal_db::AssetError::Bad { asset_id: "h".into(), why: "m".into() }), BadInput),
+            (e(DbError::Release(ReleaseError::UnknownKey { fingerprint: "f".into() })), BadInput),
+            (
+                e(ReleaseError::Revoked { name: "n".into(), fingerprint: "f".into(), reason: "r".into() }),
+                BadInput,
+            ),
+            (e(ReleaseError::SelfApproval { name: "n".into(), run_id: "r".into() }), BadInput),
+            (
+                e(ReleaseError::Decided {
+                    number: "2026-000001".into(),
+                    meaning: "rejected".into(),
+                    name: "n".into(),
+                    date: "2026-01-01".into(),
+                }),
+                BadInput,
+            ),
+            (e(ReleaseError::NoCertificate { number: "n".into(), target: "t".into() }), BadInput),
+            (e(ReleaseError::Voided { number: "n".into(), run_id: "r".into() }), BadInput),
+            (e(ReleaseError::NameInForce { name: "n".into(), fingerprint: "f".into() }), BadInput),
+            (e(ReleaseError::KeyRegistered { fingerprint: "f".into(), name: "n".into() }), BadInput),
+            (e(ReleaseError::NoSigner { name: "n".into(), target: "t".into() }), BadInput),
+            (e(ReleaseError::Signing(SigningError::Invalid)), BadInput),
+            (e(SigningError::WrongPassphrase), BadInput),
+            (e(SigningError::Encrypt { cause: "m".into() }), Environment),
+            (e(SigningError::Random { cause: "m".into() }), Environment),
+            (e(SigningError::BadPublicKey { why: "m".into() }), BadInput),
+            (e(SigningError::BadSignature { why: "m".into() }), BadInput),
+            (e(SigningError::NotOneLine { field: "reason" }), BadInput),
             (e(GmdhError::EmptyPart('A', 3)), BadInput),
             (e(GmdhError::NoTemperature), BadInput),
             (e(GmdhError::NothingIdentifiable), BadInput),

@@ -29,6 +29,7 @@ pub mod campaign;
 pub mod gravity;
 pub mod line;
 pub mod reader;
+pub mod release;
 pub mod settled;
 pub mod station;
 mod station_config;
@@ -454,6 +455,9 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
         | Command::Affected(_)
         | Command::Serve(_)
         | Command::ServeUser(_)
+        | Command::Signer(_)
+        | Command::Approve(_)
+        | Command::Reject(_)
         | Command::BenchFleet(_)
         | Command::Plan(_) => Ok(()),
     }

@@ -369,23 +369,31 @@ fn an_as_found_drift_is_decided_against_the_specification() {
             html.contains("<b>Example Calibration Laboratory</b><br>1 Sample Street, Neuchâtel"),
             "{html}"
         );
-        assert!(
-            html.contains("<th class=\"l\">Authorised by</th><td class=\"l\">A. Reviewer</td>"),
-            "{html}"
-        );
+        // With a database the certificate awaits approval: `authorised_by` is not printed.
+        assert!(html.contains("<p class=\"draft\">DRAFT — awaiting approval</p>"), "{html}");
+        assert!(!html.contains("A. Reviewer"), "{html}");
         super::printed_certificate(
             &cert,
             &dir.path().join("first.pdf"),
             "accelerometer triad A-1",
             &["Example Customer AG", "Results: expanded uncertainty U"],
         );
-        // The station's own PDF beside the page: the same content, authorised as stated.
-        let pages = super::certificate_pdf(
+        // The station's own PDF beside the page: the same content, a draft on every page until a
+        // signer approves it (issue 57).
+        super::certificate_pdf(
             &first.join("certificate.pdf"),
             "accelerometer triad A-1",
-            &["Example Customer AG", "Results: expanded uncertainty U", "A. Reviewer"],
+            &["Example Customer AG", "Results: expanded uncertainty U"],
         );
-        assert!(pages.iter().all(|p| !p.contains("DRAFT")), "{pages:?}");
+        let title = "<h1>Calibration certificate No. ";
+        let at = html.find(title).expect("a numbered certificate") + title.len();
+        let number = &html[at..at + html[at..].find('<').unwrap()];
+        super::release::approve_a_station_certificate(
+            first.parent().unwrap(),
+            &first,
+            number,
+            "accelerometer triad A-1",
+        );
     }
     let record = first.join("record.rec");
     // Inside T; beyond T; inside T but beyond the bias limit (every position accepted, the

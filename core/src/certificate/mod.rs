@@ -13,6 +13,7 @@
 //! chains. Whether the document is approved is not part of it: a renderer is told the release
 //! ([`Release`]) and marks a draft on every page.
 
+pub mod approval;
 mod build;
 pub mod round;
 
@@ -278,7 +279,21 @@ pub enum Release {
         /// The signing key's fingerprint.
         fingerprint: String,
     },
-    /// Authorised as the settings state it (no signature): the page says who, as it always did.
+    /// Rejected by a signer: every page says "REJECTED — not released: REASON".
+    Rejected {
+        /// The signer's name.
+        name: String,
+        /// Their function.
+        function: String,
+        /// The date of the rejection, `YYYY-MM-DD`.
+        date: String,
+        /// The signing key's fingerprint.
+        fingerprint: String,
+        /// Why.
+        reason: String,
+    },
+    /// Authorised as the settings state it (no signature, no database: `report
+    /// --authorised-by`): the page says who, as it always did.
     Stated {
         /// The name the settings give.
         name: String,
@@ -289,10 +304,14 @@ impl Release {
     /// The mark every page of a draft carries.
     pub const DRAFT_MARK: &'static str = "DRAFT — awaiting approval";
 
+    /// The beginning of the mark every page of a rejected certificate carries.
+    pub const REJECTED_MARK: &'static str = "REJECTED — not released";
+
     /// The mark on every page, when there is one.
-    pub fn mark(&self) -> Option<&'static str> {
+    pub fn mark(&self) -> Option<String> {
         match self {
-            Release::Draft => Some(Release::DRAFT_MARK),
+            Release::Draft => Some(Release::DRAFT_MARK.into()),
+            Release::Rejected { reason, .. } => Some(format!("{}: {reason}", Release::REJECTED_MARK)),
             _ => None,
         }
     }
@@ -303,6 +322,9 @@ impl Release {
             Release::Draft => "not yet approved: a draft, not a certificate of calibration".into(),
             Release::Approved { name, function, date, fingerprint } => {
                 format!("{name}, {function}; approved for issue on {date} (signing key {fingerprint})")
+            }
+            Release::Rejected { name, function, date, fingerprint, .. } => {
+                format!("not released: rejected by {name}, {function}, on {date} (signing key {fingerprint})")
             }
             Release::Stated { name } => name.clone(),
         }

@@ -357,3 +357,99 @@ pub struct CertificateArgs {
     #[command(flatten)]
     pub reader: ReaderDb,
 }
+
+/// `accelcal signer …`: the people who may release certificates.
+#[derive(Debug, Subcommand)]
+pub enum SignerCommand {
+    /// Create a signer's Ed25519 signing key and register its public half: the key is written
+    /// to --key FILE as an encrypted PKCS#8 file (PEM; PBES2: scrypt, AES-256-CBC) under a
+    /// passphrase asked on the terminal twice without echo, or the first line of
+    /// --passphrase-file; a FILE that exists is refused (nothing is overwritten). The public key,
+    /// its fingerprint (the first 16 hex digits of the SHA-256 of its 32 bytes), the name and the
+    /// function are registered in the database's hash chain. A name has one key in force.
+    Add(SignerAddArgs),
+    /// Revoke a signer's key in force: an appended, chained row with the reason; the key
+    /// approves and rejects nothing after. Decisions it signed before stay valid.
+    Revoke(SignerRevokeArgs),
+    /// List the registered signers: name, function, key fingerprint, registered and revoked
+    /// (UTC dates).
+    List(SignerListArgs),
+}
+
+/// `accelcal signer add`.
+#[derive(Debug, Args)]
+pub struct SignerAddArgs {
+    /// The signer's name, as certificates print it ("Dr. A. Reviewer"; one line).
+    pub name: String,
+    /// Their function, as certificates print it ("Head of laboratory"; one line).
+    #[arg(long, value_name = "TEXT")]
+    pub function: String,
+    /// The key file to create (refused when it exists); keep it where only the signer reads it.
+    #[arg(long, value_name = "FILE")]
+    pub key: PathBuf,
+    /// Read the passphrase from the first line of this file instead of the terminal (for
+    /// scripts).
+    #[arg(long, value_name = "FILE")]
+    pub passphrase_file: Option<PathBuf>,
+    #[command(flatten)]
+    pub reader: ReaderDb,
+    /// Who registers it [default: the account running the command].
+    #[arg(long, value_name = "NAME")]
+    pub operator: Option<String>,
+}
+
+/// `accelcal signer revoke`.
+#[derive(Debug, Args)]
+pub struct SignerRevokeArgs {
+    /// The signer whose key in force is revoked.
+    pub name: String,
+    /// Why (one line, stored with the revocation).
+    #[arg(long, value_name = "TEXT")]
+    pub reason: String,
+    #[command(flatten)]
+    pub reader: ReaderDb,
+    /// Who revokes it [default: the account running the command].
+    #[arg(long, value_name = "NAME")]
+    pub operator: Option<String>,
+}
+
+/// `accelcal signer list`.
+#[derive(Debug, Args)]
+pub struct SignerListArgs {
+    #[command(flatten)]
+    pub reader: ReaderDb,
+    /// Print the signers as JSON instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `accelcal approve` and `accelcal reject`: one signed decision on a stored certificate.
+#[derive(Debug, Args)]
+pub struct DecideArgs {
+    /// The certificate: its number (YYYY-NNNNNN, as printed on it and as `station` prints it).
+    #[arg(value_name = "NUMBER")]
+    pub number: String,
+    /// The signer's key file (from `signer add`).
+    #[arg(long, value_name = "FILE")]
+    pub key: PathBuf,
+    /// Read the key's passphrase from the first line of this file instead of the terminal (for
+    /// scripts).
+    #[arg(long, value_name = "FILE")]
+    pub passphrase_file: Option<PathBuf>,
+    /// The line's settings file (station.toml): its key `allow_self_approval = true` lets the
+    /// operator of a run approve its certificate [default: refused].
+    #[arg(long, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+    #[command(flatten)]
+    pub reader: ReaderDb,
+}
+
+/// `accelcal reject`.
+#[derive(Debug, Args)]
+pub struct RejectArgs {
+    #[command(flatten)]
+    pub decide: DecideArgs,
+    /// Why the certificate is not released (one line, signed and stored with the decision).
+    #[arg(long, value_name = "TEXT")]
+    pub reason: String,
+}

@@ -128,8 +128,26 @@ pub enum Command {
     /// checks are not calibrations: they are left out of the counts).
     #[command(after_long_help = accelcal_db::fleet::METHOD)]
     Fleet(FleetArgs),
-    /// Print a stored certificate again, from the calibration database, as it was issued.
+    /// Print a stored certificate again, from the calibration database, as it was issued, with
+    /// its release as the database holds it (a draft until approved; approved: the authoriser's
+    /// name, function, date and key fingerprint; rejected: marked on every page).
     Certificate(CertificateArgs),
+    /// The people who may release certificates: `signer add NAME --function TEXT --key FILE`
+    /// creates a personal signing key (Ed25519, in a passphrase-encrypted file) and registers
+    /// its public half; `signer revoke`, `signer list`.
+    #[command(subcommand)]
+    Signer(SignerCommand),
+    /// Approve a stored certificate for issue with a signer's key: the key file is decrypted
+    /// with its passphrase, the key must be registered and not revoked, and it signs the
+    /// certificate document's SHA-256, its number, the meaning "approved for issue" and the
+    /// time (Unix seconds); the signature is stored in the hash chain after the run's chain is
+    /// checked. One decision per certificate; the run's operator may not approve it unless the
+    /// settings file allows self-approval. Refused: nothing is stored.
+    Approve(DecideArgs),
+    /// Reject a stored certificate with a signer's key and a reason: signed and stored as
+    /// `approve` is, with the meaning "rejected"; the unit is not released and every printed
+    /// page is marked REJECTED.
+    Reject(RejectArgs),
     /// A read-only web view of the calibration database for the line: the overview (today's
     /// units, yield, stations, assets and units due), each unit's page (runs, as found and as
     /// left, drift, stored certificates), the control charts and the heads' signatures, and the

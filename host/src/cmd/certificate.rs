@@ -1,12 +1,14 @@
 //! `accelcal certificate NUMBER|RUN_ID`: a stored certificate printed again, from the database
-//! that holds it (opened to read). The HTML page is the page as issued; the PDF is rendered from
-//! the document that page carries. Both are handed out only after the run's rows (and the
+//! that holds it (opened to read), with its release as the database holds it (a draft, or the
+//! signed decision: [`accelcal_db::signer`]). The HTML page and the PDF are rendered from the
+//! document the stored page carries (a page from before documents is printed as stored). Both are handed out only after the run's rows (and the
 //! assets it used) match their hash chain.
 
-use accelcal_core::certificate::Release;
+use accelcal_core::certificate::{Certificate as Document, Release};
 use accelcal_core::error::bad;
 use accelcal_core::output::write_atomic;
 use accelcal_db::Db;
+use accelcal_db::RunId;
 
 use super::store::reader_spec;
 use crate::settings::reader::{Certificate, Which};
@@ -24,6 +26,15 @@ pub fn run(a: &Certificate) -> anyhow::Result<()> {
         return Err(bad(format!("run {run} has no certificate in {}", db.target())));
     };
     if let Some(out) = &a.out {
+        // The page as stored while it awaits approval; once decided, the document it carries
+        // rendered with the decision.
+        let html = match crate::report::certificate::document_of(&html) {
+            Some(Ok(doc)) => match release(&mut db, run, &doc)? {
+                Release::Draft => html.clone(),
+                r => crate::report::certificate::html(&doc, &r)?,
+            },
+            _ => html.clone(),
+        };
         write_atomic(out, html.as_bytes())?;
         outln!("certificate: run {run}'s certificate, as issued, written to {}", out.display())?;
     }
@@ -37,33 +48,24 @@ pub fn run(a: &Certificate) -> anyhow::Result<()> {
                 )))
             }
         };
-        let release = stored_release(&html);
+        let release = release(&mut db, run, &doc)?;
         write_atomic(pdf, &crate::report::pdf::pdf(&doc, &release)?)?;
         outln!("certificate: run {run}'s certificate as a PDF written to {}", pdf.display())?;
     }
     Ok(())
 }
 
-/// The release the stored page states: the name on its "Authorised by" line as it was issued
-/// (`report --authorised-by`), else a draft.
-fn stored_release(html: &str) -> Release {
-    const ROW: &str = "<th class=\"l\">Authorised by</th><td class=\"l\">";
-    let Some(at) = html.find(ROW) else { return Release::Draft };
-    let rest = &html[at + ROW.len()..];
-    let text = rest[..rest.find("</td>").unwrap_or(0)].to_string();
-    if html.contains("<p class=\"draft\">") || text.is_empty() {
-        return Release::Draft;
+/// The certificate's release as the database holds it: its signed decision, else a draft. A
+/// decision that signed another document than the one stored is refused.
+fn release(db: &mut Db, run: RunId, doc: &Document) -> anyhow::Result<Release> {
+    let Some(number) = db.number_of_run(run)? else { return Ok(Release::Draft) };
+    let Some(d) = db.decision(&number)? else { return Ok(Release::Draft) };
+    if d.decision.document_sha256 != doc.sha256() {
+        return Err(bad(format!(
+            "certificate {number}: its decision signed document {}, and the stored page carries {}: not printed",
+            d.decision.document_sha256,
+            doc.sha256()
+        )));
     }
-    Release::Stated { name: unescape(&text) }
-}
-
-/// HTML text back to the text it escapes (askama's five entities, and the escaper's `\u{…}`
-/// left as it is).
-fn unescape(s: &str) -> String {
-    s.replace("&lt;", "<")
-        .replace("&gt;", ">")
-        .replace("&quot;", "\"")
-        .replace("&#x27;", "'")
-        .replace("&#39;", "'")
-        .replace("&amp;", "&")
+    Ok(d.release())
 }

@@ -98,6 +98,9 @@ fn print(h: &History, target: &str) -> anyhow::Result<()> {
         } else if let Some(why) = &r.not_a_calibration {
             outln!("     not a calibration: {why}")?;
         }
+        if let (Some(state), None) = (r.certificate_state, &r.tampered) {
+            outln!("     certificate: {}", state.words())?;
+        }
         if matches!(r.outcome, Some(Outcome::Rejected)) {
             outln!("     rejected: {}", r.reason)?;
         }

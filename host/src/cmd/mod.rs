@@ -1,5 +1,6 @@
 //! One module per subcommand; [`run`] dispatches.
 
+pub mod approve;
 pub mod asset;
 pub mod bench_diagnose;
 pub mod certificate;
@@ -20,6 +21,7 @@ pub mod plan;
 pub mod record;
 pub mod report;
 pub mod select;
+pub mod signer;
 pub mod simulate;
 pub mod spec;
 pub mod station;
@@ -48,6 +50,8 @@ pub fn run(
         Settings::Affected(s) => asset::run_affected(&s),
         Settings::Serve(s) => crate::serve::run(&s),
         Settings::ServeUserAdd(s) => crate::serve::auth::run_add(&s),
+        Settings::Signer(s) => signer::run(&s),
+        Settings::Decide(s) => approve::run(&s),
         Settings::BenchFleet(s) => fleet_bench::run(&s),
         Settings::Demo(s) => demo::run(&s),
         Settings::Compare(s) => compare::run(&s, &campaign_g(stated, &s.campaign.path, warnings)?, warnings),
@@ -153,4 +157,35 @@ pub fn created(given: Option<u64>) -> u64 {
     given.unwrap_or_else(|| {
         std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0)
     })
+}
+
+/// A key file's passphrase: the first line of `file`, else asked on the terminal without echo
+/// (`twice`: asked again, for a new key). `what` names the key in the prompt.
+pub fn passphrase(file: Option<&std::path::Path>, what: &str, twice: bool) -> anyhow::Result<String> {
+    use accelcal_core::error::{bad, environment};
+    if let Some(f) = file {
+        let text = std::fs::read_to_string(f)
+            .map_err(|e| environment(format!("reading the passphrase file {}", f.display()), e))?;
+        let first = text.lines().next().unwrap_or("");
+        if first.is_empty() {
+            return Err(bad(format!("the passphrase file {}: its first line is empty", f.display())));
+        }
+        return Ok(first.to_string());
+    }
+    let ask = |prompt: &str| {
+        rpassword::prompt_password(prompt).map_err(|e| {
+            environment(
+                format!("reading the passphrase of {what} from the terminal (or give --passphrase-file)"),
+                e,
+            )
+        })
+    };
+    let p = ask(&format!("passphrase for {what}: "))?;
+    if p.is_empty() {
+        return Err(bad("the passphrase is empty"));
+    }
+    if twice && ask("the same again: ")? != p {
+        return Err(bad("the two passphrases differ"));
+    }
+    Ok(p)
 }

@@ -278,9 +278,11 @@ pub fn run(a: &Report) -> anyhow::Result<()> {
         anchor: anchor.as_deref(),
         software: env!("CARGO_PKG_VERSION"),
     });
-    let release = match &a.issuer.authorised_by {
-        Some(name) => Release::Stated { name: name.clone() },
-        None => Release::Draft,
+    // With a database the certificate awaits approval (`accelcal approve`): a draft until a
+    // signer approves it. Without one, the name the settings state.
+    let release = match (&a.issuer.authorised_by, number.is_some()) {
+        (Some(name), false) => Release::Stated { name: name.clone() },
+        _ => Release::Draft,
     };
     let h = crate::report::certificate::html(&doc, &release)?;
     write_atomic(&a.out, h.as_bytes())?;

@@ -34,7 +34,7 @@ struct Page<'a> {
     doc: &'a Certificate,
     sections: Vec<SectionView<'a>>,
     authorised_by: String,
-    mark: Option<&'static str>,
+    mark: Option<String>,
     mark_css: Option<String>,
     footer_css: String,
     json: String,
@@ -70,8 +70,8 @@ pub fn html(doc: &Certificate, release: &Release) -> anyhow::Result<String> {
         doc,
         sections,
         authorised_by: release.authorised_by(),
+        mark_css: mark.as_deref().map(css_text),
         mark,
-        mark_css: mark.map(css_text),
         footer_css: css_text(&doc.footer),
         json: script_json(doc),
     };

@@ -504,14 +504,17 @@ pub fn pdf(doc: &Certificate, release: &Release) -> anyhow::Result<Vec<u8>> {
         });
         ops.push(Op::Text { x: RIGHT - pw, y, size: SMALL, face: Face::Regular, color: GREY, text: page });
         if let Some(mark) = release.mark() {
-            let mw = fonts.width(mark, Face::Bold, 10.0);
+            // A long rejection reason is set smaller, never past the margins.
+            let full = fonts.width(&mark, Face::Bold, 10.0);
+            let size = if full > RIGHT - LEFT { 10.0 * (RIGHT - LEFT) / full } else { 10.0 };
+            let mw = fonts.width(&mark, Face::Bold, size);
             ops.push(Op::Text {
                 x: (PAGE_W - mw) / 2.0,
                 y: 20.0,
-                size: 10.0,
+                size,
                 face: Face::Bold,
                 color: RED,
-                text: mark.into(),
+                text: mark,
             });
         }
     }

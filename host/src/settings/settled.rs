@@ -1,6 +1,6 @@
 //! The settled command line ([`Settings`]) that `main` hands to the commands.
 
-use super::{asset, campaign, line, reader, station};
+use super::{asset, campaign, line, reader, release, station};
 use crate::cli::Command;
 use crate::resolved::Resolved;
 
@@ -27,6 +27,10 @@ pub enum Settings {
     Serve(reader::Serve),
     /// `accelcal serve-user add`.
     ServeUserAdd(reader::AddUser),
+    /// `accelcal signer add|revoke|list`.
+    Signer(release::Signer),
+    /// `accelcal approve` and `accelcal reject`.
+    Decide(release::Decide),
     /// `accelcal bench-fleet`.
     BenchFleet(reader::BenchFleet),
     /// `accelcal demo`.
@@ -86,6 +90,9 @@ pub fn settle(command: Command, resolved: &Resolved) -> anyhow::Result<Settings>
         Command::Asset(c) => Settings::Asset(asset::asset(&c)?),
         Command::Affected(a) => Settings::Affected(asset::affected(&a)?),
         Command::Serve(a) => Settings::Serve(reader::serve(&a)?),
+        Command::Signer(c) => Settings::Signer(release::signer(&c)?),
+        Command::Approve(a) => Settings::Decide(release::approve(&a)?),
+        Command::Reject(a) => Settings::Decide(release::reject(&a)?),
         Command::ServeUser(crate::cli::ServeUserCommand::Add(a)) => {
             Settings::ServeUserAdd(reader::add_user(&a)?)
         }

@@ -62,6 +62,9 @@ struct StationConfig {
     baud: Option<Spanned<u32>>,
     timeout_s: Option<Spanned<f64>>,
     chip: Option<Spanned<String>>,
+    /// `approve --config`'s: whether a run's operator may approve its certificate. The station
+    /// does not read it.
+    allow_self_approval: Option<Spanned<bool>>,
 }
 
 /// `[laboratory]`.
@@ -79,6 +82,16 @@ struct Node {
     port: String,
     gdb: Option<String>,
     probe: Option<String>,
+}
+
+/// `approve --config FILE`: the line's settings file, read and checked whole as the station
+/// reads it, for its key `allow_self_approval` (false when absent).
+pub fn allow_self_approval(path: &Path) -> anyhow::Result<bool> {
+    let name = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|e| bad(format!("{name}: cannot read: {e}")))?;
+    let c: StationConfig =
+        toml::from_str(&text).map_err(|e| crate::cmd::spec::toml_error(&name, &text, &e))?;
+    Ok(c.allow_self_approval.map(Spanned::into_inner).unwrap_or(false))
 }
 
 /// Reads `station --config` and puts each of its keys into the options that were not given on

@@ -1,0 +1,113 @@
+//! Issue 57 item 3: a station's certificate awaits approval; a registered signer approves it
+//! with their key (`signer add`, `approve`), and what is refused stores nothing.
+
+use std::path::Path;
+
+use super::*;
+
+/// The ledger's row count (every stored row has one entry): what a refused decision leaves.
+fn ledger_rows(db: &Path) -> i64 {
+    let c = rusqlite::Connection::open(db).unwrap();
+    c.query_row("SELECT COUNT(*) FROM ledger", [], |r| r.get(0)).unwrap()
+}
+
+/// Runs accelcal; its exit code and stderr.
+fn refused(args: &[&str]) -> (Option<i32>, String) {
+    let out = common::accelcal(args);
+    (out.status.code(), String::from_utf8_lossy(&out.stderr).into_owned())
+}
+
+/// The flow on the database of a station run (`dir` holds `calibration.sqlite` and the unit's
+/// `certificate.pdf`), whose certificate is `number`: the
+/// draft's every page is marked; a wrong passphrase, the operator approving their own run and
+/// a revoked key are refused with nothing stored; a signer approves; a second decision is
+/// refused; the approved certificate's PDF names the signer, their function and key
+/// fingerprint and carries no DRAFT mark.
+pub fn approve_a_station_certificate(dir: &Path, unit: &Path, number: &str, named: &str) {
+    let db = dir.join("calibration.sqlite");
+    let operator: String = rusqlite::Connection::open(&db)
+        .unwrap()
+        .query_row("SELECT operator FROM run", [], |r| r.get(0))
+        .unwrap();
+    let operator = operator.as_str();
+    let dbs = db.to_str().unwrap();
+    let pages = certificate_pdf(&unit.join("certificate.pdf"), named, &[]);
+    assert!(pages.iter().all(|p| p.contains("DRAFT — awaiting approval")), "{pages:?}");
+    let pass = dir.join("pass.txt");
+    std::fs::write(&pass, "right horse\n").unwrap();
+    let wrong = dir.join("wrong.txt");
+    std::fs::write(&wrong, "wrong horse\n").unwrap();
+    let key = dir.join("reviewer.key");
+    let p = pass.to_str().unwrap();
+    let k = key.to_str().unwrap();
+    let out = common::succeed(&[
+        "signer", "add", "Dr. A. Reviewer", "--function", "Head of laboratory", "--key", k,
+        "--passphrase-file", p, "--db", dbs,
+    ]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    let fp = text.split("with key ").nth(1).unwrap()[..16].to_string();
+    assert!(std::fs::read_to_string(&key).unwrap().starts_with("-----BEGIN ENCRYPTED PRIVATE KEY-----"));
+    // A key file is never overwritten.
+    let before = std::fs::read(&key).unwrap();
+    let (code, err) = refused(&[
+        "signer", "add", "B. Other", "--function", "Deputy", "--key", k, "--passphrase-file", p, "--db", dbs,
+    ]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("exists: a key file is never overwritten"), "{err}");
+    assert_eq!(std::fs::read(&key).unwrap(), before);
+
+    // A wrong passphrase: refused, nothing stored.
+    let n = ledger_rows(&db);
+    let (code, err) = refused(&["approve", number, "--key", k, "--passphrase-file", wrong.to_str().unwrap(), "--db", dbs]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("does not open with this passphrase"), "{err}");
+    assert_eq!(ledger_rows(&db), n);
+
+    // The run's operator approving it: refused unless the settings allow it; nothing stored.
+    let own = dir.join("operator.key");
+    common::succeed(&[
+        "signer", "add", operator, "--function", "Operator", "--key", own.to_str().unwrap(), "--passphrase-file", p,
+        "--db", dbs,
+    ]);
+    let n = ledger_rows(&db);
+    let (code, err) =
+        refused(&["approve", number, "--key", own.to_str().unwrap(), "--passphrase-file", p, "--db", dbs]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains(&format!("{operator} operated run")), "{err}");
+    assert_eq!(ledger_rows(&db), n);
+    // Revoked: refused, nothing stored but the revocation.
+    common::succeed(&["signer", "revoke", operator, "--reason", "left the laboratory", "--db", dbs]);
+    let n = ledger_rows(&db);
+    let config = dir.join("approval.toml");
+    std::fs::write(&config, "allow_self_approval = true\n").unwrap();
+    let (code, err) = refused(&[
+        "approve", number, "--key", own.to_str().unwrap(), "--passphrase-file", p, "--config",
+        config.to_str().unwrap(), "--db", dbs,
+    ]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("was revoked (left the laboratory)"), "{err}");
+    assert_eq!(ledger_rows(&db), n);
+    let list = String::from_utf8_lossy(&common::succeed(&["signer", "list", "--db", dbs]).stdout).into_owned();
+    assert!(list.contains("Dr. A. Reviewer (Head of laboratory)") && list.contains("revoked"), "{list}");
+
+    // Approved, once.
+    let out = common::succeed(&["approve", number, "--key", k, "--passphrase-file", p, "--db", dbs]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains(&format!("approved for issue by Dr. A. Reviewer (Head of laboratory)")), "{text}");
+    assert_eq!(ledger_rows(&db), n + 1);
+    let (code, err) = refused(&[
+        "reject", number, "--key", k, "--passphrase-file", p, "--reason", "second thoughts", "--db", dbs,
+    ]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains(&format!("certificate {number} was approved for issue already, by Dr. A. Reviewer")), "{err}");
+    assert_eq!(ledger_rows(&db), n + 1);
+    common::succeed(&["db", "verify", "--db", dbs]);
+
+    // Printed again: approved, with the signer's name, function and key; no draft mark.
+    let pdf = dir.join("approved.pdf");
+    common::succeed(&["certificate", number, "--pdf", pdf.to_str().unwrap(), "--db", dbs]);
+    let pages = certificate_pdf(&pdf, named, &["Dr. A. Reviewer", "Head of laboratory", &fp]);
+    assert!(pages.iter().all(|p| !p.contains("DRAFT")), "{pages:?}");
+    let fleet = String::from_utf8_lossy(&common::succeed(&["history", "A-1", "--db", dbs]).stdout).into_owned();
+    assert!(fleet.contains("certificate: approved"), "{fleet}");
+}
