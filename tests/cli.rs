@@ -10,6 +10,8 @@ use crate::common;
 mod assets;
 #[path = "cli/conformity.rs"]
 mod conformity;
+#[path = "cli/dcc.rs"]
+mod dcc;
 #[path = "cli/design.rs"]
 mod design;
 #[path = "cli/fleet_bench.rs"]

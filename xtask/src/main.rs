@@ -94,6 +94,8 @@ fn test() -> anyhow::Result<()> {
     firmware::test()?;
     // The certificate test (tests/line.rs) prints a page with headless Chromium.
     run(&r, "bash", &["scripts/setup-chromium.sh"])?;
+    // The DCC tests (tests/cli/dcc.rs) validate every DCC with xmllint against tests/data/dcc.
+    run(&r, "bash", &["scripts/setup-xmllint.sh"])?;
     // The PostgreSQL tests (tests/db_pg.rs) start throwaway clusters of Debian's server.
     run(&r, "bash", &["scripts/setup-postgres.sh"])?;
     if nextest_present() {

@@ -342,11 +342,15 @@ pub struct BenchFleetArgs {
 
 /// `accelcal certificate`.
 #[derive(Debug, Args)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
 pub struct CertificateArgs {
+    /// Check a certificate file instead of printing one.
+    #[command(subcommand)]
+    pub action: Option<CertificateAction>,
     /// The certificate to print again: its number (YYYY-NNNNNN, as printed on it) or its run's
     /// id (a UUID, as `station` prints it and `fleet` lists it).
-    #[arg(value_name = "NUMBER|RUN_ID")]
-    pub certificate: String,
+    #[arg(value_name = "NUMBER|RUN_ID", required = true)]
+    pub certificate: Option<String>,
     /// Write the stored certificate (an HTML page, as issued) to this file.
     #[arg(long, short = 'o', value_name = "FILE")]
     pub out: Option<PathBuf>,
@@ -354,6 +358,11 @@ pub struct CertificateArgs {
     /// document its page carries, to this file.
     #[arg(long, value_name = "FILE")]
     pub pdf: Option<PathBuf>,
+    /// Write the certificate as a Digital Calibration Certificate (PTB's DCC XML, schema 3.3.0,
+    /// quantities in D-SI 2.2.1), with its document attached for `certificate verify`, to this
+    /// file.
+    #[arg(long, value_name = "FILE")]
+    pub dcc: Option<PathBuf>,
     #[command(flatten)]
     pub reader: ReaderDb,
 }
@@ -452,4 +461,16 @@ pub struct RejectArgs {
     /// Why the certificate is not released (one line, signed and stored with the decision).
     #[arg(long, value_name = "TEXT")]
     pub reason: String,
+/// `accelcal certificate`'s subcommands.
+#[derive(Debug, Subcommand)]
+pub enum CertificateAction {
+    /// Check a DCC file offline (as `certificate --dcc` writes it): its attached document's
+    /// SHA-256 is computed again and the DCC is rendered again from that document and compared
+    /// with the file, so one value edited anywhere fails. Prints "valid: …" (exit code 0) or
+    /// names the first difference (exit code 2).
+    Verify {
+        /// The DCC XML file.
+        #[arg(value_name = "FILE")]
+        file: PathBuf,
+    },
 }

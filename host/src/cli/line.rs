@@ -435,6 +435,10 @@ pub struct ReportArgs {
     /// Also write the certificate as a PDF (A4, fonts embedded, text extractable) to this file.
     #[arg(long, value_name = "FILE")]
     pub pdf: Option<PathBuf>,
+    /// Also write the certificate as a Digital Calibration Certificate (PTB's DCC XML, schema
+    /// 3.3.0, quantities in D-SI 2.2.1, its document attached) to this file.
+    #[arg(long, value_name = "FILE")]
+    pub dcc: Option<PathBuf>,
     /// Also write the technical report (the coefficients with their standard errors, GMDH's
     /// model selection and the paper's Table 2: engineering material, not the certificate) to
     /// this HTML file.

@@ -1,8 +1,13 @@
 //! `accelcal certificate NUMBER|RUN_ID`: a stored certificate printed again, from the database
 //! that holds it (opened to read), with its release as the database holds it (a draft, or the
-//! signed decision: [`accelcal_db::signer`]). The HTML page and the PDF are rendered from the
-//! document the stored page carries (a page from before documents is printed as stored). Both are handed out only after the run's rows (and the
-//! assets it used) match their hash chain.
+//! signed decision: [`accelcal_db::signer`]). The HTML page, the PDF and the DCC are rendered
+//! from the document the stored page carries (a page from before documents is printed as
+//! stored). All are handed out only after the run's rows (and the assets it used) match their
+//! hash chain. `certificate verify` checks a DCC offline.
+
+use std::path::Path;
+
+use anyhow::Context as _;
 
 use accelcal_core::certificate::{Certificate as Document, Release};
 use accelcal_core::error::bad;
@@ -38,19 +43,37 @@ pub fn run(a: &Certificate) -> anyhow::Result<()> {
         write_atomic(out, html.as_bytes())?;
         outln!("certificate: run {run}'s certificate, as issued, written to {}", out.display())?;
     }
+    if a.pdf.is_none() && a.dcc.is_none() {
+        return Ok(());
+    }
+    let doc = match crate::report::certificate::document_of(&html) {
+        Some(d) => d.map_err(|e| bad(format!("run {run}'s stored certificate: {e}")))?,
+        None => {
+            return Err(bad(format!(
+                "run {run}'s certificate was issued before certificate pages carried their document: only its \
+                 HTML page exists; print it with --out"
+            )))
+        }
+    };
+    let release = release(&mut db, run, &doc)?;
     if let Some(pdf) = &a.pdf {
-        let doc = match crate::report::certificate::document_of(&html) {
-            Some(d) => d.map_err(|e| bad(format!("run {run}'s stored certificate: {e}")))?,
-            None => {
-                return Err(bad(format!(
-                    "run {run}'s certificate was issued before certificates carried their document (accelcal \
-                     before 0.2): only its HTML page exists; print it with --out"
-                )))
-            }
-        };
-        let release = release(&mut db, run, &doc)?;
         write_atomic(pdf, &crate::report::pdf::pdf(&doc, &release)?)?;
         outln!("certificate: run {run}'s certificate as a PDF written to {}", pdf.display())?;
+    }
+    if let Some(dcc) = &a.dcc {
+        // The authoriser of an approved certificate; a draft or a rejected one names none.
+        let authoriser = match &release {
+            Release::Approved { name, function, .. } => {
+                Some(crate::report::dcc::Authoriser { name: name.clone(), function: function.clone() })
+            }
+            _ => None,
+        };
+        let xml = crate::report::dcc::dcc(&doc, authoriser.as_ref()).context("rendering the DCC")?;
+        write_atomic(dcc, &xml)?;
+        outln!(
+            "certificate: run {run}'s certificate as a DCC (XML, schema 3.3.0) written to {}",
+            dcc.display()
+        )?;
     }
     Ok(())
 }
@@ -68,4 +91,30 @@ fn release(db: &mut Db, run: RunId, doc: &Document) -> anyhow::Result<Release> {
         )));
     }
     Ok(d.release())
+}
+
+/// Runs `accelcal certificate verify FILE`: a DCC checked offline against the document it
+/// carries. Prints "valid: …", or fails naming what differs.
+pub fn verify(file: &Path) -> anyhow::Result<()> {
+    let bytes = std::fs::read(file).with_context(|| format!("reading {}", file.display()))?;
+    let v =
+        crate::report::dcc::verify(&bytes).map_err(|e| bad(format!("not valid: {}: {e}", file.display())))?;
+    // The approval hook: a signature (added by approval) is to be checked here against the
+    // signer's key, from the database when given, else from the DCC alone. Until then a DCC is
+    // reported as what it is: consistent with its document, and not signed.
+    let number = v.doc.number.as_deref().unwrap_or("(unnumbered)");
+    let approval = match (&v.authoriser, v.signed) {
+        (Some(a), true) => format!(
+            "names {} ({}) as authoriser; its signature is not checked by this build",
+            a.name, a.function
+        ),
+        (Some(a), false) => format!("names {} ({}) as authoriser, without a signature", a.name, a.function),
+        (None, _) => "not approved: no authoriser, no signature".to_string(),
+    };
+    outln!(
+        "valid: certificate {number} of unit {}: the DCC states exactly its attached document (SHA-256 {}); {approval}",
+        v.doc.facts.serial,
+        v.sha256
+    )?;
+    Ok(())
 }

@@ -296,6 +296,11 @@ pub fn run(a: &Report) -> anyhow::Result<()> {
         write_atomic(p, &crate::report::pdf::pdf(&doc, &release)?)?;
         outln!("report: its PDF written to {}", p.display())?;
     }
+    if let Some(p) = &a.dcc {
+        // The authoriser comes from an approval (the signer's branch): none here.
+        write_atomic(p, &crate::report::dcc::dcc(&doc, None)?)?;
+        outln!("report: its DCC (XML, schema 3.3.0) written to {}", p.display())?;
+    }
     if let Some(p) = &a.technical {
         write_atomic(p, technical(&a.campaign, &u)?.as_bytes())?;
         outln!("report: the technical report written to {}", p.display())?;

@@ -2,6 +2,7 @@
 //! formatting for tables. The JSON documents of each command live beside the command in `cmd`.
 
 pub mod certificate;
+pub mod dcc;
 pub mod diagnose_plot;
 pub mod gravity_plot;
 pub mod pdf;

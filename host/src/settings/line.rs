@@ -260,6 +260,8 @@ pub struct Report {
     pub out: PathBuf,
     /// `--pdf`: the certificate as a PDF.
     pub pdf: Option<PathBuf>,
+    /// `--dcc`: the certificate as a DCC (XML).
+    pub dcc: Option<PathBuf>,
     /// `--technical`: the technical report.
     pub technical: Option<PathBuf>,
     /// `--db` and `--run-id`: the run the certificate is stored with.
@@ -279,6 +281,7 @@ pub fn report(a: &ReportArgs) -> anyhow::Result<Report> {
         g: a.g,
         out: a.out.clone(),
         pdf: a.pdf.clone(),
+        dcc: a.dcc.clone(),
         technical: a.technical.clone(),
         store: RunStore::existing(&a.run, "report --db")?,
         issuer: Issuer::of(&a.issuer),

@@ -96,34 +96,47 @@ pub struct Certificate {
     pub out: Option<PathBuf>,
     /// `--pdf`: the PDF; not the database.
     pub pdf: Option<PathBuf>,
+    /// `--dcc`: the DCC XML; not the database.
+    pub dcc: Option<PathBuf>,
 }
 
 /// `certificate`'s settings from its command line: a run id or a certificate number
 /// (`YYYY-NNNNNN`), and at least one of `--out` and `--pdf`, neither the database.
 pub fn certificate(a: &CertificateArgs) -> anyhow::Result<Certificate> {
-    let which = match accelcal_db::certificate::is_number(&a.certificate) {
-        true => Which::Number(a.certificate.clone()),
-        false => Which::Run(RunId::parse(&a.certificate).map_err(|e| {
+    let given = a.certificate.as_deref().ok_or_else(|| bad("certificate needs NUMBER|RUN_ID"))?;
+    let which = match accelcal_db::certificate::is_number(given) {
+        true => Which::Number(given.to_string()),
+        false => Which::Run(RunId::parse(given).map_err(|e| {
             bad(format!(
-                "{:?} is neither a certificate number (YYYY-NNNNNN, as printed) nor a run id: {e}",
-                a.certificate
+                "{given:?} is neither a certificate number (YYYY-NNNNNN, as printed) nor a run id: {e}"
             ))
         })?),
     };
-    if a.out.is_none() && a.pdf.is_none() {
-        return Err(bad("certificate needs --out FILE (the HTML page) or --pdf FILE, or both"));
+    if a.out.is_none() && a.pdf.is_none() && a.dcc.is_none() {
+        return Err(bad("certificate needs --out FILE (the HTML page), --pdf FILE or --dcc FILE"));
     }
-    for (what, out) in [("--out", &a.out), ("--pdf", &a.pdf)] {
+    let outs = [("--out", &a.out), ("--pdf", &a.pdf), ("--dcc", &a.dcc)];
+    for (what, out) in outs {
         if let Some(out) = out {
             not_the_db(a.reader.db.as_deref(), out, what)?;
         }
     }
-    if let (Some(o), Some(p)) = (&a.out, &a.pdf) {
-        if o == p {
-            return Err(bad(format!("--out and --pdf name the same file, {}", o.display())));
+    for (i, (w1, o1)) in outs.iter().enumerate() {
+        for (w2, o2) in &outs[i + 1..] {
+            if let (Some(o1), Some(o2)) = (o1, o2) {
+                if o1 == o2 {
+                    return Err(bad(format!("{w1} and {w2} name the same file, {}", o1.display())));
+                }
+            }
         }
     }
-    Ok(Certificate { db: a.reader.db.clone(), which, out: a.out.clone(), pdf: a.pdf.clone() })
+    Ok(Certificate {
+        db: a.reader.db.clone(),
+        which,
+        out: a.out.clone(),
+        pdf: a.pdf.clone(),
+        dcc: a.dcc.clone(),
+    })
 }
 
 /// `accelcal history`, settled.

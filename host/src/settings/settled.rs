@@ -11,6 +11,8 @@ pub enum Settings {
     Fleet(reader::Fleet),
     /// `accelcal certificate`.
     Certificate(reader::Certificate),
+    /// `accelcal certificate verify FILE`: the file.
+    CertificateVerify(std::path::PathBuf),
     /// `accelcal history`.
     History(reader::History),
     /// `accelcal void`.
@@ -82,7 +84,10 @@ pub fn settle(command: Command, resolved: &Resolved) -> anyhow::Result<Settings>
     let stated = resolved.gravity.as_ref();
     Ok(match command {
         Command::Fleet(a) => Settings::Fleet(reader::fleet(&a, accelcal_db::asset::today_utc())?),
-        Command::Certificate(a) => Settings::Certificate(reader::certificate(&a)?),
+        Command::Certificate(a) => match &a.action {
+            Some(crate::cli::CertificateAction::Verify { file }) => Settings::CertificateVerify(file.clone()),
+            None => Settings::Certificate(reader::certificate(&a)?),
+        },
         Command::History(a) => Settings::History(reader::history(&a)?),
         Command::Void(a) => Settings::Void(reader::void(&a)?),
         Command::Db(crate::cli::DbCommand::Verify(a)) => Settings::DbVerify(reader::db_verify(&a)),
