@@ -26,8 +26,9 @@ mod interrupt;
 /// The certificate printed with Chromium and read back page by page.
 #[path = "line/print.rs"]
 pub(crate) mod print;
-#[path = "line/station.rs"]
+#[path = "line/release.rs"]
 mod release;
+#[path = "line/station.rs"]
 mod station;
 #[path = "line/thermal.rs"]
 mod thermal;

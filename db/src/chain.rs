@@ -660,15 +660,15 @@ fn content_mismatch(t: &Table, row: &[Val]) -> Result<Option<String>, DbError> {
                 .into_bytes()
         }
         "chain_event" => event_content(&col("kind").text()?, &col("detail").text()?).into_bytes(),
-        "signer" => super::signer::signer_content(
+        "signer" => super::content::signer_content(
             &col("name").text()?,
             &col("function").text()?,
             &col("public_key").text()?,
         )
         .into_bytes(),
         "signer_revocation" => col("reason").text()?.into_bytes(),
-        "approval" => super::signer::approval_content(
-            &super::signer::decision_of_row(row)?,
+        "approval" => super::content::approval_content(
+            &super::content::decision_of_row(row)?,
             &col("fingerprint").text()?,
             &col("signature").text()?,
         )?

@@ -3,6 +3,8 @@
 //! the chain that checks it again (`chain`). It imports none of them, so that neither imports
 //! the other to reach it.
 
+use accelcal_core::certificate::approval::{Decision, Meaning};
+
 use super::val::Val;
 use super::{sha256_hex, DbError, RunStart};
 
@@ -48,4 +50,29 @@ pub(crate) fn recalibration_due_content(due_unix_s: i64, basis: &str) -> String 
 /// What a certificate_number row's `content_sha256` hashes.
 pub(crate) fn certificate_number_content(sequence: i64, number: &str) -> String {
     format!("{sequence}\n{number}")
+}
+
+/// What a signer row's `content_sha256` hashes.
+pub(crate) fn signer_content(name: &str, function: &str, public_key: &str) -> String {
+    format!("{name}\n{function}\n{public_key}")
+}
+
+/// What an approval row's `content_sha256` hashes: the signed message, the key's fingerprint and
+/// the signature, one line each.
+pub(crate) fn approval_content(d: &Decision, fingerprint: &str, signature: &str) -> Result<String, DbError> {
+    let m = d.message().map_err(|e| DbError::schema(format!("an approval row: {e}")))?;
+    Ok(format!("{}{fingerprint}\n{signature}", String::from_utf8_lossy(&m)))
+}
+
+/// The decision an approval row holds (columns in `chain::TABLES`' order).
+pub(crate) fn decision_of_row(row: &[Val]) -> Result<Decision, DbError> {
+    let meaning = row[3].text()?;
+    Ok(Decision {
+        number: row[1].text()?,
+        document_sha256: row[2].text()?,
+        meaning: Meaning::parse(&meaning)
+            .ok_or_else(|| DbError::schema(format!("an approval's meaning {meaning:?}")))?,
+        reason: row[4].text()?,
+        unix_s: row[7].int()?,
+    })
 }

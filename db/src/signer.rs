@@ -7,6 +7,7 @@
 use accelcal_core::certificate::approval::{self, Decision, Meaning, SigningError};
 use serde::Serialize;
 
+use super::content::{approval_content, decision_of_row, signer_content};
 use super::engine::{Tx, Val};
 use super::{chain, insert_row, now_unix_s, sha256_hex, Db, DbError, RunId};
 
@@ -69,18 +70,22 @@ pub struct StoredDecision {
 impl StoredDecision {
     /// The release a renderer is told for this decision.
     pub fn release(&self) -> accelcal_core::certificate::Release {
-        use accelcal_core::certificate::Release;
-        let (name, function, date, fingerprint) = (
-            self.signer.name.clone(),
-            self.signer.function.clone(),
-            date_of(self.decision.unix_s),
-            self.signer.fingerprint.clone(),
-        );
-        match self.decision.meaning {
-            Meaning::Approved => Release::Approved { name, function, date, fingerprint },
-            Meaning::Rejected => {
-                Release::Rejected { name, function, date, fingerprint, reason: self.decision.reason.clone() }
-            }
+        self.seal().release()
+    }
+
+    /// The decision as it travels with the certificate's files.
+    pub fn seal(&self) -> approval::Seal {
+        approval::Seal {
+            number: self.decision.number.clone(),
+            document_sha256: self.decision.document_sha256.clone(),
+            meaning: self.decision.meaning.as_str().to_string(),
+            reason: self.decision.reason.clone(),
+            unix_s: self.decision.unix_s,
+            signer: self.signer.name.clone(),
+            function: self.signer.function.clone(),
+            public_key: self.signer.public_key.clone(),
+            fingerprint: self.signer.fingerprint.clone(),
+            signature: self.signature.clone(),
         }
     }
 }
@@ -209,31 +214,6 @@ impl accelcal_core::error::Classify for ReleaseError {
             _ => accelcal_core::error::Kind::BadInput,
         }
     }
-}
-
-/// What a signer row's `content_sha256` hashes.
-pub(crate) fn signer_content(name: &str, function: &str, public_key: &str) -> String {
-    format!("{name}\n{function}\n{public_key}")
-}
-
-/// What an approval row's `content_sha256` hashes: the signed message, the key's fingerprint and
-/// the signature, one line each.
-pub(crate) fn approval_content(d: &Decision, fingerprint: &str, signature: &str) -> Result<String, DbError> {
-    let m = d.message().map_err(|e| DbError::schema(format!("an approval row: {e}")))?;
-    Ok(format!("{}{fingerprint}\n{signature}", String::from_utf8_lossy(&m)))
-}
-
-/// The decision an approval row holds (columns in [`chain::TABLES`]' order).
-pub(crate) fn decision_of_row(row: &[Val]) -> Result<Decision, DbError> {
-    let meaning = row[3].text()?;
-    Ok(Decision {
-        number: row[1].text()?,
-        document_sha256: row[2].text()?,
-        meaning: Meaning::parse(&meaning)
-            .ok_or_else(|| DbError::schema(format!("an approval's meaning {meaning:?}")))?,
-        reason: row[4].text()?,
-        unix_s: row[7].int()?,
-    })
 }
 
 const SIGNER_COLS: &str =

@@ -330,6 +330,9 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
                 crate::resolved::check_g(g)?;
             }
             check_issuer(&a.issuer)?;
+            if a.issuer.authorised_by.is_some() && a.run.db.is_some() {
+                return Err(bad(format!("--authorised-by does not apply with --db: {AWAITS_APPROVAL}")));
+            }
             let mut inputs = vec![
                 ("--campaign", a.campaign.as_path()),
                 ("--record", a.record.as_path()),
@@ -431,6 +434,12 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
                 )));
             }
             check_issuer(&a.issuer)?;
+            if a.issuer.authorised_by.is_some() {
+                return Err(bad(format!(
+                    "{} does not apply to the station, which stores every run in a database: {AWAITS_APPROVAL}",
+                    given.name("authorised_by")
+                )));
+            }
             if let Some(out) = a.outs.iter().find(|o| o.is_file()) {
                 return Err(bad(format!(
                     "--out {} is a file: the station needs a directory for the unit",
@@ -501,6 +510,11 @@ fn check_zaber(given: &Given, head: &str, z: &crate::cli::ZaberArgs, named: &str
     }
     z.axes().check().map_err(|e| bad(format!("--zaber-alpha/--zaber-beta: {e}")))
 }
+
+/// Why a stated authoriser is refused with a database.
+const AWAITS_APPROVAL: &str =
+    "there a certificate awaits approval by a registered signer's key (`accelcal signer add`, \
+     `accelcal approve`), and a name typed in the settings authorises nothing";
 
 /// `--laboratory-address` goes with `--laboratory`.
 fn check_issuer(i: &crate::cli::Issuer) -> anyhow::Result<()> {

@@ -63,6 +63,11 @@ fn a_wrong_settings_file_is_refused_with_its_line_and_nothing_is_done() {
             "station.toml:5:12: operator: \"ana\\u{202e}\" holds the invisible format character U+202E",
         ),
         ("bias_tempco_u = -0.1", "station.toml:5:17: bias_tempco_u must be a finite number ≥ 0, got -0.1"),
+        // Issue 57: a station's certificate is approved by a signer, not by a name in a file.
+        (
+            "authorised_by = \"A. Reviewer\"",
+            "`authorised_by` (station.toml:5:17) does not apply to the station, which stores every run in a database",
+        ),
         (
             "bias_tempco_u = 0.1\nscale_tempco_u = 50",
             "station.toml: bias_tempco_u, scale_tempco_u and thermometer_u go together",
@@ -152,7 +157,7 @@ fn the_guides_settings_file_is_accepted() {
     assert_eq!(out.status.code(), Some(3), "{e}");
     assert!(
         e.contains(&format!(
-            "station: settings {} (station, customer, authorised_by, laboratory.name, laboratory.address, head, head_asset, node.port, node.probe, plan, samples, rate_hz, latitude, height, spec)",
+            "station: settings {} (station, customer, customer_address, place, laboratory.name, laboratory.address, head, head_asset, node.port, node.probe, plan, samples, rate_hz, latitude, height, spec)",
             c.display()
         )),
         "{e}"

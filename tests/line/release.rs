@@ -41,8 +41,17 @@ pub fn approve_a_station_certificate(dir: &Path, unit: &Path, number: &str, name
     let p = pass.to_str().unwrap();
     let k = key.to_str().unwrap();
     let out = common::succeed(&[
-        "signer", "add", "Dr. A. Reviewer", "--function", "Head of laboratory", "--key", k,
-        "--passphrase-file", p, "--db", dbs,
+        "signer",
+        "add",
+        "Dr. A. Reviewer",
+        "--function",
+        "Head of laboratory",
+        "--key",
+        k,
+        "--passphrase-file",
+        p,
+        "--db",
+        dbs,
     ]);
     let text = String::from_utf8_lossy(&out.stdout);
     let fp = text.split("with key ").nth(1).unwrap()[..16].to_string();
@@ -50,7 +59,17 @@ pub fn approve_a_station_certificate(dir: &Path, unit: &Path, number: &str, name
     // A key file is never overwritten.
     let before = std::fs::read(&key).unwrap();
     let (code, err) = refused(&[
-        "signer", "add", "B. Other", "--function", "Deputy", "--key", k, "--passphrase-file", p, "--db", dbs,
+        "signer",
+        "add",
+        "B. Other",
+        "--function",
+        "Deputy",
+        "--key",
+        k,
+        "--passphrase-file",
+        p,
+        "--db",
+        dbs,
     ]);
     assert_eq!(code, Some(2), "{err}");
     assert!(err.contains("exists: a key file is never overwritten"), "{err}");
@@ -58,7 +77,8 @@ pub fn approve_a_station_certificate(dir: &Path, unit: &Path, number: &str, name
 
     // A wrong passphrase: refused, nothing stored.
     let n = ledger_rows(&db);
-    let (code, err) = refused(&["approve", number, "--key", k, "--passphrase-file", wrong.to_str().unwrap(), "--db", dbs]);
+    let (code, err) =
+        refused(&["approve", number, "--key", k, "--passphrase-file", wrong.to_str().unwrap(), "--db", dbs]);
     assert_eq!(code, Some(2), "{err}");
     assert!(err.contains("does not open with this passphrase"), "{err}");
     assert_eq!(ledger_rows(&db), n);
@@ -66,8 +86,17 @@ pub fn approve_a_station_certificate(dir: &Path, unit: &Path, number: &str, name
     // The run's operator approving it: refused unless the settings allow it; nothing stored.
     let own = dir.join("operator.key");
     common::succeed(&[
-        "signer", "add", operator, "--function", "Operator", "--key", own.to_str().unwrap(), "--passphrase-file", p,
-        "--db", dbs,
+        "signer",
+        "add",
+        operator,
+        "--function",
+        "Operator",
+        "--key",
+        own.to_str().unwrap(),
+        "--passphrase-file",
+        p,
+        "--db",
+        dbs,
     ]);
     let n = ledger_rows(&db);
     let (code, err) =
@@ -81,25 +110,46 @@ pub fn approve_a_station_certificate(dir: &Path, unit: &Path, number: &str, name
     let config = dir.join("approval.toml");
     std::fs::write(&config, "allow_self_approval = true\n").unwrap();
     let (code, err) = refused(&[
-        "approve", number, "--key", own.to_str().unwrap(), "--passphrase-file", p, "--config",
-        config.to_str().unwrap(), "--db", dbs,
+        "approve",
+        number,
+        "--key",
+        own.to_str().unwrap(),
+        "--passphrase-file",
+        p,
+        "--config",
+        config.to_str().unwrap(),
+        "--db",
+        dbs,
     ]);
     assert_eq!(code, Some(2), "{err}");
     assert!(err.contains("was revoked (left the laboratory)"), "{err}");
     assert_eq!(ledger_rows(&db), n);
-    let list = String::from_utf8_lossy(&common::succeed(&["signer", "list", "--db", dbs]).stdout).into_owned();
+    let list =
+        String::from_utf8_lossy(&common::succeed(&["signer", "list", "--db", dbs]).stdout).into_owned();
     assert!(list.contains("Dr. A. Reviewer (Head of laboratory)") && list.contains("revoked"), "{list}");
 
     // Approved, once.
     let out = common::succeed(&["approve", number, "--key", k, "--passphrase-file", p, "--db", dbs]);
     let text = String::from_utf8_lossy(&out.stdout);
-    assert!(text.contains(&format!("approved for issue by Dr. A. Reviewer (Head of laboratory)")), "{text}");
+    assert!(text.contains("approved for issue by Dr. A. Reviewer (Head of laboratory)"), "{text}");
     assert_eq!(ledger_rows(&db), n + 1);
     let (code, err) = refused(&[
-        "reject", number, "--key", k, "--passphrase-file", p, "--reason", "second thoughts", "--db", dbs,
+        "reject",
+        number,
+        "--key",
+        k,
+        "--passphrase-file",
+        p,
+        "--reason",
+        "second thoughts",
+        "--db",
+        dbs,
     ]);
     assert_eq!(code, Some(2), "{err}");
-    assert!(err.contains(&format!("certificate {number} was approved for issue already, by Dr. A. Reviewer")), "{err}");
+    assert!(
+        err.contains(&format!("certificate {number} was approved for issue already, by Dr. A. Reviewer")),
+        "{err}"
+    );
     assert_eq!(ledger_rows(&db), n + 1);
     common::succeed(&["db", "verify", "--db", dbs]);
 
@@ -108,6 +158,48 @@ pub fn approve_a_station_certificate(dir: &Path, unit: &Path, number: &str, name
     common::succeed(&["certificate", number, "--pdf", pdf.to_str().unwrap(), "--db", dbs]);
     let pages = certificate_pdf(&pdf, named, &["Dr. A. Reviewer", "Head of laboratory", &fp]);
     assert!(pages.iter().all(|p| !p.contains("DRAFT")), "{pages:?}");
-    let fleet = String::from_utf8_lossy(&common::succeed(&["history", "A-1", "--db", dbs]).stdout).into_owned();
+    let fleet =
+        String::from_utf8_lossy(&common::succeed(&["history", "A-1", "--db", dbs]).stdout).into_owned();
     assert!(fleet.contains("certificate: approved"), "{fleet}");
+
+    // Anyone checks the approved PDF offline (its document and the decision it carries), and
+    // against the database.
+    let pdfs = pdf.to_str().unwrap();
+    let out = common::succeed(&["certificate", "verify", pdfs]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.starts_with(&format!("valid: certificate {number} of unit A-1")), "{text}");
+    assert!(text.contains("approved for issue by Dr. A. Reviewer (Head of laboratory) on 20"), "{text}");
+    assert!(text.contains(&format!("signing key {fp}")), "{text}");
+    let out = common::succeed(&["certificate", "verify", pdfs, "--db", dbs]);
+    assert!(String::from_utf8_lossy(&out.stdout).contains("the database holds the same"));
+    // The draft the station wrote is not what the database now holds: it carries no decision.
+    let draft = unit.join("certificate.pdf");
+    common::succeed(&["certificate", "verify", draft.to_str().unwrap()]);
+    let (code, err) = refused(&["certificate", "verify", draft.to_str().unwrap(), "--db", dbs]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("the file carries no decision"), "{err}");
+    // One byte of the pages changed: refused, naming where.
+    let mut bytes = std::fs::read(&pdf).unwrap();
+    let at = bytes.len() / 3;
+    bytes[at] ^= 0x20;
+    let edited = dir.join("edited.pdf");
+    std::fs::write(&edited, &bytes).unwrap();
+    let (code, err) = refused(&["certificate", "verify", edited.to_str().unwrap()]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("not valid: "), "{err}");
+    // The DCC of the approved certificate names its authoriser and checks offline.
+    let dcc = dir.join("approved.xml");
+    common::succeed(&["certificate", number, "--dcc", dcc.to_str().unwrap(), "--db", dbs]);
+    let xml = std::fs::read_to_string(&dcc).unwrap();
+    assert!(xml.contains("Dr. A. Reviewer"), "{xml}");
+    let out = common::succeed(&["certificate", "verify", dcc.to_str().unwrap(), "--db", dbs]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("approved for issue by Dr. A. Reviewer (Head of laboratory)"), "{text}");
+    // The decision in the DCC edited (a rejection made an approval): its signature fails.
+    let forged =
+        xml.replace("<dcc:mainSigner>true</dcc:mainSigner>", "<dcc:mainSigner>false</dcc:mainSigner>");
+    let forged_path = dir.join("forged.xml");
+    std::fs::write(&forged_path, forged).unwrap();
+    let (code, err) = refused(&["certificate", "verify", forged_path.to_str().unwrap()]);
+    assert_eq!(code, Some(2), "{err}");
 }

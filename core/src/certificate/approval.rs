@@ -192,9 +192,85 @@ pub fn verify(public_hex: &str, decision: &Decision, signature_hex: &str) -> Res
     key.verify_strict(&decision.message()?, &Signature::from_bytes(&b)).map_err(|_| SigningError::Invalid)
 }
 
+/// A signed decision as it travels with a certificate's file (a PDF's attachment
+/// `accelcal-approval.json`): what was signed, the key that signed it, and the signer's name and
+/// function as registered. [`Seal::check`] needs nothing else, so a customer can check a file
+/// offline; against the database, the key is also the one registered for that name.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct Seal {
+    /// The certificate's number.
+    pub number: String,
+    /// The document's SHA-256.
+    pub document_sha256: String,
+    /// `approved for issue` or `rejected`.
+    pub meaning: String,
+    /// A rejection's reason (empty for an approval).
+    pub reason: String,
+    /// When it was signed, Unix seconds.
+    pub unix_s: i64,
+    /// The signer's name, as registered.
+    pub signer: String,
+    /// Their function, as registered.
+    pub function: String,
+    /// The signing key's public half, 64 hex digits.
+    pub public_key: String,
+    /// Its fingerprint ([`fingerprint`]).
+    pub fingerprint: String,
+    /// The signature of [`Decision::message`], 128 hex digits.
+    pub signature: String,
+}
+
+impl Seal {
+    /// The attachment's name in a PDF.
+    pub const ATTACHMENT: &'static str = "accelcal-approval.json";
+
+    /// The decision it signs.
+    pub fn decision(&self) -> Result<Decision, SigningError> {
+        let meaning = Meaning::parse(&self.meaning).ok_or_else(|| SigningError::BadSignature {
+            why: format!("the meaning {:?} is neither approved for issue nor rejected", self.meaning),
+        })?;
+        Ok(Decision {
+            number: self.number.clone(),
+            document_sha256: self.document_sha256.clone(),
+            meaning,
+            reason: self.reason.clone(),
+            unix_s: self.unix_s,
+        })
+    }
+
+    /// Checks the seal on its own: the fingerprint is its key's, and the signature is its
+    /// key's over the decision.
+    pub fn check(&self) -> Result<Decision, SigningError> {
+        let key = public_key(&self.public_key)?;
+        if fingerprint(&key) != self.fingerprint {
+            return Err(SigningError::BadPublicKey {
+                why: format!(
+                    "the fingerprint {} is not this key's ({})",
+                    self.fingerprint,
+                    fingerprint(&key)
+                ),
+            });
+        }
+        let d = self.decision()?;
+        verify(&self.public_key, &d, &self.signature)?;
+        Ok(d)
+    }
+
+    /// The release a renderer is told for this decision.
+    pub fn release(&self) -> super::Release {
+        let (name, function, fingerprint) =
+            (self.signer.clone(), self.function.clone(), self.fingerprint.clone());
+        let date = crate::output::utc_date_time(self.unix_s).chars().take(10).collect();
+        match Meaning::parse(&self.meaning) {
+            Some(Meaning::Approved) => super::Release::Approved { name, function, date, fingerprint },
+            _ => super::Release::Rejected { name, function, date, fingerprint, reason: self.reason.clone() },
+        }
+    }
+}
+
 /// Bytes from hex, `None` for anything else.
 fn unhex(s: &str) -> Option<Vec<u8>> {
-    if s.len() % 2 != 0 {
+    if !s.len().is_multiple_of(2) {
         return None;
     }
     (0..s.len()).step_by(2).map(|i| s.get(i..i + 2).and_then(|p| u8::from_str_radix(p, 16).ok())).collect()
@@ -246,5 +322,27 @@ mod tests {
         assert_eq!(fingerprint(&key.verifying_key()).len(), 16);
         assert!(public_key("zz").is_err());
         assert!(verify(&public, &decision(), "00").is_err());
+        // A seal checks on its own, and fails when a field it signs is changed.
+        let d = decision();
+        let seal = Seal {
+            number: d.number.clone(),
+            document_sha256: d.document_sha256.clone(),
+            meaning: d.meaning.as_str().into(),
+            reason: d.reason.clone(),
+            unix_s: d.unix_s,
+            signer: "A. Reviewer".into(),
+            function: "Head of laboratory".into(),
+            public_key: public,
+            fingerprint: fingerprint(&key.verifying_key()),
+            signature: sig,
+        };
+        assert_eq!(seal.check().unwrap(), d);
+        assert!(matches!(seal.release(), super::super::Release::Approved { .. }));
+        let mut edited = seal.clone();
+        edited.document_sha256 = "cd".repeat(32);
+        assert!(matches!(edited.check(), Err(SigningError::Invalid)));
+        let mut other_key = seal.clone();
+        other_key.fingerprint = "0".repeat(16);
+        assert!(other_key.check().is_err());
     }
 }

@@ -133,6 +133,8 @@ pub struct Inputs<'a> {
     pub drift: Option<DriftInput>,
     /// The chain's head at issue.
     pub anchor: Option<&'a str>,
+    /// The certificate this one replaces (an amendment), with the reason.
+    pub replaces: Option<(&'a str, &'a str)>,
     /// accelcal's version.
     pub software: &'a str,
 }
@@ -213,6 +215,9 @@ pub fn build(i: &Inputs<'_>) -> Certificate {
     let customer = party(&i.issuer.customer, &i.issuer.customer_address);
     let mut rows: Vec<Field> = Vec::new();
     let mut row = |label: &str, text: String| rows.push(Field { label: label.into(), text });
+    if let Some((number, reason)) = i.replaces {
+        row("Replaces", format!("certificate {number}, which this amendment supersedes: {reason}"));
+    }
     if let Some(c) = &customer {
         row(
             "Customer",
@@ -383,6 +388,7 @@ pub fn build(i: &Inputs<'_>) -> Certificate {
         equipment,
         recalibration_due: due,
         anchor: i.anchor.map(str::to_string),
+        replaces: i.replaces.map(|(n, _)| n.to_string()),
     };
     Certificate {
         format: FORMAT,

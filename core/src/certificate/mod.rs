@@ -261,6 +261,9 @@ pub struct Facts {
     pub recalibration_due: Option<String>,
     /// The hash chain's head at issue (`accelcal-anchor seq=N chain_sha256=HEX`).
     pub anchor: Option<String>,
+    /// The number of the certificate this one replaces (an amendment).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub replaces: Option<String>,
 }
 
 /// Who released the document, as a renderer is told it: not part of the document.
@@ -373,6 +376,38 @@ impl Certificate {
             return Err(DocumentError::Format { found: p.format });
         }
         Ok(serde_json::from_str(text)?)
+    }
+
+    /// The amendment of this certificate: the same results under a new number, issued at
+    /// `issued_unix_s`, stating the number it replaces and why (a row at the top of the
+    /// identification). The original stays as it was; this is a new document.
+    pub fn amended(&self, number: &str, reason: &str, issued_unix_s: i64) -> Certificate {
+        let mut d = self.clone();
+        let old = self.number.clone().unwrap_or_else(|| "draft, not numbered".into());
+        let issued = crate::output::utc_date_time(issued_unix_s);
+        d.number = Some(number.to_string());
+        d.title = format!("Calibration certificate No. {number}");
+        d.footer = format!("Calibration certificate No. {number} — accelerometer triad {}", d.facts.serial);
+        d.identification.retain(|f| f.label != "Replaces");
+        d.identification.insert(
+            0,
+            Field {
+                label: "Replaces".into(),
+                text: format!("certificate {old}, which this amendment supersedes: {reason}"),
+            },
+        );
+        for f in d.identification.iter_mut().filter(|f| f.label == "Dates") {
+            if let Some(at) = f.text.find("issued ") {
+                f.text = format!(
+                    "{}issued {issued} (amendment; certificate {old} issued {})",
+                    &f.text[..at],
+                    self.facts.issued
+                );
+            }
+        }
+        d.facts.issued = issued;
+        d.facts.replaces = Some(old);
+        d
     }
 
     /// Every section's tables, charts and paragraphs, for renderers that walk them.

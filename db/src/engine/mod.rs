@@ -298,7 +298,9 @@ impl Conn {
             client.execute(sql, &[&MIGRATION_LOCK]).map(drop).map_err(DbError::pg)
         };
         let (take, give) = match mode {
-            LockMode::Shared => ("SELECT pg_advisory_lock_shared($1)", "SELECT pg_advisory_unlock_shared($1)"),
+            LockMode::Shared => {
+                ("SELECT pg_advisory_lock_shared($1)", "SELECT pg_advisory_unlock_shared($1)")
+            }
             LockMode::Exclusive => ("SELECT pg_advisory_lock($1)", "SELECT pg_advisory_unlock($1)"),
         };
         lock(self, take)?;

@@ -461,16 +461,25 @@ pub struct RejectArgs {
     /// Why the certificate is not released (one line, signed and stored with the decision).
     #[arg(long, value_name = "TEXT")]
     pub reason: String,
+}
+
 /// `accelcal certificate`'s subcommands.
 #[derive(Debug, Subcommand)]
 pub enum CertificateAction {
-    /// Check a DCC file offline (as `certificate --dcc` writes it): its attached document's
-    /// SHA-256 is computed again and the DCC is rendered again from that document and compared
-    /// with the file, so one value edited anywhere fails. Prints "valid: …" (exit code 0) or
-    /// names the first difference (exit code 2).
+    /// Check a certificate file, the PDF (`certificate --pdf`, the station's certificate.pdf)
+    /// or the DCC (`--dcc`): its attached document's SHA-256 is computed again, the file is
+    /// rendered again from that document and compared with it (one value edited anywhere
+    /// fails), and a signed decision it carries is checked with the signer's key it carries, so
+    /// it is checked offline. With --db, the database must hold that certificate as this
+    /// document, with the same decision. Prints "valid: …" (exit code 0) or names the first
+    /// difference (exit code 2).
     Verify {
-        /// The DCC XML file.
+        /// The PDF or DCC XML file.
         #[arg(value_name = "FILE")]
         file: PathBuf,
+        /// Also check the file against this calibration database (a SQLite file or a
+        /// PostgreSQL connection string) [default: offline, the file alone].
+        #[arg(long, value_name = "DB")]
+        db: Option<String>,
     },
 }

@@ -5,10 +5,9 @@
 //! stored). All are handed out only after the run's rows (and the assets it used) match their
 //! hash chain. `certificate verify` checks a DCC offline.
 
-use std::path::Path;
-
 use anyhow::Context as _;
 
+use accelcal_core::certificate::approval::Seal;
 use accelcal_core::certificate::{Certificate as Document, Release};
 use accelcal_core::error::bad;
 use accelcal_core::output::write_atomic;
@@ -34,7 +33,7 @@ pub fn run(a: &Certificate) -> anyhow::Result<()> {
         // The page as stored while it awaits approval; once decided, the document it carries
         // rendered with the decision.
         let html = match crate::report::certificate::document_of(&html) {
-            Some(Ok(doc)) => match release(&mut db, run, &doc)? {
+            Some(Ok(doc)) => match release(&mut db, run, &doc)?.0 {
                 Release::Draft => html.clone(),
                 r => crate::report::certificate::html(&doc, &r)?,
             },
@@ -50,25 +49,18 @@ pub fn run(a: &Certificate) -> anyhow::Result<()> {
         Some(d) => d.map_err(|e| bad(format!("run {run}'s stored certificate: {e}")))?,
         None => {
             return Err(bad(format!(
-                "run {run}'s certificate was issued before certificate pages carried their document: only its \
+            "run {run}'s certificate was issued before certificate pages carried their document: only its \
                  HTML page exists; print it with --out"
-            )))
+        )))
         }
     };
-    let release = release(&mut db, run, &doc)?;
+    let (release, seal) = release(&mut db, run, &doc)?;
     if let Some(pdf) = &a.pdf {
-        write_atomic(pdf, &crate::report::pdf::pdf(&doc, &release)?)?;
+        write_atomic(pdf, &crate::report::pdf::pdf(&doc, &release, seal.as_ref())?)?;
         outln!("certificate: run {run}'s certificate as a PDF written to {}", pdf.display())?;
     }
     if let Some(dcc) = &a.dcc {
-        // The authoriser of an approved certificate; a draft or a rejected one names none.
-        let authoriser = match &release {
-            Release::Approved { name, function, .. } => {
-                Some(crate::report::dcc::Authoriser { name: name.clone(), function: function.clone() })
-            }
-            _ => None,
-        };
-        let xml = crate::report::dcc::dcc(&doc, authoriser.as_ref()).context("rendering the DCC")?;
+        let xml = crate::report::dcc::dcc(&doc, seal.as_ref()).context("rendering the DCC")?;
         write_atomic(dcc, &xml)?;
         outln!(
             "certificate: run {run}'s certificate as a DCC (XML, schema 3.3.0) written to {}",
@@ -80,9 +72,9 @@ pub fn run(a: &Certificate) -> anyhow::Result<()> {
 
 /// The certificate's release as the database holds it: its signed decision, else a draft. A
 /// decision that signed another document than the one stored is refused.
-fn release(db: &mut Db, run: RunId, doc: &Document) -> anyhow::Result<Release> {
-    let Some(number) = db.number_of_run(run)? else { return Ok(Release::Draft) };
-    let Some(d) = db.decision(&number)? else { return Ok(Release::Draft) };
+fn release(db: &mut Db, run: RunId, doc: &Document) -> anyhow::Result<(Release, Option<Seal>)> {
+    let Some(number) = db.number_of_run(run)? else { return Ok((Release::Draft, None)) };
+    let Some(d) = db.decision(&number)? else { return Ok((Release::Draft, None)) };
     if d.decision.document_sha256 != doc.sha256() {
         return Err(bad(format!(
             "certificate {number}: its decision signed document {}, and the stored page carries {}: not printed",
@@ -90,31 +82,107 @@ fn release(db: &mut Db, run: RunId, doc: &Document) -> anyhow::Result<Release> {
             doc.sha256()
         )));
     }
-    Ok(d.release())
+    let seal = d.seal();
+    Ok((seal.release(), Some(seal)))
 }
 
-/// Runs `accelcal certificate verify FILE`: a DCC checked offline against the document it
-/// carries. Prints "valid: …", or fails naming what differs.
-pub fn verify(file: &Path) -> anyhow::Result<()> {
+/// Runs `accelcal certificate verify FILE [--db DB]`: a PDF or a DCC checked against the document
+/// it carries, offline, and against the database when one is given. Prints "valid: …", or fails
+/// naming what differs.
+pub fn verify(a: &crate::settings::reader::CertificateVerify) -> anyhow::Result<()> {
+    let file = &a.file;
     let bytes = std::fs::read(file).with_context(|| format!("reading {}", file.display()))?;
-    let v =
-        crate::report::dcc::verify(&bytes).map_err(|e| bad(format!("not valid: {}: {e}", file.display())))?;
-    // The approval hook: a signature (added by approval) is to be checked here against the
-    // signer's key, from the database when given, else from the DCC alone. Until then a DCC is
-    // reported as what it is: consistent with its document, and not signed.
-    let number = v.doc.number.as_deref().unwrap_or("(unnumbered)");
-    let approval = match (&v.authoriser, v.signed) {
-        (Some(a), true) => format!(
-            "names {} ({}) as authoriser; its signature is not checked by this build",
-            a.name, a.function
-        ),
-        (Some(a), false) => format!("names {} ({}) as authoriser, without a signature", a.name, a.function),
-        (None, _) => "not approved: no authoriser, no signature".to_string(),
+    let invalid = |why: String| bad(format!("not valid: {}: {why}", file.display()));
+    let (doc, seal, what) = if bytes.starts_with(b"%PDF-") {
+        let (doc, seal) = verify_pdf(&bytes).map_err(|e| invalid(format!("{e:#}")))?;
+        (doc, seal, "the PDF is exactly the rendering of its attached document")
+    } else {
+        let v = crate::report::dcc::verify(&bytes).map_err(|e| invalid(e.to_string()))?;
+        (v.doc, v.seal, "the DCC states exactly its attached document")
     };
+    let number = doc.number.clone().unwrap_or_else(|| "(unnumbered)".into());
+    let sha = doc.sha256();
+    // Against the database: the certificate of that number is this document, and its decision
+    // is the one the file carries.
+    if let Some(spec) = &a.db {
+        let mut db = Db::open_existing(spec)?;
+        let run = db
+            .run_of_certificate(&number)?
+            .ok_or_else(|| invalid(format!("no certificate is numbered {number} in {}", db.target())))?;
+        let html = db
+            .certificate_html(run)?
+            .ok_or_else(|| invalid(format!("certificate {number} is not stored in {}", db.target())))?;
+        let stored = match crate::report::certificate::document_of(&html) {
+            Some(d) => d.map_err(|e| invalid(format!("the stored certificate {number}: {e}")))?,
+            None => return Err(invalid(format!("the stored certificate {number} carries no document"))),
+        };
+        if stored.sha256() != sha {
+            return Err(invalid(format!(
+                "the file's document (SHA-256 {sha}) is not certificate {number} as stored in {} (SHA-256 {})",
+                db.target(),
+                stored.sha256()
+            )));
+        }
+        let decided = db.decision(&number)?.map(|d| d.seal());
+        if decided != seal {
+            return Err(invalid(match (&decided, &seal) {
+                (Some(d), None) => format!(
+                    "certificate {number} was {} in the database; the file carries no decision",
+                    d.meaning
+                ),
+                (None, Some(_)) => format!(
+                    "the file carries a decision that the database does not hold for certificate {number}"
+                ),
+                _ => format!("the file's decision on certificate {number} is not the one the database holds"),
+            }));
+        }
+    }
+    let release = match &seal {
+        Some(s) => {
+            let d = s.check().map_err(|e| invalid(e.to_string()))?;
+            if d.number != number || d.document_sha256 != sha {
+                return Err(invalid(format!(
+                    "the signed decision is on certificate {} (document SHA-256 {}), not on this one ({number}, {sha})",
+                    d.number, d.document_sha256
+                )));
+            }
+            let date: String = accelcal_core::output::utc_date_time(s.unix_s).chars().take(10).collect();
+            format!("{} by {} ({}) on {date}, signing key {}", s.meaning, s.signer, s.function, s.fingerprint)
+        }
+        None => "not approved: it carries no signed decision".into(),
+    };
+    let against = if a.db.is_some() { "; the database holds the same" } else { "" };
     outln!(
-        "valid: certificate {number} of unit {}: the DCC states exactly its attached document (SHA-256 {}); {approval}",
-        v.doc.facts.serial,
-        v.sha256
+        "valid: certificate {number} of unit {}: {what} (SHA-256 {sha}); {release}{against}",
+        doc.facts.serial
     )?;
     Ok(())
+}
+
+/// A PDF's attached document and decision, checked: the PDF renders again to the same bytes from
+/// them (one edited character anywhere differs), and the decision, when there is one, is signed
+/// by its key over this document.
+fn verify_pdf(bytes: &[u8]) -> anyhow::Result<(Document, Option<Seal>)> {
+    let files = crate::report::pdf::attachments(bytes)?;
+    let find = |name: &str| files.iter().find(|(n, _)| n == name).map(|(_, b)| b.as_slice());
+    let json = find(crate::report::pdf::ATTACHMENT)
+        .ok_or_else(|| anyhow::anyhow!("it carries no certificate document (not a PDF accelcal wrote)"))?;
+    let text = std::str::from_utf8(json).context("its attached document is not UTF-8")?;
+    let doc = Document::parse(text).context("its attached document")?;
+    if doc.canonical_json() != text {
+        anyhow::bail!("its attached document is not in canonical form: it was edited");
+    }
+    let seal: Option<Seal> = find(Seal::ATTACHMENT)
+        .map(|b| serde_json::from_slice(b).context("its attached decision"))
+        .transpose()?;
+    let release = seal.as_ref().map_or(Release::Draft, Seal::release);
+    let again = crate::report::pdf::pdf(&doc, &release, seal.as_ref())?;
+    if again != bytes {
+        let at = again.iter().zip(bytes).position(|(x, y)| x != y).unwrap_or(again.len().min(bytes.len()));
+        anyhow::bail!(
+            "the pages differ from the rendering of its attached document from byte {at} on (the file was edited, \
+             or written by another version of accelcal)"
+        );
+    }
+    Ok((doc, seal))
 }

@@ -42,7 +42,7 @@ pub fn run(
     match settings {
         Settings::Fleet(s) => fleet::run(&s),
         Settings::Certificate(s) => certificate::run(&s),
-        Settings::CertificateVerify(file) => certificate::verify(&file),
+        Settings::CertificateVerify(s) => certificate::verify(&s),
         Settings::History(s) => history::run(&s),
         Settings::Void(s) => db::run_void(&s),
         Settings::DbVerify(s) => db::run_verify(&s),

@@ -276,6 +276,7 @@ pub fn run(a: &Report) -> anyhow::Result<()> {
         operator: operator.as_deref(),
         drift: since_last.as_ref().map(drift_input),
         anchor: anchor.as_deref(),
+        replaces: None,
         software: env!("CARGO_PKG_VERSION"),
     });
     // With a database the certificate awaits approval (`accelcal approve`): a draft until a
@@ -293,7 +294,7 @@ pub fn run(a: &Report) -> anyhow::Result<()> {
         a.out.display()
     )?;
     if let Some(p) = &a.pdf {
-        write_atomic(p, &crate::report::pdf::pdf(&doc, &release)?)?;
+        write_atomic(p, &crate::report::pdf::pdf(&doc, &release, None)?)?;
         outln!("report: its PDF written to {}", p.display())?;
     }
     if let Some(p) = &a.dcc {

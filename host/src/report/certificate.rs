@@ -125,11 +125,11 @@ fn css_text(s: &str) -> String {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::{css_text, document_of, html, Release};
     use accelcal_core::certificate::{Certificate, Facts, Quantity, Span, FORMAT};
 
-    fn doc(serial: &str) -> Certificate {
+    pub(crate) fn doc(serial: &str) -> Certificate {
         Certificate {
             format: FORMAT,
             number: Some("2026-000001".into()),
@@ -165,6 +165,7 @@ mod tests {
                 equipment: Vec::new(),
                 recalibration_due: None,
                 anchor: None,
+                replaces: None,
             },
         }
     }

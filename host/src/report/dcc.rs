@@ -5,14 +5,19 @@
 //! base64, `application/json`), so `certificate verify` can check a DCC offline: [`verify`]
 //! re-renders the DCC from the attached document and compares the two.
 //!
-//! What an approval adds ([`Authoriser`]: the main signer among the responsible persons) is an
-//! argument, not part of the document; a signature (`ds:Signature`, which the schema allows at
-//! the end) is the other half of that hook and is not written here.
+//! What an approval adds is an argument, not part of the document: the signed decision
+//! ([`Seal`]), whose signer is written as the main signer among the responsible persons
+//! ([`Authoriser`]) and which rides along itself in `dcc:comment` (an element of accelcal's own
+//! namespace, [`APPROVAL_NS`], which the schema admits there without validating it), so that
+//! `certificate verify` checks the signature offline too. No XML signature (`ds:Signature`)
+//! is written: the seal signs the document's SHA-256, which the DCC's rendering is checked
+//! against.
 
 use base64::Engine as _;
 use quick_xml::events::{BytesDecl, BytesEnd, BytesStart, BytesText, Event};
 use quick_xml::Writer;
 
+use accelcal_core::certificate::approval::{Meaning, Seal};
 use accelcal_core::certificate::{Certificate, DocumentError, Facts, Quantity};
 
 /// The DCC schema version written (`schemaVersion`).
@@ -21,6 +26,9 @@ pub const SCHEMA_VERSION: &str = "3.3.0";
 pub const SCHEMA_LOCATION: &str = "https://ptb.de/dcc https://ptb.de/dcc/v3.3.0/dcc.xsd";
 /// The attached document's file name inside the DCC.
 pub const DOCUMENT_FILE: &str = "certificate-document.json";
+
+/// The namespace of the element that carries the signed decision in `dcc:comment`.
+pub const APPROVAL_NS: &str = "urn:accelcal:approval:v1";
 
 /// Who approved the certificate for issue, as an approval states it (the main signer).
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -31,8 +39,13 @@ pub struct Authoriser {
     pub function: String,
 }
 
-/// The DCC of `doc`, with the authoriser when it is approved.
-pub fn dcc(doc: &Certificate, authoriser: Option<&Authoriser>) -> std::io::Result<Vec<u8>> {
+/// The DCC of `doc`, with its signed decision when it has one (an approval names its signer as
+/// the main signer).
+pub fn dcc(doc: &Certificate, seal: Option<&Seal>) -> std::io::Result<Vec<u8>> {
+    let authoriser = seal
+        .filter(|s| Meaning::parse(&s.meaning) == Some(Meaning::Approved))
+        .map(|s| Authoriser { name: s.signer.clone(), function: s.function.clone() });
+    let authoriser = authoriser.as_ref();
     let mut x = X { w: Writer::new_with_indent(Vec::new(), b' ', 1) };
     x.w.write_event(Event::Decl(BytesDecl::new("1.0", Some("UTF-8"), None)))?;
     let root = BytesStart::new("dcc:digitalCalibrationCertificate").with_attributes([
@@ -45,6 +58,19 @@ pub fn dcc(doc: &Certificate, authoriser: Option<&Authoriser>) -> std::io::Resul
     x.w.write_event(Event::Start(root))?;
     administrative(&mut x, doc, authoriser)?;
     measurement(&mut x, &doc.facts)?;
+    if let Some(seal) = seal {
+        let json = serde_json::to_string(seal).map_err(std::io::Error::other)?;
+        x.open("dcc:comment")?;
+        x.w.write_event(Event::Start(
+            BytesStart::new("accelcal:approval")
+                .with_attributes([("xmlns:accelcal", APPROVAL_NS), ("mimeType", "application/json")]),
+        ))?;
+        x.w.write_event(Event::Text(BytesText::new(
+            &base64::engine::general_purpose::STANDARD.encode(json),
+        )))?;
+        x.w.write_event(Event::End(BytesEnd::new("accelcal:approval")))?;
+        x.close("dcc:comment")?;
+    }
     x.open("dcc:document")?;
     x.text_el("dcc:name", "The certificate document (accelcal's canonical JSON), SHA-256 in coreData")?;
     x.leaf("dcc:fileName", DOCUMENT_FILE)?;
@@ -451,12 +477,8 @@ fn not_empty(s: &str) -> &str {
 pub struct Verified {
     /// The attached document.
     pub doc: Certificate,
-    /// Its SHA-256 (what an approval signs).
-    pub sha256: String,
-    /// The main signer the DCC names, when it names one.
-    pub authoriser: Option<Authoriser>,
-    /// Whether the DCC carries a `ds:Signature` (checked by the approval hook, not here).
-    pub signed: bool,
+    /// The signed decision it carries (not yet checked: [`Seal::check`]).
+    pub seal: Option<Seal>,
 }
 
 /// Why a DCC is not valid.
@@ -508,7 +530,18 @@ pub fn verify(bytes: &[u8]) -> Result<Verified, Invalid> {
     if doc.canonical_json() != text {
         return Err(Invalid::NotCanonical);
     }
-    let again = dcc(&doc, found.authoriser.as_ref())?;
+    let seal: Option<Seal> = match &found.approval {
+        Some(b64) => {
+            let b64: String = b64.chars().filter(|c| !c.is_ascii_whitespace()).collect();
+            let json = base64::engine::general_purpose::STANDARD.decode(b64.as_bytes())?;
+            Some(
+                serde_json::from_slice(&json)
+                    .map_err(|e| Invalid::Xml(format!("the attached decision: {e}")))?,
+            )
+        }
+        None => None,
+    };
+    let again = dcc(&doc, seal.as_ref())?;
     let again = String::from_utf8_lossy(&again);
     let file = String::from_utf8_lossy(bytes);
     let mut a = file.lines();
@@ -528,51 +561,31 @@ pub fn verify(bytes: &[u8]) -> Result<Verified, Invalid> {
             }
         }
     }
-    Ok(Verified { sha256: doc.sha256(), doc, authoriser: found.authoriser, signed: found.signed })
+    Ok(Verified { doc, seal })
 }
 
-/// What a pass over the XML finds.
+/// What a pass over the XML finds: the attached document's and decision's base64.
 #[derive(Default)]
 struct Scan {
     document: Option<String>,
-    authoriser: Option<Authoriser>,
-    signed: bool,
+    approval: Option<String>,
 }
 
-/// One pass over the XML: the attached document's base64, the main signer, a signature.
+/// One pass over the XML: the attached document and the signed decision. The rest of the file
+/// is checked by rendering it again.
 fn scan(bytes: &[u8]) -> Result<Scan, Invalid> {
     let text = std::str::from_utf8(bytes).map_err(|e| Invalid::Xml(e.to_string()))?;
     let mut reader = quick_xml::Reader::from_str(text);
     let mut path: Vec<String> = Vec::new();
     let mut out = Scan::default();
-    // The responsible person being read: name, role, main signer.
-    let mut person: Option<(String, String, bool)> = None;
     loop {
         let ev = reader
             .read_event()
             .map_err(|e| Invalid::Xml(format!("at byte {}: {e}", reader.error_position())))?;
         match ev {
-            Event::Start(s) => {
-                let name = String::from_utf8_lossy(s.name().as_ref()).into_owned();
-                if name == "dcc:respPerson" {
-                    person = Some(Default::default());
-                }
-                if name == "ds:Signature" {
-                    out.signed = true;
-                }
-                path.push(name);
-            }
+            Event::Start(s) => path.push(String::from_utf8_lossy(s.name().as_ref()).into_owned()),
             Event::End(_) => {
-                if path.pop().as_deref() == Some("dcc:respPerson") {
-                    if let Some((name, function, true)) = person.take() {
-                        out.authoriser = Some(Authoriser { name, function });
-                    }
-                }
-            }
-            Event::Empty(s) => {
-                if s.name().as_ref() == b"ds:Signature" {
-                    out.signed = true;
-                }
+                path.pop();
             }
             Event::Text(t) => {
                 let t = t.xml_content().map_err(|e| Invalid::Xml(e.to_string()))?.into_owned();
@@ -581,20 +594,8 @@ fn scan(bytes: &[u8]) -> Result<Scan, Invalid> {
                     ["dcc:dataBase64", "dcc:document", "dcc:digitalCalibrationCertificate"] => {
                         out.document.get_or_insert_with(String::new).push_str(&t)
                     }
-                    ["dcc:content", "dcc:name", "dcc:person"] => {
-                        if let Some(p) = person.as_mut() {
-                            p.0.push_str(&t)
-                        }
-                    }
-                    ["dcc:role", "dcc:respPerson", ..] => {
-                        if let Some(p) = person.as_mut() {
-                            p.1.push_str(&t)
-                        }
-                    }
-                    ["dcc:mainSigner", "dcc:respPerson", ..] => {
-                        if let Some(p) = person.as_mut() {
-                            p.2 = t.trim() == "true"
-                        }
+                    ["accelcal:approval", "dcc:comment", "dcc:digitalCalibrationCertificate"] => {
+                        out.approval.get_or_insert_with(String::new).push_str(&t)
                     }
                     _ => {}
                 }

@@ -20,6 +20,7 @@ use krilla::Document;
 use skrifa::instance::{LocationRef, Size};
 use skrifa::{FontRef, MetadataProvider};
 
+use accelcal_core::certificate::approval::Seal;
 use accelcal_core::certificate::{Block, Certificate, Chart, Column, Release, Span, Style};
 
 /// A4, points.
@@ -444,8 +445,8 @@ fn tick_label(t: f64, all: &[f64]) -> String {
     format!("{t:.d$}")
 }
 
-/// The certificate as a PDF.
-pub fn pdf(doc: &Certificate, release: &Release) -> anyhow::Result<Vec<u8>> {
+/// The certificate as a PDF, with its signed decision attached when it has one.
+pub fn pdf(doc: &Certificate, release: &Release, seal: Option<&Seal>) -> anyhow::Result<Vec<u8>> {
     let fonts = Fonts::load()?;
     let mut l = Layout::new(&fonts);
     // The top: title and subtitle left, the laboratory right.
@@ -518,7 +519,7 @@ pub fn pdf(doc: &Certificate, release: &Release) -> anyhow::Result<Vec<u8>> {
             });
         }
     }
-    emit(&fonts, &l.pages, doc)
+    emit(&fonts, &l.pages, doc, seal)
 }
 
 fn paint(c: (u8, u8, u8)) -> krilla::paint::Paint {
@@ -526,7 +527,7 @@ fn paint(c: (u8, u8, u8)) -> krilla::paint::Paint {
 }
 
 /// Writes the laid-out pages.
-fn emit(fonts: &Fonts, pages: &[Vec<Op>], doc: &Certificate) -> anyhow::Result<Vec<u8>> {
+fn emit(fonts: &Fonts, pages: &[Vec<Op>], doc: &Certificate, seal: Option<&Seal>) -> anyhow::Result<Vec<u8>> {
     let mut d = Document::new();
     d.set_metadata(
         Metadata::new()
@@ -611,12 +612,106 @@ fn emit(fonts: &Fonts, pages: &[Vec<Op>], doc: &Certificate) -> anyhow::Result<V
         location: None,
     })
     .ok_or_else(|| anyhow!("the certificate document could not be attached"))?;
+    if let Some(seal) = seal {
+        d.embed_file(EmbeddedFile {
+            path: Seal::ATTACHMENT.into(),
+            mime_type: MimeType::new("application/json"),
+            description: Some(
+                "the signed decision on this certificate (accelcal certificate verify checks it)".into(),
+            ),
+            association_kind: AssociationKind::Supplement,
+            data: serde_json::to_string(seal)?.into_bytes().into(),
+            modification_date: None,
+            compress: Some(true),
+            location: None,
+        })
+        .ok_or_else(|| anyhow!("the signed decision could not be attached"))?;
+    }
     d.finish().map_err(|e| anyhow!("the PDF could not be written: {e:?}"))
+}
+
+/// The largest attachment read back (a certificate document is some tens of kB).
+const MAX_ATTACHMENT: usize = 16 << 20;
+
+/// The files attached to a PDF (its name tree `/EmbeddedFiles`), by name. The bytes are
+/// untrusted: a PDF that does not read, or whose name tree is not as the specification has it,
+/// is an error, never a panic.
+pub fn attachments(pdf: &[u8]) -> anyhow::Result<Vec<(String, Vec<u8>)>> {
+    use lopdf::{Document as Pdf, Object};
+    let doc = Pdf::load_mem(pdf).map_err(|e| anyhow!("not a PDF that reads: {e}"))?;
+    let deref = |o: &'_ Object| -> anyhow::Result<Object> {
+        Ok(doc.dereference(o).map_err(|e| anyhow!("a broken reference: {e}"))?.1.clone())
+    };
+    let catalog = doc.catalog().map_err(|e| anyhow!("no document catalog: {e}"))?;
+    let Ok(names) = catalog.get(b"Names") else { return Ok(Vec::new()) };
+    let names = deref(names)?;
+    let Ok(files) = names.as_dict().map_err(|e| anyhow!("{e}"))?.get(b"EmbeddedFiles") else {
+        return Ok(Vec::new());
+    };
+    let mut out = Vec::new();
+    // A name tree: a node has /Names [name spec name spec …] or /Kids [node …].
+    let mut nodes = vec![deref(files)?];
+    let mut seen = 0usize;
+    while let Some(node) = nodes.pop() {
+        seen += 1;
+        if seen > 10_000 {
+            anyhow::bail!("the attachments' name tree does not end");
+        }
+        let node = node.as_dict().map_err(|e| anyhow!("an attachments' node: {e}"))?.clone();
+        if let Ok(kids) = node.get(b"Kids") {
+            for k in deref(kids)?.as_array().map_err(|e| anyhow!("{e}"))? {
+                nodes.push(deref(k)?);
+            }
+        }
+        let Ok(list) = node.get(b"Names") else { continue };
+        let list = deref(list)?;
+        let list = list.as_array().map_err(|e| anyhow!("{e}"))?;
+        for pair in list.chunks(2) {
+            let [name, spec] = pair else { anyhow::bail!("an attachments' list of odd length") };
+            let name =
+                String::from_utf8_lossy(deref(name)?.as_str().map_err(|e| anyhow!("{e}"))?).into_owned();
+            let spec = deref(spec)?;
+            let spec = spec.as_dict().map_err(|e| anyhow!("attachment {name:?}: {e}"))?;
+            let ef = deref(spec.get(b"EF").map_err(|e| anyhow!("attachment {name:?}: {e}"))?)?;
+            let f = ef.as_dict().map_err(|e| anyhow!("{e}"))?.get(b"F").map_err(|e| anyhow!("{e}"))?;
+            let stream = deref(f)?;
+            let stream = stream.as_stream().map_err(|e| anyhow!("attachment {name:?}: {e}"))?;
+            let bytes = match stream.decompressed_content_with_limit(MAX_ATTACHMENT) {
+                Ok(b) => b,
+                // A stream without a filter is its content.
+                Err(_) if stream.dict.get(b"Filter").is_err() => stream.content.clone(),
+                Err(e) => anyhow::bail!("attachment {name:?} does not decompress: {e}"),
+            };
+            out.push((name, bytes));
+        }
+    }
+    Ok(out)
 }
 
 #[cfg(test)]
 mod tests {
-    use super::{tick_label, ticks};
+    use super::{attachments, pdf, tick_label, ticks, ATTACHMENT};
+    use accelcal_core::certificate::{Certificate, Release};
+
+    /// A PDF carries its document, read back the same, and the same document with the same
+    /// release renders to the same bytes (what `certificate verify` compares).
+    #[test]
+    fn a_pdf_carries_its_document_and_renders_the_same_twice() {
+        let doc = crate::report::certificate::tests::doc("U-7 <&>");
+        let a = pdf(&doc, &Release::Draft, None).unwrap();
+        let b = pdf(&doc, &Release::Draft, None).unwrap();
+        assert_eq!(a, b, "two renderings of one document differ");
+        let files = attachments(&a).unwrap();
+        assert_eq!(files.len(), 1);
+        assert_eq!(files[0].0, ATTACHMENT);
+        let back = Certificate::parse(std::str::from_utf8(&files[0].1).unwrap()).unwrap();
+        assert_eq!(back, doc);
+        // Bytes that are not a PDF, or a PDF cut short, are an error, not a panic.
+        assert!(attachments(b"%PDF-1.7 nothing").is_err());
+        assert!(
+            attachments(&a[..a.len() / 2]).is_err() || attachments(&a[..a.len() / 2]).unwrap().is_empty()
+        );
+    }
 
     #[test]
     fn ticks_are_round_and_cover_the_range() {

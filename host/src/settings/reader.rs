@@ -212,6 +212,15 @@ pub fn void(a: &VoidArgs) -> anyhow::Result<Void> {
     })
 }
 
+/// `accelcal certificate verify`, settled.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CertificateVerify {
+    /// The PDF or DCC file.
+    pub file: PathBuf,
+    /// `--db`: the database to check it against, as given.
+    pub db: Option<String>,
+}
+
 /// `accelcal db verify`, settled.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DbVerify {

@@ -11,8 +11,8 @@ pub enum Settings {
     Fleet(reader::Fleet),
     /// `accelcal certificate`.
     Certificate(reader::Certificate),
-    /// `accelcal certificate verify FILE`: the file.
-    CertificateVerify(std::path::PathBuf),
+    /// `accelcal certificate verify FILE [--db DB]`.
+    CertificateVerify(reader::CertificateVerify),
     /// `accelcal history`.
     History(reader::History),
     /// `accelcal void`.
@@ -85,7 +85,9 @@ pub fn settle(command: Command, resolved: &Resolved) -> anyhow::Result<Settings>
     Ok(match command {
         Command::Fleet(a) => Settings::Fleet(reader::fleet(&a, accelcal_db::asset::today_utc())?),
         Command::Certificate(a) => match &a.action {
-            Some(crate::cli::CertificateAction::Verify { file }) => Settings::CertificateVerify(file.clone()),
+            Some(crate::cli::CertificateAction::Verify { file, db }) => {
+                Settings::CertificateVerify(reader::CertificateVerify { file: file.clone(), db: db.clone() })
+            }
             None => Settings::Certificate(reader::certificate(&a)?),
         },
         Command::History(a) => Settings::History(reader::history(&a)?),
