@@ -378,38 +378,6 @@ impl Certificate {
         Ok(serde_json::from_str(text)?)
     }
 
-    /// The amendment of this certificate: the same results under a new number, issued at
-    /// `issued_unix_s`, stating the number it replaces and why (a row at the top of the
-    /// identification). The original stays as it was; this is a new document.
-    pub fn amended(&self, number: &str, reason: &str, issued_unix_s: i64) -> Certificate {
-        let mut d = self.clone();
-        let old = self.number.clone().unwrap_or_else(|| "draft, not numbered".into());
-        let issued = crate::output::utc_date_time(issued_unix_s);
-        d.number = Some(number.to_string());
-        d.title = format!("Calibration certificate No. {number}");
-        d.footer = format!("Calibration certificate No. {number} — accelerometer triad {}", d.facts.serial);
-        d.identification.retain(|f| f.label != "Replaces");
-        d.identification.insert(
-            0,
-            Field {
-                label: "Replaces".into(),
-                text: format!("certificate {old}, which this amendment supersedes: {reason}"),
-            },
-        );
-        for f in d.identification.iter_mut().filter(|f| f.label == "Dates") {
-            if let Some(at) = f.text.find("issued ") {
-                f.text = format!(
-                    "{}issued {issued} (amendment; certificate {old} issued {})",
-                    &f.text[..at],
-                    self.facts.issued
-                );
-            }
-        }
-        d.facts.issued = issued;
-        d.facts.replaces = Some(old);
-        d
-    }
-
     /// Every section's tables, charts and paragraphs, for renderers that walk them.
     pub fn blocks(&self) -> impl Iterator<Item = &Block> {
         self.sections.iter().flat_map(|s| s.blocks.iter())
