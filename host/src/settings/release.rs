@@ -129,6 +129,10 @@ fn decide(a: &DecideArgs, meaning: Meaning, reason: String) -> anyhow::Result<De
     if a.passphrase_file.as_ref() == Some(&a.key) {
         return Err(bad(format!("--passphrase-file and --key are the same file {}", a.key.display())));
     }
+    // A decision is on a stored certificate: a missing database file is refused, not created.
+    if let Some(spec) = crate::cmd::store::named_db(a.reader.db.as_deref()) {
+        super::values::existing_db(&spec, if meaning == Meaning::Approved { "approve" } else { "reject" })?;
+    }
     let allow_self_approval = match &a.config {
         Some(path) => super::station_config::allow_self_approval(path)?,
         None => false,
