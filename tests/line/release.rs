@@ -77,7 +77,8 @@ pub fn approve_a_station_certificate(dir: &Path, unit: &Path, number: &str, name
 
     // A database that is not there is refused, not created.
     let nowhere = dir.join("no-such.sqlite");
-    let (code, err) = refused(&["approve", number, "--key", k, "--passphrase-file", p, "--db", nowhere.to_str().unwrap()]);
+    let (code, err) =
+        refused(&["approve", number, "--key", k, "--passphrase-file", p, "--db", nowhere.to_str().unwrap()]);
     assert_eq!(code, Some(2), "{err}");
     assert!(err.contains("no such database: approve appends to an existing database"), "{err}");
     assert!(!nowhere.exists());
