@@ -566,6 +566,13 @@ fn two_connections_in_one_process_keep_every_write_visible() {
     assert!(out.contains("1 runs, 2 rows, 2 ledger entries"), "{out}");
 }
 
+/// Issue 57: signers decide once, and amendments take the next number and supersede.
+#[test]
+fn signers_decide_once_and_amendments_supersede() {
+    let d = tempfile::tempdir().unwrap();
+    dbkit::release::signers_decide_and_amend(&db_file(&d));
+}
+
 #[test]
 fn certificate_numbers_are_unique_stable_and_never_reused() {
     let d = tempfile::tempdir().unwrap();
@@ -752,20 +759,20 @@ fn readers_never_migrate_and_db_migrate_does() {
     drop(db);
     // Back to schema 7, as a database of the last release is.
     with_triggers_dropped(&spec)(
-        "DROP TABLE approval; DROP TABLE signer_revocation; DROP TABLE signer; DROP TABLE chain_event; \
+        "DROP TABLE amendment; DROP TABLE approval; DROP TABLE signer_revocation; DROP TABLE signer; DROP TABLE chain_event; \
          DELETE FROM refinery_schema_history WHERE version >= 8",
     );
     let before = std::fs::read(&spec).unwrap();
     let (code, _, err) = accelcal(&["history", "SN-1", "--db", &spec]);
     assert_eq!(code, Some(1), "{err}");
     assert!(
-        err.contains("at schema version 7, this build reads version 9: run `accelcal db migrate --db"),
+        err.contains("at schema version 7, this build reads version 10: run `accelcal db migrate --db"),
         "{err}"
     );
     assert_eq!(std::fs::read(&spec).unwrap(), before, "the reader wrote nothing");
     let (code, out, err) = accelcal(&["db", "migrate", "--db", &spec]);
     assert_eq!(code, Some(0), "{out}{err}");
-    assert!(out.contains("is at schema version 9"), "{out}");
+    assert!(out.contains("is at schema version 10"), "{out}");
     let (code, out, err) = accelcal(&["history", "SN-1", "--db", &spec]);
     assert_eq!(code, Some(0), "{out}{err}");
 }

@@ -166,6 +166,13 @@ fn writers_racing_on_one_run_id_store_each_row_once() {
     writers_racing_on_one_run(&pg.url);
 }
 
+/// Issue 57: signers decide once, and amendments take the next number and supersede.
+#[test]
+fn signers_decide_once_and_amendments_supersede() {
+    let pg = Cluster::start();
+    dbkit::release::signers_decide_and_amend(&pg.url);
+}
+
 #[test]
 fn certificate_numbers_are_unique_stable_and_never_reused() {
     let pg = Cluster::start();

@@ -27,7 +27,7 @@ pub struct Table {
 }
 
 /// Every table of the calibration, as the chain sees it.
-pub const TABLES: [Table; 18] = [
+pub const TABLES: [Table; 19] = [
     Table {
         name: "run",
         columns: &[
@@ -129,6 +129,20 @@ pub const TABLES: [Table; 18] = [
             "content_sha256",
         ],
     },
+    Table {
+        name: "amendment",
+        columns: &[
+            "run_id",
+            "number",
+            "sequence",
+            "replaces",
+            "reason",
+            "operator",
+            "html",
+            "issued_unix_s",
+            "content_sha256",
+        ],
+    },
 ];
 
 impl Table {
@@ -155,6 +169,7 @@ pub fn piece_key(table: &str, row: &[Val]) -> Result<String, DbError> {
         "signer" => format!("signer:{}", row[0].text()?),
         "signer_revocation" => format!("signer_revocation:{}", row[0].text()?),
         "approval" => format!("approval:{}", row[1].text()?),
+        "amendment" => format!("amendment:{}", row[1].text()?),
         t => t.to_string(),
     })
 }
@@ -672,6 +687,14 @@ fn content_mismatch(t: &Table, row: &[Val]) -> Result<Option<String>, DbError> {
             &col("fingerprint").text()?,
             &col("signature").text()?,
         )?
+        .into_bytes(),
+        "amendment" => super::content::amendment_content(
+            col("sequence").int()?,
+            &col("number").text()?,
+            &col("replaces").text()?,
+            &col("reason").text()?,
+            &col("html").text()?,
+        )
         .into_bytes(),
         other => unreachable!("table {other} is in TABLES"),
     };

@@ -47,6 +47,18 @@ pub(crate) fn recalibration_due_content(due_unix_s: i64, basis: &str) -> String 
     format!("{due_unix_s}\n{basis}")
 }
 
+/// What an amendment row's `content_sha256` hashes: its number and place in the sequence, the
+/// number it replaces and why, and its page.
+pub(crate) fn amendment_content(
+    sequence: i64,
+    number: &str,
+    replaces: &str,
+    reason: &str,
+    html: &str,
+) -> String {
+    format!("{sequence}\n{number}\n{replaces}\n{reason}\n{html}")
+}
+
 /// What a certificate_number row's `content_sha256` hashes.
 pub(crate) fn certificate_number_content(sequence: i64, number: &str) -> String {
     format!("{sequence}\n{number}")

@@ -346,12 +346,13 @@ impl Db {
                      CASE WHEN EXISTS (SELECT 1 FROM certificate c WHERE c.run_id = r.run_id) THEN 1 ELSE 0 END, \
                      ap.meaning FROM run r LEFT JOIN run_end e ON e.run_id = r.run_id \
                      LEFT JOIN void v ON v.run_id = r.run_id \
-                     LEFT JOIN approval ap ON ap.run_id = r.run_id \
+                     LEFT JOIN approval ap ON ap.run_id = r.run_id AND ap.number = {IN_FORCE} \
                      LEFT JOIN run_asset ra ON ra.run_id = r.run_id AND ra.kind = 'head' \
                      LEFT JOIN verification_summary af ON af.run_id = r.run_id AND af.phase = 'as_found' \
                      LEFT JOIN verification_summary al ON al.run_id = r.run_id AND al.phase = 'as_left' \
                      LEFT JOIN fit_summary fs ON fs.run_id = r.run_id \
-                     WHERE {WHERE} ORDER BY r.started_unix_s, r.run_id"
+                     WHERE {WHERE} ORDER BY r.started_unix_s, r.run_id",
+                    IN_FORCE = super::certificate::IN_FORCE.replace("$1", "r.run_id")
                 ),
                 &p,
             )

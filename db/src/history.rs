@@ -116,10 +116,16 @@ pub struct RunLine {
     /// run is listed, never used.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub tampered: Option<String>,
-    /// Where its stored certificate stands (`awaiting_approval`, `approved`, `rejected`);
+    /// Where its certificate in force stands (`awaiting_approval`, `approved`, `rejected`);
     /// absent when it has none.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub certificate_state: Option<super::signer::CertificateState>,
+    /// The number of its certificate in force (its newest amendment's, else its first).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub certificate_number: Option<String>,
+    /// The numbers of its certificates that amendments replaced, oldest first: superseded.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub superseded_certificates: Vec<String>,
 }
 
 /// One coefficient's change between two calibrations.
@@ -373,6 +379,8 @@ pub fn history(runs: &[RunSummary], rule: RecalRule) -> History {
             voided_unix_s: r.voided.as_ref().map(|v| v.1),
             tampered: r.tampered.clone(),
             certificate_state: r.certificate_state,
+            certificate_number: r.certificate_number.clone(),
+            superseded_certificates: r.superseded_certificates.clone(),
         });
     }
     let mut serials: Vec<String> = Vec::new();

@@ -885,16 +885,30 @@ fn summary(tx: &mut Tx<'_>, start: RunStart) -> Result<RunSummary, DbError> {
         Ok(_) => None,
         Err(m) => m.first().map(|m| format!("its rows do not match their hash chain: {m}")),
     };
-    let certificate_state = one(
+    // The certificate in force (the newest amendment's, else the first) and its decision.
+    let in_force = one(
         tx,
-        "SELECT a.meaning FROM certificate c LEFT JOIN approval a ON a.run_id = c.run_id WHERE c.run_id = $1",
-    )?
-    .map(|r| match &r[0] {
-        Val::Null => Ok(signer::CertificateState::AwaitingApproval),
-        v => Ok::<_, DbError>(signer::CertificateState::of(Some(&v.text()?))),
-    })
-    .transpose()?;
+        &format!(
+            "SELECT {IN_FORCE}, (SELECT a.meaning FROM approval a WHERE a.number = {IN_FORCE}) \
+             WHERE EXISTS (SELECT 1 FROM certificate c WHERE c.run_id = $1)",
+            IN_FORCE = certificate::IN_FORCE
+        ),
+    )?;
+    let (certificate_number, certificate_state) = match in_force {
+        Some(r) => (r[0].opt_text()?, Some(signer::CertificateState::of(r[1].opt_text()?.as_deref()))),
+        None => (None, None),
+    };
+    let superseded_certificates = tx
+        .query(
+            "SELECT replaces FROM amendment WHERE run_id = $1 ORDER BY sequence",
+            &[start.run_id.to_string().into()],
+        )?
+        .iter()
+        .map(|r| r[0].text())
+        .collect::<Result<Vec<_>, _>>()?;
     Ok(RunSummary {
+        certificate_number,
+        superseded_certificates,
         certificate_state,
         tampered,
         start,

@@ -100,7 +100,8 @@ pub enum CertificateState {
     Approved,
     /// Rejected: not released.
     Rejected,
-    // Superseded (an amendment, issue 57 item 7) goes here.
+    /// Replaced by an amendment (`accelcal amend`): printable as it was, marked so.
+    Superseded,
 }
 
 impl CertificateState {
@@ -119,6 +120,7 @@ impl CertificateState {
             CertificateState::AwaitingApproval => "awaiting approval",
             CertificateState::Approved => "approved",
             CertificateState::Rejected => "rejected",
+            CertificateState::Superseded => "superseded",
         }
     }
 }
@@ -169,6 +171,14 @@ pub enum ReleaseError {
         number: String,
         /// The database.
         target: String,
+    },
+    /// The certificate was replaced by an amendment.
+    #[error("certificate {number} was replaced by amendment {by}: decide on {by}; nothing stored")]
+    Superseded {
+        /// The certificate.
+        number: String,
+        /// Its amendment.
+        by: String,
     },
     /// The certificate's run was voided.
     #[error("certificate {number}'s run {run_id} was voided: its certificate is not released")]
@@ -380,7 +390,9 @@ impl Db {
                 }
                 let found = tx.query(
                     "SELECT n.run_id, r.operator FROM certificate_number n JOIN certificate c ON c.run_id = n.run_id \
-                     JOIN run r ON r.run_id = n.run_id WHERE n.number = $1",
+                     JOIN run r ON r.run_id = n.run_id WHERE n.number = $1 \
+                     UNION ALL SELECT a.run_id, r.operator FROM amendment a JOIN run r ON r.run_id = a.run_id \
+                     WHERE a.number = $1",
                     &[number.clone().into()],
                 )?;
                 let Some(f) = found.first() else {
@@ -390,6 +402,12 @@ impl Db {
                 let operator = f[1].text()?;
                 if !tx.query("SELECT 1 FROM void WHERE run_id = $1", &[run_id.clone().into()])?.is_empty() {
                     return Err(rel(ReleaseError::Voided { number: number.clone(), run_id }));
+                }
+                if let Some(by) = tx
+                    .query("SELECT number FROM amendment WHERE replaces = $1", &[number.clone().into()])?
+                    .first()
+                {
+                    return Err(rel(ReleaseError::Superseded { number: number.clone(), by: by[0].text()? }));
                 }
                 if let Some(d) = decided(tx, &number)? {
                     return Err(rel(ReleaseError::Decided {
@@ -426,17 +444,6 @@ impl Db {
                     signature: signature.to_string(),
                 })
             })
-        })
-    }
-
-    /// The number of run `run`'s certificate, `None` when it has none (read only).
-    pub fn number_of_run(&mut self, run: RunId) -> Result<Option<String>, DbError> {
-        let id = run.to_string();
-        self.conn.reading(|tx| {
-            tx.query("SELECT number FROM certificate_number WHERE run_id = $1", &[id.clone().into()])?
-                .first()
-                .map(|r| r[0].text())
-                .transpose()
         })
     }
 

@@ -195,8 +195,12 @@ pub struct RunSummary {
     /// `Some`: the run's rows (or the assets it used) do not match their hash chain, the first
     /// mismatch in words. Such a run is listed and never used.
     pub tampered: Option<String>,
-    /// Where its stored certificate stands (`None`: no certificate stored).
+    /// Where its certificate in force stands (`None`: no certificate stored).
     pub certificate_state: Option<super::signer::CertificateState>,
+    /// The number of its certificate in force (its newest amendment's, else its first).
+    pub certificate_number: Option<String>,
+    /// The numbers of its certificates that amendments replaced, oldest first.
+    pub superseded_certificates: Vec<String>,
 }
 
 /// The latest flash into a device ([`Db::last_flash`]).

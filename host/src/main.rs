@@ -6,6 +6,7 @@
 #[macro_use]
 mod out;
 
+mod app;
 mod cli;
 mod cmd;
 mod exit;

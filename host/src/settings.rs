@@ -467,6 +467,7 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
         | Command::Signer(_)
         | Command::Approve(_)
         | Command::Reject(_)
+        | Command::Amend(_)
         | Command::BenchFleet(_)
         | Command::Plan(_) => Ok(()),
     }

@@ -7,6 +7,7 @@ use std::process::{Command, Stdio};
 
 mod check;
 pub mod fleet;
+pub mod release;
 pub mod serve;
 pub mod tamper;
 

@@ -168,7 +168,7 @@ pub fn approve_a_station_certificate(dir: &Path, unit: &Path, number: &str, name
     assert!(pages.iter().all(|p| !p.contains("DRAFT")), "{pages:?}");
     let fleet =
         String::from_utf8_lossy(&common::succeed(&["history", "A-1", "--db", dbs]).stdout).into_owned();
-    assert!(fleet.contains("certificate: approved"), "{fleet}");
+    assert!(fleet.contains(&format!("certificate: {number} approved")), "{fleet}");
 
     // Anyone checks the approved PDF offline (its document and the decision it carries), and
     // against the database.
@@ -210,4 +210,126 @@ pub fn approve_a_station_certificate(dir: &Path, unit: &Path, number: &str, name
     std::fs::write(&forged_path, forged).unwrap();
     let (code, err) = refused(&["certificate", "verify", forged_path.to_str().unwrap()]);
     assert_eq!(code, Some(2), "{err}");
+
+    amend_the_certificate(dir, number, named, k, p);
+}
+
+/// The first word of `text` after `after`: a certificate number a command printed.
+fn number_after(text: &str, after: &str) -> String {
+    let at = text.find(after).unwrap_or_else(|| panic!("{after:?} in {text}")) + after.len();
+    text[at..].split(|c: char| c.is_whitespace()).next().unwrap().to_string()
+}
+
+/// A page's words joined by single spaces (pdftotext lays a table out in columns).
+fn flat(page: &str) -> String {
+    page.split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+/// Item 7: the approved certificate `number` amended; the amendment awaits approval and is
+/// rejected; amended again and approved: a chain of three numbers for one run. The replaced
+/// ones are superseded everywhere and still print as they were, marked so, and what is refused
+/// stores nothing.
+fn amend_the_certificate(dir: &Path, number: &str, named: &str, k: &str, p: &str) {
+    let db = dir.join("calibration.sqlite");
+    let dbs = db.to_str().unwrap();
+    let n = ledger_rows(&db);
+    let out = common::succeed(&["amend", number, "--reason", "customer address corrected", "--db", dbs]);
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    let second = number_after(&text, "amend: certificate ");
+    assert!(text.contains(&format!("replaces {number}: customer address corrected")), "{text}");
+    assert_ne!(second, number);
+    assert_eq!(ledger_rows(&db), n + 1, "one row, chained");
+    // The replaced certificate is neither amended nor decided again: nothing stored.
+    let (code, err) = refused(&["amend", number, "--reason", "again", "--db", dbs]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains(&format!("was replaced already, by {second}")), "{err}");
+    let (code, err) =
+        refused(&["reject", number, "--key", k, "--passphrase-file", p, "--reason", "late", "--db", dbs]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains(&format!("was replaced by amendment {second}")), "{err}");
+    assert_eq!(ledger_rows(&db), n + 1);
+    let history = |dbs: &str| {
+        String::from_utf8_lossy(&common::succeed(&["history", "A-1", "--db", dbs]).stdout).into_owned()
+    };
+    let h = history(dbs);
+    assert!(h.contains(&format!("certificate: {second} awaiting approval; superseded: {number}")), "{h}");
+
+    // The original prints as it was released (approved), every page marked superseded; the
+    // PDF checks offline and says so, and the database agrees.
+    let old = dir.join("superseded.pdf");
+    common::succeed(&["certificate", number, "--pdf", old.to_str().unwrap(), "--db", dbs]);
+    let pages = certificate_pdf(&old, named, &["Dr. A. Reviewer"]);
+    let mark = format!("SUPERSEDED by certificate {second}: customer address corrected");
+    assert!(pages.iter().all(|pg| flat(pg).contains(&mark)), "{pages:?}");
+    let out = common::succeed(&["certificate", "verify", old.to_str().unwrap(), "--db", dbs]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains(&format!("superseded by amendment {second} (customer address corrected)")),
+        "{text}"
+    );
+    // The approved PDF printed before the amendment is still the document it was, and the
+    // database says it is no longer in force.
+    let before = dir.join("approved.pdf");
+    let out = common::succeed(&["certificate", "verify", before.to_str().unwrap(), "--db", dbs]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains(&format!("says amendment {second} replaced it")), "{text}");
+    assert!(text.contains("it is not in force"), "{text}");
+    // No DCC is given for a superseded certificate.
+    let (code, err) =
+        refused(&["certificate", number, "--dcc", dir.join("old.xml").to_str().unwrap(), "--db", dbs]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("for the certificate in force only"), "{err}");
+
+    // The amendment: a draft stating what it replaces and why, under its own number.
+    let amended = dir.join("amended.pdf");
+    common::succeed(&["certificate", &second, "--pdf", amended.to_str().unwrap(), "--db", dbs]);
+    let pages = certificate_pdf(&amended, named, &[&format!("No. {second}")]);
+    assert!(pages.iter().all(|pg| pg.contains("DRAFT — awaiting approval")), "{pages:?}");
+    let first = flat(&pages[0]);
+    assert!(
+        first.contains("Replaces") && first.contains(&format!("certificate {number}, which this amendment")),
+        "{first}"
+    );
+    common::succeed(&["certificate", "verify", amended.to_str().unwrap(), "--db", dbs]);
+
+    // Rejected, with a reason on every page; then amended again and approved.
+    let out = common::succeed(&[
+        "reject",
+        &second,
+        "--key",
+        k,
+        "--passphrase-file",
+        p,
+        "--reason",
+        "wrong customer",
+        "--db",
+        dbs,
+    ]);
+    assert!(String::from_utf8_lossy(&out.stdout).contains("the unit is not released"));
+    let rejected = dir.join("rejected.pdf");
+    common::succeed(&["certificate", &second, "--pdf", rejected.to_str().unwrap(), "--db", dbs]);
+    let pages = certificate_pdf(&rejected, named, &[]);
+    assert!(pages.iter().all(|pg| flat(pg).contains("REJECTED — not released: wrong customer")), "{pages:?}");
+    assert!(history(dbs).contains(&format!("certificate: {second} rejected; superseded: {number}")));
+    let out = common::succeed(&["amend", &second, "--reason", "customer corrected again", "--db", dbs]);
+    let third = number_after(&String::from_utf8_lossy(&out.stdout), "amend: certificate ");
+    common::succeed(&["approve", &third, "--key", k, "--passphrase-file", p, "--db", dbs]);
+    let h = history(dbs);
+    assert!(h.contains(&format!("certificate: {third} approved; superseded: {number}, {second}")), "{h}");
+    let last = dir.join("third.pdf");
+    common::succeed(&["certificate", &third, "--pdf", last.to_str().unwrap(), "--db", dbs]);
+    let pages = certificate_pdf(&last, named, &["Dr. A. Reviewer"]);
+    assert!(pages.iter().all(|pg| !pg.contains("DRAFT") && !pg.contains("SUPERSEDED")), "{pages:?}");
+    assert!(flat(&pages[0]).contains(&format!("certificate {second}, which this amendment")), "{pages:?}");
+    let out = common::succeed(&["certificate", "verify", last.to_str().unwrap(), "--db", dbs]);
+    assert!(String::from_utf8_lossy(&out.stdout).contains("the database holds the same"));
+    // The run's certificate in force is the last one: printing by run id gives it.
+    let run: String = rusqlite::Connection::open(&db)
+        .unwrap()
+        .query_row("SELECT run_id FROM amendment LIMIT 1", [], |r| r.get(0))
+        .unwrap();
+    let by_run = dir.join("by-run.html");
+    let out = common::succeed(&["certificate", &run, "-o", by_run.to_str().unwrap(), "--db", dbs]);
+    assert!(String::from_utf8_lossy(&out.stdout).contains(&format!("certificate {third} (run {run})")));
+    common::succeed(&["db", "verify", "--db", dbs]);
 }

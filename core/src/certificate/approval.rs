@@ -6,7 +6,9 @@
 //! passphrase; the database checks a signature with [`verify`] before it stores it.
 
 use ed25519_dalek::pkcs8::{DecodePrivateKey, EncodePrivateKey};
-use ed25519_dalek::{Signature, Signer, SigningKey, VerifyingKey};
+use ed25519_dalek::{Signature, Signer};
+/// The key types a signer holds, for callers that keep one.
+pub use ed25519_dalek::{SigningKey, VerifyingKey};
 
 /// The first line of every signed message: its format and version. A new format gets a new
 /// line, and the old one keeps verifying.

@@ -166,6 +166,67 @@ fn decision_span(word: String, pass: bool) -> Span {
     Span::styled(word, if pass { Style::Pass } else { Style::Fail })
 }
 
+const REPLACES: &str = "Replaces";
+const DATES: &str = "Dates";
+const ANCHOR: &str = "Ledger anchor";
+
+fn title(page_no: &str) -> String {
+    format!("Calibration certificate {page_no}")
+}
+
+fn footer(page_no: &str, serial: &str) -> String {
+    format!("Calibration certificate {page_no} — accelerometer triad {serial}")
+}
+
+fn replaces_text(number: &str, reason: &str) -> String {
+    format!("certificate {number}, which this amendment supersedes: {reason}")
+}
+
+fn dates_text(received: Option<&str>, calibrated: Option<&str>, issued: &str) -> String {
+    let received = received.map(|d| format!("received {d}; ")).unwrap_or_default();
+    format!("{received}calibrated {} (campaign acquired); issued {issued}", calibrated.unwrap_or("-"))
+}
+
+/// What an amendment changes ([`amend`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Amend<'a> {
+    /// The amendment's number.
+    pub number: &'a str,
+    /// The number of the certificate it replaces.
+    pub replaces: &'a str,
+    /// Why.
+    pub reason: &'a str,
+    /// When it is issued, Unix seconds.
+    pub issued_unix_s: i64,
+    /// The hash chain's head at its issue.
+    pub anchor: Option<&'a str>,
+}
+
+/// The amendment of certificate `doc` (`accelcal amend`): the same results of the same run,
+/// under a new number, stating the certificate it replaces and why, issued now. Everything
+/// else is stated as `doc` states it.
+pub fn amend(doc: &Certificate, a: &Amend<'_>) -> Certificate {
+    let page_no = format!("No. {}", a.number);
+    let mut out = doc.clone();
+    out.number = Some(a.number.to_string());
+    out.title = title(&page_no);
+    out.footer = footer(&page_no, &doc.facts.serial);
+    out.facts.issued = utc_date_time(a.issued_unix_s);
+    out.facts.replaces = Some(a.replaces.to_string());
+    out.facts.anchor = a.anchor.map(str::to_string).or(out.facts.anchor);
+    out.identification.retain(|f| f.label != REPLACES);
+    out.identification.insert(0, Field { label: REPLACES.into(), text: replaces_text(a.replaces, a.reason) });
+    let dates = dates_text(out.facts.received.as_deref(), out.facts.calibrated.as_deref(), &out.facts.issued);
+    for f in &mut out.identification {
+        match f.label.as_str() {
+            DATES => f.text = dates.clone(),
+            ANCHOR => f.text = out.facts.anchor.clone().unwrap_or_default(),
+            _ => {}
+        }
+    }
+    out
+}
+
 /// The certificate of one unit.
 pub fn build(i: &Inputs<'_>) -> Certificate {
     let page_no = i.number.map_or("draft, not numbered".to_string(), |n| format!("No. {n}"));
@@ -216,7 +277,7 @@ pub fn build(i: &Inputs<'_>) -> Certificate {
     let mut rows: Vec<Field> = Vec::new();
     let mut row = |label: &str, text: String| rows.push(Field { label: label.into(), text });
     if let Some((number, reason)) = i.replaces {
-        row("Replaces", format!("certificate {number}, which this amendment supersedes: {reason}"));
+        row(REPLACES, replaces_text(number, reason));
     }
     if let Some(c) = &customer {
         row(
@@ -268,14 +329,7 @@ pub fn build(i: &Inputs<'_>) -> Certificate {
             rec.version()
         ),
     );
-    let received = i.issuer.received.as_ref().map(|d| format!("received {d}; ")).unwrap_or_default();
-    row(
-        "Dates",
-        format!(
-            "{received}calibrated {} (campaign acquired); issued {issued}",
-            calibrated.as_deref().unwrap_or("-")
-        ),
-    );
+    row(DATES, dates_text(i.issuer.received.as_deref(), calibrated.as_deref(), &issued));
     if let Some(place) = &i.issuer.place {
         row("Place of calibration", place.clone());
     }
@@ -319,7 +373,7 @@ pub fn build(i: &Inputs<'_>) -> Certificate {
     // The hash chain's head at issue, kept outside the database by every copy of this page:
     // `db verify --anchors CERTIFICATE` finds a database cut short or rewritten behind it.
     if let Some(a) = i.anchor {
-        row("Ledger anchor", a.to_string());
+        row(ANCHOR, a.to_string());
     }
 
     let (results, u_axis, parameters) = results(rec, i.fit, i.budget);
@@ -393,9 +447,9 @@ pub fn build(i: &Inputs<'_>) -> Certificate {
     Certificate {
         format: FORMAT,
         number: i.number.map(str::to_string),
-        title: format!("Calibration certificate {page_no}"),
+        title: title(&page_no),
         subtitle: format!("Accelerometer triad {}", i.serial),
-        footer: format!("Calibration certificate {page_no} — accelerometer triad {}", i.serial),
+        footer: footer(&page_no, i.serial),
         laboratory: party(&i.issuer.laboratory, &i.issuer.laboratory_address),
         verdict,
         identification: rows,

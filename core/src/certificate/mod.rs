@@ -17,7 +17,7 @@ pub mod approval;
 mod build;
 pub mod round;
 
-pub use build::{build, AssetRef, DriftInput, GravityInput, Inputs, IssuerInput, TermChange};
+pub use build::{amend, build, Amend, AssetRef, DriftInput, GravityInput, Inputs, IssuerInput, TermChange};
 
 use serde::{Deserialize, Serialize};
 
@@ -301,6 +301,29 @@ pub enum Release {
         /// The name the settings give.
         name: String,
     },
+    /// Replaced by an amendment (`accelcal amend`): printed as it was released, and every page
+    /// says "SUPERSEDED by certificate N: REASON".
+    Superseded {
+        /// The amendment that replaced it.
+        by: Superseded,
+        /// How it was released before.
+        was: Box<Release>,
+    },
+}
+
+/// The amendment that replaced a certificate, as the superseded certificate's copies state it
+/// (and a PDF carries, as [`Superseded::ATTACHMENT`]).
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Superseded {
+    /// The amendment's number.
+    pub by: String,
+    /// Why it was amended.
+    pub reason: String,
+}
+
+impl Superseded {
+    /// Its name as a PDF attachment.
+    pub const ATTACHMENT: &'static str = "accelcal-superseded.json";
 }
 
 impl Release {
@@ -310,11 +333,25 @@ impl Release {
     /// The beginning of the mark every page of a rejected certificate carries.
     pub const REJECTED_MARK: &'static str = "REJECTED — not released";
 
+    /// The beginning of the mark every page of a replaced certificate carries.
+    pub const SUPERSEDED_MARK: &'static str = "SUPERSEDED by certificate";
+
     /// The mark on every page, when there is one.
     pub fn mark(&self) -> Option<String> {
         match self {
             Release::Draft => Some(Release::DRAFT_MARK.into()),
             Release::Rejected { reason, .. } => Some(format!("{}: {reason}", Release::REJECTED_MARK)),
+            Release::Superseded { by, .. } => {
+                Some(format!("{} {}: {}", Release::SUPERSEDED_MARK, by.by, by.reason))
+            }
+            _ => None,
+        }
+    }
+
+    /// The amendment that replaced the certificate, when one did.
+    pub fn superseded(&self) -> Option<&Superseded> {
+        match self {
+            Release::Superseded { by, .. } => Some(by),
             _ => None,
         }
     }
@@ -330,6 +367,7 @@ impl Release {
                 format!("not released: rejected by {name}, {function}, on {date} (signing key {fingerprint})")
             }
             Release::Stated { name } => name.clone(),
+            Release::Superseded { was, .. } => was.authorised_by(),
         }
     }
 }

@@ -197,8 +197,10 @@ fn pg_schema_version(tx: &mut Tx<'_>) -> Result<Option<i64>, DbError> {
     let mut created: Vec<String> = Vec::new();
     let mut found = None;
     for k in known(true) {
+        // A table rebuilt by a later version (schema 10's `approval`) is created twice.
         created.extend(k.tables);
         created.sort_unstable();
+        created.dedup();
         if created == have {
             found = Some(k.version);
         }

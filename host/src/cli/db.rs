@@ -463,6 +463,22 @@ pub struct RejectArgs {
     pub reason: String,
 }
 
+/// `accelcal amend`: a certificate issued again under a new number.
+#[derive(Debug, Args)]
+pub struct AmendArgs {
+    /// The certificate to amend: its number (YYYY-NNNNNN), the one in force for its run.
+    #[arg(value_name = "NUMBER")]
+    pub number: String,
+    /// Why it is amended (one line, printed on the amendment and stored with it).
+    #[arg(long, value_name = "TEXT")]
+    pub reason: String,
+    /// Who amends it [default: the account running the command].
+    #[arg(long, value_name = "NAME")]
+    pub operator: Option<String>,
+    #[command(flatten)]
+    pub reader: ReaderDb,
+}
+
 /// `accelcal certificate`'s subcommands.
 #[derive(Debug, Subcommand)]
 pub enum CertificateAction {

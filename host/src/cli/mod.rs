@@ -148,6 +148,13 @@ pub enum Command {
     /// `approve` is, with the meaning "rejected"; the unit is not released and every printed
     /// page is marked REJECTED.
     Reject(RejectArgs),
+    /// Amend a stored certificate that was wrong: the same run's certificate issued again under
+    /// a new number (the next in the database's sequence), stating "replaces certificate
+    /// NUMBER" and the reason on its first page. The amendment awaits approval as any
+    /// certificate does (`approve NEW`); the certificate it replaces is superseded everywhere
+    /// (`history`, `fleet`, `serve`) and is still printed as it was, marked SUPERSEDED on every
+    /// page. Only the certificate in force is amended; nothing is stored when refused.
+    Amend(AmendArgs),
     /// A read-only web view of the calibration database for the line: the overview (today's
     /// units, yield, stations, assets and units due), each unit's page (runs, as found and as
     /// left, drift, stored certificates), the control charts and the heads' signatures, and the

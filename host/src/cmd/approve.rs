@@ -16,12 +16,10 @@ use crate::settings::release::Decide;
 /// Runs `accelcal approve` or `accelcal reject`.
 pub fn run(a: &Decide) -> anyhow::Result<()> {
     let mut db = Db::open(&reader_spec(a.db.as_deref())?)?;
-    let run = db
-        .run_of_certificate(&a.number)?
+    let stored = db
+        .certificate_of_number(&a.number)?
         .ok_or_else(|| bad(format!("no certificate is numbered {} in {}", a.number, db.target())))?;
-    let Some(html) = db.certificate_html(run)? else {
-        return Err(bad(format!("certificate {} (run {run}) is not stored in {}", a.number, db.target())));
-    };
+    let (run, html) = (stored.run, stored.html);
     let doc = match crate::report::certificate::document_of(&html) {
         Some(d) => d.map_err(|e| bad(format!("certificate {}: its stored document: {e}", a.number)))?,
         None => {

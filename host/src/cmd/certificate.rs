@@ -8,82 +8,66 @@
 use anyhow::Context as _;
 
 use accelcal_core::certificate::approval::Seal;
-use accelcal_core::certificate::{Certificate as Document, Release};
+use accelcal_core::certificate::{Certificate as Document, Release, Superseded};
 use accelcal_core::error::bad;
 use accelcal_core::output::write_atomic;
 use accelcal_db::Db;
-use accelcal_db::RunId;
 
 use super::store::reader_spec;
-use crate::settings::reader::{Certificate, Which};
+use crate::app::certificate::Stored;
+use crate::settings::reader::Certificate;
 
 /// Runs `accelcal certificate`.
 pub fn run(a: &Certificate) -> anyhow::Result<()> {
     let mut db = Db::open_existing(&reader_spec(a.db.as_deref())?)?;
-    let run = match &a.which {
-        Which::Run(run) => *run,
-        Which::Number(n) => db
-            .run_of_certificate(n)?
-            .ok_or_else(|| bad(format!("no certificate is numbered {n} in {}", db.target())))?,
-    };
-    let Some(html) = db.certificate_html(run)? else {
-        return Err(bad(format!("run {run} has no certificate in {}", db.target())));
-    };
+    let c = Stored::read(&mut db, &a.which)?;
+    let run = c.run;
+    let which = c
+        .number
+        .as_ref()
+        .map_or_else(|| format!("run {run}'s certificate"), |n| format!("certificate {n} (run {run})"));
+    if let Some(s) = &c.superseded {
+        outln!(
+            "certificate: {which} was replaced by amendment {} ({}): printed as it was, marked SUPERSEDED on every page",
+            s.by,
+            s.reason
+        )?;
+    }
     if let Some(out) = &a.out {
-        // The page as stored while it awaits approval; once decided, the document it carries
-        // rendered with the decision.
-        let html = match crate::report::certificate::document_of(&html) {
-            Some(Ok(doc)) => match release(&mut db, run, &doc)?.0 {
-                Release::Draft => html.clone(),
-                r => crate::report::certificate::html(&doc, &r)?,
-            },
-            _ => html.clone(),
-        };
+        let html = c.page(&mut db)?;
         write_atomic(out, html.as_bytes())?;
-        outln!("certificate: run {run}'s certificate, as issued, written to {}", out.display())?;
+        outln!("certificate: {which}, as issued, written to {}", out.display())?;
     }
     if a.pdf.is_none() && a.dcc.is_none() {
         return Ok(());
     }
-    let doc = match crate::report::certificate::document_of(&html) {
-        Some(d) => d.map_err(|e| bad(format!("run {run}'s stored certificate: {e}")))?,
+    let doc = match crate::report::certificate::document_of(&c.html) {
+        Some(d) => d.map_err(|e| bad(format!("{which}: its stored document: {e}")))?,
         None => {
             return Err(bad(format!(
-            "run {run}'s certificate was issued before certificate pages carried their document: only its \
-                 HTML page exists; print it with --out"
+            "{which} was issued before certificate pages carried their document: only its HTML page exists; \
+                 print it with --out"
         )))
         }
     };
-    let (release, seal) = release(&mut db, run, &doc)?;
+    let (release, seal) = c.release(&mut db, &doc)?;
     if let Some(pdf) = &a.pdf {
         write_atomic(pdf, &crate::report::pdf::pdf(&doc, &release, seal.as_ref())?)?;
-        outln!("certificate: run {run}'s certificate as a PDF written to {}", pdf.display())?;
+        outln!("certificate: {which} as a PDF written to {}", pdf.display())?;
     }
     if let Some(dcc) = &a.dcc {
+        if let Some(s) = &c.superseded {
+            return Err(bad(format!(
+                "{which} was replaced by amendment {}: a machine-readable certificate is given for the certificate \
+                 in force only (`certificate {} --dcc`); the PDF of this one is marked SUPERSEDED",
+                s.by, s.by
+            )));
+        }
         let xml = crate::report::dcc::dcc(&doc, seal.as_ref()).context("rendering the DCC")?;
         write_atomic(dcc, &xml)?;
-        outln!(
-            "certificate: run {run}'s certificate as a DCC (XML, schema 3.3.0) written to {}",
-            dcc.display()
-        )?;
+        outln!("certificate: {which} as a DCC (XML, schema 3.3.0) written to {}", dcc.display())?;
     }
     Ok(())
-}
-
-/// The certificate's release as the database holds it: its signed decision, else a draft. A
-/// decision that signed another document than the one stored is refused.
-fn release(db: &mut Db, run: RunId, doc: &Document) -> anyhow::Result<(Release, Option<Seal>)> {
-    let Some(number) = db.number_of_run(run)? else { return Ok((Release::Draft, None)) };
-    let Some(d) = db.decision(&number)? else { return Ok((Release::Draft, None)) };
-    if d.decision.document_sha256 != doc.sha256() {
-        return Err(bad(format!(
-            "certificate {number}: its decision signed document {}, and the stored page carries {}: not printed",
-            d.decision.document_sha256,
-            doc.sha256()
-        )));
-    }
-    let seal = d.seal();
-    Ok((seal.release(), Some(seal)))
 }
 
 /// Runs `accelcal certificate verify FILE [--db DB]`: a PDF or a DCC checked against the document
@@ -93,26 +77,24 @@ pub fn verify(a: &crate::settings::reader::CertificateVerify) -> anyhow::Result<
     let file = &a.file;
     let bytes = std::fs::read(file).with_context(|| format!("reading {}", file.display()))?;
     let invalid = |why: String| bad(format!("not valid: {}: {why}", file.display()));
-    let (doc, seal, what) = if bytes.starts_with(b"%PDF-") {
-        let (doc, seal) = verify_pdf(&bytes).map_err(|e| invalid(format!("{e:#}")))?;
-        (doc, seal, "the PDF is exactly the rendering of its attached document")
+    let (doc, seal, superseded, what) = if bytes.starts_with(b"%PDF-") {
+        let (doc, seal, superseded) = verify_pdf(&bytes).map_err(|e| invalid(format!("{e:#}")))?;
+        (doc, seal, superseded, "the PDF is exactly the rendering of its attached document")
     } else {
         let v = crate::report::dcc::verify(&bytes).map_err(|e| invalid(e.to_string()))?;
-        (v.doc, v.seal, "the DCC states exactly its attached document")
+        (v.doc, v.seal, None, "the DCC states exactly its attached document")
     };
     let number = doc.number.clone().unwrap_or_else(|| "(unnumbered)".into());
     let sha = doc.sha256();
-    // Against the database: the certificate of that number is this document, and its decision
-    // is the one the file carries.
+    // Against the database: the certificate of that number is this document, its decision is
+    // the one the file carries, and an amendment that replaced it is the one the file states.
+    let mut in_db = String::new();
     if let Some(spec) = &a.db {
         let mut db = Db::open_existing(spec)?;
-        let run = db
-            .run_of_certificate(&number)?
+        let c = db
+            .certificate_of_number(&number)?
             .ok_or_else(|| invalid(format!("no certificate is numbered {number} in {}", db.target())))?;
-        let html = db
-            .certificate_html(run)?
-            .ok_or_else(|| invalid(format!("certificate {number} is not stored in {}", db.target())))?;
-        let stored = match crate::report::certificate::document_of(&html) {
+        let stored = match crate::report::certificate::document_of(&c.html) {
             Some(d) => d.map_err(|e| invalid(format!("the stored certificate {number}: {e}")))?,
             None => return Err(invalid(format!("the stored certificate {number} carries no document"))),
         };
@@ -136,6 +118,20 @@ pub fn verify(a: &crate::settings::reader::CertificateVerify) -> anyhow::Result<
                 _ => format!("the file's decision on certificate {number} is not the one the database holds"),
             }));
         }
+        let replaced =
+            c.superseded.as_ref().map(|s| Superseded { by: s.by.clone(), reason: s.reason.clone() });
+        in_db = match (&replaced, &superseded) {
+            (Some(r), None) => format!(
+                "; the database holds the same, and says amendment {} replaced it ({}): it is not in force",
+                r.by, r.reason
+            ),
+            (r, f) if r == f => "; the database holds the same".into(),
+            _ => {
+                return Err(invalid(format!(
+                    "the file says certificate {number} was replaced, and the database does not say so"
+                )))
+            }
+        };
     }
     let release = match &seal {
         Some(s) => {
@@ -151,9 +147,10 @@ pub fn verify(a: &crate::settings::reader::CertificateVerify) -> anyhow::Result<
         }
         None => "not approved: it carries no signed decision".into(),
     };
-    let against = if a.db.is_some() { "; the database holds the same" } else { "" };
+    let replaced =
+        superseded.map(|s| format!("; superseded by amendment {} ({})", s.by, s.reason)).unwrap_or_default();
     outln!(
-        "valid: certificate {number} of unit {}: {what} (SHA-256 {sha}); {release}{against}",
+        "valid: certificate {number} of unit {}: {what} (SHA-256 {sha}); {release}{replaced}{in_db}",
         doc.facts.serial
     )?;
     Ok(())
@@ -162,7 +159,7 @@ pub fn verify(a: &crate::settings::reader::CertificateVerify) -> anyhow::Result<
 /// A PDF's attached document and decision, checked: the PDF renders again to the same bytes from
 /// them (one edited character anywhere differs), and the decision, when there is one, is signed
 /// by its key over this document.
-fn verify_pdf(bytes: &[u8]) -> anyhow::Result<(Document, Option<Seal>)> {
+fn verify_pdf(bytes: &[u8]) -> anyhow::Result<(Document, Option<Seal>, Option<Superseded>)> {
     let files = crate::report::pdf::attachments(bytes)?;
     let find = |name: &str| files.iter().find(|(n, _)| n == name).map(|(_, b)| b.as_slice());
     let json = find(crate::report::pdf::ATTACHMENT)
@@ -175,7 +172,13 @@ fn verify_pdf(bytes: &[u8]) -> anyhow::Result<(Document, Option<Seal>)> {
     let seal: Option<Seal> = find(Seal::ATTACHMENT)
         .map(|b| serde_json::from_slice(b).context("its attached decision"))
         .transpose()?;
-    let release = seal.as_ref().map_or(Release::Draft, Seal::release);
+    let superseded: Option<Superseded> = find(Superseded::ATTACHMENT)
+        .map(|b| serde_json::from_slice(b).context("its attached amendment note"))
+        .transpose()?;
+    let mut release = seal.as_ref().map_or(Release::Draft, Seal::release);
+    if let Some(by) = &superseded {
+        release = Release::Superseded { by: by.clone(), was: Box::new(release) };
+    }
     let again = crate::report::pdf::pdf(&doc, &release, seal.as_ref())?;
     if again != bytes {
         let at = again.iter().zip(bytes).position(|(x, y)| x != y).unwrap_or(again.len().min(bytes.len()));
@@ -184,5 +187,5 @@ fn verify_pdf(bytes: &[u8]) -> anyhow::Result<(Document, Option<Seal>)> {
              or written by another version of accelcal)"
         );
     }
-    Ok((doc, seal))
+    Ok((doc, seal, superseded))
 }

@@ -99,7 +99,13 @@ fn print(h: &History, target: &str) -> anyhow::Result<()> {
             outln!("     not a calibration: {why}")?;
         }
         if let (Some(state), None) = (r.certificate_state, &r.tampered) {
-            outln!("     certificate: {}", state.words())?;
+            let number = r.certificate_number.as_deref().map(|n| format!("{n} ")).unwrap_or_default();
+            let replaced = if r.superseded_certificates.is_empty() {
+                String::new()
+            } else {
+                format!("; superseded: {}", r.superseded_certificates.join(", "))
+            };
+            outln!("     certificate: {number}{}{replaced}", state.words())?;
         }
         if matches!(r.outcome, Some(Outcome::Rejected)) {
             outln!("     rejected: {}", r.reason)?;

@@ -1,5 +1,6 @@
 //! One module per subcommand; [`run`] dispatches.
 
+pub mod amend;
 pub mod approve;
 pub mod asset;
 pub mod bench_diagnose;
@@ -53,6 +54,7 @@ pub fn run(
         Settings::ServeUserAdd(s) => crate::serve::auth::run_add(&s),
         Settings::Signer(s) => signer::run(&s),
         Settings::Decide(s) => approve::run(&s),
+        Settings::Amend(s) => amend::run(&s),
         Settings::BenchFleet(s) => fleet_bench::run(&s),
         Settings::Demo(s) => demo::run(&s),
         Settings::Compare(s) => compare::run(&s, &campaign_g(stated, &s.campaign.path, warnings)?, warnings),

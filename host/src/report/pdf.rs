@@ -21,7 +21,7 @@ use skrifa::instance::{LocationRef, Size};
 use skrifa::{FontRef, MetadataProvider};
 
 use accelcal_core::certificate::approval::Seal;
-use accelcal_core::certificate::{Block, Certificate, Chart, Column, Release, Span, Style};
+use accelcal_core::certificate::{Block, Certificate, Chart, Column, Release, Span, Style, Superseded};
 
 /// A4, points.
 const PAGE_W: f32 = 595.28;
@@ -519,7 +519,7 @@ pub fn pdf(doc: &Certificate, release: &Release, seal: Option<&Seal>) -> anyhow:
             });
         }
     }
-    emit(&fonts, &l.pages, doc, seal)
+    emit(&fonts, &l.pages, doc, seal, release.superseded())
 }
 
 fn paint(c: (u8, u8, u8)) -> krilla::paint::Paint {
@@ -527,7 +527,13 @@ fn paint(c: (u8, u8, u8)) -> krilla::paint::Paint {
 }
 
 /// Writes the laid-out pages.
-fn emit(fonts: &Fonts, pages: &[Vec<Op>], doc: &Certificate, seal: Option<&Seal>) -> anyhow::Result<Vec<u8>> {
+fn emit(
+    fonts: &Fonts,
+    pages: &[Vec<Op>],
+    doc: &Certificate,
+    seal: Option<&Seal>,
+    superseded: Option<&Superseded>,
+) -> anyhow::Result<Vec<u8>> {
     let mut d = Document::new();
     d.set_metadata(
         Metadata::new()
@@ -626,6 +632,19 @@ fn emit(fonts: &Fonts, pages: &[Vec<Op>], doc: &Certificate, seal: Option<&Seal>
             location: None,
         })
         .ok_or_else(|| anyhow!("the signed decision could not be attached"))?;
+    }
+    if let Some(by) = superseded {
+        d.embed_file(EmbeddedFile {
+            path: Superseded::ATTACHMENT.into(),
+            mime_type: MimeType::new("application/json"),
+            description: Some("the amendment that replaced this certificate".into()),
+            association_kind: AssociationKind::Supplement,
+            data: serde_json::to_string(by)?.into_bytes().into(),
+            modification_date: None,
+            compress: Some(true),
+            location: None,
+        })
+        .ok_or_else(|| anyhow!("the amendment's note could not be attached"))?;
     }
     d.finish().map_err(|e| anyhow!("the PDF could not be written: {e:?}"))
 }

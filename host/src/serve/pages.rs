@@ -527,6 +527,8 @@ struct UnitRun {
     as_left: String,
     note: String,
     certificate: bool,
+    /// The certificate in force: its number and where it stands, and the numbers it superseded.
+    certificate_words: String,
 }
 
 #[derive(Template)]
@@ -543,6 +545,20 @@ struct UnitPage<'a> {
     drift_svg: String,
     drifts: Vec<String>,
     recalibration: String,
+}
+
+/// A run's certificate in force in words: `2026-000004 approved (replaces 2026-000003,
+/// superseded)`, or `certificate` for a page stored without a number.
+pub(super) fn certificate_words(r: &accelcal_db::history::RunLine) -> String {
+    let mut w = r.certificate_number.clone().unwrap_or_else(|| "certificate".into());
+    if let Some(s) = r.certificate_state {
+        w.push(' ');
+        w.push_str(s.words());
+    }
+    if !r.superseded_certificates.is_empty() {
+        w.push_str(&format!(" (replaces {}, superseded)", r.superseded_certificates.join(", ")));
+    }
+    w
 }
 
 /// `/unit/KEY` (a serial or a device id): `history`'s runs, drift and recalibration date, with
@@ -588,6 +604,7 @@ pub(super) fn unit(db: &mut Db, app: &App, key: &str) -> Result<String, PageErro
             as_left: verification(&r.as_left),
             note,
             certificate,
+            certificate_words: certificate_words(r),
         });
     }
     let pairs: Vec<[(f64, f64); 3]> = h
@@ -649,18 +666,19 @@ pub(super) fn unit(db: &mut Db, app: &App, key: &str) -> Result<String, PageErro
     page.render().map_err(PageError::internal)
 }
 
-/// `/run/ID/certificate`: the stored certificate, as issued, its control characters shown as
-/// text (`\u{1b}`, [`escape::markup`]).
+/// `/run/ID/certificate`: the run's certificate in force as printed (with its decision, or a
+/// draft), its control characters shown as text (`\u{1b}`, [`escape::markup`]).
 pub(super) fn certificate(db: &mut Db, id: &str) -> Result<String, PageError> {
     let run = RunId::parse(id).map_err(|e| PageError::bad(e.to_string()))?;
-    db.certificate_html(run)
-        .map_err(|e| match e {
+    let which = crate::settings::reader::Which::Run(run);
+    crate::app::certificate::Stored::read(db, &which).and_then(|c| c.page(db)).map(escape::markup).map_err(
+        |e| match e.downcast_ref::<DbError>() {
             // A forged certificate is not shown as issued.
-            e @ accelcal_db::DbError::Tampered { .. } => PageError::tampered(e),
-            e => PageError::unavailable(e),
-        })?
-        .map(escape::markup)
-        .ok_or_else(|| PageError::not_found(format!("run {run} has no certificate")))
+            Some(DbError::Tampered { .. }) => PageError::tampered(format!("{e:#}")),
+            Some(_) => PageError::unavailable(format!("{e:#}")),
+            None => PageError::not_found(format!("{e:#}")),
+        },
+    )
 }
 
 #[derive(Template)]

@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use accelcal_core::certificate::approval::Meaning;
 use accelcal_core::error::bad;
 
-use crate::cli::{DecideArgs, RejectArgs, SignerAddArgs, SignerCommand};
+use crate::cli::{AmendArgs, DecideArgs, RejectArgs, SignerAddArgs, SignerCommand};
 
 /// `accelcal signer …`, settled.
 #[derive(Clone, Debug, PartialEq)]
@@ -71,6 +71,44 @@ pub struct Decide {
     pub allow_self_approval: bool,
 }
 
+/// `accelcal amend`, settled.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Amend {
+    /// `--db` as given.
+    pub db: Option<String>,
+    /// The certificate amended.
+    pub number: String,
+    /// `--reason`.
+    pub reason: String,
+    /// `--operator`.
+    pub operator: Option<String>,
+}
+
+/// `amend`'s settings from its command line.
+pub fn amend(a: &AmendArgs) -> anyhow::Result<Amend> {
+    number(&a.number)?;
+    nonempty("--reason", &a.reason)?;
+    accelcal_core::text::single_line("--reason", &a.reason)?;
+    if let Some(spec) = crate::cmd::store::named_db(a.reader.db.as_deref()) {
+        super::values::existing_db(&spec, "amend")?;
+    }
+    Ok(Amend {
+        db: a.reader.db.clone(),
+        number: a.number.clone(),
+        reason: a.reason.clone(),
+        operator: a.operator.clone(),
+    })
+}
+
+/// Refuses what is not written as a certificate number.
+fn number(n: &str) -> anyhow::Result<()> {
+    if accelcal_db::certificate::is_number(n) {
+        Ok(())
+    } else {
+        Err(bad(format!("{n:?} is not a certificate number (YYYY-NNNNNN, as printed on it)")))
+    }
+}
+
 /// `signer …`'s settings from its command line.
 pub fn signer(c: &SignerCommand) -> anyhow::Result<Signer> {
     Ok(match c {
@@ -120,12 +158,7 @@ pub fn reject(a: &RejectArgs) -> anyhow::Result<Decide> {
 }
 
 fn decide(a: &DecideArgs, meaning: Meaning, reason: String) -> anyhow::Result<Decide> {
-    if !accelcal_db::certificate::is_number(&a.number) {
-        return Err(bad(format!(
-            "{:?} is not a certificate number (YYYY-NNNNNN, as printed on it)",
-            a.number
-        )));
-    }
+    number(&a.number)?;
     if a.passphrase_file.as_ref() == Some(&a.key) {
         return Err(bad(format!("--passphrase-file and --key are the same file {}", a.key.display())));
     }

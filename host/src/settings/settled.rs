@@ -33,6 +33,8 @@ pub enum Settings {
     Signer(release::Signer),
     /// `accelcal approve` and `accelcal reject`.
     Decide(release::Decide),
+    /// `accelcal amend`.
+    Amend(release::Amend),
     /// `accelcal bench-fleet`.
     BenchFleet(reader::BenchFleet),
     /// `accelcal demo`.
@@ -100,6 +102,7 @@ pub fn settle(command: Command, resolved: &Resolved) -> anyhow::Result<Settings>
         Command::Signer(c) => Settings::Signer(release::signer(&c)?),
         Command::Approve(a) => Settings::Decide(release::approve(&a)?),
         Command::Reject(a) => Settings::Decide(release::reject(&a)?),
+        Command::Amend(a) => Settings::Amend(release::amend(&a)?),
         Command::ServeUser(crate::cli::ServeUserCommand::Add(a)) => {
             Settings::ServeUserAdd(reader::add_user(&a)?)
         }

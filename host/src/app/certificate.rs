@@ -1,0 +1,94 @@
+//! A stored certificate as the database holds it, shared by `certificate`, `approve`,
+//! `amend` and `serve`: the certificate a number or a run names, and its release (the signed
+//! decision, superseded when an amendment replaced it).
+
+use accelcal_core::certificate::approval::Seal;
+use accelcal_core::certificate::{Certificate as Document, Release, Superseded};
+use accelcal_core::error::bad;
+use accelcal_db::{Db, RunId};
+
+use crate::settings::reader::Which;
+
+/// A certificate as the database holds it: its run, its number (a page stored without one, as
+/// `bench-fleet` stores them, has none), its page, and the amendment that replaced it.
+pub struct Stored {
+    /// Its run.
+    pub run: RunId,
+    /// Its number.
+    pub number: Option<String>,
+    /// Its page as stored.
+    pub html: String,
+    /// The amendment that replaced it.
+    pub superseded: Option<accelcal_db::certificate::Supersession>,
+}
+
+impl Stored {
+    /// The certificate `which` names: a number, or a run (its certificate in force).
+    pub fn read(db: &mut Db, which: &Which) -> anyhow::Result<Stored> {
+        let number = match which {
+            Which::Number(n) => n.clone(),
+            Which::Run(run) => match db.number_in_force(*run)? {
+                Some(n) => n,
+                None => {
+                    let html = db
+                        .certificate_html(*run)?
+                        .ok_or_else(|| bad(format!("run {run} has no certificate in {}", db.target())))?;
+                    return Ok(Stored { run: *run, number: None, html, superseded: None });
+                }
+            },
+        };
+        let c = db
+            .certificate_of_number(&number)?
+            .ok_or_else(|| bad(format!("no certificate is numbered {number} in {}", db.target())))?;
+        Ok(Stored { run: c.run, number: Some(number), html: c.html, superseded: c.superseded })
+    }
+
+    /// The certificate's release as the database holds it: its signed decision, else a draft, and
+    /// superseded when an amendment replaced it. A decision that signed another document than the
+    /// one stored is refused.
+    pub fn release(&self, db: &mut Db, doc: &Document) -> anyhow::Result<(Release, Option<Seal>)> {
+        let c = self;
+        let decided = match &c.number {
+            Some(n) => db.decision(n)?,
+            None => None,
+        };
+        let (release, seal) = match decided {
+            None => (Release::Draft, None),
+            Some(d) => {
+                if d.decision.document_sha256 != doc.sha256() {
+                    return Err(bad(format!(
+                    "certificate {}: its decision signed document {}, and the stored page carries {}: not printed",
+                    d.decision.number,
+                    d.decision.document_sha256,
+                    doc.sha256()
+                )));
+                }
+                let seal = d.seal();
+                (seal.release(), Some(seal))
+            }
+        };
+        Ok(match &c.superseded {
+            Some(s) => (
+                Release::Superseded {
+                    by: Superseded { by: s.by.clone(), reason: s.reason.clone() },
+                    was: Box::new(release),
+                },
+                seal,
+            ),
+            None => (release, seal),
+        })
+    }
+
+    /// The HTML page as printed: as stored while it awaits approval and nothing replaced it
+    /// (or when it carries no document); else the document it carries rendered with its
+    /// decision and its amendment.
+    pub fn page(&self, db: &mut Db) -> anyhow::Result<String> {
+        Ok(match crate::report::certificate::document_of(&self.html) {
+            Some(Ok(doc)) => match self.release(db, &doc)?.0 {
+                Release::Draft => self.html.clone(),
+                r => crate::report::certificate::html(&doc, &r)?,
+            },
+            _ => self.html.clone(),
+        })
+    }
+}

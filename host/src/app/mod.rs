@@ -1,0 +1,5 @@
+//! The application layer: what commands, `serve` and the station share, above the crates and
+//! below the commands (ARCHITECTURE.md, "The house"). A `cmd` module calls it; it calls no
+//! `cmd` module.
+
+pub mod certificate;
