@@ -292,6 +292,88 @@ fn an_as_found_out_of_tolerance_shortens_the_next_interval() {
     assert!(help.contains("ILAC-G24 method 1"), "{help}");
 }
 
+/// Issue 59: a recalibration minutes after the last served nothing: the halved interval counts
+/// the time served since the calibration before that is not a repeat (200 days: 100). An
+/// interval halved below the floor (`--min-interval-days`, 30 by default) is raised to it, and
+/// says so.
+#[test]
+fn a_halved_interval_counts_the_time_served_and_has_a_floor() {
+    let d = tempfile::tempdir().unwrap();
+    let spec = db_file(&d);
+    let mut db = Db::open(&spec).unwrap();
+    let unit = |db: &mut Db, serial: &str, device: &str, at: &[i64]| {
+        for (i, &t) in at.iter().enumerate() {
+            let s = start(RunId::new(), device, serial, "st-1", T0 + t);
+            calibrate(db, &s, &coefs(1.0, i), (i + 1 == at.len()).then_some(0.09));
+        }
+    };
+    unit(&mut db, "SN-AGAIN", DEVICE, &[0, 200 * DAY, 200 * DAY + 600]);
+    unit(&mut db, "SN-SOON", "00112233445566778899aabb", &[0, 20 * DAY]);
+    drop(db);
+    let history = |serial: &str, more: &[&str]| {
+        let json = d.path().join(format!("{serial}.json"));
+        let mut args = vec!["history", serial, "--db", &spec, "--json", json.to_str().unwrap()];
+        args.extend(more);
+        let (code, out, err) = accelcal(&args);
+        assert_eq!(code, Some(0), "{err}");
+        let j: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        (out, j["recalibration"].clone())
+    };
+    let (out, rc) = history("SN-AGAIN", &[]);
+    let s = &rc["as_found_out_of_tolerance"];
+    let served = s["served_days"].as_f64().unwrap();
+    assert_eq!(served, (200 * DAY + 600) as f64 / DAY as f64, "since the first, not the repeat: {out}");
+    assert_eq!(s["interval_days"].as_f64(), Some(served / 2.0), "{out}");
+    assert_eq!(rc["due_unix_s"].as_i64(), Some(T0 + 300 * DAY + 900), "{out}");
+    let (out, rc) = history("SN-SOON", &[]);
+    assert_eq!(rc["as_found_out_of_tolerance"]["interval_days"].as_f64(), Some(30.0), "{out}");
+    assert_eq!(rc["due_unix_s"].as_i64(), Some(T0 + 50 * DAY), "{out}");
+    assert!(
+        out.contains(
+            "half the 20 days it had served since the calibration before, raised to the floor of 30 days"
+        ),
+        "{out}"
+    );
+    // history counts the accepted positions of a failed verification, and says so.
+    assert!(out.contains("FAIL, 3 of 6 accepted, max 0.090 m/s²"), "{out}");
+    let (out, rc) = history("SN-SOON", &["--min-interval-days", "5"]);
+    assert_eq!(rc["due_unix_s"].as_i64(), Some(T0 + 30 * DAY), "{out}");
+    assert_eq!(rc["rule"]["min_interval_days"].as_f64(), Some(5.0), "{rc}");
+    let (code, _, err) = accelcal(&["history", "SN-SOON", "--db", &spec, "--min-interval-days", "400"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("--min-interval-days 400 is longer than --max-interval-days 365"), "{err}");
+}
+
+/// Issue 59: a verification's failure names the positions outside T apart from those inside T
+/// but within the guard band (a conditional pass the rule does not accept).
+#[test]
+fn a_failed_verification_tells_the_guard_band_from_the_tolerance() {
+    use accelcal_core::conformity::Decision;
+    let mut v = verification(DEVICE, 0.09, 0.05);
+    assert_eq!(v.failure().unwrap().words(), "3 of 6 positions outside the tolerance");
+    // Position 4 (error 0.06) judged inside T within the guard band; 5 and 6 beyond it.
+    for p in &mut v.positions {
+        p.decisions = Some(match p.position {
+            4 => [Decision::ConditionalPass, Decision::Pass, Decision::Pass],
+            5 | 6 => [Decision::Fail, Decision::Pass, Decision::Pass],
+            _ => [Decision::Pass; 3],
+        });
+    }
+    assert_eq!(
+        v.failure().unwrap().words(),
+        "2 of 6 positions outside the tolerance; 1 of 6 positions inside T, within the guard band (conditional pass, not accepted)"
+    );
+    for p in &mut v.positions {
+        if p.position > 4 {
+            p.decisions = Some([Decision::ConditionalPass; 3]);
+        }
+    }
+    assert_eq!(
+        v.failure().unwrap().to_string(),
+        "verification failed: 3 of 6 positions inside T, within the guard band (conditional pass, not accepted)"
+    );
+}
+
 #[test]
 fn history_refuses_what_it_cannot_read() {
     let d = tempfile::tempdir().unwrap();
@@ -493,7 +575,7 @@ fn sixteen_first_opens_at_once_migrate_once() {
         assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
     }
     let mut db = Db::open(&spec).unwrap();
-    assert_eq!(db.schema_versions().unwrap(), vec![1, 2, 3, 4, 5, 6, 7, 8, 9]);
+    assert_eq!(db.schema_versions().unwrap(), vec![1, 2, 3, 4, 5, 6, 7, 8, 9, 10]);
     assert_eq!(db.assets().unwrap().len(), 16);
     assert!(db.verify_chain().unwrap().mismatches.is_empty());
 }

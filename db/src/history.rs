@@ -22,14 +22,16 @@ against time over the unit's calibrations by weighted least squares (weights 1/�
 the standard error scaled up by sqrt(χ²/(n−2)) when n > 2 calibrations scatter more than the covariances say): \
 drift rate r ± s_r. From the last calibration the drift reaches the tolerance T (--tolerance-m-s2) after \
 τ = T / (|r| + k·s_r) (k: --coverage); the recommended date is the last calibration plus the smallest τ of the \
-12, at most --max-interval-days. With one calibration no drift is known yet: the date is the calibration plus \
+12, at most --max-interval-days and at least --min-interval-days (the floor). With one calibration no drift is known yet: the date is the calibration plus \
 --max-interval-days. Calibrations less than 1 day apart are repeats: the rate uses the latest of them. A \
 calibration is a run that ended `pass` with a stored model-4 fit; unfinished, rejected and voided runs are \
 listed but not used. An as-found result out of tolerance shortens the interval (ILAC-G24 method 1, the \
 staircase): when the last calibration's as-found verification was out of tolerance (its decision rule's \
 conditional fail or fail, against a specification; otherwise an error beyond T on a component at one of its \
 positions), the recommended date is at most half the interval the unit had just served after it (the days \
-since the calibration before, at least 1 day; half of --max-interval-days when the database holds none).";
+since the latest calibration at least 1 day before it; half of --max-interval-days when the database holds \
+none), and at least --min-interval-days. A certificate may state the laboratory's own interval instead \
+(`report --interval-days`).";
 
 /// Settings of the recalibration rule.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -40,11 +42,24 @@ pub struct RecalRule {
     pub coverage: f64,
     /// The longest interval recommended, days.
     pub max_interval_days: f64,
+    /// The shortest interval recommended, days: the floor under the drift's interval and under
+    /// an interval halved after an as-found result out of tolerance.
+    pub min_interval_days: f64,
+    /// The interval the laboratory decided for this unit, days (`report --interval-days`):
+    /// stated instead of the drift's, as the laboratory's decision.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub decided_interval_days: Option<f64>,
 }
 
-/// `history`'s default rule, also the certificate's: 0.05 m/s² at 1 g, k = 2, at most a year.
-pub const DEFAULT_RULE: RecalRule =
-    RecalRule { tolerance_m_s2: 0.05, coverage: 2.0, max_interval_days: 365.0 };
+/// `history`'s default rule, also the certificate's: 0.05 m/s² at 1 g, k = 2, at least 30 days
+/// and at most a year.
+pub const DEFAULT_RULE: RecalRule = RecalRule {
+    tolerance_m_s2: 0.05,
+    coverage: 2.0,
+    max_interval_days: 365.0,
+    min_interval_days: 30.0,
+    decided_interval_days: None,
+};
 
 /// A verification in a few numbers.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -410,12 +425,18 @@ pub fn history(runs: &[RunSummary], rule: RecalRule) -> History {
                 .collect();
             let shortening =
                 runs[at].as_found.as_ref().and_then(|v| out_of_tolerance(v, rule)).map(|finding| {
-                    let served_days =
-                        cals.len().checked_sub(2).map(|i| (t_last - cals[i].1) as f64 / SECONDS_PER_DAY);
+                    // The interval the unit served: since the calibration before the last that
+                    // is not a repeat of it (a recalibration minutes later served nothing).
+                    let served_days = cals
+                        .iter()
+                        .rev()
+                        .map(|c| (t_last - c.1) as f64 / SECONDS_PER_DAY)
+                        .find(|&d| d >= MIN_SPAN_DAYS);
                     let interval_days = match served_days {
-                        Some(d) => (d / 2.0).max(MIN_SPAN_DAYS),
+                        Some(d) => d / 2.0,
                         None => rule.max_interval_days / 2.0,
-                    };
+                    }
+                    .max(rule.min_interval_days);
                     AsFoundShortening { finding, served_days, interval_days }
                 });
             (drifts_of(&scaled), recal(&scaled, t_last, rule, shortening))
@@ -485,6 +506,11 @@ fn recal(
                 rule.max_interval_days
             ),
         };
+        let served = if s.interval_days == rule.min_interval_days {
+            format!("{served}, raised to the floor of {} days", rule.min_interval_days)
+        } else {
+            served
+        };
         if s.interval_days < days {
             basis = format!("{}: {served}, ILAC-G24 method 1 (by the drift alone: {basis})", s.finding);
             days = s.interval_days;
@@ -492,6 +518,11 @@ fn recal(
         } else {
             basis = format!("{basis}; {} allows {:.0} days ({served})", s.finding, s.interval_days);
         }
+    }
+    if let Some(d) = rule.decided_interval_days {
+        basis = format!("{d} days, the laboratory's decision; the rule gives {days:.0} days: {basis}");
+        days = d;
+        limiting = None;
     }
     Recalibration {
         method: METHOD,
@@ -554,7 +585,12 @@ fn by_drift(cals: &[Scaled], rule: RecalRule) -> (usize, f64, Option<Limiting>, 
             rule.coverage,
             best.days_to_tolerance
         );
-        (best.days_to_tolerance, Some(best), basis)
+        if best.days_to_tolerance < rule.min_interval_days {
+            let floor = rule.min_interval_days;
+            (floor, Some(best), format!("{basis}, raised to the floor of {floor} days (--min-interval-days)"))
+        } else {
+            (best.days_to_tolerance, Some(best), basis)
+        }
     } else {
         (
             max,

@@ -193,7 +193,15 @@ mod tests {
             (bad("x.csv:3:1: expected a number"), BadInput),
             (environment("writing out.json", io()), Environment),
             (e(accelcal_core::error::Interrupted("stopped".into())), Interrupted),
-            (e(accelcal_line::verify::Failed { failed: 1, total: 6, parameters: Vec::new() }), Rejected),
+            (
+                e(accelcal_line::verify::Failed {
+                    failed: 1,
+                    conditional: 0,
+                    total: 6,
+                    parameters: Vec::new(),
+                }),
+                Rejected,
+            ),
             (e(accelcal_line::station::StationError::NotDeployable("m".into())), Rejected),
             (e(accelcal_line::station::StationError::Rejected { units: "a".into(), total: 2 }), Rejected),
             (

@@ -101,6 +101,8 @@ const UNITS: &[(&str, &str)] = &[
     ("--select-tolerance", "ADC codes"),
     ("--tolerance-m-s2", "m/s²"),
     ("--max-interval-days", "days"),
+    ("--min-interval-days", "days"),
+    ("--interval-days", "days"),
     ("--due-days", "days"),
     ("--tolerance", "m/s²"),
     ("--min-hold-s", "seconds"),

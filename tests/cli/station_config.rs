@@ -157,7 +157,7 @@ fn the_guides_settings_file_is_accepted() {
     assert_eq!(out.status.code(), Some(3), "{e}");
     assert!(
         e.contains(&format!(
-            "station: settings {} (station, customer, customer_address, place, laboratory.name, laboratory.address, head, head_asset, node.port, node.probe, plan, samples, rate_hz, latitude, height, spec)",
+            "station: settings {} (station, customer, customer_address, place, min_interval_days, laboratory.name, laboratory.address, head, head_asset, node.port, node.probe, plan, samples, rate_hz, latitude, height, spec)",
             c.display()
         )),
         "{e}"

@@ -335,21 +335,34 @@ fn an_as_found_drift_is_decided_against_the_specification() {
         std::fs::write(
             &config,
             format!(
-                "station = \"line-1\"\nhead = \"{}\"\nplan = \"random:24\"\nsamples = 200\nrate_hz = 1000\ng = 9.81\nselect_tolerance = 5\nspec = \"spec.toml\"\ncustomer = \"Example Customer AG\"\n\n[laboratory]\nname = \"Example Calibration Laboratory\"\naddress = \"1 Sample Street, Neuchâtel\"\n\n[[node]]\nport = \"{}\"\ngdb = \"{}\"\n",
+                "station = \"line-1\"\nhead = \"{}\"\nplan = \"random:24\"\nsamples = 200\nrate_hz = 1000\ng = 9.81\nselect_tolerance = 5\nspec = \"spec.toml\"\ncustomer = \"Example Customer AG\"\nmin_interval_days = 20\n\n[laboratory]\nname = \"Example Calibration Laboratory\"\naddress = \"1 Sample Street, Neuchâtel\"\n\n[[node]]\nport = \"{}\"\ngdb = \"{}\"\n",
                 em.head, em.port, em.gdb
             ),
         )
         .unwrap();
         // Run from elsewhere: the file's spec is the one beside it.
         let out = Command::new(env!("CARGO_BIN_EXE_accelcal"))
-            .args(["station", "--config", s(&config), "--serial", "A-1", "--out", s(&first)])
+            .args([
+                "station",
+                "--config",
+                s(&config),
+                "--serial",
+                "A-1",
+                "--out",
+                s(&first),
+                "--interval-days",
+                "180",
+            ])
             .current_dir(first.parent().unwrap().parent().unwrap())
             .output()
             .unwrap();
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(out.status.success(), "{err}");
         assert!(
-            err.contains(&format!("station: settings {} (station, customer, laboratory.name", s(&config))),
+            err.contains(&format!(
+                "station: settings {} (station, customer, min_interval_days, laboratory.name",
+                s(&config)
+            )),
             "{err}"
         );
         let journal = std::fs::read_to_string(first.join("station.json")).unwrap();
@@ -366,6 +379,15 @@ fn an_as_found_drift_is_decided_against_the_specification() {
             html.contains("<b>Example Calibration Laboratory</b><br>1 Sample Street, Neuchâtel"),
             "{html}"
         );
+        // The laboratory's interval (issue 59), stated as its decision beside the rule's.
+        assert!(
+            html.contains(
+                "180 days, the laboratory&#39;s decision; the rule gives 365 days: one calibration"
+            ),
+            "{html}"
+        );
+        let steps = std::fs::read_to_string(first.join("station.json")).unwrap();
+        assert!(steps.contains("--min-interval-days") && steps.contains("--interval-days"), "{steps}");
         // With a database the certificate awaits approval: `authorised_by` is not printed.
         assert!(html.contains("<p class=\"draft\">DRAFT — awaiting approval</p>"), "{html}");
         assert!(!html.contains("A. Reviewer"), "{html}");

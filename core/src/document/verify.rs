@@ -10,22 +10,40 @@ use crate::error::{bad, Classify, Kind};
 /// A verification in which a position failed, or a parameter the specification limits was not
 /// accepted (exit code 1: the node, not the input, is wrong).
 #[derive(Debug, thiserror::Error)]
-#[error("verification failed: {}", failed_words(.failed, .total, .parameters))]
+#[error("verification failed: {}", failed_words(.failed, .conditional, .total, .parameters))]
 pub struct Failed {
-    /// Positions that failed.
+    /// Positions not accepted with a component outside the tolerance (or, under a guard-band
+    /// rule, conditionally failed).
     pub failed: usize,
+    /// Positions not accepted although every component is inside the tolerance T: within the
+    /// guard band (a conditional pass, which the rule does not accept).
+    pub conditional: usize,
     /// Positions checked.
     pub total: usize,
     /// The parameters the decision rule did not accept, in words (`bias x +2.04 mg (fail)`).
     pub parameters: Vec<String>,
 }
 
-fn failed_words(failed: &usize, total: &usize, parameters: &[String]) -> String {
-    let params = format!("the decision rule does not accept {}", parameters.join(", "));
-    match (failed, parameters.is_empty()) {
-        (0, false) => params,
-        (_, true) => format!("{failed} of {total} positions outside the tolerance"),
-        (_, false) => format!("{failed} of {total} positions outside the tolerance; {params}"),
+fn failed_words(failed: &usize, conditional: &usize, total: &usize, parameters: &[String]) -> String {
+    let mut words = Vec::new();
+    if *failed > 0 || (*conditional == 0 && parameters.is_empty()) {
+        words.push(format!("{failed} of {total} positions outside the tolerance"));
+    }
+    if *conditional > 0 {
+        words.push(format!(
+            "{conditional} of {total} positions inside T, within the guard band (conditional pass, not accepted)"
+        ));
+    }
+    if !parameters.is_empty() {
+        words.push(format!("the decision rule does not accept {}", parameters.join(", ")));
+    }
+    words.join("; ")
+}
+
+impl Failed {
+    /// What failed, in words (the error's message without "verification failed: ").
+    pub fn words(&self) -> String {
+        failed_words(&self.failed, &self.conditional, &self.total, &self.parameters)
     }
 }
 
@@ -129,7 +147,11 @@ impl VerifyReport {
     /// Why the verification did not pass, or `None` when it passed: the positions outside
     /// their tolerance and the parameters not accepted.
     pub fn failure(&self) -> Option<Failed> {
-        let failed = self.positions.iter().filter(|p| !p.pass).count();
+        // A position not accepted whose every component is inside T lies in the guard band.
+        let in_band =
+            |p: &PositionCheck| p.decisions.is_some_and(|d| d.iter().all(|d| !d.out_of_tolerance()));
+        let conditional = self.positions.iter().filter(|p| !p.pass && in_band(p)).count();
+        let failed = self.positions.iter().filter(|p| !p.pass && !in_band(p)).count();
         let parameters: Vec<String> = self
             .parameters
             .iter()
@@ -147,7 +169,12 @@ impl VerifyReport {
             })
             .collect();
         let total = self.positions.len();
-        (failed > 0 || !parameters.is_empty() || total == 0).then_some(Failed { failed, total, parameters })
+        (failed + conditional > 0 || !parameters.is_empty() || total == 0).then_some(Failed {
+            failed,
+            conditional,
+            total,
+            parameters,
+        })
     }
 
     /// Parses a report that `verify --json` wrote; a later version than this build writes is

@@ -28,6 +28,10 @@ pub struct HistoryArgs {
     /// single calibration; at most 36525, a century).
     #[arg(long, value_name = "DAYS", default_value_t = accelcal_db::history::DEFAULT_RULE.max_interval_days, value_parser = Real(Range::Positive))]
     pub max_interval_days: f64,
+    /// The shortest recommended interval, days: a floor under the drift's interval and under
+    /// an interval halved after an as-found result out of tolerance.
+    #[arg(long, value_name = "DAYS", default_value_t = accelcal_db::history::DEFAULT_RULE.min_interval_days, value_parser = Real(Range::Positive))]
+    pub min_interval_days: f64,
     /// Write the history as JSON to this file.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,

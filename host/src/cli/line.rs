@@ -639,6 +639,16 @@ pub struct Issuer {
     /// says it is a draft].
     #[arg(long, value_name = "NAME")]
     pub authorised_by: Option<String>,
+    /// The recalibration interval the laboratory decides for this unit, days: the certificate
+    /// states it as the laboratory's decision, with the interval the drift rule gives beside it
+    /// [default: the drift rule's interval].
+    #[arg(long, value_name = "DAYS", value_parser = Real(Range::Positive))]
+    pub interval_days: Option<f64>,
+    /// The shortest recalibration interval the certificate recommends, days: a floor under the
+    /// drift's interval and under an interval halved after an as-found result out of tolerance
+    /// (station.toml: min_interval_days) [default: 30].
+    #[arg(long, value_name = "DAYS", value_parser = Real(Range::Positive))]
+    pub min_interval_days: Option<f64>,
 }
 
 /// `verify --phase`.

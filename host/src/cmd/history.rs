@@ -43,9 +43,10 @@ pub(crate) fn outcome(r: &accelcal_db::history::RunLine) -> &'static str {
 pub(crate) fn verification(v: &Option<VerifySummary>) -> String {
     match v {
         None => "-".into(),
+        Some(v) if v.pass => format!("pass {0}/{0}, max {1} m/s²", v.positions, sig(v.max_abs_error_m_s2, 2)),
+        // "FAIL 1/6" read as one failed: say which is counted.
         Some(v) => format!(
-            "{} {}/{}, max {} m/s²",
-            if v.pass { "pass" } else { "FAIL" },
+            "FAIL, {} of {} accepted, max {} m/s²",
             v.positions - v.failed,
             v.positions,
             sig(v.max_abs_error_m_s2, 2)

@@ -175,7 +175,7 @@ pub fn run(a: &Report) -> anyhow::Result<()> {
             if u.as_found.is_none() {
                 u.as_found = runs.iter().find(|r| r.start.run_id == *run).and_then(|r| r.as_found.clone());
             }
-            Some(since_last_calibration(&mut runs, *run))
+            Some(since_last_calibration(&mut runs, *run, a.issuer.recal_rule()))
         }
         _ => None,
     };
@@ -390,12 +390,13 @@ fn drift_input(h: &accelcal_db::history::History) -> DriftInput {
 fn since_last_calibration(
     runs: &mut [accelcal_db::RunSummary],
     run: accelcal_db::RunId,
+    rule: accelcal_db::history::RecalRule,
 ) -> accelcal_db::history::History {
     use accelcal_db::Outcome;
     for r in runs.iter_mut().filter(|r| r.start.run_id == run && r.end.is_none()) {
         r.end = Some((Outcome::Pass, "this certificate".into(), accelcal_db::now_unix_s()));
     }
-    accelcal_db::history::history(runs, accelcal_db::history::DEFAULT_RULE)
+    accelcal_db::history::history(runs, rule)
 }
 
 /// The method's short label.

@@ -160,6 +160,12 @@ pub fn history(a: &HistoryArgs) -> anyhow::Result<History> {
             a.max_interval_days
         )));
     }
+    if a.min_interval_days > a.max_interval_days {
+        return Err(bad(format!(
+            "--min-interval-days {} is longer than --max-interval-days {}: the floor is at most the longest interval",
+            a.min_interval_days, a.max_interval_days
+        )));
+    }
     if a.unit.trim().is_empty() {
         return Err(bad("SERIAL|DEVICE is empty"));
     }
@@ -173,6 +179,8 @@ pub fn history(a: &HistoryArgs) -> anyhow::Result<History> {
             tolerance_m_s2: a.tolerance_m_s2,
             coverage: a.coverage,
             max_interval_days: a.max_interval_days,
+            min_interval_days: a.min_interval_days,
+            decided_interval_days: None,
         },
         json: a.json.clone(),
     })

@@ -31,6 +31,7 @@ struct StationConfig {
     customer: Option<Spanned<String>>,
     customer_address: Option<Spanned<String>>,
     received: Option<Spanned<String>>,
+    min_interval_days: Option<Spanned<f64>>,
     place: Option<Spanned<String>>,
     authorised_by: Option<Spanned<String>>,
     station: Option<Spanned<String>>,
@@ -117,6 +118,8 @@ pub fn apply(command: &mut Command, given: &mut Given) -> anyhow::Result<Option<
     f.text_value(&mut a.issuer.customer_address, "customer_address", "customer_address", c.customer_address)?;
     f.text_value(&mut a.issuer.received, "received", "received", c.received)?;
     f.text_value(&mut a.issuer.place, "place", "place", c.place)?;
+    let floor = f.real("min_interval_days", c.min_interval_days, Range::Positive)?;
+    f.optional(&mut a.issuer.min_interval_days, "min_interval_days", "min_interval_days", floor);
     f.text_value(&mut a.issuer.authorised_by, "authorised_by", "authorised_by", c.authorised_by)?;
     if let Some(lab) = c.laboratory {
         let at = f.at(&lab);

@@ -77,9 +77,24 @@ pub struct Issuer {
     pub received: Option<String>,
     pub place: Option<String>,
     pub authorised_by: Option<String>,
+    /// `--interval-days`: the laboratory's decided interval.
+    pub interval_days: Option<f64>,
+    /// `--min-interval-days`: the floor.
+    pub min_interval_days: Option<f64>,
 }
 
 impl Issuer {
+    /// The recalibration rule a certificate states: the default one, with the floor and the
+    /// laboratory's decided interval given.
+    pub fn recal_rule(&self) -> accelcal_db::history::RecalRule {
+        let mut rule = accelcal_db::history::DEFAULT_RULE;
+        if let Some(m) = self.min_interval_days {
+            rule.min_interval_days = m;
+        }
+        rule.decided_interval_days = self.interval_days;
+        rule
+    }
+
     /// From `--laboratory`, `--laboratory-address`, `--customer` and `--authorised-by`.
     pub fn of(a: &IssuerArgs) -> Issuer {
         Issuer {
@@ -90,6 +105,8 @@ impl Issuer {
             received: a.received.clone(),
             place: a.place.clone(),
             authorised_by: a.authorised_by.clone(),
+            interval_days: a.interval_days,
+            min_interval_days: a.min_interval_days,
         }
     }
 }

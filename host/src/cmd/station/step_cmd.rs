@@ -306,6 +306,8 @@ impl StepCommand {
                 l.maybe("--received", issuer.received.as_ref());
                 l.maybe("--place", issuer.place.as_ref());
                 l.maybe("--authorised-by", issuer.authorised_by.as_ref());
+                l.maybe("--interval-days", issuer.interval_days.as_ref());
+                l.maybe("--min-interval-days", issuer.min_interval_days.as_ref());
                 l.db(db);
             }
         }
