@@ -55,7 +55,7 @@ fn node_replays_100000_sets_in_order_without_overruns() {
     // `replay` fails unless every answer comes back in order (`seq`) with as many sets as were sent.
     let opts = HilOptions {
         // The QEMU board's 20 µs SysTick keeps QEMU's main loop taking bytes; the spinning
-        // chardev on top of it only competes with the vCPU thread (186 s instead of 68 s here).
+        // chardev on top of it only competes with the vCPU thread (measurements.md has the times).
         spin_main_loop: std::env::var_os("ACCELCAL_LOAD_SPIN").is_some(),
         ..HilOptions::new(node_elf())
     };

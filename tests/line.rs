@@ -720,38 +720,11 @@ fn verify_summary(p: &Path) -> (f64, bool, f64) {
     (worst, v["pass"].as_bool().unwrap(), temp)
 }
 
-/// `accelcal station` for one unit, on the emulated head.
+/// `accelcal station` for one unit, on the emulated head ([`support::station_line`]), then
+/// `extra`.
 fn station_args<'a>(em: &'a Emulator, serial: &'a str, dir: &'a Path, extra: &[&'a str]) -> Vec<&'a str> {
-    let mut v = vec![
-        "station",
-        "--port",
-        &em.port,
-        "--head",
-        &em.head,
-        "--gdb",
-        &em.gdb,
-        "--serial",
-        serial,
-        "--out",
-        s(dir),
-        "--plan",
-        "random:24",
-        "--samples",
-        "200",
-        "--rate-hz",
-        "1000",
-        "--g",
-        "9.81",
-        // The criterion of 24 positions of 200 noisy sets scatters by a few codes: a linear unit
-        // must not be rejected for it.
-        "--select-tolerance",
-        "5",
-        // The verifications at K = 5, as `verify_args` says why: a station runs one or two, and
-        // these tests run a dozen stations that must pass (at K = 4 one CI run in about 40
-        // would fail a good unit; one did, an as-left 1 of 6 positions out).
-        "--coverage",
-        "5",
-    ];
+    use support::station_line::{station_line, Unit};
+    let mut v = station_line(&em.head, &[Unit { port: &em.port, gdb: &em.gdb, serial, out: s(dir) }]);
     v.extend_from_slice(extra);
     v
 }

@@ -1,5 +1,13 @@
 //! Fitting the coefficients of a campaign's channels (LSQ or test turns) and building the
 //! calibration record the node applies.
+//!
+//! [`Method`] is the fitting method (LSQ, test turns); [`fit_positions`] and [`fit_all`] fit every
+//! channel from its dwell statistics; [`record`] builds the calibration record of a set of fits.
+//! [`gate`] makes a record a node would refuse bad input with the node's reason
+//! (`shared::boot::gate`), and so is one whose sensitivities no unit has ([`implausible`]: their
+//! sign and [`sensitivity_range`] against the 16-bit code span and g); `fit --record`, `flash`
+//! and `record show` (which prints the same [`verdict`]) all go through it.
+//! [`parse_device_id`] reads a device id as the command line and the documents write it.
 
 use std::path::Path;
 

@@ -110,7 +110,8 @@ impl Specification {
                 return Err(SpecError(format!("`{key}` must be a positive limit, got {v}")));
             }
         }
-        if self.unit_type.trim().is_empty() || self.unit_type.contains(['\n', '\r']) {
+        crate::text::single_line("`unit_type`", &self.unit_type).map_err(|e| SpecError(e.to_string()))?;
+        if self.unit_type.trim().is_empty() {
             return Err(SpecError("`unit_type` must be one line of text".into()));
         }
         Ok(())

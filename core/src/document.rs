@@ -14,6 +14,12 @@
 //! (serde defaults), and a fit written before fits carried the unit's identity reads with
 //! `identity: None` ([`FitDoc::identity`]; [`crate::campaign::identity::Identity::of_fit_json`]
 //! refuses it where the identity is needed).
+//!
+//! Each document carries a `version` ([`FIT_VERSION`], [`SELECT_VERSION`], [`INFO_VERSION`],
+//! [`VERIFY_VERSION`]); every reader goes through its type's `parse` (or
+//! [`verify::VerifyReport::read`]), which takes 0 (written before versions) up to its own and
+//! refuses a later one ([`check_version`]). The station's journal is typed in
+//! `accelcal_line::station` and read at its own version only.
 
 pub mod verify;
 

@@ -1,4 +1,8 @@
 //! Weighted least squares on dwell means, with standard errors and the problem's condition.
+//!
+//! The fit is by SVD of the weighted design matrix; a model whose smallest singular value falls
+//! below the threshold is not identifiable on the plan, and the error names the terms that cannot
+//! be separated.
 
 use accelcal_shared::Structure;
 use nalgebra::{DMatrix, DVector};

@@ -2,6 +2,12 @@
 //! angles and each channel's running mean and within-dwell sum of squares, never the rows, so a
 //! campaign of any length is read in bounded memory. It is all that the position-level fits
 //! (least squares and test turns) need.
+//!
+//! The same row parser as the in-memory reader (`campaign::RowReader`), each row folded into its
+//! dwell's statistics at once. [`DwellRows`] gives the rows one at a time with their dwell index;
+//! `Reread` is the second pass of `compare` and `diagnose` over it, refusing a file whose
+//! channels, dwells or row counts changed since the first; `Campaign::for_each_row` does the same
+//! walk for an in-memory campaign.
 
 use std::io::Read;
 use std::path::Path;

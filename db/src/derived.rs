@@ -363,7 +363,7 @@ pub(crate) fn backfill(c: &mut Conn) -> Result<usize, DbError> {
             for r in &vs {
                 let (run, phase) = (r[0].text()?, r[1].text()?);
                 after_v = (run.clone(), phase.clone());
-                match serde_json::from_str::<VerifyReport>(&r[2].text()?) {
+                match VerifyReport::parse(&r[2].text()?) {
                     Ok(report) => insert_verification(tx, &run, &phase, &report)?,
                     Err(_) => {
                         tx.execute(
@@ -513,7 +513,7 @@ pub(crate) fn check(tx: &mut Tx<'_>) -> Result<Vec<(String, &'static str, String
         let key = r[0].text().unwrap_or_default();
         let each = |bad: &mut Vec<(String, &'static str, String)>, tx: &mut Tx<'_>| -> Result<(), DbError> {
             let (run, phase) = (r[0].text()?, r[1].text()?);
-            let Ok(report) = serde_json::from_str::<VerifyReport>(&r[2].text()?) else { return Ok(()) };
+            let Ok(report) = VerifyReport::parse(&r[2].text()?) else { return Ok(()) };
             let want = verification_rows(&report);
             let decision = match &r[3] {
                 Val::Null => None,

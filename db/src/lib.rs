@@ -12,6 +12,15 @@
 //! record is flashed only through the [`StoredRecord`] that [`Db::store_record`] returns: a
 //! unit is never flashed with a record that was not stored first. Rows are never updated or
 //! deleted (the engines' triggers refuse it).
+//!
+//! What may import what inside this crate (no cycle: `rscycles.py db/src` prints nothing):
+//! `val` and `content` import only this file's items and `val`; `cells` → `val`; `engine` →
+//! `cells`, `val` (its child `engine::schema_history` → `engine`); `chain` → `engine`,
+//! `cells`, `content`, never a module that stores pieces; `piece` → `chain`, `derived`,
+//! `engine`; `asset`, `certificate`, `label`, `signer` → `chain`, `engine` (and `content`,
+//! `piece` or `derived` as they need); `anchor` → `chain`; `derived` → `engine`, `history`;
+//! `history` → `cells`, `signer`; `fleet` → `chain`, `check`, `derived`, `engine`, `signer`;
+//! `check` → this file's `Db`.
 
 // Index loops mirror the math (channels × terms), as in the core.
 #![allow(clippy::needless_range_loop)]

@@ -393,26 +393,20 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
                     )));
                 }
             }
-            let per_port = |option: &str, count: usize, optional: bool| {
-                if count == n || (optional && count == 0) {
-                    return Ok(());
-                }
-                Err(bad(format!(
-                    "{n} {port}, {count} {option}: give {option} once per {port}, in the same order{}",
-                    if optional { " (or not at all)" } else { "" }
-                )))
-            };
             if a.check_standard.is_none() {
-                per_port("--serial", a.serials.len(), false)?;
+                once_each("--serial", a.serials.len(), n, port, false)?;
             }
-            per_port("--out", a.outs.len(), false)?;
-            per_port("--gdb", a.gdb.len(), true)?;
+            once_each("--out", a.outs.len(), n, port, false)?;
+            once_each("--gdb", a.gdb.len(), n, port, true)?;
             if n > 1 || a.probe.len() > 1 {
-                per_port("--probe", a.probe.len(), true)?;
+                once_each("--probe", a.probe.len(), n, port, true)?;
             }
+            // A settings file's serials come after `check_text`: checked here as the command
+            // line's are there.
             for s in &a.serials {
-                if s.trim().is_empty() || s.contains(['\n', '\r']) {
-                    return Err(bad("--serial must be a non-empty single line"));
+                accelcal_core::text::header_value("--serial", s)?;
+                if s.is_empty() {
+                    return Err(bad("--serial must not be empty"));
                 }
             }
             let dup = |v: Vec<String>, option: &str| -> anyhow::Result<()> {
@@ -473,17 +467,15 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
     }
 }
 
-/// An option given per node (`--out` per `--port`, `--seed` per `--unit`): `given` times for `n`
-/// of `per` must be once each (in the same order), or, when `optional`, not at all.
+/// An option given per node (`--out` per `--port`, `--seed` per `--unit`, `--serial` per
+/// `[[node]]`): `given` times for `n` of `per` must be once each (in the same order), or, when
+/// `optional`, not at all.
 fn once_each(option: &str, given: usize, n: usize, per: &str, optional: bool) -> anyhow::Result<()> {
     if given == n || (optional && given == 0) {
         return Ok(());
     }
-    let times = if given == 1 { "once" } else { &format!("{given} times") };
-    let or_not = if optional { ", or not at all" } else { "" };
-    Err(bad(format!(
-        "{option} is given {times} for {n} {per} options: give it once per {per} (in the same order){or_not}"
-    )))
+    let or_not = if optional { " (or not at all)" } else { "" };
+    Err(bad(format!("{n} {per}, {given} {option}: give {option} once per {per}, in the same order{or_not}")))
 }
 
 /// `--head-timeout-s` is for an emulated head only.

@@ -157,21 +157,21 @@ const REFUSED: &[(&str, &str)] = &[
     // Issue 23: several nodes on one head, each option per node once per `--port`/`--unit`.
     (
         "acquire --port P --port Q --head manual --out a.csv",
-        "--out is given once for 2 --port options: give it once per --port (in the same order)",
+        "2 --port, 1 --out: give --out once per --port, in the same order",
     ),
     (
         "acquire --port P --port Q --head manual --out a.csv --out b.csv --serial S",
-        "--serial is given once for 2 --port options: give it once per --port (in the same order), or not at all",
+        "2 --port, 1 --serial: give --serial once per --port, in the same order (or not at all)",
     ),
     ("acquire --port P --port P --head manual --out a.csv --out b.csv", "--port P is given twice (ports 1 and 2)"),
     ("acquire --port P --port Q --head manual --out a.csv --out a.csv", "--out and --out name the same path"),
     (
         "emulate --qemu R --unit C --unit V --seed 1",
-        "--seed is given once for 2 --unit options: give it once per --unit (in the same order), or not at all",
+        "2 --unit, 1 --seed: give --seed once per --unit, in the same order (or not at all)",
     ),
     (
         "emulate --qemu R --unit C --unit V --record a.rec --record b.rec --record c.rec",
-        "--record is given 3 times for 2 --unit options",
+        "2 --unit, 3 --record: give --record once per --unit",
     ),
     // Issue 24: the record of a head that was never turned (`U`: six positions, one reading).
     (

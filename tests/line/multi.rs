@@ -4,6 +4,7 @@
 //! from its own complete positions; a record carries its node's id and only that node takes it.
 
 use super::*;
+use crate::support::station_line::{station_line, Unit};
 
 /// The `# key: value` of a campaign's header.
 fn header_value(campaign: &Path, key: &str) -> String {
@@ -121,30 +122,13 @@ fn the_station_calibrates_two_nodes_on_one_head() {
     let (t2, _) = unit(dir.path(), "u2", 8, 10);
     let em = Emulator::start_units(&[&t1, &t2], &[]);
     let outs = [dir.path().join("M-1"), dir.path().join("M-2")];
-    let mut args = vec!["station", "--head", &em.head, "--plan", "random:24", "--samples", "200"];
-    // K = 5: see `station_args`.
-    args.extend_from_slice(&[
-        "--rate-hz",
-        "1000",
-        "--g",
-        "9.81",
-        "--select-tolerance",
-        "5",
-        "--coverage",
-        "5",
-    ]);
-    for (i, n) in em.nodes.iter().enumerate() {
-        args.extend_from_slice(&[
-            "--port",
-            &n.0,
-            "--gdb",
-            &n.1,
-            "--serial",
-            ["M-1", "M-2"][i],
-            "--out",
-            s(&outs[i]),
-        ]);
-    }
+    let units: Vec<Unit> = em
+        .nodes
+        .iter()
+        .enumerate()
+        .map(|(i, n)| Unit { port: &n.0, gdb: &n.1, serial: ["M-1", "M-2"][i], out: s(&outs[i]) })
+        .collect();
+    let args = station_line(&em.head, &units);
     let out = succeed(&args);
     let text = String::from_utf8_lossy(&out.stdout);
     let err = String::from_utf8_lossy(&out.stderr);

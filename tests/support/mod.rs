@@ -1,6 +1,8 @@
 //! Helpers shared by the QEMU tests (`hil`, `hil_load`, `live`, `line`): where the node's QEMU
 //! build is, record bytes, and the one emulated bench at a time.
 
+pub mod station_line;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 

@@ -10,6 +10,11 @@ use std::process::{Command, Stdio};
 
 use anyhow::Context;
 
+/// The station's command line on an emulated bench, the one the line tests run.
+#[path = "../../tests/support/station_line.rs"]
+mod station_line;
+use station_line::{station_line, Unit};
+
 /// Node counts measured.
 const NODES: [usize; 2] = [1, 4];
 
@@ -53,33 +58,21 @@ fn station(exe: &Path, elf: &Path, n: usize) -> anyhow::Result<String> {
             serde_json::from_str(&line).with_context(|| format!("emulate printed `{line}`"))?;
         let head = v["head"].as_str().context("no head")?.to_string();
         let nodes = v["nodes"].as_array().context("no nodes")?;
-        let mut args: Vec<String> = vec!["station".into(), "--head".into(), head];
+        let mut units = Vec::new();
         for (i, node) in nodes.iter().enumerate() {
-            for (flag, key) in [("--port", "port"), ("--gdb", "gdb")] {
-                args.extend([flag.into(), node[key].as_str().context("node field")?.to_string()]);
-            }
-            args.extend(["--serial".into(), format!("B-{i}")]);
-            args.extend(["--out".into(), dir.join(format!("b-{i}")).display().to_string()]);
+            let field = |key: &str| node[key].as_str().map(str::to_string).context("node field");
+            units.push((
+                field("port")?,
+                field("gdb")?,
+                format!("B-{i}"),
+                dir.join(format!("b-{i}")).display().to_string(),
+            ));
         }
+        let units: Vec<Unit> =
+            units.iter().map(|(port, gdb, serial, out)| Unit { port, gdb, serial, out }).collect();
         let db = dir.join("line.sqlite").display().to_string();
-        for a in [
-            "--plan",
-            "random:24",
-            "--samples",
-            "200",
-            "--rate-hz",
-            "1000",
-            "--g",
-            "9.81",
-            "--select-tolerance",
-            "5",
-            "--coverage",
-            "5",
-            "--db",
-            &db,
-        ] {
-            args.push(a.into());
-        }
+        let mut args = station_line(&head, &units);
+        args.extend_from_slice(&["--db", &db]);
         eprintln!("$ accelcal {}", args.join(" "));
         let out = Command::new(exe)
             .args(&args)

@@ -11,6 +11,13 @@
 //! [`selection`] chooses the set that explains the gap, [`structure`] checks what each named
 //! effect left (partial effects, where the rest lies, confounded effects), and [`bench`] runs
 //! the blind benchmark.
+//!
+//! [`periodic`] is the periodogram of the dwell residuals over time and their correlation across
+//! channels. This file holds what they all use (the data, [`wls`], [`solve_normal`], [`zscore`],
+//! [`NOISE_Z`]) and [`thermal_remedy`] (a found `temperature` effect turned into the baseline
+//! terms `fit` would use). Imports go one way: `gap`, `selection`, `structure` and `bench` →
+//! `attribution`, never back; the benchmark's effects outside the library live in `bench` only,
+//! and neither the registry (`crate::effects`) nor the diagnosis names them.
 
 pub mod attribution;
 pub mod bench;

@@ -1,6 +1,13 @@
 //! A seeded simulator of the rig: a dividing head stepping through a position plan, a block of
 //! analog accelerometers (bias, scale, misalignment, noise) read by a 16-bit ADC (quantisation and
 //! clipping), and pluggable error effects.
+//!
+//! [`plan`]: position plans; [`effects`]: the `Effect` trait and the models of the registry's
+//! effects (`crate::effects`), with `from_description`, which rebuilds an effect from its truth
+//! JSON through the registry's parser; [`unit`]: `Truth`, the per-sample model `sample_set` and
+//! `standing_accel` that `simulate` and the emulated front end both call, and `Unit`, a truth
+//! file rebuilt to be sampled one set at a time. [`ThermalPlan`]: the plan repeated per chamber
+//! setpoint after a soak, the sensor following the chamber with a first-order lag.
 
 pub mod effects;
 pub mod plan;

@@ -2,6 +2,27 @@
 //! server), its migrations, and transactions that run statements written once for both (`$1`,
 //! `$2`… placeholders in order of first use, which SQLite reads as numbered parameters too).
 //! Nothing above this module knows which engine it talks to.
+//!
+//! - `Target`: what `--db` (or `ACCELCAL_DB`) names: `postgres://…` or `host=…` words for
+//!   PostgreSQL, another `scheme://` refused, anything else a SQLite file.
+//! - `Conn`: rusqlite with the bundled SQLite (WAL, `synchronous=FULL`, foreign keys, a busy
+//!   timeout), or the synchronous `postgres` client (its errors in the server's words,
+//!   `pg_cause`). The migrations of `db/migrations/{sqlite,postgres}/V<n>__*.sql` are embedded
+//!   and applied by refinery on open, one opener at a time (SQLite: an exclusive flock(2) on the
+//!   database's directory, not on the file, whose other descriptors would drop SQLite's own fcntl
+//!   locks when closed; PostgreSQL: an advisory lock); `schema_history` checks refinery's
+//!   history against this build's migrations.
+//! - `Access`: `Write` refuses, at open, a file or directory that cannot be written
+//!   (`DbError::ReadOnly`); `Read` never writes: SQLite opened read-only (a read-only file or
+//!   mount with `immutable=1`), no migration, no seal, no backfill, and a database at another
+//!   schema version or with derived rows pending is `DbError::NeedsMigration`.
+//! - `Tx`: one transaction. A writer's is SQLite's `BEGIN IMMEDIATE`, or PostgreSQL's under a
+//!   transaction-level advisory lock, so writers append to the ledger one at a time. A reader's
+//!   (`Conn::reading`) is deferred on SQLite and `REPEATABLE READ, READ ONLY` without the lock
+//!   on PostgreSQL: one snapshot, and a reader never waits for a writer nor for another reader.
+//!   Statements are prepared once per connection (`Statements` on PostgreSQL, rusqlite's cache
+//!   on SQLite). A unique-key violation is `DbError::Raced`, and `Db` tries the store once more.
+//! - `scan_cells`: every cell that does not read as its declared type (`db verify`).
 
 mod schema_history;
 

@@ -15,6 +15,7 @@ compile_error!("choose a board: enable feature `board-real` or `board-qemu`");
 
 use accelcal_shared::contract::SLOT_ADDRS;
 use accelcal_shared::slots::{SlotRead, PROGRAM_UNIT, SLOT_SIZE};
+use accelcal_shared::wire::ResetCause;
 
 #[cfg(feature = "board-qemu")]
 mod qemu;
@@ -25,6 +26,22 @@ pub use qemu::*;
 mod real;
 #[cfg(feature = "board-real")]
 pub use real::*;
+
+/// The board's parts, ready for the application: what each board's `init` returns.
+pub struct Board {
+    /// Host link, receiving half.
+    pub rx: LinkRxImpl,
+    /// Host link, sending half.
+    pub tx: LinkTxImpl,
+    /// Record slots and device id.
+    pub storage: Storage,
+    /// Live sample sets (the real board's ADC; QEMU's emulated front end on USART2).
+    pub source: SourceImpl,
+    /// The sampling rate (the real board's TIM6; what QEMU's front end is told).
+    pub clock: SampleClockImpl,
+    /// Why the MCU last reset (RCC_CSR; QEMU's model of it).
+    pub reset_cause: ResetCause,
+}
 
 /// Reads record slot `slot` (at [`SLOT_ADDRS`], reserved in `memory.x`) into `out` with volatile
 /// 32-bit loads, one double word at a time. `faulted()` says whether a flash ECC error was reported

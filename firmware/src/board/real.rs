@@ -80,6 +80,7 @@ use embassy_time::Instant;
 #[cfg(feature = "debug-panic")]
 use panic_probe as _;
 
+use super::Board;
 use crate::app::ports::{LinkRx, LinkTx, Overrun, RecordStorage, SampleClock, SampleSource, Watchdog};
 
 /// USART1 baud rate ([`BAUD_REAL`]): 4 kHz of calibrated triads in blocks of 16 is 50.5 kB/s of
@@ -512,22 +513,6 @@ fn panic(info: &core::panic::PanicInfo) -> ! {
 unsafe fn HardFault(ef: &cortex_m_rt::ExceptionFrame) -> ! {
     defmt::error!("hard fault at pc {=u32:#010x}", ef.pc());
     cortex_m::peripheral::SCB::sys_reset()
-}
-
-/// The board's parts, ready for the application.
-pub struct Board {
-    /// Host link, receiving half.
-    pub rx: LinkRxImpl,
-    /// Host link, sending half.
-    pub tx: LinkTxImpl,
-    /// Record slots and device id.
-    pub storage: Storage,
-    /// Live sample sets.
-    pub source: SourceImpl,
-    /// The sampling rate.
-    pub clock: SampleClockImpl,
-    /// Why the MCU last reset.
-    pub reset_cause: ResetCause,
 }
 
 fn clocks() -> Config {

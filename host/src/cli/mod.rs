@@ -1,4 +1,11 @@
-//! The command line: clap definitions of every subcommand and its options.
+//! The command line: clap definitions of every subcommand and its options, the only place that
+//! knows clap with `settings`. This file holds the `Command` enum and the options several
+//! commands share (`--g` and the site, `--db`/`--run-id`, `--codes`); `campaign.rs` the commands
+//! on campaign files, `line.rs` those that talk to a node, a head or a probe, `db.rs` those on the
+//! database. Value enums of the command line map onto core types (`CriterionArg` →
+//! `gmdh::Criterion`, `MethodArg` → `calibrate::Method` or the gravity-norm command). `range.rs`:
+//! every range an option's number must lie in, written once with its words and checked as the
+//! line is parsed (the station's settings file checks its keys with the same ranges).
 
 use std::path::PathBuf;
 

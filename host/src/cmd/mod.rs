@@ -1,4 +1,17 @@
-//! One module per subcommand; [`run`] dispatches.
+//! One module per subcommand or family; [`run`] matches the settled [`Settings`] exhaustively
+//! and dispatches. A module is named after its command where it has one: `simulate`, `plan`
+//! (with `design`, `plan --design`), `select`, `fit` (with `gravity`, `fit --method
+//! gravity-norm`, and `uncertainty`, `fit`'s budget table and `uncertainty-check`), `compare`,
+//! `diagnose`, `demo` (which reuses the others' functions), `record` (`record show`), `emulate`,
+//! `station`, `history`, `fleet`, `asset` (`asset add|list|show`, `affected`), `certificate`,
+//! `signer`, `approve` (`approve`, `reject`). Others hold a family: `live` is `info`, `output`,
+//! `acquire` and `verify`; `node` is `flash`, `monitor` and `hil`; `report` is the certificate
+//! (`report/method.rs` the technical report); `db` is `void` and `db verify`. The developer
+//! benchmarks are `bench_diagnose` (`bench-diagnose`) and `fleet_bench` (`bench-fleet`).
+//! `store` is the `--db` side of the commands that write (open before any other I/O, begin or
+//! continue a run, store a piece) and `spec` reads `--spec`. This file holds what several share:
+//! the campaign readers' warnings ([`print_warnings`], [`error_line`]), [`created`] and
+//! [`passphrase`].
 
 pub mod amend;
 pub mod approve;

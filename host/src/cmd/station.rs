@@ -8,6 +8,30 @@
 //! rejection when the step is a verification whose JSON lists a failed position, else the
 //! environment. Ctrl-C reaches the child (one process group) and the station alike: the station
 //! lets the child finish its own stop (acquire keeps its complete positions) and then stops.
+//!
+//! A step's command is a value (`step_cmd::StepCommand`: paths, link, head, gravity and the
+//! database run as typed fields); `StepCommand::args` is the one place that spells it as the
+//! child's command line, and `journalled` the same line with the database named without its
+//! password, as the journal keeps it.
+//!
+//! The database (`--db`, `ACCELCAL_DB`, else `calibration.sqlite` beside `--out`) is opened
+//! before the node is touched; a database that cannot be written is refused there, and so is an
+//! overdue or unknown `--head-asset`, before any unit's directory is made. The run begins after
+//! `info`: its id and start time are journalled before the run's row, so a resume continues the
+//! same run and a crash leaves no orphan; the serial is checked against the database's labels
+//! (or moved by `--relabel REASON`), and the head asset's stated uncertainties go to the fit
+//! step. The station stores each step's piece itself right after journalling the step (a resume
+//! stores the kept steps' pieces again: a no-op, or the first store after a crash between journal
+//! and database); the flash and certificate steps get `--db --run-id` and store their own, and
+//! `report --db` ends the run `pass` with `store::PASS_REASON`. A node that does not run the
+//! record its last run flashed is said plainly, naming both CRCs: a warning at a new unit's
+//! as-found, `StationError::RecordReplaced` for a finished unit's directory.
+//! `store::crash_point` is the fault injection of the crash tests.
+//!
+//! With several `--port`s there is one `Station` per unit (its own directory, journal, database
+//! connection and run): `info` and as-found run unit by unit, `acquire_together` runs one
+//! `acquire` over every unit that has not recorded its campaign, then each unit's remaining steps
+//! run in turn (a rejection is collected, anything else stops the station).
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

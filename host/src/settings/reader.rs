@@ -21,6 +21,12 @@ use crate::cmd::store::reader_spec;
 /// its end.
 pub const DEFAULT_PERIOD: std::time::Duration = std::time::Duration::from_secs(30 * 86_400);
 
+/// The period's first day: `since` when given, else [`DEFAULT_PERIOD`] before `until`; `None`
+/// when `until` is too early to count back from.
+pub fn period_start(since: Option<Date>, until: Date) -> Option<Date> {
+    since.or_else(|| until.checked_sub(DEFAULT_PERIOD).ok())
+}
+
 /// `accelcal fleet`, settled.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Fleet {
@@ -45,10 +51,7 @@ pub struct Fleet {
 /// `fleet`'s settings from its command line, `today` the day `--until` defaults to.
 pub fn fleet(a: &FleetArgs, today: Date) -> anyhow::Result<Fleet> {
     let until = a.until.unwrap_or(today);
-    let since = match a.since {
-        Some(s) => s,
-        None => until.checked_sub(DEFAULT_PERIOD).context("--until is too early")?,
-    };
+    let since = period_start(a.since, until).context("--until is too early")?;
     if since > until {
         return Err(bad(format!("--since {since} is after --until {until}: the period is empty")));
     }

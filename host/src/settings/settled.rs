@@ -1,4 +1,11 @@
-//! The settled command line ([`Settings`]) that `main` hands to the commands.
+//! The settled command line ([`Settings`]) that `main` hands to the commands: `settle` runs after
+//! the checks of `settings.rs`, with what they resolved, and gives one variant per command, each a
+//! plain value with nothing of clap. Defaults are resolved here (the fleet's period, a design's
+//! head and dwell, a station's database), values parsed once (run ids, device ids, `--terms`,
+//! `--plan`, `--magnitude`, the gravity norm's hold detector), and the checks that involve several
+//! options done (`--chamber` with `--soak-s`, `--change-at` within the period). The values live
+//! beside the commands' families in the sibling modules (`reader`, `asset`, `campaign`, `line`,
+//! `station`, `release`); `values` holds what several share with the station's steps.
 
 use super::{asset, campaign, line, reader, release, station};
 use crate::cli::Command;

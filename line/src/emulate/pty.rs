@@ -4,8 +4,8 @@
 //! QEMU's own `-chardev pty` notices a program opening the terminal only on a timer, once a
 //! second (`char-pty.c`: `pty_chr_rearm_timer(chr, 1000)` while no one has it open), and until
 //! then neither reads the host's bytes nor sends the node's. Every step of a station opens the
-//! port anew, so each request waited 0 to 1 s for nothing (`accelcal info` took 0.4 to 1.0 s,
-//! its request sent once and answered up to a second later). The bridge polls the terminal
+//! port anew, so each request waited 0 to 1 s for nothing (its request sent once and answered
+//! up to a second later; the figures are on the guide's measurements page). The bridge polls the terminal
 //! every [`IDLE_POLL`] instead; it keeps the behaviour of QEMU's pty otherwise: what the node
 //! sends while no program has the terminal open is dropped, and a program that opens it but does
 //! not read holds the node's output back (the node's transmitter waits, as on QEMU's pty).

@@ -1,5 +1,11 @@
 //! The host end of the node link: frames [`HostMsg`]s out and decodes [`NodeMsg`]s in, over any
 //! byte stream (a QEMU socket, a serial port).
+//!
+//! [`Receiver::recv`] takes an absolute deadline, checked on every read whatever the peer sends
+//! (a line held low, noise without a delimiter), and [`Traffic`] counts what came, for the
+//! timeout's message. [`Receiver::mid_stream`] drops the tail of a frame a late reader joins:
+//! every session's port is joined that way, and since the node puts a zero in front of each frame
+//! (`wire::encode_sync`), a join at a frame boundary loses nothing.
 
 use std::io::{self, Read, Write};
 use std::time::Instant;

@@ -1,5 +1,8 @@
 //! `accelcal monitor`: shows a node's live stream from its serial port (the board's ST-LINK
 //! virtual COM port, USART1).
+//!
+//! `--rate-hz` sends `SetRate` first; `--count N` counts messages, not bad frames; no message for
+//! `--timeout-s` fails, whatever else came. A freshly opened port is joined mid-stream.
 
 use std::io::Write;
 

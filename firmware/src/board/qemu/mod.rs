@@ -26,6 +26,7 @@ use defmt_semihosting as _;
 
 use accelcal_shared::boot::TempInputs;
 
+use super::Board;
 use crate::app::ports::{RecordStorage, SampleClock, Watchdog};
 
 /// The board's temperature input: the emulated front end's channel ([`frontend`]); QEMU's ADC is
@@ -111,22 +112,6 @@ impl RecordStorage for Storage {
     fn device_id(&self) -> [u8; 12] {
         emulated_device_id()
     }
-}
-
-/// The board's parts, ready for the application.
-pub struct Board {
-    /// Host link, receiving half.
-    pub rx: LinkRxImpl,
-    /// Host link, sending half.
-    pub tx: LinkTxImpl,
-    /// Record slots and device id.
-    pub storage: Storage,
-    /// Live sample sets from the emulated front end (USART2).
-    pub source: SourceImpl,
-    /// The sampling rate, as the front end is told.
-    pub clock: SampleClockImpl,
-    /// Why the emulated MCU last reset, as QEMU's RCC model says.
-    pub reset_cause: ResetCause,
 }
 
 /// Brings up the emulated chip: reset cause, time base (host clock, SysTick), USART1 (link),
