@@ -183,6 +183,20 @@ impl Classify for StationError {
     }
 }
 
+/// `accelcal` and `words` as one line to paste into a POSIX shell: each word quoted where it
+/// must be (a path with a space, a `$`, a quote). A word holding a NUL, which no shell passes,
+/// is written with its NUL escaped as `\0` (the line then does not run as it is).
+pub fn shell_line(words: &[String]) -> String {
+    let quoted: Vec<String> = words
+        .iter()
+        .map(|w| match shlex::try_quote(w) {
+            Ok(q) => q.into_owned(),
+            Err(_) => format!("'{}'", w.replace('\0', "\\0").replace('\'', "'\\''")),
+        })
+        .collect();
+    std::iter::once("accelcal".to_string()).chain(quoted).collect::<Vec<_>>().join(" ")
+}
+
 /// One finished step.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct StepRecord {
@@ -190,6 +204,10 @@ pub struct StepRecord {
     pub step: Step,
     /// The command line it ran (after `accelcal`).
     pub command: Vec<String>,
+    /// The same command line as one line a shell reads back (`accelcal` and each word quoted
+    /// where it must be: [`shell_line`]); empty in a journal written before it was kept.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub shell: String,
     /// When it finished, UTC (RFC 3339).
     pub finished: String,
     /// What it found, in one line (e.g. `PASS`, `FAIL: 2 of 6 positions`, `skipped: no record`).
@@ -382,6 +400,27 @@ pub fn deployable(select: &SelectDoc) -> Result<(), StationError> {
 
 #[cfg(test)]
 mod tests {
+    /// A journalled command line pastes back into a shell as the same words.
+    #[test]
+    fn a_shell_line_reads_back_as_its_words() {
+        let words: Vec<String> = [
+            "report",
+            "--out",
+            "/tmp/unit 42/cert.html",
+            "--customer",
+            "O'Neil & Sons $HOME",
+            "--place",
+            "a;b",
+        ]
+        .map(String::from)
+        .to_vec();
+        let line = super::shell_line(&words);
+        assert!(line.starts_with("accelcal report --out "), "{line}");
+        let back = shlex::split(&line).unwrap();
+        assert_eq!(back[0], "accelcal");
+        assert_eq!(back[1..], words[..], "{line}");
+    }
+
     use super::*;
     use serde_json::json;
 
@@ -389,6 +428,7 @@ mod tests {
         StepRecord {
             step,
             command: vec![step.name().into()],
+            shell: String::new(),
             finished: "2026-12-02T00:00:00Z".into(),
             outcome: "ok".into(),
             outputs: outputs.iter().map(|(n, h)| (n.to_string(), h.to_string())).collect(),

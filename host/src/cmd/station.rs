@@ -44,7 +44,7 @@ use accelcal_core::error::{bad, environment, Interrupted};
 use accelcal_core::output::write_json;
 use accelcal_db::{Asset, AssetError, AssetKind, Db, DbError, Outcome, Phase, Relabel, RunId, RunStart};
 use accelcal_line::station::{
-    deployable, sha256_file, verified_positions, Journal, StationError, Step, StepRecord, JOURNAL,
+    deployable, sha256_file, shell_line, verified_positions, Journal, StationError, Step, StepRecord, JOURNAL,
 };
 use accelcal_line::verify::{Failed, VerifyReport};
 use anyhow::Context;
@@ -183,12 +183,12 @@ impl Station<'_> {
             return Err(stopped());
         }
         errln!(
-            "station: {}step {n}/{} {}: accelcal {}",
+            "station: {}step {n}/{} {}: {}",
             // The campaign is one step of every unit on the head.
             if step == Step::Acquire { "" } else { self.tag.as_str() },
             Step::ALL.len(),
             step.name(),
-            cmd.journalled(&self.db.target()).join(" ")
+            shell_line(&cmd.journalled(&self.db.target()))
         );
         let exe = std::env::current_exe().context("finding the accelcal executable")?;
         self.step_start.set(Some(std::time::Instant::now()));
@@ -242,7 +242,17 @@ impl Station<'_> {
             }
             _ => Vec::new(),
         };
-        self.journal.finish(StepRecord { step, command, finished, outcome, outputs, seconds, positions });
+        let shell = if command.is_empty() { String::new() } else { shell_line(&command) };
+        self.journal.finish(StepRecord {
+            step,
+            command,
+            shell,
+            finished,
+            outcome,
+            outputs,
+            seconds,
+            positions,
+        });
         // The chain head after the step: the journal is an anchor kept outside the database.
         if let Some(anchor) = self.db.chain_head()? {
             self.journal.anchor(anchor.text());

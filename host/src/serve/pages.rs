@@ -48,12 +48,8 @@ impl Filters {
             given(v).map(|s| parse_date(&s).map_err(|e| PageError::bad(format!("{name}: {e}")))).transpose()
         };
         let until = day("until", &self.until)?.unwrap_or_else(today_utc);
-        let since = match day("since", &self.since)? {
-            Some(s) => s,
-            None => until
-                .checked_sub(crate::settings::reader::DEFAULT_PERIOD)
-                .map_err(|_| PageError::bad("until is too early"))?,
-        };
+        let since = crate::settings::reader::period_start(day("since", &self.since)?, until)
+            .ok_or_else(|| PageError::bad("until is too early"))?;
         if since > until {
             return Err(PageError::bad(format!("since {since} is after until {until}: the period is empty")));
         }
