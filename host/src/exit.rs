@@ -417,7 +417,10 @@ mod tests {
             (e(DiagnoseError::Unfittable), BadInput),
             (e(DiagnoseError::NoTemperature("t".into())), BadInput),
             (e(GravityError::Holds(HoldError::BadSampling)), BadInput),
-            (e(GravityError::Fit { holds: 3, source: FitError::Singular }), BadInput),
+            (
+                e(GravityError::Fit { holds: 3, detected: String::new(), source: FitError::Singular }),
+                BadInput,
+            ),
             (e(FitError::TooFewHolds { holds: 3, params: 9 }), BadInput),
             (e(FitError::BadGravity(0.0)), BadInput),
             (e(FitError::NonFinite(1)), BadInput),

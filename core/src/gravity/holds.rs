@@ -206,6 +206,43 @@ pub fn detect(t: &[f64], codes: &[[f64; 3]], cfg: &DetectorConfig) -> Result<Det
     Ok(Detection { window, dt, floor, threshold, source, trace, holds, rejected })
 }
 
+impl Detection {
+    /// What the detector kept and dropped, in one line, naming the option that would keep the
+    /// holds dropped as too short: `8 holds kept; 3 dropped: 3 too short (1.62 to 1.91 s;
+    /// --min-hold-s 1.6 keeps them)`.
+    pub fn summary(&self) -> String {
+        let mut out = format!("{} holds kept", self.holds.len());
+        if self.rejected.is_empty() {
+            return out + ", none dropped";
+        }
+        let short: Vec<f64> = self
+            .rejected
+            .iter()
+            .filter_map(|r| match r.reason {
+                Rejection::TooShort { duration_s } => Some(duration_s),
+                Rejection::NotStatic { .. } => None,
+            })
+            .collect();
+        let drift = self.rejected.len() - short.len();
+        let mut why = Vec::new();
+        if let (Some(lo), Some(hi)) =
+            (short.iter().copied().reduce(f64::min), short.iter().copied().reduce(f64::max))
+        {
+            // The longest minimum that keeps them all, floored to a tenth of a second.
+            let keep = (lo * 10.0).floor() / 10.0;
+            why.push(format!(
+                "{} too short ({lo:.2} to {hi:.2} s; --min-hold-s {keep:.1} keeps them)",
+                short.len()
+            ));
+        }
+        if drift > 0 {
+            why.push(format!("{drift} not static over the whole run (--threshold raises the limit)"));
+        }
+        out += &format!("; {} dropped: {}", self.rejected.len(), why.join(", "));
+        out
+    }
+}
+
 fn check_config(cfg: &DetectorConfig) -> Result<(), HoldError> {
     let bad = |what: &str| Err(HoldError::BadConfig(what.to_string()));
     if !(cfg.window_s.is_finite() && cfg.window_s > 0.0) {

@@ -24,10 +24,12 @@ pub enum GravityError {
     #[error("hold detection failed")]
     Holds(#[from] HoldError),
     /// The fit failed.
-    #[error("gravity-norm fit on {holds} holds failed")]
+    #[error("gravity-norm fit on {holds} holds failed; the detector: {detected}")]
     Fit {
         /// Number of holds given to the fit.
         holds: usize,
+        /// What the detector kept and dropped ([`Detection::summary`]).
+        detected: String,
         /// Underlying error.
         #[source]
         source: FitError,
@@ -60,6 +62,11 @@ pub struct Calibration {
     pub scores: Vec<StructureScore>,
     /// Structure selected on withheld holds (see [`fit::select`]), if any could be scored.
     pub selected: Option<GravityStructure>,
+    /// `auto` could not select (no structure scored on withheld holds), so the simplest
+    /// structure, bias-scale, was fitted.
+    pub fallback: bool,
+    /// Axes no hold points near ±g ([`EXCITED`]).
+    pub weak_axes: Vec<WeakAxis>,
 }
 
 /// Detects the holds of a recording and fits the gravity-norm model on their means.
@@ -74,13 +81,49 @@ pub fn calibrate(
     let means: Vec<[f64; 3]> = detection.holds.iter().map(|h| h.mean).collect();
     let scores = fit::score_structures(&means, g);
     let selected = fit::select(&scores);
-    let chosen = match structure {
-        StructureChoice::Fixed(s) => s,
-        StructureChoice::Auto => selected.unwrap_or(GravityStructure::ImuTk),
+    // `auto` that cannot select (too few holds to withhold half) fits the simplest structure,
+    // and says so: never the richest in silence.
+    let (chosen, fallback) = match (structure, selected) {
+        (StructureChoice::Fixed(s), _) => (s, false),
+        (StructureChoice::Auto, Some(s)) => (s, false),
+        (StructureChoice::Auto, None) => (GravityStructure::BiasScale, true),
     };
-    let fit =
-        fit::fit(&means, g, chosen).map_err(|source| GravityError::Fit { holds: means.len(), source })?;
-    Ok(Calibration { detection, fit, scores, selected })
+    let fit = fit::fit(&means, g, chosen).map_err(|source| GravityError::Fit {
+        holds: means.len(),
+        detected: detection.summary(),
+        source,
+    })?;
+    let weak_axes = weak_axes(&fit, &means);
+    Ok(Calibration { detection, fit, scores, selected, fallback, weak_axes })
+}
+
+/// An axis no hold points near ±g: its scale is weakly identified.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WeakAxis {
+    /// `x`, `y` or `z`.
+    pub axis: char,
+    /// The largest |a| along it over the holds, as a fraction of g.
+    pub largest_fraction_of_g: f64,
+    /// Its scale and the scale's standard error, codes/(m/s²).
+    pub scale: (f64, f64),
+}
+
+/// An axis counts as excited when some hold has |a| along it of at least this fraction of g
+/// (cos 30°: within 30° of ±g).
+pub const EXCITED: f64 = 0.866;
+
+fn weak_axes(fit: &GravityFit, means: &[[f64; 3]]) -> Vec<WeakAxis> {
+    let applied: Vec<[f64; 3]> = means.iter().map(|m| fit.model.apply(*m)).collect();
+    (0..3)
+        .filter_map(|i| {
+            let largest = applied.iter().map(|a| a[i].abs() / fit.g).fold(0.0, f64::max);
+            (largest < EXCITED).then(|| WeakAxis {
+                axis: ['x', 'y', 'z'][i],
+                largest_fraction_of_g: largest,
+                scale: (fit.model.scale[i], fit.std_err.scale[i]),
+            })
+        })
+        .collect()
 }
 
 /// Reads a recording (imu_tk text, plain or gzip), detects its holds and fits.

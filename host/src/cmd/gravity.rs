@@ -127,10 +127,28 @@ pub struct JsonReport {
     pub structures: Vec<JsonScore>,
     /// Structure selected on withheld holds (see `fit::select`).
     pub selected_structure: Option<String>,
+    /// `--structure auto` could not select on withheld holds (too few holds), so the simplest
+    /// structure (bias-scale) was fitted.
+    pub structure_fallback: bool,
+    /// Axes no hold points within 30° of ±g: their scale is weakly identified.
+    pub weak_axes: Vec<JsonWeakAxis>,
     /// Whose fit it is, as `fit --method lsq` states it: device id (with `--record`), serial
     /// (none in a raw recording), g, the recording's SHA-256, the record's CRC.
     #[serde(flatten)]
     pub identity: Identity,
+}
+
+/// An axis no hold points near ±g (`weak_axes`).
+#[derive(Debug, Clone, Serialize)]
+pub struct JsonWeakAxis {
+    /// `x`, `y` or `z`.
+    pub axis: String,
+    /// The largest |a| along it over the holds, as a fraction of g.
+    pub largest_fraction_of_g: f64,
+    /// Its scale, codes/(m/s²).
+    pub scale: f64,
+    /// The scale's standard error, codes/(m/s²).
+    pub scale_std_err: f64,
 }
 
 const CHANNELS: [&str; 3] = ["x", "y", "z"];
@@ -200,6 +218,17 @@ pub fn json_report(cal: &Calibration, identity: Identity) -> JsonReport {
             })
             .collect(),
         selected_structure: cal.selected.map(|s| s.name().to_string()),
+        structure_fallback: cal.fallback,
+        weak_axes: cal
+            .weak_axes
+            .iter()
+            .map(|w| JsonWeakAxis {
+                axis: w.axis.to_string(),
+                largest_fraction_of_g: w.largest_fraction_of_g,
+                scale: w.scale.0,
+                scale_std_err: w.scale.1,
+            })
+            .collect(),
         identity,
     }
 }
@@ -237,6 +266,9 @@ pub fn run(a: &GravityNormFit, g: &super::Gravity) -> anyhow::Result<()> {
         None => None,
     };
     out!("{}", human_report(&a.input, rec.len(), &cal))?;
+    for w in &cal.weak_axes {
+        errln!("warning: {}", weak_words(w));
+    }
     if let Some(path) = &a.json {
         let crc = record.as_ref().map(|(_, r)| record_bytes(r).map(|b| record_crc_hex(&b))).transpose()?;
         let identity = Identity {
@@ -285,6 +317,15 @@ pub fn write_plots(dir: &Path, t: &[f64], cal: &Calibration) -> anyhow::Result<(
     Ok(())
 }
 
+/// A weakly excited axis in words.
+fn weak_words(w: &accelcal_core::gravity::WeakAxis) -> String {
+    format!(
+        "no hold has axis {0} within 30° of ±g (the largest |a_{0}| is {1:.2} g): its scale {2:.3} ± {3:.3} \
+         codes/(m/s²) is weakly identified; add holds with {0} up and down",
+        w.axis, w.largest_fraction_of_g, w.scale.0, w.scale.1
+    )
+}
+
 /// The human-readable report printed by [`run`].
 pub fn human_report(input: &Path, samples: usize, cal: &Calibration) -> String {
     use std::fmt::Write;
@@ -320,6 +361,15 @@ pub fn human_report(input: &Path, samples: usize, cal: &Calibration) -> String {
         f.g,
         f.termination
     );
+    if cal.fallback {
+        let _ = writeln!(
+            o,
+            "structure: --structure auto could not select (too few holds to test a structure on withheld holds): \
+             fitted {}, the simplest ({} parameters)",
+            f.structure.name(),
+            f.structure.n_params()
+        );
+    }
     let _ = writeln!(o, "  axis        bias [codes]          scale [codes/(m/s²)]");
     for (i, c) in CHANNELS.iter().enumerate() {
         let _ = writeln!(
