@@ -6,23 +6,21 @@
 //!
 //! Per unit ([`observe`]): at each position the residual of the dwell means about the unit's
 //! model-4 fit, as an acceleration (`K⁻¹·r`, m/s²), and its six misalignments δ (µrad). Across
-//! units in time order ([`track`]): each position's residual read along `∂a/∂α` and `∂a/∂β`
-//! (the head-angle errors model 4 left), and the misalignments as the mount's three rotations and
-//! the block's three non-orthogonalities ([`mount_terms`]), each followed by a two-sided CUSUM
-//! (Page 1954; reference value `k`, decision interval `h`, in standard deviations). The CUSUMs
-//! are self-starting (Hawkins 1987): each unit is standardised by the mean and standard
-//! deviation of that statistic over every unit before it since the last change point (at least
-//! `baseline` of them), and its Student t taken to the normal quantile, so that while the head is
-//! in control each CUSUM sees independent N(0, 1) values however few units came before. (A
-//! baseline estimated once from its first 50 units biased every later value of a statistic by
-//! that estimate's error; over 130 statistics some were biased enough that a true head was
-//! flagged about once in 290 units.) The first unit whose CUSUM passes `h` is a change point,
-//! with the statistic that passed and the estimated shift (the mean since its CUSUM last left
-//! zero less the baseline's: arcsec of head angle at a position, µrad of a mount term). The
-//! CUSUMs then start again with a new baseline. Because the baseline takes in every unit, a
-//! change early in a head's history is partly absorbed before it is flagged (a change at the
-//! 100th unit is half the baseline's after 100 more). [`Signature`] is the mean residual pattern
-//! of the units since the last change point, with its standard error, per position.
+//! units in time order ([`track`]), from a head's 5th unit: each position's residual read along
+//! `∂a/∂α` and `∂a/∂β` (the head-angle errors model 4 left), standardised by the unit's own
+//! stated variance about the head's signature learned from its earlier units (the head
+//! certificate's angle uncertainty the prior), and the misalignments as the mount's three
+//! rotations and the block's three non-orthogonalities ([`mount_terms`]), standardised by the
+//! earlier units' mean and spread ([`chart`]: Quesenberry's Q statistics, Hawkins' self-starting
+//! CUSUM). Each is followed by a two-sided CUSUM (Page 1954) tuned to the smallest change issue
+//! 60 names, its decision interval from Siegmund's approximation for one false alarm in
+//! [`DESIGN_UNITS_PER_FALSE_ALARM`] units of a true head between them. The first unit whose
+//! CUSUM passes its `h` is a change point, with the statistic that passed and the estimated
+//! shift (the mean since its CUSUM last left zero less the reference, over the share model 4
+//! leaves: arcsec of head angle at a position, µrad of a mount term); a new stretch starts where
+//! that CUSUM left zero. [`Signature`] is the mean residual pattern of the units since the last
+//! change point, with its standard error, per position. [`study`] measures the tracking on
+//! simulated fleets beside an oracle ([`Oracle`]).
 
 use accelcal_shared::terms::MODEL_4;
 use serde::Serialize;
