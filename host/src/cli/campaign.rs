@@ -552,13 +552,14 @@ pub struct BenchSignatureArgs {
     /// Fleets simulated per case (each with its own seed).
     #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u32).range(1..=1000))]
     pub fleets: u32,
-    /// Units per fleet, in time order (the 62-position plan, 100 sample sets per position, 80
-    /// codes of noise, 2 mrad of misalignment spread); the true head's fleets are as long, so
-    /// the false alarms are counted over fleets × units of them and the units before each change.
+    /// Units of each true head's fleet, in time order (the 62-position plan, 100 sample sets per
+    /// position, 80 codes of noise, 2 mrad of misalignment spread); a changed head's fleet ends
+    /// `--after` units after its change, or here. The false alarms are counted over the true
+    /// heads' units and the units before each change.
     #[arg(long, default_value_t = 1000, value_parser = clap::value_parser!(u32).range(60..=5000))]
     pub units: u32,
     /// The units (0-based) at which the head changes, one study of every change per unit given
-    /// (the tracking starts at the 5th unit, with references 10 units behind the unit tracked).
+    /// (the tracking starts at the 5th unit, index 4).
     #[arg(long, value_delimiter = ',', default_value = "10,25,100")]
     pub change_at: Vec<u32>,
     /// The simulated head's stated angle uncertainty, arcsec (its certificate's; the head itself
