@@ -170,8 +170,11 @@ fn moved(change: HeadChange, p: &Prepared<'_>) -> Option<(usize, f64, Option<f64
     }
 }
 
+/// The oracle of one fleet and its delay (`None`: not flagged).
+type OracleRun = (Oracle, Option<usize>);
+
 /// The oracle's delay on one fleet ([`Oracle`]).
-fn oracle_delay(p: &Prepared<'_>, change: HeadChange, change_at: usize) -> Option<(Oracle, Option<usize>)> {
+fn oracle_delay(p: &Prepared<'_>, change: HeadChange, change_at: usize) -> Option<OracleRun> {
     let (q, delta, pop_sd) = moved(change, p)?;
     let sd = |i: usize| pop_sd.unwrap_or_else(|| p.vars[i][q].sqrt());
     let n = p.stats.len().max(1) as f64;
@@ -218,7 +221,7 @@ pub fn study(
         .iter()
         .map(|&change| {
             let at = if change == HeadChange::None { units } else { change_at };
-            let runs: Vec<(Head, Option<(Oracle, Option<usize>)>)> = (0..fleets)
+            let runs: Vec<(Head, Option<OracleRun>)> = (0..fleets)
                 .into_par_iter()
                 .map(|f| {
                     let fleet = simulate_fleet(units, at, change, f as u64 + 1, 80.0, 100, MISALIGN_SD);
