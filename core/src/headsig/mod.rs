@@ -653,6 +653,22 @@ mod tests {
     }
 
     #[test]
+    fn a_head_outside_its_certificate_is_flagged_once_then_is_its_own_reference() {
+        // Every angle off by a draw of 30″, the certificate stating 3″: the prior is wrong, the
+        // largest error is flagged against it (a 3σ draw of 30″), and after that change point
+        // the head's own units are the reference, with no further flag in 150 units.
+        let g = accelcal_shared::G_STANDARD;
+        let s = Settings { head_u_arcsec: 3.0, ..Settings::default() };
+        let fleet = simulate_fleet(150, 0, HeadChange::Errors { arcsec: 30.0, seed: 1 }, 1, 80.0, 100, 0.002);
+        let head = track(&fleet, g, s);
+        assert_eq!(head.change_points.len(), 1, "{:?}", head.change_points);
+        let c = &head.change_points[0];
+        assert!(c.index < 60 && c.estimate > 60.0, "{c:?}");
+        // The same head without a certificate's prior: nothing to flag.
+        assert!(track(&fleet, g, Settings::default()).change_points.is_empty());
+    }
+
+    #[test]
     fn the_angle_statistics_are_standard_normal_on_a_true_head() {
         // Standardised by each unit's stated variance about the true signature (0): mean 0 and
         // variance 1 over the units and angles, or the CUSUMs' false-alarm rate is not the design's.
