@@ -480,6 +480,7 @@ pub fn track(units: &[UnitObs], g: f64, s: Settings) -> Head {
     // Per angle statistic, its CUSUM's (k, h) for the design change, set at each stretch's
     // first tracked unit from its reference's stated variances.
     let mut tuned = vec![(0.0, f64::INFINITY); n_stat];
+    let mut tuned_for = None;
     let mut change_points = Vec::new();
     let (mut start, mut added) = (0, 0);
     let base = s.baseline.max(3);
@@ -493,7 +494,8 @@ pub fn track(units: &[UnitObs], g: f64, s: Settings) -> Head {
             }
             added += 1;
         }
-        if i == start + base {
+        if tuned_for != Some(start) {
+            tuned_for = Some(start);
             for q in (0..2 * n_pos).filter(|&q| to_unit[q] != 0.0) {
                 let r = &refs[q];
                 let sd = (r.mean_var() + r.weighted().1.min(r.mean_var())).sqrt();
