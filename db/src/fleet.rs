@@ -29,10 +29,13 @@ D4·MR̄). With all the rules, a chart of many in-control points breaks some by 
 each chart states the violations an in-control chart of as many points shows by chance (0.017 per point at 30 points, \
 0.025 at 2,700). \
 Head signature: per head asset, each unit's model-4 residuals read as head-angle errors at every position and its \
-misalignments as the mount's rotations and the block's non-orthogonalities, each followed by a self-starting two-sided \
-CUSUM (Hawkins: each unit standardised by every unit before it since the last change point, at least 50, its Student t \
-taken to the normal quantile; k = 0.5, h = 14 standard deviations: about one false alarm in 10,000 units of a true \
-head); the first unit past h is a change point. The head's angle error measured by its units since the last change \
+misalignments as the mount's rotations and the block's non-orthogonalities, tracked from the head's 5th unit: an \
+angle standardised by the unit's own stated residual variance about the head's signature learned from its earlier \
+units, the head certificate's angle uncertainty its prior (Quesenberry's Q statistic with known variance); a mount \
+term by the earlier units' mean and spread (Hawkins' self-starting CUSUM, its Student t taken to the normal \
+quantile); each followed by a two-sided CUSUM tuned to 0.5 mrad of its angle or 1 mrad of rotation (k half the \
+change, h from Siegmund's approximation: one false alarm in 5,000 units of a true head between them); the first \
+unit past its h is a change point. The head's angle error measured by its units since the last change \
 point (RMS over the head angles of each angle's mean error, its standard error taken out) is what `fit --head-asset` \
 takes for the budget's head_angle when it exceeds the certificate's. Check standards: a station's checks (station --check-standard) are not runs of the \
 line (no count, yield or population takes them); each station's check standard is shown over all its checks, its state \

@@ -552,15 +552,23 @@ pub struct BenchSignatureArgs {
     /// Fleets simulated per case (each with its own seed).
     #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u32).range(1..=1000))]
     pub fleets: u32,
-    /// Units per fleet, in time order (the 62-position plan, 100 sample sets per position, 80
-    /// codes of noise, 2 mrad of misalignment spread).
+    /// Units of each true head's fleet, in time order (the 62-position plan, 100 sample sets per
+    /// position, 80 codes of noise, 2 mrad of misalignment spread); a changed head's fleet ends
+    /// `--after` units after its change, or here. The false alarms are counted over the true
+    /// heads' units and the units before each change.
     #[arg(long, default_value_t = 1000, value_parser = clap::value_parser!(u32).range(60..=5000))]
     pub units: u32,
-    /// The unit at which the head changes (0-based; the tracking's baseline is its first 50
-    /// units, then every unit before the one tracked, so a change early in a head's history is
-    /// partly taken into the baseline before it is flagged).
-    #[arg(long, default_value_t = 500)]
-    pub change_at: u32,
+    /// The units (0-based) at which the head changes, one study of every change per unit given
+    /// (the tracking starts at the 5th unit, index 4).
+    #[arg(long, value_delimiter = ',', default_value = "10,25,100")]
+    pub change_at: Vec<u32>,
+    /// The simulated head's stated angle uncertainty, arcsec (its certificate's; the head itself
+    /// is true until the change): the prior of its signature.
+    #[arg(long, default_value_t = 3.0)]
+    pub head_u: f64,
+    /// Units simulated after each change (at most to `--units`): a flag later than this is none.
+    #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u32).range(1..))]
+    pub after: u32,
     /// Write the cases as JSON to this file.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,

@@ -88,11 +88,11 @@ pub enum Command {
     /// Blind benchmark of `diagnose` on simulated campaigns with withheld effects.
     BenchDiagnose(BenchDiagnoseArgs),
     /// Benchmark of the head's signature across units: simulated fleets on a head that is
-    /// knocked out of true at a unit the tracking is not told (one position's α off by 0.5 mrad,
-    /// at β = 0° and at β = −60°, and by 0.25 and 0.1 mrad at β = 0°; the mount rotated by 1 and
-    /// by 0.5 mrad), and on a true head: how many
-    /// fleets are flagged, how many units after the change, how near the estimate, and the false
-    /// alarms before it.
+    /// knocked out of true at a unit the tracking is not told (units 10, 25 and 100; one
+    /// position's α off by 0.5 mrad at β = 0° and at β = −60°, by 0.25 mrad at both, and by 0.1
+    /// mrad at β = 0°; the mount rotated by 1 and by 0.5 mrad), and on true heads: how many
+    /// fleets are flagged, how many units after the change, beside an oracle CUSUM told the
+    /// change, how near the estimate, and the false alarms per 1,000 units of a true head.
     BenchSignature(BenchSignatureArgs),
     /// Check the uncertainty budget by Monte Carlo (JCGM 101): simulate units on heads whose
     /// errors are drawn from their stated uncertainties, calibrate each, and count how often the

@@ -60,8 +60,9 @@ pub(crate) struct HeadJson {
 /// unit observed from its stored campaign (the observation derived when it was stored), in the
 /// order the runs started; a campaign that cannot be read is left out with a warning.
 fn heads(db: &mut Db, filter: &Filter) -> anyhow::Result<Vec<HeadJson>> {
-    use accelcal_core::headsig::{track, Settings, UnitObs};
+    use accelcal_core::headsig::{track, UnitObs};
     let seen = db.head_observations(filter)?;
+    let stated = db.assets()?;
     let mut assets: Vec<&str> = seen.iter().map(|o| o.asset.as_str()).collect();
     assets.sort_unstable();
     assets.dedup();
@@ -83,9 +84,22 @@ fn heads(db: &mut Db, filter: &Filter) -> anyhow::Result<Vec<HeadJson>> {
                 }
             }
         }
-        out.push(HeadJson { asset: asset.to_string(), head: track(&units, g, Settings::default()) });
+        out.push(HeadJson {
+            asset: asset.to_string(),
+            head: track(&units, g, head_settings(&stated, asset)),
+        });
     }
     Ok(out)
+}
+
+/// The tracking's settings for head asset `asset`: the default's, with the angle uncertainty its
+/// certificate in force states (`assets`: every asset's) as the prior of its signature.
+fn head_settings(assets: &[accelcal_db::Asset], asset: &str) -> accelcal_core::headsig::Settings {
+    let s = accelcal_core::headsig::Settings::default();
+    match assets.iter().find(|a| a.asset_id == asset && a.angle_u_arcsec > 0.0) {
+        Some(a) => accelcal_core::headsig::Settings { head_u_arcsec: a.angle_u_arcsec, ..s },
+        None => s,
+    }
 }
 
 /// One unit's observation of its head, for the tracking.
@@ -115,7 +129,7 @@ pub fn measured_head_angle(
     db: &mut Db,
     asset: &str,
 ) -> anyhow::Result<Option<accelcal_core::headsig::MeasuredAngle>> {
-    use accelcal_core::headsig::{track, Settings};
+    use accelcal_core::headsig::track;
     let now =
         std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs() as i64);
     let seen = db
@@ -125,7 +139,8 @@ pub fn measured_head_angle(
     let Some((newest, plan)) = read.last().map(|(o, obs)| (o, &obs.positions)) else { return Ok(None) };
     let units: Vec<_> =
         read.iter().filter(|(_, obs)| &obs.positions == plan).map(|(o, obs)| unit_obs(o, obs)).collect();
-    Ok(track(&units, newest.g_m_s2, Settings::default()).signature.measured_angle)
+    let stated = db.assets().context("reading the assets")?;
+    Ok(track(&units, newest.g_m_s2, head_settings(&stated, asset)).signature.measured_angle)
 }
 
 /// The warning that a head's units measure more angle error than its certificate states, and
@@ -624,81 +639,113 @@ pub(crate) fn csv_of(runs: &[FleetRun]) -> anyhow::Result<String> {
     String::from_utf8(bytes).context("the CSV is UTF-8")
 }
 
+/// The changes `bench-signature` studies at each unit of `--change-at`.
+const BENCH_CHANGES: [accelcal_core::headsig::HeadChange; 7] = {
+    use accelcal_core::headsig::HeadChange::{Mount, Offset};
+    [
+        Offset { position: 26, mrad: 0.5 },
+        Offset { position: 7, mrad: 0.5 },
+        Offset { position: 7, mrad: 0.25 },
+        // Weaker: how small an error the tracking still finds, and how late.
+        Offset { position: 26, mrad: 0.25 },
+        Offset { position: 26, mrad: 0.1 },
+        Mount { mrad: 1.0 },
+        Mount { mrad: 0.5 },
+    ]
+};
+
+/// A case of `bench-signature` in words, with its estimate's unit.
+fn bench_case(c: accelcal_core::headsig::HeadChange) -> (String, &'static str) {
+    use accelcal_core::headsig::HeadChange;
+    match c {
+        HeadChange::None => ("none (a true head)".to_string(), ""),
+        HeadChange::Offset { position, mrad } => {
+            let (al, be) = accelcal_core::sim::Plan::head().positions[position];
+            (format!("α of position {} (α {al}°, β {be}°) +{mrad} mrad", position + 1), "″")
+        }
+        HeadChange::Mount { mrad } => (format!("mount rotated {mrad} mrad about z"), "µrad"),
+        HeadChange::Errors { arcsec, .. } => (format!("every angle off by a draw of {arcsec}″"), "″"),
+    }
+}
+
+/// Flagged fleets and the median and longest delay of `delays`, in words.
+fn delay_cells(delays: &[Option<usize>]) -> (String, String, String) {
+    let mut d: Vec<usize> = delays.iter().flatten().copied().collect();
+    d.sort_unstable();
+    let flagged = format!("{}/{}", d.len(), delays.len());
+    // The median over every fleet, a fleet not flagged counting as the longest.
+    let median =
+        if 2 * d.len() > delays.len() { format!("{}", d[(delays.len() - 1) / 2]) } else { "-".into() };
+    let longest =
+        if d.len() == delays.len() { d.last().map_or("-".into(), |m| m.to_string()) } else { "-".into() };
+    (flagged, median, longest)
+}
+
 /// Runs `accelcal bench-signature`.
 pub fn run_bench_signature(a: &crate::settings::campaign::BenchSignature) -> anyhow::Result<()> {
-    use accelcal_core::headsig::{study, HeadChange, Settings};
-    let s = Settings::default();
-    let changes = [
-        HeadChange::None,
-        HeadChange::Offset { position: 26, mrad: 0.5 },
-        HeadChange::Offset { position: 7, mrad: 0.5 },
-        // Weaker: how small an error the tracking still finds, and how late.
-        HeadChange::Offset { position: 26, mrad: 0.25 },
-        HeadChange::Offset { position: 26, mrad: 0.1 },
-        HeadChange::Mount { mrad: 1.0 },
-        HeadChange::Mount { mrad: 0.5 },
-    ];
-    let rows = study(&changes, a.fleets as usize, a.units as usize, a.change_at as usize, s);
-    outln!(
-        "head signature: {} fleets of {} units per case, the head changed at unit {} (not told); baseline {} units, CUSUM k = {}, h = {}",
-        a.fleets, a.units, a.change_at, s.baseline, s.k, s.h
-    )?;
-    outln!(
-        "{:<34} {:>9} {:>14} {:>10} {:>16} {:>14}",
-        "change",
-        "flagged",
-        "median delay",
-        "max delay",
-        "mean estimate",
-        "false alarms"
-    )?;
-    let after = a.units - a.change_at;
-    for r in &rows {
-        let mut d: Vec<usize> = r.delays.iter().flatten().copied().collect();
-        d.sort_unstable();
-        let (case, unit) = match r.change {
-            HeadChange::None => ("none (a true head)".to_string(), ""),
-            HeadChange::Offset { position, mrad } => {
-                let (al, be) = accelcal_core::sim::Plan::head().positions[position];
-                (format!("α of position {} (α {al}°, β {be}°) +{mrad} mrad", position + 1), "arcsec")
-            }
-            HeadChange::Mount { mrad } => (format!("mount rotated {mrad} mrad about z"), "µrad"),
-            HeadChange::Errors { arcsec, .. } => {
-                (format!("every angle off by a draw of {arcsec}″"), "arcsec")
-            }
-        };
-        let mean = r.estimates.iter().sum::<f64>() / r.estimates.len().max(1) as f64;
-        // A true head: every flag is a false alarm, after the change point as before it.
-        let false_alarms = match r.change {
-            HeadChange::None => {
-                format!("{} in {} units", r.false_alarms + d.len(), r.fleets * a.units as usize)
-            }
-            _ => format!("{} in {} units", r.false_alarms, r.fleets * a.change_at as usize),
-        };
-        outln!(
-            "{:<34} {:>9} {:>14} {:>10} {:>16} {:>14}",
-            case,
-            match r.change {
-                HeadChange::None => "-".to_string(),
-                _ => format!("{}/{}", d.len(), r.fleets),
-            },
-            match (r.change, d.get(d.len() / 2)) {
-                (HeadChange::None, _) | (_, None) => "-".to_string(),
-                (_, Some(m)) => format!("{m} units"),
-            },
-            match (r.change, d.last()) {
-                (HeadChange::None, _) | (_, None) => "-".to_string(),
-                (_, Some(m)) => format!("{m}"),
-            },
-            match r.change {
-                HeadChange::None => "-".to_string(),
-                _ if r.estimates.is_empty() => "-".to_string(),
-                _ => format!("{mean:.0} {unit}"),
-            },
-            false_alarms
-        )?;
+    use accelcal_core::headsig::{study, HeadChange, Settings, DESIGN_UNITS_PER_FALSE_ALARM};
+    let s = Settings { head_u_arcsec: a.head_u, ..Settings::default() };
+    let (fleets, units) = (a.fleets as usize, a.units as usize);
+    let mut rows = study(&[HeadChange::None], fleets, units, units, s);
+    for &at in &a.change_at {
+        let len = units.min(at as usize + a.after as usize);
+        rows.extend(study(&BENCH_CHANGES, fleets, len, at as usize, s));
     }
-    outln!("a flag more than {after} units after the change is none: the fleet ended")?;
+    outln!(
+        "head signature: {fleets} fleets per case, the head changed at a unit the tracking is not told; tracked from unit {} (a reference of at least {} units; the head's stated angle uncertainty {}″), each CUSUM tuned to 0.5 mrad of its angle or 1 mrad of mount rotation (k = {} of it; h = {:.2} at one standard deviation), designed for one false alarm in {DESIGN_UNITS_PER_FALSE_ALARM} units of a true head; the oracle: a CUSUM on the one statistic the change moves, told its size, sign and in-control mean and spread, at the same design rate",
+        s.baseline + 1, s.baseline, a.head_u, s.k, s.h
+    )?;
+    let true_units: usize = rows.iter().map(|r| r.fleets * r.change_at).sum();
+    let false_alarms: usize = rows.iter().map(|r| r.false_alarms).sum();
+    outln!(
+        "false alarms: {false_alarms} in {true_units} units of a true head ({:.3} per 1,000 units; {fleets} true heads of {units} units and the units before each change)",
+        1000.0 * false_alarms as f64 / true_units.max(1) as f64
+    )?;
+    for &at in &a.change_at {
+        outln!(
+            "\nchange at unit {at} ({} units simulated after it)",
+            units.min(at as usize + a.after as usize) - at as usize
+        )?;
+        outln!(
+            "{:<44} {:>8} {:>7} {:>8} {:>8} {:>7} {:>10} {:>9} {:>6}",
+            "change",
+            "flagged",
+            "median",
+            "longest",
+            "oracle",
+            "median",
+            "mean est.",
+            "true",
+            "error"
+        )?;
+        for r in rows.iter().filter(|r| r.change != HeadChange::None && r.change_at == at as usize) {
+            let (case, unit) = bench_case(r.change);
+            let (flagged, median, longest) = delay_cells(&r.delays);
+            let (o_flagged, o_median, _) = delay_cells(&r.oracle_delays);
+            let mean = r.estimates.iter().sum::<f64>() / r.estimates.len().max(1) as f64;
+            let err = r.estimates.iter().map(|e| (e - r.true_change).abs()).sum::<f64>()
+                / r.estimates.len().max(1) as f64
+                / r.true_change.abs().max(f64::MIN_POSITIVE);
+            let (est, error) = if r.estimates.is_empty() {
+                ("-".to_string(), "-".to_string())
+            } else {
+                (format!("{mean:.0}{unit}"), format!("{:.0} %", 100.0 * err))
+            };
+            outln!(
+                "{:<44} {:>8} {:>7} {:>8} {:>8} {:>7} {:>10} {:>9} {:>6}",
+                case,
+                flagged,
+                median,
+                longest,
+                o_flagged,
+                o_median,
+                est,
+                format!("{:.0}{unit}", r.true_change),
+                error
+            )?;
+        }
+    }
+    outln!("delays in units after the change (0: flagged at the changed unit itself); a median is \"-\" when half the fleets or more are not flagged, a longest when any is not; error: the mean of |estimate − true| over the flagged fleets, relative to the true change")?;
     if let Some(j) = &a.json {
         write_json(j, &rows)?;
         outln!("wrote {}", j.display())?;

@@ -115,28 +115,46 @@ pub fn bench_diagnose(a: &BenchDiagnoseArgs) -> anyhow::Result<BenchDiagnose> {
 /// `accelcal bench-signature`, settled.
 #[derive(Clone, Debug, PartialEq)]
 pub struct BenchSignature {
-    /// `--fleets`, `--units` per fleet, `--change-at`: the unit at which the head changes, after
-    /// the tracking's baseline and before the last unit.
+    /// `--fleets`, `--units` per fleet, `--change-at`: the units at which the head changes,
+    /// each at or after the tracking's first tracked unit and before the last unit.
     pub fleets: u32,
     pub units: u32,
-    pub change_at: u32,
+    pub change_at: Vec<u32>,
+    /// `--after`: units simulated after each change.
+    pub after: u32,
+    /// `--head-u`, arcsec.
+    pub head_u: f64,
     /// `--json`.
     pub json: Option<PathBuf>,
 }
 
 /// `bench-signature`'s settings.
 pub fn bench_signature(a: &BenchSignatureArgs) -> anyhow::Result<BenchSignature> {
-    if a.change_at >= a.units {
-        return Err(bad(format!("--change-at {} is not before --units {}", a.change_at, a.units)));
-    }
     let baseline = accelcal_core::headsig::Settings::default().baseline;
-    if (a.change_at as usize) < baseline {
-        return Err(bad(format!(
-            "--change-at {} is inside the tracking's baseline of {baseline} units",
-            a.change_at
-        )));
+    for &at in &a.change_at {
+        if at >= a.units {
+            return Err(bad(format!("--change-at {at} is not before --units {}", a.units)));
+        }
+        if (at as usize) < baseline {
+            return Err(bad(format!(
+                "--change-at {at} is before the tracking's first tracked unit (unit {baseline}, from 0)"
+            )));
+        }
     }
-    Ok(BenchSignature { fleets: a.fleets, units: a.units, change_at: a.change_at, json: a.json.clone() })
+    if !(a.head_u.is_finite() && a.head_u >= 0.0) {
+        return Err(bad(format!("--head-u {}: expected a finite uncertainty, at least 0", a.head_u)));
+    }
+    if a.change_at.is_empty() {
+        return Err(bad("--change-at: no unit given".to_string()));
+    }
+    Ok(BenchSignature {
+        fleets: a.fleets,
+        units: a.units,
+        change_at: a.change_at.clone(),
+        after: a.after,
+        head_u: a.head_u,
+        json: a.json.clone(),
+    })
 }
 
 /// `accelcal uncertainty-check`, settled.
