@@ -63,6 +63,10 @@ fn a_wrong_settings_file_is_refused_with_its_line_and_nothing_is_done() {
             "station.toml:5:12: operator: \"ana\\u{202e}\" holds the invisible format character U+202E",
         ),
         ("bias_tempco_u = -0.1", "station.toml:5:17: bias_tempco_u must be a finite number ≥ 0, got -0.1"),
+        // Issue 59: the verifications' own length and the selection's criterion.
+        ("verify_samples = 1", "`verify_samples` (station.toml:5:18) must be at least 2 sets per position, got 1"),
+        ("criterion = \"best\"", "`criterion` (station.toml:5:13): `best`: expected regularity, symmetric, rss or loo"),
+        ("min_interval_days = -3", "`min_interval_days` (station.toml:5:21)"),
         // Issue 57: a station's certificate is approved by a signer, not by a name in a file.
         (
             "authorised_by = \"A. Reviewer\"",

@@ -335,7 +335,7 @@ fn an_as_found_drift_is_decided_against_the_specification() {
         std::fs::write(
             &config,
             format!(
-                "station = \"line-1\"\nhead = \"{}\"\nplan = \"random:24\"\nsamples = 200\nrate_hz = 1000\ng = 9.81\nselect_tolerance = 5\nspec = \"spec.toml\"\ncustomer = \"Example Customer AG\"\nmin_interval_days = 20\n\n[laboratory]\nname = \"Example Calibration Laboratory\"\naddress = \"1 Sample Street, Neuchâtel\"\n\n[[node]]\nport = \"{}\"\ngdb = \"{}\"\n",
+                "station = \"line-1\"\nhead = \"{}\"\nplan = \"random:24\"\nsamples = 200\nrate_hz = 1000\ng = 9.81\nselect_tolerance = 5\nspec = \"spec.toml\"\ncustomer = \"Example Customer AG\"\nmin_interval_days = 20\nverify_samples = 150\n\n[laboratory]\nname = \"Example Calibration Laboratory\"\naddress = \"1 Sample Street, Neuchâtel\"\n\n[[node]]\nport = \"{}\"\ngdb = \"{}\"\n",
                 em.head, em.port, em.gdb
             ),
         )
@@ -388,6 +388,17 @@ fn an_as_found_drift_is_decided_against_the_specification() {
         );
         let steps = std::fs::read_to_string(first.join("station.json")).unwrap();
         assert!(steps.contains("--min-interval-days") && steps.contains("--interval-days"), "{steps}");
+        // The verifications' own length (issue 59): 150 sets, the campaign's 200; each step's
+        // line is kept as a shell reads it back.
+        let j: serde_json::Value = serde_json::from_str(&steps).unwrap();
+        let shell = |step: &str| -> String {
+            let s = j["steps"].as_array().unwrap().iter().find(|s| s["step"] == step).unwrap();
+            s["shell"].as_str().unwrap().to_string()
+        };
+        assert!(
+            shell("as-left").starts_with("accelcal verify ") && shell("as-left").contains(" --samples 150 ")
+        );
+        assert!(shell("acquire").contains(" --samples 200 "), "{}", shell("acquire"));
         // With a database the certificate awaits approval: `authorised_by` is not printed.
         assert!(html.contains("<p class=\"draft\">DRAFT — awaiting approval</p>"), "{html}");
         assert!(!html.contains("A. Reviewer"), "{html}");

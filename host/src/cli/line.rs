@@ -507,9 +507,14 @@ pub struct StationArgs {
     /// Position plan of the campaign (head, six, tumble24, random:N, or a plan file; see `acquire`).
     #[arg(long, default_value = "head")]
     pub plan: String,
-    /// Sample sets recorded per position, in the campaign and in each verification.
+    /// Sample sets recorded per position in the campaign (and in each verification, unless
+    /// --verify-samples).
     #[arg(long, default_value_t = 400, value_name = "N", value_parser = Count(Range::Sets))]
     pub samples: usize,
+    /// Sample sets recorded per position in the as-found and as-left verifications, so that a
+    /// long dwell for the campaign does not lengthen them [default: --samples].
+    #[arg(long, value_name = "N", value_parser = Count(Range::Sets))]
+    pub verify_samples: Option<usize>,
     /// Set the node's sampling rate per channel for the campaign, Hz (100..=4000) [default: the
     /// node's].
     #[arg(long, value_name = "HZ", value_parser = RateHz)]
@@ -524,6 +529,11 @@ pub struct StationArgs {
     /// the best is selected; the paper's rule is one code).
     #[arg(long, default_value_t = 1.0, value_name = "CODES", value_parser = Real(Range::Codes))]
     pub select_tolerance: f64,
+    /// The selection's external criterion: `select --criterion` (regularity, the paper's; loo,
+    /// leave-one-out, which `plan --design` advises for plans a split leaves too few positions
+    /// to fit on).
+    #[arg(long, value_enum, default_value_t = super::CriterionArg::Regularity)]
+    pub criterion: super::CriterionArg,
     /// Coverage factor K of the verifications' derived tolerance (>= 1) [default: verify's, 4].
     #[arg(long, value_name = "K", value_parser = Real(Range::Coverage))]
     pub coverage: Option<f64>,

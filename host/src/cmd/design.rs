@@ -199,7 +199,7 @@ pub fn run(d: &Design) -> anyhow::Result<()> {
     let dwell = designed.samples as f64 / rate_hz;
     let selection = match designed.selection {
         accelcal_core::design::order::Selection::Alternate => "the alternate split (select's default): both its parts identify model 10, the largest of the paper's models a head plan identifies",
-        accelcal_core::design::order::Selection::LeaveOneOut => "leave-one-out only (select --criterion loo): no order of these positions lets both parts of the alternate split identify model 10",
+        accelcal_core::design::order::Selection::LeaveOneOut => "leave-one-out only (select --criterion loo; on the station, --criterion loo or its key criterion = \"loo\"): no order of these positions lets both parts of the alternate split identify model 10",
     };
     let in_chamber = chamber.as_ref().map(|c| {
         let (lo, hi) = c.range_c();

@@ -140,7 +140,7 @@ impl Station<'_> {
             link: self.link(),
             head: head_of(self.a),
             plan: VERIFY_PLAN.into(),
-            samples: self.a.samples,
+            samples: self.a.verify_samples,
             json: self.path(json),
             fit,
             // `--spec` and `--coverage` exclude each other (clap, and the settings file's check).

@@ -40,6 +40,10 @@ pub struct Station {
     pub plan: String,
     pub samples: usize,
     pub rate_hz: Option<u32>,
+    /// `--verify-samples`, else `--samples`: sets per position of each verification.
+    pub verify_samples: usize,
+    /// `--criterion`: the selection's external criterion.
+    pub criterion: crate::cli::CriterionArg,
     /// `--select-tolerance`, codes.
     pub select_tolerance: f64,
     /// What the verifications are judged against: `--spec`, else the scatter at `--coverage`.
@@ -92,6 +96,8 @@ pub fn station(a: &StationArgs) -> Station {
         plan: a.plan.clone(),
         samples: a.samples,
         rate_hz: a.rate_hz,
+        verify_samples: a.verify_samples.unwrap_or(a.samples),
+        criterion: a.criterion,
         select_tolerance: a.select_tolerance,
         coverage: a.coverage,
         spec: a.spec.clone(),

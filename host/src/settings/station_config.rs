@@ -53,6 +53,8 @@ struct StationConfig {
     latitude: Option<Spanned<f64>>,
     height: Option<Spanned<f64>>,
     select_tolerance: Option<Spanned<f64>>,
+    verify_samples: Option<Spanned<usize>>,
+    criterion: Option<Spanned<String>>,
     coverage: Option<Spanned<f64>>,
     bias_tempco_u: Option<Spanned<f64>>,
     scale_tempco_u: Option<Spanned<f64>>,
@@ -175,6 +177,21 @@ pub fn apply(command: &mut Command, given: &mut Given) -> anyhow::Result<Option<
     f.gravity(a, c.g, c.latitude, c.height)?;
     let select_tolerance = f.real("select_tolerance", c.select_tolerance, Range::Codes)?;
     f.value(&mut a.select_tolerance, "select_tolerance", "select_tolerance", select_tolerance);
+    let verify_samples =
+        f.checked("verify_samples", c.verify_samples, |n| Range::Sets.count(n).map_err(|m| format!(" {m}")))?;
+    f.optional(&mut a.verify_samples, "verify_samples", "verify_samples", verify_samples);
+    if let Some(v) = c.criterion.filter(|_| !f.given.on_command_line("criterion")) {
+        use clap::ValueEnum as _;
+        let parsed = crate::cli::CriterionArg::from_str(v.get_ref(), false).map_err(|_| {
+            bad(format!(
+                "`criterion` ({}:{}): `{}`: expected regularity, symmetric, rss or loo",
+                f.name,
+                f.at(&v),
+                v.get_ref()
+            ))
+        })?;
+        f.value(&mut a.criterion, "criterion", "criterion", Some(Spanned::new(v.span(), parsed)));
+    }
     let coverage = f.real("coverage", c.coverage, Range::Coverage)?;
     f.optional(&mut a.coverage, "coverage", "coverage", coverage);
     let tempco = [

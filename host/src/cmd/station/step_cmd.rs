@@ -90,6 +90,8 @@ pub(super) enum StepCommand {
         json: PathBuf,
         /// ADC codes.
         tolerance: f64,
+        /// The external criterion (written only when not the default, regularity).
+        criterion: crate::cli::CriterionArg,
     },
     Fit {
         campaign: PathBuf,
@@ -241,11 +243,16 @@ impl StepCommand {
                     l.word("--resume");
                 }
             }
-            StepCommand::Select { campaign, json, tolerance } => {
+            StepCommand::Select { campaign, json, tolerance, criterion } => {
                 l.word("select");
                 l.word(&campaign.display().to_string());
                 l.path("--json", json);
                 l.opt("--tolerance", tolerance);
+                if *criterion != crate::cli::CriterionArg::Regularity {
+                    use clap::ValueEnum as _;
+                    let name = criterion.to_possible_value().expect("a named criterion");
+                    l.opt("--criterion", &name.get_name().to_string());
+                }
             }
             StepCommand::Fit { campaign, record, json, device_id, head_u, tempco } => {
                 l.word("fit");
@@ -399,9 +406,23 @@ mod tests {
         let Command::Acquire(a) = parse(&c) else { panic!("acquire") };
         assert_eq!((a.head.to_string().as_str(), a.zaber), ("zaber:/dev/ttyUSB0", zaber));
 
-        let c = StepCommand::Select { campaign: "c.csv".into(), json: "s.json".into(), tolerance: 5.0 };
+        let c = StepCommand::Select {
+            campaign: "c.csv".into(),
+            json: "s.json".into(),
+            tolerance: 5.0,
+            criterion: crate::cli::CriterionArg::Regularity,
+        };
         let Command::Select(a) = parse(&c) else { panic!("select") };
         assert_eq!((a.campaign, a.common.json, a.tolerance), ("c.csv".into(), Some("s.json".into()), 5.0));
+        assert!(!c.args().iter().any(|w| w == "--criterion"), "the default is not spelled");
+        let c = StepCommand::Select {
+            campaign: "c.csv".into(),
+            json: "s.json".into(),
+            tolerance: 1.0,
+            criterion: crate::cli::CriterionArg::Loo,
+        };
+        let Command::Select(a) = parse(&c) else { panic!("select") };
+        assert_eq!(a.criterion, crate::cli::CriterionArg::Loo);
 
         let c = StepCommand::Fit {
             campaign: "c.csv".into(),

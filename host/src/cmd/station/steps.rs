@@ -90,6 +90,7 @@ impl Station<'_> {
             campaign: self.path(CAMPAIGN),
             json: self.path(SELECT),
             tolerance: self.a.select_tolerance,
+            criterion: self.a.criterion,
         };
         if let Exit::Failed = self.run(Step::Select, &cmd)? {
             return Err(anyhow::anyhow!("step select failed (its error is above)"));
