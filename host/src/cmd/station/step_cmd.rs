@@ -251,7 +251,7 @@ impl StepCommand {
                 if *criterion != crate::cli::CriterionArg::Regularity {
                     use clap::ValueEnum as _;
                     let name = criterion.to_possible_value().expect("a named criterion");
-                    l.opt("--criterion", &name.get_name().to_string());
+                    l.opt("--criterion", name.get_name().to_string());
                 }
             }
             StepCommand::Fit { campaign, record, json, device_id, head_u, tempco } => {
