@@ -218,6 +218,12 @@ pub struct FleetRun {
     /// Where its stored certificate stands (`awaiting_approval`, `approved`, `rejected`; null:
     /// no certificate stored).
     pub certificate_state: Option<super::signer::CertificateState>,
+    /// The number of its certificate in force (its newest amendment's, else its first).
+    pub certificate_number: Option<String>,
+    /// The recalibration date its certificate states, Unix seconds.
+    pub due_unix_s: Option<i64>,
+    /// Its record's CRC-32, 8 hex digits.
+    pub record_crc32: Option<String>,
 }
 
 impl FleetRun {
@@ -347,7 +353,10 @@ impl Db {
                      e.ended_unix_s, {STATE}, COALESCE(v.reason, e.reason), af.decision, al.decision, fs.model4_json, \
                      fs.u_json, r.g_m_s2, al.max_abs_error_m_s2, \
                      CASE WHEN EXISTS (SELECT 1 FROM certificate c WHERE c.run_id = r.run_id) THEN 1 ELSE 0 END, \
-                     ap.meaning FROM run r LEFT JOIN run_end e ON e.run_id = r.run_id \
+                     ap.meaning, {IN_FORCE}, rd.due_unix_s, cr.crc32 \
+                     FROM run r LEFT JOIN run_end e ON e.run_id = r.run_id \
+                     LEFT JOIN recalibration_due rd ON rd.run_id = r.run_id \
+                     LEFT JOIN cal_record cr ON cr.run_id = r.run_id \
                      LEFT JOIN void v ON v.run_id = r.run_id \
                      LEFT JOIN approval ap ON ap.run_id = r.run_id AND ap.number = {IN_FORCE} \
                      LEFT JOIN run_asset ra ON ra.run_id = r.run_id AND ra.kind = 'head' \
@@ -386,6 +395,11 @@ impl Db {
                     0 => None,
                     _ => Some(super::signer::CertificateState::of(r[17].opt_text()?.as_deref())),
                 },
+                certificate_number: r[18].opt_text()?,
+                due_unix_s: opt_int(&r[19])?,
+                record_crc32: opt_int(&r[20])?
+                    .and_then(|c| u32::try_from(c).ok())
+                    .map(|c| format!("{c:08x}")),
             })
         })?;
         for r in &mut runs {

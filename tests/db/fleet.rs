@@ -40,12 +40,20 @@ fn the_fleet_is_counted_by_the_database_and_printed() {
     let mut rows = csv::Reader::from_path(&csv).unwrap();
     let header = rows.headers().unwrap().clone();
     assert_eq!(&header[0], "run_id");
-    assert_eq!(&header[header.len() - 1], "U_z_m_s2");
+    assert_eq!(&header[header.len() - 5], "U_z_m_s2");
+    // Issue 59: the certificate, its state, its recalibration date and the record's CRC.
+    let last: Vec<&str> = header.iter().skip(header.len() - 4).collect();
+    assert_eq!(last, ["certificate_number", "certificate_state", "due_date", "record_crc"]);
     let rows: Vec<csv::StringRecord> = rows.records().map(|r| r.unwrap()).collect();
     assert_eq!(rows.len(), 6);
     assert_eq!(&rows[0][1], "SN-A1");
     assert_eq!(&rows[0][4], "HEAD-1");
     assert!(rows[0][12].parse::<f64>().is_ok(), "{:?}", rows[0]);
+    let col = |name: &str| header.iter().position(|h| h == name).unwrap();
+    let b =
+        rows.iter().find(|r| &r[1] == "SN-B1" && !r[col("due_date")].is_empty()).expect("unit B's due date");
+    assert_eq!(&b[col("due_date")], "2026-01-21", "{b:?}");
+    assert!(rows.iter().all(|r| r[col("record_crc")].is_empty() || r[col("record_crc")].len() == 8));
     // The units due within the default 30 days of --until: unit B, due T0 + 20 days.
     assert!(out.contains("SN-B1") && out.contains("due 2026-01-21"), "{out}");
     // A stored certificate, printed again as issued; a run without one is refused.

@@ -255,7 +255,8 @@ pub struct FleetArgs {
     pub json: Option<PathBuf>,
     /// Write one row per run as CSV to this file (the columns an MES takes: run, serial, device
     /// id, station, head, operator, start and end (UTC), state, reason, decisions, model-4
-    /// coefficients, U per axis).
+    /// coefficients, U per axis, the certificate in force, its state and
+    /// recalibration date, the record's CRC).
     #[arg(long, value_name = "FILE")]
     pub csv: Option<PathBuf>,
 }

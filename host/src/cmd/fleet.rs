@@ -609,6 +609,7 @@ pub(crate) fn csv_of(runs: &[FleetRun]) -> anyhow::Result<String> {
         }
     }
     header.extend(["U_x_m_s2", "U_y_m_s2", "U_z_m_s2"].map(String::from));
+    header.extend(["certificate_number", "certificate_state", "due_date", "record_crc"].map(String::from));
     w.write_record(&header)?;
     for r in runs {
         let mut row = vec![
@@ -633,6 +634,10 @@ pub(crate) fn csv_of(runs: &[FleetRun]) -> anyhow::Result<String> {
             Some(u) => row.extend(u.iter().map(|v| format!("{v}"))),
             None => row.extend(std::iter::repeat_n(String::new(), 3)),
         }
+        row.push(spreadsheet_text(r.certificate_number.as_deref().unwrap_or_default()));
+        row.push(spreadsheet_text(r.certificate_state.map(|c| c.words()).unwrap_or_default()));
+        row.push(r.due_unix_s.map(|t| utc_date_time(t).chars().take(10).collect()).unwrap_or_default());
+        row.push(spreadsheet_text(r.record_crc32.as_deref().unwrap_or_default()));
         w.write_record(&row)?;
     }
     let bytes = w.into_inner().map_err(|e| anyhow::anyhow!("writing the CSV: {e}"))?;
