@@ -369,6 +369,22 @@ impl Db {
         })
     }
 
+    /// The runs whose id begins with `prefix` (hex digits and dashes, lower case), at most
+    /// `limit`, in order.
+    pub fn runs_with_prefix(&mut self, prefix: &str, limit: i64) -> Result<Vec<RunId>, DbError> {
+        let pattern = format!("{prefix}%");
+        self.conn
+            .reading(|tx| {
+                tx.query(
+                    "SELECT run_id FROM run WHERE run_id LIKE $1 ORDER BY run_id LIMIT $2",
+                    &[pattern.clone().into(), limit.into()],
+                )
+            })?
+            .iter()
+            .map(|r| RunId::parse(&r[0].text()?))
+            .collect()
+    }
+
     /// The run whose certificate has number `number` (a first certificate or an amendment),
     /// `None` when no certificate has it.
     pub fn run_of_certificate(&mut self, number: &str) -> Result<Option<RunId>, DbError> {

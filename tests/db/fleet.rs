@@ -62,6 +62,12 @@ fn the_fleet_is_counted_by_the_database_and_printed() {
     let (code, _, err) = accelcal(&["certificate", &run, "--db", &spec, "-o", html.to_str().unwrap()]);
     assert_eq!(code, Some(0), "{err}");
     assert_eq!(std::fs::read_to_string(&html).unwrap(), "<html>certificate of SN-C1</html>");
+    // Issue 59: the beginning of a run id (8 or more of its digits) works as the id does.
+    let (code, _, err) = accelcal(&["certificate", &run[..8], "--db", &spec, "-o", html.to_str().unwrap()]);
+    assert_eq!(code, Some(0), "{err}");
+    let (code, _, err) = accelcal(&["certificate", &run[..5], "--db", &spec, "-o", html.to_str().unwrap()]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("nor a run id or the beginning of one (8 or more of its hex digits)"), "{err}");
     let open = j["runs"][4]["run_id"].as_str().unwrap().to_string();
     let (code, _, err) = accelcal(&["certificate", &open, "--db", &spec, "-o", html.to_str().unwrap()]);
     assert_eq!(code, Some(2), "{err}");

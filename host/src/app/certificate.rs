@@ -23,19 +23,48 @@ pub struct Stored {
 }
 
 impl Stored {
-    /// The certificate `which` names: a number, or a run (its certificate in force).
+    /// The certificate `which` names: a number, or a run or the beginning of its id (its
+    /// certificate in force).
     pub fn read(db: &mut Db, which: &Which) -> anyhow::Result<Stored> {
-        let number = match which {
-            Which::Number(n) => n.clone(),
-            Which::Run(run) => match db.number_in_force(*run)? {
-                Some(n) => n,
-                None => {
-                    let html = db
-                        .certificate_html(*run)?
-                        .ok_or_else(|| bad(format!("run {run} has no certificate in {}", db.target())))?;
-                    return Ok(Stored { run: *run, number: None, html, superseded: None });
+        let run = match which {
+            Which::Number(n) => {
+                let c = db
+                    .certificate_of_number(n)?
+                    .ok_or_else(|| bad(format!("no certificate is numbered {n} in {}", db.target())))?;
+                return Ok(Stored {
+                    run: c.run,
+                    number: Some(n.clone()),
+                    html: c.html,
+                    superseded: c.superseded,
+                });
+            }
+            Which::Run(run) => *run,
+            Which::RunPrefix(p) => {
+                let found = db.runs_with_prefix(p, 4)?;
+                match found.as_slice() {
+                    [one] => *one,
+                    [] => return Err(bad(format!("no run id begins with {p} in {}", db.target()))),
+                    more => {
+                        let list: Vec<String> = more.iter().take(3).map(|r| r.to_string()).collect();
+                        let many =
+                            if more.len() > 3 { "more than 3".to_string() } else { more.len().to_string() };
+                        return Err(bad(format!(
+                            "{p} begins {many} run ids ({}{}): give more of its digits",
+                            list.join(", "),
+                            if more.len() > 3 { ", …" } else { "" }
+                        )));
+                    }
                 }
-            },
+            }
+        };
+        let number = match db.number_in_force(run)? {
+            Some(n) => n,
+            None => {
+                let html = db
+                    .certificate_html(run)?
+                    .ok_or_else(|| bad(format!("run {run} has no certificate in {}", db.target())))?;
+                return Ok(Stored { run, number: None, html, superseded: None });
+            }
         };
         let c = db
             .certificate_of_number(&number)?

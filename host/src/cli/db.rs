@@ -352,8 +352,9 @@ pub struct CertificateArgs {
     /// Check a certificate file instead of printing one.
     #[command(subcommand)]
     pub action: Option<CertificateAction>,
-    /// The certificate to print again: its number (YYYY-NNNNNN, as printed on it) or its run's
-    /// id (a UUID, as `station` prints it and `fleet` lists it).
+    /// The certificate to print again: its number (YYYY-NNNNNN, as printed on it), or its run's
+    /// id (a UUID, as `station` prints it and `fleet` lists it) or the beginning of it (8 or more
+    /// of its digits, when no other run id begins so): the run's certificate in force.
     #[arg(value_name = "NUMBER|RUN_ID", required = true)]
     pub certificate: Option<String>,
     /// Write the stored certificate (an HTML page, as issued) to this file.

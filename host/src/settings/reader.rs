@@ -86,6 +86,9 @@ pub enum Which {
     Run(RunId),
     /// The certificate numbered so (`2026-000017`).
     Number(String),
+    /// The run whose id begins so (at least 8 hex digits, lower case; the database says which,
+    /// or that several do).
+    RunPrefix(String),
 }
 
 /// `accelcal certificate`, settled.
@@ -103,17 +106,30 @@ pub struct Certificate {
     pub dcc: Option<PathBuf>,
 }
 
+/// Whether `s` is written as the beginning of a run id: 8 to 35 of its characters (hex digits
+/// and dashes where the UUID has them).
+fn is_run_prefix(s: &str) -> bool {
+    const DASHES: [usize; 4] = [8, 13, 18, 23];
+    (8..36).contains(&s.len())
+        && s.char_indices().all(|(i, c)| if DASHES.contains(&i) { c == '-' } else { c.is_ascii_hexdigit() })
+}
+
 /// `certificate`'s settings from its command line: a run id or a certificate number
 /// (`YYYY-NNNNNN`), and at least one of `--out` and `--pdf`, neither the database.
 pub fn certificate(a: &CertificateArgs) -> anyhow::Result<Certificate> {
     let given = a.certificate.as_deref().ok_or_else(|| bad("certificate needs NUMBER|RUN_ID"))?;
     let which = match accelcal_db::certificate::is_number(given) {
         true => Which::Number(given.to_string()),
-        false => Which::Run(RunId::parse(given).map_err(|e| {
-            bad(format!(
-                "{given:?} is neither a certificate number (YYYY-NNNNNN, as printed) nor a run id: {e}"
-            ))
-        })?),
+        false => match RunId::parse(given) {
+            Ok(run) => Which::Run(run),
+            Err(_) if is_run_prefix(given) => Which::RunPrefix(given.to_ascii_lowercase()),
+            Err(e) => {
+                return Err(bad(format!(
+                    "{given:?} is neither a certificate number (YYYY-NNNNNN, as printed) nor a run id or the \
+                     beginning of one (8 or more of its hex digits): {e}"
+                )))
+            }
+        },
     };
     if a.out.is_none() && a.pdf.is_none() && a.dcc.is_none() {
         return Err(bad("certificate needs --out FILE (the HTML page), --pdf FILE or --dcc FILE"));
