@@ -382,7 +382,10 @@ fn history_refuses_what_it_cannot_read() {
     // The beginning of a run id that begins several: refused, naming them.
     let (code, _, err) = accelcal(&["certificate", "00000000-0000", "--db", &spec, "-o", "x.html"]);
     assert_eq!(code, Some(2), "{err}");
-    assert!(err.contains("00000000-0000 begins more than 3 run ids (00000000-0000-4000-8000-000000000000, "), "{err}");
+    assert!(
+        err.contains("00000000-0000 begins more than 3 run ids (00000000-0000-4000-8000-000000000000, "),
+        "{err}"
+    );
     assert!(err.contains("give more of its digits"), "{err}");
     let missing = d.path().join("none.sqlite");
     let cases: Vec<(Vec<&str>, i32, String)> = vec![

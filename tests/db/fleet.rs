@@ -513,4 +513,6 @@ fn the_head_s_measured_angle_error_feeds_the_budget_when_it_exceeds_the_certific
     let said = format!("its angle error as its last 30 units measure it: {said}");
     let charts = dbkit::serve::page(&spec, "/charts?since=2026-01-01&until=2026-01-31&head_asset=HEAD-E");
     assert!(charts.contains(&said), "{said}: {charts}");
+    // Issue 60: each bar of the signature carries its uncertainty.
+    assert!(charts.contains("bars: ±2 standard errors") && !charts.contains("not enough units"), "{charts}");
 }

@@ -208,6 +208,8 @@ pub fn the_pages_hold_the_database_s_numbers(spec: &str) {
     let charts = dom(&format!("{}/charts?{JANUARY}", server.base));
     assert!(charts.contains("<svg") && charts.contains("<circle"), "no chart drawn");
     assert!(charts.contains("station st-1, K0 x"), "no chart of st-1's K0 x");
+    // Issue 60: a head with too few units says so under its signature.
+    assert!(charts.contains("not enough units to flag a change: 0 of the 5"), "{charts}");
     let overview = dom(&format!("{}/", server.base));
     assert!(overview.contains("HEAD-1") && overview.contains("DKD-17-001") && overview.contains("overdue"));
     // A unit's page: its runs and its drift between calibrations.

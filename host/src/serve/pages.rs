@@ -399,6 +399,8 @@ struct HeadView {
     measured: String,
     change_points: Vec<String>,
     svg: String,
+    /// "not enough units …" while the head has too few to flag a change, else empty.
+    too_few: String,
 }
 
 #[derive(Template)]
@@ -486,6 +488,18 @@ pub(super) fn charts(db: &mut Db, app: &App, q: &str) -> Result<String, PageErro
     let mut heads = Vec::new();
     for h in &data.heads {
         let arcsec: Vec<f64> = h.head.signature.positions.iter().map(|p| p.arcsec).collect();
+        // A residual's standard error as a head angle, as `arcsec` is its mean's.
+        let se_arcsec: Vec<f64> = h
+            .head
+            .signature
+            .positions
+            .iter()
+            .map(|p| {
+                let se = p.se_m_s2.iter().map(|s| s * s).sum::<f64>().sqrt();
+                (se / accelcal_shared::kinematics::G_STANDARD).atan().to_degrees() * 3600.0
+            })
+            .collect();
+        let baseline = h.head.signature.settings.baseline;
         heads.push(HeadView {
             asset: h.asset.clone(),
             units: h.head.units,
@@ -495,7 +509,16 @@ pub(super) fn charts(db: &mut Db, app: &App, q: &str) -> Result<String, PageErro
             svg: if arcsec.is_empty() {
                 String::new()
             } else {
-                escape::markup(signature_chart(&arcsec).map_err(PageError::internal)?)
+                escape::markup(signature_chart(&arcsec, &se_arcsec).map_err(PageError::internal)?)
+            },
+            too_few: if h.head.units <= baseline {
+                format!(
+                    "not enough units to flag a change: {} of the {} a head's tracking starts from",
+                    h.head.units,
+                    baseline + 1
+                )
+            } else {
+                String::new()
             },
         });
     }

@@ -120,21 +120,29 @@ pub fn drift_chart(pairs: &[[(f64, f64); 3]]) -> anyhow::Result<String> {
 }
 
 /// A head's signature: per position (in the plan's order), the units' common residual as a head
-/// angle, arcsec.
-pub fn signature_chart(arcsec: &[f64]) -> anyhow::Result<String> {
+/// angle, arcsec, with a bar of ±2 standard errors (`se_arcsec`, the residual's standard error
+/// as an angle) on each.
+pub fn signature_chart(arcsec: &[f64], se_arcsec: &[f64]) -> anyhow::Result<String> {
     let n = arcsec.len().max(1) as f64;
-    let (_, hi) = span(arcsec.iter().copied().chain([0.0]));
+    let top = arcsec.iter().zip(se_arcsec).map(|(a, s)| a + 2.0 * s);
+    let (_, hi) = span(arcsec.iter().copied().chain(top).chain([0.0]));
     svg_string((600, 230), |root| {
         let mut chart = frame(
             root,
             (0.5..n + 0.5, 0.0..hi.max(1e-9)),
-            ("position of the plan", "common residual, arcsec"),
+            ("position of the plan", "common residual, arcsec (bars: ±2 standard errors)"),
             &|v| format!("{v:.0}"),
         )?;
         chart
             .draw_series(arcsec.iter().enumerate().map(|(i, &a)| {
                 let x = i as f64 + 1.0;
                 Rectangle::new([(x - 0.35, 0.0), (x + 0.35, a)], COLORS[0].filled())
+            }))
+            .map_err(|e| anyhow!("{e}"))?;
+        chart
+            .draw_series(arcsec.iter().zip(se_arcsec).enumerate().map(|(i, (&a, &s))| {
+                let x = i as f64 + 1.0;
+                PathElement::new(vec![(x, (a - 2.0 * s).max(0.0)), (x, a + 2.0 * s)], BLACK.stroke_width(1))
             }))
             .map_err(|e| anyhow!("{e}"))?;
         Ok(())
