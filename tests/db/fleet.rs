@@ -23,6 +23,7 @@ fn the_fleet_is_counted_by_the_database_and_printed() {
     assert!(out.contains("runs: 3 pass, 1 rejected, 1 unfinished, 1 voided"), "{out}");
     assert!(out.contains("yield: first pass 2/3 units (66.7 %), final 3/3 (100.0 %)"), "{out}");
     assert!(out.contains("rejected 1×: selection beyond model 4"), "{out}");
+    assert!(out.contains("certificates: 4 awaiting approval, 0 approved, 0 rejected"), "{out}");
     assert!(out.contains("as found out of tolerance: SN-C1 (aabbccddeeff001122334455)"), "{out}");
     assert!(out.contains("HEAD-1 (head) certificate DKD-17-001, due 2026-01-20"), "{out}");
     // The fixture's campaigns have no time column: the head's signature leaves them out, said.

@@ -5,7 +5,7 @@ use accelcal_core::output::{utc_date_time, write_atomic, write_json};
 use accelcal_db::asset::{start_of_day_unix_s, Asset, Date};
 use accelcal_db::cells::UnreadableRun;
 use accelcal_db::fleet::{Chart, Counts, DueUnit, Filter, FleetRun, Population};
-use accelcal_db::Db;
+use accelcal_db::{CertificateState, Db};
 use anyhow::Context;
 use serde::Serialize;
 
@@ -410,6 +410,18 @@ pub fn run(a: &Fleet) -> anyhow::Result<()> {
     )?;
     for (reason, n) in &counts.rejections {
         outln!("  rejected {n}×: {reason}")?;
+    }
+    // Where the period's certificates stand (issue 57): those a signer has yet to decide first.
+    let state_count = |st: CertificateState| {
+        runs.iter().filter(|r| r.tampered.is_none() && r.certificate_state == Some(st)).count()
+    };
+    let (awaiting, approved, rejected) = (
+        state_count(CertificateState::AwaitingApproval),
+        state_count(CertificateState::Approved),
+        state_count(CertificateState::Rejected),
+    );
+    if awaiting + approved + rejected > 0 {
+        outln!("  certificates: {awaiting} awaiting approval, {approved} approved, {rejected} rejected")?;
     }
     if found_out.is_empty() {
         outln!("  as found out of tolerance: none")?;
