@@ -438,7 +438,7 @@ fn short_holds_are_named_with_the_option_that_keeps_them() {
     let f = file.to_str().unwrap();
     let (code, _, err) = accelcal(&["fit", f, "--method", "gravity-norm", "--g", "9.81744"]);
     assert_eq!(code, Some(2), "{err}");
-    assert!(err.contains("1 holds kept; 12 dropped: 12 too short ("), "{err}");
+    assert!(err.contains("the detector: 1 holds kept; 12 dropped: 12 too short ("), "{err}");
     let at = err.find("--min-hold-s ").expect("the option named") + "--min-hold-s ".len();
     let keep = err[at..].split_whitespace().next().unwrap().to_string();
     assert!(err.contains(&format!("--min-hold-s {keep} keeps them")), "{err}");

@@ -110,6 +110,10 @@ pub enum Setting {
     FitDeviceId,
     /// Model 4's terms, as a fit is given them.
     Model4Terms,
+    /// The gravity-norm hold detector's minimum hold, seconds.
+    MinHold,
+    /// The gravity-norm hold detector's threshold.
+    HoldThreshold,
 }
 
 /// How a message names each [`Setting`].
@@ -138,6 +142,8 @@ impl Wording for Plain {
             Setting::DeviceId => "a device id",
             Setting::FitDeviceId => "fit with the device id",
             Setting::Model4Terms => "the terms ax,ay,az",
+            Setting::MinHold => "a minimum hold of",
+            Setting::HoldThreshold => "a higher detector threshold",
         }
     }
 }

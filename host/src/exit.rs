@@ -418,7 +418,15 @@ mod tests {
             (e(DiagnoseError::NoTemperature("t".into())), BadInput),
             (e(GravityError::Holds(HoldError::BadSampling)), BadInput),
             (
-                e(GravityError::Fit { holds: 3, detected: String::new(), source: FitError::Singular }),
+                e(GravityError::Fit {
+                    holds: 3,
+                    detected: accelcal_core::gravity::holds::Summary {
+                        kept: 3,
+                        too_short_s: Vec::new(),
+                        not_static: 0,
+                    },
+                    source: FitError::Singular,
+                }),
                 BadInput,
             ),
             (e(FitError::TooFewHolds { holds: 3, params: 9 }), BadInput),

@@ -26,6 +26,8 @@ impl Wording for Flags {
             Setting::DeviceId => "--device-id",
             Setting::FitDeviceId => "`fit --device-id HEX`",
             Setting::Model4Terms => "`--terms ax,ay,az`",
+            Setting::MinHold => "--min-hold-s",
+            Setting::HoldThreshold => "--threshold",
         }
     }
 }
@@ -51,6 +53,7 @@ worded_types!(
     accelcal_core::sim::unit::UnitError,
     accelcal_core::compare::CompareError,
     accelcal_core::calibrate::RecordError,
+    accelcal_core::gravity::GravityError,
     accelcal_line::node::flash::FlashError,
 );
 
@@ -107,6 +110,8 @@ mod tests {
             Setting::DeviceId,
             Setting::FitDeviceId,
             Setting::Model4Terms,
+            Setting::MinHold,
+            Setting::HoldThreshold,
         ] {
             assert!(Flags.name(s).contains("--"), "{s:?}");
             assert!(!Plain.name(s).contains("--"), "{s:?}");

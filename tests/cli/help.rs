@@ -103,6 +103,7 @@ const UNITS: &[(&str, &str)] = &[
     ("--max-interval-days", "days"),
     ("--min-interval-days", "days"),
     ("--interval-days", "days"),
+    ("--head-u", "arcsec"),
     ("--due-days", "days"),
     ("--tolerance", "m/s²"),
     ("--min-hold-s", "seconds"),
@@ -130,6 +131,7 @@ const DIMENSIONLESS: &[&str] = &[
     "--head-fault-at", // the N-th move
     "--seed",
     "--samples",
+    "--verify-samples",
     "--scale-sd", // relative
     "--coverage", // a multiple of the standard uncertainty
     "--width",
@@ -141,6 +143,7 @@ const DIMENSIONLESS: &[&str] = &[
     "--fleets",
     "--change-at", // a unit's place in the fleet
     "--units",
+    "--after", // units
     "--orientations",
     "--rate-factor",
     "--gdb-port",

@@ -206,40 +206,68 @@ pub fn detect(t: &[f64], codes: &[[f64; 3]], cfg: &DetectorConfig) -> Result<Det
     Ok(Detection { window, dt, floor, threshold, source, trace, holds, rejected })
 }
 
-impl Detection {
-    /// What the detector kept and dropped, in one line, naming the option that would keep the
-    /// holds dropped as too short: `8 holds kept; 3 dropped: 3 too short (1.62 to 1.91 s;
-    /// --min-hold-s 1.6 keeps them)`.
-    pub fn summary(&self) -> String {
-        let mut out = format!("{} holds kept", self.holds.len());
-        if self.rejected.is_empty() {
-            return out + ", none dropped";
+/// What the detector kept and dropped ([`Detection::summary`]), for a message.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Summary {
+    /// Holds kept.
+    pub kept: usize,
+    /// The durations of the quiet runs dropped as too short, seconds.
+    pub too_short_s: Vec<f64>,
+    /// Quiet runs dropped as not static over their whole length.
+    pub not_static: usize,
+}
+
+impl Summary {
+    /// In one line, the settings that would keep the dropped holds named by `w`: `1 holds kept;
+    /// 12 dropped: 12 too short (1.69 to 1.71 s): --min-hold-s 1.6 keeps them`.
+    pub fn words(&self, w: &dyn crate::error::Wording) -> String {
+        use crate::error::Setting;
+        let dropped = self.too_short_s.len() + self.not_static;
+        if dropped == 0 {
+            return format!("{} holds kept, none dropped", self.kept);
         }
-        let short: Vec<f64> = self
-            .rejected
-            .iter()
-            .filter_map(|r| match r.reason {
-                Rejection::TooShort { duration_s } => Some(duration_s),
-                Rejection::NotStatic { .. } => None,
-            })
-            .collect();
-        let drift = self.rejected.len() - short.len();
         let mut why = Vec::new();
-        if let (Some(lo), Some(hi)) =
-            (short.iter().copied().reduce(f64::min), short.iter().copied().reduce(f64::max))
-        {
-            // The longest minimum that keeps them all, floored to a tenth of a second.
+        let lo = self.too_short_s.iter().copied().reduce(f64::min);
+        let hi = self.too_short_s.iter().copied().reduce(f64::max);
+        if let (Some(lo), Some(hi)) = (lo, hi) {
+            // The longest minimum, to a tenth of a second, that keeps them all.
             let keep = (lo * 10.0).floor() / 10.0;
             why.push(format!(
-                "{} too short ({lo:.2} to {hi:.2} s; --min-hold-s {keep:.1} keeps them)",
-                short.len()
+                "{} too short ({lo:.2} to {hi:.2} s): {} {keep:.1} keeps them",
+                self.too_short_s.len(),
+                w.name(Setting::MinHold)
             ));
         }
-        if drift > 0 {
-            why.push(format!("{drift} not static over the whole run (--threshold raises the limit)"));
+        if self.not_static > 0 {
+            why.push(format!(
+                "{} not static over the whole run: {} keeps them",
+                self.not_static,
+                w.name(Setting::HoldThreshold)
+            ));
         }
-        out += &format!("; {} dropped: {}", self.rejected.len(), why.join(", "));
-        out
+        format!("{} holds kept; {dropped} dropped: {}", self.kept, why.join("; "))
+    }
+}
+
+impl Detection {
+    /// What the detector kept and dropped.
+    pub fn summary(&self) -> Summary {
+        Summary {
+            kept: self.holds.len(),
+            too_short_s: self
+                .rejected
+                .iter()
+                .filter_map(|r| match r.reason {
+                    Rejection::TooShort { duration_s } => Some(duration_s),
+                    Rejection::NotStatic { .. } => None,
+                })
+                .collect(),
+            not_static: self
+                .rejected
+                .iter()
+                .filter(|r| matches!(r.reason, Rejection::NotStatic { .. }))
+                .count(),
+        }
     }
 }
 

@@ -24,16 +24,27 @@ pub enum GravityError {
     #[error("hold detection failed")]
     Holds(#[from] HoldError),
     /// The fit failed.
-    #[error("gravity-norm fit on {holds} holds failed; the detector: {detected}")]
+    #[error("gravity-norm fit on {holds} holds failed; the detector: {}", detected.words(&crate::error::Plain))]
     Fit {
         /// Number of holds given to the fit.
         holds: usize,
         /// What the detector kept and dropped ([`Detection::summary`]).
-        detected: String,
+        detected: holds::Summary,
         /// Underlying error.
         #[source]
         source: FitError,
     },
+}
+
+impl crate::error::Worded for GravityError {
+    fn worded(&self, w: &dyn crate::error::Wording) -> Option<String> {
+        match self {
+            GravityError::Fit { holds, detected, .. } => {
+                Some(format!("gravity-norm fit on {holds} holds failed; the detector: {}", detected.words(w)))
+            }
+            GravityError::Holds(_) => None,
+        }
+    }
 }
 
 impl Classify for GravityError {
