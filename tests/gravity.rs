@@ -412,6 +412,13 @@ fn write_by_hand(dir: &Path, dirs: &[[f64; 3]], hold_s: f64) -> PathBuf {
     path
 }
 
+/// `accelcal fit FILE --method gravity-norm --g 9.81744` (the default session's g) with `more`.
+fn gravity_fit(file: &Path, more: &[&str]) -> (Option<i32>, String, String) {
+    let mut args = vec!["fit", file.to_str().unwrap(), "--method", "gravity-norm", "--g", "9.81744"];
+    args.extend(more);
+    accelcal(&args)
+}
+
 /// Twelve directions: the six faces and six diagonals.
 const SPREAD: [[f64; 3]; 12] = [
     [1.0, 0.0, 0.0],
@@ -435,15 +442,13 @@ const SPREAD: [[f64; 3]; 12] = [
 fn short_holds_are_named_with_the_option_that_keeps_them() {
     let dir = tempfile::tempdir().unwrap();
     let file = write_by_hand(dir.path(), &SPREAD, 2.7);
-    let f = file.to_str().unwrap();
-    let (code, _, err) = accelcal(&["fit", f, "--method", "gravity-norm", "--g", "9.81744"]);
+    let (code, _, err) = gravity_fit(&file, &[]);
     assert_eq!(code, Some(2), "{err}");
     assert!(err.contains("the detector: 1 holds kept; 12 dropped: 12 too short ("), "{err}");
     let at = err.find("--min-hold-s ").expect("the option named") + "--min-hold-s ".len();
     let keep = err[at..].split_whitespace().next().unwrap().to_string();
     assert!(err.contains(&format!("--min-hold-s {keep} keeps them")), "{err}");
-    let (code, out, err) =
-        accelcal(&["fit", f, "--method", "gravity-norm", "--g", "9.81744", "--min-hold-s", &keep]);
+    let (code, out, err) = gravity_fit(&file, &["--min-hold-s", &keep]);
     assert_eq!(code, Some(0), "{err}");
     assert!(out.contains("holds: 13 kept, 0 rejected"), "{out}");
 }
@@ -455,18 +460,7 @@ fn auto_with_too_few_holds_fits_the_simplest_and_says_so() {
     let dir = tempfile::tempdir().unwrap();
     let file = write_by_hand(dir.path(), &SPREAD[..9], 5.0);
     let json = dir.path().join("fit.json");
-    let (code, out, err) = accelcal(&[
-        "fit",
-        file.to_str().unwrap(),
-        "--method",
-        "gravity-norm",
-        "--g",
-        "9.81744",
-        "--structure",
-        "auto",
-        "--json",
-        json.to_str().unwrap(),
-    ]);
+    let (code, out, err) = gravity_fit(&file, &["--structure", "auto", "--json", json.to_str().unwrap()]);
     assert_eq!(code, Some(0), "{err}");
     assert!(out.contains("holds: 10 kept"), "{out}");
     assert!(out.contains("--structure auto could not select"), "{out}");
@@ -490,18 +484,7 @@ fn a_weakly_excited_axis_is_named_with_its_standard_error() {
         .collect();
     let file = write_by_hand(dir.path(), &dirs, 5.0);
     let json = dir.path().join("fit.json");
-    let (code, _, err) = accelcal(&[
-        "fit",
-        file.to_str().unwrap(),
-        "--method",
-        "gravity-norm",
-        "--g",
-        "9.81744",
-        "--structure",
-        "bias-scale",
-        "--json",
-        json.to_str().unwrap(),
-    ]);
+    let (code, _, err) = gravity_fit(&file, &["--structure", "bias-scale", "--json", json.to_str().unwrap()]);
     assert_eq!(code, Some(0), "{err}");
     assert!(err.contains("warning: no hold has axis y within 30° of ±g (the largest |a_y| is 0.3"), "{err}");
     assert!(err.contains("codes/(m/s²) is weakly identified"), "{err}");
