@@ -220,6 +220,13 @@ pub struct Supersession {
     pub unix_s: i64,
 }
 
+impl Supersession {
+    /// What the replaced certificate's printed copies state of it.
+    pub fn note(&self) -> accelcal_core::certificate::Superseded {
+        accelcal_core::certificate::Superseded { by: self.by.clone(), reason: self.reason.clone() }
+    }
+}
+
 /// One of a run's certificates as stored ([`Db::certificate_of_number`]).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct StoredCertificate {
@@ -254,7 +261,7 @@ fn run_of(tx: &mut Tx<'_>, number: &str) -> Result<Option<String>, DbError> {
 }
 
 /// The amendment that replaced certificate `number`, if one did.
-fn superseded(tx: &mut Tx<'_>, number: &str) -> Result<Option<Supersession>, DbError> {
+pub(crate) fn superseded(tx: &mut Tx<'_>, number: &str) -> Result<Option<Supersession>, DbError> {
     tx.query(
         "SELECT number, reason, issued_unix_s FROM amendment WHERE replaces = $1",
         &[number.to_string().into()],

@@ -100,8 +100,6 @@ pub enum CertificateState {
     Approved,
     /// Rejected: not released.
     Rejected,
-    /// Replaced by an amendment (`accelcal amend`): printable as it was, marked so.
-    Superseded,
 }
 
 impl CertificateState {
@@ -120,7 +118,6 @@ impl CertificateState {
             CertificateState::AwaitingApproval => "awaiting approval",
             CertificateState::Approved => "approved",
             CertificateState::Rejected => "rejected",
-            CertificateState::Superseded => "superseded",
         }
     }
 }
@@ -403,11 +400,8 @@ impl Db {
                 if !tx.query("SELECT 1 FROM void WHERE run_id = $1", &[run_id.clone().into()])?.is_empty() {
                     return Err(rel(ReleaseError::Voided { number: number.clone(), run_id }));
                 }
-                if let Some(by) = tx
-                    .query("SELECT number FROM amendment WHERE replaces = $1", &[number.clone().into()])?
-                    .first()
-                {
-                    return Err(rel(ReleaseError::Superseded { number: number.clone(), by: by[0].text()? }));
+                if let Some(s) = super::certificate::superseded(tx, &number)? {
+                    return Err(rel(ReleaseError::Superseded { number: number.clone(), by: s.by }));
                 }
                 if let Some(d) = decided(tx, &number)? {
                     return Err(rel(ReleaseError::Decided {

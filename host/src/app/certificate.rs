@@ -3,7 +3,7 @@
 //! decision, superseded when an amendment replaced it).
 
 use accelcal_core::certificate::approval::Seal;
-use accelcal_core::certificate::{Certificate as Document, Release, Superseded};
+use accelcal_core::certificate::{Certificate as Document, Release};
 use accelcal_core::error::bad;
 use accelcal_db::{Db, RunId};
 
@@ -22,49 +22,45 @@ pub struct Stored {
     pub superseded: Option<accelcal_db::certificate::Supersession>,
 }
 
+/// The one run whose id begins with `prefix`; refused naming them when several do.
+fn run_with_prefix(db: &mut Db, prefix: &str) -> anyhow::Result<RunId> {
+    let found = db.runs_with_prefix(prefix, 4)?;
+    match found.as_slice() {
+        [one] => Ok(*one),
+        [] => Err(bad(format!("no run id begins with {prefix} in {}", db.target()))),
+        more => {
+            let list: Vec<String> = more.iter().take(3).map(|r| r.to_string()).collect();
+            let many = if more.len() > 3 { "more than 3".to_string() } else { more.len().to_string() };
+            Err(bad(format!(
+                "{prefix} begins {many} run ids ({}{}): give more of its digits",
+                list.join(", "),
+                if more.len() > 3 { ", …" } else { "" }
+            )))
+        }
+    }
+}
+
 impl Stored {
     /// The certificate `which` names: a number, or a run or the beginning of its id (its
     /// certificate in force).
     pub fn read(db: &mut Db, which: &Which) -> anyhow::Result<Stored> {
         let run = match which {
-            Which::Number(n) => {
-                let c = db
-                    .certificate_of_number(n)?
-                    .ok_or_else(|| bad(format!("no certificate is numbered {n} in {}", db.target())))?;
-                return Ok(Stored {
-                    run: c.run,
-                    number: Some(n.clone()),
-                    html: c.html,
-                    superseded: c.superseded,
-                });
-            }
-            Which::Run(run) => *run,
-            Which::RunPrefix(p) => {
-                let found = db.runs_with_prefix(p, 4)?;
-                match found.as_slice() {
-                    [one] => *one,
-                    [] => return Err(bad(format!("no run id begins with {p} in {}", db.target()))),
-                    more => {
-                        let list: Vec<String> = more.iter().take(3).map(|r| r.to_string()).collect();
-                        let many =
-                            if more.len() > 3 { "more than 3".to_string() } else { more.len().to_string() };
-                        return Err(bad(format!(
-                            "{p} begins {many} run ids ({}{}): give more of its digits",
-                            list.join(", "),
-                            if more.len() > 3 { ", …" } else { "" }
-                        )));
-                    }
-                }
-            }
+            Which::Number(_) => None,
+            Which::Run(run) => Some(*run),
+            Which::RunPrefix(p) => Some(run_with_prefix(db, p)?),
         };
-        let number = match db.number_in_force(run)? {
-            Some(n) => n,
-            None => {
-                let html = db
-                    .certificate_html(run)?
-                    .ok_or_else(|| bad(format!("run {run} has no certificate in {}", db.target())))?;
-                return Ok(Stored { run, number: None, html, superseded: None });
-            }
+        let number = match (which, run) {
+            (Which::Number(n), _) => n.clone(),
+            (_, Some(run)) => match db.number_in_force(run)? {
+                Some(n) => n,
+                None => {
+                    let html = db
+                        .certificate_html(run)?
+                        .ok_or_else(|| bad(format!("run {run} has no certificate in {}", db.target())))?;
+                    return Ok(Stored { run, number: None, html, superseded: None });
+                }
+            },
+            (_, None) => unreachable!("a run id or its beginning names a run"),
         };
         let c = db
             .certificate_of_number(&number)?
@@ -76,8 +72,7 @@ impl Stored {
     /// superseded when an amendment replaced it. A decision that signed another document than the
     /// one stored is refused.
     pub fn release(&self, db: &mut Db, doc: &Document) -> anyhow::Result<(Release, Option<Seal>)> {
-        let c = self;
-        let decided = match &c.number {
+        let decided = match &self.number {
             Some(n) => db.decision(n)?,
             None => None,
         };
@@ -96,14 +91,8 @@ impl Stored {
                 (seal.release(), Some(seal))
             }
         };
-        Ok(match &c.superseded {
-            Some(s) => (
-                Release::Superseded {
-                    by: Superseded { by: s.by.clone(), reason: s.reason.clone() },
-                    was: Box::new(release),
-                },
-                seal,
-            ),
+        Ok(match &self.superseded {
+            Some(s) => (Release::Superseded { by: s.note(), was: Box::new(release) }, seal),
             None => (release, seal),
         })
     }

@@ -118,8 +118,7 @@ pub fn verify(a: &crate::settings::reader::CertificateVerify) -> anyhow::Result<
                 _ => format!("the file's decision on certificate {number} is not the one the database holds"),
             }));
         }
-        let replaced =
-            c.superseded.as_ref().map(|s| Superseded { by: s.by.clone(), reason: s.reason.clone() });
+        let replaced = c.superseded.as_ref().map(accelcal_db::certificate::Supersession::note);
         in_db = match (&replaced, &superseded) {
             (Some(r), None) => format!(
                 "; the database holds the same, and says amendment {} replaced it ({}): it is not in force",
