@@ -3,6 +3,8 @@
 
 use super::content::{amendment_content, certificate_number_content, recalibration_due_content};
 use super::engine::{Tx, Val};
+use super::signer::superseded;
+pub use super::signer::Supersession;
 use super::{chain, insert_row, now_unix_s, sha256_hex, Db, DbError, RunId};
 
 /// A certificate's number ([`Db::certificate_number`]).
@@ -209,24 +211,6 @@ pub struct Amendment {
     pub reason: String,
 }
 
-/// A certificate replaced by an amendment.
-#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
-pub struct Supersession {
-    /// The amendment's number.
-    pub by: String,
-    /// Why it was amended.
-    pub reason: String,
-    /// When, Unix seconds.
-    pub unix_s: i64,
-}
-
-impl Supersession {
-    /// What the replaced certificate's printed copies state of it.
-    pub fn note(&self) -> accelcal_core::certificate::Superseded {
-        accelcal_core::certificate::Superseded { by: self.by.clone(), reason: self.reason.clone() }
-    }
-}
-
 /// One of a run's certificates as stored ([`Db::certificate_of_number`]).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct StoredCertificate {
@@ -257,17 +241,6 @@ fn run_of(tx: &mut Tx<'_>, number: &str) -> Result<Option<String>, DbError> {
     )?
     .first()
     .map(|r| r[0].text())
-    .transpose()
-}
-
-/// The amendment that replaced certificate `number`, if one did.
-pub(crate) fn superseded(tx: &mut Tx<'_>, number: &str) -> Result<Option<Supersession>, DbError> {
-    tx.query(
-        "SELECT number, reason, issued_unix_s FROM amendment WHERE replaces = $1",
-        &[number.to_string().into()],
-    )?
-    .first()
-    .map(|r| Ok(Supersession { by: r[0].text()?, reason: r[1].text()?, unix_s: r[2].int()? }))
     .transpose()
 }
 

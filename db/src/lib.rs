@@ -18,7 +18,8 @@
 //! `cells`, `val` (its child `engine::schema_history` → `engine`); `chain` → `engine`,
 //! `cells`, `content`, never a module that stores pieces; `piece` → `chain`, `derived`,
 //! `engine`; `asset`, `certificate`, `label`, `signer` → `chain`, `engine` (and `content`,
-//! `piece` or `derived` as they need); `anchor` → `chain`; `derived` → `engine`, `history`;
+//! `piece` or `derived` as they need; `certificate` also → `signer`, whose `superseded` says
+//! which amendment replaced a certificate); `anchor` → `chain`; `derived` → `engine`, `history`;
 //! `history` → `cells`, `signer`; `fleet` → `chain`, `check`, `derived`, `engine`, `signer`;
 //! `check` → this file's `Db`.
 

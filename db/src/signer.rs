@@ -2,7 +2,8 @@
 //! who may release certificates (`signer`, `signer_revocation`: global rows in the chain) and
 //! each certificate's one decision (`approval`: approved for issue, or rejected, signed with
 //! the signer's Ed25519 key over [`accelcal_core::certificate::approval::Decision::message`],
-//! chained after its run's rows). A certificate stored and not decided is awaiting approval.
+//! chained after its run's rows). A certificate stored and not decided is awaiting approval;
+//! one an amendment replaced (`superseded`) is decided no more.
 
 use accelcal_core::certificate::approval::{self, Decision, Meaning, SigningError};
 use serde::Serialize;
@@ -400,7 +401,7 @@ impl Db {
                 if !tx.query("SELECT 1 FROM void WHERE run_id = $1", &[run_id.clone().into()])?.is_empty() {
                     return Err(rel(ReleaseError::Voided { number: number.clone(), run_id }));
                 }
-                if let Some(s) = super::certificate::superseded(tx, &number)? {
+                if let Some(s) = superseded(tx, &number)? {
                     return Err(rel(ReleaseError::Superseded { number: number.clone(), by: s.by }));
                 }
                 if let Some(d) = decided(tx, &number)? {
@@ -466,4 +467,33 @@ fn decided(tx: &mut Tx<'_>, number: &str) -> Result<Option<StoredDecision>, DbEr
         signer,
         signature: row[6].text()?,
     }))
+}
+
+/// A certificate replaced by an amendment.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct Supersession {
+    /// The amendment's number.
+    pub by: String,
+    /// Why it was amended.
+    pub reason: String,
+    /// When, Unix seconds.
+    pub unix_s: i64,
+}
+
+impl Supersession {
+    /// What the replaced certificate's printed copies state of it.
+    pub fn note(&self) -> accelcal_core::certificate::Superseded {
+        accelcal_core::certificate::Superseded { by: self.by.clone(), reason: self.reason.clone() }
+    }
+}
+
+/// The amendment that replaced certificate `number`, if one did.
+pub(crate) fn superseded(tx: &mut Tx<'_>, number: &str) -> Result<Option<Supersession>, DbError> {
+    tx.query(
+        "SELECT number, reason, issued_unix_s FROM amendment WHERE replaces = $1",
+        &[number.to_string().into()],
+    )?
+    .first()
+    .map(|r| Ok(Supersession { by: r[0].text()?, reason: r[1].text()?, unix_s: r[2].int()? }))
+    .transpose()
 }
