@@ -17,6 +17,7 @@ pub mod escape;
 mod listen;
 mod pages;
 mod svg;
+mod ticks;
 
 use std::io::Write;
 use std::os::unix::fs::MetadataExt;

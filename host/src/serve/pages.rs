@@ -424,6 +424,7 @@ pub(super) fn charts(db: &mut Db, app: &App, q: &str) -> Result<String, PageErro
     let mut charts = Vec::new();
     for c in &data.charts {
         let values: Vec<f64> = c.points.iter().map(|p| p.value).collect();
+        let started: Vec<i64> = c.points.iter().map(|p| p.started_unix_s).collect();
         let broken: Vec<usize> = c.violations.iter().map(|(v, _)| v.index).collect();
         let l = Lines { center: c.limits.center, lcl: c.limits.lcl, ucl: c.limits.ucl };
         charts.push(ChartView {
@@ -437,7 +438,8 @@ pub(super) fn charts(db: &mut Db, app: &App, q: &str) -> Result<String, PageErro
                 c.expected_by_chance
             ),
             svg: escape::markup(
-                control_chart(c.unit, &values, Some(&l), &broken).map_err(PageError::internal)?,
+                control_chart(c.unit, &values, Some(&started), Some(&l), &broken)
+                    .map_err(PageError::internal)?,
             ),
             violations: c
                 .violations
@@ -466,7 +468,7 @@ pub(super) fn charts(db: &mut Db, app: &App, q: &str) -> Result<String, PageErro
             views.push(ChartView {
                 title: format!("{} ({})", c.quantity, c.unit),
                 svg: escape::markup(
-                    control_chart(c.unit, &values, l.as_ref(), &broken).map_err(PageError::internal)?,
+                    control_chart(c.unit, &values, None, l.as_ref(), &broken).map_err(PageError::internal)?,
                 ),
                 violations: c
                     .violations
@@ -642,7 +644,13 @@ pub(super) fn unit(db: &mut Db, app: &App, key: &str) -> Result<String, PageErro
     let drift_svg = if pairs.is_empty() {
         String::new()
     } else {
-        escape::markup(drift_chart(&pairs).map_err(PageError::internal)?)
+        // Each drift's x: the date of its later calibration.
+        let started: Vec<i64> = h
+            .drifts
+            .iter()
+            .map(|d| h.runs.iter().find(|r| r.calibration == Some(d.to)).map_or(0, |r| r.started_unix_s))
+            .collect();
+        escape::markup(drift_chart(&pairs, &started).map_err(PageError::internal)?)
     };
     let drifts = h
         .drifts
