@@ -225,6 +225,13 @@ fn serve_s_pages_hold_the_database_s_numbers_in_chromium() {
     dbkit::serve::the_pages_hold_the_database_s_numbers(&db_file(&d));
 }
 
+/// Issue 59: the search box and the unit's title over HTTP.
+#[test]
+fn serve_s_search_finds_a_unit_and_says_what_it_missed() {
+    let d = tempfile::tempdir().unwrap();
+    dbkit::serve::search_finds_a_unit_and_says_what_it_missed(&db_file(&d));
+}
+
 #[test]
 fn serve_shows_a_hostile_serial_as_text_and_runs_no_stored_script() {
     let d = tempfile::tempdir().unwrap();

@@ -215,7 +215,46 @@ pub fn the_pages_hold_the_database_s_numbers(spec: &str) {
     // A unit's page: its runs and its drift between calibrations.
     let unit = dom(&format!("{}/unit/SN-B1", server.base));
     assert!(unit.contains("rejected: selection beyond model 4"), "{unit}");
-    assert!(unit.contains("/certificate\">") && unit.contains(" awaiting approval</a>"), "{unit}");
+    assert!(unit.contains("<a href=\"/certificate/") && unit.contains(" awaiting approval</a>"), "{unit}");
+}
+
+/// The tick labels of each chart (`<svg>`) of a page: its y axis's (plotters anchors them at
+/// their end) and its x axis's (at their middle), the rotated axis description left out.
+fn tick_labels(page: &str) -> Vec<[Vec<String>; 2]> {
+    let mut charts = Vec::new();
+    for svg in page.split("<svg").skip(1) {
+        let svg = &svg[..svg.find("</svg>").unwrap_or(svg.len())];
+        let mut axes: [Vec<String>; 2] = Default::default();
+        for text in svg.split("<text").skip(1) {
+            let (tag, rest) = text.split_once('>').unwrap();
+            let label = rest[..rest.find("</text>").unwrap()].trim().to_string();
+            if tag.contains("transform=") {
+                continue;
+            }
+            if tag.contains("text-anchor=\"end\"") {
+                axes[0].push(label);
+            } else if tag.contains("text-anchor=\"middle\"") {
+                axes[1].push(label);
+            }
+        }
+        charts.push(axes);
+    }
+    charts
+}
+
+/// Whether `labels` are all different.
+fn distinct(labels: &[String]) -> bool {
+    let mut l = labels.to_vec();
+    l.sort();
+    l.dedup();
+    l.len() == labels.len()
+}
+
+/// Whether `s` is a day written YYYY-MM-DD.
+fn is_date(s: &str) -> bool {
+    let b = s.as_bytes();
+    b.len() == 10
+        && b.iter().enumerate().all(|(i, c)| if i == 4 || i == 7 { *c == b'-' } else { c.is_ascii_digit() })
 }
 
 /// A serial that is a script is shown as text, and a stored certificate's script does not run.
@@ -335,7 +374,111 @@ pub fn the_pages_render_to_screenshots(spec: &str) {
         assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
         let bytes = std::fs::read(&png).unwrap();
         assert!(bytes.starts_with(b"\x89PNG") && bytes.len() > 20_000, "{name}: {} bytes", bytes.len());
+        // What the screenshot shows, read from the same page's DOM: its numbers and a chart.
+        let page = dom(&format!("{}{path}", server.base));
+        let holds = match name {
+            "overview" => vec!["DKD-17-001", "overdue", "<td class=\"num\">"],
+            "fleet" => {
+                vec!["<table id=\"populations\">", "<td>as-left bias x</td><td>mg</td>", "first-pass yield "]
+            }
+            "charts" => vec!["head HEAD-2: 70 units", "<svg", "<rect", "<circle", "violations (about "],
+            _ => vec!["<h1>SN-B1</h1>", "rejected: selection beyond model 4", "awaiting approval</a>"],
+        };
+        for h in holds {
+            assert!(page.contains(h), "{name}: no {h} in {page}");
+        }
+        if name == "charts" {
+            assert!(tick_labels(&page).iter().all(|[y, x]| distinct(y) && distinct(x)), "{name}");
+        }
     }
+}
+
+/// Issue 59: the search box over plain HTTP. A serial, a certificate number, a run id or its first
+/// 8 hex digits answer 303 to the unit's page (at the run's row); a beginning of several run ids
+/// lists them; a miss is 404 in words. A unit is titled by its serial, else by its device id;
+/// a certificate is found by its number, a run by its id.
+pub fn search_finds_a_unit_and_says_what_it_missed(spec: &str) {
+    let mut db = Db::open(spec).unwrap();
+    let line = line_of_units(&mut db);
+    let number = db.number_in_force(line.a).unwrap().unwrap();
+    // Two runs whose ids begin alike, of a unit without a serial.
+    let twins = ["abcdef01-0000-4000-8000-000000000001", "abcdef01-0000-4000-8000-000000000002"];
+    let bare = "0a0b0c0d0e0f101112131415";
+    for (i, id) in twins.iter().enumerate() {
+        let s = super::start(accelcal_db::RunId::parse(id).unwrap(), bare, "", "st-1", T0 + i as i64 * DAY);
+        db.begin_run(&s, None).unwrap();
+    }
+    drop(db);
+    let server = serve(spec);
+    let location = |q: &str| {
+        let (status, head, body) = request(&server.base, "GET", &format!("/search?q={q}"));
+        assert_eq!(status, 303, "{q}: {head}{body}");
+        let at = head.to_ascii_lowercase().find("\r\nlocation: ").unwrap() + 12;
+        head[at..].lines().next().unwrap().to_string()
+    };
+    let a_row = format!("/unit/{}#run-{}", super::DEVICE, line.a);
+    assert_eq!(location("SN-A1"), "/unit/SN-A1");
+    assert_eq!(location("%20SN-A1%20"), "/unit/SN-A1");
+    assert_eq!(location(&number), a_row);
+    assert_eq!(location(&line.a.to_string()), a_row);
+    assert_eq!(location(&line.a.to_string()[..8]), a_row);
+    assert_eq!(location(super::DEVICE), format!("/unit/{}", super::DEVICE));
+    let (status, head, _) = request(&server.base, "GET", &format!("/run/{}", line.a));
+    assert_eq!(status, 303, "{head}");
+    assert!(head.contains(&a_row), "{head}");
+    // A beginning of two run ids: both listed, each a link to its row.
+    let (status, _, body) = request(&server.base, "GET", "/search?q=abcdef01");
+    assert_eq!(status, 200, "{body}");
+    assert!(body.contains("abcdef01 begins several run ids: which one?"), "{body}");
+    for id in twins {
+        assert!(
+            body.contains(&format!("<a href=\"/unit/{bare}#run-{id}\">run {id}: unit - ({bare})")),
+            "{body}"
+        );
+    }
+    // Misses, in words.
+    for (q, words) in [
+        ("NOBODY", "nothing found for `NOBODY`: it is no serial, device id, certificate number or run id"),
+        ("2026-999999", "no certificate is numbered 2026-999999 in the database"),
+        ("ffffffff", "nothing found for `ffffffff`"),
+        (
+            "ffffffff-0000-4000-8000-000000000000",
+            "no run ffffffff-0000-4000-8000-000000000000 in the database",
+        ),
+    ] {
+        let (status, _, body) = request(&server.base, "GET", &format!("/search?q={q}"));
+        assert_eq!(status, 404, "{q}: {body}");
+        assert!(body.contains(words), "{q}: {body}");
+    }
+    let (status, _, body) = request(&server.base, "GET", "/search?q=");
+    assert_eq!(status, 400, "{body}");
+    // Titles: the serial, the device id below; a unit without a serial is titled by its device id.
+    let (_, _, body) = request(&server.base, "GET", "/unit/SN-A1");
+    assert!(body.contains("<title>SN-A1 · accelcal</title>") && body.contains("<h1>SN-A1</h1>"), "{body}");
+    assert!(body.contains(&format!("<p id=\"device\">device id {}</p>", super::DEVICE)), "{body}");
+    assert!(
+        body.contains(&format!("<a href=\"/certificate/{number}\">{number} awaiting approval</a>")),
+        "{body}"
+    );
+    let (_, _, body) = request(&server.base, "GET", &format!("/unit/{bare}"));
+    assert!(body.contains(&format!("<h1>{bare}</h1>")) && body.contains("no serial number"), "{body}");
+    // A certificate by its number; run ids and certificate numbers link in the fleet's table.
+    let (status, _, body) = request(&server.base, "GET", &format!("/certificate/{number}"));
+    assert_eq!(status, 200, "{body}");
+    assert!(body.contains("certificate of SN-A1"), "{body}");
+    assert_eq!(request(&server.base, "GET", "/certificate/2026-999999").0, 404);
+    assert_eq!(request(&server.base, "GET", "/certificate/not-one").0, 400);
+    let (_, _, fleet) = request(&server.base, "GET", &format!("/fleet?{JANUARY}"));
+    assert!(
+        fleet.contains(&format!(
+            "<a href=\"/run/{}\" title=\"{}\">{}</a>",
+            line.a,
+            line.a,
+            &line.a.to_string()[..8]
+        )),
+        "{fleet}"
+    );
+    assert!(fleet.contains(&format!("<a href=\"/certificate/{number}\">{number}</a>")), "{fleet}");
 }
 
 /// `serve` keeps its reading connections in a pool of at most `CONNECTIONS` (4): after 24 page

@@ -6,7 +6,9 @@
 //! There is no JavaScript and no write endpoint: every route is a GET (axum answers 405 to any
 //! other method), and each request takes a reading connection from a pool of at most
 //! [`CONNECTIONS`] (r2d2; checked with a `SELECT 1` as it is taken) on a blocking thread, and
-//! gathers what its page shows with the same functions as `fleet`, `history` and `certificate`.
+//! gathers what its page shows with the same functions as `fleet`, `history` and `certificate`;
+//! the overview opens with what needs attention (`app::attention`), and every page carries the
+//! search box ([`search`]).
 //! The pool bounds what a browser's reloads can take of a PostgreSQL server's connections, which
 //! the stations writing need, and saves a connection's setup per page; a request that finds
 //! every connection busy for [`WAIT`] is answered 503. A Content-Security-Policy without scripts goes with every answer, so a stored
@@ -14,8 +16,10 @@
 
 pub mod auth;
 pub mod escape;
+mod links;
 mod listen;
 mod pages;
+mod search;
 mod svg;
 mod ticks;
 
@@ -29,7 +33,7 @@ use accelcal_db::{Db, DbError, Target};
 use anyhow::Context;
 use axum::extract::{Path, RawQuery, State};
 use axum::http::{header, HeaderValue, StatusCode};
-use axum::response::{Html, IntoResponse, Response};
+use axum::response::{Html, IntoResponse, Redirect, Response};
 use axum::routing::get;
 use axum::Router;
 
@@ -257,7 +261,10 @@ fn router(app: App, users: Option<Arc<auth::Users>>) -> Router {
         .route("/fleet.csv", get(fleet_csv))
         .route("/charts", get(charts))
         .route("/unit/{key}", get(unit))
+        .route("/search", get(search))
+        .route("/run/{id}", get(run_page))
         .route("/run/{id}/certificate", get(certificate))
+        .route("/certificate/{number}", get(numbered))
         .fallback(not_found)
         .with_state(app);
     let routes = match users {
@@ -321,8 +328,8 @@ fn html(s: String) -> Result<Response, PageError> {
     Ok(Html(s).into_response())
 }
 
-async fn overview(State(app): State<App>) -> Response {
-    page(app, |db, app| html(pages::overview(db, app)?)).await
+async fn overview(State(app): State<App>, RawQuery(q): RawQuery) -> Response {
+    page(app, move |db, app| html(pages::overview(db, app, q.as_deref().unwrap_or(""))?)).await
 }
 
 async fn fleet(State(app): State<App>, RawQuery(q): RawQuery) -> Response {
@@ -354,6 +361,39 @@ async fn unit(State(app): State<App>, Path(key): Path<String>) -> Response {
 
 async fn certificate(State(app): State<App>, Path(id): Path<String>) -> Response {
     page(app, move |db, _| html(pages::certificate(db, &id)?)).await
+}
+
+async fn numbered(State(app): State<App>, Path(number): Path<String>) -> Response {
+    page(app, move |db, _| html(pages::numbered(db, &number)?)).await
+}
+
+/// The query of the search box: `q`.
+#[derive(serde::Deserialize)]
+struct Search {
+    #[serde(default)]
+    q: String,
+}
+
+/// `/search?q=…`: a 303 to the page the search names, or the list of those it may name.
+async fn search(State(app): State<App>, RawQuery(q): RawQuery) -> Response {
+    page(app, move |db, app| {
+        let s: Search = serde_urlencoded::from_str(q.as_deref().unwrap_or(""))
+            .map_err(|e| PageError::bad(format!("the query `{}`: {e}", q.as_deref().unwrap_or(""))))?;
+        match search::find(db, &app.target, &s.q)? {
+            search::Found::Go(to) => Ok(Redirect::to(&to).into_response()),
+            search::Found::Several(page) => html(page),
+        }
+    })
+    .await
+}
+
+/// `/run/ID`: a 303 to the run's row on its unit's page.
+async fn run_page(State(app): State<App>, Path(id): Path<String>) -> Response {
+    page(app, move |db, _| {
+        let run = accelcal_db::RunId::parse(&id).map_err(|e| PageError::bad(e.to_string()))?;
+        Ok(Redirect::to(&search::run_row(db, run)?).into_response())
+    })
+    .await
 }
 
 async fn not_found(State(app): State<App>) -> Response {

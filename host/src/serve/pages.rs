@@ -12,12 +12,13 @@ use axum::http::StatusCode;
 
 use super::escape;
 use super::svg::{control_chart, drift_chart, signature_chart, Lines};
-use super::{App, PageError};
+use super::{links, App, PageError};
 use crate::cmd::fleet::{change_point, csv_of, due_by, filter_of, gather, measured_line, FleetData, Parts};
 use crate::cmd::history::{outcome, verification};
 use crate::report::sig;
+use crate::settings::reader::Which;
 
-const VERSION: &str = env!("CARGO_PKG_VERSION");
+pub(super) const VERSION: &str = env!("CARGO_PKG_VERSION");
 
 /// The filters of the fleet and charts pages, as the form sends them (`fleet`'s options).
 #[derive(Debug, Default, serde::Deserialize)]
@@ -142,10 +143,16 @@ impl From<&Counts> for CountsView {
 /// One run in a table.
 struct RunRow {
     run_id: String,
+    /// The run's first 8 hex digits (what the search box takes), and its link.
+    run_short: String,
+    run_href: String,
+    /// Its certificate in force: its number and link (empty: none).
+    certificate: String,
+    certificate_href: String,
     serial: String,
     device_id: String,
-    /// What the unit's page is found by: the serial, else the device id.
-    unit_key: String,
+    /// The unit's page, by its serial, else its device id.
+    unit_href: String,
     station: String,
     head: String,
     operator: String,
@@ -164,9 +171,13 @@ impl From<&FleetRun> for RunRow {
     fn from(r: &FleetRun) -> RunRow {
         RunRow {
             run_id: r.run_id.clone(),
+            run_short: r.run_id.chars().take(8).collect(),
+            run_href: links::run(&r.run_id),
+            certificate: r.certificate_number.clone().unwrap_or_default(),
+            certificate_href: r.certificate_number.as_deref().map(links::certificate).unwrap_or_default(),
             serial: r.serial.clone(),
             device_id: r.device_id.clone(),
-            unit_key: if r.serial.is_empty() { r.device_id.clone() } else { r.serial.clone() },
+            unit_href: links::unit(if r.serial.is_empty() { &r.device_id } else { &r.serial }),
             station: r.station.clone(),
             head: r.head_asset.clone().unwrap_or_default(),
             operator: r.operator.clone(),
@@ -213,9 +224,42 @@ struct AssetRow {
 struct DueRow {
     serial: String,
     device_id: String,
-    unit_key: String,
+    unit_href: String,
     due: String,
-    run_id: String,
+    run: RunLink,
+}
+
+/// A run id as a link to its row on its unit's page.
+struct RunLink {
+    id: String,
+    href: String,
+}
+
+impl RunLink {
+    fn of(id: &str) -> RunLink {
+        RunLink { id: id.to_string(), href: links::run(id) }
+    }
+}
+
+/// A line of text that names a run: the text before the run's id, the id as a link, the rest.
+struct Linked {
+    before: String,
+    run: Option<RunLink>,
+    after: String,
+}
+
+impl Linked {
+    /// `text` with the first `run_id` in it a link (none when it is not there).
+    fn around(text: String, run_id: &str) -> Linked {
+        match text.find(run_id).filter(|_| !run_id.is_empty()) {
+            Some(at) => Linked {
+                before: text[..at].to_string(),
+                run: Some(RunLink::of(run_id)),
+                after: text[at + run_id.len()..].to_string(),
+            },
+            None => Linked { before: text, run: None, after: String::new() },
+        }
+    }
 }
 
 #[derive(Template)]
@@ -231,6 +275,7 @@ struct OverviewPage<'a> {
     month_since: String,
     stations: Vec<StationRow>,
     assets: Vec<AssetRow>,
+    month_until: String,
     due_by: String,
     due: Vec<DueRow>,
     today_runs: Vec<RunRow>,
@@ -238,11 +283,12 @@ struct OverviewPage<'a> {
     chain_broken: Option<String>,
 }
 
-/// `/`: today's units, the last 30 days' yield, stations, assets and units due.
-pub(super) fn overview(db: &mut Db, app: &App) -> Result<String, PageError> {
+/// `/`: today's units, the period's yield (the last 30 days unless the
+/// query gives `since` and `until`), stations, assets and units due.
+pub(super) fn overview(db: &mut Db, app: &App, q: &str) -> Result<String, PageError> {
     let today = today_utc();
-    let month = Filters::default();
-    let (data, since, _) = month.gather(db, app.due_days, Parts::Overview)?;
+    let month = Filters::parse(q)?;
+    let (data, since, until) = month.gather(db, app.due_days, Parts::Overview)?;
     let day_filter =
         db.checked(&filter_of(today, today, None, None, None, None)).map_err(PageError::unavailable)?;
     let day_counts = db.fleet_counts(&day_filter).map_err(PageError::unavailable)?;
@@ -291,9 +337,9 @@ pub(super) fn overview(db: &mut Db, app: &App) -> Result<String, PageError> {
         .map(|u| DueRow {
             serial: u.serial.clone(),
             device_id: u.device_id.clone(),
-            unit_key: if u.serial.is_empty() { u.device_id.clone() } else { u.serial.clone() },
+            unit_href: links::unit(if u.serial.is_empty() { &u.device_id } else { &u.serial }),
             due: utc_date_time(u.due_unix_s)[..10].to_string(),
-            run_id: u.run_id.clone(),
+            run: RunLink::of(&u.run_id),
         })
         .collect();
     let page = OverviewPage {
@@ -304,6 +350,7 @@ pub(super) fn overview(db: &mut Db, app: &App) -> Result<String, PageError> {
         day: (&day_counts).into(),
         month: (&data.counts).into(),
         month_since: since.to_string(),
+        month_until: until.to_string(),
         stations,
         assets,
         due_by: data.due_by.to_string(),
@@ -388,7 +435,7 @@ pub(super) fn fleet_csv(db: &mut Db, app: &App, q: &str) -> Result<String, PageE
 struct ChartView {
     title: String,
     svg: String,
-    violations: Vec<String>,
+    violations: Vec<Linked>,
 }
 
 struct HeadView {
@@ -397,7 +444,7 @@ struct HeadView {
     settings: String,
     /// The head's angle error as its units measure it, or empty.
     measured: String,
-    change_points: Vec<String>,
+    change_points: Vec<Linked>,
     svg: String,
     /// "not enough units …" while the head has too few to flag a change, else empty.
     too_few: String,
@@ -445,7 +492,7 @@ pub(super) fn charts(db: &mut Db, app: &App, q: &str) -> Result<String, PageErro
                 .violations
                 .iter()
                 .map(|(v, p)| {
-                    format!(
+                    let text = format!(
                         "rule {} ({}) at {} (run {}, {}): {:.6}",
                         v.rule,
                         v.what,
@@ -453,7 +500,8 @@ pub(super) fn charts(db: &mut Db, app: &App, q: &str) -> Result<String, PageErro
                         p.run_id,
                         utc_date_time(p.started_unix_s),
                         p.value
-                    )
+                    );
+                    Linked::around(text, &p.run_id)
                 })
                 .collect(),
         });
@@ -473,7 +521,9 @@ pub(super) fn charts(db: &mut Db, app: &App, q: &str) -> Result<String, PageErro
                 violations: c
                     .violations
                     .iter()
-                    .map(|v| format!("rule {} ({}) at check {}", v.rule, v.what, v.index + 1))
+                    .map(|v| {
+                        Linked::around(format!("rule {} ({}) at check {}", v.rule, v.what, v.index + 1), "")
+                    })
                     .collect(),
             });
         }
@@ -507,7 +557,12 @@ pub(super) fn charts(db: &mut Db, app: &App, q: &str) -> Result<String, PageErro
             units: h.head.units,
             settings: h.head.settings_line(),
             measured: h.head.signature.measured_angle.as_ref().map(measured_line).unwrap_or_default(),
-            change_points: h.head.change_points.iter().map(change_point).collect(),
+            change_points: h
+                .head
+                .change_points
+                .iter()
+                .map(|c| Linked::around(change_point(c), &c.run_id))
+                .collect(),
             svg: if arcsec.is_empty() {
                 String::new()
             } else {
@@ -538,6 +593,10 @@ pub(super) fn charts(db: &mut Db, app: &App, q: &str) -> Result<String, PageErro
 
 struct UnitRun {
     run_id: String,
+    /// Its first 8 hex digits.
+    run_short: String,
+    /// Its certificate in force's page: by its number, else by the run.
+    certificate_href: String,
     calibration: String,
     started: String,
     station: String,
@@ -559,7 +618,8 @@ struct UnitPage<'a> {
     version: &'a str,
     /// The runs the page's reads set aside (`Db::listing_unreadable`), in words.
     unreadable: Vec<String>,
-    key: &'a str,
+    /// The unit's serial (its latest), else its device id.
+    title: String,
     device_id: String,
     serials: String,
     runs: Vec<UnitRun>,
@@ -615,6 +675,11 @@ pub(super) fn unit(db: &mut Db, app: &App, key: &str) -> Result<String, PageErro
         };
         rows.push(UnitRun {
             run_id: r.run_id.clone(),
+            run_short: r.run_id.chars().take(8).collect(),
+            certificate_href: match &r.certificate_number {
+                Some(n) => links::certificate(n),
+                None => format!("{}/certificate", links::run(&r.run_id)),
+            },
             calibration: r.calibration.map_or("-".into(), |n| n.to_string()),
             started: utc_date_time(r.started_unix_s),
             station: r.station.clone(),
@@ -682,9 +747,13 @@ pub(super) fn unit(db: &mut Db, app: &App, key: &str) -> Result<String, PageErro
         db: &app.target,
         version: VERSION,
         unreadable: words(&db.unreadable().map_err(PageError::unavailable)?),
-        key,
+        title: h.serials.last().unwrap_or(&h.device_id).clone(),
         device_id: h.device_id.clone(),
-        serials: if h.serials.is_empty() { "no serial number".into() } else { h.serials.join(", ") },
+        serials: match h.serials.len() {
+            0 => "no serial number".into(),
+            1 => String::new(),
+            _ => format!("labelled {} in turn", h.serials.join(", ")),
+        },
         runs: rows,
         drift_svg,
         drifts,
@@ -697,13 +766,30 @@ pub(super) fn unit(db: &mut Db, app: &App, key: &str) -> Result<String, PageErro
 /// draft), its control characters shown as text (`\u{1b}`, [`escape::markup`]).
 pub(super) fn certificate(db: &mut Db, id: &str) -> Result<String, PageError> {
     let run = RunId::parse(id).map_err(|e| PageError::bad(e.to_string()))?;
-    let which = crate::settings::reader::Which::Run(run);
-    crate::app::certificate::Stored::read(db, &which).and_then(|c| c.page(db)).map(escape::markup).map_err(
-        |e| match e.downcast_ref::<DbError>() {
-            // A forged certificate is not shown as issued.
-            Some(DbError::Tampered { .. }) => PageError::tampered(format!("{e:#}")),
-            Some(_) => PageError::unavailable(format!("{e:#}")),
-            None => PageError::not_found(format!("{e:#}")),
+    shown(db, &Which::Run(run))
+}
+
+/// `/certificate/NUMBER`: the certificate so numbered (an amendment's number too), as
+/// [`certificate`] shows it.
+pub(super) fn numbered(db: &mut Db, number: &str) -> Result<String, PageError> {
+    if !accelcal_db::certificate::is_number(number) {
+        return Err(PageError::bad(format!(
+            "`{number}` is not a certificate number (YYYY-NNNNNN, as printed)"
+        )));
+    }
+    shown(db, &Which::Number(number.to_string()))
+}
+
+/// The certificate `which` names, as printed.
+fn shown(db: &mut Db, which: &Which) -> Result<String, PageError> {
+    crate::app::certificate::Stored::read(db, which).and_then(|c| c.page(db)).map(escape::markup).map_err(
+        |e| {
+            match e.downcast_ref::<DbError>() {
+                // A forged certificate is not shown as issued.
+                Some(DbError::Tampered { .. }) => PageError::tampered(format!("{e:#}")),
+                Some(_) => PageError::unavailable(format!("{e:#}")),
+                None => PageError::not_found(format!("{e:#}")),
+            }
         },
     )
 }

@@ -108,7 +108,7 @@ pub struct Certificate {
 
 /// Whether `s` is written as the beginning of a run id: 8 to 35 of its characters (hex digits
 /// and dashes where the UUID has them).
-fn is_run_prefix(s: &str) -> bool {
+pub(crate) fn is_run_prefix(s: &str) -> bool {
     const DASHES: [usize; 4] = [8, 13, 18, 23];
     (8..36).contains(&s.len())
         && s.char_indices().all(|(i, c)| if DASHES.contains(&i) { c == '-' } else { c.is_ascii_hexdigit() })
