@@ -230,6 +230,8 @@ fn serve_reads_the_server_s_numbers_and_shows_a_hostile_serial_as_text() {
     let pg = Cluster::start();
     dbkit::serve::search_finds_a_unit_and_says_what_it_missed(&pg.url);
     let pg = Cluster::start();
+    dbkit::serve::the_morning_view_needs_attention_finds_and_ticks(&pg.url);
+    let pg = Cluster::start();
     let url = pg.url.clone();
     dbkit::serve::connections_are_pooled_and_bounded(&pg.url, move || {
         let mut c = postgres::Client::connect(&url, postgres::NoTls).unwrap();

@@ -225,6 +225,13 @@ fn serve_s_pages_hold_the_database_s_numbers_in_chromium() {
     dbkit::serve::the_pages_hold_the_database_s_numbers(&db_file(&d));
 }
 
+/// Issue 59: the overview's attention panel, the search box and the charts' ticks, in Chromium.
+#[test]
+fn serve_s_morning_view_lists_what_needs_attention_finds_and_ticks_in_chromium() {
+    let d = tempfile::tempdir().unwrap();
+    dbkit::serve::the_morning_view_needs_attention_finds_and_ticks(&db_file(&d));
+}
+
 /// Issue 59: the search box and the unit's title over HTTP.
 #[test]
 fn serve_s_search_finds_a_unit_and_says_what_it_missed() {

@@ -257,6 +257,68 @@ fn is_date(s: &str) -> bool {
         && b.iter().enumerate().all(|(i, c)| if i == 4 || i == 7 { *c == b'-' } else { c.is_ascii_digit() })
 }
 
+/// Issue 59, the morning view in Chromium: the overview opens with what needs attention (the
+/// overdue head HEAD-1 planted by the fixture, linked to its row; over January also the unit found
+/// out of tolerance and the certificates awaiting approval); the search box finds a unit by its
+/// certificate number; the charts' tick labels differ on every axis and the control charts' time
+/// axes say dates.
+pub fn the_morning_view_needs_attention_finds_and_ticks(spec: &str) {
+    let mut db = Db::open(spec).unwrap();
+    let line = line_of_units(&mut db);
+    head_knocked_out(&mut db);
+    let number = db.number_in_force(line.b[1]).unwrap().unwrap();
+    drop(db);
+    let server = serve(spec);
+
+    let overview = dom(&format!("{}/", server.base));
+    let panel = &overview[overview.find("<section id=\"attention\">").expect("no attention panel")..];
+    let panel = &panel[..panel.find("</section>").unwrap()];
+    assert!(
+        panel.contains(
+            "<strong>asset overdue</strong>: <a href=\"/#asset-HEAD-1\">head HEAD-1: certificate DKD-17-001 was due 2026-01-20</a>"
+        ),
+        "{panel}"
+    );
+    assert!(!panel.contains("HEAD-2"), "HEAD-2 is due in 2099: {panel}");
+    assert!(overview.contains("<tr id=\"asset-HEAD-1\">"), "the entry's link goes nowhere");
+    assert!(overview.find("id=\"attention\"") < overview.find("id=\"today\""), "the panel is not first");
+    let january = dom(&format!("{}/?{JANUARY}", server.base));
+    let panel = &january[january.find("<section id=\"attention\">").unwrap()..];
+    let panel = &panel[..panel.find("</section>").unwrap()];
+    assert!(panel.contains(&format!("<a href=\"/run/{}\">SN-C1 (", line.c)), "{panel}");
+    assert!(panel.contains(" as found (run ") && panel.contains("tell its users"), "{panel}");
+    assert!(
+        panel.contains(&format!("<a href=\"/certificate/{number}\">{number} of SN-B1 (run {})", line.b[1])),
+        "{panel}"
+    );
+    // HEAD-2's units run from T0 on, a head knocked out from the 56th: charts out of control
+    // and a change point.
+    assert!(
+        panel.contains("chart out of control</strong>: <a href=\"/charts?since=2026-01-01&amp;until=2026-01-31&amp;head_asset=HEAD-2\">head HEAD-2, "),
+        "{panel}"
+    );
+    assert!(panel.contains("head change point</strong>: <a href=\"/charts?since=2026-01-01&amp;until=2026-01-31&amp;head_asset=HEAD-2\">head HEAD-2: "), "{panel}");
+
+    // The search box is on every page; a certificate's number finds its unit, at the run's row.
+    assert!(overview.contains("<form id=\"search\" action=\"/search\" method=\"get\">"), "{overview}");
+    let found = dom(&format!("{}/search?q={number}", server.base));
+    assert!(found.contains("<title>SN-B1 · accelcal</title>") && found.contains("<h1>SN-B1</h1>"), "{found}");
+    assert!(found.contains(&format!("<p id=\"device\">device id {}</p>", super::DEVICE_2)), "{found}");
+    assert!(found.contains(&format!("<tr id=\"run-{}\">", line.b[1])), "{found}");
+
+    // Every chart's tick labels differ on each axis; the control charts' x axes say dates.
+    let charts = dom(&format!("{}/charts?{JANUARY}", server.base));
+    let labels = tick_labels(&charts);
+    assert!(labels.len() > 5, "{} charts", labels.len());
+    for [y, x] in &labels {
+        assert!(y.len() >= 2 && distinct(y), "y: {y:?}");
+        assert!(!x.is_empty() && distinct(x), "x: {x:?}");
+    }
+    let dated = labels.iter().filter(|[_, x]| x.iter().filter(|l| is_date(l)).count() >= 2).count();
+    assert!(dated >= 2, "no time axis with dates: {labels:?}");
+    assert!(labels.iter().all(|[y, _]| y.iter().all(|l| l.parse::<f64>().is_ok())), "{labels:?}");
+}
+
 /// A serial that is a script is shown as text, and a stored certificate's script does not run.
 pub fn a_hostile_serial_is_text_and_a_stored_script_does_not_run(spec: &str) {
     let run = line_db(spec);
@@ -377,7 +439,7 @@ pub fn the_pages_render_to_screenshots(spec: &str) {
         // What the screenshot shows, read from the same page's DOM: its numbers and a chart.
         let page = dom(&format!("{}{path}", server.base));
         let holds = match name {
-            "overview" => vec!["DKD-17-001", "overdue", "<td class=\"num\">"],
+            "overview" => vec!["<strong>asset overdue</strong>", "DKD-17-001", "<td class=\"num\">"],
             "fleet" => {
                 vec!["<table id=\"populations\">", "<td>as-left bias x</td><td>mg</td>", "first-pass yield "]
             }

@@ -2,4 +2,5 @@
 //! below the commands (ARCHITECTURE.md, "The house"). A `cmd` module calls it; it calls no
 //! `cmd` module.
 
+pub mod attention;
 pub mod certificate;

@@ -254,8 +254,9 @@ pub(crate) enum Parts {
     Charts,
     /// The runs and the populations.
     Table,
-    /// Neither: the overview's counts.
-    Overview,
+    /// The runs, the control charts and the heads' signatures, not the populations: the
+    /// overview's counts and what needs attention (`app::attention`).
+    Attention,
 }
 
 /// Gathers a period's fleet from the database; `due_by`: the last day of the units and assets due.
@@ -272,6 +273,10 @@ pub(crate) fn gather(db: &mut Db, filter: &Filter, due_by: Date, parts: Parts) -
     std::thread::scope(|s| -> anyhow::Result<FleetData> {
         let joined = |what: &str| anyhow::anyhow!("the thread reading {what} panicked");
         let (h, p) = match parts {
+            Parts::Attention => {
+                let mut dh = db.open_again()?;
+                (Some(s.spawn(move || (heads(&mut dh, filter), dh))), None)
+            }
             Parts::Charts => {
                 let (mut dh, mut dp) = (db.open_again()?, db.open_again()?);
                 (
@@ -283,19 +288,15 @@ pub(crate) fn gather(db: &mut Db, filter: &Filter, due_by: Date, parts: Parts) -
                 let mut dp = db.open_again()?;
                 (None, Some(s.spawn(move || (dp.populations(filter), dp))))
             }
-            Parts::Overview => (None, None),
         };
         let mut counts = db.fleet_counts(filter)?;
         let stations = std::mem::take(&mut counts.stations);
         let units_due = db.units_due(start_of_day_unix_s(due_by) + DAY_S, filter.serial_prefix.as_deref())?;
         let assets = db.assets()?;
-        let runs = match parts {
-            Parts::Charts | Parts::Table => db.fleet_runs(filter)?,
-            Parts::Overview => Vec::new(),
-        };
+        let runs = db.fleet_runs(filter)?;
         let charts = match parts {
-            Parts::Charts => accelcal_db::fleet::charts(&runs),
-            Parts::Table | Parts::Overview => Vec::new(),
+            Parts::Charts | Parts::Attention => accelcal_db::fleet::charts(&runs),
+            Parts::Table => Vec::new(),
         };
         let check_standards = db.check_standards(filter.station.as_deref())?;
         let chain_broken = db.chain_broken()?;

@@ -13,6 +13,7 @@ use axum::http::StatusCode;
 use super::escape;
 use super::svg::{control_chart, drift_chart, signature_chart, Lines};
 use super::{links, App, PageError};
+use crate::app::attention;
 use crate::cmd::fleet::{change_point, csv_of, due_by, filter_of, gather, measured_line, FleetData, Parts};
 use crate::cmd::history::{outcome, verification};
 use crate::report::sig;
@@ -262,6 +263,13 @@ impl Linked {
     }
 }
 
+/// An entry of the panel of what needs attention: its kind, its words, where it links.
+struct AttentionRow {
+    kind: &'static str,
+    words: String,
+    href: String,
+}
+
 #[derive(Template)]
 #[template(path = "serve/overview.html")]
 struct OverviewPage<'a> {
@@ -276,6 +284,8 @@ struct OverviewPage<'a> {
     stations: Vec<StationRow>,
     assets: Vec<AssetRow>,
     month_until: String,
+    /// What needs attention (`app::attention`), first on the page.
+    attention: Vec<AttentionRow>,
     due_by: String,
     due: Vec<DueRow>,
     today_runs: Vec<RunRow>,
@@ -283,12 +293,25 @@ struct OverviewPage<'a> {
     chain_broken: Option<String>,
 }
 
-/// `/`: today's units, the period's yield (the last 30 days unless the
+/// `/`: what needs attention, today's units, the period's yield (the last 30 days unless the
 /// query gives `since` and `until`), stations, assets and units due.
 pub(super) fn overview(db: &mut Db, app: &App, q: &str) -> Result<String, PageError> {
     let today = today_utc();
     let month = Filters::parse(q)?;
-    let (data, since, until) = month.gather(db, app.due_days, Parts::Overview)?;
+    let (data, since, until) = month.gather(db, app.due_days, Parts::Attention)?;
+    let found_out = data.found_out();
+    let period = format!("since={since}&until={until}");
+    let attention = attention::entries(&attention::Sources {
+        today,
+        assets: &data.assets,
+        charts: &data.charts,
+        heads: data.heads.iter().map(|h| (h.asset.as_str(), h.head.change_points.as_slice())).collect(),
+        found_out: &found_out,
+        runs: &data.runs,
+    })
+    .iter()
+    .map(|e| AttentionRow { kind: e.kind(), words: e.words(), href: links::href(&e.page(), &period) })
+    .collect();
     let day_filter =
         db.checked(&filter_of(today, today, None, None, None, None)).map_err(PageError::unavailable)?;
     let day_counts = db.fleet_counts(&day_filter).map_err(PageError::unavailable)?;
@@ -351,6 +374,7 @@ pub(super) fn overview(db: &mut Db, app: &App, q: &str) -> Result<String, PageEr
         month: (&data.counts).into(),
         month_since: since.to_string(),
         month_until: until.to_string(),
+        attention,
         stations,
         assets,
         due_by: data.due_by.to_string(),
