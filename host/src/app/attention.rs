@@ -23,6 +23,12 @@ pub enum Page {
     Run(String),
     /// A certificate, by its number.
     Certificate(String),
+    /// The asset register.
+    Assets,
+    /// Every control chart and head of the period.
+    Charts,
+    /// The fleet's runs of the period (those found out of tolerance, the certificates).
+    Fleet,
 }
 
 /// One thing that needs attention, in the order of [`entries`].
@@ -62,6 +68,34 @@ pub struct Sources<'a> {
     pub found_out: &'a [&'a FleetRun],
     /// The period's runs.
     pub runs: &'a [FleetRun],
+}
+
+/// A panel's share of the entries: at most so many of each kind, and what was left out.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Panel {
+    /// The entries shown, in their order.
+    pub shown: Vec<Entry>,
+    /// Per kind cut short: the kind, how many entries of it were left out, and the page that
+    /// lists them all.
+    pub left_out: Vec<(&'static str, usize, Page)>,
+}
+
+/// At most `per_kind` of each kind of `entries` (the first ones), so that a morning with 900
+/// certificates to sign still shows the one overdue asset.
+pub fn panel(entries: Vec<Entry>, per_kind: usize) -> Panel {
+    let mut shown: Vec<Entry> = Vec::new();
+    let mut left_out: Vec<(&'static str, usize, Page)> = Vec::new();
+    for e in entries {
+        let kind = e.kind();
+        if shown.iter().filter(|s| s.kind() == kind).count() < per_kind {
+            shown.push(e);
+        } else if let Some(l) = left_out.iter_mut().find(|l| l.0 == kind) {
+            l.1 += 1;
+        } else {
+            left_out.push((kind, 1, e.whole_list()));
+        }
+    }
+    Panel { shown, left_out }
 }
 
 /// A unit as the line names it: its serial, else its device id.
@@ -166,6 +200,15 @@ impl Entry {
             Entry::AwaitingApproval { number, unit, run_id } => {
                 format!("{number} of {unit} (run {run_id}) awaits a signer's decision")
             }
+        }
+    }
+
+    /// The page that lists every entry of its kind.
+    pub fn whole_list(&self) -> Page {
+        match self {
+            Entry::AssetOverdue { .. } => Page::Assets,
+            Entry::OutOfControl { .. } | Entry::HeadChange { .. } => Page::Charts,
+            Entry::FoundOut { .. } | Entry::AwaitingApproval { .. } => Page::Fleet,
         }
     }
 
@@ -289,5 +332,14 @@ mod tests {
                 ),
             ]
         );
+        // One of each kind: the second overdue asset and the second chart are left out, counted.
+        let p = panel(entries(&s), 1);
+        let kinds: Vec<&str> = p.shown.iter().map(Entry::kind).collect();
+        assert_eq!(kinds, ["asset overdue", "chart out of control", "head change point"]);
+        assert_eq!(
+            p.left_out,
+            [("asset overdue", 1, Page::Assets), ("chart out of control", 1, Page::Charts)]
+        );
+        assert_eq!(panel(entries(&s), 2).left_out, []);
     }
 }

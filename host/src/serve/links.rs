@@ -40,6 +40,9 @@ pub fn href(page: &Page, period: &str) -> String {
         Page::StationCharts(name) => format!("/charts?{period}&station={}", segment(name)),
         Page::Run(id) => run(id),
         Page::Certificate(n) => certificate(n),
+        Page::Assets => "/#assets".into(),
+        Page::Charts => format!("/charts?{period}"),
+        Page::Fleet => format!("/fleet?{period}"),
     }
 }
 

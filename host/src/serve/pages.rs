@@ -150,6 +150,8 @@ struct RunRow {
     /// Its certificate in force: its number and link (empty: none).
     certificate: String,
     certificate_href: String,
+    /// Where it stands (`awaiting approval`, …; empty: no certificate).
+    certificate_state: &'static str,
     serial: String,
     device_id: String,
     /// The unit's page, by its serial, else its device id.
@@ -175,6 +177,7 @@ impl From<&FleetRun> for RunRow {
             run_short: r.run_id.chars().take(8).collect(),
             run_href: links::run(&r.run_id),
             certificate: r.certificate_number.clone().unwrap_or_default(),
+            certificate_state: r.certificate_state.map(|s| s.words()).unwrap_or_default(),
             certificate_href: r.certificate_number.as_deref().map(links::certificate).unwrap_or_default(),
             serial: r.serial.clone(),
             device_id: r.device_id.clone(),
@@ -263,6 +266,9 @@ impl Linked {
     }
 }
 
+/// The attention panel's entries of one kind at most (the rest are counted, with a link to them).
+const ATTENTION_PER_KIND: usize = 10;
+
 /// An entry of the panel of what needs attention: its kind, its words, where it links.
 struct AttentionRow {
     kind: &'static str,
@@ -301,17 +307,34 @@ pub(super) fn overview(db: &mut Db, app: &App, q: &str) -> Result<String, PageEr
     let (data, since, until) = month.gather(db, app.due_days, Parts::Attention)?;
     let found_out = data.found_out();
     let period = format!("since={since}&until={until}");
-    let attention = attention::entries(&attention::Sources {
+    let all = attention::entries(&attention::Sources {
         today,
         assets: &data.assets,
         charts: &data.charts,
         heads: data.heads.iter().map(|h| (h.asset.as_str(), h.head.change_points.as_slice())).collect(),
         found_out: &found_out,
         runs: &data.runs,
-    })
-    .iter()
-    .map(|e| AttentionRow { kind: e.kind(), words: e.words(), href: links::href(&e.page(), &period) })
-    .collect();
+    });
+    let panel = attention::panel(all, ATTENTION_PER_KIND);
+    // Each kind's entries, then how many of it were left out, with a link to them all.
+    let mut attention: Vec<AttentionRow> = Vec::new();
+    for (i, e) in panel.shown.iter().enumerate() {
+        attention.push(AttentionRow {
+            kind: e.kind(),
+            words: e.words(),
+            href: links::href(&e.page(), &period),
+        });
+        if panel.shown.get(i + 1).is_some_and(|next| next.kind() == e.kind()) {
+            continue;
+        }
+        if let Some((kind, n, page)) = panel.left_out.iter().find(|l| l.0 == e.kind()) {
+            attention.push(AttentionRow {
+                kind,
+                words: format!("{n} more, not listed here: the whole list"),
+                href: links::href(page, &period),
+            });
+        }
+    }
     let day_filter =
         db.checked(&filter_of(today, today, None, None, None, None)).map_err(PageError::unavailable)?;
     let day_counts = db.fleet_counts(&day_filter).map_err(PageError::unavailable)?;
