@@ -470,6 +470,9 @@ pub fn search_finds_a_unit_and_says_what_it_missed(spec: &str) {
         let s = super::start(accelcal_db::RunId::parse(id).unwrap(), bare, "", "st-1", T0 + i as i64 * DAY);
         db.begin_run(&s, None).unwrap();
     }
+    // A serial written like a certificate number.
+    let s = super::start(accelcal_db::RunId::new(), "1f1e1d1c1b1a191817161514", "2027-000001", "st-2", T0);
+    db.begin_run(&s, None).unwrap();
     drop(db);
     let server = serve(spec);
     let location = |q: &str| {
@@ -485,6 +488,7 @@ pub fn search_finds_a_unit_and_says_what_it_missed(spec: &str) {
     assert_eq!(location(&line.a.to_string()), a_row);
     assert_eq!(location(&line.a.to_string()[..8]), a_row);
     assert_eq!(location(super::DEVICE), format!("/unit/{}", super::DEVICE));
+    assert_eq!(location("2027-000001"), "/unit/2027-000001");
     let (status, head, _) = request(&server.base, "GET", &format!("/run/{}", line.a));
     assert_eq!(status, 303, "{head}");
     assert!(head.contains(&a_row), "{head}");
@@ -501,7 +505,7 @@ pub fn search_finds_a_unit_and_says_what_it_missed(spec: &str) {
     // Misses, in words.
     for (q, words) in [
         ("NOBODY", "nothing found for `NOBODY`: it is no serial, device id, certificate number or run id"),
-        ("2026-999999", "no certificate is numbered 2026-999999 in the database"),
+        ("2026-999999", "no certificate is numbered 2026-999999 in the database, and no unit has the serial"),
         ("ffffffff", "nothing found for `ffffffff`"),
         (
             "ffffffff-0000-4000-8000-000000000000",

@@ -72,11 +72,12 @@ pub(super) fn find(db: &mut Db, target: &str, q: &str) -> Result<Found, PageErro
     if q.is_empty() {
         return Err(PageError::bad("search: give a serial, a device id, a certificate number or a run id"));
     }
-    if accelcal_db::certificate::is_number(q) {
-        return match db.run_of_certificate(q).map_err(PageError::unavailable)? {
-            Some(run) => Ok(Found::Go(run_row(db, run)?)),
-            None => Err(PageError::not_found(format!("no certificate is numbered {q} in the database"))),
-        };
+    // A number no certificate carries may still be a serial.
+    let number = accelcal_db::certificate::is_number(q);
+    if number {
+        if let Some(run) = db.run_of_certificate(q).map_err(PageError::unavailable)? {
+            return Ok(Found::Go(run_row(db, run)?));
+        }
     }
     if let Ok(run) = RunId::parse(q) {
         return Ok(Found::Go(run_row(db, run)?));
@@ -101,6 +102,9 @@ pub(super) fn find(db: &mut Db, target: &str, q: &str) -> Result<Found, PageErro
     }
     match db.unit_runs(q) {
         Ok(_) => Ok(Found::Go(links::unit(q))),
+        Err(DbError::NoUnit { .. }) if number => Err(PageError::not_found(format!(
+            "no certificate is numbered {q} in the database, and no unit has the serial {q}"
+        ))),
         Err(DbError::NoUnit { .. }) => Err(PageError::not_found(format!(
             "nothing found for `{q}`: it is no serial, device id, certificate number or run id (nor the \
              beginning of one) in the database"
