@@ -224,7 +224,8 @@ fn the_station_runs_the_line_journals_it_and_resumes_after_ctrl_c() {
         ("verification", 1, 2),
         ("certificate", 1, 1),
         ("run_end", 1, 1),
-        ("run_asset", 1, 0),
+        // Unit A's head and gravity survey.
+        ("run_asset", 2, 0),
     ] {
         assert_eq!((count(table, &run_a), count(table, &run_b)), (a_rows, b_rows), "{table}");
     }
