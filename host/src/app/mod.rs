@@ -3,3 +3,4 @@
 //! `cmd` module.
 
 pub mod certificate;
+pub mod recall;
