@@ -84,6 +84,8 @@ pub const TABLES: [Table; 21] = [
             "operator",
             "registered_unix_s",
             "content_sha256",
+            "value_si",
+            "value_u_si",
         ],
     },
     Table {

@@ -48,7 +48,7 @@ mod val;
 use std::io::Read;
 
 pub use anchor::{Anchor, AnchorFinding, AnchorLog};
-pub use asset::{Asset, AssetError, AssetKind};
+pub use asset::{Asset, AssetError, AssetKind, StatedValue};
 pub use certificate::{CertificateNumber, RecalibrationDue};
 pub use chain::{ChainEvent, ChainReport, Mismatch, RunSeal};
 pub use engine::{repair_schema_history, schema_version, Access, Target, LEDGER_LOCK};

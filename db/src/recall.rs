@@ -1,7 +1,7 @@
 //! Recalls (issue 59): a reference found out of tolerance at its own recalibration, the runs it
 //! calibrated while it was, and what became of each unit.
 //!
-//! - **The finding** ([`FoundBad`], table `asset_found_bad`, schema 11; `accelcal asset
+//! - **The finding** ([`FoundBad`], table `asset_found_bad`, schema 12; `accelcal asset
 //!   found-bad`): asset ID, used under its certificate N, was out of tolerance when it was
 //!   recalibrated, so every run that used it under N and began on or after a day (`since`) is in
 //!   doubt. One per certificate of an asset, refused with nothing stored for an unknown asset or

@@ -3,4 +3,5 @@
 //! `cmd` module.
 
 pub mod certificate;
+pub mod gravity;
 pub mod recall;

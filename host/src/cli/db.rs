@@ -151,7 +151,7 @@ pub enum AssetKindArg {
     Head,
     /// A thermometer.
     Thermometer,
-    /// A gravity value (a survey of the site).
+    /// A gravity value (a survey of the site: states --value and --u).
     Gravity,
 }
 
@@ -209,6 +209,15 @@ pub struct AssetAddArgs {
     /// kinds].
     #[arg(long, value_name = "ARCSEC", value_parser = Real(Range::Arcsec))]
     pub orthogonality_u: Option<f64>,
+    /// A gravity survey's value of g at the line's site, m/s², from its certificate (9.7 to 9.9)
+    /// [required for --kind gravity; refused for other kinds].
+    #[arg(long, value_name = "M_S2")]
+    pub value: Option<f64>,
+    /// A gravity survey's standard uncertainty of --value, m/s² (one sigma; its certificate's
+    /// expanded uncertainty divided by its coverage factor) [required for --kind gravity; refused
+    /// for other kinds].
+    #[arg(long, value_name = "M_S2")]
+    pub u: Option<f64>,
     #[command(flatten)]
     pub store: AssetDb,
     /// Who registers it [default: the account running the command].

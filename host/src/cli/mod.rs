@@ -223,6 +223,14 @@ pub struct ReaderDb {
     pub db: Option<String>,
 }
 
+/// `--gravity-asset`'s help (`fit`, `verify`, `station`): one text, since clap takes a doc
+/// comment per field.
+pub const GRAVITY_ASSET_HELP: &str =
+    "The site's gravity as a registered survey (`accelcal asset add ID --kind gravity \
+--value M_S2 --u M_S2`): its certificate in force sets g and u(g), the run stores which survey \
+and certificate it used, and the certificate names it [with --db; instead of --g, --g-u and \
+--latitude; an overdue, unknown or non-gravity asset is refused, nothing done].";
+
 /// Local gravity from the site instead of `--g`: WGS84 normal gravity with the free-air
 /// correction (`accelcal_shared::normal_gravity`).
 #[derive(Debug, Args, Clone, Default)]
@@ -234,6 +242,10 @@ pub struct LocalGravity {
     /// Height of the rig above the WGS84 ellipsoid, m (with --latitude; 0 when not given).
     #[arg(long, value_name = "M", allow_negative_numbers = true)]
     pub height: Option<f64>,
+    /// The standard uncertainty of --g, m/s² (one sigma, e.g. from the survey that measured it)
+    /// [with --g; default: --g taken as rounded, half a unit of its last digit, rectangular].
+    #[arg(long, value_name = "M_S2")]
+    pub g_u: Option<f64>,
 }
 
 /// Options shared by the commands that read a campaign.

@@ -32,6 +32,7 @@ fn add(a: &settings::Add) -> anyhow::Result<()> {
         orthogonality_u_arcsec: a.orthogonality_u_arcsec,
         operator: a.operator.clone().unwrap_or_else(user_name),
         registered_unix_s: accelcal_db::now_unix_s(),
+        value: a.value,
     };
     let stored = db.add_asset(&asset)?;
     outln!(
@@ -69,7 +70,11 @@ fn stated(a: &Asset) -> String {
             ", angle u {} arcsec, orthogonality u {} arcsec (one sigma)",
             a.angle_u_arcsec, a.orthogonality_u_arcsec
         ),
-        _ => String::new(),
+        AssetKind::Gravity => match a.value {
+            Some(v) => format!(", g = {} m/s², u {:.1e} m/s² (one sigma)", v.value, v.u),
+            None => ", no value stated (registered before schema 11: register its certificate again)".into(),
+        },
+        AssetKind::Thermometer => String::new(),
     }
 }
 

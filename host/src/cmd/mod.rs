@@ -157,7 +157,11 @@ fn campaign_g(
             check_g(g)?;
             Ok(Gravity {
                 g,
-                source: Source::Campaign { g_source: get(G_SOURCE_KEY).filter(|s| !s.is_empty()) },
+                source: Source::Campaign(
+                    get(G_SOURCE_KEY)
+                        .filter(|s| !s.is_empty())
+                        .map(|s| accelcal_core::campaign::GSource::parse(&s)),
+                ),
             })
         }
         None => {

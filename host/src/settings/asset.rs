@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use accelcal_core::error::bad;
-use accelcal_db::asset::Date;
+use accelcal_db::asset::{Date, StatedValue};
 use accelcal_db::{AssetKind, Target};
 
 use crate::cli::{AffectedArgs, AssetCommand, AssetDb};
@@ -59,6 +59,8 @@ pub struct Add {
     /// A head's stated uncertainties, arcsec (one sigma): given for a head, 0 for the others.
     pub angle_u_arcsec: f64,
     pub orthogonality_u_arcsec: f64,
+    /// A gravity survey's g and its standard uncertainty, m/s² (`--value`, `--u`).
+    pub value: Option<StatedValue>,
     /// `--operator` (`None`: the user's name).
     pub operator: Option<String>,
     /// `--anchor-log`.
@@ -144,7 +146,26 @@ pub fn asset(c: &AssetCommand) -> anyhow::Result<Asset> {
                     kind.name()
                 )));
             }
+            let value = match (kind, a.value, a.u) {
+                (AssetKind::Gravity, Some(value), Some(u)) => Some(StatedValue { value, u }),
+                (AssetKind::Gravity, v, _) => {
+                    return Err(bad(format!(
+                        "asset add --kind gravity needs {} M_S2: the survey's certificate states g and its standard \
+                         uncertainty, which every fit at the site takes",
+                        if v.is_none() { "--value" } else { "--u" }
+                    )))
+                }
+                (_, None, None) => None,
+                (kind, v, _) => {
+                    return Err(bad(format!(
+                        "{} does not apply to asset add --kind {} (a gravity survey states it)",
+                        if v.is_some() { "--value" } else { "--u" },
+                        kind.name()
+                    )))
+                }
+            };
             Asset::Add(Add {
+                value,
                 db: a.store.db.clone(),
                 id: a.id.clone(),
                 kind,

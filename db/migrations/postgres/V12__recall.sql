@@ -1,5 +1,5 @@
--- The calibration database, version 11 (PostgreSQL): recalls (issue 59). The same tables,
--- columns and keys as ../sqlite/V11__recall.sql, which says what they hold.
+-- The calibration database, version 12 (PostgreSQL): recalls (issue 59). The same tables,
+-- columns and keys as ../sqlite/V12__recall.sql, which says what they hold.
 
 CREATE TABLE asset_found_bad (
     asset_id          TEXT NOT NULL,

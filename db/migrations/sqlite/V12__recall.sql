@@ -1,5 +1,5 @@
--- The calibration database, version 11 (SQLite): recalls (issue 59). The same tables, columns and
--- keys as ../postgres/V11__recall.sql.
+-- The calibration database, version 12 (SQLite): recalls (issue 59). The same tables, columns and
+-- keys as ../postgres/V12__recall.sql.
 --
 -- `asset_found_bad`: a reference found out of tolerance at its own recalibration (`accelcal asset
 -- found-bad`): the asset and the certificate of its own that it was used under (the period the
