@@ -3,7 +3,7 @@
 //! own, with the certificate's due date and, for a head, the uncertainties the budget takes from
 //! it; the certificate registered last is the one in force. A run stores which asset (and which
 //! of its certificates) it used, one per kind, so that an asset found out of tolerance at its own
-//! recalibration names every run and unit it calibrated since a date ([`Db::affected`]).
+//! recalibration names every run and unit it calibrated since a date ([`crate::recall`]).
 //!
 //! Dates are calendar days in UTC (`YYYY-MM-DD`); an asset may be used on its due date, not after.
 
@@ -14,7 +14,7 @@ use serde::Serialize;
 use super::content::{asset_content, run_asset_content};
 use super::engine::{Tx, Val};
 use super::piece::insert_row;
-use super::{chain, sha256_hex, Db, DbError, Outcome, RunId, Stored};
+use super::{chain, sha256_hex, Db, DbError, RunId, Stored};
 use accelcal_core::error::{Classify, Kind};
 
 /// What an asset is.
@@ -47,7 +47,7 @@ impl AssetKind {
         }
     }
 
-    fn from_sql(s: &str) -> Result<AssetKind, DbError> {
+    pub(crate) fn from_sql(s: &str) -> Result<AssetKind, DbError> {
         match s {
             "head" => Ok(AssetKind::Head),
             "thermometer" => Ok(AssetKind::Thermometer),
@@ -89,29 +89,6 @@ pub struct StatedValue {
     pub value: f64,
     /// Its standard uncertainty (one sigma).
     pub u: f64,
-}
-
-/// A run calibrated with an asset: what [`Db::affected`] lists.
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct AffectedRun {
-    /// The run.
-    pub run_id: String,
-    /// The unit's device id.
-    pub device_id: String,
-    /// The unit's serial number.
-    pub serial: String,
-    /// The station that ran it.
-    pub station: String,
-    /// When the run started, seconds since the Unix epoch.
-    pub started_unix_s: i64,
-    /// The asset's certificate in force for the run.
-    pub certificate: String,
-    /// How the run ended (`None`: it has not).
-    pub outcome: Option<Outcome>,
-    /// Whether a certificate was issued.
-    pub certified: bool,
-    /// Why the run was voided, when it was.
-    pub voided: Option<String>,
 }
 
 /// An asset the line cannot use, or cannot register.
@@ -429,43 +406,6 @@ impl Db {
             )
         })?;
         rows.iter().map(|r| Ok((AssetKind::from_sql(&r[0].text()?)?, r[1].text()?, r[2].text()?))).collect()
-    }
-
-    /// Every run that used asset `id` and started on or after `since_unix_s`, oldest first
-    /// ([`AssetError::Unknown`] when the asset is not registered).
-    pub fn affected(&mut self, id: &str, since_unix_s: i64) -> Result<Vec<AffectedRun>, DbError> {
-        self.asset_certificates(id)?;
-        let rows = self.conn.transaction(|tx| {
-            tx.query(
-                "SELECT r.run_id, r.device_id, r.serial, r.station, r.started_unix_s, ra.certificate, e.outcome, \
-                 c.run_id, v.reason FROM run_asset ra JOIN run r ON r.run_id = ra.run_id \
-                 LEFT JOIN run_end e ON e.run_id = ra.run_id LEFT JOIN certificate c ON c.run_id = ra.run_id \
-                 LEFT JOIN void v ON v.run_id = ra.run_id \
-                 WHERE ra.asset_id = $1 AND r.started_unix_s >= $2 ORDER BY r.started_unix_s, r.run_id",
-                &[id.to_string().into(), since_unix_s.into()],
-            )
-        })?;
-        rows.iter()
-            .map(|r| {
-                Ok(AffectedRun {
-                    run_id: r[0].text()?,
-                    device_id: r[1].text()?,
-                    serial: r[2].text()?,
-                    station: r[3].text()?,
-                    started_unix_s: r[4].int()?,
-                    certificate: r[5].text()?,
-                    outcome: match &r[6] {
-                        Val::Null => None,
-                        v => Some(Outcome::from_sql(&v.text()?)?),
-                    },
-                    certified: r[7] != Val::Null,
-                    voided: match &r[8] {
-                        Val::Null => None,
-                        v => Some(v.text()?),
-                    },
-                })
-            })
-            .collect()
     }
 }
 

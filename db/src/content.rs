@@ -66,6 +66,23 @@ pub(crate) fn amendment_content(
     format!("{sequence}\n{number}\n{replaces}\n{reason}\n{html}")
 }
 
+/// What an asset_found_bad row's `content_sha256` hashes: the finding (asset, certificate, the
+/// first day affected) and why.
+pub(crate) fn found_bad_content(asset_id: &str, certificate: &str, since: &str, reason: &str) -> String {
+    format!("{asset_id}\n{certificate}\n{since}\n{reason}")
+}
+
+/// What a recall_dismissal row's `content_sha256` hashes: the finding, the unit and why.
+pub(crate) fn dismissal_content(
+    asset_id: &str,
+    certificate: &str,
+    device_id: &str,
+    serial: &str,
+    reason: &str,
+) -> String {
+    format!("{asset_id}\n{certificate}\n{device_id}\n{serial}\n{reason}")
+}
+
 /// What a certificate_number row's `content_sha256` hashes.
 pub(crate) fn certificate_number_content(sequence: i64, number: &str) -> String {
     format!("{sequence}\n{number}")
