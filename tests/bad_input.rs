@@ -248,7 +248,7 @@ fn single_sample_dwells_are_accepted_with_a_warning() {
     campaign(&c, &EIGHT_POSITIONS.map(|(a, b)| (a, b, if a == 90.0 { 1 } else { 3 })));
     let c = c.to_str().unwrap();
     for method in ["lsq", "test-turns"] {
-        let out = accelcal(&["fit", c, "--method", method, "--g", "9.81"]);
+        let out = accelcal(&["fit", c, "--method", method, "--g", "9.81", "--g-u", "1e-5"]);
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(out.status.success(), "{err}");
         assert_eq!(err.trim_end(), format!("warning: {c}:8: 1 dwell(s) with a single sample (first at this line): their scatter is unknown"));
@@ -279,7 +279,7 @@ fn a_refusal_after_excluded_samples_is_one_line_naming_the_exclusion() {
     let e = bad(&["diagnose", c]);
     assert!(e.starts_with(&format!("error: {c}: every dwell has a single sample")), "{e}");
     assert!(e.contains(&format!("(note: {excluded}")) && e.contains(&single), "{e}");
-    let out = accelcal(&["fit", c, "--g", "9.81"]);
+    let out = accelcal(&["fit", c, "--g", "9.81", "--g-u", "1e-5"]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{err}");
     let lines: Vec<&str> = err.lines().collect();
@@ -356,7 +356,11 @@ fn the_gravity_fallback_is_announced_once() {
         assert_eq!(err.matches("g = 9.81 m/s² assumed").count(), 1, "{cmd:?}: {err}");
         assert_eq!(err.lines().last(), Some(note.as_str()), "{cmd:?}: {err}");
     }
-    let quiet = accelcal(&["fit", c, "--g", "9.81"]);
+    // A g typed is not assumed: it is taken as rounded, said once; with --g-u, nothing is said.
+    let typed = accelcal(&["fit", c, "--g", "9.81"]);
+    let err = String::from_utf8_lossy(&typed.stderr);
+    assert_eq!(err.lines().collect::<Vec<_>>(), ["note: u(g) = 2.9e-3 m/s²: g = 9.81 m/s² as typed is taken as rounded, half a unit of its last digit (give --g-u with the standard uncertainty of the survey it came from)"], "{err}");
+    let quiet = accelcal(&["fit", c, "--g", "9.81", "--g-u", "1e-5"]);
     assert!(String::from_utf8_lossy(&quiet.stderr).is_empty());
     let e = bad(&["fit", c, "--terms", "ax,ay,az,ax^2,ay^2,az^2,ax*ay,ax*az,ay*az"]);
     assert!(!e.contains("assumed"), "{e}");

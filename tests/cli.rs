@@ -80,11 +80,11 @@ fn simulate_is_seeded_and_writes_truth() {
     assert_eq!(truth["channels"].as_array().unwrap().len(), 3);
     assert_eq!(json(&d.p("sum.json"))["positions"], 62);
     let head = std::fs::read_to_string(&a).unwrap();
-    assert!(head.starts_with("# g_m_s2: 9.81\nt_s,alpha_deg,beta_deg,x,y,z\n"));
+    assert!(head.starts_with("# g_m_s2: 9.81\n# g_source: given\nt_s,alpha_deg,beta_deg,x,y,z\n"), "{head}");
     let block = simulate(&d, "blk.csv", &["--layout", "block:5", "--plan", "six", "--samples", "2"]);
     assert!(std::fs::read_to_string(block)
         .unwrap()
-        .starts_with("# g_m_s2: 9.81\nt_s,alpha_deg,beta_deg,a1,a2,a3,a4,a5\n"));
+        .starts_with("# g_m_s2: 9.81\n# g_source: given\nt_s,alpha_deg,beta_deg,a1,a2,a3,a4,a5\n"));
 }
 
 #[test]
@@ -580,7 +580,10 @@ fn the_certificate_is_the_snapshot() {
         .replace(issued, "issued (date) | ")
         .replace(&format!("accelcal {}", env!("CARGO_PKG_VERSION")), "accelcal (version)");
     assert_eq!(text.matches(" m/s² (").count(), 1, "one g: {text}");
-    assert!(text.contains("g (local gravity) | 9.810 ± 0.005 m/s²"), "{text}");
+    assert!(
+        text.contains("g (local gravity) | 9.8100 ± 0.0058 m/s² (U, k = 2): the value the operator stated"),
+        "{text}"
+    );
     assert!(
         text.contains(
             "at 25.0 °C (the unit's own sensor, not a traceable thermometer; 24.9 to 25.1 °C over the positions)"

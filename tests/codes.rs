@@ -138,7 +138,9 @@ fn simulate_writes_signed_codes_as_the_unsigned_ones_less_32768() {
     let p = pair();
     let text = std::fs::read_to_string(&p.signed).unwrap();
     assert!(
-        text.starts_with("# g_m_s2: 9.7803\n# codes: signed16\nt_s,alpha_deg,beta_deg,x,y,z\n"),
+        text.starts_with(
+            "# g_m_s2: 9.7803\n# g_source: given\n# codes: signed16\nt_s,alpha_deg,beta_deg,x,y,z\n"
+        ),
         "{}",
         &text[..80]
     );
@@ -196,8 +198,8 @@ fn a_codes_flag_that_contradicts_the_comment_line_is_refused_naming_both() {
     let f = s(&p.signed);
     let (rec, out) = (p.path("r.rec"), p.path("o.csv"));
     std::fs::write(&rec, b"not read").unwrap();
-    // Line 2: `simulate` writes its `# g_m_s2:` line first.
-    let want = format!("{f}:2: `# codes: signed16` contradicts --codes unsigned16");
+    // Line 3: `simulate` writes its `# g_m_s2:` and `# g_source:` lines first.
+    let want = format!("{f}:3: `# codes: signed16` contradicts --codes unsigned16");
     for args in [
         vec!["select", f, "--codes", "unsigned16"],
         vec!["fit", f, "--codes", "unsigned16"],

@@ -151,6 +151,8 @@ fn both_engines_have_the_same_tables_and_columns() {
             "V4__" | "V5__" | "V7__" | "V8__" => 1,
             "V6__" => 7,
             "V9__" => 3,
+            // Columns added to `asset`, no table.
+            "V11_" => 0,
             _ => 2,
         };
         assert_eq!(s.len(), want, "{v}: {s:?}");
@@ -583,7 +585,7 @@ fn sixteen_first_opens_at_once_migrate_once() {
         assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
     }
     let mut db = Db::open(&spec).unwrap();
-    assert_eq!(db.schema_versions().unwrap(), vec![1, 2, 3, 4, 5, 6, 7, 8, 9, 10]);
+    assert_eq!(db.schema_versions().unwrap(), vec![1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12]);
     assert_eq!(db.assets().unwrap().len(), 16);
     assert!(db.verify_chain().unwrap().mismatches.is_empty());
 }
@@ -741,6 +743,149 @@ fn a_tampered_run_is_marked_by_fleet_history_and_serve() {
     tamper::a_tampered_run_is_marked_where_it_is_listed(&spec, &with_triggers_dropped(&spec));
 }
 
+/// Issue 59: a head found out of tolerance traced to its units, their dismissal and
+/// recalibration; a finding or a dismissal changed behind accelcal's back is caught.
+#[test]
+fn a_bad_head_is_traced_to_its_units_and_their_recalls() {
+    let d = tempfile::tempdir().unwrap();
+    let spec = db_file(&d);
+    dbkit::recall::a_bad_head_is_traced_to_its_units(&spec, &with_triggers_dropped(&spec));
+}
+
+/// Issue 59 on the command line: `asset found-bad` and `affected --dismiss` refuse with one line
+/// and store nothing (the file is unchanged), and `affected --csv` writes the list the recall
+/// letters are written from (a snapshot; the certificate numbers' year, the year of now, written
+/// `YYYY`, and the dismissal's time `NOW`).
+#[test]
+fn affected_writes_the_recall_list_as_csv_and_refusals_are_one_line() {
+    let d = tempfile::tempdir().unwrap();
+    let spec = db_file(&d);
+    let mut db = Db::open(&spec).unwrap();
+    dbkit::recall::recall_line(&mut db, true);
+    drop(db);
+    let found_bad = |extra: &[&str]| -> Vec<String> {
+        let mut v: Vec<String> =
+            ["asset", "found-bad", "--db", spec.as_str()].iter().map(|s| s.to_string()).collect();
+        v.extend(extra.iter().map(|s| s.to_string()));
+        v
+    };
+    let tomorrow = accelcal_db::asset::today_utc().tomorrow().unwrap().to_string();
+    let before = std::fs::read(&spec).unwrap();
+    for (args, code, want) in [
+        (
+            found_bad(&["HEAD-9", "--certificate", "C", "--since", "2026-01-05", "--reason", "worn"]),
+            1,
+            "error: asset `HEAD-9` is not registered in",
+        ),
+        (
+            found_bad(&["HEAD-1", "--certificate", "DKD-99", "--since", "2026-01-05", "--reason", "worn"]),
+            2,
+            "error: asset `HEAD-1`: it has no certificate DKD-99 (its certificates: DKD-17-001, DKD-17-002)",
+        ),
+        (
+            found_bad(&["HEAD-1", "--certificate", "DKD-17-001", "--since", &tomorrow, "--reason", "worn"]),
+            2,
+            "is after today (",
+        ),
+        (
+            found_bad(&["HEAD-1", "--certificate", "DKD-17-001", "--since", "2026-01-05", "--reason", " "]),
+            2,
+            "error: --reason is empty: say what the asset's recalibration found",
+        ),
+        (
+            ["affected", "HEAD-1", "--db", &spec].iter().map(|s| s.to_string()).collect(),
+            2,
+            "error: asset `HEAD-1` was not found out of tolerance in",
+        ),
+    ] {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let (got, out, err) = accelcal(&args);
+        assert_eq!(got, Some(code), "{args:?}: {out}{err}");
+        assert!(err.contains(want) && err.lines().count() == 1 && out.is_empty(), "{args:?}: {err}");
+    }
+    assert_eq!(std::fs::read(&spec).unwrap(), before, "nothing stored");
+    let out = ok(&found_bad(&[
+        "HEAD-1",
+        "--certificate",
+        "DKD-17-001",
+        "--since",
+        "2026-01-05",
+        "--reason",
+        "worn bearing",
+        "--operator",
+        "ana",
+    ])
+    .iter()
+    .map(String::as_str)
+    .collect::<Vec<_>>());
+    assert_eq!(
+        out,
+        format!(
+            "asset: HEAD-1 (head) certificate DKD-17-001 found out of tolerance, its runs from 2026-01-05 on affected \
+             (worn bearing): recorded in {spec}\naffected: 3 runs of 3 units, 2 open (`accelcal affected HEAD-1` lists \
+             them)\n"
+        )
+    );
+    let before = std::fs::read(&spec).unwrap();
+    let again =
+        found_bad(&["HEAD-1", "--certificate", "DKD-17-001", "--since", "2026-01-05", "--reason", "again"]);
+    let e = bad(&again.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(e.contains("its certificate DKD-17-001 was found out of tolerance already (recorded "), "{e}");
+    let dismiss = |extra: &[&str]| -> Vec<String> {
+        let mut v: Vec<String> =
+            ["affected", "HEAD-1", "--db", spec.as_str()].iter().map(|s| s.to_string()).collect();
+        v.extend(extra.iter().map(|s| s.to_string()));
+        v
+    };
+    for (args, want) in [
+        (dismiss(&["--dismiss", "SN-D"]), "error: affected --dismiss needs --reason TEXT"),
+        (dismiss(&["--dismiss", "SN-D", "--reason", ""]), "error: --reason is empty: say why the unit needs no recall"),
+        (dismiss(&["--reason", "ok"]), "error: --reason does not apply to affected without --dismiss"),
+        (dismiss(&["--dismiss", "SN-D", "--reason", "ok", "--since", "2026-01-01"]), "error: --since does not apply to affected --dismiss"),
+        (dismiss(&["--dismiss", "SN-A", "--reason", "ok"]), "error: asset `HEAD-1`: no run of unit SN-A is affected by its finding (certificate DKD-17-001, since 2026-01-05): nothing to dismiss"),
+        (dismiss(&["--dismiss", "SN-D", "--reason", "a\u{2028}b"]), "error: --reason"),
+    ] {
+        let e = bad(&args.iter().map(String::as_str).collect::<Vec<_>>());
+        assert!(e.contains(want), "{args:?}: {e}");
+    }
+    assert_eq!(std::fs::read(&spec).unwrap(), before, "nothing stored");
+    let out =
+        ok(&dismiss(&["--dismiss", "SN-D", "--reason", "rejected, never released", "--operator", "qa"])
+            .iter()
+            .map(String::as_str)
+            .collect::<Vec<_>>());
+    assert!(out.starts_with("affected: unit SN-D (00000000000000000000000d) dismissed from asset HEAD-1's finding under certificate DKD-17-001 (rejected, never released): recorded in "), "{out}");
+
+    let csv = d.path().join("recall.csv");
+    let out = ok(&["affected", "HEAD-1", "--db", &spec, "--csv", csv.to_str().unwrap()]);
+    assert!(out.contains(": 3 runs of 3 units, 1 open") && out.contains("wrote "), "{out}");
+    let year = accelcal_db::asset::today_utc().year();
+    let text = std::fs::read_to_string(&csv).unwrap();
+    // The dismissal's time, the last cell of its row, is now.
+    let today = accelcal_db::asset::today_utc().to_string();
+    let text: String = text
+        .lines()
+        .map(|l| match l.rfind(',') {
+            Some(at) if l[at..].contains(&today) => format!("{},\"NOW\"\n", &l[..at]),
+            _ => format!("{l}\n"),
+        })
+        .collect();
+    insta::assert_snapshot!("affected_csv", text.replace(&format!("\"{year}-0000"), "\"YYYY-0000"));
+    // With --since: every run on the head from that day, those the finding covers marked.
+    let out = ok(&["affected", "HEAD-1", "--since", "2026-01-01", "--db", &spec]);
+    assert!(
+        out.contains(&format!("affected: asset HEAD-1 since 2026-01-01 (UTC) in {spec}: 6 runs of 6 units")),
+        "{out}"
+    );
+    let r = db_verify(&spec);
+    assert!(r.contains("every row matches its hash chain"), "{r}");
+}
+
+/// `db verify`'s output.
+fn db_verify(spec: &str) -> String {
+    ok(&["db", "verify", "--db", spec])
+}
+
 /// A cell that does not read as its type is named by table, row and column: every such cell in
 /// `db verify`; `history`, `fleet` and serve's pages list every other run and name the run that
 /// does not read by its bad cell.
@@ -844,20 +989,22 @@ fn readers_never_migrate_and_db_migrate_does() {
     drop(db);
     // Back to schema 7, as a database of the last release is.
     with_triggers_dropped(&spec)(
-        "DROP TABLE amendment; DROP TABLE approval; DROP TABLE signer_revocation; DROP TABLE signer; DROP TABLE chain_event; \
+        "ALTER TABLE asset DROP COLUMN value_si; ALTER TABLE asset DROP COLUMN value_u_si; \
+         DROP TABLE recall_dismissal; DROP TABLE asset_found_bad; DROP TABLE amendment; DROP TABLE approval; \
+         DROP TABLE signer_revocation; DROP TABLE signer; DROP TABLE chain_event; \
          DELETE FROM refinery_schema_history WHERE version >= 8",
     );
     let before = std::fs::read(&spec).unwrap();
     let (code, _, err) = accelcal(&["history", "SN-1", "--db", &spec]);
     assert_eq!(code, Some(1), "{err}");
     assert!(
-        err.contains("at schema version 7, this build reads version 10: run `accelcal db migrate --db"),
+        err.contains("at schema version 7, this build reads version 12: run `accelcal db migrate --db"),
         "{err}"
     );
     assert_eq!(std::fs::read(&spec).unwrap(), before, "the reader wrote nothing");
     let (code, out, err) = accelcal(&["db", "migrate", "--db", &spec]);
     assert_eq!(code, Some(0), "{out}{err}");
-    assert!(out.contains("is at schema version 10"), "{out}");
+    assert!(out.contains("is at schema version 12"), "{out}");
     let (code, out, err) = accelcal(&["history", "SN-1", "--db", &spec]);
     assert_eq!(code, Some(0), "{out}{err}");
 }

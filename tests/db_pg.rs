@@ -254,6 +254,14 @@ fn as_superuser(url: &str) -> impl Fn(&str) + '_ {
     }
 }
 
+/// Issue 59: a head found out of tolerance traced to its units, their dismissal and
+/// recalibration, on PostgreSQL.
+#[test]
+fn a_bad_head_is_traced_to_its_units_and_their_recalls() {
+    let pg = Cluster::start();
+    dbkit::recall::a_bad_head_is_traced_to_its_units(&pg.url, &as_superuser(&pg.url));
+}
+
 #[test]
 fn laundering_is_reported_and_no_reader_writes() {
     let pg = Cluster::start();

@@ -25,12 +25,14 @@ use accelcal_shared::kinematics;
 use crate::input::Input;
 
 mod codes;
+mod g_source;
 pub mod head_at;
 pub mod identity;
 use crate::error::{Classify, Kind, Plain, Setting, Worded, Wording};
 use crate::text::TextError;
 use codes::{header_comments, HeaderComments};
 pub use codes::{CodeRange, CODES_COMMENT, CODES_KEY};
+pub use g_source::GSource;
 
 /// Why a campaign file was refused. Every variant names the file and, where there is one, the
 /// line and the column (1-based, counting fields).
@@ -149,6 +151,9 @@ pub struct Campaign {
     /// `acquire` writes it; the fitting commands take g from it). Not read back by
     /// [`Campaign::read`]: `accelcal`'s commands read the line themselves.
     pub g_m_s2: Option<f64>,
+    /// Where that gravity came from, written as a `# g_source:` line ([`GSource::tag`]) after
+    /// the `# g_m_s2:` line; not read back by [`Campaign::read`].
+    pub g_source: Option<GSource>,
     /// The unit's serial number, written as a `# serial:` comment line (as `acquire` writes it);
     /// not read back by [`Campaign::read`] ([`identity::CampaignId`] reads it).
     pub serial: Option<String>,
@@ -274,6 +279,9 @@ impl Campaign {
         }
         if let Some(g) = self.g_m_s2 {
             head += &header_line(identity::G_KEY, &g.to_string())?;
+            if let Some(source) = &self.g_source {
+                head += &header_line(identity::G_SOURCE_KEY, &source.tag())?;
+            }
         }
         if self.codes != CodeRange::default() {
             head += &header_line(CODES_KEY, self.codes.name())?;

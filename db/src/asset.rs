@@ -3,7 +3,7 @@
 //! own, with the certificate's due date and, for a head, the uncertainties the budget takes from
 //! it; the certificate registered last is the one in force. A run stores which asset (and which
 //! of its certificates) it used, one per kind, so that an asset found out of tolerance at its own
-//! recalibration names every run and unit it calibrated since a date ([`Db::affected`]).
+//! recalibration names every run and unit it calibrated since a date ([`crate::recall`]).
 //!
 //! Dates are calendar days in UTC (`YYYY-MM-DD`); an asset may be used on its due date, not after.
 
@@ -14,7 +14,7 @@ use serde::Serialize;
 use super::content::{asset_content, run_asset_content};
 use super::engine::{Tx, Val};
 use super::piece::insert_row;
-use super::{chain, sha256_hex, Db, DbError, Outcome, RunId, Stored};
+use super::{chain, sha256_hex, Db, DbError, RunId, Stored};
 use accelcal_core::error::{Classify, Kind};
 
 /// What an asset is.
@@ -39,7 +39,15 @@ impl AssetKind {
         }
     }
 
-    fn from_sql(s: &str) -> Result<AssetKind, DbError> {
+    /// The kind as a message names one: `head`, `thermometer`, `gravity survey`.
+    pub fn noun(self) -> &'static str {
+        match self {
+            AssetKind::Gravity => "gravity survey",
+            k => k.name(),
+        }
+    }
+
+    pub(crate) fn from_sql(s: &str) -> Result<AssetKind, DbError> {
         match s {
             "head" => Ok(AssetKind::Head),
             "thermometer" => Ok(AssetKind::Thermometer),
@@ -69,29 +77,18 @@ pub struct Asset {
     pub operator: String,
     /// When, seconds since the Unix epoch.
     pub registered_unix_s: i64,
+    /// A gravity survey: the value of g its certificate states and its standard uncertainty,
+    /// m/s² (`None` for other kinds).
+    pub value: Option<StatedValue>,
 }
 
-/// A run calibrated with an asset: what [`Db::affected`] lists.
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct AffectedRun {
-    /// The run.
-    pub run_id: String,
-    /// The unit's device id.
-    pub device_id: String,
-    /// The unit's serial number.
-    pub serial: String,
-    /// The station that ran it.
-    pub station: String,
-    /// When the run started, seconds since the Unix epoch.
-    pub started_unix_s: i64,
-    /// The asset's certificate in force for the run.
-    pub certificate: String,
-    /// How the run ended (`None`: it has not).
-    pub outcome: Option<Outcome>,
-    /// Whether a certificate was issued.
-    pub certified: bool,
-    /// Why the run was voided, when it was.
-    pub voided: Option<String>,
+/// A value an asset's certificate states, with its standard uncertainty, in SI units.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct StatedValue {
+    /// The value.
+    pub value: f64,
+    /// Its standard uncertainty (one sigma).
+    pub u: f64,
 }
 
 /// An asset the line cannot use, or cannot register.
@@ -173,7 +170,7 @@ pub fn start_of_day_unix_s(d: Date) -> i64 {
 }
 
 const ASSET_COLUMNS: &str = "asset_id, certificate, kind, due_date, angle_u_arcsec, orthogonality_u_arcsec, \
-                             operator, registered_unix_s";
+                             operator, registered_unix_s, value_si, value_u_si";
 
 fn asset_of(r: &[Val]) -> Result<Asset, DbError> {
     Ok(Asset {
@@ -185,7 +182,33 @@ fn asset_of(r: &[Val]) -> Result<Asset, DbError> {
         orthogonality_u_arcsec: r[5].real()?,
         operator: r[6].text()?,
         registered_unix_s: r[7].int()?,
+        value: match (&r[8], &r[9]) {
+            (Val::Null, Val::Null) => None,
+            (v, u) => Some(StatedValue { value: v.real()?, u: u.real()? }),
+        },
     })
+}
+
+/// The row `add_asset` inserts: the columns of `chain::table("asset")` in their order, its hash
+/// (index 8) NULL until [`asset_content`] of the row gives it.
+fn asset_row(a: &Asset) -> Vec<Val> {
+    let (value, u) = match a.value {
+        Some(v) => (v.value.into(), v.u.into()),
+        None => (Val::Null, Val::Null),
+    };
+    vec![
+        a.asset_id.clone().into(),
+        a.certificate.clone().into(),
+        a.kind.name().into(),
+        a.due_date.to_string().into(),
+        a.angle_u_arcsec.into(),
+        a.orthogonality_u_arcsec.into(),
+        a.operator.clone().into(),
+        a.registered_unix_s.into(),
+        Val::Null,
+        value,
+        u,
+    ]
 }
 
 /// Every certificate of asset `id`, oldest first.
@@ -225,7 +248,22 @@ fn check(a: &Asset) -> Result<(), AssetError> {
             return Err(bad(format!("a {} states no {what} uncertainty (a head does)", a.kind.name())));
         }
     }
-    Ok(())
+    match (a.kind, a.value) {
+        (AssetKind::Gravity, None) => Err(bad(
+            "a gravity survey states the value of g and its standard uncertainty (--value, --u)".into(),
+        )),
+        (AssetKind::Gravity, Some(StatedValue { value, u })) => {
+            if !(value.is_finite() && (9.7..=9.9).contains(&value)) {
+                return Err(bad(format!("its g {value} m/s² is not between 9.7 and 9.9 m/s²")));
+            }
+            if !(u.is_finite() && u > 0.0 && u < 0.01) {
+                return Err(bad(format!("its standard uncertainty {u} m/s² is not in (0, 0.01) m/s²")));
+            }
+            Ok(())
+        }
+        (kind, Some(_)) => Err(bad(format!("a {} states no value (a gravity survey does)", kind.name()))),
+        (_, None) => Ok(()),
+    }
 }
 
 impl Db {
@@ -234,19 +272,9 @@ impl Db {
     /// refused (a certificate is registered once); an asset keeps its kind.
     pub fn add_asset(&mut self, a: &Asset) -> Result<Stored, DbError> {
         check(a).map_err(DbError::Asset)?;
-        let row: Vec<Val> = vec![
-            a.asset_id.clone().into(),
-            a.certificate.clone().into(),
-            a.kind.name().into(),
-            a.due_date.to_string().into(),
-            a.angle_u_arcsec.into(),
-            a.orthogonality_u_arcsec.into(),
-            a.operator.clone().into(),
-            a.registered_unix_s.into(),
-        ];
+        let mut row = asset_row(a);
         let sha = sha256_hex(asset_content(&row)?.as_bytes());
-        let mut row = row;
-        row.push(sha.clone().into());
+        row[8] = sha.clone().into();
         self.retried(|conn| {
             conn.transaction(|tx| {
                 let known = certificates(tx, &a.asset_id)?;
@@ -257,14 +285,7 @@ impl Db {
                     }));
                 }
                 if let Some(same) = known.iter().find(|k| k.certificate == a.certificate) {
-                    let same_row: Vec<Val> = vec![
-                        same.asset_id.clone().into(),
-                        same.certificate.clone().into(),
-                        same.kind.name().into(),
-                        same.due_date.to_string().into(),
-                        same.angle_u_arcsec.into(),
-                        same.orthogonality_u_arcsec.into(),
-                    ];
+                    let same_row = asset_row(same);
                     return if sha256_hex(asset_content(&same_row)?.as_bytes()) == sha {
                         Ok(Stored::Already)
                     } else {
@@ -340,8 +361,8 @@ impl Db {
         if a.kind != kind {
             return Err(DbError::Asset(AssetError::WrongKind {
                 asset_id: id.into(),
-                is: a.kind.name(),
-                wanted: kind.name(),
+                is: a.kind.noun(),
+                wanted: kind.noun(),
             }));
         }
         if today > a.due_date {
@@ -385,43 +406,6 @@ impl Db {
             )
         })?;
         rows.iter().map(|r| Ok((AssetKind::from_sql(&r[0].text()?)?, r[1].text()?, r[2].text()?))).collect()
-    }
-
-    /// Every run that used asset `id` and started on or after `since_unix_s`, oldest first
-    /// ([`AssetError::Unknown`] when the asset is not registered).
-    pub fn affected(&mut self, id: &str, since_unix_s: i64) -> Result<Vec<AffectedRun>, DbError> {
-        self.asset_certificates(id)?;
-        let rows = self.conn.transaction(|tx| {
-            tx.query(
-                "SELECT r.run_id, r.device_id, r.serial, r.station, r.started_unix_s, ra.certificate, e.outcome, \
-                 c.run_id, v.reason FROM run_asset ra JOIN run r ON r.run_id = ra.run_id \
-                 LEFT JOIN run_end e ON e.run_id = ra.run_id LEFT JOIN certificate c ON c.run_id = ra.run_id \
-                 LEFT JOIN void v ON v.run_id = ra.run_id \
-                 WHERE ra.asset_id = $1 AND r.started_unix_s >= $2 ORDER BY r.started_unix_s, r.run_id",
-                &[id.to_string().into(), since_unix_s.into()],
-            )
-        })?;
-        rows.iter()
-            .map(|r| {
-                Ok(AffectedRun {
-                    run_id: r[0].text()?,
-                    device_id: r[1].text()?,
-                    serial: r[2].text()?,
-                    station: r[3].text()?,
-                    started_unix_s: r[4].int()?,
-                    certificate: r[5].text()?,
-                    outcome: match &r[6] {
-                        Val::Null => None,
-                        v => Some(Outcome::from_sql(&v.text()?)?),
-                    },
-                    certified: r[7] != Val::Null,
-                    voided: match &r[8] {
-                        Val::Null => None,
-                        v => Some(v.text()?),
-                    },
-                })
-            })
-            .collect()
     }
 }
 

@@ -27,7 +27,7 @@ pub struct Table {
 }
 
 /// Every table of the calibration, as the chain sees it.
-pub const TABLES: [Table; 19] = [
+pub const TABLES: [Table; 21] = [
     Table {
         name: "run",
         columns: &[
@@ -84,6 +84,8 @@ pub const TABLES: [Table; 19] = [
             "operator",
             "registered_unix_s",
             "content_sha256",
+            "value_si",
+            "value_u_si",
         ],
     },
     Table {
@@ -143,13 +145,47 @@ pub const TABLES: [Table; 19] = [
             "content_sha256",
         ],
     },
+    Table {
+        name: "asset_found_bad",
+        columns: &[
+            "asset_id",
+            "certificate",
+            "since_date",
+            "reason",
+            "operator",
+            "recorded_unix_s",
+            "content_sha256",
+        ],
+    },
+    Table {
+        name: "recall_dismissal",
+        columns: &[
+            "asset_id",
+            "certificate",
+            "device_id",
+            "serial",
+            "reason",
+            "operator",
+            "dismissed_unix_s",
+            "content_sha256",
+        ],
+    },
 ];
 
 impl Table {
     /// Whether its rows belong to no run (a relabel, an asset): their ledger entries have
     /// `run_id` `''` and chain to the ledger's latest entry.
     pub fn is_global(&self) -> bool {
-        matches!(self.name, "relabel" | "asset" | "chain_event" | "signer" | "signer_revocation")
+        matches!(
+            self.name,
+            "relabel"
+                | "asset"
+                | "chain_event"
+                | "signer"
+                | "signer_revocation"
+                | "asset_found_bad"
+                | "recall_dismissal"
+        )
     }
 }
 
@@ -170,6 +206,10 @@ pub fn piece_key(table: &str, row: &[Val]) -> Result<String, DbError> {
         "signer_revocation" => format!("signer_revocation:{}", row[0].text()?),
         "approval" => format!("approval:{}", row[1].text()?),
         "amendment" => format!("amendment:{}", row[1].text()?),
+        "asset_found_bad" => format!("asset_found_bad:{}:{}", row[0].text()?, row[1].text()?),
+        "recall_dismissal" => {
+            format!("recall_dismissal:{}:{}:{}", row[0].text()?, row[1].text()?, row[2].text()?)
+        }
         t => t.to_string(),
     })
 }
@@ -696,6 +736,21 @@ fn content_mismatch(t: &Table, row: &[Val]) -> Result<Option<String>, DbError> {
             &col("html").text()?,
         )
         .into_bytes(),
+        "asset_found_bad" => super::content::found_bad_content(
+            &col("asset_id").text()?,
+            &col("certificate").text()?,
+            &col("since_date").text()?,
+            &col("reason").text()?,
+        )
+        .into_bytes(),
+        "recall_dismissal" => super::content::dismissal_content(
+            &col("asset_id").text()?,
+            &col("certificate").text()?,
+            &col("device_id").text()?,
+            &col("serial").text()?,
+            &col("reason").text()?,
+        )
+        .into_bytes(),
         other => unreachable!("table {other} is in TABLES"),
     };
     Ok((super::sha256_hex(&content) != stored)
@@ -906,6 +961,22 @@ pub fn verify_signer(tx: &mut Tx<'_>, fingerprint: &str) -> Result<Vec<Mismatch>
         &[(table("signer_revocation"), "fingerprint")],
         fingerprint,
         &format!("signer_revocation:{fingerprint}"),
+    )?);
+    first_first(&mut out);
+    Ok(out)
+}
+
+/// Checks asset `id`'s recall rows (the findings that it was out of tolerance, and the
+/// dismissals of the units they affect) against their ledger entries, as [`verify_asset`] does
+/// its register rows. Empty when they match.
+pub fn verify_recall(tx: &mut Tx<'_>, id: &str) -> Result<Vec<Mismatch>, DbError> {
+    let mut out =
+        verify_global(tx, &[(table("asset_found_bad"), "asset_id")], id, &format!("asset_found_bad:{id}:"))?;
+    out.extend(verify_global(
+        tx,
+        &[(table("recall_dismissal"), "asset_id")],
+        id,
+        &format!("recall_dismissal:{id}:"),
     )?);
     first_first(&mut out);
     Ok(out)

@@ -26,7 +26,7 @@ pub fn event_content(kind: &str, detail: &str) -> String {
 /// What an asset row's `content_sha256` hashes: what the certificate states (not who registered
 /// it when), so that registering the same certificate again is a no-op.
 pub(crate) fn asset_content(row: &[Val]) -> Result<String, DbError> {
-    Ok(format!(
+    let mut text = format!(
         "{}\n{}\n{}\n{}\n{:?}\n{:?}",
         row[0].text()?,
         row[1].text()?,
@@ -34,7 +34,14 @@ pub(crate) fn asset_content(row: &[Val]) -> Result<String, DbError> {
         row[3].text()?,
         row[4].real()?.to_bits(),
         row[5].real()?.to_bits()
-    ))
+    );
+    // A stated value (schema 11, after the row's hash) is covered; a row without one hashes as
+    // before it.
+    match (row.get(9).unwrap_or(&Val::Null), row.get(10).unwrap_or(&Val::Null)) {
+        (Val::Null, Val::Null) => {}
+        (v, u) => text.push_str(&format!("\n{:?}\n{:?}", v.real()?.to_bits(), u.real()?.to_bits())),
+    }
+    Ok(text)
 }
 
 /// What a run_asset row's `content_sha256` hashes.
@@ -57,6 +64,23 @@ pub(crate) fn amendment_content(
     html: &str,
 ) -> String {
     format!("{sequence}\n{number}\n{replaces}\n{reason}\n{html}")
+}
+
+/// What an asset_found_bad row's `content_sha256` hashes: the finding (asset, certificate, the
+/// first day affected) and why.
+pub(crate) fn found_bad_content(asset_id: &str, certificate: &str, since: &str, reason: &str) -> String {
+    format!("{asset_id}\n{certificate}\n{since}\n{reason}")
+}
+
+/// What a recall_dismissal row's `content_sha256` hashes: the finding, the unit and why.
+pub(crate) fn dismissal_content(
+    asset_id: &str,
+    certificate: &str,
+    device_id: &str,
+    serial: &str,
+    reason: &str,
+) -> String {
+    format!("{asset_id}\n{certificate}\n{device_id}\n{serial}\n{reason}")
 }
 
 /// What a certificate_number row's `content_sha256` hashes.

@@ -20,7 +20,10 @@ the as-left verification's measured parameters against the specification's limit
 Control, the index with the specification limits −L and +L; > 1.33 is the usual aim). The counts and yields are computed \
 by the database (SQL); the populations from the period's stored fits and verifications. Units due: each unit's latest \
 certificate (not voided) whose recalibration date (stored with its number, schema 5) falls within --due-days of --until, \
-or before. Control charts, per head asset (or station, for runs without one) and per quantity (each model-4 \
+or before. Recalls, whatever the period: each reference found out of tolerance at its own recalibration (asset \
+found-bad) with the units its runs under the certificate found bad, from the finding's day on, calibrated; a unit, by \
+its latest such run, is shown until a later calibration of it passed on another reference of the kind (another \
+certificate of the asset, or another asset) or it was dismissed (affected --dismiss). Control charts, per head asset (or station, for runs without one) and per quantity (each model-4 \
 coefficient, the as-left largest |error|) over the runs that passed, in start order: individuals and moving range \
 (Montgomery §6.4): centre x̄, σ̂ = MR̄/d2 with d2 = 1.128, limits x̄ ± 3σ̂, the moving range's limit D4·MR̄ with D4 = 3.267, \
 the limits those of the points charted; the Western Electric rules: 1 a point beyond 3σ̂, 2 two of three beyond 2σ̂ on one \

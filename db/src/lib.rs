@@ -19,7 +19,8 @@
 //! `cells`, `content`, never a module that stores pieces; `piece` → `chain`, `derived`,
 //! `engine`; `asset`, `certificate`, `label`, `signer` → `chain`, `engine` (and `content`,
 //! `piece` or `derived` as they need; `certificate` also → `signer`, whose `superseded` says
-//! which amendment replaced a certificate); `anchor` → `chain`; `derived` → `engine`, `history`;
+//! which amendment replaced a certificate); `recall` → `asset`, `certificate`, `chain`,
+//! `content`, `engine`, `piece`, `signer` (never the other way); `anchor` → `chain`; `derived` → `engine`, `history`;
 //! `history` → `cells`, `signer`; `fleet` → `chain`, `check`, `derived`, `engine`, `signer`;
 //! `check` → this file's `Db`.
 
@@ -39,6 +40,7 @@ pub mod fleet;
 pub mod history;
 mod label;
 mod piece;
+pub mod recall;
 pub mod signer;
 mod types;
 mod val;
@@ -46,7 +48,7 @@ mod val;
 use std::io::Read;
 
 pub use anchor::{Anchor, AnchorFinding, AnchorLog};
-pub use asset::{AffectedRun, Asset, AssetError, AssetKind};
+pub use asset::{Asset, AssetError, AssetKind, StatedValue};
 pub use certificate::{CertificateNumber, RecalibrationDue};
 pub use chain::{ChainEvent, ChainReport, Mismatch, RunSeal};
 pub use engine::{repair_schema_history, schema_version, Access, Target, LEDGER_LOCK};
@@ -54,6 +56,7 @@ use engine::{Conn, Tx, Val};
 pub use error::DbError;
 pub use label::{Label, LabelClash, Relabel};
 use piece::{insert_row, Piece};
+pub use recall::{AffectedRun, FoundBad, Recall, RecallState};
 pub use signer::{CertificateState, ReleaseError, Signer};
 pub use types::{LastFlash, Outcome, Phase, Progress, RunId, RunStart, RunSummary, Stored, StoredRecord};
 

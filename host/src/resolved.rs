@@ -1,7 +1,7 @@
 //! What the settings' checks resolve besides the parsed command line, handed to the commands with
 //! it (so that no field of a clap struct is set after parsing).
 
-use accelcal_core::campaign::identity::{G_SOURCE_ASSUMED, G_SOURCE_NORMAL};
+use accelcal_core::campaign::GSource;
 use accelcal_core::error::bad;
 
 /// What the settings' checks resolved besides the parsed command line: the gravity the user
@@ -38,17 +38,27 @@ pub struct Gravity {
 /// Where a command's gravity came from.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Source {
-    /// `--g` (or a station settings file's `g`).
-    Flag,
-    /// `--latitude` and `--height` (m, 0 when not given): WGS84 normal gravity with the free-air
-    /// correction.
-    Site { latitude: f64, height: f64 },
+    /// The command line or the settings file: `--g` (with `--g-u`), `--latitude`/`--height`, or
+    /// a survey read from the register (`--gravity-asset`, once [`crate::app::gravity`] read it).
+    Stated(GSource),
+    /// `--gravity-asset ID`, before the command read the survey from its database: `g` is not
+    /// known yet ([`crate::app::gravity::resolve`] turns it into a [`Source::Stated`] survey).
+    Asset {
+        /// The asset's id.
+        id: String,
+    },
     /// The command's documented default `--g` (`plan`, `simulate`), not given.
     Default,
-    /// A campaign's `# g_m_s2:` line; its `# g_source:` line when it has one.
-    Campaign { g_source: Option<String> },
-    /// The fit's identity, `what` naming the fit: where the unit was calibrated (`verify --fit`).
-    Fit { what: String },
+    /// A campaign's `# g_m_s2:` line, with its `# g_source:` when it has one.
+    Campaign(Option<GSource>),
+    /// The fit's identity, `what` naming the fit: where the unit was calibrated (`verify --fit`),
+    /// with where the fit's g came from when it says.
+    Fit {
+        /// The fit.
+        what: String,
+        /// Its identity's `g_source`.
+        g_source: Option<GSource>,
+    },
     /// Nobody stated it: the standard 9.81 m/s², announced.
     Assumed,
 }
@@ -64,37 +74,54 @@ impl Gravity {
         stated.cloned().unwrap_or(Gravity { g, source: Source::Default })
     }
 
-    /// Where it came from, in words: a campaign's `# g_source:`, a run's `g_source` in the
-    /// database, and what [`accelcal_core::campaign::identity::g_uncertainty`] reads the bound
-    /// of its error from (`None`: a number whose source is not known, taken as rounded).
-    pub fn words(&self) -> Option<String> {
+    /// Where the value came from, typed: what a campaign's `# g_source:`, a run in the database
+    /// and a fit's identity store (its tag), and what gives g its uncertainty
+    /// ([`GSource::standard_u`]). A command's default is as if typed; a campaign or fit that does
+    /// not say is a value whose source was not recorded.
+    pub fn provenance(&self) -> GSource {
         match &self.source {
-            Source::Flag => Some("--g".into()),
-            Source::Site { latitude, height } => {
-                Some(format!("{G_SOURCE_NORMAL} at latitude {latitude} deg, height {height} m"))
+            Source::Stated(s) => s.clone(),
+            Source::Campaign(Some(s)) | Source::Fit { g_source: Some(s), .. } => s.clone(),
+            Source::Assumed => GSource::Assumed,
+            // The documented default of `--g` (`plan`, `simulate`), as if typed.
+            Source::Default => GSource::Given { u_m_s2: None },
+            Source::Asset { .. } | Source::Campaign(None) | Source::Fit { g_source: None, .. } => {
+                GSource::Unstated
             }
-            Source::Default => None,
-            Source::Campaign { g_source } => g_source.clone(),
-            Source::Fit { what } => Some(format!("the fit's, {what}")),
-            Source::Assumed => Some(format!("{G_SOURCE_ASSUMED} (no --g or --latitude given)")),
         }
     }
 
-    /// Where it came from as a run in the database keeps it: its [`Gravity::words`], or for a
-    /// campaign's line without a `# g_source:` and a command's default, which line or default.
+    /// Where it came from, as a run in the database and a campaign's `# g_source:` keep it: the
+    /// tag of its [`Gravity::provenance`].
     pub fn stored(&self) -> String {
-        match (&self.source, self.words()) {
-            (Source::Campaign { g_source: Some(s) }, _) => format!("the campaign's `# g_m_s2:` ({s})"),
-            (Source::Campaign { g_source: None }, _) => "the campaign's `# g_m_s2:`".into(),
-            (_, Some(words)) => words,
-            (_, None) => "the default --g".into(),
+        self.provenance().tag()
+    }
+
+    /// Where it came from, for a command's first line: the provenance's words, and which file
+    /// gave the value when a file did.
+    pub fn words(&self) -> String {
+        let p = self.provenance().words();
+        match &self.source {
+            Source::Campaign(_) => format!("the campaign's `# g_m_s2:`, {p}"),
+            Source::Fit { what, .. } => format!("the fit's, {what}: {p}"),
+            Source::Default => "the default --g".into(),
+            Source::Asset { id } => format!("gravity asset {id}, not yet read"),
+            _ => p,
         }
+    }
+
+    /// Its standard uncertainty, m/s², and why ([`GSource::standard_u`]).
+    pub fn standard_u(&self) -> (f64, String) {
+        self.provenance().standard_u(self.g)
     }
 
     /// How a clash with a file's g names this one: `--g 9.8`, or `--latitude (g = ... m/s²)`.
     pub fn option(&self) -> String {
-        match self.source {
-            Source::Site { .. } => format!("--latitude (g = {} m/s²)", self.g),
+        match &self.source {
+            Source::Stated(GSource::Normal { .. }) => format!("--latitude (g = {} m/s²)", self.g),
+            Source::Stated(GSource::Survey { asset, .. }) => {
+                format!("--gravity-asset {asset} (g = {} m/s²)", self.g)
+            }
             _ => format!("--g {}", self.g),
         }
     }
@@ -117,17 +144,22 @@ pub fn check_g(g: f64) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use accelcal_core::campaign::identity::g_uncertainty;
 
     #[test]
-    fn each_source_s_words_carry_the_bound_of_its_error() {
-        let bound = |g: &Gravity| g_uncertainty(g.g, g.words().as_deref()).0;
-        let site = Gravity { g: 9.81, source: Source::Site { latitude: 50.45, height: 180.0 } };
-        assert_eq!(bound(&site), 1e-3);
-        assert_eq!(bound(&Gravity::assumed()), 0.03);
-        assert!((bound(&Gravity { g: 9.8174, source: Source::Flag }) - 5e-5).abs() < 1e-12);
-        assert!((bound(&Gravity { g: 9.81, source: Source::Default }) - 5e-3).abs() < 1e-12);
-        let from_campaign = Gravity { g: 9.81, source: Source::Campaign { g_source: site.words() } };
-        assert_eq!(bound(&from_campaign), 1e-3);
+    fn each_source_gives_g_its_uncertainty_and_stores_its_tag() {
+        let u = |g: &Gravity| g.standard_u().0 * 3f64.sqrt();
+        let normal = GSource::Normal { latitude_deg: 50.45, height_m: 180.0 };
+        let site = Gravity { g: 9.81, source: Source::Stated(normal.clone()) };
+        assert!((u(&site) - 1e-3).abs() < 1e-15);
+        assert!((u(&Gravity::assumed()) - 0.03).abs() < 1e-15);
+        let typed = Gravity { g: 9.8174, source: Source::Stated(GSource::Given { u_m_s2: None }) };
+        assert!((u(&typed) - 5e-5).abs() < 1e-12);
+        assert!((u(&Gravity { g: 9.81, source: Source::Default }) - 5e-3).abs() < 1e-12);
+        let from_campaign = Gravity { g: 9.81, source: Source::Campaign(Some(normal.clone())) };
+        assert!((u(&from_campaign) - 1e-3).abs() < 1e-15);
+        assert_eq!(from_campaign.stored(), normal.tag());
+        let with_u = Gravity { g: 9.810547, source: Source::Stated(GSource::Given { u_m_s2: Some(2e-6) }) };
+        assert_eq!(with_u.standard_u().0, 2e-6);
+        assert_eq!(GSource::parse(&with_u.stored()), with_u.provenance());
     }
 }

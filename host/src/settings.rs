@@ -158,6 +158,11 @@ fn check_run(command: &Command, given: &Given) -> anyhow::Result<()> {
             "a command without --db",
             " (the asset is read from the database's register; without one, give --head-angle-u and --head-orthogonality-u)",
         )?;
+        given.refuse(
+            &["gravity_asset"],
+            "a command without --db",
+            " (the survey is read from the database's register; without one, give --g and --g-u)",
+        )?;
         return given.refuse(&["run_id"], "a command without --db", " (it names the run stored into)");
     }
     if let Command::Flash(_) | Command::Report(_) = command {

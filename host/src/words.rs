@@ -74,7 +74,8 @@ mod tests {
     fn the_core_spells_no_flag() {
         let mut found = Vec::new();
         for (path, text) in crate::sources::library_sources(&["core"]) {
-            if path.ends_with("tests.rs") {
+            // `legacy.rs`: text older versions wrote into files, read back, never said.
+            if path.ends_with("tests.rs") || path.ends_with("g_source/legacy.rs") {
                 continue;
             }
             for (n, t) in crate::sources::code_lines(&text) {

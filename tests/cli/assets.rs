@@ -9,6 +9,15 @@ fn run_asset(db: &str, id: &str, cert: &str, due: &str, extra: &[&str]) -> Strin
     ok(&args)
 }
 
+/// `args` (a `fit` writing `json`) refused as the line's equipment (exit 1), saying `why`, with
+/// nothing written.
+fn refused_nothing_written(args: &[String], why: &str, json: &str) {
+    let o = accelcal(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert_eq!(o.status.code(), Some(1), "{o:?}");
+    assert!(String::from_utf8_lossy(&o.stderr).contains(why), "{o:?}");
+    assert!(!Path::new(json).exists(), "nothing written");
+}
+
 #[test]
 fn assets_are_registered_listed_shown_and_refused_where_they_do_not_apply() {
     let d = Dir::new();
@@ -29,7 +38,27 @@ fn assets_are_registered_listed_shown_and_refused_where_they_do_not_apply() {
             "H-2 --kind head --certificate C --due 2099-01-01 --angle-u 1",
             "asset add --kind head needs --orthogonality-u ARCSEC",
         ),
-        ("H_2! --kind gravity --certificate C --due 2099-01-01", "letters, digits"),
+        ("H_2! --kind gravity --certificate C --due 2099-01-01 --value 9.81 --u 1e-5", "letters, digits"),
+        (
+            "G-1 --kind gravity --certificate C --due 2099-01-01 --u 1e-5",
+            "asset add --kind gravity needs --value M_S2",
+        ),
+        (
+            "G-1 --kind gravity --certificate C --due 2099-01-01 --value 9.81",
+            "asset add --kind gravity needs --u M_S2",
+        ),
+        (
+            "G-1 --kind gravity --certificate C --due 2099-01-01 --value 98.1 --u 1e-5",
+            "not between 9.7 and 9.9",
+        ),
+        (
+            "G-1 --kind gravity --certificate C --due 2099-01-01 --value 9.81 --u 0",
+            "is not in (0, 0.01) m/s²",
+        ),
+        (
+            "T-1 --kind thermometer --certificate C --due 2099-01-01 --value 9.81",
+            "--value does not apply to asset add --kind thermometer",
+        ),
         (
             "HEAD-7 --kind head --certificate DKD-K-15-01 --due 2098-12-31 --angle-u 4 --orthogonality-u 6",
             "registered already with other statements",
@@ -150,11 +179,7 @@ fn fit_takes_the_head_s_uncertainties_from_its_asset_and_the_run_names_it() {
         ("HEAD-9", "asset `HEAD-9` is not registered"),
     ] {
         let j = d.s(&format!("{id}.json"));
-        let args = fit_db(id, &j);
-        let o = accelcal(&args.iter().map(String::as_str).collect::<Vec<_>>());
-        assert_eq!(o.status.code(), Some(1), "{o:?}");
-        assert!(String::from_utf8_lossy(&o.stderr).contains(why), "{o:?}");
-        assert!(!Path::new(&j).exists(), "nothing written");
+        refused_nothing_written(&fit_db(id, &j), why, &j);
     }
     let e = bad(&["fit", &c, "--head-asset", "HEAD-7"]);
     assert!(e.contains("--head-asset does not apply to a command without --db"), "{e}");
@@ -162,4 +187,93 @@ fn fit_takes_the_head_s_uncertainties_from_its_asset_and_the_run_names_it() {
     assert_eq!(o.status.code(), Some(2), "{o:?}");
     let e = bad(&["fit", &c, "--method", "test-turns", "--db", &db, "--head-asset", "HEAD-7"]);
     assert!(e.contains("--head-asset does not apply to fit --method test-turns"), "{e}");
+}
+
+/// Issue 59, "g is a reference like the head": a gravity survey registered with its value and
+/// standard uncertainty sets g and u(g) of `fit --gravity-asset`, whose budget is then the one of
+/// `--g` with `--g-u` the same; the run stores the survey, so `affected` finds it. A g typed
+/// without `--g-u` keeps the rounding rule and says so once.
+#[test]
+fn a_gravity_survey_sets_g_and_its_uncertainty_and_the_run_names_it() {
+    let d = Dir::new();
+    let db = d.s("cal.sqlite");
+    let c = simulate(&d, "c.csv", &["--samples", "40", "--g", "9.810547"]);
+    let survey = ["--kind", "gravity", "--value", "9.810547", "--u", "2e-6"];
+    let out = run_asset(&db, "G-SITE", "BKG-2026-17", "2099-12-31", &survey);
+    assert!(out.contains("asset: G-SITE (gravity) certificate BKG-2026-17, due 2099-12-31, g = 9.810547 m/s², u 2.0e-6 m/s² (one sigma): registered"), "{out}");
+    run_asset(&db, "G-OLD", "BKG-2019-02", "2020-12-31", &survey);
+    run_asset(&db, "PT100-3", "DAkkS-T-9", "2099-06-30", &["--kind", "thermometer"]);
+    let (by_survey, typed) = (d.s("survey.json"), d.s("typed.json"));
+    let unit = ["--record", &d.s("r.rec"), "--device-id", "51454d552d422d4c34373545"].map(String::from);
+    let fit_db = |id: &str, json: &str| -> Vec<String> {
+        let mut v: Vec<String> = ["fit", &c, "--db", &db, "--gravity-asset", id, "--json", json]
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
+        v.extend(unit.iter().cloned());
+        v
+    };
+    let args = fit_db("G-SITE", &by_survey);
+    let out = ok(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(out.contains("gravity survey G-SITE (certificate BKG-2026-17, due 2099-12-31) stored"), "{out}");
+    let o = accelcal(&["fit", &c, "--g", "9.810547", "--g-u", "2e-6", "--json", &typed]);
+    assert_eq!(o.status.code(), Some(0), "{o:?}");
+    assert!(!String::from_utf8_lossy(&o.stderr).contains("taken as rounded"), "{o:?}");
+    let (a, t) = (json(Path::new(&by_survey)), json(Path::new(&typed)));
+    assert_eq!(a["uncertainty"]["U_m_s2"], t["uncertainty"]["U_m_s2"], "the survey's u, the same budget");
+    assert_eq!(a["g_m_s2"], 9.810547);
+    assert_eq!(a["g_source"], "survey u=2e-6 asset=G-SITE certificate=BKG-2026-17");
+    assert_eq!(t["g_source"], "given u=2e-6");
+    let gravity = |doc: &serde_json::Value| {
+        doc["uncertainty"]["contributors"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|c| c["name"] == "gravity")
+            .unwrap()
+            .clone()
+    };
+    let src = gravity(&a)["source"].as_str().unwrap().to_string();
+    assert!(src.contains("survey G-SITE, certificate BKG-2026-17: u = 2.0e-6 m/s² as certified"), "{src}");
+    // Typed without --g-u: half a unit of the last digit, rectangular, said once.
+    let o = accelcal(&["fit", &c, "--g", "9.810547", "--json", &d.s("rounded.json")]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(err.matches("taken as rounded").count(), 1, "{err}");
+    assert!(err.contains("give --g-u"), "{err}");
+    let f = ok(&["affected", "G-SITE", "--since", "2000-01-01", "--db", &db]);
+    assert!(f.contains(": 1 runs of 1 units") && f.contains("BKG-2026-17"), "{f}");
+
+    // Refused, nothing written: an overdue survey, a thermometer as the survey, an unknown one.
+    for (id, why) in [
+        ("G-OLD", "asset `G-OLD` is overdue: its certificate BKG-2019-02 was due 2020-12-31"),
+        ("PT100-3", "asset `PT100-3` is a thermometer, not a gravity survey"),
+        ("G-9", "asset `G-9` is not registered"),
+    ] {
+        let j = d.s(&format!("{id}.json"));
+        refused_nothing_written(&fit_db(id, &j), why, &j);
+    }
+    // The command line: one source of g; --g-u with --g only, a standard uncertainty.
+    for (line, want) in [
+        (vec!["--gravity-asset", "G-SITE"], "--gravity-asset does not apply to a command without --db"),
+        (
+            vec!["--db", &db, "--gravity-asset", "G-SITE", "--g", "9.81"],
+            "--gravity-asset and --g both give gravity",
+        ),
+        (
+            vec!["--db", &db, "--gravity-asset", "G-SITE", "--latitude", "50"],
+            "--gravity-asset and --latitude both give",
+        ),
+        (vec!["--g-u", "1e-6"], "--g-u needs --g"),
+        (vec!["--g", "9.81", "--g-u", "0"], "--g-u must be a standard uncertainty in (0, 0.1) m/s², got 0"),
+        // gravity-norm stores no run, so it reads no survey either.
+        (
+            vec!["--method", "gravity-norm", "--db", &db, "--gravity-asset", "G-SITE"],
+            "--db does not apply to fit --method gravity-norm",
+        ),
+    ] {
+        let mut args = vec!["fit", c.as_str()];
+        args.extend(line.iter().copied());
+        let e = bad(&args);
+        assert!(e.contains(want), "{line:?}: {e}");
+    }
 }

@@ -41,10 +41,12 @@ fn the_fleet_is_counted_by_the_database_and_printed() {
     let mut rows = csv::Reader::from_path(&csv).unwrap();
     let header = rows.headers().unwrap().clone();
     assert_eq!(&header[0], "run_id");
-    assert_eq!(&header[header.len() - 5], "U_z_m_s2");
-    // Issue 59: the certificate, its state, its recalibration date and the record's CRC.
-    let last: Vec<&str> = header.iter().skip(header.len() - 4).collect();
-    assert_eq!(last, ["certificate_number", "certificate_state", "due_date", "record_crc"]);
+    let u_z = header.iter().position(|h| h == "U_z_m_s2").unwrap();
+    // Issue 59: the certificate, its state, its recalibration date and the record's CRC, after U;
+    // and what became of a run a reference found out of tolerance calibrated.
+    let after: Vec<&str> = header.iter().skip(u_z + 1).take(4).collect();
+    assert_eq!(after, ["certificate_number", "certificate_state", "due_date", "record_crc"]);
+    assert!(header.iter().any(|h| h == "recall") && header.iter().any(|h| h == "recall_reference"));
     let rows: Vec<csv::StringRecord> = rows.records().map(|r| r.unwrap()).collect();
     assert_eq!(rows.len(), 6);
     assert_eq!(&rows[0][1], "SN-A1");

@@ -7,6 +7,7 @@ use std::process::{Command, Stdio};
 
 mod check;
 pub mod fleet;
+pub mod recall;
 pub mod release;
 pub mod serve;
 pub mod tamper;
@@ -216,10 +217,13 @@ pub fn pieces_are_stored_once(spec: &str) {
     assert!(matches!(e, DbError::NoRun { .. }), "{e}");
     let p = db.progress(run).unwrap();
     assert!(p.flashed && p.as_left && !p.as_found && !p.certificate && p.outcome == Some(Outcome::Pass));
-    assert_eq!(db.schema_versions().unwrap(), vec![1, 2, 3, 4, 5, 6, 7, 8, 9, 10]);
+    assert_eq!(db.schema_versions().unwrap(), vec![1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12]);
     // Opening again migrates nothing.
     drop(db);
-    assert_eq!(Db::open(spec).unwrap().schema_versions().unwrap(), vec![1, 2, 3, 4, 5, 6, 7, 8, 9, 10]);
+    assert_eq!(
+        Db::open(spec).unwrap().schema_versions().unwrap(),
+        vec![1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12]
+    );
 }
 
 /// The environment variable that turns a test process into the writer that is killed.
@@ -526,6 +530,7 @@ pub fn head_asset(id: &str, certificate: &str, due: &str, angle_u: f64, register
         orthogonality_u_arcsec: 2.0 * angle_u,
         operator: "ana".into(),
         registered_unix_s: registered,
+        value: None,
     }
 }
 

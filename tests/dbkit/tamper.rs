@@ -216,7 +216,7 @@ pub fn a_forged_asset_is_refused(spec: &str, postgres: bool, exec: Exec<'_>) {
         let e = c
             .execute_batch(&format!(
                 "REPLACE INTO asset SELECT asset_id, certificate, kind, '2199-12-31', 0.5, orthogonality_u_arcsec, \
-                 operator, registered_unix_s, '{sha}' FROM asset WHERE asset_id = 'HEAD-1'"
+                 operator, registered_unix_s, '{sha}', value_si, value_u_si FROM asset WHERE asset_id = 'HEAD-1'"
             ))
             .unwrap_err();
         assert!(e.to_string().contains("append-only: asset rows are never replaced"), "{e}");

@@ -48,8 +48,31 @@ fn the_station_runs_the_line_journals_it_and_resumes_after_ctrl_c() {
     let e = String::from_utf8_lossy(&overdue.stderr);
     assert!(e.contains("asset `HEAD-OLD` is overdue: its certificate DKD-K-0001 was due 2020-01-31"), "{e}");
     assert!(!a.exists(), "nothing done");
-    let head = ["--head-asset", "HEAD-SIM"];
-    let out = succeed(&station_args(&em, "A-1", &a, &head));
+    // The site's gravity as a registered survey (issue 59): it replaces the bench's --g, sets g
+    // and u(g), and the run stores it beside the head.
+    succeed(&[
+        "asset",
+        "add",
+        "G-SITE",
+        "--kind",
+        "gravity",
+        "--value",
+        "9.81",
+        "--u",
+        "2e-6",
+        "--certificate",
+        "BKG-2026-17",
+        "--due",
+        "2099-12-31",
+        "--db",
+        s(&db),
+    ]);
+    let head = ["--head-asset", "HEAD-SIM", "--gravity-asset", "G-SITE"];
+    fn surveyed(v: Vec<&str>) -> Vec<&str> {
+        let at = v.iter().position(|a| *a == "--g").expect("the bench's --g");
+        v.into_iter().enumerate().filter(|(i, _)| *i != at && *i != at + 1).map(|(_, a)| a).collect()
+    }
+    let out = succeed(&surveyed(station_args(&em, "A-1", &a, &head)));
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(text.contains("station: unit A-1 (device 51454d552d422d4c34373545) PASS"), "{text}");
     let steps: Vec<String> = journal(&a).into_iter().map(|(s, _)| s).collect();
@@ -110,10 +133,27 @@ fn the_station_runs_the_line_journals_it_and_resumes_after_ctrl_c() {
         )
         .unwrap();
     assert_eq!(used, ("HEAD-SIM".to_string(), "DKD-K-0002".to_string()));
+    let (survey, g_source): (String, String) = c
+        .query_row(
+            "SELECT ra.asset_id || ' ' || ra.certificate, r.g_source FROM run_asset ra JOIN run r \
+             ON r.run_id = ra.run_id WHERE ra.run_id = ?1 AND ra.kind = 'gravity'",
+            [&run_a],
+            |r| Ok((r.get(0)?, r.get(1)?)),
+        )
+        .unwrap();
+    assert_eq!(survey, "G-SITE BKG-2026-17");
+    assert_eq!(g_source, "survey u=2e-6 asset=G-SITE certificate=BKG-2026-17");
     drop(c);
+    let g = budget.as_array().unwrap().iter().find(|c| c["name"] == "gravity").unwrap();
+    assert!(g["source"].as_str().unwrap().contains("u = 2.0e-6 m/s²"), "{g}");
     // The certificate names the head by its asset.
     let cert = std::fs::read_to_string(a.join("certificate.html")).unwrap();
     assert!(cert.contains("head HEAD-SIM, calibration certificate DKD-K-0002"), "{cert}");
+    // And g by its survey, with U (k = 2) from the survey's u.
+    assert!(
+        cert.contains("9.8100000 ± 0.0000040 m/s² (U, k = 2): gravity survey G-SITE, calibration certificate BKG-2026-17"),
+        "{cert}"
+    );
     // So do the budget's head rows, whose values the fit step took from the asset.
     assert!(
         cert.contains(
@@ -123,7 +163,7 @@ fn the_station_runs_the_line_journals_it_and_resumes_after_ctrl_c() {
     );
 
     // Again: nothing is repeated but `info` (the node must still be the unit's).
-    let again = succeed(&station_args(&em, "A-1", &a, &head));
+    let again = succeed(&surveyed(station_args(&em, "A-1", &a, &head)));
     assert!(String::from_utf8_lossy(&again.stdout).contains("finished before"), "{again:?}");
     let err = String::from_utf8_lossy(&again.stderr).to_string();
     assert_eq!(err.matches(", kept").count(), 7, "{err}");
@@ -184,7 +224,8 @@ fn the_station_runs_the_line_journals_it_and_resumes_after_ctrl_c() {
         ("verification", 1, 2),
         ("certificate", 1, 1),
         ("run_end", 1, 1),
-        ("run_asset", 1, 0),
+        // Unit A's head and gravity survey.
+        ("run_asset", 2, 0),
     ] {
         assert_eq!((count(table, &run_a), count(table, &run_b)), (a_rows, b_rows), "{table}");
     }

@@ -24,37 +24,8 @@ pub const DEVICE_ID_KEY: &str = "device_id";
 pub const SERIAL_KEY: &str = "serial";
 /// The header key of the gravity the campaign was acquired at, m/s².
 pub const G_KEY: &str = "g_m_s2";
-/// The header key of where that gravity came from (`--g`, normal gravity, or the fallback).
+/// The header key of where that gravity came from: a [`super::GSource`]'s tag.
 pub const G_SOURCE_KEY: &str = "g_source";
-
-/// How `# g_source:` begins for normal gravity from the site's latitude and height.
-pub const G_SOURCE_NORMAL: &str = "WGS84 normal gravity";
-/// How `# g_source:` begins when no gravity was given and 9.81 m/s² was assumed.
-pub const G_SOURCE_ASSUMED: &str = "default 9.81 m/s²";
-
-/// A bound on the error of a gravity value `g` (m/s²) from where it came (`source`, the words of
-/// `# g_source:`), and why: normal gravity leaves out the local anomaly (typically within
-/// 100 mGal = 0.001 m/s², more in mountains); the assumed 9.81 m/s² is within 0.03 m/s² of g at
-/// sea level anywhere (9.78 at the equator to 9.83 at the poles); a value given (`--g`, or a
-/// campaign that does not say where its g came from) is taken as rounded: half a unit of its last
-/// digit.
-pub fn g_uncertainty(g: f64, source: Option<&str>) -> (f64, String) {
-    match source {
-        Some(s) if s.starts_with(G_SOURCE_NORMAL) => (
-            1e-3,
-            "normal gravity: the local anomaly it leaves out is typically within 0.001 m/s² (100 mGal), more in mountains"
-                .into(),
-        ),
-        Some(s) if s.starts_with(G_SOURCE_ASSUMED) => {
-            (0.03, "assumed, the site unknown: g at sea level lies within 9.78 to 9.84 m/s²".into())
-        }
-        _ => {
-            let text = format!("{g}");
-            let decimals = text.split_once('.').map_or(0, |(_, f)| f.len()) as i32;
-            (0.5 * 10f64.powi(-decimals), "as given, taken as rounded: half a unit of its last digit".into())
-        }
-    }
-}
 
 /// What a campaign file states about its unit.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -128,6 +99,10 @@ pub struct Identity {
     pub serial: Option<String>,
     /// The gravity the fit used, m/s².
     pub g_m_s2: f64,
+    /// Where that gravity came from ([`super::GSource`]'s tag); absent in a fit written before
+    /// fits carried it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub g_source: Option<super::GSource>,
     /// SHA-256 of the fitted campaign's content (a gzip file decompressed), hex.
     pub campaign_sha256: String,
     /// The CRC-32 of the record written with this fit (`fit --record`), 8 hex digits as `record
@@ -323,16 +298,6 @@ mod tests {
     }
 
     #[test]
-    fn the_uncertainty_of_g_follows_its_source() {
-        let normal = format!("{G_SOURCE_NORMAL} at latitude 50.45 deg, height 180 m");
-        assert_eq!(g_uncertainty(9.810547519391731, Some(&normal)).0, 1e-3);
-        assert_eq!(g_uncertainty(9.81, Some(&format!("{G_SOURCE_ASSUMED} (no --g)"))).0, 0.03);
-        assert_eq!(g_uncertainty(9.81, Some("--g")).0, 0.005);
-        assert!((g_uncertainty(9.80665, None).0 - 5e-6).abs() < 1e-18);
-        assert_eq!(g_uncertainty(10.0, None).0, 0.5);
-    }
-
-    #[test]
     fn the_sha256_is_the_standard_one() {
         let d = tempfile::tempdir().unwrap();
         let p = d.path().join("abc");
@@ -357,12 +322,17 @@ mod tests {
             device_id: Some("51454d552d422d4c34373545".into()),
             serial: None,
             g_m_s2: 9.81,
+            g_source: Some(super::super::GSource::Given { u_m_s2: Some(1e-5) }),
             campaign_sha256: "ab".repeat(32),
             record_crc: Some("b1fe3d0c".into()),
         };
         let mut doc = serde_json::to_value(&id).unwrap();
+        assert_eq!(doc["g_source"], "given u=1e-5");
         doc["method"] = "lsq".into();
         assert_eq!(Identity::of_fit_json(&doc, "f.json").unwrap(), id);
+        // A fit written before fits carried where g came from.
+        doc.as_object_mut().unwrap().remove("g_source");
+        assert_eq!(Identity::of_fit_json(&doc, "f.json").unwrap().g_source, None);
         doc["g_m_s2"] = "nine".into();
         let e = Identity::of_fit_json(&doc, "f.json").unwrap_err().to_string();
         assert!(e.starts_with("f.json: the fit's identity: invalid type"), "{e}");

@@ -8,7 +8,7 @@
 
 use accelcal_shared::record::Record;
 
-use super::round::{sig, with_uncertainty, Ilac};
+use super::round::{sig, Ilac};
 use super::{
     Block, Certificate, Chart, Column, Equipment, Facts, Field, Paragraph, Parameter, Party, Quantity,
     Section, Series, Span, Style, Table, FORMAT,
@@ -44,12 +44,8 @@ pub struct IssuerInput {
 pub struct GravityInput {
     /// g, m/s².
     pub g_m_s2: f64,
-    /// A bound on its error, m/s².
-    pub bound_m_s2: f64,
-    /// Where it came from, in words.
-    pub source: String,
-    /// Why the bound is what it is.
-    pub why: String,
+    /// Where it came from, which gives its uncertainty.
+    pub source: crate::campaign::GSource,
 }
 
 /// A registered reference the run used.
@@ -329,10 +325,14 @@ pub fn build(i: &Inputs<'_>) -> Certificate {
     if let Some(place) = &i.issuer.place {
         row("Place of calibration", place.clone());
     }
-    row(
-        "g (local gravity)",
-        format!("{} m/s² ({}; {})", with_uncertainty(g.g_m_s2, g.bound_m_s2), plain(&g.source), g.why),
-    );
+    row("g (local gravity)", {
+        let (u, why) = g.source.standard_u(g.g_m_s2);
+        let value = match Ilac::of(g.g_m_s2, 2.0 * u) {
+            Some(r) => format!("{} ± {} m/s² (U, k = 2)", r.value(false), r.u()),
+            None => format!("{} m/s²", g.g_m_s2),
+        };
+        format!("{value}: {}; {why}", plain(&g.source.words()))
+    });
     let head = match i.assets.iter().find(|a| a.kind == "head") {
         Some(a) => format!("dividing head {}, calibration certificate {}", a.id, a.certificate),
         None => "the dividing head is not a registered asset: its angles are traceable only as stated in the budget"
@@ -344,7 +344,7 @@ pub fn build(i: &Inputs<'_>) -> Certificate {
         .filter(|a| a.kind != "head")
         .map(|a| format!("; {} {}, calibration certificate {}", a.kind, a.id, a.certificate))
         .collect();
-    row("Traceability", format!("g from {}; {head}{others}", plain(&g.source)));
+    row("Traceability", format!("g from {}; {head}{others}", plain(&g.source.words())));
     row(
         "Environment",
         temp.as_ref().map_or("temperature not measured (no verification after calibration)".into(), |t| {
@@ -414,10 +414,9 @@ pub fn build(i: &Inputs<'_>) -> Certificate {
         operator: i.operator.map(str::to_string),
         method: method.to_string(),
         software: i.software.to_string(),
-        // The bound on g is a rectangular half-width: U (k = 2) of that distribution.
         gravity: Quantity {
             value: g.g_m_s2,
-            u: Some(2.0 * g.bound_m_s2 / 3f64.sqrt()),
+            u: Some(2.0 * g.source.standard_u(g.g_m_s2).0),
             k: Some(2.0),
             unit: "m/s²".into(),
         },

@@ -24,6 +24,12 @@ use serde::{Deserialize, Serialize};
 /// The document format's version: a reader refuses another.
 pub const FORMAT: u32 = 1;
 
+/// Where an HTML page of a certificate carries its document: the canonical JSON, escaped for a
+/// `<script>` element (`<`, `>` and `&` as `\u` escapes), is the text of the element this opens
+/// ([`Certificate::of_page`] reads it back; the database reads a stored certificate's customer
+/// there).
+pub const PAGE_SCRIPT_OPEN: &str = "<script type=\"application/json\" id=\"accelcal-certificate\">";
+
 /// One certificate.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Certificate {
@@ -401,6 +407,14 @@ impl Certificate {
     /// SHA-256 of [`Certificate::canonical_json`], lower-case hex: what an approval signs.
     pub fn sha256(&self) -> String {
         crate::digest::sha256_hex(self.canonical_json().as_bytes())
+    }
+
+    /// The document an HTML page of a certificate carries (after [`PAGE_SCRIPT_OPEN`]), `None`
+    /// for a page that carries none (written before pages carried their document, issue 57).
+    pub fn of_page(html: &str) -> Option<Result<Certificate, DocumentError>> {
+        let start = html.find(PAGE_SCRIPT_OPEN)? + PAGE_SCRIPT_OPEN.len();
+        let end = start + html[start..].find("</script>")?;
+        Some(Certificate::parse(&html[start..end]))
     }
 
     /// Reads a document's canonical JSON, refusing another format.

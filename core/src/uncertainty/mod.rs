@@ -22,9 +22,9 @@
 //!   position and channel. What the fit cannot absorb of this head's rotation stays in the
 //!   residuals with a shape of its own; that part (the residuals' projection on those shapes) is
 //!   this head's rotation as realised, not scatter, and is taken out of the dwell scatter.
-//! - **gravity** (Type B): the bound on g from its source
-//!   ([`crate::campaign::identity::g_uncertainty`]), a rectangular distribution (u = bound/√3): a
-//!   relative error of g is a relative error of every sensitivity.
+//! - **gravity** (Type B): the standard uncertainty its source gives g
+//!   ([`crate::campaign::GSource::standard_u`]: a survey's or a stated one as given, else a bound
+//!   taken as rectangular): a relative error of g is a relative error of every sensitivity.
 //! - **quantisation** (Type B): each sample rounded to a whole code, 1/12 code² per sample.
 //! - **model 4's lack of fit** (Type A, [`lack_of_fit`]): each channel's dwell means fitted with
 //!   the quadratic model on the sphere (every one of the paper's 11 models is inside it), and the

@@ -880,7 +880,7 @@ mod tests {
         assert_eq!(r.events.len(), 1);
         let mut db = Db::open(&spec).unwrap();
         assert_eq!(db.verify_chain().unwrap().entries, 3, "sealed once");
-        assert_eq!(db.schema_versions().unwrap(), vec![1, 2, 3, 4, 5, 6, 7, 8, 9, 10]);
+        assert_eq!(db.schema_versions().unwrap(), vec![1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12]);
         db.verify_run(s.run_id).unwrap();
     }
 

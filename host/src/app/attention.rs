@@ -8,6 +8,7 @@ use accelcal_core::headsig::ChangePoint;
 use accelcal_core::output::utc_date_time;
 use accelcal_db::asset::{Asset, Date};
 use accelcal_db::fleet::{Chart, ChartPoint, FleetRun};
+use accelcal_db::recall::Recall;
 use accelcal_db::CertificateState;
 
 /// The page an entry is about.
@@ -29,6 +30,8 @@ pub enum Page {
     Charts,
     /// The fleet's runs of the period (those found out of tolerance, the certificates).
     Fleet,
+    /// The units to recall (the overview's table).
+    Recalls,
 }
 
 /// One thing that needs attention, in the order of [`entries`].
@@ -51,6 +54,9 @@ pub enum Entry {
     FoundOut { unit: String, device_id: String, run_id: String, started_unix_s: i64, decision: String },
     /// A certificate no signer has decided yet.
     AwaitingApproval { number: String, unit: String, run_id: String },
+    /// A reference found out of tolerance at its own recalibration, with units still to recall
+    /// (or whose recall rows do not match their hash chain).
+    ReferenceBad { asset_id: String, certificate: String, open_units: usize, tampered: bool },
 }
 
 /// What [`entries`] reads: the day, the asset register, and a period's runs and charts as the
@@ -68,6 +74,8 @@ pub struct Sources<'a> {
     pub found_out: &'a [&'a FleetRun],
     /// The period's runs.
     pub runs: &'a [FleetRun],
+    /// The findings of references out of tolerance with units still open (or tampered).
+    pub recalls: &'a [&'a Recall],
 }
 
 /// A panel's share of the entries: at most so many of each kind, and what was left out.
@@ -155,6 +163,12 @@ pub fn entries(s: &Sources<'_>) -> Vec<Entry> {
                 })
             }),
     );
+    out.extend(s.recalls.iter().map(|r| Entry::ReferenceBad {
+        asset_id: r.found_bad.asset_id.clone(),
+        certificate: r.found_bad.certificate.clone(),
+        open_units: r.open().len(),
+        tampered: r.tampered.is_some(),
+    }));
     out
 }
 
@@ -167,6 +181,7 @@ impl Entry {
             Entry::HeadChange { .. } => "head change point",
             Entry::FoundOut { .. } => "as found out of tolerance",
             Entry::AwaitingApproval { .. } => "certificate awaiting approval",
+            Entry::ReferenceBad { .. } => "reference found bad",
         }
     }
 
@@ -200,6 +215,12 @@ impl Entry {
             Entry::AwaitingApproval { number, unit, run_id } => {
                 format!("{number} of {unit} (run {run_id}) awaits a signer's decision")
             }
+            Entry::ReferenceBad { asset_id, certificate, open_units, tampered } => format!(
+                "{asset_id} under certificate {certificate} was out of tolerance: {open_units} unit{} to recall or \
+                 dismiss{}",
+                if *open_units == 1 { "" } else { "s" },
+                if *tampered { " (TAMPERED: its recall rows do not match their hash chain)" } else { "" }
+            ),
         }
     }
 
@@ -209,6 +230,7 @@ impl Entry {
             Entry::AssetOverdue { .. } => Page::Assets,
             Entry::OutOfControl { .. } | Entry::HeadChange { .. } => Page::Charts,
             Entry::FoundOut { .. } | Entry::AwaitingApproval { .. } => Page::Fleet,
+            Entry::ReferenceBad { .. } => Page::Recalls,
         }
     }
 
@@ -228,6 +250,7 @@ impl Entry {
             Entry::HeadChange { asset, .. } => Page::HeadCharts(asset.clone()),
             Entry::FoundOut { run_id, .. } => Page::Run(run_id.clone()),
             Entry::AwaitingApproval { number, .. } => Page::Certificate(number.clone()),
+            Entry::ReferenceBad { .. } => Page::Recalls,
         }
     }
 }
@@ -248,6 +271,7 @@ mod tests {
             orthogonality_u_arcsec: 3.0,
             operator: "qa".into(),
             registered_unix_s: 0,
+            value: None,
         }
     }
 
@@ -290,7 +314,21 @@ mod tests {
             unit: "arcsec",
         };
         let changes = [change];
+        let finding = Recall {
+            found_bad: accelcal_db::recall::FoundBad {
+                asset_id: "HEAD-0".into(),
+                kind: AssetKind::Head,
+                certificate: "C-0".into(),
+                since: parse_date("2025-06-01").unwrap(),
+                reason: "40 arcsec off".into(),
+                operator: "qa".into(),
+                recorded_unix_s: 0,
+            },
+            tampered: Some("a dismissal was changed".into()),
+            runs: Vec::new(),
+        };
         let s = Sources {
+            recalls: &[&finding],
             today: parse_date("2026-01-20").unwrap(),
             assets: &assets,
             charts: &charts,
@@ -330,12 +368,22 @@ mod tests {
                     "head HEAD-1: CUSUM up, 12 arcsec at unit SN-4 (run r4, 2026-01-01)".to_string(),
                     Page::HeadCharts("HEAD-1".into())
                 ),
+                (
+                    "reference found bad",
+                    "HEAD-0 under certificate C-0 was out of tolerance: 0 units to recall or dismiss (TAMPERED: \
+                     its recall rows do not match their hash chain)"
+                        .to_string(),
+                    Page::Recalls
+                ),
             ]
         );
         // One of each kind: the second overdue asset and the second chart are left out, counted.
         let p = panel(entries(&s), 1);
         let kinds: Vec<&str> = p.shown.iter().map(Entry::kind).collect();
-        assert_eq!(kinds, ["asset overdue", "chart out of control", "head change point"]);
+        assert_eq!(
+            kinds,
+            ["asset overdue", "chart out of control", "head change point", "reference found bad"]
+        );
         assert_eq!(
             p.left_out,
             [("asset overdue", 1, Page::Assets), ("chart out of control", 1, Page::Charts)]

@@ -4,3 +4,5 @@
 
 pub mod attention;
 pub mod certificate;
+pub mod gravity;
+pub mod recall;

@@ -473,6 +473,8 @@ pub struct FitArgs {
     /// --head-orthogonality-u; an overdue, unknown or non-head asset is refused].
     #[arg(long, value_name = "ID", conflicts_with_all = ["head_angle_u", "head_orthogonality_u"])]
     pub head_asset: Option<String>,
+    #[arg(long, value_name = "ID", help = super::GRAVITY_ASSET_HELP)]
+    pub gravity_asset: Option<String>,
     #[command(flatten)]
     pub tempco: TempcoArgs,
     #[command(flatten)]

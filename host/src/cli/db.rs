@@ -108,6 +108,40 @@ pub enum AssetCommand {
     List(AssetListArgs),
     /// One asset: every certificate registered for it, and how many runs used each.
     Show(AssetShowArgs),
+    /// Record that a reference was found out of tolerance at its own recalibration: the runs
+    /// that used it under the certificate that recalibration ended, from a day on, are affected
+    /// (`accelcal affected ID` lists them, `fleet` and `serve` show each unit until it is
+    /// recalibrated on another reference or dismissed). Appended to the hash chain; refused,
+    /// with nothing stored, for an unknown asset or certificate, a day after today, an empty
+    /// reason, or a certificate found out of tolerance already.
+    FoundBad(AssetFoundBadArgs),
+}
+
+/// `accelcal asset found-bad`.
+#[derive(Debug, Args)]
+pub struct AssetFoundBadArgs {
+    /// The asset found out of tolerance (its id, as `asset list` shows it).
+    #[arg(value_name = "ID")]
+    pub id: String,
+    /// The asset's own certificate it was used under while out of tolerance: the one its
+    /// recalibration ended (`asset show ID` lists them).
+    #[arg(long, value_name = "NUMBER")]
+    pub certificate: String,
+    /// The first day (UTC, YYYY-MM-DD) whose runs are affected: typically the day of the last
+    /// check that found it in tolerance (not after today).
+    #[arg(long, value_name = "YYYY-MM-DD", value_parser = parse_date)]
+    pub since: accelcal_db::asset::Date,
+    /// What its recalibration found (stored with the finding; `affected` shows it).
+    #[arg(long, value_name = "TEXT")]
+    pub reason: String,
+    /// Who records it [default: the account running the command].
+    #[arg(long, value_name = "NAME")]
+    pub operator: Option<String>,
+    #[command(flatten)]
+    pub store: AssetDb,
+    /// Append each chain head this command writes to FILE (see `fit --anchor-log`).
+    #[arg(long, value_name = "FILE")]
+    pub anchor_log: Option<PathBuf>,
 }
 
 /// `asset --kind`.
@@ -117,7 +151,7 @@ pub enum AssetKindArg {
     Head,
     /// A thermometer.
     Thermometer,
-    /// A gravity value (a survey of the site).
+    /// A gravity value (a survey of the site: states --value and --u).
     Gravity,
 }
 
@@ -175,6 +209,15 @@ pub struct AssetAddArgs {
     /// kinds].
     #[arg(long, value_name = "ARCSEC", value_parser = Real(Range::Arcsec))]
     pub orthogonality_u: Option<f64>,
+    /// A gravity survey's value of g at the line's site, m/s², from its certificate (9.7 to 9.9)
+    /// [required for --kind gravity; refused for other kinds].
+    #[arg(long, value_name = "M_S2")]
+    pub value: Option<f64>,
+    /// A gravity survey's standard uncertainty of --value, m/s² (one sigma; its certificate's
+    /// expanded uncertainty divided by its coverage factor) [required for --kind gravity; refused
+    /// for other kinds].
+    #[arg(long, value_name = "M_S2")]
+    pub u: Option<f64>,
     #[command(flatten)]
     pub store: AssetDb,
     /// Who registers it [default: the account running the command].
@@ -212,16 +255,39 @@ pub struct AffectedArgs {
     /// The asset found out of tolerance (its id, as `asset list` shows it).
     #[arg(value_name = "ASSET")]
     pub asset: String,
-    /// The first day (UTC, YYYY-MM-DD) of the runs to list: typically the date of the asset's
-    /// last calibration that found it in tolerance.
+    /// Every run that used the asset from this day on (UTC, YYYY-MM-DD), whether or not it was
+    /// found out of tolerance [default: the runs its findings (`asset found-bad`) affect].
     #[arg(long, value_name = "YYYY-MM-DD", value_parser = parse_date)]
-    pub since: accelcal_db::asset::Date,
+    pub since: Option<accelcal_db::asset::Date>,
+    /// Only the runs under this certificate of the asset (with --dismiss: the finding under it,
+    /// when the unit is affected under several).
+    #[arg(long, value_name = "NUMBER")]
+    pub certificate: Option<String>,
+    /// Record that this unit (its serial, or its device id), whose runs a finding of the asset
+    /// affects, was reviewed and needs no recall (with --reason; appended to the hash chain):
+    /// `fleet` and `serve` no longer show it.
+    #[arg(long, value_name = "SERIAL")]
+    pub dismiss: Option<String>,
+    /// Why the unit needs no recall [required with --dismiss].
+    #[arg(long, value_name = "TEXT")]
+    pub reason: Option<String>,
+    /// Who dismisses it [with --dismiss; default: the account running the command].
+    #[arg(long, value_name = "NAME")]
+    pub operator: Option<String>,
+    /// Append each chain head this command writes to FILE [with --dismiss] (see `fit
+    /// --anchor-log`).
+    #[arg(long, value_name = "FILE")]
+    pub anchor_log: Option<PathBuf>,
     #[command(flatten)]
     pub store: AssetDb,
-    /// Write the runs (run id, device, serial, station, start, the asset's certificate, outcome,
-    /// certified, voided) as JSON to this file.
+    /// Write the runs (run id, device, serial, station, start, the asset's certificate,
+    /// outcome, the unit's certificate in force and its state, the customer, what became of
+    /// it) as JSON to this file.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
+    /// Write the same list as CSV to this file, one row per run (for the recall letters).
+    #[arg(long, value_name = "FILE")]
+    pub csv: Option<PathBuf>,
 }
 
 /// `accelcal fleet`.

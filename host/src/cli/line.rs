@@ -408,6 +408,8 @@ pub struct VerifyArgs {
     /// stages): it enters U of each measured error [with --spec; default: not stated].
     #[arg(long, value_name = "ARCSEC", value_parser = Real(Range::Arcsec), requires = "spec")]
     pub head_orthogonality_u: Option<f64>,
+    #[arg(long, value_name = "ID", requires = "db", help = crate::cli::GRAVITY_ASSET_HELP)]
+    pub gravity_asset: Option<String>,
 }
 
 /// `accelcal report`: a unit's calibration certificate.
@@ -573,6 +575,8 @@ pub struct StationArgs {
     /// and the budget names its uncertainties as not stated].
     #[arg(long, value_name = "ID")]
     pub head_asset: Option<String>,
+    #[arg(long, value_name = "ID", help = crate::cli::GRAVITY_ASSET_HELP)]
+    pub gravity_asset: Option<String>,
     /// The unit type's temperature coefficients for the fit's uncertainty budget (as for `fit`).
     #[command(flatten)]
     pub tempco: crate::cli::campaign::TempcoArgs,

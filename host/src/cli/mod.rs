@@ -122,17 +122,22 @@ pub enum Command {
     /// The line's registered reference equipment (the dividing head, a thermometer, a gravity
     /// value): each one's calibration certificate and due date, and a head's stated
     /// uncertainties, which `fit --head-asset` and `station --head-asset` take; a station refuses
-    /// an overdue or unknown asset before it touches the node.
+    /// an overdue or unknown asset before it touches the node. `asset found-bad` records one
+    /// found out of tolerance at its own recalibration (`affected` lists the runs it affects).
     #[command(subcommand)]
     Asset(AssetCommand),
-    /// Reverse traceability: every run, and its unit, calibrated with an asset since a date (an
-    /// asset found out of tolerance at its own recalibration).
+    /// Reverse traceability: the runs, and their units, that an asset found out of tolerance at
+    /// its own recalibration calibrated (`asset found-bad`), each with its serial, its
+    /// certificate in force and whether one was issued, the customer, and whether a later
+    /// calibration on another reference superseded it; or every run that used an asset since a
+    /// date (--since). `--dismiss SERIAL --reason TEXT` records that a unit needs no recall.
     Affected(AffectedArgs),
     /// The line across units over a period: runs and units, first-pass and final yield,
     /// rejections by reason, the units found out of tolerance as found, the populations of the
     /// coefficients (mean, spread) and of the as-left parameters with their Cpk against the
-    /// specification's limits, the units and assets due, and each station's check standard (its
-    /// checks are not calibrations: they are left out of the counts).
+    /// specification's limits, the units and assets due, the units calibrated on a reference found
+    /// out of tolerance until each is recalibrated or dismissed (`affected`), and each station's
+    /// check standard (its checks are not calibrations: they are left out of the counts).
     #[command(after_long_help = accelcal_db::fleet::METHOD)]
     Fleet(FleetArgs),
     /// Print a stored certificate again, from the calibration database, as it was issued, with
@@ -163,8 +168,8 @@ pub enum Command {
     /// page. Only the certificate in force is amended; nothing is stored when refused.
     Amend(AmendArgs),
     /// A read-only web view of the calibration database for the line: the overview (today's
-    /// units, yield, stations, assets and units due), each unit's page (runs, as found and as
-    /// left, drift, stored certificates), the control charts and the heads' signatures, and the
+    /// units, yield, stations, assets, the units to recall and the units due), each unit's page
+    /// (runs, as found and as left, drift, stored certificates, recalls), the control charts and the heads' signatures, and the
     /// fleet table with `fleet`'s filters and a CSV download. Server-side HTML, no JavaScript, no
     /// write endpoint (GET only); stops on Ctrl-C or SIGTERM (exit code 0). Every connection has
     /// a header-read and idle timeout, their number is capped (503 past the cap), and a bind
@@ -218,6 +223,14 @@ pub struct ReaderDb {
     pub db: Option<String>,
 }
 
+/// `--gravity-asset`'s help (`fit`, `verify`, `station`): one text, since clap takes a doc
+/// comment per field.
+pub const GRAVITY_ASSET_HELP: &str =
+    "The site's gravity as a registered survey (`accelcal asset add ID --kind gravity \
+--value M_S2 --u M_S2`): its certificate in force sets g and u(g), the run stores which survey \
+and certificate it used, and the certificate names it [with --db; instead of --g, --g-u and \
+--latitude; an overdue, unknown or non-gravity asset is refused, nothing done].";
+
 /// Local gravity from the site instead of `--g`: WGS84 normal gravity with the free-air
 /// correction (`accelcal_shared::normal_gravity`).
 #[derive(Debug, Args, Clone, Default)]
@@ -229,6 +242,10 @@ pub struct LocalGravity {
     /// Height of the rig above the WGS84 ellipsoid, m (with --latitude; 0 when not given).
     #[arg(long, value_name = "M", allow_negative_numbers = true)]
     pub height: Option<f64>,
+    /// The standard uncertainty of --g, m/s² (one sigma, e.g. from the survey that measured it)
+    /// [with --g; default: --g taken as rounded, half a unit of its last digit, rectangular].
+    #[arg(long, value_name = "M_S2")]
+    pub g_u: Option<f64>,
 }
 
 /// Options shared by the commands that read a campaign.

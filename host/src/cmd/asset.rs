@@ -1,9 +1,9 @@
 //! `accelcal asset add|list|show` (the register of the line's reference equipment,
-//! [`accelcal_db::asset`]) and `accelcal affected` (the runs an asset calibrated since a date).
+//! [`accelcal_db::asset`]); `asset found-bad` and `affected` are recalls (`super::recall`).
 
 use accelcal_core::output::{utc_date_time, write_json};
-use accelcal_db::asset::{start_of_day_unix_s, today_utc, Date};
-use accelcal_db::{AffectedRun, Asset, AssetKind, Db, Outcome, Stored};
+use accelcal_db::asset::{today_utc, Date};
+use accelcal_db::{AffectedRun, Asset, AssetKind, Db, Stored};
 use anyhow::Context;
 use serde::Serialize;
 
@@ -16,6 +16,7 @@ pub fn run(c: &settings::Asset) -> anyhow::Result<()> {
         settings::Asset::Add(a) => add(a),
         settings::Asset::List(a) => list(a),
         settings::Asset::Show(a) => show(a),
+        settings::Asset::FoundBad(a) => super::recall::found_bad(a),
     }
 }
 
@@ -31,6 +32,7 @@ fn add(a: &settings::Add) -> anyhow::Result<()> {
         orthogonality_u_arcsec: a.orthogonality_u_arcsec,
         operator: a.operator.clone().unwrap_or_else(user_name),
         registered_unix_s: accelcal_db::now_unix_s(),
+        value: a.value,
     };
     let stored = db.add_asset(&asset)?;
     outln!(
@@ -68,12 +70,16 @@ fn stated(a: &Asset) -> String {
             ", angle u {} arcsec, orthogonality u {} arcsec (one sigma)",
             a.angle_u_arcsec, a.orthogonality_u_arcsec
         ),
-        _ => String::new(),
+        AssetKind::Gravity => match a.value {
+            Some(v) => format!(", g = {} m/s², u {:.1e} m/s² (one sigma)", v.value, v.u),
+            None => ", no value stated (registered before schema 11: register its certificate again)".into(),
+        },
+        AssetKind::Thermometer => String::new(),
     }
 }
 
 /// Whether an asset may be used today, in words.
-fn status(due: Date, today: Date) -> String {
+pub(crate) fn status(due: Date, today: Date) -> String {
     match today.until(due).map(|s| s.get_days()).unwrap_or(0) {
         d if d < 0 => format!("OVERDUE ({} days)", -d),
         0 => "due today".into(),
@@ -202,77 +208,6 @@ fn show(a: &settings::Show) -> anyhow::Result<()> {
             certificates: certificates.clone(),
             runs,
         };
-        write_json(j, &doc).with_context(|| format!("writing {}", j.display()))?;
-        outln!("wrote {}", j.display())?;
-    }
-    Ok(())
-}
-
-/// `affected --json`.
-#[derive(Serialize)]
-struct AffectedJson {
-    asset_id: String,
-    since: Date,
-    /// Distinct devices among the runs.
-    units: usize,
-    runs: Vec<AffectedRun>,
-}
-
-/// Runs `accelcal affected`.
-pub fn run_affected(a: &settings::Affected) -> anyhow::Result<()> {
-    let mut db = Db::open_existing(&reader_spec(a.db.as_deref())?)?;
-    let runs = db.affected(&a.asset, start_of_day_unix_s(a.since))?;
-    let mut devices: Vec<&str> = runs.iter().map(|r| r.device_id.as_str()).collect();
-    devices.sort_unstable();
-    devices.dedup();
-    outln!(
-        "affected: asset {} since {} (UTC) in {}: {} runs of {} units",
-        a.asset,
-        a.since,
-        db.target(),
-        runs.len(),
-        devices.len()
-    )?;
-    if !runs.is_empty() {
-        outln!(
-            "  {:<36} {:<20} {:<12} {:<24} {:<10} {:<16} {:<9} certified",
-            "run",
-            "started (UTC)",
-            "serial",
-            "device",
-            "station",
-            "certificate",
-            "outcome"
-        )?;
-    }
-    for r in &runs {
-        let outcome = match (&r.voided, r.outcome) {
-            (Some(_), _) => "voided",
-            (None, Some(Outcome::Pass)) => "pass",
-            (None, Some(Outcome::Rejected)) => "rejected",
-            (None, None) => "open",
-        };
-        outln!(
-            "  {:<36} {:<20} {:<12} {:<24} {:<10} {:<16} {:<9} {}",
-            r.run_id,
-            utc_date_time(r.started_unix_s),
-            if r.serial.is_empty() { "-" } else { &r.serial },
-            r.device_id,
-            r.station,
-            r.certificate,
-            outcome,
-            if r.certified { "yes" } else { "no" }
-        )?;
-    }
-    if runs.iter().any(|r| r.certified && r.voided.is_none()) {
-        outln!(
-            "affected: if {} was found out of tolerance, assess each certified unit above (recall it, or \
-             verify it as found on another reference)",
-            a.asset
-        )?;
-    }
-    if let Some(j) = &a.json {
-        let doc = AffectedJson { asset_id: a.asset.clone(), since: a.since, units: devices.len(), runs };
         write_json(j, &doc).with_context(|| format!("writing {}", j.display()))?;
         outln!("wrote {}", j.display())?;
     }

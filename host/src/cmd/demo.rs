@@ -53,6 +53,7 @@ pub fn run(a: &Demo) -> anyhow::Result<()> {
         device_id: Some(device_id_hex(&accelcal_shared::contract::QEMU_DEVICE_ID)),
         serial: None,
         g_m_s2: g,
+        g_source: None,
         campaign_sha256: sha256.clone(),
         record_crc,
     };

@@ -4,7 +4,6 @@
 
 use std::path::Path;
 
-use accelcal_core::campaign::identity::g_uncertainty;
 use accelcal_core::campaign::Campaign;
 use accelcal_core::design::search::{design, design_auto, AutoTarget, Designed, Head};
 use accelcal_core::design::{head_time_s, predict, Part, Prediction, Prior, Stated};
@@ -167,11 +166,10 @@ pub fn run(d: &Design) -> anyhow::Result<()> {
     let g = gravity.g;
     let out = d.out.as_path();
     let prior = prior(&d.unit, g)?;
-    let (bound, _) = g_uncertainty(g, gravity.words().as_deref());
+    let (u_g, _) = gravity.standard_u();
     let angle_u = d.head_angle_u_arcsec;
     let chamber = d.chamber.clone();
-    let stated =
-        Stated { head_angle_rad: angle_u * ARCSEC, g_m_s2: bound / 3f64.sqrt(), chamber: chamber.clone() };
+    let stated = Stated { head_angle_rad: angle_u * ARCSEC, g_m_s2: u_g, chamber: chamber.clone() };
     let (move_s, rate_hz) = (d.move_s, d.rate_hz);
     // A plan's head time: one pass, or in a chamber every pass and its soak.
     let time_of = |positions: usize, samples: usize| {

@@ -77,6 +77,8 @@ pub fn run(s: &FitSettings, g: &super::Gravity, warnings: &mut super::Warnings) 
     let unit = CampaignId::read(&a.campaign.path)?;
     let device_id = record_device_id(a, a.device_id, &unit)?;
     let mut db = super::store::open(a.store.as_ref())?;
+    // A survey named by --gravity-asset is read before anything is computed or written.
+    let (g, survey) = &crate::app::gravity::resolve(g, db.as_mut().map(|r| &mut r.db))?;
     // The head's register entry, checked before anything is computed or written.
     let head = match (&a.head_asset, &mut db) {
         (Some(id), Some(rdb)) => {
@@ -142,6 +144,17 @@ pub fn run(s: &FitSettings, g: &super::Gravity, warnings: &mut super::Warnings) 
     let header = accelcal_core::campaign::header(&a.campaign.path)?;
     let get = |k: &str| header.iter().find(|(key, _)| key == k).map(|(_, v)| v.clone()).unwrap_or_default();
     let budget = fit_budget(a, head_u, method, &pos, &stats, &fits, g)?;
+    // Typed on this command line: a campaign's g was announced where it was typed.
+    if let (Some(_), super::Source::Stated(accelcal_core::campaign::GSource::Given { u_m_s2: None })) =
+        (&budget, &g.source)
+    {
+        warnings.note(format!(
+            "u(g) = {:.1e} m/s²: g = {} m/s² as typed is taken as rounded, half a unit of its last digit \
+             (give --g-u with the standard uncertainty of the survey it came from)",
+            g.standard_u().0,
+            g.g
+        ));
+    }
     if let Some(b) = &budget {
         super::uncertainty::print_budget(&UncertaintyJson::from(b))?;
     }
@@ -149,6 +162,7 @@ pub fn run(s: &FitSettings, g: &super::Gravity, warnings: &mut super::Warnings) 
         device_id: device_id.map(|d| device_id_hex(&d)).or(unit.device_id),
         serial: unit.serial,
         g_m_s2: g.g,
+        g_source: Some(g.provenance()),
         campaign_sha256: unit.sha256,
         record_crc: rec.as_ref().map(|(_, bytes, _)| record_crc_hex(bytes)),
     };
@@ -182,21 +196,23 @@ pub fn run(s: &FitSettings, g: &super::Gravity, warnings: &mut super::Warnings) 
             firmware_version: get("firmware"),
             g: (g.g, g.stored()),
         })?;
-        if let Some(h) = &head {
-            rdb.db.store_run_asset(run, h)?;
+        for asset in [&head, survey].into_iter().flatten() {
+            rdb.db.store_run_asset(run, asset)?;
         }
         let json = serde_json::to_string_pretty(&doc).context("serialising the fit")?;
         let bytes = rec.as_ref().map(|(_, b, _)| b.as_slice());
         super::store::fit_pieces(&mut rdb.db, run, &a.campaign.path, &json, bytes)?;
         // Said once every piece is stored: an output that fails leaves no run begun and empty
         // (stderr's lines never stop a command, see `crate::out`).
-        if let Some(h) = &head {
-            outln!(
-                "db: run {run}: head {} (certificate {}, due {}) stored",
-                h.asset_id,
-                h.certificate,
-                h.due_date
-            )?;
+        for (what, asset) in [("head", &head), ("gravity survey", survey)] {
+            if let Some(h) = asset {
+                outln!(
+                    "db: run {run}: {what} {} (certificate {}, due {}) stored",
+                    h.asset_id,
+                    h.certificate,
+                    h.due_date
+                )?;
+            }
         }
         outln!(
             "db: run {run}: campaign, fit{} stored in {}",
@@ -242,16 +258,15 @@ fn fit_budget(
     fits: &[(String, LsqFit)],
     g: &super::Gravity,
 ) -> anyhow::Result<Option<Budget>> {
-    use accelcal_core::campaign::identity::g_uncertainty;
     if method != Method::Lsq || fits.iter().any(|(_, f)| f.structure != accelcal_shared::terms::MODEL_4) {
         return Ok(None);
     }
     let stated = head.angle.is_some() || head.orthogonality.is_some() || a.tempco.is_some();
-    let (bound, why) = g_uncertainty(g.g, g.words().as_deref());
+    let (u_g, why) = g.standard_u();
     let refs = References {
         head_angle_rad: head.angle_u().unwrap_or(0.0) * ARCSEC,
         head_orthogonality_rad: head.orthogonality.unwrap_or(0.0) * ARCSEC,
-        g_m_s2: bound / 3f64.sqrt(),
+        g_m_s2: u_g,
         // GMDH needs a plan whose split identifies its candidates; on fewer positions the lack of
         // fit is not measured, and the budget says so.
         lack_of_fit_codes: lack_of_fit_codes(pos, stats),
@@ -261,7 +276,7 @@ fn fit_budget(
     match uncertainty::budget(pos, stats, &only, refs) {
         Ok(mut b) => {
             if let Some(c) = b.contributors.iter_mut().find(|c| c.name == "gravity") {
-                c.source = format!("g {why}; bound {bound:.1e} m/s², rectangular: u = bound/√3");
+                c.source = format!("g {why}");
             }
             if let Some(h) = head.asset {
                 for c in b.contributors.iter_mut().filter(|c| c.name.starts_with("head_")) {

@@ -5,6 +5,7 @@ use accelcal_core::output::{utc_date_time, write_atomic, write_json};
 use accelcal_db::asset::{start_of_day_unix_s, Asset, Date};
 use accelcal_db::cells::UnreadableRun;
 use accelcal_db::fleet::{Chart, Counts, DueUnit, Filter, FleetRun, Population};
+use accelcal_db::recall::{AffectedRun, FoundBad, Recall, RecallState};
 use accelcal_db::{CertificateState, Db};
 use anyhow::Context;
 use serde::Serialize;
@@ -40,12 +41,51 @@ struct FleetJson<'a> {
     /// Each station's check standard (`station --check-standard`): its state and charts, over
     /// all its checks (the limits need the first 20), whatever the period.
     check_standards: &'a [accelcal_db::check::CheckStandard],
+    /// The references found out of tolerance (`asset found-bad`) whose affected units are not
+    /// all recalibrated or dismissed yet, whatever the period: each finding with its units still
+    /// open (issue 59).
+    recalls: Vec<RecallJson<'a>>,
     /// `null`, or why the database's hash chain is broken: the numbers may be forged.
     chain_broken: Option<&'a str>,
     /// The period's runs that do not read: each named by its cells that do not read as their
     /// column's type; they are in no other field.
     unreadable_runs: &'a [UnreadableRun],
     runs: &'a [FleetRun],
+}
+
+/// A finding with units still open (`fleet --json`'s `recalls`).
+#[derive(Serialize)]
+struct RecallJson<'a> {
+    #[serde(flatten)]
+    found_bad: &'a FoundBad,
+    /// Why the finding's rows do not match their hash chain (its dismissals are then not taken).
+    tampered: Option<&'a str>,
+    /// The runs it affects, voided ones aside.
+    runs: usize,
+    /// The units it affects.
+    units: usize,
+    /// Of those, recalibrated on another reference since.
+    recalibrated_units: usize,
+    /// Of those, dismissed (no recall needed).
+    dismissed_units: usize,
+    /// The units still open, each by its latest affected run.
+    open_units: Vec<&'a AffectedRun>,
+}
+
+impl<'a> RecallJson<'a> {
+    fn of(r: &'a Recall) -> RecallJson<'a> {
+        let units = r.units();
+        let count = |s: RecallState| units.iter().filter(|u| u.state == s).count();
+        RecallJson {
+            found_bad: &r.found_bad,
+            tampered: r.tampered.as_deref(),
+            runs: r.runs.iter().filter(|x| x.voided.is_none()).count(),
+            units: units.len(),
+            recalibrated_units: count(RecallState::Recalibrated),
+            dismissed_units: count(RecallState::Dismissed),
+            open_units: r.open(),
+        }
+    }
 }
 
 /// One head asset's units tracked.
@@ -202,6 +242,9 @@ pub(crate) struct FleetData {
     pub heads: Vec<HeadJson>,
     pub charts: Vec<Chart>,
     pub check_standards: Vec<accelcal_db::check::CheckStandard>,
+    /// Every finding (`asset found-bad`) with the runs it affects (of the units the serial
+    /// prefix takes), whatever the period ([`FleetData::recalls_open`]).
+    pub recalls: Vec<Recall>,
     /// `Some`: the ledger's shape says rows were written or removed behind accelcal's back
     /// (`Db::chain_broken`): every number here may be forged.
     pub chain_broken: Option<String>,
@@ -214,6 +257,28 @@ impl FleetData {
     /// The assets due by `due_by` (overdue included).
     pub fn assets_due(&self) -> Vec<&Asset> {
         self.assets.iter().filter(|x| x.due_date <= self.due_by).collect()
+    }
+
+    /// The findings whose affected units are not all recalibrated or dismissed (or whose rows do
+    /// not match their chain): what `fleet` and `serve` show until each unit is.
+    pub fn recalls_open(&self) -> Vec<&Recall> {
+        self.recalls.iter().filter(|r| r.tampered.is_some() || !r.open().is_empty()).collect()
+    }
+
+    /// What became of each run a finding affects, by run id: the state and the finding's
+    /// reference (`HEAD-1 DKD-17-001`).
+    pub fn recall_of_runs(&self) -> std::collections::HashMap<&str, (RecallState, String)> {
+        let mut out = std::collections::HashMap::new();
+        for r in &self.recalls {
+            for x in &r.runs {
+                let state = x.recall.unwrap_or(RecallState::Open);
+                out.insert(
+                    x.run_id.as_str(),
+                    (state, format!("{} {}", r.found_bad.asset_id, r.found_bad.certificate)),
+                );
+            }
+        }
+        out
     }
 
     /// The runs whose as-found verification was out of tolerance (not voided).
@@ -299,6 +364,12 @@ pub(crate) fn gather(db: &mut Db, filter: &Filter, due_by: Date, parts: Parts) -
             Parts::Table => Vec::new(),
         };
         let check_standards = db.check_standards(filter.station.as_deref())?;
+        let mut recalls = db.recalls(None)?;
+        if let Some(p) = filter.serial_prefix.as_deref() {
+            for r in &mut recalls {
+                r.runs.retain(|x| x.serial.starts_with(p));
+            }
+        }
         let chain_broken = db.chain_broken()?;
         let pops = match p {
             Some(p) => {
@@ -328,6 +399,7 @@ pub(crate) fn gather(db: &mut Db, filter: &Filter, due_by: Date, parts: Parts) -
             heads,
             charts,
             check_standards,
+            recalls,
             chain_broken,
             unreadable,
         })
@@ -436,6 +508,34 @@ pub fn run(a: &Fleet) -> anyhow::Result<()> {
             utc_date_time(r.started_unix_s),
             r.as_found_decision.as_deref().unwrap_or("-")
         )?;
+    }
+    // The units a reference found out of tolerance calibrated, until each is recalibrated on
+    // another reference or dismissed, whatever the period (issue 59).
+    let recalls = data.recalls_open();
+    if recalls.is_empty() {
+        outln!("  recalls (references found out of tolerance): none open")?;
+    }
+    for r in &recalls {
+        let j = RecallJson::of(r);
+        outln!(
+            "  recall: {}: {} units, {} recalibrated, {} dismissed, {} open{}",
+            crate::app::recall::finding(&r.found_bad),
+            j.units,
+            j.recalibrated_units,
+            j.dismissed_units,
+            j.open_units.len(),
+            r.tampered.as_ref().map(|t| format!(" (TAMPERED: {t}; no dismissal taken)")).unwrap_or_default()
+        )?;
+        for x in &j.open_units {
+            outln!(
+                "    {} ({}) run {} {}: certificate {}",
+                if x.serial.is_empty() { "-" } else { &x.serial },
+                x.device_id,
+                x.run_id,
+                utc_date_time(x.started_unix_s),
+                crate::app::recall::certificate(x)
+            )?;
+        }
     }
     // A unit calibrated twice in the period is two runs of one unit (issue 59).
     let calibrated = pops.first().map_or(0, |p| p.n);
@@ -550,7 +650,7 @@ pub fn run(a: &Fleet) -> anyhow::Result<()> {
         outln!("    {} ({}) certificate {}, due {}", x.asset_id, x.kind.name(), x.certificate, x.due_date)?;
     }
     if let Some(c) = &a.csv {
-        write_atomic(c, csv_of(runs)?.as_bytes())?;
+        write_atomic(c, csv_of(runs, &data)?.as_bytes())?;
         outln!("wrote {} ({} runs)", c.display(), runs.len())?;
     }
     if let Some(j) = &a.json {
@@ -573,6 +673,7 @@ pub fn run(a: &Fleet) -> anyhow::Result<()> {
                 heads,
                 charts,
                 check_standards,
+                recalls: recalls.iter().map(|r| RecallJson::of(r)).collect(),
                 chain_broken: data.chain_broken.as_deref(),
                 unreadable_runs: &data.unreadable,
                 runs,
@@ -595,9 +696,13 @@ pub(crate) fn spreadsheet_text(cell: &str) -> String {
     }
 }
 
-/// One row per run: the columns an MES takes (`fleet --csv` and serve's `/fleet.csv`). Text
-/// cells are neutralised ([`spreadsheet_text`]) and quoted, numbers are written unquoted.
-pub(crate) fn csv_of(runs: &[FleetRun]) -> anyhow::Result<String> {
+/// One row per run: the columns an MES takes (`fleet --csv` and serve's `/fleet.csv`); `recall`
+/// is what became of a run a reference found out of tolerance calibrated (`open`,
+/// `recalibrated`, `dismissed`, `voided`; empty for the others) and `recall_reference` that
+/// reference (`HEAD-1 DKD-17-001`), from `data`'s findings. Text cells are neutralised
+/// ([`spreadsheet_text`]) and quoted, numbers are written unquoted.
+pub(crate) fn csv_of(runs: &[FleetRun], data: &FleetData) -> anyhow::Result<String> {
+    let recall = data.recall_of_runs();
     let mut w = csv::WriterBuilder::new().quote_style(csv::QuoteStyle::NonNumeric).from_writer(Vec::new());
     let mut header: Vec<String> = [
         "run_id",
@@ -623,6 +728,7 @@ pub(crate) fn csv_of(runs: &[FleetRun]) -> anyhow::Result<String> {
     }
     header.extend(["U_x_m_s2", "U_y_m_s2", "U_z_m_s2"].map(String::from));
     header.extend(["certificate_number", "certificate_state", "due_date", "record_crc"].map(String::from));
+    header.extend(["recall", "recall_reference"].map(String::from));
     w.write_record(&header)?;
     for r in runs {
         let mut row = vec![
@@ -651,6 +757,12 @@ pub(crate) fn csv_of(runs: &[FleetRun]) -> anyhow::Result<String> {
         row.push(spreadsheet_text(r.certificate_state.map(|c| c.words()).unwrap_or_default()));
         row.push(r.due_unix_s.map(|t| utc_date_time(t).chars().take(10).collect()).unwrap_or_default());
         row.push(spreadsheet_text(r.record_crc32.as_deref().unwrap_or_default()));
+        let (state, reference) = match recall.get(r.run_id.as_str()) {
+            Some((s, reference)) => (s.words(), reference.as_str()),
+            None => ("", ""),
+        };
+        row.push(state.to_string());
+        row.push(spreadsheet_text(reference));
         w.write_record(&row)?;
     }
     let bytes = w.into_inner().map_err(|e| anyhow::anyhow!("writing the CSV: {e}"))?;

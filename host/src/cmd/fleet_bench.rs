@@ -69,6 +69,7 @@ fn heads() -> Vec<Asset> {
             orthogonality_u_arcsec: 10.0,
             operator: "ana".into(),
             registered_unix_s: FIRST_DAY_UNIX_S - DAY_S,
+            value: None,
         })
         .collect()
 }
@@ -202,6 +203,7 @@ fn pieces(device: &str, serial: &str, seed: u64) -> anyhow::Result<Pieces> {
         device_id: Some(device.to_string()),
         serial: Some(serial.to_string()),
         g_m_s2: G,
+        g_source: None,
         campaign_sha256: accelcal_core::digest::sha256_hex(&campaign),
         record_crc: Some(format!("{:08x}", accelcal_shared::record::crc32(&buf[..n]))),
     };
@@ -252,7 +254,7 @@ pub fn generate(
                 software_version: env!("CARGO_PKG_VERSION").into(),
                 firmware_version: "0.4.0".into(),
                 g_m_s2: G,
-                g_source: "--g".into(),
+                g_source: accelcal_core::campaign::GSource::Given { u_m_s2: None }.tag(),
             };
             db.begin_run(&s, None)?;
             db.store_run_asset(run, &heads[station])?;

@@ -275,6 +275,7 @@ pub fn run(a: &GravityNormFit, g: &super::Gravity) -> anyhow::Result<()> {
             device_id: record.as_ref().map(|(_, r)| device_id_hex(&r.device_id)),
             serial: None,
             g_m_s2: g.g,
+            g_source: None,
             campaign_sha256: content_sha256(&a.input)?,
             record_crc: crc,
         };

@@ -342,7 +342,16 @@ fn check_line(c: &PositionCheck, n: usize) -> String {
 
 /// Runs `accelcal verify`.
 pub fn run_verify(a: &Verify) -> anyhow::Result<()> {
-    let stated = a.stated.as_ref();
+    // Opened first: an unreachable database, or a survey it refuses, stops the command here.
+    let mut db = super::store::open(a.store.as_ref())?;
+    let (stated, survey) = match &a.stated {
+        Some(g) => {
+            let (g, survey) = crate::app::gravity::resolve(g, db.as_mut().map(|r| &mut r.db))?;
+            (Some(g), survey)
+        }
+        None => (None, None),
+    };
+    let stated = stated.as_ref();
     let mut fit = None;
     let tolerance = match &a.judged {
         Judged::Tolerance(t) => Tolerance::Fixed(*t),
@@ -361,16 +370,18 @@ pub fn run_verify(a: &Verify) -> anyhow::Result<()> {
     };
     // Without --g or --latitude, the g of the fit (the rig's, where the unit was calibrated).
     let gravity = match (stated, &fit) {
-        (None, Some((what, id))) => Gravity { g: id.g_m_s2, source: Source::Fit { what: what.clone() } },
+        (None, Some((what, id))) => Gravity {
+            g: id.g_m_s2,
+            source: Source::Fit { what: what.clone(), g_source: id.g_source.clone() },
+        },
         _ => rig_gravity(stated),
     };
-    let (g, g_source) = (gravity.g, gravity.stored());
+    let (g, g_source, g_words) = (gravity.g, gravity.stored(), gravity.words());
     let spec = a.spec.as_deref().map(super::spec::read).transpose()?;
     if let Some(s) = &spec {
         accelcal_line::verify::plan_measures_parameters(s, &a.plan.positions, g)?;
     }
-    let (refs, not_included) = super::spec::references(g, &g_source, a.head_angle_u, a.head_orthogonality_u);
-    let mut db = super::store::open(a.store.as_ref())?;
+    let (refs, not_included) = super::spec::references(&gravity, a.head_angle_u, a.head_orthogonality_u);
     let stop = stop_flag()?;
     let mut node = open(&a.link)?;
     let mut head = connect_head(&a.head, &stop)?;
@@ -389,12 +400,12 @@ pub fn run_verify(a: &Verify) -> anyhow::Result<()> {
     };
     match &cfg.spec {
         Some((s, _)) => {
-            outln!("verify: g = {g} m/s² ({g_source}); specification {}", s.describe())?;
+            outln!("verify: g = {g} m/s² ({g_words}); specification {}", s.describe())?;
             if !not_included.is_empty() {
                 outln!("verify: U of each measured error does not include {}", not_included.join(", nor "))?;
             }
         }
-        None => outln!("verify: g = {g} m/s² ({g_source}); pass rule: {}", cfg.tolerance.describe())?,
+        None => outln!("verify: g = {g} m/s² ({g_words}); pass rule: {}", cfg.tolerance.describe())?,
     }
     // A position's line that cannot be written does not stop the node half-way: the first
     // failure is returned once the report is written and stored.
@@ -421,6 +432,9 @@ pub fn run_verify(a: &Verify) -> anyhow::Result<()> {
             firmware_version: String::new(),
             g: (g, g_source.clone()),
         })?;
+        if let Some(survey) = &survey {
+            rdb.db.store_run_asset(run, survey)?;
+        }
         let phase = a.phase;
         // The stored report is the file's, as `report --verify` and the station read it back.
         let stored = match &a.json {

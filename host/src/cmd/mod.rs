@@ -3,11 +3,12 @@
 //! (with `design`, `plan --design`), `select`, `fit` (with `gravity`, `fit --method
 //! gravity-norm`, and `uncertainty`, `fit`'s budget table and `uncertainty-check`), `compare`,
 //! `diagnose`, `demo` (which reuses the others' functions), `record` (`record show`), `emulate`,
-//! `station`, `history`, `fleet`, `asset` (`asset add|list|show`, `affected`), `certificate`,
-//! `signer`, `approve` (`approve`, `reject`). Others hold a family: `live` is `info`, `output`,
-//! `acquire` and `verify`; `node` is `flash`, `monitor` and `hil`; `report` is the certificate
-//! (`report/method.rs` the technical report); `db` is `void` and `db verify`. The developer
-//! benchmarks are `bench_diagnose` (`bench-diagnose`) and `fleet_bench` (`bench-fleet`).
+//! `station`, `history`, `fleet`, `asset` (`asset add|list|show`), `recall` (`asset found-bad`,
+//! `affected`), `certificate`, `signer`, `approve` (`approve`, `reject`). Others hold a family:
+//! `live` is `info`, `output`, `acquire` and `verify`; `node` is `flash`, `monitor` and `hil`;
+//! `report` is the certificate (`report/method.rs` the technical report); `db` is `void` and `db
+//! verify`. The developer benchmarks are `bench_diagnose` (`bench-diagnose`) and `fleet_bench`
+//! (`bench-fleet`).
 //! `store` is the `--db` side of the commands that write (open before any other I/O, begin or
 //! continue a run, store a piece) and `spec` reads `--spec`. This file holds what several share:
 //! the campaign readers' warnings ([`print_warnings`], [`error_line`]), [`created`] and
@@ -32,6 +33,7 @@ pub mod history;
 pub mod live;
 pub mod node;
 pub mod plan;
+pub mod recall;
 pub mod record;
 pub mod report;
 pub mod select;
@@ -62,7 +64,7 @@ pub fn run(
         Settings::DbVerify(s) => db::run_verify(&s),
         Settings::DbMigrate(s) => db::run_migrate(s.as_deref()),
         Settings::Asset(s) => asset::run(&s),
-        Settings::Affected(s) => asset::run_affected(&s),
+        Settings::Affected(s) => recall::run_affected(&s),
         Settings::Serve(s) => crate::serve::run(&s),
         Settings::ServeUserAdd(s) => crate::serve::auth::run_add(&s),
         Settings::Signer(s) => signer::run(&s),
@@ -155,7 +157,11 @@ fn campaign_g(
             check_g(g)?;
             Ok(Gravity {
                 g,
-                source: Source::Campaign { g_source: get(G_SOURCE_KEY).filter(|s| !s.is_empty()) },
+                source: Source::Campaign(
+                    get(G_SOURCE_KEY)
+                        .filter(|s| !s.is_empty())
+                        .map(|s| accelcal_core::campaign::GSource::parse(&s)),
+                ),
             })
         }
         None => {

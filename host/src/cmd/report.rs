@@ -11,9 +11,9 @@ use std::fmt::Write as _;
 
 use accelcal_core::calibrate::{record_crc_hex, Method};
 use accelcal_core::campaign::identity::{
-    g_uncertainty, same, CampaignId, Identity, IdentityError, Mismatch, G_KEY, G_SOURCE_KEY,
+    same, CampaignId, Identity, IdentityError, Mismatch, G_KEY, G_SOURCE_KEY,
 };
-use accelcal_core::campaign::Campaign;
+use accelcal_core::campaign::{Campaign, GSource};
 use accelcal_core::document::FitDoc;
 use accelcal_core::error::bad;
 use accelcal_core::output::write_atomic;
@@ -212,22 +212,21 @@ pub fn run(a: &Report) -> anyhow::Result<()> {
         _ => None,
     };
     let g = u.fit_id.g_m_s2;
-    // The g's origin: the campaign's, when the fit used it, else the fit's own --g/--latitude.
-    let campaign_g = u.get(G_KEY).and_then(|v| v.parse::<f64>().ok());
-    let (source, source_words) = match campaign_g {
-        Some(cg) if (cg - g).abs() <= 1e-9 * g => {
-            let s = u.get(G_SOURCE_KEY);
-            // Acquire names a stated g by its option.
-            let words = match s.as_deref() {
-                Some("--g") => "the value the operator stated".to_string(),
-                Some(s) => s.to_string(),
-                None => "the value stated with the campaign".to_string(),
-            };
-            (s, words)
-        }
-        _ => (None, "the value stated with the fit".to_string()),
-    };
-    let (g_bound, g_why) = g_uncertainty(g, source.as_deref());
+    // Where g came from: the run's (a station or `fit --db` stored it, a survey named there),
+    // else the fit's identity, else the campaign's line when the fit used its g.
+    let same = |x: f64| (x - g).abs() <= 1e-9 * g;
+    let known = |s: &GSource| *s != GSource::Unstated;
+    let g_source = run
+        .as_ref()
+        .filter(|(_, p)| same(p.start.g_m_s2))
+        .map(|(_, p)| GSource::parse(&p.start.g_source))
+        .filter(known)
+        .or_else(|| u.fit_id.g_source.clone().filter(known))
+        .or_else(|| {
+            let campaign_g = u.get(G_KEY).and_then(|v| v.parse::<f64>().ok()).filter(|cg| same(*cg));
+            campaign_g.and(u.get(G_SOURCE_KEY)).map(|s| GSource::parse(&s))
+        })
+        .unwrap_or(GSource::Unstated);
     let serial = u.fit_id.serial.clone().unwrap_or_else(|| "-".into());
     let mut budget = u.fit.uncertainty.clone();
     if let (Some(b), Some((_, id, cert))) =
@@ -269,7 +268,7 @@ pub fn run(a: &Report) -> anyhow::Result<()> {
         fit: &u.fit,
         budget: budget.as_ref(),
         serial: &serial,
-        gravity: GravityInput { g_m_s2: g, bound_m_s2: g_bound, source: source_words, why: g_why },
+        gravity: GravityInput { g_m_s2: g, source: g_source },
         verify: u.verify.as_ref(),
         as_found: u.as_found.as_ref(),
         assets: &asset_refs,

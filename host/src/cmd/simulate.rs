@@ -25,6 +25,7 @@ pub fn run(a: &Simulate) -> anyhow::Result<()> {
         campaign.codes = CodeRange::Signed16;
     }
     campaign.serial = a.serial.clone();
+    campaign.g_source = Some(a.g_source.clone());
     write_atomic_with(&a.out, |w| campaign.write(w).context("writing CSV"))?;
     let truth_path = &a.truth;
     write_json(truth_path, &truth)?;

@@ -33,15 +33,13 @@ pub fn line_col(text: &str, offset: usize) -> String {
 }
 
 /// The references' standard uncertainties a verification's errors are measured against: the
-/// head's stated ones (arcsec, one sigma) and g's bound from its source taken as rectangular.
+/// head's stated ones (arcsec, one sigma) and the standard uncertainty g's source gives it.
 /// Also what is not included, in words.
 pub fn references(
-    g: f64,
-    g_source: &str,
+    gravity: &crate::resolved::Gravity,
     angle_u_arcsec: Option<f64>,
     orthogonality_u_arcsec: Option<f64>,
 ) -> (VerifyReferences, Vec<String>) {
-    let (bound, _) = accelcal_core::campaign::identity::g_uncertainty(g, Some(g_source));
     let mut missing = Vec::new();
     if angle_u_arcsec.is_none() {
         missing.push("the head's angle setting error (not stated: --head-angle-u)".to_string());
@@ -52,7 +50,7 @@ pub fn references(
     let r = VerifyReferences {
         head_angle_rad: angle_u_arcsec.unwrap_or(0.0) * ARCSEC,
         head_orthogonality_rad: orthogonality_u_arcsec.unwrap_or(0.0) * ARCSEC,
-        g_m_s2: bound / 3f64.sqrt(),
+        g_m_s2: gravity.standard_u().0,
     };
     (r, missing)
 }

@@ -97,6 +97,8 @@ struct Station<'a> {
     info: Option<InfoDoc>,
     /// `--head-asset`'s certificate in force (checked before any node is touched).
     head_asset: Option<&'a Asset>,
+    /// The gravity survey of `--gravity-asset`, which each run stores.
+    survey: Option<&'a Asset>,
     /// The head's angle error as its own units measure it, when that exceeds its certificate's
     /// (arcsec): what the budgets take instead.
     head_measured_u: Option<f64>,
@@ -127,10 +129,14 @@ impl Station<'_> {
 
     /// The gravity as given (the steps announce its source themselves).
     fn gravity(&self) -> Option<GravityGiven> {
-        use super::Source;
-        self.gravity.map(|g| match g.source {
-            Source::Site { latitude, height } => GravityGiven::Site { latitude, height },
-            _ => GravityGiven::G(g.g),
+        use accelcal_core::campaign::GSource;
+        self.gravity.map(|g| match g.provenance() {
+            GSource::Normal { latitude_deg, height_m } => {
+                GravityGiven::Site { latitude: latitude_deg, height: height_m }
+            }
+            GSource::Given { u_m_s2 } => GravityGiven::G { g: g.g, u: u_m_s2 },
+            // A survey's value and uncertainty: the run stores the survey itself.
+            p => GravityGiven::G { g: g.g, u: Some(p.standard_u(g.g).0) },
         })
     }
 
@@ -401,9 +407,11 @@ impl Station<'_> {
             )));
         }
         self.ended = p.outcome.is_some();
-        if let (Some(h), false) = (self.head_asset, self.ended) {
-            self.db.store_run_asset(run, h)?;
-            crash_point("db:run_asset");
+        if !self.ended {
+            for asset in [self.head_asset, self.survey].into_iter().flatten() {
+                self.db.store_run_asset(run, asset)?;
+                crash_point("db:run_asset");
+            }
         }
         self.run = Some(run);
         errln!(
@@ -493,6 +501,40 @@ fn acquire_together(units: &mut [&mut Station<'_>]) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The database whose register holds asset `id`: an asset is unknown where no database is yet.
+fn register(db_spec: &str, id: &str) -> anyhow::Result<Db> {
+    match Db::open_existing(db_spec) {
+        Err(DbError::NoDatabase { .. } | DbError::NotCreated { .. }) => {
+            Err(DbError::Asset(AssetError::Unknown {
+                asset_id: id.into(),
+                target: format!(
+                    "{} (no calibration there yet)",
+                    accelcal_db::Target::parse(db_spec).map(|t| t.display()).unwrap_or_default()
+                ),
+            })
+            .into())
+        }
+        r => Ok(r?),
+    }
+}
+
+/// The gravity survey `--gravity-asset` names, read from the register before any node is
+/// touched: the station's gravity, and the asset each run stores.
+fn survey_in_force(
+    db_spec: &str,
+    gravity: Option<&super::Gravity>,
+) -> anyhow::Result<(Option<super::Gravity>, Option<Asset>)> {
+    match gravity {
+        Some(g @ super::Gravity { source: super::Source::Asset { id }, .. }) => {
+            let mut db = register(db_spec, id)?;
+            let (g, survey) = crate::app::gravity::resolve(g, Some(&mut db))?;
+            errln!("station: g = {} m/s² ({}; u {:.1e} m/s²)", g.g, g.words(), g.standard_u().0);
+            Ok((Some(g), survey))
+        }
+        g => Ok((g.cloned(), None)),
+    }
+}
+
 /// Runs `accelcal station`: every unit's `info` and as-found verification, one node after the
 /// other; the campaigns together; then each unit's line to its certificate. A rejected unit does
 /// not stop the others (the station ends with exit code 1 after them); any other error stops the
@@ -521,6 +563,8 @@ pub fn run(
         Some((h, m)) => (Some(h), m),
         None => (None, None),
     };
+    let (gravity, survey) = survey_in_force(&db_spec, gravity)?;
+    let gravity = gravity.as_ref();
     // A station whose check standard is out of control makes no calibration.
     let station_name = a.station_name.clone().unwrap_or_else(super::store::host_name);
     if a.check_standard.is_none() {
@@ -549,6 +593,7 @@ pub fn run(
             ended: false,
             info: None,
             head_asset: head_asset.as_ref(),
+            survey: survey.as_ref(),
             head_measured_u,
             step_start: std::cell::Cell::new(None),
             tag: if specs.len() > 1 { format!("{}: ", u.serial) } else { String::new() },
@@ -698,19 +743,7 @@ fn time_summary(stations: &[Station<'_>], wall: f64) -> String {
 /// database holds no asset), and the head's angle error as its own units measure it when that
 /// exceeds the certificate's angle uncertainty (arcsec; `fit --head-asset` takes it the same way).
 fn head_in_force(db_spec: &str, id: &str) -> anyhow::Result<(Asset, Option<f64>)> {
-    let mut db = match Db::open_existing(db_spec) {
-        Err(DbError::NoDatabase { .. } | DbError::NotCreated { .. }) => {
-            return Err(DbError::Asset(AssetError::Unknown {
-                asset_id: id.into(),
-                target: format!(
-                    "{} (no calibration there yet)",
-                    accelcal_db::Target::parse(db_spec).map(|t| t.display()).unwrap_or_default()
-                ),
-            })
-            .into())
-        }
-        r => r?,
-    };
+    let mut db = register(db_spec, id)?;
     let h = db.asset_in_force(id, AssetKind::Head, accelcal_db::asset::today_utc())?;
     errln!(
         "station: head {} (certificate {}, due {}; angle u {} arcsec, orthogonality u {} arcsec)",

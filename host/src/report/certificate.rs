@@ -40,9 +40,6 @@ struct Page<'a> {
     json: String,
 }
 
-/// Where the page carries its document: `<script type="application/json" id="…">`.
-const SCRIPT_OPEN: &str = "<script type=\"application/json\" id=\"accelcal-certificate\">";
-
 /// The certificate as one self-contained HTML page.
 pub fn html(doc: &Certificate, release: &Release) -> anyhow::Result<String> {
     let mut sections = Vec::new();
@@ -97,11 +94,10 @@ fn script_json(doc: &Certificate) -> String {
 }
 
 /// The document a certificate page carries, `None` for a page written before pages carried
-/// one (accelcal before issue 57).
+/// one (accelcal before issue 57): [`Certificate::of_page`], the element
+/// `accelcal_core::certificate::PAGE_SCRIPT_OPEN` opens, which `certificate/page.html` writes.
 pub fn document_of(html: &str) -> Option<Result<Certificate, accelcal_core::certificate::DocumentError>> {
-    let start = html.find(SCRIPT_OPEN)? + SCRIPT_OPEN.len();
-    let end = start + html[start..].find("</script>")?;
-    Some(Certificate::parse(&html[start..end]))
+    Certificate::of_page(html)
 }
 
 /// Text as a CSS string's content inside the page's `<style>`: quotes and backslashes escaped,

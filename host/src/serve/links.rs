@@ -43,6 +43,7 @@ pub fn href(page: &Page, period: &str) -> String {
         Page::Assets => "/#assets".into(),
         Page::Charts => format!("/charts?{period}"),
         Page::Fleet => format!("/fleet?{period}"),
+        Page::Recalls => "/#recalls".into(),
     }
 }
 

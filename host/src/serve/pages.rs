@@ -225,6 +225,21 @@ struct AssetRow {
     state: &'static str,
 }
 
+/// A unit still to recall (`FleetData::recalls_open`), a row of the overview.
+struct RecallRow {
+    /// The finding's reference and certificate: `HEAD-1 (head) certificate DKD-17-001`.
+    reference: String,
+    /// From which day, and why.
+    finding: String,
+    serial: String,
+    device_id: String,
+    unit_key: String,
+    run_id: String,
+    started: String,
+    /// The unit's certificate in force for the run, in words.
+    certificate: String,
+}
+
 struct DueRow {
     serial: String,
     device_id: String,
@@ -294,6 +309,10 @@ struct OverviewPage<'a> {
     attention: Vec<AttentionRow>,
     due_by: String,
     due: Vec<DueRow>,
+    /// The units references found out of tolerance calibrated, not yet recalibrated or dismissed.
+    recalls: Vec<RecallRow>,
+    /// The findings whose recall rows do not match their hash chain, in words.
+    recalls_tampered: Vec<String>,
     today_runs: Vec<RunRow>,
     /// Why the database's hash chain is broken, when it is (`FleetData::chain_broken`).
     chain_broken: Option<String>,
@@ -306,8 +325,10 @@ pub(super) fn overview(db: &mut Db, app: &App, q: &str) -> Result<String, PageEr
     let month = Filters::parse(q)?;
     let (data, since, until) = month.gather(db, app.due_days, Parts::Attention)?;
     let found_out = data.found_out();
+    let recalls_open = data.recalls_open();
     let period = format!("since={since}&until={until}");
     let all = attention::entries(&attention::Sources {
+        recalls: &recalls_open,
         today,
         assets: &data.assets,
         charts: &data.charts,
@@ -388,6 +409,26 @@ pub(super) fn overview(db: &mut Db, app: &App, q: &str) -> Result<String, PageEr
             run: RunLink::of(&u.run_id),
         })
         .collect();
+    let mut recalls = Vec::new();
+    let mut recalls_tampered = Vec::new();
+    for r in recalls_open {
+        let f = &r.found_bad;
+        if let Some(t) = &r.tampered {
+            recalls_tampered.push(format!("{}: {t}", crate::app::recall::finding(f)));
+        }
+        for x in r.open() {
+            recalls.push(RecallRow {
+                reference: format!("{} ({}) certificate {}", f.asset_id, f.kind.name(), f.certificate),
+                finding: format!("from {} on: {}", f.since, f.reason),
+                serial: x.serial.clone(),
+                device_id: x.device_id.clone(),
+                unit_key: crate::app::recall::unit_key(x).to_string(),
+                run_id: x.run_id.clone(),
+                started: utc_date_time(x.started_unix_s),
+                certificate: crate::app::recall::certificate(x),
+            });
+        }
+    }
     let page = OverviewPage {
         db: &app.target,
         version: VERSION,
@@ -402,6 +443,8 @@ pub(super) fn overview(db: &mut Db, app: &App, q: &str) -> Result<String, PageEr
         assets,
         due_by: data.due_by.to_string(),
         due,
+        recalls,
+        recalls_tampered,
         today_runs: day_runs.iter().map(RunRow::from).collect(),
         chain_broken: data.chain_broken.clone(),
     };
@@ -476,7 +519,7 @@ pub(super) fn fleet(db: &mut Db, app: &App, q: &str) -> Result<String, PageError
 pub(super) fn fleet_csv(db: &mut Db, app: &App, q: &str) -> Result<String, PageError> {
     let f = Filters::parse(q)?;
     let (data, _, _) = f.gather(db, app.due_days, Parts::Table)?;
-    csv_of(&data.runs).map_err(PageError::internal)
+    csv_of(&data.runs, &data).map_err(PageError::internal)
 }
 
 struct ChartView {
@@ -673,6 +716,8 @@ struct UnitPage<'a> {
     drift_svg: String,
     drifts: Vec<String>,
     recalibration: String,
+    /// Each finding that affects the unit: what became of it, in words, and whether it is open.
+    recalls: Vec<(String, bool)>,
 }
 
 /// A run's certificate in force in words: `2026-000004 approved (replaces 2026-000003,
@@ -790,6 +835,36 @@ pub(super) fn unit(db: &mut Db, app: &App, key: &str) -> Result<String, PageErro
         Some(t) => format!("recalibrate by {} ({})", &utc_date_time(t)[..10], rc.basis),
         None => format!("recalibration: {}", rc.basis),
     };
+    // The references found out of tolerance that calibrated the unit, and what became of it.
+    let mut recalls = Vec::new();
+    for r in db.recalls(Some(&h.device_id)).map_err(PageError::unavailable)? {
+        for u in r.units() {
+            let open = u.state == accelcal_db::RecallState::Open;
+            let then = if open {
+                format!(
+                    "open: recall the unit, or dismiss it (accelcal affected {} --dismiss {} --reason TEXT)",
+                    r.found_bad.asset_id,
+                    crate::app::recall::unit_key(u.run)
+                )
+            } else {
+                crate::app::recall::state(u.run)
+            };
+            let tampered = r
+                .tampered
+                .as_ref()
+                .map(|t| format!(" (TAMPERED: {t}; no dismissal taken)"))
+                .unwrap_or_default();
+            recalls.push((
+                format!(
+                    "Recall: run {} ({}) was calibrated on {}: {then}{tampered}",
+                    u.run.run_id,
+                    utc_date_time(u.run.started_unix_s),
+                    crate::app::recall::finding(&r.found_bad)
+                ),
+                open,
+            ));
+        }
+    }
     let page = UnitPage {
         db: &app.target,
         version: VERSION,
@@ -805,6 +880,7 @@ pub(super) fn unit(db: &mut Db, app: &App, key: &str) -> Result<String, PageErro
         drift_svg,
         drifts,
         recalibration,
+        recalls,
     };
     page.render().map_err(PageError::internal)
 }

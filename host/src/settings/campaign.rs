@@ -194,12 +194,16 @@ pub struct Simulate {
     pub codes: CodeRange,
     /// `--json`.
     pub json: Option<PathBuf>,
+    /// Where the simulator's g came from, written as the campaign's `# g_source:`.
+    pub g_source: accelcal_core::campaign::GSource,
 }
 
 /// `simulate`'s settings; `stated`: the gravity the command line states.
 pub fn simulate(a: &SimulateArgs, stated: Option<&Gravity>) -> anyhow::Result<Simulate> {
+    let gravity = Gravity::default_of(stated, a.g);
     Ok(Simulate {
-        config: config(a, Gravity::default_of(stated, a.g).g)?,
+        g_source: gravity.provenance(),
+        config: config(a, gravity.g)?,
         out: a.out.clone(),
         truth: a.truth.clone().unwrap_or_else(|| a.out.with_extension("truth.json")),
         serial: a.serial.clone(),

@@ -15,6 +15,7 @@
 //! anomaly, the assumed 9.81 m/s² is within 0.03 m/s² anywhere at sea level, a number given is
 //! taken as rounded.
 
+use accelcal_core::campaign::GSource;
 use accelcal_core::error::bad;
 
 use super::Given;
@@ -26,16 +27,16 @@ use crate::resolved::{check_g, Gravity, Source};
 /// `--height` without `--latitude`, a latitude outside ±90°, a height beyond ±100 km and a `--g`
 /// that is not a positive number.
 pub fn stated(command: &Command, given: &Given) -> anyhow::Result<Option<Gravity>> {
-    let (g, local) = match command {
-        Command::Fit(a) => (Some(a.common.g), &a.common.local),
-        Command::Select(a) => (Some(a.common.g), &a.common.local),
-        Command::Compare(a) => (Some(a.common.g), &a.common.local),
-        Command::Diagnose(a) => (Some(a.common.g), &a.common.local),
-        Command::Plan(a) => (Some(a.g), &a.local),
-        Command::Simulate(a) => (Some(a.g), &a.local),
-        Command::Acquire(a) => (a.g, &a.local),
-        Command::Verify(a) => (a.g, &a.local),
-        Command::Station(a) => (a.g, &a.local),
+    let (g, local, asset) = match command {
+        Command::Fit(a) => (Some(a.common.g), &a.common.local, a.gravity_asset.as_deref()),
+        Command::Select(a) => (Some(a.common.g), &a.common.local, None),
+        Command::Compare(a) => (Some(a.common.g), &a.common.local, None),
+        Command::Diagnose(a) => (Some(a.common.g), &a.common.local, None),
+        Command::Plan(a) => (Some(a.g), &a.local, None),
+        Command::Simulate(a) => (Some(a.g), &a.local, None),
+        Command::Acquire(a) => (a.g, &a.local, None),
+        Command::Verify(a) => (a.g, &a.local, a.gravity_asset.as_deref()),
+        Command::Station(a) => (a.g, &a.local, a.gravity_asset.as_deref()),
         _ => return Ok(None),
     };
     if given.has("g") && given.has("latitude") {
@@ -44,13 +45,34 @@ pub fn stated(command: &Command, given: &Given) -> anyhow::Result<Option<Gravity
     if given.has("height") && !given.has("latitude") {
         return Err(bad("--height needs --latitude (it corrects the normal gravity there)"));
     }
+    if given.has("g_u") && !given.has("g") {
+        return Err(bad("--g-u needs --g: it is the standard uncertainty of the g typed there"));
+    }
+    if let Some(id) = asset {
+        if let Some(other) = ["g", "latitude", "g_u"].into_iter().find(|o| given.has(o)) {
+            return Err(bad(format!(
+                "--gravity-asset and --{} both give gravity: give one of them",
+                other.replace('_', "-")
+            )));
+        }
+        // The survey's value is read with the command's database (`app::gravity::resolve`).
+        return Ok(Some(Gravity { g: f64::NAN, source: Source::Asset { id: id.to_string() } }));
+    }
     if let Some(site) = site(local)? {
         return Ok(Some(site));
     }
     match g.filter(|_| given.has("g")) {
         Some(g) => {
             check_g(g)?;
-            Ok(Some(Gravity { g, source: Source::Flag }))
+            let u_m_s2 = match local.g_u {
+                Some(u) if !(u.is_finite() && u > 0.0 && u < 0.1) => {
+                    return Err(bad(format!(
+                        "--g-u must be a standard uncertainty in (0, 0.1) m/s², got {u}"
+                    )))
+                }
+                u => u,
+            };
+            Ok(Some(Gravity { g, source: Source::Stated(GSource::Given { u_m_s2 }) }))
         }
         None => Ok(None),
     }
@@ -68,7 +90,7 @@ fn site(local: &LocalGravity) -> anyhow::Result<Option<Gravity>> {
     }
     Ok(Some(Gravity {
         g: accelcal_shared::normal_gravity(latitude, height),
-        source: Source::Site { latitude, height },
+        source: Source::Stated(GSource::Normal { latitude_deg: latitude, height_m: height }),
     }))
 }
 
@@ -78,7 +100,9 @@ mod tests {
 
     #[test]
     fn a_site_out_of_range_is_refused() {
-        let at = |latitude, height| site(&LocalGravity { latitude: Some(latitude), height: Some(height) });
+        let at = |latitude, height| {
+            site(&LocalGravity { latitude: Some(latitude), height: Some(height), g_u: None })
+        };
         assert!(at(91.0, 0.0).is_err());
         assert!(at(f64::NAN, 0.0).is_err());
         assert!(at(45.0, 2e5).is_err());

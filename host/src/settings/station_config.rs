@@ -3,7 +3,7 @@
 //! Each key is the `station` option of the same name (`_` for `-`; `station` for `--station`),
 //! and the nodes are `[[node]]` tables (`port`, `gdb`, `probe`). An option given on the command
 //! line overrides its key; `--port` replaces every `[[node]]` (their `gdb` and `probe` too),
-//! and `--g`, `--latitude` or `--height` replace all three gravity keys. Relative paths (`spec`,
+//! and `--g`, `--g-u`, `--latitude`, `--height` or `--gravity-asset` replace all five gravity keys. Relative paths (`spec`,
 //! a SQLite `db`) are relative to the file's directory, so the file means the same from any
 //! working directory.
 //!
@@ -52,6 +52,8 @@ struct StationConfig {
     g: Option<Spanned<f64>>,
     latitude: Option<Spanned<f64>>,
     height: Option<Spanned<f64>>,
+    g_u: Option<Spanned<f64>>,
+    gravity_asset: Option<Spanned<String>>,
     select_tolerance: Option<Spanned<f64>>,
     verify_samples: Option<Spanned<usize>>,
     criterion: Option<Spanned<String>>,
@@ -68,6 +70,15 @@ struct StationConfig {
     /// `approve --config`'s: whether a run's operator may approve its certificate. The station
     /// does not read it.
     allow_self_approval: Option<Spanned<bool>>,
+}
+
+/// The file's gravity keys.
+struct Gravity {
+    g: Option<Spanned<f64>>,
+    latitude: Option<Spanned<f64>>,
+    height: Option<Spanned<f64>>,
+    g_u: Option<Spanned<f64>>,
+    asset: Option<Spanned<String>>,
 }
 
 /// `[laboratory]`.
@@ -174,7 +185,10 @@ pub fn apply(command: &mut Command, given: &mut Given) -> anyhow::Result<Option<
     f.value(&mut a.samples, "samples", "samples", samples);
     let rate_hz = f.checked("rate_hz", c.rate_hz, crate::cli::range::rate_hz)?;
     f.optional(&mut a.rate_hz, "rate_hz", "rate_hz", rate_hz);
-    f.gravity(a, c.g, c.latitude, c.height)?;
+    f.gravity(
+        a,
+        Gravity { g: c.g, latitude: c.latitude, height: c.height, g_u: c.g_u, asset: c.gravity_asset },
+    )?;
     let select_tolerance = f.real("select_tolerance", c.select_tolerance, Range::Codes)?;
     f.value(&mut a.select_tolerance, "select_tolerance", "select_tolerance", select_tolerance);
     let verify_samples =
@@ -432,36 +446,57 @@ impl File<'_, '_, '_> {
         Ok(())
     }
 
-    /// `g`, or `latitude` (and `height`): not taken when the command line gives gravity.
-    fn gravity(
-        &mut self,
-        a: &mut StationArgs,
-        g: Option<Spanned<f64>>,
-        latitude: Option<Spanned<f64>>,
-        height: Option<Spanned<f64>>,
-    ) -> anyhow::Result<()> {
+    /// `g` (and `g_u`), `latitude` (and `height`) or `gravity_asset`: none taken when the command
+    /// line gives gravity.
+    fn gravity(&mut self, a: &mut StationArgs, c: Gravity) -> anyhow::Result<()> {
         let name = self.name;
-        if let (Some(g), Some(l)) = (&g, &latitude) {
-            return Err(bad(format!(
-                "{name}:{}: g and latitude (at {}) both give gravity: keep one of them",
-                self.at(g),
-                self.at(l)
-            )));
+        let clash = |this: &dyn Fn() -> String, k: &str, other: String| {
+            bad(format!("{name}:{}: {k} and {} both give gravity: keep one of them", this(), other))
+        };
+        if let (Some(g), Some(l)) = (&c.g, &c.latitude) {
+            return Err(clash(&|| self.at(g), "g", format!("latitude (at {})", self.at(l))));
         }
-        if let (Some(h), None) = (&height, &latitude) {
+        if let Some(asset) = &c.asset {
+            let other = [
+                ("g", c.g.as_ref().map(|v| self.at(v))),
+                ("latitude", c.latitude.as_ref().map(|v| self.at(v))),
+            ]
+            .into_iter()
+            .chain([("g_u", c.g_u.as_ref().map(|v| self.at(v)))])
+            .find_map(|(k, at)| at.map(|at| format!("{k} (at {at})")));
+            if let Some(other) = other {
+                return Err(clash(&|| self.at(asset), "gravity_asset", other));
+            }
+        }
+        if let (Some(h), None) = (&c.height, &c.latitude) {
             return Err(bad(format!(
                 "{name}:{}: height needs latitude (it corrects the normal gravity there)",
                 self.at(h)
             )));
         }
-        if ["g", "latitude", "height"].iter().any(|id| self.given.on_command_line(id)) {
-            let keys = [("g", &g), ("latitude", &latitude), ("height", &height)];
-            self.overridden.extend(keys.iter().filter(|(_, v)| v.is_some()).map(|(k, _)| k.to_string()));
+        if let (Some(u), None) = (&c.g_u, &c.g) {
+            return Err(bad(format!(
+                "{name}:{}: g_u needs g: it is the standard uncertainty of that g",
+                self.at(u)
+            )));
+        }
+        if ["g", "latitude", "height", "g_u", "gravity_asset"].iter().any(|id| self.given.on_command_line(id))
+        {
+            let keys = [
+                ("g", c.g.is_some()),
+                ("latitude", c.latitude.is_some()),
+                ("height", c.height.is_some()),
+                ("g_u", c.g_u.is_some()),
+                ("gravity_asset", c.asset.is_some()),
+            ];
+            self.overridden.extend(keys.iter().filter(|(_, v)| *v).map(|(k, _)| k.to_string()));
             return Ok(());
         }
-        self.optional(&mut a.g, "g", "g", g);
-        self.optional(&mut a.local.latitude, "latitude", "latitude", latitude);
-        self.optional(&mut a.local.height, "height", "height", height);
+        self.optional(&mut a.g, "g", "g", c.g);
+        self.optional(&mut a.local.latitude, "latitude", "latitude", c.latitude);
+        self.optional(&mut a.local.height, "height", "height", c.height);
+        self.optional(&mut a.local.g_u, "g_u", "g_u", c.g_u);
+        self.text_value(&mut a.gravity_asset, "gravity_asset", "gravity_asset", c.asset)?;
         Ok(())
     }
 }

@@ -21,6 +21,7 @@ fn a_fit_of_another_unit_or_record_is_refused() {
         device_id: Some("51454d552d422d4c34373545".into()),
         serial: Some("U-1".into()),
         g_m_s2: 9.81,
+        g_source: None,
         campaign_sha256: "00".repeat(32),
         record_crc: Some("b1fe3d0c".into()),
     };

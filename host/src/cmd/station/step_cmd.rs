@@ -45,8 +45,15 @@ pub(super) struct HeadU {
 /// Gravity as the user stated it (m/s²; or latitude in degrees and height in m).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) enum GravityGiven {
-    G(f64),
-    Site { latitude: f64, height: f64 },
+    /// `--g`, and `--g-u` when it has a stated uncertainty.
+    G {
+        g: f64,
+        u: Option<f64>,
+    },
+    Site {
+        latitude: f64,
+        height: f64,
+    },
 }
 
 /// The run a step stores its piece in: the database as given, and the run.
@@ -187,7 +194,12 @@ impl Line {
 
     fn gravity(&mut self, g: Option<GravityGiven>) {
         match g {
-            Some(GravityGiven::G(g)) => self.opt("--g", g),
+            Some(GravityGiven::G { g, u }) => {
+                self.opt("--g", g);
+                if let Some(u) = u {
+                    self.opt("--g-u", u);
+                }
+            }
             Some(GravityGiven::Site { latitude, height }) => {
                 self.opt("--latitude", latitude);
                 if height != 0.0 {
@@ -481,7 +493,7 @@ mod tests {
             json: "v.json".into(),
             fit: Some("f.json".into()),
             against,
-            gravity: Some(GravityGiven::G(9.80123)),
+            gravity: Some(GravityGiven::G { g: 9.80123, u: None }),
         };
         let c = verify(Against::Scatter { coverage: Some(3.0) });
         let Command::Verify(a) = parse(&c) else { panic!("verify") };
