@@ -514,10 +514,21 @@ const AWAITS_APPROVAL: &str =
     "there a certificate awaits approval by a registered signer's key (`accelcal signer add`, \
      `accelcal approve`), and a name typed in the settings authorises nothing";
 
-/// `--laboratory-address` goes with `--laboratory`.
+/// `--laboratory-address` and `--laboratory-country` go with `--laboratory`; a country is
+/// ISO 3166-1's two capital letters.
 fn check_issuer(i: &crate::cli::Issuer) -> anyhow::Result<()> {
     if i.laboratory_address.is_some() && i.laboratory.is_none() {
         return Err(bad("--laboratory-address needs --laboratory (the address is printed after its name)"));
+    }
+    if let Some(c) = &i.laboratory_country {
+        if i.laboratory.is_none() {
+            return Err(bad("--laboratory-country needs --laboratory (it is the laboratory's country)"));
+        }
+        if !(c.len() == 2 && c.bytes().all(|b| b.is_ascii_uppercase())) {
+            return Err(bad(format!(
+                "--laboratory-country {c:?} is not an ISO 3166-1 alpha-2 code (two capital letters, e.g. DE)"
+            )));
+        }
     }
     if i.customer_address.is_some() && i.customer.is_none() {
         return Err(bad("--customer-address needs --customer (the address is printed after its name)"));

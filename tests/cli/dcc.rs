@@ -63,11 +63,17 @@ fn a_simulated_units_dcc_validates_states_the_document_and_verifies() {
         "ACME <Sensors> & \"Co\"",
         "--received",
         "2026-12-01",
+        "--laboratory",
+        "Example Calibration Laboratory",
+        "--laboratory-country",
+        "CH",
     ]);
     assert!(out.contains("its DCC (XML, schema 3.3.0) written to"), "{out}");
     xmllint_validates(&dcc);
 
     let xml = std::fs::read_to_string(&dcc).unwrap();
+    // The laboratory's country, as stated (ZZ, unknown, only when it is not).
+    assert!(xml.contains("<dcc:countryCodeISO3166_1>CH</dcc:countryCodeISO3166_1>"), "{xml}");
     let doc = document(&std::fs::read_to_string(&cert).unwrap());
     let facts = &doc["facts"];
     // A coefficient and a U, read back: the document's numbers.

@@ -212,6 +212,22 @@ const REFUSED: &[(&str, &str)] = &[
         "vg.json has g 9.8 m/s² but fc.json has 9.81 m/s²: the certificate states one g",
     ),
     ("report --campaign C --record rc.rec --fit fc.json --verify vc.json -o fc.json", "fc.json is the input --fit: refusing to overwrite it"),
+    (
+        "report --campaign C --record rc.rec --fit fc.json --verify vc.json -o o.html --laboratory-country CH",
+        "--laboratory-country needs --laboratory (it is the laboratory's country)",
+    ),
+    (
+        "report --campaign C --record rc.rec --fit fc.json --verify vc.json -o o.html --laboratory L --laboratory-country Swiss",
+        "--laboratory-country \"Swiss\" is not an ISO 3166-1 alpha-2 code (two capital letters, e.g. DE)",
+    ),
+    (
+        "station --head manual --port P --out u --serial S --g-u 1e-6",
+        "--g-u needs --g: it is the standard uncertainty of the g typed there",
+    ),
+    (
+        "station --head manual --port P --out u --serial S --gravity-asset G-1 --latitude 50",
+        "--gravity-asset and --latitude both give gravity: give one of them",
+    ),
     ("history U-1 --db cal.sqlite --tolerance-m-s2 0", "--tolerance-m-s2 must be a positive number, got 0"),
     (
         "history U-1 --db cal.sqlite --max-interval-days 0",

@@ -49,6 +49,11 @@ fn a_wrong_settings_file_is_refused_with_its_line_and_nothing_is_done() {
         ("operator = \"Bob\\u001b[2J\"", "station.toml:5:12: operator: \"Bob\\u{1b}[2J\" holds a control character (U+001B)"),
         ("g = 9.8\nlatitude = 46.99", "station.toml:5:5: g and latitude (at 6:12) both give gravity: keep one of them"),
         ("height = 400", "station.toml:5:10: height needs latitude (it corrects the normal gravity there)"),
+        (
+            "gravity_asset = \"G-1\"\ng = 9.81",
+            "station.toml:5:17: gravity_asset and g (at 6:5) both give gravity: keep one of them",
+        ),
+        ("g_u = 1e-6", "station.toml:5:7: g_u needs g: it is the standard uncertainty of that g"),
         ("rate_hz = 5", "`rate_hz` (station.toml:5:11): "),
         ("plan = \"six\"", "station.toml:5:1: duplicate key"),
         ("spec = \"a\\nb.toml\"", "station.toml:5:8: spec: \"a\\nb.toml\" holds a control character (U+000A)"),
@@ -161,7 +166,7 @@ fn the_guides_settings_file_is_accepted() {
     assert_eq!(out.status.code(), Some(3), "{e}");
     assert!(
         e.contains(&format!(
-            "station: settings {} (station, customer, customer_address, place, min_interval_days, laboratory.name, laboratory.address, head, head_asset, node.port, node.probe, plan, samples, rate_hz, latitude, height, spec)",
+            "station: settings {} (station, customer, customer_address, place, min_interval_days, laboratory.name, laboratory.address, laboratory.country, head, head_asset, node.port, node.probe, plan, samples, rate_hz, latitude, height, spec)",
             c.display()
         )),
         "{e}"

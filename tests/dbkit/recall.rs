@@ -32,7 +32,11 @@ pub fn page(serial: &str, number: &str, customer: Option<&str>) -> String {
             firmware: None,
             record_crc: "0".into(),
             campaign_sha256: "0".into(),
-            customer: customer.map(|c| Party { name: c.into(), address: Some("Hauptstrasse 1".into()) }),
+            customer: customer.map(|c| Party {
+                name: c.into(),
+                address: Some("Hauptstrasse 1".into()),
+                country: None,
+            }),
             received: None,
             place: None,
             calibrated: None,

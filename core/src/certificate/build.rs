@@ -29,6 +29,8 @@ pub struct IssuerInput {
     pub laboratory: Option<String>,
     /// Its address.
     pub laboratory_address: Option<String>,
+    /// Its country, ISO 3166-1 alpha-2, checked by the caller.
+    pub laboratory_country: Option<String>,
     /// The customer.
     pub customer: Option<String>,
     /// The customer's address or contact.
@@ -263,7 +265,7 @@ pub fn build(i: &Inputs<'_>) -> Certificate {
     }
 
     let party = |name: &Option<String>, address: &Option<String>| {
-        name.as_ref().map(|n| Party { name: n.clone(), address: address.clone() })
+        name.as_ref().map(|n| Party { name: n.clone(), address: address.clone(), country: None })
     };
     let customer = party(&i.issuer.customer, &i.issuer.customer_address);
     let mut rows: Vec<Field> = Vec::new();
@@ -445,7 +447,8 @@ pub fn build(i: &Inputs<'_>) -> Certificate {
         title: title(&page_no),
         subtitle: format!("Accelerometer triad {}", i.serial),
         footer: footer(&page_no, i.serial),
-        laboratory: party(&i.issuer.laboratory, &i.issuer.laboratory_address),
+        laboratory: party(&i.issuer.laboratory, &i.issuer.laboratory_address)
+            .map(|p| Party { country: i.issuer.laboratory_country.clone(), ..p }),
         verdict,
         identification: rows,
         sections,

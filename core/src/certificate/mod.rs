@@ -62,6 +62,10 @@ pub struct Party {
     pub name: String,
     /// Its address or contact, one line.
     pub address: Option<String>,
+    /// Its country, ISO 3166-1 alpha-2 (`DE`): the laboratory's, for the DCC (absent in a
+    /// document made before it was stated, and for the customer).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub country: Option<String>,
 }
 
 /// A row of the identification table.

@@ -636,6 +636,10 @@ pub struct Issuer {
     /// The laboratory's address, printed after its name (with --laboratory).
     #[arg(long, value_name = "TEXT")]
     pub laboratory_address: Option<String>,
+    /// The laboratory's country, ISO 3166-1 alpha-2 (two capital letters, e.g. DE), which the DCC
+    /// states (with --laboratory) [default: the DCC says ZZ, unknown].
+    #[arg(long, value_name = "CC")]
+    pub laboratory_country: Option<String>,
     /// The customer the unit is calibrated for, printed on the certificate [default: none
     /// printed].
     #[arg(long, value_name = "NAME")]

@@ -251,6 +251,7 @@ pub fn run(a: &Report) -> anyhow::Result<()> {
     let issuer = IssuerInput {
         laboratory: a.issuer.laboratory.clone(),
         laboratory_address: a.issuer.laboratory_address.clone(),
+        laboratory_country: a.issuer.laboratory_country.clone(),
         customer: a.issuer.customer.clone(),
         customer_address: a.issuer.customer_address.clone(),
         received: a.issuer.received.clone(),

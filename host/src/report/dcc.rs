@@ -170,8 +170,10 @@ fn administrative(x: &mut X, doc: &Certificate, authoriser: Option<&Authoriser>)
     x.close("dcc:dccSoftware")?;
 
     x.open("dcc:coreData")?;
-    // The laboratory's country is not in the document yet: ISO 3166's "unknown or unspecified".
-    x.leaf("dcc:countryCodeISO3166_1", "ZZ")?;
+    // ISO 3166's "unknown or unspecified" when the laboratory did not state its country
+    // (`--laboratory-country`, station.toml's `laboratory.country`).
+    let country = doc.laboratory.as_ref().and_then(|l| l.country.as_deref()).unwrap_or("ZZ");
+    x.leaf("dcc:countryCodeISO3166_1", country)?;
     x.leaf("dcc:usedLangCodeISO639_1", "en")?;
     x.leaf("dcc:mandatoryLangCodeISO639_1", "en")?;
     let unnumbered = format!("unnumbered {} {}", not_empty(&f.serial), f.record_crc);

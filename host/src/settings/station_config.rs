@@ -87,6 +87,7 @@ struct Gravity {
 struct Laboratory {
     name: String,
     address: Option<String>,
+    country: Option<String>,
 }
 
 /// One `[[node]]`: a node on the head.
@@ -137,7 +138,9 @@ pub fn apply(command: &mut Command, given: &mut Given) -> anyhow::Result<Option<
     if let Some(lab) = c.laboratory {
         let at = f.at(&lab);
         let lab = lab.into_inner();
-        for (key, v) in [("name", Some(&lab.name)), ("address", lab.address.as_ref())] {
+        for (key, v) in
+            [("name", Some(&lab.name)), ("address", lab.address.as_ref()), ("country", lab.country.as_ref())]
+        {
             if let Some(v) = v {
                 accelcal_core::text::single_line(&format!("{name}:{at}: laboratory.{key}"), v)?;
             }
@@ -153,6 +156,12 @@ pub fn apply(command: &mut Command, given: &mut Given) -> anyhow::Result<Option<
         } else if lab.address.is_some() {
             a.issuer.laboratory_address = lab.address;
             f.given.config.push(("laboratory_address", "laboratory.address".into(), format!("{name}:{at}")));
+        }
+        if f.given.on_command_line("laboratory_country") {
+            f.overridden.push("laboratory.country".into());
+        } else if lab.country.is_some() {
+            a.issuer.laboratory_country = lab.country;
+            f.given.config.push(("laboratory_country", "laboratory.country".into(), format!("{name}:{at}")));
         }
     }
     if let Some(head) = &c.head {

@@ -72,6 +72,7 @@ pub enum FlashRoute {
 pub struct Issuer {
     pub laboratory: Option<String>,
     pub laboratory_address: Option<String>,
+    pub laboratory_country: Option<String>,
     pub customer: Option<String>,
     pub customer_address: Option<String>,
     pub received: Option<String>,
@@ -100,6 +101,7 @@ impl Issuer {
         Issuer {
             laboratory: a.laboratory.clone(),
             laboratory_address: a.laboratory_address.clone(),
+            laboratory_country: a.laboratory_country.clone(),
             customer: a.customer.clone(),
             customer_address: a.customer_address.clone(),
             received: a.received.clone(),

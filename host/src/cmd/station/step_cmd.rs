@@ -320,6 +320,7 @@ impl StepCommand {
                 l.maybe("--as-found", as_found.as_ref().map(|p| p.display()));
                 l.maybe("--laboratory", issuer.laboratory.as_ref());
                 l.maybe("--laboratory-address", issuer.laboratory_address.as_ref());
+                l.maybe("--laboratory-country", issuer.laboratory_country.as_ref());
                 l.maybe("--customer", issuer.customer.as_ref());
                 l.maybe("--customer-address", issuer.customer_address.as_ref());
                 l.maybe("--received", issuer.received.as_ref());
