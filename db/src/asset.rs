@@ -77,17 +77,19 @@ pub struct Asset {
     pub operator: String,
     /// When, seconds since the Unix epoch.
     pub registered_unix_s: i64,
-    /// A gravity survey: the value of g its certificate states and its standard uncertainty,
-    /// m/s² (`None` for other kinds).
+    /// What its certificate states besides a head's uncertainties, in SI units: a gravity
+    /// survey's g and its standard uncertainty (m/s²), a thermometer's standard uncertainty of a
+    /// reading (K, no value); `None` for a head, or a thermometer registered without one.
     pub value: Option<StatedValue>,
 }
 
-/// A value an asset's certificate states, with its standard uncertainty, in SI units.
+/// What an asset's certificate states: a value (a gravity survey's g) and a standard uncertainty
+/// (of that value, or of a thermometer's readings), in SI units.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct StatedValue {
-    /// The value.
-    pub value: f64,
-    /// Its standard uncertainty (one sigma).
+    /// The value (a gravity survey's g); `None` for a thermometer.
+    pub value: Option<f64>,
+    /// The standard uncertainty (one sigma).
     pub u: f64,
 }
 
@@ -184,7 +186,8 @@ fn asset_of(r: &[Val]) -> Result<Asset, DbError> {
         registered_unix_s: r[7].int()?,
         value: match (&r[8], &r[9]) {
             (Val::Null, Val::Null) => None,
-            (v, u) => Some(StatedValue { value: v.real()?, u: u.real()? }),
+            (Val::Null, u) => Some(StatedValue { value: None, u: u.real()? }),
+            (v, u) => Some(StatedValue { value: Some(v.real()?), u: u.real()? }),
         },
     })
 }
@@ -193,7 +196,7 @@ fn asset_of(r: &[Val]) -> Result<Asset, DbError> {
 /// (index 8) NULL until [`asset_content`] of the row gives it.
 fn asset_row(a: &Asset) -> Vec<Val> {
     let (value, u) = match a.value {
-        Some(v) => (v.value.into(), v.u.into()),
+        Some(v) => (v.value.map_or(Val::Null, Val::from), v.u.into()),
         None => (Val::Null, Val::Null),
     };
     vec![
@@ -249,10 +252,10 @@ fn check(a: &Asset) -> Result<(), AssetError> {
         }
     }
     match (a.kind, a.value) {
-        (AssetKind::Gravity, None) => Err(bad(
+        (AssetKind::Gravity, None | Some(StatedValue { value: None, .. })) => Err(bad(
             "a gravity survey states the value of g and its standard uncertainty (--value, --u)".into(),
         )),
-        (AssetKind::Gravity, Some(StatedValue { value, u })) => {
+        (AssetKind::Gravity, Some(StatedValue { value: Some(value), u })) => {
             if !(value.is_finite() && (9.7..=9.9).contains(&value)) {
                 return Err(bad(format!("its g {value} m/s² is not between 9.7 and 9.9 m/s²")));
             }
@@ -261,7 +264,13 @@ fn check(a: &Asset) -> Result<(), AssetError> {
             }
             Ok(())
         }
-        (kind, Some(_)) => Err(bad(format!("a {} states no value (a gravity survey does)", kind.name()))),
+        (AssetKind::Thermometer, Some(StatedValue { value: None, u })) => {
+            if !(u.is_finite() && u > 0.0 && u <= 10.0) {
+                return Err(bad(format!("its standard uncertainty {u} K is not in (0, 10] K")));
+            }
+            Ok(())
+        }
+        (kind, Some(_)) => Err(bad(format!("a {} states no such value", kind.name()))),
         (_, None) => Ok(()),
     }
 }

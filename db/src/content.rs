@@ -39,6 +39,8 @@ pub(crate) fn asset_content(row: &[Val]) -> Result<String, DbError> {
     // before it.
     match (row.get(9).unwrap_or(&Val::Null), row.get(10).unwrap_or(&Val::Null)) {
         (Val::Null, Val::Null) => {}
+        // A thermometer's uncertainty without a value.
+        (Val::Null, u) => text.push_str(&format!("\n-\n{:?}", u.real()?.to_bits())),
         (v, u) => text.push_str(&format!("\n{:?}\n{:?}", v.real()?.to_bits(), u.real()?.to_bits())),
     }
     Ok(text)

@@ -335,6 +335,12 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
                 crate::resolved::check_g(g)?;
             }
             check_issuer(&a.issuer)?;
+            if a.issuer.ambient_c.is_some() && a.run.db.is_none() {
+                return Err(bad(
+                    "--ambient-c needs --db and --run-id: the thermometer it was read on is the run's, read from the \
+                     register",
+                ));
+            }
             if a.issuer.authorised_by.is_some() && a.run.db.is_some() {
                 return Err(bad(format!("--authorised-by does not apply with --db: {AWAITS_APPROVAL}")));
             }
@@ -433,6 +439,21 @@ pub fn check(command: &Command, given: &Given) -> anyhow::Result<()> {
                 )));
             }
             check_issuer(&a.issuer)?;
+            match (a.thermometer_asset.is_some(), a.issuer.ambient_c.is_some()) {
+                (true, false) => {
+                    return Err(bad(format!(
+                        "{} needs --ambient-c: the certificate states the environment's temperature as read on it",
+                        given.name("thermometer_asset")
+                    )))
+                }
+                (false, true) => {
+                    return Err(bad(
+                        "--ambient-c needs --thermometer-asset: a reading is traceable through the registered \
+                         thermometer it was read on",
+                    ))
+                }
+                _ => {}
+            }
             if a.issuer.authorised_by.is_some() {
                 return Err(bad(format!(
                     "{} does not apply to the station, which stores every run in a database: {AWAITS_APPROVAL}",
@@ -519,6 +540,11 @@ const AWAITS_APPROVAL: &str =
 fn check_issuer(i: &crate::cli::Issuer) -> anyhow::Result<()> {
     if i.laboratory_address.is_some() && i.laboratory.is_none() {
         return Err(bad("--laboratory-address needs --laboratory (the address is printed after its name)"));
+    }
+    if let Some(t) = i.ambient_c {
+        if !(t.is_finite() && (-50.0..=100.0).contains(&t)) {
+            return Err(bad(format!("--ambient-c must be from -50 to 100 °C, got {t}")));
+        }
     }
     if let Some(c) = &i.laboratory_country {
         if i.laboratory.is_none() {

@@ -60,6 +60,14 @@ fn assets_are_registered_listed_shown_and_refused_where_they_do_not_apply() {
             "--value does not apply to asset add --kind thermometer",
         ),
         (
+            "T-1 --kind thermometer --certificate C --due 2099-01-01 --u 20",
+            "its standard uncertainty 20 K is not in (0, 10] K",
+        ),
+        (
+            "H-3 --kind head --certificate C --due 2099-01-01 --angle-u 1 --orthogonality-u 1 --u 1",
+            "--u does not apply to asset add --kind head",
+        ),
+        (
             "HEAD-7 --kind head --certificate DKD-K-15-01 --due 2098-12-31 --angle-u 4 --orthogonality-u 6",
             "registered already with other statements",
         ),
@@ -87,10 +95,16 @@ fn assets_are_registered_listed_shown_and_refused_where_they_do_not_apply() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("`31.12.2099` is not a date YYYY-MM-DD"), "{o:?}");
     let out = run_asset(&db, "PT100-3", "DAkkS-T-9", "2020-06-30", &["--kind", "thermometer"]);
     assert!(out.contains("registered"), "{out}");
+    let out =
+        run_asset(&db, "PT100-4", "DAkkS-T-10", "2099-06-30", &["--kind", "thermometer", "--u", "0.05"]);
+    assert!(
+        out.contains("asset: PT100-4 (thermometer) certificate DAkkS-T-10, due 2099-06-30, u 0.05 K per reading (one sigma): registered"),
+        "{out}"
+    );
 
     let list = d.s("assets.json");
     let out = ok(&["asset", "list", "--db", &db, "--json", &list]);
-    assert!(out.contains("assets in") && out.contains(": 2"), "{out}");
+    assert!(out.contains("assets in") && out.contains(": 3"), "{out}");
     assert!(out.lines().any(|l| l.contains("PT100-3") && l.contains("OVERDUE")), "{out}");
     assert!(out.lines().any(|l| l.contains("HEAD-7") && l.contains("in force (")), "{out}");
     let j = json(Path::new(&list));

@@ -221,6 +221,18 @@ const REFUSED: &[(&str, &str)] = &[
         "--laboratory-country \"Swiss\" is not an ISO 3166-1 alpha-2 code (two capital letters, e.g. DE)",
     ),
     (
+        "station --head manual --port P --out u --serial S --thermometer-asset T-1",
+        "--thermometer-asset needs --ambient-c: the certificate states the environment's temperature as read on it",
+    ),
+    (
+        "station --head manual --port P --out u --serial S --ambient-c 22",
+        "--ambient-c needs --thermometer-asset: a reading is traceable through the registered thermometer it was read on",
+    ),
+    (
+        "report --campaign C --record rc.rec --fit fc.json --verify vc.json -o o.html --ambient-c 22",
+        "--ambient-c needs --db and --run-id: the thermometer it was read on is the run's",
+    ),
+    (
         "station --head manual --port P --out u --serial S --g-u 1e-6",
         "--g-u needs --g: it is the standard uncertainty of the g typed there",
     ),

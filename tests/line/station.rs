@@ -67,7 +67,32 @@ fn the_station_runs_the_line_journals_it_and_resumes_after_ctrl_c() {
         "--db",
         s(&db),
     ]);
-    let head = ["--head-asset", "HEAD-SIM", "--gravity-asset", "G-SITE"];
+    // And the environment's thermometer (issue 57): the certificate states the reading on it.
+    succeed(&[
+        "asset",
+        "add",
+        "PT100-SIM",
+        "--kind",
+        "thermometer",
+        "--u",
+        "0.05",
+        "--certificate",
+        "DAkkS-T-1",
+        "--due",
+        "2099-12-31",
+        "--db",
+        s(&db),
+    ]);
+    let head = [
+        "--head-asset",
+        "HEAD-SIM",
+        "--gravity-asset",
+        "G-SITE",
+        "--thermometer-asset",
+        "PT100-SIM",
+        "--ambient-c",
+        "22.5",
+    ];
     fn surveyed(v: Vec<&str>) -> Vec<&str> {
         let at = v.iter().position(|a| *a == "--g").expect("the bench's --g");
         v.into_iter().enumerate().filter(|(i, _)| *i != at && *i != at + 1).map(|(_, a)| a).collect()
@@ -149,6 +174,13 @@ fn the_station_runs_the_line_journals_it_and_resumes_after_ctrl_c() {
     // The certificate names the head by its asset.
     let cert = std::fs::read_to_string(a.join("certificate.html")).unwrap();
     assert!(cert.contains("head HEAD-SIM, calibration certificate DKD-K-0002"), "{cert}");
+    // The environment as read on the registered thermometer, with U (k = 2) from its certificate.
+    assert!(
+        cert.contains(
+            "22.50 ± 0.10 °C (U, k = 2), read on thermometer PT100-SIM, calibration certificate DAkkS-T-1"
+        ),
+        "{cert}"
+    );
     // And g by its survey, with U (k = 2) from the survey's u.
     assert!(
         cert.contains("9.8100000 ± 0.0000040 m/s² (U, k = 2): gravity survey G-SITE, calibration certificate BKG-2026-17"),
@@ -224,8 +256,8 @@ fn the_station_runs_the_line_journals_it_and_resumes_after_ctrl_c() {
         ("verification", 1, 2),
         ("certificate", 1, 1),
         ("run_end", 1, 1),
-        // Unit A's head and gravity survey.
-        ("run_asset", 2, 0),
+        // Unit A's head, gravity survey and thermometer.
+        ("run_asset", 3, 0),
     ] {
         assert_eq!((count(table, &run_a), count(table, &run_b)), (a_rows, b_rows), "{table}");
     }

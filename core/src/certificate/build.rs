@@ -50,6 +50,20 @@ pub struct GravityInput {
     pub source: crate::campaign::GSource,
 }
 
+/// The environment's temperature, read on a registered thermometer the run used.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EnvironmentInput {
+    /// The reading, °C.
+    pub celsius: f64,
+    /// The thermometer's standard uncertainty of a reading, K, as its certificate states it
+    /// (`None`: registered without one).
+    pub u_k: Option<f64>,
+    /// The thermometer's asset id.
+    pub thermometer: String,
+    /// Its certificate in force for the run.
+    pub certificate: String,
+}
+
 /// A registered reference the run used.
 #[derive(Clone, Debug, PartialEq)]
 pub struct AssetRef {
@@ -129,6 +143,8 @@ pub struct Inputs<'a> {
     pub operator: Option<&'a str>,
     /// The unit's drift and recalibration, from the database.
     pub drift: Option<DriftInput>,
+    /// The environment's temperature on a registered thermometer, when one was read.
+    pub environment: Option<EnvironmentInput>,
     /// The chain's head at issue.
     pub anchor: Option<&'a str>,
     /// The certificate this one replaces (an amendment), with the reason.
@@ -347,11 +363,16 @@ pub fn build(i: &Inputs<'_>) -> Certificate {
         .map(|a| format!("; {} {}, calibration certificate {}", a.kind, a.id, a.certificate))
         .collect();
     row("Traceability", format!("g from {}; {head}{others}", plain(&g.source.words())));
-    row(
-        "Environment",
+    let node =
         temp.as_ref().map_or("temperature not measured (no verification after calibration)".into(), |t| {
             format!("verified {}", t.0)
-        }),
+        });
+    row(
+        "Environment",
+        match &i.environment {
+            Some(e) => format!("{}; {node}", environment_text(e)),
+            None => node,
+        },
     );
     let rule = decision_rule(i.verify);
     row("Decision rule", rule.clone());
@@ -422,10 +443,21 @@ pub fn build(i: &Inputs<'_>) -> Certificate {
             k: Some(2.0),
             unit: "m/s²".into(),
         },
-        temperature: temp.as_ref().map(|t| Quantity { value: t.1, u: None, k: None, unit: "°C".into() }),
-        temperature_source: temp
-            .as_ref()
-            .map(|_| "the node's own sensor, not a traceable thermometer".into()),
+        temperature: match &i.environment {
+            Some(e) => Some(Quantity {
+                value: e.celsius,
+                u: e.u_k.map(|u| 2.0 * u),
+                k: e.u_k.map(|_| 2.0),
+                unit: "°C".into(),
+            }),
+            None => temp.as_ref().map(|t| Quantity { value: t.1, u: None, k: None, unit: "°C".into() }),
+        },
+        temperature_source: match &i.environment {
+            Some(e) => {
+                Some(format!("thermometer {}, calibration certificate {}", e.thermometer, e.certificate))
+            }
+            None => temp.as_ref().map(|_| "the node's own sensor, not a traceable thermometer".into()),
+        },
         u_axis,
         coefficients: rec
             .coefficients
@@ -749,6 +781,16 @@ fn decision_rule(v: Option<&VerifyReport>) -> String {
                  conformity"
             .into(),
     }
+}
+
+/// The environment's temperature as read on its registered thermometer, with U (k = 2) by
+/// ILAC-P14 when the thermometer's certificate states its uncertainty.
+fn environment_text(e: &EnvironmentInput) -> String {
+    let value = match e.u_k.and_then(|u| Ilac::of(e.celsius, 2.0 * u)) {
+        Some(r) => format!("{} ± {} °C (U, k = 2)", r.value(false), r.u()),
+        None => format!("{:.1} °C (the thermometer's certificate states no uncertainty)", e.celsius),
+    };
+    format!("{value}, read on thermometer {}, calibration certificate {}", e.thermometer, e.certificate)
 }
 
 /// The temperature of a verification in words, and the node's mean over the positions.

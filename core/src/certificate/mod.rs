@@ -17,7 +17,10 @@ pub mod approval;
 mod build;
 pub mod round;
 
-pub use build::{amend, build, Amend, AssetRef, DriftInput, GravityInput, Inputs, IssuerInput, TermChange};
+pub use build::{
+    amend, build, Amend, AssetRef, DriftInput, EnvironmentInput, GravityInput, Inputs, IssuerInput,
+    TermChange,
+};
 
 use serde::{Deserialize, Serialize};
 
@@ -250,7 +253,8 @@ pub struct Facts {
     pub software: String,
     /// Local gravity with its U.
     pub gravity: Quantity,
-    /// The environment's temperature during the as-left verification, with where it came from.
+    /// The environment's temperature: read on a registered thermometer, else the node's own
+    /// sensor during the as-left verification; with where it came from.
     pub temperature: Option<Quantity>,
     /// Where the temperature came from.
     pub temperature_source: Option<String>,

@@ -26,7 +26,7 @@ pub fn resolve(g: &Gravity, db: Option<&mut Db>) -> anyhow::Result<(Gravity, Opt
 
 /// The gravity a registered survey states.
 pub fn of_survey(asset: &Asset) -> anyhow::Result<Gravity> {
-    let Some(v) = asset.value else {
+    let Some((value, u)) = asset.value.and_then(|v| Some((v.value?, v.u))) else {
         return Err(bad(format!(
             "gravity asset {} certificate {} states no value of g (registered before schema 11): register its \
              certificate again with --value and --u",
@@ -34,11 +34,11 @@ pub fn of_survey(asset: &Asset) -> anyhow::Result<Gravity> {
         )));
     };
     Ok(Gravity {
-        g: v.value,
+        g: value,
         source: Source::Stated(GSource::Survey {
             asset: asset.asset_id.clone(),
             certificate: asset.certificate.clone(),
-            u_m_s2: v.u,
+            u_m_s2: u,
         }),
     })
 }

@@ -213,9 +213,9 @@ pub struct AssetAddArgs {
     /// [required for --kind gravity; refused for other kinds].
     #[arg(long, value_name = "M_S2")]
     pub value: Option<f64>,
-    /// A gravity survey's standard uncertainty of --value, m/s² (one sigma; its certificate's
-    /// expanded uncertainty divided by its coverage factor) [required for --kind gravity; refused
-    /// for other kinds].
+    /// A gravity survey's standard uncertainty of --value, m/s², or a thermometer's of each
+    /// reading, K (one sigma; the certificate's expanded uncertainty divided by its coverage
+    /// factor) [required for --kind gravity; optional for a thermometer; refused for a head].
     #[arg(long, value_name = "M_S2")]
     pub u: Option<f64>,
     #[command(flatten)]

@@ -577,6 +577,13 @@ pub struct StationArgs {
     pub head_asset: Option<String>,
     #[arg(long, value_name = "ID", help = crate::cli::GRAVITY_ASSET_HELP)]
     pub gravity_asset: Option<String>,
+    /// The environment's thermometer as a registered asset (`accelcal asset add ID --kind
+    /// thermometer --u K`): the run stores it, and the certificate states --ambient-c as read on
+    /// it, with U (k = 2) from its certificate. An overdue, unknown or non-thermometer asset stops
+    /// the station before it touches a node (exit code 3) [with --ambient-c; default: the
+    /// certificate states the unit's own sensor, not traceable].
+    #[arg(long, value_name = "ID")]
+    pub thermometer_asset: Option<String>,
     /// The unit type's temperature coefficients for the fit's uncertainty budget (as for `fit`).
     #[command(flatten)]
     pub tempco: crate::cli::campaign::TempcoArgs,
@@ -647,6 +654,12 @@ pub struct Issuer {
     /// The customer's address or contact, printed after its name (with --customer).
     #[arg(long, value_name = "TEXT")]
     pub customer_address: Option<String>,
+    /// The environment's temperature during the calibration, °C (-50 to 100), as read on the
+    /// run's registered thermometer (`station --thermometer-asset`): the certificate states it with
+    /// U (k = 2) from the thermometer's certificate [report: with --db and --run-id; station: with
+    /// --thermometer-asset].
+    #[arg(long, value_name = "DEG_C", allow_hyphen_values = true)]
+    pub ambient_c: Option<f64>,
     /// The day the item was received, YYYY-MM-DD, printed with the dates.
     #[arg(long, value_name = "DATE")]
     pub received: Option<String>,

@@ -70,11 +70,14 @@ fn stated(a: &Asset) -> String {
             ", angle u {} arcsec, orthogonality u {} arcsec (one sigma)",
             a.angle_u_arcsec, a.orthogonality_u_arcsec
         ),
-        AssetKind::Gravity => match a.value {
-            Some(v) => format!(", g = {} m/s², u {:.1e} m/s² (one sigma)", v.value, v.u),
+        AssetKind::Gravity => match a.value.and_then(|v| Some((v.value?, v.u))) {
+            Some((g, u)) => format!(", g = {g} m/s², u {u:.1e} m/s² (one sigma)"),
             None => ", no value stated (registered before schema 11: register its certificate again)".into(),
         },
-        AssetKind::Thermometer => String::new(),
+        AssetKind::Thermometer => match a.value {
+            Some(v) => format!(", u {} K per reading (one sigma)", v.u),
+            None => ", no uncertainty stated".into(),
+        },
     }
 }
 

@@ -248,6 +248,11 @@ pub fn run(a: &Report) -> anyhow::Result<()> {
         })
         .collect();
     let operator = run.as_ref().map(|(_, p)| p.start.operator.clone());
+    let environment = match (a.issuer.ambient_c, &mut db) {
+        (Some(celsius), Some(rdb)) => Some(environment(&mut rdb.db, &assets, celsius)?),
+        // The settings refuse --ambient-c without --db.
+        _ => None,
+    };
     let issuer = IssuerInput {
         laboratory: a.issuer.laboratory.clone(),
         laboratory_address: a.issuer.laboratory_address.clone(),
@@ -275,6 +280,7 @@ pub fn run(a: &Report) -> anyhow::Result<()> {
         assets: &asset_refs,
         operator: operator.as_deref(),
         drift: since_last.as_ref().map(drift_input),
+        environment,
         anchor: anchor.as_deref(),
         replaces: None,
         software: env!("CARGO_PKG_VERSION"),
@@ -415,6 +421,29 @@ table{border-collapse:collapse;width:100%}td,th{border:1px solid #ccc;padding:1p
 /// The head rows of a budget whose values the run's registered head stated (the station passes
 /// the asset's values to its fit step, which knows no register): named by the asset, as a fit
 /// with `--db --head-asset` names them itself.
+/// The environment's temperature `celsius` as read on the thermometer the run used, with the
+/// thermometer's stated uncertainty from the certificate it was used under.
+fn environment(
+    db: &mut accelcal_db::Db,
+    assets: &[(accelcal_db::AssetKind, String, String)],
+    celsius: f64,
+) -> anyhow::Result<accelcal_core::certificate::EnvironmentInput> {
+    let Some((_, id, certificate)) =
+        assets.iter().find(|(k, _, _)| *k == accelcal_db::AssetKind::Thermometer)
+    else {
+        return Err(bad(
+            "--ambient-c: the run used no registered thermometer to read it on (station --thermometer-asset)",
+        ));
+    };
+    let used = db.asset_certificates(id)?.into_iter().find(|c| &c.certificate == certificate);
+    Ok(accelcal_core::certificate::EnvironmentInput {
+        celsius,
+        u_k: used.and_then(|c| c.value).map(|v| v.u),
+        thermometer: id.clone(),
+        certificate: certificate.clone(),
+    })
+}
+
 fn name_head_asset(b: &mut accelcal_core::uncertainty::UncertaintyJson, id: &str, cert: &str) {
     for c in b.contributors.iter_mut().filter(|c| c.name.starts_with("head_")) {
         if c.source.ends_with(", stated") {

@@ -99,6 +99,8 @@ struct Station<'a> {
     head_asset: Option<&'a Asset>,
     /// The gravity survey of `--gravity-asset`, which each run stores.
     survey: Option<&'a Asset>,
+    /// The thermometer of `--thermometer-asset`, which each run stores.
+    thermometer: Option<&'a Asset>,
     /// The head's angle error as its own units measure it, when that exceeds its certificate's
     /// (arcsec): what the budgets take instead.
     head_measured_u: Option<f64>,
@@ -408,7 +410,7 @@ impl Station<'_> {
         }
         self.ended = p.outcome.is_some();
         if !self.ended {
-            for asset in [self.head_asset, self.survey].into_iter().flatten() {
+            for asset in [self.head_asset, self.survey, self.thermometer].into_iter().flatten() {
                 self.db.store_run_asset(run, asset)?;
                 crash_point("db:run_asset");
             }
@@ -518,6 +520,21 @@ fn register(db_spec: &str, id: &str) -> anyhow::Result<Db> {
     }
 }
 
+/// The thermometer `--thermometer-asset` names, read from the register before any node is
+/// touched.
+fn thermometer_in_force(db_spec: &str, id: &str) -> anyhow::Result<Asset> {
+    let t =
+        register(db_spec, id)?.asset_in_force(id, AssetKind::Thermometer, accelcal_db::asset::today_utc())?;
+    errln!(
+        "station: thermometer {} (certificate {}, due {}{})",
+        t.asset_id,
+        t.certificate,
+        t.due_date,
+        t.value.map(|v| format!("; u {} K per reading", v.u)).unwrap_or_default()
+    );
+    Ok(t)
+}
+
 /// The gravity survey `--gravity-asset` names, read from the register before any node is
 /// touched: the station's gravity, and the asset each run stores.
 fn survey_in_force(
@@ -564,6 +581,8 @@ pub fn run(
         None => (None, None),
     };
     let (gravity, survey) = survey_in_force(&db_spec, gravity)?;
+    let thermometer =
+        a.thermometer_asset.as_deref().map(|id| thermometer_in_force(&db_spec, id)).transpose()?;
     let gravity = gravity.as_ref();
     // A station whose check standard is out of control makes no calibration.
     let station_name = a.station_name.clone().unwrap_or_else(super::store::host_name);
@@ -594,6 +613,7 @@ pub fn run(
             info: None,
             head_asset: head_asset.as_ref(),
             survey: survey.as_ref(),
+            thermometer: thermometer.as_ref(),
             head_measured_u,
             step_start: std::cell::Cell::new(None),
             tag: if specs.len() > 1 { format!("{}: ", u.serial) } else { String::new() },

@@ -344,7 +344,7 @@ fn measurement(x: &mut X, f: &Facts) -> R {
     condition(x, "Local gravity", None, &f.gravity)?;
     if let Some(t) = &f.temperature {
         let source = f.temperature_source.as_deref().unwrap_or("not stated");
-        let text = format!("Environment temperature during the as-left verification, from {source}.");
+        let text = format!("Environment temperature during the calibration, from {source}.");
         condition(x, "Temperature", Some(&text), t)?;
     }
     x.close("dcc:influenceConditions")?;

@@ -147,7 +147,8 @@ pub fn asset(c: &AssetCommand) -> anyhow::Result<Asset> {
                 )));
             }
             let value = match (kind, a.value, a.u) {
-                (AssetKind::Gravity, Some(value), Some(u)) => Some(StatedValue { value, u }),
+                (AssetKind::Gravity, Some(value), Some(u)) => Some(StatedValue { value: Some(value), u }),
+                (AssetKind::Thermometer, None, Some(u)) => Some(StatedValue { value: None, u }),
                 (AssetKind::Gravity, v, _) => {
                     return Err(bad(format!(
                         "asset add --kind gravity needs {} M_S2: the survey's certificate states g and its standard \
@@ -158,7 +159,7 @@ pub fn asset(c: &AssetCommand) -> anyhow::Result<Asset> {
                 (_, None, None) => None,
                 (kind, v, _) => {
                     return Err(bad(format!(
-                        "{} does not apply to asset add --kind {} (a gravity survey states it)",
+                        "{} does not apply to asset add --kind {} (a gravity survey states it; a thermometer states --u)",
                         if v.is_some() { "--value" } else { "--u" },
                         kind.name()
                     )))

@@ -60,6 +60,8 @@ pub struct Station {
     pub anchor_log: Option<PathBuf>,
     /// `--head-asset`: the head in the register.
     pub head_asset: Option<String>,
+    /// `--thermometer-asset`: the environment's registered thermometer (with `--ambient-c`).
+    pub thermometer_asset: Option<String>,
     /// The unit type's temperature coefficients (all or none).
     pub tempco: Option<accelcal_core::uncertainty::TempCoefficients>,
     /// `--station` (`None`: the host name), `--operator` (`None`: the user's name).
@@ -106,6 +108,7 @@ pub fn station(a: &StationArgs) -> Station {
         db: db_spec(a),
         anchor_log: a.anchor_log.clone(),
         head_asset: a.head_asset.clone(),
+        thermometer_asset: a.thermometer_asset.clone(),
         tempco: a.tempco.coefficients(),
         station_name: a.station_name.clone(),
         operator: a.operator.clone(),

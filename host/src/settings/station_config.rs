@@ -38,6 +38,7 @@ struct StationConfig {
     operator: Option<Spanned<String>>,
     head: Option<Spanned<String>>,
     head_asset: Option<Spanned<String>>,
+    thermometer_asset: Option<Spanned<String>>,
     head_timeout_s: Option<Spanned<f64>>,
     head_tolerance_arcsec: Option<Spanned<f64>>,
     settle_s: Option<Spanned<f64>>,
@@ -172,6 +173,7 @@ pub fn apply(command: &mut Command, given: &mut Given) -> anyhow::Result<Option<
     }
     f.text_value(&mut a.head, "head", "head", c.head)?;
     f.text_value(&mut a.head_asset, "head_asset", "head_asset", c.head_asset)?;
+    f.text_value(&mut a.thermometer_asset, "thermometer_asset", "thermometer_asset", c.thermometer_asset)?;
     f.value(
         &mut a.head_timeout_s,
         "head_timeout_s",

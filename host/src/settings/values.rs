@@ -73,6 +73,8 @@ pub struct Issuer {
     pub laboratory: Option<String>,
     pub laboratory_address: Option<String>,
     pub laboratory_country: Option<String>,
+    /// `--ambient-c`: the environment read on the run's thermometer, °C.
+    pub ambient_c: Option<f64>,
     pub customer: Option<String>,
     pub customer_address: Option<String>,
     pub received: Option<String>,
@@ -102,6 +104,7 @@ impl Issuer {
             laboratory: a.laboratory.clone(),
             laboratory_address: a.laboratory_address.clone(),
             laboratory_country: a.laboratory_country.clone(),
+            ambient_c: a.ambient_c,
             customer: a.customer.clone(),
             customer_address: a.customer_address.clone(),
             received: a.received.clone(),

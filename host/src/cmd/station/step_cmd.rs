@@ -321,6 +321,7 @@ impl StepCommand {
                 l.maybe("--laboratory", issuer.laboratory.as_ref());
                 l.maybe("--laboratory-address", issuer.laboratory_address.as_ref());
                 l.maybe("--laboratory-country", issuer.laboratory_country.as_ref());
+                l.maybe("--ambient-c", issuer.ambient_c.as_ref());
                 l.maybe("--customer", issuer.customer.as_ref());
                 l.maybe("--customer-address", issuer.customer_address.as_ref());
                 l.maybe("--received", issuer.received.as_ref());
