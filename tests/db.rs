@@ -655,7 +655,7 @@ fn two_connections_in_one_process_keep_every_write_visible() {
     a.store_fit(s.run_id, &fit_json(&coefs(0.0, 0))).unwrap();
     let (code, out, err) = accelcal(&["db", "verify", "--db", &spec]);
     assert_eq!(code, Some(0), "{err}");
-    assert!(out.contains("1 runs, 2 rows, 2 ledger entries"), "{out}");
+    assert!(out.contains("1 run, 2 rows, 2 ledger entries"), "{out}");
 }
 
 /// Issue 57: signers decide once, and amendments take the next number and supersede.

@@ -545,6 +545,25 @@ impl Db {
         })
     }
 
+    /// The customer each of `runs` names on its certificate in force, by run id (`fleet --csv`'s
+    /// `customer` column): runs without a certificate, or whose certificate names none, are left
+    /// out.
+    pub fn run_customers<'r>(
+        &mut self,
+        runs: impl IntoIterator<Item = &'r str>,
+    ) -> Result<std::collections::HashMap<String, String>, DbError> {
+        let runs: Vec<&str> = runs.into_iter().collect();
+        self.conn.reading(|tx| {
+            let mut out = std::collections::HashMap::new();
+            for r in &runs {
+                if let Some(c) = customer_of(tx, r)? {
+                    out.insert(r.to_string(), c);
+                }
+            }
+            Ok(out)
+        })
+    }
+
     /// Records that unit `unit` (a serial, or a device id), whose runs a finding of asset
     /// `asset_id` affects, was reviewed and needs no recall: a global row of the chain. The
     /// finding is the one under `certificate`, or the one that affects the unit. Refused, with

@@ -96,3 +96,11 @@ mod tests {
         assert!(found.is_empty(), "write with crate::out's macros:\n{}", found.join("\n"));
     }
 }
+
+/// `n` of `noun` in words, the noun's plural with an `s` unless `n` is 1: `1 run`, `3 units`.
+pub fn count(n: impl std::fmt::Display, noun: &str) -> String {
+    match n.to_string() {
+        one if one == "1" => format!("1 {noun}"),
+        n => format!("{n} {noun}s"),
+    }
+}

@@ -175,7 +175,7 @@ fn fit_takes_the_head_s_uncertainties_from_its_asset_and_the_run_names_it() {
 
     let f =
         ok(&["affected", "HEAD-7", "--since", "2000-01-01", "--db", &db, "--json", &d.s("affected.json")]);
-    assert!(f.contains(": 1 runs of 1 units") && f.contains("DKD-K-15-01") && f.contains("open"), "{f}");
+    assert!(f.contains(": 1 run of 1 unit") && f.contains("DKD-K-15-01") && f.contains("open"), "{f}");
     let j = json(&d.p("affected.json"));
     assert_eq!(j["runs"].as_array().unwrap().len(), 1);
     assert_eq!(j["runs"][0]["certified"], false);
@@ -255,7 +255,7 @@ fn a_gravity_survey_sets_g_and_its_uncertainty_and_the_run_names_it() {
     assert_eq!(err.matches("taken as rounded").count(), 1, "{err}");
     assert!(err.contains("give --g-u"), "{err}");
     let f = ok(&["affected", "G-SITE", "--since", "2000-01-01", "--db", &db]);
-    assert!(f.contains(": 1 runs of 1 units") && f.contains("BKG-2026-17"), "{f}");
+    assert!(f.contains(": 1 run of 1 unit") && f.contains("BKG-2026-17"), "{f}");
 
     // Refused, nothing written: an overdue survey, a thermometer as the survey, an unknown one.
     for (id, why) in [

@@ -409,9 +409,21 @@ pub fn a_bad_head_is_traced_to_its_units(spec: &str, exec: Exec<'_>) {
     let mut rows = csv::Reader::from_path(&fc).unwrap();
     let header = rows.headers().unwrap().clone();
     let col = |name: &str| header.iter().position(|h| h == name).unwrap();
-    let recall: Vec<(String, String, String)> = rows
-        .records()
-        .map(|r| r.unwrap())
+    let records: Vec<csv::StringRecord> = rows.records().map(|r| r.unwrap()).collect();
+    // Issue 59: the customer its certificate in force names (SN-C's: the amendment's), none for
+    // a run without a certificate.
+    assert_eq!(header.iter().last(), Some("customer"));
+    for r in &records {
+        let want = match (&r[col("serial")], r[col("certificate_number")].is_empty()) {
+            (_, true) => "",
+            ("SN-C", false) => "Beta GmbH",
+            (_, false) => "Acme AG",
+        };
+        assert_eq!(&r[col("customer")], want, "{r:?}");
+    }
+    assert!(records.iter().any(|r| &r[col("customer")] == "Beta GmbH"));
+    let recall: Vec<(String, String, String)> = records
+        .into_iter()
         .map(|r| {
             (
                 r[col("serial")].to_string(),

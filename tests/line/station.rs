@@ -281,7 +281,7 @@ fn the_station_runs_the_line_journals_it_and_resumes_after_ctrl_c() {
     )
     .to_string();
     assert!(
-        f.contains("affected: asset HEAD-SIM since 2026-01-01 (UTC)") && f.contains(": 1 runs of 1 units"),
+        f.contains("affected: asset HEAD-SIM since 2026-01-01 (UTC)") && f.contains(": 1 run of 1 unit"),
         "{f}"
     );
     assert!(

@@ -71,11 +71,11 @@ pub fn run_verify(a: &DbVerify) -> anyhow::Result<()> {
         write_json(j, &Report { chain: &r, anchors: &anchors })?;
     }
     outln!(
-        "db verify: {}: {} runs, {} rows, {} ledger entries checked{}",
+        "db verify: {}: {}, {}, {} checked{}",
         db.target(),
-        r.runs,
-        r.rows,
-        r.entries,
+        crate::out::count(r.runs, "run"),
+        crate::out::count(r.rows, "row"),
+        if r.entries == 1 { "1 ledger entry".to_string() } else { format!("{} ledger entries", r.entries) },
         if found.is_empty() {
             String::new()
         } else {

@@ -441,11 +441,11 @@ pub fn run(a: &Fleet) -> anyhow::Result<()> {
     .filter_map(|(k, v)| v.as_ref().map(|v| format!("{k} {v}")))
     .collect();
     outln!(
-        "fleet: {since} to {until} (UTC) in {}{}: {} runs of {} units{}",
+        "fleet: {since} to {until} (UTC) in {}{}: {} of {}{}",
         db.target(),
         if filters.is_empty() { String::new() } else { format!(" ({})", filters.join(", ")) },
-        counts.runs,
-        counts.units,
+        crate::out::count(counts.runs, "run"),
+        crate::out::count(counts.units, "unit"),
         counts.set_aside().map(|s| format!(" ({s})")).unwrap_or_default()
     )?;
     if let Some(why) = &data.chain_broken {
@@ -545,9 +545,9 @@ pub fn run(a: &Fleet) -> anyhow::Result<()> {
         .map(|r| r.device_id.as_str())
         .collect();
     outln!(
-        "  populations of the {calibrated} runs of {} {} that passed (Cpk = min(L − mean, mean + L)/(3·s) against the specification's ±L):",
-        passed_units.len(),
-        if passed_units.len() == 1 { "unit" } else { "units" }
+        "  populations of the {} of {} that passed (Cpk = min(L − mean, mean + L)/(3·s) against the specification's ±L):",
+        crate::out::count(calibrated, "run"),
+        crate::out::count(passed_units.len(), "unit")
     )?;
     outln!(
         "    {:<30} {:>8} {:>4} {:>14} {:>12} {:>10} {:>6}",
@@ -650,7 +650,8 @@ pub fn run(a: &Fleet) -> anyhow::Result<()> {
         outln!("    {} ({}) certificate {}, due {}", x.asset_id, x.kind.name(), x.certificate, x.due_date)?;
     }
     if let Some(c) = &a.csv {
-        write_atomic(c, csv_of(runs, &data)?.as_bytes())?;
+        let customers = db.run_customers(certified(runs))?;
+        write_atomic(c, csv_of(runs, &data, &customers)?.as_bytes())?;
         outln!("wrote {} ({} runs)", c.display(), runs.len())?;
     }
     if let Some(j) = &a.json {
@@ -701,7 +702,16 @@ pub(crate) fn spreadsheet_text(cell: &str) -> String {
 /// `recalibrated`, `dismissed`, `voided`; empty for the others) and `recall_reference` that
 /// reference (`HEAD-1 DKD-17-001`), from `data`'s findings. Text cells are neutralised
 /// ([`spreadsheet_text`]) and quoted, numbers are written unquoted.
-pub(crate) fn csv_of(runs: &[FleetRun], data: &FleetData) -> anyhow::Result<String> {
+/// The runs of `runs` that hold a certificate: those whose customer the CSV states.
+pub(crate) fn certified(runs: &[FleetRun]) -> impl Iterator<Item = &str> {
+    runs.iter().filter(|r| r.certificate_number.is_some()).map(|r| r.run_id.as_str())
+}
+
+pub(crate) fn csv_of(
+    runs: &[FleetRun],
+    data: &FleetData,
+    customers: &std::collections::HashMap<String, String>,
+) -> anyhow::Result<String> {
     let recall = data.recall_of_runs();
     let mut w = csv::WriterBuilder::new().quote_style(csv::QuoteStyle::NonNumeric).from_writer(Vec::new());
     let mut header: Vec<String> = [
@@ -728,7 +738,7 @@ pub(crate) fn csv_of(runs: &[FleetRun], data: &FleetData) -> anyhow::Result<Stri
     }
     header.extend(["U_x_m_s2", "U_y_m_s2", "U_z_m_s2"].map(String::from));
     header.extend(["certificate_number", "certificate_state", "due_date", "record_crc"].map(String::from));
-    header.extend(["recall", "recall_reference"].map(String::from));
+    header.extend(["recall", "recall_reference", "customer"].map(String::from));
     w.write_record(&header)?;
     for r in runs {
         let mut row = vec![
@@ -763,6 +773,7 @@ pub(crate) fn csv_of(runs: &[FleetRun], data: &FleetData) -> anyhow::Result<Stri
         };
         row.push(state.to_string());
         row.push(spreadsheet_text(reference));
+        row.push(spreadsheet_text(customers.get(&r.run_id).map(String::as_str).unwrap_or_default()));
         w.write_record(&row)?;
     }
     let bytes = w.into_inner().map_err(|e| anyhow::anyhow!("writing the CSV: {e}"))?;

@@ -12,6 +12,7 @@ use serde::Serialize;
 use super::fleet::spreadsheet_text;
 use super::store::{reader_spec, user_name, with_anchor_log};
 use crate::app::recall as words;
+use crate::out::count;
 use crate::settings::asset as settings;
 use accelcal_core::error::bad;
 
@@ -36,7 +37,9 @@ pub fn found_bad(a: &settings::FoundBad) -> anyhow::Result<()> {
         .context("the finding just recorded")?;
     let (runs, units, open) = counts(&recall);
     outln!(
-        "affected: {runs} runs of {units} units, {open} open (`accelcal affected {}` lists them)",
+        "affected: {} of {}, {open} open (`accelcal affected {}` lists them)",
+        count(runs, "run"),
+        count(units, "unit"),
         f.asset_id
     )?;
     Ok(())
@@ -114,11 +117,11 @@ fn list(
             devices.dedup();
             let only = a.certificate.as_ref().map(|c| format!(" certificate {c}")).unwrap_or_default();
             let header = format!(
-                "affected: asset {}{only} since {day} (UTC) in {}: {} runs of {} units",
+                "affected: asset {}{only} since {day} (UTC) in {}: {} of {}",
                 a.asset,
                 db.target(),
-                runs.len(),
-                devices.len()
+                count(runs.len(), "run"),
+                count(devices.len(), "unit")
             );
             blocks.push((header, runs));
         }
@@ -141,11 +144,13 @@ fn list(
             for r in recalls {
                 let (runs, units, open) = counts(&r);
                 let header = format!(
-                    "affected: asset {} ({}) in {}: {}: {runs} runs of {units} units, {open} open",
+                    "affected: asset {} ({}) in {}: {}: {} of {}, {open} open",
                     a.asset,
                     r.found_bad.kind.name(),
                     db.target(),
-                    words::under(&r.found_bad)
+                    words::under(&r.found_bad),
+                    count(runs, "run"),
+                    count(units, "unit")
                 );
                 let mut listed = r.runs;
                 db.customers(&mut listed)?;
@@ -217,7 +222,7 @@ fn list(
     }
     if let Some(c) = csv {
         write_atomic(c, csv_of(&a.asset, &all)?.as_bytes())?;
-        outln!("wrote {} ({} runs)", c.display(), all.len())?;
+        outln!("wrote {} ({})", c.display(), count(all.len(), "run"))?;
     }
     if let Some(j) = json {
         let mut devices: Vec<&str> = all.iter().map(|r| r.device_id.as_str()).collect();

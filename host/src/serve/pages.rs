@@ -14,7 +14,9 @@ use super::escape;
 use super::svg::{control_chart, drift_chart, signature_chart, Lines};
 use super::{links, App, PageError};
 use crate::app::attention;
-use crate::cmd::fleet::{change_point, csv_of, due_by, filter_of, gather, measured_line, FleetData, Parts};
+use crate::cmd::fleet::{
+    certified, change_point, csv_of, due_by, filter_of, gather, measured_line, FleetData, Parts,
+};
 use crate::cmd::history::{outcome, verification};
 use crate::report::sig;
 use crate::settings::reader::Which;
@@ -519,7 +521,8 @@ pub(super) fn fleet(db: &mut Db, app: &App, q: &str) -> Result<String, PageError
 pub(super) fn fleet_csv(db: &mut Db, app: &App, q: &str) -> Result<String, PageError> {
     let f = Filters::parse(q)?;
     let (data, _, _) = f.gather(db, app.due_days, Parts::Table)?;
-    csv_of(&data.runs, &data).map_err(PageError::internal)
+    let customers = db.run_customers(certified(&data.runs)).map_err(PageError::unavailable)?;
+    csv_of(&data.runs, &data, &customers).map_err(PageError::internal)
 }
 
 struct ChartView {
