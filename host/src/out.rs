@@ -71,6 +71,14 @@ macro_rules! err {
     };
 }
 
+/// `n` of `noun` in words, the noun's plural with an `s` unless `n` is 1: `1 run`, `3 units`.
+pub fn count(n: impl std::fmt::Display, noun: &str) -> String {
+    match n.to_string() {
+        one if one == "1" => format!("1 {noun}"),
+        n => format!("{n} {noun}s"),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     /// No code of the binary (outside `serve`, whose output is its own) writes with the std macros
@@ -95,12 +103,11 @@ mod tests {
         }
         assert!(found.is_empty(), "write with crate::out's macros:\n{}", found.join("\n"));
     }
-}
 
-/// `n` of `noun` in words, the noun's plural with an `s` unless `n` is 1: `1 run`, `3 units`.
-pub fn count(n: impl std::fmt::Display, noun: &str) -> String {
-    match n.to_string() {
-        one if one == "1" => format!("1 {noun}"),
-        n => format!("{n} {noun}s"),
+    #[test]
+    fn one_is_singular() {
+        assert_eq!(super::count(1usize, "run"), "1 run");
+        assert_eq!(super::count(0i64, "unit"), "0 units");
+        assert_eq!(super::count(3u32, "unit"), "3 units");
     }
 }
