@@ -412,7 +412,7 @@ pub fn a_bad_head_is_traced_to_its_units(spec: &str, exec: Exec<'_>) {
     let records: Vec<csv::StringRecord> = rows.records().map(|r| r.unwrap()).collect();
     // Issue 59: the customer its certificate in force names (SN-C's: the amendment's), none for
     // a run without a certificate.
-    assert_eq!(header.iter().last(), Some("customer"));
+    assert_eq!(header.iter().next_back(), Some("customer"));
     for r in &records {
         let want = match (&r[col("serial")], r[col("certificate_number")].is_empty()) {
             (_, true) => "",
