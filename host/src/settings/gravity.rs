@@ -2,18 +2,20 @@
 //! from, as one value ([`Gravity`], in [`crate::resolved`]) that the commands take instead of
 //! reading clap's `--g`, `--latitude` and `--height` themselves.
 //!
-//! The command line is resolved here, before any I/O ([`stated`]): `--g`, or `--latitude` (and
-//! `--height`) for WGS84 normal gravity; both at once, or `--height` alone, are refused. What the
-//! user did not state is resolved by the command from its input, in one place each: a campaign's
-//! `# g_m_s2:` line (`cmd::campaign_g`), a fit's identity (`verify --fit`), the documented
-//! default of `plan` and `simulate` ([`Gravity::default_of`]), or the standard value, announced
-//! ([`Gravity::assumed`]).
+//! The command line is resolved here, before any I/O ([`stated`]): `--g` (with `--g-u`, its
+//! standard uncertainty), or `--latitude` (and `--height`) for WGS84 normal gravity, or
+//! `--gravity-asset` (a registered survey, read once the command has its database:
+//! `app::gravity::resolve`); two sources at once, `--height` alone or `--g-u` alone are refused.
+//! What the user did not state is resolved by the command from its input, in one place each: a
+//! campaign's `# g_m_s2:` line (`cmd::campaign_g`), a fit's identity (`verify --fit`), the
+//! documented default of `plan` and `simulate` ([`Gravity::default_of`]), or the standard value,
+//! announced ([`Gravity::assumed`]).
 //!
-//! Its words ([`Gravity::words`]) are what a campaign's `# g_source:`, a run in the database and a
-//! budget's gravity contributor say, and they carry the bound of its error
-//! ([`accelcal_core::campaign::identity::g_uncertainty`]): normal gravity leaves out the local
-//! anomaly, the assumed 9.81 m/s² is within 0.03 m/s² anywhere at sea level, a number given is
-//! taken as rounded.
+//! Where it came from is typed once ([`GSource`], [`Gravity::provenance`]): its tag is what a
+//! campaign's `# g_source:`, a run in the database and a fit JSON store, and it gives g its
+//! standard uncertainty ([`GSource::standard_u`]): a survey's or a stated one as given; normal
+//! gravity leaves out the local anomaly, the assumed 9.81 m/s² is within 0.03 m/s² anywhere at
+//! sea level, a number typed without `--g-u` is taken as rounded.
 
 use accelcal_core::campaign::GSource;
 use accelcal_core::error::bad;
