@@ -512,9 +512,9 @@ pub struct StationArgs {
     /// contradicts them is refused.
     #[arg(long, default_value = "head")]
     pub plan: String,
-    /// Sample sets recorded per position in the campaign [default: the plan file's `# samples:`,
-    /// else 400], and in each verification unless --verify-samples (this option's value or 400,
-    /// never the plan file's).
+    /// Sample sets recorded per position in the campaign (a plan file's `# samples:` when it
+    /// states one), and in each verification unless --verify-samples (this option's value, never
+    /// the plan file's).
     #[arg(long, default_value_t = 400, value_name = "N", value_parser = Count(Range::Sets))]
     pub samples: usize,
     /// Sample sets recorded per position in the as-found and as-left verifications, so that a
