@@ -28,6 +28,7 @@ mod codes;
 mod g_source;
 pub mod head_at;
 pub mod identity;
+pub mod transit;
 use crate::error::{Classify, Kind, Plain, Setting, Worded, Wording};
 use crate::text::TextError;
 use codes::{header_comments, HeaderComments};

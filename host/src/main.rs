@@ -30,7 +30,8 @@ fn main() {
         let config = settings::apply_config(&mut cli.command, &mut given)?;
         settings::check(&cli.command, &given)?;
         let gravity = settings::gravity::stated(&cli.command, &given)?;
-        Ok(resolved::Resolved { gravity, config })
+        let plan = settings::station::plan_dwell(&cli.command, &given)?;
+        Ok(resolved::Resolved { gravity, config, plan })
     });
     let settled = checked.and_then(|resolved| {
         let settings = settings::settled::settle(cli.command, &resolved)?;

@@ -13,6 +13,21 @@ pub struct Resolved {
     pub gravity: Option<Gravity>,
     /// `station --config`: the file's keys, and those the command line overrode.
     pub config: Option<ConfigUse>,
+    /// `station --plan FILE`: the dwell its header states, checked against the station's
+    /// settings; `None` for a built-in plan.
+    pub plan: Option<PlanDwell>,
+}
+
+/// The dwell a station's plan file states in its header (`# samples:`, `# rate_hz:`), which the
+/// station takes; either may be absent (a plan file written before, or by hand).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PlanDwell {
+    /// The plan file.
+    pub path: std::path::PathBuf,
+    /// Sample sets per position.
+    pub samples: Option<usize>,
+    /// The node's rate, Hz.
+    pub rate_hz: Option<u32>,
 }
 
 /// What a station's settings file gave, for the station's first line.

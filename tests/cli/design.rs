@@ -26,6 +26,15 @@ fn a_designed_plan_is_a_plan_file_that_simulate_and_select_read() {
         "{out}"
     );
     assert!(out.contains("by the alternate split"), "{out}");
+    // The campaign states g but no rate: its g, the default rate, each said.
+    let at = format!(
+        "at rate 100 Hz (the default: --like {like} states no `# rate_hz:` and --rate-hz was not given); g = 9.81 m/s²"
+    );
+    assert!(out.contains(&at), "{out}");
+    assert!(out.contains(&format!("(--like {like}: the campaign's `# g_m_s2:`")), "{out}");
+    // The plan file states its dwell, which the station takes.
+    let text = std::fs::read_to_string(&plan).unwrap();
+    assert!(text.contains("\n# samples: 400\n# rate_hz: 100\nalpha_deg,beta_deg\n"), "{text}");
     let j = json(Path::new(&doc));
     assert_eq!(j["positions"], 16);
     assert_eq!(j["samples_per_position"], 400);
@@ -56,6 +65,41 @@ fn a_designed_plan_is_a_plan_file_that_simulate_and_select_read() {
     let again = d.s("again.csv");
     ok(&["plan", "--design", "16", "--like", &like, "--head-angle-u", "20", "--out", &again]);
     assert_eq!(std::fs::read_to_string(&plan).unwrap(), std::fs::read_to_string(&again).unwrap());
+}
+
+/// Issue 59: `--like` gives the node's rate (`# rate_hz:`) and g (`# g_m_s2:`, `# g_source:`)
+/// besides the noise, unless `--rate-hz` or `--g` says otherwise; one line says which.
+#[test]
+fn like_gives_the_rate_and_g_of_its_campaign_unless_the_command_line_does() {
+    let d = Dir::new();
+    let sim = simulate(&d, "sim.csv", &["--samples", "40", "--g", "9.7803"]);
+    let text = std::fs::read_to_string(&sim).unwrap();
+    let like = d.s("like.csv");
+    // An acquired campaign's header states its rate; the simulated one does not.
+    std::fs::write(&like, text.replacen("# g_source:", "# rate_hz: 500\n# g_source:", 1)).unwrap();
+    let (plan, doc) = (d.s("p.csv"), d.s("p.json"));
+    let out = ok(&["plan", "--design", "8", "--like", &like, "--out", &plan, "--json", &doc]);
+    let at = format!("at rate 500 Hz (--like {like}'s `# rate_hz:`); g = 9.7803 m/s²");
+    assert!(out.contains(&at), "{out}");
+    assert!(out.contains(&format!("(--like {like}: the campaign's `# g_m_s2:`")), "{out}");
+    assert!(
+        out.contains(&format!("noise per sample from --like {like}'s scatter within its dwells")),
+        "{out}"
+    );
+    assert!(out.contains("8 positions x 400 sample sets (0.8 s at 500 Hz)"), "{out}");
+    assert_eq!(json(Path::new(&doc))["rate_hz"], 500.0);
+    let text = std::fs::read_to_string(&plan).unwrap();
+    assert!(text.contains("\n# samples: 400\n# rate_hz: 500\n"), "{text}");
+    // The command line's rate and g win.
+    let args =
+        ["plan", "--design", "8", "--like", &like, "--rate-hz", "200", "--g", "9.80665", "--out", &plan];
+    let out = ok(&args);
+    assert!(out.contains("at rate 200 Hz (--rate-hz); g = 9.80665 m/s²"), "{out}");
+    assert!(!out.contains("the campaign's `# g_m_s2:`"), "{out}");
+    // Without --like, the defaults and --noise.
+    let out = ok(&["plan", "--design", "8", "--noise", "80", "--out", &plan]);
+    assert!(out.contains("at rate 100 Hz (the default: --rate-hz was not given); g = 9.81 m/s²"), "{out}");
+    assert!(out.contains("noise per sample from --noise"), "{out}");
 }
 
 #[test]

@@ -311,6 +311,32 @@ const REFUSED: &[(&str, &str)] = &[
         r"station --port P --head manual --serial S-1 --out u1 --relabel a\tb",
         r#"--relabel: "a\tb" holds a control character (U+0009)"#,
     ),
+    // Issue 59: a designed plan states its dwell; the station takes it, and refuses a
+    // --samples or --rate-hz that contradicts it, naming both values.
+    (
+        "station --port P --head manual --serial S-1 --out u1 --plan designed.csv --samples 400",
+        "--samples 400 contradicts the plan designed.csv (designed with `# samples: 800`): give 800, or leave it out",
+    ),
+    (
+        "station --port P --head manual --serial S-1 --out u1 --plan designed.csv --rate-hz 100",
+        "--rate-hz 100 contradicts the plan designed.csv (designed with `# rate_hz: 500`): give 500, or leave it out",
+    ),
+    (
+        "station --port P --head manual --serial S-1 --out u1 --plan fractional.csv",
+        "the plan fractional.csv's `# rate_hz: 12.5` is not a rate the node takes: not a whole number of Hz",
+    ),
+    (
+        "station --port P --head manual --serial S-1 --out u1 --plan twice.csv",
+        "twice.csv:2: a second `# samples:` line (the first is line 1)",
+    ),
+];
+
+/// The plan files of the table: one designed (800 sample sets at 500 Hz), one whose rate no
+/// node takes, one that states its samples twice.
+const PLANS: &[(&str, &str)] = &[
+    ("designed.csv", "# designed by accelcal plan --design 8\n# samples: 800\n# rate_hz: 500\nalpha_deg,beta_deg\n0,0\n90,0\n"),
+    ("fractional.csv", "# samples: 800\n# rate_hz: 12.5\nalpha_deg,beta_deg\n0,0\n"),
+    ("twice.csv", "# samples: 800\n# samples: 400\nalpha_deg,beta_deg\n0,0\n"),
 ];
 
 /// An acquired campaign's header (`A` of the table): 200 sets per position at 500 Hz, g 9.81.
@@ -509,6 +535,9 @@ fn options_that_do_not_apply_and_outputs_that_are_inputs_are_refused_before_any_
     )
     .unwrap();
     std::fs::write(d.p("A"), ACQUIRED_HEADER).unwrap();
+    for (name, text) in PLANS {
+        std::fs::write(d.p(name), text).unwrap();
+    }
     unturned(&d.p("U"));
     let subs = unit_files(&d);
     for (line, want) in REFUSED {

@@ -147,6 +147,49 @@ fn the_command_line_overrides_the_file_and_its_paths_are_its_own() {
     assert_eq!(e, "error: 2 --port, 1 --serial: give --serial once per --port, in the same order");
 }
 
+/// Issue 59: a designed plan file states its dwell (`# samples:`, `# rate_hz:`) and the station
+/// takes it; the file's `samples` or `rate_hz` that contradicts it is refused naming the key and
+/// both values, before anything is done; values equal to the plan's are fine.
+#[test]
+fn a_designed_plan_s_dwell_is_the_station_s_and_a_key_that_contradicts_it_is_refused() {
+    let d = Dir::new();
+    let plan = d.p("designed.csv");
+    std::fs::write(&plan, "# samples: 800\n# rate_hz: 500\nalpha_deg,beta_deg\n0,0\n90,0\n").unwrap();
+    let (p, unit) = (plan.to_str().unwrap(), d.p("unit"));
+    let u = unit.to_str().unwrap();
+    for (extra, want) in [
+        (
+            "samples = 400",
+            "`samples` (station.toml:5:11) 400 contradicts the plan PLAN (designed with `# samples: 800`)",
+        ),
+        (
+            "rate_hz = 100",
+            "`rate_hz` (station.toml:5:11) 100 contradicts the plan PLAN (designed with `# rate_hz: 500`)",
+        ),
+    ] {
+        let c = config(&d, "station.toml", extra);
+        let e =
+            bad(&["station", "--config", c.to_str().unwrap(), "--plan", p, "--serial", "S-1", "--out", u]);
+        let e = e.replace(&format!("{}/", d.0.path().display()), "");
+        let want = want.replace("PLAN", p);
+        assert!(
+            e.starts_with(&format!("error: {}", want.replace(&format!("{}/", d.0.path().display()), ""))),
+            "{extra}:\n{e}"
+        );
+        assert!(!unit.exists(), "{extra}: nothing done");
+    }
+    // Equal to the plan's: taken, and said; the station then goes on to its node, which is not there.
+    let c = config(&d, "station.toml", "samples = 800\nrate_hz = 500");
+    let out =
+        accelcal(&["station", "--config", c.to_str().unwrap(), "--plan", p, "--serial", "S-1", "--out", u]);
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert_ne!(out.status.code(), Some(2), "{e}");
+    assert!(
+        e.contains(&format!("station: plan {p}: 800 sample sets per position at 500 Hz, from its header")),
+        "{e}"
+    );
+}
+
 /// The guide's example file (`docs/src/line/station.md`) is accepted whole: the station gets as
 /// far as the register, where its head asset is not (exit code 3, nothing done).
 #[test]

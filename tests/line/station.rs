@@ -100,6 +100,9 @@ fn the_station_runs_the_line_journals_it_and_resumes_after_ctrl_c() {
     let out = succeed(&surveyed(station_args(&em, "A-1", &a, &head)));
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(text.contains("station: unit A-1 (device 51454d552d422d4c34373545) PASS"), "{text}");
+    // Issue 59: the last line states the sets lost in transit, the campaign's whole.
+    let lost = text.lines().find(|l| l.contains(") PASS")).unwrap_or_default();
+    assert!(lost.contains(" sample sets lost in transit; every position kept at least "), "{lost}");
     let steps: Vec<String> = journal(&a).into_iter().map(|(s, _)| s).collect();
     assert_eq!(steps, ["info", "as-found", "acquire", "select", "fit", "flash", "as-left", "certificate"]);
     assert_eq!(journal(&a)[1].1, "skipped: no record in force");

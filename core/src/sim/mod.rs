@@ -19,7 +19,7 @@ use rand_distr::{Distribution, Normal};
 
 use crate::campaign::{Campaign, Channel};
 pub use effects::{Effect, Kinematics, SampleCtx};
-pub use plan::Plan;
+pub use plan::{Plan, PlanHeader};
 pub use unit::{sample_set, standing_accel, ChannelTruth, SetCtx, Truth, Unit, UnitError};
 
 /// Nominal MS9002-class sensitivity: ±2 g over the 16-bit range, i.e. 16384 codes per g.

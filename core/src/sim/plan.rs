@@ -4,6 +4,91 @@ use std::path::Path;
 
 use rand::{Rng, SeedableRng};
 
+/// The header key of a plan file's sample sets per position (`# samples: 800`), as a campaign's.
+pub const SAMPLES_KEY: &str = "samples";
+/// The header key of a plan file's sample rate, Hz (`# rate_hz: 500`), as a campaign's.
+pub const RATE_KEY: &str = "rate_hz";
+
+/// What a plan file's header states about its dwell (`plan --design` writes both; an older plan
+/// file, or one written by hand, may state neither).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PlanHeader {
+    /// `# samples:`: sample sets per position.
+    pub samples: Option<usize>,
+    /// `# rate_hz:`: the sample rate the dwell was designed at, Hz.
+    pub rate_hz: Option<f64>,
+}
+
+impl PlanHeader {
+    /// The header lines of a plan file with these values (each `# key: value` and a line feed).
+    pub fn lines(&self) -> String {
+        let mut s = String::new();
+        if let Some(n) = self.samples {
+            s.push_str(&format!("# {SAMPLES_KEY}: {n}\n"));
+        }
+        if let Some(r) = self.rate_hz {
+            s.push_str(&format!("# {RATE_KEY}: {r}\n"));
+        }
+        s
+    }
+
+    /// Reads the `# key: value` comment lines before a plan file's header row: `# samples:` and
+    /// `# rate_hz:`, each at most once; other comments are free text.
+    pub fn read(path: &Path) -> Result<PlanHeader, String> {
+        let d = path.display();
+        let text = std::fs::read(path)
+            .map_err(|e| format!("{d}: {e} (a plan is head, six, random:N or a plan file)"))?;
+        Self::parse(&String::from_utf8_lossy(&text), &d.to_string())
+    }
+
+    /// [`PlanHeader::read`] on a plan file's text; `name` names the file in errors.
+    pub fn parse(text: &str, name: &str) -> Result<PlanHeader, String> {
+        let mut h = PlanHeader::default();
+        let mut seen: [Option<usize>; 2] = [None, None];
+        for (i, line) in text.lines().enumerate() {
+            let line_no = i + 1;
+            let t = line.trim();
+            if t.is_empty() {
+                continue;
+            }
+            let Some(comment) = t.strip_prefix('#') else { break };
+            let Some((key, value)) = comment.split_once(':') else { continue };
+            let (key, value) = (key.trim(), value.trim());
+            let slot = match key {
+                SAMPLES_KEY => 0,
+                RATE_KEY => 1,
+                _ => continue,
+            };
+            if let Some(first) = seen[slot] {
+                return Err(format!(
+                    "{name}:{line_no}: a second `# {key}:` line (the first is line {first})"
+                ));
+            }
+            seen[slot] = Some(line_no);
+            if slot == 0 {
+                match value.parse::<usize>() {
+                    Ok(n) if n > 0 => h.samples = Some(n),
+                    _ => {
+                        return Err(format!(
+                            "{name}:{line_no}: `# {key}: {value}` is not a positive number of sample sets"
+                        ))
+                    }
+                }
+            } else {
+                match value.parse::<f64>() {
+                    Ok(r) if r.is_finite() && r > 0.0 => h.rate_hz = Some(r),
+                    _ => {
+                        return Err(format!(
+                            "{name}:{line_no}: `# {key}: {value}` is not a positive rate in Hz"
+                        ))
+                    }
+                }
+            }
+        }
+        Ok(h)
+    }
+}
+
 /// An ordered list of head positions `(alpha_deg, beta_deg)`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Plan {
@@ -110,5 +195,30 @@ impl Plan {
             return Err(format!("{d}: the plan has no positions"));
         }
         Ok(Plan { positions })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_plan_header_states_its_dwell_once() {
+        let text = "# designed by accelcal plan --design 12: 12 positions\n# samples: 800\n# rate_hz: 500\nalpha_deg,beta_deg\n# samples: 3\n0,0\n";
+        let h = PlanHeader::parse(text, "p.csv").unwrap();
+        assert_eq!(h, PlanHeader { samples: Some(800), rate_hz: Some(500.0) });
+        assert_eq!(PlanHeader::parse(&h.lines(), "q").unwrap(), h);
+        assert_eq!(
+            PlanHeader::parse("# plan by hand\nalpha_deg,beta_deg\n0,0\n", "p").unwrap(),
+            PlanHeader::default()
+        );
+        for (bad, why) in [
+            ("# samples: 800\n# samples: 400\n", "p.csv:2: a second `# samples:` line (the first is line 1)"),
+            ("# samples: 0\n", "p.csv:1: `# samples: 0` is not a positive number of sample sets"),
+            ("# rate_hz: fast\n", "p.csv:1: `# rate_hz: fast` is not a positive rate in Hz"),
+            ("# rate_hz: inf\n", "p.csv:1: `# rate_hz: inf` is not a positive rate in Hz"),
+        ] {
+            assert_eq!(PlanHeader::parse(bad, "p.csv").unwrap_err(), why);
+        }
     }
 }

@@ -52,12 +52,14 @@ pub struct DesignArgs {
     #[arg(long, value_name = "N|auto", value_parser = parse_design, conflicts_with = "plan")]
     pub design: Option<DesignSize>,
     /// The designed plan file to write: CSV `alpha_deg,beta_deg`, as simulate, acquire, verify
-    /// and station read it [required with --design].
+    /// and station read it, with its dwell in its header (`# samples:`, `# rate_hz:`), which the
+    /// station takes [required with --design].
     #[arg(long, short, value_name = "FILE", requires = "design")]
     pub out: Option<PathBuf>,
     /// An earlier campaign of the same kind of unit (campaign CSV): its sensitivities (model 4 by
     /// least squares) and its noise per sample (the scatter within its dwells) are the unit
-    /// type's [with --design; or --noise].
+    /// type's; its header's rate (`# rate_hz:`) and g (`# g_m_s2:`, `# g_source:`) are the
+    /// design's unless --rate-hz, --g or --latitude say otherwise [with --design; or --noise].
     #[arg(long, value_name = "CAMPAIGN", requires = "design", conflicts_with = "noise")]
     pub like: Option<PathBuf>,
     /// Without --like: the nominal triad (16384 codes per g) with this white noise per sample,
@@ -71,7 +73,8 @@ pub struct DesignArgs {
     /// Move plus settling time per position, s [with --design; default 10].
     #[arg(long, value_name = "S", requires = "design", value_parser = Real(Range::SecondsOrZero))]
     pub move_s: Option<f64>,
-    /// Sample rate, Hz [with --design; default 100].
+    /// The node's sample rate, Hz [with --design; default: the --like campaign's `# rate_hz:`,
+    /// else 100].
     #[arg(long, value_name = "HZ", requires = "design", value_parser = Real(Range::Positive))]
     pub rate_hz: Option<f64>,
     /// Sample sets per position: the designed plan's dwell with --design N, and the dwell of the

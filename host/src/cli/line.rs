@@ -506,11 +506,15 @@ pub struct StationArgs {
     /// --port.
     #[arg(long = "out", short, value_name = "DIR", required = true)]
     pub outs: Vec<PathBuf>,
-    /// Position plan of the campaign (head, six, tumble24, random:N, or a plan file; see `acquire`).
+    /// Position plan of the campaign (head, six, tumble24, random:N, or a plan file; see
+    /// `acquire`). A plan file's header lines `# samples:` and `# rate_hz:` (as `plan --design`
+    /// writes them) are the campaign's samples and rate; a --samples or --rate-hz that
+    /// contradicts them is refused.
     #[arg(long, default_value = "head")]
     pub plan: String,
-    /// Sample sets recorded per position in the campaign (and in each verification, unless
-    /// --verify-samples).
+    /// Sample sets recorded per position in the campaign (a plan file's `# samples:` when it
+    /// states one), and in each verification unless --verify-samples (this option's value, never
+    /// the plan file's).
     #[arg(long, default_value_t = 400, value_name = "N", value_parser = Count(Range::Sets))]
     pub samples: usize,
     /// Sample sets recorded per position in the as-found and as-left verifications, so that a
@@ -518,7 +522,7 @@ pub struct StationArgs {
     #[arg(long, value_name = "N", value_parser = Count(Range::Sets))]
     pub verify_samples: Option<usize>,
     /// Set the node's sampling rate per channel for the campaign, Hz (100..=4000) [default: the
-    /// node's].
+    /// plan file's `# rate_hz:`, else the node's].
     #[arg(long, value_name = "HZ", value_parser = RateHz)]
     pub rate_hz: Option<u32>,
     /// Gravity at the rig, m/s² [default: 9.81, announced; better --latitude/--height].

@@ -7,15 +7,18 @@ use std::path::Path;
 use accelcal_core::campaign::Campaign;
 use accelcal_core::design::search::{design, design_auto, AutoTarget, Designed, Head};
 use accelcal_core::design::{head_time_s, predict, Part, Prediction, Prior, Stated};
+use accelcal_core::error::bad;
 use accelcal_core::output::{write_atomic, write_json};
-use accelcal_core::sim::Plan;
+use accelcal_core::sim::plan::RATE_KEY;
+use accelcal_core::sim::{Plan, PlanHeader};
 use accelcal_core::uncertainty::montecarlo::{self, Scenario, Settings};
 use accelcal_core::uncertainty::ARCSEC;
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
-use crate::settings::campaign::{Design, DesignSize, UnitType};
+use super::{Gravity, Source};
+use crate::settings::campaign::{Design, DesignSize, UnitType, DESIGN_RATE_HZ};
 
 /// Orientations each Monte Carlo unit is judged at.
 const MC_ORIENTATIONS: usize = 10;
@@ -133,6 +136,76 @@ fn criteria(p: &Prediction) -> Criteria {
     Criteria { d_codes: p.d_codes, a_codes: p.a_codes, worst_u_m_s2: p.worst_m_s2 }
 }
 
+/// What the design works at: the rate, Hz, and g, each with where it came from (`--rate-hz`,
+/// `--g` or the command line's gravity first; else the `--like` campaign's header; else the
+/// defaults), and the words of the one line that says so.
+struct Node {
+    rate_hz: f64,
+    gravity: Gravity,
+    words: String,
+}
+
+/// [`Node`] of a design: `--like`'s header read for what the command line does not give.
+fn node(d: &Design) -> anyhow::Result<Node> {
+    let like = match &d.unit {
+        UnitType::Like(path) => {
+            let header = accelcal_core::campaign::header(path)
+                .with_context(|| format!("--like {}", path.display()))?;
+            Some((path, header))
+        }
+        UnitType::Noise(_) => None,
+    };
+    let like_rate = match &like {
+        Some((path, header)) => match header.iter().find(|(k, _)| k == RATE_KEY) {
+            Some((_, v)) => {
+                Some(v.parse::<f64>().ok().filter(|r| r.is_finite() && *r > 0.0).ok_or_else(|| {
+                    bad(format!(
+                        "--like {}: `# {RATE_KEY}: {v}` is not a positive rate in Hz",
+                        path.display()
+                    ))
+                })?)
+            }
+            None => None,
+        },
+        None => None,
+    };
+    let (rate_hz, rate_words) = match (d.rate_hz, like_rate, &like) {
+        (Some(r), _, _) => (r, "--rate-hz".to_string()),
+        (None, Some(r), Some((path, _))) => (r, format!("--like {}'s `# {RATE_KEY}:`", path.display())),
+        (None, _, Some((path, _))) => (
+            DESIGN_RATE_HZ,
+            format!(
+                "the default: --like {} states no `# {RATE_KEY}:` and --rate-hz was not given",
+                path.display()
+            ),
+        ),
+        (None, _, None) => (DESIGN_RATE_HZ, "the default: --rate-hz was not given".to_string()),
+    };
+    // A gravity the command line states wins; the default `--g` gives way to the campaign's.
+    let from_like = match (&d.gravity.source, &like) {
+        (Source::Default, Some((path, header))) => super::header_g(path, header)?,
+        _ => None,
+    };
+    let gravity = from_like.unwrap_or_else(|| d.gravity.clone());
+    let g_words = match (&gravity.source, &like) {
+        (Source::Campaign(_), Some((path, _))) => format!("--like {}: {}", path.display(), gravity.words()),
+        (Source::Default, Some((path, _))) => {
+            format!("the default --g: --like {} states no `# g_m_s2:`", path.display())
+        }
+        _ => gravity.words(),
+    };
+    let noise_words = match &like {
+        Some((path, _)) => format!("--like {}'s scatter within its dwells", path.display()),
+        None => "--noise".to_string(),
+    };
+    let (u_g, _) = gravity.standard_u();
+    let words = format!(
+        "rate {rate_hz} Hz ({rate_words}); g = {} m/s², u(g) = {u_g:.2e} m/s² ({g_words}); noise per sample from {noise_words}",
+        gravity.g
+    );
+    Ok(Node { rate_hz, gravity, words })
+}
+
 /// The unit type: from `--like` or the nominal triad.
 fn prior(unit: &UnitType, g: f64) -> anyhow::Result<Prior> {
     Ok(match unit {
@@ -145,14 +218,16 @@ fn prior(unit: &UnitType, g: f64) -> anyhow::Result<Prior> {
     })
 }
 
-/// Writes a plan file.
-fn write_plan(path: &Path, d: &Designed, header: &str) -> anyhow::Result<()> {
+/// Writes a plan file: the design's words as comments, then its dwell's header lines
+/// (`# samples:`, `# rate_hz:`, which the station takes), then the positions.
+fn write_plan(path: &Path, d: &Designed, header: &str, dwell: &PlanHeader) -> anyhow::Result<()> {
     let mut s = String::new();
     for line in header.lines() {
         s.push_str("# ");
         s.push_str(line);
         s.push('\n');
     }
+    s.push_str(&dwell.lines());
     s.push_str("alpha_deg,beta_deg\n");
     for (al, be) in &d.positions {
         s.push_str(&format!("{al},{be}\n"));
@@ -162,7 +237,9 @@ fn write_plan(path: &Path, d: &Designed, header: &str) -> anyhow::Result<()> {
 
 /// Runs `accelcal plan --design`.
 pub fn run(d: &Design) -> anyhow::Result<()> {
-    let (gravity, size) = (&d.gravity, d.size);
+    let size = d.size;
+    let node = node(d)?;
+    let gravity = &node.gravity;
     let g = gravity.g;
     let out = d.out.as_path();
     let prior = prior(&d.unit, g)?;
@@ -170,7 +247,7 @@ pub fn run(d: &Design) -> anyhow::Result<()> {
     let angle_u = d.head_angle_u_arcsec;
     let chamber = d.chamber.clone();
     let stated = Stated { head_angle_rad: angle_u * ARCSEC, g_m_s2: u_g, chamber: chamber.clone() };
-    let (move_s, rate_hz) = (d.move_s, d.rate_hz);
+    let (move_s, rate_hz) = (d.move_s, node.rate_hz);
     // A plan's head time: one pass, or in a chamber every pass and its soak.
     let time_of = |positions: usize, samples: usize| {
         let one = head_time_s(positions, samples, rate_hz, move_s);
@@ -225,7 +302,8 @@ pub fn run(d: &Design) -> anyhow::Result<()> {
         in_chamber.as_ref().map_or(String::new(), |(_, model)| format!(", {model}")),
         prior.source
     );
-    write_plan(out, &designed, &header)?;
+    let dwell_header = PlanHeader { samples: Some(designed.samples), rate_hz: Some(rate_hz) };
+    write_plan(out, &designed, &header, &dwell_header)?;
 
     outln!(
         "plan design: {n} positions x {} sample sets ({dwell} s at {rate_hz} Hz), head time {time:.0} s with {move_s} s per move and settling",
@@ -235,6 +313,7 @@ pub fn run(d: &Design) -> anyhow::Result<()> {
         outln!("  {run}; U of {model}")?;
     }
     outln!("  unit type: {}", prior.source)?;
+    outln!("  at {}", node.words)?;
     outln!(
         "  head: α every {}°, β every {}° within ±{}° ({} positions); angle u {angle_u}″ per angle and position; u(g) = {:.2e} m/s²",
         head.alpha_step_deg,

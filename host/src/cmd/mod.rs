@@ -136,7 +136,6 @@ fn campaign_g(
     campaign: &std::path::Path,
     warnings: &mut Warnings,
 ) -> anyhow::Result<Gravity> {
-    use accelcal_core::campaign::identity::{G_KEY, G_SOURCE_KEY};
     if let Some(g) = stated {
         return Ok(g.clone());
     }
@@ -145,25 +144,8 @@ fn campaign_g(
         return Ok(Gravity::assumed());
     }
     let header = accelcal_core::campaign::header(campaign)?;
-    let get = |key: &str| header.iter().find(|(k, _)| k == key).map(|(_, v)| v.clone());
-    match get(G_KEY) {
-        Some(v) => {
-            let g: f64 = v.parse().map_err(|_| {
-                accelcal_core::error::bad(format!(
-                    "{}: `# g_m_s2: {v}` is not a number of m/s²",
-                    campaign.display()
-                ))
-            })?;
-            check_g(g)?;
-            Ok(Gravity {
-                g,
-                source: Source::Campaign(
-                    get(G_SOURCE_KEY)
-                        .filter(|s| !s.is_empty())
-                        .map(|s| accelcal_core::campaign::GSource::parse(&s)),
-                ),
-            })
-        }
+    match header_g(campaign, &header)? {
+        Some(g) => Ok(g),
         None => {
             warnings.note(g_fallback(&format!(
                 "{} does not state its gravity (`# g_m_s2:`) and neither --g nor --latitude was given",
@@ -172,6 +154,24 @@ fn campaign_g(
             Ok(Gravity::assumed())
         }
     }
+}
+
+/// The gravity a campaign's header states: its `# g_m_s2:` line, with its `# g_source:`;
+/// `None` when it has no `# g_m_s2:` line. `campaign` names the file in errors.
+fn header_g(campaign: &std::path::Path, header: &[(String, String)]) -> anyhow::Result<Option<Gravity>> {
+    use accelcal_core::campaign::identity::{G_KEY, G_SOURCE_KEY};
+    let get = |key: &str| header.iter().find(|(k, _)| k == key).map(|(_, v)| v.clone());
+    let Some(v) = get(G_KEY) else { return Ok(None) };
+    let g: f64 = v.parse().map_err(|_| {
+        accelcal_core::error::bad(format!("{}: `# g_m_s2: {v}` is not a number of m/s²", campaign.display()))
+    })?;
+    check_g(g)?;
+    Ok(Some(Gravity {
+        g,
+        source: Source::Campaign(
+            get(G_SOURCE_KEY).filter(|s| !s.is_empty()).map(|s| accelcal_core::campaign::GSource::parse(&s)),
+        ),
+    }))
 }
 
 /// The creation time of a record: `--created`, or now.

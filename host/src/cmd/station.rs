@@ -552,6 +552,17 @@ fn survey_in_force(
     }
 }
 
+/// What the station took from its plan file's header, when it states anything.
+fn plan_dwell_words(p: &crate::resolved::PlanDwell) -> Option<String> {
+    let what = match (p.samples, p.rate_hz) {
+        (None, None) => return None,
+        (Some(n), Some(r)) => format!("{n} sample sets per position at {r} Hz"),
+        (Some(n), None) => format!("{n} sample sets per position"),
+        (None, Some(r)) => format!("{r} Hz"),
+    };
+    Some(format!("plan {}: {what}, from its header", p.path.display()))
+}
+
 /// Runs `accelcal station`: every unit's `info` and as-found verification, one node after the
 /// other; the campaigns together; then each unit's line to its certificate. A rejected unit does
 /// not stop the others (the station ends with exit code 1 after them); any other error stops the
@@ -567,6 +578,9 @@ pub fn run(
             keys => format!("; the command line overrides {}", keys.join(", ")),
         };
         errln!("station: settings {} ({}){overridden}", c.path.display(), c.keys.join(", "));
+    }
+    if let Some(line) = a.plan_dwell.as_ref().and_then(plan_dwell_words) {
+        errln!("station: {line}");
     }
     let t0 = std::time::Instant::now();
     let specs = &a.units;

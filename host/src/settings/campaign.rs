@@ -317,10 +317,12 @@ pub struct Design {
     pub unit: UnitType,
     /// `--head-angle-u`, arcsec (0 when not given).
     pub head_angle_u_arcsec: f64,
-    /// `--move-s`, `--rate-hz`, `--samples` per position.
+    /// `--move-s`, `--samples` per position.
     pub move_s: f64,
-    pub rate_hz: f64,
     pub samples: u32,
+    /// `--rate-hz` when given; else the `--like` campaign's `# rate_hz:` line, else
+    /// [`DESIGN_RATE_HZ`] (the command reads the campaign).
+    pub rate_hz: Option<f64>,
     /// `--target-U` (auto only), m/s².
     pub target_u: Option<f64>,
     /// The head's reachable positions.
@@ -331,7 +333,8 @@ pub struct Design {
     pub montecarlo: Option<u32>,
     /// `--seed` of the design's random starts.
     pub seed: u64,
-    /// The stated gravity, else `--g`.
+    /// The stated gravity, else `--g`'s default (which a `--like` campaign's `# g_m_s2:` then
+    /// replaces: the command reads it).
     pub gravity: Gravity,
 }
 
@@ -368,7 +371,7 @@ pub fn plan(a: &PlanArgs, stated: Option<&Gravity>) -> anyhow::Result<PlanSettin
         unit,
         head_angle_u_arcsec: d.head_angle_u.unwrap_or(0.0),
         move_s: d.move_s.unwrap_or(MOVE_S),
-        rate_hz: d.rate_hz.unwrap_or(RATE_HZ),
+        rate_hz: d.rate_hz,
         samples: d.samples.unwrap_or(SAMPLES),
         target_u: d.target_u,
         head: head(a),
@@ -381,7 +384,8 @@ pub fn plan(a: &PlanArgs, stated: Option<&Gravity>) -> anyhow::Result<PlanSettin
 
 /// The defaults of the design's options.
 const MOVE_S: f64 = 10.0;
-const RATE_HZ: f64 = 100.0;
+/// The design's rate, Hz, when neither `--rate-hz` nor a `--like` campaign's header gives one.
+pub const DESIGN_RATE_HZ: f64 = 100.0;
 const SAMPLES: u32 = 400;
 const STEP_DEG: f64 = 15.0;
 const BETA_MAX_DEG: f64 = 90.0;

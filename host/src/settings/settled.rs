@@ -134,6 +134,6 @@ pub fn settle(command: Command, resolved: &Resolved) -> anyhow::Result<Settings>
         Command::Fit(a) => Settings::Fit(campaign::fit(&a)?),
         Command::Acquire(a) => Settings::Acquire(line::acquire(&a, stated)?),
         Command::Verify(a) => Settings::Verify(Box::new(line::verify(&a, stated)?)),
-        Command::Station(a) => Settings::Station(Box::new(station::station(&a))),
+        Command::Station(a) => Settings::Station(Box::new(station::station(&a, resolved.plan.as_ref()))),
     })
 }

@@ -3,9 +3,14 @@
 
 use std::path::{Path, PathBuf};
 
+use accelcal_core::error::bad;
+use accelcal_core::sim::plan::{PlanHeader, RATE_KEY, SAMPLES_KEY};
+
 use super::values::Issuer;
-use crate::cli::StationArgs;
+use super::Given;
+use crate::cli::{Command, Range, StationArgs};
 use crate::cmd::store::{named_db, DEFAULT_DB};
+use crate::resolved::PlanDwell;
 
 /// One node on the head: its link, its unit's serial, its directory, its flash route.
 #[derive(Clone, Debug, PartialEq)]
@@ -36,10 +41,13 @@ pub struct Station {
     pub settle_s: Option<f64>,
     /// A Zaber head's axes and scale, as given (passed on to the steps).
     pub zaber: crate::cli::ZaberArgs,
-    /// `--plan`, `--samples`, `--rate-hz` of the acquisition.
+    /// `--plan`, `--samples`, `--rate-hz` of the acquisition (the samples and rate the plan
+    /// file's header states, when it does).
     pub plan: String,
     pub samples: usize,
     pub rate_hz: Option<u32>,
+    /// The dwell the plan file's header states, which `samples` and `rate_hz` took.
+    pub plan_dwell: Option<PlanDwell>,
     /// `--verify-samples`, else `--samples`: sets per position of each verification.
     pub verify_samples: usize,
     /// `--criterion`: the selection's external criterion.
@@ -75,7 +83,7 @@ pub struct Station {
 
 /// `station`'s settings (the command line checked by `settings::check`, the settings file
 /// applied before, so that every option here is given or defaulted).
-pub fn station(a: &StationArgs) -> Station {
+pub fn station(a: &StationArgs, plan: Option<&PlanDwell>) -> Station {
     let units = (0..a.ports.len())
         .map(|i| StationUnit {
             port: a.ports[i].clone(),
@@ -96,9 +104,12 @@ pub fn station(a: &StationArgs) -> Station {
         settle_s: a.settle_s,
         zaber: a.zaber.clone(),
         plan: a.plan.clone(),
-        samples: a.samples,
-        rate_hz: a.rate_hz,
+        samples: plan.and_then(|p| p.samples).unwrap_or(a.samples),
+        rate_hz: plan.and_then(|p| p.rate_hz).or(a.rate_hz),
+        // The campaign's dwell, not the plan's: a long designed dwell does not lengthen the
+        // verifications.
         verify_samples: a.verify_samples.unwrap_or(a.samples),
+        plan_dwell: plan.cloned(),
         criterion: a.criterion,
         select_tolerance: a.select_tolerance,
         coverage: a.coverage,
@@ -115,6 +126,67 @@ pub fn station(a: &StationArgs) -> Station {
         relabel: a.relabel.clone(),
         issuer: Issuer::of(&a.issuer),
     }
+}
+
+/// `station --plan FILE`: the dwell the plan file's header states (`plan --design` writes
+/// `# samples:` and `# rate_hz:`), which the station takes. A `--samples` or `--rate-hz` (or
+/// their keys in the settings file) that contradicts it is refused, naming both values; one
+/// equal to it is fine. `None` for a built-in plan, a command other than `station`, or a file
+/// that is not there (the acquisition names it).
+pub fn plan_dwell(command: &Command, given: &Given) -> anyhow::Result<Option<PlanDwell>> {
+    let Command::Station(a) = command else { return Ok(None) };
+    let builtin = matches!(a.plan.as_str(), "head" | "six" | "tumble24") || a.plan.starts_with("random:");
+    let path = Path::new(&a.plan);
+    if builtin || !path.is_file() {
+        return Ok(None);
+    }
+    let header = PlanHeader::read(path).map_err(|e| bad(format!("{}: {e}", given.name("plan"))))?;
+    let plan = path.display();
+    let samples = match header.samples {
+        Some(n) => {
+            Range::Sets
+                .count(n)
+                .map_err(|m| bad(format!("the plan {plan}'s `# {SAMPLES_KEY}: {n}` {m} for the station")))?;
+            if given.has("samples") && a.samples != n {
+                return Err(contradicts(given.name("samples"), a.samples, &plan, SAMPLES_KEY, n));
+            }
+            Some(n)
+        }
+        None => None,
+    };
+    let rate_hz = match header.rate_hz {
+        Some(r) => {
+            let hz = Some(r)
+                .filter(|r| r.fract() == 0.0 && *r <= f64::from(u32::MAX))
+                .map(|r| r as u32)
+                .ok_or_else(|| ": not a whole number of Hz".to_string())
+                .and_then(crate::cli::range::rate_hz)
+                .map_err(|m| {
+                    bad(format!("the plan {plan}'s `# {RATE_KEY}: {r}` is not a rate the node takes{m}"))
+                })?;
+            if given.has("rate_hz") && a.rate_hz != Some(hz) {
+                let station = a.rate_hz.map_or_else(String::new, |v| v.to_string());
+                return Err(contradicts(given.name("rate_hz"), station, &plan, RATE_KEY, hz));
+            }
+            Some(hz)
+        }
+        None => None,
+    };
+    Ok(Some(PlanDwell { path: path.to_path_buf(), samples, rate_hz }))
+}
+
+/// The refusal of a station setting (`name`, given as `value`) that contradicts its plan file's
+/// header line `# key: file`.
+fn contradicts(
+    name: String,
+    value: impl std::fmt::Display,
+    plan: &impl std::fmt::Display,
+    key: &str,
+    file: impl std::fmt::Display,
+) -> anyhow::Error {
+    bad(format!(
+        "{name} {value} contradicts the plan {plan} (designed with `# {key}: {file}`): give {file}, or leave it out and the station takes the plan's"
+    ))
 }
 
 /// The station's database: `--db`, else `ACCELCAL_DB`, else `calibration.sqlite` beside the

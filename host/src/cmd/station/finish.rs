@@ -24,15 +24,32 @@ impl Station<'_> {
         self.db.finish_run(run, Outcome::Pass, PASS_REASON)?;
         crash_point("db:end");
         outln!(
-            "station: unit {} (device {}) PASS{}; certificate {}; journal {}; run {run} stored in {}",
+            "station: unit {} (device {}) PASS{}; certificate {}; journal {}; run {run} stored in {}{}",
             self.u.serial,
             self.journal.device_id.as_deref().unwrap_or("?"),
             self.as_found_words()?,
             self.p(CERTIFICATE),
             self.p(JOURNAL),
-            self.db.target()
+            self.db.target(),
+            self.transit_words()?
         )?;
         Ok(())
+    }
+
+    /// What the station's last line says of the sets the campaign lost in transit (the acquire
+    /// step's lines say each position's): `; 12,043 of 124,000 sample sets lost in transit; every
+    /// position kept at least 400`. Nothing when the campaign states no rate to count them by.
+    fn transit_words(&self) -> anyhow::Result<String> {
+        use accelcal_core::campaign::{transit::Transit, Campaign};
+        let path = self.path(CAMPAIGN);
+        let header = accelcal_core::campaign::header(&path).with_context(|| self.p(CAMPAIGN))?;
+        let rate = header
+            .iter()
+            .find(|(k, _)| k == accelcal_core::sim::plan::RATE_KEY)
+            .and_then(|(_, v)| v.parse::<f64>().ok());
+        let Some(rate) = rate.filter(|r| r.is_finite() && *r > 0.0) else { return Ok(String::new()) };
+        let c = Campaign::read(&path).with_context(|| self.p(CAMPAIGN))?;
+        Ok(format!("; {}", Transit::of(&c, rate).words()))
     }
 
     /// What the station's last line says of the as-found result when it did not pass: out of
