@@ -227,6 +227,16 @@ fn certificates(tx: &mut Tx<'_>, id: &str) -> Result<Vec<Asset>, DbError> {
     .collect()
 }
 
+/// [`DbError::AssetTampered`] for asset `id` when its rows' check found `bad` ones, naming the
+/// first; nothing when it found none.
+pub(crate) fn untampered(id: &str, mut bad: Vec<chain::Mismatch>) -> Result<(), DbError> {
+    if bad.is_empty() {
+        return Ok(());
+    }
+    let first = bad.remove(0);
+    Err(DbError::AssetTampered { asset_id: id.into(), first: Box::new(first), more: bad.len() })
+}
+
 /// Checks what `asset add` registers.
 fn check(a: &Asset) -> Result<(), AssetError> {
     let bad = |why: String| AssetError::Bad { asset_id: a.asset_id.clone(), why };
@@ -348,16 +358,8 @@ impl Db {
     /// Its register rows are checked against their hash chain first
     /// ([`DbError::AssetTampered`]): a forged certificate, due date or uncertainty is never used.
     pub fn asset_certificates(&mut self, id: &str) -> Result<Vec<Asset>, DbError> {
-        let (all, mut bad) =
-            self.conn.reading(|tx| Ok((certificates(tx, id)?, chain::verify_asset(tx, id)?)))?;
-        if !bad.is_empty() {
-            let first = bad.remove(0);
-            return Err(DbError::AssetTampered {
-                asset_id: id.into(),
-                first: Box::new(first),
-                more: bad.len(),
-            });
-        }
+        let (all, bad) = self.conn.reading(|tx| Ok((certificates(tx, id)?, chain::verify_asset(tx, id)?)))?;
+        untampered(id, bad)?;
         if all.is_empty() {
             return Err(DbError::Asset(AssetError::Unknown { asset_id: id.into(), target: self.target() }));
         }

@@ -458,16 +458,8 @@ impl Db {
     /// ([`DbError::AssetTampered`]).
     pub fn found_bad(&mut self, id: &str) -> Result<Vec<FoundBad>, DbError> {
         self.asset_certificates(id)?;
-        let (found, mut bad) =
-            self.conn.reading(|tx| Ok((findings(tx, id)?, chain::verify_recall(tx, id)?)))?;
-        if !bad.is_empty() {
-            let first = bad.remove(0);
-            return Err(DbError::AssetTampered {
-                asset_id: id.into(),
-                first: Box::new(first),
-                more: bad.len(),
-            });
-        }
+        let (found, bad) = self.conn.reading(|tx| Ok((findings(tx, id)?, chain::verify_recall(tx, id)?)))?;
+        super::asset::untampered(id, bad)?;
         Ok(found)
     }
 
