@@ -177,6 +177,8 @@ fn the_station_runs_the_line_journals_it_and_resumes_after_ctrl_c() {
     // The certificate names the head by its asset.
     let cert = std::fs::read_to_string(a.join("certificate.html")).unwrap();
     assert!(cert.contains("head HEAD-SIM, calibration certificate DKD-K-0002"), "{cert}");
+    // The sets lost in transit, counted from the campaign (issue 59).
+    assert!(cert.contains(" sample sets lost in transit; every position kept at least "), "{cert}");
     // The environment as read on the registered thermometer, with U (k = 2) from its certificate.
     assert!(
         cert.contains(

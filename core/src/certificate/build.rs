@@ -145,6 +145,8 @@ pub struct Inputs<'a> {
     pub drift: Option<DriftInput>,
     /// The environment's temperature on a registered thermometer, when one was read.
     pub environment: Option<EnvironmentInput>,
+    /// The sample sets the campaign lost in transit, when it states the rate to count them by.
+    pub transit: Option<crate::campaign::transit::Transit>,
     /// The chain's head at issue.
     pub anchor: Option<&'a str>,
     /// The certificate this one replaces (an amendment), with the reason.
@@ -381,8 +383,9 @@ pub fn build(i: &Inputs<'_>) -> Certificate {
         // No file path: where the operator kept the campaign is not the customer's business; its
         // SHA-256 identifies it.
         format!(
-            "plan {plan}, {} sets per position; SHA-256 {}",
+            "plan {plan}, {} sets per position{}; SHA-256 {}",
             i.get("samples").unwrap_or("-"),
+            i.transit.map(|t| format!("; {}", t.words())).unwrap_or_default(),
             &i.campaign_sha256[..16.min(i.campaign_sha256.len())]
         ),
     );
