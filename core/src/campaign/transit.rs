@@ -2,7 +2,7 @@
 //! campaign: `acquire` writes each set's `t_s` from the node's sample counter, so a set lost on
 //! the link leaves a gap of more than one sample period between two rows of a dwell.
 
-use super::Campaign;
+use super::{Campaign, CampaignError};
 
 /// What a campaign's dwells kept and lost.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -35,6 +35,21 @@ impl Transit {
             }
         }
         t
+    }
+
+    /// The sets the campaign file `path` lost, at the rate its header states (`# rate_hz:`, as
+    /// `acquire` writes it); `None` when it states no positive rate to count them by.
+    pub fn of_file(path: &std::path::Path) -> Result<Option<Transit>, CampaignError> {
+        let header = super::header(path)?;
+        let rate = header
+            .iter()
+            .find(|(k, _)| k == crate::sim::plan::RATE_KEY)
+            .and_then(|(_, v)| v.parse::<f64>().ok())
+            .filter(|r| r.is_finite() && *r > 0.0);
+        match rate {
+            Some(rate) => Ok(Some(Transit::of(&Campaign::read(path)?, rate))),
+            None => Ok(None),
+        }
     }
 
     /// The sets sent: kept and lost.
@@ -87,5 +102,19 @@ mod tests {
             big.words(),
             "12,043 of 124,000 sample sets lost in transit; every position kept at least 400"
         );
+    }
+
+    #[test]
+    fn a_file_is_counted_at_the_rate_its_header_states() {
+        let d = tempfile::tempdir().unwrap();
+        let rows = "t_s,alpha_deg,beta_deg,x\n0,0,0,1\n0.002,0,0,1\n0.008,0,0,1\n";
+        let with = d.path().join("with.csv");
+        std::fs::write(&with, format!("# rate_hz: 500\n{rows}")).unwrap();
+        assert_eq!(Transit::of_file(&with).unwrap(), Some(Transit { lost: 2, kept: 3, min_kept: 3 }));
+        let without = d.path().join("without.csv");
+        std::fs::write(&without, rows).unwrap();
+        assert_eq!(Transit::of_file(&without).unwrap(), None);
+        std::fs::write(&without, format!("# rate_hz: 0\n{rows}")).unwrap();
+        assert_eq!(Transit::of_file(&without).unwrap(), None);
     }
 }

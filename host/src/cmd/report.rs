@@ -249,13 +249,7 @@ pub fn run(a: &Report) -> anyhow::Result<()> {
         .collect();
     let operator = run.as_ref().map(|(_, p)| p.start.operator.clone());
     // The sets lost in transit, counted from the campaign's rows at its `# rate_hz:`.
-    let rate = u.get(accelcal_core::sim::plan::RATE_KEY).and_then(|v| v.parse::<f64>().ok());
-    let transit = match rate.filter(|r| r.is_finite() && *r > 0.0) {
-        Some(rate) => {
-            Some(accelcal_core::campaign::transit::Transit::of(&Campaign::read(&a.campaign)?, rate))
-        }
-        None => None,
-    };
+    let transit = accelcal_core::campaign::transit::Transit::of_file(&a.campaign)?;
     let environment = match (a.issuer.ambient_c, &mut db) {
         (Some(celsius), Some(rdb)) => Some(environment(&mut rdb.db, &assets, celsius)?),
         // The settings refuse --ambient-c without --db.

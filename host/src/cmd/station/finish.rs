@@ -40,16 +40,9 @@ impl Station<'_> {
     /// step's lines say each position's): `; 12,043 of 124,000 sample sets lost in transit; every
     /// position kept at least 400`. Nothing when the campaign states no rate to count them by.
     fn transit_words(&self) -> anyhow::Result<String> {
-        use accelcal_core::campaign::{transit::Transit, Campaign};
-        let path = self.path(CAMPAIGN);
-        let header = accelcal_core::campaign::header(&path).with_context(|| self.p(CAMPAIGN))?;
-        let rate = header
-            .iter()
-            .find(|(k, _)| k == accelcal_core::sim::plan::RATE_KEY)
-            .and_then(|(_, v)| v.parse::<f64>().ok());
-        let Some(rate) = rate.filter(|r| r.is_finite() && *r > 0.0) else { return Ok(String::new()) };
-        let c = Campaign::read(&path).with_context(|| self.p(CAMPAIGN))?;
-        Ok(format!("; {}", Transit::of(&c, rate).words()))
+        let transit = accelcal_core::campaign::transit::Transit::of_file(&self.path(CAMPAIGN))
+            .with_context(|| self.p(CAMPAIGN))?;
+        Ok(transit.map(|t| format!("; {}", t.words())).unwrap_or_default())
     }
 
     /// What the station's last line says of the as-found result when it did not pass: out of
